@@ -1,0 +1,345 @@
+"""Pinhole camera with lens distortion, camera rigs, and ``rig.toml``.
+
+The camera model is the one of thesis section 3.4 (Bouguet's toolbox, which is
+also OpenCV's): a point ``X_c`` in the camera frame is normalised,
+``x_n = [X_c/Z_c, Y_c/Z_c]``, distorted with radial ``kc(1), kc(2), kc(5)``
+(OpenCV ``k1, k2, k3``) and tangential ``kc(3), kc(4)`` (``p1, p2``) terms,
+and mapped to pixels with the focal lengths ``fc`` and principal point ``cc``
+(and optional skew ``alpha_c``).
+
+A rig holds several cameras in one world frame, the frame of the reference
+camera (thesis: the left camera, ``CM_L``). Extrinsics follow OpenCV:
+``x_cam = R @ x_world + t``; for a pair this is the toolbox's
+``x_right = R x_left + T`` (Table 8.4's ``R_ML, t_ML``).
+
+``rig.toml`` is the aniposelib / anipose / caliscope camera format described in
+``shared/spec/sessions.md``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib  # type: ignore
+
+
+class RigError(ValueError):
+    """A rig file or a rig description that breaks the contract."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """One calibrated camera.
+
+    Parameters
+    ----------
+    name : str
+        Camera name as used in the session (``"left"``...).
+    size : tuple of int
+        Image ``(width, height)`` in pixels.
+    matrix : ndarray, shape (3, 3)
+        Intrinsic matrix ``KK = [[fx, alpha*fx, cx], [0, fy, cy], [0, 0, 1]]``.
+    distortions : ndarray, shape (5,)
+        ``[k1, k2, p1, p2, k3]`` (Bouguet's ``kc``).
+    rotation : ndarray, shape (3,)
+        Rodrigues vector of ``R`` with ``x_cam = R x_world + t``.
+    translation : ndarray, shape (3,)
+        ``t`` in metres.
+    """
+
+    name: str
+    size: tuple[int, int]
+    matrix: np.ndarray
+    distortions: np.ndarray = field(default_factory=lambda: np.zeros(5))
+    rotation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self):
+        object.__setattr__(self, "size", (int(self.size[0]), int(self.size[1])))
+        object.__setattr__(self, "matrix", np.asarray(self.matrix, float).reshape(3, 3))
+        dist = np.zeros(5)
+        given = np.asarray(self.distortions, float).ravel()
+        if given.size > 5:
+            raise RigError(f"camera {self.name!r}: distortions has {given.size} values, expected at most 5 [k1, k2, p1, p2, k3]")
+        dist[: given.size] = given
+        object.__setattr__(self, "distortions", dist)
+        object.__setattr__(self, "rotation", np.asarray(self.rotation, float).reshape(3))
+        object.__setattr__(self, "translation", np.asarray(self.translation, float).reshape(3))
+
+    # -- convenience views -------------------------------------------------
+    @property
+    def focal(self) -> np.ndarray:
+        """``fc = [fx, fy]`` in pixels."""
+        return np.array([self.matrix[0, 0], self.matrix[1, 1]])
+
+    @property
+    def principal_point(self) -> np.ndarray:
+        """``cc = [cx, cy]`` in pixels."""
+        return np.array([self.matrix[0, 2], self.matrix[1, 2]])
+
+    @property
+    def rotation_matrix(self) -> np.ndarray:
+        """``R`` (3, 3) from the Rodrigues vector."""
+        return rotation_matrix(self.rotation)
+
+    @property
+    def center(self) -> np.ndarray:
+        """Optical centre in world coordinates, ``-R^T t``."""
+        return -self.rotation_matrix.T @ self.translation
+
+    @property
+    def projection_matrix(self) -> np.ndarray:
+        """``P = K [R | t]`` (3, 4) for undistorted normalised pixels."""
+        return self.matrix @ np.hstack([self.rotation_matrix, self.translation[:, None]])
+
+    def with_pose(self, rotation, translation) -> "Camera":
+        """A copy with other extrinsics."""
+        return replace(self, rotation=np.asarray(rotation, float), translation=np.asarray(translation, float))
+
+    # -- geometry ------------------------------------------------------------
+    def world_to_camera(self, points_world: np.ndarray) -> np.ndarray:
+        """Points ``(..., 3)`` from the world frame into this camera's frame."""
+        p = np.asarray(points_world, float)
+        return p @ self.rotation_matrix.T + self.translation
+
+    def project(self, points_world: np.ndarray) -> np.ndarray:
+        """Project world points ``(..., 3)`` to distorted pixels ``(..., 2)``.
+
+        Thesis eq. 3.1-3.10 (pinhole, distortion, pixel mapping). Points at or
+        behind the camera plane give NaN.
+        """
+        pc = self.world_to_camera(points_world)
+        z = pc[..., 2:3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xn = np.where(z > 1e-9, pc[..., :2] / z, np.nan)
+        return self.normalized_to_pixels(xn)
+
+    def normalized_to_pixels(self, xn: np.ndarray) -> np.ndarray:
+        """Distort normalised coordinates ``(..., 2)`` and map them to pixels."""
+        xd = distort_normalized(xn, self.distortions)
+        K = self.matrix
+        u = K[0, 0] * xd[..., 0] + K[0, 1] * xd[..., 1] + K[0, 2]
+        v = K[1, 1] * xd[..., 1] + K[1, 2]
+        return np.stack([u, v], axis=-1)
+
+    def pixels_to_normalized(self, pixels: np.ndarray) -> np.ndarray:
+        """Undistorted normalised coordinates ``(..., 2)`` of pixels ``(..., 2)``.
+
+        Inverts the distortion model iteratively (OpenCV ``undistortPoints``
+        with enough iterations for sub-micro-pixel agreement). NaN stays NaN.
+        """
+        px = np.asarray(pixels, float)
+        shape = px.shape
+        flat = px.reshape(-1, 2)
+        out = np.full_like(flat, np.nan)
+        ok = np.all(np.isfinite(flat), axis=1)
+        if ok.any():
+            und = cv2.undistortPointsIter(
+                flat[ok].reshape(-1, 1, 2), self.matrix, self.distortions,
+                None, None, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14),
+            )
+            out[ok] = und.reshape(-1, 2)
+        return out.reshape(shape)
+
+    def undistort_pixels(self, pixels: np.ndarray) -> np.ndarray:
+        """Ideal (distortion-free) pixel coordinates of distorted pixels."""
+        xn = self.pixels_to_normalized(pixels)
+        K = self.matrix
+        u = K[0, 0] * xn[..., 0] + K[0, 1] * xn[..., 1] + K[0, 2]
+        v = K[1, 1] * xn[..., 1] + K[1, 2]
+        return np.stack([u, v], axis=-1)
+
+    def rays(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World-frame ray origins and unit directions through pixels ``(..., 2)``."""
+        xn = self.pixels_to_normalized(pixels)
+        d_cam = np.concatenate([xn, np.ones(xn.shape[:-1] + (1,))], axis=-1)
+        d = d_cam @ self.rotation_matrix  # R^T d for row vectors
+        d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        return np.broadcast_to(self.center, d.shape).copy(), d
+
+    def in_image(self, pixels: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Boolean mask: pixel lies inside the image by at least ``margin``."""
+        px = np.asarray(pixels, float)
+        w, h = self.size
+        with np.errstate(invalid="ignore"):
+            return ((px[..., 0] >= -0.5 + margin) & (px[..., 0] <= w - 0.5 - margin)
+                    & (px[..., 1] >= -0.5 + margin) & (px[..., 1] <= h - 0.5 - margin))
+
+
+def rotation_matrix(rvec) -> np.ndarray:
+    """Rotation matrix of a Rodrigues vector (angle = norm, axis = direction)."""
+    r = np.asarray(rvec, float).reshape(3)
+    theta = np.linalg.norm(r)
+    if theta < 1e-15:
+        return np.eye(3)
+    k = r / theta
+    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(theta) * Kx + (1 - math.cos(theta)) * Kx @ Kx
+
+
+def rotation_vector(R) -> np.ndarray:
+    """Rodrigues vector of a rotation matrix (projected onto SO(3) first)."""
+    R = np.asarray(R, float)
+    U, _, Vt = np.linalg.svd(R)
+    Rp = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    rvec, _ = cv2.Rodrigues(Rp)
+    return rvec.ravel()
+
+
+def distort_normalized(xn: np.ndarray, kc: np.ndarray) -> np.ndarray:
+    """Apply Bouguet/OpenCV distortion to normalised coordinates ``(..., 2)``.
+
+    ``x_d = (1 + k1 r^2 + k2 r^4 + k3 r^6) x_n + dx`` with the tangential
+    term ``dx = [2 p1 x y + p2 (r^2 + 2 x^2), p1 (r^2 + 2 y^2) + 2 p2 x y]``
+    (thesis eq. 3.7-3.9).
+    """
+    k1, k2, p1, p2, k3 = np.asarray(kc, float)
+    x, y = xn[..., 0], xn[..., 1]
+    r2 = x * x + y * y
+    radial = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+    xd = radial * x + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = radial * y + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return np.stack([xd, yd], axis=-1)
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Cameras sharing one world frame (the reference camera's).
+
+    Parameters
+    ----------
+    cameras : tuple of Camera
+        In session order; ``cameras[i].name`` are unique.
+    metadata : dict
+        The ``[metadata]`` table of ``rig.toml`` (e.g. ``adjusted``, ``error``).
+    """
+
+    cameras: tuple[Camera, ...]
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "cameras", tuple(self.cameras))
+        names = [c.name for c in self.cameras]
+        if len(set(names)) != len(names):
+            raise RigError(f"rig: camera names must be unique, got {names}")
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.cameras]
+
+    def __getitem__(self, name: str) -> Camera:
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise KeyError(f"rig has no camera {name!r}; it has {self.names}")
+
+    def __iter__(self):
+        return iter(self.cameras)
+
+    def __len__(self):
+        return len(self.cameras)
+
+    def project(self, points_world: np.ndarray) -> dict[str, np.ndarray]:
+        """Pixels of world points in every camera, keyed by camera name."""
+        return {c.name: c.project(points_world) for c in self.cameras}
+
+    def subset(self, names) -> "Rig":
+        """A rig with only the named cameras, in the given order."""
+        return Rig(tuple(self[n] for n in names), dict(self.metadata))
+
+
+# ---------------------------------------------------------------------------
+# rig.toml
+# ---------------------------------------------------------------------------
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise RigError(f"rig.toml: cannot write a value of type {type(v).__name__}")
+
+
+def rig_to_toml(rig: Rig) -> str:
+    """The text of ``rig.toml`` for a rig (aniposelib format)."""
+    lines = []
+    for i, cam in enumerate(rig.cameras):
+        lines += [
+            f"[cam_{i}]",
+            f"name = {_toml_value(cam.name)}",
+            f"size = {_toml_value(list(cam.size))}",
+            f"matrix = {_toml_value(cam.matrix)}",
+            f"distortions = {_toml_value(cam.distortions)}",
+            f"rotation = {_toml_value(cam.rotation)}",
+            f"translation = {_toml_value(cam.translation)}",
+            "",
+        ]
+    lines.append("[metadata]")
+    for k, v in rig.metadata.items():
+        lines.append(f"{k} = {_toml_value(v)}")
+    return "\n".join(lines) + "\n"
+
+
+def write_rig(rig: Rig, path) -> Path:
+    """Write ``rig.toml`` atomically (a temporary file renamed into place)."""
+    from .store import atomic_write_text
+
+    return atomic_write_text(Path(path), rig_to_toml(rig))
+
+
+def _field(table, key, path, section, shape=None):
+    if key not in table:
+        raise RigError(f"{path}: [{section}] has no field '{key}'")
+    value = table[key]
+    if shape is not None:
+        try:
+            arr = np.asarray(value, float)
+        except (TypeError, ValueError):
+            raise RigError(f"{path}: [{section}] field '{key}' must be numbers of shape {shape}, got {value!r}") from None
+        if arr.shape != shape and not (key == "distortions" and arr.ndim == 1 and 4 <= arr.size <= 5):
+            raise RigError(f"{path}: [{section}] field '{key}' must have shape {shape}, got {arr.shape}")
+        return arr
+    return value
+
+
+def read_rig(path) -> Rig:
+    """Read a ``rig.toml`` (aniposelib format); errors name the file and field."""
+    path = Path(path)
+    if not path.is_file():
+        raise RigError(f"{path}: rig file not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise RigError(f"{path}: not valid TOML ({exc})") from None
+    cams = []
+    for section, table in data.items():
+        if section == "metadata" or not isinstance(table, dict):
+            continue
+        name = str(_field(table, "name", path, section))
+        size = _field(table, "size", path, section, (2,))
+        cams.append(Camera(
+            name=name,
+            size=(int(size[0]), int(size[1])),
+            matrix=_field(table, "matrix", path, section, (3, 3)),
+            distortions=_field(table, "distortions", path, section, (5,)),
+            rotation=_field(table, "rotation", path, section, (3,)),
+            translation=_field(table, "translation", path, section, (3,)),
+        ))
+    if not cams:
+        raise RigError(f"{path}: no camera tables ([cam_0], ...) found")
+    return Rig(tuple(cams), dict(data.get("metadata", {})))
