@@ -1,0 +1,145 @@
+"""The result files of ``horsemocap analyze`` (spec ``sessions.md``).
+
+:func:`write_available` writes every file whose steps have run, each one
+atomically, so a failed step leaves the files of the steps before it whole.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from .camera import rig_to_toml
+from .store import atomic_write_json, atomic_write_text
+
+FORMAT = "horsemocap-results/1"
+
+
+def _csv_text(header, rows) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _num(v, digits=9) -> str:
+    return "" if v is None or not np.isfinite(v) else f"{float(v):.{digits}g}"
+
+
+def frame_numbers(analysis) -> tuple[np.ndarray, np.ndarray]:
+    """``(frame, time_s)`` of the analysed samples.
+
+    ``frame`` is the index in the reference camera's own motion source;
+    ``time_s`` counts from the first analysed frame (thesis eq. 5.13).
+    """
+    s = analysis.session
+    a, b = analysis.results["detect"]["segment"]
+    frame = analysis.results["sync"]["offsets"][s.reference_camera] + np.arange(a, b)
+    return frame, np.arange(b - a) / s.fps
+
+
+def markers_2d_text(analysis) -> str:
+    """``camera,frame,marker,u_px,v_px`` in each camera's own numbering."""
+    offsets = analysis.results["sync"]["offsets"]
+    rows = []
+    for cam, px in analysis.results["detect"]["marker_px"].items():
+        for k in range(px.shape[0]):
+            for m in range(px.shape[1]):
+                rows.append([cam, offsets[cam] + k, f"marker{m + 1}", _num(px[k, m, 0]), _num(px[k, m, 1])])
+    return _csv_text(["camera", "frame", "marker", "u_px", "v_px"], rows)
+
+
+def _points(analysis, key):
+    """Marker and saddle arrays ``(n, m+1, 3)`` for ``position``/``velocity``/``acceleration``."""
+    markers = analysis.results["fit"][key] if key != "position" else analysis.results["register"]["registered"]
+    saddle = analysis.results["saddle"][key]
+    return np.concatenate([markers, saddle[:, None, :]], axis=1)
+
+
+def _point_names(n_markers):
+    return [f"marker{i + 1}" for i in range(n_markers)] + ["saddle"]
+
+
+def trajectories_text(analysis) -> str:
+    frame, t = frame_numbers(analysis)
+    pos = _points(analysis, "position")
+    names = _point_names(pos.shape[1] - 1)
+    rows = [[int(frame[k]), _num(t[k]), names[j], *(_num(v) for v in pos[k, j])]
+            for k in range(len(frame)) for j in range(pos.shape[1])]
+    return _csv_text(["frame", "time_s", "point", "x_m", "y_m", "z_m"], rows)
+
+
+def kinematics_text(analysis) -> str:
+    frame, t = frame_numbers(analysis)
+    vel, acc = _points(analysis, "velocity"), _points(analysis, "acceleration")
+    names = _point_names(vel.shape[1] - 1)
+    rows = [[int(frame[k]), _num(t[k]), names[j], *(_num(v) for v in vel[k, j]), *(_num(v) for v in acc[k, j])]
+            for k in range(len(frame)) for j in range(vel.shape[1])]
+    return _csv_text(["frame", "time_s", "point", "vx_mps", "vy_mps", "vz_mps",
+                      "ax_mps2", "ay_mps2", "az_mps2"], rows)
+
+
+def angular_text(analysis) -> str:
+    frame, t = frame_numbers(analysis)
+    w, a = analysis.results["angular"]["omega"], analysis.results["angular"]["alpha"]
+    rows = [[int(frame[k]), _num(t[k]), *(_num(v) for v in w[k]), *(_num(v) for v in a[k])]
+            for k in range(len(frame))]
+    return _csv_text(["frame", "time_s", "wx_radps", "wy_radps", "wz_radps",
+                      "alphax_radps2", "alphay_radps2", "alphaz_radps2"], rows)
+
+
+def analysis_record(analysis) -> dict:
+    """Everything needed to repeat the run: parameters given and chosen."""
+    res = analysis.results
+    record = {
+        "format": FORMAT,
+        "session": str(analysis.session.root),
+        "session_name": analysis.session.name,
+        "written": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "steps_done": list(res),
+        "parameters": analysis.params.to_dict(),
+        "chosen": {},
+        "timings_s": {k: round(v, 3) for k, v in analysis.timings.items()},
+    }
+    p, chosen = record["parameters"], record["chosen"]
+    if "sync" in res:
+        p["sync_offsets"] = dict(res["sync"]["offsets"])
+        chosen["sync"] = {"offsets_from": res["sync"]["offsets_from"], "n_frames": res["sync"]["n_frames"]}
+    if "rig" in res:
+        chosen["rig"] = res["rig"]["rig_from"]
+    if "detect" in res:
+        p["detection"] = res["detect"]["detection"]
+        chosen["analysed_frames"] = list(res["detect"]["segment"])
+    if "motion_frame" in res:
+        p["period_frames"] = res["motion_frame"]["period_frames"]
+    if "register" in res:
+        chosen["static_order"] = res["register"]["static_order"]
+        chosen["saddle_index_in_static"] = res["register"]["saddle_index"]
+    if "fit" in res:
+        p["fourier_orders"] = {k: int(v) for k, v in res["fit"]["orders"].items()}
+    return record
+
+
+def write_available(out_dir: Path, analysis) -> list[Path]:
+    """Write every result file whose steps are done; returns the paths written."""
+    from .vibration import write_comfort_csv, write_comfort_spreadsheet
+
+    res, out, written = analysis.results, Path(out_dir), []
+    if "rig" in res:
+        written.append(atomic_write_text(out / "rig.toml", rig_to_toml(res["rig"]["rig"])))
+    if "detect" in res:
+        written.append(atomic_write_text(out / "markers_2d.csv", markers_2d_text(analysis)))
+    if "saddle" in res:
+        written.append(atomic_write_text(out / "trajectories.csv", trajectories_text(analysis)))
+        written.append(atomic_write_text(out / "kinematics.csv", kinematics_text(analysis)))
+    if "angular" in res:
+        written.append(atomic_write_text(out / "angular.csv", angular_text(analysis)))
+    if "comfort" in res:
+        written.append(write_comfort_csv(out / "comfort.csv", res["comfort"]["indicators"]))
+        written.append(write_comfort_spreadsheet(out / "comfort.xlsx", res["comfort"]["indicators"]))
+    written.append(atomic_write_json(out / "analysis.json", analysis_record(analysis)))
+    return written

@@ -1,0 +1,265 @@
+"""Read and validate a riding session (``session.json``, spec ``sessions.md``).
+
+A session folder holds the recordings of one ride: one motion video (or image
+folder) per camera, calibration views or a rig, a plumb still and a static
+still per camera (thesis Appendix A, steps 1-12). :func:`load_session` checks
+every field and every path and raises :class:`SessionError` naming the file,
+the field and what was expected.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .sources import FrameSource, SourceError
+
+FORMAT = "horsemocap-session/1"
+KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion", "sync",
+                "calibration", "plumb", "static", "markers", "analysis", "metadata")
+REQUIRED_FIELDS = ("format", "name", "fps", "cameras", "motion", "sync", "calibration", "markers")
+
+
+class SessionError(ValueError):
+    """A session that breaks the contract; the message names file and field."""
+
+
+@dataclass(frozen=True)
+class Board:
+    """Checkerboard: ``inner_corners`` (cols, rows) and square size in metres."""
+
+    inner_corners: tuple[int, int]
+    square_size_m: float
+
+
+@dataclass(frozen=True)
+class Session:
+    """A validated riding session. Paths are absolute.
+
+    Attributes mirror ``session.json``; ``sync_offsets`` is None for
+    ``{"method": "flash"}`` (found by :mod:`horsemocap.sync`).
+    """
+
+    root: Path
+    name: str
+    fps: float
+    cameras: tuple[str, ...]
+    reference_camera: str
+    motion: dict
+    sync_method: str
+    sync_offsets: dict | None
+    rig_path: Path | None
+    calibration_images: dict | None
+    board: Board | None
+    plumb: dict | None
+    static: dict | None
+    marker_count: int
+    marker_diameter_m: float
+    analysis: dict = field(default_factory=dict)
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def json_path(self) -> Path:
+        return self.root / "session.json"
+
+    def source(self, camera: str) -> FrameSource:
+        """The motion frame source of a camera."""
+        return FrameSource(self.motion[camera])
+
+
+def _fail(path, field_name, expected, got=None):
+    msg = f"{path}: field '{field_name}': expected {expected}"
+    if got is not None:
+        msg += f", got {json.dumps(got) if not isinstance(got, str) else repr(got)}"
+    raise SessionError(msg)
+
+
+def _require_dict(path, name, value):
+    if not isinstance(value, dict):
+        _fail(path, name, "an object", value)
+    return value
+
+
+def _camera_paths(path, root, name, value, cameras, *, must_exist=True, kind="file or folder"):
+    value = _require_dict(path, name, value)
+    unknown = [c for c in value if c not in cameras]
+    if unknown:
+        _fail(path, f"{name}.{unknown[0]}", f"a camera listed in 'cameras' {list(cameras)}", unknown[0])
+    missing = [c for c in cameras if c not in value]
+    if missing:
+        _fail(path, name, f"an entry for every camera; '{missing[0]}' is missing")
+    out = {}
+    for cam in cameras:
+        rel = value[cam]
+        if not isinstance(rel, str) or not rel:
+            _fail(path, f"{name}.{cam}", "a path relative to the session folder", rel)
+        p = (root / rel).resolve()
+        if must_exist and not p.exists():
+            _fail(path, f"{name}.{cam}", f"an existing {kind} ({p} not found)")
+        out[cam] = p
+    return out
+
+
+def _check_unknown(path, data, known, where=""):
+    for key in data:
+        if key not in known:
+            close = difflib.get_close_matches(key, known, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise SessionError(f"{path}: unknown field '{where}{key}'{hint} (known fields: {', '.join(known)})")
+
+
+def _number(path, name, value, *, positive=True):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or (positive and value <= 0):
+        _fail(path, name, "a positive number" if positive else "a number", value)
+    return float(value)
+
+
+def load_session(folder, *, open_sources: bool = True) -> Session:
+    """Read and validate ``<folder>/session.json``.
+
+    Parameters
+    ----------
+    folder : path
+        The session folder (or the ``session.json`` file itself).
+    open_sources : bool
+        Also open every motion source (a video must yield a frame; a folder
+        must hold images). Frame counts against sync offsets are checked by
+        :func:`check_frame_counts` once the offsets are known.
+
+    Returns
+    -------
+    Session
+
+    Raises
+    ------
+    SessionError
+        Naming the file, the field and what was expected.
+    """
+    folder = Path(folder)
+    path = folder if folder.name == "session.json" else folder / "session.json"
+    root = path.parent.resolve()
+    if not path.is_file():
+        raise SessionError(f"{path}: session file not found (a session folder holds session.json)")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise SessionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+    if not isinstance(data, dict):
+        raise SessionError(f"{path}: expected a JSON object at the top level")
+    _check_unknown(path, data, KNOWN_FIELDS)
+    for key in REQUIRED_FIELDS:
+        if key not in data:
+            raise SessionError(f"{path}: required field '{key}' is missing")
+    if data["format"] != FORMAT:
+        _fail(path, "format", f'"{FORMAT}"', data["format"])
+    name = data["name"]
+    if not isinstance(name, str) or not name:
+        _fail(path, "name", "a non-empty string", name)
+    fps = _number(path, "fps", data["fps"])
+    if fps > 10000:
+        _fail(path, "fps", "frames per second (at most 10000)", data["fps"])
+
+    cams = data["cameras"]
+    if not isinstance(cams, list) or not cams or not all(isinstance(c, str) and c for c in cams):
+        _fail(path, "cameras", "a non-empty list of camera names", cams)
+    if len(set(cams)) != len(cams):
+        _fail(path, "cameras", "unique camera names", cams)
+    cameras = tuple(cams)
+    ref = data.get("reference_camera", cameras[0])
+    if ref not in cameras:
+        _fail(path, "reference_camera", f"one of {list(cameras)}", ref)
+
+    motion = _camera_paths(path, root, "motion", data["motion"], cameras, kind="video file or image folder")
+    if open_sources:
+        for cam, p in motion.items():
+            try:
+                FrameSource(p)
+            except SourceError as exc:
+                raise SessionError(f"{path}: field 'motion.{cam}': {exc}") from None
+
+    sync = _require_dict(path, "sync", data["sync"])
+    _check_unknown(path, sync, ("method", "offsets"), "sync.")
+    offsets = None
+    if "offsets" in sync:
+        raw = _require_dict(path, "sync.offsets", sync["offsets"])
+        _check_unknown(path, raw, cameras, "sync.offsets.")
+        offsets = {}
+        for cam in cameras:
+            v = raw.get(cam)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                _fail(path, f"sync.offsets.{cam}", "a frame index (integer >= 0)", v)
+            offsets[cam] = v
+        method = "offsets"
+    elif sync.get("method") == "flash":
+        method = "flash"
+    else:
+        _fail(path, "sync", '{"method": "flash"} or {"offsets": {camera: frame}}', sync)
+
+    cal = _require_dict(path, "calibration", data["calibration"])
+    _check_unknown(path, cal, ("rig", "images", "board"), "calibration.")
+    rig_path = None
+    if "rig" in cal:
+        if not isinstance(cal["rig"], str):
+            _fail(path, "calibration.rig", "a path to rig.toml", cal["rig"])
+        rig_path = (root / cal["rig"]).resolve()
+        if not rig_path.is_file():
+            _fail(path, "calibration.rig", f"an existing rig file ({rig_path} not found)")
+    images = board = None
+    if "images" in cal:
+        images = _camera_paths(path, root, "calibration.images", cal["images"], cameras, kind="folder")
+        if "board" not in cal:
+            raise SessionError(f"{path}: field 'calibration.board' is required with 'calibration.images'")
+        b = _require_dict(path, "calibration.board", cal["board"])
+        _check_unknown(path, b, ("inner_corners", "square_size_m"), "calibration.board.")
+        ic = b.get("inner_corners")
+        if not (isinstance(ic, list) and len(ic) == 2 and all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in ic)):
+            _fail(path, "calibration.board.inner_corners", "[columns, rows] of inner corners (integers >= 2)", ic)
+        board = Board((ic[0], ic[1]), _number(path, "calibration.board.square_size_m", b.get("square_size_m")))
+    if rig_path is None and images is None:
+        _fail(path, "calibration", "a 'rig' file or 'images' + 'board'", cal)
+
+    plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
+    static = _camera_paths(path, root, "static", data["static"], cameras, kind="image") if "static" in data else None
+
+    markers = _require_dict(path, "markers", data["markers"])
+    _check_unknown(path, markers, ("count", "diameter_m"), "markers.")
+    count = markers.get("count")
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        _fail(path, "markers.count", "the number of markers on the horse (an integer >= 1)", count)
+    diameter = _number(path, "markers.diameter_m", markers.get("diameter_m", 0.06))
+
+    analysis = _require_dict(path, "analysis", data.get("analysis", {}))
+    metadata = _require_dict(path, "metadata", data.get("metadata", {}))
+    return Session(root=root, name=name, fps=fps, cameras=cameras, reference_camera=ref,
+                   motion=motion, sync_method=method, sync_offsets=offsets, rig_path=rig_path,
+                   calibration_images=images, board=board, plumb=plumb, static=static,
+                   marker_count=count, marker_diameter_m=diameter, analysis=dict(analysis),
+                   metadata=dict(metadata))
+
+
+def synced_frame_count(frame_counts: dict, offsets: dict) -> int:
+    """Number of synchronised frames all cameras share (thesis eq. 3.11-3.14).
+
+    Frame ``k`` of the synchronised sequence is frame ``offsets[c] + k`` of
+    camera ``c``; the shared length is ``min_c(count_c - offsets_c)``.
+    """
+    return min(frame_counts[c] - offsets[c] for c in offsets)
+
+
+def check_frame_counts(session: Session, frame_counts: dict, offsets: dict) -> int:
+    """Check that every camera has frames at and after its sync offset.
+
+    Returns the synchronised frame count; raises :class:`SessionError` naming
+    the camera's file when a source is too short (e.g. a truncated video).
+    """
+    for cam in session.cameras:
+        if frame_counts[cam] <= offsets[cam]:
+            raise SessionError(
+                f"{session.motion[cam]}: camera '{cam}' has {frame_counts[cam]} frames, but its sync "
+                f"offset is frame {offsets[cam]}: the source is truncated or the offset is wrong "
+                f"(see 'sync' in {session.json_path})")
+    n = synced_frame_count(frame_counts, offsets)
+    return n
