@@ -1,0 +1,67 @@
+"""Figures that summarise a whole analysis (report, notebook 14)."""
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+__all__ = ["plot_marker_tracks", "plot_axes_timeseries", "plot_reprojection_residuals"]
+
+AXES = ("x-motion", "y-motion (down)", "z-motion")
+
+
+def plot_marker_tracks(marker_px: dict, image_size=(640, 480), fig=None):
+    """Detected marker paths in each camera's image (one panel per camera).
+
+    Parameters
+    ----------
+    marker_px : dict of ndarray (frames, markers, 2)
+        Pixel centroids per camera (thesis ``PM_L``, ``PM_M``, ``PM_R``).
+    """
+    cams = list(marker_px)
+    fig = fig or plt.figure(figsize=(4 * len(cams), 3.2))
+    for i, cam in enumerate(cams):
+        ax = fig.add_subplot(1, len(cams), i + 1)
+        px = marker_px[cam]
+        for m in range(px.shape[1]):
+            ax.plot(px[:, m, 0], px[:, m, 1], ".-", ms=2, lw=0.8, label=f"marker {m + 1}")
+        ax.set_xlim(0, image_size[0])
+        ax.set_ylim(image_size[1], 0)
+        ax.set_aspect("equal")
+        ax.set_title(f"{cam} camera")
+        ax.set_xlabel("u (px)")
+        if i == 0:
+            ax.set_ylabel("v (px)")
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def plot_axes_timeseries(t, series: dict, unit: str, title: str, fig=None):
+    """One panel per motion axis; ``series`` maps a label to an ``(n, 3)`` array."""
+    fig = fig or plt.figure(figsize=(12, 3))
+    for k in range(3):
+        ax = fig.add_subplot(1, 3, k + 1)
+        for label, arr in series.items():
+            ax.plot(t, np.asarray(arr)[:, k], label=label, lw=1.2)
+        ax.set_title(AXES[k])
+        ax.set_xlabel("t (s)")
+        if k == 0:
+            ax.set_ylabel(unit)
+            ax.legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_reprojection_residuals(residual_px: dict, fig=None):
+    """Reprojection residual per camera and frame (median over markers)."""
+    fig = fig or plt.figure(figsize=(6, 3))
+    ax = fig.add_subplot(1, 1, 1)
+    for cam, r in residual_px.items():
+        ax.plot(np.nanmedian(r, axis=1) if r.ndim > 1 else r, label=cam, lw=1)
+    ax.set_xlabel("synchronised frame")
+    ax.set_ylabel("residual (px)")
+    ax.set_title("Reprojection residuals")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig

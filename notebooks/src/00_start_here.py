@@ -1,0 +1,119 @@
+# %% [markdown]
+# # 00 · Start here: the saddle of a horse, seen by three cameras
+#
+# **What you will learn**
+# - what the thesis behind this suite measured, and why (G. Dogan, *Development of a 3-camera
+#   vision system and the saddle motion analysis of horses via this system*, METU 2009);
+# - the pipeline from three videos to comfort indicators, and which notebook teaches each step;
+# - how the widgets of these notebooks stand in for the questions the thesis' MATLAB code asked;
+# - how to run the whole analysis with one function call, or one command.
+#
+# A horse's back moves the rider up and down a few centimetres several times a second. The thesis
+# filmed four horses in four gaits with three cameras, followed reflective markers stuck near the
+# saddle, and reconstructed the motion of the saddle point under the rider — which no camera can
+# see, because the rider's leg covers it. From the saddle's vertical acceleration it computed the
+# whole-body vibration indicators of ISO 2631-1 and BS 6841, and how long a rider may ride before
+# reaching the exposure values of the EU directive 2002/44/EC.
+
+# %%
+import json
+
+import matplotlib.pyplot as plt
+
+from horsemocap import data, plots
+from horsemocap.pipeline import STEPS
+from horsemocap.session import load_session
+
+# %% [markdown]
+# ## The thesis in one figure
+#
+# Every box below is one pure function of the `horsemocap` package, and every arrow is a notebook
+# of this suite. The numbers are the thesis sections.
+
+# %%
+fig = plots.plot_pipeline()
+plt.show()
+
+# %% [markdown]
+# ## The notebooks, in order
+#
+# | notebook | step | thesis |
+# | --- | --- | --- |
+# | 01 virtual laboratory | synthetic rides with exact truth (the thesis videos are not public) | seed 000 §3, 8.1 |
+# | 02 synchronization | the flashlight frame in each camera | 3.5, eq. 3.11-3.14 |
+# | 03 calibration | checkerboards, intrinsics, stereo pairs, a joint rig | 3.3-3.6, 8.2 |
+# | 04 marker detection | threshold, labels, area, window, distance and cross-product filters | 4 |
+# | 05 triangulation | three stereo pairs averaged vs all cameras at once | 5.1 |
+# | 06 smoothing and motion frame | robust loess; x along the displacement, y along the plumb line | 5.2-5.3 |
+# | 07 gravity check | g from a falling ball | 8.3 |
+# | 08 registration | the rigid body against the static shot | 5.4 |
+# | 09 curve fitting | polynomial x, Fourier y and z, velocity and acceleration | 5.5 |
+# | 10 angular kinematics | omega and alpha, six thesis versions and least squares | 6.1-6.2 |
+# | 11 saddle marker | the hidden saddle point | 6.3-6.4 |
+# | 12 whole-body vibration | Wb, Wk, Wd, rms, VDV, exposure times and distances | 7, Table 8.7 |
+# | 13 horses and gaits | four horses, four gaits, riders' grades | 8.5 |
+# | 14 accuracy | the error of every stage, and what a better rig buys | seed 000 §6 |
+
+# %% [markdown]
+# ## The bundled riding session
+#
+# Every notebook works on the same session: Horse 2 at canter, rendered by the virtual laboratory
+# with the thesis' own camera rig (Tables 8.1-8.4). A session is a folder with a `session.json`
+# (the contract is in `docs/sessions.md`):
+
+# %%
+session_dir = data.default_session_dir()
+doc = json.loads((session_dir / "session.json").read_text())
+print(json.dumps({k: doc[k] for k in ("name", "fps", "cameras", "reference_camera", "sync", "markers")}, indent=1))
+session = load_session(session_dir)
+print("motion sources:", {cam: p.name for cam, p in session.motion.items()})
+
+# %% [markdown]
+# ## Widgets stand in for the MATLAB prompts
+#
+# The thesis' scripts stopped and asked: *enter the threshold* (`left_levelinput = 115`), *pick the
+# marker labels*, *enter the period* (`period = 18`), *choose the Fourier order*, *which omega versions
+# to average*. Here each question is a widget whose **default is the automatic choice**, so a notebook
+# run top to bottom without a person gives exactly the numbers of the command line:
+#
+# | thesis prompt | widget | notebook |
+# | --- | --- | --- |
+# | gray-level threshold | threshold slider with a live binary preview | 04 |
+# | marker labels in the first image | label picker over the numbered regions | 04 |
+# | area range, window size, distance tolerance | sliders | 04 |
+# | frame offsets | frame-by-frame flash checker | 02 |
+# | marker for x-motion, period | dropdown and slider | 06 |
+# | number of extremes, Fourier order | order chooser with fits and residuals | 09 |
+# | omega / alfa versions | six checkboxes | 10 |
+# | weighting mode | iso / thesis toggle | 12 |
+#
+# The pattern is always the same: one cell shows the widget, the next cell reads `widget.value` and
+# calls the same package function the pipeline calls.
+
+# %% [markdown]
+# ## The whole analysis in one call
+#
+# `horsemocap.pipeline.analyze(session, out_dir)` runs every step with its automatic choices and
+# writes the result files; from a terminal, `horsemocap demo` does the same on this session.
+# The steps, in order:
+
+# %%
+print(" -> ".join(STEPS))
+
+# %% [markdown]
+# ## Exercises
+#
+# 1. Open `data_samples/horse2_canter/session.json` and find where the three videos and the calibration
+#    views are. Which field would you change to give the frame offsets by hand?
+# 2. Run `horsemocap analyze --help` in a terminal. Which of its options correspond to the widgets above?
+# 3. In the figure, which steps need the static shot, and which the plumb line?
+#
+# <details><summary>Solutions</summary>
+#
+# 1. `motion` and `calibration.images`; `sync` becomes `{"offsets": {"left": ..., "middle": ..., "right": ...}}`.
+# 2. `--threshold` (threshold slider), `--period` and `--x-marker` (motion frame), `--fourier-orders`
+#    (order chooser), `--angular` (omega/alfa versions), `--weighting` (iso/thesis toggle), `--offsets`.
+# 3. The static shot: registration (the rigid model) and the saddle marker. The plumb line: the motion
+#    frame (gravity gives y-motion).
+#
+# </details>
