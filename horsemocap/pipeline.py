@@ -189,7 +189,9 @@ def step_plumb(session: Session, params: AnalysisParams, res: dict, progress) ->
     if session.plumb is None:
         raise AnalysisError("plumb", f"{session.json_path}: no 'plumb' stills; gravity cannot be found")
     pts, px = _still_points(session, res["rig"]["rig"], session.plumb, 2, "plumb", params.triangulation)
-    gravity = gravity_from_plumb(pts[0], pts[1])
+    # detect_still orders the two plumb markers top first (image v): the upper one is
+    # the tail, the lower one the tip, and gravity points from tail to tip (down).
+    gravity = gravity_from_plumb(tip_world=pts[1], tail_world=pts[0])
     progress("plumb", f"gravity {np.round(gravity, 4).tolist()}")
     return {"plumb_points": pts, "plumb_px": px, "gravity": gravity}
 
@@ -239,17 +241,36 @@ def step_register(session: Session, params: AnalysisParams, res: dict, progress)
             "saddle_index": int(saddle_index)}
 
 
+def _fourier_orders(given, n_markers):
+    """``{"y": N, "z": N}`` or per-marker ``[[Ny, Nz], ...]`` -> array (m, 2) or None."""
+    if given is None:
+        return None
+    if isinstance(given, dict):
+        return np.tile([int(given["y"]), int(given["z"])], (n_markers, 1))
+    arr = np.asarray(given, int)
+    if arr.shape != (n_markers, 2):
+        raise AnalysisError("fit", f"parameter 'fourier_orders': expected {{'y': N, 'z': N}} or "
+                                   f"{n_markers} pairs [Ny, Nz], got {given!r}")
+    return arr
+
+
 def step_fit(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Polynomial x-motion and Fourier y/z fits; v and a from them (5.5)."""
+    """Polynomial x-motion and Fourier y/z fits; v and a from them (5.5).
+
+    The registered positions are kept as the positions (section 5.5.2);
+    velocity and acceleration are the analytic derivatives of the fits.
+    """
     from .fitting import fit_motion
     from .frames import time_axis
 
     registered = res["register"]["registered"]
     t = time_axis(len(registered), session.fps)
-    mfit = fit_motion(t, registered, x_degree=params.x_degree, orders=params.fourier_orders)
-    return {"t": t, "motion_fit": mfit, "position": mfit.position(t),
+    orders = _fourier_orders(params.fourier_orders, registered.shape[1])
+    mfit = fit_motion(t, registered, x_degree=params.x_degree, orders=orders)
+    progress("fit", "Fourier orders (y, z) per marker " + str(mfit.orders[:, 1:].tolist()))
+    return {"t": t, "motion_fit": mfit, "position": registered, "fitted_position": mfit.position(t),
             "velocity": mfit.velocity(t), "acceleration": mfit.acceleration(t),
-            "orders": mfit.orders}
+            "orders": np.asarray(mfit.orders)[:, 1:]}
 
 
 def step_angular(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
@@ -351,6 +372,21 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
                 result_files.write_available(Path(out_dir), analysis)
         if name == until:
             break
+    return analysis
+
+
+def run_steps(session: Session, params: AnalysisParams, results: dict, steps, progress=None) -> Analysis:
+    """Run ``steps`` (names, in pipeline order) on top of given ``results``.
+
+    For studies that replace one step's output (e.g. noisy detections) and
+    follow the change through the later steps. Nothing is written.
+    """
+    progress = progress or (lambda *a: None)
+    analysis = Analysis(session, params, dict(results))
+    for name in steps:
+        t0 = time.perf_counter()
+        analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
+        analysis.timings[name] = time.perf_counter() - t0
     return analysis
 
 

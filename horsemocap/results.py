@@ -55,7 +55,7 @@ def markers_2d_text(analysis) -> str:
 
 def _points(analysis, key):
     """Marker and saddle arrays ``(n, m+1, 3)`` for ``position``/``velocity``/``acceleration``."""
-    markers = analysis.results["fit"][key] if key != "position" else analysis.results["register"]["registered"]
+    markers = analysis.results["fit"][key]
     saddle = analysis.results["saddle"][key]
     return np.concatenate([markers, saddle[:, None, :]], axis=1)
 
@@ -120,7 +120,7 @@ def analysis_record(analysis) -> dict:
         chosen["static_order"] = res["register"]["static_order"]
         chosen["saddle_index_in_static"] = res["register"]["saddle_index"]
     if "fit" in res:
-        p["fourier_orders"] = {k: int(v) for k, v in res["fit"]["orders"].items()}
+        p["fourier_orders"] = np.asarray(res["fit"]["orders"]).astype(int).tolist()
     return record
 
 

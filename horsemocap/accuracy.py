@@ -1,0 +1,199 @@
+"""The error of every stage against the virtual laboratory's truth.
+
+The metrics of seed 000 (section 6): detected points are first matched to
+the true ones (an optimal one-to-one assignment), then the Euclidean distance
+is measured, in pixels per camera (2D) and in metres (3D). The later stages
+are compared in the motion frame, per axis. A noise-injection study replaces
+the detections by the true projections plus Gaussian noise and follows the
+noise through every later step of the pipeline.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from .frames import angle_deg
+
+AXES = ("x", "y", "z")
+
+
+def match_points(detected: np.ndarray, true: np.ndarray):
+    """Optimal one-to-one matching of detected to true points (seed 000, 6.1).
+
+    Parameters
+    ----------
+    detected : (k, d) array, NaN rows ignored
+    true : (m, d) array, NaN rows ignored
+
+    Returns
+    -------
+    pairs : (p, 2) int array of (detected index, true index)
+    distances : (p,) Euclidean distances of the pairs
+    """
+    det_ok = np.flatnonzero(np.all(np.isfinite(detected), axis=1))
+    tru_ok = np.flatnonzero(np.all(np.isfinite(true), axis=1))
+    if det_ok.size == 0 or tru_ok.size == 0:
+        return np.zeros((0, 2), int), np.zeros(0)
+    cost = np.linalg.norm(detected[det_ok, None, :] - true[None, tru_ok, :], axis=2)
+    r, c = linear_sum_assignment(cost)
+    return np.stack([det_ok[r], tru_ok[c]], axis=1), cost[r, c]
+
+
+def _truth_rows(truth, frames_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of the truth arrays for reference-camera frames; mask of those known."""
+    idx = np.searchsorted(truth.ref_frames, frames_ref)
+    idx = np.clip(idx, 0, len(truth.ref_frames) - 1)
+    return idx, truth.ref_frames[idx] == frames_ref
+
+
+def errors_2d(analysis, truth) -> dict:
+    """Per camera: matched centroid errors (px) and identity swaps.
+
+    Returns ``{camera: {"errors": (p,), "median", "p99", "max", "swaps", "found", "true_visible"}}``
+    over every synchronised frame in which the truth has the marker visible.
+    """
+    det = analysis.results["detect"]["marker_px"]
+    offsets = analysis.results["sync"]["offsets"]
+    out = {}
+    for cam, px in det.items():
+        m = px.shape[1]
+        frames_cam = offsets[cam] + np.arange(px.shape[0])
+        inside = frames_cam < truth.marker_px[cam].shape[0]
+        errs, swaps, visible, found = [], 0, 0, 0
+        for k in np.flatnonzero(inside):
+            tp = truth.marker_px[cam][frames_cam[k], :m].copy()
+            tp[~truth.marker_visible[cam][frames_cam[k], :m]] = np.nan
+            visible += int(np.isfinite(tp[:, 0]).sum())
+            pairs, d = match_points(px[k], tp)
+            found += len(pairs)
+            errs.extend(d)
+            swaps += int(np.any(pairs[:, 0] != pairs[:, 1]))
+        e = np.asarray(errs)
+        out[cam] = {"errors": e, "median": float(np.median(e)) if e.size else np.nan,
+                    "p99": float(np.percentile(e, 99)) if e.size else np.nan,
+                    "max": float(e.max()) if e.size else np.nan,
+                    "swaps": swaps, "found": found, "true_visible": visible}
+    return out
+
+
+def rmse_axes(estimate: np.ndarray, true: np.ndarray) -> np.ndarray:
+    """RMSE per last-axis component over every finite sample."""
+    d = np.asarray(estimate, float) - np.asarray(true, float)
+    d = d.reshape(-1, d.shape[-1])
+    d = d[np.all(np.isfinite(d), axis=1)]
+    return np.sqrt(np.mean(d ** 2, axis=0))
+
+
+def stage_errors(analysis, truth) -> dict:
+    """Errors of the 3D stages against the truth, in the true motion frame.
+
+    Keys: ``triangulated`` and ``smoothed`` (marker RMSE per axis, m),
+    ``gravity_deg``, ``x_axis_deg`` (motion-frame axes), ``registered`` (m),
+    ``velocity``/``acceleration`` of the markers, ``omega`` (rad/s),
+    ``saddle_position`` (m), ``saddle_acceleration`` (m/s^2),
+    ``saddle_acc_y_rmse_pct_of_rms``.
+    """
+    res = analysis.results
+    a, b = res["detect"]["segment"]
+    frames = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
+    rows, known = _truth_rows(truth, frames)
+    R_true = truth.motion_axes
+    R_est = res["motion_frame"]["axes"]
+
+    def true_motion(arr):
+        return np.asarray(arr)[rows][known] @ R_true.T
+
+    def est_world_to_true(arr):  # world-frame estimate seen in the true motion axes
+        return np.asarray(arr)[known] @ R_true.T
+
+    out = {
+        "frames": int(known.sum()),
+        "triangulated": rmse_axes(est_world_to_true(res["triangulate"]["points"][a:b]), true_motion(truth.marker_pos)),
+        "smoothed": rmse_axes(est_world_to_true(res["smooth"]["smoothed"]), true_motion(truth.marker_pos)),
+        "gravity_deg": angle_deg(res["plumb"]["gravity"], truth.gravity),
+        "x_axis_deg": angle_deg(R_est[0], R_true[0]),
+    }
+    if "register" in res:
+        # estimated motion frame -> world -> true motion frame
+        to_true = R_true @ R_est.T
+        out["registered"] = rmse_axes(res["register"]["registered"][known] @ to_true.T, true_motion(truth.marker_pos))
+    if "fit" in res:
+        to_true = R_true @ R_est.T
+        out["velocity"] = rmse_axes(res["fit"]["velocity"][known] @ to_true.T, true_motion(truth.marker_vel))
+        out["acceleration"] = rmse_axes(res["fit"]["acceleration"][known] @ to_true.T, true_motion(truth.marker_acc))
+    if "angular" in res:
+        to_true = R_true @ R_est.T
+        out["omega"] = rmse_axes(res["angular"]["omega"][known] @ to_true.T, true_motion(truth.omega))
+        out["alpha"] = rmse_axes(res["angular"]["alpha"][known] @ to_true.T, true_motion(truth.alpha))
+    if "saddle" in res:
+        to_true = R_true @ R_est.T
+        out["saddle_position"] = rmse_axes(res["saddle"]["position"][known] @ to_true.T, true_motion(truth.saddle_pos))
+        acc_true = true_motion(truth.saddle_acc)
+        out["saddle_acceleration"] = rmse_axes(res["saddle"]["acceleration"][known] @ to_true.T, acc_true)
+        rms_y = float(np.sqrt(np.mean(acc_true[:, 1] ** 2)))
+        out["saddle_acc_y_rmse_pct_of_rms"] = 100 * out["saddle_acceleration"][1] / rms_y
+    return out
+
+
+def comfort_errors(indicators: dict, truth_indicators: dict, keys=None) -> dict:
+    """Relative error (%) of each indicator against the truth's."""
+    keys = keys or [k for k in truth_indicators if k in indicators]
+    return {k: 100 * (indicators[k] - truth_indicators[k]) / truth_indicators[k]
+            for k in keys if truth_indicators[k] not in (0, None) and np.isfinite(truth_indicators[k])}
+
+
+def noisy_projections(truth, offsets: dict, n_frames: int, n_markers: int, sigma_px: float, rng) -> dict:
+    """True marker projections plus Gaussian noise, in the synchronised numbering.
+
+    Markers the truth marks invisible stay NaN (never invented).
+    """
+    out = {}
+    for cam, px in truth.marker_px.items():
+        sl = slice(offsets[cam], offsets[cam] + n_frames)
+        p = px[sl, :n_markers].copy()
+        p[~truth.marker_visible[cam][sl, :n_markers]] = np.nan
+        out[cam] = p + rng.normal(0.0, sigma_px, p.shape) if sigma_px > 0 else p
+    return out
+
+
+LATER_STEPS = ("triangulate", "smooth", "motion_frame", "register", "fit", "angular", "saddle", "comfort")
+
+
+def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed: int = 0,
+                keys=("acc_y_Wk_rms", "VDV_y_Wk", "acc_y_max")) -> list[dict]:
+    """Follow detection noise through the pipeline (seed 000, section 6.3).
+
+    For each sigma the detections are replaced by the true projections plus
+    N(0, sigma^2) pixel noise; the steps from triangulation to the comfort
+    indicators are run again with the analysis' own parameters and the same
+    analysed frames (plumb, static shot and rig unchanged).
+
+    Returns
+    -------
+    list of dict, one per sigma: ``sigma_px``, 3D RMSE per axis (m),
+    saddle vertical acceleration error (% of rms), indicator errors (%).
+    """
+    from .pipeline import run_steps
+
+    res = analysis.results
+    rng = np.random.default_rng(seed)
+    n = res["sync"]["n_frames"]
+    rows = []
+    for sigma in sigmas_px:
+        px = noisy_projections(truth, res["sync"]["offsets"], n, analysis.session.marker_count, sigma, rng)
+        base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
+        base["detect"] = {**res["detect"], "marker_px": px}
+        rerun = run_steps(analysis.session, analysis.params, base, LATER_STEPS)
+        st = stage_errors(rerun, truth)
+        ce = comfort_errors(rerun.results["comfort"]["indicators"], truth.comfort, list(keys))
+        rows.append({"sigma_px": float(sigma), "triangulated_m": st["triangulated"],
+                     "smoothed_m": st["smoothed"], "saddle_position_m": st["saddle_position"],
+                     "saddle_acc_y_pct": st["saddle_acc_y_rmse_pct_of_rms"], "comfort_pct": ce})
+    return rows
+
+
+def with_params(analysis, **changes):
+    """The analysis' parameters with some changed (for what-if studies)."""
+    return replace(analysis.params, **changes)
