@@ -139,7 +139,7 @@ def stage_errors(analysis, truth) -> dict:
 
 def comfort_errors(indicators: dict, truth_indicators: dict, keys=None) -> dict:
     """Relative error (%) of each indicator against the truth's."""
-    keys = keys or [k for k in truth_indicators if k in indicators]
+    keys = [k for k in (keys or truth_indicators) if k in indicators and k in truth_indicators]
     return {k: 100 * (indicators[k] - truth_indicators[k]) / truth_indicators[k]
             for k in keys if truth_indicators[k] not in (0, None) and np.isfinite(truth_indicators[k])}
 
@@ -162,7 +162,7 @@ LATER_STEPS = ("triangulate", "smooth", "motion_frame", "register", "fit", "angu
 
 
 def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed: int = 0,
-                keys=("acc_y_Wk_rms", "VDV_y_Wk", "acc_y_max")) -> list[dict]:
+                keys=("acc_y_Wk_rms", "VDV_y_Wk", "acc_y_max"), params=None) -> list[dict]:
     """Follow detection noise through the pipeline (seed 000, section 6.3).
 
     For each sigma the detections are replaced by the true projections plus
@@ -185,7 +185,7 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
         px = noisy_projections(truth, res["sync"]["offsets"], n, analysis.session.marker_count, sigma, rng)
         base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
         base["detect"] = {**res["detect"], "marker_px": px}
-        rerun = run_steps(analysis.session, analysis.params, base, LATER_STEPS)
+        rerun = run_steps(analysis.session, params or analysis.params, base, LATER_STEPS)
         st = stage_errors(rerun, truth)
         ce = comfort_errors(rerun.results["comfort"]["indicators"], truth.comfort, list(keys))
         rows.append({"sigma_px": float(sigma), "triangulated_m": st["triangulated"],
@@ -197,3 +197,104 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
 def with_params(analysis, **changes):
     """The analysis' parameters with some changed (for what-if studies)."""
     return replace(analysis.params, **changes)
+
+
+# ---------------------------------------------------------------------------
+# other rigs: the thesis' limits and what a better rig buys
+# ---------------------------------------------------------------------------
+
+def scaled_rig(rig, resolution_factor: float = 1.0):
+    """The same rig with every sensor ``resolution_factor`` times finer (K and size scaled)."""
+    from .camera import Camera, Rig
+
+    cams = []
+    for c in rig:
+        K = c.matrix.copy()
+        K[:2] *= resolution_factor
+        K[:2, 2] = (K[:2, 2] + 0.5) - 0.5  # pixel centres stay pixel centres to first order
+        cams.append(Camera(c.name, (round(c.size[0] * resolution_factor), round(c.size[1] * resolution_factor)),
+                           K, c.distortions, c.rotation, c.translation))
+    return Rig(tuple(cams), dict(rig.metadata))
+
+
+def wide_baseline_rig(rig, baseline_m: float = 1.5, target_depth_m: float = 7.5):
+    """The rig with its cameras spread ``baseline_m`` apart along x, toed in.
+
+    Every non-reference camera ``i`` is placed at ``x = i * baseline_m`` in
+    the reference camera's frame and turned about the vertical axis so that
+    its optical axis meets the reference camera's at ``target_depth_m``.
+    """
+    from .camera import Rig, rotation_vector
+
+    cams = [rig.cameras[0]]
+    for i, c in enumerate(rig.cameras[1:], start=1):
+        centre = np.array([i * baseline_m, 0.0, 0.0])
+        yaw = -np.arctan2(i * baseline_m, target_depth_m)  # turn left to look back at the centre line
+        Ry = np.array([[np.cos(yaw), 0, np.sin(yaw)], [0, 1, 0], [-np.sin(yaw), 0, np.cos(yaw)]])
+        R = Ry.T  # world -> camera
+        cams.append(c.with_pose(rotation_vector(R), -R @ centre))
+    return Rig(tuple(cams), dict(rig.metadata))
+
+
+def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Horse 2",
+                 gait: str = "canter", seed: int = 0) -> tuple:
+    """Analyse a virtual ride seen through another rig, at the 2D level.
+
+    The virtual laboratory's exact truth (:func:`horsemocap.virtuallab.build_truth`)
+    is computed for ``rig`` at ``fps``; the detections are the true
+    projections plus N(0, sigma_px^2) noise (markers the truth hides stay
+    NaN), the plumb and static stills likewise; then the pipeline's steps
+    from triangulation to the comfort indicators run with the parameters of
+    ``analysis``. Images are not rendered: this isolates the geometry (pixel
+    size, frame rate, baseline) from the detector.
+
+    Returns
+    -------
+    (Analysis, Truth)
+    """
+    from dataclasses import replace as dc_replace
+
+    from .pipeline import _longest_run, run_steps
+    from .reconstruction import triangulate
+    from .frames import gravity_from_plumb
+    from .virtuallab import Scene, build_truth, saddle_motion
+    from .virtuallab.session import plan_timeline
+
+    rng = np.random.default_rng(seed)
+    scene = Scene(rig=rig, motion=saddle_motion(horse, gait), seed=seed)
+    _, n = plan_timeline(scene, fps, left_offset=0)
+    offsets = {c: 0 for c in rig.names}
+    truth = build_truth(scene, offsets, {c: n for c in rig.names}, fps)
+    m = analysis.session.marker_count
+    px = noisy_projections(truth, offsets, n, m, sigma_px, rng)
+    seen = np.all([np.all(np.isfinite(p[..., 0]), axis=1) for p in px.values()], axis=0)
+
+    def still(points):
+        obs = {c: rig[c].project(points)[None] + rng.normal(0, sigma_px, (1, len(points), 2)) for c in rig.names}
+        return triangulate(rig, obs, mode=analysis.params.triangulation).points[0]
+
+    plumb = still(truth.plumb_pos)
+    base = {
+        "sync": {"offsets": offsets, "n_frames": n},
+        "rig": {"rig": rig},
+        "detect": {"marker_px": px, "segment": _longest_run(seen)},
+        "plumb": {"gravity": gravity_from_plumb(plumb[0], plumb[1])},
+        "static": {"static_points": still(truth.static_pos)},
+    }
+    session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names))
+    return run_steps(session, analysis.params, base, LATER_STEPS), truth
+
+
+def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,
+              keys=("acc_y_Wk_rms", "VDV_y_Wk")) -> list[dict]:
+    """:func:`simulate_rig` for named ``(rig, fps)`` variants; one row each."""
+    rows = []
+    for name, (rig, fps) in variants.items():
+        sim, truth = simulate_rig(analysis, rig, fps, sigma_px, seed=seed)
+        st = stage_errors(sim, truth)
+        rows.append({"rig": name, "fps": fps, "size": rig.cameras[0].size,
+                     "frames": st["frames"], "smoothed_m": st["smoothed"],
+                     "saddle_position_m": st["saddle_position"],
+                     "saddle_acc_y_pct": st["saddle_acc_y_rmse_pct_of_rms"],
+                     "comfort_pct": comfort_errors(sim.results["comfort"]["indicators"], truth.comfort, list(keys))})
+    return rows

@@ -149,3 +149,33 @@ def test_marker_hidden_for_some_frames(tmp_path, capsys):
         assert not any(a <= k - truth.offsets[cam] < b for k in hidden)
     else:
         assert "every camera sees every marker" in err
+
+
+def _chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+@pytest.mark.skipif(_chromium() is None, reason="no headless Chromium on this machine (CI installs it)")
+def test_report_renders_in_a_headless_browser(demo_run, tmp_path):
+    import subprocess
+
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={tmp_path / 'profile'}"]
+    url = (demo_run / "report.html").resolve().as_uri()
+    dom = subprocess.run([_chromium(), *flags, "--dump-dom", url], capture_output=True, text=True, timeout=120).stdout
+    assert "Comfort indicators (thesis Table 8.7)" in dom
+    assert dom.count("data:image/png;base64,") >= 4
+    assert "acc_y_Wk_rms" in dom
+    shot = tmp_path / "shot.png"
+    subprocess.run([_chromium(), *flags, "--window-size=1200,2400", f"--screenshot={shot}", url],
+                   capture_output=True, timeout=120)
+    img = cv2.imread(str(shot))
+    assert img is not None and img.shape[0] >= 2000
+    # a rendered page is not blank: text and figures give dark pixels over a good part of it
+    dark = (img.mean(axis=2) < 128).mean()
+    assert dark > 0.005, f"page looks blank ({dark:.4f} dark)"

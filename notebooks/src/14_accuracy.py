@@ -1,0 +1,170 @@
+# %% [markdown]
+# # 14 · Accuracy: the error of every stage, and what a better rig buys
+#
+# **What you will learn**
+# - how to measure a motion-capture pipeline stage by stage against an exact truth, with the
+#   metrics of seed 000 (Guchin et al., section 6): *match the points, then measure the Euclidean
+#   distance*, in pixels per camera and in metres in 3D;
+# - how a small error in the images grows on its way to the saddle's acceleration and the comfort
+#   indicators (noise injection, seed 000 section 6.3);
+# - why the thesis' rig (640x480, 30 fps, cameras 0.24 and 0.45 m apart at 7.5 m) limits what it can
+#   measure, and how much resolution, frame rate and baseline each buy.
+#
+# Thesis equations involved: the whole chain, eq. 3.11 (sync) to eq. 7.25 (distances). Depth
+# resolution of a stereo pair: $\delta Z \approx Z^2 \, \delta u / (f B)$, with $Z$ the distance,
+# $f$ the focal length in pixels, $B$ the baseline and $\delta u$ the pixel error.
+
+# %%
+import numpy as np
+import matplotlib.pyplot as plt
+
+from horsemocap import accuracy, plots
+from horsemocap.data import default_session_dir
+from horsemocap.pipeline import results_for
+from horsemocap.virtuallab import load_truth, thesis_rig
+
+analysis = results_for(default_session_dir())
+truth = load_truth(default_session_dir())
+res = analysis.results
+
+# %% [markdown]
+# ## 1. Synchronisation
+#
+# The flash frame found in each camera against the frame the virtual laboratory switched it on.
+
+# %%
+for cam in analysis.session.cameras:
+    print(f"{cam:6s} found {res['sync']['offsets'][cam]:4d}   true {truth.offsets[cam]:4d}")
+
+# %% [markdown]
+# ## 2. Marker detection (2D)
+#
+# Each detected centroid is matched to the true projected centre of the marker (an optimal
+# one-to-one assignment per frame, so a swap of two markers would show up as a mismatch of
+# identities), then the distance in pixels is measured.
+
+# %%
+err2d = accuracy.errors_2d(analysis, truth)
+print("camera  median_px  p99_px  max_px  swaps  found/visible")
+for cam, e in err2d.items():
+    print(f"{cam:6s}  {e['median']:9.3f}  {e['p99']:6.3f}  {e['max']:6.3f}  {e['swaps']:5d}  {e['found']}/{e['true_visible']}")
+
+# %%
+fig = plots.plot_errors_2d(err2d)
+plt.show()
+
+# %% [markdown]
+# ## 3. From pixels to the saddle (3D)
+#
+# Every later stage is compared in the *true* motion frame, so the error of the estimated motion
+# frame itself is included. Watch the z-motion column: z is the depth seen from the cameras.
+
+# %%
+st = accuracy.stage_errors(analysis, truth)
+print(f"analysed frames: {st['frames']}")
+print(f"gravity direction error: {st['gravity_deg']:.3f} deg;  x-motion axis error: {st['x_axis_deg']:.3f} deg")
+print("stage                      RMSE x       y       z")
+for key, unit, scale in (("triangulated", "mm", 1000), ("smoothed", "mm", 1000), ("registered", "mm", 1000),
+                         ("velocity", "mm/s", 1000), ("acceleration", "m/s^2", 1), ("omega", "rad/s", 1),
+                         ("alpha", "rad/s^2", 1), ("saddle_position", "mm", 1000),
+                         ("saddle_acceleration", "m/s^2", 1)):
+    x, y, z = scale * st[key]
+    print(f"{key:20s} {unit:>6s} {x:7.2f} {y:7.2f} {z:7.2f}")
+print(f"saddle vertical acceleration RMSE: {st['saddle_acc_y_rmse_pct_of_rms']:.2f} % of its rms")
+
+# %%
+fig = plots.plot_stage_rmse(st)
+plt.show()
+
+# %% [markdown]
+# The x-motion acceleration error is large by construction: the thesis fits x-motion with a straight
+# line (degree 1, section 5.5.2.1), so the surge of the canter (the horse speeding up and slowing down
+# within a stride) is not in the model. The vertical (y) axis, the one that matters for comfort, is
+# fitted by a Fourier series and is much better.
+#
+# ## 4. The comfort indicators
+#
+# The truth's indicators come from the exact harmonic series of the true saddle acceleration.
+
+# %%
+ind = res["comfort"]["indicators"]
+cerr = accuracy.comfort_errors(ind, truth.comfort)
+print("indicator                     measured      truth   error %")
+for key, e in cerr.items():
+    print(f"{key:28s} {ind[key]:9.4f}  {truth.comfort[key]:9.4f}  {e:7.2f}")
+
+# %% [markdown]
+# ## 5. Noise injection: how detection error propagates
+#
+# As seed 000 did, replace the detections by the true projections plus Gaussian noise of
+# standard deviation $\sigma$ (up to 3 px) and run every later step again with the same choices.
+
+# %%
+rows = accuracy.noise_study(analysis, truth, sigmas_px=(0.0, 0.1, 0.25, 0.5, 1.0, 2.0, 3.0), seed=1)
+print("sigma_px  z_RMSE_mm  saddle_Ay_%  Wk_rms_%  VDV_Wk_%")
+for r in rows:
+    c = r["comfort_pct"]
+    print(f"{r['sigma_px']:8.2f}  {1000 * r['smoothed_m'][2]:9.1f}  {r['saddle_acc_y_pct']:11.1f}"
+          f"  {c.get('acc_y_Wk_rms', np.nan):8.1f}  {c.get('VDV_y_Wk', np.nan):8.1f}")
+
+# %%
+fig = plots.plot_noise_study(rows)
+plt.show()
+
+# %% [markdown]
+# Even a quarter of a pixel of detection noise ruins the saddle's acceleration with the thesis rig.
+# The depth formula explains it: with $Z = 7.5$ m, $f \approx 725$ px and $B = 0.45$ m, one pixel of
+# error is $\delta Z \approx 7.5^2 / (725 \cdot 0.45) \approx 0.17$ m of depth. The markers' depth noise
+# becomes a rotation error of the rigid body, and the saddle, 0.2-0.3 m away from the markers, swings
+# with it; differentiating twice (even through a Fourier fit) multiplies the noise by $(2\pi f)^2$.
+
+# %%
+dz = 7.5 ** 2 / (np.mean(thesis_rig()["right"].focal) * np.linalg.norm(thesis_rig()["right"].translation))
+print(f"depth error per pixel with the left-right pair: {dz:.3f} m")
+
+# %% [markdown]
+# ## 6. The thesis' limits, and better rigs
+#
+# The same virtual ride (Horse 2, canter) seen through other rigs, with the same detection noise
+# ($\sigma$ = 0.25 px, a good real detector) and the same pipeline. The truth and the noisy detections
+# are generated at the 2D level (no images are rendered), to isolate the geometry: pixel size, frame rate
+# and baseline.
+
+# %%
+rig = thesis_rig()
+variants = {
+    "thesis 640x480, 30 fps": (rig, 30.0),
+    "3x resolution (1920x1440)": (accuracy.scaled_rig(rig, 3.0), 30.0),
+    "60 fps": (rig, 60.0),
+    "1.5 m baseline": (accuracy.wide_baseline_rig(rig, 1.5), 30.0),
+    "3x resolution + 1.5 m baseline": (accuracy.wide_baseline_rig(accuracy.scaled_rig(rig, 3.0), 1.5), 30.0),
+}
+study = accuracy.rig_study(analysis, variants, sigma_px=0.25, seed=2)
+print("rig                              frames  z_RMSE_mm  saddle_z_mm  saddle_Ay_%  Wk_rms_%")
+for r in study:
+    print(f"{r['rig']:32s} {r['frames']:6d}  {1000 * r['smoothed_m'][2]:9.1f}  {1000 * r['saddle_position_m'][2]:11.1f}"
+          f"  {r['saddle_acc_y_pct']:11.1f}  {r['comfort_pct'].get('acc_y_Wk_rms', np.nan):8.1f}")
+
+# %% [markdown]
+# Resolution and baseline both shrink the depth error; a wider baseline is the cheaper of the two
+# (it needs no new cameras, only a different stand) but narrows the volume all cameras see. A higher
+# frame rate alone does not help here: more samples of the same noisy depth do not make the depth less
+# noisy, and the thesis' order rule for the Fourier fits is tuned to two periods of samples.
+#
+# ## Exercises
+#
+# 1. Repeat the noise study with `analysis.params` changed to the thesis triangulation mode
+#    (`params=accuracy.with_params(analysis, triangulation="thesis")`). Which mode is more robust?
+# 2. Using the depth formula, how wide must the baseline be for 0.25 px of noise to give 5 mm of depth
+#    error at 7.5 m with the thesis' cameras?
+# 3. Which stage contributes most to the saddle's position error in z-motion on the bundled session?
+#
+# <details><summary>Solutions</summary>
+#
+# 1. `accuracy.noise_study(analysis, truth, params=accuracy.with_params(analysis, triangulation="thesis"))`;
+#    the joint mode uses all rays at once and is at least as good (notebook 05 shows it on the truth).
+# 2. $B = Z^2 \delta u / (f \delta Z) = 56.25 \cdot 0.25 / (725 \cdot 0.005) \approx 3.9$ m.
+# 3. Triangulation: the depth (z) error is already there after triangulation and smoothing does not
+#    remove it; registration and the rigid-body formulas carry it to the saddle.
+#
+# </details>

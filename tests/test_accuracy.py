@@ -1,0 +1,54 @@
+"""Accuracy metrics: matching, RMSE, and the rig variants of notebook 14."""
+import numpy as np
+import pytest
+
+from horsemocap.accuracy import match_points, rmse_axes, scaled_rig, wide_baseline_rig
+from horsemocap.camera import Camera, Rig
+
+
+def _rig():
+    K = [[700.0, 0, 320], [0, 700.0, 240], [0, 0, 1]]
+    return Rig((Camera("left", (640, 480), K),
+                Camera("middle", (640, 480), K, translation=[-0.25, 0, 0]),
+                Camera("right", (640, 480), K, translation=[-0.45, 0, 0])))
+
+
+def test_match_points_finds_the_permutation_and_distances():
+    true = np.array([[0.0, 0], [10, 0], [0, 10]])
+    det = true[[2, 0, 1]] + np.array([[0.1, 0], [0, 0.2], [0, 0]])
+    pairs, d = match_points(det, true)
+    assert sorted(map(tuple, pairs)) == [(0, 2), (1, 0), (2, 1)]
+    np.testing.assert_allclose(sorted(d), [0, 0.1, 0.2], atol=1e-12)
+
+
+def test_match_points_ignores_missing():
+    true = np.array([[0.0, 0], [np.nan, np.nan], [5, 5]])
+    det = np.array([[5.0, 5.5], [np.nan, np.nan]])
+    pairs, d = match_points(det, true)
+    assert pairs.tolist() == [[0, 2]] and d.tolist() == [0.5]
+
+
+def test_rmse_axes():
+    est = np.zeros((4, 2, 3))
+    true = np.zeros((4, 2, 3))
+    true[..., 2] = 2.0
+    true[0, 0] = np.nan  # skipped
+    np.testing.assert_allclose(rmse_axes(est, true), [0, 0, 2])
+
+
+def test_scaled_rig_keeps_the_angles():
+    rig = _rig()
+    big = scaled_rig(rig, 3.0)
+    X = np.array([[0.3, -0.2, 7.5], [1.0, 0.4, 8.0]])
+    for c, cb in zip(rig, big):
+        np.testing.assert_allclose(c.pixels_to_normalized(c.project(X)), cb.pixels_to_normalized(cb.project(X)), atol=1e-9)
+    assert big["left"].size == (1920, 1440)
+
+
+@pytest.mark.parametrize("baseline", [0.5, 1.5])
+def test_wide_baseline_rig_looks_at_the_target(baseline):
+    wide = wide_baseline_rig(_rig(), baseline, target_depth_m=7.5)
+    target = np.array([0.0, 0.0, 7.5])
+    for i, cam in enumerate(wide.cameras):
+        np.testing.assert_allclose(cam.center, [i * baseline, 0, 0], atol=1e-12)
+        np.testing.assert_allclose(cam.project(target), cam.principal_point, atol=1e-9)
