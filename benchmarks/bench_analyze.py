@@ -57,10 +57,12 @@ def main():
 
     show("default session", run(default_session_dir()))
     if not args.skip_long:
-        from horsemocap.virtuallab import render_long_session
+        from horsemocap.virtuallab import render_session
 
         t0 = time.perf_counter()
-        long_dir = render_long_session(cache_dir() / f"long_{args.long_frames}", n_frames=args.long_frames)
+        long_dir = cache_dir() / f"long_{args.long_frames}"
+        if not (long_dir / "session.json").is_file():
+            render_session(long_dir, n_motion_frames=args.long_frames, calibration_views=0)
         print(f"\n(long session ready in {time.perf_counter() - t0:.1f} s: {long_dir})")
         show(f"long session ({args.long_frames} frames)", run(long_dir))
 

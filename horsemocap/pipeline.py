@@ -10,6 +10,8 @@ earlier steps computed (computing it with the defaults when absent).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import sys
 import time
@@ -18,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Rig, read_rig, rig_to_toml
+from .camera import Rig, read_rig
 from .params import AnalysisParams
 from .session import Session, SessionError, check_frame_counts, load_session
 from .sources import FrameSource, read_image
-from .store import ResultsStore, atomic_write_json, atomic_write_text, check_outside
+from .store import ResultsStore, check_outside
 
 STEPS = ("sync", "rig", "detect", "triangulate", "plumb", "static", "smooth",
          "motion_frame", "register", "fit", "angular", "saddle", "comfort")
@@ -320,7 +322,8 @@ STEP_FUNCTIONS = {name: globals()[f"step_{name}"] for name in STEPS}
 # ---------------------------------------------------------------------------
 
 def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = None, *,
-            until: str | None = None, progress=None, write_outputs: bool = True) -> Analysis:
+            until: str | None = None, progress=None, write_outputs: bool = True,
+            reuse: bool = False) -> Analysis:
     """Run the analysis of a session, step by step.
 
     Parameters
@@ -337,6 +340,9 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         Progress reports; default prints to stderr.
     write_outputs : bool
         Write the spec's result files into ``out_dir`` as steps finish.
+    reuse : bool
+        Keep each step's result in ``out_dir``'s results store and reuse the
+        stored ones computed for the same session, parameters and code.
 
     Returns
     -------
@@ -358,10 +364,18 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     if out_dir is not None:
         check_outside(out_dir, session.root)
         Path(out_dir).mkdir(parents=True, exist_ok=True)
+    store = ResultsStore(out_dir) if (reuse and out_dir is not None) else None
+    key = run_key(session, params) if store else ""
     for name in STEPS:
         t0 = time.perf_counter()
         try:
-            analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
+            stored = store.load(name, key) if store else None
+            if stored is not None:
+                analysis.results[name] = stored
+            else:
+                analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
+                if store:
+                    store.save(name, analysis.results[name], key)
         except (AnalysisError, SessionError):
             raise
         except Exception as exc:  # a step's own error: say which step and input
@@ -402,6 +416,15 @@ def resolve_params(session: Session, params=None) -> AnalysisParams:
     return AnalysisParams.from_dict(merged)
 
 
+def run_key(session: Session, params: AnalysisParams) -> str:
+    """Fingerprint of a run: session.json, the parameters and the package's code."""
+    h = hashlib.sha256(session.json_path.read_bytes())
+    h.update(json.dumps(params.to_dict(), sort_keys=True, default=str).encode())
+    for src in sorted(Path(__file__).parent.rglob("*.py")):
+        h.update(src.read_bytes())
+    return h.hexdigest()
+
+
 def notebook_results_dir(session: Session | Path) -> Path:
     """Where notebooks keep a session's results (``$HORSEMOCAP_RESULTS``)."""
     from .data import cache_dir
@@ -416,10 +439,12 @@ def results_for(session_dir=None, until: str = "comfort", params=None) -> Analys
 
     Runs the steps with the default (automatic) choices, quietly, and writes
     the spec's files to :func:`notebook_results_dir` (a clean folder per test
-    run under nbval), so each notebook runs alone.
+    run under nbval). Steps an earlier notebook computed for the same
+    session, parameters and code are loaded from the results store, so each
+    notebook runs alone and none repeats another's work.
     """
     from .data import default_session_dir
 
     session_dir = Path(session_dir or default_session_dir()).resolve()
     return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
-                   progress=lambda *a: None)
+                   progress=lambda *a: None, reuse=True)

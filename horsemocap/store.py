@@ -4,15 +4,16 @@ Results are written under a results folder chosen by the user (never inside
 the input session). Every write goes to a temporary file in the same folder
 and is renamed into place, so a reader sees a whole file or none.
 
-A :class:`ResultsStore` keeps one sub-folder per pipeline step
-(``<results>/steps/<step>/``) with arrays in ``.npz`` and small facts in
-``.json``; notebooks load what an earlier step computed and compute it with
-the default parameters when absent.
+A :class:`ResultsStore` keeps each pipeline step's result under the results
+folder (``<results>/steps/<step>.pkl``), keyed by a fingerprint of the
+session, the parameters and the code; notebooks load what an earlier one
+computed and compute it with the default parameters when absent.
 """
 from __future__ import annotations
 
 import json
 import os
+import pickle
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,12 +84,18 @@ def check_outside(results_dir, session_dir) -> None:
 
 @dataclass(frozen=True)
 class ResultsStore:
-    """Results of one session's analysis, one sub-folder per step.
+    """Step results of one session's analysis, so a notebook reuses what an
+    earlier one computed.
+
+    Each step's result is pickled to ``<root>/steps/<step>.pkl`` together
+    with a key (a fingerprint of the session, the parameters and the
+    package's code); a result is only returned for the same key, so a change
+    of any of them recomputes it. Files are written atomically.
 
     Parameters
     ----------
     root : Path
-        The results folder (``--out DIR``).
+        The results folder.
     """
 
     root: Path
@@ -96,30 +103,21 @@ class ResultsStore:
     def __post_init__(self):
         object.__setattr__(self, "root", Path(self.root))
 
-    def step_dir(self, step: str) -> Path:
-        return self.root / "steps" / step
+    def path(self, step: str) -> Path:
+        return self.root / "steps" / f"{step}.pkl"
 
-    def has(self, step: str) -> bool:
-        """True when ``step`` has been written whole (its ``done.json`` exists)."""
-        return (self.step_dir(step) / "done.json").is_file()
+    def save(self, step: str, result, key: str) -> Path:
+        """Store ``result`` of ``step`` under ``key``."""
+        payload = pickle.dumps({"key": key, "result": result}, protocol=pickle.HIGHEST_PROTOCOL)
+        return atomic_write_bytes(self.path(step), payload)
 
-    def save(self, step: str, arrays: dict | None = None, info: dict | None = None) -> Path:
-        """Save a step's arrays and facts; ``done.json`` is written last."""
-        d = self.step_dir(step)
-        if arrays:
-            atomic_write_npz(d / "arrays.npz", **{k: np.asarray(v) for k, v in arrays.items()})
-        atomic_write_json(d / "info.json", info or {})
-        atomic_write_json(d / "done.json", {"step": step})
-        return d
-
-    def load(self, step: str) -> tuple[dict, dict]:
-        """``(arrays, info)`` of a saved step; KeyError if it is absent."""
-        if not self.has(step):
-            raise KeyError(f"{self.root}: step '{step}' has no saved results")
-        d = self.step_dir(step)
-        arrays = {}
-        if (d / "arrays.npz").is_file():
-            with np.load(d / "arrays.npz", allow_pickle=False) as z:
-                arrays = {k: z[k] for k in z.files}
-        info = json.loads((d / "info.json").read_text())
-        return arrays, info
+    def load(self, step: str, key: str):
+        """The stored result of ``step`` for ``key``, or None (absent, other key, unreadable)."""
+        p = self.path(step)
+        if not p.is_file():
+            return None
+        try:
+            payload = pickle.loads(p.read_bytes())
+        except Exception:  # a file from another version of a class: recompute
+            return None
+        return payload["result"] if payload.get("key") == key else None

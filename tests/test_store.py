@@ -6,15 +6,16 @@ import pytest
 from horsemocap.store import ResultsStore, StoreError, atomic_write_text, check_outside
 
 
-def test_store_roundtrip(tmp_path):
+def test_store_roundtrip_and_keys(tmp_path):
     store = ResultsStore(tmp_path / "res")
-    assert not store.has("detect")
-    store.save("detect", {"marker_px": np.arange(6.0).reshape(1, 3, 2)}, {"threshold": 115})
-    arrays, info = store.load("detect")
-    assert store.has("detect") and info == {"threshold": 115}
-    np.testing.assert_array_equal(arrays["marker_px"], np.arange(6.0).reshape(1, 3, 2))
-    with pytest.raises(KeyError, match="step 'fit' has no saved results"):
-        store.load("fit")
+    assert store.load("detect", "k1") is None
+    store.save("detect", {"marker_px": np.arange(6.0).reshape(1, 3, 2), "threshold": 115}, "k1")
+    got = store.load("detect", "k1")
+    assert got["threshold"] == 115
+    np.testing.assert_array_equal(got["marker_px"], np.arange(6.0).reshape(1, 3, 2))
+    assert store.load("detect", "k2") is None  # other parameters or code: recompute
+    store.path("fit").write_bytes(b"garbage")
+    assert store.load("fit", "k1") is None
 
 
 def test_atomic_write_leaves_old_file_on_failure(tmp_path):
