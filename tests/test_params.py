@@ -1,0 +1,48 @@
+"""Analysis parameters: defaults, overrides, and clear errors."""
+import json
+
+import pytest
+
+from horsemocap.cli import build_parser, _params_from_args
+from horsemocap.params import AnalysisParams, ParamsError, load_params
+
+
+def test_defaults_are_automatic():
+    p = AnalysisParams()
+    assert p.sync_offsets is None and p.period_frames is None and p.fourier_orders is None
+    assert p.smoothing_span == 0.1 and p.smoothing_method == "rloess" and p.omega_versions == [True] * 6
+
+
+@pytest.mark.parametrize("data, pattern", [
+    ({"perid_frames": 18}, r"unknown parameter 'perid_frames'; did you mean 'period_frames'\?"),
+    ({"triangulation": "pairs"}, r"parameter 'triangulation': expected \"joint\" or \"thesis\""),
+    ({"smoothing_span": 0}, r"parameter 'smoothing_span'"),
+    ({"omega_versions": [False] * 6}, r"parameter 'omega_versions'"),
+    ({"weighting_mode": "bs"}, r"parameter 'weighting_mode'"),
+    ({"period_frames": 1}, r"parameter 'period_frames'"),
+])
+def test_bad_parameters(data, pattern):
+    with pytest.raises(ParamsError, match=pattern):
+        AnalysisParams.from_dict(data, "analysis.json")
+
+
+def test_load_params_reads_an_analysis_record(tmp_path):
+    path = tmp_path / "analysis.json"
+    path.write_text(json.dumps({"format": "horsemocap-results/1", "parameters": {"period_frames": 18.0}}))
+    assert load_params(path).period_frames == 18.0
+    path.write_text("{bad")
+    with pytest.raises(ParamsError, match="not valid JSON"):
+        load_params(path)
+    with pytest.raises(ParamsError, match="parameter file not found"):
+        load_params(tmp_path / "none.json")
+
+
+def test_command_line_choices_override():
+    args = build_parser().parse_args(["analyze", "S", "--out", "O", "--threshold", "115", "--period", "18",
+                                      "--offsets", "left=0,middle=53,right=126", "--fourier-orders", "3,2",
+                                      "--triangulation", "thesis"])
+    p = _params_from_args(args, AnalysisParams())
+    assert p.detection == {"all": {"threshold": 115}}
+    assert p.period_frames == 18 and p.triangulation == "thesis"
+    assert p.sync_offsets == {"left": 0, "middle": 53, "right": 126}
+    assert p.fourier_orders == {"y": 3, "z": 2}
