@@ -1,0 +1,121 @@
+"""Figures of marker detection (thesis Figures 4.11, 4.15, 8.7-8.8)."""
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Rectangle
+
+__all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors"]
+
+
+def _zoom(ax, box, shape=None):
+    if box is not None:
+        u0, v0, u1, v1 = box
+        if shape is not None:          # stay inside the image
+            u0, v0 = max(u0, -0.5), max(v0, -0.5)
+            u1, v1 = min(u1, shape[1] - 0.5), min(v1, shape[0] - 0.5)
+        ax.set_xlim(u0, u1)
+        ax.set_ylim(v1, v0)
+
+
+def plot_detection_stages(image, stages: dict, window=None, center=None, zoom=None, fig=None):
+    """The six stages of thesis Figure 4.15 for one frame.
+
+    Parameters
+    ----------
+    image : the original RGB (or gray) frame
+    stages : dict from :func:`horsemocap.detection.filter_stages`
+    window, center : window size ``(W_du, W_dv)`` and centre ``W_c(k)`` (drawn)
+    zoom : ``(u0, v0, u1, v1)`` region shown in panels iii-vi (None = whole image)
+
+    Returns
+    -------
+    matplotlib Figure
+    """
+    fig = fig or plt.figure(figsize=(12, 7))
+    axes = fig.subplots(2, 3)
+    r = stages["regions"]
+    img = np.asarray(image)
+    axes[0, 0].imshow(img, cmap=None if img.ndim == 3 else "gray")
+    axes[0, 0].set_title("i) original image")
+    axes[0, 1].imshow(stages["binary"], cmap="gray")
+    axes[0, 1].set_title(f"ii) binary (eq. 4.5), {len(r)} regions")
+    ax = axes[0, 2]
+    ax.imshow(stages["binary"], cmap="gray")
+    for i in range(len(r)):
+        ax.plot(*r.centroid[i], "r+", ms=4)
+    ax.set_title("iii) labelled regions and centres")
+    _zoom(ax, zoom, img.shape)
+    for ax, key, title in ((axes[1, 0], "area_ok", "iv) area filtered"),
+                           (axes[1, 1], "window_ok", "v) regions in the window")):
+        keep = np.zeros(len(r) + 1, bool)
+        keep[r.ids[stages[key]]] = True
+        ax.imshow(keep[r.labels], cmap="gray")
+        ax.set_title(f"{title}: {len(stages[key])}")
+        _zoom(ax, zoom, img.shape)
+    if window is not None and center is not None:
+        w = np.asarray(window, float)
+        c = np.asarray(center, float)
+        axes[1, 1].add_patch(Rectangle(c - w / 2, w[0], w[1], fill=False, ec="c", lw=1.2))
+        axes[1, 1].plot(*c, "cx")
+    ax = axes[1, 2]
+    ax.imshow(img, cmap=None if img.ndim == 3 else "gray")
+    if stages.get("marker_px") is not None:
+        px = stages["marker_px"]
+        ax.plot(px[:, 0], px[:, 1], "o", mfc="none", mec="lime", ms=10)
+        for m, (u, v) in enumerate(px):
+            ax.annotate(str(m + 1), (u, v), xytext=(6, -6), textcoords="offset points", color="lime")
+    n_kept = 0 if stages.get("kept") is None else len(stages["kept"])
+    ax.set_title(f"vi) markers after distance + cross product ({n_kept} choice)")
+    _zoom(ax, zoom, img.shape)
+    for a in axes.ravel():
+        a.set_xticks([])
+        a.set_yticks([])
+    fig.tight_layout()
+    return fig
+
+
+def plot_marker_track(track, truth=None, ax=None):
+    """Image coordinates of each marker over the frames (``PM``, Figure 4.14).
+
+    Frames where a marker is missing are marked at the bottom with the
+    first letter of the reason (o occluded, l left_image, p partly_occluded,
+    a ambiguous). With ``truth`` (frames, markers, 2) the truth is drawn thin.
+    """
+    if ax is None:
+        _, ax = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
+    px = track.marker_px
+    k = np.arange(px.shape[0])
+    for c, (a, name) in enumerate(zip(ax, ("u (px)", "v (px)"))):
+        for m in range(px.shape[1]):
+            line, = a.plot(k, px[:, m, c], ".-", ms=3, lw=1, label=f"marker {m + 1}")
+            if truth is not None:
+                a.plot(k, truth[: len(k), m, c], "-", lw=0.6, color=line.get_color(), alpha=0.6)
+            miss = np.flatnonzero(track.reason[:, m] != "")
+            if len(miss):
+                y0 = np.nanmin(px[..., c]) if np.isfinite(px[..., c]).any() else 0
+                for j in miss:
+                    a.annotate(track.reason[j, m][0], (j, y0), color=line.get_color(), fontsize=6,
+                               ha="center")
+        a.set_ylabel(name)
+    ax[0].legend(fontsize=8, ncol=px.shape[1])
+    ax[-1].set_xlabel("frame (camera's own numbering)")
+    return ax
+
+
+def plot_centroid_errors(errors: dict, ax=None, bins=None):
+    """Histograms of centre errors in pixels, one per entry of ``errors``."""
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 3.5))
+    allv = np.concatenate([np.asarray(v, float).ravel() for v in errors.values()])
+    allv = allv[np.isfinite(allv)]
+    bins = bins if bins is not None else np.linspace(0, max(1.0, np.percentile(allv, 99.5) if allv.size else 1), 40)
+    for name, v in errors.items():
+        v = np.asarray(v, float).ravel()
+        v = v[np.isfinite(v)]
+        ax.hist(v, bins=bins, histtype="step", lw=1.5,
+                label=f"{name}: median {np.median(v):.3f}, p99 {np.percentile(v, 99):.3f} px")
+    ax.set_xlabel("centre error (px)")
+    ax.set_ylabel("count")
+    ax.legend(fontsize=8)
+    return ax

@@ -1,0 +1,391 @@
+"""Tests of horsemocap.detection on synthetic frames with exact ground truth.
+
+The frames: a dark noisy background, anti-aliased bright discs (the markers)
+at known sub-pixel centres, and pseudo markers: a big bright blob, a long rail,
+a short bar, tiny glints, and a round blob of marker size near the path.
+"""
+import csv
+
+import numpy as np
+import pytest
+
+from horsemocap import detection as det
+
+
+# ---------------------------------------------------------------- synthetic data
+def add_disc(img, cx, cy, r, amp, ss=8):
+    """Add an anti-aliased disc (coverage by ss x ss supersampling) of height ``amp``."""
+    h, w = img.shape
+    x0, x1 = max(int(np.floor(cx - r - 1)), 0), min(int(np.ceil(cx + r + 2)), w)
+    y0, y1 = max(int(np.floor(cy - r - 1)), 0), min(int(np.ceil(cy + r + 2)), h)
+    if x1 <= x0 or y1 <= y0:
+        return
+    o = (np.arange(ss) + 0.5) / ss - 0.5
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    sx = xx[..., None, None] + o[None, None, None, :]
+    sy = yy[..., None, None] + o[None, None, :, None]
+    img[y0:y1, x0:x1] += amp * (((sx - cx) ** 2 + (sy - cy) ** 2) <= r * r).mean(axis=(-1, -2))
+
+
+def make_sequence(n=40, size=(240, 160), seed=0, noise=3.0, near_blob=True, r=3.0, speed=6.0,
+                  u_start=-10.0, hide=None, rgb=False):
+    """Frames (n, H, W) uint8 and true centres (n, 3, 2) of 3 markers moving to the right.
+
+    ``hide``: {frame: marker} markers not drawn (occluded).
+    """
+    rng = np.random.default_rng(seed)
+    W, H = size
+    truth = np.zeros((n, 3, 2))
+    frames = np.zeros((n, H, W))
+    offs = np.array([[-30.0, 2.0], [0.0, -3.0], [26.0, 1.5]])
+    for k in range(n):
+        img = np.full((H, W), 30.0)
+        add_disc(img, 0.82 * W, 0.2 * H, 14, 200)                    # big bright blob
+        img[int(0.85 * H):int(0.85 * H) + 3, 10:W - 10] += 190       # rail
+        img[12:15, 20:60] += 180                                     # short bar
+        if near_blob:
+            add_disc(img, 0.5 * W + 0.3, 0.5 * H + 12.2, r, 200)    # round pseudo marker near the path
+        for _ in range(4):                                           # glints
+            img[rng.integers(3, H - 3), rng.integers(3, W - 3)] += 220
+        ang = 0.1 * np.sin(2 * np.pi * k / 15)
+        rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+        centre = np.array([u_start + speed * k, 0.5 * H - 6 + 3 * np.sin(2 * np.pi * k / 12)])
+        truth[k] = centre + offs @ rot.T
+        for m, (u, v) in enumerate(truth[k]):
+            if hide and hide.get(k) == m:
+                continue
+            add_disc(img, u, v, r, 210)
+        frames[k] = img + rng.normal(0, noise, img.shape)
+    frames = np.clip(np.rint(frames), 0, 255).astype(np.uint8)
+    if rgb:
+        frames = np.repeat(frames[..., None], 3, axis=-1)
+    return frames, truth
+
+
+def in_image(truth, size, r=3.0):
+    W, H = size
+    u, v = truth[..., 0], truth[..., 1]
+    return (u - r > 0.5) & (v - r > 0.5) & (u + r < W - 1.5) & (v + r < H - 1.5)
+
+
+@pytest.fixture(scope="module")
+def seq():
+    return make_sequence()
+
+
+@pytest.fixture(scope="module")
+def track(seq):
+    return det.detect_markers(seq[0], 3)
+
+
+# ---------------------------------------------------------------- single filters
+def test_to_gray_follows_eq_4_4():
+    rng = np.random.default_rng(1)
+    img = rng.integers(0, 256, (20, 30, 3), dtype=np.uint8)
+    exact = img.astype(float) @ np.array([0.2989, 0.5870, 0.1140])
+    assert np.abs(det.to_gray(img).astype(float) - exact).max() <= 0.53
+    assert np.abs(det.to_gray(img, exact=True).astype(float) - exact).max() <= 0.5
+    g = det.to_gray(img)
+    assert det.to_gray(g) is g
+    with pytest.raises(ValueError, match="RGB"):
+        det.to_gray(np.zeros((4, 4, 2), np.uint8))
+
+
+def test_binarize_is_strictly_greater_eq_4_5():
+    g = np.array([[114, 115, 116]], np.uint8)
+    np.testing.assert_array_equal(det.binarize(g, 115), [[0, 0, 255]])
+
+
+def test_otsu_and_three_class_otsu_separate_the_modes():
+    rng = np.random.default_rng(2)
+    two = np.concatenate([rng.normal(40, 5, 5000), rng.normal(200, 5, 500)])
+    two = np.clip(two, 0, 255).astype(np.uint8).reshape(50, 110)
+    t = det.otsu_threshold(two)
+    assert 110 < t < 130          # the middle of the empty gap between the modes
+    three = np.concatenate([rng.normal(30, 4, 6000), rng.normal(110, 4, 3000), rng.normal(220, 4, 1000)])
+    three = np.clip(three, 0, 255).astype(np.uint8).reshape(100, 100)
+    t1, t2 = det.otsu3_thresholds(three)
+    assert 45 < t1 < 95 and 125 < t2 < 205
+    hist = np.bincount(three.ravel(), minlength=256)
+    assert det.otsu3_thresholds(hist) == (t1, t2)
+    assert det.auto_threshold(three) == t2
+    assert det.auto_threshold([three], "otsu") == det.otsu_threshold(three)
+
+
+def test_eight_connectivity_joins_diagonal_pixels():
+    b = np.zeros((5, 5), np.uint8)
+    b[1, 1] = b[2, 2] = 255
+    assert len(det.label_regions(b, 8)) == 1
+    assert len(det.label_regions(b, 4)) == 2
+    r = det.label_regions(b, 8)
+    np.testing.assert_allclose(r.centroid[0], [1.5, 1.5])
+    assert r.area[0] == 2
+
+
+def test_circularity_by_moments():
+    img = np.zeros((60, 120))
+    add_disc(img, 20.3, 30.6, 9, 1.0)
+    img[25:31, 50:98] = 1.0                 # 8:1 bar
+    img[10:50, 105:115] = 0.0
+    b = (img > 0.5).astype(np.uint8)
+    r = det.label_regions(b)
+    c = det.region_circularity(r)
+    disc = int(np.argmin(r.centroid[:, 0]))
+    assert c[disc] == pytest.approx(1.0, abs=0.03)
+    assert c[1 - disc] == pytest.approx(6 * 8 / (np.pi * 65), abs=0.03)
+    assert det.filter_circularity(c, 0.5).sum() == 1
+    # the bincount path (many regions) agrees with the per-region path
+    many = np.zeros((40, 200), np.uint8)
+    for i in range(10):
+        many[5:5 + 2 + i % 3, 3 + 18 * i:3 + 18 * i + 3 + i] = 255
+    rm = det.label_regions(many)
+    per = np.concatenate([det.region_circularity(rm.subset(np.arange(i, min(i + 5, 10)))) for i in (0, 5)])
+    np.testing.assert_allclose(det.region_circularity(rm), per, rtol=1e-9)
+
+
+def test_area_and_window_filters():
+    np.testing.assert_array_equal(det.filter_area([2, 5, 10, 11], 5, 10), [False, True, True, False])
+    c = np.array([[10.0, 10.0], [30.0, 10.0], [10.0, 40.0]])
+    np.testing.assert_array_equal(det.filter_window(c, [15, 12], (40, 20)), [True, True, False])
+    np.testing.assert_allclose(det.window_center(np.array([[0, 0], [2, 4], [np.nan, np.nan]])), [1, 2])
+
+
+def test_distance_filter_finds_the_marker_combination_among_pseudo_markers():
+    markers = np.array([[10.0, 20.0], [40.0, 18.0], [66.0, 22.0]])
+    dm = det.marker_distances(markers)
+    assert dm.shape == (3, 3) and dm[0, 1] == pytest.approx(np.hypot(30, 2))
+    cands = np.array([[100.0, 100.0], markers[2] + 0.5, [5.0, 70.0], markers[0], markers[1] - 0.3, [45.0, 30.0]])
+    ch = det.filter_distance(cands, dm, 0.05)
+    assert [3, 4, 1] in ch.tolist()
+    # the reversed order has the same distances only if DM_12 = DM_23; it is told apart by the cross product
+    signs = det.cross_product_signs(markers)
+    kept = det.filter_cross_product(cands, ch, signs)
+    assert kept.tolist() == [[3, 4, 1]]
+
+
+def test_cross_product_filter_rejects_the_mirrored_second_marker():
+    # Figure 4.13: marker 2 and its mirror 2' both satisfy the distances
+    p1, p2, p3 = np.array([0.0, 0.0]), np.array([30.0, -8.0]), np.array([60.0, 0.0])
+    p2m = np.array([30.0, 8.0])
+    cands = np.array([p1, p2m, p3, p2])
+    dm = det.marker_distances(np.array([p1, p2, p3]))
+    ch = det.filter_distance(cands, dm, 0.02)
+    assert sorted(ch.tolist()) == [[0, 1, 2], [0, 3, 2], [2, 1, 0], [2, 3, 0]]
+    kept = det.filter_cross_product(cands, ch, det.cross_product_signs(np.array([p1, p2, p3])))
+    assert sorted(kept.tolist()) == [[0, 3, 2], [2, 1, 0]]   # never 2' in the order 1-2-3
+    # nearly straight references give no sign: no filtering
+    assert det.cross_product_signs(np.array([[0, 0], [10, 0.01], [20, 0]]), 0.05).tolist() == [0]
+
+
+def test_weighted_centroid_is_sub_pixel_and_better_than_binary():
+    rng = np.random.default_rng(3)
+    errs_w, errs_b = [], []
+    for _ in range(20):
+        img = np.full((40, 40), 30.0)
+        cx, cy = rng.uniform(15, 25, 2)
+        add_disc(img, cx, cy, 3.0, 200)
+        img = np.clip(np.rint(img + rng.normal(0, 2, img.shape)), 0, 255).astype(np.uint8)
+        r = det.label_regions(det.binarize(img, 120))
+        big = int(np.argmax(r.area))
+        errs_w.append(np.hypot(*(det.weighted_centroids(img, r, [big])[0] - [cx, cy])))
+        errs_b.append(np.hypot(*(r.centroid[big] - [cx, cy])))
+    assert np.median(errs_w) < 0.05
+    assert np.median(errs_w) < 0.5 * np.median(errs_b)
+
+
+# ---------------------------------------------------------------- the sequence
+def test_params_validation_and_roundtrip():
+    p = det.DetectionParams(threshold=120, labels=[3, 1, 2], window=(80.4, 40), first_frame=5, area_min=4)
+    d = p.to_dict()
+    assert d["labels"] == [3, 1, 2] and d["window"] == [80, 40]
+    assert det.DetectionParams.from_dict(d) == p
+    with pytest.raises(ValueError, match="threshold"):
+        det.DetectionParams(threshold=300)
+    with pytest.raises(ValueError, match="unknown"):
+        det.DetectionParams.from_dict({"treshold": 3})
+    with pytest.raises(ValueError, match="area_min"):
+        det.DetectionParams(area_min=10, area_max=5)
+
+
+def test_detect_markers_accuracy_no_swap_pseudo_rejected(seq, track):
+    frames, truth = seq
+    assert track.marker_px.shape == truth.shape and track.reason.shape == truth.shape[:2]
+    vis = in_image(truth, (frames.shape[2], frames.shape[1]))
+    found = track.found
+    err = np.linalg.norm(track.marker_px - truth, axis=-1)
+    # every found centre is its own marker's (no swap, no pseudo marker), and precise
+    assert np.all(err[found] < 0.5)
+    assert np.median(err[found]) < 0.05
+    # every marker fully inside the image is found
+    assert found[vis].all()
+    # NaN exactly where not found, with a reason
+    assert np.isnan(track.marker_px[~found]).all() and np.isfinite(track.marker_px[found]).all()
+    assert set(track.reason[~found].tolist()) <= {"left_image"}
+    assert (~found).any()                             # the sequence starts and ends outside
+    # order by ascending u in the first frame where all are seen
+    first = det.valid_frames(track)[0]
+    assert np.all(np.diff(track.marker_px[first, :, 0]) > 0)
+    # automatic choices are recorded
+    p = track.params
+    assert None not in (p.threshold, p.first_frame, p.labels, p.area_min, p.area_max, p.window,
+                        p.distance_tolerance)
+
+
+def test_pseudo_markers_are_never_reported(seq, track):
+    frames, truth = seq
+    pseudo = np.array([[0.82 * 240, 0.2 * 160], [0.5 * 240 + 0.3, 0.5 * 160 + 12.2]])
+    px = track.marker_px[track.found]
+    d = np.linalg.norm(px[:, None] - pseudo[None], axis=-1)
+    assert d.min() > 5
+
+
+def test_user_parameters_reproduce_the_automatic_run(seq, track):
+    frames, truth = seq
+    again = det.detect_markers(frames, 3, det.DetectionParams.from_dict(track.params.to_dict()))
+    np.testing.assert_array_equal(again.reason, track.reason)
+    np.testing.assert_allclose(again.marker_px, track.marker_px)
+    binary = det.detect_markers(frames, 3, det.DetectionParams(centroid="binary"))
+    eb = np.linalg.norm(binary.marker_px - truth, axis=-1)[binary.found]
+    ew = np.linalg.norm(track.marker_px - truth, axis=-1)[track.found]
+    assert np.median(eb) > np.median(ew)
+    with pytest.raises(ValueError, match="first_frame"):
+        det.detect_markers(frames, 3, det.DetectionParams(labels=(1, 2, 3)))
+
+
+def test_rgb_frames_and_thesis_reference_distances():
+    frames, truth = make_sequence(n=16, u_start=40, rgb=True, near_blob=False)
+    tr = det.detect_markers(frames, 3, det.DetectionParams(distance_reference="first", window_predict=False,
+                                                           min_circularity=0.6))
+    err = np.linalg.norm(tr.marker_px - truth, axis=-1)
+    assert tr.all_found.all() and err.max() < 0.3
+
+
+def test_occluded_marker_is_nan_with_reason_and_found_again():
+    frames, truth = make_sequence(n=24, u_start=30, hide={10: 1, 11: 1, 12: 1}, near_blob=False)
+    tr = det.detect_markers(frames, 3)
+    assert tr.reason[10:13, 1].tolist() == ["occluded"] * 3
+    assert np.isnan(tr.marker_px[10:13, 1]).all()
+    assert tr.found[10:13, [0, 2]].all() and tr.found[13:20].all()
+    err = np.linalg.norm(tr.marker_px - truth, axis=-1)[tr.found]
+    assert err.max() < 0.5
+
+
+def test_two_equal_regions_near_a_hidden_marker_are_ambiguous():
+    frames, truth = make_sequence(n=20, u_start=30, hide={12: 1}, near_blob=False)
+    img = frames[12].astype(float)
+    u, v = truth[12, 1]
+    add_disc(img, u - 4.5, v, 2.5, 200)
+    add_disc(img, u + 4.5, v, 2.5, 200)
+    frames = frames.copy()
+    frames[12] = np.clip(img, 0, 255).astype(np.uint8)
+    tr = det.detect_markers(frames, 3)
+    assert tr.reason[12, 1] == "ambiguous" and np.isnan(tr.marker_px[12, 1]).all()
+    assert tr.found[12, [0, 2]].all()
+
+
+def test_no_markers_raises_a_clear_error():
+    frames = np.full((5, 40, 50), 20, np.uint8)
+    with pytest.raises(det.DetectionError, match="consistent cluster"):
+        det.detect_markers(frames, 3)
+    with pytest.raises(ValueError, match="uint8"):
+        det.detect_markers(frames.astype(float), 3)
+
+
+# ---------------------------------------------------------------- stills
+def test_detect_still_plumb_and_static_shot():
+    rng = np.random.default_rng(5)
+    img = np.full((120, 160), 25.0)
+    add_disc(img, 80.3, 20.7, 3.2, 210)     # plumb tip (top)
+    add_disc(img, 81.1, 95.2, 3.2, 210)     # plumb tail
+    img[60:63, 10:150] += 180               # rail
+    add_disc(img, 140, 100, 12, 200)        # big blob
+    img = np.clip(np.rint(img + rng.normal(0, 2, img.shape)), 0, 255).astype(np.uint8)
+    pts = det.detect_still(img, 2)
+    np.testing.assert_allclose(pts, [[80.3, 20.7], [81.1, 95.2]], atol=0.1)
+    with pytest.raises(det.DetectionError, match="expected 3"):
+        det.detect_still(img, 3)
+    # static shot: 4 markers (3 skin + saddle) ordered by u, with a glint and a blob
+    img = np.full((120, 200), 25.0)
+    true = np.array([[30.2, 50.1], [70.7, 44.4], [110.1, 52.3], [90.5, 75.5]])
+    for u, v in true:
+        add_disc(img, u, v, 3.0, 210)
+    add_disc(img, 170, 20, 15, 220)
+    img[100, 20] = 250
+    rgb = np.repeat(np.clip(np.rint(img + rng.normal(0, 2, img.shape)), 0, 255).astype(np.uint8)[..., None], 3, -1)
+    pts = det.detect_still(rgb, 4)
+    np.testing.assert_allclose(pts, true[np.argsort(true[:, 0])], atol=0.1)
+
+
+# ---------------------------------------------------------------- output
+def test_markers_2d_csv(tmp_path, track):
+    rows = det.markers_2d_rows("left", track, frame_offset=7)
+    n, m = track.reason.shape
+    assert len(rows) == n * m and rows[0][:3] == ["left", 7, 1]
+    path = det.write_markers_2d_csv(tmp_path / "markers_2d.csv", {"left": track, "middle": track},
+                                    frame_offsets={"middle": 3})
+    with open(path) as fh:
+        got = list(csv.DictReader(fh))
+    assert list(got[0]) == ["camera", "frame", "marker", "u_px", "v_px"]
+    assert len(got) == 2 * n * m
+    miss = [r for r in got if r["camera"] == "left" and r["u_px"] == ""]
+    assert len(miss) == int((~track.found).sum())
+    r = next(r for r in got if r["camera"] == "middle" and r["u_px"] != "")
+    k, mm = int(r["frame"]) - 3, int(r["marker"]) - 1
+    assert float(r["u_px"]) == pytest.approx(track.marker_px[k, mm, 0], abs=1e-4)
+
+
+# ---------------------------------------------------------------- widgets
+def test_widgets_values_follow_the_controls(seq, track):
+    from horsemocap import widgets
+    frames, _ = seq
+    p = track.params
+    ui = widgets.ui_threshold(frames, p)
+    assert ui.value == p.threshold and ui.frame_slider.value == p.first_frame
+    n_auto = ui.n_regions
+    ui.slider.value = 33                          # just above the background level: noise breaks through
+    assert ui.value == 33 and ui.n_regions > 10 * n_auto
+    ui.slider.value = 254
+    assert ui.n_regions < n_auto and ui.image.value[:4] == b"\x89PNG"   # only saturated glints
+    picker = widgets.ui_label_picker(frames[p.first_frame], p)
+    assert picker.value == tuple(p.labels)
+    picker.select.value = tuple(p.labels[:2])
+    assert picker.value == tuple(p.labels[:2])
+    ctl = widgets.ui_detection(frames, p)
+    assert ctl.value == p
+    ctl.tolerance.value = 0.3
+    ctl.window.du.value = 150
+    ctl.area.value = (4, 90)
+    v = ctl.value
+    assert (v.distance_tolerance, v.window[0], v.area_min, v.area_max) == (0.3, 150, 4.0, 90.0)
+    ctl.threshold.slider.value = p.threshold + 5   # labels name regions of one binary image: dropped
+    assert ctl.value.labels is None and ctl.value.threshold == p.threshold + 5
+
+
+def test_filter_stages_follow_figure_4_15(seq, track):
+    frames, truth = seq
+    p = track.params
+    k = p.first_frame + 2
+    prev = track.marker_px[k - 1]
+    st = det.filter_stages(frames[k], p, center=det.window_center(prev), reference_px=prev,
+                           first_px=track.marker_px[p.first_frame])
+    assert set(st["window_ok"]) <= set(st["area_ok"]) and len(st["area_ok"]) < len(st["regions"])
+    assert len(st["kept"]) >= 1
+    np.testing.assert_allclose(st["marker_px"], truth[k], atol=0.3)
+
+
+def test_usable_frames_follow_the_offsets(track):
+    n = track.reason.shape[0]
+    ok = track.all_found
+    # a second camera whose numbering is 3 frames ahead, and that misses one more frame
+    reason = track.reason.copy()
+    k_bad = int(np.flatnonzero(ok)[5])
+    reason[k_bad, 1] = "occluded"
+    cam2 = det.MarkerTrack(marker_px=track.marker_px, reason=reason, params=track.params)
+    shifted = det.MarkerTrack(marker_px=np.roll(track.marker_px, 3, axis=0), reason=np.roll(track.reason, 3, axis=0),
+                              params=track.params)
+    got = det.usable_frames({"left": track, "middle": cam2}, {"left": 0, "middle": 0})
+    assert k_bad not in got and len(got) == ok.sum() - 1
+    got = det.usable_frames({"left": track, "right": shifted}, {"left": 2, "right": 5})
+    np.testing.assert_array_equal(got, np.flatnonzero(ok[:n - 3]))
+    with pytest.raises(ValueError, match="offset"):
+        det.usable_frames({"left": track, "right": shifted}, {"left": 0})
