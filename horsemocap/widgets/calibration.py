@@ -1,0 +1,106 @@
+"""Widgets of the calibration: camera picker, view browser, views to exclude (thesis 8.2)."""
+from __future__ import annotations
+
+import cv2
+import ipywidgets as w
+import numpy as np
+
+
+def _png(img: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+    return buf.tobytes()
+
+
+def ui_camera(cameras, value: str | None = None) -> w.Dropdown:
+    """Pick a camera (default: the first, the reference camera)."""
+    cameras = list(cameras)
+    return w.Dropdown(options=cameras, value=value or cameras[0], description="camera")
+
+
+class ViewBrowser(w.VBox):
+    """Browse the checkerboard views of a calibration: detected (green +) and reprojected (red x) corners.
+
+    ``.value`` is ``(camera, view name)`` shown.
+    """
+
+    def __init__(self, result, camera: str | None = None, which: str = "alone"):
+        self.result = result
+        self.camera = ui_camera(result.cameras, camera)
+        self.view = w.IntSlider(value=0, min=0, max=len(result.view_names) - 1, description="view")
+        self.which = w.ToggleButtons(options=["alone", "joint"], value=which if result.joint else "alone",
+                                     description="calibration")
+        self.zoom = w.IntSlider(value=0, min=0, max=200, step=10, description="zoom (px)")
+        self.image = w.Image(format="png")
+        self.label = w.HTML()
+        for c in (self.camera, self.view, self.which, self.zoom):
+            c.observe(self._redraw, "value")
+        super().__init__([w.HBox([self.camera, self.which]), w.HBox([self.view, self.zoom]), self.label, self.image])
+        self._redraw()
+
+    @property
+    def value(self):
+        return self.camera.value, self.result.view_names[self.view.value]
+
+    def _redraw(self, *_):
+        from ..plots.calibration import draw_board_view
+
+        cam, k = self.camera.value, self.view.value
+        img = draw_board_view(self.result, cam, k, self.which.value)
+        v = self.result.views[cam]
+        z = self.zoom.value
+        if z and np.all(np.isfinite(v.corners[k])):
+            cx, cy = v.corners[k][0]
+            y0, x0 = int(max(cy - z, 0)), int(max(cx - z, 0))
+            img = cv2.resize(img[y0:int(cy + z), x0:int(cx + z)], (480, 480), interpolation=cv2.INTER_NEAREST)
+        self.image.value = _png(np.ascontiguousarray(img))
+        res = (self.result.singles[cam] if self.which.value == "alone" or self.result.joint is None
+               else self.result.joint.intrinsics[cam])
+        err = res.per_view_rms[k]
+        status = v.reasons[k] or res.reasons[k] or f"RMS reprojection error {err:.3f} px, window {v.windows[k]}"
+        self.label.value = f"<b>{cam}</b> view <b>{v.names[k]}</b>: {status}"
+
+
+def ui_view_browser(result, camera: str | None = None) -> ViewBrowser:
+    """Browse the views of a :class:`~horsemocap.calibration.RigCalibration`."""
+    return ViewBrowser(result, camera)
+
+
+class ViewExcluder(w.VBox):
+    """A checkbox per view and camera to leave the view out; labels give the per-view error.
+
+    ``.value`` is ``{camera: [view names excluded]}``, the ``exclude`` of
+    :func:`~horsemocap.calibration.calibrate_rig`. Default: nothing excluded
+    (the automatic choice); views without a board cannot be ticked.
+    """
+
+    def __init__(self, result, excluded: dict | None = None):
+        excluded = excluded or {}
+        self.result = result
+        self.boxes = {}
+        rows = [w.HTML("<b>exclude</b> (RMS reprojection error of the view alone, px)")]
+        for k, name in enumerate(result.view_names):
+            items = []
+            for cam in result.cameras:
+                s = result.singles[cam]
+                v = result.views[cam]
+                e = s.per_view_rms[k]
+                txt = f"{cam} {name}: " + (f"{e:.3f}" if np.isfinite(e) else (v.reasons[k] or s.reasons[k]))
+                cb = w.Checkbox(value=name in excluded.get(cam, ()), description=txt, indent=False,
+                                disabled=bool(v.reasons[k]), layout=w.Layout(width="230px"))
+                self.boxes[(cam, name)] = cb
+                items.append(cb)
+            rows.append(w.HBox(items))
+        super().__init__(rows)
+
+    @property
+    def value(self) -> dict:
+        out = {c: [] for c in self.result.cameras}
+        for (cam, name), cb in self.boxes.items():
+            if cb.value:
+                out[cam].append(name)
+        return out
+
+
+def ui_exclude_views(result, excluded: dict | None = None) -> ViewExcluder:
+    """Checkboxes to exclude views of a :class:`~horsemocap.calibration.RigCalibration`."""
+    return ViewExcluder(result, excluded)

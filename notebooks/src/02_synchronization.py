@@ -1,0 +1,171 @@
+# %% [markdown]
+# # 02 · Synchronization: the flashlight frame in each camera
+#
+# **What you will learn**
+# - why three consumer cameras need to be synchronised, and how the thesis did it with a flashlight
+#   (section 3.5, Figure 3.9, section 8.2);
+# - the frame relations of eq. 3.11-3.14 and the `sync.offsets` of a session;
+# - how `horsemocap.sync` finds the flash automatically, and why the horse's own bright spots
+#   (reflective markers, bandages, a helmet, glints) do not fool it;
+# - how to check and override the offsets frame by frame with a widget.
+#
+# **Thesis equations.** The thesis' Casio cameras had no remote trigger; each was started by hand, so
+# the same instant has a different frame number in each video. A flashlight switched on in view marks
+# one instant in all of them. With $F_L(k)$ the $k$-th frame of the left camera,
+#
+# $$F_L(k) \Leftrightarrow F_M(k + \Delta F_{LM}) \quad (3.11) \qquad
+#   F_M(k) \Leftrightarrow F_R(k + \Delta F_{MR}) \quad (3.12) \qquad
+#   F_L(k) \Leftrightarrow F_R(k + \Delta F_{LR}) \quad (3.13)$$
+#
+# with $\Delta F > 0$ (3.14) when the cameras were started left, middle, right. The thesis found
+# $\Delta F_{LM} = 53$ and $\Delta F_{MR} = 73$ by looking at the frames (section 8.2).
+# `horsemocap` stores the flash frame of each camera, `offsets`, so that
+# $\Delta F_{LM}$ = `offsets["middle"] - offsets["left"]`.
+
+# %%
+import json
+
+import matplotlib.pyplot as plt
+import numpy as np
+from IPython.display import display
+
+from horsemocap import plots, widgets
+from horsemocap.data import default_session_dir
+from horsemocap.sources import FrameSource
+from horsemocap.sync import aligned_index, detect_flash, flash_offsets, frame_differences
+
+session = default_session_dir()
+meta = json.loads((session / "session.json").read_text())
+sources = {cam: FrameSource(session / path) for cam, path in meta["motion"].items()}
+for cam, src in sources.items():
+    print(f"{cam:7s} {src.path.name}: {len(src)} frames")
+
+# %% [markdown]
+# ## How the flash is found
+#
+# A pixel *rises* at frame $t$ when it is brighter by at least `min_rise` gray levels in each of the
+# next `min_on_frames` frames than in the two frames before $t$ (frame $t$ itself is skipped, because
+# a flash may switch on during its exposure). Many things make pixels rise:
+#
+# - the flashlight: a blob of pixels, all rising at the same frame, in surroundings that were dark;
+# - a moving bright object (a marker, a bandage, the rider's helmet, the fence seen past the horse):
+#   only a sliver at its leading edge rises, right next to its own body, which was already bright a
+#   frame before;
+# - glints and noise: a few pixels, for a frame.
+#
+# `detect_flash` labels the regions that start rising at each frame and keeps the first one that is
+# large enough (`min_area_px`) and whose surroundings were mostly dark a frame before
+# (`max_surround_bright`). The flash frame is then measured on that region: the first frame whose mean
+# brightness is above half-way between the region's off and on levels.
+
+# %%
+detections = {cam: detect_flash(src) for cam, src in sources.items()}
+for cam, det in detections.items():
+    rejected = sum(not c["accepted"] for c in det.candidates)
+    print(f"{cam:7s} flash at frame {det.frame:4d}  region {det.area_px:5d} px  "
+          f"off {det.off_level:4.0f} -> on {det.on_level:4.0f} gray levels  "
+          f"surroundings bright {100 * det.surround_bright:3.0f} %  ({rejected} moving regions rejected before it)")
+
+# %%
+fig, ax = plt.subplots(figsize=(8, 3.2))
+plots.plot_flash_signal(detections, ax=ax)
+plt.show()
+
+# %% [markdown]
+# The frames around the flash, as in the thesis' Figure 3.9 (cropped around the flashlight): the
+# column "+0" is the first frame with the flash on.
+
+# %%
+offsets = {cam: det.frame for cam, det in detections.items()}
+fig = plots.plot_flash_frames(sources, offsets, detections)
+plt.show()
+
+# %% [markdown]
+# ## The offsets and eq. 3.11-3.13
+#
+# `flash_offsets` is what the pipeline calls. The virtual laboratory started its cameras with the
+# thesis' offsets (53 and 73 frames), so the differences must come out as in section 8.2; the truth
+# saved beside the session says which frame the flash really switched on in.
+
+# %%
+offsets = flash_offsets(sources)
+print("offsets:", offsets)
+for pair, df in frame_differences(offsets).items():
+    print(f"Delta F_{pair} = {df}")
+truth_file = session / "truth" / "truth.json"
+if truth_file.is_file():
+    true_offsets = json.loads(truth_file.read_text())["offsets"]
+    print("true offsets:", true_offsets, "| found exactly:", offsets == true_offsets)
+
+# %% [markdown]
+# Frame 20 of the left camera and the frames of the same instant in the other cameras (eq. 3.11, 3.13):
+
+# %%
+print(aligned_index(offsets, 20))
+
+# %% [markdown]
+# ## Check and override, frame by frame
+#
+# The widget shows the flashlight in the three cameras at the chosen offsets; move `frame - flash` to
+# step through the frames before and after, and type another offset if a camera's flash was found at
+# the wrong frame (for instance, a flash that switched on at the very end of an exposure). Its default
+# is the automatic result, so running the notebook top to bottom gives the pipeline's offsets.
+
+# %% tags=["nbval-ignore-output"]
+ui = widgets.ui_sync(sources, offsets, {cam: det.region for cam, det in detections.items()})
+display(ui)
+
+# %%
+chosen = ui.value
+print("offsets used:", chosen)
+print("Delta F:", frame_differences(chosen))
+
+# %% [markdown]
+# The chosen offsets go into `session.json` as `"sync": {"offsets": {...}}` when they differ from the
+# automatic ones; `horsemocap analyze` then uses them instead of searching for the flash.
+#
+# ## Robust to the horse's bright spots: a test you can see
+#
+# A synthetic video: dark noisy frames, three "markers" crossing at 6 px per frame, a large bright
+# "helmet" crawling at 1.5 px per frame (each of its pixels stays bright for many frames, so a plain
+# "pixels that stay bright" rule would take it for the flash), glints, and a flash at frame 37.
+
+# %%
+def synthetic_frames(n=70, flash_at=37, seed=0):
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[:96, :128]
+    frames = np.clip(rng.normal(30, 3, (n, 96, 128)), 0, 255)
+    for t in range(n):
+        for j, y in enumerate((40, 52, 64)):
+            frames[t][(xx - ((5 + 6 * t + 9 * j) % 148 - 10)) ** 2 + (yy - y) ** 2 <= 9] = 235
+        frames[t][(xx - (10 + 1.5 * t)) ** 2 + (yy - 80) ** 2 <= 81] = 220
+        if t % 7 == 3:
+            frames[t][(xx - rng.integers(10, 118)) ** 2 + (yy - rng.integers(10, 86)) ** 2 <= 2] = 250
+        if flash_at is not None and t >= flash_at:
+            frames[t][(xx - 100) ** 2 + (yy - 20) ** 2 <= 36] = 250
+    return frames.astype(np.uint8)
+
+
+det = detect_flash(synthetic_frames())
+print(f"flash found at frame {det.frame} (true 37); regions rejected before it: "
+      f"{sum(not c['accepted'] for c in det.candidates)}")
+
+# %% [markdown]
+# ## Exercises
+#
+# 1. Raise `min_on_frames` to 5 on the default session. What happens, and why? (The virtual
+#    flashlight stays on for 4 frames.)
+# 2. In the synthetic video, move the flash so that it switches on during 30 % of the exposure of
+#    frame 37 (value `30 + 0.3 * 220` in frame 37). Which frame does `detect_flash` return? And at 70 %?
+# 3. Set `max_surround_bright=1.0` on the synthetic video. Which frame is returned now, and what was it?
+#
+# <details><summary>Solutions</summary>
+#
+# 1. `detect_flash(sources["left"], min_on_frames=5)` raises `SyncError`: no region stays bright for 5
+#    frames, and the message names the camera's file and the largest region it saw.
+# 2. At 30 % the region's brightness in frame 37 is below half-way, so the flash counts as on from
+#    frame 38; at 70 % frame 37 is returned (`tests/test_sync.py` checks both).
+# 3. The helmet's leading edge, at an early frame: without the surroundings test a moving bright
+#    object that covers each pixel for several frames looks like a flash.
+#
+# </details>
