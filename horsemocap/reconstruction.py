@@ -1,0 +1,507 @@
+"""3D reconstruction of markers from several calibrated cameras (thesis 5.1).
+
+Two ways are offered, both returning points in the world frame (the
+reference camera's frame, thesis ``CM_L``) in metres:
+
+``mode="thesis"``
+    Thesis section 5.1, Appendix A step 5 (``combine_image_centroids_and_calibration.m``):
+    stereo triangulation of each camera pair with Bouguet's
+    ``stereo_triangulation`` (the midpoint of the common perpendicular of the
+    two rays), giving ``CM_LM,L``, ``CM_LR,L`` (left frame) and ``CM_MR,M``
+    (middle frame); the latter moved into the left frame with
+    ``x_L = R_ML^-1 (x_M - t_ML)`` (eq. 5.1-5.4), and the three averaged
+    (eq. 5.5). Needs the three cameras of the thesis rig (or explicit ``pairs``).
+``mode="joint"``
+    All cameras that see the point at once: linear DLT on the undistorted
+    normalised coordinates, refined by minimising the sum of squared
+    reprojection errors in (distorted) pixels with damped Gauss-Newton.
+    Works with two cameras or more than three, and with any subset seeing a
+    given point (at least two).
+
+Pixel inputs are the distorted detections (thesis ``PM_L``, ``PM_M``,
+``PM_R``, chapter 4), NaN where a marker was not found; they are undistorted
+with :meth:`horsemocap.camera.Camera.pixels_to_normalized`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .camera import Camera, Rig
+
+__all__ = [
+    "Triangulation",
+    "PairTriangulation",
+    "triangulate",
+    "stereo_triangulation",
+    "relative_pose",
+    "camera_to_world",
+    "reprojection_residuals",
+    "REASON_FEW_CAMERAS",
+    "REASON_BEHIND",
+    "REASON_FAILED",
+    "REASON_INCONSISTENT",
+    "DEFAULT_MAX_RESIDUAL_PX",
+]
+
+REASON_FEW_CAMERAS = "seen_by_fewer_than_two_cameras"
+REASON_BEHIND = "behind_a_camera"
+REASON_FAILED = "triangulation_failed"
+REASON_INCONSISTENT = "inconsistent_views"
+DEFAULT_MAX_RESIDUAL_PX = 2.0
+
+
+@dataclass(frozen=True)
+class PairTriangulation:
+    """Stereo triangulation of one camera pair (thesis ``CM_LM,L`` ...).
+
+    Attributes
+    ----------
+    cameras : tuple of str
+        ``(a, b)``: locally left and right cameras of the pair.
+    points_local : ndarray, shape (n, m, 3)
+        In camera ``a``'s frame (e.g. ``CM_MR,M`` for the middle-right pair).
+    points : ndarray, shape (n, m, 3)
+        In the world (reference camera) frame, eq. 5.3-5.4 (e.g. ``CM_MR,L``).
+    """
+
+    cameras: tuple[str, str]
+    points_local: np.ndarray
+    points: np.ndarray
+
+
+@dataclass(frozen=True)
+class Triangulation:
+    """Result of :func:`triangulate`.
+
+    Attributes
+    ----------
+    points : ndarray, shape (n_frames, n_markers, 3)
+        World (reference camera) frame, metres; thesis ``CM_L`` (eq. 5.5).
+        NaN where no position could be computed, with ``reason``.
+    residual_px : dict of str -> ndarray (n_frames, n_markers)
+        Reprojection error (pixels, distance between the projection of
+        ``points`` and the detection) per camera; NaN where that camera did
+        not see the marker or the point is NaN.
+    reason : ndarray of str, shape (n_frames, n_markers)
+        ``""`` when ``points`` is valid, else why not
+        (``"seen_by_fewer_than_two_cameras"``, ``"behind_a_camera"``,
+        ``"triangulation_failed"``).
+    n_views : ndarray of int, shape (n_frames, n_markers)
+        Number of cameras whose detection was used.
+    mode : str
+        ``"thesis"`` or ``"joint"``.
+    cameras : tuple of str
+        Cameras used, in rig order.
+    pairs : dict of str -> PairTriangulation
+        Thesis mode: each pair's result keyed ``"left-middle"``...; empty in
+        joint mode.
+    rejected : dict of str -> ndarray of bool (n_frames, n_markers)
+        Joint mode: detections left out as inconsistent with the other
+        cameras (see ``max_residual_px``); their ``residual_px`` is still
+        reported (it shows how far off they were).
+    """
+
+    points: np.ndarray
+    residual_px: dict
+    reason: np.ndarray
+    n_views: np.ndarray
+    mode: str
+    cameras: tuple
+    pairs: dict = field(default_factory=dict)
+    rejected: dict = field(default_factory=dict)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Boolean (n_frames, n_markers): a position was computed."""
+        return self.reason == ""
+
+    def rms_residual_px(self) -> dict:
+        """RMS reprojection error per camera over the valid observations (pixels)."""
+        out = {}
+        for cam, r in self.residual_px.items():
+            ok = np.isfinite(r)
+            out[cam] = float(np.sqrt(np.mean(r[ok] ** 2))) if ok.any() else float("nan")
+        return out
+
+
+# ---------------------------------------------------------------------------
+# building blocks
+# ---------------------------------------------------------------------------
+
+def relative_pose(cam_a: Camera, cam_b: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """``R, T`` with ``x_b = R x_a + T`` (thesis eq. 5.1, ``R_RL, t_RL``).
+
+    From the rig's extrinsics ``x_c = R_c x_w + t_c``:
+    ``R = R_b R_a^T``, ``T = t_b - R t_a``.
+    """
+    Ra, Rb = cam_a.rotation_matrix, cam_b.rotation_matrix
+    R = Rb @ Ra.T
+    return R, cam_b.translation - R @ cam_a.translation
+
+
+def camera_to_world(points_cam: np.ndarray, cam: Camera) -> np.ndarray:
+    """Points ``(..., 3)`` from ``cam``'s frame to the world frame.
+
+    ``x_w = R_c^T (x_c - t_c)``; for the middle camera of the thesis rig
+    (world = left camera) this is eq. 5.3, ``x_L = R_ML^-1 (x_M - t_ML)``.
+    """
+    p = np.asarray(points_cam, float)
+    return (p - cam.translation) @ cam.rotation_matrix
+
+
+def stereo_triangulation(xn_left: np.ndarray, xn_right: np.ndarray, R: np.ndarray, T: np.ndarray):
+    """Bouguet's ``stereo_triangulation``: midpoint of the two rays.
+
+    Parameters
+    ----------
+    xn_left, xn_right : ndarray, shape (..., 2)
+        Undistorted normalised coordinates in the (locally) left and right cameras.
+    R, T : ndarray
+        ``x_right = R x_left + T`` (eq. 5.1).
+
+    Returns
+    -------
+    XL, XR : ndarray, shape (..., 3)
+        The point in the left and right camera frames: the midpoint of the
+        shortest segment joining the two viewing rays. NaN where an input is
+        NaN or the rays are parallel.
+    """
+    xl = np.asarray(xn_left, float)
+    xr = np.asarray(xn_right, float)
+    shape = np.broadcast_shapes(xl.shape, xr.shape)[:-1]
+    xt = np.concatenate([xl, np.ones(xl.shape[:-1] + (1,))], axis=-1).reshape(-1, 3)
+    xtt = np.concatenate([xr, np.ones(xr.shape[:-1] + (1,))], axis=-1).reshape(-1, 3)
+    T = np.asarray(T, float).reshape(3)
+    u = xt @ R.T
+    n_xt2 = np.sum(xt * xt, axis=1)
+    n_xtt2 = np.sum(xtt * xtt, axis=1)
+    dot_uxtt = np.sum(u * xtt, axis=1)
+    DD = n_xt2 * n_xtt2 - dot_uxtt**2
+    dot_uT = u @ T
+    dot_xttT = xtt @ T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        Zt = (dot_uxtt * dot_xttT - n_xtt2 * dot_uT) / DD
+        Ztt = (n_xt2 * dot_xttT - dot_uT * dot_uxtt) / DD
+    bad = ~(np.abs(DD) > 1e-15)
+    Zt[bad] = np.nan
+    Ztt[bad] = np.nan
+    X1 = xt * Zt[:, None]
+    X2 = (xtt * Ztt[:, None] - T) @ R  # R^T (.) for row vectors
+    XL = 0.5 * (X1 + X2)
+    XR = XL @ R.T + T
+    return XL.reshape(shape + (3,)), XR.reshape(shape + (3,))
+
+
+def reprojection_residuals(rig: Rig, points: np.ndarray, marker_px: dict) -> dict:
+    """Pixel distance between ``rig`` projections of ``points`` and ``marker_px`` per camera."""
+    out = {}
+    for cam, px in marker_px.items():
+        proj = rig[cam].project(points)
+        out[cam] = np.linalg.norm(proj - np.asarray(px, float), axis=-1)
+    return out
+
+
+def _check_inputs(rig: Rig, marker_px: dict) -> tuple[list[str], tuple[int, int]]:
+    if not isinstance(marker_px, dict) or not marker_px:
+        raise ValueError("marker_px: expected a dict {camera name: (frames, markers, 2) pixels}")
+    unknown = [c for c in marker_px if c not in rig.names]
+    if unknown:
+        raise ValueError(f"marker_px: camera(s) {unknown} are not in the rig (it has {rig.names})")
+    shape = None
+    for cam, px in marker_px.items():
+        a = np.asarray(px, float)
+        if a.ndim != 3 or a.shape[-1] != 2:
+            raise ValueError(f"marker_px[{cam!r}]: expected shape (frames, markers, 2), got {a.shape}")
+        if shape is None:
+            shape = a.shape[:2]
+        elif a.shape[:2] != shape:
+            raise ValueError(
+                f"marker_px[{cam!r}]: shape {a.shape[:2]} (frames, markers) differs from the other cameras' {shape}; "
+                "synchronise the cameras first (same frames, same marker order)")
+    cams = [c for c in rig.names if c in marker_px]
+    return cams, shape
+
+
+def _observed(px: np.ndarray) -> np.ndarray:
+    return np.all(np.isfinite(px), axis=-1)
+
+
+# ---------------------------------------------------------------------------
+# joint triangulation
+# ---------------------------------------------------------------------------
+
+def _dlt(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray) -> np.ndarray:
+    """Linear triangulation; xn (C, N, 2), seen (C, N), Ps (C, 3, 4) -> (N, 3)."""
+    C, N = seen.shape
+    A = np.zeros((N, 2 * C, 4))
+    for c in range(C):
+        x = np.where(seen[c], xn[c, :, 0], 0.0)
+        y = np.where(seen[c], xn[c, :, 1], 0.0)
+        P = Ps[c]
+        w = seen[c].astype(float)[:, None]
+        A[:, 2 * c] = w * (x[:, None] * P[2] - P[0])
+        A[:, 2 * c + 1] = w * (y[:, None] * P[2] - P[1])
+    _, _, Vt = np.linalg.svd(A)
+    Xh = Vt[:, -1, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return Xh[:, :3] / Xh[:, 3:4]
+
+
+def _residual_vector(cams, X, px, seen):
+    """Stacked pixel residuals (N, 2C) with zeros where unseen; NaN projection -> NaN."""
+    res = []
+    for c, cam in enumerate(cams):
+        r = cam.project(X) - px[c]
+        r = np.where(seen[c][:, None], r, 0.0)
+        res.append(r)
+    return np.concatenate(res, axis=1)
+
+
+def _refine(cams, X0, px, seen, iterations=20, step=1e-6):
+    """Damped Gauss-Newton on the pixel reprojection error, per point (vectorised)."""
+    X = X0.copy()
+    N = X.shape[0]
+    r = _residual_vector(cams, X, px, seen)
+    cost = np.sum(r * r, axis=1)
+    lam = np.full(N, 1e-3)
+    for _ in range(iterations):
+        J = np.empty((N, r.shape[1], 3))
+        for k in range(3):
+            d = np.zeros(3)
+            d[k] = step
+            J[:, :, k] = (_residual_vector(cams, X + d, px, seen) - _residual_vector(cams, X - d, px, seen)) / (2 * step)
+        ok = np.all(np.isfinite(J), axis=(1, 2)) & np.isfinite(cost)
+        if not ok.any():
+            break
+        JtJ = np.einsum("nik,nil->nkl", J, J)
+        Jtr = np.einsum("nik,ni->nk", J, r)
+        diag = np.einsum("nkk->nk", JtJ)
+        H = JtJ + lam[:, None, None] * np.einsum("nk,kl->nkl", diag, np.eye(3))
+        H[~ok] = np.eye(3)
+        Jtr[~ok] = 0.0
+        try:
+            delta = -np.linalg.solve(H, Jtr[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            delta = -np.stack([np.linalg.lstsq(h, g, rcond=None)[0] for h, g in zip(H, Jtr)])
+        Xn = X + delta
+        rn = _residual_vector(cams, Xn, px, seen)
+        cn = np.sum(rn * rn, axis=1)
+        better = ok & np.isfinite(cn) & (cn <= cost)
+        X[better] = Xn[better]
+        r[better] = rn[better]
+        gain = cost - cn
+        cost = np.where(better, cn, cost)
+        lam = np.where(better, np.maximum(lam / 10, 1e-9), np.minimum(lam * 10, 1e9))
+        if np.all(~ok | (better & (np.abs(gain) <= 1e-12 * np.maximum(cost, 1e-12))) | (np.abs(delta).max(axis=1) < 1e-10)):
+            break
+    return X
+
+
+def _solve_views(cam_objs, xn, px, seen, Ps):
+    """DLT + refinement of points (N) with the given seen mask (C, N); NaN where it fails."""
+    X0 = _dlt(xn, seen, Ps)
+    good = np.all(np.isfinite(X0), axis=1)
+    X = np.full_like(X0, np.nan)
+    if good.any():
+        X[good] = _refine(cam_objs, X0[good], px[:, good], seen[:, good])
+    return X
+
+
+def _max_residual(cam_objs, X, px, seen):
+    r = np.full(seen.shape, np.nan)
+    for c, cam in enumerate(cam_objs):
+        r[c] = np.linalg.norm(cam.project(X) - px[c], axis=-1)
+    r = np.where(seen, np.where(np.isfinite(r), r, np.inf), 0.0)  # behind a camera: inconsistent
+    return np.max(r, axis=0)
+
+
+def _triangulate_joint(rig, cams, px_all, seen_all, max_residual_px=None):
+    C, n, m, _ = px_all.shape
+    N = n * m
+    px = px_all.reshape(C, N, 2)
+    seen = seen_all.reshape(C, N)
+    cam_objs = [rig[c] for c in cams]
+    xn = np.stack([cam.pixels_to_normalized(px[i]) for i, cam in enumerate(cam_objs)])
+    seen = seen & np.all(np.isfinite(xn), axis=-1)
+    n_views = seen.sum(axis=0)
+    points = np.full((N, 3), np.nan)
+    reason = np.full(N, REASON_FEW_CAMERAS, dtype=object)
+    rejected = np.zeros((C, N), bool)
+    todo = np.flatnonzero(n_views >= 2)
+    if todo.size:
+        Ps = np.stack([np.hstack([cam.rotation_matrix, cam.translation[:, None]]) for cam in cam_objs])
+        X = _solve_views(cam_objs, xn[:, todo], px[:, todo], seen[:, todo], Ps)
+        points[todo] = X
+        reason[todo] = ""
+        reason[todo[~np.all(np.isfinite(X), axis=1)]] = REASON_FAILED
+    if max_residual_px is not None and todo.size:
+        used = seen.copy()
+        for _ in range(C):
+            idx = todo[reason[todo] == ""]
+            if idx.size == 0:
+                break
+            bad = idx[_max_residual(cam_objs, points[idx], px[:, idx], used[:, idx]) > max_residual_px]
+            if bad.size == 0:
+                break
+            few = bad[used[:, bad].sum(axis=0) <= 2]
+            reason[few] = REASON_INCONSISTENT
+            points[few] = np.nan
+            multi = bad[used[:, bad].sum(axis=0) > 2]
+            if multi.size == 0:
+                break
+            # leave each camera out in turn; keep the subset with the smallest largest residual
+            best_r = np.full(multi.size, np.inf)
+            best_c = np.full(multi.size, -1)
+            best_X = np.full((multi.size, 3), np.nan)
+            for c in range(C):
+                cand = used[c, multi]
+                if not cand.any():
+                    continue
+                sub = used[:, multi[cand]].copy()
+                sub[c] = False
+                Xc = _solve_views(cam_objs, xn[:, multi[cand]], px[:, multi[cand]], sub, Ps)
+                rc_ = _max_residual(cam_objs, Xc, px[:, multi[cand]], sub)
+                rc_ = np.where(np.all(np.isfinite(Xc), axis=1), rc_, np.inf)
+                pos = np.flatnonzero(cand)
+                better = rc_ < best_r[pos]
+                best_r[pos[better]] = rc_[better]
+                best_c[pos[better]] = c
+                best_X[pos[better]] = Xc[better]
+            ok = best_c >= 0
+            points[multi[ok]] = best_X[ok]
+            used[best_c[ok], multi[ok]] = False
+            rejected[best_c[ok], multi[ok]] = True
+            points[multi[~ok]] = np.nan
+            reason[multi[~ok]] = REASON_INCONSISTENT
+        n_views = used.sum(axis=0)
+    return (points.reshape(n, m, 3), reason.reshape(n, m), n_views.reshape(n, m),
+            rejected.reshape(C, n, m))
+
+
+# ---------------------------------------------------------------------------
+# thesis triangulation
+# ---------------------------------------------------------------------------
+
+def _triangulate_thesis(rig, cams, px_all, seen_all, pairs):
+    C, n, m, _ = px_all.shape
+    index = {c: i for i, c in enumerate(cams)}
+    xn = {c: rig[c].pixels_to_normalized(px_all[index[c]]) for c in cams}
+    results = {}
+    for a, b in pairs:
+        R, T = relative_pose(rig[a], rig[b])
+        XA, _ = stereo_triangulation(xn[a], xn[b], R, T)
+        world = camera_to_world(XA, rig[a])
+        results[f"{a}-{b}"] = PairTriangulation((a, b), XA, world)
+    stack = np.stack([p.points for p in results.values()])  # (P, n, m, 3)
+    finite = np.all(np.isfinite(stack), axis=-1)
+    count = finite.sum(axis=0)
+    with np.errstate(invalid="ignore"):
+        points = np.where(count[..., None] > 0,
+                          np.nansum(np.where(finite[..., None], stack, 0.0), axis=0) / np.maximum(count, 1)[..., None],
+                          np.nan)  # eq. 5.5 (over the pairs that saw the point)
+    used_cams = np.zeros((C, n, m), bool)
+    for (a, b), f in zip(pairs, finite):
+        used_cams[index[a]] |= f
+        used_cams[index[b]] |= f
+    used = used_cams.sum(axis=0)
+    n_seen = seen_all.sum(axis=0)
+    reason = np.full((n, m), "", dtype=object)
+    reason[count == 0] = REASON_FAILED
+    reason[n_seen < 2] = REASON_FEW_CAMERAS
+    points[count == 0] = np.nan
+    return points, reason, used, results
+
+
+# ---------------------------------------------------------------------------
+# public entry point
+# ---------------------------------------------------------------------------
+
+def triangulate(rig: Rig, marker_px: dict, mode: str = "joint", pairs=None,
+                max_residual_px: float | None = DEFAULT_MAX_RESIDUAL_PX) -> Triangulation:
+    """3D marker positions from the synchronised detections of several cameras.
+
+    Parameters
+    ----------
+    rig : Rig
+        Calibrated cameras; world frame = the reference camera's frame.
+    marker_px : dict of str -> array_like, shape (n_frames, n_markers, 2)
+        Distorted pixel centroids per camera (thesis ``PM_L``, ``PM_M``,
+        ``PM_R``), same frames (synchronised) and marker order in every
+        camera; NaN where the marker was not detected.
+    mode : {"joint", "thesis"}
+        ``"thesis"``: pairwise stereo triangulation and averaging (eq.
+        5.1-5.5); ``"joint"``: DLT over all cameras refined by reprojection
+        error (see module docstring).
+    pairs : sequence of (str, str), optional
+        Thesis mode only: the stereo pairs, each ``(locally left, locally
+        right)``. Default: the three pairs of a three-camera rig in rig order,
+        ``(left, middle), (left, right), (middle, right)``; a rig with another
+        number of cameras needs explicit pairs.
+    max_residual_px : float or None
+        Joint mode only: a point whose largest reprojection error exceeds this
+        (default 2 px, ten times a good calibration's error) is inconsistent
+        (e.g. a marker swapped in one camera). With three or more views the
+        camera whose removal leaves the smallest largest residual is left out
+        (recorded in ``rejected``), repeatedly; with two views left the point
+        becomes NaN with reason ``"inconsistent_views"``. ``None``: no check
+        (the thesis mode never checks).
+
+    Returns
+    -------
+    Triangulation
+        ``points`` (n, m, 3) world frame in metres (thesis ``CM_L``),
+        ``residual_px`` per camera, ``reason`` per frame and marker.
+
+    Notes
+    -----
+    A marker seen by fewer than two cameras in a frame is NaN with reason
+    ``"seen_by_fewer_than_two_cameras"``. In thesis mode a point seen by
+    exactly two cameras is the result of the one pair that saw it (the thesis
+    averages three pairs, eq. 5.5; ``n_views`` tells how many cameras were used).
+    """
+    if mode not in ("joint", "thesis"):
+        raise ValueError(f"mode must be 'joint' or 'thesis', got {mode!r}")
+    cams, (n, m) = _check_inputs(rig, marker_px)
+    if len(cams) < 2:
+        raise ValueError(f"triangulate: need detections from at least two cameras, got {cams}")
+    px_all = np.stack([np.asarray(marker_px[c], float) for c in cams])
+    seen_all = _observed(px_all)
+    pair_results = {}
+    rejected = {c: np.zeros((n, m), bool) for c in cams}
+    if mode == "joint":
+        if pairs is not None:
+            raise ValueError("pairs is only used in mode='thesis'")
+        points, reason, n_views, rejected_arr = _triangulate_joint(rig, cams, px_all, seen_all, max_residual_px)
+        rejected = {c: rejected_arr[i] for i, c in enumerate(cams)}
+    else:
+        if pairs is None:
+            if len(cams) != 3:
+                raise ValueError(
+                    f"thesis mode (eq. 5.1-5.5) needs the three cameras of the thesis rig, got {len(cams)} "
+                    f"({cams}); pass pairs=[(a, b), ...] explicitly or use mode='joint'")
+            pairs = [(cams[0], cams[1]), (cams[0], cams[2]), (cams[1], cams[2])]
+        pairs = [tuple(p) for p in pairs]
+        for p in pairs:
+            if len(p) != 2 or p[0] not in cams or p[1] not in cams or p[0] == p[1]:
+                raise ValueError(f"pairs: {p!r} is not a pair of two different cameras among {cams}")
+        points, reason, n_views, pair_results = _triangulate_thesis(rig, cams, px_all, seen_all, pairs)
+    # points behind a camera that saw them are not physical
+    for i, c in enumerate(cams):
+        depth = rig[c].world_to_camera(points)[..., 2]
+        with np.errstate(invalid="ignore"):
+            behind = seen_all[i] & (reason == "") & ~(depth > 0)
+        reason[behind] = REASON_BEHIND
+    points = np.where((reason == "")[..., None], points, np.nan)
+    residuals = reprojection_residuals(rig, points, {c: px_all[i] for i, c in enumerate(cams)})
+    return Triangulation(
+        points=points,
+        residual_px=residuals,
+        reason=reason.astype(str),
+        n_views=np.asarray(n_views, int),
+        mode=mode,
+        cameras=tuple(cams),
+        pairs=pair_results,
+        rejected=rejected,
+    )
