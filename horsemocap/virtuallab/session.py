@@ -1,0 +1,646 @@
+"""Render complete riding sessions (shared/spec/sessions.md) with their truth.
+
+Timeline (thesis 3.5, 8.2): the cameras are started one after the other and
+record the same instants (frame-locked). A flashlight in view switches on at
+motion time ``t = 0``; its first lit frame is frame ``offsets[cam]`` of each
+camera: ``offsets = {left: o, middle: o + 53, right: o + 126}`` (thesis
+``Delta F_LM = 53``, ``Delta F_MR = 73``). Frame ``k`` of camera ``c`` shows
+time ``t = (k - offsets[c]) / fps``. The horse enters from the left shortly
+after the flash, crosses the view at the gait speed and leaves on the right.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..camera import Camera, Rig, write_rig
+from ..store import atomic_write_json
+from .horse import SaddleMotion, saddle_motion
+from .render import (Arena, add_glints, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish,
+                     horse_parts, project_parts, render_arena, rider_parts, sphere_silhouette)
+from .rig import FPS, thesis_rig
+from .truth import Truth, save_truth
+
+DELTA_F_LM = 53
+DELTA_F_MR = 73
+FLASH_FRAMES = 4
+MARKER_DIAMETER = 0.06
+CAMERA_NAMES = ("left", "middle", "right")
+#: Flashlight in the ground frame (m) and its lens radius.
+FLASH_POSITION_G = np.array([2.3, -1.05, 9.6])
+FLASH_RADIUS = 0.06
+#: Plumb line (thesis 5.3): upper (tail) and lower (tip) markers, ground frame.
+PLUMB_TAIL_G = np.array([0.45, -1.85, 7.7])
+PLUMB_TIP_G = np.array([0.45, -0.45, 7.7])
+PLUMB_MARKER_DIAMETER = 0.05
+JPEG_QUALITY = 82
+
+
+def _seed(*parts) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([int(p) for p in parts]))
+
+
+def _cam_index(name):
+    return CAMERA_NAMES.index(name)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything needed to draw any frame of one session."""
+
+    rig: Rig
+    motion: SaddleMotion
+    seed: int
+    arena: Arena = Arena()
+
+    def ground_to_world(self, p_g):
+        return self.motion.ground_to_world_points(p_g)
+
+    def marker_geometry(self, pose, with_saddle=True):
+        """World centres (n, m, 3) and disc normals (n, m, 3) of the markers."""
+        h = self.motion.horse
+        body = np.vstack([h.marker_body, h.saddle_body[None]]) if with_saddle else h.marker_body
+        nrm = np.vstack([h.marker_normal, h.saddle_normal[None]]) if with_saddle else h.marker_normal
+        pos = pose.position[:, None, :] + np.einsum("nij,mj->nmi", pose.rotation, body)
+        nw = np.einsum("nij,mj->nmi", pose.rotation, nrm)
+        return pos, nw
+
+
+def marker_gradients(scene: Scene) -> np.ndarray:
+    """Per-marker uneven-illumination gradients (4, 2), fixed for a session seed."""
+    rng = _seed(scene.seed, 21)
+    ang = rng.uniform(0, 2 * np.pi, 4)
+    mag = rng.uniform(0.02, 0.06, 4)
+    return np.column_stack([mag * np.cos(ang), mag * np.sin(ang)])
+
+
+def draw_horse_frame(img, scene: Scene, cam: Camera, pose, t: float, *, rider: bool, standing: bool,
+                     markers: bool = True, exposure_s: float = 0.0, n_sub: int = 7, uneven: bool = False):
+    """Draw horse, saddle, markers and (optionally) the rider for one pose (index 0).
+
+    ``exposure_s > 0`` smears the markers over the exposure centred on ``t``
+    (motion blur; the rest of the scene is drawn at ``t``). ``uneven``: the
+    markers' tape is lit unevenly (:func:`marker_gradients`).
+    """
+    m = scene.motion
+    parts = horse_parts(m.horse, m.gait, t, m.height, rider=rider, standing=standing)
+    pos0, R0 = pose.position[0], pose.rotation[0]
+    projected = project_parts(cam, pos0, R0, parts)
+    w, h = cam.size
+    allpx = np.concatenate([p[0] for p in projected])
+    if not np.any(np.isfinite(allpx)):
+        return
+    if (np.nanmax(allpx[:, 0]) < -5 or np.nanmin(allpx[:, 0]) > w + 5
+            or np.nanmax(allpx[:, 1]) < -5 or np.nanmin(allpx[:, 1]) > h + 5):
+        return
+    for px, rgb, kind in projected:
+        fill_polygon(img, px, rgb)
+    if markers:
+        if exposure_s > 0 and not standing:
+            ts = t + (np.arange(n_sub) + 0.5) / n_sub * exposure_s - exposure_s / 2
+            centres, normals = scene.marker_geometry(m.pose(ts))
+            grads = marker_gradients(scene) if uneven else [None] * centres.shape[1]
+            for j in range(centres.shape[1]):
+                draw_disc_blurred(img, cam, centres[:, j], normals[:, j], MARKER_DIAMETER / 2, gradient=grads[j])
+        else:
+            centres, normals = scene.marker_geometry(pose)
+            for j in range(centres.shape[1]):
+                draw_disc(img, cam, centres[0, j], normals[0, j], MARKER_DIAMETER / 2)
+    if rider:
+        for px, rgb, kind in project_parts(cam, pos0, R0, rider_parts(t, m.gait)):
+            fill_polygon(img, px, rgb)
+    # a shiny girth buckle near the markers: its glint depends on the pitch
+    buckle = np.array([[-0.04, 0.17, -0.35], [0.02, 0.17, -0.35], [0.02, 0.215, -0.35], [-0.04, 0.215, -0.35]])
+    pitch_now = m.gait.pitch.value(np.array([t]), m.gait.stride_hz)[0] if not standing else 0.0
+    shine = 0.55 + 0.45 * math.cos(pitch_now * 25.0)
+    fill_polygon(img, project_parts(cam, pos0, R0, [(buckle, None, "buckle")])[0][0],
+                 (235.0 * shine, 230.0 * shine, 200.0 * shine))
+
+
+def draw_flash(img, scene: Scene, cam: Camera):
+    """The switched-on flashlight: a saturated lens with a glow."""
+    c = scene.ground_to_world(FLASH_POSITION_G[None])[0]
+    uv = cam.project(c)
+    w, h = cam.size
+    yy, xx = np.mgrid[0:h, 0:w]
+    r2 = (xx - uv[0]) ** 2 + (yy - uv[1]) ** 2
+    img += (120.0 * np.exp(-r2 / (2 * 14.0 ** 2)))[..., None] + 6.0
+    normal = cam.center - c
+    draw_disc(img, cam, c, normal, FLASH_RADIUS, rgb=(255.0, 255.0, 250.0))
+
+
+def marker_projection_truth(scene: Scene, cam: Camera, t: np.ndarray, ride: bool):
+    """True 2D centres (n, 4, 2), visibility (n, 4) and reasons (n, 4)."""
+    pose = scene.motion.pose(t)
+    centres, normals = scene.marker_geometry(pose)
+    px = cam.project(centres)
+    n, m = centres.shape[:2]
+    w, h = cam.size
+    visible = np.zeros((n, m), bool)
+    reason = np.full((n, m), "", dtype="U24")
+    for i in range(n):
+        for j in range(m):
+            rim = cam.project(disc_boundary(centres[i, j], normals[i, j], MARKER_DIAMETER / 2, 32))
+            inside = cam.in_image(rim, margin=0.5)
+            if not np.any(inside):
+                reason[i, j] = "outside_image"
+            elif not np.all(inside):
+                reason[i, j] = "partly_outside_image"
+            elif ride and j == 3:
+                reason[i, j] = "occluded_by_rider"
+            else:
+                visible[i, j] = True
+    return px, visible, reason
+
+
+def plan_timeline(scene: Scene, fps: float = FPS, left_offset: int = 8, max_seconds: float = 30.0):
+    """Offsets and number of frames after the flash (until the markers left every view)."""
+    offsets = {"left": left_offset, "middle": left_offset + DELTA_F_LM, "right": left_offset + DELTA_F_LM + DELTA_F_MR}
+    n = int(max_seconds * fps)
+    t = np.arange(n) / fps
+    pose = scene.motion.pose(t)
+    centres, _ = scene.marker_geometry(pose, with_saddle=False)
+    last = 0
+    for cam in scene.rig:
+        px = cam.project(centres)
+        inside = cam.in_image(px, margin=-4.0).any(axis=1)
+        if inside.any():
+            last = max(last, int(np.nonzero(inside)[0].max()))
+    return offsets, last + 4
+
+
+def _write_video(path: Path, frames_iter, size, fps, compress: bool):
+    """MJPEG AVI (lossy, deterministic) or, with ``compress=False``, a PNG folder."""
+    if compress:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.avi")
+        # FFmpeg's MJPEG encoder (like the Casio EX-Z750's Motion-JPEG AVI);
+        # OpenCV's own MJPEG writer is the fallback (3x larger files).
+        vw = cv2.VideoWriter(str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+        if not vw.isOpened():
+            vw = cv2.VideoWriter(str(tmp), cv2.CAP_OPENCV_MJPEG, cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+            if not vw.isOpened():
+                raise RuntimeError(f"{path}: OpenCV cannot open an MJPEG writer")
+            vw.set(cv2.VIDEOWRITER_PROP_QUALITY, JPEG_QUALITY)
+        for frame in frames_iter:
+            vw.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+        vw.release()
+        tmp.replace(path)
+    else:
+        path.mkdir(parents=True, exist_ok=True)
+        for k, frame in enumerate(frames_iter):
+            cv2.imwrite(str(path / f"{path.name}{k}.png"), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+
+
+def _write_still(path: Path, img_rgb: np.ndarray, compress: bool) -> str:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    bgr = cv2.cvtColor(img_rgb, cv2.COLOR_RGB2BGR)
+    if compress:
+        path = path.with_suffix(".jpg")
+        cv2.imwrite(str(path), bgr, [cv2.IMWRITE_JPEG_QUALITY, 90])
+    else:
+        path = path.with_suffix(".png")
+        cv2.imwrite(str(path), bgr)
+    return path.name
+
+
+EXPOSURE_S = 1.0 / 120.0
+
+
+def render_motion_frame(scene: Scene, cam: Camera, k: int, offset: int, bg: np.ndarray, *, noise: bool,
+                        fps: float = FPS, markers: bool = True, exposure_s: float = EXPOSURE_S) -> np.ndarray:
+    """Frame ``k`` of camera ``cam`` (its own numbering) as uint8 RGB.
+
+    The frame shows time ``t = (k - offset) / fps`` (mid-exposure); markers
+    are smeared over ``exposure_s`` (motion blur, 0 disables).
+    """
+    t = (k - offset) / fps
+    img = bg.copy()
+    ci = _cam_index(cam.name)
+    rng = _seed(scene.seed, 1, ci, k)
+    if 0 <= k - offset < FLASH_FRAMES:
+        draw_flash(img, scene, cam)
+    pose = scene.motion.pose(np.array([t]))
+    draw_horse_frame(img, scene, cam, pose, t, rider=True, standing=False, markers=markers, exposure_s=exposure_s,
+                     uneven=noise)
+    if noise:
+        centres, _ = scene.marker_geometry(pose)
+        avoid = [tuple(p) for p in cam.project(centres[0])]
+        add_glints(img, rng, 5.0, avoid)
+        mk = cam.project(centres[0, :3])
+        if np.all(np.isfinite(mk)):
+            region = (mk[:, 0].min() - 45, mk[:, 1].min() - 25, mk[:, 0].max() + 45, mk[:, 1].max() + 25)
+            add_glints(img, rng, 1.2, avoid, region=region)
+    return finish(img, rng, noise=noise)
+
+
+def render_static(scene: Scene, cam: Camera, bg, *, noise: bool) -> np.ndarray:
+    """The static shot (thesis 6.3): the horse standing, no rider, all markers visible."""
+    img = bg.copy()
+    pose = scene.motion.static_pose()
+    draw_horse_frame(img, scene, cam, pose, 0.0, rider=False, standing=True)
+    rng = _seed(scene.seed, 2, _cam_index(cam.name))
+    if noise:
+        add_glints(img, rng, 4.0, [tuple(p) for p in cam.project(scene.marker_geometry(pose)[0][0])])
+    return finish(img, rng, noise=noise)
+
+
+def plumb_world(scene_or_motion) -> np.ndarray:
+    """Plumb markers (tip, tail) in the world frame, (2, 3)."""
+    m = scene_or_motion.motion if isinstance(scene_or_motion, Scene) else scene_or_motion
+    return m.ground_to_world_points(np.vstack([PLUMB_TIP_G, PLUMB_TAIL_G]))
+
+
+def render_plumb(scene: Scene, cam: Camera, bg, *, noise: bool, tag: int = 3) -> np.ndarray:
+    """A plumb line with two reflective spheres (thesis 5.3, Figure 8.4)."""
+    img = bg.copy()
+    tip, tail = plumb_world(scene)
+    top = scene.ground_to_world(np.array([[PLUMB_TAIL_G[0], -3.5, PLUMB_TAIL_G[2]]]))[0]
+    line = np.linspace(top, tip, 60)
+    px = cam.project(line)
+    for a, b in zip(px[:-1], px[1:]):
+        if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+            cv2.line(img, tuple(np.round(a * 16).astype(int)), tuple(np.round(b * 16).astype(int)),
+                     (85.0, 85.0, 80.0), 1, cv2.LINE_AA, 4)
+    for c in (tail, tip):
+        cc, nn, rr = sphere_silhouette(c, PLUMB_MARKER_DIAMETER / 2, cam)
+        draw_disc(img, cam, cc, nn, rr)
+    rng = _seed(scene.seed, tag, _cam_index(cam.name))
+    if noise:
+        add_glints(img, rng, 4.0, [tuple(p) for p in cam.project(np.vstack([tip, tail]))])
+    return finish(img, rng, noise=noise)
+
+
+# ---------------------------------------------------------------------------
+# comfort indicators of the true saddle motion
+# ---------------------------------------------------------------------------
+
+def true_saddle_harmonics(motion: SaddleMotion, n_per_period: int = 512, k_max: int = 40):
+    """Exact harmonic series of the true saddle vertical acceleration ``A_y``.
+
+    The whole motion is periodic in the stride period, so ``A_y`` (motion
+    frame, y down) is a Fourier series in ``f0 = stride_hz``; its
+    coefficients come from an FFT of one period sampled ``n_per_period``
+    times (exact up to harmonics above ``n_per_period / 2``, which are zero
+    to machine precision here). Returns ``(freq_hz, complex c_k, f0)`` with
+    ``A_y(t) = Re(sum c_k exp(2j pi f_k t))`` (zero mean).
+    """
+    f0 = motion.gait.stride_hz
+    ts = np.arange(n_per_period) / (n_per_period * f0)
+    a_y = motion.saddle(ts)[2] @ motion.motion_axes[1]
+    X = np.fft.rfft(a_y)
+    c = 2.0 * X[1:k_max + 1] / n_per_period
+    k = np.arange(1, k_max + 1)
+    keep = np.abs(c) > 1e-9
+    return k[keep] * f0, c[keep], f0
+
+
+def true_comfort(motion: SaddleMotion, t0: float, t1: float, fps: float = FPS):
+    """Comfort indicators (thesis Table 8.7) of the true saddle motion.
+
+    ``horsemocap.vibration.comfort_indicators`` (mode ``"iso"``; the thesis'
+    single-scalar weighting in ``extras['comfort_thesis_mode']``) is given the
+    exact harmonic series of the true vertical acceleration
+    (:func:`true_saddle_harmonics`), tau = two stride periods (thesis 8.4.1:
+    two periods), ``vel_x_avg`` = the true mean speed along x-motion and
+    ``amplitude_y`` = half the peak-to-peak of the true vertical position.
+    If that module is missing, only unweighted quantities are computed here.
+    The dense true signals over ``[t0, t1]`` (the analysed frames) are
+    returned too, so anything can be recomputed.
+    """
+    dense_fs = 1000.0
+    td = np.arange(t0, t1 + 0.5 / dense_fs, 1 / dense_fs)
+    p, v, a = motion.saddle(td)
+    axes = motion.motion_axes
+    a_y, p_y, v_x = a @ axes[1], p @ axes[1], v @ axes[0]
+    f0 = motion.gait.stride_hz
+    tau = 2.0 / f0
+    tp = np.linspace(0.0, tau, 4096, endpoint=False)
+    pp, vp, ap = motion.saddle(tp)
+    ap_y, pp_y = ap @ axes[1], pp @ axes[1]
+    amp = float((pp_y.max() - pp_y.min()) / 2)
+    vel = float(np.mean(vp @ axes[0]))
+    out = {
+        "acc_y_max": float(np.max(np.abs(ap_y))),
+        "acc_y_rms_unweighted": float(np.sqrt(np.mean(ap_y ** 2))),
+        "VDV_y_unweighted": float((np.sum(ap_y ** 4) * tau / len(tp)) ** 0.25),
+        "crest_factor_y_unweighted": float(np.max(np.abs(ap_y)) / np.sqrt(np.mean(ap_y ** 2))),
+        "vel_x_avg": vel * 3.6,
+        "amplitude_y": amp,
+        "duration_s": tau,
+        "f0_hz": f0,
+        "period_s": 1.0 / f0,
+    }
+    source = "virtuallab (unweighted only; horsemocap.vibration not available)"
+    dense = {"comfort_time_s": td, "comfort_saddle_acc_y": a_y, "comfort_saddle_pos_y": p_y,
+             "comfort_saddle_vel_x": v_x}
+    try:
+        from .. import vibration
+    except Exception:  # pragma: no cover - the module exists in the full package
+        vibration = None
+    if vibration is not None and hasattr(vibration, "comfort_indicators"):
+        freq, c, f0 = true_saddle_harmonics(motion)
+        h = vibration.Harmonics(freq, c, 0.0)
+        res = vibration.comfort_indicators(h, tau, vel, amp, mode="iso", f0_hz=f0)
+        out.update({k: float(v) for k, v in res.items()})
+        thesis = vibration.comfort_indicators(h, tau, vel, amp, mode="thesis", f0_hz=f0)
+        dense["comfort_thesis_mode"] = {k: float(v) for k, v in thesis.items()}
+        dense["saddle_acc_y_harmonics_hz"] = freq
+        dense["saddle_acc_y_harmonics_re"] = c.real
+        dense["saddle_acc_y_harmonics_im"] = c.imag
+        source = ("horsemocap.vibration.comfort_indicators(mode='iso') on the exact harmonic series of the "
+                  "true saddle A_y, tau = 2 stride periods")
+    return out, source, dense
+
+
+# ---------------------------------------------------------------------------
+# the session
+# ---------------------------------------------------------------------------
+
+def _clear_generated(out: Path) -> None:
+    """Remove what an earlier render wrote into ``out`` (only the session's own sub-folders)."""
+    import shutil
+
+    for sub in ("motion", "plumb", "static", "calibration", "truth"):
+        if (out / sub).is_dir():
+            shutil.rmtree(out / sub)
+
+
+def session_json(name: str, meta: dict, motion_paths: dict, stills: dict, calib_images: bool,
+                 board=(15, 29), square=0.05, marker_count=3, marker_diameter=MARKER_DIAMETER,
+                 sync=None, fps=FPS) -> dict:
+    """The ``session.json`` content (format ``horsemocap-session/1``)."""
+    d = {
+        "format": "horsemocap-session/1",
+        "name": name,
+        "fps": fps,
+        "cameras": list(CAMERA_NAMES),
+        "reference_camera": "left",
+        "motion": motion_paths,
+        "sync": sync or {"method": "flash"},
+        "calibration": {"rig": "calibration/rig.toml"},
+        "markers": {"count": marker_count, "diameter_m": marker_diameter},
+        "analysis": {},
+        "metadata": meta,
+    }
+    if calib_images:
+        d["calibration"]["images"] = {c: f"calibration/{c}" for c in CAMERA_NAMES}
+        d["calibration"]["board"] = {"inner_corners": list(board), "square_size_m": square}
+    for key, paths in stills.items():
+        d[key] = paths
+    return d
+
+
+def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: int = 0, *,
+                   noise: bool = True, compress: bool = True, n_motion_frames: int | None = None,
+                   calibration_views: int | None = 15, name: str | None = None, left_offset: int = 8,
+                   exposure_s: float = EXPOSURE_S, verbose: bool = False) -> Path:
+    """Render a complete session folder and its ground truth.
+
+    Parameters
+    ----------
+    out_dir : path
+        The session folder to create; its ``motion/``, ``plumb/``,
+        ``static/``, ``calibration/`` and ``truth/`` sub-folders are replaced.
+    horse, gait : str
+        See :data:`horsemocap.virtuallab.HORSES`, :data:`~horsemocap.virtuallab.GAITS`.
+    seed : int
+        Seeds every random choice (noise, glints, textures, board poses).
+    noise : bool
+        Sensor noise, glints and unevenly lit marker tape (``False``: a clean
+        render, for tests).
+    compress : bool
+        MJPEG videos and JPEG stills (``False``: PNG folders and PNG stills).
+    n_motion_frames : int, optional
+        Number of frames after the flash (default: until the markers have
+        left every view).
+    calibration_views : int or None
+        Checkerboard views per camera (``None`` or 0: no images, the rig only).
+    exposure_s : float
+        Exposure time; markers are smeared over it (motion blur). 0: sharp.
+
+    Returns
+    -------
+    Path
+        The session folder.
+    """
+    t_start = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    _clear_generated(out)
+    rig = thesis_rig()
+    motion = saddle_motion(horse, gait)
+    scene = Scene(rig, motion, int(seed))
+    offsets, n_after = plan_timeline(scene, left_offset=left_offset)
+    if n_motion_frames is not None:
+        n_after = int(n_motion_frames)
+    fps = FPS
+    bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
+    # motion videos
+    motion_paths = {}
+    n_frames = {}
+    for cam in rig:
+        o = offsets[cam.name]
+        n_frames[cam.name] = o + n_after
+        frames = (render_motion_frame(scene, cam, k, o, bgs[cam.name], noise=noise, exposure_s=exposure_s)
+                  for k in range(n_frames[cam.name]))
+        if compress:
+            _write_video(out / "motion" / f"{cam.name}.avi", frames, cam.size, fps, True)
+            motion_paths[cam.name] = f"motion/{cam.name}.avi"
+        else:
+            _write_video(out / "motion" / cam.name, frames, cam.size, fps, False)
+            motion_paths[cam.name] = f"motion/{cam.name}"
+    # stills
+    stills = {"plumb": {}, "static": {}}
+    for cam in rig:
+        stills["plumb"][cam.name] = "plumb/" + _write_still(out / "plumb" / f"{cam.name}.png",
+                                                            render_plumb(scene, cam, bgs[cam.name], noise=noise), compress)
+        stills["static"][cam.name] = "static/" + _write_still(out / "static" / f"{cam.name}.png",
+                                                              render_static(scene, cam, bgs[cam.name], noise=noise), compress)
+    # calibration
+    (out / "calibration").mkdir(exist_ok=True)
+    write_rig(rig, out / "calibration" / "rig.toml")
+    board_info = None
+    if calibration_views:
+        from .calibration import render_calibration_views
+        board_info = render_calibration_views(out / "calibration", scene, bgs, calibration_views,
+                                              noise=noise, compress=compress)
+    # truth
+    truth = build_truth(scene, offsets, n_frames, fps)
+    if board_info is not None:
+        truth.extras.update(board_info.get("truth_extras", {}))
+    truth.extras["exposure_s"] = float(exposure_s)
+    truth.extras["noise"] = bool(noise)
+    truth.extras["compress"] = bool(compress)
+    save_truth(truth, out)
+    meta = {"horse": horse, "gait": gait, "direction": "CCW", "rider": "A", "seed": int(seed),
+            "generator": "horsemocap.virtuallab", "virtual": True}
+    sname = name or f"{horse.lower().replace(' ', '')}_{gait}"
+    board = board_info["board"] if board_info else {"inner_corners": [15, 29], "square_size_m": 0.05}
+    sj = session_json(sname, meta, motion_paths, stills, bool(calibration_views),
+                      board=board["inner_corners"], square=board["square_size_m"])
+    atomic_write_json(out / "session.json", sj)
+    if verbose:
+        print(f"rendered {out} in {time.perf_counter() - t_start:.1f} s")
+    return out
+
+
+def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -> Truth:
+    """Exact truth of a session: analytic kinematics at the analysed frames."""
+    rig, motion = scene.rig, scene.motion
+    marker_px, marker_vis, marker_reason = {}, {}, {}
+    for cam in rig:
+        k = np.arange(n_frames[cam.name])
+        t = (k - offsets[cam.name]) / fps
+        px, vis, rs = marker_projection_truth(scene, cam, t, ride=True)
+        marker_px[cam.name], marker_vis[cam.name], marker_reason[cam.name] = px, vis, rs
+    # analysed frames: every skin marker visible in every camera
+    kL = np.arange(n_frames["left"])
+    ok = np.ones(len(kL), bool)
+    for cam in rig:
+        kc = kL - offsets["left"] + offsets[cam.name]
+        good = (kc >= 0) & (kc < n_frames[cam.name])
+        vis = np.zeros(len(kL), bool)
+        vis[good] = marker_vis[cam.name][kc[good], :3].all(axis=1)
+        ok &= vis
+    idx = np.nonzero(ok)[0]
+    if idx.size:
+        # the longest contiguous run
+        splits = np.split(idx, np.nonzero(np.diff(idx) != 1)[0] + 1)
+        ref = max(splits, key=len)
+    else:
+        ref = idx
+    t_m = (ref - offsets["left"]) / fps
+    pose = motion.pose(t_m)
+    mp, mv, ma = pose.points(motion.horse.marker_body)
+    sp, sv, sa = pose.points(motion.horse.saddle_body[None])
+    static_pose = motion.static_pose()
+    static_pos = np.vstack([static_pose.points(motion.horse.marker_body)[0][0],
+                            static_pose.points(motion.horse.saddle_body[None])[0][0]])
+    if len(t_m) > 1:
+        comfort, source, dense = true_comfort(motion, float(t_m[0]), float(t_m[-1]), fps)
+    else:
+        comfort, source, dense = {}, "no analysed frames", {}
+    # perspective bias of the disc centroid, for the record (px)
+    from .render import perspective_centroid_bias
+    centres, normals = scene.marker_geometry(pose)
+    bias = [np.linalg.norm(perspective_centroid_bias(rig["left"], centres[i, j], normals[i, j], MARKER_DIAMETER / 2))
+            for i in range(0, len(t_m), max(1, len(t_m) // 8)) for j in range(3)] if len(t_m) else [0.0]
+    extras = dict(dense)
+    extras.update({
+        "motion": motion.to_dict(),
+        "flash_frames": FLASH_FRAMES,
+        "flash_position_world": scene.ground_to_world(FLASH_POSITION_G[None])[0].tolist(),
+        "n_frames": n_frames,
+        "perspective_centroid_bias_px_max": float(np.max(bias)),
+        "marker_body": motion.horse.marker_body.tolist(),
+        "saddle_body": motion.horse.saddle_body.tolist(),
+        "plumb_marker_diameter_m": PLUMB_MARKER_DIAMETER,
+    })
+    return Truth(
+        fps=fps, offsets=dict(offsets), rig=rig, ref_frames=ref.astype(int),
+        time_s=(ref - (ref[0] if len(ref) else 0)) / fps, motion_time_s=t_m,
+        marker_pos=mp, marker_vel=mv, marker_acc=ma,
+        saddle_pos=sp[:, 0], saddle_vel=sv[:, 0], saddle_acc=sa[:, 0],
+        rotation=pose.rotation, omega=pose.omega, alpha=pose.alpha,
+        marker_px=marker_px, marker_visible=marker_vis, marker_reason=marker_reason,
+        gravity=motion.gravity, motion_axes=motion.motion_axes,
+        static_pos=static_pos, plumb_pos=plumb_world(motion), comfort=comfort,
+        comfort_source=source, marker_diameter_m=MARKER_DIAMETER,
+        meta={"horse": motion.horse.name, "gait": motion.gait.name, "seed": scene.seed},
+        extras=extras)
+
+
+# ---------------------------------------------------------------------------
+# the free-fall ball (thesis 8.3)
+# ---------------------------------------------------------------------------
+BALL_DIAMETER = 0.065
+G = 9.81
+
+
+def ball_trajectory(t, p0_g=(-0.6, -0.95, 7.9), v0_g=(0.35, None, 0.08), rise_m: float = 0.70):
+    """Ground-frame ball position, velocity, acceleration at times ``t``.
+
+    Thrown up from the lower edge of the calibration volume (0.95 m high) so
+    that it peaks ``rise_m`` higher (the upper edge), then falls freely;
+    ``g = 9.81 m/s^2`` along the ground Y axis (down). No air resistance.
+    """
+    t = np.asarray(t, float)[:, None]
+    vy0 = -math.sqrt(2 * G * rise_m)
+    v0 = np.array([v0_g[0], vy0, v0_g[2]])
+    a = np.array([0.0, G, 0.0])
+    p = np.asarray(p0_g, float) + v0 * t + 0.5 * a * t ** 2
+    v = v0 + a * t
+    return p, v, np.broadcast_to(a, p.shape).copy()
+
+
+def render_ball_drop(out_dir, seed: int = 0, *, noise: bool = True, compress: bool = True,
+                     n_frames: int = 21, t0: float = 0.023) -> Path:
+    """The section 8.3 experiment: a 65 mm reflective ball thrown up and falling.
+
+    Writes a session folder (3 synchronised videos of ``n_frames`` frames,
+    0.7 s at 30 fps; sync offsets all 0; plumb stills; the true rig) and its
+    truth: ``marker_pos/vel/acc`` (n, 1, 3) of the ball, ``gravity`` and
+    ``extras['g'] = 9.81``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    _clear_generated(out)
+    rig = thesis_rig()
+    motion = saddle_motion("Horse 2", "canter")
+    scene = Scene(rig, motion, int(seed))
+    fps = FPS
+    t = t0 + np.arange(n_frames) / fps
+    pg, vg, ag = ball_trajectory(t)
+    pw = motion.ground_to_world_points(pg)
+    vw, aw = vg @ motion.R_wg.T, ag @ motion.R_wg.T
+    bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
+    motion_paths, marker_px, marker_vis, marker_reason = {}, {}, {}, {}
+    for ci, cam in enumerate(rig):
+        frames = []
+        for k in range(n_frames):
+            img = bgs[cam.name].copy()
+            cc, nn, rr = sphere_silhouette(pw[k], BALL_DIAMETER / 2, cam)
+            draw_disc(img, cam, cc, nn, rr)
+            rng = _seed(seed, 11, ci, k)
+            if noise:
+                add_glints(img, rng, 5.0, [tuple(cam.project(pw[k]))])
+            frames.append(finish(img, rng, noise=noise))
+        name = f"motion/{cam.name}.avi" if compress else f"motion/{cam.name}"
+        _write_video(out / name, iter(frames), cam.size, fps, compress)
+        motion_paths[cam.name] = name
+        px = cam.project(pw)[:, None, :]
+        vis = cam.in_image(px, margin=4.0)
+        marker_px[cam.name], marker_vis[cam.name] = px, vis
+        marker_reason[cam.name] = np.where(vis, "", "outside_image").astype("U24")
+    stills = {"plumb": {}}
+    for cam in rig:
+        stills["plumb"][cam.name] = "plumb/" + _write_still(out / "plumb" / f"{cam.name}.png",
+                                                            render_plumb(scene, cam, bgs[cam.name], noise=noise, tag=12), compress)
+    (out / "calibration").mkdir(exist_ok=True)
+    write_rig(rig, out / "calibration" / "rig.toml")
+    n = n_frames
+    nan3 = np.full((n, 3), np.nan)
+    truth = Truth(
+        fps=fps, offsets={c: 0 for c in CAMERA_NAMES}, rig=rig, ref_frames=np.arange(n),
+        time_s=np.arange(n) / fps, motion_time_s=t, marker_pos=pw[:, None], marker_vel=vw[:, None],
+        marker_acc=aw[:, None], saddle_pos=nan3, saddle_vel=nan3, saddle_acc=nan3,
+        rotation=np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), omega=np.zeros((n, 3)), alpha=np.zeros((n, 3)),
+        marker_px=marker_px, marker_visible=marker_vis, marker_reason=marker_reason,
+        gravity=motion.gravity, motion_axes=motion.motion_axes, static_pos=np.zeros((0, 3)),
+        plumb_pos=plumb_world(motion), comfort={}, comfort_source="not applicable (ball drop)",
+        marker_diameter_m=BALL_DIAMETER, meta={"experiment": "ball_drop", "seed": int(seed)},
+        extras={"g": G, "ball_diameter_m": BALL_DIAMETER, "rise_m": 0.70,
+                "acc_along_gravity": float(aw[0] @ motion.gravity)})
+    save_truth(truth, out)
+    sj = session_json("ball_drop", {"experiment": "ball_drop", "object": "tennis ball, 65 mm, reflective",
+                                    "seed": int(seed), "generator": "horsemocap.virtuallab", "virtual": True},
+                      motion_paths, stills, False, marker_count=1, marker_diameter=BALL_DIAMETER,
+                      sync={"offsets": {c: 0 for c in CAMERA_NAMES}})
+    atomic_write_json(out / "session.json", sj)
+    return out
