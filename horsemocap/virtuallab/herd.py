@@ -95,7 +95,9 @@ def herd_session(horse: str, gait: str, *, cache=None, force: bool = False) -> P
     tmp = folder.with_name(folder.name + ".partial")
     if tmp.exists():
         shutil.rmtree(tmp)
-    render_session(tmp, horse, gait, seed=herd_seed(horse, gait), name=session_slug(horse, gait))
+    # herd sessions carry the rig (calibrated once for the whole herd): no views to render
+    render_session(tmp, horse, gait, seed=herd_seed(horse, gait), name=session_slug(horse, gait),
+                   calibration_views=0)
     (tmp / ".complete").write_text("rendered by horsemocap.virtuallab.herd_session\n")
     tmp.rename(folder)
     return folder

@@ -383,7 +383,7 @@ def session_json(name: str, meta: dict, motion_paths: dict, stills: dict, calib_
         "reference_camera": "left",
         "motion": motion_paths,
         "sync": sync or {"method": "flash"},
-        "calibration": {"rig": "calibration/rig.toml"},
+        "calibration": {} if calib_images else {"rig": "calibration/rig.toml"},
         "markers": {"count": marker_count, "diameter_m": marker_diameter},
         "analysis": {},
         "metadata": meta,
@@ -398,7 +398,7 @@ def session_json(name: str, meta: dict, motion_paths: dict, stills: dict, calib_
 
 def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: int = 0, *,
                    noise: bool = True, compress: bool = True, n_motion_frames: int | None = None,
-                   calibration_views: int | None = 15, name: str | None = None, left_offset: int = 8,
+                   calibration_views: int | None = 45, name: str | None = None, left_offset: int = 8,
                    exposure_s: float = EXPOSURE_S, verbose: bool = False) -> Path:
     """Render a complete session folder and its ground truth.
 
@@ -462,9 +462,15 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
                                                             render_plumb(scene, cam, bgs[cam.name], noise=noise), compress)
         stills["static"][cam.name] = "static/" + _write_still(out / "static" / f"{cam.name}.png",
                                                               render_static(scene, cam, bgs[cam.name], noise=noise), compress)
-    # calibration
+    # calibration: checkerboard views for the pipeline to calibrate from (the true rig
+    # stays in truth/rig.toml); without views, the session carries the true rig as a
+    # lab that calibrated once would carry its rig.toml.
     (out / "calibration").mkdir(exist_ok=True)
-    write_rig(rig, out / "calibration" / "rig.toml")
+    stale = out / "calibration" / "rig.toml"
+    if calibration_views:
+        stale.unlink(missing_ok=True)
+    else:
+        write_rig(rig, stale)
     board_info = None
     if calibration_views:
         from .calibration import render_calibration_views
