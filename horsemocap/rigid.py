@@ -1,0 +1,1072 @@
+"""Rigid-body kinematics of the saddle: registration, angular velocity and
+acceleration, and the invisible saddle marker (thesis sections 5.4 and 6).
+
+Symbols (thesis -> code)
+------------------------
+- ``x_m^m`` / ``MM^m`` (static-shot model, eq. 5.14, 5.21) -> ``model`` (m, 3)
+- ``x_m`` measured, ``x_m^r`` / ``MM^r`` registered (eq. 5.19-5.21)
+  -> ``points`` / ``Registration.registered`` (n, m, 3)
+- ``R(q_R)``, ``q_t`` (eq. 5.14-5.18): the thesis maps the *measured* set onto
+  the model, ``x^m = R x + q_t``. Here ``Registration.rotation`` and
+  ``.translation`` are the *pose* of the model in each frame,
+  ``registered = rotation @ model + translation``, so
+  ``R_thesis = rotation.T`` and ``q_t = -rotation.T @ translation``
+  (eq. 5.20 gives the same registered points).
+- ``r_i``, ``v_i``, ``a_i`` (chapter 6): ``pos[:, i]``, ``vel[:, i]``,
+  ``acc[:, i]`` (markers 1, 2, 3 are indices 0, 1, 2). The thesis writes
+  ``v_1 = v_2 + omega x r_21`` (eq. 6.1), which holds with
+  ``r_21 = r_1 - r_2`` (the vector *from* marker 2 *to* marker 1); we use
+  that meaning: ``r_ji = pos_i - pos_j``.
+- ``omega`` / ``alfa`` (eq. 6.3, 6.4, 6.38, 6.39) -> ``omega``, ``alpha``
+  (n, 3) rad/s, rad/s^2, expressed in the motion frame.
+- ``R_MB``, ``r_BS^(B)`` (eq. 6.41-6.47) -> :func:`body_frame`,
+  :func:`saddle_in_body`; ``r_MS^(M)(t)`` (eq. 6.48-6.53) ->
+  :func:`saddle_position`; ``v_S``, ``a_S`` (eq. 6.54, 6.55) ->
+  :func:`saddle_kinematics`.
+
+Version indexing (eq. 6.3/6.4 and 6.38/6.39 with three base markers)
+---------------------------------------------------------------------
+"Version i" (thesis: ``ver i``) expresses the motion of marker i through the
+two others, taken in cyclic order ``(i, j, k) = (1, 2, 3), (2, 3, 1),
+(3, 1, 2)``. With ``K1 = r_ji``, ``K2 = v_j - v_i``, ``K3 = r_ki``,
+``K4 = v_k - v_i`` (eq. 6.15-6.18) the two solutions are
+``omega^1 = K2 x K4 / (-K2 . K3)`` (eq. 6.13 = 6.3) and
+``omega^2 = K2 x K4 / (K1 . K4)`` (eq. 6.14 = 6.4). The (6, n, 3) arrays are
+ordered as the thesis lists them (section 6.1 and the prompts of 8.4.1)::
+
+    0: omega1_ver1   1: omega2_ver1   2: omega1_ver2
+    3: omega2_ver2   4: omega1_ver3   5: omega2_ver3
+
+Note on eq. 6.38/6.39 as printed: there ``K2 = a_2 + omega x (omega x r_21)``
+and ``K4 = a_3 + omega x (omega x r_31)``, without ``- a_1``. Rearranging
+eq. 6.36 to the form of eq. 6.7 (``r_21 x alpha = K2``) gives
+``K2 = a_2 - a_1 + omega x (omega x r_21)``, in the same way that eq. 6.3
+uses ``v_2 - v_1``; the printed form is exact only when ``a_1 = 0``. We
+implement the derived form (the property tests check it recovers alpha
+exactly).
+
+Beyond the thesis
+-----------------
+- :func:`angular_velocity_lstsq`, :func:`angular_acceleration_lstsq`: all
+  markers at once, no ``omega . n = 0`` singularity (only collinear markers).
+- :func:`fit_rotations`: omega and alpha from a Fourier fit of the
+  registered orientation over time.
+- :func:`singularity_angle`, :func:`singularity_report`: eq. 6.35 measured
+  frame by frame, with a warning.
+- :func:`analyse_rigid_body`: the whole step (App. A steps 8, 9, 11, 12),
+  keeping every estimate; its saddle velocity/acceleration default to the
+  fit of the saddle path built with the fitted orientation
+  (``saddle_method="pose"``), because on the default canter session the
+  thesis estimate (eq. 6.55 with the six-version omega/alpha) sits at the
+  singularity of section 6.1, as in the thesis' own canter example.
+"""
+from __future__ import annotations
+
+import itertools
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+__all__ = [
+    "VERSION_LABELS",
+    "Registration",
+    "SaddleKinematics",
+    "match_static_markers",
+    "quaternion_to_matrix",
+    "register",
+    "pairwise_distances",
+    "angular_velocity_versions",
+    "angular_acceleration_versions",
+    "angular_velocity_lstsq",
+    "angular_acceleration_lstsq",
+    "average_versions",
+    "smooth_versions",
+    "compatibility_residual",
+    "marker_plane_normal",
+    "singularity_angle",
+    "singularity_report",
+    "body_frame",
+    "body_frames",
+    "saddle_in_body",
+    "saddle_in_body_versions",
+    "saddle_position",
+    "saddle_kinematics",
+    "RotationFit",
+    "fit_rotations",
+    "RigidBodyAnalysis",
+    "analyse_rigid_body",
+]
+
+VERSION_LABELS = ("omega1_ver1", "omega2_ver1", "omega1_ver2",
+                  "omega2_ver2", "omega1_ver3", "omega2_ver3")
+"""Thesis names of the six versions, in the order of the (6, n, 3) arrays."""
+
+_CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+
+
+# --------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------
+def _as_positions(name: str, a, markers: int | None = None) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise ValueError(f"{name}: expected an array (frames, markers, 3), got shape {a.shape}")
+    if markers is not None and a.shape[1] != markers:
+        raise ValueError(f"{name}: expected {markers} markers on axis 1, got {a.shape[1]}")
+    return a
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices ``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(v, float)
+    z = np.zeros(v.shape[:-1])
+    return np.stack([
+        np.stack([z, -v[..., 2], v[..., 1]], -1),
+        np.stack([v[..., 2], z, -v[..., 0]], -1),
+        np.stack([-v[..., 1], v[..., 0], z], -1),
+    ], -2)
+
+
+def _dot(a, b):
+    return np.einsum("...i,...i->...", a, b)
+
+
+def pairwise_distances(points) -> np.ndarray:
+    """Inter-marker distances ``|r_i - r_j|`` of (..., m, 3) points -> (..., m, m)."""
+    p = np.asarray(points, float)
+    return np.linalg.norm(p[..., :, None, :] - p[..., None, :, :], axis=-1)
+
+
+# --------------------------------------------------------------------------
+# correspondence static shot <-> motion markers
+# --------------------------------------------------------------------------
+def match_static_markers(static_points, motion_points, tolerance: float = 0.004):
+    """Which static-shot marker is which motion marker, and which is the saddle.
+
+    The thesis picked the labels by hand (section 8.4.1, ``left_labels``).
+    Here every injective assignment of the m motion markers to the k static
+    markers is scored by the RMS difference between its inter-marker
+    distances and the motion markers' (median over frames) distances.
+    Distances alone cannot separate near-isosceles layouts (the skin markers
+    lie in a row along the back: two assignments differ by only a few mm)
+    nor a triangle from its mirror image, so among the assignments whose
+    mismatch is within ``tolerance`` of the best one, the one whose
+    registration needs the smallest rotation (median over frames) wins: the
+    static shot and the ride are both expressed in the motion frame, with
+    the horse heading along +x in both (thesis Figures 8.11, 8.21).
+
+    Parameters
+    ----------
+    static_points : (k, 3)
+        Markers of the static shot in the motion frame (the skin markers and
+        the saddle marker), any order, k >= m + 1; NaN rows are ignored.
+    motion_points : (n, m, 3)
+        Marker trajectories during the ride in the motion frame (NaN allowed).
+    tolerance : float
+        Metres of RMS distance mismatch treated as measurement noise.
+
+    Returns
+    -------
+    static_index : (m,) int
+        ``static_points[static_index[j]]`` is motion marker j.
+    saddle_index : int
+        The static marker left over (if several are left over, the one
+        nearest to the centroid of the matched markers).
+    """
+    static = np.asarray(static_points, float)
+    motion = _as_positions("motion_points", motion_points)
+    if static.ndim != 2 or static.shape[1] != 3:
+        raise ValueError(f"static_points: expected (k, 3), got shape {static.shape}")
+    m = motion.shape[1]
+    valid = np.flatnonzero(np.all(np.isfinite(static), axis=1))
+    if valid.size < m + 1:
+        raise ValueError(f"static_points: need at least {m + 1} finite markers "
+                         f"({m} motion markers + the saddle marker), got {valid.size}")
+    d_motion = np.nanmedian(pairwise_distances(motion), axis=0)
+    if not np.all(np.isfinite(d_motion)):
+        raise ValueError("motion_points: a marker has no finite frame")
+    d_static = pairwise_distances(static)
+    iu = np.triu_indices(m, 1)
+    cands = []
+    for perm in itertools.permutations(valid, m):
+        perm = np.array(perm)
+        diff = d_static[np.ix_(perm, perm)][iu] - d_motion[iu]
+        cands.append((float(np.sqrt(np.mean(diff ** 2))), perm))
+    best_rms = min(c[0] for c in cands)
+    close = [c for c in cands if c[0] <= best_rms + tolerance]
+    ok = np.all(np.isfinite(motion), axis=(1, 2))
+    sample = motion[ok][:: max(1, ok.sum() // 20)]
+    if len(close) > 1:
+        def angle(perm):
+            R = register(sample, static[perm]).rotation
+            c = (np.trace(R, axis1=1, axis2=2) - 1) / 2
+            return float(np.median(np.arccos(np.clip(c, -1, 1))))
+        best = min(close, key=lambda c: angle(c[1]))[1]
+    else:
+        best = close[0][1]
+    rest = [i for i in valid if i not in set(best.tolist())]
+    centroid = static[best].mean(axis=0)
+    saddle = int(min(rest, key=lambda i: np.linalg.norm(static[i] - centroid)))
+    return best.astype(int), saddle
+
+
+# --------------------------------------------------------------------------
+# registration (section 5.4)
+# --------------------------------------------------------------------------
+def quaternion_to_matrix(q) -> np.ndarray:
+    """Rotation matrix of unit quaternions ``q_R = [q0 q1 q2 q3]`` (eq. 5.15, 5.16)."""
+    q = np.asarray(q, float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    q0, q1, q2, q3 = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([q0*q0 + q1*q1 - q2*q2 - q3*q3, 2*(q1*q2 - q0*q3), 2*(q1*q3 + q0*q2)], -1),
+        np.stack([2*(q1*q2 + q0*q3), q0*q0 + q2*q2 - q1*q1 - q3*q3, 2*(q2*q3 - q0*q1)], -1),
+        np.stack([2*(q1*q3 - q0*q2), 2*(q2*q3 + q0*q1), q0*q0 + q3*q3 - q1*q1 - q2*q2], -1),
+    ], -2)
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Result of :func:`register` (thesis section 5.4).
+
+    Attributes
+    ----------
+    rotation : (n, 3, 3)
+        Pose rotation: ``registered[k] = model @ rotation[k].T + translation[k]``
+        (thesis ``RR(:,:,k)^-1``, eq. 5.21).
+    translation : (n, 3)
+        Pose translation (thesis ``-RR^-1 Q_t``).
+    registered : (n, m, 3)
+        ``MM^r``: the model moved by the pose of each frame (rigid by
+        construction: its inter-marker distances equal the model's).
+    residual : (n, m)
+        ``e_m`` of Figure 5.3: distance from each measured marker to its
+        registered position (m).
+    rms : (n,)
+        ``sqrt(f(q))`` of eq. 5.14 at the optimum.
+    reason : (n,) str
+        ``""`` where registered, otherwise why the frame is NaN.
+    """
+
+    rotation: np.ndarray
+    translation: np.ndarray
+    registered: np.ndarray
+    residual: np.ndarray
+    rms: np.ndarray
+    reason: np.ndarray
+
+
+def register(points, model) -> Registration:
+    """Register the model (static shot) onto the measured markers, every frame.
+
+    Closed-form quaternion solution of Horn (1987) used by Besl and McKay
+    (1992), eq. 5.14-5.21: with centred sets ``x_m - mu_x`` (model) and
+    ``p_m - mu_p`` (measured), the cross-covariance ``S = sum (x - mu_x)(p - mu_p)^T``
+    gives the symmetric 4x4 matrix ``Q(S)``; its eigenvector of the largest
+    eigenvalue is the optimal unit quaternion ``q_R`` (eq. 5.15), ``R`` follows
+    from eq. 5.16 and ``t = mu_p - R mu_x``.
+
+    Parameters
+    ----------
+    points : (n, m, 3)
+        Measured (smoothed) marker positions in the motion frame (``MM``).
+    model : (m, 3)
+        The same markers in the static shot (``MM^m``), same order.
+
+    Returns
+    -------
+    Registration
+        Frames where any marker is NaN stay NaN, with the reason.
+    """
+    p = _as_positions("points", points)
+    x = np.asarray(model, float)
+    n, m, _ = p.shape
+    if x.shape != (m, 3):
+        raise ValueError(f"model: expected shape ({m}, 3) to match points, got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("model: static-shot markers contain NaN")
+    if m < 3:
+        raise ValueError(f"points: registration needs at least 3 markers, got {m}")
+    ok = np.all(np.isfinite(p), axis=(1, 2))
+    reason = np.full(n, "", dtype=object)
+    for k in np.flatnonzero(~ok):
+        miss = np.flatnonzero(~np.all(np.isfinite(p[k]), axis=1))
+        reason[k] = "marker(s) " + ",".join(str(i + 1) for i in miss) + " missing"
+    mu_x = x.mean(0)
+    xc = x - mu_x
+    pp = np.where(ok[:, None, None], p, 0.0)
+    mu_p = pp.mean(1)
+    pc = pp - mu_p[:, None]
+    S = np.einsum("mi,kmj->kij", xc, pc)  # (n, 3, 3): sum_m xc_m pc_m^T
+    tr = np.trace(S, axis1=1, axis2=2)
+    A = S - np.swapaxes(S, 1, 2)
+    delta = np.stack([A[:, 1, 2], A[:, 2, 0], A[:, 0, 1]], -1)
+    Q = np.zeros((n, 4, 4))
+    Q[:, 0, 0] = tr
+    Q[:, 0, 1:] = delta
+    Q[:, 1:, 0] = delta
+    Q[:, 1:, 1:] = S + np.swapaxes(S, 1, 2) - tr[:, None, None] * np.eye(3)
+    _, vecs = np.linalg.eigh(Q)
+    q = vecs[:, :, -1]
+    R = quaternion_to_matrix(q)
+    t = mu_p - np.einsum("kij,j->ki", R, mu_x)
+    reg = np.einsum("kij,mj->kmi", R, x) + t[:, None]
+    R[~ok] = np.nan
+    t[~ok] = np.nan
+    reg[~ok] = np.nan
+    res = np.linalg.norm(np.where(ok[:, None, None], p, np.nan) - reg, axis=-1)
+    rms = np.sqrt(np.mean(res ** 2, axis=1))
+    return Registration(rotation=R, translation=t, registered=reg, residual=res,
+                        rms=rms, reason=reason.astype(str))
+
+
+# --------------------------------------------------------------------------
+# angular velocity and acceleration (section 6.1, 6.2)
+# --------------------------------------------------------------------------
+def _check_three(name, a, n=None):
+    a = _as_positions(name, a, markers=3)
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"{name}: expected {n} frames, got {a.shape[0]}")
+    return a
+
+
+def _two_solutions(K1, K2, K3, K4):
+    """Eq. 6.13 and 6.14 for ``K1 x u = K2``, ``K3 x u = K4``."""
+    num = np.cross(K2, K4)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u1 = num / (-_dot(K2, K3))[..., None]
+        u2 = num / _dot(K1, K4)[..., None]
+    return u1, u2
+
+
+def angular_velocity_versions(pos, vel) -> np.ndarray:
+    """The six thesis versions of the angular velocity (eq. 6.3, 6.4).
+
+    Parameters
+    ----------
+    pos, vel : (n, 3, 3)
+        Positions ``r_i`` (registered) and velocities ``v_i`` (from the fits)
+        of markers 1..3 in the motion frame.
+
+    Returns
+    -------
+    (6, n, 3)
+        ``omega^{1,ver1}, omega^{2,ver1}, ..., omega^{2,ver3}`` (see the module
+        docstring for the indexing). Frames at the singularity
+        (``omega . n = 0``, eq. 6.35) give inf/NaN.
+    """
+    pos = _check_three("pos", pos)
+    vel = _check_three("vel", vel, pos.shape[0])
+    out = []
+    for i, j, k in _CYCLIC:
+        K1 = pos[:, i] - pos[:, j]          # r_ji (eq. 6.15)
+        K2 = vel[:, j] - vel[:, i]          # v_j - v_i (6.16)
+        K3 = pos[:, i] - pos[:, k]          # r_ki (6.17)
+        K4 = vel[:, k] - vel[:, i]          # v_k - v_i (6.18)
+        out.extend(_two_solutions(K1, K2, K3, K4))
+    return np.stack(out)
+
+
+def angular_acceleration_versions(pos, vel, acc, omega) -> np.ndarray:
+    """The six versions of the angular acceleration (eq. 6.38, 6.39).
+
+    Parameters
+    ----------
+    pos, vel, acc : (n, 3, 3)
+        Marker positions, velocities (unused, kept for a uniform signature)
+        and accelerations ``a_i``.
+    omega : (n, 3)
+        The angular velocity (the chosen average, section 6.1).
+
+    Returns
+    -------
+    (6, n, 3)
+        ``alfa^{1,ver1}, alfa^{2,ver1}, ..., alfa^{2,ver3}``, with
+        ``K1 = r_ji``, ``K2 = a_j - a_i + omega x (omega x r_ji)``,
+        ``K3 = r_ki``, ``K4 = a_k - a_i + omega x (omega x r_ki)`` (the
+        ``- a_i`` is missing in the printed eq. 6.38/6.39; see module notes).
+    """
+    pos = _check_three("pos", pos)
+    acc = _check_three("acc", acc, pos.shape[0])
+    w = np.asarray(omega, float)
+    if w.shape != (pos.shape[0], 3):
+        raise ValueError(f"omega: expected shape ({pos.shape[0]}, 3), got {w.shape}")
+    out = []
+    for i, j, k in _CYCLIC:
+        r_ji = pos[:, i] - pos[:, j]
+        r_ki = pos[:, i] - pos[:, k]
+        K2 = acc[:, j] - acc[:, i] + np.cross(w, np.cross(w, r_ji))
+        K4 = acc[:, k] - acc[:, i] + np.cross(w, np.cross(w, r_ki))
+        out.extend(_two_solutions(r_ji, K2, r_ki, K4))
+    return np.stack(out)
+
+
+def compatibility_residual(pos, vel) -> np.ndarray:
+    """Left minus right side of the compatibility condition eq. 6.19/6.20.
+
+    ``r_21 . (v_3 - v_1) + (v_2 - v_1) . r_31`` for each version's base
+    marker, shape (3, n). Zero for rigid motion (eq. 6.28): the two
+    denominators of eq. 6.3 and 6.4 are equal.
+    """
+    pos = _check_three("pos", pos)
+    vel = _check_three("vel", vel, pos.shape[0])
+    out = []
+    for i, j, k in _CYCLIC:
+        K1 = pos[:, i] - pos[:, j]
+        K2 = vel[:, j] - vel[:, i]
+        K3 = pos[:, i] - pos[:, k]
+        K4 = vel[:, k] - vel[:, i]
+        out.append(_dot(K1, K4) + _dot(K2, K3))
+    return np.stack(out)
+
+
+def angular_velocity_lstsq(pos, vel) -> np.ndarray:
+    """Least-squares angular velocity from all markers (not in the thesis).
+
+    Solves ``v_m - vbar = omega x (r_m - rbar)`` for all markers m in the
+    least-squares sense, i.e. ``-[r_m - rbar]x omega = v_m - vbar``. The
+    3M x 3 system has full rank whenever the markers are not collinear, so
+    unlike eq. 6.3/6.4 there is no singularity at ``omega . n = 0``.
+
+    Parameters
+    ----------
+    pos, vel : (n, m, 3), m >= 3
+
+    Returns
+    -------
+    (n, 3) ; NaN where a marker is missing.
+    """
+    pos = _as_positions("pos", pos)
+    vel = _as_positions("vel", vel, pos.shape[1])
+    d = pos - pos.mean(1, keepdims=True)
+    rhs = vel - vel.mean(1, keepdims=True)
+    return _lstsq_cross(d, rhs)
+
+
+def _lstsq_cross(d, rhs):
+    """Solve ``u x d_m = rhs_m`` (all m) for u, per frame."""
+    n, m, _ = d.shape
+    A = -_skew(d).reshape(n, 3 * m, 3)       # u x d = -[d]x u
+    b = rhs.reshape(n, 3 * m)
+    out = np.full((n, 3), np.nan)
+    ok = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    if np.any(ok):
+        AtA = np.einsum("kai,kaj->kij", A[ok], A[ok])
+        Atb = np.einsum("kai,ka->ki", A[ok], b[ok])
+        out[ok] = np.linalg.solve(AtA, Atb[..., None])[..., 0]
+    return out
+
+
+def angular_acceleration_lstsq(pos, acc, omega) -> np.ndarray:
+    """Least-squares angular acceleration from all markers (not in the thesis).
+
+    Solves ``a_m - abar - omega x (omega x d_m) = alpha x d_m`` with
+    ``d_m = r_m - rbar`` (eq. 6.36 for every marker about the centroid).
+
+    Parameters
+    ----------
+    pos, acc : (n, m, 3) ; omega : (n, 3)
+
+    Returns
+    -------
+    (n, 3)
+    """
+    pos = _as_positions("pos", pos)
+    acc = _as_positions("acc", acc, pos.shape[1])
+    w = np.asarray(omega, float)[:, None, :]
+    d = pos - pos.mean(1, keepdims=True)
+    rhs = acc - acc.mean(1, keepdims=True) - np.cross(w, np.cross(w, d))
+    return _lstsq_cross(d, rhs)
+
+
+def average_versions(versions, use=None) -> np.ndarray:
+    """Mean of the chosen versions (section 6.1: "overall value ... average of
+    the selected values").
+
+    Parameters
+    ----------
+    versions : (6, n, 3)
+    use : (6,) bool, optional
+        Which versions enter the mean (the thesis' y/n prompts); all by
+        default. NaN/inf entries of a chosen version are skipped frame by
+        frame.
+    """
+    v = np.asarray(versions, float)
+    use = np.ones(v.shape[0], bool) if use is None else np.asarray(use, bool)
+    if use.shape != (v.shape[0],):
+        raise ValueError(f"use: expected {v.shape[0]} booleans, got shape {use.shape}")
+    if not use.any():
+        raise ValueError("use: choose at least one version")
+    sel = v[use]
+    sel = np.where(np.isfinite(sel), sel, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(sel, axis=0)
+
+
+def smooth_versions(versions, smoother: Callable | None = None, span: float = 0.1) -> np.ndarray:
+    """Smooth every version and component over time (Appendix A step 11,
+    ``angular_vel_and_acc_all_avg_smooth.m``; the thesis shows "original and
+    smoothed" versions, Figures 8.14-8.17).
+
+    Parameters
+    ----------
+    versions : (6, n, 3)
+    smoother : callable ``f(y (n,), span) -> (n,)``, optional
+        Default: ``horsemocap.smoothing.smooth`` with ``method="rloess"``
+        (MATLAB ``smooth(y, span, 'rloess')``). Non-finite values (a version
+        at its singularity) are left out and stay NaN (the finite samples are
+        smoothed with rloess as a function of the frame index).
+    """
+    v = np.asarray(versions, float)
+    if smoother is None:
+        from . import smoothing  # the smoothing step's rloess (MATLAB smooth)
+
+        def smoother(y, span):  # type: ignore[no-redef]
+            return smoothing.smooth(y, span, method="rloess")
+    out = np.full_like(v, np.nan)
+    idx = np.arange(v.shape[1], dtype=float)
+    for i in range(v.shape[0]):
+        for c in range(v.shape[2]):
+            y = v[i, :, c]
+            ok = np.isfinite(y)
+            if ok.all():
+                out[i, :, c] = smoother(y, span)
+            elif ok.sum() >= 3:
+                # missing/singular frames: smooth the finite samples only
+                from . import smoothing
+                out[i, ok, c] = smoothing.smooth(y[ok], span, method="rloess", x=idx[ok])
+    return out
+
+
+def marker_plane_normal(pos) -> np.ndarray:
+    """Unit normal ``n`` of the plane of markers 1, 2, 3 (eq. 6.33), (n, 3)."""
+    pos = _check_three("pos", pos)
+    c = np.cross(pos[:, 0] - pos[:, 1], pos[:, 0] - pos[:, 2])  # r_21 x r_31
+    return c / np.linalg.norm(c, axis=1, keepdims=True)
+
+
+def singularity_angle(pos, omega) -> np.ndarray:
+    """Angle between omega and the markers' plane normal, per frame (degrees).
+
+    Eq. 6.31-6.35: the thesis solutions (6.3, 6.4, 6.38, 6.39) are 0/0 when
+    ``omega . n = 0``, i.e. at 90 degrees; they are reliable near 0 or 180
+    degrees. NaN where omega is zero or missing.
+    """
+    nrm = marker_plane_normal(pos)
+    w = np.asarray(omega, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = _dot(nrm, w) / np.linalg.norm(w, axis=-1)
+    return np.degrees(np.arccos(np.clip(c, -1, 1)))
+
+
+def singularity_report(angle_deg, tolerance_deg: float = 15.0, warn: bool = True) -> dict:
+    """Summarise how close the thesis formulas come to their singularity.
+
+    Parameters
+    ----------
+    angle_deg : (n,)
+        From :func:`singularity_angle`.
+    tolerance_deg : float
+        A frame is flagged when ``|angle - 90| < tolerance_deg`` (then
+        ``|cos| < sin(tolerance)``: the denominators of eq. 6.3/6.4 are below
+        26 % of their largest possible value for 15 degrees, and errors in v
+        are amplified accordingly).
+    warn : bool
+        Emit a ``RuntimeWarning`` if any frame is flagged.
+
+    Returns
+    -------
+    dict with ``flagged`` (n,) bool, ``fraction`` flagged, ``min_margin_deg``
+    (smallest ``|angle - 90|``), ``median_angle_deg``.
+    """
+    a = np.asarray(angle_deg, float)
+    margin = np.abs(a - 90.0)
+    flagged = margin < tolerance_deg
+    fin = np.isfinite(margin)
+    rep = {
+        "flagged": flagged,
+        "fraction": float(flagged[fin].mean()) if fin.any() else float("nan"),
+        "min_margin_deg": float(np.nanmin(margin)) if fin.any() else float("nan"),
+        "median_angle_deg": float(np.nanmedian(a)) if fin.any() else float("nan"),
+    }
+    if warn and flagged.any():
+        warnings.warn(f"angular velocity: omega within {tolerance_deg:g} deg of the markers' plane "
+                      f"in {flagged.sum()} of {fin.sum()} frames (closest {rep['min_margin_deg']:.1f} deg "
+                      "from perpendicular to the normal): the thesis versions (eq. 6.3/6.4, "
+                      "6.38/6.39) are unreliable there (eq. 6.35); prefer the least-squares "
+                      "solution", RuntimeWarning, stacklevel=2)
+    return rep
+
+
+def _log_rotation(R):
+    """Rotation vectors of rotation matrices (..., 3, 3) (angles < pi)."""
+    c = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1, 1)
+    th = np.arccos(c)
+    v = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.where(th > 1e-8, th / (2 * np.sin(th)), 0.5 + th ** 2 / 12)
+    return v * k[..., None]
+
+
+def _exp_rotation(phi):
+    """Rotation matrices of rotation vectors (..., 3) (Rodrigues)."""
+    phi = np.asarray(phi, float)
+    th = np.linalg.norm(phi, axis=-1)[..., None, None]
+    K = _skew(phi)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a = np.where(th > 1e-8, np.sin(th) / th, 1 - th ** 2 / 6)
+        b = np.where(th > 1e-8, (1 - np.cos(th)) / th ** 2, 0.5 - th ** 2 / 24)
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+@dataclass(frozen=True)
+class RotationFit:
+    """Fourier fits of the registered orientation (not in the thesis).
+
+    ``R(t) = R_ref Exp(phi(t))`` with each component of the rotation vector
+    ``phi`` fitted as in section 5.5.2.2. ``omega(t)``, ``alpha(t)`` (n, 3),
+    motion frame, from central differences of the fitted (analytic) rotation
+    with steps of 1e-5 s / 1e-4 s (truncation and rounding below 1e-7
+    relative).
+    """
+
+    reference: np.ndarray
+    fits: tuple
+    orders: np.ndarray
+
+    def rotation(self, t) -> np.ndarray:
+        t = np.asarray(t, float)
+        phi = np.stack([f.evaluate(t) for f in self.fits], -1)
+        return self.reference @ _exp_rotation(phi)
+
+    def omega(self, t, h: float = 1e-5) -> np.ndarray:
+        t = np.asarray(t, float)
+        Rp, Rm, R = self.rotation(t + h), self.rotation(t - h), self.rotation(t)
+        W = ((Rp - Rm) / (2 * h)) @ np.swapaxes(R, -1, -2)
+        W = (W - np.swapaxes(W, -1, -2)) / 2
+        return np.stack([W[..., 2, 1], W[..., 0, 2], W[..., 1, 0]], -1)
+
+    def alpha(self, t, h: float = 1e-4) -> np.ndarray:
+        t = np.asarray(t, float)
+        return (self.omega(t + h) - self.omega(t - h)) / (2 * h)
+
+
+def fit_rotations(t, rotation, orders=None, rule: str = "significant", w0=None,
+                  start: str = "matlab") -> RotationFit:
+    """Fit the registered orientation over time: a smooth, rigid estimate of
+    omega and alpha from all markers at once (not in the thesis).
+
+    The per-marker fits of section 5.5 leave each marker its own frequency
+    and order, and a poly1 in x discards the x-velocity differences that a
+    rotation causes, so the relative velocities entering eq. 6.3/6.4 (and the
+    least-squares solution) can be far off. Here the orientation
+    ``R(t) = Registration.rotation`` is written as ``R_ref Exp(phi(t))``
+    (``R_ref`` the orientation of the first registered frame) and each
+    component of ``phi`` is fitted with a Fourier series
+    (:func:`horsemocap.fitting.fit_fourier`, order by
+    :func:`horsemocap.fitting.choose_order` with E counted on the
+    rloess-smoothed angle, unless given).
+
+    Parameters
+    ----------
+    t : (n,) ; rotation : (n, 3, 3) (NaN frames ignored)
+    orders : None, int or (3,) ints
+    rule, w0, start
+        As in :func:`horsemocap.fitting.fit_motion`.
+    """
+    from . import fitting
+
+    t = np.asarray(t, float)
+    R = np.asarray(rotation, float)
+    ok = np.all(np.isfinite(R), axis=(1, 2))
+    if ok.sum() < 8:
+        raise ValueError(f"rotation: need at least 8 registered frames, got {ok.sum()}")
+    ref = R[np.flatnonzero(ok)[0]]
+    phi = _log_rotation(ref.T @ R[ok])
+    o = None if orders is None else np.broadcast_to(np.asarray(orders, int), (3,))
+    fits, used = [], []
+    for c in range(3):
+        if o is None:
+            # E counted on the rloess-smoothed angle (section 5.5.2.2 counts on
+            # smoothed data): the poorly observed roll angle is noisy.
+            from . import smoothing
+            e = fitting.count_extremes(smoothing.smooth(phi[:, c], 0.1, method="rloess"))
+            n = fitting.choose_order(t[ok], phi[:, c], e, rule=rule, w0=w0, start=start)
+        else:
+            n = int(o[c])
+        fits.append(fitting.fit_fourier(t[ok], phi[:, c], n, w0=w0, start=start))
+        used.append(n)
+    return RotationFit(ref, tuple(fits), np.array(used))
+
+
+# --------------------------------------------------------------------------
+# body frame and the invisible saddle marker (sections 6.3, 6.4)
+# --------------------------------------------------------------------------
+def body_frames(pos, base: int = 0):
+    """Body frames ``R_MB(t)`` and origins of three markers (eq. 6.49-6.53).
+
+    Parameters
+    ----------
+    pos : (n, 3, 3)
+        Markers 1..3 in the motion frame.
+    base : 0, 1 or 2
+        Origin marker i; the x axis points to marker ``i+1`` and the xy plane
+        holds marker ``i+2`` (cyclic). ``base=0`` is the thesis' frame.
+
+    Returns
+    -------
+    R_MB : (n, 3, 3)  columns ``u1 | u2 | u3`` (eq. 6.45, 6.49)
+    origin : (n, 3)   ``r_MB^(M)`` = the base marker.
+    """
+    pos = _check_three("pos", pos)
+    i, j, k = _CYCLIC[base]
+    u1 = pos[:, j] - pos[:, i]
+    u1 = u1 / np.linalg.norm(u1, axis=1, keepdims=True)        # 6.41 / 6.50
+    u2p = pos[:, k] - pos[:, i]
+    u2p = u2p / np.linalg.norm(u2p, axis=1, keepdims=True)     # 6.42 / 6.51
+    u3 = np.cross(u1, u2p)
+    u3 = u3 / np.linalg.norm(u3, axis=1, keepdims=True)        # 6.43 / 6.52
+    u2 = np.cross(u3, u1)                                      # 6.44 / 6.53
+    return np.stack([u1, u2, u3], axis=-1), pos[:, i].copy()
+
+
+def body_frame(static_points, base: int = 0):
+    """Body frame of the static shot (eq. 6.41-6.45).
+
+    Parameters
+    ----------
+    static_points : (3, 3)
+        Markers 1, 2, 3 of the static shot in the motion frame.
+
+    Returns
+    -------
+    R_MB : (3, 3), origin : (3,)
+    """
+    s = np.asarray(static_points, float)
+    if s.shape != (3, 3):
+        raise ValueError(f"static_points: expected (3, 3) (markers 1-3), got {s.shape}")
+    R, o = body_frames(s[None], base)
+    return R[0], o[0]
+
+
+def saddle_in_body(static_markers, static_saddle, base: int = 0) -> np.ndarray:
+    """Saddle marker in the body frame, ``r_BS^(B)`` (eq. 6.46, 6.47).
+
+    Parameters
+    ----------
+    static_markers : (3, 3)
+        The three skin markers in the static shot (motion frame).
+    static_saddle : (3,)
+        The saddle marker in the static shot (motion frame), ``r_MS^(M)``.
+    """
+    R, o = body_frame(static_markers, base)
+    s = np.asarray(static_saddle, float)
+    if s.shape != (3,):
+        raise ValueError(f"static_saddle: expected (3,), got {s.shape}")
+    return R.T @ (s - o)
+
+
+def saddle_in_body_versions(static_markers, static_saddle) -> np.ndarray:
+    """``r_BS^(B)`` for the body frames based on markers 1, 2, 3, (3, 3)."""
+    return np.stack([saddle_in_body(static_markers, static_saddle, b) for b in range(3)])
+
+
+def saddle_position(pos, saddle_body, base: int = 0) -> np.ndarray:
+    """Position of the invisible marker during the ride (eq. 6.48).
+
+    ``r_MS^(M)(t) = R_MB(t) r_BS^(B) + r_MB^(M)(t)``; ``saddle_body`` must have
+    been computed with the same ``base``.
+    """
+    R, o = body_frames(pos, base)
+    return np.einsum("kij,j->ki", R, np.asarray(saddle_body, float)) + o
+
+
+@dataclass(frozen=True)
+class SaddleKinematics:
+    """The invisible saddle marker (sections 6.3, 6.4).
+
+    Attributes
+    ----------
+    position : (n, 3)
+        ``r_MS^(M)(t)`` with the thesis body frame (marker 1 origin, eq. 6.48).
+    position_versions : (3, n, 3)
+        Eq. 6.48 with the body frame based on marker 1, 2, 3 (identical for
+        registered markers; they differ for non-rigid input).
+    velocity_versions, acceleration_versions : (3, n, 3)
+        Eq. 6.54 and 6.55 with marker 1, 2, 3 as the known point.
+    velocity, acceleration : (n, 3)
+        Their means (``V^s``, ``A^s``, section 6.4).
+    """
+
+    position: np.ndarray
+    position_versions: np.ndarray
+    velocity_versions: np.ndarray
+    acceleration_versions: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+
+def saddle_kinematics(pos, vel, acc, omega, alpha, saddle_body, base_versions: bool = True) -> SaddleKinematics:
+    """Position, velocity and acceleration of the invisible saddle marker.
+
+    Parameters
+    ----------
+    pos, vel, acc : (n, 3, 3)
+        Registered positions and fitted velocities/accelerations of markers 1-3.
+    omega, alpha : (n, 3)
+    saddle_body : (3,) or (3, 3)
+        ``r_BS^(B)`` from :func:`saddle_in_body` (``base=0``), or the three
+        rows for bases 0, 1, 2 (:func:`saddle_in_body_versions`) to get
+        independent per-base position versions.
+
+    Notes
+    -----
+    ``v_S = v_i + omega x r_iS`` (eq. 6.54), ``a_S = a_i + omega x (omega x
+    r_iS) + alpha x r_iS`` (eq. 6.55), ``r_iS = r_S - r_i`` for i = 1, 2, 3,
+    then the mean.
+    """
+    pos = _check_three("pos", pos)
+    n = pos.shape[0]
+    vel = _check_three("vel", vel, n)
+    acc = _check_three("acc", acc, n)
+    w = np.asarray(omega, float)
+    al = np.asarray(alpha, float)
+    for name, a in (("omega", w), ("alpha", al)):
+        if a.shape != (n, 3):
+            raise ValueError(f"{name}: expected shape ({n}, 3), got {a.shape}")
+    sb = np.asarray(saddle_body, float)
+    if sb.shape == (3,):
+        # only the base-1 body coordinates are known: those of bases 2 and 3
+        # are the same point expressed in their frames, averaged over frames
+        p0 = saddle_position(pos, sb, 0)
+        sbs = [sb]
+        for b in (1, 2):
+            Rb, ob = body_frames(pos, b)
+            sbs.append(np.nanmean(np.einsum("kji,kj->ki", Rb, p0 - ob), axis=0))
+    elif sb.shape == (3, 3):
+        sbs = list(sb)
+    else:
+        raise ValueError(f"saddle_body: expected (3,) or (3, 3) (one row per base marker), got {sb.shape}")
+    pv = np.stack([saddle_position(pos, sbs[b], b) for b in range(3)])
+    p0 = pv[0]
+    r_iS = p0[None] - np.moveaxis(pos, 1, 0)                  # (3, n, 3)
+    vv = np.moveaxis(vel, 1, 0) + np.cross(w[None], r_iS)
+    av = (np.moveaxis(acc, 1, 0) + np.cross(w[None], np.cross(w[None], r_iS))
+          + np.cross(al[None], r_iS))
+    return SaddleKinematics(position=p0, position_versions=pv, velocity_versions=vv,
+                            acceleration_versions=av, velocity=vv.mean(0), acceleration=av.mean(0))
+
+
+# --------------------------------------------------------------------------
+# the whole rigid-body step (Appendix A steps 8, 9, 11, 12)
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RigidBodyAnalysis:
+    """Everything from the smoothed motion-frame markers to the saddle.
+
+    Attributes
+    ----------
+    t : (n,)
+    static_index : (3,) int ; saddle_index : int
+        Correspondence of the static shot (:func:`match_static_markers`).
+    model : (3, 3) ; static_saddle : (3,)
+        Static-shot markers (same order as the motion markers) and saddle.
+    registration : Registration
+    motion_fit : horsemocap.fitting.MotionFit
+    pos, vel, acc : (n, 3, 3)
+        Registered positions, fitted velocities and accelerations of the markers.
+    omega_versions, alpha_versions : (6, n, 3)
+        Smoothed thesis versions (eq. 6.3/6.4, 6.38/6.39).
+    omega_raw, alpha_raw : (6, n, 3)
+        The same before smoothing.
+    omega_lstsq, alpha_lstsq : (n, 3)
+        Least-squares solutions from all markers.
+    rotation_fit : RotationFit ; omega_rotation, alpha_rotation : (n, 3)
+        From the fitted registered orientation (:func:`fit_rotations`).
+    omega, alpha : (n, 3)
+        The values used for the saddle (``method``).
+    omega_use, alpha_use : (6,) bool ; method : str
+    singularity_deg : (n,)
+        :func:`singularity_angle` of ``omega``.
+    saddle_body : (3, 3)
+        ``r_BS^(B)`` for bases 1, 2, 3 (eq. 6.47).
+    saddle : SaddleKinematics
+        Thesis eq. 6.48-6.55 with ``omega``, ``alpha``.
+    saddle_fit : horsemocap.fitting.MotionFit
+        Not in the thesis: the section 5.5 fits applied to a saddle path
+        (eq. 6.48 per frame, or with the fitted orientation: ``saddle_method``);
+        their analytic derivatives give the saddle velocity and acceleration
+        without omega and alpha, so they do not suffer from the singularity
+        of section 6.1.
+    saddle_path : (n, 3)
+        The saddle path that was fitted (``saddle.position`` for "thesis" and
+        "direct", the fitted-orientation path for "pose").
+    """
+
+    t: np.ndarray
+    static_index: np.ndarray
+    saddle_index: int
+    model: np.ndarray
+    static_saddle: np.ndarray
+    registration: Registration
+    motion_fit: object
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    omega_raw: np.ndarray
+    omega_versions: np.ndarray
+    alpha_raw: np.ndarray
+    alpha_versions: np.ndarray
+    omega_lstsq: np.ndarray
+    alpha_lstsq: np.ndarray
+    omega: np.ndarray
+    alpha: np.ndarray
+    rotation_fit: RotationFit
+    omega_rotation: np.ndarray
+    alpha_rotation: np.ndarray
+    omega_use: np.ndarray
+    alpha_use: np.ndarray
+    method: str
+    singularity_deg: np.ndarray
+    saddle_body: np.ndarray
+    saddle: SaddleKinematics
+    saddle_fit: object
+    saddle_path: np.ndarray
+    saddle_method: str = "pose"
+
+    @property
+    def saddle_velocity(self) -> np.ndarray:
+        """The saddle velocity chosen by ``saddle_method`` (n, 3)."""
+        return self.saddle.velocity if self.saddle_method == "thesis" else self.saddle_velocity_direct
+
+    @property
+    def saddle_acceleration(self) -> np.ndarray:
+        """The saddle acceleration chosen by ``saddle_method`` (n, 3)."""
+        return self.saddle.acceleration if self.saddle_method == "thesis" else self.saddle_acceleration_direct
+
+    @property
+    def saddle_velocity_direct(self) -> np.ndarray:
+        """Saddle velocity from :attr:`saddle_fit` (its path: ``saddle_method``), (n, 3)."""
+        return self.saddle_fit.velocity(self.t)[:, 0]
+
+    @property
+    def saddle_acceleration_direct(self) -> np.ndarray:
+        """Saddle acceleration from :attr:`saddle_fit` (its path: ``saddle_method``), (n, 3)."""
+        return self.saddle_fit.acceleration(self.t)[:, 0]
+
+
+def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=None,
+                       order_rule: str = "significant", omega_use=None, alpha_use=None,
+                       method: str = "thesis", smooth_span: float = 0.1,
+                       static_index=None, saddle_index=None,
+                       period_s: float | None = None, saddle_method: str = "pose",
+                       fourier_start: str = "matlab", fourier_trend: bool = True) -> RigidBodyAnalysis:
+    """Registration, fits, angular kinematics and the saddle in one call.
+
+    Parameters
+    ----------
+    t : (n,)
+        Time (s), eq. 5.13.
+    points : (n, 3, 3)
+        Smoothed marker positions in the motion frame (``MM``).
+    static_points : (k, 3)
+        Static-shot markers in the motion frame (the 3 skin markers and the
+        saddle marker, any order).
+    x_degree, orders, order_rule
+        Passed to :func:`horsemocap.fitting.fit_motion`.
+    omega_use, alpha_use : (6,) bool
+        Versions averaged (thesis prompts, section 8.4.1); all by default.
+    method : "thesis", "lstsq" or "rotation"
+        ``"thesis"``: omega, alpha = mean of the chosen smoothed versions;
+        alpha's versions use that omega. ``"lstsq"``: the least-squares
+        solutions (smoothed the same way). ``"rotation"``: from the Fourier
+        fit of the registered orientation (:func:`fit_rotations`). All three
+        are always computed and stored.
+    smooth_span : float
+        rloess span for the versions (Appendix A step 11).
+    static_index, saddle_index
+        Give the static-shot correspondence instead of matching distances.
+    period_s : float, optional
+        Stride period (thesis ``period``); if given, every Fourier fit starts
+        from ``w = 2 pi / period_s`` instead of MATLAB's spectral start point.
+    saddle_method : "thesis", "direct" or "pose"
+        Which estimate :attr:`RigidBodyAnalysis.saddle_velocity` and
+        ``saddle_acceleration`` return: the mean of eq. 6.54/6.55 over the
+        three markers (thesis), or the derivatives of the fit
+        (:attr:`RigidBodyAnalysis.saddle_fit`) of the saddle path, which is
+        eq. 6.48 frame by frame ("direct") or eq. 6.48 with the *fitted*
+        orientation (:func:`fit_rotations`) about the markers' centroid
+        ("pose": the roll about the markers' row, poorly observed by a thin
+        marker triangle, is smoothed before it moves the saddle 0.45 m away).
+        The thesis estimate is always computed too.
+    fourier_start : "matlab" or "all"
+        ``start`` of every Fourier fit (:func:`horsemocap.fitting.fit_fourier`).
+    fourier_trend : bool
+        ``trend`` of the marker and saddle fits: a linear drift in y and z, not
+        in the thesis (default on: an estimated motion frame is always a
+        little off, and 0.1 deg at canter speed is 8.5 mm/s of drift).
+    """
+    from . import fitting
+
+    if method not in ("thesis", "lstsq", "rotation"):
+        raise ValueError(f"method: expected 'thesis', 'lstsq' or 'rotation', got {method!r}")
+    if saddle_method not in ("thesis", "direct", "pose"):
+        raise ValueError(f"saddle_method: expected 'thesis', 'direct' or 'pose', got {saddle_method!r}")
+    t = np.asarray(t, float)
+    pts = _check_three("points", points, t.size)
+    static = np.asarray(static_points, float)
+    if static_index is None or saddle_index is None:
+        static_index, saddle_index = match_static_markers(static, pts)
+    static_index = np.asarray(static_index, int)
+    model = static[static_index]
+    s_saddle = static[int(saddle_index)]
+    reg = register(pts, model)
+    pos = reg.registered
+    ok = np.all(np.isfinite(pos), axis=(1, 2))
+    mf = fitting.fit_motion(t, np.where(ok[:, None, None], pos, np.nan), x_degree=x_degree,
+                            orders=orders, rule=order_rule,
+                            w0=None if period_s is None else 2 * np.pi / period_s, start=fourier_start,
+                            trend=fourier_trend)
+    vel, acc = mf.velocity(t), mf.acceleration(t)
+    vel[~ok] = np.nan
+    acc[~ok] = np.nan
+    w_use = np.ones(6, bool) if omega_use is None else np.asarray(omega_use, bool)
+    a_use = np.ones(6, bool) if alpha_use is None else np.asarray(alpha_use, bool)
+    with np.errstate(all="ignore"):
+        w_raw = angular_velocity_versions(pos, vel)
+    w_s = smooth_versions(w_raw, span=smooth_span)
+    w_ls = angular_velocity_lstsq(pos, vel)
+    w_ls_s = smooth_versions(w_ls[None], span=smooth_span)[0]
+    w0 = None if period_s is None else 2 * np.pi / period_s
+    rfit = fit_rotations(t, reg.rotation, rule=order_rule, w0=w0, start=fourier_start)
+    w_rot, a_rot = rfit.omega(t), rfit.alpha(t)
+    omega = {"thesis": average_versions(w_s, w_use) if w_use.any() else w_ls_s,
+             "lstsq": w_ls_s, "rotation": w_rot}[method]
+    with np.errstate(all="ignore"):
+        a_raw = angular_acceleration_versions(pos, vel, acc, omega)
+    a_s = smooth_versions(a_raw, span=smooth_span)
+    a_ls = angular_acceleration_lstsq(pos, acc, omega)
+    a_ls_s = smooth_versions(a_ls[None], span=smooth_span)[0]
+    alpha = {"thesis": average_versions(a_s, a_use), "lstsq": a_ls_s, "rotation": a_rot}[method]
+    sb = saddle_in_body_versions(model, s_saddle)
+    sk = saddle_kinematics(pos, vel, acc, omega, alpha, sb)
+    # the saddle path for the direct fits: eq. 6.48 with the per-frame pose
+    # ("direct"), or with the fitted orientation and the markers' centroid
+    # ("pose"): p_S = R_fit(t) (s - mean(model)) + mean_m r_m(t)
+    path = sk.position
+    if saddle_method == "pose":
+        path = (np.einsum("kij,j->ki", rfit.rotation(t), s_saddle - model.mean(0))
+                + np.where(ok[:, None], pos.mean(1), np.nan))
+    sfit = fitting.fit_motion(t, np.where(ok[:, None], path, np.nan)[:, None, :], x_degree=x_degree,
+                              rule=order_rule, w0=w0, start=fourier_start, trend=fourier_trend)
+    return RigidBodyAnalysis(t=t, static_index=static_index, saddle_index=int(saddle_index), model=model,
+                             static_saddle=s_saddle, registration=reg, motion_fit=mf, pos=pos, vel=vel,
+                             acc=acc, omega_raw=w_raw, omega_versions=w_s, alpha_raw=a_raw,
+                             alpha_versions=a_s, omega_lstsq=w_ls_s, alpha_lstsq=a_ls_s, omega=omega,
+                             alpha=alpha, rotation_fit=rfit, omega_rotation=w_rot, alpha_rotation=a_rot,
+                             omega_use=w_use, alpha_use=a_use, method=method,
+                             singularity_deg=singularity_angle(pos, omega), saddle_body=sb, saddle=sk,
+                             saddle_fit=sfit, saddle_path=path, saddle_method=saddle_method)

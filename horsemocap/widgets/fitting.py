@@ -1,0 +1,67 @@
+"""Controls for the curve fits (thesis section 5.5.2, Appendix A step 9).
+
+They replace the prompts ``fit_type_x`` (default poly1), ``no_of_extreme``
+and ``fit_choice`` (1: Fourier E/2, 2: Fourier E/2+1). Defaults are the
+automatic choices of :mod:`horsemocap.fitting`.
+"""
+from __future__ import annotations
+
+import ipywidgets as W
+
+from .. import fitting
+
+__all__ = ["ui_x_degree", "ui_fourier_order"]
+
+
+def ui_x_degree(value: int = 1):
+    """Degree of the x-motion polynomial (thesis ``fit_type_x``; poly1 recommended)."""
+    return W.BoundedIntText(value=value, min=0, max=5, description="x poly deg")
+
+
+def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None):
+    """Number of extremes E and the choice between Fourier E/2 and E/2+1.
+
+    Parameters
+    ----------
+    t, y : (n,)
+        Time and the (registered, smoothed) coordinate being fitted.
+    label : str
+        Shown in front of the controls (e.g. ``"marker 1, y"``).
+    rule : str
+        Rule of :func:`horsemocap.fitting.choose_order` for the default choice.
+
+    Returns
+    -------
+    ipywidgets.HBox with ``.value`` = the chosen Fourier order N, and
+    attributes ``extremes`` (BoundedIntText, default
+    :func:`horsemocap.fitting.count_extremes`) and ``choice`` (ToggleButtons).
+    Changing E updates the two proposed orders (E/2, E/2+1) and keeps the
+    same position of the choice. No output is produced by the callbacks.
+    """
+    e0 = fitting.count_extremes(y)
+    n_auto = fitting.choose_order(t, y, e0, rule=rule, w0=w0)
+    ext = W.BoundedIntText(value=e0, min=0, max=40, description="extremes E",
+                           layout=W.Layout(width="170px"))
+
+    def options(e):
+        n1, n2 = fitting.proposed_orders(e)
+        return [(f"fourier{n1} (E/2)", n1), (f"fourier{n2} (E/2+1)", n2)]
+
+    choice = W.ToggleButtons(options=options(e0), value=n_auto, description="fit")
+
+    def on_e(change):
+        idx = [v for _, v in choice.options].index(choice.value) if choice.value is not None else 0
+        opts = options(change["new"])
+        choice.options = opts
+        choice.value = opts[idx][1]
+
+    ext.observe(on_e, names="value")
+
+    class _Box(W.HBox):
+        @property
+        def value(self):
+            return int(choice.value)
+
+    box = _Box([W.Label(label, layout=W.Layout(width="110px")), ext, choice])
+    box.extremes, box.choice = ext, choice
+    return box

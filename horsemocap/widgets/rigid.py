@@ -1,0 +1,44 @@
+"""Controls for the angular kinematics (thesis section 6.1-6.2, 8.4.1,
+Appendix A step 11): which of the six omega / alpha versions enter the
+average ("Is omega1_ver1 to be in the calculation of final omega? y/n"),
+and the method."""
+from __future__ import annotations
+
+import ipywidgets as W
+import numpy as np
+
+from ..rigid import VERSION_LABELS
+
+__all__ = ["ui_versions", "ui_angular_method", "ui_saddle_method"]
+
+
+def ui_versions(name: str = "omega", value=None):
+    """Six checkboxes; ``.value`` is the (6,) bool ``use`` of
+    :func:`horsemocap.rigid.average_versions` (default: all, as the issue asks)."""
+    value = np.ones(6, bool) if value is None else np.asarray(value, bool)
+    boxes = [W.Checkbox(value=bool(v), description=lab.replace("omega", name), indent=False,
+                        layout=W.Layout(width="140px"))
+             for lab, v in zip(VERSION_LABELS, value)]
+
+    class _Box(W.HBox):
+        @property
+        def value(self):
+            return np.array([b.value for b in boxes], bool)
+
+    box = _Box(boxes)
+    box.checkboxes = boxes
+    return box
+
+
+def ui_angular_method(value: str = "thesis"):
+    """``method`` of :func:`horsemocap.rigid.analyse_rigid_body`: the average of
+    the chosen thesis versions, or the least-squares solution from all markers."""
+    return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq")],
+                           value=value, description="omega, alfa")
+
+
+def ui_saddle_method(value: str = "pose"):
+    """``saddle_method`` of :func:`horsemocap.rigid.analyse_rigid_body` (default: its default)."""
+    return W.ToggleButtons(options=[("eq. 6.54/6.55 mean", "thesis"), ("fit of eq. 6.48 path", "direct"),
+                                    ("fit of the smoothed-pose path", "pose")],
+                           value=value, description="saddle v, a")
