@@ -35,16 +35,22 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="marker (0-based) whose net displacement defines x-motion")
     g.add_argument("--fourier-orders", metavar="Y,Z",
                    help="Fourier orders of the y and z fits (default: order rule of 5.5.2.2)")
-    g.add_argument("--angular", choices=["lstsq", "versions"], dest="angular_method",
-                   help="omega/alpha by least squares over all markers (default) or the thesis versions")
+    g.add_argument("--smoothing", choices=["none", "rloess", "loess", "lowess", "rlowess", "moving"],
+                   dest="smoothing_method", help="smoothing of the 3D positions (thesis: rloess)")
+    g.add_argument("--angular", choices=["rotation", "lstsq", "thesis"], dest="angular_method",
+                   help="omega/alpha from the fitted orientation (default), least squares over all "
+                        "markers, or the average of the thesis versions")
+    g.add_argument("--saddle", choices=["pose", "direct", "thesis"], dest="saddle_method",
+                   help="saddle velocity/acceleration from the fitted pose (default), the fitted eq. 6.48 "
+                        "path, or the thesis' eq. 6.54/6.55")
     g.add_argument("--weighting", choices=["iso", "thesis"], dest="weighting_mode",
                    help="iso: each harmonic weighted at its frequency (default); thesis: one scalar W")
 
 
 def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
-               ("recalibrate", "triangulation", "smoothing_span", "period_frames", "x_marker",
-                "angular_method", "weighting_mode")}
+               ("recalibrate", "triangulation", "smoothing_span", "smoothing_method", "period_frames",
+                "x_marker", "angular_method", "saddle_method", "weighting_mode")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}
@@ -67,13 +73,14 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     from .params import AnalysisParams, ParamsError, load_params
     from .pipeline import AnalysisError, analyze, resolve_params
     from .session import SessionError, load_session
+    from .store import StoreError
 
     try:
         session = load_session(session_dir)
         base = load_params(args.params) if args.params else resolve_params(session)
         params = _params_from_args(args, base)
         analysis = analyze(session_dir, out_dir, params)
-    except (SessionError, AnalysisError, ParamsError) as exc:
+    except (SessionError, AnalysisError, ParamsError, StoreError) as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)
         if out_dir.exists():
             print(f"horsemocap: the results of the steps before it are in {out_dir}", file=sys.stderr)

@@ -1386,7 +1386,7 @@ def _find_anchor(cache: CandidateCache, M: int, first_frame=None):
         stride = max(1, n // 30)
         order = [f for f in _middle_out(n) if (f - n // 2) % stride == 0]
     covered = np.zeros(n, bool)
-    best, tried = None, []
+    found, tried = [], []
     for f in order:
         if covered[f]:
             continue
@@ -1400,13 +1400,18 @@ def _find_anchor(cache: CandidateCache, M: int, first_frame=None):
         a, b, complete = cluster_persistence(cache, f, px, 0.15, 3 * motion + 0.5 * dmin + 3)
         covered[a:b + 1] = True
         tried.append((f, f"cluster followed through frames {a}..{b}"))
-        if best is None or b - a > best[0]:
-            best = (b - a, f, regions, chosen, motion)
-        if complete and b - a == best[0]:
+        found.append((b - a, float(info.get("best_cost", np.inf)), f, regions, chosen, motion))
+        if complete and b - a == max(x[0] for x in found):
             break          # followed from where it entered to where it left: the whole pass
-    if best is None:
+    if not found:
         return None, None, None, 0.0, tried
-    return best[1], best[2], best[3], best[4], tried
+    # A marker hidden for a few frames (a hand, a rein) cuts the true cluster's span in two,
+    # while a chance cluster that includes a pseudo marker riding with the horse (stirrup,
+    # boot) may be followed longer. Among the clusters followed through at least half the
+    # longest span, the one that looks most like the markers (choose_markers' cost) wins.
+    longest = max(x[0] for x in found)
+    best = min((x for x in found if x[0] >= 0.5 * longest), key=lambda x: (x[1], -x[0]))
+    return best[2], best[3], best[4], best[5], tried
 
 
 def _measure_motion(gc, f0, px, threshold):

@@ -37,22 +37,43 @@ class AnalysisParams:
     smoothing_span : float
         Span of ``smooth(y, span, 'rloess')`` as a fraction of the points.
     smoothing_method : str
-        ``"rloess"`` (thesis), ``"loess"``, ``"lowess"``, ``"rlowess"``, ``"moving"``.
+        ``"none"`` (default), ``"rloess"`` (the thesis' ``smooth(y, 0.1,
+        'rloess')``), ``"loess"``, ``"lowess"``, ``"rlowess"``, ``"moving"``.
+        Not the thesis' choice by default, on measurement: on a 38-frame
+        canter record a 0.1 span is 5 points (degenerate in MATLAB's rules,
+        raised to 7 by :func:`horsemocap.smoothing.smooth_positions`), a local
+        quadratic that flattens the vertical peaks: on the exact truth it alone
+        costs 5-8 % of the saddle's vertical acceleration, and on the bundled
+        session it raises that error from 2 % to 10 % (notebooks 06 and 14).
+        The Fourier fits of section 5.5 are least-squares smoothers already.
     x_marker : int
         Marker (0-based) whose net displacement defines x-motion (eq. 5.6).
     period_frames : float or None
         Motion period in frames (the thesis typed 18); None = estimated.
-    n_periods : int
-        Periods used for the net displacement (eq. 5.6/5.7).
+    n_periods : int or None
+        Periods used for the net displacement (eq. 5.6/5.7); None = two if
+        the record holds them, else one.
     x_degree : int
         Polynomial degree of the x-motion fit (section 5.5.2.1).
-    fourier_orders : dict or None
-        ``{"y": N, "z": N}`` Fourier orders; None = order rule of 5.5.2.2.
+    fourier_orders : dict, list or None
+        ``{"y": N, "z": N}`` or per marker ``[[Ny, Nz], ...]``; None = the
+        order rule of 5.5.2.2 with ``order_rule`` choosing between E/2 and E/2+1.
+    order_rule : str
+        ``"significant"``, ``"adjrsquare"`` or ``"thesis"`` (see
+        :func:`horsemocap.fitting.choose_order`).
+    fourier_trend : bool
+        A linear drift term in the y/z fits (not in the thesis: absorbs the
+        drift a slightly tilted estimated motion frame gives).
     angular_method : str
-        ``"lstsq"`` (all markers, no singularity) or ``"versions"`` (average
-        of the thesis versions eq. 6.3/6.4/6.38/6.39 chosen by ``omega_versions``).
-    omega_versions : list of bool
-        Which of the six thesis versions enter the average.
+        ``"rotation"`` (from the Fourier fit of the registered orientation),
+        ``"lstsq"`` (all markers, no singularity) or ``"thesis"`` (average of
+        the versions of eq. 6.3/6.4/6.38/6.39 chosen by ``omega_versions``).
+    omega_versions, alpha_versions : list of bool
+        Which of the six thesis versions enter the averages (Figures 8.14-8.20).
+    saddle_method : str
+        ``"pose"`` (fit of the saddle path with the fitted orientation),
+        ``"direct"`` (fit of the eq. 6.48 path) or ``"thesis"`` (mean of eq.
+        6.54/6.55 over the three markers).
     weighting_mode : str
         ``"iso"`` (each harmonic weighted at its own frequency) or ``"thesis"``.
     """
@@ -62,14 +83,18 @@ class AnalysisParams:
     detection: dict = field(default_factory=dict)
     triangulation: str = "joint"
     smoothing_span: float = 0.1
-    smoothing_method: str = "rloess"
+    smoothing_method: str = "none"
     x_marker: int = 0
     period_frames: float | None = None
-    n_periods: int = 2
+    n_periods: int | None = None
     x_degree: int = 1
-    fourier_orders: dict | None = None
-    angular_method: str = "lstsq"
+    fourier_orders: dict | list | None = None
+    order_rule: str = "significant"
+    fourier_trend: bool = True
+    angular_method: str = "rotation"
     omega_versions: list = field(default_factory=lambda: [True] * 6)
+    alpha_versions: list = field(default_factory=lambda: [True] * 6)
+    saddle_method: str = "pose"
     weighting_mode: str = "iso"
 
     def to_dict(self) -> dict:
@@ -100,17 +125,22 @@ class AnalysisParams:
             bad("triangulation", '"joint" or "thesis"')
         if not (0 < float(self.smoothing_span) <= 1):
             bad("smoothing_span", "a fraction in (0, 1]")
-        if self.smoothing_method not in ("rloess", "loess", "lowess", "rlowess", "moving"):
-            bad("smoothing_method", "rloess, loess, lowess, rlowess or moving")
-        if self.angular_method not in ("lstsq", "versions"):
-            bad("angular_method", '"lstsq" or "versions"')
-        if len(self.omega_versions) != 6 or not any(self.omega_versions):
-            bad("omega_versions", "six booleans, at least one true")
+        if self.smoothing_method not in ("none", "rloess", "loess", "lowess", "rlowess", "moving"):
+            bad("smoothing_method", "none, rloess, loess, lowess, rlowess or moving")
+        if self.angular_method not in ("rotation", "lstsq", "thesis"):
+            bad("angular_method", '"rotation", "lstsq" or "thesis"')
+        for name in ("omega_versions", "alpha_versions"):
+            if len(getattr(self, name)) != 6 or not any(getattr(self, name)):
+                bad(name, "six booleans, at least one true")
+        if self.saddle_method not in ("pose", "direct", "thesis"):
+            bad("saddle_method", '"pose", "direct" or "thesis"')
+        if self.order_rule not in ("significant", "adjrsquare", "thesis"):
+            bad("order_rule", '"significant", "adjrsquare" or "thesis"')
         if self.weighting_mode not in ("iso", "thesis"):
             bad("weighting_mode", '"iso" or "thesis"')
         if self.period_frames is not None and float(self.period_frames) <= 2:
             bad("period_frames", "a period in frames (> 2) or null")
-        if int(self.n_periods) < 1:
+        if self.n_periods is not None and int(self.n_periods) < 1:
             bad("n_periods", "an integer >= 1")
 
 

@@ -27,7 +27,7 @@ from .sources import FrameSource, read_image
 from .store import ResultsStore, check_outside
 
 STEPS = ("sync", "rig", "detect", "triangulate", "plumb", "static", "smooth",
-         "motion_frame", "register", "fit", "angular", "saddle", "comfort")
+         "motion_frame", "rigid_body", "comfort")
 
 
 class AnalysisError(RuntimeError):
@@ -65,9 +65,9 @@ class Analysis:
         return self.results[step]
 
 
-def _progress_printer(stream=sys.stderr):
+def _progress_printer(stream=None):
     def report(step: str, message: str):
-        print(f"[horsemocap] {step}: {message}", file=stream, flush=True)
+        print(f"[horsemocap] {step}: {message}", file=stream or sys.stderr, flush=True)
     return report
 
 
@@ -144,8 +144,27 @@ def step_detect(session: Session, params: AnalysisParams, res: dict, progress) -
                             f"marker (frames with all markers, per camera: {counts}); check the motion "
                             "videos, the threshold and the marker count in session.json")
     progress("detect", f"frames {segment[0]}..{segment[1] - 1} seen by every camera")
+    gaps = _gaps_inside(seen, reasons)
+    if gaps:
+        progress("detect", "not every marker seen in frames " + "; ".join(gaps)
+                 + f"; analysing the longest run {segment[0]}..{segment[1] - 1}")
     return {"marker_px": marker_px, "reason": reasons, "all_seen": seen,
             "segment": segment, "detection": chosen}
+
+
+def _gaps_inside(seen: np.ndarray, reasons: dict) -> list[str]:
+    """Frames between the first and last all-seen frame where a marker is missing, and why."""
+    idx = np.flatnonzero(seen)
+    if idx.size == 0:
+        return []
+    out = []
+    for k in range(idx[0], idx[-1] + 1):
+        if seen[k]:
+            continue
+        why = sorted({f"{cam} marker{m + 1} {r[k, m]}" for cam, r in reasons.items()
+                      for m in range(r.shape[1]) if r[k, m]})
+        out.append(f"{k} ({', '.join(why)})")
+    return out
 
 
 def _longest_run(mask: np.ndarray):
@@ -208,11 +227,17 @@ def step_static(session: Session, params: AnalysisParams, res: dict, progress) -
 
 
 def step_smooth(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Robust loess smoothing of every coordinate (section 5.2)."""
+    """Smoothing of every coordinate (section 5.2), or none.
+
+    The thesis smooths with ``smooth(y, 0.1, 'rloess')``; ``"none"`` keeps
+    the triangulated positions (the Fourier fits of section 5.5 filter them).
+    """
     from .smoothing import smooth_positions
 
     a, b = res["detect"]["segment"]
     raw = res["triangulate"]["points"][a:b]
+    if params.smoothing_method == "none":
+        return {"raw": raw, "smoothed": raw.copy()}
     smoothed = smooth_positions(raw, span=params.smoothing_span, method=params.smoothing_method)
     return {"raw": raw, "smoothed": smoothed}
 
@@ -222,25 +247,19 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     from .frames import motion_frame, to_motion_frame
 
     smoothed = res["smooth"]["smoothed"]
-    mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
-                      period=params.period_frames, n_periods=params.n_periods)
+    try:
+        mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
+                          period=params.period_frames, n_periods=params.n_periods)
+    except ValueError as exc:
+        a, b = res["detect"]["segment"]
+        raise AnalysisError("motion_frame", f"{exc}. The analysed frames {a}..{b - 1} ({b - a} frames, the "
+                            "longest run in which every camera sees every marker; see markers_2d.csv) "
+                            "may hold less than the two periods the thesis uses: give the period in frames "
+                            "with --period (analysis 'period_frames') or check the motion videos") from None
     progress("motion_frame", f"period {mf.period_frames:.2f} frames")
     return {"frame": mf, "axes": mf.axes, "period_frames": float(mf.period_frames),
             "positions": to_motion_frame(smoothed, mf),
             "static": to_motion_frame(res["static"]["static_points"], mf)}
-
-
-def step_register(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Rigid registration of every frame to the static shot (5.4)."""
-    from .rigid import match_static_markers, register
-
-    positions, static = res["motion_frame"]["positions"], res["motion_frame"]["static"]
-    order, saddle_index = match_static_markers(static, positions)
-    model = static[np.asarray(order)]
-    reg = register(positions, model)
-    return {"model": model, "saddle_static": static[saddle_index], "registration": reg,
-            "registered": reg.registered, "static_order": [int(i) for i in order],
-            "saddle_index": int(saddle_index)}
 
 
 def _fourier_orders(given, n_markers):
@@ -251,65 +270,53 @@ def _fourier_orders(given, n_markers):
         return np.tile([int(given["y"]), int(given["z"])], (n_markers, 1))
     arr = np.asarray(given, int)
     if arr.shape != (n_markers, 2):
-        raise AnalysisError("fit", f"parameter 'fourier_orders': expected {{'y': N, 'z': N}} or "
-                                   f"{n_markers} pairs [Ny, Nz], got {given!r}")
+        raise AnalysisError("rigid_body", f"parameter 'fourier_orders': expected {{'y': N, 'z': N}} or "
+                                          f"{n_markers} pairs [Ny, Nz], got {given!r}")
     return arr
 
 
-def step_fit(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Polynomial x-motion and Fourier y/z fits; v and a from them (5.5).
+def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
+    """Registration, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
 
-    The registered positions are kept as the positions (section 5.5.2);
-    velocity and acceleration are the analytic derivatives of the fits.
+    One call of :func:`horsemocap.rigid.analyse_rigid_body`: the markers are
+    registered to the static shot (eq. 5.14-5.21), fitted (poly x, Fourier
+    y/z; eq. 5.23 and the order rule of 5.5.2.2), their velocities and
+    accelerations differentiated analytically, omega/alpha estimated (the
+    six thesis versions, least squares and the fitted orientation are all
+    kept) and the saddle marker placed and differentiated (6.3-6.4).
     """
-    from .fitting import fit_motion
     from .frames import time_axis
+    from .rigid import analyse_rigid_body
 
-    registered = res["register"]["registered"]
-    t = time_axis(len(registered), session.fps)
-    orders = _fourier_orders(params.fourier_orders, registered.shape[1])
-    mfit = fit_motion(t, registered, x_degree=params.x_degree, orders=orders)
-    progress("fit", "Fourier orders (y, z) per marker " + str(mfit.orders[:, 1:].tolist()))
-    return {"t": t, "motion_fit": mfit, "position": registered, "fitted_position": mfit.position(t),
-            "velocity": mfit.velocity(t), "acceleration": mfit.acceleration(t),
-            "orders": np.asarray(mfit.orders)[:, 1:]}
-
-
-def step_angular(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Angular velocity and acceleration of the body (6.1-6.2)."""
-    from . import rigid
-
-    pos, vel, acc = (res["fit"][k] for k in ("position", "velocity", "acceleration"))
-    w_versions = rigid.angular_velocity_versions(pos, vel)
-    w_lstsq = rigid.angular_velocity_lstsq(pos, vel)
-    if params.angular_method == "lstsq":
-        omega = w_lstsq
-    else:
-        omega = rigid.average_versions(w_versions, use=params.omega_versions)
-    a_versions = rigid.angular_acceleration_versions(pos, vel, acc, omega)
-    a_lstsq = rigid.angular_acceleration_lstsq(pos, acc, omega)
-    alpha = a_lstsq if params.angular_method == "lstsq" else rigid.average_versions(a_versions, use=params.omega_versions)
-    sing = rigid.singularity_angle(pos, omega)
-    return {"omega": omega, "alpha": alpha, "omega_versions": w_versions, "alpha_versions": a_versions,
-            "omega_lstsq": w_lstsq, "alpha_lstsq": a_lstsq, "singularity_deg": sing}
-
-
-def step_saddle(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """The hidden saddle marker's position, velocity, acceleration (6.3-6.4)."""
-    from . import rigid
-
-    saddle_body = rigid.saddle_in_body(res["register"]["model"], res["register"]["saddle_static"])
-    sk = rigid.saddle_kinematics(res["fit"]["position"], res["fit"]["velocity"], res["fit"]["acceleration"],
-                                 res["angular"]["omega"], res["angular"]["alpha"], saddle_body)
-    return {"saddle": sk, "position": sk.position, "velocity": sk.velocity, "acceleration": sk.acceleration}
+    positions, static = res["motion_frame"]["positions"], res["motion_frame"]["static"]
+    t = time_axis(len(positions), session.fps)
+    rb = analyse_rigid_body(
+        t, positions, static, x_degree=params.x_degree,
+        orders=_fourier_orders(params.fourier_orders, positions.shape[1]), order_rule=params.order_rule,
+        omega_use=params.omega_versions, alpha_use=params.alpha_versions,
+        method=params.angular_method, saddle_method=params.saddle_method,
+        period_s=res["motion_frame"]["period_frames"] / session.fps, fourier_trend=params.fourier_trend)
+    orders = np.asarray(rb.motion_fit.orders)[:, 1:]
+    sing = float(np.nanmin(np.abs(90 - rb.singularity_deg)))
+    progress("rigid_body", f"Fourier orders (y, z) per marker {orders.tolist()}; omega by {params.angular_method}, "
+                           f"saddle by {params.saddle_method}; closest approach to the 6.1 singularity {sing:.1f} deg")
+    return {"analysis": rb, "t": t, "registered": rb.pos, "model": rb.model, "saddle_static": rb.static_saddle,
+            "static_order": [int(i) for i in rb.static_index], "saddle_index": int(rb.saddle_index),
+            "velocity": rb.vel, "acceleration": rb.acc, "orders": orders,
+            "omega": rb.omega, "alpha": rb.alpha, "singularity_deg": rb.singularity_deg,
+            "saddle_position": rb.saddle_path, "saddle_velocity": rb.saddle_velocity,
+            "saddle_acceleration": rb.saddle_acceleration}
 
 
 def step_comfort(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
     """Whole-body vibration indicators of the saddle's vertical motion (chapter 7)."""
     from .vibration import saddle_comfort
 
-    ind = saddle_comfort(res["fit"]["t"], res["saddle"]["position"], res["saddle"]["acceleration"],
-                         res["saddle"]["velocity"], mode=params.weighting_mode)
+    rb = res["rigid_body"]
+    # the stride frequency is the one the motion frame step estimated from the markers (5.3)
+    f0_hz = session.fps / res["motion_frame"]["period_frames"]
+    ind = saddle_comfort(rb["t"], rb["saddle_position"], rb["saddle_acceleration"], rb["saddle_velocity"],
+                         mode=params.weighting_mode, f0_hz=f0_hz)
     progress("comfort", f"Wk rms {ind['acc_y_Wk_rms']:.3f} m/s^2, VDV {ind['VDV_y_Wk']:.3f} m/s^1.75")
     return {"indicators": ind}
 

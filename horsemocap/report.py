@@ -93,24 +93,19 @@ def report_html(analysis) -> str:
     if "triangulate" in res:
         parts.append(_figure(plots.plot_reprojection_residuals(res["triangulate"]["residual_px"]),
                              "Reprojection residuals of the triangulated markers (section 5.1)."))
-    if "fit" in res:
-        t = res["fit"]["t"]
-        pos = res["register"]["registered"]
+    if "rigid_body" in res:
+        rb = res["rigid_body"]
+        t, pos = rb["t"], rb["registered"]
         series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
-        if "saddle" in res:
-            series["saddle"] = res["saddle"]["position"]
+        series["saddle"] = rb["saddle_position"]
         parts.append(_figure(plots.plot_axes_timeseries(t, series, "m", "Positions in the motion frame"),
                              "Registered marker positions and the saddle marker (sections 5.3-5.4, 6.3)."))
-    if "angular" in res:
-        t = res["fit"]["t"]
         parts.append(_figure(plots.plot_axes_timeseries(
-            t, {"omega (rad/s)": res["angular"]["omega"], "alpha / 10 (rad/s^2)": res["angular"]["alpha"] / 10},
+            t, {"omega (rad/s)": rb["omega"], "alpha / 10 (rad/s^2)": rb["alpha"] / 10},
             "", "Angular velocity and acceleration"), "Angular kinematics of the body (chapter 6)."))
-    if "saddle" in res:
-        t = res["fit"]["t"]
-        parts.append(_figure(plots.plot_axes_timeseries(t, {"saddle": res["saddle"]["acceleration"]}, "m/s^2",
+        parts.append(_figure(plots.plot_axes_timeseries(t, {"saddle": rb["saddle_acceleration"]}, "m/s^2",
                                                         "Saddle acceleration"),
-                             "Acceleration of the hidden saddle marker (eq. 6.55)."))
+                             "Acceleration of the hidden saddle marker (section 6.4)."))
     timing = [(k, f"{v:.2f}") for k, v in analysis.timings.items()]
     parts += ["<h2>Steps</h2>", _table(timing, ["step", "seconds"])]
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"

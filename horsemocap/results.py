@@ -54,10 +54,14 @@ def markers_2d_text(analysis) -> str:
 
 
 def _points(analysis, key):
-    """Marker and saddle arrays ``(n, m+1, 3)`` for ``position``/``velocity``/``acceleration``."""
-    markers = analysis.results["fit"][key]
-    saddle = analysis.results["saddle"][key]
-    return np.concatenate([markers, saddle[:, None, :]], axis=1)
+    """Marker and saddle arrays ``(n, m+1, 3)`` for ``position``/``velocity``/``acceleration``.
+
+    Marker positions are the registered ones (section 5.5.2 keeps them);
+    velocities and accelerations come from the fits.
+    """
+    rb = analysis.results["rigid_body"]
+    markers = rb["registered"] if key == "position" else rb[key]
+    return np.concatenate([markers, rb[f"saddle_{key}"][:, None, :]], axis=1)
 
 
 def _point_names(n_markers):
@@ -85,7 +89,7 @@ def kinematics_text(analysis) -> str:
 
 def angular_text(analysis) -> str:
     frame, t = frame_numbers(analysis)
-    w, a = analysis.results["angular"]["omega"], analysis.results["angular"]["alpha"]
+    w, a = analysis.results["rigid_body"]["omega"], analysis.results["rigid_body"]["alpha"]
     rows = [[int(frame[k]), _num(t[k]), *(_num(v) for v in w[k]), *(_num(v) for v in a[k])]
             for k in range(len(frame))]
     return _csv_text(["frame", "time_s", "wx_radps", "wy_radps", "wz_radps",
@@ -116,11 +120,11 @@ def analysis_record(analysis) -> dict:
         chosen["analysed_frames"] = list(res["detect"]["segment"])
     if "motion_frame" in res:
         p["period_frames"] = res["motion_frame"]["period_frames"]
-    if "register" in res:
-        chosen["static_order"] = res["register"]["static_order"]
-        chosen["saddle_index_in_static"] = res["register"]["saddle_index"]
-    if "fit" in res:
-        p["fourier_orders"] = np.asarray(res["fit"]["orders"]).astype(int).tolist()
+        p["n_periods"] = int(res["motion_frame"]["frame"].n_periods)
+    if "rigid_body" in res:
+        chosen["static_order"] = res["rigid_body"]["static_order"]
+        chosen["saddle_index_in_static"] = res["rigid_body"]["saddle_index"]
+        p["fourier_orders"] = np.asarray(res["rigid_body"]["orders"]).astype(int).tolist()
     return record
 
 
@@ -133,10 +137,9 @@ def write_available(out_dir: Path, analysis) -> list[Path]:
         written.append(atomic_write_text(out / "rig.toml", rig_to_toml(res["rig"]["rig"])))
     if "detect" in res:
         written.append(atomic_write_text(out / "markers_2d.csv", markers_2d_text(analysis)))
-    if "saddle" in res:
+    if "rigid_body" in res:
         written.append(atomic_write_text(out / "trajectories.csv", trajectories_text(analysis)))
         written.append(atomic_write_text(out / "kinematics.csv", kinematics_text(analysis)))
-    if "angular" in res:
         written.append(atomic_write_text(out / "angular.csv", angular_text(analysis)))
     if "comfort" in res:
         written.append(write_comfort_csv(out / "comfort.csv", res["comfort"]["indicators"]))

@@ -191,7 +191,8 @@ def test_default_session_follows_the_spec():
     for key in ("motion", "plumb", "static"):
         for cam in sj["cameras"]:
             assert (root / sj[key][cam]).exists(), (key, cam)
-    assert (root / sj["calibration"]["rig"]).is_file()
+    assert "rig" not in sj["calibration"]  # the pipeline calibrates; the true rig is in truth/
+    assert (root / "truth" / "rig.toml").is_file()
     for cam in sj["cameras"]:
         assert (root / sj["calibration"]["images"][cam]).is_dir()
     assert len(sj["calibration"]["board"]["inner_corners"]) == 2

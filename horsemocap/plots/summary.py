@@ -58,7 +58,13 @@ def plot_reprojection_residuals(residual_px: dict, fig=None):
     fig = fig or plt.figure(figsize=(6, 3))
     ax = fig.add_subplot(1, 1, 1)
     for cam, r in residual_px.items():
-        ax.plot(np.nanmedian(r, axis=1) if r.ndim > 1 else r, label=cam, lw=1)
+        r = np.asarray(r, float)
+        if r.ndim > 1:  # median over the markers seen in each frame (NaN where none)
+            seen = np.isfinite(r).any(axis=1)
+            med = np.full(len(r), np.nan)
+            med[seen] = np.nanmedian(r[seen], axis=1)
+            r = med
+        ax.plot(r, label=cam, lw=1)
     ax.set_xlabel("synchronised frame")
     ax.set_ylabel("residual (px)")
     ax.set_title("Reprojection residuals")
