@@ -25,7 +25,7 @@ from horsemocap.pipeline import analyze
 t0 = time.perf_counter()
 a = analyze(sys.argv[1], sys.argv[2], progress=lambda *x: None)
 total = time.perf_counter() - t0
-seg = a.results["detect"]["segment"]
+seg = a.results["triangulate"]["segment"]
 print(json.dumps({"timings": a.timings, "total_s": total, "synced_frames": a.results["sync"]["n_frames"],
                   "analysed_frames": seg[1] - seg[0],
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))

@@ -96,7 +96,7 @@ def stage_errors(analysis, truth) -> dict:
     ``saddle_acc_y_rmse_pct_of_rms``.
     """
     res = analysis.results
-    a, b = res["detect"]["segment"]
+    a, b = res["triangulate"]["segment"]
     frames = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
     rows, known = _truth_rows(truth, frames)
     R_true = truth.motion_axes
@@ -174,26 +174,38 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
 
     Returns
     -------
-    list of dict, one per sigma: ``sigma_px``, median 3D RMSE per axis (m),
-    saddle vertical acceleration error (% of rms), indicator errors (%).
+    list of dict, one per sigma: ``sigma_px``, ``draws`` (analyses that ran),
+    ``failed`` (the errors of those that stopped, e.g. too few frames
+    triangulated consistently), median 3D RMSE per axis (m), saddle vertical
+    acceleration error (% of rms), indicator errors (%).
     """
-    from .pipeline import run_steps
+    from .pipeline import AnalysisError, run_steps
 
     res = analysis.results
     rng = np.random.default_rng(seed)
     n = res["sync"]["n_frames"]
+    # the period is the one found on the real detections: the study isolates what the noise
+    # does to the later steps (the thesis user typed the period anyway)
+    params = replace(params or analysis.params, period_frames=res["motion_frame"]["period_frames"])
     rows = []
     for sigma in sigmas_px:
-        draws = []
+        draws, failed = [], []
         for _ in range(repeats if sigma > 0 else 1):
             px = noisy_projections(truth, res["sync"]["offsets"], n, analysis.session.marker_count, sigma, rng)
             base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
             base["detect"] = {**res["detect"], "marker_px": px}
-            rerun = run_steps(analysis.session, params or analysis.params, base, LATER_STEPS)
+            try:
+                rerun = run_steps(analysis.session, params, base, LATER_STEPS)
+            except AnalysisError as exc:
+                failed.append(str(exc))
+                continue
             st = stage_errors(rerun, truth)
             draws.append((st, comfort_errors(rerun.results["comfort"]["indicators"], truth.comfort, list(keys))))
+        if not draws:
+            rows.append({"sigma_px": float(sigma), "draws": 0, "failed": failed})
+            continue
         med = lambda f: np.median([f(st, ce) for st, ce in draws], axis=0)  # noqa: E731
-        rows.append({"sigma_px": float(sigma), "draws": len(draws),
+        rows.append({"sigma_px": float(sigma), "draws": len(draws), "failed": failed,
                      "triangulated_m": med(lambda st, ce: st["triangulated"]),
                      "smoothed_m": med(lambda st, ce: st["smoothed"]),
                      "saddle_position_m": med(lambda st, ce: st["saddle_position"]),
@@ -296,9 +308,15 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
 def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,
               keys=("acc_y_Wk_rms", "VDV_y_Wk")) -> list[dict]:
     """:func:`simulate_rig` for named ``(rig, fps)`` variants; one row each."""
+    from .pipeline import AnalysisError
+
     rows = []
     for name, (rig, fps) in variants.items():
-        sim, truth = simulate_rig(analysis, rig, fps, sigma_px, seed=seed)
+        try:
+            sim, truth = simulate_rig(analysis, rig, fps, sigma_px, seed=seed)
+        except AnalysisError as exc:
+            rows.append({"rig": name, "fps": fps, "size": rig.cameras[0].size, "failed": str(exc)})
+            continue
         st = stage_errors(sim, truth)
         rows.append({"rig": name, "fps": fps, "size": rig.cameras[0].size,
                      "frames": st["frames"], "smoothed_m": st["smoothed"],

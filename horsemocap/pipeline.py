@@ -180,14 +180,32 @@ def _longest_run(mask: np.ndarray):
 
 
 def step_triangulate(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """3D marker positions in the reference camera frame (section 5.1)."""
+    """3D marker positions in the reference camera frame (section 5.1).
+
+    The analysed segment is the longest run, inside the detection's, in
+    which every marker was triangulated (a point whose views disagree beyond
+    the residual limit is NaN with reason ``inconsistent_views``).
+    """
     from .reconstruction import triangulate
 
     tri = triangulate(res["rig"]["rig"], res["detect"]["marker_px"], mode=params.triangulation)
-    med = {c: float(np.nanmedian(r)) for c, r in tri.residual_px.items()}
+    med = {c: float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan") for c, r in tri.residual_px.items()}
     progress("triangulate", f"{params.triangulation} mode; median reprojection residual (px) "
                             + ", ".join(f"{c} {v:.3f}" for c, v in med.items()))
-    return {"points": tri.points, "residual_px": tri.residual_px, "reason": tri.reason}
+    a, b = res["detect"]["segment"]
+    ok = np.zeros(len(tri.points), bool)
+    ok[a:b] = np.all(np.isfinite(tri.points[a:b]), axis=(1, 2))
+    segment = _longest_run(ok)
+    if segment is None or segment[1] - segment[0] < 8:
+        why = sorted({str(r) for r in tri.reason[a:b].ravel() if r})
+        raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker triangulated "
+                            f"(reasons: {', '.join(why) or 'none'}); check the rig (calibration) and the "
+                            "detections in markers_2d.csv")
+    if segment != (a, b):
+        progress("triangulate", f"analysing frames {segment[0]}..{segment[1] - 1}: some markers of frames "
+                                f"{a}..{b - 1} could not be triangulated ("
+                                + ", ".join(sorted({str(r) for r in tri.reason[a:b].ravel() if r})) + ")")
+    return {"points": tri.points, "residual_px": tri.residual_px, "reason": tri.reason, "segment": segment}
 
 
 def _still_points(session: Session, rig: Rig, images: dict, count: int, step: str, mode: str):
@@ -234,7 +252,7 @@ def step_smooth(session: Session, params: AnalysisParams, res: dict, progress) -
     """
     from .smoothing import smooth_positions
 
-    a, b = res["detect"]["segment"]
+    a, b = res["triangulate"]["segment"]
     raw = res["triangulate"]["points"][a:b]
     if params.smoothing_method == "none":
         return {"raw": raw, "smoothed": raw.copy()}
@@ -251,7 +269,7 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
         mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
                           period=params.period_frames, n_periods=params.n_periods)
     except ValueError as exc:
-        a, b = res["detect"]["segment"]
+        a, b = res["triangulate"]["segment"]
         raise AnalysisError("motion_frame", f"{exc}. The analysed frames {a}..{b - 1} ({b - a} frames, the "
                             "longest run in which every camera sees every marker; see markers_2d.csv) "
                             "may hold less than the two periods the thesis uses: give the period in frames "

@@ -37,7 +37,7 @@ def frame_numbers(analysis) -> tuple[np.ndarray, np.ndarray]:
     ``time_s`` counts from the first analysed frame (thesis eq. 5.13).
     """
     s = analysis.session
-    a, b = analysis.results["detect"]["segment"]
+    a, b = analysis.results["triangulate"]["segment"]
     frame = analysis.results["sync"]["offsets"][s.reference_camera] + np.arange(a, b)
     return frame, np.arange(b - a) / s.fps
 
@@ -118,6 +118,8 @@ def analysis_record(analysis) -> dict:
     if "detect" in res:
         p["detection"] = res["detect"]["detection"]
         chosen["analysed_frames"] = list(res["detect"]["segment"])
+    if "triangulate" in res:
+        chosen["analysed_frames"] = list(res["triangulate"]["segment"])
     if "motion_frame" in res:
         p["period_frames"] = res["motion_frame"]["period_frames"]
         p["n_periods"] = int(res["motion_frame"]["frame"].n_periods)

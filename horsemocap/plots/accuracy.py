@@ -37,6 +37,7 @@ def plot_stage_rmse(stages: dict, keys=("triangulated", "smoothed", "registered"
 def plot_noise_study(rows: list, fig=None):
     """Detection noise (px) against 3D error and saddle acceleration error."""
     fig = fig or plt.figure(figsize=(11, 3.2))
+    rows = [r for r in rows if r["draws"]]
     s = [r["sigma_px"] for r in rows]
     ax = fig.add_subplot(1, 3, 1)
     for k, axis in enumerate(("x", "y", "z")):

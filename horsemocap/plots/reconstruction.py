@@ -58,12 +58,14 @@ def plot_triangulation_residuals(triangulation, ax=None):
     return ax
 
 
-def plot_triangulation_modes(errors: dict, ax=None, unit: str = "mm"):
+def plot_triangulation_modes(errors: dict, ax=None, unit: str = "mm", target: float | None = None):
     """Bar chart of the RMSE per motion axis for each mode.
 
     Parameters
     ----------
     errors : dict of label -> (3,) RMSE along x-, y-, z-motion, in ``unit``.
+    target : float, optional
+        A target RMSE (same unit), drawn as a dashed line.
     """
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 3.2))
@@ -77,6 +79,8 @@ def plot_triangulation_modes(errors: dict, ax=None, unit: str = "mm"):
             ax.annotate(f"{v:.1f}", (b.get_x() + b.get_width() / 2, b.get_height()), ha="center",
                         va="bottom", fontsize=7)
     ax.set_xticks(xs, ["x-motion", "y-motion (gravity)", "z-motion (depth)"])
+    if target is not None:
+        ax.axhline(target, color="k", ls="--", lw=0.8, label=f"target {target:g} {unit}")
     ax.set_ylabel(f"RMSE ({unit})")
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(fontsize=8)

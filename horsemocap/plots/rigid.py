@@ -20,7 +20,7 @@ def plot_registration(measured, registered, frame: int, ax=None):
         fig = plt.figure(figsize=(6, 5))
         ax = fig.add_subplot(projection="3d")
     fig = ax.figure
-    for pts, style, name in ((measured[frame], "o--", "measured (smoothed)"),
+    for pts, style, name in ((measured[frame], "o--", "measured"),
                              (registered[frame], "s-", "registered")):
         loop = np.vstack([pts, pts[:1]]) * 1000
         ax.plot(loop[:, 0], loop[:, 2], loop[:, 1], style, label=name)

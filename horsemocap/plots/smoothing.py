@@ -48,23 +48,50 @@ def plot_smoothing_comparison(y, span=0.1, x=None, methods=("moving", "lowess", 
     return fig
 
 
-def plot_smoothed_marker(raw, smoothed, marker: int = 0, t=None, truth=None, title: str = "", fig=None):
-    """Thesis Figure 8.9 (b): one marker's X, Y, Z before and after smoothing (``CM_L``)."""
+def plot_smoothed_marker(raw, smoothed, marker: int = 0, t=None, truth=None, title: str = "", fig=None,
+                         label: str = "smoothed", errors: bool = False):
+    """Thesis Figure 8.9 (b): one marker's X, Y, Z before and after smoothing (``CM_L``).
+
+    Parameters
+    ----------
+    raw, smoothed : ndarray (frames, markers, 3), metres
+    marker : int, 0-based
+    t : ndarray (frames,), optional, time axis (default: frame numbers)
+    truth : ndarray (frames, markers, 3), optional, drawn dashed
+    label : str, legend of the smoothed curve (e.g. ``"rloess 0.1"``)
+    errors : bool
+        With ``truth``: a second row with the errors (mm) of the raw and
+        smoothed positions against the truth.
+    """
     raw = np.asarray(raw, float)
     smoothed = np.asarray(smoothed, float)
     x = np.arange(raw.shape[0]) if t is None else np.asarray(t)
-    fig = fig or plt.figure(figsize=(10, 3.4))
-    axes = fig.subplots(1, 3)
-    for a, ax in enumerate(axes):
+    rows = 2 if (errors and truth is not None) else 1
+    fig = fig or plt.figure(figsize=(10, 3.4 * rows))
+    axes = np.atleast_2d(fig.subplots(rows, 3, squeeze=False))
+    for a in range(3):
+        ax = axes[0, a]
         ax.plot(x, raw[:, marker, a], "o", ms=3, color="C0", label="triangulated")
-        ax.plot(x, smoothed[:, marker, a], "-", color="C1", label="smoothed")
+        ax.plot(x, smoothed[:, marker, a], "-", color="C1", label=label)
         if truth is not None:
             ax.plot(x, np.asarray(truth)[:, marker, a], "k--", lw=0.8, label="truth")
         ax.set_title(f"marker {marker + 1}: {'XYZ'[a]} (left camera)")
         ax.set_xlabel("frame" if t is None else "t (s)")
         ax.set_ylabel("m")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7)
+        if rows == 2:
+            tr = np.asarray(truth, float)[:, marker, a]
+            ax = axes[1, a]
+            ax.plot(x, 1000 * (raw[:, marker, a] - tr), "o-", ms=3, lw=0.6, color="C0", label="triangulated")
+            ax.plot(x, 1000 * (smoothed[:, marker, a] - tr), "-", color="C1", label=label)
+            ax.axhline(0, color="k", lw=0.6)
+            ax.set_title(f"error in {'XYZ'[a]} vs truth")
+            ax.set_xlabel("frame" if t is None else "t (s)")
+            ax.set_ylabel("mm")
+            ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    if rows == 2:
+        axes[1, 0].legend(fontsize=7)
     if title:
         fig.suptitle(title)
     fig.tight_layout()

@@ -18,28 +18,52 @@ def ui_x_degree(value: int = 1):
     return W.BoundedIntText(value=value, min=0, max=5, description="x poly deg")
 
 
-def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None):
+def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, *,
+                     trend: bool = False, start: str = "matlab", value: int | None = None,
+                     n_extremes: int | None = None):
     """Number of extremes E and the choice between Fourier E/2 and E/2+1.
 
     Parameters
     ----------
     t, y : (n,)
-        Time and the (registered, smoothed) coordinate being fitted.
+        Time and the (registered) coordinate being fitted.
     label : str
         Shown in front of the controls (e.g. ``"marker 1, y"``).
-    rule : str
-        Rule of :func:`horsemocap.fitting.choose_order` for the default choice.
+    rule, w0, trend, start
+        As in :func:`horsemocap.fitting.fit_motion` (the pipeline passes its
+        ``order_rule``, ``w0 = 2 pi / period``, ``fourier_trend``): the
+        default choice is then the order the pipeline chose.
+    value, n_extremes : int, optional
+        Give the defaults directly (e.g. ``MotionFit.orders[m, ax]`` and
+        ``MotionFit.n_extremes[m, ax]`` of the pipeline's fit) instead of
+        recomputing them; ``value`` must be one of the two proposed orders.
 
     Returns
     -------
     ipywidgets.HBox with ``.value`` = the chosen Fourier order N, and
-    attributes ``extremes`` (BoundedIntText, default
-    :func:`horsemocap.fitting.count_extremes`) and ``choice`` (ToggleButtons).
+    attributes ``extremes`` (BoundedIntText, default: E counted as
+    :func:`horsemocap.fitting.fit_motion` counts it, on the detrended data
+    when ``trend``) and ``choice`` (ToggleButtons).
     Changing E updates the two proposed orders (E/2, E/2+1) and keeps the
     same position of the choice. No output is produced by the callbacks.
     """
-    e0 = fitting.count_extremes(y)
-    n_auto = fitting.choose_order(t, y, e0, rule=rule, w0=w0)
+    import numpy as np
+
+    if n_extremes is None:
+        yy = np.asarray(y, float)
+        if trend:
+            tt = np.asarray(t, float)
+            ok = np.isfinite(yy)
+            yy = yy[ok] - np.polyval(np.polyfit(tt[ok], yy[ok], 1), tt[ok])
+        n_extremes = fitting.count_extremes(yy)
+    e0 = int(n_extremes)
+    if value is None:
+        n_auto = fitting.choose_order(t, y, e0, rule=rule, w0=w0, start=start, trend=trend)
+    else:
+        n_auto = int(value)
+        if n_auto not in fitting.proposed_orders(e0):
+            raise ValueError(f"value: fourier{n_auto} is not one of the orders proposed for E = {e0} "
+                             f"({fitting.proposed_orders(e0)})")
     ext = W.BoundedIntText(value=e0, min=0, max=40, description="extremes E",
                            layout=W.Layout(width="170px"))
 

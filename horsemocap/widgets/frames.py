@@ -18,11 +18,18 @@ def ui_triangulation_mode(value: str = "joint"):
 
 
 class SmoothingControls(W.VBox):
-    """Method dropdown and span box; ``.value`` is ``{"method": ..., "span": ...}``."""
+    """Method dropdown and span box; ``.value`` is ``{"method": ..., "span": ...}``.
 
-    def __init__(self, method: str = "rloess", span: float = 0.1):
-        self.method = W.Dropdown(options=["rloess", "loess", "rlowess", "lowess", "moving"], value=method,
-                                 description="method")
+    ``"none"`` keeps the triangulated positions (the pipeline's default, see
+    :class:`horsemocap.params.AnalysisParams`); the span is then unused.
+    """
+
+    METHODS = ("none", "rloess", "loess", "rlowess", "lowess", "moving")
+
+    def __init__(self, method: str = "none", span: float = 0.1):
+        if method not in self.METHODS:
+            raise ValueError(f"ui_smoothing: method must be one of {self.METHODS}, got {method!r}")
+        self.method = W.Dropdown(options=list(self.METHODS), value=method, description="method")
         self.span = W.BoundedFloatText(value=span, min=0.01, max=0.99, step=0.01, description="span")
         super().__init__([self.method, self.span])
 
@@ -31,12 +38,21 @@ class SmoothingControls(W.VBox):
         return {"method": self.method.value, "span": float(self.span.value)}
 
 
-def ui_smoothing(method: str = "rloess", span: float = 0.1):
-    """Method and span of :func:`horsemocap.smoothing.smooth_positions` (thesis: rloess, 0.1).
+def ui_smoothing(method: str | None = None, span: float | None = None):
+    """Method and span of the pipeline's smoothing step (thesis: rloess, 0.1).
 
-    ``.value`` is ``{"method": ..., "span": ...}``.
+    Defaults are the pipeline's automatic choice,
+    ``AnalysisParams().smoothing_method`` (``"none"``, a measured deviation
+    from the thesis documented there and in notebook 06) and
+    ``AnalysisParams().smoothing_span`` (0.1). ``.value`` is
+    ``{"method": ..., "span": ...}``, the ``smoothing_method`` and
+    ``smoothing_span`` parameters.
     """
-    return SmoothingControls(method, span)
+    from ..params import AnalysisParams
+
+    defaults = AnalysisParams()
+    return SmoothingControls(defaults.smoothing_method if method is None else method,
+                             defaults.smoothing_span if span is None else float(span))
 
 
 def ui_motion_marker(n_markers: int, value: int = 0):

@@ -32,8 +32,12 @@ def ui_versions(name: str = "omega", value=None):
 
 def ui_angular_method(value: str = "thesis"):
     """``method`` of :func:`horsemocap.rigid.analyse_rigid_body`: the average of
-    the chosen thesis versions, or the least-squares solution from all markers."""
-    return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq")],
+    the chosen thesis versions, the least-squares solution from all markers,
+    or the Fourier fit of the registered orientation (``"rotation"``, the
+    pipeline's default ``AnalysisParams.angular_method``: pass
+    ``analysis.params.angular_method`` to default to the pipeline's choice)."""
+    return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq"),
+                                    ("fit of the orientation", "rotation")],
                            value=value, description="omega, alfa")
 
 

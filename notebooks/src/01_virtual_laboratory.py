@@ -144,14 +144,16 @@ for key in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max", "crest_fact
 # ## 3. The session on disk
 #
 # A session folder as in `shared/spec/sessions.md`: videos (Motion-JPEG AVI, like the Casio
-# EX-Z750's), plumb and static stills, checkerboard views and the true `rig.toml`; the truth sits
-# in `truth/`, which readers of the session ignore. The cameras were started one after the other: the
+# EX-Z750's), plumb and static stills and checkerboard views (the pipeline calibrates the rig from
+# them, as the thesis did); the truth, the true `rig.toml` included, sits in `truth/`, which readers
+# of the session ignore. The cameras were started one after the other: the
 # flash-on frame is `offsets[cam]` in each camera's own numbering.
 
 # %%
 for key in ("motion", "plumb", "static"):
     print(f"{key:7s}", ", ".join(f"{c}: {p}" for c, p in meta[key].items()))
-print("calibration:", meta["calibration"]["rig"], "+", meta["calibration"]["board"])
+print("calibration:", {k: (v if k == "board" else "...") for k, v in meta["calibration"].items()},
+      "| views per camera:", len(list((session / "calibration" / "left").iterdir())))
 print("sync:", meta["sync"], "| true offsets:", truth.offsets,
       f"| dF_LM = {truth.offsets['middle'] - truth.offsets['left']}, dF_MR = {truth.offsets['right'] - truth.offsets['middle']}")
 total = sum(p.stat().st_size for p in session.rglob("*") if p.is_file())

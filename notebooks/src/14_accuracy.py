@@ -101,11 +101,14 @@ for key, e in cerr.items():
 
 # %%
 rows = accuracy.noise_study(analysis, truth, sigmas_px=(0.0, 0.1, 0.25, 0.5, 1.0, 2.0, 3.0), seed=1)
-print("sigma_px  z_RMSE_mm  saddle_Ay_%  Wk_rms_%  VDV_Wk_%")
+print("sigma_px  runs  z_RMSE_mm  saddle_Ay_%  Wk_rms_%  VDV_Wk_%   (medians over the runs that completed)")
 for r in rows:
+    if not r["draws"]:
+        print(f"{r['sigma_px']:8.2f}  0/{len(r['failed'])}  every run stopped: {r['failed'][0][:90]}")
+        continue
     c = r["comfort_pct"]
-    print(f"{r['sigma_px']:8.2f}  {1000 * r['smoothed_m'][2]:9.1f}  {r['saddle_acc_y_pct']:11.1f}"
-          f"  {c.get('acc_y_Wk_rms', np.nan):8.1f}  {c.get('VDV_y_Wk', np.nan):8.1f}")
+    print(f"{r['sigma_px']:8.2f}  {r['draws']}/{r['draws'] + len(r['failed'])}  {1000 * r['smoothed_m'][2]:9.1f}"
+          f"  {r['saddle_acc_y_pct']:11.1f}  {c.get('acc_y_Wk_rms', np.nan):8.1f}  {c.get('VDV_y_Wk', np.nan):8.1f}")
 
 # %%
 fig = plots.plot_noise_study(rows)
@@ -142,14 +145,20 @@ variants = {
 study = accuracy.rig_study(analysis, variants, sigma_px=0.25, seed=2)
 print("rig                              frames  z_RMSE_mm  saddle_z_mm  saddle_Ay_%  Wk_rms_%")
 for r in study:
+    if "failed" in r:
+        print(f"{r['rig']:32s} stopped: {r['failed'][:80]}")
+        continue
     print(f"{r['rig']:32s} {r['frames']:6d}  {1000 * r['smoothed_m'][2]:9.1f}  {1000 * r['saddle_position_m'][2]:11.1f}"
           f"  {r['saddle_acc_y_pct']:11.1f}  {r['comfort_pct'].get('acc_y_Wk_rms', np.nan):8.1f}")
 
 # %% [markdown]
-# Resolution and baseline both shrink the depth error; a wider baseline is the cheaper of the two
-# (it needs no new cameras, only a different stand) but narrows the volume all cameras see. A higher
-# frame rate alone does not help here: more samples of the same noisy depth do not make the depth less
-# noisy, and the thesis' order rule for the Fourier fits is tuned to two periods of samples.
+# Resolution and baseline both shrink the depth error; together they bring the saddle's vertical
+# acceleration within a few percent even with a quarter pixel of noise. A wider baseline is the
+# cheaper of the two (no new cameras, only a different stand) but narrows the volume that every camera
+# sees. A higher frame rate alone does not help: more samples of an equally noisy depth are not a
+# better depth, and in this run the 60 fps analysis is even worse than the 30 fps one (the automatic
+# order choices of the longer records differ; we have not traced it further: an open question for
+# the exercises below).
 #
 # ## Exercises
 #
@@ -158,6 +167,8 @@ for r in study:
 # 2. Using the depth formula, how wide must the baseline be for 0.25 px of noise to give 5 mm of depth
 #    error at 7.5 m with the thesis' cameras?
 # 3. Which stage contributes most to the saddle's position error in z-motion on the bundled session?
+# 4. (Open) Find out why the 60 fps rig does worse than the 30 fps one: compare
+#    `sim.results["rigid_body"]["orders"]` of the two (`accuracy.simulate_rig`).
 #
 # <details><summary>Solutions</summary>
 #
@@ -166,5 +177,6 @@ for r in study:
 # 2. $B = Z^2 \delta u / (f \delta Z) = 56.25 \cdot 0.25 / (725 \cdot 0.005) \approx 3.9$ m.
 # 3. Triangulation: the depth (z) error is already there after triangulation and smoothing does not
 #    remove it; registration and the rigid-body formulas carry it to the saddle.
+# 4. Open: no solution given yet.
 #
 # </details>
