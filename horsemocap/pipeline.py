@@ -209,16 +209,21 @@ def step_triangulate(session: Session, params: AnalysisParams, res: dict, progre
 
 
 def _still_points(session: Session, rig: Rig, images: dict, count: int, step: str, mode: str):
-    from .detection import detect_still
+    """Markers of one still per camera, matched across the cameras and triangulated.
+
+    :func:`horsemocap.detection.detect_still_views` keeps only candidates that
+    triangulate consistently in every camera (a glint or a buckle seen by one
+    camera is not a marker), then picks the most marker-like ones.
+    """
+    from .detection import detect_still_views
     from .reconstruction import triangulate
 
-    px = {}
-    for cam in session.cameras:
-        try:
-            px[cam] = detect_still(read_image(images[cam]), count)[None]
-        except ValueError as exc:
-            raise AnalysisError(step, f"{images[cam]}: {exc}") from None
-    return triangulate(rig, px, mode=mode).points[0], {c: p[0] for c, p in px.items()}
+    try:
+        px = detect_still_views({c: read_image(images[c]) for c in session.cameras}, rig, count)
+    except ValueError as exc:
+        files = ", ".join(str(images[c]) for c in session.cameras)
+        raise AnalysisError(step, f"{files}: {exc}") from None
+    return triangulate(rig, {c: p[None] for c, p in px.items()}, mode=mode).points[0], px
 
 
 def step_plumb(session: Session, params: AnalysisParams, res: dict, progress) -> dict:

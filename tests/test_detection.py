@@ -389,3 +389,159 @@ def test_usable_frames_follow_the_offsets(track):
     np.testing.assert_array_equal(got, np.flatnonzero(ok[:n - 3]))
     with pytest.raises(ValueError, match="offset"):
         det.usable_frames({"left": track, "right": shifted}, {"left": 0})
+
+
+# ---------------------------------------------------------------- stills seen by several cameras
+def small_rig():
+    """Three 320 x 240 cameras 0.4 m apart, slightly turned and distorted, looking at z ~ 3 m."""
+    from horsemocap.camera import Camera, Rig, rotation_matrix
+
+    K = np.array([[500.0, 0, 160], [0, 500.0, 120], [0, 0, 1]])
+    poses = {"left": ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+             "middle": ((0.01, 0.06, 0.005), (0.4, 0.02, 0.0)),
+             "right": ((-0.01, 0.12, -0.01), (0.8, -0.03, 0.05))}
+    cams = []
+    for name, (rvec, centre) in poses.items():
+        R = rotation_matrix(np.array(rvec))
+        cams.append(Camera(name, (320, 240), K, distortions=[-0.05, 0.01, 0, 0, 0], rotation=np.array(rvec),
+                           translation=-R @ np.array(centre)))
+    return Rig(tuple(cams))
+
+
+def render_views(rig, points, amp=200.0, pseudo=3, pseudo_amp=235.0, consistent_pseudo=(), seed=0, r=3.2):
+    """Gray stills of every camera: discs at the projections of ``points`` (exact truth),
+    ``pseudo`` round brighter discs at random, view-inconsistent places per camera, and
+    ``consistent_pseudo``: (point, amp) discs projected in every camera."""
+    rng = np.random.default_rng(seed)
+    out, truth = {}, {}
+    for cam in rig:
+        W, H = cam.size
+        img = np.full((H, W), 28.0)
+        px = cam.project(points)
+        assert np.all((px > 15) & (px < [W - 15, H - 15]))
+        for u, v in px:
+            add_disc(img, u, v, r, amp)
+        for p, a in consistent_pseudo:
+            u, v = cam.project(np.asarray(p, float)[None])[0]
+            add_disc(img, u, v, r, a)
+        placed = 0
+        while placed < pseudo:                      # round and bright, but only in this view
+            u, v = rng.uniform([15, 15], [W - 15, H - 15])
+            if np.linalg.norm(px - [u, v], axis=1).min() > 12:
+                add_disc(img, u, v, r, pseudo_amp)
+                placed += 1
+        add_disc(img, 0.85 * W, 0.2 * H, 14, 200)   # big blob (area filter)
+        img[int(0.9 * H):int(0.9 * H) + 2, 10:W - 10] += 190   # rail (shape filter)
+        out[cam.name] = np.clip(np.rint(img + rng.normal(0, 2.5, img.shape)), 0, 255).astype(np.uint8)
+        truth[cam.name] = px
+    return out, truth
+
+
+STATIC_3D = np.array([[0.05, -0.06, 3.0], [0.16, 0.01, 3.05], [0.27, -0.04, 2.95], [0.2, 0.12, 3.02]])
+
+
+def test_still_views_reject_view_inconsistent_pseudo_markers():
+    rig = small_rig()
+    images, truth = render_views(rig, STATIC_3D)
+    # one camera alone is fooled: the pseudo markers are rounder and brighter than the markers
+    for cam in rig.names:
+        try:
+            single = det.detect_still(images[cam], 4)
+        except det.DetectionError:
+            continue
+        t = truth[cam][np.argsort(truth[cam][:, 0])]
+        assert np.abs(single - t).max() > 1.0
+    got = det.detect_still_views(images, rig, 4)
+    assert list(got) == rig.names
+    order = np.argsort(truth["left"][:, 0])             # ascending u in the reference camera
+    for cam in rig.names:
+        assert got[cam].shape == (4, 2)
+        np.testing.assert_allclose(got[cam], truth[cam][order], atol=0.15)
+    sv = det.match_still_views(images, rig, 4)
+    np.testing.assert_allclose(sv.points, STATIC_3D[order], atol=0.01)   # 1 cm at 3 m, 0.4 m baseline
+    assert np.all(sv.residual_px < 0.5) and sv.margin >= 0
+    for cam in rig.names:                                # the pixels are the candidates' centres
+        np.testing.assert_array_equal(got[cam], sv.candidates[cam].centre[sv.index[cam]])
+
+
+def test_still_views_plumb_top_first_and_two_cameras():
+    rig = small_rig()
+    plumb = np.array([[0.2, 0.15, 3.0], [0.21, -0.15, 3.0]])     # tip (lower, +y down), tail (upper)
+    images, truth = render_views(rig, plumb, pseudo=4, seed=3)
+    got = det.detect_still_views(images, rig, 2)
+    for cam in rig.names:
+        np.testing.assert_allclose(got[cam], truth[cam][::-1], atol=0.15)    # top (tail) first
+        assert got[cam][0, 1] < got[cam][1, 1]
+    two = det.detect_still_views({c: images[c] for c in ("left", "right")}, rig, 2)
+    assert list(two) == ["left", "right"]
+    np.testing.assert_allclose(two["right"], got["right"])
+
+
+def test_still_views_choose_the_best_looking_consistent_points():
+    rig = small_rig()
+    # a real object seen consistently by all cameras, but dimmer (a buckle): not a marker
+    buckle = ([0.1, 0.1, 3.0], 165.0)
+    images, truth = render_views(rig, STATIC_3D, pseudo=2, consistent_pseudo=[buckle], seed=7)
+    sv = det.match_still_views(images, rig, 4)
+    assert len(sv.consistent) == 5
+    order = np.argsort(truth["left"][:, 0])
+    for cam in rig.names:
+        np.testing.assert_allclose(sv.marker_px[cam], truth[cam][order], atol=0.15)
+
+
+def test_still_views_errors_name_the_cameras():
+    rig = small_rig()
+    # five identical consistent discs for four markers: ambiguous
+    five = np.vstack([STATIC_3D, [[0.35, 0.08, 3.0]]])
+    images, _ = render_views(rig, five, pseudo=1, seed=11)
+    with pytest.raises(det.DetectionError, match=r"ambiguous.*left.*middle.*right|left.*middle.*right.*ambiguous"):
+        det.detect_still_views(images, rig, 4)
+    # three consistent markers (and view-inconsistent pseudo markers) for four: not enough
+    images, _ = render_views(rig, STATIC_3D[:3], pseudo=3, seed=12)
+    with pytest.raises(det.DetectionError, match=r"only 3 point\(s\).*\['left', 'middle', 'right'\].*expected 4"):
+        det.detect_still_views(images, rig, 4)
+    # a wrong rig: nothing is consistent
+    from horsemocap.camera import Rig
+    swapped = Rig((rig["left"], replace_pose(rig["middle"], rig["right"]), replace_pose(rig["right"], rig["middle"])))
+    images, _ = render_views(rig, STATIC_3D, pseudo=0, seed=13)
+    with pytest.raises(det.DetectionError, match="consistently by all cameras"):
+        det.detect_still_views(images, swapped, 4)
+    with pytest.raises(ValueError, match="not in the rig"):
+        det.detect_still_views({"top": images["left"], "left": images["left"]}, rig, 4)
+    with pytest.raises(ValueError, match="at least two"):
+        det.detect_still_views({"left": images["left"]}, rig, 4)
+    with pytest.raises(ValueError, match="labels"):
+        det.detect_still_views(images, rig, 4, det.DetectionParams(labels=(1, 2, 3, 4)))
+    with pytest.raises(det.DetectionError, match="fewer than 6 round candidate"):
+        det.detect_still_views(images, rig, 6)
+
+
+def replace_pose(cam, other):
+    from dataclasses import replace as dc_replace
+    return dc_replace(cam, rotation=other.rotation, translation=other.translation)
+
+
+def _cached_herd_session(slug):
+    from horsemocap.data import cache_dir
+    found = sorted(p for p in (cache_dir() / "virtuallab").glob(f"{slug}-*") if (p / ".complete").is_file())
+    if not found:
+        pytest.skip(f"herd session {slug} not rendered in {cache_dir() / 'virtuallab'} "
+                    f"(horsemocap.virtuallab.herd_session renders it)")
+    return found[0]
+
+
+def test_still_views_on_a_cached_herd_session():
+    """Horse 3 walk: detect_still alone finds the static shot ambiguous in the right camera."""
+    from horsemocap.camera import read_rig
+    from horsemocap.sources import read_image
+    from horsemocap.virtuallab import load_truth
+
+    folder = _cached_herd_session("horse3_walk")
+    truth = load_truth(folder)
+    rig = read_rig(folder / "calibration" / "rig.toml")
+    for kind, pos in (("static", truth.static_pos), ("plumb", truth.plumb_pos[::-1])):   # plumb: tail (upper) first
+        images = {c: read_image(folder / kind / f"{c}.jpg") for c in rig.names}
+        got = det.detect_still_views(images, rig, len(pos))
+        for cam in rig.names:
+            err = np.linalg.norm(got[cam] - truth.rig[cam].project(pos), axis=1)
+            assert err.max() < 0.5, (kind, cam, err)

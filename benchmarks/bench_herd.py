@@ -1,0 +1,64 @@
+"""The 16 virtual herd sessions through the whole pipeline, against their truth.
+
+Renders each (horse, gait) session into the cache on first use
+(``virtuallab.herd_session``), runs ``pipeline.analyze`` with the automatic
+choices, and prints per session: whether it completed (else the step and
+message), the analysed frames, the saddle's vertical acceleration error (% of
+rms) and the errors of the weighted rms and VDV against the truth; then the
+Spearman rank correlations of the indicators with the riders' grades
+(thesis Table 8.8) from the pipeline and from the truth.
+
+Usage: ``python benchmarks/bench_herd.py [--mode iso|thesis]`` (about 15 min
+on first use on 2 cores, most of it rendering; about 2 min from the cache).
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mode", default="iso", choices=["iso", "thesis"])
+    args = ap.parse_args()
+
+    from horsemocap import accuracy, herd
+    from horsemocap.pipeline import AnalysisError, analyze
+    from horsemocap.virtuallab import GAITS, HORSES, herd_session, load_truth
+
+    keys = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk")
+    table, done = {}, 0
+    print(f"{'session':28s} {'render_s':>8s} {'analyse_s':>9s} {'frames':>6s} {'saddle_Ay_%':>11s} "
+          + " ".join(f"{k + '_%':>14s}" for k in keys))
+    for horse in HORSES:
+        for gait in GAITS:
+            t0 = time.perf_counter()
+            folder = herd_session(horse, gait)
+            t1 = time.perf_counter()
+            name = f"{horse} {gait}"
+            try:
+                a = analyze(folder, None, {"weighting_mode": args.mode}, progress=lambda *x: None)
+            except AnalysisError as exc:
+                print(f"{name:28s} {t1 - t0:8.1f} {'-':>9s}  stopped: {str(exc)[:150]}")
+                continue
+            t2 = time.perf_counter()
+            truth = load_truth(folder)
+            st = accuracy.stage_errors(a, truth)
+            ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, keys)
+            table[(horse, gait)] = a.results["comfort"]["indicators"]
+            done += 1
+            print(f"{name:28s} {t1 - t0:8.1f} {t2 - t1:9.1f} {st['frames']:6d} {st['saddle_acc_y_rmse_pct_of_rms']:11.1f} "
+                  + " ".join(f"{ce[k]:14.1f}" for k in keys))
+    print(f"\n{done} of {len(HORSES) * len(GAITS)} sessions analysed")
+    if done == len(HORSES) * len(GAITS):
+        for label, tab in (("pipeline", table), ("truth", herd.herd_indicators("analytic", mode=args.mode))):
+            comp = herd.compare(tab)
+            print(f"\nrank correlations with the riders' grades ({label}):")
+            for k, v in comp.items():
+                print(f"  {k}: {v}")
+
+
+if __name__ == "__main__":
+    main()
