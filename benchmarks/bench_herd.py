@@ -14,6 +14,7 @@ on first use on 2 cores, most of it rendering; about 2 min from the cache).
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
 import numpy as np
@@ -22,6 +23,7 @@ import numpy as np
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mode", default="iso", choices=["iso", "thesis"])
+    ap.add_argument("--params", default="{}", help="JSON analysis parameters, e.g. '{\"smoothing_method\": \"rloess\"}'")
     args = ap.parse_args()
 
     from horsemocap import accuracy, herd
@@ -29,7 +31,7 @@ def main():
     from horsemocap.virtuallab import GAITS, HORSES, herd_session, load_truth
 
     keys = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk")
-    table, done = {}, 0
+    table, done, errors = {}, 0, []
     print(f"{'session':28s} {'render_s':>8s} {'analyse_s':>9s} {'frames':>6s} {'saddle_Ay_%':>11s} "
           + " ".join(f"{k + '_%':>14s}" for k in keys))
     for horse in HORSES:
@@ -39,7 +41,8 @@ def main():
             t1 = time.perf_counter()
             name = f"{horse} {gait}"
             try:
-                a = analyze(folder, None, {"weighting_mode": args.mode}, progress=lambda *x: None)
+                a = analyze(folder, None, {"weighting_mode": args.mode, **json.loads(args.params)},
+                            progress=lambda *x: None)
             except AnalysisError as exc:
                 print(f"{name:28s} {t1 - t0:8.1f} {'-':>9s}  stopped: {str(exc)[:150]}")
                 continue
@@ -48,16 +51,21 @@ def main():
             st = accuracy.stage_errors(a, truth)
             ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, keys)
             table[(horse, gait)] = a.results["comfort"]["indicators"]
+            errors.append((st["saddle_acc_y_rmse_pct_of_rms"], *(abs(ce[k]) for k in keys)))
             done += 1
             print(f"{name:28s} {t1 - t0:8.1f} {t2 - t1:9.1f} {st['frames']:6d} {st['saddle_acc_y_rmse_pct_of_rms']:11.1f} "
                   + " ".join(f"{ce[k]:14.1f}" for k in keys))
     print(f"\n{done} of {len(HORSES) * len(GAITS)} sessions analysed")
+    if errors:
+        med = np.median(np.asarray(errors), axis=0)
+        print(f"median saddle A_y error {med[0]:.1f} % of rms; median |error| "
+              + ", ".join(f"{k} {m:.1f} %" for k, m in zip(keys, med[1:])))
     if done == len(HORSES) * len(GAITS):
         for label, tab in (("pipeline", table), ("truth", herd.herd_indicators("analytic", mode=args.mode))):
             comp = herd.compare(tab)
             print(f"\nrank correlations with the riders' grades ({label}):")
-            for k, v in comp.items():
-                print(f"  {k}: {v}")
+            for c in comp:
+                print(f"  {c}")
 
 
 if __name__ == "__main__":

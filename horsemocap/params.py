@@ -37,15 +37,16 @@ class AnalysisParams:
     smoothing_span : float
         Span of ``smooth(y, span, 'rloess')`` as a fraction of the points.
     smoothing_method : str
-        ``"none"`` (default), ``"rloess"`` (the thesis' ``smooth(y, 0.1,
-        'rloess')``), ``"loess"``, ``"lowess"``, ``"rlowess"``, ``"moving"``.
-        Not the thesis' choice by default, on measurement: on a 38-frame
-        canter record a 0.1 span is 5 points (degenerate in MATLAB's rules,
-        raised to 7 by :func:`horsemocap.smoothing.smooth_positions`), a local
-        quadratic that flattens the vertical peaks: on the exact truth it alone
-        costs 5-8 % of the saddle's vertical acceleration, and on the bundled
-        session it raises that error from 2 % to 10 % (notebooks 06 and 14).
-        The Fourier fits of section 5.5 are least-squares smoothers already.
+        ``"loess"`` (default), ``"rloess"`` (the thesis' ``smooth(y, 0.1,
+        'rloess')``), ``"lowess"``, ``"rlowess"``, ``"moving"`` or ``"none"``.
+        Not the thesis' robust variant by default, on measurement over the 16
+        virtual herd sessions (``benchmarks/bench_herd.py``, the same
+        detections and rig for each method): median |error| of the Wb-weighted
+        rms 7.9 % with loess, 9.5 % with rloess, 20.4 % without smoothing;
+        worst session 17.6 %, 140 % and 53.5 %. On records of a few dozen
+        frames a 0.1 span is 5-7 points, and the robust iterations of rloess
+        reject good samples near the ends of the record (they moved the last
+        frames of the bundled session by 15-24 mm; notebook 06).
     x_marker : int
         Marker (0-based) whose net displacement defines x-motion (eq. 5.6).
     period_frames : float or None
@@ -83,7 +84,7 @@ class AnalysisParams:
     detection: dict = field(default_factory=dict)
     triangulation: str = "joint"
     smoothing_span: float = 0.1
-    smoothing_method: str = "none"
+    smoothing_method: str = "loess"
     x_marker: int = 0
     period_frames: float | None = None
     n_periods: int | None = None

@@ -240,7 +240,9 @@ def test_widgets_default_to_the_automatic_choice():
     assert widgets.ui_period(18.37, 37).value == pytest.approx(18.37)
     assert widgets.ui_n_periods().value == 2
     assert widgets.ui_triangulation_mode().value == "joint"
+    from horsemocap.params import AnalysisParams
+
     w = widgets.ui_smoothing()
-    assert w.value == {"method": "rloess", "span": 0.1}
+    assert w.value == {"method": AnalysisParams().smoothing_method, "span": AnalysisParams().smoothing_span}
     w.method.value = "lowess"
     assert w.value["method"] == "lowess"

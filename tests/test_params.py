@@ -11,7 +11,7 @@ def test_defaults_are_automatic():
     p = AnalysisParams()
     assert p.sync_offsets is None and p.period_frames is None and p.fourier_orders is None
     assert p.smoothing_span == 0.1 and p.omega_versions == [True] * 6
-    assert p.smoothing_method == "none"  # measured: see AnalysisParams and notebook 06
+    assert p.smoothing_method == "loess"  # measured over the herd: see AnalysisParams and notebook 06
 
 
 @pytest.mark.parametrize("data, pattern", [

@@ -368,28 +368,29 @@ def _saddle_errors(truth, pts, static, conv):
 
 
 def test_default_session_saddle_acc():
-    """Smoothed markers -> registration -> fits -> saddle (default choices).
-    Target (issue 7): vertical saddle acceleration RMSE <= 5 % of its rms;
-    the saddle position RMSE per axis is printed. On the pipeline's output
-    (``results_for(until="motion_frame")``) when it runs: hard assertion
-    (measured 9.3 % on 2026-11-21 with the pipeline's rloess-smoothed
-    markers, 2.6 % without that smoothing: the target is NOT met with the
-    thesis' smoothing). Without the pipeline: truth + stand-in noise (1.5 mm
-    x/y, 5 mm depth), a missed target is reported as xfail with the number."""
+    """The pipeline's own default path on the default session, against its truth.
+
+    ``results_for(until="rigid_body")`` (detection -> triangulation -> motion
+    frame -> registration -> fits -> omega/alpha -> saddle, every choice
+    automatic) measured by :func:`horsemocap.accuracy.stage_errors` in the
+    true motion frame. Target (issue 7): vertical saddle acceleration RMSE
+    <= 5 % of its rms (measured 2.1 % on 2026-11-21 with the defaults
+    smoothing "none", angular "rotation", saddle "pose"; the thesis' own
+    chain, eq. 6.55 with the six-version averages, gives 1658 %: notebook 11).
+    """
     d, truth = _default_truth()
-    got = _pipeline_inputs(d, truth)
-    source = "pipeline"
-    if got is None:
-        source = "stand-in noise"
-        pts, static = measured_markers(truth)
-        got = (pts, static, lambda x: _motion(truth, x))
-    rmse, rms, pos_rmse = _saddle_errors(truth, *got)
-    msg = (f"[{source}] saddle position (eq. 6.48) RMSE x/y/z mm {np.round(1000 * pos_rmse, 1)}; vertical acc "
-           f"RMSE {rmse:.3f} m/s^2 = {100 * rmse / rms:.1f} % of rms {rms:.2f} m/s^2")
+    from horsemocap import accuracy, pipeline
+    an = pipeline.results_for(d, until="rigid_body")
+    rb = an["rigid_body"]["analysis"]
+    assert (rb.method, rb.saddle_method) == (an.params.angular_method, an.params.saddle_method)
+    st = accuracy.stage_errors(an, truth)
+    assert st["frames"] == len(an["rigid_body"]["t"])     # every analysed frame has its truth row
+    pct = st["saddle_acc_y_rmse_pct_of_rms"]
+    msg = (f"[pipeline default: smoothing {an.params.smoothing_method}, omega {rb.method}, saddle "
+           f"{rb.saddle_method}] saddle position RMSE x/y/z mm {np.round(1000 * st['saddle_position'], 1)}; "
+           f"vertical acc RMSE {st['saddle_acceleration'][1]:.3f} m/s^2 = {pct:.1f} % of rms")
     print(msg)
-    if source != "pipeline" and rmse > 0.05 * rms:
-        pytest.xfail(msg)
-    assert rmse <= 0.05 * rms, msg
+    assert pct <= 5.0, msg
 
 
 def test_default_session_saddle_acc_noise_free():
@@ -411,7 +412,9 @@ def test_ui_versions_and_methods():
     ui.checkboxes[2].value = False
     ui.checkboxes[4].value = False
     assert ui.value.tolist() == [True, True, False, True, False, True]
-    assert widgets.ui_angular_method().value == "thesis"
+    from horsemocap.params import AnalysisParams
+
+    assert widgets.ui_angular_method().value == AnalysisParams().angular_method
     assert widgets.ui_saddle_method().value == "pose"        # = analyse_rigid_body's default
 
 

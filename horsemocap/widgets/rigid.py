@@ -30,19 +30,28 @@ def ui_versions(name: str = "omega", value=None):
     return box
 
 
-def ui_angular_method(value: str = "thesis"):
+def ui_angular_method(value: str | None = None):
     """``method`` of :func:`horsemocap.rigid.analyse_rigid_body`: the average of
     the chosen thesis versions, the least-squares solution from all markers,
-    or the Fourier fit of the registered orientation (``"rotation"``, the
-    pipeline's default ``AnalysisParams.angular_method``: pass
-    ``analysis.params.angular_method`` to default to the pipeline's choice)."""
+    or the Fourier fit of the registered orientation. Default: the pipeline's
+    ``AnalysisParams.angular_method`` (pass ``analysis.params.angular_method``
+    to follow a run's choice)."""
+    if value is None:
+        from ..params import AnalysisParams
+
+        value = AnalysisParams().angular_method
     return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq"),
                                     ("fit of the orientation", "rotation")],
                            value=value, description="omega, alfa")
 
 
-def ui_saddle_method(value: str = "pose"):
-    """``saddle_method`` of :func:`horsemocap.rigid.analyse_rigid_body` (default: its default)."""
+def ui_saddle_method(value: str | None = None):
+    """``saddle_method`` of :func:`horsemocap.rigid.analyse_rigid_body` (default: the
+    pipeline's ``AnalysisParams.saddle_method``)."""
+    if value is None:
+        from ..params import AnalysisParams
+
+        value = AnalysisParams().saddle_method
     return W.ToggleButtons(options=[("eq. 6.54/6.55 mean", "thesis"), ("fit of eq. 6.48 path", "direct"),
                                     ("fit of the smoothed-pose path", "pose")],
                            value=value, description="saddle v, a")
