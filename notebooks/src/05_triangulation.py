@@ -10,7 +10,9 @@
 # - a joint alternative that uses every camera seeing a point at once (linear DLT refined by
 #   minimising the reprojection error), which also works with two cameras or more than three;
 # - reprojection residuals per camera and frame, and what happens to a marker seen by one camera;
-# - why the depth of the thesis rig (baselines 0.24 m and 0.45 m, 7.5 m away) is its weak axis.
+# - why the depth of the thesis rig (baselines 0.24 m and 0.45 m, 7.5 m away) is its weak axis;
+# - how far the pipeline's positions (calibrated rig, detected centres) are from the truth, per
+#   motion axis, and which part of that error is a constant offset that no kinematic quantity sees.
 #
 # The equations (thesis 5.1). A stereo pair relates its two camera frames by
 #
@@ -26,49 +28,63 @@
 # $$\mathbf{CM}_L = \tfrac{1}{3}\left(\mathbf{CM}_{LM,L} + \mathbf{CM}_{LR,L} + \mathbf{CM}_{MR,L}\right)\qquad(5.5)$$
 
 # %%
-import json
-
 import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from horsemocap import detection, frames, plots, reconstruction, smoothing, widgets
-from horsemocap.camera import read_rig
+from horsemocap import accuracy, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
-from horsemocap.sources import FrameSource
+from horsemocap.pipeline import results_for
 from horsemocap.virtuallab import load_truth
 
 # %% [markdown]
-# ## The data
+# ## The data: what the pipeline gives triangulation
 #
-# The default session (Horse 2, canter, rendered by the virtual laboratory, notebook 01). The
-# pixels are what the pipeline uses: the marker centres found by the detector of notebook 04 in
-# each camera's video (`detection.detect_markers`), over the synchronised frames (left-camera frame
-# $k$ is frame $k + \mathrm{offset}_c - \mathrm{offset}_L$ of camera $c$, eq. 3.11-3.13). The rig
-# is the session's calibrated `rig.toml`. The ground truth, saved beside the session, is used to
-# choose the analysed frames and the offsets (notebook 02 finds the offsets; here we skip that
-# step) and to measure errors — never by the algorithms.
+# The default session (Horse 2, canter, rendered by the virtual laboratory, notebook 01) holds
+# three motion videos, plumb and static stills, and checkerboard views, nothing else. The pipeline
+# (`horsemocap.pipeline`, the same one `horsemocap analyze` runs) takes it up to this step with its
+# automatic choices: the frame offsets from the flashlight (notebook 02), the rig **calibrated**
+# from the checkerboard views (notebook 03), the marker centres found by the detector in every
+# synchronised frame (notebook 04), and the analysed frames — the longest run in which every
+# camera sees every marker. `results_for` loads what an earlier notebook computed, or computes it
+# (the calibration takes about 20 s).
 
 # %%
-session = default_session_dir()
-meta = json.loads((session / "session.json").read_text())
-truth = load_truth(session)
-rig = read_rig(session / "calibration" / "rig.toml")
-fps = float(meta["fps"])
-ref_frames = truth.ref_frames                      # analysed left-camera frames
-marker_px = {}
+session_dir = default_session_dir()
+analysis = results_for(session_dir, until="triangulate")
+res = analysis.results
+rig = res["rig"]["rig"]                                   # calibrated by the pipeline
+offsets = res["sync"]["offsets"]                          # from the flashlight
+a, b = res["detect"]["segment"]                           # analysed frames a..b-1 (synchronised numbering)
+marker_px = {cam: px[a:b] for cam, px in res["detect"]["marker_px"].items()}   # PM per camera, (n, 3, 2)
+fps = analysis.session.fps
+print(f"rig: {res['rig']['rig_from']}; cameras {list(rig.names)}")
+print("sync offsets (" + res["sync"]["offsets_from"] + "): "
+      + ", ".join(f"{c} {v:d}" for c, v in offsets.items()))
+print(f"{res['sync']['n_frames']:d} synchronised frames; analysed {a:d}..{b - 1:d} ({b - a:d} frames, "
+      f"{b - a:d} / {fps:.0f} = {(b - a) / fps:.2f} s), {analysis.session.marker_count:d} markers")
+print(f"pipeline's triangulation: {analysis.params.triangulation} mode, median reprojection residual "
+      + ", ".join(f"{c} {np.nanmedian(r[a:b]):.3f} px" for c, r in res["triangulate"]["residual_px"].items()))
+
+# %% [markdown]
+# The ground truth saved beside the session (`truth/`) is used **only to measure errors**: the
+# true positions of the analysed frames, the true projections, and the true rig to see how far
+# the calibration is from it.
+
+# %%
+truth = load_truth(session_dir)
+frames_ref = offsets[analysis.session.reference_camera] + np.arange(a, b)   # reference-camera frames
+rows = np.searchsorted(truth.ref_frames, frames_ref)
+true_pos = truth.marker_pos[rows]                         # (n, 3, 3), world = left camera frame
+print(f"truth known for {int(np.sum(truth.ref_frames[rows] == frames_ref)):d} of {b - a:d} analysed frames; "
+      "true offsets " + ", ".join(f"{c} {v:d}" for c, v in truth.offsets.items()))
 for cam in rig.names:
-    k = ref_frames - truth.offsets["left"] + truth.offsets[cam]
-    video = FrameSource(session / meta["motion"][cam])
-    marker_px[cam] = detection.detect_markers(video.read(int(k[0]), int(k[-1]) + 1), 3).marker_px
-true_pos = truth.marker_pos                        # (n, 3, 3) world = left camera frame
-print(f"{len(ref_frames)} frames ({ref_frames[0]}..{ref_frames[-1]} of the left camera), "
-      f"{true_pos.shape[1]} markers, cameras {rig.names}")
-for cam in rig.names:
-    k = ref_frames - truth.offsets["left"] + truth.offsets[cam]
-    err = np.linalg.norm(marker_px[cam] - truth.marker_px[cam][k, :3], axis=-1)
-    print(f"  {cam:6s}: {int(np.isfinite(err).sum())} of {err.size} centres found, "
-          f"error vs the true projection RMS {np.sqrt(np.nanmean(err ** 2)):.3f} px")
+    err = np.linalg.norm(marker_px[cam] - truth.marker_px[cam][offsets[cam] + np.arange(a, b), :3], axis=-1)
+    cal, tru = rig[cam], truth.rig[cam]
+    print(f"  {cam:6s}: {int(np.isfinite(err).sum()):d} of {err.size:d} centres found, RMS error "
+          f"{np.sqrt(np.nanmean(err ** 2)):.3f} px | calibrated centre off by "
+          f"{1000 * np.linalg.norm(cal.center - tru.center):5.1f} mm, focal {cal.focal.mean():7.1f} px "
+          f"(true {tru.focal.mean():7.1f})")
 
 # %% [markdown]
 # ## 1 · One stereo pair
@@ -105,10 +121,11 @@ err = 1000 * np.linalg.norm(thesis.points - true_pos, axis=-1)
 print(f"average (eq. 5.5)                                        error vs truth: median {np.median(err):5.1f} mm, max {err.max():5.1f} mm")
 
 # %% [markdown]
-# Each pair's error is mostly depth, and it shrinks with the pair's baseline (left-right, 0.45 m,
-# is the best). The average of eq. 5.5 is about as good as the best pair, not $\sqrt{3}$ times
-# better: the pairs share cameras, so their errors are correlated, and the short-baseline pairs
-# weigh as much as the long one.
+# Each pair's error is mostly depth. Under all of them sits the calibrated rig's offset of about
+# 9 mm, mostly in depth (section 5 separates it), so the pairs differ less than their baselines
+# suggest; the long left-right pair (0.45 m) has the smallest spread. The average of eq. 5.5 is
+# about as good as the best pair, not $\sqrt{3}$ times better: the pairs share cameras, so their
+# errors are correlated, and the short-baseline pairs weigh as much as the long one.
 #
 # ## 3 · The joint mode
 #
@@ -121,19 +138,24 @@ print(f"average (eq. 5.5)                                        error vs truth:
 # Choose the mode the rest of the notebook uses (default: the pipeline's, joint):
 
 # %% tags=["nbval-ignore-output"]
-ui_mode = widgets.ui_triangulation_mode()
+ui_mode = widgets.ui_triangulation_mode(analysis.params.triangulation)
 display(ui_mode)
 
 # %%
 tri = reconstruction.triangulate(rig, marker_px, mode=ui_mode.value)
-print(f"mode: {tri.mode}; valid points: {int(tri.valid.sum())} of {tri.valid.size}")
+print(f"mode: {tri.mode}; valid points: {int(tri.valid.sum()):d} of {tri.valid.size:d}")
 for cam, rms in tri.rms_residual_px().items():
     print(f"  RMS reprojection residual {cam:6s}: {rms:.3f} px")
+if tri.mode == analysis.params.triangulation:
+    diff = np.nanmax(np.abs(tri.points - res["triangulate"]["points"][a:b]))
+    print(f"largest difference from the pipeline's points (results['triangulate']['points'], frames "
+          f"{a:d}..{b - 1:d}): {1e6 * diff:.3f} micrometres")
 
 # %% [markdown]
-# The residuals are of the order of the detector's error (a few hundredths of a pixel): the
-# geometry is consistent. A residual much larger than the detector's precision would point to a
-# wrong detection or a bad calibration.
+# The residuals are a few hundredths to a tenth of a pixel: the calibrated geometry is
+# consistent with the detections. A residual much larger than the detector's precision would point
+# to a wrong detection or a bad calibration. (Small residuals do not prove the calibration right:
+# a rig slightly wrong in scale or position reprojects just as well; section 5 measures that.)
 
 # %%
 _ = plots.plot_triangulation_residuals(tri)
@@ -155,35 +177,95 @@ plt.show()
 # Errors are easiest to read along the motion axes of section 5.3 (x along the travel, y along
 # gravity, z the rest — here almost exactly the depth). We use the truth's motion axes so that the
 # comparison is about triangulation only; notebook 06 builds them from the data.
+#
+# Two numbers per axis. The **RMSE** against the true positions, and the RMSE once the **constant
+# offset** (the mean error over every frame and marker, printed as *bias*) is removed. A calibrated
+# rig is never exactly the true one: its reference camera's intrinsics and the baselines are off by
+# a fraction of a percent, which moves (and slightly scales) the whole reconstruction by a few
+# millimetres. A constant offset changes no velocity, acceleration or angle, so the second number
+# is the one that matters for the kinematics; the first is what a position measurement would get.
+# "Smoothed" is the pipeline's smoothing step with its default (`"none"`: positions kept as
+# triangulated; notebook 06 explains why) and with the thesis' `rloess`, span 0.1. The last rows
+# triangulate the same detections with the **true** rig (a comparison only the virtual laboratory
+# allows): what is left is the detector's error.
 
 # %%
+A = truth.motion_axes                                      # rows: true x-, y-, z-motion
+
+
+def errors_mm(points):
+    """RMSE per true motion axis, the mean error (bias) and the RMSE without it, in mm."""
+    est, ref = points @ A.T, true_pos @ A.T
+    bias = np.nanmean((est - ref).reshape(-1, 3), axis=0)
+    return 1000 * accuracy.rmse_axes(est, ref), 1000 * bias, 1000 * accuracy.rmse_axes(est - bias, ref)
+
+
 joint = reconstruction.triangulate(rig, marker_px, mode="joint")
-A = truth.motion_axes
-errors = {}
-for label, t in (("thesis", thesis), ("joint", joint)):
-    raw = frames.rmse_per_axis(t.points @ A.T, true_pos @ A.T)
-    smoothed = frames.rmse_per_axis(smoothing.smooth_positions(t.points, nan="omit") @ A.T, true_pos @ A.T)
-    errors[f"{label} raw"] = 1000 * raw
-    errors[f"{label} smoothed"] = 1000 * smoothed
-for label, e in errors.items():
-    print(f"{label:16s} RMSE x-motion {e[0]:5.2f} mm   y-motion {e[1]:5.2f} mm   z-motion {e[2]:6.2f} mm")
+rows_table, errors = {}, {}
+for mode, t in (("thesis", thesis), ("joint", joint)):
+    rows_table[f"{mode}, triangulated"] = errors_mm(t.points)
+    rows_table[f"{mode}, smoothed: none (pipeline)"] = errors_mm(t.points)
+    rows_table[f"{mode}, smoothed: rloess 0.1 (thesis)"] = errors_mm(
+        smoothing.smooth_positions(t.points, 0.1, "rloess", nan="omit"))
+for mode in ("thesis", "joint"):
+    rows_table[f"{mode}, TRUE rig, triangulated"] = errors_mm(
+        reconstruction.triangulate(truth.rig, marker_px, mode=mode).points)
+print(f"{'':40s} {'RMSE x':>7s} {'y':>6s} {'z':>6s} | {'bias x':>7s} {'y':>6s} {'z':>6s} | "
+      f"{'no bias x':>9s} {'y':>6s} {'z':>6s}   (mm)")
+for label, (r, bias, rc) in rows_table.items():
+    print(f"{label:40s} {r[0]:7.2f} {r[1]:6.2f} {r[2]:6.2f} | {bias[0]:7.2f} {bias[1]:6.2f} {bias[2]:6.2f} | "
+          f"{rc[0]:9.2f} {rc[1]:6.2f} {rc[2]:6.2f}")
+    if "TRUE" not in label and "triangulated" not in label:
+        errors[label.replace(", smoothed: ", " ")] = (r, rc)
 
 # %%
-_ = plots.plot_triangulation_modes(errors)
+fig, (ax_abs, ax_rel) = plt.subplots(1, 2, figsize=(12, 3.6), sharey=True)
+plots.plot_triangulation_modes({k: v[0] for k, v in errors.items()}, ax=ax_abs, target=3.0)
+plots.plot_triangulation_modes({k: v[1] for k, v in errors.items()}, ax=ax_rel, target=3.0)
+ax_abs.set_title("RMSE vs truth (calibrated rig)")
+ax_rel.set_title("RMSE with the constant offset removed")
+fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# **Reading the numbers.** The vertical (y-motion) is measured to a fraction of a millimetre. The
-# depth (z-motion) error is about twenty times larger: the rig's baselines are short for its
-# distance. For a pair of baseline $B$ and focal length $f$ (px), a pixel error $\sigma$ on each
-# image gives a depth error $\sigma_Z \approx \sqrt{2}\,Z^2\sigma/(fB)$; with 0.1 px, a typical
-# centroid precision for 6 px discs:
+# **Reading the numbers.**
+#
+# - The *bias* is the calibration's: with the true rig the same detections have almost none. It
+#   is about 4 mm along gravity, about 9 mm along the depth and under 2 mm along the travel.
+#   It is why the absolute y-motion RMSE is about 4 mm although the vertical motion itself is
+#   measured to a few tenths of a millimetre (the "no bias" column).
+# - The issue's target, x- and y-motion RMSE below 3 mm after smoothing, is therefore met by the
+#   pipeline (joint, no smoothing) **for the motion** (bias removed: about 1.4 mm and 0.3 mm) and
+#   for the absolute x (about 2.2 mm), but **not** for the absolute y (about 4.2 mm, the calibrated
+#   rig's offset). The computed check below says which.
+# - The thesis' rloess adds about 3.5 mm of y-motion error once the bias is removed (its robust
+#   iterations move the last frames of the record by centimetres, notebook 06) and does little for
+#   x and z.
+# - The joint mode is no worse than the thesis' average on these detections: the two differ by
+#   hundredths of a millimetre along x and y (on this rig the three pairs compose almost exactly).
+
+# %%
+TARGET_MM = 3.0
+for mode in ("thesis", "joint"):
+    r, _, rc = rows_table[f"{mode}, smoothed: none (pipeline)"]
+    verdict = lambda v: "meets" if v < TARGET_MM else "MISSES"  # noqa: E731
+    print(f"{mode:6s} (pipeline smoothing 'none'): absolute x {r[0]:.2f} mm {verdict(r[0])}, "
+          f"y {r[1]:.2f} mm {verdict(r[1])} | bias removed x {rc[0]:.2f} mm {verdict(rc[0])}, "
+          f"y {rc[1]:.2f} mm {verdict(rc[1])}")
+rj, rt = rows_table["joint, smoothed: none (pipeline)"][2], rows_table["thesis, smoothed: none (pipeline)"][2]
+print("joint minus thesis, bias removed (mm): " + ", ".join(f"{n} {d:+.2f}" for n, d in zip("xyz", rj - rt)))
+
+# %% [markdown]
+# The depth (z-motion) error is the largest: the rig's baselines are short for its distance. For a
+# pair of baseline $B$ and focal length $f$ (px), a pixel error $\sigma$ on each image gives a depth
+# error $\sigma_Z \approx \sqrt{2}\,Z^2\sigma/(fB)$; with 0.1 px, a typical centroid precision for
+# 6 px discs:
 
 # %%
 Z = float(np.mean(true_pos[..., 2]))
 f = float(rig["left"].focal.mean())
-for a, b in (("left", "middle"), ("left", "right"), ("middle", "right")):
-    pair, B = f"{a}-{b}", float(np.linalg.norm(rig[a].center - rig[b].center))
+for cam_a, cam_b in (("left", "middle"), ("left", "right"), ("middle", "right")):
+    pair, B = f"{cam_a}-{cam_b}", float(np.linalg.norm(rig[cam_a].center - rig[cam_b].center))
     print(f"{pair:13s} B = {B:.3f} m: sigma_Z ~ {1000 * Z**2 * np.sqrt(2) * 0.1 / (f * B):5.1f} mm"
           f" for 0.1 px on each image (Z = {Z:.2f} m)")
 
@@ -191,25 +273,25 @@ for a, b in (("left", "middle"), ("left", "right"), ("middle", "right")):
 # The detector is better than 0.1 px on these renders, hence the smaller errors above. The
 # x-motion error is larger than the y-motion error for the same reason as the depth: when the
 # horse is to the side of the image the viewing rays are oblique, and part of the depth error
-# projects onto the direction of travel. The joint mode is the maximum-likelihood estimate and is
-# no worse than the thesis' average; on this rig (whose three pairs compose exactly) the two are
-# close. How both degrade with noisier pixels — the true projections plus 0.1 px of Gaussian
-# noise:
+# projects onto the direction of travel. How both modes degrade with noisier pixels — the true
+# projections plus 0.1 px of Gaussian noise (`accuracy.noisy_projections`), triangulated with the
+# calibrated rig:
 
 # %%
 rng = np.random.default_rng(2009)
-noisy_px = {}
-for cam in rig.names:
-    k = ref_frames - truth.offsets["left"] + truth.offsets[cam]
-    noisy_px[cam] = truth.marker_px[cam][k, :3] + rng.normal(0.0, 0.1, (len(k), 3, 2))
+noisy_all = accuracy.noisy_projections(truth, offsets, res["sync"]["n_frames"], 3, 0.1, rng)
+noisy_px = {cam: px[a:b] for cam, px in noisy_all.items()}
 for mode in ("thesis", "joint"):
-    p = smoothing.smooth_positions(reconstruction.triangulate(rig, noisy_px, mode=mode).points)
-    e = 1000 * frames.rmse_per_axis(p @ A.T, true_pos @ A.T)
-    print(f"0.1 px noise, {mode:6s}, smoothed: RMSE x-motion {e[0]:5.2f} mm, y-motion {e[1]:5.2f} mm, "
-          f"z-motion {e[2]:6.2f} mm")
+    p = reconstruction.triangulate(rig, noisy_px, mode=mode).points
+    for label, q in (("not smoothed", p), ("rloess 0.1", smoothing.smooth_positions(p, 0.1, "rloess"))):
+        r, _, rc = errors_mm(q)
+        print(f"0.1 px noise, {mode:6s}, {label:12s}: RMSE x {r[0]:5.2f}, y {r[1]:5.2f}, z {r[2]:6.2f} mm | "
+              f"bias removed x {rc[0]:5.2f}, y {rc[1]:5.2f}, z {rc[2]:6.2f} mm")
 
 # %% [markdown]
-# With 0.1 px the x-motion error exceeds 3 mm: the rig, not the algorithm, limits it.
+# With 0.1 px the x-motion error passes 3 mm (about 6 mm) in both modes: the rig, not the
+# algorithm, limits it. There `rloess` lowers the x and z errors a little but still adds to y: with
+# this rig the pipeline leaves the filtering to the curve fits of notebook 09.
 #
 # ## 6 · Missing views
 #
@@ -223,12 +305,12 @@ gappy["right"][5, 0] = np.nan
 gappy["left"][6, 2] = np.nan                        # frame 6, marker 3: left lost
 g = reconstruction.triangulate(rig, gappy, mode="joint")
 for k, m in ((5, 0), (6, 2)):
-    print(f"frame {k}, marker {m + 1}: cameras used {g.n_views[k, m]}, reason '{g.reason[k, m]}', "
+    print(f"frame {k:d}, marker {m + 1:d}: cameras used {g.n_views[k, m]:d}, reason '{g.reason[k, m]}', "
           f"point {np.array2string(g.points[k, m], precision=3)}")
 two = rig.subset(["left", "right"])
-lr = reconstruction.triangulate(two, {c: marker_px[c] for c in two.names}, mode="joint")
-e2 = 1000 * frames.rmse_per_axis(lr.points @ A.T, true_pos @ A.T)
-print(f"left + right only: RMSE x {e2[0]:.2f} mm, y {e2[1]:.2f} mm, z {e2[2]:.2f} mm")
+r2, _, rc2 = errors_mm(reconstruction.triangulate(two, {c: marker_px[c] for c in two.names}, mode="joint").points)
+print(f"left + right only: RMSE x {r2[0]:.2f} mm, y {r2[1]:.2f} mm, z {r2[2]:.2f} mm "
+      f"(bias removed: {rc2[0]:.2f}, {rc2[1]:.2f}, {rc2[2]:.2f} mm)")
 
 # %% [markdown]
 # A wrong detection is worse than a missing one. If a camera swaps two markers, the rays no longer
@@ -261,7 +343,9 @@ for mode in ("thesis", "joint"):
 #    random pixel noise the depth error scales like $1/B$, so the 0.24 m pair is about 1.9 times
 #    worse than the 0.45 m one. With the detector's pixels the ratio is smaller (section 2): part of
 #    their error is the same in neighbouring cameras and cancels in the disparity.
-# 2. All errors are linear in the pixel noise: three times the noise, three times the RMSE.
+# 2. `accuracy.noisy_projections(truth, offsets, res["sync"]["n_frames"], 3, 0.3, rng)`, sliced
+#    `[a:b]`: the bias-removed errors grow linearly with the noise (three times the noise, three
+#    times the RMSE); the calibration's bias does not change.
 # 3. With `c = rig["middle"]`, `moved = c.with_pose(c.rotation, c.translation + c.rotation_matrix @ [-1, 0, 0])`
 #    (the centre moves by +1 m along x), build `Rig((rig["left"], moved, rig["right"]))`, project
 #    `true_pos`, add noise and triangulate: the depth error drops roughly in proportion to the

@@ -4,8 +4,8 @@
 # **What you will learn**
 # - what MATLAB's `smooth(y, 0.1, 'rloess')` — the thesis' smoother (section 5.2.2, Appendix A
 #   step 6) — computes, rule by rule, and why robust smoothing resists outliers (Figure 5.2);
-# - why those rules misbehave on a record as short as the thesis' (38 frames), and what the
-#   pipeline does instead;
+# - why those rules misbehave on a record as short as the thesis' (38 frames), and why the
+#   pipeline therefore does **not** smooth by default (a measured deviation from the thesis);
 # - the gravity direction from a plumb line with two markers;
 # - the gait period, found from the data (the thesis user typed `period = 18`);
 # - the motion reference frame of section 5.3: x along the net displacement over one or two
@@ -27,48 +27,65 @@
 # number (0-based here: $t = k/\mathrm{fps}$).
 
 # %%
-import json
-
 import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from horsemocap import detection, frames, plots, reconstruction, smoothing, widgets
-from horsemocap.camera import read_rig
+from horsemocap import accuracy, frames, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
-from horsemocap.sources import FrameSource, read_image
+from horsemocap.pipeline import results_for, run_steps
 from horsemocap.virtuallab import load_truth
 
 # %% [markdown]
 # ## The data
 #
-# As in notebook 05: the default session, its calibrated rig, the synchronised frames, the marker
-# centres found by the detector (`detection.detect_markers`) and triangulated in joint mode. The
-# plumb markers are found by the detector in the plumb stills (`detection.detect_still`, top marker
-# first). The truth chooses the analysed frames and offsets (notebook 02's job) and measures
-# errors.
+# The pipeline, up to this notebook's steps, on the default session (as in notebook 05): flashlight
+# offsets, the rig calibrated from the checkerboard views, the detected marker centres, joint
+# triangulation of the analysed frames (the longest run every camera sees every marker in), the
+# plumb markers detected in the plumb stills and triangulated, then the smoothing step, the period
+# and the motion frame. Its automatic choices are printed; the widgets below start from them.
 
 # %%
-session = default_session_dir()
-meta = json.loads((session / "session.json").read_text())
-truth = load_truth(session)
-rig = read_rig(session / "calibration" / "rig.toml")
-fps = float(meta["fps"])
-ref_frames = truth.ref_frames
-marker_px = {}
-for cam in rig.names:
-    k = ref_frames - truth.offsets["left"] + truth.offsets[cam]
-    video = FrameSource(session / meta["motion"][cam])
-    marker_px[cam] = detection.detect_markers(video.read(int(k[0]), int(k[-1]) + 1), 3).marker_px
-plumb_px = {cam: detection.detect_still(read_image(session / meta["plumb"][cam]), 2)[None]
-            for cam in rig.names}          # (1, 2, 2): upper marker (tail) then lower (tip)
-tri = reconstruction.triangulate(rig, marker_px, mode="joint")
-points = tri.points                        # CM_L, (frames, markers, 3)
-true_pos = truth.marker_pos
-A_true = truth.motion_axes                 # rows: true x-, y-, z-motion directions
+session_dir = default_session_dir()
+analysis = results_for(session_dir, until="motion_frame")
+res = analysis.results
+rig = res["rig"]["rig"]                                     # calibrated by the pipeline
+a, b = res["detect"]["segment"]                             # analysed frames a..b-1
+points = res["smooth"]["raw"]                               # CM_L, triangulated, (n, markers, 3)
+gravity = res["plumb"]["gravity"]                           # u2e, from the plumb (section 3)
+mf_pipeline = res["motion_frame"]["frame"]
+fps = analysis.session.fps
 n = points.shape[0]
-print(f"{n} frames, {points.shape[1]} markers, {int(tri.valid.sum())} of {tri.valid.size} positions valid; "
-      f"plumb found in {len(plumb_px)} cameras")
+par = analysis.params
+print(f"rig {res['rig']['rig_from']}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
+      f"{analysis.params.triangulation} triangulation")
+print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.smoothing_span:.2f} if used), "
+      f"x-motion marker {mf_pipeline.marker + 1:d}, period {mf_pipeline.period_frames:.2f} frames (estimated), "
+      f"{mf_pipeline.n_periods:d} period(s) for u1")
+
+# %% [markdown]
+# The truth is used only to measure errors: the true positions of the analysed frames, the true
+# gravity and the true motion axes. As in notebook 05, each error is given as the RMSE along the true
+# motion axes and as the RMSE once the constant offset (the calibrated rig's few-millimetre absolute
+# bias, which no velocity, acceleration or angle sees) is removed.
+
+# %%
+truth = load_truth(session_dir)
+rows = np.searchsorted(truth.ref_frames, res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b))
+true_pos = truth.marker_pos[rows]
+A_true = truth.motion_axes                                  # rows: true x-, y-, z-motion directions
+
+
+def errors_mm(pts, ref=None):
+    """RMSE per true motion axis, and the RMSE once the mean error (bias) is removed, in mm."""
+    est, ref = pts @ A_true.T, (true_pos if ref is None else ref) @ A_true.T
+    bias = np.nanmean((est - ref).reshape(-1, 3), axis=0)
+    return 1000 * accuracy.rmse_axes(est, ref), 1000 * accuracy.rmse_axes(est - bias, ref)
+
+
+r, rc = errors_mm(points)
+print(f"triangulated: RMSE x {r[0]:.2f}, y {r[1]:.2f}, z {r[2]:.2f} mm; bias removed x {rc[0]:.2f}, "
+      f"y {rc[1]:.2f}, z {rc[2]:.2f} mm")
 
 # %% [markdown]
 # ## 1 · Smoothing, the MATLAB way
@@ -115,70 +132,137 @@ plt.show()
 # remain: **the interior is not smoothed at all** (the unit tests check it). Every interior
 # residual is then zero, the robust scale $\mathrm{median}|r|$ collapses, every end sample is
 # rejected, and the end windows slide inwards and *extrapolate* — iteration after iteration.
-# MATLAB would do exactly this. The pipeline keeps the thesis' `rloess` with span 0.1 but
-# (a) raises a span too small to smooth to the smallest that does (7 for a quadratic:
+# MATLAB would do exactly this. `smoothing.smooth_positions` keeps the thesis' `rloess` with span
+# 0.1 but (a) raises a span too small to smooth to the smallest that does (7 for a quadratic:
 # `smoothing.minimum_span`), and (b) keeps each sample's first-pass window in the robust
 # iterations, only multiplying the weights (Cleveland's original robust lowess), so that a
 # rejected end sample cannot make a window extrapolate. Errors of each variant against the truth,
-# along the true motion axes:
+# along the true motion axes, on the pipeline's positions and on the **true** positions (no
+# measurement error at all: what the smoother alone does to the motion):
 
 # %%
 variants = {
+    "none (the pipeline's default)": None,
     "MATLAB rloess exactly (span 5)": dict(method="rloess", min_span=None, windows="matlab"),
     "MATLAB windows, span >= 7": dict(method="rloess", min_span="auto", windows="matlab"),
-    "pipeline: fixed windows, span >= 7": dict(method="rloess", min_span="auto", windows="fixed"),
+    "rloess 0.1, fixed windows, span >= 7": dict(method="rloess", min_span="auto", windows="fixed"),
     "loess (not robust), span >= 7": dict(method="loess", min_span="auto"),
     "rlowess, fixed windows": dict(method="rlowess", min_span="auto", windows="fixed"),
 }
-print(f"{'':38s} {'x-motion':>9s} {'y-motion':>9s} {'z-motion':>9s}  (RMSE, mm)")
-e = 1000 * frames.rmse_per_axis(points @ A_true.T, true_pos @ A_true.T)
-print(f"{'triangulated, not smoothed':38s} {e[0]:9.2f} {e[1]:9.2f} {e[2]:9.2f}")
+print(f"{'':38s} {'measured positions':^36s} | {'true positions':^17s}")
+print(f"{'':38s} {'RMSE x':>7s} {'y':>5s} {'z':>6s} | {'no bias x':>9s} {'y':>5s} {'z':>5s} | "
+      f"{'x':>5s} {'y':>5s} {'z':>5s}   (mm)")
 for label, kw in variants.items():
-    s = smoothing.smooth_positions(points, 0.1, nan="omit", **kw)
-    e = 1000 * frames.rmse_per_axis(s @ A_true.T, true_pos @ A_true.T)
-    print(f"{label:38s} {e[0]:9.2f} {e[1]:9.2f} {e[2]:9.2f}")
+    s_meas = points if kw is None else smoothing.smooth_positions(points, 0.1, nan="omit", **kw)
+    s_true = true_pos if kw is None else smoothing.smooth_positions(true_pos, 0.1, **kw)
+    r, rc = errors_mm(s_meas)
+    rt, _ = errors_mm(s_true)
+    print(f"{label:38s} {r[0]:7.2f} {r[1]:5.2f} {r[2]:6.2f} | {rc[0]:9.2f} {rc[1]:5.2f} {rc[2]:5.2f} | "
+          f"{rt[0]:5.2f} {rt[1]:5.2f} {rt[2]:5.2f}")
 
 # %% [markdown]
-# Choose the smoother (default: the pipeline's, `rloess` with span 0.1 and the two safeguards):
+# ## 3 · Why the pipeline does not smooth by default
+#
+# The thesis smooths every coordinate with `rloess`, span 0.1 (Appendix A step 6). The pipeline's
+# default is `smoothing_method = "none"` (`horsemocap.params.AnalysisParams`): a deliberate,
+# measured deviation, for three reasons the table above and the cell below show.
+#
+# 1. **Robust smoothing moves good samples.** The robust step rejects samples whose residual
+#    exceeds six times the median residual. When the measurement noise is much smaller than what a
+#    7-point quadratic cannot follow, good samples are rejected as if they were outliers, and the
+#    local fits rest on the few that remain. On this record it happens mostly at the end, where
+#    the window is one-sided and the vertical motion turns sharply: there `rloess` moves the
+#    markers by up to a couple of centimetres (the figure and the numbers below Figure 8.9 b),
+#    elsewhere by a millimetre or so. Even on the *true* positions — nothing to remove — `rloess`
+#    moves the markers by millimetres, while plain `loess` with the same window hardly does. On
+#    the pipeline's positions the y-motion error, bias removed, goes from about 0.3 mm to about
+#    3.8 mm.
+# 2. **The window is a large part of a stride.** 7 frames at 30 fps are 0.23 s, 0.4 of the
+#    0.6 s canter stride: any local smoother of that width attenuates the higher harmonics the
+#    comfort analysis of chapter 7 needs.
+# 3. **The fits of section 5.5 already filter.** The registration and the least-squares Fourier
+#    fits (notebooks 08-09) use the whole record; their truncation to a few harmonics of the
+#    stride is the smoothing, without the peak flattening.
+#
+# The consequence downstream, measured by running the later pipeline steps (registration, fits,
+# saddle marker) on the same detections with each smoothing method: the error of the saddle
+# marker's vertical acceleration, the quantity the thesis is about, as a percentage of its RMS.
+
+# %%
+downstream = {}
+for method in ("none", "rloess", "loess"):
+    run = run_steps(analysis.session, accuracy.with_params(analysis, smoothing_method=method), res,
+                    ("smooth", "motion_frame", "rigid_body"))
+    st = accuracy.stage_errors(run, truth)
+    downstream[method] = st
+    print(f"smoothing {method:7s}: marker RMSE y-motion {1000 * st['smoothed'][1]:5.2f} mm, "
+          f"marker acceleration RMSE y-motion {st['acceleration'][1]:5.3f} m/s^2, "
+          f"saddle vertical acceleration error {st['saddle_acc_y_rmse_pct_of_rms']:5.1f} % of its RMS")
+
+# %% [markdown]
+# The thesis' smoother multiplies the saddle's vertical acceleration error by about five. It stays
+# available: `results_for(params={"smoothing_method": "rloess"})`, `horsemocap analyze --params`,
+# or the widget below. Choose the smoother (default: the pipeline's, `none`):
 
 # %% tags=["nbval-ignore-output"]
-ui_smooth = widgets.ui_smoothing()
+ui_smooth = widgets.ui_smoothing(par.smoothing_method, par.smoothing_span)
 display(ui_smooth)
 
 # %%
 choice = ui_smooth.value
-smoothed = smoothing.smooth_positions(points, choice["span"], choice["method"], nan="omit")
-k_used = smoothing.effective_span(n, choice["span"], choice["method"], "auto")
-e = 1000 * frames.rmse_per_axis(smoothed @ A_true.T, true_pos @ A_true.T)
-print(f"{choice['method']} span {choice['span']:.2f} -> {k_used} frames per window")
-print(f"RMSE vs truth: x-motion {e[0]:.2f} mm, y-motion {e[1]:.2f} mm, z-motion {e[2]:.2f} mm")
+run = run_steps(analysis.session, accuracy.with_params(analysis, smoothing_method=choice["method"],
+                                                       smoothing_span=choice["span"]), res, ("smooth",))
+smoothed = run.results["smooth"]["smoothed"]                 # what the pipeline's smoothing step returns
+if choice["method"] == "none":
+    print("no smoothing: the positions stay as triangulated")
+else:
+    k_used = smoothing.effective_span(n, choice["span"], choice["method"], "auto")
+    print(f"{choice['method']} span {choice['span']:.2f} -> {k_used:d} frames per window")
+r, rc = errors_mm(smoothed)
+print(f"RMSE vs truth: x-motion {r[0]:.2f} mm, y-motion {r[1]:.2f} mm, z-motion {r[2]:.2f} mm; "
+      f"bias removed: {rc[0]:.2f}, {rc[1]:.2f}, {rc[2]:.2f} mm")
 
 # %% [markdown]
-# Thesis Figure 8.9 (b): the first marker before and after smoothing, left camera frame.
+# Thesis Figure 8.9 (b) with the thesis' smoother: the first marker before and after `rloess` 0.1,
+# left camera frame, and (bottom row) the errors against the truth. The offset of the bottom
+# curves from zero is the calibrated rig's bias; the smoother's own damage is where the orange
+# curve leaves the blue one, mostly in the last frames.
 
 # %%
-_ = plots.plot_smoothed_marker(points, smoothed, marker=0, truth=true_pos, title="marker 1, camera frame")
+thesis_smoothed = smoothing.smooth_positions(points, 0.1, "rloess", nan="omit")
+_ = plots.plot_smoothed_marker(points, thesis_smoothed, marker=0, truth=true_pos, label="rloess 0.1 (thesis)",
+                               errors=True, title="marker 1, camera frame")
 plt.show()
 
+# %%
+change_mm = 1000 * np.max(np.abs((thesis_smoothed - points) @ gravity), axis=1)   # vertical, worst marker
+worst = np.sort(np.argsort(change_mm)[-4:])
+rest = np.setdiff1d(np.arange(n), worst)
+print("largest vertical changes made by rloess 0.1: " + ", ".join(f"frame {k:d} {change_mm[k]:.1f} mm" for k in worst))
+print(f"every other frame: at most {change_mm[rest].max():.1f} mm, median {np.median(change_mm[rest]):.2f} mm")
+
 # %% [markdown]
-# ## 3 · Gravity from the plumb
+# ## 4 · Gravity from the plumb
 #
 # A plumb line hangs in view with a marker near its top (the *tail* of the gravity vector) and one
-# near its bottom (the *tip*). Triangulated like any marker, they give $\mathbf{u}_2^e$, pointing
-# down. The line is 1.4 m long and its ends are 7.7 m away, so a millimetre of depth error at one
-# end tilts the vector by 0.04°.
+# near its bottom (the *tip*). The pipeline's `plumb` step detects them in the plumb stills
+# (`detection.detect_still`, top marker first), triangulates them like any marker and gives
+# $\mathbf{u}_2^e$, pointing down. The line is 1.4 m long and its ends are 7.7 m away, so a
+# millimetre of depth error at one end tilts the vector by 0.04°.
 
 # %%
-plumb = reconstruction.triangulate(rig, plumb_px, mode="joint")
-tail_w, tip_w = plumb.points[0, 0], plumb.points[0, 1]
-gravity = frames.gravity_from_plumb(tip_w, tail_w)
-print("u2e (estimated gravity, down) =", np.array2string(gravity, precision=5))
+tail_w, tip_w = res["plumb"]["plumb_points"]
+u2e = frames.gravity_from_plumb(tip_w, tail_w)
+plumb_res = reconstruction.reprojection_residuals(rig, res["plumb"]["plumb_points"],
+                                                  res["plumb"]["plumb_px"])
+print("u2e (estimated gravity, down) =", np.array2string(u2e, precision=5))
+print("pipeline's gravity            =", np.array2string(gravity, precision=5))
 print("true gravity                  =", np.array2string(truth.gravity, precision=5))
-print(f"angle to the true gravity: {frames.angle_deg(gravity, truth.gravity):.3f} deg")
-print(f"plumb reprojection residuals (px): " + ", ".join(f"{c} {r:.3f}" for c, r in plumb.rms_residual_px().items()))
+print(f"angle to the true gravity: {frames.angle_deg(gravity, truth.gravity):.3f} deg (target: within 0.2 deg)")
+print("plumb reprojection residuals (px): " + ", ".join(f"{c} {np.max(v):.3f}" for c, v in plumb_res.items()))
 
 # %% [markdown]
-# ## 4 · The period
+# ## 5 · The period
 #
 # The thesis asked the user for the period in frames. The vertical motion of the markers is
 # periodic: the autocorrelation of its detrended projection on gravity peaks at the period; a
@@ -190,7 +274,8 @@ vertical = smoothed @ gravity
 acf = frames.autocorrelation(vertical, max_lag=int(0.6 * n))
 period = frames.estimate_period(smoothed, fps, gravity=gravity)
 stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
-print(f"estimated period: {period:.2f} frames = {period / fps:.3f} s")
+print(f"estimated period: {period:.2f} frames = {period / fps:.3f} s (the pipeline's: "
+      f"{res['motion_frame']['period_frames']:.2f} frames)")
 print(f"true stride period: {fps / stride_hz:.2f} frames (the thesis user typed 18 for this horse and gait)")
 
 # %%
@@ -198,26 +283,27 @@ _ = plots.plot_period_estimate(acf, period, fps)
 plt.show()
 
 # %% [markdown]
-# ## 5 · The motion reference frame
+# ## 6 · The motion reference frame
 #
 # Choose the marker whose net displacement defines x-motion (thesis: typed 1, 2 or 3), the period
-# and whether one or two periods are used. The defaults are the pipeline's: marker 1, the
-# estimated period, two periods when the record holds them.
+# and whether one or two periods are used. The defaults are the pipeline's choices printed above:
+# marker 1, the estimated period, two periods when the record holds them.
 
 # %% tags=["nbval-ignore-output"]
-ui_marker = widgets.ui_motion_marker(points.shape[1])
-ui_T = widgets.ui_period(period, n - 1)
-ui_np = widgets.ui_n_periods(2 if 2 * period <= n - 1 else 1)
+ui_marker = widgets.ui_motion_marker(points.shape[1], mf_pipeline.marker)
+ui_T = widgets.ui_period(mf_pipeline.period_frames, n - 1)
+ui_np = widgets.ui_n_periods(mf_pipeline.n_periods)
 display(ui_marker, ui_T, ui_np)
 
 # %%
 mf = frames.motion_frame(smoothed, gravity, marker=ui_marker.value, period=ui_T.value, n_periods=ui_np.value)
 print("R_CM = [u1 | u2 | u3] =")
 print(np.array2string(mf.R_CM, precision=5, suppress_small=True))
-print(f"u1 from marker {mf.marker + 1} over {mf.n_periods} period(s) of {mf.period_frames:.2f} frames")
+print(f"u1 from marker {mf.marker + 1:d} over {mf.n_periods:d} period(s) of {mf.period_frames:.2f} frames")
 print(f"gravity correction (u2e -> u2, eq. 5.8-5.9): {mf.gravity_correction_deg:.3f} deg")
 for i, name in enumerate(("x-motion", "y-motion", "z-motion")):
-    print(f"angle of {name} to the truth: {frames.angle_deg(mf.axes[i], A_true[i]):.3f} deg")
+    print(f"angle of {name} to the truth: {frames.angle_deg(mf.axes[i], A_true[i]):.3f} deg "
+          f"(pipeline's axis: {frames.angle_deg(mf_pipeline.axes[i], A_true[i]):.3f} deg)")
 
 # %% [markdown]
 # Thesis Figure 8.10: the first marker in the motion frame against time (eq. 5.12-5.13). The truth
@@ -231,36 +317,66 @@ _ = plots.plot_motion_positions(motion, t, marker=0, truth=frames.to_motion_fram
 plt.show()
 
 # %% [markdown]
-# ## 6 · How good is it? Both triangulation modes against the truth
+# ## 7 · How good is it? Both triangulation modes, both smoothings, against the truth
 #
-# Position errors after smoothing, projected on the true motion axes (so that they do not mix
-# with the small error of the axes themselves: a rotation of 0.1° moves a point 7.5 m from the
-# camera by 13 mm). First with the detected pixels (the pipeline), then with the true projections
-# plus 0.1 px of Gaussian noise, a less favourable detector.
+# The pipeline's steps from triangulation to the motion frame, run again on the same detections
+# and the same calibrated rig (`pipeline.run_steps`) for the thesis' triangulation (three pairs
+# averaged, eq. 5.5) and the joint one, each with no smoothing (the pipeline) and with the thesis'
+# `rloess` 0.1. Position errors are projected on the true motion axes (a rotation of 0.1° moves a
+# point 7.5 m from the camera by 13 mm, which would hide the position error in the axis error).
 
 # %%
-rng = np.random.default_rng(2009)
-noisy_px = {}
-for cam in rig.names:
-    k = ref_frames - truth.offsets["left"] + truth.offsets[cam]
-    noisy_px[cam] = truth.marker_px[cam][k, :3] + rng.normal(0.0, 0.1, (len(k), 3, 2))
-for label, px in (("detected", marker_px), ("0.1 px noise", noisy_px)):
-    for mode in ("thesis", "joint"):
-        p = reconstruction.triangulate(rig, px, mode=mode).points
-        s = smoothing.smooth_positions(p, nan="omit")
-        e = 1000 * frames.rmse_per_axis(s @ A_true.T, true_pos @ A_true.T)
-        print(f"{label:12s} {mode:6s} after smoothing: RMSE x-motion {e[0]:5.2f} mm, y-motion {e[1]:5.2f} mm, "
-              f"z-motion (depth) {e[2]:6.2f} mm")
-print(f"gravity direction error: {frames.angle_deg(gravity, truth.gravity):.3f} deg")
+runs = {}
+for mode in ("thesis", "joint"):
+    for method in ("none", "rloess"):
+        run = run_steps(analysis.session, accuracy.with_params(analysis, triangulation=mode, smoothing_method=method),
+                        {k: res[k] for k in ("sync", "rig", "detect")},
+                        ("triangulate", "plumb", "static", "smooth", "motion_frame"))
+        runs[mode, method] = run
+        st = accuracy.stage_errors(run, truth)
+        r, rc = errors_mm(run.results["smooth"]["smoothed"])
+        print(f"{mode:6s} + {method:6s}: RMSE x {r[0]:5.2f}, y {r[1]:5.2f}, z {r[2]:6.2f} mm | bias removed "
+              f"x {rc[0]:5.2f}, y {rc[1]:5.2f}, z {rc[2]:5.2f} mm | gravity {st['gravity_deg']:.3f} deg, "
+              f"x-motion axis {st['x_axis_deg']:.3f} deg")
 
 # %% [markdown]
-# With the detector's pixels both horizontal axes of the motion are within 3 mm and the joint mode
-# is at least as good as the thesis' average. The depth (z-motion) is the weak axis of a
-# narrow-baseline rig. With 0.1 px of noise the x-motion error passes 3 mm: the depth error
-# leaks into the direction of travel when the horse is to the side of the images, and a smoothing
-# window of 7 frames (0.4 of a stride) cannot average it away without flattening the vertical
-# motion. The curve fits of notebook 09 (a straight line plus harmonics of the stride) use the
-# whole record and do better.
+# The issue's targets, checked on these numbers (x- and y-motion RMSE below 3 mm after smoothing;
+# joint no worse than thesis; plumb gravity within 0.2°). Differences under 0.05 mm between the
+# modes are counted as equal (they are far below the detector's own error).
+
+# %%
+TARGET_MM, TARGET_DEG, TIE_MM = 3.0, 0.2, 0.05
+
+
+def verdict(ok):
+    return "meets" if ok else "MISSES"
+
+
+for method in ("none", "rloess"):
+    r, rc = errors_mm(runs["joint", method].results["smooth"]["smoothed"])
+    print(f"joint + {method:6s}: x {r[0]:.2f} mm {verdict(r[0] < TARGET_MM)}, y {r[1]:.2f} mm "
+          f"{verdict(r[1] < TARGET_MM)} (absolute) | x {rc[0]:.2f} mm {verdict(rc[0] < TARGET_MM)}, "
+          f"y {rc[1]:.2f} mm {verdict(rc[1] < TARGET_MM)} (bias removed)")
+    rt, rct = errors_mm(runs["thesis", method].results["smooth"]["smoothed"])
+    no_worse = bool(np.all(r[:2] - rt[:2] < TIE_MM) and np.all(rc[:2] - rct[:2] < TIE_MM))
+    print(f"   joint minus thesis (x, y): absolute " + ", ".join(f"{d:+.2f}" for d in r[:2] - rt[:2])
+          + " mm, bias removed " + ", ".join(f"{d:+.2f}" for d in rc[:2] - rct[:2])
+          + f" mm -> joint no worse than thesis: {verdict(no_worse)}")
+for mode in ("joint", "thesis"):
+    g_err = frames.angle_deg(runs[mode, "none"].results["plumb"]["gravity"], truth.gravity)
+    print(f"plumb gravity, {mode:6s} triangulation: {g_err:.3f} deg {verdict(g_err < TARGET_DEG)}")
+
+# %% [markdown]
+# **Reading the numbers.** With the calibrated rig the motion itself (bias removed) is measured to
+# about 1.4 mm along the travel and 0.3 mm vertically, well within 3 mm, in both modes, the joint
+# mode no worse than the thesis' average (with the thesis' `rloess` the joint mode comes out
+# 0.1 mm worse along x, bias removed: the smoother, not the triangulation, decides there); the
+# gravity direction is within a few hundredths of a degree. The absolute positions carry the calibration's offset of about 4 mm along gravity, so the
+# absolute y-motion RMSE (about 4.2 mm) **misses** the 3 mm target; it is a constant shift of the
+# whole reconstruction and drops out of every velocity, acceleration and angle. The thesis' `rloess`
+# makes the y-motion worse in every column. The depth (z-motion) is the weak axis of a
+# narrow-baseline rig (notebook 05); notebook 14 follows all of this through to the comfort
+# indicators, with noisier detections too.
 #
 # ## Exercises
 #
@@ -269,18 +385,24 @@ print(f"gravity direction error: {frames.angle_deg(gravity, truth.gravity):.3f} 
 # 2. Use one period instead of two for $\mathbf{u}_1$: how much does the x-motion axis change?
 # 3. Tilt the estimated gravity by 1° towards the x-motion direction. What do eq. 5.8-5.9 do
 #    with that error?
+# 4. Run the whole pipeline with the thesis' smoother, `results_for(params={"smoothing_method": "rloess"})`,
+#    and compare `accuracy.stage_errors(..., truth)["saddle_acc_y_rmse_pct_of_rms"]` with the default.
 #
 # <details><summary>Solutions</summary>
 #
-# 1. `plots.plot_smoothed_marker(points, smoothing.smooth_positions(points, min_span=None, windows="matlab", nan="omit"), 0, truth=true_pos)`:
+# 1. `plots.plot_smoothed_marker(points, smoothing.smooth_positions(points, min_span=None, windows="matlab", nan="omit"), 0, truth=true_pos, errors=True)`:
 #    the middle of the record is the raw data (a 3-point quadratic interpolates), the ends run
 #    away — extrapolated quadratics over samples rejected by the collapsed robust scale.
 # 2. `frames.motion_frame(smoothed, gravity, period=period, n_periods=1)`; compare the axes with
-#    `frames.angle_deg`: here about 0.7° off the truth instead of 0.01°. The periodic motion
-#    cancels over any whole number of periods, but the position errors at the two end frames
-#    (mostly depth) are divided by half the distance.
+#    `frames.angle_deg`: on this record 0.13° off the truth for one period against 0.14° for two.
+#    The periodic motion cancels over any whole number of periods, and two periods divide the
+#    position errors of the end frames by twice the distance; but here the calibrated rig's own
+#    small tilt dominates. With the true rig (`reconstruction.triangulate(truth.rig, ...)`, a
+#    comparison only) the same detections give 0.10° for one period and 0.04° for two.
 # 3. `g2 = gravity + np.tan(np.radians(1)) * mf.axes[0]`; the correction removes the component
 #    along $\mathbf{u}_1$ (`gravity_correction_deg` becomes about 1°) and the corrected
 #    $\mathbf{u}_2$ is unchanged: only a tilt towards z-motion survives.
+# 4. The same numbers as section 3 (about 2 % with no smoothing, about 10 % with `rloess`): the
+#    later steps are the same functions.
 #
 # </details>

@@ -34,26 +34,31 @@ import numpy as np
 from horsemocap import plots, rigid
 
 # %% [markdown]
-# ## The data
+# ## The data: the pipeline's own
 #
-# The default session is Horse 2 at canter from the virtual laboratory (38 frames, two strides).
-# **Until the pipeline (detection → triangulation → smoothing → motion frame) runs end to end**,
-# this cell stands in for it: the true marker centres plus Gaussian noise along the left camera's
-# axes (1.5 mm across, 5 mm in depth), smoothed with the thesis' `rloess` (span 0.1), expressed in
-# the true motion frame; the static shot gets the same noise and is shuffled (detection order is
-# arbitrary). The lead will replace this one cell with the pipeline's output.
+# The default session is Horse 2 at canter from the virtual laboratory. `results_for` runs (or loads) the
+# pipeline's steps up to the rigid body with the automatic choices: synchronisation, calibration, marker
+# detection, triangulation, the motion frame (notebooks 02-07). Its `motion_frame` step hands the rigid-body
+# step the marker positions in the motion frame (`positions`, here *not* smoothed: the pipeline's default
+# `smoothing_method="none"`, see notebook 06) and the four static-shot points in the same frame (`static`,
+# in the detector's order). The virtual laboratory's truth is used only to measure errors: its rows for the
+# analysed frames, expressed in the pipeline's motion frame.
 
 # %%
-from horsemocap import data, smoothing, virtuallab
+from horsemocap import accuracy, data, frames, pipeline, virtuallab
+
+an = pipeline.results_for(until="rigid_body")
+mf = an["motion_frame"]
+markers, static = mf["positions"], mf["static"]
+rb = an["rigid_body"]["analysis"]                 # horsemocap.rigid.RigidBodyAnalysis of the pipeline
+t = an["rigid_body"]["t"]
+a, b = an["detect"]["segment"]
+print(f"{len(t)} frames ({a}..{b - 1} of the synchronised record) at {an.session.fps:.0f} fps; "
+      f"markers {markers.shape}; static shot {static.shape}; smoothing: {an.params.smoothing_method}")
 
 truth = virtuallab.load_truth(data.default_session_dir())
-to_motion = lambda x: np.asarray(x) @ truth.motion_axes.T       # rows of motion_axes: x, y, z (left camera frame)
-rng = np.random.default_rng(0)
-sigma = np.array([0.0015, 0.0015, 0.005])                        # m, along the left camera's x, y, depth
-t = truth.time_s
-markers = smoothing.smooth_positions(to_motion(truth.marker_pos + rng.normal(size=truth.marker_pos.shape) * sigma), 0.1)
-static = to_motion(truth.static_pos + rng.normal(size=truth.static_pos.shape) * sigma)[rng.permutation(4)]
-print(f"{len(t)} frames at {truth.fps:.0f} fps; markers {markers.shape}; static shot {static.shape}")
+rows = np.searchsorted(truth.ref_frames, an["sync"]["offsets"][an.session.reference_camera] + np.arange(a, b))
+true_pos = frames.to_motion_frame(truth.marker_pos[rows], mf["frame"])    # truth in the pipeline's motion frame
 
 # %% [markdown]
 # ## Which static marker is which?
@@ -67,6 +72,7 @@ print(f"{len(t)} frames at {truth.fps:.0f} fps; markers {markers.shape}; static 
 # %%
 order, saddle_index = rigid.match_static_markers(static, markers)
 print("static index of motion markers 1, 2, 3:", order.tolist(), "; saddle marker:", saddle_index)
+print("the pipeline's choice:                 ", rb.static_index.tolist(), "; saddle marker:", rb.saddle_index)
 d_motion = np.nanmedian(rigid.pairwise_distances(markers), axis=0)
 d_model = rigid.pairwise_distances(static[order])
 for i, j in ((0, 1), (1, 2), (0, 2)):
@@ -82,9 +88,11 @@ d_before = rigid.pairwise_distances(markers)
 d_after = rigid.pairwise_distances(reg.registered)
 iu = np.triu_indices(3, 1)
 print(f"distance deviation from the model, before: max {1000 * np.abs(d_before - d_model)[:, iu[0], iu[1]].max():.2f} mm")
-print(f"distance deviation from the model, after:  max {1000 * np.abs(d_after - d_model)[:, iu[0], iu[1]].max():.2e} mm")
+dev_after = 1000 * np.abs(d_after - d_model)[:, iu[0], iu[1]].max()
+print(f"distance deviation from the model, after:  below 1e-9 mm: {dev_after < 1e-9}")
 print(f"residual |e_m| (Figure 5.3): median {1000 * np.median(reg.residual):.2f} mm, max {1000 * reg.residual.max():.2f} mm")
 print("frames not registered:", int(np.sum(reg.reason != "")))
+print(f"same registration as the pipeline's (to 1e-12 m): {np.nanmax(np.abs(reg.registered - rb.pos)) < 1e-12}")
 
 # %% [markdown]
 # Figure 8.12 of the thesis shows frame 27 before and after the rigid-body correction:
@@ -100,19 +108,25 @@ plt.show()
 # %% [markdown]
 # ## Does registration bring us closer to the truth?
 #
-# The registered markers are rigid; are they also more accurate? Against the virtual laboratory's
-# truth (the same noise realisation):
+# The registered markers are rigid; are they also more accurate? Against the virtual laboratory's truth,
+# per axis of the motion frame (`accuracy.stage_errors` measures the same in the *true* motion frame,
+# which differs from the pipeline's by a fraction of a degree):
 
 # %%
-true_m = to_motion(truth.marker_pos)
-err_s = np.sqrt(np.mean((markers - true_m) ** 2, axis=(0, 1))) * 1000
-err_r = np.sqrt(np.mean((reg.registered - true_m) ** 2, axis=(0, 1))) * 1000
-print("RMSE per axis x/y/z (mm), smoothed:  " + "  ".join(f"{e:.2f}" for e in err_s))
-print("RMSE per axis x/y/z (mm), registered: " + "  ".join(f"{e:.2f}" for e in err_r))
+err_m = frames.rmse_per_axis(markers, true_pos) * 1000
+err_r = frames.rmse_per_axis(reg.registered, true_pos) * 1000
+print("RMSE per axis x/y/z (mm), triangulated: " + "  ".join(f"{e:5.2f}" for e in err_m))
+print("RMSE per axis x/y/z (mm), registered:   " + "  ".join(f"{e:5.2f}" for e in err_r))
+st = accuracy.stage_errors(an, truth)
+print(f"stage_errors (true motion frame, x axis {st['x_axis_deg']:.2f} deg off), registered: "
+      + "  ".join(f"{1000 * e:5.2f}" for e in st["registered"]) + " mm")
 
 # %% [markdown]
-# The static shot has its own noise: every registered frame inherits the model's shape error, a
-# constant per marker, while the frame-to-frame noise is averaged over the three markers.
+# The depth (z, along the cameras' optical axes) is the weak axis of the rig: triangulation errors are
+# largest there, and registration cannot remove an error that the three markers share (a shift or a
+# rotation of the whole triangle is a rigid motion). What it removes is the part that changes the
+# triangle's shape. The static shot has its own error too: every registered frame inherits the model's
+# shape error, a constant per marker.
 #
 # The quaternion and the thesis' form: $\mathbf{R}_{thesis} = $ `rotation.T`,
 # $\mathbf{q}_t = -\mathbf{R}_{thesis}\,$`translation`, and eq. 5.20 gives back the registered points.
@@ -122,29 +136,32 @@ k = 26
 R_th = reg.rotation[k].T
 q_t = -R_th @ reg.translation[k]
 x_r = (np.linalg.inv(R_th) @ (model - q_t).T).T                   # eq. 5.20 / 5.21
-print(f"eq. 5.20 vs registered, frame 27: max difference {np.abs(x_r - reg.registered[k]).max():.1e} m")
+print(f"eq. 5.20 gives the registered points of frame 27 (to 1e-12 m): {np.abs(x_r - reg.registered[k]).max() < 1e-12}")
 print(f"det R = {np.linalg.det(R_th):.6f};  rotation angle {np.degrees(np.arccos((np.trace(R_th) - 1) / 2)):.2f} deg")
 
 # %% [markdown]
 # ## Exercises
 #
-# 1. Rerun the registration with the static shot *not* shuffled and check that the assignment does
-#    not change. Then swap markers 1 and 3 of the static shot: what does `match_static_markers` do, and why
+# 1. Shuffle the static shot (`static[np.random.default_rng(1).permutation(4)]`) and rerun
+#    `match_static_markers`: does the assignment change? Then swap markers 1 and 3 of the static shot: why
 #    are the distances alone not enough here?
-# 2. Set the noise to zero: how large is the registration residual, and why?
-# 3. Add a 2 cm outlier to marker 2 in frame 10 (before registration). How does the residual of that
-#    frame change, and how far does the error spread to markers 1 and 3?
+# 2. Register the *true* markers (`true_pos`) to the true static shot
+#    (`frames.to_motion_frame(truth.static_pos, mf["frame"])[:3]`): how large is the residual, and why?
+# 3. Add a 2 cm outlier to marker 2 in frame 10 (`m2 = markers.copy(); m2[9, 1, 1] += 0.02`) before
+#    registration. How does the residual of that frame change, and how far does the error spread to
+#    markers 1 and 3?
 #
 # <details><summary>Solutions</summary>
 #
 # 1. The order is found from distances and orientation, not from the input order, so shuffling changes
-#    only `order`. Markers 1 and 3 are 0.25 m from marker 2 within 3.4 mm of each other, so a swap costs
-#    little in distance; the near-tie is broken by the rotation the registration would need (a swap needs a
-#    half turn).
-# 2. `static = to_motion(truth.static_pos)` and `markers = to_motion(truth.marker_pos)`: the residual is at
-#    the level of rounding (1e-16 m); the truth is rigid and the quaternion solution is exact.
+#    only the indices, not which point is which marker. Markers 1 and 3 are about 0.25 m from marker 2
+#    within a few mm of each other, so a swap costs little in distance; the near-tie is broken by the
+#    rotation the registration would need (a swap needs a half turn).
+# 2. The residual is at the level of rounding (1e-16 m): the truth is rigid and the quaternion solution
+#    is exact.
 # 3. Least squares spreads the error: the frame's residual grows to about 2/3 of 2 cm at marker 2 and the
 #    other two markers move by a few mm (rotation and translation absorb part of the outlier).
-#    Smoothing with `rloess` before registration is what removes such outliers in the thesis' chain.
+#    Smoothing before registration (the thesis' `rloess`, notebook 06) is what removes such outliers in
+#    the thesis' chain; the pipeline's detector and triangulation produce none on this session.
 #
 # </details>

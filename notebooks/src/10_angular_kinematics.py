@@ -39,28 +39,31 @@ from IPython.display import display
 from horsemocap import fitting, plots, rigid, widgets
 
 # %% [markdown]
-# ## The data
+# ## The data: the pipeline's own
 #
-# **Until the pipeline runs end to end**, this cell stands in for it (see notebook 08): truth + noise,
-# thesis smoothing, true motion frame; then registration (notebook 08) and the automatic fits (notebook 09).
+# `results_for` runs (or loads) the pipeline up to the rigid-body step with the automatic choices. Its
+# `RigidBodyAnalysis` holds the registered markers (notebook 08), their fitted velocities and accelerations
+# (notebook 09) and every angular estimate: the six thesis versions (raw and smoothed with `rloess`, span
+# 0.1, as Appendix A step 11), least squares, and the fit of the registered orientation. The pipeline
+# passes on the one its `angular_method` names. The truth (virtual laboratory, in the pipeline's motion
+# frame) only measures errors.
 
 # %%
-from horsemocap import data, smoothing, virtuallab
+from horsemocap import accuracy, data, frames, pipeline, virtuallab
+
+an = pipeline.results_for(until="rigid_body")
+rb = an["rigid_body"]["analysis"]
+prm = an.params
+t, pos, vel, acc = rb.t, rb.pos, rb.vel, rb.acc
+print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
+      f"angular method '{prm.angular_method}'; versions used: omega {sum(prm.omega_versions)}, alfa {sum(prm.alpha_versions)}")
 
 truth = virtuallab.load_truth(data.default_session_dir())
-to_motion = lambda x: np.asarray(x) @ truth.motion_axes.T
-rng = np.random.default_rng(0)
-sigma = np.array([0.0015, 0.0015, 0.005])
-t = truth.time_s
-markers = smoothing.smooth_positions(to_motion(truth.marker_pos + rng.normal(size=truth.marker_pos.shape) * sigma), 0.1)
-static = to_motion(truth.static_pos + rng.normal(size=truth.static_pos.shape) * sigma)[rng.permutation(4)]
-order, saddle_index = rigid.match_static_markers(static, markers)
-reg = rigid.register(markers, static[order])
-pos = reg.registered
-mfit = fitting.fit_motion(t, pos)
-vel, acc = mfit.velocity(t), mfit.acceleration(t)
-omega_true, alpha_true = to_motion(truth.omega), to_motion(truth.alpha)
-print(f"orders (x, y, z) per marker: {mfit.orders.tolist()}")
+a, b = an["detect"]["segment"]
+rows = np.searchsorted(truth.ref_frames, an["sync"]["offsets"][an.session.reference_camera] + np.arange(a, b))
+axes = an["motion_frame"]["axes"]
+vec = lambda x: np.asarray(x)[rows] @ axes.T                   # a truth vector in the pipeline's motion frame
+omega_true, alpha_true = vec(truth.omega), vec(truth.alpha)
 
 # %% [markdown]
 # ## First, on exact data
@@ -69,62 +72,69 @@ print(f"orders (x, y, z) per marker: {mfit.orders.tolist()}")
 # to rounding — except where $\boldsymbol\omega$ lies in the markers' plane:
 
 # %%
-P, V = to_motion(truth.marker_pos), to_motion(truth.marker_vel)
+P, V = vec(truth.marker_pos), vec(truth.marker_vel)
 with np.errstate(all="ignore"):
     exact = rigid.angular_velocity_versions(P, V)
 ang_true = rigid.singularity_angle(P, omega_true)
 far = np.abs(ang_true - 90) > 10
-print(f"compatibility residual (eq. 6.20), max |.|: {np.abs(rigid.compatibility_residual(P, V)).max():.1e} m^2/s")
-print(f"versions vs truth where |angle - 90| > 10 deg: max error {np.nanmax(np.abs(exact[:, far] - omega_true[far])):.1e} rad/s")
-print(f"least squares vs truth, all frames: max error {np.abs(rigid.angular_velocity_lstsq(P, V) - omega_true).max():.1e} rad/s")
-print(f"angle(omega, n) of the true motion: {ang_true.min():.0f} to {ang_true.max():.0f} deg; "
+print(f"compatibility residual (eq. 6.20) below 1e-12 m^2/s: {np.abs(rigid.compatibility_residual(P, V)).max() < 1e-12}")
+print(f"versions vs truth where |angle - 90| > 10 deg ({far.sum()} frames): exact to 1e-6 rad/s: "
+      f"{np.nanmax(np.abs(exact[:, far] - omega_true[far])) < 1e-6}")
+print(f"least squares vs truth, all frames: exact to 1e-6 rad/s: "
+      f"{np.abs(rigid.angular_velocity_lstsq(P, V) - omega_true).max() < 1e-6}")
+print(f"angle(omega, n) of the true motion: {np.nanmin(ang_true):.0f} to {np.nanmax(ang_true):.0f} deg; "
       f"within 15 deg of 90 in {np.mean(np.abs(ang_true - 90) < 15) * 100:.0f} % of the frames")
 
 # %% [markdown]
 # ## The six versions on measured data (Figures 8.14-8.16)
+#
+# Grey: the versions from eq. 6.3/6.4 frame by frame; blue: smoothed (`rloess`, span 0.1); dashed: truth.
 
 # %%
-with np.errstate(all="ignore"):
-    w_raw = rigid.angular_velocity_versions(pos, vel)
-w_s = rigid.smooth_versions(w_raw)                      # rloess, span 0.1, as the thesis
+w_raw, w_s = rb.omega_raw, rb.omega_versions
 print(f"compatibility residual on fitted data: median |.| {np.median(np.abs(rigid.compatibility_residual(pos, vel))):.2e} m^2/s")
 for c in range(3):
     fig = plots.plot_angular_versions(t, w_raw, w_s, c, truth=omega_true)
     plt.show()
 
 # %% [markdown]
-# ## Choosing the versions (the thesis' y/n prompts)
+# ## Choosing the versions and the method (the thesis' y/n prompts)
 #
-# All six are checked by default. The thesis' user unchecked `omega1_ver2` and `omega1_ver3` in the canter
-# example. The method selects what the saddle step uses: the average of the checked versions, or the
-# least-squares solution.
+# The defaults are the pipeline's: all six versions checked for $\boldsymbol\omega$ and for
+# $\boldsymbol\alpha$, and its `angular_method`. The thesis' user unchecked `omega1_ver2` and `omega1_ver3` in
+# the canter example. The method selects what the saddle step uses: the average of the checked versions
+# (the thesis), the least-squares solution, or the fit of the registered orientation. The next cell runs the
+# pipeline's rigid-body step again with your choices.
 
 # %% tags=["nbval-ignore-output"]
-ui_w = widgets.ui_versions("omega")
-ui_a = widgets.ui_versions("alfa")
-ui_method = widgets.ui_angular_method()
+ui_w = widgets.ui_versions("omega", value=prm.omega_versions)
+ui_a = widgets.ui_versions("alfa", value=prm.alpha_versions)
+ui_method = widgets.ui_angular_method(value=prm.angular_method)
 display(ui_w, ui_a, ui_method)
 
 # %%
 use_w, use_a, method = ui_w.value, ui_a.value, ui_method.value
-omega_avg = rigid.average_versions(w_s, use_w)
-omega_ls = rigid.smooth_versions(rigid.angular_velocity_lstsq(pos, vel)[None])[0]
-rot = rigid.fit_rotations(t, reg.rotation)
-omega_rot = rot.omega(t)
-omega = omega_avg if method == "thesis" else omega_ls
-rmse = lambda a, b: float(np.sqrt(np.nanmean((a - b) ** 2)))
-print(f"rms of the true omega: {np.sqrt(np.mean(omega_true ** 2)):.3f} rad/s")
+chosen = accuracy.with_params(an, omega_versions=[bool(v) for v in use_w],
+                              alpha_versions=[bool(v) for v in use_a], angular_method=method)
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", RuntimeWarning)
+    rb2 = pipeline.run_steps(an.session, chosen, an.results, ["rigid_body"])["rigid_body"]["analysis"]
+omega_avg = rigid.average_versions(rb2.omega_versions, use_w)
+rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - tr) ** 2)))
+per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, tr))
+print(f"rms of the true omega: {np.sqrt(np.mean(omega_true ** 2)):.3f} rad/s; method used: {rb2.method}")
+print("omega RMSE (rad/s, all components; smoothed versions):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
-    print(f"  {lab}: RMSE {rmse(w_s[i], omega_true):8.3f} rad/s" + ("" if use_w[i] else "  (not used)"))
-print(f"average of chosen versions: RMSE {rmse(omega_avg, omega_true):.3f} rad/s")
-print(f"least squares (all markers): RMSE {rmse(omega_ls, omega_true):.3f} rad/s")
-print(f"fit of the registered orientation: RMSE {rmse(omega_rot, omega_true):.3f} rad/s")
+    print(f"  {lab}: {rmse(rb2.omega_versions[i], omega_true):8.3f}" + ("" if use_w[i] else "  (not used)"))
+print(f"  average of chosen versions:        {rmse(omega_avg, omega_true):8.3f}   x/y/z {per_axis(omega_avg, omega_true)}")
+print(f"  least squares (all markers):       {rmse(rb2.omega_lstsq, omega_true):8.3f}   x/y/z {per_axis(rb2.omega_lstsq, omega_true)}")
+print(f"  fit of the registered orientation: {rmse(rb2.omega_rotation, omega_true):8.3f}   x/y/z {per_axis(rb2.omega_rotation, omega_true)}")
 
 # %% [markdown]
 # Figures 8.17-8.18: all smoothed versions, the average of the chosen ones, least squares and truth.
 
 # %%
-fig = plots.plot_angular_average(t, w_s, use_w, omega_avg, truth=omega_true, lstsq=omega_ls)
+fig = plots.plot_angular_average(t, rb2.omega_versions, use_w, omega_avg, truth=omega_true, lstsq=rb2.omega_lstsq)
 plt.show()
 
 # %% [markdown]
@@ -134,62 +144,72 @@ plt.show()
 # and at canter the body pitches about the lateral axis but also rolls and yaws: whenever
 # $\boldsymbol\omega$ swings through the markers' plane, the denominators of eq. 6.3/6.4 vanish. The
 # thesis observed exactly this (section 8.4.1: "very close to the singularity ... quite unreliable").
+# The angle is measured with the $\boldsymbol\omega$ the pipeline passes on (`singularity_deg`).
 
 # %%
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    ang = rigid.singularity_angle(pos, omega_rot)
-    rep = rigid.singularity_report(ang, tolerance_deg=15)
+    rep = rigid.singularity_report(rb2.singularity_deg, tolerance_deg=15)
 print(f"angle(omega, n): median {rep['median_angle_deg']:.0f} deg; within 15 deg of 90 in "
-      f"{100 * rep['fraction']:.0f} % of the frames; closest {rep['min_margin_deg']:.1f} deg")
-print("warning:", "yes" if caught else "no")
-fig = plots.plot_singularity(t, ang)
+      f"{100 * rep['fraction']:.0f} % of the frames; closest {rep['min_margin_deg']:.1f} deg from 90")
+print("warning:", str(caught[0].message) if caught else "none")
+fig = plots.plot_singularity(t, rb2.singularity_deg)
 plt.show()
 
 # %% [markdown]
 # ## Angular acceleration (Figures 8.19-8.20)
+#
+# The versions of eq. 6.38/6.39 use the chosen $\boldsymbol\omega$.
 
 # %%
-with np.errstate(all="ignore"):
-    a_raw = rigid.angular_acceleration_versions(pos, vel, acc, omega)
-a_s = rigid.smooth_versions(a_raw)
-alpha_avg = rigid.average_versions(a_s, use_a)
-alpha_ls = rigid.smooth_versions(rigid.angular_acceleration_lstsq(pos, acc, omega)[None])[0]
-alpha_rot = rot.alpha(t)
+alpha_avg = rigid.average_versions(rb2.alpha_versions, use_a)
 print(f"rms of the true alpha: {np.sqrt(np.mean(alpha_true ** 2)):.2f} rad/s^2")
-print(f"average of chosen versions: RMSE {rmse(alpha_avg, alpha_true):.2f} rad/s^2")
-print(f"least squares: RMSE {rmse(alpha_ls, alpha_true):.2f} rad/s^2")
-print(f"fit of the registered orientation: RMSE {rmse(alpha_rot, alpha_true):.2f} rad/s^2")
-fig = plots.plot_angular_average(t, a_s, use_a, alpha_avg, name="alfa", unit="rad/s²", truth=alpha_true, lstsq=alpha_ls)
+print("alpha RMSE (rad/s^2, all components):")
+for i, lab in enumerate(rigid.VERSION_LABELS):
+    print(f"  {lab.replace('omega', 'alfa')}: {rmse(rb2.alpha_versions[i], alpha_true):9.2f}" + ("" if use_a[i] else "  (not used)"))
+print(f"  average of chosen versions:        {rmse(alpha_avg, alpha_true):9.2f}")
+print(f"  least squares:                     {rmse(rb2.alpha_lstsq, alpha_true):9.2f}")
+print(f"  fit of the registered orientation: {rmse(rb2.alpha_rotation, alpha_true):9.2f}")
+fig = plots.plot_angular_average(t, rb2.alpha_versions, use_a, alpha_avg, name="alfa", unit="rad/s²",
+                                 truth=alpha_true, lstsq=rb2.alpha_lstsq)
 plt.show()
 
 # %% [markdown]
 # **Reading the numbers.** Near the singularity a thesis version divides the noise by a vanishing
-# denominator; averaging several such versions does not help. Least squares over all markers has no
-# $\boldsymbol\omega\cdot\mathbf n$ singularity (only collinear markers make it singular), but the rotation
-# about the markers' row (roll) is poorly conditioned: the markers are only 7 cm apart across it. The fit of
-# the registered orientation uses all markers *and* the smoothness of a periodic motion, and is the most
-# accurate here. None of this is needed for the saddle's vertical acceleration if the saddle's own path
-# is fitted (notebook 11).
+# denominator; averaging several such versions does not help: one bad version spoils the average, and every
+# version and their average is off by more than the rms of $\boldsymbol\omega$ itself (0.41 rad/s). Least
+# squares over all markers has no $\boldsymbol\omega\cdot\mathbf n$ singularity (only collinear markers make
+# it singular), but the rotation about the markers' row (roll, x) is poorly conditioned: the markers are
+# only about 7 cm apart across it, and that axis lies along the cameras' depth; on this session it is still
+# off by more than the rms. The fit of the registered orientation uses all markers *and* the smoothness of
+# a periodic motion, and is the only estimate better than the rms: pitch (z) and yaw (y) rates within a few
+# hundredths of rad/s, but its roll rate (x) error (0.52 rad/s) is larger than the true roll rate's rms
+# (0.32 rad/s): roll is not measured by this marker layout. None of this is needed for the saddle's vertical
+# acceleration if the saddle's own path is fitted (notebook 11).
 #
 # ## Exercises
 #
-# 1. Uncheck `omega1_ver2` and `omega1_ver3` as the thesis' user did. Does the average improve?
-# 2. Using `P, V` (exact data), rotate the marker layout so that marker 2 is 15 cm higher
-#    (`P2 = P.copy(); P2[:, 1, 1] -= 0.15`, velocities from the same rigid motion). How does the angle
-#    between $\boldsymbol\omega$ and $\mathbf n$ change? (Hint: compute `V2` with `np.cross(omega_true[:, None], P2 - P2[:, :1]) + V[:, :1]`.)
+# 1. Uncheck `omega1_ver2` and `omega1_ver3` as the thesis' user did. Does the average improve? Which
+#    versions would you uncheck from the plots alone, without the truth?
+# 2. Using `P, V` (exact data), move marker 2 15 cm higher (`P2 = P.copy(); P2[:, 1, 1] -= 0.15`, velocities
+#    from the same rigid motion: `V2 = np.cross(omega_true[:, None], P2 - P2[:, :1]) + V[:, :1]`). How does
+#    the angle between $\boldsymbol\omega$ and $\mathbf n$ change?
 # 3. Check numerically that with $\mathbf a_1 \neq 0$ the printed eq. 6.38 (without $-\mathbf a_1$)
 #    does not return $\boldsymbol\alpha$.
 #
 # <details><summary>Solutions</summary>
 #
-# 1. Usually a little, because those two versions' denominators are the ones that vanish first in this
-#    layout; but the result stays far from least squares and the orientation fit.
+# 1. No: on this session the average gets worse (RMSE 13.6 rad/s instead of 8.2), because the versions that
+#    blow up here are others: `omega1_ver1` (RMSE 65 rad/s, from frames where its denominator passes through
+#    zero) and `omega2_ver3`. They are the ones with spikes far beyond the bulk in Figures 8.14-8.16;
+#    unchecking those two gives 2.6 rad/s, still six times the rms of $\boldsymbol\omega$ and far from the
+#    orientation fit.
 # 2. Raising marker 2 tilts the markers' plane towards the horizontal, so $\mathbf n$ turns towards the
 #    vertical and away from the pitch axis: the angle moves away from 90° in most frames and the versions
 #    become usable — the thesis' advice to "change the locations of the 3 markers".
-# 3. `K2 = A[:, 1] + np.cross(w, np.cross(w, r21))` (with `A = to_motion(truth.marker_acc)`, `w = omega_true`,
-#    `r21 = P[:, 0] - P[:, 1]`) and similarly `K4`; `np.cross(K2, K4) / -(K2 * r31).sum(1)[:, None]` differs
-#    from `alpha_true` by many rad/s², while subtracting `A[:, 0]` from both makes it exact.
+# 3. `A = vec(truth.marker_acc)`, `w = omega_true`, `r21 = P[:, 0] - P[:, 1]`, `r31 = P[:, 0] - P[:, 2]`;
+#    `K2 = A[:, 1] + np.cross(w, np.cross(w, r21))` and similarly `K4`;
+#    `np.cross(K2, K4) / -(K2 * r31).sum(1)[:, None]` differs from `alpha_true` by many rad/s², while
+#    subtracting `A[:, 0]` from both makes it exact (away from the singular frames).
 #
 # </details>
