@@ -78,6 +78,43 @@ def errors_2d(analysis, truth) -> dict:
     return out
 
 
+def analysed_truth(analysis, truth) -> dict:
+    """The truth at the analysed frames, in the analysis' own motion frame.
+
+    For comparing a notebook's estimates with the truth sample by sample:
+    positions through :func:`horsemocap.frames.to_motion_frame` (origin and
+    axes of the estimated frame), velocities, accelerations, omega and alpha
+    rotated into its axes.
+
+    Returns
+    -------
+    dict with ``frames`` (reference-camera frame numbers), ``known`` (mask of
+    the frames the truth covers), ``marker_pos``/``marker_vel``/``marker_acc``
+    (n, m, 3), ``saddle_pos``/``saddle_vel``/``saddle_acc`` (n, 3),
+    ``omega``/``alpha`` (n, 3); rows the truth lacks are NaN.
+    """
+    from .frames import to_motion_frame
+
+    res = analysis.results
+    a, b = res["triangulate"]["segment"]
+    frames = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
+    rows, known = _truth_rows(truth, frames)
+    mf = res["motion_frame"]["frame"]
+    axes = res["motion_frame"]["axes"]
+
+    def pick(arr, position=False):
+        arr = np.asarray(arr, float)[rows]
+        arr = to_motion_frame(arr, mf) if position else arr @ axes.T
+        arr[~known] = np.nan
+        return arr
+
+    return {"frames": frames, "known": known,
+            "marker_pos": pick(truth.marker_pos, True), "marker_vel": pick(truth.marker_vel),
+            "marker_acc": pick(truth.marker_acc), "saddle_pos": pick(truth.saddle_pos, True),
+            "saddle_vel": pick(truth.saddle_vel), "saddle_acc": pick(truth.saddle_acc),
+            "omega": pick(truth.omega), "alpha": pick(truth.alpha)}
+
+
 def rmse_axes(estimate: np.ndarray, true: np.ndarray) -> np.ndarray:
     """RMSE per last-axis component over every finite sample."""
     d = np.asarray(estimate, float) - np.asarray(true, float)

@@ -52,3 +52,31 @@ def test_wide_baseline_rig_looks_at_the_target(baseline):
     for i, cam in enumerate(wide.cameras):
         np.testing.assert_allclose(cam.center, [i * baseline, 0, 0], atol=1e-12)
         np.testing.assert_allclose(cam.project(target), cam.principal_point, atol=1e-9)
+
+
+def test_analysed_truth_rows_and_frame():
+    from types import SimpleNamespace
+
+    from horsemocap.accuracy import analysed_truth
+    from horsemocap.camera import rotation_matrix
+    from horsemocap.frames import MotionFrame
+
+    axes = rotation_matrix([0.1, -0.2, 0.3])
+    mf = MotionFrame(axes=axes, origin=np.zeros(3), period_frames=18.0, marker=0, n_periods=2,
+                     gravity_estimated=axes[1], gravity_correction_deg=0.0)
+    n = 10
+    rng = np.random.default_rng(0)
+    truth = SimpleNamespace(ref_frames=np.arange(30, 40), **{k: rng.normal(size=(n, 3, 3)) for k in
+                            ("marker_pos", "marker_vel", "marker_acc")},
+                            **{k: rng.normal(size=(n, 3)) for k in
+                               ("saddle_pos", "saddle_vel", "saddle_acc", "omega", "alpha")})
+    session = SimpleNamespace(reference_camera="left")
+    analysis = SimpleNamespace(session=session, results={
+        "sync": {"offsets": {"left": 8}}, "triangulate": {"segment": (24, 34)},
+        "motion_frame": {"frame": mf, "axes": axes}})
+    d = analysed_truth(analysis, truth)
+    np.testing.assert_array_equal(d["frames"], np.arange(32, 42))
+    assert d["known"].tolist() == [True] * 8 + [False] * 2
+    np.testing.assert_allclose(d["saddle_acc"][:8], truth.saddle_acc[2:] @ axes.T)
+    np.testing.assert_allclose(d["marker_pos"][:8], truth.marker_pos[2:] @ axes.T)
+    assert np.all(np.isnan(d["omega"][8:]))
