@@ -180,3 +180,28 @@ def test_report_renders_in_a_headless_browser(demo_run, tmp_path):
     # a rendered page is not blank: text and figures give dark pixels over a good part of it
     dark = (img.mean(axis=2) < 128).mean()
     assert dark > 0.005, f"page looks blank ({dark:.4f} dark)"
+
+
+def test_calibrate_command_on_the_real_stereo_example(tmp_path, capsys):
+    from horsemocap.camera import read_rig
+    from horsemocap.data import data_samples_dir
+
+    real = data_samples_dir() / "bouguet_stereo"
+    out = tmp_path / "rig.toml"
+    assert main(["calibrate", str(real / "left"), str(real / "right"), "--board", "9x6",
+                 "--square", "0.03", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Table 8.1" in text and "Focal length" in text
+    rig = read_rig(out)
+    assert rig.names == ["left", "right"]
+    # the toolbox's stereo T is [-99.80198, 1.12443, 0.05041] mm (README of the example)
+    assert abs(rig["right"].translation[0] * 1000 + 99.802) < 0.5
+
+
+def test_calibrate_command_reports_a_bad_board(tmp_path, capsys):
+    from horsemocap.data import data_samples_dir
+
+    real = data_samples_dir() / "bouguet_stereo"
+    code = main(["calibrate", str(real / "left"), "--board", "nine", "--square", "0.03",
+                 "--out", str(tmp_path / "rig.toml")])
+    assert code == 2 and "board" in capsys.readouterr().err.lower()
