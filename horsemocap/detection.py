@@ -1374,7 +1374,8 @@ def _find_anchor(cache: CandidateCache, M: int, first_frame=None):
     """The frame and regions where the markers are chosen automatically.
 
     Frames are tried from the middle of the sequence outward, every
-    ``n // 30``-th frame (all frames when short). In each, the best cluster
+    ``n // 30``-th frame but at least every 8th (a pass of the horse lasts a few
+    dozen frames; all frames when short). In each, the best cluster
     of :func:`choose_markers` is followed both ways
     (:func:`cluster_persistence`); the cluster followed through the most
     frames is taken (the markers stay together for the whole pass; chance
@@ -1388,7 +1389,8 @@ def _find_anchor(cache: CandidateCache, M: int, first_frame=None):
             raise ValueError(f"DetectionParams.first_frame: {first_frame} outside 0..{n - 1}")
         order = [int(first_frame)]
     else:
-        stride = max(1, n // 30)
+        # every 8th frame at most: a horse crossing the view stays in it for a few dozen frames
+        stride = max(1, min(n // 30, 8))
         order = [f for f in _middle_out(n) if (f - n // 2) % stride == 0]
     covered = np.zeros(n, bool)
     found, tried = [], []

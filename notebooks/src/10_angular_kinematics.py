@@ -42,11 +42,12 @@ from horsemocap import fitting, plots, rigid, widgets
 # ## The data: the pipeline's own
 #
 # `results_for` runs (or loads) the pipeline up to the rigid-body step with the automatic choices. Its
-# `RigidBodyAnalysis` holds the registered markers (notebook 08), their fitted velocities and accelerations
-# (notebook 09) and every angular estimate: the six thesis versions (raw and smoothed with `rloess`, span
-# 0.1, as Appendix A step 11), least squares, and the fit of the registered orientation. The pipeline
-# passes on the one its `angular_method` names. The truth (virtual laboratory, in the pipeline's motion
-# frame) only measures errors.
+# `RigidBodyAnalysis` holds the registered markers (notebook 08, from positions smoothed with the pipeline's
+# default `loess`), their fitted velocities and accelerations (notebook 09) and every angular estimate: the
+# six thesis versions (raw and smoothed with `rloess`, span 0.1, as Appendix A step 11: this smoothing of
+# the versions follows the thesis whatever `smoothing_method` the positions had), least squares, and the
+# fit of the registered orientation. The pipeline passes on the one its `angular_method` names. The truth
+# (virtual laboratory, in the pipeline's motion frame) only measures errors.
 
 # %%
 from horsemocap import accuracy, data, frames, pipeline, virtuallab
@@ -122,7 +123,8 @@ with warnings.catch_warnings():
 omega_avg = rigid.average_versions(rb2.omega_versions, use_w)
 rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - tr) ** 2)))
 per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, tr))
-print(f"rms of the true omega: {np.sqrt(np.mean(omega_true ** 2)):.3f} rad/s; method used: {rb2.method}")
+print(f"rms of the true omega: {np.sqrt(np.mean(omega_true ** 2)):.3f} rad/s, x/y/z "
+      + "  ".join(f"{v:6.3f}" for v in np.sqrt(np.mean(omega_true ** 2, axis=0))) + f"; method used: {rb2.method}")
 print("omega RMSE (rad/s, all components; smoothed versions):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
     print(f"  {lab}: {rmse(rb2.omega_versions[i], omega_true):8.3f}" + ("" if use_w[i] else "  (not used)"))
@@ -175,17 +177,17 @@ fig = plots.plot_angular_average(t, rb2.alpha_versions, use_a, alpha_avg, name="
 plt.show()
 
 # %% [markdown]
-# **Reading the numbers.** Near the singularity a thesis version divides the noise by a vanishing
-# denominator; averaging several such versions does not help: one bad version spoils the average, and every
-# version and their average is off by more than the rms of $\boldsymbol\omega$ itself (0.41 rad/s). Least
-# squares over all markers has no $\boldsymbol\omega\cdot\mathbf n$ singularity (only collinear markers make
-# it singular), but the rotation about the markers' row (roll, x) is poorly conditioned: the markers are
-# only about 7 cm apart across it, and that axis lies along the cameras' depth; on this session it is still
-# off by more than the rms. The fit of the registered orientation uses all markers *and* the smoothness of
-# a periodic motion, and is the only estimate better than the rms: pitch (z) and yaw (y) rates within a few
-# hundredths of rad/s, but its roll rate (x) error (0.52 rad/s) is larger than the true roll rate's rms
-# (0.32 rad/s): roll is not measured by this marker layout. None of this is needed for the saddle's vertical
-# acceleration if the saddle's own path is fitted (notebook 11).
+# **Reading the numbers** (the omega RMSE table above). Near the singularity a thesis version divides the
+# noise by a vanishing denominator; averaging several such versions does not help: one bad version spoils
+# the average, and on this session every version and their average is off by more than the rms of
+# $\boldsymbol\omega$ itself. Least squares over all markers has no $\boldsymbol\omega\cdot\mathbf n$
+# singularity (only collinear markers make it singular), but the rotation about the markers' row (roll, x) is
+# poorly conditioned: the markers are only about 7 cm apart across it, and that axis lies along the cameras'
+# depth; on this session it is still off by more than the rms. The fit of the registered orientation uses all
+# markers *and* the smoothness of a periodic motion, and is the only estimate better than the rms: its pitch
+# (z) and yaw (y) rate errors are well below those rates' true rms, but compare its roll-rate (x) error with the rms of the true
+# roll rate (both printed above): the error is the larger, roll is not measured by this marker layout. None
+# of this is needed for the saddle's vertical acceleration if the saddle's own path is fitted (notebook 11).
 #
 # ## Exercises
 #
@@ -199,10 +201,12 @@ plt.show()
 #
 # <details><summary>Solutions</summary>
 #
-# 1. No: on this session the average gets worse (RMSE 13.6 rad/s instead of 8.2), because the versions that
-#    blow up here are others: `omega1_ver1` (RMSE 65 rad/s, from frames where its denominator passes through
-#    zero) and `omega2_ver3`. They are the ones with spikes far beyond the bulk in Figures 8.14-8.16;
-#    unchecking those two gives 2.6 rad/s, still six times the rms of $\boldsymbol\omega$ and far from the
+# 1. Compare `rmse(rigid.average_versions(rb2.omega_versions, mask), omega_true)` for the mask of all six,
+#    the thesis' mask (`np.array([1, 1, 0, 1, 0, 1], bool)`) and a mask without the versions that blow up. On this session
+#    the thesis' mask makes the average worse, because the versions that blow up here are others:
+#    `omega1_ver1` (its denominator passes through zero in some frames; see its RMSE in the table) and
+#    `omega2_ver3`. They are the ones with spikes far beyond the bulk in Figures 8.14-8.16; unchecking those
+#    two helps a lot, but the average stays several times the rms of $\boldsymbol\omega$ and far from the
 #    orientation fit.
 # 2. Raising marker 2 tilts the markers' plane towards the horizontal, so $\mathbf n$ turns towards the
 #    vertical and away from the pitch axis: the angle moves away from 90° in most frames and the versions
