@@ -60,7 +60,7 @@ mf = an["motion_frame"]
 markers, static = mf["positions"], mf["static"]
 rb = an["rigid_body"]["analysis"]                 # horsemocap.rigid.RigidBodyAnalysis of the pipeline
 t = an["rigid_body"]["t"]
-a, b = an["detect"]["segment"]
+a, b = an["triangulate"]["segment"]
 print(f"{len(t)} frames ({a}..{b - 1} of the synchronised record) at {an.session.fps:.0f} fps; "
       f"markers {markers.shape}; static shot {static.shape}")
 moved = 1000 * np.linalg.norm(an["smooth"]["smoothed"] - an["smooth"]["raw"], axis=-1)
@@ -68,8 +68,7 @@ print(f"smoothing: {an.params.smoothing_method}, span {an.params.smoothing_span}
       f"markers by median {np.median(moved):.2f} mm, max {moved.max():.2f} mm")
 
 truth = virtuallab.load_truth(data.default_session_dir())
-rows = np.searchsorted(truth.ref_frames, an["sync"]["offsets"][an.session.reference_camera] + np.arange(a, b))
-true_pos = frames.to_motion_frame(truth.marker_pos[rows], mf["frame"])    # truth in the pipeline's motion frame
+true_pos = accuracy.analysed_truth(an, truth)["marker_pos"]   # the truth at the analysed frames, pipeline's frame
 
 # %% [markdown]
 # ## Which static marker is which?

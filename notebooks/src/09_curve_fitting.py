@@ -48,7 +48,7 @@ from horsemocap import fitting, plots, rigid, widgets
 # frame) only measures the errors.
 
 # %%
-from horsemocap import data, frames, pipeline, virtuallab
+from horsemocap import accuracy, data, frames, pipeline, virtuallab
 
 an = pipeline.results_for(until="rigid_body")
 rb = an["rigid_body"]["analysis"]
@@ -60,11 +60,9 @@ print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smoothing_method}'; orde
       f"trend {prm.fourier_trend}, x degree {prm.x_degree}; period {an['motion_frame']['period_frames']:.2f} frames = {period_s:.3f} s")
 
 truth = virtuallab.load_truth(data.default_session_dir())
-a, b = an["detect"]["segment"]
-rows = np.searchsorted(truth.ref_frames, an["sync"]["offsets"][an.session.reference_camera] + np.arange(a, b))
-axes = an["motion_frame"]["axes"]
-true_kin = {"pos": frames.to_motion_frame(truth.marker_pos[rows], an["motion_frame"]["frame"]),
-            "vel": truth.marker_vel[rows] @ axes.T, "acc": truth.marker_acc[rows] @ axes.T}
+a, b = an["triangulate"]["segment"]
+tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
+true_kin = {"pos": tt["marker_pos"], "vel": tt["marker_vel"], "acc": tt["marker_acc"]}
 stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
 print(f"stride period of the virtual horse {1 / stride_hz:.3f} s (w = {2 * np.pi * stride_hz:.2f} rad/s); "
       f"the pipeline's estimate w = {w0:.2f} rad/s")

@@ -60,11 +60,9 @@ print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolis
       f"angular method '{prm.angular_method}'; versions used: omega {sum(prm.omega_versions)}, alfa {sum(prm.alpha_versions)}")
 
 truth = virtuallab.load_truth(data.default_session_dir())
-a, b = an["detect"]["segment"]
-rows = np.searchsorted(truth.ref_frames, an["sync"]["offsets"][an.session.reference_camera] + np.arange(a, b))
-axes = an["motion_frame"]["axes"]
-vec = lambda x: np.asarray(x)[rows] @ axes.T                   # a truth vector in the pipeline's motion frame
-omega_true, alpha_true = vec(truth.omega), vec(truth.alpha)
+a, b = an["triangulate"]["segment"]
+tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
+omega_true, alpha_true = tt["omega"], tt["alpha"]
 
 # %% [markdown]
 # ## First, on exact data
@@ -73,7 +71,7 @@ omega_true, alpha_true = vec(truth.omega), vec(truth.alpha)
 # to rounding — except where $\boldsymbol\omega$ lies in the markers' plane:
 
 # %%
-P, V = vec(truth.marker_pos), vec(truth.marker_vel)
+P, V = tt["marker_pos"], tt["marker_vel"]
 with np.errstate(all="ignore"):
     exact = rigid.angular_velocity_versions(P, V)
 ang_true = rigid.singularity_angle(P, omega_true)
@@ -211,7 +209,7 @@ plt.show()
 # 2. Raising marker 2 tilts the markers' plane towards the horizontal, so $\mathbf n$ turns towards the
 #    vertical and away from the pitch axis: the angle moves away from 90° in most frames and the versions
 #    become usable — the thesis' advice to "change the locations of the 3 markers".
-# 3. `A = vec(truth.marker_acc)`, `w = omega_true`, `r21 = P[:, 0] - P[:, 1]`, `r31 = P[:, 0] - P[:, 2]`;
+# 3. `A = tt["marker_acc"]`, `w = omega_true`, `r21 = P[:, 0] - P[:, 1]`, `r31 = P[:, 0] - P[:, 2]`;
 #    `K2 = A[:, 1] + np.cross(w, np.cross(w, r21))` and similarly `K4`;
 #    `np.cross(K2, K4) / -(K2 * r31).sum(1)[:, None]` differs from `alpha_true` by many rad/s², while
 #    subtracting `A[:, 0]` from both makes it exact (away from the singular frames).

@@ -53,11 +53,9 @@ print(f"the pipeline's choices: smoothing '{prm.smoothing_method}', omega/alfa b
       f"saddle v/a by '{prm.saddle_method}'")
 
 truth = virtuallab.load_truth(data.default_session_dir())
-a, b = an["detect"]["segment"]
-rows = np.searchsorted(truth.ref_frames, an["sync"]["offsets"][an.session.reference_camera] + np.arange(a, b))
-axes = an["motion_frame"]["axes"]
-S_true = {"pos": frames.to_motion_frame(truth.saddle_pos[rows], an["motion_frame"]["frame"]),
-          "vel": truth.saddle_vel[rows] @ axes.T, "acc": truth.saddle_acc[rows] @ axes.T}
+a, b = an["triangulate"]["segment"]
+tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
+S_true = {"pos": tt["saddle_pos"], "vel": tt["saddle_vel"], "acc": tt["saddle_acc"]}
 
 # %% [markdown]
 # ## The saddle marker in the body frame (static shot)
