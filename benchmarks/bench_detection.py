@@ -26,19 +26,7 @@ import cv2
 import numpy as np
 
 from horsemocap import detection as det
-
-
-def add_disc(img, cx, cy, r, amp, ss=8):
-    h, w = img.shape
-    x0, x1 = max(int(np.floor(cx - r - 1)), 0), min(int(np.ceil(cx + r + 2)), w)
-    y0, y1 = max(int(np.floor(cy - r - 1)), 0), min(int(np.ceil(cy + r + 2)), h)
-    if x1 <= x0 or y1 <= y0:
-        return
-    o = (np.arange(ss) + 0.5) / ss - 0.5
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    sx = xx[..., None, None] + o[None, None, None, :]
-    sy = yy[..., None, None] + o[None, None, :, None]
-    img[y0:y1, x0:x1] += amp * (((sx - cx) ** 2 + (sy - cy) ** 2) <= r * r).mean(axis=(-1, -2))
+from horsemocap.virtuallab.render import add_image_disc as add_disc
 
 
 def make_frames(n, size, seed=0):

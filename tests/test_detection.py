@@ -10,23 +10,10 @@ import numpy as np
 import pytest
 
 from horsemocap import detection as det
+from horsemocap.virtuallab.render import add_image_disc as add_disc
 
 
 # ---------------------------------------------------------------- synthetic data
-def add_disc(img, cx, cy, r, amp, ss=8):
-    """Add an anti-aliased disc (coverage by ss x ss supersampling) of height ``amp``."""
-    h, w = img.shape
-    x0, x1 = max(int(np.floor(cx - r - 1)), 0), min(int(np.ceil(cx + r + 2)), w)
-    y0, y1 = max(int(np.floor(cy - r - 1)), 0), min(int(np.ceil(cy + r + 2)), h)
-    if x1 <= x0 or y1 <= y0:
-        return
-    o = (np.arange(ss) + 0.5) / ss - 0.5
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    sx = xx[..., None, None] + o[None, None, None, :]
-    sy = yy[..., None, None] + o[None, None, :, None]
-    img[y0:y1, x0:x1] += amp * (((sx - cx) ** 2 + (sy - cy) ** 2) <= r * r).mean(axis=(-1, -2))
-
-
 def make_sequence(n=40, size=(240, 160), seed=0, noise=3.0, near_blob=True, r=3.0, speed=6.0,
                   u_start=-10.0, hide=None, rgb=False):
     """Frames (n, H, W) uint8 and true centres (n, 3, 2) of 3 markers moving to the right.

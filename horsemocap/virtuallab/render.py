@@ -150,6 +150,22 @@ def polygon_coverage(poly_px: np.ndarray, size, ss: int = 8, pad: int = 2, centr
     return x0c, y0c, cov
 
 
+def add_image_disc(img: np.ndarray, cx: float, cy: float, r: float, amp: float, ss: int = 8) -> None:
+    """Add to a gray float image an image-plane disc of height ``amp``, anti-aliased
+    by ``ss`` x ``ss`` supersampling of each pixel's coverage (synthetic frames for
+    tests and benchmarks; the sessions use :func:`draw_disc`, projected discs)."""
+    h, w = img.shape
+    x0, x1 = max(int(np.floor(cx - r - 1)), 0), min(int(np.ceil(cx + r + 2)), w)
+    y0, y1 = max(int(np.floor(cy - r - 1)), 0), min(int(np.ceil(cy + r + 2)), h)
+    if x1 <= x0 or y1 <= y0:
+        return
+    o = (np.arange(ss) + 0.5) / ss - 0.5
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    sx = xx[..., None, None] + o[None, None, None, :]
+    sy = yy[..., None, None] + o[None, None, :, None]
+    img[y0:y1, x0:x1] += amp * (((sx - cx) ** 2 + (sy - cy) ** 2) <= r * r).mean(axis=(-1, -2))
+
+
 def blend(img: np.ndarray, x0: int, y0: int, cov: np.ndarray, rgb) -> None:
     """``img = img (1 - cov) + rgb cov`` in the patch at ``(x0, y0)`` (in place)."""
     h, w = cov.shape
