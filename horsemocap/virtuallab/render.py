@@ -41,33 +41,10 @@ MARKER_RGB = (246.0, 246.0, 242.0)
 # geometry helpers
 # ---------------------------------------------------------------------------
 
-def undistort_normalized(xd: np.ndarray, kc: np.ndarray, iterations: int = 30) -> np.ndarray:
-    """Invert :func:`horsemocap.camera.distort_normalized` by fixed-point iteration.
-
-    Converges to ~1e-12 for the thesis lenses inside the image.
-    """
-    xd = np.asarray(xd, float)
-    k1, k2, p1, p2, k3 = np.asarray(kc, float)
-    x = xd.copy()
-    for _ in range(iterations):
-        xx, yy = x[..., 0], x[..., 1]
-        r2 = xx * xx + yy * yy
-        radial = 1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3
-        dx = 2 * p1 * xx * yy + p2 * (r2 + 2 * xx * xx)
-        dy = p1 * (r2 + 2 * yy * yy) + 2 * p2 * xx * yy
-        x = np.stack([(xd[..., 0] - dx) / radial, (xd[..., 1] - dy) / radial], -1)
-    return x
-
-
 def pixel_rays(cam: Camera, pixels: np.ndarray) -> np.ndarray:
-    """World-frame unit ray directions through distorted pixels ``(..., 2)``."""
-    K = cam.matrix
-    px = np.asarray(pixels, float)
-    yd = (px[..., 1] - K[1, 2]) / K[1, 1]
-    xd = (px[..., 0] - K[0, 2] - K[0, 1] * yd) / K[0, 0]
-    xn = undistort_normalized(np.stack([xd, yd], -1), cam.distortions)
-    d = np.concatenate([xn, np.ones(xn.shape[:-1] + (1,))], -1) @ cam.rotation_matrix
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    """World-frame unit ray directions through distorted pixels ``(..., 2)``
+    (:meth:`horsemocap.camera.Camera.rays`)."""
+    return cam.rays(pixels)[1]
 
 
 def disc_boundary(center, normal, radius: float, n: int = 128) -> np.ndarray:
