@@ -123,10 +123,41 @@ def rmse_axes(estimate: np.ndarray, true: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(d ** 2, axis=0))
 
 
+def offset_and_motion(estimate: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split a per-axis position error into its constant part and the rest.
+
+    ``RMSE^2 = offset^2 + motion^2`` per axis. The constant part is where the
+    whole reconstruction sits (the datum: a calibration that is slightly off
+    shifts, turns and scales the reconstructed space as a whole; 7.7 m from
+    the cameras that moves every point by nearly the same amount); the
+    rest is the error of the motion itself, which velocities, accelerations
+    and the comfort indicators see.
+
+    Parameters
+    ----------
+    estimate, true : ndarray (..., 3)
+        Positions in the same axes; non-finite samples are left out.
+
+    Returns
+    -------
+    offset : ndarray (3,)
+        Mean error per axis (estimate - true).
+    motion_rmse : ndarray (3,)
+        RMSE per axis once the offset is removed.
+    """
+    d = np.asarray(estimate, float) - np.asarray(true, float)
+    d = d.reshape(-1, d.shape[-1])
+    d = d[np.all(np.isfinite(d), axis=1)]
+    offset = d.mean(axis=0)
+    return offset, np.sqrt(np.mean((d - offset) ** 2, axis=0))
+
+
 def stage_errors(analysis, truth) -> dict:
     """Errors of the 3D stages against the truth, in the true motion frame.
 
     Keys: ``triangulated`` and ``smoothed`` (marker RMSE per axis, m),
+    ``smoothed_offset`` and ``smoothed_motion`` (the smoothed RMSE split by
+    :func:`offset_and_motion`),
     ``gravity_deg``, ``x_axis_deg`` (motion-frame axes), ``registered`` (m),
     ``velocity``/``acceleration`` of the markers, ``omega`` (rad/s),
     ``saddle_position`` (m), ``saddle_acceleration`` (m/s^2),
@@ -145,10 +176,14 @@ def stage_errors(analysis, truth) -> dict:
     def est_world_to_true(arr):  # world-frame estimate seen in the true motion axes
         return np.asarray(arr)[known] @ R_true.T
 
+    smoothed_est, smoothed_true = est_world_to_true(res["smooth"]["smoothed"]), true_motion(truth.marker_pos)
+    offset, motion = offset_and_motion(smoothed_est, smoothed_true)
     out = {
         "frames": int(known.sum()),
         "triangulated": rmse_axes(est_world_to_true(res["triangulate"]["points"][a:b]), true_motion(truth.marker_pos)),
-        "smoothed": rmse_axes(est_world_to_true(res["smooth"]["smoothed"]), true_motion(truth.marker_pos)),
+        "smoothed": rmse_axes(smoothed_est, smoothed_true),
+        "smoothed_offset": offset,
+        "smoothed_motion": motion,
         "gravity_deg": angle_deg(res["plumb"]["gravity"], truth.gravity),
         "x_axis_deg": angle_deg(R_est[0], R_true[0]),
     }
@@ -361,3 +396,79 @@ def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,
                      "saddle_acc_y_pct": st["saddle_acc_y_rmse_pct_of_rms"],
                      "comfort_pct": comfort_errors(sim.results["comfort"]["indicators"], truth.comfort, list(keys))})
     return rows
+
+
+def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = "Horse 2",
+                      gait: str = "canter", mode: str = "joint") -> list[dict]:
+    """How far the thesis' calibration puts the markers: one row per rendered calibration set.
+
+    For every seed the virtual laboratory renders the checkerboard views a
+    session of that seed would hold (same rig, board and poses as the
+    sessions: all boards near the path, 7.5-8 m from the cameras, as in the
+    thesis' section 8.2), the rig is calibrated from them as the pipeline
+    does (:func:`~horsemocap.calibration.calibrate_rig`), and the *exact*
+    projections of ``truth``'s markers are triangulated with it. The error
+    is then the calibration's alone (no detection noise, no smoothing),
+    split by :func:`offset_and_motion` in the true motion axes.
+
+    Parameters
+    ----------
+    truth : Truth
+        A virtual session's truth (its markers and rig).
+    seeds : iterable of int
+        Seeds of the calibration sets (the session's own seed gives its own views).
+    n_views : int
+        Views per camera (the thesis used 90).
+    horse, gait : str
+        Which scene's background the boards are rendered on.
+    mode : {"joint", "pairwise"}
+        The calibration's rig (see :func:`~horsemocap.calibration.calibrate_rig`).
+
+    Returns
+    -------
+    list of dict
+        ``seed``, ``n_views``, ``views_used`` per camera, ``intrinsic_error``
+        per camera (``fx, fy, cx, cy`` minus the truth, px), ``sigma3`` per
+        camera (the calibration's own three-sigma ``fx, fy, cx, cy``),
+        ``baseline_error_pct`` per non-reference camera, ``offset_m`` and
+        ``motion_rmse_m`` and ``rmse_m`` (per motion axis x, y, z).
+    """
+    import tempfile
+
+    from .calibration import calibrate_rig
+    from .reconstruction import triangulate
+    from .virtuallab import render_calibration_set
+
+    offsets = {c: int(o) for c, o in truth.offsets.items()}
+    n = min(truth.marker_px[c].shape[0] - offsets[c] for c in offsets)
+    n_markers = truth.marker_pos.shape[1]
+    px = noisy_projections(truth, offsets, n, n_markers, 0.0, None)
+    ref = truth.rig.cameras[0].name
+    rows_idx, known = _truth_rows(truth, offsets[ref] + np.arange(n))
+    true_m = truth.marker_pos[rows_idx][known] @ truth.motion_axes.T
+    out = []
+    for seed in seeds:
+        with tempfile.TemporaryDirectory() as tmp:
+            cal_set = render_calibration_set(tmp, int(seed), n_views, horse, gait)
+            board = cal_set["board"]
+            cal = calibrate_rig(cal_set["images"], tuple(board["inner_corners"]), board["square_size_m"],
+                                reference=ref, mode=mode, pairs=mode == "pairwise")
+        rig = cal.rig
+        points = triangulate(rig, {c: px[c] for c in rig.names}, mode="joint").points[known]
+        est_m = points @ truth.motion_axes.T
+        offset, motion = offset_and_motion(est_m, true_m)
+        row = {"seed": int(seed), "n_views": int(n_views),
+               "views_used": {c: int(cal.singles[c].used.sum()) for c in rig.names},
+               "intrinsic_error": {}, "sigma3": {}, "baseline_error_pct": {},
+               "offset_m": offset, "motion_rmse_m": motion, "rmse_m": rmse_axes(est_m, true_m)}
+        for cam in rig:
+            t = truth.rig[cam.name]
+            K, Kt = cam.matrix, t.matrix
+            row["intrinsic_error"][cam.name] = np.array([K[0, 0] - Kt[0, 0], K[1, 1] - Kt[1, 1],
+                                                         K[0, 2] - Kt[0, 2], K[1, 2] - Kt[1, 2]])
+            row["sigma3"][cam.name] = np.asarray(cal.singles[cam.name].sigma3[:4], float)
+            if cam.name != ref:
+                b, bt = np.linalg.norm(cam.center), np.linalg.norm(t.center)
+                row["baseline_error_pct"][cam.name] = 100 * (b - bt) / bt
+        out.append(row)
+    return out

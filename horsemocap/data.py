@@ -29,3 +29,19 @@ def cache_dir() -> Path:
     path = Path(root) if root else Path.home() / ".cache" / "horsemocap"
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def repository_file(relative: str) -> Path:
+    """A file of the repository (e.g. a committed benchmark result), by its relative path.
+
+    Raises
+    ------
+    FileNotFoundError
+        Naming the path, if the file is not there (a package installed
+        without its repository).
+    """
+    path = REPO_ROOT / relative
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: not found; it is part of the horsemocap repository "
+                                f"(install it from a clone with 'pip install -e .')")
+    return path

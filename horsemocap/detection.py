@@ -55,7 +55,7 @@ __all__ = [
     "cross_product_signs", "filter_cross_product", "weighted_centroids",
     "find_candidates", "follow_cluster", "choose_markers", "cluster_persistence", "CandidateCache", "filter_stages", "detect_markers", "detect_still",
     "StillCandidates", "still_candidates", "StillViews", "match_still_views", "detect_still_views",
-    "valid_frames", "usable_frames", "markers_2d_rows", "write_markers_2d_csv",
+    "valid_frames", "usable_frames", "markers_2d_rows", "markers_2d_csv_text", "marker_label", "write_markers_2d_csv",
 ]
 
 #: Reason strings of :attr:`MarkerTrack.reason` ("" = found).
@@ -1923,30 +1923,53 @@ def usable_frames(tracks: dict, offsets: dict | None = None, reference: str | No
     return np.array(sorted(f for f in ok if f >= 0), dtype=int)
 
 
-def markers_2d_rows(camera: str, track: MarkerTrack, frame_offset: int = 0) -> list[list]:
+def marker_label(index: int) -> str:
+    """The name of marker ``index`` (0-based) in every result file: ``marker1``, ``marker2``, ..."""
+    return f"marker{int(index) + 1}"
+
+
+def _px_text(value: float) -> str:
+    return f"{float(value):.9g}" if np.isfinite(value) else ""
+
+
+def markers_2d_rows(camera: str, track, frame_offset: int = 0) -> list[list]:
     """Rows ``[camera, frame, marker, u_px, v_px]`` of ``markers_2d.csv``.
 
-    ``frame`` = index in the camera's own motion source (track index +
-    ``frame_offset``), ``marker`` = 1..M, and ``u_px``/``v_px`` are ``""``
-    where the marker was not found.
+    Parameters
+    ----------
+    camera : str
+    track : MarkerTrack or ndarray (frames, markers, 2)
+        The detections (a track's ``marker_px``), NaN where not found.
+    frame_offset : int
+        Index in the camera's own motion source of the track's first frame.
+
+    Returns
+    -------
+    list of list
+        ``frame`` = track index + ``frame_offset``, ``marker`` =
+        :func:`marker_label`, ``u_px``/``v_px`` to 9 significant digits,
+        ``""`` where the marker was not found.
     """
-    rows = []
-    px = track.marker_px
-    for k in range(px.shape[0]):
-        for m in range(px.shape[1]):
-            u, v = px[k, m]
-            ok = np.isfinite(u) and np.isfinite(v)
-            rows.append([camera, k + int(frame_offset), m + 1,
-                         f"{u:.4f}" if ok else "", f"{v:.4f}" if ok else ""])
-    return rows
+    px = np.asarray(getattr(track, "marker_px", track), float)
+    return [[camera, k + int(frame_offset), marker_label(m), _px_text(px[k, m, 0]), _px_text(px[k, m, 1])]
+            for k in range(px.shape[0]) for m in range(px.shape[1])]
 
 
-def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None) -> Path:
-    """Write ``markers_2d.csv`` (spec: ``camera,frame,marker,u_px,v_px``)."""
-    from .store import atomic_write_text
+def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None) -> str:
+    """The text of ``markers_2d.csv`` (spec ``sessions.md``: ``camera,frame,marker,u_px,v_px``).
+
+    ``tracks`` maps camera -> :class:`MarkerTrack` or ``marker_px`` array;
+    ``frame_offsets`` maps camera -> source index of its first frame (0 if absent).
+    The pipeline's results and :func:`write_markers_2d_csv` both use this.
+    """
     lines = ["camera,frame,marker,u_px,v_px"]
     for cam, tr in tracks.items():
         off = (frame_offsets or {}).get(cam, 0)
-        for r in markers_2d_rows(cam, tr, off):
-            lines.append(",".join(str(x) for x in r))
-    return atomic_write_text(path, "\n".join(lines) + "\n")
+        lines.extend(",".join(str(x) for x in r) for r in markers_2d_rows(cam, tr, off))
+    return "\n".join(lines) + "\n"
+
+
+def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None) -> Path:
+    """Write ``markers_2d.csv`` atomically (:func:`markers_2d_csv_text`)."""
+    from .store import atomic_write_text
+    return atomic_write_text(path, markers_2d_csv_text(tracks, frame_offsets))

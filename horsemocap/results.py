@@ -44,13 +44,9 @@ def frame_numbers(analysis) -> tuple[np.ndarray, np.ndarray]:
 
 def markers_2d_text(analysis) -> str:
     """``camera,frame,marker,u_px,v_px`` in each camera's own numbering."""
-    offsets = analysis.results["sync"]["offsets"]
-    rows = []
-    for cam, px in analysis.results["detect"]["marker_px"].items():
-        for k in range(px.shape[0]):
-            for m in range(px.shape[1]):
-                rows.append([cam, offsets[cam] + k, f"marker{m + 1}", _num(px[k, m, 0]), _num(px[k, m, 1])])
-    return _csv_text(["camera", "frame", "marker", "u_px", "v_px"], rows)
+    from .detection import markers_2d_csv_text
+
+    return markers_2d_csv_text(analysis.results["detect"]["marker_px"], analysis.results["sync"]["offsets"])
 
 
 def _points(analysis, key):
@@ -65,7 +61,9 @@ def _points(analysis, key):
 
 
 def _point_names(n_markers):
-    return [f"marker{i + 1}" for i in range(n_markers)] + ["saddle"]
+    from .detection import marker_label
+
+    return [marker_label(i) for i in range(n_markers)] + ["saddle"]
 
 
 def trajectories_text(analysis) -> str:

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from horsemocap.accuracy import match_points, rmse_axes, scaled_rig, wide_baseline_rig
+from horsemocap.accuracy import match_points, offset_and_motion, rmse_axes, scaled_rig, wide_baseline_rig
 from horsemocap.camera import Camera, Rig
 
 
@@ -80,3 +80,41 @@ def test_analysed_truth_rows_and_frame():
     np.testing.assert_allclose(d["saddle_acc"][:8], truth.saddle_acc[2:] @ axes.T)
     np.testing.assert_allclose(d["marker_pos"][:8], truth.marker_pos[2:] @ axes.T)
     assert np.all(np.isnan(d["omega"][8:]))
+
+
+def test_offset_and_motion_split_the_rmse():
+    rng = np.random.default_rng(3)
+    true = rng.normal(size=(40, 3, 3))
+    shift = np.array([0.004, -0.002, 0.01])
+    noise = rng.normal(scale=[0.001, 0.0005, 0.003], size=true.shape)
+    est = true + shift + noise
+    est[5, 1] = np.nan                                  # a missing sample is left out, not counted
+    offset, motion = offset_and_motion(est, true)
+    d = (est - true).reshape(-1, 3)
+    d = d[np.all(np.isfinite(d), axis=1)]
+    np.testing.assert_allclose(offset, d.mean(axis=0))
+    np.testing.assert_allclose(offset ** 2 + motion ** 2, rmse_axes(est, true) ** 2)
+    np.testing.assert_allclose(offset, shift, atol=4e-4)
+    # a pure shift is all offset, no motion error
+    off2, mot2 = offset_and_motion(true + shift, true)
+    np.testing.assert_allclose(off2, shift, atol=1e-12)
+    np.testing.assert_allclose(mot2, 0, atol=1e-12)
+
+
+def test_calibration_draw_with_few_views():
+    """One calibration set of 12 views through calibrate_rig and the exact projections of the truth."""
+    from horsemocap.accuracy import calibration_draws
+    from horsemocap.data import data_samples_dir
+    from horsemocap.virtuallab import load_truth
+
+    truth = load_truth(data_samples_dir() / "horse2_canter")
+    (row,) = calibration_draws(truth, [7], n_views=12)
+    assert row["seed"] == 7 and row["n_views"] == 12
+    assert set(row["intrinsic_error"]) == {"left", "middle", "right"}
+    assert set(row["baseline_error_pct"]) == {"middle", "right"}
+    np.testing.assert_allclose(row["offset_m"] ** 2 + row["motion_rmse_m"] ** 2, row["rmse_m"] ** 2)
+    # the calibration's own 3-sigma bounds hold its intrinsic errors
+    for cam, err in row["intrinsic_error"].items():
+        assert np.all(np.abs(err) < row["sigma3"][cam]), (cam, err, row["sigma3"][cam])
+    # exact projections: what is left after the constant offset is a fraction of a millimetre in x, y
+    assert np.all(row["motion_rmse_m"][:2] < 2e-3), row["motion_rmse_m"]

@@ -4,14 +4,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from horsemocap.calibration import (CalibrationError, board_points, calibrate_command, calibrate_rig,
+from horsemocap.calibration import (MAX_GRID_IRREGULARITY, CalibrationError, board_points, calibrate_command, calibrate_rig,
                                     compare_rigs, detect_board, format_calibration_tables,
                                     format_comparison, format_per_view_errors, grid_distance_check,
+                                    grid_irregularity,
                                     load_bouguet_single, load_bouguet_stereo, pair_closure, parse_board,
                                     read_rig, rig_from_bouguet_stereo, subpix_window, views_from_corners,
                                     write_rig)
 from horsemocap.calibration.synthetic import random_board_poses, render_board
-from horsemocap.camera import Camera, Rig, rotation_matrix
+from horsemocap.camera import Camera, Rig, rotation_matrix, rotation_vector
 from horsemocap.data import data_samples_dir
 
 BS = data_samples_dir() / "bouguet_stereo"
@@ -233,3 +234,41 @@ def test_detection_on_a_rendered_view_and_window_rule():
     assert none is None and w0 == 0 and "not found" in why0
     assert subpix_window(28.0) == 7 and subpix_window(6.0) == 4 and subpix_window(200.0) == 15
     assert parse_board("15x29") == (15, 29)
+
+
+def _yawed_board(yaw_deg, seed=1):
+    """A 7 x 14 board of 100 mm squares at 7.7 m, turned by ``yaw_deg`` (thesis left camera)."""
+    from horsemocap.virtuallab.session import thesis_rig
+
+    cam = thesis_rig()["left"]
+    inner, sq = (7, 14), 0.1
+    pts = board_points(inner, sq)
+    R = rotation_matrix([0, np.deg2rad(yaw_deg), 0]) @ rotation_matrix([0, 0, np.deg2rad(5)])
+    t = np.array([0.2, -0.1, 7.7]) - R @ pts.mean(axis=0)
+    img = render_board(cam, rotation_vector(R), t, inner, sq, seed=seed)
+    return img, cam.project(pts @ R.T + t), inner
+
+
+def test_grid_irregularity_of_regular_and_pulled_grids():
+    inner = (4, 3)
+    g = np.stack(np.meshgrid(np.arange(4.0), np.arange(3.0)), -1).reshape(-1, 2) * 10
+    assert grid_irregularity(g, inner) < 1e-12
+    bent = g.copy()
+    bent[5] += [5.0, 0.0]          # an interior corner pulled half a square along its row
+    assert grid_irregularity(bent, inner) == pytest.approx(1.0)
+    two_rows = np.stack(np.meshgrid(np.arange(3.0), np.arange(2.0)), -1).reshape(-1, 2)
+    assert grid_irregularity(two_rows, (3, 2)) < 1e-12
+
+
+@pytest.mark.parametrize("yaw", [55, 56])
+def test_foreshortened_board_is_not_pulled_onto_its_neighbours(yaw):
+    # squares of ~5 px: cornerSubPix's 9 x 9 window reaches the next corner and
+    # pulled whole rows 2.5 px off; the detector must not return such corners
+    img, true, inner = _yawed_board(yaw)
+    corners, w, why = detect_board(img, inner)
+    assert why == "" and corners is not None
+    if np.linalg.norm(corners[0] - true[0]) > np.linalg.norm(corners[0] - true[-1]):
+        true = true[::-1]
+    err = np.linalg.norm(corners - true, axis=1)
+    assert err.max() < 0.5, err.max()
+    assert grid_irregularity(corners, inner) <= MAX_GRID_IRREGULARITY

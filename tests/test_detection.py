@@ -307,7 +307,8 @@ def test_detect_still_plumb_and_static_shot():
 def test_markers_2d_csv(tmp_path, track):
     rows = det.markers_2d_rows("left", track, frame_offset=7)
     n, m = track.reason.shape
-    assert len(rows) == n * m and rows[0][:3] == ["left", 7, 1]
+    assert len(rows) == n * m and rows[0][:3] == ["left", 7, "marker1"]
+    assert det.markers_2d_rows("left", track.marker_px, 7) == rows
     path = det.write_markers_2d_csv(tmp_path / "markers_2d.csv", {"left": track, "middle": track},
                                     frame_offsets={"middle": 3})
     with open(path) as fh:
@@ -317,8 +318,8 @@ def test_markers_2d_csv(tmp_path, track):
     miss = [r for r in got if r["camera"] == "left" and r["u_px"] == ""]
     assert len(miss) == int((~track.found).sum())
     r = next(r for r in got if r["camera"] == "middle" and r["u_px"] != "")
-    k, mm = int(r["frame"]) - 3, int(r["marker"]) - 1
-    assert float(r["u_px"]) == pytest.approx(track.marker_px[k, mm, 0], abs=1e-4)
+    k, mm = int(r["frame"]) - 3, int(r["marker"].removeprefix("marker")) - 1
+    assert float(r["u_px"]) == pytest.approx(track.marker_px[k, mm, 0], rel=1e-8)
 
 
 # ---------------------------------------------------------------- widgets

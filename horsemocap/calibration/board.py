@@ -102,9 +102,80 @@ def canonical_order(corners: np.ndarray) -> np.ndarray:
     return c
 
 
+def grid_irregularity(corners: np.ndarray, inner_corners: tuple[int, int]) -> float:
+    """Largest departure of a corner from the line through its neighbours, in squares.
+
+    Along every row and column of the grid, ``|c[i-1] - 2 c[i] + c[i+1]|``
+    divided by the local spacing ``|c[i+1] - c[i-1]| / 2``. Perspective and
+    lens distortion bend a board's rows very little from one corner to the
+    next; with corner noise, the 266 boards found in two rendered calibration
+    sets of the virtual laboratory (squares 5-10 px) stay below 0.17. A row
+    that the sub-pixel refinement pulled onto its neighbour gives 0.96-2.0.
+
+    Parameters
+    ----------
+    corners : ndarray (cols*rows, 2)
+        Corners in row-major order (:func:`canonical_order`).
+    inner_corners : (cols, rows)
+
+    Returns
+    -------
+    float
+        0 for a perfectly regular grid (or one with fewer than 3 corners per line).
+    """
+    cols, rows = inner_corners
+    g = np.asarray(corners, float).reshape(rows, cols, 2)
+    worst = 0.0
+    for grid in (g, g.transpose(1, 0, 2)):
+        if grid.shape[1] < 3:
+            continue
+        second = np.linalg.norm(grid[:, :-2] - 2 * grid[:, 1:-1] + grid[:, 2:], axis=-1)
+        spacing = np.linalg.norm(grid[:, 2:] - grid[:, :-2], axis=-1) / 2
+        worst = max(worst, float(np.max(second / np.maximum(spacing, 1e-9))))
+    return worst
+
+
+#: Above this :func:`grid_irregularity` a board's corners are not trusted.
+MAX_GRID_IRREGULARITY = 0.25
+
+
+def _refine(gray: np.ndarray, corners: np.ndarray, inner_corners, window: int):
+    """``cornerSubPix`` with half-window ``window``, shrunk while the result is irregular.
+
+    Returns ``(refined or None, half-window used, irregularity)``.
+    """
+    irregular = np.inf
+    for w in range(int(window), 1, -1):
+        refined = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2).astype(np.float32), (w, w), (-1, -1),
+                                   (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
+        refined = refined.reshape(-1, 2).astype(float)
+        irregular = grid_irregularity(refined, inner_corners)
+        if irregular <= MAX_GRID_IRREGULARITY:
+            return refined, w, irregular
+    return None, int(window), irregular
+
+
 def detect_board(image: np.ndarray, inner_corners: tuple[int, int], window: int | None = None,
                  ) -> tuple[np.ndarray | None, int, str]:
     """Find the inner corners of a checkerboard in one image.
+
+    OpenCV's classic detector (``findChessboardCorners``) is tried first;
+    when it fails (strongly foreshortened boards, squares of 5-7 px) the
+    sector-based ``findChessboardCornersSB`` (``CALIB_CB_ACCURACY``) is
+    used. Either way the corners are refined by ``cornerSubPix`` (the
+    toolbox's corner finder) with the half-window of :func:`subpix_window`;
+    if the refined corners are not a regular grid (:func:`grid_irregularity`
+    above :data:`MAX_GRID_IRREGULARITY`: the window reached the neighbouring
+    corners and pulled rows onto each other), the window is shrunk by one
+    pixel until they are (down to 2); a board that stays irregular is not
+    used, with the reason.
+
+    Measured on four rendered calibration sets of the virtual laboratory
+    (45 views per camera, seeds 0-3): a ``w = 4`` window without the check
+    put 11-60 corners of a view 2.6 px off (Horse 2's seed-1 set: ``fc``
+    1.2 % off); the sector detector's corners left unrefined bias ``fc`` by
+    -2.2 to -3.4 px (-0.3 to -0.46 %) on three sets; refined with the
+    shrinking window, ``|fc|`` errors stay within 1.0 px.
 
     Parameters
     ----------
@@ -114,31 +185,38 @@ def detect_board(image: np.ndarray, inner_corners: tuple[int, int], window: int 
         Inner corners per row and per column (the toolbox's ``n_sq_x + 1``,
         ``n_sq_y + 1``).
     window : int, optional
-        Half-size of the sub-pixel window; default :func:`subpix_window` of the
-        measured square size.
+        Largest half-size of the sub-pixel window; default
+        :func:`subpix_window` of the measured square size.
 
     Returns
     -------
     corners : ndarray (cols*rows, 2) or None
         Sub-pixel corners in :func:`canonical_order`, or None if not found.
     window : int
-        The half-window used (0 when not found).
+        The ``cornerSubPix`` half-window used (0 when not found).
     reason : str
         ``""`` when found, else why not.
     """
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     pattern = (int(inner_corners[0]), int(inner_corners[1]))
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    ok, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
-    if not ok:
-        ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+    why = f"board of {pattern[0]}x{pattern[1]} inner corners not found"
+    for detector in ("classic", "sector"):
+        if detector == "classic":
+            ok, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
+        else:
+            ok, corners = cv2.findChessboardCornersSB(gray, pattern,
+                                                      flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
         if not ok:
-            return None, 0, f"board of {pattern[0]}x{pattern[1]} inner corners not found"
-    corners = canonical_order(corners)
-    w = int(window) if window else subpix_window(square_size_px(corners, inner_corners))
-    refined = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2).astype(np.float32), (w, w), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
-    return refined.reshape(-1, 2).astype(float), w, ""
+            continue
+        corners = canonical_order(corners)
+        w = int(window) if window else subpix_window(square_size_px(corners, inner_corners))
+        refined, w_used, irregular = _refine(gray, corners, inner_corners, w)
+        if refined is not None:
+            return refined, w_used, ""
+        why = (f"the board's corners stay irregular after sub-pixel refinement ({irregular:.2f} "
+               "squares off a row, even with a 5x5 window): squares too small or blurred")
+    return None, 0, why
 
 
 @dataclass(frozen=True)

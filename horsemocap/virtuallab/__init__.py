@@ -10,11 +10,11 @@ truth beside every session.
 from .horse import (GAITS, HERD, HORSES, Gait, Harmonics, Horse, Pose, SaddleMotion,
                     saddle_motion)
 from .rig import INTRINSICS, EXTRINSICS, pair_disagreement, thesis_camera, thesis_rig
-from .session import Scene, build_truth, render_ball_drop, render_session
+from .session import Scene, build_truth, render_ball_drop, render_calibration_set, render_session
 from .herd import herd_description, herd_seed, herd_session, write_herd_description
 from .truth import Truth, load_truth, save_truth
 
 __all__ = ["GAITS", "HERD", "HORSES", "Gait", "Harmonics", "Horse", "Pose", "SaddleMotion",
            "saddle_motion", "INTRINSICS", "EXTRINSICS", "pair_disagreement", "thesis_camera",
-           "thesis_rig", "Scene", "build_truth", "render_session", "render_ball_drop",
+           "thesis_rig", "Scene", "build_truth", "render_session", "render_calibration_set", "render_ball_drop",
            "herd_description", "herd_seed", "herd_session", "write_herd_description", "Truth", "load_truth", "save_truth"]

@@ -496,6 +496,34 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     return out
 
 
+def render_calibration_set(out_dir, seed: int, n_views: int = 45, horse: str = "Horse 2",
+                           gait: str = "canter", *, noise: bool = True, compress: bool = True) -> dict:
+    """Render only the checkerboard views a session of this seed would hold.
+
+    The views are those :func:`render_session` writes into
+    ``calibration/`` (same board poses, background and noise for the same
+    ``seed`` and ``n_views``), one folder per camera in ``out_dir``; for
+    studying calibration draws without rendering the motion videos.
+
+    Returns
+    -------
+    dict
+        ``images`` (camera -> folder), ``board`` (``inner_corners``,
+        ``square_size_m``), ``rig`` (the true rig) and ``truth_extras``
+        (board poses).
+    """
+    from .calibration import render_calibration_views
+
+    out = Path(out_dir)
+    rig = thesis_rig()
+    motion = saddle_motion(horse, gait)
+    scene = Scene(rig, motion, int(seed))
+    bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
+    info = render_calibration_views(out, scene, bgs, int(n_views), noise=noise, compress=compress)
+    return {"images": {c.name: out / c.name for c in rig}, "board": info["board"], "rig": rig,
+            "truth_extras": info["truth_extras"]}
+
+
 def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -> Truth:
     """Exact truth of a session: analytic kinematics at the analysed frames."""
     rig, motion = scene.rig, scene.motion

@@ -298,10 +298,11 @@ for (a, b) in virtual.pairs:
     own = cal.grid_distance_check(cal.pair_rig(virtual, a, b), {c: virtual.views[c] for c in (a, b)}, square)
     sm = own.summary()
     print(f"pair {a}-{b} with its own calibration: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, "
-          f"bias {sm['segments_bias_pct']:+.2f} %")
+          f"bias over every segment {sm['segments_bias_pct']:+.2f} %")
 mixed = cal.rig_from_pairs(virtual.pairs, virtual.cameras, "left")
 sm = cal.grid_distance_check(mixed, virtual.views, square).summary()
-print(f"pairs mixed into one rig: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, bias {sm['segments_bias_pct']:+.2f} %")
+print(f"pairs mixed into one rig: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, "
+      f"bias over every segment {sm['segments_bias_pct']:+.2f} %")
 
 # %%
 fig, ax = plt.subplots(figsize=(7, 3.2))

@@ -182,8 +182,8 @@ plt.show()
 # Two numbers per axis. The **RMSE** against the true positions, and the RMSE once the **constant
 # offset** (the mean error over every frame and marker, printed as *bias*) is removed. A calibrated
 # rig is never exactly the true one: its reference camera's intrinsics and the baselines are off by
-# a fraction of a percent, which moves (and slightly scales) the whole reconstruction by a few
-# millimetres. A constant offset changes no velocity, acceleration or angle, so the second number
+# a fraction of a percent, which moves (and slightly scales) the whole reconstruction by several
+# millimetres, up to about a centimetre (notebook 06, section 8, measures it over many calibrations). A constant offset changes no velocity, acceleration or angle, so the second number
 # is the one that matters for the kinematics; the first is what a position measurement would get.
 # "Smoothed" is the pipeline's smoothing step (`smoothing.smooth_positions`, span 0.1, at least 7
 # frames per window) with its default, `loess` (MATLAB's `smooth(y, 0.1, 'loess')`: local quadratic,
@@ -308,8 +308,9 @@ for mode in ("thesis", "joint"):
 
 # %% [markdown]
 # With 0.1 px of noise the x-motion error misses 3 mm in both modes, smoothed or not: the rig, not
-# the algorithm, limits it. Here smoothing earns its place: both smoothers lower the x and z
-# errors; `loess` lowers the y-motion error too, where the robust iterations of `rloess` add to it.
+# the algorithm, limits it. Here smoothing earns its place: both smoothers lower the z errors and
+# `loess` the x errors too (`rloess` can leave x where it was); `loess` lowers the y-motion error
+# as well, where the robust iterations of `rloess` add to it.
 # That is the situation of the herd sessions of notebook 06, section 3, where `loess` is the best
 # of the three; the curve fits of notebook 09 filter further.
 #
@@ -334,7 +335,7 @@ print(f"left + right only: RMSE x {r2[0]:.2f} mm, y {r2[1]:.2f} mm, z {r2[2]:.2f
 
 # %% [markdown]
 # A wrong detection is worse than a missing one. If a camera swaps two markers, the rays no longer
-# meet and the reprojection residual jumps from a tenth of a pixel to tens of pixels. The joint
+# meet and the reprojection residual jumps from hundredths of a pixel to tens of pixels. The joint
 # mode checks it (`max_residual_px`, default 2 px): with three or more views it leaves out the
 # camera whose removal makes the others agree, and records it in `rejected`; the thesis' average
 # has no such check.

@@ -68,7 +68,7 @@ print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.s
 # %% [markdown]
 # The truth is used only to measure errors: the true positions of the analysed frames, the true
 # gravity and the true motion axes. As in notebook 05, each error is given as the RMSE along the true
-# motion axes and as the RMSE once the constant offset (the calibrated rig's few-millimetre absolute
+# motion axes and as the RMSE once the constant offset (the calibrated rig's absolute
 # bias, which no velocity, acceleration or angle sees) is removed.
 
 # %%
@@ -79,10 +79,10 @@ A_true = truth.motion_axes                                  # rows: true x-, y-,
 
 
 def errors_mm(pts, ref=None):
-    """RMSE per true motion axis, and the RMSE once the mean error (bias) is removed, in mm."""
+    """RMSE per true motion axis, and the RMSE once the constant offset is removed, in mm."""
     est, ref = pts @ A_true.T, (true_pos if ref is None else ref) @ A_true.T
-    bias = np.nanmean((est - ref).reshape(-1, 3), axis=0)
-    return 1000 * accuracy.rmse_axes(est, ref), 1000 * accuracy.rmse_axes(est - bias, ref)
+    _, motion = accuracy.offset_and_motion(est, ref)
+    return 1000 * accuracy.rmse_axes(est, ref), 1000 * motion
 
 
 r, rc = errors_mm(points)
@@ -412,14 +412,84 @@ for mode in ("joint", "thesis"):
 # the motion itself (bias removed) is measured well within 3 mm along the travel and vertically,
 # in both modes, the joint mode no worse than the thesis' average; the plumb's gravity direction
 # is within a small fraction of the 0.2° target. The absolute positions carry the calibration's
-# constant offset along gravity, so the **absolute** y-motion RMSE **misses** the 3 mm target
-# whatever the smoothing; it is a constant shift of the whole reconstruction and drops out of
-# every velocity, acceleration and angle. The thesis' `rloess` makes the y-motion worse in every
-# column (and with it the joint-versus-thesis comparison depends on the smoother, not on the
-# triangulation). Compared with no smoothing, `loess` lowers the x- and z-motion errors a little,
-# costs hundredths of a millimetre vertically, and tilts the estimated x-motion axis a little
-# more (u1 is taken between end frames, where the window is one-sided). The depth (z-motion) is the weak axis of a narrow-baseline rig (notebook 05);
+# constant offset, so the **absolute** y-motion RMSE **misses** the 3 mm target whatever the
+# smoothing; it is a constant shift of the whole reconstruction and drops out of every velocity,
+# acceleration and angle. Section 8 measures where that offset comes from. The thesis' `rloess`
+# makes the y-motion worse in every column (and with it the joint-versus-thesis comparison
+# depends on the smoother, not on the triangulation). Compared with no smoothing, `loess` lowers
+# the x- and z-motion errors a little, costs hundredths of a millimetre vertically, and tilts the
+# estimated x-motion axis a little more (u1 is taken between end frames, where the window is
+# one-sided). The depth (z-motion) is the weak axis of a narrow-baseline rig (notebook 05);
 # notebook 14 follows all of this through to the comfort indicators, with noisier detections too.
+#
+# ## 8 · The absolute offset is the calibration's: how large can it be?
+#
+# A calibration that is slightly off shifts, turns and scales the reconstructed space as a whole;
+# the horse is 7.7 m away, so a principal point off by half a pixel (a ray turned by 0.7 mrad)
+# is already about 5 mm at the horse, nearly the same for every marker. On this session it is
+# mostly a shift: the plumb's gravity (section 4) is within a hundredth of a degree of the
+# truth, while every marker sits several millimetres off along it (section 7). The thesis reports its own calibration
+# uncertainty (Table 8.1: principal point ±1.97 px vertically for the left camera, three
+# standard deviations, from 90 views): a vertical datum uncertainty of about ±20 mm at the horse.
+#
+# `benchmarks/bench_calibration.py` measures it on our virtual laboratory. For each seed it renders
+# the checkerboard views a session of that seed holds (all boards near the path, as in section
+# 8.2), calibrates the rig exactly as the pipeline does, and triangulates the **exact**
+# projections of this session's markers with it (`accuracy.calibration_draws`): what is left is
+# the calibration's error alone, split into the constant offset and the motion error
+# (`accuracy.offset_and_motion`). Its measured output is committed in
+# `benchmarks/results/calibration_draws.json`; seed 0 is this session's own set of views.
+
+# %%
+import json
+
+from horsemocap.data import repository_file
+
+draws = json.loads(repository_file("benchmarks/results/calibration_draws.json").read_text())["rows"]
+print(f"{'views':>5s} {'seed':>4s} | offset x, y, z (mm)        | motion RMSE x, y, z (mm)  | left cy error (px)")
+for d in draws:
+    o, m = 1000 * np.array(d["offset_m"]), 1000 * np.array(d["motion_rmse_m"])
+    print(f"{d['n_views']:5d} {d['seed']:4d} | {o[0]:7.2f} {o[1]:7.2f} {o[2]:8.2f} | {m[0]:6.2f} {m[1]:6.2f} {m[2]:6.2f} "
+          f"| {d['intrinsic_error']['left'][3]:+.2f}")
+for n_views in sorted({d["n_views"] for d in draws}):
+    off = 1000 * np.array([d["offset_m"] for d in draws if d["n_views"] == n_views])
+    mot = 1000 * np.array([d["motion_rmse_m"] for d in draws if d["n_views"] == n_views])
+    inside = np.mean(np.abs(off[:, 1]) < TARGET_MM)
+    print(f"{n_views} views, {len(off)} calibrations: offset std x {off[:, 0].std(ddof=1):.1f}, "
+          f"y {off[:, 1].std(ddof=1):.1f}, z {off[:, 2].std(ddof=1):.1f} mm; |y offset| < {TARGET_MM:.0f} mm "
+          f"in {100 * inside:.0f} % of them; worst motion RMSE x {mot[:, 0].max():.2f}, y {mot[:, 1].max():.2f} mm")
+
+# %%
+fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+for n_views, marker in ((45, "o"), (90, "s")):
+    off = 1000 * np.array([d["offset_m"] for d in draws if d["n_views"] == n_views])
+    if len(off):
+        ax[0].scatter(off[:, 0], off[:, 1], marker=marker, label=f"{n_views} views")
+        ax[1].scatter(off[:, 2], off[:, 1], marker=marker, label=f"{n_views} views")
+offset_here, _ = accuracy.offset_and_motion(smoothed @ A_true.T, true_pos @ A_true.T)
+for axis, (i, name) in zip(ax, ((0, "x"), (2, "z"))):
+    axis.axhspan(-TARGET_MM, TARGET_MM, color="0.9", label="±3 mm (y target)")
+    axis.scatter(1000 * offset_here[i], 1000 * offset_here[1], marker="*", s=150, color="k",
+                 label="this session (detected, smoothed)")
+    axis.set_xlabel(f"{name}-motion offset (mm)")
+    axis.set_ylabel("y-motion offset (mm)")
+ax[0].legend(fontsize=8)
+fig.suptitle("constant offset of the reconstructed markers, one point per calibration")
+plt.tight_layout()
+plt.show()
+
+# %% [markdown]
+# **What this says about the 3 mm target.** The motion itself is measured to a fraction of a
+# millimetre in x and y by every calibration; the absolute position of the whole reconstruction
+# is not: from one set of checkerboard views to the next its offset moves by several
+# millimetres vertically and along the travel and in depth (the standard deviations printed
+# above), and 90 views (the thesis' number) do not remove it: the spread stays at several
+# millimetres on every axis (six draws are too few to say more), because all the boards stand at
+# the same depth. Whether one session's
+# absolute y-motion error is under 3 mm is therefore a draw of its calibration, not a property
+# of triangulation or smoothing; a lab that needs absolute positions to a few millimetres must
+# calibrate with boards at several depths and stronger tilts (or survey a reference), which the
+# thesis' mechanism on the path does not do. This session's own offset is the star above.
 #
 # ## Exercises
 #

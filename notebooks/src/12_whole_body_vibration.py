@@ -76,7 +76,7 @@ for name, tab in (("Wk", wk_tab), ("Wd", wd_tab)):
           f" at {f_tab[worst]:g} Hz")
 
 # %% [markdown]
-# Every entry agrees within 0.3% except $W_d$ at 10 Hz: the table prints 0.212, the definition
+# Every entry agrees within 0.35 % except $W_d$ at 10 Hz: the table prints 0.212, the definition
 # gives 0.202. Above 2 Hz $W_d \approx 2/f$, and $f\,W_d$ is 2.02 at 8 Hz, 2.01 at 12.5 Hz, but 2.12
 # at 10 Hz: the printed entry is the odd one out, a misprint.
 #

@@ -118,7 +118,7 @@ plt.show()
 # Even a quarter of a pixel of detection noise ruins the saddle's acceleration with the thesis rig.
 # The depth formula explains it: with $Z = 7.5$ m, $f \approx 725$ px and $B = 0.45$ m, one pixel of
 # error is $\delta Z \approx 7.5^2 / (725 \cdot 0.45) \approx 0.17$ m of depth. The markers' depth noise
-# becomes a rotation error of the rigid body, and the saddle, 0.2-0.3 m away from the markers, swings
+# becomes a rotation error of the rigid body, and the saddle, 0.45 m from the markers' row (notebook 11), swings
 # with it; differentiating twice (even through a Fourier fit) multiplies the noise by $(2\pi f)^2$.
 
 # %%
@@ -173,7 +173,8 @@ for r in study:
 # <details><summary>Solutions</summary>
 #
 # 1. `accuracy.noise_study(analysis, truth, params=accuracy.with_params(analysis, triangulation="thesis"))`;
-#    the joint mode uses all rays at once and is at least as good (notebook 05 shows it on the truth).
+#    the joint mode uses all rays at once and is at least as good with the pipeline's `loess` or no
+#    smoothing (notebook 05 shows it on the truth; with `rloess` the comparison depends on the smoother).
 # 2. $B = Z^2 \delta u / (f \delta Z) = 56.25 \cdot 0.25 / (725 \cdot 0.005) \approx 3.9$ m.
 # 3. Triangulation: the depth (z) error is already there after triangulation and smoothing does not
 #    remove it; registration and the rigid-body formulas carry it to the saddle.
