@@ -60,7 +60,7 @@ class AnalysisParams:
         ``{"y": N, "z": N}`` or per marker ``[[Ny, Nz], ...]``; None = the
         order rule of 5.5.2.2 with ``order_rule`` choosing between E/2 and E/2+1.
     order_rule : str
-        ``"significant"``, ``"adjrsquare"`` or ``"thesis"`` (see
+        ``"significant"``, ``"every_significant"``, ``"adjrsquare"`` or ``"thesis"`` (see
         :func:`horsemocap.fitting.choose_order`).
     fourier_trend : bool
         A linear drift term in the y/z fits (not in the thesis: absorbs the
@@ -135,8 +135,8 @@ class AnalysisParams:
                 bad(name, "six booleans, at least one true")
         if self.saddle_method not in ("pose", "direct", "thesis"):
             bad("saddle_method", '"pose", "direct" or "thesis"')
-        if self.order_rule not in ("significant", "adjrsquare", "thesis"):
-            bad("order_rule", '"significant", "adjrsquare" or "thesis"')
+        if self.order_rule not in ("significant", "every_significant", "adjrsquare", "thesis"):
+            bad("order_rule", '"significant", "every_significant", "adjrsquare" or "thesis"')
         if self.weighting_mode not in ("iso", "thesis"):
             bad("weighting_mode", '"iso" or "thesis"')
         if self.period_frames is not None and float(self.period_frames) <= 2:

@@ -249,3 +249,22 @@ def test_fourier_with_trend_recovers_drift():
     plain = fitting.fit_fourier(T, y, 3, w0=w)
     assert plain.gof.sse > 1e6 * f.gof.sse
     assert fitting.fit_motion(T, np.stack([T, y, y], -1)[:, None], orders=3, trend=True).fits[0][1].trend
+
+
+def test_every_significant_lowers_orders_proposed_by_noise():
+    # two real harmonics plus noise; E = 10 (as if noise extremes were counted) proposes N1 = 5
+    rng = np.random.default_rng(4)
+    t = np.arange(80) / 60.0
+    w = 2 * np.pi * 1.7
+    y = 0.03 * np.cos(w * t) + 0.012 * np.sin(2 * w * t) + rng.normal(0, 0.002, t.size)
+    assert fitting.choose_order(t, y, 10, rule="significant", w0=w) >= 5
+    n = fitting.choose_order(t, y, 10, rule="every_significant", w0=w)
+    assert n == 2
+    fit = fitting.fit_fourier(t, y, n, w0=w)
+    assert fitting.top_harmonic_significant(fit)
+    assert not fitting.top_harmonic_significant(fitting.fit_fourier(t, y, 5, w0=w))
+    # an order that stands is still offered N1 + 1 as in "significant"
+    assert fitting.choose_order(t, y, 4, rule="every_significant", w0=w) == \
+        fitting.choose_order(t, y, 4, rule="significant", w0=w)
+    with pytest.raises(ValueError, match="every_significant"):
+        fitting.choose_order(t, y, 4, rule="backward")
