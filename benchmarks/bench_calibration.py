@@ -9,7 +9,7 @@ the true motion axes is split into the constant offset (the datum) and the
 motion error. Prints a row per draw and the spread, and writes every number
 to ``benchmarks/results/calibration_draws.json`` (read by notebook 06).
 
-Usage: ``python benchmarks/bench_calibration.py [--seeds 0-9] [--views 45 90]``
+Usage: ``python benchmarks/bench_calibration.py [--seeds 0-9] [--views 45 90] [--protocol path|depths]``
 (about 20 s per 45-view draw, 40 s per 90-view draw on this machine).
 """
 from __future__ import annotations
@@ -47,6 +47,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-9")
     ap.add_argument("--views", type=int, nargs="+", default=[45, 90])
+    ap.add_argument("--protocol", default="path", choices=["path", "depths"],
+                    help="where the boards stand (virtuallab.calibration.PROTOCOLS)")
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args()
 
@@ -61,7 +63,7 @@ def main():
     for n_views in args.views:
         for seed in _seeds(args.seeds):
             t0 = time.perf_counter()
-            row = calibration_draws(truth, [seed], n_views)[0]
+            row = calibration_draws(truth, [seed], n_views, protocol=args.protocol)[0]
             row["time_s"] = time.perf_counter() - t0
             rows.append(_jsonable(row))
             ie = row["intrinsic_error"]["left"]

@@ -399,7 +399,7 @@ def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,
 
 
 def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = "Horse 2",
-                      gait: str = "canter", mode: str = "joint") -> list[dict]:
+                      gait: str = "canter", mode: str = "joint", protocol: str = "path") -> list[dict]:
     """How far the thesis' calibration puts the markers: one row per rendered calibration set.
 
     For every seed the virtual laboratory renders the checkerboard views a
@@ -423,6 +423,10 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
         Which scene's background the boards are rendered on.
     mode : {"joint", "pairwise"}
         The calibration's rig (see :func:`~horsemocap.calibration.calibrate_rig`).
+    protocol : str
+        Where the boards stand: ``"path"`` (the thesis', the sessions') or
+        ``"depths"`` (also nearer the cameras, turned further); see
+        :data:`horsemocap.virtuallab.calibration.PROTOCOLS`.
 
     Returns
     -------
@@ -449,7 +453,7 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
     out = []
     for seed in seeds:
         with tempfile.TemporaryDirectory() as tmp:
-            cal_set = render_calibration_set(tmp, int(seed), n_views, horse, gait)
+            cal_set = render_calibration_set(tmp, int(seed), n_views, horse, gait, protocol=protocol)
             board = cal_set["board"]
             cal = calibrate_rig(cal_set["images"], tuple(board["inner_corners"]), board["square_size_m"],
                                 reference=ref, mode=mode, pairs=mode == "pairwise")
@@ -457,7 +461,7 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
         points = triangulate(rig, {c: px[c] for c in rig.names}, mode="joint").points[known]
         est_m = points @ truth.motion_axes.T
         offset, motion = offset_and_motion(est_m, true_m)
-        row = {"seed": int(seed), "n_views": int(n_views),
+        row = {"seed": int(seed), "n_views": int(n_views), "protocol": protocol,
                "views_used": {c: int(cal.singles[c].used.sum()) for c in rig.names},
                "intrinsic_error": {}, "sigma3": {}, "baseline_error_pct": {},
                "offset_m": offset, "motion_rmse_m": motion, "rmse_m": rmse_axes(est_m, true_m)}

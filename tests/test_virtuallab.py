@@ -289,3 +289,19 @@ def test_herd_session_rejects_unknown_names(tmp_path):
         vl.herd_session("Horse 9", "walk", cache=tmp_path)
     with pytest.raises(ValueError, match="gallop"):
         vl.herd_session("Horse 1", "gallop", cache=tmp_path)
+
+
+def test_calibration_protocols_differ_only_where_they_should():
+    from horsemocap.virtuallab import saddle_motion
+    from horsemocap.virtuallab.calibration import PROTOCOLS, board_poses
+
+    motion = saddle_motion("Horse 2", "canter")
+    path = board_poses(24, motion, 3, protocol="path")
+    depths = board_poses(24, motion, 3, protocol="depths")
+    z_path = np.array([np.linalg.norm(t) for _, t in path])
+    z_depths = np.array([np.linalg.norm(t) for _, t in depths])
+    assert z_depths.min() < 0.75 * z_path.min()          # some boards come nearer the cameras
+    assert abs(z_depths[18:].mean() - z_path[18:].mean()) < 0.3   # the last slides stay at the path
+    assert set(PROTOCOLS) == {"path", "depths"}
+    with pytest.raises(ValueError, match="protocol"):
+        board_poses(3, motion, 0, protocol="lab")

@@ -83,19 +83,32 @@ def render_board(img: np.ndarray, cam: Camera, R_wb: np.ndarray, t_wb: np.ndarra
     sub += (cov * col)[..., None] * np.array([1.0, 0.99, 0.95])
 
 
-def board_poses(n_views: int, motion, seed: int, depth_m: float | None = None, squares=None, square=None):
-    """``n_views`` board poses (R_wb, t_wb) in six slides along the path."""
+#: Calibration protocols: where the boards stand and how far they turn.
+#: ``"path"``: the thesis' (section 8.2), boards slid along the horse's path
+#: (depth +-0.25 m), turned up to 35 deg about the vertical and 20 deg about
+#: the horizontal axis. ``"depths"``: a lab that also brings the board nearer
+#: the cameras (60-100 % of the path's depth) and turns it further (50 / 35 deg).
+PROTOCOLS = {"path": ((1.0, 1.0), 35.0, 20.0), "depths": ((0.6, 1.0), 50.0, 35.0)}
+
+
+def board_poses(n_views: int, motion, seed: int, depth_m: float | None = None, squares=None, square=None,
+                protocol: str = "path"):
+    """``n_views`` board poses (R_wb, t_wb) in six slides along the path (see :data:`PROTOCOLS`)."""
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"protocol: expected one of {sorted(PROTOCOLS)}, got {protocol!r}")
+    (near, far), max_yaw, max_pitch = PROTOCOLS[protocol]
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 77]))
     rows, cols = squares or BOARD_SQUARES
     W, H = cols * (square or SQUARE_M), rows * (square or SQUARE_M)
-    depth = motion.horse.path_depth_m if depth_m is None else depth_m
+    path_depth = motion.horse.path_depth_m if depth_m is None else depth_m
     poses = []
     for i in range(n_views):
+        depth = path_depth * (far if near == far else near + (far - near) * ((i // len(BOARD_SLIDES)) % 4) / 3)
         z = depth + rng.uniform(-0.25, 0.25)
         x = (BOARD_SLIDES[i % len(BOARD_SLIDES)] + rng.uniform(-0.15, 0.15)) * min(1.0, depth / 8.0)
         yc = -1.25 + rng.uniform(-0.15, 0.15)         # board centre height ~1.25 m
-        yaw = rng.uniform(-35, 35) * math.pi / 180
-        pitch = rng.uniform(-20, 20) * math.pi / 180
+        yaw = rng.uniform(-max_yaw, max_yaw) * math.pi / 180
+        pitch = rng.uniform(-max_pitch, max_pitch) * math.pi / 180
         roll = rng.uniform(-8, 8) * math.pi / 180
         R_gb = rotation_matrix([0, yaw, 0]) @ rotation_matrix([pitch, 0, 0]) @ rotation_matrix([0, 0, roll])
         centre_g = np.array([x, yc, z])
@@ -122,7 +135,7 @@ def detect_board(gray: np.ndarray, inner=(15, 29)):
 
 
 def render_calibration_views(folder, scene, bgs, n_views: int, *, noise: bool = True, compress: bool = True,
-                             squares=LAB_BOARD_SQUARES, square=LAB_SQUARE_M):
+                             squares=LAB_BOARD_SQUARES, square=LAB_SQUARE_M, protocol: str = "path"):
     """Write ``<folder>/<cam>/<cam><i>.jpg|png`` synchronised board views.
 
     Returns a dict with the board description and truth extras (board poses).
@@ -130,7 +143,7 @@ def render_calibration_views(folder, scene, bgs, n_views: int, *, noise: bool = 
     from pathlib import Path
 
     folder = Path(folder)
-    poses = board_poses(n_views, scene.motion, scene.seed, squares=squares, square=square)
+    poses = board_poses(n_views, scene.motion, scene.seed, squares=squares, square=square, protocol=protocol)
     inner = (squares[0] - 1, squares[1] - 1)
     for ci, cam in enumerate(scene.rig):
         d = folder / cam.name

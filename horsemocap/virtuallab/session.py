@@ -497,13 +497,16 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
 
 
 def render_calibration_set(out_dir, seed: int, n_views: int = 45, horse: str = "Horse 2",
-                           gait: str = "canter", *, noise: bool = True, compress: bool = True) -> dict:
+                           gait: str = "canter", *, noise: bool = True, compress: bool = True,
+                           protocol: str = "path") -> dict:
     """Render only the checkerboard views a session of this seed would hold.
 
     The views are those :func:`render_session` writes into
     ``calibration/`` (same board poses, background and noise for the same
     ``seed`` and ``n_views``), one folder per camera in ``out_dir``; for
     studying calibration draws without rendering the motion videos.
+    ``protocol`` chooses where the boards stand
+    (:data:`horsemocap.virtuallab.calibration.PROTOCOLS`; sessions use ``"path"``).
 
     Returns
     -------
@@ -519,7 +522,8 @@ def render_calibration_set(out_dir, seed: int, n_views: int = 45, horse: str = "
     motion = saddle_motion(horse, gait)
     scene = Scene(rig, motion, int(seed))
     bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
-    info = render_calibration_views(out, scene, bgs, int(n_views), noise=noise, compress=compress)
+    info = render_calibration_views(out, scene, bgs, int(n_views), noise=noise, compress=compress,
+                                    protocol=protocol)
     return {"images": {c.name: out / c.name for c in rig}, "board": info["board"], "rig": rig,
             "truth_extras": info["truth_extras"]}
 
