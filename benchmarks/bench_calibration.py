@@ -6,8 +6,9 @@ as in thesis section 8.2), the rig is calibrated from them as the pipeline
 does, and the exact projections of the default session's markers are
 triangulated with it (``accuracy.calibration_draws``). The marker error in
 the true motion axes is split into the constant offset (the datum) and the
-motion error. Prints a row per draw and the spread, and writes every number
-to ``benchmarks/results/calibration_draws.json`` (read by notebook 06).
+motion error. Prints a row per draw and the spread, and merges every number
+into ``benchmarks/results/calibration_draws.json`` (read by notebook 06; rows
+of the same protocol, views and seed are replaced, the others kept).
 
 Usage: ``python benchmarks/bench_calibration.py [--seeds 0-9] [--views 45 90] [--protocol path|depths]``
 (about 20 s per 45-view draw, 40 s per 90-view draw on this machine).
@@ -44,10 +45,12 @@ def _jsonable(row: dict) -> dict:
 
 
 def main():
+    from horsemocap.virtuallab.calibration import PROTOCOLS
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-9")
     ap.add_argument("--views", type=int, nargs="+", default=[45, 90])
-    ap.add_argument("--protocol", default="path", choices=["path", "depths"],
+    ap.add_argument("--protocol", default="path", choices=sorted(PROTOCOLS),
                     help="where the boards stand (virtuallab.calibration.PROTOCOLS)")
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args()
@@ -78,9 +81,26 @@ def main():
         print(f"{n_views} views, {len(sel)} draws: |offset| mean {np.round(np.abs(off).mean(0), 2)}, "
               f"std {np.round(off.std(0, ddof=1), 2) if len(sel) > 1 else '-'}, "
               f"motion RMSE max {np.round(mot.max(0), 2)}")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps({"session": "data_samples/horse2_canter", "rows": rows}, indent=1))
+    _merge(Path(args.out), rows, " ".join(["python benchmarks/bench_calibration.py", f"--seeds {args.seeds}",
+                                            "--views", *map(str, args.views), f"--protocol {args.protocol}"]))
     print(f"wrote {args.out}")
+
+
+def _merge(path: Path, rows: list, command: str) -> None:
+    """Add ``rows`` to the results file, replacing rows of the same (protocol, views, seed)."""
+    old = json.loads(path.read_text()) if path.is_file() else {}
+
+    def key(r):
+        return r.get("protocol", "path"), r["n_views"], r["seed"]
+
+    new_keys = {key(r) for r in rows}
+    kept = [r for r in old.get("rows", []) if key(r) not in new_keys]
+    out = {"session": "data_samples/horse2_canter", "commands": old.get("commands", []) + [command],
+           "rows": sorted(kept + rows, key=lambda r: (key(r)[0] != "path", key(r)[1], key(r)[2]))}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(out, indent=1))
+    tmp.replace(path)
 
 
 if __name__ == "__main__":

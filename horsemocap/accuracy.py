@@ -144,6 +144,8 @@ def offset_and_motion(estimate: np.ndarray, true: np.ndarray) -> tuple[np.ndarra
         Mean error per axis (estimate - true).
     motion_rmse : ndarray (3,)
         RMSE per axis once the offset is removed.
+
+    Both are NaN (with NumPy's empty-mean warning) if no sample is finite.
     """
     d = np.asarray(estimate, float) - np.asarray(true, float)
     d = d.reshape(-1, d.shape[-1])
@@ -416,7 +418,8 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
     truth : Truth
         A virtual session's truth (its markers and rig).
     seeds : iterable of int
-        Seeds of the calibration sets (the session's own seed gives its own views).
+        Seeds of the calibration sets (the session's own seed, with its
+        ``n_views`` and the ``"path"`` protocol, gives its own views).
     n_views : int
         Views per camera (the thesis used 90).
     horse, gait : str
@@ -433,7 +436,8 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
     list of dict
         ``seed``, ``n_views``, ``views_used`` per camera, ``intrinsic_error``
         per camera (``fx, fy, cx, cy`` minus the truth, px), ``sigma3`` per
-        camera (the calibration's own three-sigma ``fx, fy, cx, cy``),
+        camera (the calibration's own three-sigma ``fx, fy, cx, cy``: the joint
+        bundle adjustment's in ``"joint"`` mode, each camera's alone otherwise),
         ``baseline_error_pct`` per non-reference camera, ``offset_m`` and
         ``motion_rmse_m`` and ``rmse_m`` (per motion axis x, y, z).
     """
@@ -458,6 +462,11 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
             cal = calibrate_rig(cal_set["images"], tuple(board["inner_corners"]), board["square_size_m"],
                                 reference=ref, mode=mode, pairs=mode == "pairwise")
         rig = cal.rig
+        if tuple(cal_set["rig"].names) != tuple(truth.rig.names) or not all(
+                np.allclose(cal_set["rig"][c].matrix, truth.rig[c].matrix) for c in truth.rig.names):
+            raise ValueError("calibration_draws: the truth was not made with the virtual laboratory's thesis rig "
+                             f"(cameras {list(truth.rig.names)}); its markers cannot be compared with views "
+                             "rendered by that rig")
         points = triangulate(rig, {c: px[c] for c in rig.names}, mode="joint").points[known]
         est_m = points @ truth.motion_axes.T
         offset, motion = offset_and_motion(est_m, true_m)
@@ -470,7 +479,8 @@ def calibration_draws(truth, seeds=range(5), n_views: int = 45, *, horse: str = 
             K, Kt = cam.matrix, t.matrix
             row["intrinsic_error"][cam.name] = np.array([K[0, 0] - Kt[0, 0], K[1, 1] - Kt[1, 1],
                                                          K[0, 2] - Kt[0, 2], K[1, 2] - Kt[1, 2]])
-            row["sigma3"][cam.name] = np.asarray(cal.singles[cam.name].sigma3[:4], float)
+            own = cal.joint.intrinsics[cam.name] if mode == "joint" else cal.singles[cam.name]
+            row["sigma3"][cam.name] = np.asarray(own.sigma3[:4], float)
             if cam.name != ref:
                 b, bt = np.linalg.norm(cam.center), np.linalg.norm(t.center)
                 row["baseline_error_pct"][cam.name] = 100 * (b - bt) / bt

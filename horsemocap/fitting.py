@@ -410,7 +410,7 @@ def choose_order(t, y, n_extremes: int | None = None, rule: str = "significant",
         As ``"significant"``, but first the order is lowered from ``N1`` while
         its highest harmonic is not significant
         (:func:`top_harmonic_significant`), for when E counts extremes of
-        noise. Measured on the 16 herd sessions (``benchmarks/bench_herd.py
+        noise; a lowered order is final (``N + 1`` is not tried again). Measured on the 16 herd sessions (``benchmarks/bench_herd.py
         --params '{"order_rule": "every_significant"}'``): median saddle
         vertical-acceleration error 19.4 % against 24.6 %, but the
         Wb-weighted rms is then underestimated (median abs error 11.2 %
@@ -442,7 +442,6 @@ def choose_order(t, y, n_extremes: int | None = None, rule: str = "significant",
             f1, lowered = fit_fourier(t, y, f1.order - 1, w0=w0, start=start, trend=trend), True
         if lowered:
             return f1.order
-        n1, n2 = f1.order, f1.order + 1
     f2 = fit_fourier(t, y, n2, w0=w0, start=start, trend=trend)
     better = f2.gof.adjrsquare > f1.gof.adjrsquare
     if rule == "adjrsquare":

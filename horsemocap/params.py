@@ -135,8 +135,10 @@ class AnalysisParams:
                 bad(name, "six booleans, at least one true")
         if self.saddle_method not in ("pose", "direct", "thesis"):
             bad("saddle_method", '"pose", "direct" or "thesis"')
-        if self.order_rule not in ("significant", "every_significant", "adjrsquare", "thesis"):
-            bad("order_rule", '"significant", "every_significant", "adjrsquare" or "thesis"')
+        from .fitting import ORDER_RULES
+
+        if self.order_rule not in ORDER_RULES:
+            bad("order_rule", " or ".join(f'"{r}"' for r in ORDER_RULES))
         if self.weighting_mode not in ("iso", "thesis"):
             bad("weighting_mode", '"iso" or "thesis"')
         if self.period_frames is not None and float(self.period_frames) <= 2:

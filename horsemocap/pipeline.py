@@ -131,11 +131,11 @@ def step_detect(session: Session, params: AnalysisParams, res: dict, progress) -
     marker_px, reasons, chosen = {}, {}, {}
     for cam in session.cameras:
         progress("detect", f"camera '{cam}': {n} frames ...")
-        frames = FrameSource(session.motion[cam]).read(offsets[cam], offsets[cam] + n, color=False)
+        frames = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
         track = detect_markers(frames, session.marker_count, params=_detection_params(params, cam))
         marker_px[cam], reasons[cam] = track.marker_px, track.reason
         chosen[cam] = track.params.to_dict()
-        del frames
+        frames.close()
     seen = np.all([np.all(np.isfinite(marker_px[c][..., 0]), axis=1) for c in session.cameras], axis=0)
     segment = _longest_run(seen)
     if segment is None or segment[1] - segment[0] < 8:

@@ -112,15 +112,134 @@ class FrameSource:
         Raises :class:`SourceError` naming the file if fewer frames exist than
         asked for.
         """
-        frames = [f for _, f in self.iter_frames(start, stop, color)]
-        if stop is not None and len(frames) < stop - start:
+        if stop is None:
+            frames = [f for _, f in self.iter_frames(start, stop, color)]
+            if not frames:
+                raise SourceError(f"{self.path}: no frame from index {start}")
+            return np.stack(frames)
+        # known length: fill one array (a list of frames and its stacked copy would need twice the memory)
+        out, count = None, 0
+        for _, f in self.iter_frames(start, stop, color):
+            if out is None:
+                out = np.empty((stop - start,) + f.shape, f.dtype)
+            out[count] = f
+            count += 1
+        if out is None and stop <= start:
+            raise SourceError(f"{self.path}: no frame from index {start}")
+        if count < stop - start:
             raise SourceError(
                 f"{self.path}: expected frames {start}..{stop - 1}, but the source ends after "
-                f"{start + len(frames)} frames (truncated video or missing images?)")
-        if not frames:
-            raise SourceError(f"{self.path}: no frame from index {start}")
-        return np.stack(frames)
+                f"{start + count} frames (truncated video or missing images?)")
+        return out
 
     def frame(self, index: int, color: bool = True) -> np.ndarray:
         """One frame by index."""
         return self.read(index, index + 1, color)[0]
+
+    def sequence(self, start: int, stop: int, color: bool = True, cache_frames: int = 128) -> "FrameSequence":
+        """Frames ``start..stop-1`` decoded on demand: :class:`FrameSequence`."""
+        return FrameSequence(self, int(start), int(stop), color, cache_frames)
+
+
+class FrameSequence:
+    """Frames ``start..stop-1`` of a :class:`FrameSource`, decoded when indexed.
+
+    Indexable like the array :meth:`FrameSource.read` returns (``seq[k]`` is
+    frame ``start + k``; ``len``, ``shape``, ``ndim``, ``dtype``), but only
+    the last ``cache_frames`` decoded frames are kept, so a long session
+    needs the memory of a few dozen frames, not of all of them. Reading
+    backwards decodes blocks of frames forwards (videos seek to a frame,
+    then decode on). The whole range is checked on creation: a source that
+    ends early raises :class:`SourceError` as :meth:`FrameSource.read` does.
+    """
+
+    def __init__(self, source: FrameSource, start: int, stop: int, color: bool = True, cache_frames: int = 128):
+        if stop <= start or start < 0:
+            raise SourceError(f"{source.path}: no frame from index {start} (asked for {start}..{stop - 1})")
+        self.source, self.start, self.stop, self.color = source, start, stop, color
+        self.cache_frames = max(8, int(cache_frames))
+        self._cache: dict[int, np.ndarray] = {}
+        self._files = None if source.is_video else list_images(source.path)
+        self._cap, self._next = None, None
+        first = self[0]
+        self.shape = (stop - start,) + first.shape
+        self.dtype = first.dtype
+        self.ndim = len(self.shape)
+        try:
+            self[len(self) - 1]
+        except SourceError:
+            count = len(self.source) - start
+            raise SourceError(
+                f"{source.path}: expected frames {start}..{stop - 1}, but the source ends after "
+                f"{start + max(count, 0)} frames (truncated video or missing images?)") from None
+
+    def __len__(self) -> int:
+        return self.stop - self.start
+
+    def __getitem__(self, k):
+        if not isinstance(k, (int, np.integer)):
+            raise TypeError(f"{self.source.path}: a FrameSequence is indexed by one frame number, got {k!r}")
+        k = int(k) + (len(self) if k < 0 else 0)
+        if not 0 <= k < len(self):
+            raise IndexError(f"frame {k} outside 0..{len(self) - 1}")
+        frame = self._cache.get(k)
+        if frame is None:
+            frame = self._load(k)
+        return frame
+
+    def _keep(self, k: int, frame: np.ndarray) -> None:
+        self._cache[k] = frame
+        while len(self._cache) > self.cache_frames:
+            self._cache.pop(next(iter(self._cache)))
+
+    def _load(self, k: int) -> np.ndarray:
+        if self._files is not None:
+            if self.start + k >= len(self._files):
+                raise SourceError(f"{self.source.path}: no image for frame {self.start + k}")
+            frame = read_image(self._files[self.start + k], self.color)
+            self._keep(k, frame)
+            return frame
+        # a video: decode forwards from where the capture is, or from a block before k
+        first = k if self._next is not None and k >= self._next and k - self._next < 32 else None
+        if first is None:
+            backwards = self._next is not None and k < self._next
+            first = max(0, k - self.cache_frames // 4 + 1) if backwards else k
+        if self._cap is None or self._next is None or first < self._next or first - self._next >= 32:
+            self._seek(first)
+        frame = None
+        while self._next <= k:
+            ok, bgr = self._cap.read()
+            if not ok:
+                raise SourceError(f"{self.source.path}: no frame {self.start + self._next}")
+            f = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB if self.color else cv2.COLOR_BGR2GRAY)
+            self._keep(self._next, f)
+            if self._next == k:
+                frame = f
+            self._next += 1
+        return frame
+
+    def _seek(self, k: int) -> None:
+        if self._cap is None:
+            self._cap = cv2.VideoCapture(str(self.source.path))
+        index = self.start + k
+        self._cap.set(cv2.CAP_PROP_POS_FRAMES, index)
+        if int(self._cap.get(cv2.CAP_PROP_POS_FRAMES)) != index:   # codec cannot seek: read through
+            self._cap.release()
+            self._cap = cv2.VideoCapture(str(self.source.path))
+            for _ in range(index):
+                if not self._cap.grab():
+                    break
+        self._next = k
+
+    def close(self) -> None:
+        """Release the video (also done when the sequence is garbage-collected)."""
+        if self._cap is not None:
+            self._cap.release()
+            self._cap = None
+        self._next = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass

@@ -117,4 +117,4 @@ def test_calibration_draw_with_few_views():
     for cam, err in row["intrinsic_error"].items():
         assert np.all(np.abs(err) < row["sigma3"][cam]), (cam, err, row["sigma3"][cam])
     # exact projections: what is left after the constant offset is a fraction of a millimetre in x, y
-    assert np.all(row["motion_rmse_m"][:2] < 2e-3), row["motion_rmse_m"]
+    assert np.all(row["motion_rmse_m"][:2] < 1e-3), row["motion_rmse_m"]

@@ -141,3 +141,56 @@ def test_video_source_and_truncation(tmp_path):
     assert abs(int(src.frame(3)[5, 5, 0]) - 120) <= 3
     with pytest.raises(SourceError, match=r"v.avi: expected frames 2..9, but the source ends after 6 frames"):
         src.read(2, 10)
+
+
+def _numbered_video(path, n=90, size=(40, 30)):
+    """A video whose frame k shows the number k (as a bright block's position and a gray level)."""
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, size)
+    for k in range(n):
+        img = np.full((size[1], size[0], 3), 2 * k % 250, np.uint8)
+        img[5:10, (k % 30):(k % 30) + 5] = 255
+        w.write(img)
+    w.release()
+    return FrameSource(path)
+
+
+def test_frame_sequence_equals_read_in_any_order(tmp_path):
+    src = _numbered_video(tmp_path / "n.avi")
+    for color in (False, True):
+        arr = src.read(7, 83, color=color)
+        seq = src.sequence(7, 83, color=color, cache_frames=10)
+        assert len(seq) == len(arr) and seq.shape == arr.shape and seq.ndim == arr.ndim and seq.dtype == arr.dtype
+        order = list(range(40, 76)) + list(range(39, -1, -1)) + [3, 70, 0, 75, 38, -1]
+        for k in order:
+            np.testing.assert_array_equal(seq[k], arr[k])
+        assert len(seq._cache) <= 10               # bounded memory, whatever the order
+        seq.close()
+    frames_dir = tmp_path / "imgs"
+    _write_frames(frames_dir, 5, [f"f{i}.png" for i in range(5)])
+    folder = FrameSource(frames_dir)
+    np.testing.assert_array_equal(folder.sequence(1, 4)[2], folder.read(1, 4)[2])
+
+
+def test_frame_sequence_errors(tmp_path):
+    src = _numbered_video(tmp_path / "n.avi", n=12)
+    with pytest.raises(SourceError, match=r"n.avi: expected frames 5..19, but the source ends after 12 frames"):
+        src.sequence(5, 20)
+    with pytest.raises(SourceError, match="no frame from index 4"):
+        src.sequence(4, 4)
+    seq = src.sequence(0, 12)
+    with pytest.raises(IndexError):
+        seq[12]
+    with pytest.raises(TypeError, match="one frame number"):
+        seq[2:5]
+
+
+def test_detection_on_a_frame_sequence_is_the_same():
+    from horsemocap.data import default_session_dir
+    from horsemocap.detection import detect_markers
+
+    src = FrameSource(default_session_dir() / "motion" / "left.avi")
+    a = detect_markers(src.read(8, 60, color=False), 3)
+    b = detect_markers(src.sequence(8, 60, color=False, cache_frames=16), 3)
+    np.testing.assert_array_equal(a.marker_px, b.marker_px)
+    np.testing.assert_array_equal(a.reason, b.reason)
+    assert a.params == b.params

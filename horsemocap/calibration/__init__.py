@@ -18,9 +18,9 @@ automatic:
 :func:`horsemocap.camera.write_rig` (re-exported here).
 """
 from ..camera import read_rig, rig_to_toml, write_rig
-from .board import (MAX_GRID_IRREGULARITY, BoardViews, CalibrationError, board_points, canonical_order, detect_board, grid_irregularity,
-                    detect_views, parse_board, square_size_px, subpix_window, view_keys,
-                    views_from_corners)
+from .board import (MAX_GRID_IRREGULARITY, BoardViews, CalibrationError, board_points, canonical_order,
+                    detect_board, detect_views, grid_irregularity, parse_board, square_size_px,
+                    subpix_window, view_keys, views_from_corners)
 from .bouguet import (BouguetSingle, BouguetStereo, load_bouguet_single, load_bouguet_stereo,
                       rig_from_bouguet_pairs, rig_from_bouguet_stereo)
 from .bundle import (INTRINSIC_NAMES, BundleResult, IntrinsicResult, bundle_adjust, calibrate_camera,

@@ -121,10 +121,13 @@ def grid_irregularity(corners: np.ndarray, inner_corners: tuple[int, int]) -> fl
     Returns
     -------
     float
-        0 for a perfectly regular grid (or one with fewer than 3 corners per line).
+        0 for a perfectly regular grid (or one with fewer than 3 corners per
+        line); ``inf`` if any corner is not finite.
     """
     cols, rows = inner_corners
     g = np.asarray(corners, float).reshape(rows, cols, 2)
+    if not np.all(np.isfinite(g)):
+        return float("inf")
     worst = 0.0
     for grid in (g, g.transpose(1, 0, 2)):
         if grid.shape[1] < 3:
@@ -144,6 +147,8 @@ def _refine(gray: np.ndarray, corners: np.ndarray, inner_corners, window: int):
 
     Returns ``(refined or None, half-window used, irregularity)``.
     """
+    if int(window) < 2:
+        raise CalibrationError(f"sub-pixel half-window must be at least 2 pixels, got {window}")
     irregular = np.inf
     for w in range(int(window), 1, -1):
         refined = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2).astype(np.float32), (w, w), (-1, -1),
@@ -197,6 +202,8 @@ def detect_board(image: np.ndarray, inner_corners: tuple[int, int], window: int 
     reason : str
         ``""`` when found, else why not.
     """
+    if window is not None and int(window) < 2:
+        raise CalibrationError(f"sub-pixel half-window must be at least 2 pixels, got {window}")
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     pattern = (int(inner_corners[0]), int(inner_corners[1]))
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE

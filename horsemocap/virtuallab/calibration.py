@@ -83,7 +83,8 @@ def render_board(img: np.ndarray, cam: Camera, R_wb: np.ndarray, t_wb: np.ndarra
     sub += (cov * col)[..., None] * np.array([1.0, 0.99, 0.95])
 
 
-#: Calibration protocols: where the boards stand and how far they turn.
+#: Calibration protocols: where the boards stand and how far they turn, as
+#: ``((near, far) fractions of the path's depth, max yaw deg, max pitch deg)``.
 #: ``"path"``: the thesis' (section 8.2), boards slid along the horse's path
 #: (depth +-0.25 m), turned up to 35 deg about the vertical and 20 deg about
 #: the horizontal axis. ``"depths"``: a lab that also brings the board nearer
@@ -93,7 +94,28 @@ PROTOCOLS = {"path": ((1.0, 1.0), 35.0, 20.0), "depths": ((0.6, 1.0), 50.0, 35.0
 
 def board_poses(n_views: int, motion, seed: int, depth_m: float | None = None, squares=None, square=None,
                 protocol: str = "path"):
-    """``n_views`` board poses (R_wb, t_wb) in six slides along the path (see :data:`PROTOCOLS`)."""
+    """``n_views`` board poses ``(R_wb, t_wb)`` in six slides along the path.
+
+    Parameters
+    ----------
+    n_views : int
+    motion : SaddleMotion
+        Gives the path's depth and the ground frame.
+    seed : int
+        Seeds the poses (the same for every protocol).
+    depth_m : float, optional
+        Depth of the path (default: the horse's).
+    squares, square
+        The board (default: the thesis' 16 x 30 squares of 50 mm).
+    protocol : str
+        A key of :data:`PROTOCOLS`; ``"path"`` is the thesis' and the sessions'.
+        With ``"depths"`` the depth steps through four levels from ``near``
+        to ``far`` every six views.
+
+    Returns
+    -------
+    list of (ndarray (3, 3), ndarray (3,))
+    """
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol: expected one of {sorted(PROTOCOLS)}, got {protocol!r}")
     (near, far), max_yaw, max_pitch = PROTOCOLS[protocol]
