@@ -396,6 +396,15 @@ def session_json(name: str, meta: dict, motion_paths: dict, stills: dict, calib_
     return d
 
 
+def _scene_and_backgrounds(horse: str, gait: str, seed: int):
+    """The thesis rig's scene of ``(horse, gait, seed)`` and each camera's empty arena."""
+    rig = thesis_rig()
+    motion = saddle_motion(horse, gait)
+    scene = Scene(rig, motion, int(seed))
+    bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
+    return scene, bgs
+
+
 def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: int = 0, *,
                    noise: bool = True, compress: bool = True, n_motion_frames: int | None = None,
                    calibration_views: int | None = 45, name: str | None = None, left_offset: int = 8,
@@ -433,14 +442,12 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     _clear_generated(out)
-    rig = thesis_rig()
-    motion = saddle_motion(horse, gait)
-    scene = Scene(rig, motion, int(seed))
+    scene, bgs = _scene_and_backgrounds(horse, gait, seed)
+    rig, motion = scene.rig, scene.motion
     offsets, n_after = plan_timeline(scene, left_offset=left_offset)
     if n_motion_frames is not None:
         n_after = int(n_motion_frames)
     fps = FPS
-    bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
     # motion videos
     motion_paths = {}
     n_frames = {}
@@ -518,10 +525,8 @@ def render_calibration_set(out_dir, seed: int, n_views: int = 45, horse: str = "
     from .calibration import render_calibration_views
 
     out = Path(out_dir)
-    rig = thesis_rig()
-    motion = saddle_motion(horse, gait)
-    scene = Scene(rig, motion, int(seed))
-    bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
+    scene, bgs = _scene_and_backgrounds(horse, gait, seed)
+    rig = scene.rig
     info = render_calibration_views(out, scene, bgs, int(n_views), noise=noise, compress=compress,
                                     protocol=protocol)
     return {"images": {c.name: out / c.name for c in rig}, "board": info["board"], "rig": rig,
