@@ -198,6 +198,26 @@ def rotation_matrix(rvec) -> np.ndarray:
     return np.eye(3) + math.sin(theta) * Kx + (1 - math.cos(theta)) * Kx @ Kx
 
 
+def axis_rotations(axis: str, angles) -> np.ndarray:
+    """Rotations about one coordinate axis, one per angle: ``(..., 3, 3)``.
+
+    Parameters
+    ----------
+    axis : {"x", "y", "z"}
+    angles : array_like
+        Angles in radians (any shape; right-handed, as :func:`rotation_matrix`).
+    """
+    if axis not in ("x", "y", "z"):
+        raise ValueError(f"axis: expected 'x', 'y' or 'z', got {axis!r}")
+    a = np.asarray(angles, float)
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    rows = {"x": ((o, z, z), (z, c, -s), (z, s, c)),
+            "y": ((c, z, s), (z, o, z), (-s, z, c)),
+            "z": ((c, -s, z), (s, c, z), (z, z, o))}[axis]
+    return np.stack([np.stack(r, -1) for r in rows], -2)
+
+
 def rotation_vector(R) -> np.ndarray:
     """Rodrigues vector of a rotation matrix (projected onto SO(3) first)."""
     R = np.asarray(R, float)

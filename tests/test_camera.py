@@ -65,3 +65,17 @@ def test_bad_rig_files_name_the_field(tmp_path, text, pattern):
     p.write_text(text)
     with pytest.raises(RigError, match=pattern):
         read_rig(p)
+
+
+def test_axis_rotations_match_rotation_matrix():
+    from horsemocap.camera import axis_rotations, rotation_matrix
+
+    angles = np.array([[0.3, -1.2], [2.0, 0.0]])
+    for i, axis in enumerate("xyz"):
+        R = axis_rotations(axis, angles)
+        assert R.shape == (2, 2, 3, 3)
+        for a, Ra in zip(angles.ravel(), R.reshape(-1, 3, 3)):
+            np.testing.assert_allclose(Ra, rotation_matrix(np.eye(3)[i] * a), atol=1e-15)
+    np.testing.assert_allclose(axis_rotations("z", np.pi / 2) @ [1, 0, 0], [0, 1, 0], atol=1e-15)
+    with pytest.raises(ValueError, match="axis"):
+        axis_rotations("w", 0.1)

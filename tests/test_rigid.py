@@ -8,29 +8,12 @@ import numpy as np
 import pytest
 
 from horsemocap import rigid
+from horsemocap.camera import axis_rotations
 
 
 # --------------------------------------------------------------------------
 # exact random rigid motions
 # --------------------------------------------------------------------------
-def _rz(a):
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def _ry(a):
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
-
-
-def _rx(a):
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
-
-
 def random_rigid_motion(rng, n=40, markers=4, duration=1.2):
     """A body with ``markers`` points moving with R(t) = Rz(th1) Ry(th2) Rx(th3)
     and translation c(t) (sums of sines), with analytic omega and alpha."""
@@ -45,7 +28,7 @@ def random_rigid_motion(rng, n=40, markers=4, duration=1.2):
     c = camp * np.sin(2 * np.pi * cfr * t[:, None] + cph) + np.outer(t, [vx, 0, 0])
     cd = camp * 2 * np.pi * cfr * np.cos(2 * np.pi * cfr * t[:, None] + cph) + [vx, 0, 0]
     cdd = -camp * (2 * np.pi * cfr) ** 2 * np.sin(2 * np.pi * cfr * t[:, None] + cph)
-    Rz, Ry, Rx = _rz(th[:, 0]), _ry(th[:, 1]), _rx(th[:, 2])
+    Rz, Ry, Rx = axis_rotations("z", th[:, 0]), axis_rotations("y", th[:, 1]), axis_rotations("x", th[:, 2])
     R = Rz @ Ry @ Rx
     ez, ey, ex = np.eye(3)[2], np.eye(3)[1], np.eye(3)[0]
     a1 = np.broadcast_to(ez, (n, 3))

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..camera import rotation_matrix
+from ..camera import axis_rotations, rotation_matrix
 
 HORSES = ("Horse 1", "Horse 2", "Horse 3", "Horse 4")
 GAITS = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -251,24 +251,6 @@ def ground_to_world() -> tuple[np.ndarray, np.ndarray]:
     return R_gw.T, CAMERA_POSITION_G.copy()
 
 
-def _Rx(a):
-    c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
-
-
-def _Ry(a):
-    c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
-
-
-def _Rz(a):
-    c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
 @dataclass(frozen=True)
 class Pose:
     """Body pose and its derivatives at times ``t`` (world frame).
@@ -365,7 +347,7 @@ class SaddleMotion:
         angular velocity of the rotations before it).
         """
         t, P, V, A, ((psi, dpsi, ddpsi), (th, dth, ddth), (ph, dph, ddph)) = self.pose_ground(t)
-        Ry, Rz, Rx = _Ry(psi), _Rz(th), _Rx(ph)
+        Ry, Rz, Rx = axis_rotations("y", psi), axis_rotations("z", th), axis_rotations("x", ph)
         R_gb = Ry @ Rz @ Rx
         ey = np.array([0.0, 1.0, 0.0])
         a2 = Ry[..., :, 2]                     # Ry e_z
