@@ -977,7 +977,7 @@ def cluster_persistence(cache: CandidateCache, frame: int, px, tolerance: float 
 # --------------------------------------------------------------------------
 def _frames_array(frames):
     """``frames`` as an array, or as they are if decoded on demand (:class:`~horsemocap.sources.FrameSequence`)."""
-    from .sources import FrameSequence
+    from ..sources import FrameSequence
 
     return frames if isinstance(frames, FrameSequence) else np.asarray(frames)
 
@@ -1718,7 +1718,7 @@ def _consistent_points(rig, cams, cand, max_residual_px):
 
     Returns index rows (T, C), points (T, 3) and largest residuals (T,).
     """
-    from .reconstruction import triangulate
+    from ..reconstruction import triangulate
 
     hyp = np.arange(len(cand[cams[0]]))[:, None]
     X, res = np.zeros((len(hyp), 3)), np.zeros(len(hyp))
@@ -1989,5 +1989,5 @@ def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None) -> str:
 
 def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None) -> Path:
     """Write ``markers_2d.csv`` atomically (:func:`markers_2d_csv_text`)."""
-    from .store import atomic_write_text
+    from ..store import atomic_write_text
     return atomic_write_text(path, markers_2d_csv_text(tracks, frame_offsets))
