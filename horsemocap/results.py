@@ -44,7 +44,7 @@ def frame_numbers(analysis) -> tuple[np.ndarray, np.ndarray]:
 
 def markers_2d_text(analysis) -> str:
     """``camera,frame,marker,u_px,v_px`` in each camera's own numbering."""
-    from .detection import markers_2d_csv_text
+    from .detection.markers2d import markers_2d_csv_text
 
     return markers_2d_csv_text(analysis.results["detect"]["marker_px"], analysis.results["sync"]["offsets"])
 
@@ -61,7 +61,7 @@ def _points(analysis, key):
 
 
 def _point_names(n_markers):
-    from .detection import marker_label
+    from .detection.markers2d import marker_label
 
     return [marker_label(i) for i in range(n_markers)] + ["saddle"]
 

@@ -18,6 +18,7 @@ import ipywidgets as W
 import numpy as np
 
 from .. import detection as det
+from ..detection.tracking import GENERIC_AREA
 
 __all__ = ["ThresholdPicker", "LabelPicker", "WindowPicker", "DetectionControls",
            "ui_threshold", "ui_label_picker", "ui_area_range", "ui_window", "ui_distance_tolerance",
@@ -190,7 +191,7 @@ def ui_label_picker(image, params: det.DetectionParams, scale: int = 1) -> Label
     """Label picker on ``image`` (the first frame) at ``params.threshold``."""
     if params.threshold is None:
         raise ValueError("ui_label_picker: params.threshold is needed (use track.params of an automatic run)")
-    rng = (det.GENERIC_AREA[0], np.inf)
+    rng = (GENERIC_AREA[0], np.inf)
     return LabelPicker(image, params.threshold, params.labels or (), rng, scale)
 
 

@@ -1,0 +1,400 @@
+"""The filters of thesis chapter 4 (4.5.2-4.5.5), each a pure function.
+
+- labelling and region centres (4.5.2): :func:`label_regions`;
+- area filter (4.5.3): :func:`filter_area`; circularity by geometric moments
+  (seed 000, Hu's first invariant): :func:`region_circularity`,
+  :func:`filter_circularity`;
+- the sliding window (4.5.4, Figure 4.11): :func:`window_center`,
+  :func:`filter_window`;
+- the distance filter, eq. (4.6)-(4.11): :func:`marker_distances`,
+  :func:`filter_distance`; the cross-product filter (Figure 4.13):
+  :func:`cross_product_signs`, :func:`filter_cross_product`;
+- intensity-weighted centres above the local background:
+  :func:`weighted_centroids`;
+- candidates of one image or window crop (threshold, labels, area, shape):
+  :func:`find_candidates`;
+- every stage of the chain on one frame (Figure 4.15): :func:`filter_stages`.
+"""
+from __future__ import annotations
+
+import itertools
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from .base import DetectionParams, Regions
+from .thresholds import binarize, to_gray
+
+__all__ = [
+    "label_regions",
+    "region_circularity",
+    "filter_area",
+    "filter_circularity",
+    "window_center",
+    "filter_window",
+    "marker_distances",
+    "filter_distance",
+    "cross_product_signs",
+    "filter_cross_product",
+    "weighted_centroids",
+    "find_candidates",
+    "filter_stages",
+]
+
+
+# --------------------------------------------------------------------------
+# 4.5.2 - 4.5.3: labelling, area and shape
+# --------------------------------------------------------------------------
+def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
+                  image_size=None) -> Regions:
+    """Label the white regions with 8- (or 4-) connectivity (thesis 4.5.2).
+
+    Region centres are the geometric centres of the binary regions (the
+    thesis' "geometrical center"). ``origin`` is the offset of ``binary`` in
+    the full image when it is a window crop.
+    """
+    if connectivity not in (4, 8):
+        raise ValueError(f"label_regions: connectivity must be 4 or 8, got {connectivity}")
+    b = np.asarray(binary)
+    if b.dtype != np.uint8:
+        b = (b > 0).astype(np.uint8)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(b, connectivity=connectivity, ltype=cv2.CV_32S)
+    u0, v0 = int(origin[0]), int(origin[1])
+    bbox = stats[1:, :4].astype(np.int64)
+    bbox[:, 0] += u0
+    bbox[:, 1] += v0
+    size = tuple(image_size) if image_size is not None else (b.shape[1] + u0, b.shape[0] + v0)
+    return Regions(labels=labels, ids=np.arange(1, n), area=stats[1:, 4].astype(np.int64), bbox=bbox,
+                   centroid=cents[1:] + np.array([u0, v0], float), origin=(u0, v0), image_size=size)
+
+
+def region_circularity(regions: Regions) -> np.ndarray:
+    """Circularity from geometric moments (seed 000 section 5.2.1; Hu 1962).
+
+    ``c = A / (2 pi (var_u + var_v))`` = ``1 / (2 pi phi_1)`` where
+    ``phi_1 = eta_20 + eta_02`` is Hu's first moment invariant; the pixel
+    variances include each pixel's own extent (1/12). ``c`` is 1 for a disc,
+    ``2r / (1 + r^2)`` for an ellipse of axis ratio ``r`` and
+    ``6k / (pi (1 + k^2))`` for a ``k``:1 bar.
+    """
+    C = len(regions)
+    if C == 0:
+        return np.zeros(0)
+    lab = regions.labels
+    u0, v0 = regions.origin
+    out = np.empty(C)
+    if C <= 8:
+        for i, (rid, bb) in enumerate(zip(regions.ids, regions.bbox)):
+            x, y = bb[0] - u0, bb[1] - v0
+            sub = (lab[y:y + bb[3], x:x + bb[2]] == rid).astype(np.uint8)
+            m = cv2.moments(sub, binaryImage=True)
+            a = m["m00"]
+            var = (m["mu20"] + m["mu02"]) / a + 1.0 / 6.0
+            out[i] = a / (2 * np.pi * var)
+        return out
+    v, u = np.nonzero(lab)
+    ll = lab[v, u]
+    n = int(lab.max()) + 1
+    a = np.bincount(ll, minlength=n).astype(float)
+    su, sv = np.bincount(ll, u, n), np.bincount(ll, v, n)
+    suu, svv = np.bincount(ll, u.astype(float) ** 2, n), np.bincount(ll, v.astype(float) ** 2, n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = (suu - su ** 2 / a + svv - sv ** 2 / a) / a + 1.0 / 6.0
+        c = a / (2 * np.pi * var)
+    return c[regions.ids]
+
+
+def filter_area(area, area_min: float, area_max: float) -> np.ndarray:
+    """Area filter of thesis 4.5.3: keep ``area_min <= A <= area_max``."""
+    area = np.asarray(area)
+    return (area >= area_min) & (area <= area_max)
+
+
+def filter_circularity(circularity, min_circularity: float) -> np.ndarray:
+    """Keep regions whose :func:`region_circularity` is at least ``min_circularity``."""
+    return np.asarray(circularity) >= min_circularity
+
+
+# --------------------------------------------------------------------------
+# 4.5.4: the sliding window
+# --------------------------------------------------------------------------
+def window_center(marker_px: np.ndarray) -> np.ndarray:
+    """Overall geometric centre ``W_c^e(k)`` of the markers (NaN ignored)."""
+    p = np.asarray(marker_px, float).reshape(-1, 2)
+    ok = np.isfinite(p).all(axis=1)
+    if not ok.any():
+        return np.full(2, np.nan)
+    return p[ok].mean(axis=0)
+
+
+def filter_window(centroid, center, window) -> np.ndarray:
+    """Keep region centres inside the window (thesis 4.5.4, Figure 4.11).
+
+    ``center`` is ``W_c(k)`` and ``window`` the full size ``(W_du, W_dv)``.
+    """
+    c = np.asarray(centroid, float).reshape(-1, 2)
+    half = np.asarray(window, float) / 2
+    return (np.abs(c - np.asarray(center, float)) <= half).all(axis=1)
+
+
+# --------------------------------------------------------------------------
+# 4.5.5: distance and cross-product filters
+# --------------------------------------------------------------------------
+def marker_distances(marker_px: np.ndarray) -> np.ndarray:
+    """All distances ``DM_ij`` between marker centres, eq. (4.6), as an (M, M) matrix."""
+    p = np.asarray(marker_px, float)
+    return np.linalg.norm(p[:, None, :] - p[None, :, :], axis=-1)
+
+
+@lru_cache(maxsize=64)
+def _permutations(c: int, m: int) -> np.ndarray:
+    return np.array(list(itertools.permutations(range(c), m)), dtype=np.intp).reshape(-1, m)
+
+
+def filter_distance(centroid, reference_distances, tolerance: float) -> np.ndarray:
+    """Distance filter of eq. (4.6)-(4.11).
+
+    Among the ``C`` region centres (``DC_ij``, eq. 4.8-4.9), keep every
+    ordered choice of ``M`` regions (region ``a_i`` for marker ``i``) whose
+    distances all fall in ``DI_ij`` of eq. (4.11):
+    ``|DC_{a_i a_j} - DM_ij| <= DT * DM_ij``. The thesis counts the
+    combinations of distances (eq. 4.10); testing ordered region choices
+    is the same test with the marker identities kept.
+
+    Parameters
+    ----------
+    centroid : (C, 2) region centres
+    reference_distances : (M, M) ``DM`` from :func:`marker_distances`
+    tolerance : ``DT`` as a fraction
+
+    Returns
+    -------
+    ndarray (K, M) of int
+        Region indices of the accepted choices, one row per choice.
+    """
+    c = np.asarray(centroid, float).reshape(-1, 2)
+    dm = np.asarray(reference_distances, float)
+    m = dm.shape[0]
+    if len(c) < m:
+        return np.zeros((0, m), dtype=np.intp)
+    perms = _permutations(len(c), m)
+    dc = marker_distances(c)
+    ok = np.ones(len(perms), bool)
+    for i in range(m):
+        for j in range(i + 1, m):
+            d = dc[perms[:, i], perms[:, j]]
+            ok &= np.abs(d - dm[i, j]) <= tolerance * dm[i, j]
+    return perms[ok]
+
+
+def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndarray:
+    """``sgn[(r_12 x r_23)_3]`` for each consecutive triple of markers (Figure 4.13).
+
+    Returns (M-2,) values in {-1, 0, +1}; 0 where the triple is so nearly
+    straight (``|sin| < min_sine``) that its sign says nothing.
+    """
+    p = np.asarray(marker_px, float)
+    r1 = p[1:-1] - p[:-2]
+    r2 = p[2:] - p[1:-1]
+    z = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
+    norm = np.linalg.norm(r1, axis=1) * np.linalg.norm(r2, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0.0)
+    return s.astype(int)
+
+
+def filter_cross_product(centroid, choices, reference_signs, min_sine: float = 0.05) -> np.ndarray:
+    """Cross-product filter (thesis Figure 4.13): keep the marker order.
+
+    A choice of regions is kept when, for every consecutive triple whose
+    reference sign is not 0, ``sgn[(r_12 x r_23)_3]`` equals the sign in
+    the reference (first) frame. Triples bent less than ``min_sine`` in the
+    candidate are not tested either (their sign is noise).
+    """
+    choices = np.asarray(choices, dtype=np.intp)
+    ref = np.asarray(reference_signs)
+    if len(choices) == 0 or choices.shape[1] < 3 or not np.any(ref):
+        return choices
+    c = np.asarray(centroid, float)
+    p = c[choices]                                  # (K, M, 2)
+    r1 = p[:, 1:-1] - p[:, :-2]
+    r2 = p[:, 2:] - p[:, 1:-1]
+    z = r1[..., 0] * r2[..., 1] - r1[..., 1] * r2[..., 0]
+    norm = np.linalg.norm(r1, axis=-1) * np.linalg.norm(r2, axis=-1)
+    s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0)
+    ok = ((s == ref[None]) | (ref[None] == 0) | (s == 0)).all(axis=1)
+    return choices[ok]
+
+
+# --------------------------------------------------------------------------
+# centres
+# --------------------------------------------------------------------------
+_K3 = np.ones((3, 3), np.uint8)
+
+
+def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2) -> np.ndarray:
+    """Intensity-weighted centres of regions, above the local background.
+
+    For each region the mask is grown by ``margin`` pixels (to take in the
+    anti-aliased rim below the threshold), pixels of other regions are
+    excluded, the background ``b`` is the median of a 2-pixel ring outside
+    the grown mask, and the centre is ``sum w (u, v) / sum w`` with
+    ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
+    more precise than the binary centre (which moves by whole pixels).
+
+    Parameters
+    ----------
+    gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
+    regions : Regions
+    index : indices into ``regions`` (default all)
+
+    Returns
+    -------
+    (K, 2) centres ``(u, v)`` in full-image pixels.
+    """
+    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
+    lab = regions.labels
+    h, w = lab.shape
+    u0, v0 = regions.origin
+    out = np.full((len(idx), 2), np.nan)
+    g = 2 * margin + 2
+    for k, i in enumerate(idx):
+        rid = regions.ids[i]
+        bx, by, bw, bh = regions.bbox[i]
+        bx, by = bx - u0, by - v0
+        x0, y0 = max(bx - g, 0), max(by - g, 0)
+        x1, y1 = min(bx + bw + g, w), min(by + bh + g, h)
+        sl = lab[y0:y1, x0:x1]
+        own = (sl == rid).astype(np.uint8)
+        other = (sl != 0) & (own == 0)
+        near = cv2.dilate(own, _K3, iterations=margin).astype(bool)
+        far = cv2.dilate(own, _K3, iterations=margin + 2).astype(bool)
+        if other.any():
+            other = cv2.dilate(other.astype(np.uint8), _K3, iterations=1).astype(bool)
+        sub = gray[y0:y1, x0:x1].astype(np.float64)
+        ring = far & ~near & ~other
+        b = float(np.median(sub[ring])) if ring.any() else float(sub[own.astype(bool)].min()) - 1
+        wgt = np.where(near & ~(other & ~own.astype(bool)), np.maximum(sub - b, 0.0), 0.0)
+        s = wgt.sum()
+        if s <= 0:
+            out[k] = regions.centroid[i]
+            continue
+        vv, uu = np.mgrid[y0:y1, x0:x1]
+        out[k] = ((wgt * uu).sum() / s + u0, (wgt * vv).sum() / s + v0)
+    return out
+
+
+# --------------------------------------------------------------------------
+# candidates of one image
+# --------------------------------------------------------------------------
+def find_candidates(gray: np.ndarray, threshold: int, area_range=(1, np.inf), min_circularity=None,
+                    crop=None, connectivity: int = 8):
+    """Threshold, label and area/shape-filter one gray image (or a window crop).
+
+    Parameters
+    ----------
+    gray : (h, w) full gray image
+    threshold : ``l`` of eq. (4.5)
+    area_range : ``(area_min, area_max)``
+    min_circularity : optional shape filter
+    crop : ``(u0, v0, u1, v1)`` window in full-image pixels (None = whole image)
+
+    Returns
+    -------
+    regions : Regions
+        All labelled regions of the (cropped) image.
+    keep : ndarray of int
+        Indices of the regions that pass the filters and are not cut by the
+        crop edge (a region cut by a crop edge that is not an image edge is
+        incomplete; it is dropped).
+    """
+    H, W = gray.shape[:2]
+    u0, v0, u1, v1 = _clip_crop(crop, W, H)
+    return _candidates_in(gray[v0:v1, u0:u1], (u0, v0), (W, H), threshold, area_range,
+                          min_circularity, connectivity)
+
+
+def _clip_crop(crop, W, H):
+    if crop is None:
+        return 0, 0, W, H
+    u0, v0 = max(int(crop[0]), 0), max(int(crop[1]), 0)
+    u1, v1 = min(int(crop[2]), W), min(int(crop[3]), H)
+    if u1 <= u0 or v1 <= v0:
+        return 0, 0, 0, 0
+    return u0, v0, u1, v1
+
+
+def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, connectivity=8):
+    W, H = size
+    u0, v0 = origin
+    if sub.size == 0:
+        empty = Regions(np.zeros((0, 0), np.int32), np.zeros(0, int), np.zeros(0, int), np.zeros((0, 4), int),
+                        np.zeros((0, 2)), (u0, v0), (W, H))
+        return empty, np.zeros(0, np.intp)
+    u1, v1 = u0 + sub.shape[1], v0 + sub.shape[0]
+    bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
+    regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
+    ok = filter_area(regions.area, area_range[0], area_range[1])
+    if (u0 > 0 or v0 > 0 or u1 < W or v1 < H) and len(regions):
+        b = regions.bbox
+        cut = (((b[:, 0] <= u0) & (u0 > 0)) | ((b[:, 1] <= v0) & (v0 > 0))
+               | ((b[:, 0] + b[:, 2] >= u1) & (u1 < W)) | ((b[:, 1] + b[:, 3] >= v1) & (v1 < H)))
+        ok &= ~cut
+    keep = np.flatnonzero(ok)
+    if min_circularity is not None and len(keep):
+        circ = region_circularity(regions.subset(keep))
+        keep = keep[circ >= min_circularity]
+    return regions, keep
+
+
+# --------------------------------------------------------------------------
+# Figure 4.15: every stage of the chain on one frame
+# --------------------------------------------------------------------------
+
+def filter_stages(image, params: DetectionParams, center=None, reference_px=None, first_px=None) -> dict:
+    """Every intermediate result of the filter chain on one image (Figure 4.15).
+
+    Parameters
+    ----------
+    image : (h, w, 3) RGB or (h, w) gray frame
+    params : DetectionParams with threshold, area range, window and tolerance set
+        (e.g. ``track.params``)
+    center : window centre ``W_c(k)`` (e.g. the previous frame's marker
+        centre); None = no window
+    reference_px : (M, 2) marker centres giving ``DM_ij`` (eq. 4.6)
+    first_px : (M, 2) marker centres of the first frame (cross-product signs)
+
+    Returns
+    -------
+    dict with ``gray``, ``binary`` (eq. 4.5), ``regions`` (4.5.2), ``area_ok``
+    (indices kept by the area filter), ``window_ok`` (indices also inside
+    the window), ``choices`` (region index rows after the distance filter)
+    and ``kept`` (after the cross-product filter), ``marker_px`` (centres of
+    the single remaining choice, else None).
+    """
+    p = params
+    gray = to_gray(np.asarray(image))
+    binary = binarize(gray, p.threshold)
+    regions = label_regions(binary)
+    area_ok = np.flatnonzero(filter_area(regions.area, p.area_min, p.area_max))
+    if p.min_circularity is not None and len(area_ok):
+        area_ok = area_ok[region_circularity(regions.subset(area_ok)) >= p.min_circularity]
+    window_ok = area_ok
+    if center is not None and p.window is not None and len(area_ok):
+        window_ok = area_ok[filter_window(regions.centroid[area_ok], center, p.window)]
+    out = {"gray": gray, "binary": binary, "regions": regions, "area_ok": area_ok, "window_ok": window_ok,
+           "choices": None, "kept": None, "marker_px": None}
+    if reference_px is not None:
+        ref = np.asarray(reference_px, float)
+        ch = filter_distance(regions.centroid[window_ok], marker_distances(ref), p.distance_tolerance)
+        signs = cross_product_signs(first_px if first_px is not None else ref, 0.1)
+        kept = filter_cross_product(regions.centroid[window_ok], ch, signs)
+        out["choices"], out["kept"] = window_ok[ch], window_ok[kept]
+        if len(kept) >= 1:
+            # the remaining choice nearest the reference centre (unique in a clean frame)
+            cost = [np.linalg.norm(regions.centroid[window_ok[k]] - ref, axis=1).max() for k in kept]
+            best = window_ok[kept[int(np.argmin(cost))]]
+            out["marker_px"] = (regions.centroid[best] if p.centroid == "binary"
+                                else weighted_centroids(gray, regions, best))
+    return out

@@ -1,0 +1,71 @@
+"""``markers_2d.csv`` (spec ``docs/sessions.md``): its one writer and the marker names.
+
+:func:`marker_label` names marker ``i`` in every result file (``marker1``,
+``marker2``, ...); :func:`markers_2d_rows`, :func:`markers_2d_csv_text` and
+:func:`write_markers_2d_csv` turn the detections of every camera into the
+file (``horsemocap.results`` writes the same text).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "marker_label",
+    "markers_2d_rows",
+    "markers_2d_csv_text",
+    "write_markers_2d_csv",
+]
+
+
+def marker_label(index: int) -> str:
+    """The name of marker ``index`` (0-based) in every result file: ``marker1``, ``marker2``, ..."""
+    return f"marker{int(index) + 1}"
+
+
+def _px_text(value: float) -> str:
+    return f"{float(value):.9g}" if np.isfinite(value) else ""
+
+
+def markers_2d_rows(camera: str, track, frame_offset: int = 0) -> list[list]:
+    """Rows ``[camera, frame, marker, u_px, v_px]`` of ``markers_2d.csv``.
+
+    Parameters
+    ----------
+    camera : str
+    track : MarkerTrack or ndarray (frames, markers, 2)
+        The detections (a track's ``marker_px``), NaN where not found.
+    frame_offset : int
+        Index in the camera's own motion source of the track's first frame.
+
+    Returns
+    -------
+    list of list
+        ``frame`` = track index + ``frame_offset``, ``marker`` =
+        :func:`marker_label`, ``u_px``/``v_px`` to 9 significant digits,
+        ``""`` where the marker was not found.
+    """
+    px = np.asarray(getattr(track, "marker_px", track), float)
+    return [[camera, k + int(frame_offset), marker_label(m), _px_text(px[k, m, 0]), _px_text(px[k, m, 1])]
+            for k in range(px.shape[0]) for m in range(px.shape[1])]
+
+
+def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None) -> str:
+    """The text of ``markers_2d.csv`` (spec ``sessions.md``: ``camera,frame,marker,u_px,v_px``).
+
+    ``tracks`` maps camera -> :class:`MarkerTrack` or ``marker_px`` array;
+    ``frame_offsets`` maps camera -> source index of its first frame (0 if absent).
+    The pipeline's results and :func:`write_markers_2d_csv` both use this.
+    """
+    lines = ["camera,frame,marker,u_px,v_px"]
+    for cam, tr in tracks.items():
+        off = (frame_offsets or {}).get(cam, 0)
+        lines.extend(",".join(str(x) for x in r) for r in markers_2d_rows(cam, tr, off))
+    return "\n".join(lines) + "\n"
+
+
+def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None) -> Path:
+    """Write ``markers_2d.csv`` atomically (:func:`markers_2d_csv_text`)."""
+    from ..store import atomic_write_text
+    return atomic_write_text(path, markers_2d_csv_text(tracks, frame_offsets))

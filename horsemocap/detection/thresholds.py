@@ -1,0 +1,177 @@
+"""Gray and binary images (thesis 4.3): eq. (4.4), eq. (4.5) and automatic levels.
+
+:func:`to_gray` (eq. 4.4), :func:`binarize` (the global threshold ``l``,
+eq. 4.5), Otsu's threshold (:func:`otsu_threshold`), the three-class Otsu of
+seed 000 section 5.2.1 (:func:`otsu3_thresholds`) and :func:`auto_threshold`
+over frames sampled across the motion (Appendix A step 4.a.i).
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "GRAY_WEIGHTS",
+    "to_gray",
+    "binarize",
+    "otsu_threshold",
+    "otsu3_thresholds",
+    "auto_threshold",
+]
+
+
+#: Gray weights of eq. (4.4) (MATLAB ``rgb2gray``).
+GRAY_WEIGHTS = (0.2989, 0.5870, 0.1140)
+
+
+# --------------------------------------------------------------------------
+# 4.3: gray and binary images
+# --------------------------------------------------------------------------
+def to_gray(image: np.ndarray, exact: bool = False) -> np.ndarray:
+    """Gray image of an RGB image, eq. (4.4).
+
+    ``Gray = 0.2989 R + 0.5870 G + 0.1140 B``. By default OpenCV's fixed-point
+    ``cvtColor`` is used (weights 0.299, 0.587, 0.114: at most 0.03 gray
+    levels from eq. 4.4 before rounding, so within 0.53 after); ``exact=True`` applies eq. (4.4)
+    in floating point and rounds. A 2-D image is returned unchanged.
+
+    Parameters
+    ----------
+    image : ndarray (h, w, 3) uint8 RGB, or (h, w) gray
+
+    Returns
+    -------
+    ndarray (h, w) uint8
+    """
+    image = np.asarray(image)
+    if image.ndim == 2:
+        return image
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"to_gray: expected an (h, w, 3) RGB or (h, w) gray image, got shape {image.shape}")
+    if exact:
+        g = image.astype(np.float64) @ np.array(GRAY_WEIGHTS)
+        return np.clip(np.rint(g), 0, 255).astype(np.uint8)
+    if image.dtype != np.uint8:
+        raise ValueError(f"to_gray: expected uint8 pixels, got {image.dtype}")
+    return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+
+
+def binarize(gray: np.ndarray, level: int) -> np.ndarray:
+    """Global threshold of eq. (4.5): 1 where ``I(u, v) > l``, else 0.
+
+    Returns a uint8 image of 0/255 (OpenCV's binary convention).
+    """
+    if not 0 <= int(level) <= 255:
+        raise ValueError(f"binarize: threshold level must be in 0..255, got {level}")
+    return cv2.threshold(np.asarray(gray, dtype=np.uint8), int(level), 255, cv2.THRESH_BINARY)[1]
+
+
+def _histogram(images) -> np.ndarray:
+    hist = np.zeros(256)
+    for im in images:
+        hist += np.bincount(np.asarray(to_gray(im), dtype=np.uint8).ravel(), minlength=256)
+    return hist
+
+
+def otsu_threshold(gray_or_hist) -> int:
+    """Otsu's threshold (Otsu 1979): maximises the between-class variance.
+
+    Parameters
+    ----------
+    gray_or_hist : ndarray
+        A gray image, or a 256-bin histogram.
+
+    Returns
+    -------
+    int
+        ``l`` such that ``I > l`` is the bright class (eq. 4.5 convention).
+    """
+    a = np.asarray(gray_or_hist)
+    hist = a.astype(float) if (a.ndim == 1 and a.size == 256) else _histogram([a])
+    p = hist / hist.sum()
+    k = np.arange(256)
+    w0 = np.cumsum(p)
+    m0 = np.cumsum(p * k)
+    mt = m0[-1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sb = (mt * w0 - m0) ** 2 / (w0 * (1 - w0))
+    sb[~np.isfinite(sb)] = -1
+    return _plateau_middle(sb, int(np.argmax(sb)))
+
+
+def _plateau_middle(score, i, rtol=1e-9):
+    """Middle of the run of maximal values around ``i``.
+
+    Between two well separated modes every level in the empty gap gives the
+    same class variances; the middle of the gap is taken (not its first
+    level, just above the dark mode's tail).
+    """
+    top = score[i]
+    lo = hi = i
+    while lo > 0 and score[lo - 1] >= top - rtol * abs(top):
+        lo -= 1
+    while hi < len(score) - 1 and score[hi + 1] >= top - rtol * abs(top):
+        hi += 1
+    return (lo + hi) // 2
+
+
+def otsu3_thresholds(gray_or_hist) -> tuple[int, int]:
+    """Three-class Otsu (seed 000 section 5.2.1): two levels ``l1 < l2``.
+
+    Maximises ``sum_c w_c (mu_c - mu_T)^2`` over the classes ``I <= l1``,
+    ``l1 < I <= l2``, ``I > l2`` by exhaustive search (vectorised over
+    ``l2`` for each ``l1``). The bright class ``I > l2`` holds the markers.
+    """
+    a = np.asarray(gray_or_hist)
+    hist = a.astype(float) if (a.ndim == 1 and a.size == 256) else _histogram([a])
+    p = hist / hist.sum()
+    k = np.arange(256)
+    P = np.concatenate([[0.0], np.cumsum(p)])          # P[i] = sum p[:i]
+    S = np.concatenate([[0.0], np.cumsum(p * k)])
+    # class sums for [a, b) : P[b]-P[a]
+    best, arg = -1.0, (0, 1)
+    t2 = np.arange(1, 255)
+    for t1 in range(0, 254):
+        j = t2[t2 > t1]
+        w0, s0 = P[t1 + 1], S[t1 + 1]
+        w1, s1 = P[j + 1] - w0, S[j + 1] - s0
+        w2, s2 = 1.0 - P[j + 1], S[-1] - S[j + 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.where(w1 > 0, s1 ** 2 / w1, 0) + np.where(w2 > 0, s2 ** 2 / w2, 0)
+        v = v + (s0 ** 2 / w0 if w0 > 0 else 0.0)
+        i = int(np.argmax(v))
+        if v[i] > best:
+            best, arg = float(v[i]), (t1, int(j[i]))
+    return _otsu3_centre(P, S, *arg)
+
+
+def _otsu3_centre(P, S, t1, t2):
+    """Move each level of the three-class Otsu to the middle of its plateau."""
+    def score(a, b):
+        w0, s0 = P[a + 1], S[a + 1]
+        w1, s1 = P[b + 1] - w0, S[b + 1] - s0
+        w2, s2 = 1.0 - P[b + 1], S[-1] - S[b + 1]
+        return sum(s * s / w for s, w in ((s0, w0), (s1, w1), (s2, w2)) if w > 0)
+    s2 = np.array([score(t1, b) if b > t1 else -np.inf for b in range(255)])
+    t2 = _plateau_middle(s2, t2)
+    s1 = np.array([score(a, t2) if a < t2 else -np.inf for a in range(255)])
+    t1 = _plateau_middle(s1, t1)
+    return int(t1), int(t2)
+
+
+def auto_threshold(images, method: str = "otsu3") -> int:
+    """Automatic starting threshold over one or several images.
+
+    The histogram is summed over all given images (frames sampled over the
+    whole motion, so that one level holds for all of them, as Appendix A
+    step 4.a.i asks), then Otsu (``method="otsu"``) or the upper level of
+    the three-class Otsu (``"otsu3"``) is taken.
+    """
+    if isinstance(images, np.ndarray) and (images.ndim == 2 or (images.ndim == 3 and images.shape[-1] == 3)):
+        images = [images]
+    hist = _histogram(images)
+    if method == "otsu":
+        return otsu_threshold(hist)
+    if method == "otsu3":
+        return otsu3_thresholds(hist)[1]
+    raise ValueError(f"auto_threshold: method must be 'otsu' or 'otsu3', got {method!r}")
