@@ -78,6 +78,58 @@ def errors_2d(analysis, truth) -> dict:
     return out
 
 
+def identification_errors(analysis, truth, wrong_px: float = 3.0) -> dict:
+    """Identity and completeness of the detected markers against the truth (issue 17).
+
+    Marker ``m`` of the detection is compared with marker ``m`` of the truth
+    (both in the static shot's rear-to-front order) in every synchronised
+    frame: a used centre further than ``wrong_px`` from its own marker's true
+    projection is a wrong identity (another marker, a stirrup, a blob, or a
+    centre ruined by a merge).
+
+    Returns
+    -------
+    dict
+        ``cameras``: per camera ``used``, ``wrong``, ``median_px``,
+        ``p99_px``, ``visible`` (true visible), ``missed`` (visible, not
+        used) and ``reasons`` (count of each reason among the missed);
+        ``seen_by_two`` (marker-frames seen by two or more cameras in the
+        truth), ``with_3d`` (those with a 3D position from the
+        triangulation step, measured or interpolated), ``wrong_total``.
+    """
+    res = analysis.results
+    det = res["detect"]["marker_px"]
+    reasons = res["detect"]["reason"]
+    offsets = res["sync"]["offsets"]
+    n, m = next(iter(det.values())).shape[:2]
+    out, visible_count = {}, np.zeros((n, m), int)
+    for cam, px in det.items():
+        rows = offsets[cam] + np.arange(n)
+        inside = rows < truth.marker_px[cam].shape[0]
+        tp = np.full((n, m, 2), np.nan)
+        vis = np.zeros((n, m), bool)
+        tp[inside] = truth.marker_px[cam][rows[inside], :m]
+        vis[inside] = truth.marker_visible[cam][rows[inside], :m]
+        visible_count += vis
+        used = np.all(np.isfinite(px), axis=-1)
+        err = np.linalg.norm(px - tp, axis=-1)
+        wrong = used & ~(err <= wrong_px)
+        e = err[used & ~wrong]
+        missed = vis & ~used
+        why = {}
+        for r in np.asarray(reasons[cam], dtype=object)[missed]:
+            why[str(r)] = why.get(str(r), 0) + 1
+        out[cam] = {"used": int(used.sum()), "wrong": int(wrong.sum()),
+                    "median_px": float(np.median(e)) if e.size else float("nan"),
+                    "p99_px": float(np.percentile(e, 99)) if e.size else float("nan"),
+                    "visible": int(vis.sum()), "missed": int(missed.sum()), "reasons": why}
+    seen2 = visible_count >= 2
+    pts = res["triangulate"]["points"] if "triangulate" in res else np.full((n, m, 3), np.nan)
+    have = np.all(np.isfinite(pts), axis=-1)
+    return {"cameras": out, "seen_by_two": int(seen2.sum()), "with_3d": int((seen2 & have).sum()),
+            "wrong_total": int(sum(c["wrong"] for c in out.values()))}
+
+
 def analysed_truth(analysis, truth) -> dict:
     """The truth at the analysed frames, in the analysis' own motion frame.
 

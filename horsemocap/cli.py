@@ -25,6 +25,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="calibrate from the session's checkerboard views even if it has a rig")
     g.add_argument("--threshold", type=int, metavar="LEVEL",
                    help="gray-level threshold for every camera (thesis eq. 4.5; default Otsu-based)")
+    g.add_argument("--detection", choices=["multiview", "thesis"], dest="detection_method",
+                   help="multiview: markers identified by all cameras together and followed in 3D "
+                        "(default); thesis: each camera alone with the filters of chapter 4")
+    g.add_argument("--max-gap", type=int, dest="max_gap_frames", metavar="FRAMES",
+                   help="longest gap of a marker's 3D position bridged by interpolation "
+                        "(default 0.1 s of frames, at least 2; 0: none)")
     g.add_argument("--triangulation", choices=["joint", "thesis"],
                    help="joint: all cameras at once (default); thesis: three pairs averaged (eq. 5.5)")
     g.add_argument("--span", type=float, dest="smoothing_span", metavar="FRACTION",
@@ -49,7 +55,7 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
 
 def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
-               ("recalibrate", "triangulation", "smoothing_span", "smoothing_method", "period_frames",
+               ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span", "smoothing_method", "period_frames",
                 "x_marker", "angular_method", "saddle_method", "weighting_mode")}
     if args.offsets:
         try:

@@ -28,9 +28,22 @@ class AnalysisParams:
         None = found from the flashlight.
     recalibrate : bool
         Calibrate from the session's checkerboard views even if it has a rig.
+    detection_method : str
+        ``"multiview"`` (default): the markers are identified by all cameras
+        together (consistent triangulation, the static shot's rigid shape and
+        handedness) and followed in 3D
+        (:func:`horsemocap.detection.identify_markers`); ``"thesis"``: each
+        camera on its own with the filters of chapter 4
+        (:func:`horsemocap.detection.detect_markers`). Sessions without a
+        static shot or with fewer than 3 markers use ``"thesis"``.
     detection : dict
         Per camera (or ``"all"``) overrides of the detector's parameters
-        (threshold, area range, window size, distance tolerance, labels).
+        (threshold, area range, circularity, centroid; the thesis chain also
+        window size, distance tolerance, labels).
+    max_gap_frames : int or None
+        Longest run of frames in which a marker has no 3D position (fewer
+        than two cameras see it) that is bridged by interpolation and marked
+        ``interpolated``; None = 0.1 s of frames, at least 2; 0 = none.
     triangulation : str
         ``"joint"`` (all cameras at once) or ``"thesis"`` (three pairs
         averaged, eq. 5.1-5.5).
@@ -81,7 +94,9 @@ class AnalysisParams:
 
     sync_offsets: dict | None = None
     recalibrate: bool = False
+    detection_method: str = "multiview"
     detection: dict = field(default_factory=dict)
+    max_gap_frames: int | None = None
     triangulation: str = "joint"
     smoothing_span: float = 0.1
     smoothing_method: str = "loess"
@@ -122,6 +137,11 @@ class AnalysisParams:
     def validate(self, source: str) -> None:
         def bad(name, expected):
             raise ParamsError(f"{source}: parameter '{name}': expected {expected}, got {getattr(self, name)!r}")
+        if self.detection_method not in ("multiview", "thesis"):
+            bad("detection_method", '"multiview" or "thesis"')
+        if self.max_gap_frames is not None and (not isinstance(self.max_gap_frames, int)
+                                                or isinstance(self.max_gap_frames, bool) or self.max_gap_frames < 0):
+            bad("max_gap_frames", "an integer >= 0 or null")
         if self.triangulation not in ("joint", "thesis"):
             bad("triangulation", '"joint" or "thesis"')
         if not (0 < float(self.smoothing_span) <= 1):

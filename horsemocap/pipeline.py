@@ -26,7 +26,7 @@ from .session import Session, SessionError, check_frame_counts, load_session
 from .sources import FrameSource, read_image
 from .store import ResultsStore, check_outside
 
-STEPS = ("sync", "rig", "detect", "triangulate", "plumb", "static", "smooth",
+STEPS = ("sync", "rig", "plumb", "static", "detect", "triangulate", "smooth",
          "motion_frame", "rigid_body", "comfort")
 
 
@@ -124,14 +124,85 @@ def _detection_params(params: AnalysisParams, camera: str):
 
 
 def step_detect(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Marker centroids per camera in the synchronised numbering (chapter 4)."""
+    """Marker centroids per camera in the synchronised numbering (chapter 4; issue 17).
+
+    ``detection_method="multiview"`` (default): the markers are identified by
+    all cameras together and followed in 3D
+    (:func:`horsemocap.detection.identify_markers`, which needs the static
+    shot's markers as its rigid model); ``"thesis"``: each camera alone with
+    the filters of chapter 4 (:func:`horsemocap.detection.detect_markers`),
+    and the analysed segment is the longest run in which every camera sees
+    every marker.
+    """
+    method, why = params.detection_method, ""
+    if method == "multiview":
+        if res["static"]["static_points"] is None:
+            method, why = "thesis", "no static shot to take the markers' rigid shape from"
+        elif session.marker_count < 3:
+            method, why = "thesis", f"{session.marker_count} marker(s): a rigid shape needs 3"
+        if why:
+            progress("detect", f"multi-view identification not possible ({why}); the thesis' per-camera chain")
+    out = _detect_multiview(session, params, res, progress) if method == "multiview" \
+        else _detect_per_camera(session, params, res, progress)
+    out["method"] = method
+    out["method_note"] = why
+    return out
+
+
+def _frames_of(session: Session, res: dict, cam: str):
+    offsets, n = res["sync"]["offsets"], res["sync"]["n_frames"]
+    return FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+
+
+def _max_gap(session: Session, params: AnalysisParams) -> int:
+    from .detection import default_max_gap
+
+    return default_max_gap(session.fps) if params.max_gap_frames is None else int(params.max_gap_frames)
+
+
+def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
+    from .detection import DetectionError, DetectionParams, bridge_gaps, identify_markers
+
+    rig = res["rig"]["rig"]
+    frames = {c: _frames_of(session, res, c) for c in session.cameras}
+    given = {c: _detection_params(params, c) or DetectionParams() for c in session.cameras}
+    progress("detect", f"{res['sync']['n_frames']} frames of cameras {', '.join(session.cameras)}: "
+                       "markers identified by all cameras together ...")
+    try:
+        idn = identify_markers(frames, rig, res["static"]["static_points"], session.marker_count,
+                               params=given, progress=progress)
+    except DetectionError as exc:
+        raise AnalysisError("detect", f"{exc}") from None
+    finally:
+        for f in frames.values():
+            f.close()
+    have, _ = bridge_gaps(idn.points, _max_gap(session, params))
+    tracked = np.all(np.isfinite(have), axis=(1, 2))
+    segment = _longest_run(tracked)
+    if segment is None or segment[1] - segment[0] < 8:
+        seen = {c: int(np.sum(idn.reason[c] == "")) for c in session.cameras}
+        reasons = sorted({f"{c}: {r}" for c in session.cameras for r in set(idn.reason[c].ravel()) if r})
+        raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
+                            f"more cameras (validated 2D centres per camera: {seen}; reasons: "
+                            f"{'; '.join(reasons)}); check the motion videos, the threshold and the rig")
+    progress("detect", f"frames {segment[0]}..{segment[1] - 1}: every marker seen by two or more cameras "
+                       f"(or bridged); labelled in frame {idn.anchor_frame}")
+    chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
+    return {"marker_px": idn.marker_px, "reason": idn.reason, "segment": segment, "detection": chosen,
+            "all_seen": tracked, "identification": {
+                "anchor_frame": idn.anchor_frame, "anchor_margin": idn.anchor_margin,
+                "model_index": [int(i) for i in idn.model_index], "rigid_rms_m": idn.rigid_rms_m}}
+
+
+def _detect_per_camera(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
+    """The thesis' chain: every camera on its own (chapter 4)."""
     from .detection import detect_markers
 
-    offsets, n = res["sync"]["offsets"], res["sync"]["n_frames"]
+    n = res["sync"]["n_frames"]
     marker_px, reasons, chosen = {}, {}, {}
     for cam in session.cameras:
         progress("detect", f"camera '{cam}': {n} frames ...")
-        frames = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+        frames = _frames_of(session, res, cam)
         track = detect_markers(frames, session.marker_count, params=_detection_params(params, cam))
         marker_px[cam], reasons[cam] = track.marker_px, track.reason
         chosen[cam] = track.params.to_dict()
@@ -188,24 +259,33 @@ def step_triangulate(session: Session, params: AnalysisParams, res: dict, progre
     """
     from .reconstruction import triangulate
 
+    from .detection import bridge_gaps
+
     tri = triangulate(res["rig"]["rig"], res["detect"]["marker_px"], mode=params.triangulation)
+    points, bridged = bridge_gaps(tri.points, _max_gap(session, params))
+    reason = np.where(bridged, "interpolated", tri.reason)
+    if bridged.any():
+        progress("triangulate", f"{int(bridged.sum())} marker position(s) in gaps of at most "
+                                f"{_max_gap(session, params)} frames interpolated")
     med = {c: float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan") for c, r in tri.residual_px.items()}
     progress("triangulate", f"{params.triangulation} mode; median reprojection residual (px) "
                             + ", ".join(f"{c} {v:.3f}" for c, v in med.items()))
     a, b = res["detect"]["segment"]
     ok = np.zeros(len(tri.points), bool)
-    ok[a:b] = np.all(np.isfinite(tri.points[a:b]), axis=(1, 2))
+    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=(1, 2))
     segment = _longest_run(ok)
     if segment is None or segment[1] - segment[0] < 8:
-        why = sorted({str(r) for r in tri.reason[a:b].ravel() if r})
+        why = sorted({str(r) for r in reason[a:b].ravel() if r})
         raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker triangulated "
                             f"(reasons: {', '.join(why) or 'none'}); check the rig (calibration) and the "
                             "detections in markers_2d.csv")
     if segment != (a, b):
         progress("triangulate", f"analysing frames {segment[0]}..{segment[1] - 1}: some markers of frames "
                                 f"{a}..{b - 1} could not be triangulated ("
-                                + ", ".join(sorted({str(r) for r in tri.reason[a:b].ravel() if r})) + ")")
-    return {"points": tri.points, "residual_px": tri.residual_px, "reason": tri.reason, "segment": segment}
+                                + ", ".join(sorted({str(r) for r in reason[a:b].ravel() if r and r != "interpolated"}))
+                                + ")")
+    return {"points": points, "residual_px": tri.residual_px, "reason": reason, "n_views": tri.n_views,
+            "segment": segment}
 
 
 def _still_points(session: Session, rig: Rig, images: dict, count: int, step: str, mode: str):
@@ -243,7 +323,8 @@ def step_plumb(session: Session, params: AnalysisParams, res: dict, progress) ->
 def step_static(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
     """Static shot: the markers and the saddle marker, all visible (section 6.3)."""
     if session.static is None:
-        raise AnalysisError("static", f"{session.json_path}: no 'static' stills; the saddle marker cannot be placed")
+        return {"static_points": None, "static_px": None,
+                "missing": f"{session.json_path}: no 'static' stills; the saddle marker cannot be placed"}
     pts, px = _still_points(session, res["rig"]["rig"], session.static, session.marker_count + 1,
                             "static", params.triangulation)
     return {"static_points": pts, "static_px": px}
@@ -270,6 +351,8 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     from .frames import motion_frame, to_motion_frame
 
     smoothed = res["smooth"]["smoothed"]
+    if res["static"]["static_points"] is None:
+        raise AnalysisError("motion_frame", res["static"]["missing"])
     try:
         mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
                           period=params.period_frames, n_periods=params.n_periods)

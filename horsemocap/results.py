@@ -43,10 +43,35 @@ def frame_numbers(analysis) -> tuple[np.ndarray, np.ndarray]:
 
 
 def markers_2d_text(analysis) -> str:
-    """``camera,frame,marker,u_px,v_px`` in each camera's own numbering."""
+    """``camera,frame,marker,u_px,v_px,reason,residual_px`` in each camera's own numbering."""
     from .detection.markers2d import markers_2d_csv_text
 
-    return markers_2d_csv_text(analysis.results["detect"]["marker_px"], analysis.results["sync"]["offsets"])
+    res = analysis.results
+    tri = res.get("triangulate")
+    return markers_2d_csv_text(res["detect"]["marker_px"], res["sync"]["offsets"], res["detect"]["reason"],
+                               tri["residual_px"] if tri else None)
+
+
+def markers_3d_text(analysis) -> str:
+    """``frame,marker,x_m,y_m,z_m,n_views,residual_px,reason``: every synchronised frame, world frame.
+
+    Positions in the reference camera's frame (thesis ``CM_L``) before
+    smoothing; ``n_views`` cameras used; ``residual_px`` the largest
+    reprojection residual over them; ``reason`` empty when measured,
+    ``interpolated`` in a bridged gap, else why there is no position.
+    """
+    from .detection.markers2d import marker_label
+
+    res, s = analysis.results, analysis.session
+    tri = res["triangulate"]
+    pts, reason = tri["points"], tri["reason"]
+    worst = np.fmax.reduce(np.stack(list(tri["residual_px"].values())), axis=0)   # NaN-ignoring maximum
+    views = tri.get("n_views", np.zeros(pts.shape[:2], int))
+    off = res["sync"]["offsets"][s.reference_camera]
+    rows = [[k + off, marker_label(m), *(_num(v) for v in pts[k, m]), int(views[k, m]),
+             _num(worst[k, m], 4) if reason[k, m] != "interpolated" else "", str(reason[k, m])]
+            for k in range(pts.shape[0]) for m in range(pts.shape[1])]
+    return _csv_text(["frame", "marker", "x_m", "y_m", "z_m", "n_views", "residual_px", "reason"], rows)
 
 
 def _points(analysis, key):
@@ -115,6 +140,13 @@ def analysis_record(analysis) -> dict:
         chosen["rig"] = res["rig"]["rig_from"]
     if "detect" in res:
         p["detection"] = res["detect"]["detection"]
+        chosen["detection_method"] = res["detect"].get("method", p.get("detection_method"))
+        if res["detect"].get("method_note"):
+            chosen["detection_method_note"] = res["detect"]["method_note"]
+        if "identification" in res["detect"]:
+            ident = res["detect"]["identification"]
+            chosen["identification"] = {"anchor_frame": ident["anchor_frame"],
+                                        "model_index_in_static": ident["model_index"]}
         chosen["analysed_frames"] = list(res["detect"]["segment"])
     if "triangulate" in res:
         chosen["analysed_frames"] = list(res["triangulate"]["segment"])
@@ -137,6 +169,8 @@ def write_available(out_dir: Path, analysis) -> list[Path]:
         written.append(atomic_write_text(out / "rig.toml", rig_to_toml(res["rig"]["rig"])))
     if "detect" in res:
         written.append(atomic_write_text(out / "markers_2d.csv", markers_2d_text(analysis)))
+    if "triangulate" in res:
+        written.append(atomic_write_text(out / "markers_3d.csv", markers_3d_text(analysis)))
     if "rigid_body" in res:
         written.append(atomic_write_text(out / "trajectories.csv", trajectories_text(analysis)))
         written.append(atomic_write_text(out / "kinematics.csv", kinematics_text(analysis)))

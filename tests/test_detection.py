@@ -308,15 +308,18 @@ def test_markers_2d_csv(tmp_path, track):
     rows = det.markers_2d_rows("left", track, frame_offset=7)
     n, m = track.reason.shape
     assert len(rows) == n * m and rows[0][:3] == ["left", 7, "marker1"]
-    assert det.markers_2d_rows("left", track.marker_px, 7) == rows
+    assert det.markers_2d_rows("left", track.marker_px, 7, reason=track.reason) == rows
+    assert [r[5] for r in det.markers_2d_rows("left", track.marker_px, 7)] == [""] * (n * m)
     path = det.write_markers_2d_csv(tmp_path / "markers_2d.csv", {"left": track, "middle": track},
                                     frame_offsets={"middle": 3})
     with open(path) as fh:
         got = list(csv.DictReader(fh))
-    assert list(got[0]) == ["camera", "frame", "marker", "u_px", "v_px"]
+    assert list(got[0]) == ["camera", "frame", "marker", "u_px", "v_px", "reason", "residual_px"]
     assert len(got) == 2 * n * m
     miss = [r for r in got if r["camera"] == "left" and r["u_px"] == ""]
     assert len(miss) == int((~track.found).sum())
+    assert all(r["reason"] in det.REASONS and r["reason"] != "" for r in miss)     # every gap says why
+    assert all(r["residual_px"] == "" for r in got)                                  # not triangulated here
     r = next(r for r in got if r["camera"] == "middle" and r["u_px"] != "")
     k, mm = int(r["frame"]) - 3, int(r["marker"].removeprefix("marker")) - 1
     assert float(r["u_px"]) == pytest.approx(track.marker_px[k, mm, 0], rel=1e-8)

@@ -126,7 +126,8 @@ def test_truncated_video(tmp_path, capsys):
     assert (out / "analysis.json").is_file() and (out / "rig.toml").is_file()  # steps before stay written
 
 
-def test_marker_hidden_for_some_frames(tmp_path, capsys):
+def _session_with_hidden_marker(tmp_path):
+    """The bundled session with marker 2 of the middle camera under a dark patch for 4 frames."""
     session = _copy_session(tmp_path)
     truth = load_truth(default_session_dir())
     cam = "middle"
@@ -137,8 +138,33 @@ def test_marker_hidden_for_some_frames(tmp_path, capsys):
         u, v = truth.marker_px[cam][k, 1]
         cv2.circle(frames[k], (int(round(u)), int(round(v))), 9, (12, 12, 12), -1)
     _rewrite_as_folder(session, cam, frames)
+    return session, truth, cam, hidden
+
+
+def test_marker_hidden_in_one_camera_is_triangulated_from_the_others(tmp_path, capsys):
+    """Multi-view identification (issue 17): the other two cameras still give marker 2 its 3D position."""
+    session, truth, cam, hidden = _session_with_hidden_marker(tmp_path)
     out = tmp_path / "out"
     code = main(["analyze", str(session), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    rows = [r for r in csv.DictReader(open(out / "markers_2d.csv")) if r["camera"] == cam and r["marker"] == "marker2"]
+    hidden_rows = [r for r in rows if int(r["frame"]) in set(hidden)]
+    assert len(hidden_rows) == 4 and all(r["u_px"] == "" for r in hidden_rows)
+    assert {r["reason"] for r in hidden_rows} <= {"occluded", "partly_occluded"}, hidden_rows
+    ref = [k - truth.offsets[cam] + truth.offsets["left"] for k in hidden]      # reference-camera frames
+    rows3d = {int(r["frame"]): r for r in csv.DictReader(open(out / "markers_3d.csv")) if r["marker"] == "marker2"}
+    assert all(rows3d[f]["n_views"] == "2" and rows3d[f]["reason"] == "" and rows3d[f]["x_m"] for f in ref)
+    record = json.loads((out / "analysis.json").read_text())
+    a, b = record["chosen"]["analysed_frames"]
+    assert all(a <= k - truth.offsets[cam] < b for k in hidden)     # analysed, not cut around
+
+
+def test_marker_hidden_with_the_thesis_chain(tmp_path, capsys):
+    """The thesis' per-camera chain: the hidden frames are reported and never bridged by a guess."""
+    session, truth, cam, hidden = _session_with_hidden_marker(tmp_path)
+    out = tmp_path / "out"
+    code = main(["analyze", str(session), "--out", str(out), "--detection", "thesis"])
     err = capsys.readouterr().err
     assert (out / "markers_2d.csv").is_file(), err
     rows = [r for r in csv.DictReader(open(out / "markers_2d.csv")) if r["camera"] == cam and r["marker"] == "marker2"]

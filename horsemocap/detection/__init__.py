@@ -42,6 +42,17 @@ like markers. ``markers2d.py`` is the one writer of ``markers_2d.csv``
 :class:`DetectionParams`, :class:`MarkerTrack`, :class:`Regions`,
 :data:`REASONS` and :class:`DetectionError`.
 
+The pipeline's default is not this per-camera chain but
+``identification.py`` (issue 17, seed 000 sec. 5): candidates of every camera
+(the same threshold, labels, area and circularity rules), matched across the
+cameras by triangulation (:func:`match_views`: the epipolar constraint,
+validation by a further camera), labelled by the rigid marker model of the
+static shot (:func:`fit_marker_model`: 3D side lengths and handedness) and
+followed in 3D with a minimum-acceleration prediction
+(:func:`identify_markers`); a stirrup, a buckle or a glint fails the 3D tests
+that one camera cannot make. The thesis' chain stays selectable
+(``detection_method="thesis"``).
+
 Pixel coordinates are ``(u, v)`` = (column, row), 0-based, with the centre of
 pixel ``(i, j)`` at ``u = j, v = i`` (OpenCV convention; MATLAB's regionprops
 is 1-based). Centres are, by default, intensity-weighted centroids of the gray
@@ -57,6 +68,8 @@ from .base import REASONS, DetectionError, DetectionParams, MarkerTrack, Regions
 from .filters import (cross_product_signs, filter_area, filter_circularity, filter_cross_product,
                       filter_distance, filter_stages, filter_window, find_candidates, label_regions,
                       marker_distances, region_circularity, weighted_centroids, window_center)
+from .identification import (IDENTIFICATION_REASONS, Identification, bridge_gaps, default_max_gap,
+                             fit_marker_model, frame_candidates, identify_markers, label_frame, match_views)
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
 from .stills import (StillCandidates, StillViews, detect_still, detect_still_views, match_still_views,
                      still_candidates)
@@ -73,4 +86,6 @@ __all__ = [
     "find_candidates", "follow_cluster", "choose_markers", "cluster_persistence", "CandidateCache", "filter_stages", "detect_markers", "detect_still",
     "StillCandidates", "still_candidates", "StillViews", "match_still_views", "detect_still_views",
     "valid_frames", "usable_frames", "markers_2d_rows", "markers_2d_csv_text", "marker_label", "write_markers_2d_csv",
+    "IDENTIFICATION_REASONS", "Identification", "identify_markers", "frame_candidates", "match_views",
+    "fit_marker_model", "label_frame", "bridge_gaps", "default_max_gap",
 ]

@@ -28,8 +28,8 @@ def _px_text(value: float) -> str:
     return f"{float(value):.9g}" if np.isfinite(value) else ""
 
 
-def markers_2d_rows(camera: str, track, frame_offset: int = 0) -> list[list]:
-    """Rows ``[camera, frame, marker, u_px, v_px]`` of ``markers_2d.csv``.
+def markers_2d_rows(camera: str, track, frame_offset: int = 0, reason=None, residual_px=None) -> list[list]:
+    """Rows ``[camera, frame, marker, u_px, v_px, reason, residual_px]`` of ``markers_2d.csv``.
 
     Parameters
     ----------
@@ -38,34 +38,49 @@ def markers_2d_rows(camera: str, track, frame_offset: int = 0) -> list[list]:
         The detections (a track's ``marker_px``), NaN where not found.
     frame_offset : int
         Index in the camera's own motion source of the track's first frame.
+    reason : ndarray (frames, markers) of str, optional
+        Why a value is missing or was rejected (``""``: used); default the
+        track's own ``reason``, else empty.
+    residual_px : ndarray (frames, markers), optional
+        Reprojection residual of the centre against the triangulated point.
 
     Returns
     -------
     list of list
         ``frame`` = track index + ``frame_offset``, ``marker`` =
         :func:`marker_label`, ``u_px``/``v_px`` to 9 significant digits,
-        ``""`` where the marker was not found.
+        ``""`` where the marker was not found; ``reason`` and
+        ``residual_px`` (4 decimals) empty where unknown.
     """
     px = np.asarray(getattr(track, "marker_px", track), float)
-    return [[camera, k + int(frame_offset), marker_label(m), _px_text(px[k, m, 0]), _px_text(px[k, m, 1])]
+    why = reason if reason is not None else getattr(track, "reason", None)
+    why = np.full(px.shape[:2], "", dtype=object) if why is None else np.asarray(why, dtype=object)
+    res = np.full(px.shape[:2], np.nan) if residual_px is None else np.asarray(residual_px, float)
+    return [[camera, k + int(frame_offset), marker_label(m), _px_text(px[k, m, 0]), _px_text(px[k, m, 1]),
+             str(why[k, m]), f"{res[k, m]:.4f}" if np.isfinite(res[k, m]) else ""]
             for k in range(px.shape[0]) for m in range(px.shape[1])]
 
 
-def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None) -> str:
-    """The text of ``markers_2d.csv`` (spec ``sessions.md``: ``camera,frame,marker,u_px,v_px``).
+def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None, reasons: dict | None = None,
+                        residuals: dict | None = None) -> str:
+    """The text of ``markers_2d.csv`` (spec ``sessions.md``: ``camera,frame,marker,u_px,v_px,reason,residual_px``).
 
     ``tracks`` maps camera -> :class:`MarkerTrack` or ``marker_px`` array;
-    ``frame_offsets`` maps camera -> source index of its first frame (0 if absent).
-    The pipeline's results and :func:`write_markers_2d_csv` both use this.
+    ``frame_offsets`` maps camera -> source index of its first frame (0 if
+    absent); ``reasons`` and ``residuals`` map camera -> (frames, markers)
+    arrays (see :func:`markers_2d_rows`). The pipeline's results and
+    :func:`write_markers_2d_csv` both use this.
     """
-    lines = ["camera,frame,marker,u_px,v_px"]
+    lines = ["camera,frame,marker,u_px,v_px,reason,residual_px"]
     for cam, tr in tracks.items():
         off = (frame_offsets or {}).get(cam, 0)
-        lines.extend(",".join(str(x) for x in r) for r in markers_2d_rows(cam, tr, off))
+        lines.extend(",".join(str(x) for x in r) for r in markers_2d_rows(
+            cam, tr, off, (reasons or {}).get(cam), (residuals or {}).get(cam)))
     return "\n".join(lines) + "\n"
 
 
-def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None) -> Path:
+def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None, reasons: dict | None = None,
+                         residuals: dict | None = None) -> Path:
     """Write ``markers_2d.csv`` atomically (:func:`markers_2d_csv_text`)."""
     from ..store import atomic_write_text
-    return atomic_write_text(path, markers_2d_csv_text(tracks, frame_offsets))
+    return atomic_write_text(path, markers_2d_csv_text(tracks, frame_offsets, reasons, residuals))

@@ -5,7 +5,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-__all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors"]
+__all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors", "plot_identification"]
 
 
 def _zoom(ax, box, shape=None):
@@ -119,3 +119,65 @@ def plot_centroid_errors(errors: dict, ax=None, bins=None):
     ax.set_ylabel("count")
     ax.legend(fontsize=8)
     return ax
+
+
+def plot_identification(images: dict, candidates: dict, views, fit, zoom=None, fig=None):
+    """One frame identified by all cameras together (issue 17), one panel per camera.
+
+    Every candidate region is drawn: a grey ring when no other camera sees a
+    point there (a glint, a reflection), an orange square when it is part of a
+    3D point consistent in two or more cameras that does not fit the static
+    shot's marker shape (a stirrup, a buckle), a labelled green cross for the
+    markers.
+
+    Parameters
+    ----------
+    images : dict camera -> gray or RGB frame
+    candidates : dict camera -> :class:`~horsemocap.detection.identification.Candidates`
+    views : :class:`~horsemocap.detection.identification.ViewPoints`
+    fit : :class:`~horsemocap.detection.identification.ModelFit` or None
+    zoom : (u0, v0, u1, v1) per camera (dict) or one box, optional
+
+    Returns
+    -------
+    matplotlib Figure
+    """
+    cams = list(views.cameras)
+    fig = fig or plt.figure(figsize=(4.2 * len(cams), 3.8))
+    axes = fig.subplots(1, len(cams), squeeze=False)[0]
+    markers = set(np.asarray(fit.assignment).tolist()) if fit is not None else set()
+    for i, (ax, cam) in enumerate(zip(axes, cams)):
+        img = np.asarray(images[cam])
+        ax.imshow(img, cmap=None if img.ndim == 3 else "gray")
+        cand = candidates[cam]
+        in3d = set(views.index[:, i][views.index[:, i] >= 0].tolist())
+        alone = [j for j in range(len(cand)) if j not in in3d]
+        if alone:
+            ax.scatter(*cand.centre[alone].T, s=60, facecolors="none", edgecolors="0.6", lw=1,
+                       label="seen by this camera only")
+        other = [views.index[p, i] for p in range(len(views)) if p not in markers and views.index[p, i] >= 0]
+        if other:
+            ax.scatter(*cand.centre[other].T, s=60, marker="s", facecolors="none", edgecolors="tab:orange",
+                       lw=1.5, label="consistent in 3D, not the marker shape")
+        if fit is not None:
+            for m, p in enumerate(fit.assignment):
+                j = views.index[p, i]
+                if j >= 0:
+                    ax.plot(*cand.centre[j], "+", color="lime", ms=12, mew=2,
+                            label="marker (rigid model)" if m == 0 else None)
+                    ax.annotate(f"marker{m + 1}", cand.centre[j], xytext=(4, -8), textcoords="offset points",
+                                color="lime", fontsize=8)
+        box = zoom.get(cam) if isinstance(zoom, dict) else zoom
+        _zoom(ax, box, img.shape)
+        ax.set_title(cam)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    handles, labels = [], []
+    for ax in axes:
+        for h, l in zip(*ax.get_legend_handles_labels()):
+            if l not in labels:
+                handles.append(h)
+                labels.append(l)
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    return fig

@@ -9,7 +9,9 @@
 #   distance tolerance) gets an automatic value, and how to change it with a widget;
 # - why an intensity-weighted centroid is several times more precise than the geometric centre
 #   of the binary region, measured against the virtual laboratory's truth;
-# - how markers that are hidden or leave the image become NaN with a reason, never a guess.
+# - how markers that are hidden or leave the image become NaN with a reason, never a guess;
+# - how the pipeline's default identifies the markers with all cameras together (section 9):
+#   consistent triangulation and the static shot's rigid shape reject what one camera cannot.
 #
 # **The equations.** Gray level of an RGB pixel (eq. 4.4) and the global threshold $l$ (eq. 4.5):
 #
@@ -290,6 +292,81 @@ print(f"threshold preview: median {np.median(times):.1f} ms per redraw (max {max
 print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 
 # %% [markdown]
+# ## 9 · All cameras together: identification in 3D (the pipeline's default)
+#
+# Everything above looks at one camera at a time, as the thesis does. One camera cannot tell a
+# marker from a round bright pseudo marker of the same size: a shining stirrup, the girth
+# buckle, a reflector that crosses the markers. The three cameras together can (seed 000,
+# section 5.2.3). The pipeline's default, `detection_method="multiview"`, therefore
+#
+# 1. takes the candidate regions of every camera (the same threshold, labels, area and
+#    circularity rules as above);
+# 2. matches them across the cameras: two regions that triangulate with a reprojection error
+#    below 2 px satisfy the epipolar constraint, and a third camera validates the point when it
+#    has a region at its projection;
+# 3. labels the 3D points with the **rigid model of the static shot**: the distances between the
+#    markers must equal the static shot's within their measured uncertainty, and the triangle must
+#    face the cameras as it does in the static shot (the cross-product rule of Figure 4.13,
+#    in 3D);
+# 4. follows the markers in 3D from frame to frame, predicting each with minimum acceleration
+#    (constant velocity) and looking for it near the projection of the prediction in every camera.
+#
+# A marker seen by two cameras still gets a 3D position when the third loses it; a short gap in
+# every camera is bridged in 3D and marked `interpolated`. Here is the frame where the pipeline
+# labelled the markers, with every candidate region of every camera:
+
+# %%
+from horsemocap import accuracy
+from horsemocap.detection import identification
+from horsemocap.pipeline import results_for
+
+analysis = results_for(session, until="detect")
+res = analysis.results
+k = res["detect"]["identification"]["anchor_frame"]
+offsets = res["sync"]["offsets"]
+thresholds = {c: res["detect"]["detection"][c]["threshold"] for c in truth.cameras}
+images = {c: FrameSource(session / "motion" / f"{c}.avi").frame(offsets[c] + k, color=False) for c in truth.cameras}
+candidates = {c: identification.frame_candidates(images[c], thresholds[c]) for c in truth.cameras}
+views, fit, why = identification.label_frame(res["rig"]["rig"], candidates, res["static"]["static_points"], 3, 2.0)
+print(f"synchronised frame {k}; thresholds {thresholds}")
+print("candidate regions per camera: " + ", ".join(f"{c} {len(candidates[c])}" for c in truth.cameras))
+print(f"3D points consistent in two or more cameras: {len(views)}; the markers: points {fit.assignment.tolist()}, "
+      f"distances within {1000 * fit.rms_m:.1f} mm rms of the static shot's")
+fig = plots.plot_identification(images, candidates, views, fit)
+plt.show()
+
+# %% [markdown]
+# **A pseudo marker rejected by geometry.** Several bright things are consistent in all three
+# cameras: they are real 3D objects (the leg bandages, the buckle, the rider's helmet). None of
+# them, with two of the markers, makes the static shot's triangle. The table gives, for each
+# consistent 3D point, its distances to the three markers; the static shot's side lengths are
+# printed first.
+
+# %%
+static = res["static"]["static_points"][fit.model_index]
+sides = [np.linalg.norm(static[i] - static[j]) for i, j in ((0, 1), (1, 2), (0, 2))]
+print("static shot: marker1-marker2 {:.0f} mm, marker2-marker3 {:.0f} mm, marker1-marker3 {:.0f} mm".format(
+    *(1000 * np.array(sides))))
+marker_points = views.points[fit.assignment]
+for p in range(len(views)):
+    d = 1000 * np.linalg.norm(marker_points - views.points[p], axis=1)
+    role = f"marker{list(fit.assignment).index(p) + 1}" if p in fit.assignment else "pseudo marker"
+    seen = "+".join(c for c, j in zip(views.cameras, views.index[p]) if j >= 0)
+    print(f"point {p:2d} ({seen:17s}): distances to the markers {d[0]:6.0f} {d[1]:6.0f} {d[2]:6.0f} mm -> {role}")
+
+# %% [markdown]
+# **Through the sequence.** Every 2D centre that was not used keeps its reason (the
+# `reason` column of `markers_2d.csv`); against the truth, no centre carries a wrong identity.
+
+# %%
+ident = accuracy.identification_errors(analysis, truth)
+for cam, e in ident["cameras"].items():
+    why = ", ".join(f"{r} {n}" for r, n in sorted(e["reasons"].items())) or "none"
+    print(f"{cam:6s}: {e['used']:3d} centres used, {e['wrong']} wrong identities, median error "
+          f"{e['median_px']:.3f} px; visible but not used: {e['missed']} ({why})")
+print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with a 3D position: {ident['with_3d']}")
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. Set the threshold to the two-class Otsu level and run the detection again. What happens to
@@ -299,6 +376,9 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 #    (`window_predict=False`). Does it still find every visible marker?
 # 3. Which reason strings appear in the right camera, and in which frames? Compare them with
 #    `truth.marker_reason["right"]`.
+# 4. Run the pipeline with the thesis' per-camera chain, `results_for(session, until="detect",
+#    params={"detection_method": "thesis"})`, and compare `accuracy.identification_errors` with
+#    section 9's.
 #
 # <details><summary>Solutions</summary>
 #
@@ -309,5 +389,7 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 #    window_predict=False))` and compare `track.found` with `truth.marker_visible["left"][:, :3]`.
 # 3. `np.unique(tracks["right"].reason, return_counts=True)`; the markers enter and leave the
 #    image (`left_image`), which the truth calls `outside_image` / `partly_outside_image`.
+# 4. On this session both find the markers; the thesis' chain analyses only the frames in which
+#    every camera sees every marker, the multi-view one every frame in which two cameras do.
 #
 # </details>

@@ -38,15 +38,16 @@ def same_rig(rig_a, rig_b):
 # `session.json` gives the sync offsets (0: the cameras were triggered together), a rig file, and
 # one marker — the ball. It is not a riding session (no static shot, no gait), so the pipeline
 # runs only its first steps on it: `sync` (offsets as given), `rig` (read `calibration/rig.toml`),
-# `detect` (`detection.detect_markers(frames, 1)` per camera, notebook 04), `triangulate` (joint
-# mode, notebook 05) and `plumb` (the plumb markers found by `detection.detect_still` and
-# triangulated, notebook 06). The truth is used only to measure errors. Its smoothing step
+# `plumb` (the plumb markers found in all cameras and triangulated, notebook 06), `static` (absent
+# here), `detect` (with no static shot and one marker there is no rigid shape to identify, so
+# each camera on its own: `detection.detect_markers(frames, 1)`, notebook 04) and `triangulate`
+# (joint mode, notebook 05). The truth is used only to measure errors. Its smoothing step
 # (default `loess`, notebook 06) is not run: as in the thesis' section 8.3, the quadratic fit
 # below is the only filter on the fall.
 
 # %%
 ball_dir = data_samples_dir() / "ball_drop"
-analysis = results_for(ball_dir, until="plumb")
+analysis = results_for(ball_dir, until="triangulate")
 res = analysis.results
 rig = res["rig"]["rig"]
 fps = analysis.session.fps

@@ -1,0 +1,169 @@
+"""Multi-view identification and 3D tracking (horsemocap.detection.identification, issue 17).
+
+Synthetic scenes with exact truth: markers on a rigid body moving in front of
+the thesis rig, drawn as anti-aliased discs; a pseudo marker rigidly attached
+to the body (a shining stirrup: consistent in 3D, wrong in shape), a bright
+blob crossing the markers in one camera only, a marker hidden in one camera.
+"""
+import numpy as np
+import pytest
+
+from horsemocap.camera import axis_rotations
+from horsemocap.detection import identification as ident
+from horsemocap.detection.identification import (Candidates, bridge_gaps, fit_marker_model, identify_markers,
+                                                 match_views, point_uncertainty)
+from horsemocap.virtuallab.render import add_image_disc
+from horsemocap.virtuallab.rig import thesis_rig
+
+RIG = thesis_rig()
+#: Skin markers (body frame, m): a scalene triangle on the back; the saddle marker; a stirrup below.
+BODY = np.array([[-0.24, 0.0, 0.0], [0.0, -0.07, 0.0], [0.22, 0.0, 0.01]])
+SADDLE = np.array([0.45, -0.25, 0.02])
+STIRRUP = np.array([0.05, 0.45, 0.05])
+
+
+def body_pose(t):
+    """Position (n, 3) and rotation (n, 3, 3) of a body crossing the view with a bounce and a pitch."""
+    t = np.atleast_1d(t)
+    pos = np.column_stack([-1.4 + 1.6 * t, -0.05 + 0.05 * np.sin(2 * np.pi * 2.0 * t), 7.7 + 0.02 * t])
+    R = axis_rotations("z", 0.06 * np.sin(2 * np.pi * 2.0 * t + 0.5))
+    return pos, R
+
+
+def world(points_body, t):
+    pos, R = body_pose(t)
+    return pos[:, None, :] + np.einsum("nij,mj->nmi", R, points_body)
+
+
+def render(n=40, fps=30.0, hide=None, blob=True, stirrup=True):
+    """Gray frames per camera and the true projections of the skin markers."""
+    t = np.arange(n) / fps
+    markers = world(BODY, t)
+    extra = world(STIRRUP[None], t)[:, 0]
+    frames, truth = {}, {}
+    for cam in RIG:
+        W, H = cam.size
+        px = cam.project(markers)
+        truth[cam.name] = px
+        seq = []
+        for k in range(n):
+            img = np.full((H, W), 40.0)
+            for m in range(len(BODY)):
+                if hide and hide[0] == cam.name and m == hide[1] and hide[2] <= k < hide[3]:
+                    continue
+                add_image_disc(img, *px[k, m], 3.2, 200.0)
+            if stirrup:
+                add_image_disc(img, *cam.project(extra[k]), 3.2, 200.0)
+            if blob and cam.name == "middle":         # a reflector sweeping across the markers' path
+                u = px[k, 1, 0] + 60.0 - 6.0 * k
+                add_image_disc(img, u, px[k, 1, 1] + 0.6 * (u - px[k, 1, 0]) + 3.0, 3.0, 210.0)
+            seq.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
+        frames[cam.name] = seq
+    static = world(np.vstack([BODY, SADDLE]), np.array([0.9]))[0]
+    return frames, truth, static
+
+
+def test_match_views_finds_every_point_seen_by_the_cameras_and_no_chance_match():
+    pts = np.array([[-0.5, 0.0, 7.6], [-0.2, 0.1, 7.8], [0.1, -0.1, 7.7], [0.3, 0.2, 7.9]])
+    cands = {}
+    for cam in RIG:
+        c = cam.project(pts)
+        if cam.name == "right":                     # a glint seen by one camera only
+            c = np.vstack([c, [300.0, 200.0]])
+        cands[cam.name] = Candidates(c, np.full(len(c), 30.0), np.zeros(len(c), bool))
+    vp = match_views(RIG, cands)
+    assert len(vp) == len(pts)
+    assert np.all((vp.index >= 0).sum(axis=1) == 3)
+    order = np.argsort(vp.points[:, 0])
+    np.testing.assert_allclose(vp.points[order], pts, atol=1e-6)
+    assert np.all(vp.missing == 0)
+
+
+def test_point_uncertainty_is_long_along_the_depth_of_a_narrow_rig():
+    cov = point_uncertainty(RIG, np.array([[0.0, 0.0, 7.7]]), np.ones((1, 3), bool))[0]
+    sd = np.sqrt(np.diag(cov))
+    assert sd[2] > 5 * sd[0] and sd[2] > 5 * sd[1]
+    single = point_uncertainty(RIG, np.array([[0.0, 0.0, 7.7]]), np.array([[True, False, False]]))[0]
+    assert np.all(np.isinf(np.diag(single)))
+
+
+def _cov(n, sd=0.001):
+    return np.tile(np.eye(3) * sd ** 2, (n, 1, 1))
+
+
+def test_model_fit_labels_a_moved_triangle_among_pseudo_markers():
+    static = np.vstack([BODY, SADDLE]) + [0.0, 0.0, 7.7]
+    frame = world(BODY, np.array([0.4]))[0]
+    pseudo = world(STIRRUP[None], np.array([0.4]))[0]
+    pts = np.vstack([pseudo, frame[2], frame[0], [0.9, 0.9, 8.5], frame[1]])
+    fit = fit_marker_model(pts, _cov(len(pts)), static, 3, RIG["left"].center)
+    assert fit is not None
+    assert fit.assignment.tolist() == [2, 4, 1]
+    assert fit.model_index.tolist() == [0, 1, 2]
+    assert fit.rms_m < 1e-9 and fit.margin > 1
+
+
+def test_model_fit_tells_an_isosceles_triangle_from_its_mirror_image():
+    iso = np.array([[-0.2, 0.0, 7.7], [0.0, -0.1, 7.7], [0.2, 0.0, 7.7]])   # sides 0-1 and 1-2 equal
+    moved = iso + [0.5, 0.02, 0.0]
+    fit = fit_marker_model(moved, _cov(3), iso, 3, RIG["left"].center)
+    assert fit.assignment.tolist() == [0, 1, 2]
+    # the labelling 2-1-0 has the same side lengths but faces away from the cameras
+    only_mirror = fit_marker_model(moved[[2, 1, 0]], _cov(3), iso, 3, RIG["left"].center, model_index=[0, 1, 2])
+    assert only_mirror.assignment.tolist() == [2, 1, 0]
+
+
+def test_model_fit_refuses_points_of_another_shape():
+    static = np.vstack([BODY, SADDLE]) + [0.0, 0.0, 7.7]
+    wrong = world(BODY * [1.3, 1.0, 1.0], np.array([0.2]))[0]
+    assert fit_marker_model(wrong, _cov(3), static, 3, RIG["left"].center) is None
+
+
+@pytest.fixture(scope="module")
+def scene():
+    frames, truth, static = render(hide=("middle", 0, 12, 19))
+    return frames, truth, static, identify_markers(frames, RIG, static, 3)
+
+
+def test_identification_never_labels_the_stirrup_or_the_blob(scene):
+    frames, truth, static, idn = scene
+    assert idn.model_index.tolist() == [0, 1, 2]
+    for c in RIG.names:
+        used = np.isfinite(idn.marker_px[c][..., 0])
+        err = np.linalg.norm(idn.marker_px[c] - truth[c], axis=-1)
+        assert used.sum() > 0.8 * used.size
+        assert np.nanmax(err[used]) < 0.5, c             # no wrong identity in any frame
+        assert set(np.unique(idn.reason[c][~used])) <= set(ident.IDENTIFICATION_REASONS)
+        assert np.all(idn.reason[c][used] == "")
+
+
+def test_a_marker_hidden_in_one_camera_keeps_its_3d_position_from_the_others(scene):
+    frames, truth, static, idn = scene
+    hidden = slice(12, 19)
+    assert np.all(~np.isfinite(idn.marker_px["middle"][hidden, 0, 0]))
+    assert set(idn.reason["middle"][hidden, 0]) <= {"occluded", "merged", "partly_occluded"}
+    assert np.all(np.isfinite(idn.points[hidden, 0]))
+    true = world(BODY, np.arange(len(idn.points)) / 30.0)
+    ok = np.all(np.isfinite(idn.points), axis=2)
+    assert ok.all()
+    assert np.max(np.linalg.norm(idn.points - true, axis=-1)) < 0.01
+
+
+def test_bridge_gaps_fills_short_gaps_exactly_and_leaves_long_ones():
+    t = np.arange(40, dtype=float)
+    x = np.stack([0.001 * t ** 3 - 0.02 * t ** 2 + t, 2 * t, -t ** 2 / 50], axis=1)[:, None, :]
+    holed = x.copy()
+    holed[10:13] = np.nan                     # 3 frames: bridged
+    holed[25:31] = np.nan                     # 6 frames: too long
+    holed[:2] = np.nan                        # the record's start: never extrapolated
+    filled, interp = bridge_gaps(holed, max_gap=3)
+    np.testing.assert_allclose(filled[10:13], x[10:13], rtol=1e-9, atol=1e-9)
+    assert interp[10:13, 0].all() and interp.sum() == 3
+    assert np.isnan(filled[25:31]).all() and np.isnan(filled[:2]).all()
+
+
+def test_a_session_without_the_markers_ends_with_an_error_naming_the_cameras():
+    frames, truth, static = render(n=12)
+    empty = {c: [np.full_like(f[0], 40) for f in [frames[c]] for _ in range(12)] for c in frames}
+    with pytest.raises(ident.DetectionError, match="left.*middle.*right"):
+        identify_markers(empty, RIG, static, 3)
