@@ -340,7 +340,8 @@ def step_comfort(session: Session, params: AnalysisParams, res: dict, progress) 
     f0_hz = session.fps / res["motion_frame"]["period_frames"]
     ind = saddle_comfort(rb["t"], rb["saddle_position"], rb["saddle_acceleration"], rb["saddle_velocity"],
                          mode=params.weighting_mode, f0_hz=f0_hz)
-    progress("comfort", f"Wk rms {ind['acc_y_Wk_rms']:.3f} m/s^2, VDV {ind['VDV_y_Wk']:.3f} m/s^1.75")
+    # no figure here: the command prints the comfort figures only beside the quality verdict (horsemocap.run)
+    progress("comfort", "indicators of chapter 7 computed")
     return {"indicators": ind}
 
 
@@ -387,6 +388,7 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
 
     session = load_session(session_dir)
     params = resolve_params(session, params)
+    params.check_session(session)
     progress = progress or _progress_printer()
     if until is not None and until not in STEPS:
         raise ValueError(f"until must be one of {STEPS}, got {until!r}")
@@ -406,10 +408,13 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
                 analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
                 if store:
                     store.save(name, analysis.results[name], key)
-        except (AnalysisError, SessionError):
+        except (AnalysisError, SessionError) as exc:
+            exc.partial = analysis  # the steps that finished (horsemocap.run marks them partial)
             raise
         except Exception as exc:  # a step's own error: say which step and input
-            raise AnalysisError(name, f"{type(exc).__name__}: {exc}") from exc
+            err = AnalysisError(name, f"{type(exc).__name__}: {exc}")
+            err.partial = analysis
+            raise err from exc
         finally:
             analysis.timings[name] = time.perf_counter() - t0
             if out_dir is not None and write_outputs:
