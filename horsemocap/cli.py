@@ -82,7 +82,7 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     base = load_params(args.params) if args.params else resolve_params(session)
     params = _params_from_args(args, base)
     params.check_session(session, f"{args.params}" if args.params else "parameters")
-    outcome = run_analysis(session_dir, out_dir, params)
+    outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False))
     if outcome.error is not None:
         print(f"horsemocap: error: {_one_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
@@ -181,6 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="results folder (outside the session)")
     p.add_argument("--params", metavar="analysis.json",
                    help="repeat a run exactly: the parameters recorded in an earlier analysis.json")
+    p.add_argument("--no-report", action="store_true", help="do not write report.html (faster batch runs)")
     _add_choice_options(p)
     p.set_defaults(func=cmd_analyze)
 
