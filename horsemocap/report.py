@@ -97,7 +97,8 @@ def report_html(analysis, quality: dict | None = None) -> str:
         from .vibration import comfort_table_rows
 
         rows = [(name, f"{value:.4f}", unit) for name, value, unit in comfort_table_rows(res["comfort"]["indicators"])]
-        parts += ["<h2>Comfort indicators (thesis Table 8.7)</h2>",
+        verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
+        parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
                   f'<p class="note">Weighting mode: {html.escape(analysis.params.weighting_mode)}. '
                   "Times to reach the EU directive 2002/44/EC exposure action (EAV) and limit (ELV) values "
                   "by A(8) and by VDV, and the distances ridden in those times at the measured speed. "

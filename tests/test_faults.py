@@ -748,8 +748,14 @@ def test_rig_of_another_image_size_is_unreliable(tmp_path, template, capsys):
     record("run:rig_image_size", "unreliable (exit 3)" if code == 3 else "error (partial, unreliable)")
 
 
-def test_failed_step_leaves_only_its_partial_results(tmp_path, template, capsys):
-    """A black plumb still: the plumb step fails; the folder holds the finished steps, marked."""
+def test_failed_step_leaves_only_its_partial_results(tmp_path, template, capsys, monkeypatch):
+    """A black plumb still: the plumb step fails; the folder holds the finished steps, marked.
+
+    The swap takes the two-rename path here (systems without ``renameat2``).
+    """
+    from horsemocap import runfolder
+
+    monkeypatch.setattr(runfolder, "_exchange", lambda a, b: False)
     session = make_session(tmp_path, template, copy_media=True)
     for cam in CAMS:
         img = cv2.imread(str(session / "plumb" / f"{cam}.jpg"))
