@@ -585,6 +585,28 @@ def test_interrupt_leaves_results_as_before(step, signal_name, tmp_path, templat
     record(f"signal:{signal_name}_at_{step}", "error, folder as before")
 
 
+def test_sigkill_leaves_results_as_before(tmp_path, template):
+    """A real ``kill -9`` in the middle of a run (a subprocess): the folder is the earlier run's."""
+    import subprocess
+    import sys
+    import time
+
+    session = make_session(tmp_path, template)
+    out = tmp_path / "out"
+    before = earlier_results(out)
+    proc = subprocess.Popen([sys.executable, "-m", "horsemocap.cli", "analyze", str(session), "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        if any(p.is_dir() and any(p.iterdir()) for p in tmp_path.glob(".out.run-*")):
+            break  # writing into its temporary folder
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    assert snapshot(out) == before
+    record("signal:SIGKILL_while_writing", "folder as before")
+
+
 def test_full_disk_while_writing_leaves_results_as_before(tmp_path, template, capsys, monkeypatch):
     from horsemocap import results
 
