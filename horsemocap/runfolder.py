@@ -61,11 +61,27 @@ def _exchange(a: Path, b: Path) -> bool:
     raise OSError(err, os.strerror(err), str(b))
 
 
+def _is_results_folder(path: Path, entries) -> bool:
+    """An earlier horsemocap run's folder: its analysis.json says so, or it is marked partial."""
+    import json
+
+    if "PARTIAL.txt" in entries:
+        return True
+    if "analysis.json" not in entries:
+        return False
+    try:
+        record = json.loads((path / "analysis.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(record, dict) and str(record.get("format", "")).startswith("horsemocap-results/")
+
+
 def check_results_target(out) -> Path:
     """``out`` resolved, if it may be replaced by a run's results.
 
-    It may be absent, an empty folder or an earlier run's results (it holds
-    ``analysis.json`` or ``PARTIAL.txt``); anything else is refused with a
+    It may be absent, an empty folder or an earlier run's results (its
+    ``analysis.json`` has ``"format": "horsemocap-results/..."``, or it
+    holds ``PARTIAL.txt``); anything else is refused with a
     :class:`StoreError` naming it, so that ``--out ~`` never deletes a home
     folder.
     """
@@ -78,7 +94,7 @@ def check_results_target(out) -> Path:
         if not path.is_dir():
             raise StoreError(f"--out {out}: is a file, not a folder; choose a folder for the results")
         entries = [p.name for p in path.iterdir()]
-        if entries and not any(m in entries for m in RESULTS_MARKERS):
+        if entries and not _is_results_folder(path, entries):
             raise StoreError(f"--out {out}: the folder holds files that are not horsemocap results "
                              f"({', '.join(sorted(entries)[:3])}{', ...' if len(entries) > 3 else ''}); "
                              "horsemocap replaces the whole folder, so choose a new or empty folder")

@@ -489,6 +489,18 @@ def test_out_holds_other_files(tmp_path, template, capsys):
     record("out:foreign_folder", "error")
 
 
+def test_out_holds_another_programs_analysis_json(tmp_path, template, capsys):
+    session = make_session(tmp_path, template)
+    out = tmp_path / "other"
+    out.mkdir()
+    (out / "analysis.json").write_text('{"tool": "another program"}')
+    (out / "data.csv").write_text("precious")
+    code, _, err = run_cli(["analyze", session, "--out", out], capsys)
+    assert_clear_error(code, err, "--out", "not horsemocap results")
+    assert (out / "data.csv").read_text() == "precious"
+    record("out:foreign_analysis_json", "error")
+
+
 def test_out_too_long(tmp_path, template, capsys):
     session = make_session(tmp_path, template)
     out = tmp_path / ("x" * 300)
