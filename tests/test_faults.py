@@ -676,7 +676,7 @@ def test_calibrate_faults(case, tmp_path, capsys, monkeypatch):
     t0 = time.perf_counter()
     code, _, err = run_cli(["calibrate", *dirs, "--board", board, "--square", square, "--out", out], capsys)
     assert_clear_error(code, err, *names)
-    assert time.perf_counter() - t0 < 5  # refused before calibrating (a calibration takes 10-20 s)
+    assert time.perf_counter() - t0 < 10  # refused before calibrating (a calibration takes 20-50 s here)
     record(f"calibrate:{case}", "error")
 
 
