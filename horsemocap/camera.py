@@ -347,6 +347,8 @@ def _field(table, key, path, section, shape=None):
             raise RigError(f"{path}: [{section}] field '{key}' must be numbers of shape {shape}, got {value!r}") from None
         if arr.shape != shape and not (key == "distortions" and arr.ndim == 1 and 4 <= arr.size <= 5):
             raise RigError(f"{path}: [{section}] field '{key}' must have shape {shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise RigError(f"{path}: [{section}] field '{key}' must hold finite numbers, got {value!r}")
         return arr
     return value
 
@@ -356,8 +358,10 @@ def read_rig(path) -> Rig:
     path = Path(path)
     if not path.is_file():
         raise RigError(f"{path}: rig file not found")
+    from .store import read_text_utf8
+
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(read_text_utf8(path, RigError))
     except tomllib.TOMLDecodeError as exc:
         raise RigError(f"{path}: not valid TOML ({exc})") from None
     cams = []
@@ -366,10 +370,17 @@ def read_rig(path) -> Rig:
             continue
         name = str(_field(table, "name", path, section))
         size = _field(table, "size", path, section, (2,))
+        if np.any(size < 1) or np.any(size != np.round(size)):
+            raise RigError(f"{path}: [{section}] field 'size' must be [width, height] in pixels (integers >= 1), "
+                           f"got {table['size']!r}")
+        matrix = _field(table, "matrix", path, section, (3, 3))
+        if not (matrix[0, 0] > 0 and matrix[1, 1] > 0) or np.any(matrix[2] != [0, 0, 1]) or matrix[1, 0] != 0:
+            raise RigError(f"{path}: [{section}] field 'matrix' must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] "
+                           f"with fx, fy > 0 (a camera matrix), got {table['matrix']!r}")
         cams.append(Camera(
             name=name,
             size=(int(size[0]), int(size[1])),
-            matrix=_field(table, "matrix", path, section, (3, 3)),
+            matrix=matrix,
             distortions=_field(table, "distortions", path, section, (5,)),
             rotation=_field(table, "rotation", path, section, (3,)),
             translation=_field(table, "translation", path, section, (3,)),

@@ -54,6 +54,8 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
 
 
 def _params_from_args(args, base):
+    from .params import ParamsError
+
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span", "smoothing_method", "period_frames",
                 "x_marker", "angular_method", "saddle_method", "weighting_mode")}
@@ -61,12 +63,12 @@ def _params_from_args(args, base):
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}
         except ValueError:
-            raise SystemExit(f"--offsets: expected CAM=FRAME,..., got {args.offsets!r}")
+            raise ParamsError(f"--offsets: expected CAM=FRAME,... (frame indices), got {args.offsets!r}") from None
     if args.fourier_orders:
         try:
             y, z = (int(v) for v in args.fourier_orders.split(","))
         except ValueError:
-            raise SystemExit(f"--fourier-orders: expected Y,Z (two integers), got {args.fourier_orders!r}")
+            raise ParamsError(f"--fourier-orders: expected Y,Z (two integers), got {args.fourier_orders!r}") from None
         changes["fourier_orders"] = {"y": y, "z": z}
     if args.threshold is not None:
         det = dict(base.detection)
@@ -76,35 +78,39 @@ def _params_from_args(args, base):
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
-    from .params import AnalysisParams, ParamsError, load_params
-    from .pipeline import AnalysisError, analyze, resolve_params
-    from .session import SessionError, load_session
-    from .store import StoreError
+    from .params import load_params
+    from .pipeline import resolve_params
+    from .run import run_analysis
+    from .session import load_session
 
-    try:
-        session = load_session(session_dir)
-        base = load_params(args.params) if args.params else resolve_params(session)
-        params = _params_from_args(args, base)
-        analysis = analyze(session_dir, out_dir, params)
-    except (SessionError, AnalysisError, ParamsError, StoreError) as exc:
-        print(f"horsemocap: error: {exc}", file=sys.stderr)
-        if out_dir.exists():
-            print(f"horsemocap: the results of the steps before it are in {out_dir}", file=sys.stderr)
-        return 2
-    report = None
-    try:
-        from .report import write_report
-        report = write_report(out_dir / "report.html", analysis)
-    except ImportError:
-        pass
-    ind = analysis.results.get("comfort", {}).get("indicators")
-    print(f"results: {out_dir.resolve()}")
-    if report:
-        print(f"report:  {Path(report).resolve()}")
+    _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
+    session = load_session(session_dir)
+    base = load_params(args.params) if args.params else resolve_params(session)
+    params = _params_from_args(args, base)
+    params.check_session(session, f"{args.params}" if args.params else "parameters")
+    outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False))
+    if outcome.error is not None:
+        print(f"horsemocap: error: {_one_line(outcome.error)}", file=sys.stderr)
+        print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
+              f"quality: {outcome.verdict})", file=sys.stderr)
+        return outcome.exit_code
+    print(f"results: {outcome.out}")
+    if outcome.report:
+        print(f"report:  {outcome.report}")
+    bad = [c for c in outcome.checks if c.level in ("warning", "unreliable")]
+    print(f"quality: {outcome.verdict.upper()}" + (f" ({len(bad)} check(s) outside the plausible range; "
+                                                   "see quality.json)" if bad else " (every plausibility check passed)"))
+    for c in bad:
+        print(f"  {c.level}: {c.name}: {c.message}")
+    ind = outcome.analysis.results.get("comfort", {}).get("indicators")
     if ind:
-        print(f"comfort: Wk-weighted rms {ind['acc_y_Wk_rms']:.3f} m/s^2, VDV {ind['VDV_y_Wk']:.3f} m/s^1.75, "
-              f"8-h action value reached in {ind['TA_8_action_Wk']:.3f} h at {ind['vel_x_avg']:.1f} km/h")
-    return 0
+        print(f"comfort [quality {outcome.verdict}]: Wk-weighted rms {ind['acc_y_Wk_rms']:.3f} m/s^2, "
+              f"VDV {ind['VDV_y_Wk']:.3f} m/s^1.75, 8-h action value reached in {ind['TA_8_action_Wk']:.3f} h "
+              f"at {ind['vel_x_avg']:.1f} km/h")
+    if outcome.exit_code == 3:
+        print(f"horsemocap: the quality verdict is UNRELIABLE (exit status {outcome.exit_code}): do not use these "
+              "numbers before the input named above is fixed", file=sys.stderr)
+    return outcome.exit_code
 
 
 def cmd_analyze(args) -> int:
@@ -123,35 +129,70 @@ def cmd_demo(args) -> int:
     return _run_analysis(session, out, args)
 
 
+def _check_rig_target(out: Path) -> None:
+    """``calibrate --out`` must be a file we can write: checked before the calibration runs."""
+    import os
+    import secrets
+
+    from .store import StoreError
+
+    if out.is_dir():
+        raise StoreError(f"--out {out}: is a folder; give the path of the rig file to write, e.g. {out / 'rig.toml'}")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        probe = out.parent / f".{out.name}.{secrets.token_hex(4)}.probe"
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        os.unlink(probe)
+    except OSError as exc:
+        raise StoreError(f"--out {out}: cannot write there ({exc.strerror}); choose another path") from None
+
+
 def cmd_calibrate(args) -> int:
     from .calibration import calibrate_command
 
-    try:
-        text = calibrate_command([Path(d) for d in args.camera_dirs], args.board, args.square, Path(args.out))
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"horsemocap: error: {exc}", file=sys.stderr)
-        return 2
+    _no_nul(("--out", args.out), *(("CAMERA_DIR", d) for d in args.camera_dirs))
+    _check_rig_target(Path(args.out))
+    text = calibrate_command([Path(d) for d in args.camera_dirs], args.board, args.square, Path(args.out))
     print(text)
     return 0
 
 
+EXIT_STATUS = """\
+exit status:
+  0  the results are written and every plausibility check is ok or a warning
+  2  an error (a bad session, parameter or results folder, a step that failed,
+     Ctrl-C): a one-line message names the file or field; --debug shows the traceback
+  3  the results are written but the quality verdict is UNRELIABLE (quality.json
+     and report.html say which check failed): do not use the numbers"""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="horsemocap", description=DESCRIPTION,
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the traceback of an error instead of a one-line message")
+    parser = argparse.ArgumentParser(prog="horsemocap", description=DESCRIPTION, epilog=EXIT_STATUS,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of an error instead of a one-line message")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("analyze", help="analyse a riding session (every step, automatic choices)",
+                       parents=[common], epilog=EXIT_STATUS, formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Run every step on SESSION and write the result files of the session "
                                    "contract (trajectories.csv, kinematics.csv, angular.csv, comfort.csv, "
-                                   "markers_2d.csv, rig.toml, analysis.json, report.html) into DIR.")
+                                   "markers_2d.csv, rig.toml, analysis.json, quality.json, report.html) into DIR. "
+                                   "DIR is replaced whole when the run ends (it must be new, empty or an earlier "
+                                   "run's results); a second run into the same DIR stops at once.")
     p.add_argument("session", metavar="SESSION", help="session folder holding session.json")
     p.add_argument("--out", required=True, metavar="DIR", help="results folder (outside the session)")
     p.add_argument("--params", metavar="analysis.json",
                    help="repeat a run exactly: the parameters recorded in an earlier analysis.json")
+    p.add_argument("--no-report", action="store_true", help="do not write report.html (faster batch runs)")
     _add_choice_options(p)
     p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser("demo", help="analyse the bundled riding session (Horse 2, canter)",
+                       parents=[common], epilog=EXIT_STATUS, formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Analyse data_samples/horse2_canter and print where the results are.")
     p.add_argument("--out", default="horsemocap-demo", metavar="DIR",
                    help="results folder (default: ./horsemocap-demo)")
@@ -160,7 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("calibrate", help="calibrate cameras from checkerboard views into rig.toml",
-                       description="One folder of checkerboard views per camera (the same file name in "
+                       parents=[common], description="One folder of checkerboard views per camera (the same file name in "
                                    "each folder is the same instant); the folder name is the camera name "
                                    "and the first folder is the reference camera. Prints the tables of "
                                    "thesis 8.1-8.4 and writes the rig.")
@@ -172,9 +213,88 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _no_nul(*named) -> None:
+    from .store import StoreError
+
+    for what, value in named:
+        if value is not None and "\0" in str(value):
+            raise StoreError(f"{what} {str(value)!r}: a path cannot hold a NUL byte")
+
+
+def _one_line(exc: BaseException) -> str:
+    """A one-line description of an error for a person."""
+    import errno
+
+    if isinstance(exc, OSError) and exc.strerror:
+        hint = {errno.ENOSPC: "the disk is full: free some space or choose another --out",
+                errno.EDQUOT: "the disk quota is used up: free some space or choose another --out",
+                errno.EACCES: "permission denied: choose a folder you can write to",
+                errno.EPERM: "not permitted: choose a folder you can write to",
+                errno.EROFS: "read-only file system: choose a folder you can write to",
+                errno.ENAMETOOLONG: "the path is too long: choose a shorter --out"}.get(exc.errno, "")
+        where = f"{exc.filename}: " if exc.filename else ""
+        text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")
+    else:
+        from .camera import RigError
+        from .params import ParamsError
+        from .pipeline import AnalysisError
+        from .session import SessionError
+        from .sources import SourceError
+        from .store import StoreError
+
+        known = (SessionError, ParamsError, AnalysisError, StoreError, RigError, SourceError)
+        try:
+            from .calibration import CalibrationError
+            known += (CalibrationError,)
+        except ImportError:  # pragma: no cover
+            pass
+        text = str(exc) if isinstance(exc, known) else \
+            f"{type(exc).__name__}: {exc} (an unexpected error; --debug shows where, please report it)"
+    return " ".join(text.split())
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, handled like Ctrl-C."""
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
-    return args.func(args)
+    """The ``horsemocap`` command. Every failure ends with one line on stderr and
+    exit status 2 (``--debug``: the traceback too); Ctrl-C and SIGTERM leave the
+    results folder as it was before the run; 3 = results written, verdict unreliable."""
+    import signal
+    import traceback
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)  # a bad option: argparse's usage line, exit status 2
+    debug = bool(getattr(args, "debug", False))
+
+    def terminate(signum, frame):
+        raise _Terminated()
+
+    previous = {}
+    for sig in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)):
+        if sig is not None:
+            try:
+                previous[sig] = signal.signal(sig, terminate)
+            except ValueError:  # not the main thread
+                pass
+    try:
+        return args.func(args)
+    except KeyboardInterrupt as exc:
+        if debug:
+            traceback.print_exc()
+        what = "terminated" if isinstance(exc, _Terminated) else "interrupted (Ctrl-C)"
+        print(f"horsemocap: {what}: nothing was written; the results folder is as it was before the run",
+              file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 - the one place that turns errors into messages
+        if debug:
+            traceback.print_exc()
+        print(f"horsemocap: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -119,6 +120,8 @@ class AnalysisParams:
     @classmethod
     def from_dict(cls, data: dict, source: str = "analysis parameters") -> "AnalysisParams":
         """Build from a dict; unknown keys and bad values name ``source``."""
+        if not isinstance(data, dict):
+            raise ParamsError(f"{source}: expected an object of parameters, got {_show(data)}")
         names = [f.name for f in fields(cls)]
         for key in data:
             if key not in names:
@@ -135,36 +138,128 @@ class AnalysisParams:
         return p
 
     def validate(self, source: str) -> None:
-        def bad(name, expected):
-            raise ParamsError(f"{source}: parameter '{name}': expected {expected}, got {getattr(self, name)!r}")
-        if self.detection_method not in ("multiview", "thesis"):
-            bad("detection_method", '"multiview" or "thesis"')
-        if self.max_gap_frames is not None and (not isinstance(self.max_gap_frames, int)
-                                                or isinstance(self.max_gap_frames, bool) or self.max_gap_frames < 0):
-            bad("max_gap_frames", "an integer >= 0 or null")
-        if self.triangulation not in ("joint", "thesis"):
-            bad("triangulation", '"joint" or "thesis"')
-        if not (0 < float(self.smoothing_span) <= 1):
-            bad("smoothing_span", "a fraction in (0, 1]")
-        if self.smoothing_method not in ("none", "rloess", "loess", "lowess", "rlowess", "moving"):
-            bad("smoothing_method", "none, rloess, loess, lowess, rlowess or moving")
-        if self.angular_method not in ("rotation", "lstsq", "thesis"):
-            bad("angular_method", '"rotation", "lstsq" or "thesis"')
-        for name in ("omega_versions", "alpha_versions"):
-            if len(getattr(self, name)) != 6 or not any(getattr(self, name)):
-                bad(name, "six booleans, at least one true")
-        if self.saddle_method not in ("pose", "direct", "thesis"):
-            bad("saddle_method", '"pose", "direct" or "thesis"')
+        """Check every field's type and range; :class:`ParamsError` names the field.
+
+        The message says the parameter, the expected type and range and the
+        value given, e.g. ``analysis.json: parameter 'smoothing_span':
+        expected a number in (0, 1], got 'wide'``. Checks against the session
+        (cameras, marker count) are :meth:`check_session`'s.
+        """
+        def bad(name, expected, value=_MISSING):
+            got = getattr(self, name) if value is _MISSING else value
+            raise ParamsError(f"{source}: parameter '{name}': expected {expected}, got {_show(got)}")
+
+        def choice(name, options):
+            v = getattr(self, name)
+            if not isinstance(v, str) or v not in options:
+                bad(name, " or ".join(f'"{o}"' for o in options))
+
+        def boolean(name):
+            if not isinstance(getattr(self, name), bool):
+                bad(name, "true or false")
+
+        if self.sync_offsets is not None:
+            if not isinstance(self.sync_offsets, dict) or not self.sync_offsets:
+                bad("sync_offsets", "an object {camera: frame index} or null")
+            for cam, v in self.sync_offsets.items():
+                if not _is_int(v) or v < 0:
+                    bad("sync_offsets", f"a frame index (integer >= 0) for camera '{cam}'", v)
+        boolean("recalibrate")
+        if not isinstance(self.detection, dict):
+            bad("detection", 'an object {camera or "all": {detector parameter: value}}')
+        from .detection import DetectionParams
+
+        for cam, given in self.detection.items():
+            if not isinstance(given, dict):
+                bad("detection", f"an object of detector parameters for '{cam}'", given)
+            try:
+                DetectionParams.from_dict(given)
+            except (ValueError, TypeError) as exc:
+                raise ParamsError(f"{source}: parameter 'detection.{cam}': {exc}") from None
+        choice("detection_method", ("multiview", "thesis"))
+        if self.max_gap_frames is not None and (not _is_int(self.max_gap_frames) or self.max_gap_frames < 0):
+            bad("max_gap_frames", "an integer >= 0 (frames) or null")
+        choice("triangulation", ("joint", "thesis"))
+        if not _is_number(self.smoothing_span) or not 0 < self.smoothing_span <= 1:
+            bad("smoothing_span", "a number in (0, 1] (a fraction of the points)")
+        choice("smoothing_method", ("none", "rloess", "loess", "lowess", "rlowess", "moving"))
+        if not _is_int(self.x_marker) or self.x_marker < 0:
+            bad("x_marker", "a marker index (integer >= 0)")
+        if self.period_frames is not None and (not _is_number(self.period_frames) or self.period_frames <= 2):
+            bad("period_frames", "a period in frames (a number > 2) or null")
+        if self.n_periods is not None and (not _is_int(self.n_periods) or self.n_periods < 1):
+            bad("n_periods", "an integer >= 1 or null")
+        if not _is_int(self.x_degree) or not 0 <= self.x_degree <= 10:
+            bad("x_degree", "a polynomial degree (integer 0..10)")
+        fo = self.fourier_orders
+        if fo is not None:
+            expected = '{"y": N, "z": N} or one [Ny, Nz] pair per marker (integers 1..40) or null'
+            if isinstance(fo, dict):
+                if set(fo) != {"y", "z"} or not all(_is_int(v) and 1 <= v <= 40 for v in fo.values()):
+                    bad("fourier_orders", expected)
+            elif isinstance(fo, (list, tuple)):
+                if not fo or not all(isinstance(p, (list, tuple)) and len(p) == 2
+                                     and all(_is_int(v) and 1 <= v <= 40 for v in p) for p in fo):
+                    bad("fourier_orders", expected)
+            else:
+                bad("fourier_orders", expected)
         from .fitting import ORDER_RULES
 
-        if self.order_rule not in ORDER_RULES:
-            bad("order_rule", " or ".join(f'"{r}"' for r in ORDER_RULES))
-        if self.weighting_mode not in ("iso", "thesis"):
-            bad("weighting_mode", '"iso" or "thesis"')
-        if self.period_frames is not None and float(self.period_frames) <= 2:
-            bad("period_frames", "a period in frames (> 2) or null")
-        if self.n_periods is not None and int(self.n_periods) < 1:
-            bad("n_periods", "an integer >= 1")
+        choice("order_rule", ORDER_RULES)
+        boolean("fourier_trend")
+        choice("angular_method", ("rotation", "lstsq", "thesis"))
+        for name in ("omega_versions", "alpha_versions"):
+            v = getattr(self, name)
+            if not isinstance(v, (list, tuple)) or len(v) != 6 or not all(isinstance(b, bool) for b in v) \
+                    or not any(v):
+                bad(name, "a list of six booleans, at least one true")
+        choice("saddle_method", ("pose", "direct", "thesis"))
+        choice("weighting_mode", ("iso", "thesis"))
+
+    def check_session(self, session, source: str = "analysis parameters") -> None:
+        """Check the parameters that refer to the session: cameras and markers.
+
+        Raises :class:`ParamsError` naming the parameter, e.g. sync offsets
+        for a camera the session does not have, or ``x_marker`` beyond the
+        markers' count.
+        """
+        cams = list(session.cameras)
+        if self.sync_offsets is not None:
+            unknown = [c for c in self.sync_offsets if c not in cams]
+            missing = [c for c in cams if c not in self.sync_offsets]
+            if unknown or missing:
+                what = f"no camera '{unknown[0]}'" if unknown else f"no offset for camera '{missing[0]}'"
+                raise ParamsError(f"{source}: parameter 'sync_offsets': expected one frame index for each "
+                                  f"camera {cams}, got {_show(self.sync_offsets)} ({what})")
+        for cam in self.detection:
+            if cam != "all" and cam not in cams:
+                raise ParamsError(f"{source}: parameter 'detection': expected 'all' or a camera of {cams}, "
+                                  f"got '{cam}'")
+        n = session.marker_count
+        if self.x_marker >= n:
+            raise ParamsError(f"{source}: parameter 'x_marker': expected a marker index 0..{n - 1} "
+                              f"(the session has {n} markers), got {self.x_marker}")
+        if isinstance(self.fourier_orders, (list, tuple)) and len(self.fourier_orders) != n:
+            raise ParamsError(f"{source}: parameter 'fourier_orders': expected {n} pairs [Ny, Nz] (one per "
+                              f"marker), got {len(self.fourier_orders)}")
+
+
+_MISSING = object()
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _show(v) -> str:
+    try:
+        return json.dumps(v)
+    except (TypeError, ValueError):
+        return repr(v)
 
 
 def load_params(path) -> AnalysisParams:
@@ -172,8 +267,10 @@ def load_params(path) -> AnalysisParams:
     path = Path(path)
     if not path.is_file():
         raise ParamsError(f"{path}: parameter file not found")
+    from .store import read_text_utf8
+
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_text_utf8(path, ParamsError))
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
     if isinstance(data, dict) and "parameters" in data:

@@ -53,8 +53,26 @@ def _is_num(s: str) -> bool:
         return False
 
 
-def report_html(analysis) -> str:
-    """The text of the report for an :class:`~horsemocap.pipeline.Analysis`."""
+def quality_section(record: dict) -> list[str]:
+    """The report's first section: the verdict of :mod:`horsemocap.quality` and every check."""
+    colour = {"ok": "#1a7f37", "warning": "#9a6700", "unreliable": "#cf222e"}.get(record["verdict"], "#222")
+    rows = [(c["name"], "" if c["figure"] is None else (f"{c['figure']:.4g}" if isinstance(c["figure"], (int, float))
+                                                         else str(c["figure"])),
+             c["unit"], c["threshold"], c["level"], c["message"]) for c in record["checks"]]
+    words = {"ok": "every plausibility check passed.",
+             "warning": "some figures are outside their usual range; read the checks before using the numbers.",
+             "unreliable": "do not use these numbers: a check shows the input or the result is wrong."}
+    return [f'<h2>Quality verdict: <span style="color:{colour}">{html.escape(record["verdict"].upper())}</span></h2>',
+            f'<p class="note">{html.escape(words.get(record["verdict"], ""))} Also in quality.json.</p>',
+            _table(rows, ["check", "figure", "unit", "threshold", "level", "message"])]
+
+
+def report_html(analysis, quality: dict | None = None) -> str:
+    """The text of the report for an :class:`~horsemocap.pipeline.Analysis`.
+
+    ``quality``: the record of :func:`horsemocap.quality.quality_record`,
+    shown first.
+    """
     from . import plots
     from .results import analysis_record
 
@@ -62,6 +80,8 @@ def report_html(analysis) -> str:
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
              '<p class="note">horsemocap, after G. Dogan, METU 2009. Session folder: '
              f"{html.escape(str(s.root))}</p>"]
+    if quality is not None:
+        parts += quality_section(quality)
     meta = [(k, v) for k, v in s.metadata.items()] + [("fps", f"{s.fps:g}"), ("cameras", ", ".join(s.cameras))]
     parts += ["<h2>Session</h2>", _table(meta, ["field", "value"])]
 
@@ -77,7 +97,8 @@ def report_html(analysis) -> str:
         from .vibration import comfort_table_rows
 
         rows = [(name, f"{value:.4f}", unit) for name, value, unit in comfort_table_rows(res["comfort"]["indicators"])]
-        parts += ["<h2>Comfort indicators (thesis Table 8.7)</h2>",
+        verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
+        parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
                   f'<p class="note">Weighting mode: {html.escape(analysis.params.weighting_mode)}. '
                   "Times to reach the EU directive 2002/44/EC exposure action (EAV) and limit (ELV) values "
                   "by A(8) and by VDV, and the distances ridden in those times at the measured speed. "
@@ -113,6 +134,6 @@ def report_html(analysis) -> str:
             + "\n".join(parts) + "</body></html>\n")
 
 
-def write_report(path, analysis) -> Path:
+def write_report(path, analysis, quality: dict | None = None) -> Path:
     """Write ``report.html`` atomically; returns its path."""
-    return atomic_write_text(Path(path), report_html(analysis))
+    return atomic_write_text(Path(path), report_html(analysis, quality))

@@ -93,8 +93,8 @@ def _camera_paths(path, root, name, value, cameras, *, must_exist=True, kind="fi
     out = {}
     for cam in cameras:
         rel = value[cam]
-        if not isinstance(rel, str) or not rel:
-            _fail(path, f"{name}.{cam}", "a path relative to the session folder", rel)
+        if not isinstance(rel, str) or not rel or "\0" in rel:
+            _fail(path, f"{name}.{cam}", "a path relative to the session folder (no NUL byte)", rel)
         p = (root / rel).resolve()
         if must_exist and not p.exists():
             _fail(path, f"{name}.{cam}", f"an existing {kind} ({p} not found)")
@@ -138,13 +138,17 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     SessionError
         Naming the file, the field and what was expected.
     """
+    if "\0" in str(folder):
+        raise SessionError(f"{str(folder)!r}: a session folder path cannot hold a NUL byte")
     folder = Path(folder)
     path = folder if folder.name == "session.json" else folder / "session.json"
     root = path.parent.resolve()
     if not path.is_file():
         raise SessionError(f"{path}: session file not found (a session folder holds session.json)")
+    from .store import read_text_utf8
+
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_text_utf8(path, SessionError))
     except json.JSONDecodeError as exc:
         raise SessionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
     if not isinstance(data, dict):
@@ -202,7 +206,7 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     _check_unknown(path, cal, ("rig", "images", "board"), "calibration.")
     rig_path = None
     if "rig" in cal:
-        if not isinstance(cal["rig"], str):
+        if not isinstance(cal["rig"], str) or not cal["rig"] or "\0" in cal["rig"]:
             _fail(path, "calibration.rig", "a path to rig.toml", cal["rig"])
         rig_path = (root / cal["rig"]).resolve()
         if not rig_path.is_file():

@@ -74,6 +74,18 @@ class FrameSource:
     def is_video(self) -> bool:
         return not self.path.is_dir()
 
+    @property
+    def container_fps(self) -> float | None:
+        """The frame rate the video container declares; None for an image folder or when it says none."""
+        if not self.is_video:
+            return None
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            fps = float(cap.get(cv2.CAP_PROP_FPS))
+        finally:
+            cap.release()
+        return fps if np.isfinite(fps) and fps > 0 else None
+
     def __len__(self) -> int:
         """Number of frames actually readable (videos are decoded to count)."""
         if not self.is_video:

@@ -5,7 +5,7 @@ the input session). Every write goes to a temporary file in the same folder
 and is renamed into place, so a reader sees a whole file or none.
 
 A :class:`ResultsStore` keeps each pipeline step's result under the results
-folder (``<results>/steps/<step>.pkl``), keyed by a fingerprint of the
+folder (``<results>/steps/<step>.json`` + ``.npz``, no pickle), keyed by a fingerprint of the
 session, the parameters and the code; notebooks load what an earlier one
 computed and compute it with the default parameters when absent.
 """
@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
-import tempfile
+import secrets
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,10 +24,28 @@ class StoreError(RuntimeError):
     """A results folder that cannot be used (e.g. inside the input session)."""
 
 
+def read_text_utf8(path, error=ValueError) -> str:
+    """The text of a UTF-8 file; ``error(message)`` naming the file and byte if it is not UTF-8."""
+    data = Path(path).read_bytes()
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
+                    "save the file as UTF-8") from None
+
+
 def _atomic_write(path: Path, write) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + path.name + ".", suffix=".tmp", dir=path.parent)
+    # os.open with mode 0o666 lets the user's umask decide who may read the file
+    # (tempfile.mkstemp would make it 0600: colleagues could not read the results)
+    while True:
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+            break
+        except FileExistsError:
+            continue
     try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
@@ -82,15 +99,110 @@ def check_outside(results_dir, session_dir) -> None:
             "choose a folder outside it (horsemocap never writes into a session)")
 
 
+# ---------------------------------------------------------------------------
+# safe encoding of step results: JSON for values, .npz (no pickle) for arrays
+# ---------------------------------------------------------------------------
+
+_ARRAY_KINDS = set("biufcUSmM")
+
+
+def encode_result(obj, arrays: dict):
+    """A JSON-able tree for a step's result; arrays go into ``arrays`` by name.
+
+    Values: None, bool, int, float, str, lists, tuples, dicts (any JSON-able
+    keys), :class:`pathlib.Path`, NumPy arrays and scalars of numeric, bool,
+    string or datetime types, and dataclasses defined in the ``horsemocap``
+    package (their fields, recursively). Anything else (an object array, a
+    callable, another package's class) raises ``TypeError`` naming it: the
+    store never falls back to pickle.
+    """
+    import dataclasses
+
+    if obj is None or isinstance(obj, (bool, int, float, str)):
+        return obj
+    if isinstance(obj, np.ndarray) or isinstance(obj, np.generic):
+        arr = np.asarray(obj)
+        if arr.dtype.kind not in _ARRAY_KINDS:
+            raise TypeError(f"cannot store an array of dtype {arr.dtype} without pickle")
+        name = f"a{len(arrays)}"
+        arrays[name] = arr
+        return {"$": "array" if isinstance(obj, np.ndarray) else "scalar", "ref": name}
+    if isinstance(obj, Path):
+        return {"$": "path", "v": str(obj)}
+    if isinstance(obj, (list, tuple)):
+        return {"$": type(obj).__name__, "items": [encode_result(v, arrays) for v in obj]}
+    if isinstance(obj, dict):
+        return {"$": "dict", "items": [[encode_result(k, arrays), encode_result(v, arrays)] for k, v in obj.items()]}
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        cls = type(obj)
+        if not (cls.__module__ == "horsemocap" or cls.__module__.startswith("horsemocap.")):
+            raise TypeError(f"cannot store a {cls.__module__}.{cls.__qualname__} (only horsemocap's dataclasses)")
+        return {"$": "dataclass", "class": f"{cls.__module__}:{cls.__qualname__}",
+                "fields": {f.name: encode_result(getattr(obj, f.name), arrays) for f in dataclasses.fields(obj)}}
+    raise TypeError(f"cannot store a {type(obj).__module__}.{type(obj).__qualname__} without pickle")
+
+
+def _dataclass_type(spec: str):
+    import dataclasses
+    import importlib
+
+    module, _, qualname = spec.partition(":")
+    if not (module == "horsemocap" or module.startswith("horsemocap.")) or not qualname.isidentifier():
+        raise ValueError(f"refusing to build {spec!r}: only horsemocap's dataclasses are stored")
+    cls = getattr(importlib.import_module(module), qualname)
+    if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
+        raise ValueError(f"{spec!r} is not a dataclass")
+    return cls
+
+
+def decode_result(tree, arrays):
+    """Inverse of :func:`encode_result` (``arrays`` from ``np.load(..., allow_pickle=False)``)."""
+    import dataclasses
+
+    if tree is None or isinstance(tree, (bool, int, float, str)):
+        return tree
+    tag = tree["$"]
+    if tag == "array":
+        return np.asarray(arrays[tree["ref"]])
+    if tag == "scalar":
+        return np.asarray(arrays[tree["ref"]])[()]
+    if tag == "path":
+        return Path(tree["v"])
+    if tag == "list":
+        return [decode_result(v, arrays) for v in tree["items"]]
+    if tag == "tuple":
+        return tuple(decode_result(v, arrays) for v in tree["items"])
+    if tag == "dict":
+        return {_hashable(decode_result(k, arrays)): decode_result(v, arrays) for k, v in tree["items"]}
+    if tag == "dataclass":
+        cls = _dataclass_type(tree["class"])
+        values = {k: decode_result(v, arrays) for k, v in tree["fields"].items()}
+        init = {f.name for f in dataclasses.fields(cls) if f.init}
+        obj = cls(**{k: v for k, v in values.items() if k in init})
+        for k, v in values.items():
+            if k not in init:
+                object.__setattr__(obj, k, v)
+        return obj
+    raise ValueError(f"unknown stored type {tag!r}")
+
+
+def _hashable(k):
+    return tuple(_hashable(v) for v in k) if isinstance(k, list) else k
+
+
 @dataclass(frozen=True)
 class ResultsStore:
     """Step results of one session's analysis, so a notebook reuses what an
     earlier one computed.
 
-    Each step's result is pickled to ``<root>/steps/<step>.pkl`` together
-    with a key (a fingerprint of the session, the parameters and the
-    package's code); a result is only returned for the same key, so a change
-    of any of them recomputes it. Files are written atomically.
+    Each step's result is kept as ``<root>/steps/<step>.npz`` (its arrays,
+    read with ``allow_pickle=False``) and ``<root>/steps/<step>.json`` (the
+    other values, the key and the SHA-256 of the ``.npz``), never as a
+    pickle: a file planted in the store cannot run code. A result is only
+    returned for the same key (a fingerprint of the session's files, the
+    parameters and the package's code, :func:`horsemocap.pipeline.run_key`),
+    so a change of any of them recomputes it. Files are written atomically
+    with the user's umask.
 
     Parameters
     ----------
@@ -104,20 +216,47 @@ class ResultsStore:
         object.__setattr__(self, "root", Path(self.root))
 
     def path(self, step: str) -> Path:
-        return self.root / "steps" / f"{step}.pkl"
+        """The JSON file of a step (its arrays are in the ``.npz`` beside it)."""
+        if not step.isidentifier():
+            raise ValueError(f"step name {step!r}: expected an identifier")
+        return self.root / "steps" / f"{step}.json"
 
-    def save(self, step: str, result, key: str) -> Path:
-        """Store ``result`` of ``step`` under ``key``."""
-        payload = pickle.dumps({"key": key, "result": result}, protocol=pickle.HIGHEST_PROTOCOL)
-        return atomic_write_bytes(self.path(step), payload)
+    def save(self, step: str, result, key: str) -> Path | None:
+        """Store ``result`` of ``step`` under ``key``; None (and a warning) if it holds an unstorable value."""
+        import hashlib
+        import io
+        import warnings
+
+        arrays: dict = {}
+        try:
+            tree = encode_result(result, arrays)
+        except TypeError as exc:
+            warnings.warn(f"results store: step '{step}' not stored ({exc}); it will be recomputed", stacklevel=2)
+            return None
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        data = buf.getvalue()
+        json_path = self.path(step)
+        atomic_write_bytes(json_path.with_suffix(".npz"), data)
+        text = json.dumps({"format": "horsemocap-step/1", "key": key, "npz_sha256": hashlib.sha256(data).hexdigest(),
+                           "result": tree})
+        return atomic_write_text(json_path, text)
 
     def load(self, step: str, key: str):
-        """The stored result of ``step`` for ``key``, or None (absent, other key, unreadable)."""
+        """The stored result of ``step`` for ``key``, or None (absent, other key, unreadable, tampered)."""
+        import hashlib
+        import io
+
         p = self.path(step)
-        if not p.is_file():
-            return None
         try:
-            payload = pickle.loads(p.read_bytes())
-        except Exception:  # a file from another version of a class: recompute
+            payload = json.loads(p.read_text(encoding="utf-8"))
+            if not isinstance(payload, dict) or payload.get("key") != key:
+                return None
+            data = p.with_suffix(".npz").read_bytes()
+            if hashlib.sha256(data).hexdigest() != payload.get("npz_sha256"):
+                return None  # the arrays of another save: recompute
+            with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+                arrays = {k: npz[k] for k in npz.files}
+            return decode_result(payload["result"], arrays)
+        except Exception:  # noqa: BLE001 - absent, from another version, damaged: recompute
             return None
-        return payload["result"] if payload.get("key") == key else None

@@ -1,0 +1,405 @@
+"""Plausibility checks before and after the analysis, and the run's verdict.
+
+A measuring instrument must not hand out wrong numbers quietly. Each check
+is a pure function of a few numbers and returns a :class:`Check`: its name,
+the figure measured, the unit, the ranges in which the figure is ``ok`` and
+in which it is only a ``warning`` (beyond them it is ``unreliable``), the
+input to look at and a message. A check that cannot be made (an image
+folder has no container frame rate) is ``skipped`` and does not enter the
+verdict. :func:`verdict` is the worst level of all checks.
+
+Before the analysis (:func:`pre_checks`): the session's fps against each
+video container's fps, the rig's image size against the frames and stills,
+the camera matrices, the board square size, the marker diameter. After it
+(:func:`post_checks`): the reprojection residuals per camera against the
+calibration's own RMS and the markers' motion per frame, the horse's speed,
+the stride frequency, the saddle's peak vertical acceleration.
+
+Plausible ranges of horse locomotion (approximate, for ridden horses):
+
+- speed: walk about 6.4 km/h, trot 13-19 km/h, canter 16-27 km/h, gallop
+  40-48 km/h on average; the sprint records are 70.76 km/h (Thoroughbred,
+  Guinness World Records 2008) and about 88 km/h over a quarter mile
+  (American Quarter Horse). Encyclopaedic values, e.g. Wikipedia "Horse
+  gait"; H. M. Clayton, *The Dynamic Horse* (2004) gives the same order.
+- stride frequency: about 0.8-1 Hz at walk, 1.3-1.6 Hz at trot, 1.5-2 Hz at
+  canter, up to about 2.5 Hz (150-160 strides per minute) for racehorses at
+  full gallop (Heglund, Taylor & McMahon, Science 186:1112, 1974, for the
+  scaling of stride frequency with speed and size).
+- saddle vertical acceleration: the trunk rises and falls some 3-10 cm once
+  or twice per stride, so its acceleration A (2 pi f)^2 is of order 2-40 m/s^2
+  from walk to gallop; the thesis measured a peak of 11.7 m/s^2 at canter
+  (Dogan 2009, Table 8.7). More than 80 m/s^2 (8 g) at the saddle is not
+  locomotion.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+LEVELS = ("ok", "warning", "unreliable")
+SKIPPED = "skipped"
+FORMAT = "horsemocap-quality/1"
+
+
+@dataclass(frozen=True)
+class Check:
+    """One plausibility check.
+
+    Attributes
+    ----------
+    name : str
+    figure : float or None
+        The value measured (None when skipped).
+    unit : str
+    level : str
+        ``"ok"``, ``"warning"``, ``"unreliable"`` or ``"skipped"``.
+    ok, warning : (low, high)
+        The figure is ``ok`` inside ``ok``, a ``warning`` inside ``warning``
+        and ``unreliable`` outside it (None = unbounded on that side).
+    threshold : str
+        The ranges in words.
+    input : str
+        What to look at (a file, a field).
+    message : str
+    """
+
+    name: str
+    figure: float | None
+    unit: str
+    level: str
+    ok: tuple
+    warning: tuple
+    threshold: str
+    input: str
+    message: str
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["ok"], d["warning"] = list(self.ok), list(self.warning)
+        if d["figure"] is not None and not math.isfinite(d["figure"]):
+            d["figure"] = str(d["figure"])  # JSON has no inf/nan
+        return d
+
+
+def _inside(x, rng) -> bool:
+    lo, hi = rng
+    return (lo is None or x >= lo) and (hi is None or x <= hi)
+
+
+def _range_text(rng, unit) -> str:
+    lo, hi = rng
+    if lo is None:
+        return f"<= {hi:g} {unit}"
+    if hi is None:
+        return f">= {lo:g} {unit}"
+    return f"{lo:g}..{hi:g} {unit}"
+
+
+def range_check(name, figure, unit, ok, warning, input_, what) -> Check:
+    """A figure against an ``ok`` range and a wider ``warning`` range."""
+    threshold = f"ok {_range_text(ok, unit)}; unreliable outside {_range_text(warning, unit)}"
+    if figure is None:
+        return Check(name, None, unit, SKIPPED, ok, warning, threshold, input_, f"{what}: not available")
+    figure = float(figure)
+    if not math.isfinite(figure):
+        level = "unreliable"
+    elif _inside(figure, ok):
+        level = "ok"
+    elif _inside(figure, warning):
+        level = "warning"
+    else:
+        level = "unreliable"
+    msg = f"{what} {figure:.4g} {unit}".rstrip() + ("" if level == "ok" else f" ({level}; {threshold})")
+    return Check(name, figure, unit, level, ok, warning, threshold, input_, msg)
+
+
+def verdict(checks) -> str:
+    """The worst level of the checks (``skipped`` ones do not count); ``ok`` if none."""
+    levels = [c.level for c in checks if c.level in LEVELS]
+    return max(levels, key=LEVELS.index) if levels else "ok"
+
+
+def quality_record(checks) -> dict:
+    """The content of ``quality.json``."""
+    return {"format": FORMAT, "verdict": verdict(checks), "checks": [c.to_dict() for c in checks]}
+
+
+# ---------------------------------------------------------------------------
+# checks before the analysis
+# ---------------------------------------------------------------------------
+
+def check_fps_against_container(session_fps: float, container_fps: dict, sources: dict,
+                                input_="session.json 'fps'") -> Check:
+    """The session's ``fps`` against each video container's frame rate.
+
+    Accelerations scale with fps^2, so a relative fps error e gives about 2e
+    in every acceleration and comfort figure. ``ok`` up to 0.5 % (29.97 vs
+    30 is 0.1 %), ``warning`` up to 2.5 % (5 % in acceleration, the
+    accuracy the end-to-end test asks of the comfort figures), beyond that
+    ``unreliable`` (25 fps given for 30 fps videos: 17 %).
+
+    Parameters
+    ----------
+    session_fps : float
+    container_fps : dict
+        Camera -> the container's frame rate, or None (an image folder, or a
+        container that does not say).
+    sources : dict
+        Camera -> path (named in the message).
+    """
+    known = {c: f for c, f in container_fps.items() if f is not None and math.isfinite(f) and f > 0}
+    ok, warn = (0.0, 0.5), (0.0, 2.5)
+    if not known:
+        return range_check("fps_vs_container", None, "%", ok, warn, input_,
+                           "session fps against the video containers (image folders carry no frame rate)")
+    dev = {c: 100 * abs(session_fps / f - 1) for c, f in known.items()}
+    worst = max(dev, key=dev.get)
+    check = range_check("fps_vs_container", dev[worst], "%", ok, warn, f"{input_} and {sources[worst]}",
+                        f"session fps {session_fps:g} vs {known[worst]:g} in camera '{worst}' "
+                        f"({sources[worst]}): deviation")
+    return check
+
+
+def check_image_size(rig_sizes: dict, image_sizes: dict, input_="rig.toml 'size'") -> Check:
+    """The rig's image size per camera against the frames and stills.
+
+    A calibration holds for one image size: other frames (a resized or
+    cropped video) put every intrinsic parameter off. The figure is the
+    number of images whose (width, height) differs from the rig's;
+    any is ``unreliable``.
+
+    Parameters
+    ----------
+    rig_sizes : dict
+        Camera -> (width, height) of the rig.
+    image_sizes : dict
+        ``(camera, path)`` -> (width, height) of a frame or still.
+    """
+    bad = [(cam, path, wh) for (cam, path), wh in image_sizes.items()
+           if cam in rig_sizes and tuple(wh) != tuple(rig_sizes[cam])]
+    if not bad:
+        return range_check("image_size", 0, "images", (0, 0), (0, 0), input_,
+                           "images whose size differs from the rig's:")
+    cam, path, wh = bad[0]
+    c = range_check("image_size", len(bad), "images", (0, 0), (0, 0), f"{input_} and {path}",
+                    "images whose size differs from the rig's:")
+    return Check(c.name, c.figure, c.unit, c.level, c.ok, c.warning, c.threshold, c.input,
+                 f"{path} is {wh[0]}x{wh[1]} px but the rig's camera '{cam}' was calibrated at "
+                 f"{rig_sizes[cam][0]}x{rig_sizes[cam][1]} px ({len(bad)} image(s) differ): unreliable")
+
+
+def camera_matrix_condition(matrix, size) -> float:
+    """Condition number of ``K`` with pixels scaled by the image diagonal.
+
+    About 1-3 for ordinary lenses (fx near the diagonal, the principal point
+    near the centre); it grows as the lens gets extremely long or short and
+    is infinite for a singular or non-finite matrix.
+    """
+    K = np.asarray(matrix, float)
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+        return float("inf")
+    d = math.hypot(*size) if size[0] > 0 and size[1] > 0 else 1.0
+    Kn = np.diag([1 / d, 1 / d, 1.0]) @ K
+    s = np.linalg.svd(Kn, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def check_camera_matrices(cameras, input_="rig.toml 'matrix'") -> Check:
+    """Every camera matrix finite and well conditioned, its principal point in the image.
+
+    Figure: the worst :func:`camera_matrix_condition`. ``ok`` up to 20 (a
+    focal length up to some 20 image diagonals: a field of view of about
+    3 deg), ``warning`` up to 1000, beyond (or non-finite, singular, a
+    principal point outside the image, non-finite pose) ``unreliable``.
+
+    Parameters
+    ----------
+    cameras : iterable of :class:`horsemocap.camera.Camera`
+    """
+    worst, worst_cam, problem = 0.0, None, None
+    for cam in cameras:
+        cond = camera_matrix_condition(cam.matrix, cam.size)
+        pose_ok = np.all(np.isfinite(cam.rotation)) and np.all(np.isfinite(cam.translation)) \
+            and np.all(np.isfinite(cam.distortions))
+        cx, cy = (cam.matrix[0, 2], cam.matrix[1, 2]) if np.all(np.isfinite(cam.matrix)) else (np.nan, np.nan)
+        if not pose_ok:
+            problem, cond = f"camera '{cam.name}': non-finite distortion, rotation or translation", float("inf")
+        elif not (0 <= cx <= cam.size[0] and 0 <= cy <= cam.size[1]):
+            problem, cond = (f"camera '{cam.name}': principal point ({cx:.1f}, {cy:.1f}) outside the "
+                             f"{cam.size[0]}x{cam.size[1]} image"), float("inf")
+        if worst_cam is None or cond > worst:
+            worst, worst_cam = cond, cam.name
+    c = range_check("camera_matrices", worst, "", (None, 20.0), (None, 1000.0), input_,
+                    f"worst condition number of a camera matrix (camera '{worst_cam}', pixels over the image diagonal):")
+    if problem:
+        return Check(c.name, c.figure, c.unit, "unreliable", c.ok, c.warning, c.threshold, c.input,
+                     problem + ": unreliable")
+    return c
+
+
+def check_board_square(square_size_m, input_="session.json 'calibration.board.square_size_m'") -> Check:
+    """Checkerboard square size: ``ok`` 5 mm-0.3 m, ``warning`` 2 mm-1 m.
+
+    The calibration's translations (and every length and acceleration)
+    scale with it: 10 "m" for 0.1 m makes a horse at 1771 km/h. Printed
+    boards have squares of some millimetres to a few centimetres; the
+    thesis' rig used a 0.8 x 1.5 m board with 100 mm squares.
+    """
+    return range_check("board_square_size", square_size_m, "m", (0.005, 0.3), (0.002, 1.0), input_,
+                       "checkerboard square size" if square_size_m is not None else
+                       "checkerboard square size (no board: the session gives a rig)")
+
+
+def check_marker_diameter(diameter_m, input_="session.json 'markers.diameter_m'") -> Check:
+    """Marker diameter: ``ok`` 1-20 cm, ``warning`` 5 mm-0.5 m (the thesis' stickers: some cm)."""
+    return range_check("marker_diameter", diameter_m, "m", (0.01, 0.2), (0.005, 0.5), input_, "marker diameter")
+
+
+# ---------------------------------------------------------------------------
+# checks after the analysis
+# ---------------------------------------------------------------------------
+
+def check_horse_speed(speed_kmh, input_="comfort.csv 'vel_x_avg'") -> Check:
+    """Average speed: ``ok`` 2-71 km/h (slow walk to the Thoroughbred record), ``warning`` 0.5-90 km/h."""
+    return range_check("horse_speed", speed_kmh, "km/h", (2.0, 71.0), (0.5, 90.0), input_,
+                       "average speed of the horse")
+
+
+def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period_frames") -> Check:
+    """Stride frequency: ``ok`` 0.7-2.7 Hz (walk to racing gallop), ``warning`` 0.4-3.5 Hz."""
+    return range_check("stride_frequency", frequency_hz, "Hz", (0.7, 2.7), (0.4, 3.5), input_,
+                       "stride frequency")
+
+
+def check_saddle_acceleration(peak_mps2, input_="comfort.csv 'acc_y_max'") -> Check:
+    """Peak vertical saddle acceleration: ``ok`` 0.5-40 m/s^2, ``warning`` 0.2-80 m/s^2 (see the module)."""
+    return range_check("saddle_acceleration", peak_mps2, "m/s^2", (0.5, 40.0), (0.2, 80.0), input_,
+                       "peak vertical acceleration of the saddle")
+
+
+def check_reprojection_residuals(residual_px: dict, motion_px_per_frame: dict, calibration_rms_px=None,
+                                 input_="sync offsets and rig") -> Check:
+    """Median reprojection residual per camera against the calibration and the markers' motion.
+
+    A consistent point reprojects within the calibration's own error: its
+    RMS over the board corners, ``e``. Above ``3 e`` the detections disagree
+    with the rig more than its corners did: ``warning``. A sync error of k
+    frames moves a marker by k times its image motion per frame ``m`` in
+    one camera against the others; whole-frame sync leaves at most half a
+    frame of phase between free-running cameras, so a residual above
+    ``max(3 e, m / 2)`` cannot come from timing within a frame:
+    ``unreliable`` (a one-frame error gives about ``m``). The figure is the
+    worst camera's median residual; ``ok``/``warning`` are that camera's.
+
+    Parameters
+    ----------
+    residual_px : dict
+        Camera -> residuals (px) of the analysed frames' points.
+    motion_px_per_frame : dict
+        Camera -> median image displacement of a marker between frames (px).
+    calibration_rms_px : float or None
+        The rig's RMS reprojection error (``rig.toml`` metadata ``error``).
+    """
+    e = float(calibration_rms_px) if calibration_rms_px is not None and math.isfinite(calibration_rms_px) \
+        and calibration_rms_px > 0 else None
+    results = []
+    for cam, r in residual_px.items():
+        r = np.asarray(r, float)
+        med = float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan")
+        m = float(motion_px_per_frame.get(cam, float("nan")))
+        warn_at = 3 * e if e is not None else None
+        unrel_at = max(3 * e if e is not None else 0.0, m / 2 if math.isfinite(m) else 0.0)
+        if unrel_at <= 0:
+            unrel_at = None
+        ok = (None, warn_at if warn_at is not None else unrel_at)
+        check = range_check("reprojection_residuals", med, "px", ok, (None, unrel_at), input_,
+                            f"median reprojection residual of camera '{cam}'")
+        results.append((LEVELS.index(check.level) if check.level in LEVELS else -1,
+                        med / unrel_at if unrel_at else 0.0, cam, m, check))
+    if not results:
+        return range_check("reprojection_residuals", None, "px", (None, None), (None, None), input_,
+                           "reprojection residuals")
+    results.sort(key=lambda t: (t[0], t[1] if math.isfinite(t[1]) else math.inf))
+    _, _, cam, m, check = results[-1]
+    detail = (f" (calibration RMS {e:.3g} px" if e is not None else " (calibration RMS unknown") + \
+        f", markers move {m:.3g} px per frame)"
+    if check.level in ("warning", "unreliable"):
+        detail += "; check the sync offsets (a frame off gives about one frame's motion) and the rig"
+    return Check(check.name, check.figure, check.unit, check.level, check.ok, check.warning, check.threshold,
+                 check.input, check.message + detail)
+
+
+# ---------------------------------------------------------------------------
+# gathering the inputs (reads the session's files; the checks above are pure)
+# ---------------------------------------------------------------------------
+
+def _image_sizes(session, rig_cams) -> dict:
+    from .sources import FrameSource, read_image
+
+    sizes = {}
+    for cam in session.cameras:
+        if cam not in rig_cams:
+            continue
+        f = FrameSource(session.motion[cam]).frame(0, color=False)
+        sizes[(cam, session.motion[cam])] = (f.shape[1], f.shape[0])
+        for group in (session.plumb, session.static):
+            if group:
+                img = read_image(group[cam], color=False)
+                sizes[(cam, group[cam])] = (img.shape[1], img.shape[0])
+    return sizes
+
+
+def rig_checks(session, rig) -> list[Check]:
+    """Image size and camera-matrix checks of a rig against a session's images."""
+    rig_sizes = {c.name: c.size for c in rig.cameras}
+    return [check_image_size(rig_sizes, _image_sizes(session, rig_sizes)), check_camera_matrices(rig.cameras)]
+
+
+def pre_checks(session, rig=None) -> list[Check]:
+    """Checks of a session before the analysis (``rig``: the rig it will use, if known)."""
+    from .sources import FrameSource
+
+    fps = {c: FrameSource(session.motion[c]).container_fps for c in session.cameras}
+    checks = [check_fps_against_container(session.fps, fps, session.motion),
+              check_board_square(session.board.square_size_m if session.board is not None else None),
+              check_marker_diameter(session.marker_diameter_m)]
+    if rig is not None:
+        checks += rig_checks(session, rig)
+    return checks
+
+
+def marker_motion_px(marker_px: dict, segment=None) -> dict:
+    """Camera -> median displacement of a marker between consecutive frames (px)."""
+    out = {}
+    for cam, px in marker_px.items():
+        px = np.asarray(px, float)
+        if segment is not None:
+            px = px[segment[0]:segment[1]]
+        d = np.linalg.norm(np.diff(px, axis=0), axis=-1)
+        out[cam] = float(np.nanmedian(d)) if np.isfinite(d).any() else float("nan")
+    return out
+
+
+def post_checks(analysis) -> list[Check]:
+    """Checks of an analysis' results (only those whose steps have run)."""
+    res, s = analysis.results, analysis.session
+    checks = []
+    if "triangulate" in res and "detect" in res:
+        a, b = res["triangulate"]["segment"]
+        resid = {c: np.asarray(r)[a:b] for c, r in res["triangulate"]["residual_px"].items()}
+        rms = res["rig"]["rig"].metadata.get("error") if "rig" in res else None
+        try:
+            rms = float(rms) if rms is not None else None
+        except (TypeError, ValueError):
+            rms = None
+        checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
+    if "motion_frame" in res:
+        checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"]))
+    if "comfort" in res:
+        ind = res["comfort"]["indicators"]
+        checks.append(check_horse_speed(ind.get("vel_x_avg")))
+        checks.append(check_saddle_acceleration(ind.get("acc_y_max")))
+    return checks

@@ -1,0 +1,152 @@
+"""One whole run of ``horsemocap analyze``: checks, analysis, verdict, one swap.
+
+:func:`run_analysis` validates the session and the parameters, runs the
+plausibility checks that need no analysis (:mod:`horsemocap.quality`),
+analyses the session into a temporary folder beside the results folder
+(:class:`horsemocap.runfolder.RunFolder`), checks the results, writes
+``quality.json`` and ``report.html`` and puts the folder in place in one
+rename. Nothing is written before the session and the parameters are
+valid; nothing is ever written into the session.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import quality
+from .store import atomic_write_json, atomic_write_text, check_outside
+
+EXIT_OK = 0
+EXIT_ERROR = 2
+EXIT_UNRELIABLE = 3
+
+
+@dataclass
+class RunOutcome:
+    """What a run left in ``out``.
+
+    Attributes
+    ----------
+    out : Path
+    analysis : Analysis or None
+        The steps that ran (partial when ``error`` is set).
+    checks : list of quality.Check
+    verdict : str
+        ``"ok"``, ``"warning"`` or ``"unreliable"`` (a failed run is ``"unreliable"``).
+    report : Path or None
+    error : Exception or None
+        The step failure; the finished steps' files are in ``out``, marked partial.
+    """
+
+    out: Path
+    analysis: object
+    checks: list = field(default_factory=list)
+    verdict: str = "ok"
+    report: Path | None = None
+    error: Exception | None = None
+
+    @property
+    def exit_code(self) -> int:
+        if self.error is not None:
+            return EXIT_ERROR
+        return EXIT_UNRELIABLE if self.verdict == "unreliable" else EXIT_OK
+
+
+def _session_rig(session, params):
+    """The rig the run will read from ``rig.toml`` (None if it calibrates)."""
+    from .camera import read_rig
+
+    if session.rig_path is None or params.recalibrate:
+        return None
+    rig = read_rig(session.rig_path)
+    if not all(c in rig.names for c in session.cameras):
+        return None  # step 'rig' says which camera is missing
+    return rig.subset(session.cameras)
+
+
+def _mark_record(folder: Path, **fields) -> None:
+    path = folder / "analysis.json"
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        record = {}
+    record.update(fields)
+    atomic_write_json(path, record)
+
+
+def run_analysis(session_dir, out, params=None, *, progress=None, report: bool = True) -> RunOutcome:
+    """Analyse ``session_dir`` into ``out`` as one whole run.
+
+    Parameters
+    ----------
+    session_dir : path
+    out : path
+        The results folder: absent, empty or an earlier run's (replaced whole).
+    params : AnalysisParams or dict, optional
+        Overrides of the session's ``analysis`` object.
+    progress : callable(step, message), optional
+    report : bool
+        Write ``report.html``.
+
+    Returns
+    -------
+    RunOutcome
+
+    Raises
+    ------
+    SessionError, ParamsError, StoreError, RigError
+        Before anything is written. KeyboardInterrupt and any other error
+        leave ``out`` as it was.
+    """
+    from .pipeline import AnalysisError, _progress_printer, analyze, resolve_params
+    from .runfolder import RunFolder, check_results_target
+    from .session import SessionError, load_session
+
+    progress = progress or _progress_printer()
+    session = load_session(session_dir)
+    params = resolve_params(session, params)
+    params.check_session(session)
+    target = check_results_target(out)
+    check_outside(target, session.root)
+    rig = _session_rig(session, params)
+    checks = quality.pre_checks(session, rig)
+    for c in checks:
+        if c.level in ("warning", "unreliable"):
+            progress("quality", f"{c.level}: {c.message} [{c.input}]")
+
+    folder = RunFolder(out)
+    with folder as tmp:
+        outcome = RunOutcome(Path(target), None)
+        try:
+            analysis = analyze(session_dir, tmp, params, progress=progress)
+        except (AnalysisError, SessionError) as exc:
+            analysis = getattr(exc, "partial", None)
+            outcome.error = exc
+        outcome.analysis = analysis
+        if analysis is not None:
+            if rig is None and "rig" in analysis.results:
+                checks += quality.rig_checks(session, analysis.results["rig"]["rig"])
+            checks += quality.post_checks(analysis)
+        if outcome.error is not None:
+            checks.append(quality.Check("run_complete", None, "", "unreliable", (None, None), (None, None),
+                                        "every step ran", "the step named in the message",
+                                        f"the run stopped: {outcome.error}"))
+        outcome.checks = checks
+        outcome.verdict = quality.verdict(checks)
+        record = quality.quality_record(checks)
+        atomic_write_json(tmp / "quality.json", record)
+        if outcome.error is not None:
+            _mark_record(tmp, complete=False, error=str(outcome.error), quality_verdict=outcome.verdict)
+            atomic_write_text(tmp / "PARTIAL.txt",
+                              "PARTIAL RESULTS: the run stopped before its end, so this folder holds only the "
+                              f"files of the steps that finished.\n{outcome.error}\n")
+        else:
+            _mark_record(tmp, complete=True, quality_verdict=outcome.verdict)
+            if report:
+                from .report import write_report
+
+                write_report(tmp / "report.html", analysis, quality=record)
+                outcome.report = outcome.out / "report.html"
+        folder.commit()
+    return outcome

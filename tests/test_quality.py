@@ -1,0 +1,94 @@
+"""Plausibility checks: known answers of the pure check functions."""
+import math
+
+import numpy as np
+import pytest
+
+from horsemocap import quality
+from horsemocap.camera import Camera
+
+
+def test_range_levels_and_verdict():
+    ok, warn = (2.0, 71.0), (0.5, 90.0)
+    values = (17.7, 2.0, 71.0, 80.0, 1.0, 0.4, 1771.0, float("nan"), float("inf"))
+    levels = [quality.range_check("s", x, "km/h", ok, warn, "in", "speed").level for x in values]
+    assert levels == ["ok", "ok", "ok", "warning", "warning", "unreliable", "unreliable", "unreliable", "unreliable"]
+    assert math.isnan(quality.range_check("s", float("nan"), "", ok, warn, "", "").figure)
+    assert quality.range_check("s", float("nan"), "", ok, warn, "", "").level == "unreliable"
+    skipped = quality.range_check("s", None, "", ok, warn, "", "x")
+    assert skipped.level == "skipped" and quality.verdict([skipped]) == "ok"
+    checks = [quality.range_check("a", 10, "", ok, warn, "", ""), quality.range_check("b", 80, "", ok, warn, "", "")]
+    assert quality.verdict(checks) == "warning"
+    assert quality.verdict(checks + [quality.range_check("c", 1e3, "", ok, warn, "", "")]) == "unreliable"
+    rec = quality.quality_record(checks + [quality.range_check("d", float("inf"), "", ok, warn, "", "")])
+    assert rec["verdict"] == "unreliable" and rec["checks"][-1]["figure"] == "inf"  # JSON has no inf
+
+
+def test_fps_against_container():
+    src = {"left": "l.avi", "right": "frames/"}
+    c = quality.check_fps_against_container(25.0, {"left": 30.0, "right": None}, src)
+    assert c.level == "unreliable" and c.figure == pytest.approx(100 / 6) and "l.avi" in c.message
+    assert quality.check_fps_against_container(30.0, {"left": 29.97, "right": None}, src).level == "ok"
+    assert quality.check_fps_against_container(30.0, {"left": 30.3, "right": None}, src).level == "warning"
+    assert quality.check_fps_against_container(30.0, {"left": None, "right": None}, src).level == "skipped"
+
+
+def test_image_size():
+    c = quality.check_image_size({"left": (640, 480)}, {("left", "a.avi"): (640, 480), ("left", "s.png"): (320, 240)})
+    assert c.level == "unreliable" and c.figure == 1 and "s.png is 320x240" in c.message
+    assert quality.check_image_size({"left": (640, 480)}, {("left", "a.avi"): (640, 480)}).level == "ok"
+
+
+def test_camera_matrices():
+    good = Camera("left", (640, 480), [[730, 0, 320], [0, 730, 240], [0, 0, 1]])
+    assert quality.camera_matrix_condition(good.matrix, good.size) < 3
+    assert quality.check_camera_matrices([good]).level == "ok"
+    singular = Camera("mid", (640, 480), [[0, 0, 320], [0, 730, 240], [0, 0, 1]])
+    assert quality.camera_matrix_condition(singular.matrix, singular.size) == math.inf
+    assert quality.check_camera_matrices([good, singular]).level == "unreliable"
+    nan = Camera("right", (640, 480), [[np.nan, 0, 320], [0, 730, 240], [0, 0, 1]])
+    assert quality.check_camera_matrices([nan]).level == "unreliable"
+    off = Camera("right", (640, 480), [[730, 0, 2000], [0, 730, 240], [0, 0, 1]])
+    c = quality.check_camera_matrices([off])
+    assert c.level == "unreliable" and "principal point" in c.message
+
+
+def test_residuals_against_calibration_and_motion():
+    """Thresholds: warning above 3 x the calibration RMS, unreliable above half a frame's motion."""
+    motion = {"left": 15.0, "right": 15.0}
+    healthy = {"left": np.full(30, 0.01), "right": np.full(30, 0.012)}
+    assert quality.check_reprojection_residuals(healthy, motion, 0.105).level == "ok"
+    noisy = {"left": np.full(30, 0.5), "right": np.full(30, 0.01)}  # above 3 x 0.105, below 7.5
+    c = quality.check_reprojection_residuals(noisy, motion, 0.105)
+    assert c.level == "warning" and "'left'" in c.message
+    one_frame = {"left": np.full(30, 0.01), "right": np.full(30, 15.0)}
+    c = quality.check_reprojection_residuals(one_frame, motion, 0.105)
+    assert c.level == "unreliable" and "'right'" in c.message and "sync" in c.message
+    assert c.warning == (None, 7.5)
+    # a horse that hardly moves: the floor is the calibration's 3 sigma
+    still = {"left": np.full(30, 0.2)}
+    assert quality.check_reprojection_residuals(still, {"left": 0.1}, 0.105).level == "ok"
+    assert quality.check_reprojection_residuals(still, {"left": 0.1}, 0.05).level == "unreliable"
+    # without the calibration's RMS only the motion bound is left
+    assert quality.check_reprojection_residuals(noisy, motion, None).level == "ok"
+
+
+def test_physical_ranges():
+    assert quality.check_horse_speed(17.7).level == "ok"            # canter
+    assert quality.check_horse_speed(1771.0).level == "unreliable"  # a 10 m board square
+    assert quality.check_stride_frequency(30 / 18).level == "ok"
+    assert quality.check_stride_frequency(0.001 / 18).level == "unreliable"
+    assert quality.check_saddle_acceleration(11.7).level == "ok"     # thesis Table 8.7
+    assert quality.check_saddle_acceleration(427.0).level == "unreliable"
+    assert quality.check_board_square(0.1).level == "ok"
+    assert quality.check_board_square(10.0).level == "unreliable"
+    assert quality.check_board_square(None).level == "skipped"
+    assert quality.check_marker_diameter(0.06).level == "ok"
+    assert quality.check_marker_diameter(6.0).level == "unreliable"
+
+
+def test_marker_motion():
+    px = np.zeros((5, 2, 2))
+    px[:, :, 0] = np.arange(5)[:, None] * 3.0
+    px[2, 1] = np.nan
+    assert quality.marker_motion_px({"left": px}) == {"left": 3.0}
