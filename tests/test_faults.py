@@ -802,7 +802,8 @@ def test_failed_step_leaves_only_its_partial_results(tmp_path, template, capsys,
     assert (out / "PARTIAL.txt").is_file() and not (out / "comfort.csv").exists()  # the earlier run's are gone
     record_ = json.loads((out / "analysis.json").read_text())
     assert record_["complete"] is False and "plumb" in record_["error"] and "earlier" not in record_
-    assert (out / "markers_2d.csv").is_file()
+    assert (out / "rig.toml").is_file()              # the steps before the plumb (sync, rig) are kept
+    assert not (out / "markers_2d.csv").exists()     # detection comes after the plumb and static stills
     verdict, checks = _quality(out)
     assert verdict == "unreliable" and checks["run_complete"]["level"] == "unreliable"
     record("run:failed_step_partial", "error, partial marked")

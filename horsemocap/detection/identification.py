@@ -62,6 +62,7 @@ IDENTIFICATION_REASONS = {
     "partly_occluded": "its region is far smaller than the marker's recent area: centre biased",
     "single_view": "seen by one camera only: its identity cannot be validated by another camera",
     "off_track": "consistent in the cameras, but further from the predicted 3D position than a marker moves",
+    "unconfirmed": "found alone on an extrapolated track, no other marker confirms it",
     "not_tracked": "the marker set is not followed in this frame (not in view, or lost)",
 }
 REASONS = IDENTIFICATION_REASONS
@@ -84,6 +85,9 @@ MAX_CANDIDATES_PER_CAMERA = 24
 MAX_OPTIONS = 3
 #: Frames without any marker after which the set is looked for again in whole frames.
 MAX_LOST_FRAMES = 10
+#: A marker neither seen lately nor carried by the others is looked for this many frames on its
+#: own extrapolated track, then no more (until the set is found again).
+MAX_STALE_FRAMES = 3
 #: Cost of one camera that should see a labelled point and does not (a
 #: normalised distance error of 1 costs 1).
 MISSING_VIEW_COST = 0.5
@@ -555,7 +559,7 @@ def in_working_volume(rig, points: np.ndarray, static_points: np.ndarray, depth_
 
 
 def label_frame(rig, cands: dict, model: np.ndarray, n_markers: int, max_residual_px: float,
-                model_index=None, slack_m: float = RIGID_SLACK_M, volume_of=None):
+                model_index=None, slack_m: float = RIGID_SLACK_M):
     """Correspondences (:func:`match_views`) and labels (:func:`fit_marker_model`) of one frame.
 
     Returns ``(ViewPoints, ModelFit or None, why)``; ``why`` says what failed.
@@ -563,7 +567,7 @@ def label_frame(rig, cands: dict, model: np.ndarray, n_markers: int, max_residua
     cams = tuple(c for c in rig.names if c in cands)
     vp = match_views(rig, cands, max_residual_px)
     if len(vp):
-        vp = vp.subset(in_working_volume(rig, vp.points, model if volume_of is None else volume_of))
+        vp = vp.subset(in_working_volume(rig, vp.points, model))
     if len(vp) < n_markers:
         return vp, None, f"{len(vp)} consistent 3D points"
     cov = point_uncertainty(rig, vp.points, vp.index >= 0, cameras=cams)
@@ -671,6 +675,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     k0, cands0, vp0, fit0 = found
     tracker = _Tracker(frames, rig, cams, thr, cparams, static_points[fit0.model_index], M,
                        max_residual_px, slack_m, n)
+    tracker.anchor_rms = fit0.rms_m
     tracker.start(k0, cands0, vp0, fit0)
     progress("detect", f"markers labelled in frame {k0} (model fit {1000 * fit0.rms_m:.1f} mm rms); "
                        "following them in 3D ...")
@@ -698,6 +703,7 @@ class _Tracker:
         self.size = {c: rig[c].size for c in cams}
         self.C = C
         self._loo = {}
+        self.anchor_rms = 0.0
 
     # -- bookkeeping -------------------------------------------------------
     def start(self, k, cands, vp, fit):
@@ -837,9 +843,11 @@ class _Tracker:
                                         centroid=cp.centroid)
         # options per marker and camera
         for m in range(M):
-            self._solve_marker(k, m, cams, proj, radius, ref_area, cands, pred[m], gaps[m])
+            if gaps[m] <= MAX_STALE_FRAMES:
+                self._solve_marker(k, m, cams, proj, radius, ref_area, cands, pred[m], gaps[m])
         self._resolve_shared(k, cands)
         self._check_rigid(k, pred)
+        self._check_alone(k, gaps)
         self._rigid_rms(k)
         return bool(np.any(np.all(np.isfinite(self.X[k]), axis=1)))
 
@@ -895,7 +903,7 @@ class _Tracker:
                 cost[~ok] = np.inf
                 # a marker cannot leave its predicted 3D position by half the marker spacing
                 step = np.linalg.norm(X - pred, axis=1)
-                off = ok & ~(step <= self.max_step * (1 + gap))
+                off = ok & ~(step <= self.max_step)
                 cost[off] = np.inf
                 if off.any() and not np.isfinite(cost).any():
                     why_all = "off_track"
@@ -999,6 +1007,18 @@ class _Tracker:
                     for m in ms:
                         self._drop_view(k, m, c, "merged")
 
+    def _check_alone(self, k, gaps):
+        """A marker found alone on a stale prediction is not confirmed by anything: not used."""
+        have = np.flatnonzero(np.all(np.isfinite(self.X[k]), axis=1))
+        if len(have) == 1 and gaps[have[0]] > 0:
+            m = have[0]
+            for c in self.cams:
+                if self.reason[c][k, m] == "":
+                    self.px[c][k, m] = np.nan
+                    self.area[c][k, m] = np.nan
+                    self.reason[c][k, m] = "unconfirmed"
+            self.X[k, m] = np.nan
+
     def _check_rigid(self, k, pred):
         """Markers whose 3D distances to the others break the static shot's shape are rejected."""
         for _ in range(self.M):
@@ -1070,6 +1090,12 @@ class _Tracker:
                  for c in self.cams}
         vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         if fit is None:
+            return False
+        # stricter than the anchor search (which picks the clearest of many frames): every marker
+        # seen by every camera that should see it, and the shape as good as the anchor's
+        views = (vp.index[fit.assignment] >= 0).sum(axis=1)
+        if np.any(vp.missing[fit.assignment] > 0) or np.any(views < min(3, self.C)) \
+                or fit.rms_m > 3 * self.anchor_rms + 0.003:
             return False
         self.start(k, cands, vp, fit)
         return True
