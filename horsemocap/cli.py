@@ -43,6 +43,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--saddle", choices=["pose", "direct", "thesis"], dest="saddle_method",
                    help="saddle velocity/acceleration from the fitted pose (default), the fitted eq. 6.48 "
                         "path, or the thesis' eq. 6.54/6.55")
+    g.add_argument("--kinematics", choices=["fits", "pose_spline"],
+                   help="fits: the thesis' chain of fits (default); pose_spline: the smoothed pose "
+                        "trajectory of all markers (no period, no eq. 6.35 singularity)")
+    g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
+                   help="x-motion from one or two periods (thesis), from the whole record's net "
+                        "displacement (no period needed), or auto (default: period if one is found)")
     g.add_argument("--weighting", choices=["iso", "thesis"], dest="weighting_mode",
                    help="iso: each harmonic weighted at its frequency (default); thesis: one scalar W")
 
@@ -50,7 +56,8 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
 def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "triangulation", "smoothing_span", "smoothing_method", "period_frames",
-                "x_marker", "angular_method", "saddle_method", "weighting_mode")}
+                "x_marker", "angular_method", "saddle_method", "weighting_mode", "kinematics",
+                "motion_frame")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}
