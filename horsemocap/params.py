@@ -79,21 +79,25 @@ class AnalysisParams:
         ``"iso"`` (each harmonic weighted at its own frequency) or ``"thesis"``.
     kinematics : str
         What the rigid-body step passes on (omega, alpha, the markers' and the
-        saddle's velocity and acceleration): ``"fits"`` (default: the
-        thesis' chain of section 5.5 and chapter 6, chosen within by
-        ``angular_method`` and ``saddle_method``) or ``"pose_spline"`` (not in
-        the thesis: every frame's pose registered from all visible markers,
-        the centroid and rotation vector smoothed by splines whose smoothing
-        is chosen from the data, analytic derivatives; no period and no
-        eq. 6.35 singularity; :mod:`horsemocap.pose`). Both are computed
-        when the record allows. ``"fits"`` stays the default on measurement:
-        on the bundled 30 fps canter (38 frames) the saddle's vertical
-        acceleration is 3.0 % off with the fits and 15.6 % with
-        ``"pose_spline"`` (omega 0.40 against 0.51 rad/s RMSE about x, comfort
-        indicators -2.4 to -4.7 % against -1.2 to -1.7 %; the periodic Fourier model suits a short steady
-        gait sampled at 30 fps better than a spline prior); on a
-        non-periodic record (a lift and set-down with 10 Hz ringing at
-        100 Hz) only ``"pose_spline"`` applies (``benchmarks/bench_kinematics.py``).
+        saddle's velocity and acceleration): ``"fits"`` (the thesis' chain of
+        section 5.5 and chapter 6, chosen within by ``angular_method`` and
+        ``saddle_method``) or ``"pose_spline"`` (not in the thesis: every
+        frame's pose registered from all visible markers, the centroid and
+        rotation vector smoothed by quintic splines whose smoothing is chosen
+        by generalised cross-validation, analytic derivatives; no period and
+        no eq. 6.35 singularity; :mod:`horsemocap.pose`). Both are computed
+        when the record allows. Measured on the virtual herd (11 of the 16
+        sessions rendered at the time, the same detections for both): saddle
+        vertical acceleration median 14.8 % (worst 24.8 %) with pose_spline
+        against 24.4 % (39.6 %) with the fits; median |error| of the
+        Wb-weighted rms 4.8 % against 9.1 %. On the bundled Horse 2 canter
+        alone (38 frames) the fits do better (3.0 % against 18.3 %); with
+        0.25 px of detection noise pose_spline keeps 35 % where the fits reach
+        109 % (medians of 3 draws). A non-periodic record (a lift, a set-down,
+        10 Hz ringing) has only pose_spline (``benchmarks/bench_kinematics.py``).
+        The default stays ``"fits"`` until the notebooks that print the
+        default's numbers (08-14, 13 with the whole herd) are rebuilt with
+        ``"pose_spline"``.
     pose_smoothing : str
         Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`):
         ``"gcv"`` (default; quintic, one generalised cross-validation
