@@ -86,15 +86,19 @@ class AnalysisParams:
         rotation vector smoothed by quintic splines whose smoothing is chosen
         by generalised cross-validation, analytic derivatives; no period and
         no eq. 6.35 singularity; :mod:`horsemocap.pose`). Both are computed
-        when the record allows. Measured on the virtual herd (11 of the 16
-        sessions rendered at the time, the same detections for both): saddle
-        vertical acceleration median 14.8 % (worst 24.8 %) with pose_spline
-        against 24.4 % (39.6 %) with the fits; median |error| of the
-        Wb-weighted rms 4.8 % against 9.1 %. On the bundled Horse 2 canter
-        alone (38 frames) the fits do better (3.0 % against 18.3 %); with
-        0.25 px of detection noise pose_spline keeps 35 % where the fits reach
-        109 % (medians of 3 draws). A non-periodic record (a lift, a set-down,
-        10 Hz ringing) has only pose_spline (``benchmarks/bench_kinematics.py``).
+        when the record allows. Measured on the 16 virtual herd sessions
+        (``benchmarks/bench_herd_kinematics.py``, the same detections for
+        both; ``benchmarks/results/herd_kinematics.txt``): saddle vertical
+        acceleration median 15.8 % (worst 24.8 %) with pose_spline against
+        24.6 % (45.4 %) with the fits; median |error| of the Wb-weighted rms
+        5.0 % against 7.9 %, of the Wk-weighted rms 4.4 % against 6.7 %, of
+        VDV Wb 6.4 % against 9.2 %. On the bundled Horse 2 canter alone (38
+        frames) the fits do better (3.0 % against 18.3 %). With detection
+        noise (notebook 14's study, bundled session, medians of 3 draws) the
+        saddle error at 0.1 / 0.25 / 0.5 px is 32.9 / 36.9 / 56.3 % with
+        pose_spline and 19.0 / 108.8 / 560 % with the fits. A non-periodic
+        record (a lift, a set-down, 10 Hz ringing) has only pose_spline
+        (``benchmarks/bench_kinematics.py``).
         The default stays ``"fits"`` until the notebooks that print the
         default's numbers (08-14, 13 with the whole herd) are rebuilt with
         ``"pose_spline"``.
