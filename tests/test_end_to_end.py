@@ -150,6 +150,10 @@ def test_marker_hidden_for_some_frames(tmp_path, capsys):
     assert not any(a <= k - truth.offsets[cam] < b for k in hidden)  # never bridged by a guess
     if code != 0:  # what is left may be too short for the automatic period: say so and how to go on
         assert "step 'motion_frame'" in err and "--period" in err and "markers_2d.csv" in err
+    elif "period not found" in err:  # the period-free motion frame went on; comfort says why it is missing
+        assert "comfort indicators not computed" in err
+        assert "comfort_not_computed" in record["chosen"] and not (out / "comfort.csv").exists()
+        assert (out / "angular.csv").is_file() and "Not computed" in (out / "report.html").read_text()
 
 
 def _chromium():
