@@ -1,4 +1,4 @@
-"""Pose-trajectory kinematics of a rigid body: the default estimator (not in the thesis).
+"""Pose-trajectory kinematics of a rigid body (not in the thesis; `kinematics="pose_spline"`).
 
 The thesis (sections 5.4, 5.5 and 6) registers the static shot to the
 markers, fits every marker coordinate with a polynomial (x) or a Fourier

@@ -101,9 +101,10 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
 
     The box (0.40 x 0.30 x 0.20 m) carries 4 markers on its top and sides;
     the hidden point is a bottom corner. Motion (y up): lift of 0.30 m over
-    0.8 s from t = 0.5 s while pitching 8 deg and drifting 0.15 m in x; hold;
-    set-down over 0.6 s from 2.2 s; from 2.8 s a 10 Hz ringing decaying in
-    0.3 s of 6 mm vertically, 3 deg of roll and 1.5 deg of pitch.
+    0.8 s from t = 0.5 s while turning 5 deg about z and 8 deg about y and
+    drifting 0.15 m in x; hold; set-down over 0.6 s from 2.2 s; from 2.8 s a
+    10 Hz ringing decaying in 0.3 s: 6 mm vertically, 2 mm in z, 3 deg about x
+    and 1.5 deg about y.
 
     Returns
     -------
@@ -120,11 +121,12 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
         + ringing(t, t_ring, 0.006, ring_hz)
     x = minimum_jerk_step(t, lift, 0.8, 0.15) + minimum_jerk_step(t, down, 0.6, -0.05)
     z = ringing(t, t_ring, 0.002, ring_hz, phase=1.0)
+    # angles about z, y and x (y up): R = Rz(tilt_z) Ry(turn_y) Rx(roll_x)
     pitch = minimum_jerk_step(t, lift, 0.8, np.radians(8)) + minimum_jerk_step(t, down, 0.6, -np.radians(8)) \
         + ringing(t, t_ring, np.radians(1.5), ring_hz, phase=0.5)
     roll = ringing(t, t_ring, np.radians(3.0), ring_hz)
     yaw = minimum_jerk_step(t, lift, 0.8, np.radians(5))
-    R, omega, alpha = _rotation_jets(yaw, pitch, roll)          # z = pitch axis (y up), x = roll axis
+    R, omega, alpha = _rotation_jets(yaw, pitch, roll)          # about z, y, x in that order
     # box centre at the origin of its own frame
     model = np.array([[0.20, 0.10, 0.15], [-0.20, 0.10, 0.15], [0.05, 0.10, -0.15], [-0.20, -0.02, -0.15]])
     hidden = np.array([0.20, -0.10, -0.15])
