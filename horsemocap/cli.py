@@ -11,6 +11,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 DESCRIPTION = """\
 horsemocap: saddle motion analysis of horses with a 3-camera vision system
 (a reproduction of G. Dogan, METU 2009). Every step chooses its parameters
@@ -49,6 +51,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--saddle", choices=["pose", "direct", "thesis"], dest="saddle_method",
                    help="saddle velocity/acceleration from the fitted pose (default), the fitted eq. 6.48 "
                         "path, or the thesis' eq. 6.54/6.55")
+    g.add_argument("--kinematics", choices=["fits", "pose_spline"],
+                   help="fits: the thesis' chain of fits (default); pose_spline: the smoothed pose "
+                        "trajectory of all markers (no period, no eq. 6.35 singularity)")
+    g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
+                   help="x-motion from one or two periods (thesis), from the whole record's net "
+                        "displacement (no period needed), or auto (default: period if one is found)")
     g.add_argument("--weighting", choices=["iso", "thesis"], dest="weighting_mode",
                    help="iso: each harmonic weighted at its frequency (default); thesis: one scalar W")
 
@@ -57,8 +65,9 @@ def _params_from_args(args, base):
     from .params import ParamsError
 
     changes = {k: getattr(args, k, None) for k in
-               ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span", "smoothing_method", "period_frames",
-                "x_marker", "angular_method", "saddle_method", "weighting_mode")}
+               ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
+                "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
+                "kinematics", "motion_frame")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}
@@ -166,6 +175,77 @@ exit status:
      and report.html say which check failed): do not use the numbers"""
 
 
+def cmd_kinematics(args) -> int:
+    """3D markers from another system + a static shot -> trajectories/kinematics/angular CSV."""
+    from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories, write_c3d, write_trc
+    from .pose import CollinearMarkersError, conditioning_warnings
+    from .store import atomic_write_text
+
+    out = Path(args.out)
+    try:
+        traj = read_trajectories(args.trajectories)
+        static = read_trajectories(args.static)
+        res = kinematics_from_trajectories(traj, static, smoothing=args.smoothing)
+    except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
+        print(f"horsemocap: error: {exc}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    tr, t = res["trajectory"], traj.time_s
+    names = res["markers"] + res["hidden"]
+    mk, hk = res["marker_kinematics"], res["hidden_kinematics"]
+    pos = mk.position if hk is None else np.concatenate([mk.position, hk.position], 1)
+    vel = mk.velocity if hk is None else np.concatenate([mk.velocity, hk.velocity], 1)
+    acc = mk.acceleration if hk is None else np.concatenate([mk.acceleration, hk.acceleration], 1)
+
+    def num(v):
+        return "" if not np.isfinite(v) else f"{float(v):.9g}"
+
+    lines = ["frame,time_s,point,x_m,y_m,z_m"]
+    klines = ["frame,time_s,point,vx_mps,vy_mps,vz_mps,ax_mps2,ay_mps2,az_mps2"]
+    for k in range(t.size):
+        for j, nm in enumerate(names):
+            lines.append(f"{traj.frame[k]},{num(t[k])},{nm}," + ",".join(num(v) for v in pos[k, j]))
+            klines.append(f"{traj.frame[k]},{num(t[k])},{nm}," + ",".join(num(v) for v in (*vel[k, j], *acc[k, j])))
+    w, al = tr.omega(t), tr.alpha(t)
+    reg = res["registration"]
+    alines = ["frame,time_s,wx_radps,wy_radps,wz_radps,alphax_radps2,alphay_radps2,alphaz_radps2,"
+              "triangle_height_m,registration_rms_m,note"]
+    for k in range(t.size):
+        alines.append(f"{traj.frame[k]},{num(t[k])}," + ",".join(num(v) for v in (*w[k], *al[k]))
+                      + f",{num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan)},{num(reg.rms[k])},"
+                      + tr.reason[k].replace(",", ";"))
+    atomic_write_text(out / "trajectories.csv", "\n".join(lines) + "\n")
+    atomic_write_text(out / "kinematics.csv", "\n".join(klines) + "\n")
+    atomic_write_text(out / "angular.csv", "\n".join(alines) + "\n")
+    for msg in conditioning_warnings(reg):
+        print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
+    print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
+          f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
+    print(f"results: {out.resolve()}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    """trajectories.csv -> TRC or C3D."""
+    from .io3d import TrajectoryFileError, read_trajectories_csv, write_c3d, write_trc
+
+    try:
+        traj = read_trajectories_csv(args.trajectories)
+    except TrajectoryFileError as exc:
+        print(f"horsemocap: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    if out.suffix.lower() == ".trc":
+        write_trc(out, traj)
+    elif out.suffix.lower() == ".c3d":
+        write_c3d(out, traj)
+    else:
+        print(f"horsemocap: error: {out}: expected a .trc or .c3d file name", file=sys.stderr)
+        return 2
+    print(f"written: {out.resolve()}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -210,6 +290,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--square", required=True, type=float, metavar="METRES", help="square size, e.g. 0.03")
     p.add_argument("--out", required=True, metavar="rig.toml")
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("kinematics", help="rigid-body kinematics from 3D markers of any system (CSV or C3D)", parents=[common],
+                       description="Pose-trajectory kinematics (horsemocap.pose) of 3D markers in the "
+                                   "trajectories.csv layout or a C3D file (units from POINT:UNITS), with a "
+                                   "static shot (same formats) whose extra points are the hidden points. "
+                                   "Writes trajectories.csv, kinematics.csv and angular.csv in the file's frame.")
+    p.add_argument("trajectories", metavar="TRAJECTORIES", help="trajectories.csv layout or .c3d")
+    p.add_argument("--static", required=True, metavar="STATIC", help="static shot (.csv or .c3d)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--smoothing", default="gcv", choices=["gcv", "adaptive", "none"],
+                   help="pose smoothing: gcv (default), adaptive, none")
+    p.set_defaults(func=cmd_kinematics)
+
+    p = sub.add_parser("export", help="export trajectories.csv as TRC (OpenSim) or C3D (Mokka, Visual3D)", parents=[common],
+                       description="Convert a trajectories.csv to OUT.trc or OUT.c3d (millimetres).")
+    p.add_argument("trajectories", metavar="trajectories.csv")
+    p.add_argument("--out", required=True, metavar="OUT.trc|OUT.c3d")
+    p.set_defaults(func=cmd_export)
     return parser
 
 

@@ -36,6 +36,7 @@ __all__ = [
     "autocorrelation",
     "gravity_from_plumb",
     "motion_frame",
+    "motion_frame_from_record",
     "to_motion_frame",
     "time_axis",
     "free_fall_g",
@@ -371,6 +372,52 @@ def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
     return MotionFrame(axes=axes, origin=np.zeros(3), period_frames=period, marker=marker,
                        n_periods=int(n_periods), gravity_estimated=u2e,
                        gravity_correction_deg=angle_deg(u2, u2e))
+
+
+def motion_frame_from_record(points, gravity, period: float | None = None) -> MotionFrame:
+    """The motion reference frame without a period (not in the thesis).
+
+    ``u1`` is the net displacement of the markers' centroid from the first to
+    the last frame in which every marker is finite, made orthogonal to the
+    plumb's gravity ``u2e``; ``u2 = u2e`` (down) and ``u3 = u1 x u2``. The
+    thesis (eq. 5.6/5.7, :func:`motion_frame`) takes the displacement over
+    exactly one or two periods so that the periodic sway cancels; over a
+    whole record the sway left over is at most its amplitude against the
+    whole travel (e.g. 20 mm over 5 m: 0.2 deg), and no period is needed, so
+    a transition, a single step or any non-periodic record has a frame too.
+
+    Parameters
+    ----------
+    points : (n, m, 3)
+        Marker positions (world frame), NaN allowed.
+    gravity : (3,)
+        ``u2e`` (down) from :func:`gravity_from_plumb`.
+    period : float, optional
+        Kept in :attr:`MotionFrame.period_frames` (NaN if not known); not used.
+
+    Returns
+    -------
+    MotionFrame
+        ``marker = -1`` (the centroid), ``n_periods = 0``.
+    """
+    p = np.asarray(points, float)
+    if p.ndim != 3 or p.shape[-1] != 3:
+        raise ValueError(f"points: expected shape (frames, markers, 3), got {p.shape}")
+    u2 = _unit(gravity, "gravity")
+    ok = np.flatnonzero(np.all(np.isfinite(p), axis=(1, 2)))
+    if ok.size < 2:
+        raise ValueError("motion_frame_from_record: fewer than 2 frames with every marker finite")
+    c = p[ok].mean(axis=1)
+    d = c[-1] - c[0]
+    d_h = d - (d @ u2) * u2
+    if np.linalg.norm(d_h) < 1e-6 * max(np.linalg.norm(d), 1e-300) or np.linalg.norm(d_h) < 1e-9:
+        raise ValueError(f"motion_frame_from_record: the markers' net displacement {d.round(4).tolist()} m "
+                         "has no horizontal part; the direction of travel is undefined")
+    u1 = _unit(d_h, "horizontal net displacement")
+    u3 = np.cross(u1, u2)
+    axes = np.stack([u1, u2, u3])
+    return MotionFrame(axes=axes, origin=np.zeros(3), period_frames=float("nan") if period is None else float(period),
+                       marker=-1, n_periods=0, gravity_estimated=u2, gravity_correction_deg=0.0)
 
 
 def to_motion_frame(points, frame: MotionFrame) -> np.ndarray:

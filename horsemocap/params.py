@@ -91,6 +91,44 @@ class AnalysisParams:
         6.54/6.55 over the three markers).
     weighting_mode : str
         ``"iso"`` (each harmonic weighted at its own frequency) or ``"thesis"``.
+    kinematics : str
+        What the rigid-body step passes on (omega, alpha, the markers' and the
+        saddle's velocity and acceleration): ``"fits"`` (the thesis' chain of
+        section 5.5 and chapter 6, chosen within by ``angular_method`` and
+        ``saddle_method``) or ``"pose_spline"`` (not in the thesis: every
+        frame's pose registered from all visible markers, the centroid and
+        rotation vector smoothed by quintic splines whose smoothing is chosen
+        by generalised cross-validation, analytic derivatives; no period and
+        no eq. 6.35 singularity; :mod:`horsemocap.pose`). Both are computed
+        when the record allows. Measured on the 16 virtual herd sessions
+        (``benchmarks/bench_herd_kinematics.py``, the same detections for
+        both; ``benchmarks/results/herd_kinematics.txt``): saddle vertical
+        acceleration median 15.8 % (worst 24.8 %) with pose_spline against
+        24.6 % (45.4 %) with the fits; median |error| of the Wb-weighted rms
+        5.0 % against 7.9 %, of the Wk-weighted rms 4.4 % against 6.7 %, of
+        VDV Wb 6.4 % against 9.2 %. On the bundled Horse 2 canter alone (38
+        frames) the fits do better (3.0 % against 18.3 %). With detection
+        noise (notebook 14's study, bundled session, medians of 3 draws) the
+        saddle error at 0.1 / 0.25 / 0.5 px is 32.9 / 36.9 / 56.3 % with
+        pose_spline and 19.0 / 108.8 / 560 % with the fits. A non-periodic
+        record (a lift, a set-down, 10 Hz ringing) has only pose_spline
+        (``benchmarks/bench_kinematics.py``).
+        The default stays ``"fits"`` until the notebooks that print the
+        default's numbers (08-14, 13 with the whole herd) are rebuilt with
+        ``"pose_spline"``.
+    pose_smoothing : str
+        Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`):
+        ``"gcv"`` (default; quintic, one generalised cross-validation
+        parameter per component), ``"adaptive"`` (a second GCV pass with a
+        penalty weighted by the local roughness: better on motions that are
+        calm then ringing), ``"gcv_cubic"`` (SciPy's ``make_smoothing_spline``) or ``"none"``.
+    motion_frame : str
+        x-motion axis: ``"auto"`` (default: the thesis' eq. 5.6/5.7 over one
+        or two periods of ``x_marker`` when a period is given or found, else
+        ``"record"``), ``"period"`` (always the thesis'; an error without a
+        period) or ``"record"`` (the net displacement of the markers'
+        centroid over the whole record, orthogonal to gravity: no period
+        needed; the period is then only estimated for the comfort step).
     """
 
     sync_offsets: dict | None = None
@@ -113,6 +151,9 @@ class AnalysisParams:
     alpha_versions: list = field(default_factory=lambda: [True] * 6)
     saddle_method: str = "pose"
     weighting_mode: str = "iso"
+    kinematics: str = "fits"
+    pose_smoothing: str = "gcv"
+    motion_frame: str = "auto"
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -215,6 +256,9 @@ class AnalysisParams:
                 bad(name, "a list of six booleans, at least one true")
         choice("saddle_method", ("pose", "direct", "thesis"))
         choice("weighting_mode", ("iso", "thesis"))
+        choice("kinematics", ("pose_spline", "fits"))
+        choice("pose_smoothing", ("adaptive", "gcv", "gcv_cubic", "none"))
+        choice("motion_frame", ("auto", "record", "period"))
 
     def check_session(self, session, source: str = "analysis parameters") -> None:
         """Check the parameters that refer to the session: cameras and markers.

@@ -347,21 +347,55 @@ def step_smooth(session: Session, params: AnalysisParams, res: dict, progress) -
 
 
 def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Motion reference frame: x along net displacement, y along gravity (5.3)."""
-    from .frames import motion_frame, to_motion_frame
+    """Motion reference frame: x along net displacement, y along gravity (5.3).
+
+    ``params.motion_frame = "record"`` (default): x from the net displacement
+    over the whole record (:func:`horsemocap.frames.motion_frame_from_record`);
+    the period is then only estimated for the comfort step and may be absent.
+    ``"period"``: the thesis' eq. 5.6/5.7 over one or two periods.
+    """
+    from .frames import estimate_period, motion_frame, motion_frame_from_record, to_motion_frame
 
     smoothed = res["smooth"]["smoothed"]
     if res["static"]["static_points"] is None:
         raise AnalysisError("motion_frame", res["static"]["missing"])
+    a, b = res["triangulate"]["segment"]
+    mode = params.motion_frame
+    if mode == "auto":
+        try:
+            motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
+                         period=params.period_frames, n_periods=params.n_periods)
+            mode = "period"
+        except ValueError as exc:
+            progress("motion_frame", f"the thesis' motion frame needs a period: {exc}; using the net "
+                                     "displacement over the whole record instead")
+            mode = "record"
+    if mode == "record":
+        period, why = params.period_frames, "given"
+        if period is None:
+            try:
+                period, why = estimate_period(smoothed, session.fps, gravity=res["plumb"]["gravity"]), "estimated"
+            except ValueError as exc:
+                period, why = None, f"not found ({exc})"
+        try:
+            mf = motion_frame_from_record(smoothed, res["plumb"]["gravity"], period)
+        except ValueError as exc:
+            raise AnalysisError("motion_frame", f"{exc} (frames {a}..{b - 1}; see trajectories in markers_2d.csv)") from None
+        progress("motion_frame", "x-motion from the net displacement over the whole record; "
+                 + (f"period {period:.2f} frames ({why})" if period is not None else
+                    f"period {why}: only the comfort step needs it"))
+        return {"frame": mf, "axes": mf.axes, "period_frames": None if period is None else float(period),
+                "positions": to_motion_frame(smoothed, mf),
+                "static": to_motion_frame(res["static"]["static_points"], mf)}
     try:
         mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
                           period=params.period_frames, n_periods=params.n_periods)
     except ValueError as exc:
-        a, b = res["triangulate"]["segment"]
         raise AnalysisError("motion_frame", f"{exc}. The analysed frames {a}..{b - 1} ({b - a} frames, the "
                             "longest run in which every camera sees every marker; see markers_2d.csv) "
                             "may hold less than the two periods the thesis uses: give the period in frames "
-                            "with --period (analysis 'period_frames') or check the motion videos") from None
+                            "with --period (analysis 'period_frames'), check the motion videos, or use "
+                            "motion_frame 'record' (no period needed)") from None
     progress("motion_frame", f"period {mf.period_frames:.2f} frames")
     return {"frame": mf, "axes": mf.axes, "period_frames": float(mf.period_frames),
             "positions": to_motion_frame(smoothed, mf),
@@ -373,6 +407,8 @@ def _fourier_orders(given, n_markers):
     if given is None:
         return None
     if isinstance(given, dict):
+        if "y" not in given or "z" not in given:
+            return None
         return np.tile([int(given["y"]), int(given["z"])], (n_markers, 1))
     arr = np.asarray(given, int)
     if arr.shape != (n_markers, 2):
@@ -381,48 +417,148 @@ def _fourier_orders(given, n_markers):
     return arr
 
 
-def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Registration, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
+def _extra_orders(given, key, k):
+    """``fourier_orders[key]`` ("rotation": 3 ints or one, "saddle": [Ny, Nz] or one) or None."""
+    if not isinstance(given, dict) or given.get(key) is None:
+        return None
+    o = np.broadcast_to(np.asarray(given[key], int), (k,))
+    return o.copy()
 
-    One call of :func:`horsemocap.rigid.analyse_rigid_body`: the markers are
-    registered to the static shot (eq. 5.14-5.21), fitted (poly x, Fourier
-    y/z; eq. 5.23 and the order rule of 5.5.2.2), their velocities and
-    accelerations differentiated analytically, omega/alpha estimated (the
-    six thesis versions, least squares and the fitted orientation are all
-    kept) and the saddle marker placed and differentiated (6.3-6.4).
+
+def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
+    """Registration, pose trajectory, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
+
+    One call of :func:`horsemocap.rigid.analyse_rigid_body`. With
+    ``kinematics="pose_spline"`` (default) the markers' poses are registered
+    frame by frame to the static shot and smoothed (:mod:`horsemocap.pose`),
+    and omega, alpha, the markers' and the saddle's kinematics come from that
+    pose trajectory; the thesis' chain (poly x, Fourier y/z with the order
+    rule of 5.5.2.2, the six versions, eq. 6.48-6.55) is computed too and is
+    what ``kinematics="fits"`` passes on. Per-frame conditioning (the eq. 6.35
+    angle, the marker triangle's smallest height, the registration residual)
+    is kept, and a warning is printed when it makes the result unreliable.
     """
-    from .frames import time_axis
+    from .frames import time_axis, to_motion_frame
+    from .pose import CollinearMarkersError
     from .rigid import analyse_rigid_body
 
     positions, static = res["motion_frame"]["positions"], res["motion_frame"]["static"]
+    # the pose trajectory is smoothed from the unsmoothed positions (its own smoothing is chosen
+    # from their noise); the thesis chain keeps the smoothing step's positions (5.2)
+    raw = to_motion_frame(res["smooth"]["raw"], res["motion_frame"]["frame"])
     t = time_axis(len(positions), session.fps)
-    rb = analyse_rigid_body(
-        t, positions, static, x_degree=params.x_degree,
-        orders=_fourier_orders(params.fourier_orders, positions.shape[1]), order_rule=params.order_rule,
-        omega_use=params.omega_versions, alpha_use=params.alpha_versions,
-        method=params.angular_method, saddle_method=params.saddle_method,
-        period_s=res["motion_frame"]["period_frames"] / session.fps, fourier_trend=params.fourier_trend)
-    orders = np.asarray(rb.motion_fit.orders)[:, 1:]
-    sing = float(np.nanmin(np.abs(90 - rb.singularity_deg)))
-    progress("rigid_body", f"Fourier orders (y, z) per marker {orders.tolist()}; omega by {params.angular_method}, "
-                           f"saddle by {params.saddle_method}; closest approach to the 6.1 singularity {sing:.1f} deg")
-    return {"analysis": rb, "t": t, "registered": rb.pos, "model": rb.model, "saddle_static": rb.static_saddle,
+    period = res["motion_frame"]["period_frames"]
+    fo = params.fourier_orders
+    try:
+        rb = analyse_rigid_body(
+            t, positions, static, x_degree=params.x_degree,
+            orders=_fourier_orders(fo, positions.shape[1]), order_rule=params.order_rule,
+            omega_use=params.omega_versions, alpha_use=params.alpha_versions,
+            method=params.angular_method, saddle_method=params.saddle_method,
+            period_s=None if period is None else period / session.fps, fourier_trend=params.fourier_trend,
+            kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
+            rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
+            pose_points=raw)
+    except CollinearMarkersError as exc:
+        raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
+    orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
+    pos, vel, acc = rb.marker_kinematics
+    cond = conditioning(rb)
+    sing = float(np.nanmin(np.abs(90 - cond["singularity_deg"])))
+    if params.kinematics == "pose_spline":
+        sm = rb.pose.smoothing
+        progress("rigid_body", f"pose trajectory ({params.pose_smoothing} smoothing, effective degrees of "
+                 f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
+                 + f"); registration residual median {1000 * np.nanmedian(cond['registration_rms_m']):.2f} mm")
+        if rb.chain_error:
+            progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
+    else:
+        progress("rigid_body", f"Fourier orders (y, z) per marker {orders.tolist()}; omega by {params.angular_method}, "
+                               f"saddle by {params.saddle_method}")
+    progress("rigid_body", f"closest approach to the eq. 6.35 singularity {sing:.1f} deg; smallest marker "
+                           f"triangle height {1000 * np.nanmin(cond['triangle_height_m']):.1f} mm")
+    warn = list(cond["warnings"])
+    for w in warn:
+        progress("rigid_body", "WARNING: " + w)
+    return {"analysis": rb, "t": t, "registered": pos, "model": rb.model, "saddle_static": rb.static_saddle,
             "static_order": [int(i) for i in rb.static_index], "saddle_index": int(rb.saddle_index),
-            "velocity": rb.vel, "acceleration": rb.acc, "orders": orders,
-            "omega": rb.omega, "alpha": rb.alpha, "singularity_deg": rb.singularity_deg,
-            "saddle_position": rb.saddle_path, "saddle_velocity": rb.saddle_velocity,
-            "saddle_acceleration": rb.saddle_acceleration}
+            "velocity": vel, "acceleration": acc, "orders": orders,
+            "omega": rb.omega, "alpha": rb.alpha, "singularity_deg": cond["singularity_deg"],
+            "saddle_position": rb.saddle_position, "saddle_velocity": rb.saddle_velocity,
+            "saddle_acceleration": rb.saddle_acceleration, "conditioning": cond, "warnings": warn,
+            "saddle_angles_deg": saddle_angles(rb)}
+
+
+def conditioning(rb) -> dict:
+    """Per-frame conditioning of a :class:`~horsemocap.rigid.RigidBodyAnalysis`.
+
+    Returns ``singularity_deg`` (eq. 6.35: angle between omega passed on and
+    the markers' plane normal; the thesis versions fail near 90), 
+    ``triangle_height_m`` (smallest height of the marker triangle,
+    :func:`horsemocap.pose.smallest_height`), ``registration_rms_m`` (RMS
+    distance of the markers from the registered model), and ``warnings``
+    (messages when these make the result unreliable).
+    """
+    from .pose import conditioning_warnings
+    from .rigid import singularity_angle, singularity_report
+
+    pos = rb.registration.registered
+    preg = rb.pose_registration
+    k = rb.pose_markers.position if rb.pose_markers is not None else pos
+    sing = singularity_angle(k[:, :3], rb.omega)
+    height = preg.height.copy()
+    height[preg.n_markers < 3] = np.nan
+    lever = float(np.linalg.norm(rb.static_saddle - rb.model.mean(0)))
+    warn = conditioning_warnings(preg, lever)
+    if rb.kinematics == "fits" and rb.method == "thesis":
+        import warnings as _w
+        with _w.catch_warnings():
+            _w.simplefilter("ignore")
+            rep = singularity_report(sing, warn=False)
+        if rep["fraction"] > 0:
+            warn.append(f"omega within 15 deg of the markers' plane in {100 * rep['fraction']:.0f} % of the frames "
+                        f"(closest {rep['min_margin_deg']:.1f} deg): the thesis versions (eq. 6.3/6.4, 6.38/6.39) "
+                        "are unreliable there (eq. 6.35); use kinematics 'pose_spline'")
+    return {"singularity_deg": sing, "triangle_height_m": height, "registration_rms_m": preg.rms,
+            "registration_n_markers": preg.n_markers, "noise_m": preg.noise_m, "warnings": warn}
+
+
+def saddle_angles(rb) -> np.ndarray:
+    """Roll, pitch, yaw (deg) of the saddle in the motion frame, per frame (n, 3).
+
+    Body axes from the static shot, as seed 004 takes body planes from a
+    default pose (:func:`horsemocap.pose.static_body_axes`); then rotated by
+    the body's pose in each frame.
+    """
+    from .pose import saddle_angles_deg, static_body_axes
+
+    axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
+    R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
+    return saddle_angles_deg(R, axes0)
 
 
 def step_comfort(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """Whole-body vibration indicators of the saddle's vertical motion (chapter 7)."""
+    """Whole-body vibration indicators of the saddle's vertical motion (chapter 7).
+
+    The indicators are harmonic series of the stride frequency: the one the
+    motion-frame step estimated (5.3), or, if it found none, one estimated
+    from the saddle's vertical position; if neither exists the indicators are
+    not computed (``indicators`` None, ``reason`` says why) and the earlier
+    results stand.
+    """
     from .vibration import saddle_comfort
 
     rb = res["rigid_body"]
-    # the stride frequency is the one the motion frame step estimated from the markers (5.3)
-    f0_hz = session.fps / res["motion_frame"]["period_frames"]
-    ind = saddle_comfort(rb["t"], rb["saddle_position"], rb["saddle_acceleration"], rb["saddle_velocity"],
-                         mode=params.weighting_mode, f0_hz=f0_hz)
+    period = res["motion_frame"]["period_frames"]
+    f0_hz = None if period is None else session.fps / period
+    pos, acc, vel = rb["saddle_position"], rb["saddle_acceleration"], rb["saddle_velocity"]
+    ok = np.all(np.isfinite(pos), axis=1) & np.all(np.isfinite(acc), axis=1) & np.all(np.isfinite(vel), axis=1)
+    try:
+        ind = saddle_comfort(rb["t"][ok], pos[ok], acc[ok], vel[ok], mode=params.weighting_mode, f0_hz=f0_hz)
+    except ValueError as exc:
+        why = f"no stride frequency could be estimated ({exc})" if f0_hz is None else str(exc)
+        progress("comfort", f"comfort indicators not computed: {why}")
+        return {"indicators": None, "reason": why}
     # no figure here: the command prints the comfort figures only beside the quality verdict (horsemocap.run)
     progress("comfort", "indicators of chapter 7 computed")
     return {"indicators": ind}

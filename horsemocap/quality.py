@@ -396,9 +396,9 @@ def post_checks(analysis) -> list[Check]:
         except (TypeError, ValueError):
             rms = None
         checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
-    if "motion_frame" in res:
+    if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
         checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"]))
-    if "comfort" in res:
+    if "comfort" in res and res["comfort"].get("indicators") is not None:
         ind = res["comfort"]["indicators"]
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
         checks.append(check_saddle_acceleration(ind.get("acc_y_max")))

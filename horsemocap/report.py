@@ -93,7 +93,15 @@ def report_html(analysis, quality: dict | None = None) -> str:
               "<code>--params analysis.json</code> repeats the run exactly.</p>",
               _table(choices, ["parameter", "value"])]
 
-    if "comfort" in res:
+    warn = res.get("rigid_body", {}).get("warnings") or []
+    if warn:
+        parts += ["<h2>Warnings</h2>", "<p class=\"note\">The rigid-body step's conditioning (angular.csv: "
+                  "singularity_deg, triangle_height_m, registration_rms_m) makes these results unreliable:</p>",
+                  "<ul>" + "".join(f"<li>{html.escape(w)}</li>" for w in warn) + "</ul>"]
+    if "comfort" in res and res["comfort"].get("indicators") is None:
+        parts += ["<h2>Comfort indicators</h2>",
+                  f"<p>Not computed: {html.escape(str(res['comfort'].get('reason', '')))}</p>"]
+    elif "comfort" in res:
         from .vibration import comfort_table_rows
 
         rows = [(name, f"{value:.4f}", unit) for name, value, unit in comfort_table_rows(res["comfort"]["indicators"])]

@@ -110,13 +110,27 @@ def kinematics_text(analysis) -> str:
                       "ax_mps2", "ay_mps2", "az_mps2"], rows)
 
 
+ANGULAR_OPTIONAL = ("roll_deg", "pitch_deg", "yaw_deg", "singularity_deg", "triangle_height_m",
+                    "registration_rms_m")
+"""Optional columns of angular.csv (docs/sessions.md): the saddle's orientation and the
+per-frame conditioning of the rigid-body step."""
+
+
 def angular_text(analysis) -> str:
     frame, t = frame_numbers(analysis)
-    w, a = analysis.results["rigid_body"]["omega"], analysis.results["rigid_body"]["alpha"]
-    rows = [[int(frame[k]), _num(t[k]), *(_num(v) for v in w[k]), *(_num(v) for v in a[k])]
-            for k in range(len(frame))]
-    return _csv_text(["frame", "time_s", "wx_radps", "wy_radps", "wz_radps",
-                      "alphax_radps2", "alphay_radps2", "alphaz_radps2"], rows)
+    rb = analysis.results["rigid_body"]
+    w, a = rb["omega"], rb["alpha"]
+    extra = np.full((len(frame), 0), np.nan)
+    header = ["frame", "time_s", "wx_radps", "wy_radps", "wz_radps",
+              "alphax_radps2", "alphay_radps2", "alphaz_radps2"]
+    if "conditioning" in rb:
+        c = rb["conditioning"]
+        extra = np.column_stack([rb["saddle_angles_deg"], c["singularity_deg"], c["triangle_height_m"],
+                                 c["registration_rms_m"]])
+        header += list(ANGULAR_OPTIONAL)
+    rows = [[int(frame[k]), _num(t[k]), *(_num(v) for v in w[k]), *(_num(v) for v in a[k]),
+             *(_num(v) for v in extra[k])] for k in range(len(frame))]
+    return _csv_text(header, rows)
 
 
 def analysis_record(analysis) -> dict:
@@ -152,11 +166,17 @@ def analysis_record(analysis) -> dict:
         chosen["analysed_frames"] = list(res["triangulate"]["segment"])
     if "motion_frame" in res:
         p["period_frames"] = res["motion_frame"]["period_frames"]
-        p["n_periods"] = int(res["motion_frame"]["frame"].n_periods)
+        if res["motion_frame"]["frame"].n_periods > 0:
+            p["n_periods"] = int(res["motion_frame"]["frame"].n_periods)
     if "rigid_body" in res:
         chosen["static_order"] = res["rigid_body"]["static_order"]
         chosen["saddle_index_in_static"] = res["rigid_body"]["saddle_index"]
-        p["fourier_orders"] = np.asarray(res["rigid_body"]["orders"]).astype(int).tolist()
+        if res["rigid_body"]["orders"] is not None:
+            p["fourier_orders"] = np.asarray(res["rigid_body"]["orders"]).astype(int).tolist()
+        if res["rigid_body"].get("warnings"):
+            chosen["rigid_body_warnings"] = list(res["rigid_body"]["warnings"])
+    if "comfort" in res and res["comfort"].get("indicators") is None:
+        chosen["comfort_not_computed"] = res["comfort"].get("reason", "")
     return record
 
 
@@ -175,7 +195,7 @@ def write_available(out_dir: Path, analysis) -> list[Path]:
         written.append(atomic_write_text(out / "trajectories.csv", trajectories_text(analysis)))
         written.append(atomic_write_text(out / "kinematics.csv", kinematics_text(analysis)))
         written.append(atomic_write_text(out / "angular.csv", angular_text(analysis)))
-    if "comfort" in res:
+    if "comfort" in res and res["comfort"].get("indicators") is not None:
         written.append(write_comfort_csv(out / "comfort.csv", res["comfort"]["indicators"]))
         written.append(write_comfort_spreadsheet(out / "comfort.xlsx", res["comfort"]["indicators"]))
     written.append(atomic_write_json(out / "analysis.json", analysis_record(analysis)))

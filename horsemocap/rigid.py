@@ -936,16 +936,41 @@ class RigidBodyAnalysis:
     saddle_fit: object
     saddle_path: np.ndarray
     saddle_method: str = "pose"
+    kinematics: str = "fits"
+    pose: object = None
+    pose_saddle: object = None
+    pose_markers: object = None
+    chain_error: str = ""
+    pose_registration: object = None
+
+    @property
+    def saddle_position(self) -> np.ndarray:
+        """The saddle position passed on (n, 3): the pose trajectory's
+        (``kinematics="pose_spline"``) or the path fitted by ``saddle_method``."""
+        return self.pose_saddle.position if self.kinematics == "pose_spline" else self.saddle_path
 
     @property
     def saddle_velocity(self) -> np.ndarray:
-        """The saddle velocity chosen by ``saddle_method`` (n, 3)."""
+        """The saddle velocity passed on (n, 3): the pose trajectory's, or chosen by ``saddle_method``."""
+        if self.kinematics == "pose_spline":
+            return self.pose_saddle.velocity
         return self.saddle.velocity if self.saddle_method == "thesis" else self.saddle_velocity_direct
 
     @property
     def saddle_acceleration(self) -> np.ndarray:
-        """The saddle acceleration chosen by ``saddle_method`` (n, 3)."""
+        """The saddle acceleration passed on (n, 3): the pose trajectory's, or chosen by ``saddle_method``."""
+        if self.kinematics == "pose_spline":
+            return self.pose_saddle.acceleration
         return self.saddle.acceleration if self.saddle_method == "thesis" else self.saddle_acceleration_direct
+
+    @property
+    def marker_kinematics(self):
+        """Positions, velocities, accelerations (n, m, 3) of the markers passed on: the smoothed
+        pose's (``kinematics="pose_spline"``) or the registered positions and the fits' derivatives."""
+        if self.kinematics == "pose_spline":
+            k = self.pose_markers
+            return k.position, k.velocity, k.acceleration
+        return self.pos, self.vel, self.acc
 
     @property
     def saddle_velocity_direct(self) -> np.ndarray:
@@ -963,7 +988,10 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                        method: str = "thesis", smooth_span: float = 0.1,
                        static_index=None, saddle_index=None,
                        period_s: float | None = None, saddle_method: str = "pose",
-                       fourier_start: str = "matlab", fourier_trend: bool = True) -> RigidBodyAnalysis:
+                       fourier_start: str = "matlab", fourier_trend: bool = True,
+                       kinematics: str = "fits", pose_smoothing: str = "adaptive",
+                       rotation_orders=None, saddle_orders=None, weights=None,
+                       pose_points=None) -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call.
 
     Parameters
@@ -1008,6 +1036,32 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         ``trend`` of the marker and saddle fits: a linear drift in y and z, not
         in the thesis (default on: an estimated motion frame is always a
         little off, and 0.1 deg at canter speed is 8.5 mm/s of drift).
+    kinematics : "fits" or "pose_spline"
+        What is passed on (:attr:`RigidBodyAnalysis.omega`, ``alpha``,
+        ``saddle_*``, :attr:`RigidBodyAnalysis.marker_kinematics`): the
+        thesis' chain of fits chosen by ``method``/``saddle_method``
+        ("fits"), or the smoothed pose trajectory of :mod:`horsemocap.pose`
+        ("pose_spline": all markers registered per frame, position and
+        rotation vector smoothed by splines chosen by cross-validation,
+        analytic derivatives; no period, no singularity). The thesis chain is
+        computed in both cases when the record allows it; with
+        "pose_spline" a failure of the chain is recorded in
+        :attr:`RigidBodyAnalysis.chain_error` instead of stopping.
+    pose_smoothing : "adaptive", "gcv", "gcv_cubic" or "none"
+        Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`).
+    rotation_orders : None, int or (3,) ints
+        Fourier orders of :func:`fit_rotations`; default: ``orders`` if it is a
+        single int, else the order rule.
+    saddle_orders : None, int or (2,) ints
+        Fourier orders (y, z) of the saddle-path fit; default: ``orders`` if it
+        is a single int, else the order rule.
+    weights : (m,) or (n, m), optional
+        Marker weights (inverse variances) of the pose registration.
+    pose_points : (n, m, 3), optional
+        The markers the pose trajectory is registered to (default ``points``).
+        Give the *unsmoothed* positions: the pose smoothing chooses its own
+        smoothing from the data and the residuals, which an earlier smoothing
+        would make correlated in time (cross-validation then undersmooths).
     """
     from . import fitting
 
@@ -1015,6 +1069,10 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         raise ValueError(f"method: expected 'thesis', 'lstsq' or 'rotation', got {method!r}")
     if saddle_method not in ("thesis", "direct", "pose"):
         raise ValueError(f"saddle_method: expected 'thesis', 'direct' or 'pose', got {saddle_method!r}")
+    if kinematics not in ("fits", "pose_spline"):
+        raise ValueError(f"kinematics: expected 'fits' or 'pose_spline', got {kinematics!r}")
+    from . import pose as pose_mod
+
     t = np.asarray(t, float)
     pts = _check_three("points", points, t.size)
     static = np.asarray(static_points, float)
@@ -1023,6 +1081,85 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     static_index = np.asarray(static_index, int)
     model = static[static_index]
     s_saddle = static[int(saddle_index)]
+    pose_mod.check_model_conditioning(model, name="static shot (the markers matched to the ride)")
+    traj = psaddle = pmarkers = None
+    ppts = pts if pose_points is None else _as_positions("pose_points", pose_points, pts.shape[1])
+    if ppts.shape[0] != t.size:
+        raise ValueError(f"pose_points: expected {t.size} frames, got {ppts.shape[0]}")
+    preg = pose_mod.register_pose(ppts, model, weights)
+    if kinematics == "pose_spline":
+        order = 3 if pose_smoothing == "gcv_cubic" else 5
+        sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
+        traj = pose_mod.fit_pose_trajectory(t, preg, model, smoothing=sm, order=order, points=ppts)
+        psaddle = traj.point(t, s_saddle)
+        pmarkers = traj.points(t, model)
+        try:
+            chain = _thesis_chain(t, pts, model, s_saddle, x_degree, orders, order_rule, omega_use, alpha_use,
+                                  method, smooth_span, period_s, saddle_method, fourier_start, fourier_trend,
+                                  rotation_orders, saddle_orders)
+            chain_error = ""
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            chain, chain_error = None, f"{type(exc).__name__}: {exc}"
+        if chain is None:
+            return _pose_only(t, static_index, saddle_index, model, s_saddle, traj, psaddle, pmarkers, pts,
+                              method, saddle_method, chain_error, preg)
+        res = chain
+    else:
+        res = _thesis_chain(t, pts, model, s_saddle, x_degree, orders, order_rule, omega_use, alpha_use,
+                            method, smooth_span, period_s, saddle_method, fourier_start, fourier_trend,
+                            rotation_orders, saddle_orders)
+        chain_error = ""
+    (reg, pos, vel, acc, mf, w_raw, w_s, a_raw, a_s, w_ls_s, a_ls_s, omega, alpha, rfit, w_rot, a_rot,
+     w_use, a_use, sb, sk, sfit, path) = res
+    if kinematics == "pose_spline":
+        omega, alpha = traj.omega(t), traj.alpha(t)
+    return RigidBodyAnalysis(t=t, static_index=static_index, saddle_index=int(saddle_index), model=model,
+                             static_saddle=s_saddle, registration=reg, motion_fit=mf, pos=pos, vel=vel,
+                             acc=acc, omega_raw=w_raw, omega_versions=w_s, alpha_raw=a_raw,
+                             alpha_versions=a_s, omega_lstsq=w_ls_s, alpha_lstsq=a_ls_s, omega=omega,
+                             alpha=alpha, rotation_fit=rfit, omega_rotation=w_rot, alpha_rotation=a_rot,
+                             omega_use=w_use, alpha_use=a_use, method=method,
+                             singularity_deg=singularity_angle(pos, omega), saddle_body=sb, saddle=sk,
+                             saddle_fit=sfit, saddle_path=path, saddle_method=saddle_method,
+                             kinematics=kinematics, pose=traj, pose_saddle=psaddle, pose_markers=pmarkers,
+                             chain_error=chain_error, pose_registration=preg)
+
+
+def _pose_only(t, static_index, saddle_index, model, s_saddle, traj, psaddle, pmarkers, pts, method,
+               saddle_method, chain_error, preg):
+    """A :class:`RigidBodyAnalysis` holding only the pose trajectory (the thesis chain failed)."""
+    n = t.size
+    nan3 = np.full((n, 3), np.nan)
+    nan6 = np.full((6, n, 3), np.nan)
+    reg = register(pts, model)
+    omega, alpha = traj.omega(t), traj.alpha(t)
+    sk = SaddleKinematics(nan3, np.full((3, n, 3), np.nan), np.full((3, n, 3), np.nan),
+                          np.full((3, n, 3), np.nan), nan3, nan3)
+    return RigidBodyAnalysis(t=t, static_index=static_index, saddle_index=int(saddle_index), model=model,
+                             static_saddle=s_saddle, registration=reg, motion_fit=None, pos=reg.registered,
+                             vel=np.full(pts.shape, np.nan), acc=np.full(pts.shape, np.nan), omega_raw=nan6,
+                             omega_versions=nan6, alpha_raw=nan6, alpha_versions=nan6, omega_lstsq=nan3,
+                             alpha_lstsq=nan3, omega=omega, alpha=alpha, rotation_fit=None, omega_rotation=nan3,
+                             alpha_rotation=nan3, omega_use=np.ones(6, bool), alpha_use=np.ones(6, bool),
+                             method=method, singularity_deg=singularity_angle(pmarkers.position[:, :3], omega),
+                             saddle_body=saddle_in_body_versions(model, s_saddle), saddle=sk, saddle_fit=None,
+                             saddle_path=psaddle.position, saddle_method=saddle_method, kinematics="pose_spline",
+                             pose=traj, pose_saddle=psaddle, pose_markers=pmarkers, chain_error=chain_error,
+                             pose_registration=preg)
+
+
+def _uniform_orders(orders, k):
+    """``orders`` as k equal ints if it is a single int (one order for every fit), else None."""
+    if orders is None or np.ndim(orders) != 0:
+        return None
+    return np.full(k, int(orders))
+
+
+def _thesis_chain(t, pts, model, s_saddle, x_degree, orders, order_rule, omega_use, alpha_use, method,
+                  smooth_span, period_s, saddle_method, fourier_start, fourier_trend, rotation_orders,
+                  saddle_orders):
+    """The thesis' chain (sections 5.4-5.5, 6): registration, fits, versions, eq. 6.48-6.55."""
+    from . import fitting
     reg = register(pts, model)
     pos = reg.registered
     ok = np.all(np.isfinite(pos), axis=(1, 2))
@@ -1041,7 +1178,9 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     w_ls = angular_velocity_lstsq(pos, vel)
     w_ls_s = smooth_versions(w_ls[None], span=smooth_span)[0]
     w0 = None if period_s is None else 2 * np.pi / period_s
-    rfit = fit_rotations(t, reg.rotation, rule=order_rule, w0=w0, start=fourier_start)
+    r_orders = rotation_orders if rotation_orders is not None else _uniform_orders(orders, 3)
+    s_orders = saddle_orders if saddle_orders is not None else _uniform_orders(orders, 2)
+    rfit = fit_rotations(t, reg.rotation, orders=r_orders, rule=order_rule, w0=w0, start=fourier_start)
     w_rot, a_rot = rfit.omega(t), rfit.alpha(t)
     omega = {"thesis": average_versions(w_s, w_use) if w_use.any() else w_ls_s,
              "lstsq": w_ls_s, "rotation": w_rot}[method]
@@ -1061,12 +1200,7 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         path = (np.einsum("kij,j->ki", rfit.rotation(t), s_saddle - model.mean(0))
                 + np.where(ok[:, None], pos.mean(1), np.nan))
     sfit = fitting.fit_motion(t, np.where(ok[:, None], path, np.nan)[:, None, :], x_degree=x_degree,
+                              orders=None if s_orders is None else np.asarray(s_orders, int)[None],
                               rule=order_rule, w0=w0, start=fourier_start, trend=fourier_trend)
-    return RigidBodyAnalysis(t=t, static_index=static_index, saddle_index=int(saddle_index), model=model,
-                             static_saddle=s_saddle, registration=reg, motion_fit=mf, pos=pos, vel=vel,
-                             acc=acc, omega_raw=w_raw, omega_versions=w_s, alpha_raw=a_raw,
-                             alpha_versions=a_s, omega_lstsq=w_ls_s, alpha_lstsq=a_ls_s, omega=omega,
-                             alpha=alpha, rotation_fit=rfit, omega_rotation=w_rot, alpha_rotation=a_rot,
-                             omega_use=w_use, alpha_use=a_use, method=method,
-                             singularity_deg=singularity_angle(pos, omega), saddle_body=sb, saddle=sk,
-                             saddle_fit=sfit, saddle_path=path, saddle_method=saddle_method)
+    return (reg, pos, vel, acc, mf, w_raw, w_s, a_raw, a_s, w_ls_s, a_ls_s, omega, alpha, rfit, w_rot, a_rot,
+            w_use, a_use, sb, sk, sfit, path)

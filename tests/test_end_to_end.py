@@ -176,6 +176,10 @@ def test_marker_hidden_with_the_thesis_chain(tmp_path, capsys):
     assert not any(a <= k - truth.offsets[cam] < b for k in hidden)  # never bridged by a guess
     if code != 0:  # what is left may be too short for the automatic period: say so and how to go on
         assert "step 'motion_frame'" in err and "--period" in err and "markers_2d.csv" in err
+    elif "period not found" in err:  # the period-free motion frame went on; comfort says why it is missing
+        assert "comfort indicators not computed" in err
+        assert "comfort_not_computed" in record["chosen"] and not (out / "comfort.csv").exists()
+        assert (out / "angular.csv").is_file() and "Not computed" in (out / "report.html").read_text()
 
 
 def _chromium():
@@ -231,3 +235,30 @@ def test_calibrate_command_reports_a_bad_board(tmp_path, capsys):
     code = main(["calibrate", str(real / "left"), "--board", "nine", "--square", "0.03",
                  "--out", str(tmp_path / "rig.toml")])
     assert code == 2 and "board" in capsys.readouterr().err.lower()
+
+
+def test_angular_csv_has_the_conditioning_and_saddle_angle_columns(demo_run):
+    rows = list(csv.DictReader(open(demo_run / "angular.csv")))
+    for col in ("roll_deg", "pitch_deg", "yaw_deg", "singularity_deg", "triangle_height_m", "registration_rms_m"):
+        assert col in rows[0], col
+    h = np.array([float(r["triangle_height_m"]) for r in rows])
+    assert np.all(h > 0.03)                       # the bundled triangle is about 7 cm high
+    assert all(0 <= float(r["singularity_deg"]) <= 180 for r in rows)
+
+
+def test_pose_spline_kinematics_with_the_period_free_motion_frame(tmp_path):
+    """The pose-trajectory estimator through the whole pipeline, x-motion from the whole record."""
+    from horsemocap import pipeline
+
+    out = tmp_path / "pose"
+    an = pipeline.analyze(default_session_dir(), out, {"kinematics": "pose_spline", "motion_frame": "record"},
+                          progress=lambda *a: None)
+    rb = an["rigid_body"]
+    assert rb["analysis"].pose is not None and rb["analysis"].motion_fit is not None   # both chains
+    assert np.all(np.isfinite(rb["saddle_acceleration"])) and np.all(np.isfinite(rb["omega"]))
+    assert an["motion_frame"]["frame"].n_periods == 0 and an["motion_frame"]["period_frames"] > 0
+    record = json.loads((out / "analysis.json").read_text())
+    assert record["parameters"]["kinematics"] == "pose_spline" and "n_periods" in record["parameters"]
+    truth = load_truth(default_session_dir())
+    got = _comfort(out / "comfort.csv")
+    assert abs(got["acc_y_Wk_rms"] - truth.comfort["acc_y_Wk_rms"]) / truth.comfort["acc_y_Wk_rms"] < 0.15

@@ -422,3 +422,27 @@ def test_rigid_plots_return_figures():
                                          m["vel"][:, 3], m["acc"][:, 3], m["vel"][:, 3], m["acc"][:, 3])]
     assert all(hasattr(f, "axes") and len(f.axes) >= 1 for f in figs)
     plt.close("all")
+
+
+def test_fit_options_reach_every_fit_and_the_pose_path():
+    """`orders` (one int) reaches the marker, rotation and saddle-path fits; rotation_orders and
+    saddle_orders set those fits alone; kinematics='pose_spline' gives the saddle exactly."""
+    m = _periodic_fixed_axis_motion(seed=2)
+    body = np.array([[-0.62, 0.02, -0.31], [-0.38, 0.09, -0.33], [-0.14, 0.03, -0.33], [0.06, -0.16, -0.30]])
+    pos = np.einsum("kij,mj->kmi", m["R"], body) + m["c"][:, None]
+    static = body[[3, 1, 0, 2]] + [0.3, 1.2, 7.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, orders=3, x_degree=2)
+        assert res.rotation_fit.orders.tolist() == [3, 3, 3]
+        assert res.saddle_fit.orders.tolist() == [[2, 3, 3]] and res.motion_fit.orders[:, 0].tolist() == [2, 2, 2]
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, rotation_orders=[1, 2, 4], saddle_orders=[2, 5])
+        assert res.rotation_fit.orders.tolist() == [1, 2, 4] and res.saddle_fit.orders[0, 1:].tolist() == [2, 5]
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, kinematics="pose_spline", pose_smoothing="none")
+    assert res.kinematics == "pose_spline" and res.pose is not None
+    np.testing.assert_allclose(res.saddle_position, pos[:, 3], atol=1e-9)
+    # interpolating quintic splines of 38 samples (about 2 periods): spline precision, not exact
+    inner = slice(3, -3)
+    for est, true in ((res.omega, m["omega"]), (res.alpha, m["alpha"])):
+        rel = np.abs(est[inner] - true[inner]).max() / np.abs(true).max()
+        assert rel < 0.02, rel

@@ -1,0 +1,58 @@
+"""The 16 virtual herd sessions: the thesis' chain of fits against the pose-trajectory estimator.
+
+Each session is analysed once up to the motion frame (``pipeline.analyze``;
+rendered into the cache on first use by ``virtuallab.herd_session``), then
+the rigid-body and comfort steps are run for each variant on the same
+detections. Printed per session and variant: the saddle's vertical
+acceleration RMSE (% of its rms) and the errors (%) of the Wb/Wk-weighted rms
+and VDV against the truth; then the medians and worst cases.
+
+Usage: ``python benchmarks/bench_herd_kinematics.py ['{"kinematics": "fits"}' ...]``
+(default variants: fits, pose_spline with gcv, pose_spline with adaptive smoothing).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import replace
+
+import numpy as np
+
+KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk")
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    variants = [json.loads(a) for a in argv] or [{"kinematics": "fits"}, {"kinematics": "pose_spline"},
+                                                 {"kinematics": "pose_spline", "pose_smoothing": "adaptive"}]
+    from horsemocap import accuracy
+    from horsemocap.pipeline import analyze, run_steps
+    from horsemocap.virtuallab import GAITS, HORSES, herd_session, load_truth
+
+    table = {i: [] for i in range(len(variants))}
+    for i, v in enumerate(variants):
+        print(f"variant {i}: {v}")
+    print(f"{'session':24s} {'frames':>6s}  " + " | ".join(f"v{i}: Ay%  Wb%  Wk%  VDVb% VDVk%" for i in range(len(variants))))
+    for horse in HORSES:
+        for gait in GAITS:
+            folder = herd_session(horse, gait)
+            base = analyze(folder, None, {}, until="motion_frame", progress=lambda *a: None)
+            truth = load_truth(folder)
+            cells = []
+            for i, v in enumerate(variants):
+                a = run_steps(base.session, replace(base.params, **v), base.results, ["rigid_body", "comfort"])
+                st = accuracy.stage_errors(a, truth)
+                ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, KEYS)
+                row = [st["saddle_acc_y_rmse_pct_of_rms"], *(ce[k] for k in KEYS)]
+                table[i].append(row)
+                cells.append(" ".join(f"{x:5.1f}" for x in row))
+            print(f"{horse + ' ' + gait:24s} {st['frames']:6d}  " + " | ".join(cells), flush=True)
+    for i, v in enumerate(variants):
+        arr = np.abs(np.asarray(table[i]))
+        med, worst = np.median(arr, axis=0), arr.max(axis=0)
+        print(f"variant {i} {v}: saddle A_y median {med[0]:.1f} % (worst {worst[0]:.1f} %); median |error| "
+              + ", ".join(f"{k} {m:.1f} % (worst {w:.1f} %)" for k, m, w in zip(KEYS, med[1:], worst[1:])))
+
+
+if __name__ == "__main__":
+    main()
