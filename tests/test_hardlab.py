@@ -227,3 +227,14 @@ def test_hard_session_renders_once_into_the_cache(tmp_path, monkeypatch):
     assert (a / ".complete").is_file() and not a.with_name(a.name + ".partial").exists()
     with pytest.raises(ValueError, match="unknown hard session"):
         H.hard_session("nope", cache=tmp_path)
+
+
+def test_speed_change_extreme_when_passing_the_rig_centre():
+    sc = H.HARD_SESSIONS["canter720_wide_50_everything"]
+    m = H.build_scene(sc)[0].motion
+    ts = np.arange(0.0, 6.0, 0.001)
+    X = H._ground_points(m, m.pose(ts).position)[:, 0]
+    t_c = ts[np.argmin(np.abs(X - sc.rig.centre_x_m))]
+    # the speed change alone (no surge): dv at t_c, as documented (slowest there for dv < 0)
+    d1 = m.speed_change.value(np.array([t_c]), m.speed_change_hz, 1)[0]
+    assert d1 == pytest.approx(sc.speed_change[0], abs=0.02)

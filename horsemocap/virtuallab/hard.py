@@ -56,7 +56,7 @@ from .session import (CAMERA_NAMES, EXPOSURE_S, FLASH_POSITION_G, MARKER_DIAMETE
                       Scene, build_truth, plan_timeline, render_session)
 
 #: Bumped whenever the hard set's rendering changes (part of the cache key).
-HARD_VERSION = 1
+HARD_VERSION = 2
 SIZES = {"720p": (1280, 720), "1080p": (1920, 1080)}
 #: Thesis focal length per image width (730 px / 640 px, Tables 8.1-8.3).
 THESIS_FOCAL_PER_WIDTH = 1.14
@@ -526,9 +526,13 @@ def _motion(sc: HardScenario, cams, R_wg, c_g) -> SaddleMotion:
         t_c = float(ts[np.argmin(np.abs(X - sc.rig.centre_x_m))])
         dv, period = sc.speed_change
         w = 2 * math.pi / period
-        # D(t) = (dv / w) sin(w (t - t_c) + pi / 2)  =>  D'(t) = dv cos(w (t - t_c))
-        sc_h = Harmonics((1,), (dv / w,), (math.pi / 2 - w * t_c,))
+        # D(t) = (dv / w) sin(w (t - t_c))  =>  D'(t) = dv cos(w (t - t_c))
+        sc_h = Harmonics((1,), (dv / w,), (-w * t_c,))
         sc_hz = 1.0 / period
+    if sc.speed_change is not None:
+        m = replace(m, speed_change=sc_h, speed_change_hz=sc_hz)
+        xf = _ground_points(m, m.markers(np.array([sc.enter_time_s]))[0][0, 2])[0]
+        m = replace(m, x0=float(m.x0 + x_in - xf))
     return m
 
 
