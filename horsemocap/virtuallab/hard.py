@@ -567,17 +567,14 @@ def build_scene(sc: HardScenario) -> tuple[Scene, dict]:
     put and the border camera's closest approach.
     """
     cams = _ground_cameras(sc.rig, sc.seed)
-    rig0, R_wg, c_g = _assemble(cams, sc.rig)
+    _, R_wg, c_g = _assemble(cams, sc.rig)
     motion = _motion(sc, cams, R_wg, c_g)
     info = {}
     if sc.rig.border is not None:
+        # works in the ground frame: the ride (x0, speed change) does not move
         cams = _adjust_border(sc, cams, motion)
-        rig_b, R_wg2, c_g2 = _assemble(cams, sc.rig)
-        if not np.allclose(R_wg2, R_wg):
-            motion = replace(motion, R_wg=R_wg2, c_g=c_g2)
-        R_wg, c_g = R_wg2, c_g2
     rig, R_wg, c_g = _assemble(cams, sc.rig)
-    motion = replace(motion, R_wg=R_wg, c_g=c_g)
+    motion = replace(motion, R_wg=R_wg, c_g=c_g)         # the left camera may have turned
     # flash and plumb: the thesis' places unless a camera cannot see them; then raised
     # to the markers' height band (the plumb hung higher, the flash held up)
     flash_g, tip_g, tail_g = FLASH_POSITION_G.copy(), PLUMB_TIP_G.copy(), PLUMB_TAIL_G.copy()
