@@ -238,3 +238,15 @@ def test_speed_change_extreme_when_passing_the_rig_centre():
     # the speed change alone (no surge): dv at t_c, as documented (slowest there for dv < 0)
     d1 = m.speed_change.value(np.array([t_c]), m.speed_change_hz, 1)[0]
     assert d1 == pytest.approx(sc.speed_change[0], abs=0.02)
+
+
+def test_plumb_and_flash_seen_by_every_camera_of_a_top_border_session():
+    scene, info = H.build_scene(H.HARD_SESSIONS["sitting720_toedin_100_occluded_border"])
+    flash = scene.ground_to_world(np.asarray(scene.flash_g)[None])
+    for cam in scene.rig:
+        assert np.all(cam.in_image(cam.project(S.plumb_world(scene)), margin=20)), cam.name
+        assert np.all(cam.in_image(cam.project(flash), margin=20)), cam.name
+    bad = H.HardScenario("bad", "Horse 2", "sitting_trot", 1, 30.0, H.RigSpec(border=("right", "top", 12.0)),
+                         plumb=(0.2, 3.0))
+    with pytest.raises(ValueError, match="plumb"):
+        H.build_scene(bad)

@@ -462,6 +462,10 @@ class HardScenario:
         Stride periods of fully visible markers to keep (render time).
     exercises : str
         What the session is for.
+    plumb : (tip_height_m, length_m) or None
+        Where the plumb hangs (at the thesis' X and depth); default: the
+        thesis' plumb (0.45 m to 1.85 m high), raised or lowered until every
+        camera sees it (an error if none does).
     """
 
     name: str
@@ -480,10 +484,13 @@ class HardScenario:
     enter_time_s: float = 0.3
     strides: float = 3.3
     exercises: str = ""
+    plumb: tuple | None = None
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["rig"] = asdict(self.rig)
+        if d["plumb"] is None:
+            del d["plumb"]          # (keeps the cache keys of the scenarios rendered before the field)
         return json.loads(json.dumps(d))
 
 
@@ -583,11 +590,21 @@ def build_scene(sc: HardScenario) -> tuple[Scene, dict]:
         if all(_sees(cam, motion, f[None], 25) for cam in rig):
             flash_g = f
             break
-    for lift in np.arange(0.0, 2.01, 0.05):
-        tp, tl = PLUMB_TIP_G + [0, -lift, 0], PLUMB_TAIL_G + [0, -lift, 0]
+    else:
+        raise ValueError(f"hard scenario {sc.name!r}: no camera height for the flash is seen by every camera")
+    if sc.plumb is not None:
+        tip_h, length = sc.plumb
+        candidates = [(PLUMB_TIP_G * [1, 0, 1] + [0, -tip_h, 0], PLUMB_TIP_G * [1, 0, 1] + [0, -tip_h - length, 0])]
+    else:
+        candidates = [(PLUMB_TIP_G + [0, -lift, 0], PLUMB_TAIL_G + [0, -lift, 0]) for lift in np.arange(0.0, 2.01, 0.05)]
+        candidates += [(PLUMB_TIP_G + [0, drop, 0], PLUMB_TAIL_G + [0, drop, 0]) for drop in np.arange(0.05, 0.41, 0.05)]
+    for tp, tl in candidates:
         if all(_sees(cam, motion, np.vstack([tp, tl]), 25) for cam in rig):
             tip_g, tail_g = tp, tl
             break
+    else:
+        raise ValueError(f"hard scenario {sc.name!r}: the plumb {'at ' + str(sc.plumb) if sc.plumb else ''} is not "
+                         f"seen whole by every camera (give HardScenario.plumb = (tip height, length))")
     extras = []
     if sc.stirrup:
         extras.append(Stirrup(stride_hz=motion.gait.stride_hz, phase=0.3 + sc.seed % 5, shine_phase=1.0 + sc.seed % 3))
@@ -701,10 +718,10 @@ HARD_SESSIONS = {sc.name: sc for sc in (
                            "rear marker hidden in the left camera for 15 frames"),
     HardScenario("sitting720_toedin_100_occluded_border", "Horse 4", "sitting_trot", 2007, 100.0,
                  _r("720p", "toed_in", 1.2, border=("right", "top", 12.0)),
-                 speed_change=(-0.5, 2.6), occlusion=("middle", 2, 0.3, 20),
+                 speed_change=(-0.5, 2.6), occlusion=("middle", 2, 0.3, 20), plumb=(0.15, 0.95),
                  exercises="1280x720, 100 fps, toed-in 1.2 m (widest), sitting trot; front marker hidden in the "
-                           "middle camera for 20 frames; markers within ~12 px of the right camera's top edge; "
-                           "slows down"),
+                           "middle camera for 20 frames; markers within ~12 px of the right camera's top edge "
+                           "(so the plumb is a short one, 0.15-1.10 m high); slows down"),
     HardScenario("canter720_wide_50_everything", "Horse 1", "canter", 2008, 50.0,
                  _r("720p", "wide", 0.4, 0.9, border=("left", "bottom", 18.0)),
                  speed_factor=0.8, speed_change=(-0.8, 3.0), stirrup=True, reflector=True,
