@@ -3,7 +3,11 @@
 The thesis (chapter 6) treats the three skin markers near the saddle and the
 saddle marker as one rigid body. Here that body moves with
 
-- a steady forward speed ``v`` along the path plus a periodic surge,
+- a steady forward speed ``v`` along the path plus a periodic surge and,
+  optionally, a smooth change of speed in its own (slower) rhythm
+  (``SaddleMotion.speed_change``: the horse slows down and speeds up; forward
+  only, so the vertical and rotational motion and the comfort indicators of
+  the saddle's vertical acceleration stay periodic in the stride),
 - periodic vertical and lateral translation,
 - periodic yaw ``psi`` (about the downward axis), pitch ``theta`` (about the
   lateral axis) and roll ``phi`` (about the forward axis),
@@ -304,6 +308,10 @@ class SaddleMotion:
     height: float
     R_wg: np.ndarray = field(repr=False, default_factory=lambda: ground_to_world()[0])
     c_g: np.ndarray = field(repr=False, default_factory=lambda: ground_to_world()[1])
+    #: Extra forward displacement ``D(t) = speed_change.value(t, speed_change_hz)`` (m):
+    #: the speed becomes ``v + D'(t)`` (empty: a steady mean speed, the herd).
+    speed_change: Harmonics = Harmonics()
+    speed_change_hz: float = 0.0
 
     # -- frames ----------------------------------------------------------------
     @property
@@ -335,6 +343,10 @@ class SaddleMotion:
         V = np.stack([g.speed_mps + g.surge.value(t, f, 1), g.vertical.value(t, f, 1),
                       g.lateral.value(t, f, 1)], -1)
         A = np.stack([g.surge.value(t, f, 2), g.vertical.value(t, f, 2), g.lateral.value(t, f, 2)], -1)
+        if self.speed_change.k:
+            fs = self.speed_change_hz
+            for d, arr in enumerate((P, V, A)):
+                arr[:, 0] += self.speed_change.value(t, fs, d)
         ang = [[getattr(g, k).value(t, f, d) for d in range(3)] for k in ("yaw", "pitch", "roll")]
         return t, P, V, A, ang
 
@@ -377,9 +389,17 @@ class SaddleMotion:
         z = np.zeros((1, 3))
         return Pose(np.zeros(1), self.ground_to_world_points(P), z, z, self.R_wg[None].copy(), z, z)
 
+    def forward_speed(self, t) -> np.ndarray:
+        """Speed along the path ``v + surge'(t) + D'(t)`` (m/s), ground X."""
+        return self.pose_ground(t)[2][:, 0]
+
     def to_dict(self):
-        return {"horse": self.horse.to_dict(), "gait": self.gait.to_dict(), "x0": self.x0,
-                "height": self.height, "R_wg": self.R_wg.tolist(), "c_g": self.c_g.tolist()}
+        d = {"horse": self.horse.to_dict(), "gait": self.gait.to_dict(), "x0": self.x0,
+             "height": self.height, "R_wg": self.R_wg.tolist(), "c_g": self.c_g.tolist()}
+        if self.speed_change.k:
+            d["speed_change"] = self.speed_change.to_dict()
+            d["speed_change_hz"] = float(self.speed_change_hz)
+        return d
 
 
 def marker_height(horse: Horse) -> float:

@@ -449,9 +449,18 @@ def finish(img, rng=None, noise: bool = True, blur_sigma: float = 0.55, noise_si
     """Optical blur, sensor noise (read + shot), quantisation to uint8 RGB."""
     out = cv2.GaussianBlur(img.astype(np.float32), (0, 0), blur_sigma) if blur_sigma > 0 else img.astype(np.float32)
     if noise:
-        sig = np.sqrt(noise_sigma ** 2 + 0.04 * np.clip(out, 0, None))
-        out = out + sig * rng.standard_normal(out.shape, dtype=np.float32)
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+        # sig = sqrt(noise_sigma^2 + 0.04 max(out, 0)); out += sig * N(0, 1): in place (the same
+        # float32 operations in the same order as the expression, fewer full-frame temporaries)
+        sig = np.clip(out, 0, None)
+        sig *= 0.04
+        sig += noise_sigma ** 2
+        np.sqrt(sig, out=sig)
+        z = rng.standard_normal(out.shape, dtype=np.float32)
+        z *= sig
+        out += z
+    np.rint(out, out=out)
+    np.clip(out, 0, 255, out=out)
+    return out.astype(np.uint8)
 
 
 def perspective_centroid_bias(cam: Camera, center, normal, radius: float, n: int = 4096) -> np.ndarray:

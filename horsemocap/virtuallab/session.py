@@ -7,6 +7,14 @@ camera: ``offsets = {left: o, middle: o + 53, right: o + 126}`` (thesis
 ``Delta F_LM = 53``, ``Delta F_MR = 73``). Frame ``k`` of camera ``c`` shows
 time ``t = (k - offsets[c]) / fps``. The horse enters from the left shortly
 after the flash, crosses the view at the gait speed and leaves on the right.
+
+At another frame rate (:func:`render_session` ``fps=``) the same instants
+are kept: the offsets between the cameras (``53/30`` s and ``73/30`` s unless
+``sync_deltas_s`` is given) and the flash's duration (``4/30`` s) are scaled
+to whole frames of that rate. Any rig (any cameras, any image size) and
+scene extras (:mod:`horsemocap.virtuallab.hard`: a swinging stirrup, a
+reflector crossing the markers, an occluder in front of one camera) can be
+rendered; the defaults render the thesis' laboratory byte for byte as before.
 """
 from __future__ import annotations
 
@@ -57,6 +65,14 @@ class Scene:
     motion: SaddleMotion
     seed: int
     arena: Arena = Arena()
+    #: Flashlight lens and plumb markers (tip = lower, tail = upper), ground frame (m).
+    flash_g: tuple = tuple(FLASH_POSITION_G)
+    plumb_tip_g: tuple = tuple(PLUMB_TIP_G)
+    plumb_tail_g: tuple = tuple(PLUMB_TAIL_G)
+    #: Scene extras drawn after the horse and rider, in order; each has
+    #: ``draw(img, scene, cam, t, exposure_s)``, ``hides(scene, cam, t, px) -> (n, 4) bool``
+    #: and ``truth(scene, offsets, n_frames, fps) -> dict`` (see :mod:`.hard`).
+    extras: tuple = ()
 
     def ground_to_world(self, p_g):
         return self.motion.ground_to_world_points(p_g)
@@ -124,7 +140,7 @@ def draw_horse_frame(img, scene: Scene, cam: Camera, pose, t: float, *, rider: b
 
 def draw_flash(img, scene: Scene, cam: Camera):
     """The switched-on flashlight: a saturated lens with a glow."""
-    c = scene.ground_to_world(FLASH_POSITION_G[None])[0]
+    c = scene.ground_to_world(np.asarray(scene.flash_g, float)[None])[0]
     uv = cam.project(c)
     w, h = cam.size
     yy, xx = np.mgrid[0:h, 0:w]
@@ -155,12 +171,31 @@ def marker_projection_truth(scene: Scene, cam: Camera, t: np.ndarray, ride: bool
                 reason[i, j] = "occluded_by_rider"
             else:
                 visible[i, j] = True
+    for extra in scene.extras:
+        hidden = extra.hides(scene, cam, t, px) & visible
+        visible[hidden] = False
+        reason[hidden] = "occluded_in_camera"
     return px, visible, reason
 
 
-def plan_timeline(scene: Scene, fps: float = FPS, left_offset: int = 8, max_seconds: float = 30.0):
-    """Offsets and number of frames after the flash (until the markers left every view)."""
-    offsets = {"left": left_offset, "middle": left_offset + DELTA_F_LM, "right": left_offset + DELTA_F_LM + DELTA_F_MR}
+def flash_frames(fps: float = FPS) -> int:
+    """Frames the flash stays on: ``FLASH_FRAMES`` at 30 fps, the same duration at ``fps``."""
+    return FLASH_FRAMES if fps == FPS else max(3, int(round(FLASH_FRAMES * fps / FPS)))
+
+
+def plan_timeline(scene: Scene, fps: float = FPS, left_offset: int = 8, max_seconds: float = 30.0,
+                  sync_deltas_s=None):
+    """Offsets and number of frames after the flash (until the markers left every view).
+
+    ``sync_deltas_s = (left->middle, middle->right)`` start delays in seconds
+    (default: the thesis' 53 and 73 frames at 30 fps), rounded to frames at ``fps``.
+    """
+    if sync_deltas_s is None:
+        d_lm, d_mr = ((DELTA_F_LM, DELTA_F_MR) if fps == FPS
+                      else (int(round(DELTA_F_LM * fps / FPS)), int(round(DELTA_F_MR * fps / FPS))))
+    else:
+        d_lm, d_mr = (int(round(d * fps)) for d in sync_deltas_s)
+    offsets = {"left": left_offset, "middle": left_offset + d_lm, "right": left_offset + d_lm + d_mr}
     n = int(max_seconds * fps)
     t = np.arange(n) / fps
     pose = scene.motion.pose(t)
@@ -223,11 +258,13 @@ def render_motion_frame(scene: Scene, cam: Camera, k: int, offset: int, bg: np.n
     img = bg.copy()
     ci = _cam_index(cam.name)
     rng = _seed(scene.seed, 1, ci, k)
-    if 0 <= k - offset < FLASH_FRAMES:
+    if 0 <= k - offset < flash_frames(fps):
         draw_flash(img, scene, cam)
     pose = scene.motion.pose(np.array([t]))
     draw_horse_frame(img, scene, cam, pose, t, rider=True, standing=False, markers=markers, exposure_s=exposure_s,
                      uneven=noise)
+    for extra in scene.extras:
+        extra.draw(img, scene, cam, t, exposure_s)
     if noise:
         centres, _ = scene.marker_geometry(pose)
         avoid = [tuple(p) for p in cam.project(centres[0])]
@@ -252,15 +289,19 @@ def render_static(scene: Scene, cam: Camera, bg, *, noise: bool) -> np.ndarray:
 
 def plumb_world(scene_or_motion) -> np.ndarray:
     """Plumb markers (tip, tail) in the world frame, (2, 3)."""
-    m = scene_or_motion.motion if isinstance(scene_or_motion, Scene) else scene_or_motion
-    return m.ground_to_world_points(np.vstack([PLUMB_TIP_G, PLUMB_TAIL_G]))
+    if isinstance(scene_or_motion, Scene):
+        s = scene_or_motion
+        return s.motion.ground_to_world_points(np.vstack([np.asarray(s.plumb_tip_g, float),
+                                                          np.asarray(s.plumb_tail_g, float)]))
+    return scene_or_motion.ground_to_world_points(np.vstack([PLUMB_TIP_G, PLUMB_TAIL_G]))
 
 
 def render_plumb(scene: Scene, cam: Camera, bg, *, noise: bool, tag: int = 3) -> np.ndarray:
     """A plumb line with two reflective spheres (thesis 5.3, Figure 8.4)."""
     img = bg.copy()
     tip, tail = plumb_world(scene)
-    top = scene.ground_to_world(np.array([[PLUMB_TAIL_G[0], -3.5, PLUMB_TAIL_G[2]]]))[0]
+    tail_g = np.asarray(scene.plumb_tail_g, float)
+    top = scene.ground_to_world(np.array([[tail_g[0], min(-3.5, tail_g[1] - 1.65), tail_g[2]]]))[0]
     line = np.linspace(top, tip, 60)
     px = cam.project(line)
     for a, b in zip(px[:-1], px[1:]):
@@ -311,7 +352,9 @@ def true_comfort(motion: SaddleMotion, t0: float, t1: float, fps: float = FPS):
     ``amplitude_y`` = half the peak-to-peak of the true vertical position.
     If that module is missing, only unweighted quantities are computed here.
     The dense true signals over ``[t0, t1]`` (the analysed frames) are
-    returned too, so anything can be recomputed.
+    returned too, so anything can be recomputed. When the horse changes speed
+    (``motion.speed_change``), ``vel_x_avg`` is the exact mean over ``[t0, t1]``
+    (displacement over time); the other indicators do not depend on it.
     """
     dense_fs = 1000.0
     td = np.arange(t0, t1 + 0.5 / dense_fs, 1 / dense_fs)
@@ -325,6 +368,10 @@ def true_comfort(motion: SaddleMotion, t0: float, t1: float, fps: float = FPS):
     ap_y, pp_y = ap @ axes[1], pp @ axes[1]
     amp = float((pp_y.max() - pp_y.min()) / 2)
     vel = float(np.mean(vp @ axes[0]))
+    if motion.speed_change.k and t1 > t0:
+        # the speed changes: the mean over the analysed frames, exactly (displacement / time)
+        p01 = motion.saddle(np.array([t0, t1]))[0]
+        vel = float((p01[1] - p01[0]) @ axes[0] / (t1 - t0))
     out = {
         "acc_y_max": float(np.max(np.abs(ap_y))),
         "acc_y_rms_unweighted": float(np.sqrt(np.mean(ap_y ** 2))),
@@ -396,11 +443,11 @@ def session_json(name: str, meta: dict, motion_paths: dict, stills: dict, calib_
     return d
 
 
-def _scene_and_backgrounds(horse: str, gait: str, seed: int):
-    """The thesis rig's scene of ``(horse, gait, seed)`` and each camera's empty arena."""
-    rig = thesis_rig()
-    motion = saddle_motion(horse, gait)
-    scene = Scene(rig, motion, int(seed))
+def _scene_and_backgrounds(horse: str, gait: str, seed: int, scene: Scene | None = None):
+    """The thesis rig's scene of ``(horse, gait, seed)`` (or the given ``scene``) and each camera's empty arena."""
+    if scene is None:
+        scene = Scene(thesis_rig(), saddle_motion(horse, gait), int(seed))
+    rig, motion = scene.rig, scene.motion
     bgs = {c.name: render_arena(c, motion.R_wg, motion.c_g, scene.arena, seed=seed) for c in rig}
     return scene, bgs
 
@@ -408,7 +455,8 @@ def _scene_and_backgrounds(horse: str, gait: str, seed: int):
 def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: int = 0, *,
                    noise: bool = True, compress: bool = True, n_motion_frames: int | None = None,
                    calibration_views: int | None = 45, name: str | None = None, left_offset: int = 8,
-                   exposure_s: float = EXPOSURE_S, verbose: bool = False) -> Path:
+                   exposure_s: float = EXPOSURE_S, verbose: bool = False, scene: Scene | None = None,
+                   fps: float = FPS, sync_deltas_s=None, metadata: dict | None = None) -> Path:
     """Render a complete session folder and its ground truth.
 
     Parameters
@@ -432,6 +480,16 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         Checkerboard views per camera (``None`` or 0: no images, the rig only).
     exposure_s : float
         Exposure time; markers are smeared over it (motion blur). 0: sharp.
+    scene : Scene, optional
+        Any rig (cameras named left/middle/right, any image size), motion
+        and extras (default: the thesis rig and ``saddle_motion(horse, gait)``;
+        ``horse`` and ``gait`` then only label the session).
+    fps : float
+        Frame rate; the sync offsets and the flash keep their durations in seconds.
+    sync_deltas_s : (float, float), optional
+        Start delays left->middle and middle->right (s), see :func:`plan_timeline`.
+    metadata : dict, optional
+        Merged into ``session.json``'s ``metadata``.
 
     Returns
     -------
@@ -442,19 +500,18 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     _clear_generated(out)
-    scene, bgs = _scene_and_backgrounds(horse, gait, seed)
+    scene, bgs = _scene_and_backgrounds(horse, gait, seed, scene)
     rig, motion = scene.rig, scene.motion
-    offsets, n_after = plan_timeline(scene, left_offset=left_offset)
+    offsets, n_after = plan_timeline(scene, fps, left_offset=left_offset, sync_deltas_s=sync_deltas_s)
     if n_motion_frames is not None:
         n_after = int(n_motion_frames)
-    fps = FPS
     # motion videos
     motion_paths = {}
     n_frames = {}
     for cam in rig:
         o = offsets[cam.name]
         n_frames[cam.name] = o + n_after
-        frames = (render_motion_frame(scene, cam, k, o, bgs[cam.name], noise=noise, exposure_s=exposure_s)
+        frames = (render_motion_frame(scene, cam, k, o, bgs[cam.name], noise=noise, fps=fps, exposure_s=exposure_s)
                   for k in range(n_frames[cam.name]))
         if compress:
             _write_video(out / "motion" / f"{cam.name}.avi", frames, cam.size, fps, True)
@@ -493,10 +550,11 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     save_truth(truth, out)
     meta = {"horse": horse, "gait": gait, "direction": "CCW", "rider": "A", "seed": int(seed),
             "generator": "horsemocap.virtuallab", "virtual": True}
+    meta.update(metadata or {})
     sname = name or f"{horse.lower().replace(' ', '')}_{gait}"
     board = board_info["board"] if board_info else {"inner_corners": [15, 29], "square_size_m": 0.05}
     sj = session_json(sname, meta, motion_paths, stills, bool(calibration_views),
-                      board=board["inner_corners"], square=board["square_size_m"])
+                      board=board["inner_corners"], square=board["square_size_m"], fps=fps)
     atomic_write_json(out / "session.json", sj)
     if verbose:
         print(f"rendered {out} in {time.perf_counter() - t_start:.1f} s")
@@ -542,14 +600,16 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
         t = (k - offsets[cam.name]) / fps
         px, vis, rs = marker_projection_truth(scene, cam, t, ride=True)
         marker_px[cam.name], marker_vis[cam.name], marker_reason[cam.name] = px, vis, rs
-    # analysed frames: every skin marker visible in every camera
+    # analysed frames: every skin marker inside every image (a marker hidden by an
+    # occluder in one camera only stays in: the other cameras still see it)
     kL = np.arange(n_frames["left"])
     ok = np.ones(len(kL), bool)
     for cam in rig:
         kc = kL - offsets["left"] + offsets[cam.name]
         good = (kc >= 0) & (kc < n_frames[cam.name])
         vis = np.zeros(len(kL), bool)
-        vis[good] = marker_vis[cam.name][kc[good], :3].all(axis=1)
+        seen = marker_vis[cam.name][kc[good], :3] | (marker_reason[cam.name][kc[good], :3] == "occluded_in_camera")
+        vis[good] = seen.all(axis=1)
         ok &= vis
     idx = np.nonzero(ok)[0]
     if idx.size:
@@ -577,14 +637,16 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
     extras = dict(dense)
     extras.update({
         "motion": motion.to_dict(),
-        "flash_frames": FLASH_FRAMES,
-        "flash_position_world": scene.ground_to_world(FLASH_POSITION_G[None])[0].tolist(),
+        "flash_frames": flash_frames(fps),
+        "flash_position_world": scene.ground_to_world(np.asarray(scene.flash_g, float)[None])[0].tolist(),
         "n_frames": n_frames,
         "perspective_centroid_bias_px_max": float(np.max(bias)),
         "marker_body": motion.horse.marker_body.tolist(),
         "saddle_body": motion.horse.saddle_body.tolist(),
         "plumb_marker_diameter_m": PLUMB_MARKER_DIAMETER,
     })
+    for extra in scene.extras:
+        extras.update(extra.truth(scene, offsets, n_frames, fps))
     return Truth(
         fps=fps, offsets=dict(offsets), rig=rig, ref_frames=ref.astype(int),
         time_s=(ref - (ref[0] if len(ref) else 0)) / fps, motion_time_s=t_m,
@@ -593,7 +655,7 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
         rotation=pose.rotation, omega=pose.omega, alpha=pose.alpha,
         marker_px=marker_px, marker_visible=marker_vis, marker_reason=marker_reason,
         gravity=motion.gravity, motion_axes=motion.motion_axes,
-        static_pos=static_pos, plumb_pos=plumb_world(motion), comfort=comfort,
+        static_pos=static_pos, plumb_pos=plumb_world(scene), comfort=comfort,
         comfort_source=source, marker_diameter_m=MARKER_DIAMETER,
         meta={"horse": motion.horse.name, "gait": motion.gait.name, "seed": scene.seed},
         extras=extras)

@@ -37,8 +37,9 @@ class Truth:
     rig : Rig
         The true rig (same as ``calibration/rig.toml``).
     ref_frames : ndarray (n,)
-        Left-camera frame indices of the analysed samples: every frame in
-        which all skin markers are fully inside the image in all cameras.
+        Left-camera frame indices of the analysed samples: the longest run of
+        frames in which all skin markers are fully inside the image in all
+        cameras (a marker occluded in one camera only does not end it).
     time_s : ndarray (n,)
         ``(ref_frames - ref_frames[0]) / fps`` (thesis eq. 5.13).
     motion_time_s : ndarray (n,)
@@ -57,7 +58,9 @@ class Truth:
     marker_visible : dict[str, ndarray (frames_c, 4) bool]
     marker_reason : dict[str, ndarray (frames_c, 4) str]
         ``""`` visible, ``"outside_image"``, ``"partly_outside_image"``,
-        ``"occluded_by_rider"``.
+        ``"occluded_by_rider"``, ``"occluded_in_camera"`` (hidden in this
+        camera only by something near its lens; hard sessions,
+        :class:`horsemocap.virtuallab.hard.Occluder`).
     gravity : ndarray (3,)
         Unit vector along gravity (down), world frame.
     motion_axes : ndarray (3, 3)
@@ -71,7 +74,12 @@ class Truth:
         Indicators from the true saddle vertical acceleration (see
         ``comfort_source``).
     extras : dict
-        Everything else (dense true saddle motion, parameters, flash frames...).
+        Everything else (dense true saddle motion, parameters, flash frames...;
+        in hard sessions each scene extra's true image path per camera and
+        frame: ``stirrup_px__<cam>`` / ``reflector_px__<cam>`` (frames, 2),
+        ``*_inside__<cam>`` (whole disc in the image), ``*_brightness__<cam>``,
+        ``occluder_px__<cam>`` / ``occluder_radius_px__<cam>`` (NaN when away)
+        and ``occluder_description`` (camera, marker, frames)).
     """
 
     fps: float

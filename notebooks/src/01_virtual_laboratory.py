@@ -10,7 +10,9 @@
 # - what a rendered session contains (shared/spec/sessions.md) and what its truth holds;
 # - what makes the images hard: pseudo markers (helmet, stirrup, buckle, bandages, fence rail, glints),
 #   the rider hiding the saddle marker, noise, motion blur and compression;
-# - the stills (plumb, static shot, checkerboards) and the free-falling ball of section 8.3.
+# - the stills (plumb, static shot, checkerboards) and the free-falling ball of section 8.3;
+# - the harder laboratory of issue 17: other rigs, image sizes and frame rates, a stirrup, a crossing
+#   reflector, a marker hidden in one camera, markers near the border, a horse changing speed.
 #
 # **Thesis equations used by the renderer.** A world point $\mathbf{X}$ (left-camera frame) is seen by
 # camera $c$ at $\mathbf{X}_c = \mathbf{R}_c \mathbf{X} + \mathbf{t}_c$; with $x_n = X_c/Z_c$,
@@ -296,6 +298,56 @@ herd = json.loads((data_samples_dir() / "herd.json").read_text())
 print(herd["format"], "|", len(herd["sessions"]), "sessions")
 for s in herd["sessions"][:4]:
     print(f"{s['name']:22s} seed {s['seed']:5d}  {s['speed_kmh']:6.2f} km/h  {s['stride_hz']:.3f} Hz")
+
+# %% [markdown]
+# ## 8. The harder laboratory (issue 17)
+#
+# A detector that only ever saw the herd can be tuned to it without anyone noticing.
+# `vl.HARD_SESSIONS` names sessions that differ the way a new user's recording may: 1280x720 and
+# 1920x1080 sensors, 50/60/100 fps (the flash and the sync offsets keep their durations in seconds),
+# wide and toed-in rigs (`vl.hard_rig`), a horse that slows down and speeds up
+# ($v(t) = \bar v + \Delta v \cos(2\pi (t - t_c)/T)$, exact kinematics; the vertical motion stays
+# periodic, so the comfort truth stays exact), a shining stirrup swinging below the markers, a reflector
+# on the whip whose image path crosses the markers', one marker hidden in one camera only for a few
+# frames (reason `occluded_in_camera`) and markers passing ~15 px from an image edge.
+# `vl.hard_session(name)` renders one into the cache (1-5 min each); the truth's `extras` hold every
+# extra's true image path. Below, without rendering: the plan of the "everything" session, seen by its
+# left camera.
+
+# %%
+from horsemocap.virtuallab import hard
+
+sc = vl.HARD_SESSIONS["canter720_wide_50_everything"]
+p = hard.plan(sc)
+ht = p["truth"]
+print(sc.exercises)
+print(f"{sc.rig.size[0]}x{sc.rig.size[1]} at {sc.fps:g} fps | {len(ht.ref_frames)} fully visible frames = "
+      f"{p['strides_visible']:.1f} strides | closest approach to the bottom edge (left camera): "
+      f"{p['border_px']['left']['top_bottom']:.1f} px")
+cam = "left"
+hidden = ht.marker_reason[cam] == "occluded_in_camera"
+fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
+w, h = sc.rig.size
+for j in range(3):
+    vis = ht.marker_visible[cam][:, j] | hidden[:, j]
+    axs[0].plot(*ht.marker_px[cam][vis, j].T, ".", ms=2, label=f"marker {j}")
+for ex, c in (("stirrup", "0.5"), ("reflector", "m")):
+    ins = ht.extras[f"{ex}_inside__{cam}"]
+    axs[0].plot(*ht.extras[f"{ex}_px__{cam}"][ins].T, "-", color=c, lw=1, label=ex)
+k, j = np.nonzero(hidden)
+axs[0].plot(*ht.marker_px[cam][k, j].T, "kx", ms=6, label="hidden in this camera")
+axs[0].axhline(h - 1, color="r", lw=0.8)
+axs[0].set_xlim(0, w)
+axs[0].set_ylim(h, 0)
+axs[0].set_title(f"{cam} camera: image paths", fontsize=9)
+axs[0].legend(fontsize=7, loc="upper left", ncol=2)
+tt = ht.motion_time_s
+axs[1].plot(tt, p["scene"].motion.forward_speed(tt) * 3.6)
+axs[1].set_xlabel("motion time (s)")
+axs[1].set_ylabel("forward speed (km/h)")
+axs[1].set_title("the horse slows down and speeds up", fontsize=9)
+plt.tight_layout()
+plt.show()
 
 # %% [markdown]
 # ## Exercises
