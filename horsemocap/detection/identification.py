@@ -62,7 +62,7 @@ IDENTIFICATION_REASONS = {
     "partly_occluded": "its region is far smaller than the marker's recent area: centre biased",
     "single_view": "seen by one camera only: its identity cannot be validated by another camera",
     "off_track": "consistent in the cameras, but further from the predicted 3D position than a marker moves",
-    "unconfirmed": "found alone on an extrapolated track, no other marker confirms it",
+    "unconfirmed": "found alone (no other marker confirms its distance) on an extrapolated track or by too few cameras",
     "not_tracked": "the marker set is not followed in this frame (not in view, or lost)",
 }
 REASONS = IDENTIFICATION_REASONS
@@ -901,8 +901,11 @@ class _Tracker:
                 nv = (combos >= 0).sum(axis=1)
                 cost = -100.0 * nv + dist + worst / self.tol
                 cost[~ok] = np.inf
-                # a marker cannot leave its predicted 3D position by half the marker spacing
+                # a marker cannot leave its predicted 3D position by half the marker spacing, and
+                # between equally many views the point nearer the prediction in 3D wins (a wrong
+                # view on the epipolar line moves the point along the other camera's ray)
                 step = np.linalg.norm(X - pred, axis=1)
+                cost = cost + 2.0 * step / self.max_step
                 off = ok & ~(step <= self.max_step)
                 cost[off] = np.inf
                 if off.any() and not np.isfinite(cost).any():
@@ -1008,10 +1011,19 @@ class _Tracker:
                         self._drop_view(k, m, c, "merged")
 
     def _check_alone(self, k, gaps):
-        """A marker found alone on a stale prediction is not confirmed by anything: not used."""
+        """A marker found alone is confirmed by no other marker's distance.
+
+        It is used only when its own track carried it here (not a stale
+        extrapolation) and every camera that can validate it does (at least
+        three views with three or more cameras): a 2-view point may be a
+        chance match along an epipolar line, off in depth.
+        """
         have = np.flatnonzero(np.all(np.isfinite(self.X[k]), axis=1))
-        if len(have) == 1 and gaps[have[0]] > 0:
-            m = have[0]
+        if len(have) != 1:
+            return
+        m = have[0]
+        views = sum(self.reason[c][k, m] == "" for c in self.cams)
+        if gaps[m] > 0 or views < min(3, self.C):
             for c in self.cams:
                 if self.reason[c][k, m] == "":
                     self.px[c][k, m] = np.nan
@@ -1037,15 +1049,14 @@ class _Tracker:
                     bad[b] += 1
             if not bad.any():
                 return
-            # the marker in most violations goes; between equals, the one furthest from its prediction
-            tied = ok[bad == bad.max()]
-            worst = tied[np.argmax(np.linalg.norm(X[tied] - pred[tied], axis=1))]
-            for c in self.cams:
-                if self.reason[c][k, worst] == "":
-                    self.px[c][k, worst] = np.nan
-                    self.area[c][k, worst] = np.nan
-                    self.reason[c][k, worst] = "not_rigid"
-            self.X[k, worst] = np.nan
+            # the marker in most violations goes; between equals nothing tells which is wrong: all go
+            for worst in ok[bad == bad.max()]:
+                for c in self.cams:
+                    if self.reason[c][k, worst] == "":
+                        self.px[c][k, worst] = np.nan
+                        self.area[c][k, worst] = np.nan
+                        self.reason[c][k, worst] = "not_rigid"
+                self.X[k, worst] = np.nan
 
     def seed_neighbour(self, k, direction):
         """Label frame ``k + direction`` on its own too, so that tracking starts with a velocity.
