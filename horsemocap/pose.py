@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from .rigid import quaternion_from_cross_covariance
 
 __all__ = [
     "CollinearMarkersError",
@@ -259,16 +260,7 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     xc = x[None] - mu_x[:, None]
     pc = pp - mu_p[:, None]
     S = np.einsum("km,kmi,kmj->kij", wn, xc, pc)
-    tr = np.trace(S, axis1=1, axis2=2)
-    A = S - np.swapaxes(S, 1, 2)
-    delta = np.stack([A[:, 1, 2], A[:, 2, 0], A[:, 0, 1]], -1)
-    Q = np.zeros((n, 4, 4))
-    Q[:, 0, 0] = tr
-    Q[:, 0, 1:] = delta
-    Q[:, 1:, 0] = delta
-    Q[:, 1:, 1:] = S + np.swapaxes(S, 1, 2) - tr[:, None, None] * np.eye(3)
-    _, vecs = np.linalg.eigh(Q)
-    q = vecs[:, :, -1]                           # scalar first (q0, q1, q2, q3)
+    q = quaternion_from_cross_covariance(S)      # scalar first (q0, q1, q2, q3), Horn's method
     R = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, 0]])).as_matrix()
     t = mu_p - np.einsum("kij,kj->ki", R, mu_x)
     reg = np.einsum("kij,mj->kmi", R, x) + t[:, None]

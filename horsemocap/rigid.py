@@ -215,6 +215,26 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004)
 # --------------------------------------------------------------------------
 # registration (section 5.4)
 # --------------------------------------------------------------------------
+def quaternion_from_cross_covariance(S: np.ndarray) -> np.ndarray:
+    """Horn's unit quaternion (scalar first) of the rotation that best maps the model onto the points.
+
+    ``S`` (n, 3, 3) is the cross-covariance ``sum_m w_m xc_m pc_m^T`` of the
+    centred model ``xc`` and points ``pc`` (eq. 5.14-5.21): the quaternion is
+    the eigenvector of the largest eigenvalue of Horn's symmetric 4 x 4 matrix.
+    """
+    n = len(S)
+    tr = np.trace(S, axis1=1, axis2=2)
+    A = S - np.swapaxes(S, 1, 2)
+    delta = np.stack([A[:, 1, 2], A[:, 2, 0], A[:, 0, 1]], -1)
+    Q = np.zeros((n, 4, 4))
+    Q[:, 0, 0] = tr
+    Q[:, 0, 1:] = delta
+    Q[:, 1:, 0] = delta
+    Q[:, 1:, 1:] = S + np.swapaxes(S, 1, 2) - tr[:, None, None] * np.eye(3)
+    _, vecs = np.linalg.eigh(Q)
+    return vecs[:, :, -1]
+
+
 def quaternion_to_matrix(q) -> np.ndarray:
     """Rotation matrix of unit quaternions ``q_R = [q0 q1 q2 q3]`` (eq. 5.15, 5.16)."""
     q = np.asarray(q, float)
@@ -300,17 +320,7 @@ def register(points, model) -> Registration:
     mu_p = pp.mean(1)
     pc = pp - mu_p[:, None]
     S = np.einsum("mi,kmj->kij", xc, pc)  # (n, 3, 3): sum_m xc_m pc_m^T
-    tr = np.trace(S, axis1=1, axis2=2)
-    A = S - np.swapaxes(S, 1, 2)
-    delta = np.stack([A[:, 1, 2], A[:, 2, 0], A[:, 0, 1]], -1)
-    Q = np.zeros((n, 4, 4))
-    Q[:, 0, 0] = tr
-    Q[:, 0, 1:] = delta
-    Q[:, 1:, 0] = delta
-    Q[:, 1:, 1:] = S + np.swapaxes(S, 1, 2) - tr[:, None, None] * np.eye(3)
-    _, vecs = np.linalg.eigh(Q)
-    q = vecs[:, :, -1]
-    R = quaternion_to_matrix(q)
+    R = quaternion_to_matrix(quaternion_from_cross_covariance(S))
     t = mu_p - np.einsum("kij,j->ki", R, mu_x)
     reg = np.einsum("kij,mj->kmi", R, x) + t[:, None]
     R[~ok] = np.nan

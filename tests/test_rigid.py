@@ -370,7 +370,11 @@ def test_default_session_saddle_acc():
     rb = an["rigid_body"]["analysis"]
     assert (rb.method, rb.saddle_method) == (an.params.angular_method, an.params.saddle_method)
     st = accuracy.stage_errors(an, truth)
-    assert st["frames"] == len(an["rigid_body"]["t"])     # every analysed frame has its truth row
+    a, b = an["triangulate"]["segment"]
+    frames = an["sync"]["offsets"]["left"] + np.arange(a, b)
+    # compared on every analysed frame the truth covers (the truth lacks frames in which a marker is
+    # not whole in every camera; the multi-view identification measures those with two cameras)
+    assert st["frames"] == int(np.isin(frames, truth.ref_frames).sum()) >= len(frames) - 2
     pct = st["saddle_acc_y_rmse_pct_of_rms"]
     msg = (f"[pipeline default: smoothing {an.params.smoothing_method}, omega {rb.method}, saddle "
            f"{rb.saddle_method}] saddle position RMSE x/y/z mm {np.round(1000 * st['saddle_position'], 1)}; "

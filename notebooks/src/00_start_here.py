@@ -28,7 +28,9 @@ from horsemocap.session import load_session
 # ## The thesis in one figure
 #
 # Every box below is one pure function of the `horsemocap` package, and every arrow is a notebook
-# of this suite. The numbers are the thesis sections.
+# of this suite. The numbers are the thesis sections. The figure follows the thesis' order; the
+# pipeline itself (last section) reads the plumb line and the static shot *before* it detects the
+# markers, because the static shot gives the model the markers are identified by.
 
 # %%
 fig = plots.plot_pipeline()
@@ -42,9 +44,9 @@ plt.show()
 # | 01 virtual laboratory | synthetic rides with exact truth (the thesis videos are not public) | seed 000 §3, 8.1 |
 # | 02 synchronization | the flashlight frame in each camera | 3.5, eq. 3.11-3.14 |
 # | 03 calibration | checkerboards, intrinsics, stereo pairs, a joint rig | 3.3-3.6, 8.2 |
-# | 04 marker detection | threshold, labels, area, window, distance and cross-product filters | 4 |
+# | 04 marker detection | threshold, labels, area, window, distance and cross-product filters; all cameras together in 3D (the default) | 4 |
 # | 05 triangulation | three stereo pairs averaged vs all cameras at once | 5.1 |
-# | 06 smoothing and motion frame | robust loess; x along the displacement, y along the plumb line | 5.2-5.3 |
+# | 06 smoothing and motion frame | loess and the thesis' robust loess; x along the displacement, y along the plumb line | 5.2-5.3 |
 # | 07 gravity check | g from a falling ball | 8.3 |
 # | 08 registration | the rigid body against the static shot | 5.4 |
 # | 09 curve fitting | polynomial x, Fourier y and z, velocity and acceleration | 5.5 |
@@ -113,7 +115,8 @@ print(" -> ".join(STEPS))
 # 1. `motion` and `calibration.images`; `sync` becomes `{"offsets": {"left": ..., "middle": ..., "right": ...}}`.
 # 2. `--threshold` (threshold slider), `--period` and `--x-marker` (motion frame), `--fourier-orders`
 #    (order chooser), `--angular` (omega/alfa versions), `--weighting` (iso/thesis toggle), `--offsets`.
-# 3. The static shot: registration (the rigid model) and the saddle marker. The plumb line: the motion
+# 3. The static shot: detection (the default identifies the markers by its rigid shape), registration
+#    (the rigid model) and the saddle marker. The plumb line: the motion
 #    frame (gravity gives y-motion).
 #
 # </details>

@@ -7,11 +7,11 @@
 # - the thesis rig of Tables 8.1-8.4, and by how much its three pairwise calibrations disagree;
 # - the horse-and-saddle model: one rigid body (3 skin markers + the saddle marker) with a steady
 #   forward speed and periodic translation and rotation, per horse and gait (chapter 2);
-# - what a rendered session contains (shared/spec/sessions.md) and what its truth holds;
+# - what a rendered session contains (`docs/sessions.md`) and what its truth holds;
 # - what makes the images hard: pseudo markers (helmet, stirrup, buckle, bandages, fence rail, glints),
 #   the rider hiding the saddle marker, noise, motion blur and compression;
 # - the stills (plumb, static shot, checkerboards) and the free-falling ball of section 8.3;
-# - the harder laboratory of issue 17: other rigs, image sizes and frame rates, a stirrup, a crossing
+# - a harder laboratory: other rigs, image sizes and frame rates, a stirrup, a crossing
 #   reflector, a marker hidden in one camera, markers near the border, a horse changing speed.
 #
 # **Thesis equations used by the renderer.** A world point $\mathbf{X}$ (left-camera frame) is seen by
@@ -106,8 +106,11 @@ for h in vl.HORSES:
         print(f"{h:8s} {g:13s} {m.gait.speed_mps * 3.6:6.2f} {m.gait.stride_hz:9.3f} {30 * m.period_s:15.1f}")
 
 # %% [markdown]
-# The truth holds the analytic kinematics at the analysed frames (all skin markers visible in all
-# cameras). Horse 2 at canter: the thesis analysed 38 frames, two periods of 18 frames; here:
+# The truth holds the analytic kinematics at its analysed frames: the longest run in which every
+# skin marker is inside the image of every camera, as the thesis chose them. (The pipeline's own
+# segment needs only a 3D position for every marker, so it can differ: here it is one frame longer,
+# notebook 05.)
+# Horse 2 at canter: the thesis analysed 38 frames, two periods of 18 frames; here:
 
 # %%
 n = len(truth.ref_frames)
@@ -145,7 +148,7 @@ for key in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max", "crest_fact
 # %% [markdown]
 # ## 3. The session on disk
 #
-# A session folder as in `shared/spec/sessions.md`: videos (Motion-JPEG AVI, like the Casio
+# A session folder as in `docs/sessions.md`: videos (Motion-JPEG AVI, like the Casio
 # EX-Z750's), plumb and static stills and checkerboard views (the pipeline calibrates the rig from
 # them, as the thesis did); the truth, the true `rig.toml` included, sits in `truth/`, which readers
 # of the session ignore. The cameras were started one after the other: the
@@ -264,8 +267,9 @@ for squares, square in ((vcal.BOARD_SQUARES, 0.05), (vcal.LAB_BOARD_SQUARES, 0.1
 # %% [markdown]
 # ## 6. The free-falling ball (section 8.3)
 #
-# A 65 mm reflective ball thrown up from the lower edge of the volume, peaking 0.70 m higher and
-# falling freely: 21 frames (0.7 s) per camera, already synchronised, plus plumb stills. The truth
+# A 65 mm reflective ball thrown up from the lower edge of the volume, peaking 0.70 m above the
+# throw (about 0.62 m above its first filmed position, the rise printed below) and falling freely:
+# 21 frames (0.67 s from first to last) per camera, already synchronised, plus plumb stills. The truth
 # holds its position, velocity and acceleration, and $g = 9.81$ m/s$^2$ along the true gravity.
 
 # %%
@@ -300,7 +304,7 @@ for s in herd["sessions"][:4]:
     print(f"{s['name']:22s} seed {s['seed']:5d}  {s['speed_kmh']:6.2f} km/h  {s['stride_hz']:.3f} Hz")
 
 # %% [markdown]
-# ## 8. The harder laboratory (issue 17)
+# ## 8. The harder laboratory
 #
 # A detector that only ever saw the herd can be tuned to it without anyone noticing.
 # `vl.HARD_SESSIONS` names sessions that differ the way a new user's recording may: 1280x720 and
@@ -309,7 +313,7 @@ for s in herd["sessions"][:4]:
 # ($v(t) = \bar v + \Delta v \cos(2\pi (t - t_c)/T)$, exact kinematics; the vertical motion stays
 # periodic, so the comfort truth stays exact), a shining stirrup swinging below the markers, a reflector
 # on the whip whose image path crosses the markers', one marker hidden in one camera only for a few
-# frames (reason `occluded_in_camera`) and markers passing ~15 px from an image edge.
+# frames (reason `occluded_in_camera`) and markers passing 12-18 px from an image edge.
 # `vl.hard_session(name)` renders one into the cache (1-5 min each); the truth's `extras` hold every
 # extra's true image path. Below, without rendering: the plan of the "everything" session, seen by its
 # left camera.

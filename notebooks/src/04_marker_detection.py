@@ -222,9 +222,11 @@ for cam in truth.cameras:
           f"swaps {swaps}, pseudo markers reported {pseudo}, visible markers missed {missed}")
 
 # %% [markdown]
-# **Usable frames.** The frames of the analysis are those where every camera sees every marker
-# (in the left camera's numbering, with the synchronisation offsets of eq. 3.11-3.13; here the
-# truth's offsets, notebook 02 finds them from the flashlight).
+# **Usable frames.** With the thesis' per-camera chain (`detection_method="thesis"`), the frames of
+# the analysis are those where every camera sees every marker (in the left camera's numbering, with
+# the synchronisation offsets of eq. 3.11-3.13; here the truth's offsets, notebook 02 finds them
+# from the flashlight). The pipeline's default asks less (section 9): every marker needs a 3D
+# position, from two cameras or more, or bridged over a short gap.
 
 # %%
 usable = detection.usable_frames(tracks, truth.offsets, "left")
@@ -266,7 +268,12 @@ for cam in truth.cameras:
 # ## 8 · The output: `markers_2d.csv`
 #
 # One row per camera, frame (in the camera's own numbering) and marker; empty values where the
-# marker was not found.
+# marker was not found. Two more columns: `reason` says why a centre is empty or was not used
+# (empty when it was used), and `residual_px` is the distance between the centre and the
+# projection of the marker's triangulated 3D point. These per-camera tracks have no 3D point, so
+# `residual_px` stays empty here. The pipeline fills it, and writes each marker's 3D position
+# (before smoothing, with the number of cameras used and a reason, `interpolated` for a bridged
+# gap) to `markers_3d.csv`.
 
 # %%
 with tempfile.TemporaryDirectory() as tmp:
@@ -320,7 +327,7 @@ from horsemocap import accuracy
 from horsemocap.detection import identification
 from horsemocap.pipeline import results_for
 
-analysis = results_for(session, until="detect")
+analysis = results_for(session, until="triangulate")
 res = analysis.results
 k = res["detect"]["identification"]["anchor_frame"]
 offsets = res["sync"]["offsets"]
@@ -389,7 +396,8 @@ print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with 
 #    window_predict=False))` and compare `track.found` with `truth.marker_visible["left"][:, :3]`.
 # 3. `np.unique(tracks["right"].reason, return_counts=True)`; the markers enter and leave the
 #    image (`left_image`), which the truth calls `outside_image` / `partly_outside_image`.
-# 4. On this session both find the markers; the thesis' chain analyses only the frames in which
-#    every camera sees every marker, the multi-view one every frame in which two cameras do.
+# 4. On this session both find the markers. The thesis' chain analyses only the longest run in
+#    which every camera sees every marker; the multi-view one the longest run in which every marker
+#    has a 3D position (seen by two or more cameras, or bridged over a short gap).
 #
 # </details>

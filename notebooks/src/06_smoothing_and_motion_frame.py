@@ -42,10 +42,11 @@ from horsemocap.virtuallab import load_truth
 # ## The data
 #
 # The pipeline, up to this notebook's steps, on the default session (as in notebook 05): flashlight
-# offsets, the rig calibrated from the checkerboard views, the detected marker centres, joint
-# triangulation of the analysed frames (the longest run every camera sees every marker in), the
-# plumb markers detected in the plumb stills and triangulated, then the smoothing step, the period
-# and the motion frame. Its automatic choices are printed; the widgets below start from them.
+# offsets, the rig calibrated from the checkerboard views, the plumb markers detected in the plumb
+# stills and triangulated, the static shot, the marker centres identified by all cameras together,
+# joint triangulation of the analysed frames (the longest run in which every marker has a 3D
+# position), then the smoothing step, the period and the motion frame. Its automatic choices are
+# printed; the widgets below start from them.
 
 # %%
 session_dir = default_session_dir()
@@ -73,8 +74,11 @@ print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.s
 
 # %%
 truth = load_truth(session_dir)
-rows = np.searchsorted(truth.ref_frames, res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b))
-true_pos = truth.marker_pos[rows]
+frames_ref = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
+rows = np.searchsorted(truth.ref_frames, frames_ref).clip(0, len(truth.ref_frames) - 1)
+known = truth.ref_frames[rows] == frames_ref                # the truth covers the frames all cameras see whole
+print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames; errors are measured on those")
+true_pos = np.where(known[:, None, None], truth.marker_pos[rows], np.nan)   # NaN where the truth has no row
 A_true = truth.motion_axes                                  # rows: true x-, y-, z-motion directions
 
 
@@ -92,8 +96,8 @@ print(f"triangulated: RMSE x {r[0]:.2f}, y {r[1]:.2f}, z {r[2]:.2f} mm; bias rem
 # %% [markdown]
 # ## 1 · Smoothing, the MATLAB way
 #
-# `smooth(y, span, 'rloess')` (MathWorks, *Curve Fitting Toolbox: Smoothing Data*; rules written
-# down in `shared/notes/matlab-algorithms.md`):
+# `smooth(y, span, 'rloess')` (MathWorks, *Curve Fitting Toolbox: Smoothing Data*; the rules as
+# `horsemocap.smoothing` implements them):
 #
 # 1. **span** — a fraction becomes `ceil(span * n)` points, at most $n$; on uniform data an even
 #    span is made odd: $n = 100 \to 11$, $n = 89 \to 9$, $n = 38 \to 5$.
@@ -159,7 +163,7 @@ print(f"{'':38s} {'RMSE x':>7s} {'y':>5s} {'z':>6s} | {'no bias x':>9s} {'y':>5s
       f"{'x':>5s} {'y':>5s} {'z':>5s}   (mm)")
 for label, kw in variants.items():
     s_meas = points if kw is None else smoothing.smooth_positions(points, 0.1, nan="omit", **kw)
-    s_true = true_pos if kw is None else smoothing.smooth_positions(true_pos, 0.1, **kw)
+    s_true = true_pos if kw is None else smoothing.smooth_positions(true_pos, 0.1, nan="omit", **kw)
     r, rc = errors_mm(s_meas)
     rt, _ = errors_mm(s_true)
     print(f"{label:38s} {r[0]:7.2f} {r[1]:5.2f} {r[2]:6.2f} | {rc[0]:9.2f} {rc[1]:5.2f} {rc[2]:5.2f} | "
@@ -220,8 +224,10 @@ print(f"window: {k_win:d} frames = {k_win / fps:.2f} s, {k_win / mf_pipeline.per
 # the choice was measured over the 16 sessions of the virtual herd (every horse and gait,
 # notebook 13), the same detections and rig for each method, with
 # `python benchmarks/bench_herd.py --params '{"smoothing_method": "none"}'` (then `"loess"`,
-# `"rloess"`). It takes minutes, so it is **not** computed here; the lead's measurements, medians
-# over the 16 sessions of |error| against the truth:
+# `"rloess"`). It takes minutes, so it is **not** computed here. The measurements below were made
+# with the thesis' per-camera detection, before the multi-view identification became the default
+# (notebook 13, section 6, measures the current default); medians over the 16 sessions of |error|
+# against the truth:
 #
 # | smoothing | saddle vertical acceleration error (% of its RMS) | Wb-weighted rms | Wk-weighted rms | VDV (Wb) | VDV (Wk) | worst session |
 # |---|---|---|---|---|---|---|
@@ -379,7 +385,7 @@ for mode in ("thesis", "joint"):
               f"x-motion axis {st['x_axis_deg']:.3f} deg")
 
 # %% [markdown]
-# The issue's targets, checked on these numbers (x- and y-motion RMSE below 3 mm after smoothing,
+# The suite's targets, checked on these numbers (x- and y-motion RMSE below 3 mm after smoothing,
 # i.e. with the pipeline's default `loess` — the other two methods are shown for comparison;
 # joint no worse than thesis; plumb gravity within 0.2°). Differences under 0.05 mm between the
 # modes are counted as equal (they are far below the detector's own error).
@@ -417,9 +423,10 @@ for mode in ("joint", "thesis"):
 # acceleration and angle. Section 8 measures where that offset comes from. The thesis' `rloess`
 # makes the y-motion worse in every column (and with it the joint-versus-thesis comparison
 # depends on the smoother, not on the triangulation). Compared with no smoothing, `loess` lowers
-# the x- and z-motion errors a little, costs hundredths of a millimetre vertically, and tilts the
-# estimated x-motion axis a little more (u1 is taken between end frames, where the window is
-# one-sided). The depth (z-motion) is the weak axis of a narrow-baseline rig (notebook 05);
+# the x- and z-motion errors a little, costs hundredths of a millimetre vertically, and leaves the
+# estimated x-motion axis almost where it was (u1 is taken between end frames, where the window is
+# one-sided, so the smoother could tilt it). The depth (z-motion) is the weak axis of a
+# narrow-baseline rig (notebook 05);
 # notebook 14 follows all of this through to the comfort indicators, with noisier detections too.
 #
 # ## 8 · The absolute offset is the calibration's: how large can it be?

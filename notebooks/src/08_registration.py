@@ -37,8 +37,9 @@ from horsemocap import plots, rigid
 # ## The data: the pipeline's own
 #
 # The default session is Horse 2 at canter from the virtual laboratory. `results_for` runs (or loads) the
-# pipeline's steps up to the rigid body with the automatic choices: synchronisation, calibration, marker
-# detection, triangulation, smoothing, the motion frame (notebooks 02-07). Its `motion_frame` step hands the
+# pipeline's steps up to the rigid body with the automatic choices: synchronisation, calibration, the plumb
+# line and the static shot, marker detection, triangulation, smoothing, the motion frame (notebooks 02-06).
+# Its `motion_frame` step hands the
 # rigid-body step the marker positions in the motion frame (`positions`, smoothed with the pipeline's default
 # `smoothing_method="loess"`: MATLAB's `smooth(y, 0.1, 'loess')`, see notebook 06) and the four static-shot
 # points in the same frame (`static`, in the detector's order). The virtual laboratory's truth is used only to
@@ -46,8 +47,9 @@ from horsemocap import plots, rigid
 #
 # The thesis smoothed with `rloess`, the same local regression followed by robust iterations that give
 # outlying samples less weight. The pipeline leaves the robust iterations out by default, on a measurement
-# over the 16 virtual herd sessions (`benchmarks/bench_herd.py`, same detections and rig for each method;
-# quoted here, not recomputed by this notebook): the median |error| of the Wb-weighted rms of the saddle's
+# over the 16 virtual herd sessions (`benchmarks/bench_herd.py`, same detections and rig for each method,
+# made with the thesis' per-camera detection; quoted here, not recomputed by this notebook): the median
+# |error| of the Wb-weighted rms of the saddle's
 # vertical acceleration was 7.9 % with `loess`, 9.5 % with `rloess` and 20.4 % without smoothing (worst
 # session 17.6 %, 140 % and 53.5 %). On a record of a few dozen frames a 0.1 span is only a few points, and
 # the robust iterations then reject good samples near the ends of the record.

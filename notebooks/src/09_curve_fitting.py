@@ -76,11 +76,11 @@ print(f"stride period of the virtual horse {1 / stride_hz:.3f} s (w = {2 * np.pi
 fx = auto.fits[0][0]
 print(fx.summary())
 print(f"V_x,avg = {fx.coefficients[0]:.3f} m/s = {3.6 * fx.coefficients[0]:.2f} km/h "
-      f"(truth mean {3.6 * true_kin['vel'][:, 0, 0].mean():.2f} km/h)")
+      f"(truth mean {3.6 * np.nanmean(true_kin['vel'][:, 0, 0]):.2f} km/h)")
 x_true = true_kin["pos"][:, 0, 0]
 surge = x_true - np.polyval(np.polyfit(t, x_true, 1), t)
-print(f"true surge of marker 1 about a straight line: {100 * surge.min():+.1f} to {100 * surge.max():+.1f} cm; "
-      f"rms of its true A_x {np.sqrt(np.mean(true_kin['acc'][:, 0, 0] ** 2)):.2f} m/s^2")
+print(f"true surge of marker 1 about a straight line: {100 * np.nanmin(surge):+.1f} to {100 * np.nanmax(surge):+.1f} cm; "
+      f"rms of its true A_x {np.sqrt(np.nanmean(true_kin['acc'][:, 0, 0] ** 2)):.2f} m/s^2")
 
 # %% [markdown]
 # The virtual horse, like a real one, surges a little within each stride (printed above): a straight
@@ -129,7 +129,7 @@ plt.show()
 for N in (1, 2, 3, 4):
     fm = fitting.fit_fourier(t, y, N, trend=prm.fourier_trend)
     fp = fitting.fit_fourier(t, y, N, w0=w0, trend=prm.fourier_trend)
-    err = lambda f: np.sqrt(np.mean((f.evaluate(t, 2) - truth_y["acc"]) ** 2))
+    err = lambda f: np.sqrt(np.nanmean((f.evaluate(t, 2) - truth_y["acc"]) ** 2))
     print(f"fourier{N}: MATLAB start w = {fm.frequency:6.3f} rad/s, acc RMSE {err(fm):5.2f} m/s^2 | "
           f"start at the period, w = {fp.frequency:6.3f}, acc RMSE {err(fp):5.2f} m/s^2")
 

@@ -76,11 +76,11 @@ with np.errstate(all="ignore"):
     exact = rigid.angular_velocity_versions(P, V)
 ang_true = rigid.singularity_angle(P, omega_true)
 far = np.abs(ang_true - 90) > 10
-print(f"compatibility residual (eq. 6.20) below 1e-12 m^2/s: {np.abs(rigid.compatibility_residual(P, V)).max() < 1e-12}")
+print(f"compatibility residual (eq. 6.20) below 1e-12 m^2/s: {np.nanmax(np.abs(rigid.compatibility_residual(P, V))) < 1e-12}")
 print(f"versions vs truth where |angle - 90| > 10 deg ({far.sum()} frames): exact to 1e-6 rad/s: "
       f"{np.nanmax(np.abs(exact[:, far] - omega_true[far])) < 1e-6}")
 print(f"least squares vs truth, all frames: exact to 1e-6 rad/s: "
-      f"{np.abs(rigid.angular_velocity_lstsq(P, V) - omega_true).max() < 1e-6}")
+      f"{np.nanmax(np.abs(rigid.angular_velocity_lstsq(P, V) - omega_true)) < 1e-6}")
 print(f"angle(omega, n) of the true motion: {np.nanmin(ang_true):.0f} to {np.nanmax(ang_true):.0f} deg; "
       f"within 15 deg of 90 in {np.mean(np.abs(ang_true - 90) < 15) * 100:.0f} % of the frames")
 
@@ -121,8 +121,8 @@ with warnings.catch_warnings():
 omega_avg = rigid.average_versions(rb2.omega_versions, use_w)
 rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - tr) ** 2)))
 per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, tr))
-print(f"rms of the true omega: {np.sqrt(np.mean(omega_true ** 2)):.3f} rad/s, x/y/z "
-      + "  ".join(f"{v:6.3f}" for v in np.sqrt(np.mean(omega_true ** 2, axis=0))) + f"; method used: {rb2.method}")
+print(f"rms of the true omega: {np.sqrt(np.nanmean(omega_true ** 2)):.3f} rad/s, x/y/z "
+      + "  ".join(f"{v:6.3f}" for v in np.sqrt(np.nanmean(omega_true ** 2, axis=0))) + f"; method used: {rb2.method}")
 print("omega RMSE (rad/s, all components; smoothed versions):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
     print(f"  {lab}: {rmse(rb2.omega_versions[i], omega_true):8.3f}" + ("" if use_w[i] else "  (not used)"))
@@ -163,7 +163,7 @@ plt.show()
 
 # %%
 alpha_avg = rigid.average_versions(rb2.alpha_versions, use_a)
-print(f"rms of the true alpha: {np.sqrt(np.mean(alpha_true ** 2)):.2f} rad/s^2")
+print(f"rms of the true alpha: {np.sqrt(np.nanmean(alpha_true ** 2)):.2f} rad/s^2")
 print("alpha RMSE (rad/s^2, all components):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
     print(f"  {lab.replace('omega', 'alfa')}: {rmse(rb2.alpha_versions[i], alpha_true):9.2f}" + ("" if use_a[i] else "  (not used)"))

@@ -130,7 +130,7 @@ plt.show()
 # %% [markdown]
 # ## How accurate is the saddle's vertical acceleration?
 #
-# The target of the issue: RMSE of the saddle's vertical acceleration at most 5 % of the rms of the true
+# The target set for this suite: RMSE of the saddle's vertical acceleration at most 5 % of the rms of the true
 # one. Every saddle method, with the pipeline's other choices, and the thesis' whole chain (its six-version
 # $\boldsymbol\omega$, $\boldsymbol\alpha$ in eq. 6.55), each a run of the pipeline's rigid-body step
 # measured by `accuracy.stage_errors`:
@@ -142,7 +142,7 @@ variants = [("eq. 6.55 mean", prm.angular_method, "thesis"),
             ("fit of eq. 6.48 path", prm.angular_method, "direct"),
             ("fit of pose path", prm.angular_method, "pose")]
 ay = S_true["acc"][:, 1]
-print(f"rms of the true vertical acceleration: {np.sqrt(np.mean(ay ** 2)):.2f} m/s^2")
+print(f"rms of the true vertical acceleration: {np.sqrt(np.nanmean(ay ** 2)):.2f} m/s^2")
 print("saddle v/a from          omega/alfa  position RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
 for label, am, sm in variants:
     with warnings.catch_warnings():
@@ -186,10 +186,11 @@ for sm in ("none", "loess", "rloess"):
 
 # %% [markdown]
 # On this one session no smoothing happens to be the best, and the thesis' `rloess` is the worst: its robust
-# iterations reject good samples near the ends of a 38-frame record, where a 0.1 span is only a few points.
+# iterations reject good samples near the ends of a 39-frame record, where a 0.1 span is only a few points.
 # One session is not enough to choose a default. The default comes from the 16 sessions of the virtual herd
 # (4 horses × walk, sitting trot, rising trot, canter), measured by `benchmarks/bench_herd.py` with the same
-# detections and rig for each method; these numbers are quoted from that benchmark, this notebook does not
+# detections and rig for each method (the thesis' per-camera detection); these numbers are quoted from
+# that benchmark, this notebook does not
 # recompute them:
 #
 # | smoothing | saddle vertical acc RMSE, median over the 16 sessions (% of rms) | Wb-weighted rms, median \|error\| | Wb-weighted rms, worst session \|error\| |
@@ -225,6 +226,6 @@ for sm in ("none", "loess", "rloess"):
 #    angular acceleration term carries most of the error (tens to hundreds of rad/s² of error, notebook 10,
 #    times 0.45 m).
 # 3. `np.abs(rb.saddle_acceleration[:, 1]).max()` vs `np.abs(S_true["acc"][:, 1]).max()`: the fit smooths
-#    the peak a little; 38 frames at 30 fps sample the peak itself only roughly.
+#    the peak a little; 39 frames at 30 fps sample the peak itself only roughly.
 #
 # </details>

@@ -212,10 +212,10 @@ for g in list(herd.GAITS) + ["pooled"]:
           f"  {rho_truth[(g, 'acc_y_Wb_rms')]:6.2f}")
 
 # %% [markdown]
-# The narrow-baseline rig measures each session's indicators only to within some ten percent (the
-# bundled Horse 2 canter is one of the easiest sessions), yet within a gait the horses are mostly
-# ranked as the truth ranks them (the rank correlations above; where two horses are within the
-# measurement error of each other, e.g. at rising trot, they can swap places): the comparison of section 8.5 survives the measurement error, the absolute
+# The narrow-baseline rig measures each session's indicators only to within some ten percent, up to
+# about twenty (the bundled Horse 2 canter is one of the easiest sessions), yet within every gait the
+# horses are ranked as the truth ranks them (the rank correlations above agree; where two horses are
+# within the measurement error of each other they could swap places): the comparison of section 8.5 survives the measurement error, the absolute
 # riding times do not — read them as relative comfort (section 5). `benchmarks/bench_herd.py` prints
 # the same comparison with every stage's error, and shows how the default smoothing (loess) was
 # chosen over the thesis' rloess on these 16 sessions.

@@ -180,8 +180,9 @@ for fps in (30.0, 60.0):
 # so fitted noise at high orders swamps it. Requiring every kept harmonic to be significant
 # (`order_rule="every_significant"`) lowers such orders, but on the 16 herd sessions it also drops
 # real high harmonics that the comfort weightings need: `benchmarks/bench_herd.py --params
-# '{"order_rule": "every_significant"}'` measured the median saddle error 24.6 → 19.4 % but the
-# median error of the Wb-weighted rms 7.9 → 11.2 % (underestimated). The pipeline keeps the default
+# '{"order_rule": "every_significant"}'` (with the thesis' per-camera detection) measured the median
+# saddle error 24.6 → 19.4 % but the median error of the Wb-weighted rms 7.9 → 11.2 %
+# (underestimated). The pipeline keeps the default
 # rule; a frame-rate-proof order choice is still open.
 #
 # ## Exercises
