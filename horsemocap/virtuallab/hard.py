@@ -41,7 +41,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import shutil
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -50,6 +49,7 @@ import numpy as np
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..data import cache_dir
+from .herd import render_into_cache
 from .horse import HERD, Harmonics, SaddleMotion, marker_height
 from .render import disc_boundary, draw_disc_blurred, fill_polygon
 from .session import (CAMERA_NAMES, EXPOSURE_S, FLASH_POSITION_G, MARKER_DIAMETER, PLUMB_TAIL_G, PLUMB_TIP_G,
@@ -792,15 +792,5 @@ def hard_session(name: str, cache=None, force: bool = False) -> Path:
     sc = HARD_SESSIONS[name]
     root = Path(cache) if cache else cache_dir()
     folder = root / "virtuallab" / f"hard-{name}-{hard_key(sc)}"
-    done = folder / ".complete"
-    if done.is_file() and not force:
-        return folder
-    if folder.exists():
-        shutil.rmtree(folder)
-    tmp = folder.with_name(folder.name + ".partial")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    render_hard(tmp, sc)
-    (tmp / ".complete").write_text("rendered by horsemocap.virtuallab.hard.hard_session\n")
-    tmp.rename(folder)
+    render_into_cache(folder, lambda tmp: render_hard(tmp, sc), "horsemocap.virtuallab.hard.hard_session", force)
     return folder

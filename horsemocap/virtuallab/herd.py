@@ -87,17 +87,27 @@ def herd_session(horse: str, gait: str, *, cache=None, force: bool = False) -> P
 
     root = Path(cache) if cache else cache_dir()
     folder = root / "virtuallab" / f"{session_slug(horse, gait)}-{_key(horse, gait)}"
-    done = folder / ".complete"
-    if done.is_file() and not force:
+    # herd sessions carry the rig (calibrated once for the whole herd): no views to render
+    return render_into_cache(folder, lambda tmp: render_session(
+        tmp, horse, gait, seed=herd_seed(horse, gait), name=session_slug(horse, gait), calibration_views=0),
+        "horsemocap.virtuallab.herd_session", force)
+
+
+def render_into_cache(folder: Path, render, by: str, force: bool = False) -> Path:
+    """``folder``, rendered by ``render(tmp)`` unless a complete render exists.
+
+    The render goes into ``<folder>.partial`` and is renamed when complete
+    (a ``.complete`` marker inside), so an interrupted render is never taken
+    for a session; ``force`` renders again.
+    """
+    if (folder / ".complete").is_file() and not force:
         return folder
     if folder.exists():
         shutil.rmtree(folder)
     tmp = folder.with_name(folder.name + ".partial")
     if tmp.exists():
         shutil.rmtree(tmp)
-    # herd sessions carry the rig (calibrated once for the whole herd): no views to render
-    render_session(tmp, horse, gait, seed=herd_seed(horse, gait), name=session_slug(horse, gait),
-                   calibration_views=0)
-    (tmp / ".complete").write_text("rendered by horsemocap.virtuallab.herd_session\n")
+    render(tmp)
+    (tmp / ".complete").write_text(f"rendered by {by}\n")
     tmp.rename(folder)
     return folder
