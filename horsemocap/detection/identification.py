@@ -462,10 +462,10 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
     model = np.asarray(model, float)
     subsets = [np.asarray(model_index, int)] if model_index is not None else \
         [np.asarray(s, int) for s in itertools.combinations(range(len(model)), M)]
-    perms = np.array(list(itertools.permutations(range(P), M)), dtype=np.intp)
-    if len(perms) > 200000:
+    if math.perm(P, M) > 200000:
         raise DetectionError(f"identification: {P} consistent 3D points in one frame are too many to label; "
                              "give a higher threshold or a smaller area range")
+    perms = np.array(list(itertools.permutations(range(P), M)), dtype=np.intp)
     pairs = list(itertools.combinations(range(M), 2))
     pts = points[perms]                                           # (K, M, 3)
     extra = (np.asarray(missing, float)[perms].sum(axis=1) * MISSING_VIEW_COST if missing is not None
@@ -601,8 +601,11 @@ def label_frame(rig, cands: dict, model: np.ndarray, n_markers: int, max_residua
     for i, c in enumerate(cams):
         seen = vp.index[:, i] >= 0
         areas[seen, i] = cands[c].area[vp.index[seen, i]]
-    fit = fit_marker_model(vp.points, cov, model, n_markers, rig[cams[0]].center, model_index, slack_m,
-                           missing=vp.missing, areas=areas)
+    try:
+        fit = fit_marker_model(vp.points, cov, model, n_markers, rig[cams[0]].center, model_index, slack_m,
+                               missing=vp.missing, areas=areas)
+    except DetectionError as exc:            # a cluttered frame cannot be labelled; others may be
+        return vp, None, str(exc)
     if fit is None:
         return vp, None, f"{len(vp)} consistent 3D points, none {n_markers} in the static shot's shape"
     if fit.margin < MIN_MARGIN:
@@ -937,7 +940,8 @@ class _Tracker:
                 if off.any() and not np.isfinite(cost).any():
                     why_all = "off_track"
                 b = int(np.argmin(cost))
-                used, self.X[k, m], dropped = self._consistent_views(cams, cands, combos[b], X[b])
+                if np.isfinite(cost[b]):          # else no combination is consistent and on track: none used
+                    used, self.X[k, m], dropped = self._consistent_views(cams, cands, combos[b], X[b])
         else:
             dropped = set()
         n_good = sum(1 for o in options if len(o) > 1)
