@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-from .rigid import quaternion_from_cross_covariance
+from .rigid import check_model, quaternion_from_cross_covariance
 
 __all__ = [
     "CollinearMarkersError",
@@ -222,12 +222,8 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     p = np.asarray(points, float)
     if p.ndim != 3 or p.shape[2] != 3:
         raise ValueError(f"points: expected an array (frames, markers, 3), got shape {p.shape}")
-    x = np.asarray(model, float)
     n, m, _ = p.shape
-    if x.shape != (m, 3):
-        raise ValueError(f"model: expected shape ({m}, 3) to match points, got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("model: static-shot markers contain NaN")
+    x = check_model(model, m)
     check_model_conditioning(x)
     size = float(np.max(np.linalg.norm(x[:, None] - x[None], axis=-1)))
     if min_height_m is None:

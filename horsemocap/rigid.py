@@ -215,6 +215,16 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004)
 # --------------------------------------------------------------------------
 # registration (section 5.4)
 # --------------------------------------------------------------------------
+def check_model(model, n_markers: int) -> np.ndarray:
+    """The static-shot model as a finite ``(n_markers, 3)`` array, or a clear error."""
+    x = np.asarray(model, float)
+    if x.shape != (n_markers, 3):
+        raise ValueError(f"model: expected shape ({n_markers}, 3) to match points, got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("model: static-shot markers contain NaN")
+    return x
+
+
 def quaternion_from_cross_covariance(S: np.ndarray) -> np.ndarray:
     """Horn's unit quaternion (scalar first) of the rotation that best maps the model onto the points.
 
@@ -301,12 +311,8 @@ def register(points, model) -> Registration:
         Frames where any marker is NaN stay NaN, with the reason.
     """
     p = _as_positions("points", points)
-    x = np.asarray(model, float)
     n, m, _ = p.shape
-    if x.shape != (m, 3):
-        raise ValueError(f"model: expected shape ({m}, 3) to match points, got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("model: static-shot markers contain NaN")
+    x = check_model(model, m)
     if m < 3:
         raise ValueError(f"points: registration needs at least 3 markers, got {m}")
     ok = np.all(np.isfinite(p), axis=(1, 2))

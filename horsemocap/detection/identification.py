@@ -613,14 +613,19 @@ def label_frame(rig, cands: dict, model: np.ndarray, n_markers: int, max_residua
     return vp, fit, ""
 
 
+def _whole_frame_candidates(frames, k, cams, thr, cparams) -> dict:
+    """Candidates of frame ``k`` of every camera, searched in the whole image (no prediction)."""
+    return {c: frame_candidates(frames[c][k], thr[c], _area_range(cparams[c]), _min_circ(cparams[c]),
+                                centroid=cparams[c].centroid) for c in cams}
+
+
 def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step):
     """The frame where the markers are labelled most clearly (middle of the record outward)."""
     centre = rig[cams[0]].center
     n = len(frames[cams[0]])
     tried, best = [], None
     for k in _middle_out(n, step):
-        cands = {c: frame_candidates(frames[c][k], thr[c], _area_range(cparams[c]), _min_circ(cparams[c]),
-                                     centroid=cparams[c].centroid) for c in cams}
+        cands = _whole_frame_candidates(frames, k, cams, thr, cparams)
         vp, fit, why = label_frame(rig, cands, model, M, max_residual_px, model_index)
         if fit is None:
             tried.append((k, why))
@@ -1089,15 +1094,11 @@ class _Tracker:
         j = k + direction
         if not 0 <= j < self.n:
             return k
-        cands = {c: frame_candidates(self.frames[c][j], self.thr[c], _area_range(self.cparams[c]),
-                                     _min_circ(self.cparams[c]), centroid=self.cparams[c].centroid)
-                 for c in self.cams}
-        vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
+        cands, vp, fit = self._label_whole_frame(j)
         if fit is None:
             return k
         step = np.linalg.norm(vp.points[fit.assignment] - self.X[k], axis=1)
-        spacing = np.min(self.model_d[np.triu_indices(self.M, 1)])
-        if not np.all(step < spacing):          # further than a marker spacing in one frame: not the same set
+        if not np.all(step < 2 * self.max_step):   # further than a marker spacing in one frame: not the same set
             return k
         self.start(j, cands, vp, fit)
         return j
@@ -1117,11 +1118,14 @@ class _Tracker:
                 k = self.seed_neighbour(k, direction)
             k += direction
 
-    def _reacquire(self, k):
-        cands = {c: frame_candidates(self.frames[c][k], self.thr[c], _area_range(self.cparams[c]),
-                                     _min_circ(self.cparams[c]), centroid=self.cparams[c].centroid)
-                 for c in self.cams}
+    def _label_whole_frame(self, k):
+        """Candidates, 3D points and model labelling of frame ``k`` searched without a prediction."""
+        cands = _whole_frame_candidates(self.frames, k, self.cams, self.thr, self.cparams)
         vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
+        return cands, vp, fit
+
+    def _reacquire(self, k):
+        cands, vp, fit = self._label_whole_frame(k)
         if fit is None:
             return False
         # stricter than the anchor search (which picks the clearest of many frames): every marker
