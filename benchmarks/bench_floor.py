@@ -1,0 +1,425 @@
+"""Every hot step against its floor on equal work, in one run (issue 16).
+
+Floors (what nothing doing the same job can beat), each timed in the same
+run as the step, the two taking turns, medians of ``--repeat`` rounds, one
+OpenCV thread, with the machine's load average (``os.getloadavg``) printed
+before and after:
+
+* **detection, equal work**: while a detector runs once, every
+  ``cv2.cvtColor`` it calls (input shape) and every image it thresholds and
+  labels (``filters._candidates_in``: the gray crop itself) are recorded;
+  the floor is ``cvtColor`` on RGB arrays of the same shapes plus
+  ``threshold + connectedComponentsWithStats`` on the same gray crops.
+  Ratio = floor time / detector time (1 = no overhead beyond OpenCV).
+* **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
+  + connectedComponentsWithStats`` on every whole frame the detector was
+  given (what a detector without the thesis' sliding window must do).
+  Detectors: the thesis' per-camera chain (``detect_markers`` with the
+  parameters of its automatic run given back, RGB frames) and the default
+  multi-view identification (``identify_markers``, all cameras, gray
+  converted on access as the pipeline's ``FrameSequence`` does).
+  Sessions: the bundled one (640 x 480) and the hard 1080p session
+  ``canter1080_toedin_50_speed`` (render cache, rendered on first use).
+* **decoding**: reading every frame of every video (gray, as the pipeline
+  reads them): the floor of the whole pipeline.
+* **joint triangulation** (``reconstruction.triangulate``, all cameras, DLT
+  + refinement + consistency check) against ``cv2.undistortPoints`` +
+  ``cv2.triangulatePoints`` of one camera pair on the same points (the
+  session's identified markers, tiled to ``--points`` points).
+* **calibration**: the solve of ``calibrate_rig`` (each camera, the three
+  pairs, the joint bundle adjustment) against ``cv2.calibrateCamera`` per
+  camera + ``cv2.stereoCalibrate`` per pair on the same detected corners;
+  board detection (``detect_views``) timed on its own.
+* **the bundled analysis**: ``pipeline.analyze`` into a fresh results
+  folder, then again into the same folder (the cached calibration), against
+  calibration (board detection + solve) + decoding.
+
+Usage: ``python benchmarks/bench_floor.py [--repeat 3] [--frames 80] [--points 20000]
+[--out benchmarks/results/floor.json]``
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+HARD_1080 = "canter1080_toedin_50_speed"
+
+
+def load():
+    return tuple(round(x, 2) for x in os.getloadavg())
+
+
+def rounds(fns: dict, repeat: int) -> dict:
+    """Median seconds of each function over ``repeat`` rounds, the functions taking turns."""
+    times = {k: [] for k in fns}
+    for _ in range(repeat):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return {k: float(np.median(v)) for k, v in times.items()}
+
+
+# ---------------------------------------------------------------------------
+# recording what a detector asks of OpenCV
+# ---------------------------------------------------------------------------
+
+class Recorder:
+    """Patches ``cv2.cvtColor`` and the detectors' labelling call to record their inputs."""
+
+    def __init__(self):
+        self.convert_shapes = []
+        self.labelled = []          # (gray crop copy, threshold)
+
+    def __enter__(self):
+        from horsemocap.detection import filters, tracking
+
+        self._orig = (cv2.cvtColor, filters._candidates_in, tracking._candidates_in)
+        orig_cvt, orig_cand = self._orig[0], self._orig[1]
+
+        def cvt(src, code, *a, **k):
+            if code == cv2.COLOR_RGB2GRAY:
+                self.convert_shapes.append(src.shape)
+            return orig_cvt(src, code, *a, **k)
+
+        def cand(sub, origin, size, threshold, *a, **k):
+            if sub.size:
+                self.labelled.append((np.array(sub), int(threshold)))
+            return orig_cand(sub, origin, size, threshold, *a, **k)
+
+        cv2.cvtColor = cvt
+        filters._candidates_in = cand
+        tracking._candidates_in = cand
+        return self
+
+    def __exit__(self, *exc):
+        from horsemocap.detection import filters, tracking
+
+        cv2.cvtColor, filters._candidates_in, tracking._candidates_in = self._orig
+
+    def floor(self, rgb_like: np.ndarray):
+        """A function doing the recorded OpenCV work alone."""
+        H, W = rgb_like.shape[:2]
+        conv = [rgb_like[:s[0], :s[1]] for s in self.convert_shapes if s[0] <= H and s[1] <= W]
+        lab = self.labelled
+
+        def run():
+            for a in conv:
+                cv2.cvtColor(a, cv2.COLOR_RGB2GRAY)
+            for g, t in lab:
+                b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
+                cv2.connectedComponentsWithStats(b, connectivity=8)
+        return run
+
+    def summary(self):
+        px_conv = sum(s[0] * s[1] for s in self.convert_shapes)
+        px_lab = sum(g.size for g, _ in self.labelled)
+        return {"conversions": len(self.convert_shapes), "converted_px": int(px_conv),
+                "labellings": len(self.labelled), "labelled_px": int(px_lab)}
+
+
+def whole_frame_floor(rgb_frames: list, thresholds: list):
+    def run():
+        for frames, t in zip(rgb_frames, thresholds):
+            for f in frames:
+                g = cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)
+                b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
+                cv2.connectedComponentsWithStats(b, connectivity=8)
+    return run
+
+
+class GrayOnAccess:
+    """RGB frames in memory, converted to gray when indexed (the last few kept, as FrameSequence)."""
+
+    def __init__(self, rgb, keep=16):
+        self.rgb, self.keep, self.cache = rgb, keep, {}
+
+    def __len__(self):
+        return len(self.rgb)
+
+    def __getitem__(self, k):
+        g = self.cache.pop(k, None)
+        if g is None:
+            g = cv2.cvtColor(self.rgb[k], cv2.COLOR_RGB2GRAY)
+        self.cache[k] = g
+        while len(self.cache) > self.keep:
+            self.cache.pop(next(iter(self.cache)))
+        return g
+
+
+# ---------------------------------------------------------------------------
+# the steps
+# ---------------------------------------------------------------------------
+
+def prepare(folder, rig=None):
+    """Sync, rig (given or from rig.toml), plumb, static and detect of a session."""
+    from horsemocap.pipeline import resolve_params, run_steps
+    from horsemocap.session import load_session
+
+    s = load_session(folder)
+    p = resolve_params(s)
+    res = {}
+    if rig is not None:
+        res = run_steps(s, p, {}, ["sync"]).results
+        res["rig"] = {"rig": rig, "rig_from": "given"}
+        a = run_steps(s, p, res, ["plumb", "static", "detect"])
+    else:
+        a = run_steps(s, p, {}, ["sync", "rig", "plumb", "static", "detect"])
+    return s, a.results
+
+
+def bench_detection(name, s, res, n_frames, repeat, out):
+    from horsemocap.detection import DetectionParams, detect_markers, identify_markers
+    from horsemocap.sources import FrameSource
+
+    off, n = res["sync"]["offsets"], res["sync"]["n_frames"]
+    a, b = res["detect"]["segment"]
+    mid = (a + b) // 2
+    k0 = int(np.clip(mid - n_frames // 2, 0, max(n - n_frames, 0)))
+    k1 = min(n, k0 + n_frames)
+    cams = list(s.cameras)
+    rgb = {c: FrameSource(s.motion[c]).read(off[c] + k0, off[c] + k1) for c in cams}
+    H, W = rgb[cams[0]].shape[1:3]
+    rows = {}
+
+    # thesis chain, one camera at a time, parameters of its automatic run given back
+    given, rec_t = {}, Recorder()
+    for c in cams:
+        given[c] = detect_markers(rgb[c], s.marker_count).params
+    with rec_t:
+        for c in cams:
+            detect_markers(rgb[c], s.marker_count, given[c])
+
+    def thesis():
+        for c in cams:
+            detect_markers(rgb[c], s.marker_count, given[c])
+
+    # multi-view identification
+    rig, static = res["rig"]["rig"], res["static"]["static_points"]
+    thr = {}
+
+    def ident():
+        idn = identify_markers({c: GrayOnAccess(rgb[c]) for c in cams}, rig, static, s.marker_count,
+                               params={c: DetectionParams() for c in cams})
+        thr.update(idn.thresholds)
+    rec_i = Recorder()
+    with rec_i:
+        ident()
+
+    t = rounds({"thesis": thesis, "thesis_floor_crops": rec_t.floor(rgb[cams[0]][0]),
+                "ident": ident, "ident_floor_crops": rec_i.floor(rgb[cams[0]][0]),
+                "floor_whole_thesis": whole_frame_floor([rgb[c] for c in cams], [given[c].threshold for c in cams]),
+                "floor_whole_ident": whole_frame_floor([rgb[c] for c in cams], [int(thr[c]) for c in cams])},
+               repeat)
+    per = len(cams) * (k1 - k0)
+    rows = {
+        "session": name, "size": [W, H], "cameras": len(cams), "frames_per_camera": k1 - k0,
+        "thesis_ms_per_frame": 1e3 * t["thesis"] / per,
+        "thesis_equal_work_ratio": t["thesis_floor_crops"] / t["thesis"],
+        "thesis_whole_frame_ratio": t["floor_whole_thesis"] / t["thesis"],
+        "thesis_work": rec_t.summary(),
+        "ident_ms_per_frame": 1e3 * t["ident"] / per,
+        "ident_equal_work_ratio": t["ident_floor_crops"] / t["ident"],
+        "ident_whole_frame_ratio": t["floor_whole_ident"] / t["ident"],
+        "ident_work": rec_i.summary(),
+        "bare_whole_ms_per_frame": 1e3 * t["floor_whole_thesis"] / per,
+        "seconds": t,
+    }
+    print(f"detection, {name} ({W}x{H}, {len(cams)} cameras x {k1 - k0} frames; bare OpenCV whole frame "
+          f"{rows['bare_whole_ms_per_frame']:.2f} ms/frame):")
+    print(f"  thesis chain   {rows['thesis_ms_per_frame']:7.2f} ms/frame  equal work {rows['thesis_equal_work_ratio']:.2f}"
+          f"  whole frame {rows['thesis_whole_frame_ratio']:.2f}   ({rec_t.summary()})")
+    print(f"  identification {rows['ident_ms_per_frame']:7.2f} ms/frame  equal work {rows['ident_equal_work_ratio']:.2f}"
+          f"  whole frame {rows['ident_whole_frame_ratio']:.2f}   ({rec_i.summary()})", flush=True)
+    out.setdefault("detection", []).append(rows)
+    del rgb
+
+
+def bench_decode(name, s, repeat, out):
+    from horsemocap.sources import FrameSource
+
+    def dec():
+        n = 0
+        for c in s.cameras:
+            for _ in FrameSource(s.motion[c]).iter_frames(color=False):
+                n += 1
+        return n
+    count = dec()
+    t = rounds({"decode": dec}, repeat)["decode"]
+    row = {"session": name, "camera_frames": count, "seconds": t, "ms_per_frame": 1e3 * t / count,
+           "frames_per_s": count / t}
+    print(f"decoding, {name}: {count} camera-frames (gray) in {t:.2f} s, {row['ms_per_frame']:.2f} ms/frame, "
+          f"{row['frames_per_s']:.0f} frames/s", flush=True)
+    out.setdefault("decode", []).append(row)
+    return row
+
+
+def pair_floor(rig, px, a, b):
+    """cv2.undistortPoints + cv2.triangulatePoints of cameras a, b on the points both see."""
+    def cam_arrays(cam):
+        return np.asarray(cam.matrix, float), np.asarray(cam.distortions, float)
+    ca, cb = rig[a], rig[b]
+    Ka, da = cam_arrays(ca)
+    Kb, db = cam_arrays(cb)
+    Pa = np.hstack([ca.rotation_matrix, ca.translation[:, None]])
+    Pb = np.hstack([cb.rotation_matrix, cb.translation[:, None]])
+    pa, pb = px[a].reshape(-1, 2), px[b].reshape(-1, 2)
+    ok = np.all(np.isfinite(pa), 1) & np.all(np.isfinite(pb), 1)
+    pa, pb = np.ascontiguousarray(pa[ok]), np.ascontiguousarray(pb[ok])
+
+    def run():
+        na = cv2.undistortPoints(pa.reshape(-1, 1, 2), Ka, da).reshape(-1, 2)
+        nb = cv2.undistortPoints(pb.reshape(-1, 1, 2), Kb, db).reshape(-1, 2)
+        X = cv2.triangulatePoints(Pa, Pb, na.T, nb.T)
+        return (X[:3] / X[3]).T
+    return run, int(ok.sum())
+
+
+def bench_triangulation(name, s, res, n_points, repeat, out):
+    from horsemocap.reconstruction import triangulate
+
+    rig = res["rig"]["rig"]
+    px0 = res["detect"]["marker_px"]
+    cams = list(s.cameras)
+    m = next(iter(px0.values())).shape[1]
+    reps = max(1, int(np.ceil(n_points / (len(next(iter(px0.values()))) * m))))
+    px = {c: np.tile(np.asarray(px0[c], float), (reps, 1, 1)) for c in cams}
+    total = px[cams[0]].shape[0] * m
+    seen = int(np.sum(np.sum([np.all(np.isfinite(px[c]), -1) for c in cams], 0) >= 2))
+    floor, n_pair = pair_floor(rig, px, cams[0], cams[1])
+    t = rounds({"joint": lambda: triangulate(rig, px), "pair": floor}, repeat)
+    row = {"session": name, "points": total, "points_two_or_more_views": seen, "pair_points": n_pair,
+           "joint_ms_per_1000": 1e3 * t["joint"] / seen * 1000, "pair_ms_per_1000": 1e3 * t["pair"] / n_pair * 1000}
+    row["ratio"] = row["joint_ms_per_1000"] / row["pair_ms_per_1000"]
+    print(f"joint triangulation, {name}: {seen} points seen by two or more cameras; joint "
+          f"{row['joint_ms_per_1000']:.2f} ms per 1000 points, OpenCV pair floor {row['pair_ms_per_1000']:.2f} "
+          f"ms per 1000 ({n_pair} points): {row['ratio']:.1f} x the floor", flush=True)
+    out.setdefault("triangulation", []).append(row)
+
+
+def bench_calibration(s, repeat, out):
+    from horsemocap.calibration import board_points, calibrate_rig, detect_views
+    from horsemocap.calibration.rig import align_views
+
+    inner = tuple(s.board.inner_corners)
+    sq = s.board.square_size_m
+    cams = list(s.cameras)
+    views = {}
+
+    def detect():
+        views.update({c: detect_views(Path(s.calibration_images[c]), inner, camera=c) for c in cams})
+    cal = {}
+
+    def solve():
+        cal["r"] = calibrate_rig(None, inner, sq, reference=s.reference_camera, views=dict(views))
+
+    detect()
+    al = align_views(dict(views))
+    bp = board_points(inner, sq).astype(np.float32)
+    W, H = al[cams[0]].size
+    found = {c: al[c].found for c in cams}
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+
+    def floor():
+        K = {}
+        for c in cams:
+            idx = np.flatnonzero(found[c])
+            img = [al[c].corners[k].astype(np.float32).reshape(-1, 1, 2) for k in idx]
+            _, K[c], d, _, _ = cv2.calibrateCamera([bp] * len(idx), img, (W, H), None, None,
+                                                   flags=cv2.CALIB_FIX_K3, criteria=crit)
+            K[c] = (K[c], d)
+        for i, a in enumerate(cams):
+            for b in cams[i + 1:]:
+                idx = np.flatnonzero(found[a] & found[b])
+                ia = [al[a].corners[k].astype(np.float32).reshape(-1, 1, 2) for k in idx]
+                ib = [al[b].corners[k].astype(np.float32).reshape(-1, 1, 2) for k in idx]
+                cv2.stereoCalibrate([bp] * len(idx), ia, ib, K[a][0], K[a][1], K[b][0], K[b][1], (W, H),
+                                    flags=cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_K3, criteria=crit)
+    t = rounds({"board_detection": detect, "solve": solve, "opencv": floor}, repeat)
+    n_views = sum(len(views[c].names) for c in cams)
+    row = {"views": n_views, "board_detection_s": t["board_detection"], "solve_s": t["solve"],
+           "opencv_s": t["opencv"], "solve_ratio": t["solve"] / t["opencv"]}
+    print(f"calibration, bundled session ({n_views} views): board detection {t['board_detection']:.2f} s "
+          f"({1e3 * t['board_detection'] / n_views:.0f} ms/view); solve {t['solve']:.2f} s against "
+          f"calibrateCamera x {len(cams)} + stereoCalibrate x pairs {t['opencv']:.2f} s: "
+          f"{row['solve_ratio']:.2f} x the floor", flush=True)
+    out["calibration"] = row
+    return row, cal["r"].rig
+
+
+def bench_analyze(folder, repeat, out, calibrate_s, decode_s):
+    from horsemocap.pipeline import analyze
+
+    times = {"fresh": [], "repeated": []}
+    steps = {}
+    for _ in range(repeat):
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            a = analyze(folder, tmp, progress=lambda *x: None)
+            times["fresh"].append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            b = analyze(folder, tmp, progress=lambda *x: None)
+            times["repeated"].append(time.perf_counter() - t0)
+            steps = {"fresh": {k: round(v, 3) for k, v in a.timings.items()},
+                     "repeated": {k: round(v, 3) for k, v in b.timings.items()}}
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    row = {"fresh_s": med["fresh"], "repeated_s": med["repeated"], "steps_last_round": steps,
+           "calibrate_plus_decode_s": calibrate_s + decode_s,
+           "fresh_ratio": med["fresh"] / (calibrate_s + decode_s),
+           "repeated_ratio_to_decode": med["repeated"] / decode_s}
+    print(f"bundled analyze: fresh {med['fresh']:.2f} s ({row['fresh_ratio']:.2f} x calibrate + decode "
+          f"{calibrate_s + decode_s:.2f} s); repeated into the same results folder {med['repeated']:.2f} s "
+          f"({row['repeated_ratio_to_decode']:.1f} x decode); steps {steps}", flush=True)
+    out["analyze"] = row
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--frames", type=int, default=80, help="frames per camera for detection")
+    ap.add_argument("--points", type=int, default=20000, help="points for triangulation (tiled)")
+    ap.add_argument("--skip", nargs="*", default=[], choices=["hard", "analyze", "calibration"])
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "floor.json"))
+    args = ap.parse_args(argv)
+    cv2.setNumThreads(1)
+    from horsemocap.data import default_session_dir
+
+    out = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "machine": platform.machine(),
+           "cpus": os.cpu_count(), "opencv": cv2.__version__, "numpy": np.__version__,
+           "repeat": args.repeat, "load_before": load()}
+    print(f"OpenCV {cv2.__version__} (1 thread), numpy {np.__version__}, {os.cpu_count()} cpus; "
+          f"load average {out['load_before']}; medians of {args.repeat}", flush=True)
+    bundled = default_session_dir()
+    from horsemocap.session import load_session
+    sb = load_session(bundled)
+    cal_row, rig = bench_calibration(sb, args.repeat, out) if "calibration" not in args.skip else (None, None)
+    s, res = prepare(bundled, rig)
+    dec_b = bench_decode("bundled", s, args.repeat, out)
+    bench_detection("bundled", s, res, args.frames, args.repeat, out)
+    bench_triangulation("bundled", s, res, args.points, args.repeat, out)
+    if "hard" not in args.skip:
+        from horsemocap.virtuallab.hard import hard_session
+        hs, hres = prepare(hard_session(HARD_1080))
+        bench_decode(HARD_1080, hs, args.repeat, out)
+        bench_detection(HARD_1080, hs, hres, args.frames, args.repeat, out)
+        bench_triangulation(HARD_1080, hs, hres, args.points, args.repeat, out)
+    if "analyze" not in args.skip and cal_row is not None:
+        bench_analyze(bundled, args.repeat, out, cal_row["board_detection_s"] + cal_row["solve_s"],
+                      dec_b["seconds"])
+    out["load_after"] = load()
+    print(f"load average after: {out['load_after']}")
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(out, indent=1, default=float) + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
