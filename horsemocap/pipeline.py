@@ -93,17 +93,25 @@ def step_sync(session: Session, params: AnalysisParams, res: dict, progress) -> 
     return {"offsets": offsets, "frame_counts": counts, "n_frames": n, "offsets_from": how}
 
 
-def step_rig(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    """The calibrated rig: the session's ``rig.toml`` or a calibration of its views."""
+def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cache_dirs=()) -> dict:
+    """The calibrated rig: the session's ``rig.toml`` or a calibration of its views.
+
+    ``cache_dirs``: results folders (the run's own first) where a calibration
+    of the same views, board, cameras and code is reused from
+    ``calibration.json`` and the new one is kept
+    (:func:`horsemocap.calibration.cache.cached_calibration`; ``recalibrate``
+    ignores it).
+    """
     if session.rig_path is not None and not params.recalibrate:
         rig, how = read_rig(session.rig_path), f"read {session.rig_path.name}"
     elif session.calibration_images is not None:
-        from .calibration import calibrate_rig
+        from .calibration.cache import cached_calibration
 
-        progress("rig", "calibrating from checkerboard views ...")
-        cal = calibrate_rig(session.calibration_images, session.board.inner_corners,
-                            session.board.square_size_m, reference=session.reference_camera)
-        rig, how = cal.rig, "calibrated from checkerboard views"
+        cache_dirs = [d for d in cache_dirs if d is not None]
+        rig, how = cached_calibration(session.calibration_images, session.board.inner_corners,
+                                      session.board.square_size_m, session.reference_camera,
+                                      write_to=cache_dirs[0] if cache_dirs else None, read_from=cache_dirs[1:],
+                                      recalibrate=params.recalibrate, progress=lambda m: progress("rig", m))
     else:
         raise AnalysisError("rig", f"{session.json_path}: 'calibration' gives neither a rig nor views")
     missing = [c for c in session.cameras if c not in rig.names]
@@ -573,7 +581,7 @@ STEP_FUNCTIONS = {name: globals()[f"step_{name}"] for name in STEPS}
 
 def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = None, *,
             until: str | None = None, progress=None, write_outputs: bool = True,
-            reuse: bool = False) -> Analysis:
+            reuse: bool = False, previous_results=None) -> Analysis:
     """Run the analysis of a session, step by step.
 
     Parameters
@@ -593,6 +601,11 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     reuse : bool
         Keep each step's result in ``out_dir``'s results store and reuse the
         stored ones computed for the same session, parameters and code.
+    previous_results : path, optional
+        An earlier run's results folder (``horsemocap analyze`` writes into a
+        new folder that replaces it): its cached calibration
+        (``calibration.json``) is reused when the views, board, cameras and
+        code are the same, as one in ``out_dir`` is.
 
     Returns
     -------
@@ -624,7 +637,11 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
             if stored is not None:
                 analysis.results[name] = stored
             else:
-                analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
+                if name == "rig":
+                    analysis.results[name] = step_rig(session, params, analysis.results, progress,
+                                                      cache_dirs=(out_dir, previous_results))
+                else:
+                    analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
                 if store:
                     store.save(name, analysis.results[name], key)
         except (AnalysisError, SessionError) as exc:

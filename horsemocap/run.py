@@ -119,7 +119,7 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
     with folder as tmp:
         outcome = RunOutcome(Path(target), None)
         try:
-            analysis = analyze(session_dir, tmp, params, progress=progress)
+            analysis = analyze(session_dir, tmp, params, progress=progress, previous_results=target)
         except (AnalysisError, SessionError) as exc:
             analysis = getattr(exc, "partial", None)
             outcome.error = exc

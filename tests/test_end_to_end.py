@@ -52,6 +52,22 @@ def test_comfort_within_5_percent_of_truth(demo_run):
         assert rel < 0.05, f"{key}: {got[key]:.4f} vs truth {truth.comfort[key]:.4f} ({100 * rel:.1f}%)"
 
 
+def test_a_repeated_analysis_reuses_the_calibration(demo_run, tmp_path):
+    from horsemocap.camera import read_rig
+    from horsemocap.pipeline import analyze
+
+    assert (demo_run / "calibration.json").is_file()
+    msgs = []
+    a = analyze(default_session_dir(), tmp_path / "new", until="rig", previous_results=demo_run,
+                progress=lambda step, m: msgs.append(m))
+    assert "cached" in a["rig"]["rig_from"] and not any("calibrating" in m for m in msgs)
+    assert (tmp_path / "new" / "calibration.json").read_bytes() == (demo_run / "calibration.json").read_bytes()
+    written = read_rig(demo_run / "rig.toml")
+    for cam in written.cameras:
+        np.testing.assert_allclose(a["rig"]["rig"][cam.name].matrix, cam.matrix, rtol=1e-12)
+        np.testing.assert_allclose(a["rig"]["rig"][cam.name].translation, cam.translation, rtol=1e-12)
+
+
 def test_params_file_repeats_the_run(demo_run, tmp_path):
     again = tmp_path / "again"
     assert main(["analyze", str(default_session_dir()), "--out", str(again),

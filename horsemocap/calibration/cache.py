@@ -1,0 +1,207 @@
+"""The session's calibration kept in its results folder (issue 16).
+
+Calibrating the rig from its checkerboard views is most of the time of a
+bundled analysis (board detection in every view, then each camera, the pairs
+and the joint bundle adjustment). :func:`cached_calibration` keeps the result
+in ``calibration.json`` in the results folder, so a repeated ``analyze`` of
+the same views does not calibrate again:
+
+- ``key``: SHA-256 of everything that changes the result: every view
+  (:func:`horsemocap.pipeline.file_fingerprint`: path, size, mtime and the
+  bytes at both ends), the board (inner corners, square size), the cameras
+  and the reference camera, and the source code of :mod:`horsemocap.calibration`
+  and :mod:`horsemocap.camera`. The rig is reused only when the key matches.
+- ``views``: the detected corners per camera, each under its own key (that
+  camera's view files, the board's inner corners and the detector's code), so
+  that when the key changes for another reason (the square size, the
+  reference camera, another camera's views) board detection still runs once
+  per view.
+
+``recalibrate`` (:class:`~horsemocap.params.AnalysisParams`) ignores the file
+and calibrates from scratch. The file is written whole or not at all
+(:func:`horsemocap.store.atomic_write_text`), into the run's own folder (with
+``horsemocap analyze`` the temporary folder that replaces the results folder
+whole, :mod:`horsemocap.runfolder`); it is read from there and from the
+earlier run's folder.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera, Rig
+from .board import BoardViews, detect_views
+
+CACHE_FILE = "calibration.json"
+CACHE_FORMAT = "horsemocap-calibration-cache/1"
+
+__all__ = ["CACHE_FILE", "CACHE_FORMAT", "calibration_key", "views_key", "cached_calibration"]
+
+
+def _code_hash(names) -> bytes:
+    here = Path(__file__).parent
+    h = hashlib.sha256()
+    for name in names:
+        h.update((here / name).read_bytes() if (here / name).is_file() else name.encode())
+    return h.digest()
+
+
+def views_key(folder, inner_corners) -> str:
+    """Key of one camera's board detection: its view files, the inner corners and the detector's code."""
+    from ..pipeline import file_fingerprint
+    from ..sources import list_images
+
+    h = hashlib.sha256()
+    for f in list_images(Path(folder)):
+        h.update(file_fingerprint(f).encode("utf-8", "surrogateescape"))
+    h.update(json.dumps([int(inner_corners[0]), int(inner_corners[1])]).encode())
+    h.update(_code_hash(["board.py"]))
+    return h.hexdigest()
+
+
+def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str) -> str:
+    """Key of a rig calibration: every view, the board, the cameras, the reference and the code."""
+    from .. import camera
+
+    h = hashlib.sha256()
+    for cam in image_dirs:
+        h.update(cam.encode())
+        h.update(views_key(image_dirs[cam], inner_corners).encode())
+    h.update(json.dumps({"inner_corners": [int(x) for x in inner_corners], "square_m": float(square_m),
+                         "reference": reference}, sort_keys=True).encode())
+    h.update(_code_hash(sorted(p.name for p in Path(__file__).parent.glob("*.py"))))
+    h.update(Path(camera.__file__).read_bytes())
+    return h.hexdigest()
+
+
+def _rig_to_json(rig: Rig) -> dict:
+    """Every number of the rig (JSON keeps floats exactly)."""
+    return {"cameras": [{"name": c.name, "size": [int(x) for x in c.size], "matrix": np.asarray(c.matrix).tolist(),
+                         "distortions": np.asarray(c.distortions).tolist(), "rotation": np.asarray(c.rotation).tolist(),
+                         "translation": np.asarray(c.translation).tolist()} for c in rig.cameras],
+            "metadata": json.loads(json.dumps(rig.metadata, default=float))}
+
+
+def _rig_from_json(d: dict) -> Rig:
+    cams = tuple(Camera(name=c["name"], size=tuple(c["size"]), matrix=np.asarray(c["matrix"], float),
+                        distortions=np.asarray(c["distortions"], float), rotation=np.asarray(c["rotation"], float),
+                        translation=np.asarray(c["translation"], float)) for c in d["cameras"])
+    return Rig(cams, dict(d.get("metadata", {})))
+
+
+def _views_to_json(v: BoardViews, key: str) -> dict:
+    return {"key": key, "names": list(v.names), "files": [str(f) for f in v.files],
+            "reasons": list(v.reasons), "windows": [int(w) for w in v.windows], "size": [int(s) for s in v.size],
+            "inner_corners": [int(x) for x in v.inner_corners],
+            "corners": [_corners_json(c) for c in v.corners]}
+
+
+def _corners_json(c: np.ndarray):
+    """One view's corners: null where the board was not found, else the pixels (null for a NaN value)."""
+    ok = np.isfinite(c)
+    if not ok.any():
+        return None
+    if ok.all():
+        return c.tolist()
+    return [[float(x) if np.isfinite(x) else None for x in pt] for pt in c]
+
+
+def _views_from_json(camera: str, d: dict) -> BoardViews:
+    n = int(d["inner_corners"][0]) * int(d["inner_corners"][1])
+    corners = np.full((len(d["names"]), n, 2), np.nan)
+    for k, c in enumerate(d["corners"]):
+        if c is not None:
+            corners[k] = np.array(c, dtype=float)     # null -> NaN
+    return BoardViews(camera, tuple(d["names"]), tuple(Path(f) for f in d["files"]), corners,
+                      tuple(d["reasons"]), np.asarray(d["windows"], int), tuple(d["size"]),
+                      tuple(d["inner_corners"]))
+
+
+def _write(folder: Path, record: dict) -> None:
+    """``calibration.json`` written whole or not at all (compact: the corners are most of it)."""
+    from ..store import atomic_write_text
+
+    atomic_write_text(folder / CACHE_FILE, json.dumps(record, separators=(",", ":")) + "\n")
+
+
+def _read(folder) -> dict | None:
+    if folder is None:
+        return None
+    path = Path(folder) / CACHE_FILE
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return d if isinstance(d, dict) and d.get("format") == CACHE_FORMAT else None
+
+
+def cached_calibration(image_dirs: dict, inner_corners, square_m: float, reference: str, *,
+                       write_to=None, read_from=(), recalibrate: bool = False, progress=None):
+    """The rig calibrated from ``image_dirs`` (as :func:`~.rig.calibrate_rig`), reusing a cached one.
+
+    Parameters
+    ----------
+    image_dirs : dict camera -> folder of checkerboard views
+    inner_corners, square_m, reference
+        As :func:`~.rig.calibrate_rig` (joint mode).
+    write_to : path, optional
+        Results folder to write ``calibration.json`` into (none: not written).
+    read_from : iterable of paths
+        Results folders whose ``calibration.json`` may be reused (``write_to``
+        is looked at first).
+    recalibrate : bool
+        Ignore every cached result.
+    progress : callable(message), optional
+
+    Returns
+    -------
+    rig : Rig
+    how : str
+        ``"calibrated from checkerboard views"`` or ``"... (cached in calibration.json)"``.
+    """
+    from .rig import calibrate_rig
+
+    say = progress or (lambda msg: None)
+    key = calibration_key(image_dirs, inner_corners, square_m, reference)
+    folders = [f for f in ([write_to] + list(read_from)) if f is not None]
+    found = [] if recalibrate else [(f, d) for f, d in ((f, _read(f)) for f in folders) if d is not None]
+    for folder, d in found:
+        if d.get("key") != key or not isinstance(d.get("rig"), dict):
+            continue
+        try:
+            rig = _rig_from_json(d["rig"])
+        except (KeyError, TypeError, ValueError):
+            continue                                    # damaged: calibrate again
+        if write_to is not None and Path(write_to).resolve() != Path(folder).resolve():
+            _write(Path(write_to), d)                   # carried into the new results folder
+        say(f"calibration reused from {CACHE_FILE} (same views, board, cameras and code)")
+        return rig, "calibrated from checkerboard views (cached in calibration.json)"
+    found = [d for _, d in found]
+    views, reused = {}, []
+    for cam, folder in image_dirs.items():
+        vkey = views_key(folder, inner_corners)
+        hit = next((d["views"][cam] for d in found
+                    if isinstance(d.get("views"), dict) and d["views"].get(cam, {}).get("key") == vkey), None)
+        try:
+            views[cam] = _views_from_json(cam, hit) if hit is not None else None
+        except (KeyError, TypeError, ValueError):
+            views[cam] = None                           # damaged: detect again
+        if views[cam] is not None:
+            reused.append(cam)
+        else:
+            views[cam] = detect_views(Path(folder), inner_corners, camera=cam)
+    if reused:
+        say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
+    say("calibrating from checkerboard views ...")
+    cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views))
+    if write_to is not None:
+        record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
+                  "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},
+                  "rig": _rig_to_json(cal.rig),
+                  "views": {cam: _views_to_json(views[cam], views_key(image_dirs[cam], inner_corners))
+                            for cam in image_dirs}}
+        _write(Path(write_to), record)
+    return cal.rig, "calibrated from checkerboard views"

@@ -1,0 +1,113 @@
+"""The calibration kept in the results folder (horsemocap.calibration.cache, issue 16)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from horsemocap.calibration import cache, rig as rig_module
+from horsemocap.calibration.board import views_from_corners
+from horsemocap.camera import Camera, Rig
+
+INNER = (3, 2)
+
+
+@pytest.fixture
+def views_dirs(tmp_path):
+    dirs = {}
+    for cam in ("left", "right"):
+        d = tmp_path / "session" / cam
+        d.mkdir(parents=True)
+        for k in range(3):
+            (d / f"{k:02d}.png").write_bytes(f"{cam} view {k}".encode())
+        dirs[cam] = d
+    return dirs
+
+
+@pytest.fixture
+def calls(monkeypatch):
+    """detect_views and calibrate_rig replaced by counting fakes with exact, distinct results."""
+    seen = {"detect": [], "calibrate": 0}
+    rng = np.random.default_rng(0)
+
+    def detect(folder, inner, camera=None):
+        seen["detect"].append(camera)
+        corners = rng.uniform(0, 600, (3, inner[0] * inner[1], 2))
+        corners[1, 0] = np.nan                            # a view without the board
+        return views_from_corners(camera, corners, (640, 480), inner, names=["00", "01", "02"])
+
+    def calibrate(image_dirs, inner, square_m, reference="left", views=None, **kw):
+        seen["calibrate"] += 1
+        seen["views"] = views
+        cams = tuple(Camera(c, (640, 480), np.array([[800.0 + rng.random(), 0, 320], [0, 801, 240], [0, 0, 1]]),
+                            rng.normal(0, 0.01, 5), rng.normal(0, 0.1, 3), rng.normal(0, 1, 3)) for c in image_dirs)
+        return SimpleNamespace(rig=Rig(cams, {"error": 0.1 + rng.random(), "method": "fake"}))
+
+    monkeypatch.setattr(cache, "detect_views", detect)
+    monkeypatch.setattr(rig_module, "calibrate_rig", calibrate)
+    return seen
+
+
+def _same(a: Rig, b: Rig):
+    assert a.names == b.names and a.metadata == b.metadata
+    for x, y in zip(a.cameras, b.cameras):
+        for f in ("matrix", "distortions", "rotation", "translation"):
+            assert np.array_equal(getattr(x, f), getattr(y, f))
+        assert tuple(x.size) == tuple(y.size)
+
+
+def test_a_repeated_calibration_is_read_back_exactly(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    out.mkdir()
+    rig1, how1 = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    assert calls["calibrate"] == 1 and calls["detect"] == ["left", "right"]
+    assert (out / cache.CACHE_FILE).is_file() and "cached" not in how1
+    rig2, how2 = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    assert calls["calibrate"] == 1 and len(calls["detect"]) == 2 and "cached" in how2
+    _same(rig1, rig2)
+
+
+def test_a_changed_parameter_recalibrates_but_reuses_the_corners(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    first = {c: v.corners.copy() for c, v in calls["views"].items()}
+    cache.cached_calibration(views_dirs, INNER, 0.06, "left", write_to=out)          # another square size
+    assert calls["calibrate"] == 2 and calls["detect"] == ["left", "right"]
+    for c in first:   # the corners (NaN view included) come back exactly
+        np.testing.assert_array_equal(calls["views"][c].corners, first[c])
+        assert calls["views"][c].reasons == ("", "board not found", "")
+    cache.cached_calibration(views_dirs, INNER, 0.06, "right", write_to=out)         # another reference
+    assert calls["calibrate"] == 3 and len(calls["detect"]) == 2
+
+
+def test_a_changed_view_detects_that_camera_again(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    (views_dirs["right"] / "01.png").write_bytes(b"another image, another size")
+    _, how = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    assert calls["calibrate"] == 2 and calls["detect"] == ["left", "right", "right"] and "cached" not in how
+
+
+def test_recalibrate_ignores_the_cache(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out, recalibrate=True)
+    assert calls["calibrate"] == 2 and calls["detect"] == ["left", "right"] * 2
+
+
+def test_the_earlier_runs_folder_is_read_and_the_cache_carried_over(views_dirs, calls, tmp_path):
+    old, new = tmp_path / "old", tmp_path / "new"
+    old.mkdir()
+    new.mkdir()
+    rig1, _ = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=old)
+    rig2, how = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=new, read_from=[old])
+    assert calls["calibrate"] == 1 and "cached" in how
+    assert (new / cache.CACHE_FILE).read_bytes() == (old / cache.CACHE_FILE).read_bytes()
+    _same(rig1, rig2)
+
+
+def test_a_damaged_cache_file_is_calibrated_again(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    (out / cache.CACHE_FILE).write_text('{"format": "horsemocap-calibration-cache/1", "key": "x", "rig": 3')
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    assert calls["calibrate"] == 2 and len(calls["detect"]) == 4
