@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -84,10 +85,12 @@ class Camera:
         """``cc = [cx, cy]`` in pixels."""
         return np.array([self.matrix[0, 2], self.matrix[1, 2]])
 
-    @property
+    @cached_property
     def rotation_matrix(self) -> np.ndarray:
-        """``R`` (3, 3) from the Rodrigues vector."""
-        return rotation_matrix(self.rotation)
+        """``R`` (3, 3) from the Rodrigues vector (computed once per camera; read-only)."""
+        R = rotation_matrix(self.rotation)
+        R.setflags(write=False)
+        return R
 
     @property
     def center(self) -> np.ndarray:
