@@ -207,7 +207,9 @@ def _normalized(cam, cand: Candidates) -> np.ndarray:
     """Undistorted normalised coordinates of a camera's candidates (computed once per image)."""
     xn = cand.__dict__.get("_normalized")
     if xn is None:
-        xn = cam.pixels_to_normalized(cand.centre) if len(cand) else np.zeros((0, 2))
+        from ..reconstruction import _undistort
+
+        xn = _undistort(cam, np.asarray(cand.centre, float)) if len(cand) else np.zeros((0, 2))
         object.__setattr__(cand, "_normalized", xn)
     return xn
 
