@@ -167,3 +167,47 @@ def test_a_session_without_the_markers_ends_with_an_error_naming_the_cameras():
     empty = {c: [np.full_like(f[0], 40) for f in [frames[c]] for _ in range(12)] for c in frames}
     with pytest.raises(ident.DetectionError, match="left.*middle.*right"):
         identify_markers(empty, RIG, static, 3)
+
+
+def test_model_fit_never_gives_one_region_to_two_markers():
+    static = np.vstack([BODY, SADDLE]) + [0.0, 0.0, 7.7]
+    frame = world(BODY, np.array([0.4]))[0]
+    frame[2] += [0.004, 0.0, 0.0]                          # the true front marker, 4 mm off the shape
+    ghost = world(BODY, np.array([0.4]))[0][2]             # a chance point exactly in shape ...
+    pts = np.vstack([frame, ghost])
+    views = np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2], [1, 3, 3]])   # ... using the middle marker's left region
+    free = fit_marker_model(pts, _cov(4), static, 3, RIG["left"].center, model_index=[0, 1, 2])
+    assert free.assignment.tolist() == [0, 1, 3]
+    fit = fit_marker_model(pts, _cov(4), static, 3, RIG["left"].center, model_index=[0, 1, 2], views=views)
+    assert fit.assignment.tolist() == [0, 1, 2]
+
+
+def test_handedness_is_not_used_for_a_triangle_seen_edge_on():
+    eye = np.zeros(3)
+    facing = np.array([[-0.2, 0.0, 7.7], [0.0, -0.1, 7.7], [0.2, 0.0, 7.7]])
+    edge_on = np.array([[-0.2, 0.0, 7.7], [0.0, 0.0, 7.8], [0.2, 0.0, 7.7]])   # its plane holds the line of sight
+    assert ident._facing(facing, eye) == -ident._facing(facing[::-1], eye) != 0
+    assert ident._facing(edge_on, eye) == 0 and ident._facing(edge_on[::-1], eye) == 0
+
+
+def test_the_skin_markers_are_chosen_by_several_frames_not_the_first(monkeypatch):
+    """One frame whose look-alike labels other static points (the horse half in view, a buckle
+    completing the shape) does not decide which static points are the skin markers."""
+    n = 100
+    scripted = {k: (1, 2, 3) for k in range(n)}
+    scripted.update({k: (0, 1, 2) for k in range(n) if k != 50})     # frame 50 (the first tried) misleads
+
+    class Fit:
+        def __init__(self, sub):
+            self.model_index, self.rms_m = np.array(sub), 0.001
+
+    monkeypatch.setattr(ident, "_whole_frame_candidates", lambda frames, k, *a: k)
+    monkeypatch.setattr(ident, "label_frame", lambda rig, k, *a, **kw: ("vp", Fit(scripted[k]), ""))
+    frames = {"left": [None] * n, "right": [None] * n}
+    model = np.zeros((4, 3))
+    found, tried, votes = ident._find_anchor(frames, None, ("left", "right"), {}, {}, model, 3, None, 2.0, 8)
+    assert found[0] == 58 and found[3].model_index.tolist() == [0, 1, 2]
+    assert votes == {(1, 2, 3): [50], (0, 1, 2): [58, 42, 66, 34]}
+    # with the skin markers known (or a static shot of the skin markers only) the first clear frame is the anchor
+    found, _, votes = ident._find_anchor(frames, None, ("left", "right"), {}, {}, model[:3], 3, None, 2.0, 8)
+    assert found[0] == 50 and len(votes) == 1
