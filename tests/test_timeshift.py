@@ -32,3 +32,24 @@ def test_no_shift_without_evidence():
     assert best_frame_shift(shifts, np.array([5, 4, 3, 0.4, 0.3, 3, 4.0]), 100).best == 0   # sub-frame timing
     assert best_frame_shift(shifts, np.array([5, 4, 3, 9, 0.3, 3, 4.0]), 10).best == 0      # too few points
     assert best_frame_shift(shifts, np.array([5, 4, 3, 9, 0.3, 3, 4.0]), 100).best == 1
+
+
+def test_the_pipeline_corrects_a_flash_found_two_frames_early(monkeypatch):
+    """The bundled session with the right camera's flash found two frames early: the detect
+    step finds it by the markers, corrects the offset and says so."""
+    from horsemocap import sync
+    from horsemocap.data import default_session_dir
+    from horsemocap.pipeline import resolve_params, run_steps
+    from horsemocap.session import load_session
+
+    session = load_session(default_session_dir())
+    params = resolve_params(session)
+    true = run_steps(session, params, {}, ["sync"]).results["sync"]["offsets"]
+    real = sync.flash_offsets
+    monkeypatch.setattr(sync, "flash_offsets", lambda sources, **kw: {**real(sources, **kw), "right": true["right"] - 2})
+    an = run_steps(session, params, {}, ["sync", "rig", "plumb", "static", "detect"])
+    got = an.results["sync"]
+    assert got["offsets"] == true
+    assert got["flash_offsets"]["right"] == true["right"] - 2 and "corrected by the markers" in got["offsets_from"]
+    check = an.results["detect"]["sync_check"]
+    assert check["right"]["shift"] == 2 and check["left"]["shift"] == 0 and check["middle"]["shift"] == 0
