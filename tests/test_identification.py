@@ -211,3 +211,18 @@ def test_the_skin_markers_are_chosen_by_several_frames_not_the_first(monkeypatch
     # with the skin markers known (or a static shot of the skin markers only) the first clear frame is the anchor
     found, _, votes = ident._find_anchor(frames, None, ("left", "right"), {}, {}, model[:3], 3, None, 2.0, 8)
     assert found[0] == 50 and len(votes) == 1
+
+
+def test_two_cameras_are_enough(scene):
+    frames, truth, static, _ = scene
+    two = {c: frames[c] for c in ("left", "right")}
+    idn = identify_markers(two, RIG.subset(["left", "right"]), static, 3)
+    assert idn.model_index.tolist() == [0, 1, 2]
+    for c in two:
+        used = np.isfinite(idn.marker_px[c][..., 0])
+        err = np.linalg.norm(idn.marker_px[c] - truth[c], axis=-1)
+        assert used.sum() > 0.8 * used.size and np.nanmax(err[used]) < 0.5, c
+    true = world(BODY, np.arange(len(idn.points)) / 30.0)
+    ok = np.all(np.isfinite(idn.points), axis=2)
+    assert ok.mean() > 0.8
+    assert np.nanmax(np.linalg.norm(idn.points - true, axis=-1)) < 0.03
