@@ -226,3 +226,14 @@ def test_two_cameras_are_enough(scene):
     ok = np.all(np.isfinite(idn.points), axis=2)
     assert ok.mean() > 0.8
     assert np.nanmax(np.linalg.norm(idn.points - true, axis=-1)) < 0.03
+
+
+def test_bridge_gaps_takes_its_anchors_near_the_gap():
+    x = np.zeros((40, 1, 3))
+    x[:, 0, 0] = np.arange(40.0)
+    x[:4, 0, 0] += 100.0                       # far frames that do not belong to the motion near the gap
+    holed = x.copy()
+    holed[4:14] = np.nan                        # a long gap: frames 0-3 are the only data before ...
+    holed[15:17] = np.nan                       # ... and frame 14 alone stands before this short gap
+    filled, interp = bridge_gaps(holed, max_gap=3)
+    assert not interp[15:17].any()             # one anchor on the left within reach: not bridged

@@ -1227,8 +1227,8 @@ def bridge_gaps(points: np.ndarray, max_gap: int, context: int = 4):
 
     A run of at most ``max_gap`` NaN frames of one marker, with at least two
     measured frames on each side, is filled by a cubic spline through up to
-    ``context`` measured frames on each side; longer runs and the record's
-    ends stay NaN.
+    ``context`` measured frames on each side, within ``2 * context`` frames of
+    the gap; longer runs and the record's ends stay NaN.
 
     Parameters
     ----------
@@ -1261,6 +1261,8 @@ def bridge_gaps(points: np.ndarray, max_gap: int, context: int = 4):
                 continue
             left = np.flatnonzero(ok[:a])[-context:]
             right = np.flatnonzero(ok[b:])[:context] + b
+            left = left[left >= a - 2 * context]              # anchors near the gap only (not across
+            right = right[right < b + 2 * context]            # another gap, far from this one)
             if len(left) < 2 or len(right) < 2:
                 continue
             t = np.concatenate([left, right])
