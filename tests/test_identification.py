@@ -49,7 +49,8 @@ def render(n=40, fps=30.0, hide=None, blob=True, stirrup=True):
         for k in range(n):
             img = np.full((H, W), 40.0)
             for m in range(len(BODY)):
-                if hide and hide[0] == cam.name and m == hide[1] and hide[2] <= k < hide[3]:
+                hides = [hide] if hide and isinstance(hide[0], (str, type(None))) else (hide or [])
+                if any(h[0] in (None, cam.name) and m == h[1] and h[2] <= k < h[3] for h in hides):
                     continue
                 add_image_disc(img, *px[k, m], 3.2, 200.0)
             if stirrup:
@@ -237,3 +238,16 @@ def test_bridge_gaps_takes_its_anchors_near_the_gap():
     holed[15:17] = np.nan                       # ... and frame 14 alone stands before this short gap
     filled, interp = bridge_gaps(holed, max_gap=3)
     assert not interp[15:17].any()             # one anchor on the left within reach: not bridged
+
+
+def test_a_marker_left_alone_in_two_cameras_is_followed_on_its_own_track():
+    """The two rear markers leave every view and the front one the middle camera's at frame 25:
+    the front marker, alone and seen by two cameras, keeps its 3D position (its own track),
+    and no other marker is invented."""
+    frames, truth, static = render(n=40, blob=False, stirrup=False,
+                                   hide=[(None, 0, 25, 40), (None, 1, 25, 40), ("middle", 2, 25, 40)])
+    idn = identify_markers(frames, RIG, static, 3)
+    true = world(BODY, np.arange(40) / 30.0)
+    assert np.all(np.isfinite(idn.points[25:, 2]))
+    assert np.max(np.linalg.norm(idn.points[25:, 2] - true[25:, 2], axis=-1)) < 0.01
+    assert np.all(np.isnan(idn.points[25:, :2]))

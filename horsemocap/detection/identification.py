@@ -951,7 +951,7 @@ class _Tracker:
                     self.reason[c][k, m] = "lost"
         self._resolve_shared(k, cands)
         self._check_rigid(k, pred)
-        self._check_alone(k, gaps)
+        self._check_alone(k, gaps, pred, direction)
         self._rigid_rms(k)
         return bool(np.any(np.all(np.isfinite(self.X[k]), axis=1)))
 
@@ -1108,20 +1108,30 @@ class _Tracker:
                     for m in ms:
                         self._drop_view(k, m, c, "merged")
 
-    def _check_alone(self, k, gaps):
+    def _check_alone(self, k, gaps, pred, direction):
         """A marker found alone is confirmed by no other marker's distance.
 
-        It is used only when its own track carried it here (not a stale
-        extrapolation) and every camera that can validate it does (at least
-        three views with three or more cameras): a 2-view point may be a
-        chance match along an epipolar line, off in depth.
+        It is used when every camera that can validate it does (at least
+        three views with three or more cameras), or, seen by two, when its
+        own track saw it in each of the two frames before and it lies within
+        a quarter of the marker spacing of its constant-velocity prediction (a
+        marker entering or leaving the third camera's view while the others
+        are out of sight). A 2-view point on a stale or borrowed track may be
+        a chance match along an epipolar line, off in depth.
         """
         have = np.flatnonzero(np.all(np.isfinite(self.X[k]), axis=1))
         if len(have) != 1:
             return
         m = have[0]
         views = sum(self.reason[c][k, m] == "" for c in self.cams)
-        if gaps[m] > 0 or views < min(3, self.C):
+        if gaps[m] > 0:
+            self._reject(k, m, "unconfirmed")
+            return
+        if views >= min(3, self.C):
+            return
+        hist, gap = self._history(k, direction, m)
+        own = gap == 0 and len(hist) >= 2 and hist[0][0] == 1 and hist[1][0] == 2
+        if not own or np.linalg.norm(self.X[k, m] - pred[m]) > 0.5 * self.max_step:
             self._reject(k, m, "unconfirmed")
 
     def _reject(self, k, m, why):
