@@ -1186,17 +1186,24 @@ class _Tracker:
     def run(self, k0, direction):
         """Follow the markers from frame ``k0`` to one end of the record.
 
-        After ``MAX_LOST_FRAMES`` frames without any marker, the set is
-        looked for again in whole frames (as for the anchor), every frame.
+        After ``MAX_LOST_FRAMES`` frames without any marker, or with a marker
+        whose own track is lost, the set is looked for again in whole frames
+        (as for the anchor), every frame, until it is found whole.
         """
-        k, lost = k0 + direction, 0
+        k, lost, partly = k0 + direction, 0, 0
         while 0 <= k < self.n:
-            if lost <= MAX_LOST_FRAMES:
-                lost = 0 if self.step(k, direction) else lost + 1
-            elif self._reacquire(k):
-                lost = 0
-                k = self.seed_neighbour(k, direction)
+            if (lost > MAX_LOST_FRAMES or partly > MAX_LOST_FRAMES) and self._reacquire(k):
+                lost = partly = 0
+                k = self.seed_neighbour(k, direction) + direction
+                continue
+            if lost <= MAX_LOST_FRAMES:       # (a marker lost alone: the others are followed meanwhile)
+                found = self.step(k, direction)
+                lost = 0 if found else lost + 1
+                partly = partly + 1 if found and self._any_lost(k) else 0
             k += direction
+
+    def _any_lost(self, k):
+        return any(self.reason[c][k, m] == "lost" for c in self.cams for m in range(self.M))
 
     def _label_whole_frame(self, k):
         """Candidates, 3D points and model labelling of frame ``k`` searched without a prediction."""
