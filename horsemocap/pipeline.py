@@ -169,21 +169,19 @@ def _max_gap(session: Session, params: AnalysisParams) -> int:
 
 
 def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
-    from .detection import DetectionError, DetectionParams, bridge_gaps, identify_markers
+    from .detection import DetectionParams, bridge_gaps
 
     rig = res["rig"]["rig"]
     frames = {c: _frames_of(session, res, c) for c in session.cameras}
     given = {c: _detection_params(params, c) or DetectionParams() for c in session.cameras}
     progress("detect", f"{res['sync']['n_frames']} frames of cameras {', '.join(session.cameras)}: "
                        "markers identified by all cameras together ...")
-    try:
-        idn = identify_markers(frames, rig, res["static"]["static_points"], session.marker_count,
-                               params=given, progress=progress)
-    except DetectionError as exc:
-        raise AnalysisError("detect", f"{exc}") from None
-    finally:
-        for f in frames.values():
-            f.close()
+    idn = _identify(session, rig, res, given, progress, frames)
+    sync_check = {}
+    if res["sync"].get("offsets_from") == "flashlight" and len(session.cameras) >= 3:
+        sync_check = _check_sync_by_markers(session, params, res, idn, progress)
+        if any(v["shift"] for v in sync_check.values()):
+            idn = _identify(session, rig, res, given, progress)
     have, _ = bridge_gaps(idn.points, _max_gap(session, params))
     tracked = np.all(np.isfinite(have), axis=(1, 2))
     segment = _longest_run(tracked)
@@ -197,9 +195,70 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
                        f"(or bridged); labelled in frame {idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
     return {"marker_px": idn.marker_px, "reason": idn.reason, "segment": segment, "detection": chosen,
-            "all_seen": tracked, "identification": {
+            "all_seen": tracked, "sync_check": sync_check, "identification": {
                 "anchor_frame": idn.anchor_frame, "anchor_margin": idn.anchor_margin,
                 "model_index": [int(i) for i in idn.model_index], "rigid_rms_m": idn.rigid_rms_m}}
+
+
+def _identify(session: Session, rig, res: dict, given: dict, progress, frames=None):
+    from .detection import DetectionError, identify_markers
+
+    frames = frames or {c: _frames_of(session, res, c) for c in session.cameras}
+    try:
+        return identify_markers(frames, rig, res["static"]["static_points"], session.marker_count,
+                                params=given, progress=progress)
+    except DetectionError as exc:
+        raise AnalysisError("detect", f"{exc}") from None
+    finally:
+        for f in frames.values():
+            f.close()
+
+
+def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, idn, progress) -> dict:
+    """Each camera's flash offset checked against the instants of the others' markers.
+
+    For every camera, the markers triangulated from the OTHER cameras are
+    projected into its frames shifted by up to one second
+    (:func:`horsemocap.detection.timeshift.frame_shift_residuals`); when a
+    shift clearly puts them on its marker regions
+    (:func:`~horsemocap.detection.timeshift.best_frame_shift`), the camera's
+    offset is corrected and ``res["sync"]`` says so (``offsets_from``,
+    ``flash_offsets``). Returns per camera the shift and the residuals.
+    """
+    from .detection import DetectionParams
+    from .detection.identification import _area_range, _min_circ
+    from .detection.timeshift import best_frame_shift, frame_shift_residuals
+    from .reconstruction import triangulate
+
+    rig, sync = res["rig"]["rig"], res["sync"]
+    offsets, n = sync["offsets"], sync["n_frames"]
+    reach = max(5, int(round(session.fps)))
+    out = {}
+    for c in session.cameras:
+        others = {o: idn.marker_px[o] for o in session.cameras if o != c}
+        points = triangulate(rig, others, mode="joint").points
+        first = max(-reach, -offsets[c])
+        stop = min(sync["frame_counts"][c], offsets[c] + n + reach)
+        seq = FrameSource(session.motion[c]).sequence(offsets[c] + first, stop, color=False)
+        p = _detection_params(params, c) or DetectionParams()
+        try:
+            shifts, med, npts = frame_shift_residuals(rig[c], points, seq, first, range(-reach, reach + 1),
+                                                      idn.thresholds[c], _area_range(p), _min_circ(p),
+                                                      centroid=p.centroid)
+        finally:
+            seq.close()
+        fs = best_frame_shift(shifts, med, npts)
+        out[c] = {"shift": fs.best, "current_px": fs.current_px, "best_px": fs.best_px, "n_points": fs.n_points}
+    moved = {c: v["shift"] for c, v in out.items() if v["shift"]}
+    if moved:
+        new = {c: int(offsets[c] + moved.get(c, 0)) for c in session.cameras}
+        what = ", ".join(f"{c} {d:+d} frame(s) (residual {out[c]['current_px']:.1f} -> {out[c]['best_px']:.2f} px)"
+                         for c, d in moved.items())
+        progress("detect", f"the flash offsets disagree with the markers: {what}; offsets {new}, identifying again")
+        res["sync"] = {**sync, "offsets": new, "n_frames": check_frame_counts(session, sync["frame_counts"], new),
+                       "offsets_from": f"flashlight, corrected by the markers ({what})",
+                       "flash_offsets": dict(offsets)}
+    return out
 
 
 def _detect_per_camera(session: Session, params: AnalysisParams, res: dict, progress) -> dict:

@@ -383,6 +383,34 @@ def marker_motion_px(marker_px: dict, segment=None) -> dict:
     return out
 
 
+def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)") -> Check:
+    """Did the markers confirm every camera's flash offset?
+
+    ``sync_check``: camera -> ``{"shift": frames, "current_px": .., "best_px": ..}``
+    (the detect step's ``sync_check``). The figure is the largest shift in
+    whole frames: 0 is ``ok``; a camera whose offset the markers corrected is
+    a ``warning`` (the results use the corrected offsets; the flash was found
+    in another frame, so check it before trusting a session the markers
+    cannot check: two cameras, or too few markers).
+    """
+    threshold = "0 frames: ok; any correction: warning"
+    if not sync_check:
+        return Check("sync_by_markers", None, "frames", SKIPPED, (0, 0), (None, None), threshold, input_,
+                     "the flash offsets checked by the markers: not available (offsets given, or fewer "
+                     "than three cameras)")
+    shifts = {c: int(v["shift"]) for c, v in sync_check.items()}
+    worst = max(abs(v) for v in shifts.values())
+    level = "ok" if worst == 0 else "warning"
+    if worst == 0:
+        msg = "the markers confirm every camera's flash offset"
+    else:
+        msg = "the markers moved the flash offset of " + ", ".join(
+            f"camera '{c}' by {d:+d} frame(s) (median residual {sync_check[c]['current_px']:.2g} -> "
+            f"{sync_check[c]['best_px']:.2g} px)" for c, d in shifts.items() if d) + \
+            "; the results use the corrected offsets; check the flash in that camera's video"
+    return Check("sync_by_markers", float(worst), "frames", level, (0, 0), (None, None), threshold, input_, msg)
+
+
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
     res, s = analysis.results, analysis.session
@@ -396,6 +424,8 @@ def post_checks(analysis) -> list[Check]:
         except (TypeError, ValueError):
             rms = None
         checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
+    if "detect" in res and res["detect"].get("sync_check"):
+        checks.append(check_sync_by_markers(res["detect"]["sync_check"]))
     if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
         checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"]))
     if "comfort" in res and res["comfort"].get("indicators") is not None:

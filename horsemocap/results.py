@@ -150,6 +150,14 @@ def analysis_record(analysis) -> dict:
     if "sync" in res:
         p["sync_offsets"] = dict(res["sync"]["offsets"])
         chosen["sync"] = {"offsets_from": res["sync"]["offsets_from"], "n_frames": res["sync"]["n_frames"]}
+        if "flash_offsets" in res["sync"]:
+            chosen["sync"]["flash_offsets"] = dict(res["sync"]["flash_offsets"])
+        check = res.get("detect", {}).get("sync_check")
+        if check:
+            chosen["sync"]["checked_by_markers"] = {
+                c: {"shift_frames": int(v["shift"]), "residual_px": _rounded(v["current_px"]),
+                    "residual_after_px": _rounded(v["best_px"]), "marker_frames": int(v["n_points"])}
+                for c, v in check.items()}
     if "rig" in res:
         chosen["rig"] = res["rig"]["rig_from"]
     if "detect" in res:
@@ -200,3 +208,9 @@ def write_available(out_dir: Path, analysis) -> list[Path]:
         written.append(write_comfort_spreadsheet(out / "comfort.xlsx", res["comfort"]["indicators"]))
     written.append(atomic_write_json(out / "analysis.json", analysis_record(analysis)))
     return written
+
+
+def _rounded(x, digits: int = 3):
+    """A float for JSON: rounded, ``None`` for NaN."""
+    x = float(x)
+    return round(x, digits) if np.isfinite(x) else None

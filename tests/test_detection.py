@@ -480,6 +480,33 @@ def test_still_views_choose_the_best_looking_consistent_points():
         np.testing.assert_allclose(sv.marker_px[cam], truth[cam][order], atol=0.15)
 
 
+def test_still_views_marker_outside_one_camera_beats_a_buckle_seen_by_all():
+    """The saddle marker beyond one camera's image edge is found by the other two;
+    a dimmer buckle that every camera sees is not taken in its place."""
+    rig = small_rig()
+    markers = STATIC_3D[:3]
+    saddle = np.array([1.0, 0.0, 3.0])                   # beyond the left image's right edge
+    assert rig["left"].project(saddle[None])[0, 0] > rig["left"].size[0]
+    buckle = ([0.1, 0.1, 3.0], 185.0)
+    images, truth = render_views(rig, markers, pseudo=2, consistent_pseudo=[buckle], seed=21)
+    for cam in ("middle", "right"):
+        u, v = rig[cam].project(saddle[None])[0]
+        assert 15 < u < rig[cam].size[0] - 15 and 15 < v < rig[cam].size[1] - 15
+        img = images[cam].astype(float)
+        add_disc(img, u, v, 3.2, 200.0)
+        images[cam] = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    sv = det.match_still_views(images, rig, 4)
+    np.testing.assert_allclose(sv.points[-1], saddle, atol=0.02)       # ordered by u in the left camera
+    np.testing.assert_allclose(sv.points[:3], markers[np.argsort(truth["left"][:, 0])], atol=0.01)
+    assert np.all(np.isnan(sv.marker_px["left"][-1])) and sv.index["left"][-1] == -1
+    for cam in ("middle", "right"):
+        np.testing.assert_allclose(sv.marker_px[cam][-1], rig[cam].project(saddle[None])[0], atol=0.15)
+    # the same scene without the saddle marker: three markers and the buckle, as before
+    images, _ = render_views(rig, markers, pseudo=2, consistent_pseudo=[buckle], seed=21)
+    sv = det.match_still_views(images, rig, 4)
+    assert np.min(np.linalg.norm(sv.points - buckle[0], axis=1)) < 0.02
+
+
 def test_still_views_errors_name_the_cameras():
     rig = small_rig()
     # five identical consistent discs for four markers: ambiguous
@@ -495,7 +522,7 @@ def test_still_views_errors_name_the_cameras():
     from horsemocap.camera import Rig
     swapped = Rig((rig["left"], replace_pose(rig["middle"], rig["right"]), replace_pose(rig["right"], rig["middle"])))
     images, _ = render_views(rig, STATIC_3D, pseudo=0, seed=13)
-    with pytest.raises(det.DetectionError, match="consistently by all cameras"):
+    with pytest.raises(det.DetectionError, match="seen consistently by every camera"):
         det.detect_still_views(images, swapped, 4)
     with pytest.raises(ValueError, match="not in the rig"):
         det.detect_still_views({"top": images["left"], "left": images["left"]}, rig, 4)

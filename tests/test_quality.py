@@ -92,3 +92,15 @@ def test_marker_motion():
     px[:, :, 0] = np.arange(5)[:, None] * 3.0
     px[2, 1] = np.nan
     assert quality.marker_motion_px({"left": px}) == {"left": 3.0}
+
+
+def test_sync_by_markers():
+    from horsemocap.quality import check_sync_by_markers
+
+    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2} for c in ("left", "middle", "right")}
+    c = check_sync_by_markers(same)
+    assert c.level == "ok" and c.figure == 0
+    moved = {**same, "right": {"shift": -2, "current_px": 6.0, "best_px": 0.3}}
+    c = check_sync_by_markers(moved)
+    assert c.level == "warning" and c.figure == 2 and "'right' by -2" in c.message
+    assert check_sync_by_markers({}).level == "skipped"

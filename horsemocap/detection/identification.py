@@ -63,6 +63,8 @@ IDENTIFICATION_REASONS = {
     "single_view": "seen by one camera only: its identity cannot be validated by another camera",
     "off_track": "consistent in the cameras, but further from the predicted 3D position than a marker moves",
     "unconfirmed": "found alone (no other marker confirms its distance) on an extrapolated track or by too few cameras",
+    "lost": "its own track is lost (unseen for more frames than a prediction holds); found again "
+            "when the marker set is labelled anew",
     "not_tracked": "the marker set is not followed in this frame (not in view, or lost)",
 }
 REASONS = IDENTIFICATION_REASONS
@@ -412,15 +414,28 @@ class ModelFit:
     n_fits: int
 
 
+#: A triangle seen this nearly edge-on (|cos| of the angle between its normal and the
+#: line of sight) has no reliable handedness: its sign is not used.
+EDGE_ON_COS = 0.05
+
+
 def _facing(points3, camera_centre):
-    """Sign of the triangle's normal ``(p1 - p0) x (p2 - p0)`` seen from the camera."""
+    """Sign of the triangle's normal ``(p1 - p0) x (p2 - p0)`` seen from the camera.
+
+    ``0`` when the triangle is seen nearly edge-on (``EDGE_ON_COS``) or is
+    degenerate: then a few millimetres of noise flip the sign.
+    """
     n = np.cross(points3[..., 1, :] - points3[..., 0, :], points3[..., 2, :] - points3[..., 0, :])
-    return np.sign(np.einsum("...i,...i->...", n, camera_centre - points3.mean(axis=-2)))
+    sight = camera_centre - points3.mean(axis=-2)
+    dot = np.einsum("...i,...i->...", n, sight)
+    norm = np.linalg.norm(n, axis=-1) * np.linalg.norm(sight, axis=-1)
+    cos = np.divide(dot, norm, out=np.zeros_like(dot), where=norm > 0)
+    return np.where(np.abs(cos) < EDGE_ON_COS, 0.0, np.sign(cos))
 
 
 def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_markers: int,
                      camera_centre: np.ndarray, model_index=None, slack_m: float = RIGID_SLACK_M,
-                     missing=None, areas=None) -> ModelFit | None:
+                     missing=None, areas=None, views=None) -> ModelFit | None:
     """Label the frame's 3D points with the rigid marker model of the static shot.
 
     Every ordered choice of ``n_markers`` distinct frame points is compared
@@ -430,7 +445,8 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
     distances must agree within :func:`distance_tolerance`, and the first three
     markers' triangle must face the reference camera as it does in the static
     shot (handedness: the thesis' cross-product rule in 3D, which tells a
-    triangle from its mirror image when two sides are equal). The cost of an
+    triangle from its mirror image when two sides are equal; not used for a
+    triangle seen nearly edge-on, :data:`EDGE_ON_COS`). The cost of an
     assignment is the mean squared normalised distance error, plus the
     squared RMS distance error in units of ``slack_m`` (the shape error
     itself: the normalised one forgives errors along the poorly observed
@@ -453,6 +469,10 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
         share one size: in every camera the areas of an assignment lie within
         ``SIZE_SPREAD`` of each other (a hoof, a white boot or a lamp does not
         pass for a marker).
+    views : (P, C) int, optional
+        :attr:`ViewPoints.index`: the candidate region of each point in each
+        camera (``-1``: unseen). Two markers never share a region: an
+        assignment that would is not considered.
 
     Returns
     -------
@@ -473,6 +493,10 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
     extra = (np.asarray(missing, float)[perms].sum(axis=1) * MISSING_VIEW_COST if missing is not None
              else np.zeros(len(perms)))
     size_ok = np.ones(len(perms), bool)
+    if views is not None:                      # a region of one camera serves one marker only
+        idx = np.asarray(views, int)[perms]                          # (K, M, C)
+        srt = np.sort(idx, axis=1)
+        size_ok &= ~np.any((srt[:, 1:] == srt[:, :-1]) & (srt[:, 1:] >= 0), axis=(1, 2))
     if areas is not None:
         la = np.log(np.asarray(areas, float))[perms]               # (K, M, C), NaN where unseen
         spread = np.fmax.reduce(la, axis=1) - np.fmin.reduce(la, axis=1)
@@ -494,7 +518,9 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
         if not ok.any():
             continue
         face_model = _facing(ms[None, :3], camera_centre)[0]
-        ok &= _facing(pts[:, :3], camera_centre) == face_model
+        if face_model != 0:
+            face = _facing(pts[:, :3], camera_centre)
+            ok &= (face == face_model) | (face == 0)
         for k in np.flatnonzero(ok):
             rms = math.sqrt(np.mean([(np.linalg.norm(pts[k, i] - pts[k, j]) - np.linalg.norm(ms[i] - ms[j])) ** 2
                                      for i, j in pairs]))
@@ -532,7 +558,8 @@ class Identification:
         RMS error of the frame's marker distances against the static shot.
     thresholds : dict camera -> int
     anchor_frame : int
-        The frame where the labelling was clearest (tracking starts there).
+        The first frame (middle of the record outward) labelled clearly with
+        the chosen skin markers (:func:`_find_anchor`); tracking starts there.
     anchor_margin : float
     """
 
@@ -605,7 +632,7 @@ def label_frame(rig, cands: dict, model: np.ndarray, n_markers: int, max_residua
         areas[seen, i] = cands[c].area[vp.index[seen, i]]
     try:
         fit = fit_marker_model(vp.points, cov, model, n_markers, rig[cams[0]].center, model_index, slack_m,
-                               missing=vp.missing, areas=areas)
+                               missing=vp.missing, areas=areas, views=vp.index)
     except DetectionError as exc:            # a cluttered frame cannot be labelled; others may be
         return vp, None, str(exc)
     if fit is None:
@@ -621,20 +648,45 @@ def _whole_frame_candidates(frames, k, cams, thr, cparams) -> dict:
                                 centroid=cparams[c].centroid) for c in cams}
 
 
+#: Frames labelled on their own before the skin markers among the static shot's points are
+#: chosen (the choice most of them agree on; see :func:`_find_anchor`).
+ANCHOR_VOTES = 5
+
+
 def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step):
-    """The frame where the markers are labelled most clearly (middle of the record outward)."""
-    centre = rig[cams[0]].center
+    """The first frame (middle of the record outward) labelled clearly, and the skin markers.
+
+    The static shot holds the skin markers and the saddle marker; which of
+    its points are the skin markers is decided by up to ``ANCHOR_VOTES``
+    clearly labelled frames together: the subset most of them chose (ties:
+    the smaller median shape error), so one frame in which a pseudo marker
+    rigid with the horse completes a look-alike of another subset (the horse
+    half in view, say) does not decide it. The anchor is the first of the
+    frames that chose it.
+
+    Returns ``((k, cands, vp, fit) or None, tried, votes)``: ``tried`` lists
+    ``(frame, why)`` of the frames without a clear labelling, ``votes`` maps
+    each chosen subset to its frames.
+    """
     n = len(frames[cams[0]])
-    tried, best = [], None
+    tried, fits = [], []
+    single = model_index is not None or len(model) == M
     for k in _middle_out(n, step):
         cands = _whole_frame_candidates(frames, k, cams, thr, cparams)
         vp, fit, why = label_frame(rig, cands, model, M, max_residual_px, model_index)
         if fit is None:
             tried.append((k, why))
             continue
-        best = (k, cands, vp, fit)
-        break
-    return best, tried
+        fits.append((k, cands, vp, fit))
+        if single or len(fits) >= ANCHOR_VOTES:
+            break
+    votes = {}
+    for f in fits:
+        votes.setdefault(tuple(int(i) for i in f[3].model_index), []).append(f)
+    if not votes:
+        return None, tried, {}
+    chosen = min(votes, key=lambda sub: (-len(votes[sub]), float(np.median([f[3].rms_m for f in votes[sub]]))))
+    return votes[chosen][0], tried, {sub: [f[0] for f in fs] for sub, fs in votes.items()}
 
 
 def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: int, params=None, *,
@@ -701,7 +753,8 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
             sample = np.unique(np.linspace(0, n - 1, min(n, 8)).round().astype(int))
             thr[c] = auto_threshold([frames[c][i] for i in sample], cparams[c].threshold_method)
     step = max(1, min(8, n // 30))
-    found, tried = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None, max_residual_px, step)
+    found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
+                                       max_residual_px, step)
     if found is None:
         why = "; ".join(f"frame {k}: {w}" for k, w in tried[:6])
         raise DetectionError(
@@ -713,12 +766,25 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
                        max_residual_px, slack_m, n)
     tracker.anchor_rms = fit0.rms_m
     tracker.start(k0, cands0, vp0, fit0)
+    if len(votes) > 1:
+        progress("detect", "the skin markers among the static shot's points, as labelled frame by frame: "
+                 + "; ".join(f"points {list(sub)} in frames {ks}" for sub, ks in votes.items())
+                 + f"; taken: {list(fit0.model_index)}")
     progress("detect", f"markers labelled in frame {k0} (model fit {1000 * fit0.rms_m:.1f} mm rms); "
                        "following them in 3D ...")
     for direction in (1, -1):
         k1 = tracker.seed_neighbour(k0, direction)
         tracker.run(k1, direction)
     return tracker.result(fit0.model_index, k0, fit0.margin)
+
+
+def _in_image(camera, point) -> bool:
+    """Does the 3D ``point`` project inside the camera's image (and lie in front of it)?"""
+    if camera.world_to_camera(np.asarray(point, float)[None])[0, 2] <= 0:
+        return False
+    u, v = camera.project(np.asarray(point, float)[None])[0]
+    w, h = camera.size
+    return bool(0 <= u <= w - 1 and 0 <= v <= h - 1)
 
 
 class _Tracker:
@@ -752,7 +818,7 @@ class _Tracker:
                     self.area[c][k, m] = cands[c].area[j]
                     self.reason[c][k, m] = ""
                 else:
-                    self.reason[c][k, m] = "occluded"
+                    self.reason[c][k, m] = "occluded" if _in_image(self.rig[c], vp.points[i]) else "outside_image"
             self.X[k, m] = vp.points[i]
         self._rigid_rms(k)
 
@@ -854,7 +920,8 @@ class _Tracker:
     # -- one frame ---------------------------------------------------------
     def step(self, k, direction):
         pred, gaps = self._predict(k, direction)
-        if not np.all(np.isfinite(pred)):
+        predicted = np.all(np.isfinite(pred), axis=1)
+        if not predicted.any():
             return False
         cams, M = self.cams, self.M
         self._cand_index = {}
@@ -878,12 +945,15 @@ class _Tracker:
             cands[c] = frame_candidates(self.frames[c][k], self.thr[c], _area_range(cp), None, crop=crop,
                                         centroid=cp.centroid)
         # options per marker and camera
-        for m in range(M):
-            if gaps[m] <= MAX_STALE_FRAMES:
+        for m in range(M):              # a marker with no prediction (or too stale a one) is not searched
+            if predicted[m] and gaps[m] <= MAX_STALE_FRAMES:
                 self._solve_marker(k, m, cams, proj, radius, ref_area, cands, pred[m], gaps[m])
+            else:
+                for c in cams:
+                    self.reason[c][k, m] = "lost"
         self._resolve_shared(k, cands)
         self._check_rigid(k, pred)
-        self._check_alone(k, gaps)
+        self._check_alone(k, gaps, pred, direction)
         self._rigid_rms(k)
         return bool(np.any(np.all(np.isfinite(self.X[k]), axis=1)))
 
@@ -1040,20 +1110,30 @@ class _Tracker:
                     for m in ms:
                         self._drop_view(k, m, c, "merged")
 
-    def _check_alone(self, k, gaps):
+    def _check_alone(self, k, gaps, pred, direction):
         """A marker found alone is confirmed by no other marker's distance.
 
-        It is used only when its own track carried it here (not a stale
-        extrapolation) and every camera that can validate it does (at least
-        three views with three or more cameras): a 2-view point may be a
-        chance match along an epipolar line, off in depth.
+        It is used when every camera that can validate it does (at least
+        three views with three or more cameras), or, seen by two, when its
+        own track saw it in each of the two frames before and it lies within
+        a quarter of the marker spacing of its constant-velocity prediction (a
+        marker entering or leaving the third camera's view while the others
+        are out of sight). A 2-view point on a stale or borrowed track may be
+        a chance match along an epipolar line, off in depth.
         """
         have = np.flatnonzero(np.all(np.isfinite(self.X[k]), axis=1))
         if len(have) != 1:
             return
         m = have[0]
         views = sum(self.reason[c][k, m] == "" for c in self.cams)
-        if gaps[m] > 0 or views < min(3, self.C):
+        if gaps[m] > 0:
+            self._reject(k, m, "unconfirmed")
+            return
+        if views >= min(3, self.C):
+            return
+        hist, gap = self._history(k, direction, m)
+        own = gap == 0 and len(hist) >= 2 and hist[0][0] == 1 and hist[1][0] == 2
+        if not own or np.linalg.norm(self.X[k, m] - pred[m]) > 0.5 * self.max_step:
             self._reject(k, m, "unconfirmed")
 
     def _reject(self, k, m, why):
@@ -1108,17 +1188,24 @@ class _Tracker:
     def run(self, k0, direction):
         """Follow the markers from frame ``k0`` to one end of the record.
 
-        After ``MAX_LOST_FRAMES`` frames without any marker, the set is
-        looked for again in whole frames (as for the anchor), every frame.
+        After ``MAX_LOST_FRAMES`` frames without any marker, or with a marker
+        whose own track is lost, the set is looked for again in whole frames
+        (as for the anchor), every frame, until it is found whole.
         """
-        k, lost = k0 + direction, 0
+        k, lost, partly = k0 + direction, 0, 0
         while 0 <= k < self.n:
-            if lost <= MAX_LOST_FRAMES:
-                lost = 0 if self.step(k, direction) else lost + 1
-            elif self._reacquire(k):
-                lost = 0
-                k = self.seed_neighbour(k, direction)
+            if (lost > MAX_LOST_FRAMES or partly > MAX_LOST_FRAMES) and self._reacquire(k):
+                lost = partly = 0
+                k = self.seed_neighbour(k, direction) + direction
+                continue
+            if lost <= MAX_LOST_FRAMES:       # (a marker lost alone: the others are followed meanwhile)
+                found = self.step(k, direction)
+                lost = 0 if found else lost + 1
+                partly = partly + 1 if found and self._any_lost(k) else 0
             k += direction
+
+    def _any_lost(self, k):
+        return any(self.reason[c][k, m] == "lost" for c in self.cams for m in range(self.M))
 
     def _label_whole_frame(self, k):
         """Candidates, 3D points and model labelling of frame ``k`` searched without a prediction."""
@@ -1159,8 +1246,8 @@ def bridge_gaps(points: np.ndarray, max_gap: int, context: int = 4):
 
     A run of at most ``max_gap`` NaN frames of one marker, with at least two
     measured frames on each side, is filled by a cubic spline through up to
-    ``context`` measured frames on each side; longer runs and the record's
-    ends stay NaN.
+    ``context`` measured frames on each side, within ``2 * context`` frames of
+    the gap; longer runs and the record's ends stay NaN.
 
     Parameters
     ----------
@@ -1193,6 +1280,8 @@ def bridge_gaps(points: np.ndarray, max_gap: int, context: int = 4):
                 continue
             left = np.flatnonzero(ok[:a])[-context:]
             right = np.flatnonzero(ok[b:])[:context] + b
+            left = left[left >= a - 2 * context]              # anchors near the gap only (not across
+            right = right[right < b + 2 * context]            # another gap, far from this one)
             if len(left) < 2 or len(right) < 2:
                 continue
             t = np.concatenate([left, right])

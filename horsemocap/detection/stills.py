@@ -229,8 +229,8 @@ class StillViews:
     cameras: tuple
 
 
-def _consistent_points(rig, cams, cand, max_residual_px):
-    """Correspondences of candidates found in ALL cameras with a small reprojection error.
+def _consistent_points(rig, cams, cand, max_residual_px, sizes=None):
+    """Correspondences of candidates found in every camera that can see them.
 
     Hypotheses start as the candidates of the reference camera; each further
     camera's candidates are added to every hypothesis and the extended
@@ -239,8 +239,40 @@ def _consistent_points(rig, cams, cand, max_residual_px):
     error is below ``max_residual_px`` (the epipolar constraint for two
     cameras, the 3D consistency for more) survive.
 
-    Returns index rows (T, C), points (T, 3) and largest residuals (T,).
+    With three or more cameras, a point seen by only some of them (at least
+    two) is kept too when it projects outside the image of every camera that
+    misses it (``sizes``: camera -> ``(width, height)``; a marker at the edge
+    of a view, e.g. the saddle marker above the top of one camera's image,
+    :func:`_outside_view`). A point inside a camera's image must be one of
+    that camera's candidates: a buckle or a glint seen by two cameras only is
+    not a marker.
+
+    Returns index rows (T, C) (``-1``: the camera does not see the point),
+    points (T, 3) and largest residuals (T,).
     """
+    hyp, X, res = _matched_in(rig, cams, cand, max_residual_px)
+    if sizes is None or len(cams) < 3:
+        return hyp, X, res
+    rows, pts, resid = [hyp], [X], [res]
+    for r in range(2, len(cams)):
+        for seen in itertools.combinations(range(len(cams)), r):
+            sub = tuple(cams[i] for i in seen)
+            h, x, e = _matched_in(rig, sub, cand, max_residual_px)
+            if not len(h):
+                continue
+            radius = _region_radius(cand, sub, h)
+            ok = _near_depth(rig[cams[0]], x, X)
+            for j, c in enumerate(cams):
+                if j not in seen:
+                    ok &= _outside_view(rig[c], x, sizes[c], radius)
+            full = np.full((int(ok.sum()), len(cams)), -1, dtype=np.intp)
+            full[:, list(seen)] = h[ok]
+            rows.append(full), pts.append(x[ok]), resid.append(e[ok])
+    return np.concatenate(rows), np.concatenate(pts), np.concatenate(resid)
+
+
+def _matched_in(rig, cams, cand, max_residual_px):
+    """Correspondences seen by ALL of ``cams`` (see :func:`_consistent_points`)."""
     from ..reconstruction import triangulate
 
     hyp = np.arange(len(cand[cams[0]]))[:, None]
@@ -258,12 +290,57 @@ def _consistent_points(rig, cams, cand, max_residual_px):
     return hyp, X, res
 
 
+def _near_depth(reference, points, seen_by_all, depth_range=(0.5, 2.0)):
+    """Points at ``depth_range`` times the distance of the points every camera sees (all, if none)."""
+    if not len(seen_by_all):
+        return np.ones(len(points), bool)
+    ref = float(np.median(np.linalg.norm(np.asarray(seen_by_all) - reference.center, axis=1)))
+    d = np.linalg.norm(np.asarray(points) - reference.center, axis=1)
+    return (d >= depth_range[0] * ref) & (d <= depth_range[1] * ref)
+
+
+def _region_radius(cand, cams, hyp):
+    """Largest region radius (px, from the area) of each correspondence over its cameras."""
+    areas = np.stack([cand[c].area[hyp[:, i]] for i, c in enumerate(cams)], axis=1)
+    return np.sqrt(areas.max(axis=1) / np.pi)
+
+
+def _outside_view(camera, points, size, radius_px, reach: float = 0.25):
+    """Points just outside the image, or so near its edge that the region is cut.
+
+    A region touching the border is never a candidate (its centre is
+    biased), so a marker within its own radius (plus 2 px) of the edge is
+    not seen either. "Just outside": in front of the camera and within
+    ``reach`` times the image size beyond the edge, where a marker of a
+    scene that the other cameras see whole can be; a chance pairing of two
+    other cameras' pseudo markers triangulates anywhere.
+    """
+    uv = camera.project(np.asarray(points, float))
+    w, h = size
+    m = np.asarray(radius_px, float) + 2.0
+    inside = (uv[:, 0] >= m) & (uv[:, 0] <= w - 1 - m) & (uv[:, 1] >= m) & (uv[:, 1] <= h - 1 - m)
+    near = (uv[:, 0] >= -reach * w) & (uv[:, 0] <= (1 + reach) * w) & \
+        (uv[:, 1] >= -reach * h) & (uv[:, 1] <= (1 + reach) * h)
+    in_front = camera.world_to_camera(np.asarray(points, float))[:, 2] > 0
+    return ~inside & near & in_front
+
+
+def _camera_scores(cand, cams, hyp):
+    """Appearance cost of each correspondence per camera (NaN where the camera does not see it)."""
+    out = np.full(hyp.shape, np.nan)
+    for i, c in enumerate(cams):
+        seen = hyp[:, i] >= 0
+        out[seen, i] = cand[c].score[hyp[seen, i]]
+    return out
+
+
 def _choose_points(hyp, score, area, M):
     """Best combination of M disjoint correspondences; its cost and the runner-up's.
 
     A combination may use each candidate of each camera once, and the areas of
     its regions lie within 3 times in every camera (markers share one size,
-    as in :func:`detect_still`). Cost = sum of the appearance costs.
+    as in :func:`detect_still`; a camera that does not see a point, ``-1``, is
+    left out). Cost = sum of the appearance costs.
     """
     T = len(hyp)
     order = np.argsort(score, kind="stable")
@@ -274,11 +351,12 @@ def _choose_points(hyp, score, area, M):
     combos = pool[np.array(list(itertools.combinations(range(K), M)), dtype=np.intp)]
     ok = np.ones(len(combos), bool)
     for c in range(hyp.shape[1]):
-        idx = hyp[combos, c]                                    # (n, M)
+        idx = hyp[combos, c]                                    # (n, M); -1: not seen
         s = np.sort(idx, axis=1)
-        ok &= np.all(s[:, 1:] != s[:, :-1], axis=1)             # a region serves one marker only
-        la = np.log(area[c][idx])
-        ok &= (la.max(axis=1) - la.min(axis=1)) <= np.log(3.0)
+        ok &= np.all((s[:, 1:] != s[:, :-1]) | (s[:, 1:] < 0), axis=1)   # a region serves one marker only
+        la = np.where(idx >= 0, np.log(area[c][np.maximum(idx, 0)]), np.nan)
+        spread = np.fmax.reduce(la, axis=1) - np.fmin.reduce(la, axis=1)
+        ok &= ~(spread > np.log(3.0))
     combos = combos[ok]
     cost = score[combos].sum(axis=1)
     o = np.argsort(cost, kind="stable")
@@ -291,7 +369,9 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
 
     One camera alone cannot tell a marker from a round bright pseudo marker
     (a glint, a buckle) of similar look; the other cameras can: a marker is
-    a 3D point whose projections are candidate regions in ALL cameras.
+    a 3D point whose projections are candidate regions in every camera whose
+    image it falls in (all cameras, or at least two when it projects outside
+    the others' images: a saddle marker above the top edge of one view).
 
     1. Candidates of each camera: :func:`still_candidates` (the rules of
        :func:`detect_still`: threshold eq. 4.5, labelling 4.5.2, area 4.5.3,
@@ -302,7 +382,9 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
        triangulated jointly (``triangulate(mode="joint")``, thesis 5.1) and
        kept when its largest reprojection error is below ``max_residual_px``
        (for two cameras this is the epipolar constraint; with three, the
-       point must also project onto a candidate of the third camera).
+       point must also project onto a candidate of the third camera). A
+       point that only some cameras (two or more) see is kept when it falls
+       outside the image of each of the others (:func:`_consistent_points`).
     3. Choice: among the consistent points, the ``n_markers`` with disjoint
        regions, areas within 3 times in every camera, and the smallest sum of
        appearance costs (mean over the cameras of ``(1 - circularity) +
@@ -361,18 +443,20 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
     cand = {c: still_candidates(images[c], p) for c in cams}
     counts = ", ".join(f"{c}: {len(cand[c])} at threshold {cand[c].threshold}" for c in cams)
     short = [c for c in cams if len(cand[c]) < M]
-    if short:
+    if len(cams) - len(short) < 2:
         raise DetectionError(f"still views: camera(s) {short} have fewer than {M} round candidate regions "
                              f"({counts})")
-    hyp, X, res = _consistent_points(rig, cams, cand, max_residual_px)
-    score = (np.mean([cand[c].score[hyp[:, i]] for i, c in enumerate(cams)], axis=0)
-             if len(hyp) else np.zeros(0))
-    n_distinct = min((len(np.unique(hyp[:, i])) for i in range(len(cams))), default=0)
+    sizes = {c: np.asarray(images[c]).shape[1::-1] for c in cams}
+    hyp, X, res = _consistent_points(rig, cams, cand, max_residual_px, sizes)
+    cam_score = _camera_scores(cand, cams, hyp)
+    score = np.nanmean(cam_score, axis=1) if len(hyp) else np.zeros(0)
+    n_distinct = min((len(np.unique(hyp[hyp[:, i] >= 0, i])) + int(np.sum(hyp[:, i] < 0))
+                      for i in range(len(cams))), default=0)
     if len(hyp) < M or n_distinct < M:
         raise DetectionError(
-            f"still views: only {min(len(hyp), n_distinct)} point(s) are seen consistently by all cameras "
-            f"{list(cams)} (reprojection error < {max_residual_px:g} px), expected {M} markers "
-            f"(candidates {counts}); check the rig or the stills")
+            f"still views: only {min(len(hyp), n_distinct)} point(s) are seen consistently by every camera "
+            f"of {list(cams)} whose image they fall in (reprojection error < {max_residual_px:g} px), "
+            f"expected {M} markers (candidates {counts}); check the rig or the stills")
     combos, cost = _choose_points(hyp, score, [cand[c].area for c in cams], M)
     if len(combos) == 0:
         raise DetectionError(
@@ -385,8 +469,8 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
         # detect_still's rule on the costs averaged over the cameras ...
         mean_margin = float(score[only_second].sum() - 2 * score[only_best].sum() - 0.02)
         # ... or every camera on its own prefers the choice by more than its slack
-        per_cam = [cand[c].score[hyp[only_second, i]].sum() - cand[c].score[hyp[only_best, i]].sum() - 0.02
-                   for i, c in enumerate(cams)]
+        per_cam = [np.nansum(cam_score[only_second, i]) - np.nansum(cam_score[only_best, i]) - 0.02
+                   for i in range(len(cams))]
         margin = max(mean_margin, float(min(per_cam)))
         if margin < 0:
             raise DetectionError(
@@ -394,11 +478,12 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
                 f"{M} markers among them are ambiguous (costs {cost[0]:.3f} vs {cost[1]:.3f}); "
                 f"give an area range or a threshold (candidates {counts})")
     best = combos[0]
-    ref_px = cand[cams[0]].centre[hyp[best, 0]]
+    ref_px = rig[cams[0]].project(X[best])           # a point the reference camera misses is ordered too
     o = best[np.argsort(ref_px[:, 1 if order == "v" else 0], kind="stable")]
     index = {c: hyp[o, i] for i, c in enumerate(cams)}
     return StillViews(
-        marker_px={c: cand[c].centre[index[c]] for c in cams},
+        marker_px={c: np.where(index[c][:, None] >= 0, cand[c].centre[np.maximum(index[c], 0)], np.nan)
+                   for c in cams},
         points=X[o], residual_px=res[o], score=score[o], candidates=cand, index=index,
         consistent=hyp, consistent_score=score, margin=float(margin), cameras=cams)
 
