@@ -122,6 +122,13 @@ class AnalysisParams:
         parameter per component), ``"adaptive"`` (a second GCV pass with a
         penalty weighted by the local roughness: better on motions that are
         calm then ringing), ``"gcv_cubic"`` (SciPy's ``make_smoothing_spline``) or ``"none"``.
+    pose_partial_frames : bool
+        With ``"pose_spline"``: smooth the pose trajectory also over the
+        frames just beyond the analysed ones in which two markers are still
+        triangulated (their pose completed by the trajectory's rotation about
+        the two markers' line, :func:`horsemocap.pose.partial_pose`), and
+        report only the analysed frames. The spline's natural boundary
+        conditions then bias the acceleration outside the reported frames.
     motion_frame : str
         x-motion axis: ``"auto"`` (default: the thesis' eq. 5.6/5.7 over one
         or two periods of ``x_marker`` when a period is given or found, else
@@ -153,6 +160,7 @@ class AnalysisParams:
     weighting_mode: str = "iso"
     kinematics: str = "fits"
     pose_smoothing: str = "gcv"
+    pose_partial_frames: bool = True
     motion_frame: str = "auto"
 
     def to_dict(self) -> dict:
@@ -248,6 +256,7 @@ class AnalysisParams:
 
         choice("order_rule", ORDER_RULES)
         boolean("fourier_trend")
+        boolean("pose_partial_frames")
         choice("angular_method", ("rotation", "lstsq", "thesis"))
         for name in ("omega_versions", "alpha_versions"):
             v = getattr(self, name)
