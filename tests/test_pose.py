@@ -231,3 +231,15 @@ def test_frames_with_two_markers_beyond_the_ends_reduce_the_end_error():
             else:
                 assert not tr.valid[0] and "outside the frames with a pose" in tr.reason[0]
     assert np.median(errs[True]) < np.median(errs[False])
+
+
+def test_pose_margin_widens_the_segment_over_frames_with_two_markers():
+    from horsemocap.pipeline import pose_margin
+
+    pts = np.full((12, 3, 3), np.nan)
+    counts = [0, 1, 2, 2, 3, 3, 3, 3, 2, 1, 2, 3]
+    for k, c in enumerate(counts):
+        pts[k, :c] = 1.0
+    assert pose_margin(pts, (4, 8)) == (2, 9)
+    assert pose_margin(pts, (4, 8), min_markers=1) == (1, 12)
+    assert pose_margin(pts, (4, 8), min_markers=3) == (4, 8)
