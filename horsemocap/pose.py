@@ -23,7 +23,13 @@ object throughout:
    cross-validation (:func:`horsemocap.splines.smoothing_spline`). Nothing
    assumes a period: steady gait, a transition or a lift are treated alike.
    Frames without a pose are bridged by the spline when the gap is short
-   (``max_gap_s``) and NaN with the reason otherwise.
+   (``max_gap_s``) and NaN with the reason otherwise. Frames with only two
+   markers (beyond the ends of a record, where a marker leaves the view)
+   can join the smoothing (``partial=True``, :func:`partial_pose`): two
+   markers fix five of the six degrees of freedom, the rotation about
+   their line comes from the smoothed trajectory, and the spline's natural
+   boundary conditions, which bias the acceleration in a record's last
+   frames, then act beyond the frames that are reported.
 3. **Analytic derivatives** (:class:`PoseTrajectory`): ``v_c = c'``,
    ``a_c = c''``; ``omega = J_l(phi) phi'`` and ``alpha = J_l(phi) phi'' +
    J_l'(phi) phi'`` with the left Jacobian of SO(3); any body point ``d``
