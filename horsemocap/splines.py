@@ -137,7 +137,7 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
     f, rss, tr = fit(lam)
     spline = BSpline(knots, T @ f, k)
     return spline, {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
-                    "n": n, "order": 5, "method": "gcv" if noise is None else "noise",
+                    "n": n, "order": k, "method": "gcv" if noise is None else "noise",
                     "noise": float("nan") if noise is None else float(noise)}
 
 
