@@ -8,7 +8,7 @@ acceleration RMSE (% of its rms) and the errors (%) of the Wb/Wk-weighted rms
 and VDV against the truth; then the medians and worst cases.
 
 Usage: ``python benchmarks/bench_herd_kinematics.py ['{"kinematics": "fits"}' ...]``
-(default variants: fits, pose_spline with gcv, pose_spline with adaptive smoothing).
+(default variants: fits, pose_spline without and with the partial frames beyond the ends).
 """
 from __future__ import annotations
 
@@ -23,8 +23,9 @@ KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk")
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    variants = [json.loads(a) for a in argv] or [{"kinematics": "fits"}, {"kinematics": "pose_spline"},
-                                                 {"kinematics": "pose_spline", "pose_smoothing": "adaptive"}]
+    variants = [json.loads(a) for a in argv] or [
+        {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_partial_frames": False},
+        {"kinematics": "pose_spline", "pose_partial_frames": True}]
     from horsemocap import accuracy
     from horsemocap.pipeline import analyze, run_steps
     from horsemocap.virtuallab import GAITS, HORSES, herd_session, load_truth

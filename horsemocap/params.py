@@ -101,27 +101,42 @@ class AnalysisParams:
         by generalised cross-validation, analytic derivatives; no period and
         no eq. 6.35 singularity; :mod:`horsemocap.pose`). Both are computed
         when the record allows. Measured on the 16 virtual herd sessions
+        through the pipeline with the multi-view detection
         (``benchmarks/bench_herd_kinematics.py``, the same detections for
-        both; ``benchmarks/results/herd_kinematics.txt``): saddle vertical
-        acceleration median 15.8 % (worst 24.8 %) with pose_spline against
-        24.6 % (45.4 %) with the fits; median |error| of the Wb-weighted rms
-        5.0 % against 7.9 %, of the Wk-weighted rms 4.4 % against 6.7 %, of
-        VDV Wb 6.4 % against 9.2 %. On the bundled Horse 2 canter alone (38
-        frames) the fits do better (3.0 % against 18.3 %). With detection
-        noise (notebook 14's study, bundled session, medians of 3 draws) the
-        saddle error at 0.1 / 0.25 / 0.5 px is 32.9 / 36.9 / 56.3 % with
-        pose_spline and 19.0 / 108.8 / 560 % with the fits. A non-periodic
-        record (a lift, a set-down, 10 Hz ringing) has only pose_spline
-        (``benchmarks/bench_kinematics.py``).
-        The default stays ``"fits"`` until the notebooks that print the
-        default's numbers (08-14, 13 with the whole herd) are rebuilt with
-        ``"pose_spline"``.
+        every variant; ``benchmarks/results/herd_kinematics.txt``): saddle
+        vertical acceleration RMSE median 10.4 % (worst 13.4 %) of its rms
+        with pose_spline (12.7 %, worst 26.5 %, without
+        ``pose_partial_frames``) against 21.2 % (39.9 %) with the fits;
+        median |error| of the Wb-weighted rms 5.0 % against 9.2 %, of the
+        Wk-weighted rms 4.1 % against 6.7 %, of VDV Wb 7.4 % against 10.9 %,
+        of VDV Wk 5.8 % against 9.1 %. On the bundled Horse 2 canter (38
+        frames) the fits do better: 2.6 % against 10.1 % (17.4 % without the
+        partial frames; 2.2 % against 2.1 % from the true projections
+        without noise): its motion is periodic and a Fourier series of the
+        stride is its exact model, while the splines' smoothing lowers the
+        weighted rms by 5-7 %.
+        With white detection noise (notebook 14's study, bundled session,
+        medians of 3 draws, ``benchmarks/bench_noise_kinematics.py``;
+        ``benchmarks/results/noise_kinematics.txt``) the saddle error at
+        0.1 / 0.25 / 0.5 px is 30.8 / 40.2 / 51.2 % with pose_spline and
+        84.0 / 192.9 / 673 % with the fits. A non-periodic record (a lift,
+        a set-down, 10 Hz ringing) has only pose_spline
+        (``benchmarks/bench_kinematics.py``). The default stays ``"fits"``:
+        pose_spline is better on the herd (median and worst) and with noise
+        but worse on the bundled session.
     pose_smoothing : str
         Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`):
         ``"gcv"`` (default; quintic, one generalised cross-validation
         parameter per component), ``"adaptive"`` (a second GCV pass with a
         penalty weighted by the local roughness: better on motions that are
         calm then ringing), ``"gcv_cubic"`` (SciPy's ``make_smoothing_spline``) or ``"none"``.
+    pose_partial_frames : bool
+        With ``"pose_spline"``: smooth the pose trajectory also over the
+        frames just beyond the analysed ones in which two markers are still
+        triangulated (their pose completed by the trajectory's rotation about
+        the two markers' line, :func:`horsemocap.pose.partial_pose`), and
+        report only the analysed frames. The spline's natural boundary
+        conditions then bias the acceleration outside the reported frames.
     motion_frame : str
         x-motion axis: ``"auto"`` (default: the thesis' eq. 5.6/5.7 over one
         or two periods of ``x_marker`` when a period is given or found, else
@@ -153,6 +168,7 @@ class AnalysisParams:
     weighting_mode: str = "iso"
     kinematics: str = "fits"
     pose_smoothing: str = "gcv"
+    pose_partial_frames: bool = True
     motion_frame: str = "auto"
 
     def to_dict(self) -> dict:
@@ -248,6 +264,7 @@ class AnalysisParams:
 
         choice("order_rule", ORDER_RULES)
         boolean("fourier_trend")
+        boolean("pose_partial_frames")
         choice("angular_method", ("rotation", "lstsq", "thesis"))
         for name in ("omega_versions", "alpha_versions"):
             v = getattr(self, name)

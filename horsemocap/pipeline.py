@@ -514,6 +514,15 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     # from their noise); the thesis chain keeps the smoothing step's positions (5.2)
     raw = to_motion_frame(res["smooth"]["raw"], res["motion_frame"]["frame"])
     t = time_axis(len(positions), session.fps)
+    pose_t, pose_points = None, raw
+    if params.kinematics == "pose_spline" and params.pose_partial_frames:
+        lo, hi = pose_margin(res["triangulate"]["points"], res["triangulate"]["segment"])
+        a, b = res["triangulate"]["segment"]
+        if (lo, hi) != (a, b):
+            pose_points = to_motion_frame(res["triangulate"]["points"][lo:hi], res["motion_frame"]["frame"])
+            pose_t = np.arange(lo - a, hi - a) / float(session.fps)
+            progress("rigid_body", f"pose trajectory smoothed over frames {lo}..{hi - 1}: {a - lo} before and "
+                                   f"{hi - b} after the analysed frames have two markers (reported: {a}..{b - 1})")
     period = res["motion_frame"]["period_frames"]
     fo = params.fourier_orders
     try:
@@ -525,7 +534,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             period_s=None if period is None else period / session.fps, fourier_trend=params.fourier_trend,
             kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
-            pose_points=raw)
+            pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
     orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
@@ -554,6 +563,24 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             "saddle_position": rb.saddle_position, "saddle_velocity": rb.saddle_velocity,
             "saddle_acceleration": rb.saddle_acceleration, "conditioning": cond, "warnings": warn,
             "saddle_angles_deg": saddle_angles(rb)}
+
+
+def pose_margin(points: np.ndarray, segment, min_markers: int = 2) -> tuple[int, int]:
+    """Frames next to the analysed segment in which at least ``min_markers`` markers have a 3D position.
+
+    The analysed segment ends where a marker is lost; the frames just beyond
+    it in which two markers are still triangulated carry five of the pose's
+    six degrees of freedom (:func:`horsemocap.pose.partial_pose`). Returns
+    ``(lo, hi)``: the segment ``(a, b)`` widened over the contiguous runs of
+    such frames on both sides.
+    """
+    count = np.all(np.isfinite(np.asarray(points, float)), axis=2).sum(1)
+    lo, hi = segment
+    while lo > 0 and count[lo - 1] >= min_markers:
+        lo -= 1
+    while hi < count.size and count[hi] >= min_markers:
+        hi += 1
+    return int(lo), int(hi)
 
 
 def conditioning(rb) -> dict:

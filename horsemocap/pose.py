@@ -23,7 +23,13 @@ object throughout:
    cross-validation (:func:`horsemocap.splines.smoothing_spline`). Nothing
    assumes a period: steady gait, a transition or a lift are treated alike.
    Frames without a pose are bridged by the spline when the gap is short
-   (``max_gap_s``) and NaN with the reason otherwise.
+   (``max_gap_s``) and NaN with the reason otherwise. Frames with only two
+   markers (beyond the ends of a record, where a marker leaves the view)
+   can join the smoothing (``partial=True``, :func:`partial_pose`): two
+   markers fix five of the six degrees of freedom, the rotation about
+   their line comes from the smoothed trajectory, and the spline's natural
+   boundary conditions, which bias the acceleration in a record's last
+   frames, then act beyond the frames that are reported.
 3. **Analytic derivatives** (:class:`PoseTrajectory`): ``v_c = c'``,
    ``a_c = c''``; ``omega = J_l(phi) phi'`` and ``alpha = J_l(phi) phi'' +
    J_l'(phi) phi'`` with the left Jacobian of SO(3); any body point ``d``
@@ -65,6 +71,7 @@ __all__ = [
     "fit_pose_trajectory",
     "conditioning_warnings",
     "pose_noise",
+    "partial_pose",
     "static_body_axes",
     "saddle_angles_deg",
 ]
@@ -531,9 +538,56 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     return np.sqrt(np.r_[np.diag(Sig) / k, np.diag(C)])
 
 
+def partial_pose(points, model, rotation, centre):
+    """Pose of frames in which exactly two markers are visible, completed by a prediction.
+
+    Two markers fix five of the pose's six degrees of freedom: the direction
+    of the line through them (two rotation angles) and the position along
+    and across it. The rotation *about* that line is not seen; it is taken
+    from the predicted pose ``(rotation, centre)`` (the smoothed trajectory
+    extrapolated to the frame). The predicted rotation is turned by the
+    smallest rotation that carries the predicted marker-to-marker direction
+    onto the measured one (:meth:`scipy.spatial.transform.Rotation.align_vectors`),
+    and the centroid is placed so that the two markers' midpoint matches.
+
+    Parameters
+    ----------
+    points : (n, m, 3)
+        Measured markers, exactly two finite per frame.
+    model : (m, 3)
+        The static-shot model.
+    rotation : (n, 3, 3), centre : (n, 3)
+        Predicted ``R(t)`` and model-centroid position ``c(t)``.
+
+    Returns
+    -------
+    rotation : (n, 3, 3), centre : (n, 3)
+    """
+    p = np.asarray(points, float)
+    x = np.asarray(model, float)
+    d = x - x.mean(0)
+    Rp = np.asarray(rotation, float)
+    cp = np.asarray(centre, float)
+    vis = np.all(np.isfinite(p), axis=2)
+    if np.any(vis.sum(1) != 2):
+        raise ValueError("points: partial_pose expects exactly two visible markers per frame, got "
+                         f"{sorted(set(vis.sum(1).tolist()))}")
+    R_out = np.empty_like(Rp)
+    c_out = np.empty_like(cp)
+    for k in range(p.shape[0]):
+        i, j = np.flatnonzero(vis[k])
+        u_pred = Rp[k] @ (d[j] - d[i])
+        u_meas = p[k, j] - p[k, i]
+        turn, _ = Rotation.align_vectors(u_meas[None], u_pred[None])
+        R = turn.as_matrix() @ Rp[k]
+        R_out[k] = R
+        c_out[k] = 0.5 * (p[k, i] + p[k, j]) - R @ (0.5 * (d[i] + d[j]))
+    return R_out, c_out
+
+
 def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: str = "gcv",
                         order: int = 5, max_gap_s: float | None = None, lam=None,
-                        points=None) -> PoseTrajectory:
+                        points=None, partial: bool = False, iterations: int = 3) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     Parameters
@@ -564,6 +618,18 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         gaps stay NaN with the reason. Default: 5 frame intervals.
     lam : None or (6,) floats
         Smoothing parameters given instead of chosen (``cx, cy, cz, phix, phiy, phiz``).
+    partial : bool
+        Also use the frames in which exactly two markers are visible (needs
+        ``points``): their pose is completed by :func:`partial_pose` with the
+        rotation about the two markers' line taken from the smoothed
+        trajectory, and the trajectory is smoothed again with them
+        (``iterations`` times). A short record ends where a marker leaves
+        the view, and the smoothing spline's natural boundary conditions
+        bias the acceleration in its last frames; a few frames with two
+        markers beyond the ends move those boundaries out of the frames
+        that are reported (``benchmarks/bench_herd_kinematics.py``).
+    iterations : int
+        Re-smoothings with the partial frames' poses updated.
     """
     from .splines import smoothing_spline
 
@@ -592,15 +658,39 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         if points is None:
             raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
         sig = pose_noise(reg, points, model)
-    cs = tuple(smoothing_spline(t[ok], reg.centre[ok, i], method=smoothing, order=order, lam=lam[i],
-                                noise=sig[i]) for i in range(3))
-    ps = tuple(smoothing_spline(t[ok], phi[ok, i], method=smoothing, order=order, lam=lam[3 + i],
-                                noise=sig[3 + i]) for i in range(3))
-    gaps = _gap_lengths(ok)
-    first, last = np.flatnonzero(ok)[[0, -1]]
-    valid = ok.copy()
+    two = np.zeros(n, bool)
+    if partial:
+        if points is None:
+            raise ValueError("points: partial frames need the measured markers")
+        pts = np.asarray(points, float)
+        if pts.shape[:1] != (n,):
+            raise ValueError(f"points: expected {n} frames to match t, got shape {pts.shape}")
+        two = ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
+    centre = reg.centre.copy()
+    use = ok
+    x_model = np.asarray(model, float)
+    for it in range(iterations + 1 if two.any() else 1):
+        cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
+                                    noise=sig[i]) for i in range(3))
+        ps = tuple(smoothing_spline(t[use], phi[use, i], method=smoothing, order=order, lam=lam[3 + i],
+                                    noise=sig[3 + i]) for i in range(3))
+        if it == iterations or not two.any():
+            break
+        tk = t[two]
+        Rp = (Rotation.from_rotvec(np.stack([s(tk) for s in ps], -1)) * ref).as_matrix()
+        cp = np.stack([s(tk) for s in cs], -1)
+        R2, c2 = partial_pose(pts[two], x_model, Rp, cp)
+        centre[two] = c2
+        phi[two] = (Rotation.from_matrix(R2) * ref.inv()).as_rotvec()
+        phi = unwrap_rotvec(phi)
+        use = ok | two
+    have = ok | two
+    gaps = _gap_lengths(have)
+    first, last = np.flatnonzero(have)[[0, -1]]
+    valid = have.copy()
     reason = np.array(reg.reason, dtype=object)
-    for i in np.flatnonzero(~ok):
+    reason[two] = "partial pose: 2 markers; the rotation about their line from the smoothed trajectory"
+    for i in np.flatnonzero(~have):
         if i < first or i > last:
             reason[i] = f"no pose ({reg.reason[i]}); outside the frames with a pose"
         elif gaps[i] * dt <= max_gap + 1e-9:

@@ -1007,7 +1007,7 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                        fourier_start: str = "matlab", fourier_trend: bool = True,
                        kinematics: str = "fits", pose_smoothing: str = "adaptive",
                        rotation_orders=None, saddle_orders=None, weights=None,
-                       pose_points=None) -> RigidBodyAnalysis:
+                       pose_points=None, pose_t=None, pose_partial: bool = False) -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call.
 
     Parameters
@@ -1078,6 +1078,14 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         Give the *unsmoothed* positions: the pose smoothing chooses its own
         smoothing from the data and the residuals, which an earlier smoothing
         would make correlated in time (cross-validation then undersmooths).
+    pose_t : (N,), optional
+        Times of ``pose_points`` when they cover more frames than ``t`` (a
+        superset of ``t``: frames beyond the analysed ones in which fewer
+        markers are seen). The pose trajectory is smoothed over ``pose_t``
+        and evaluated at ``t``; everything else uses the frames of ``t``.
+    pose_partial : bool
+        Use frames with exactly two visible markers in the pose smoothing
+        (:func:`horsemocap.pose.fit_pose_trajectory`, ``partial``).
     """
     from . import fitting
 
@@ -1100,13 +1108,19 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     pose_mod.check_model_conditioning(model, name="static shot (the markers matched to the ride)")
     traj = psaddle = pmarkers = None
     ppts = pts if pose_points is None else _as_positions("pose_points", pose_points, pts.shape[1])
-    if ppts.shape[0] != t.size:
-        raise ValueError(f"pose_points: expected {t.size} frames, got {ppts.shape[0]}")
-    preg = pose_mod.register_pose(ppts, model, weights)
+    pt = t if pose_t is None else np.asarray(pose_t, float)
+    if ppts.shape[0] != pt.size:
+        raise ValueError(f"pose_points: expected {pt.size} frames, got {ppts.shape[0]}")
+    inside = np.searchsorted(pt, t - 1e-9)
+    if pose_t is not None and (np.any(inside >= pt.size) or not np.allclose(pt[np.minimum(inside, pt.size - 1)], t)):
+        raise ValueError("pose_t: expected every time of t among the pose frames' times")
+    preg_all = pose_mod.register_pose(ppts, model, weights)
+    preg = preg_all if pose_t is None else _registration_rows(preg_all, inside)
     if kinematics == "pose_spline":
         order = 3 if pose_smoothing == "gcv_cubic" else 5
         sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
-        traj = pose_mod.fit_pose_trajectory(t, preg, model, smoothing=sm, order=order, points=ppts)
+        traj = pose_mod.fit_pose_trajectory(pt, preg_all, model, smoothing=sm, order=order, points=ppts,
+                                            partial=pose_partial)
         psaddle = traj.point(t, s_saddle)
         pmarkers = traj.points(t, model)
         try:
@@ -1139,6 +1153,14 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                              saddle_fit=sfit, saddle_path=path, saddle_method=saddle_method,
                              kinematics=kinematics, pose=traj, pose_saddle=psaddle, pose_markers=pmarkers,
                              chain_error=chain_error, pose_registration=preg)
+
+
+def _registration_rows(reg, rows):
+    """A :class:`~horsemocap.pose.PoseRegistration` of some frames only (same noise estimate)."""
+    from dataclasses import fields, replace
+
+    per_frame = {f.name: getattr(reg, f.name)[rows] for f in fields(reg) if f.name != "noise_m"}
+    return replace(reg, **per_frame)
 
 
 def _pose_only(t, static_index, saddle_index, model, s_saddle, traj, psaddle, pmarkers, pts, method,

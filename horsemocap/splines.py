@@ -83,17 +83,18 @@ def _penalty(knots, k, m, weight=None):
     return D.T @ (wts[:, None] * D)
 
 
-def _quintic_gcv(x, y, w, lam, weight=None, noise=None):
+def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
     n = x.size
-    k = 5
-    # knots at the samples (every step-th one for long records), leaving out the three nearest each
+    k = 2 * m - 1
+    gamma = GCV_GAMMA if gamma is None else gamma
+    # knots at the samples (every step-th one for long records), leaving out the m nearest each
     # end so that the basis has at most n functions and B^T W B is non-singular
     step = max(1, int(np.ceil(n / (MAX_BASIS - k + 1))))
-    inner = x[3:-3:step]
+    inner = x[m:-m:step]
     inner = inner[(inner > x[0]) & (inner < x[-1])]
     knots = np.r_[[x[0]] * (k + 1), inner, [x[-1]] * (k + 1)]
     B = BSpline.design_matrix(x, knots, k).toarray()
-    P = _penalty(knots, k, 3, weight)
+    P = _penalty(knots, k, m, weight)
     sw = np.sqrt(w)
     Bw = B * sw[:, None]
     G = Bw.T @ Bw
@@ -116,7 +117,7 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None):
 
     def gcv(loglam):
         _, rss, tr = fit(10.0 ** loglam)
-        return n * rss / max(n - GCV_GAMMA * tr, 1e-9) ** 2
+        return n * rss / max(n - gamma * tr, 1e-9) ** 2
 
     if noise is not None:
         def gcv(loglam):  # noqa: F811  (unbiased risk with the noise known: Mallows' C_p / UBRE)
@@ -136,7 +137,7 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None):
     f, rss, tr = fit(lam)
     spline = BSpline(knots, T @ f, k)
     return spline, {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
-                    "n": n, "order": 5, "method": "gcv" if noise is None else "noise",
+                    "n": n, "order": k, "method": "gcv" if noise is None else "noise",
                     "noise": float("nan") if noise is None else float(noise)}
 
 

@@ -181,3 +181,65 @@ def test_saddle_angles_known_answer():
     np.testing.assert_allclose(ang[0], [10, 0, 0], atol=1e-9)
     R = axis_rotations("z", np.radians([-4.0]))
     np.testing.assert_allclose(pose.saddle_angles_deg(R, np.eye(3))[0], [0, -4, 0], atol=1e-9)
+
+
+def test_partial_pose_fits_the_two_markers_and_keeps_only_the_roll_about_their_line():
+    """Two visible markers: the pose matches them exactly; of the predicted rotation only the turn
+    about their line survives (a prediction that is the truth gives the truth)."""
+    m = random_rigid_motion(np.random.default_rng(11), n=20, markers=3)
+    pts = m["pos"].copy()
+    pts[:, 2] = np.nan
+    d = m["body"] - m["body"].mean(0)
+    c_true = m["c"] + np.einsum("kij,j->ki", m["R"], m["body"].mean(0))
+    R, c = pose.partial_pose(pts, m["body"], m["R"], c_true)
+    np.testing.assert_allclose(R, m["R"], atol=1e-9)
+    np.testing.assert_allclose(c, c_true, atol=1e-9)
+    # a wrong prediction: the two markers still match, and R differs from the truth by a rotation
+    # about the line through them
+    rng = np.random.default_rng(5)
+    Rp = Rotation.from_rotvec(rng.normal(0, 0.2, (20, 3))).as_matrix() @ m["R"]
+    R, c = pose.partial_pose(pts, m["body"], Rp, c_true + rng.normal(0, 0.05, (20, 3)))
+    moved = np.einsum("kij,mj->kmi", R, d) + c[:, None]
+    np.testing.assert_allclose(moved[:, :2], m["pos"][:, :2], atol=1e-9)
+    diff = Rotation.from_matrix(R @ np.swapaxes(m["R"], 1, 2)).as_rotvec()
+    line = np.einsum("kij,j->ki", m["R"], d[1] - d[0])
+    line /= np.linalg.norm(line, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.linalg.norm(np.cross(diff, line), axis=1), 0, atol=1e-9)
+    with pytest.raises(ValueError, match="exactly two visible markers"):
+        pose.partial_pose(m["pos"], m["body"], m["R"], c_true)
+
+
+def test_frames_with_two_markers_beyond_the_ends_reduce_the_end_error():
+    """A noisy rigid motion whose first and last 4 frames show two markers only: smoothing over them
+    (partial=True) gives a smaller acceleration error in the frames with three markers than
+    smoothing those frames alone, and the partial frames are reasoned."""
+    errs = {True: [], False: []}
+    for seed in range(3):
+        rng = np.random.default_rng(20 + seed)
+        m = random_rigid_motion(rng, n=60, markers=3, duration=1.0)
+        pts = m["pos"] + rng.normal(0, 5e-4, m["pos"].shape)
+        pts[:4, 2] = np.nan
+        pts[-4:, 0] = np.nan
+        reg = pose.register_pose(pts, m["body"])
+        inner = slice(4, -4)
+        for partial in (True, False):
+            tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], smoothing="gcv", points=pts, partial=partial)
+            k = tr.points(m["t"], m["body"])
+            errs[partial].append(_rel(k.acceleration[inner], m["acc"][inner]))
+            if partial:
+                assert tr.valid.all() and tr.reason[0].startswith("partial pose: 2 markers")
+            else:
+                assert not tr.valid[0] and "outside the frames with a pose" in tr.reason[0]
+    assert np.median(errs[True]) < np.median(errs[False])
+
+
+def test_pose_margin_widens_the_segment_over_frames_with_two_markers():
+    from horsemocap.pipeline import pose_margin
+
+    pts = np.full((12, 3, 3), np.nan)
+    counts = [0, 1, 2, 2, 3, 3, 3, 3, 2, 1, 2, 3]
+    for k, c in enumerate(counts):
+        pts[k, :c] = 1.0
+    assert pose_margin(pts, (4, 8)) == (2, 9)
+    assert pose_margin(pts, (4, 8), min_markers=1) == (1, 12)
+    assert pose_margin(pts, (4, 8), min_markers=3) == (4, 8)
