@@ -52,8 +52,8 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="saddle velocity/acceleration from the fitted pose (default), the fitted eq. 6.48 "
                         "path, or the thesis' eq. 6.54/6.55")
     g.add_argument("--kinematics", choices=["fits", "pose_spline"],
-                   help="fits: the thesis' chain of fits (default); pose_spline: the smoothed pose "
-                        "trajectory of all markers (no period, no eq. 6.35 singularity)")
+                   help="pose_spline: the smoothed pose trajectory of all markers (default; no period, "
+                        "no eq. 6.35 singularity); fits: the thesis' chain of fits")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
