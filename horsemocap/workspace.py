@@ -236,7 +236,7 @@ def detection_changes(chosen, automatic) -> dict:
     Labels name regions of one frame, so they carry their ``first_frame``.
     """
     a, b = to_json_value(automatic.to_dict()), to_json_value(chosen.to_dict())
-    out = {k: v for k, v in b.items() if a.get(k) != v}
+    out = {k: v for k, v in b.items() if a.get(k) != v and v is not None}  # None: automatic
     if out.get("labels") is not None:
         out["first_frame"] = b["first_frame"]
     return out
@@ -247,14 +247,19 @@ def detection_changes(chosen, automatic) -> dict:
 # ---------------------------------------------------------------------------
 
 _UNSET = object()
+_UNSET_AUTO = object()
+_NEVER = object()
 
 
 def _value_widgets(widget):
     """The widget and its descendants that carry a ``value`` trait."""
+    import ipywidgets as W
+
+    shown_only = (W.Image, W.HTML, W.HTMLMath, W.Label, W.Output)
     out, todo = [], list(widget) if isinstance(widget, (list, tuple)) else [widget]
     while todo:
         w = todo.pop()
-        if hasattr(w, "has_trait") and w.has_trait("value"):
+        if hasattr(w, "has_trait") and w.has_trait("value") and not isinstance(w, shown_only):
             out.append(w)
         todo.extend(getattr(w, "children", ()) or ())
     return out
@@ -263,6 +268,9 @@ def _value_widgets(widget):
 def _show_value(widget, value) -> bool:
     """Put a stored choice into a widget (its own value, a threshold slider or checkboxes)."""
     try:
+        if hasattr(widget, "show") and callable(widget.show) and isinstance(value, dict):
+            widget.show(value)
+            return True
         if hasattr(widget, "has_trait") and widget.has_trait("value"):
             opts = getattr(widget, "options", None)
             if opts is not None and not isinstance(value, (list, tuple)):
@@ -270,6 +278,10 @@ def _show_value(widget, value) -> bool:
                 if value not in vals:
                     return False
             widget.value = tuple(value) if isinstance(widget.value, tuple) else value
+            return True
+        inner = getattr(widget, "threshold", None)
+        if isinstance(value, dict) and hasattr(inner, "slider") and "threshold" in value:
+            inner.slider.value = value["threshold"]   # a whole detection control: its threshold
             return True
         if hasattr(widget, "slider") and isinstance(value, (int, float)):
             widget.slider.value = value
@@ -355,7 +367,9 @@ class Workspace:
             The automatic choice: the widget at this value leaves no choice
             in the file. Default: the parameter's value without choices when
             it is set, else the widget's value as built (the notebooks build
-            every widget at the automatic choice).
+            every widget at the automatic choice); when neither is known (a
+            choice is stored and the parameter's default is "automatic"),
+            the choice is replaced but never taken back by the widget.
         convert : callable, optional
             Widget value -> parameter value (default: JSON conversion).
         read : callable, optional
@@ -378,15 +392,26 @@ class Workspace:
                 node = node.get(k) if isinstance(node, dict) else None
             automatic = to_json_value(node)
             if automatic is None or automatic == {}:
-                automatic = convert(read())
+                automatic = _UNSET_AUTO
         else:
             automatic = to_json_value(automatic)
         stored = get_choice(self.session_dir, name)
         if stored is not None:
+            if automatic is _UNSET_AUTO:
+                # the widget was built from parameters that hold this choice: its automatic value is not
+                # known here, so the choice is only ever replaced, never taken back by this widget
+                automatic = _NEVER
             _show_value(widget, stored)
+        if automatic is _UNSET_AUTO:
+            automatic = convert(read())
+
+        last = {"value": convert(read())}
 
         def write(*_):
             value = convert(read())
+            if value == last["value"]:
+                return
+            last["value"] = value
             try:
                 self.choose(name, None if value == automatic else value)
                 self.last_error = ""

@@ -162,3 +162,48 @@ def test_a_threshold_moved_in_notebook_04_reaches_the_numbers_of_notebooks_12_an
     assert ws.choices == {}
     again = results_for()
     assert np.array_equal(again.results["comfort"]["indicators"]["acc_y_Wk_rms"], a["acc_y_Wk_rms"])
+
+
+def test_still_prompts_are_empty_at_the_automatic_choice_and_name_what_changed(store):
+    from horsemocap.pipeline import _still_points, still_params, step_rig  # noqa: F401
+    from horsemocap.sources import read_image
+    from horsemocap.widgets import ui_still
+
+    session = load_session(default_session_dir(), open_sources=False)
+    images = {c: read_image(p) for c, p in session.plumb.items()}
+    # the automatic centres: the regions the automatic matching found (here: the two brightest round blobs)
+    from horsemocap.detection import detect_still
+    px = {c: detect_still(im, 2) for c, im in images.items()}
+    ui = ui_still(images, 2, px)
+    assert ui.value == {}
+    assert all(len(ui.auto[c][1]) == 2 for c in images)
+    thr = ui.auto["middle"][0]
+    ui.sliders["middle"].value = thr + 10
+    assert ui.value == {"middle": {"threshold": thr + 10}}
+    ws = wsm.open_workspace()
+    ws.bind(ui, "stills.plumb")
+    ui.sliders["middle"].value = thr + 20            # a move after binding is written
+    assert ws.choices == {"stills": {"plumb": {"middle": {"threshold": thr + 20}}}}
+    ui.sliders["middle"].value = thr
+    left = ui.pickers["left"]
+    left.select.value = left.select.value[:1]          # a label taken away: every camera's labels are given
+    v = ui.value
+    assert set(v) == set(images) and v["left"]["labels"] == list(left.select.value)
+    assert v["right"] == {"threshold": ui.auto["right"][0], "labels": list(ui.auto["right"][1])}
+    # one label for a two-marker plumb is refused with the reason, beside the control
+    assert "expected 2 labels" in ws.last_error and "not saved" in ui.message.value
+
+
+def test_detection_controls_have_a_first_frame_and_report_only_changes():
+    from horsemocap import detection
+    from horsemocap.sources import FrameSource
+    from horsemocap.widgets import ui_detection
+
+    frames = FrameSource(default_session_dir() / "motion" / "left.avi").read()
+    p = detection.detect_markers(frames, 3).params
+    ui = ui_detection(frames, p)
+    assert wsm.detection_changes(ui.value, p) == {}
+    ui.first_frame.value = (p.first_frame or 0) + 1
+    ch = wsm.detection_changes(ui.value, p)
+    assert ch == {"first_frame": (p.first_frame or 0) + 1}   # labels of the old first frame are dropped
+    AnalysisParams(detection={"left": ch}).validate("test")

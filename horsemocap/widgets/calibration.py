@@ -28,8 +28,8 @@ class ViewBrowser(w.VBox):
         self.camera = ui_camera(result.cameras, camera)
         self.view = w.IntSlider(value=0, min=0, max=len(result.view_names) - 1, description="view")
         self.which = w.ToggleButtons(options=["alone", "joint"], value=which if result.joint else "alone",
-                                     description="calibration")
-        self.zoom = w.IntSlider(value=0, min=0, max=200, step=10, description="zoom (px)")
+                                     description="calibration", style={"button_width": "auto", "description_width": "initial"})
+        self.zoom = w.IntSlider(value=0, min=0, max=200, step=10, description="zoom (px)", style={"description_width": "initial"})
         self.image = w.Image(format="png")
         self.label = w.HTML()
         for c in (self.camera, self.view, self.which, self.zoom):
@@ -86,7 +86,7 @@ class ViewExcluder(w.VBox):
                 e = s.per_view_rms[k]
                 txt = f"{cam} {name}: " + (f"{e:.3f}" if np.isfinite(e) else (v.reasons[k] or s.reasons[k]))
                 cb = w.Checkbox(value=name in excluded.get(cam, ()), description=txt, indent=False,
-                                disabled=bool(v.reasons[k]), layout=w.Layout(width="230px"))
+                                disabled=bool(v.reasons[k]), layout=w.Layout(width="auto", margin="0 12px 0 0"))
                 self.boxes[(cam, name)] = cb
                 items.append(cb)
             rows.append(w.HBox(items))

@@ -17,7 +17,7 @@ def ui_versions(name: str = "omega", value=None):
     :func:`horsemocap.rigid.average_versions` (default: all, as the issue asks)."""
     value = np.ones(6, bool) if value is None else np.asarray(value, bool)
     boxes = [W.Checkbox(value=bool(v), description=lab.replace("omega", name), indent=False,
-                        layout=W.Layout(width="140px"))
+                        layout=W.Layout(width="auto", margin="0 12px 0 0"))
              for lab, v in zip(VERSION_LABELS, value)]
 
     class _Box(W.HBox):
@@ -42,7 +42,7 @@ def ui_angular_method(value: str | None = None):
         value = AnalysisParams().angular_method
     return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq"),
                                     ("fit of the orientation", "rotation")],
-                           value=value, description="omega, alfa")
+                           value=value, description="omega, alfa", style={"button_width": "auto", "description_width": "initial"})
 
 
 def ui_saddle_method(value: str | None = None):
@@ -54,4 +54,4 @@ def ui_saddle_method(value: str | None = None):
         value = AnalysisParams().saddle_method
     return W.ToggleButtons(options=[("eq. 6.54/6.55 mean", "thesis"), ("fit of eq. 6.48 path", "direct"),
                                     ("fit of the smoothed-pose path", "pose")],
-                           value=value, description="saddle v, a")
+                           value=value, description="saddle v, a", style={"button_width": "auto", "description_width": "initial"})

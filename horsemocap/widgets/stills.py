@@ -40,21 +40,22 @@ class StillControls(W.VBox):
 
     ``.value``: ``{}`` while every camera is at its automatic choice;
     ``{camera: {"threshold": l}}`` for the cameras whose threshold was moved
-    (the cameras are still matched automatically); once a label selection is
-    changed, ``{camera: {"threshold": l, "labels": [...]}}`` for every camera
+    (the cameras are still matched automatically; a moved threshold starts
+    with no labels picked); once labels are picked, ``{camera: {"threshold": l, "labels": [...]}}`` for every camera
     (labels are taken as they are, as the thesis did).
     """
 
     def __init__(self, images: dict, count: int, marker_px: dict | None = None, scale: int = 1):
         self.images = {c: np.asarray(im) for c, im in images.items()}
         self.count = int(count)
-        self.auto = {}
+        self.auto, self.default_labels = {}, {}
         self._callbacks = []
         self.pickers, self.sliders, self.boxes = {}, {}, {}
         for cam, im in self.images.items():
             thr = int(det.auto_threshold([det.to_gray(im)], "otsu3"))
             labels = automatic_labels(im, thr, marker_px[cam]) if marker_px and cam in marker_px else ()
             self.auto[cam] = (thr, labels)
+            self.default_labels[cam] = labels
             self.sliders[cam] = W.IntSlider(value=thr, min=0, max=254, description=f"threshold ({cam})",
                                             style=WIDE, continuous_update=False, layout=W.Layout(width="420px"))
             self.pickers[cam] = LabelPicker(im, thr, labels, scale=scale)
@@ -71,11 +72,22 @@ class StillControls(W.VBox):
         thr = int(self.sliders[cam].value)
         auto_thr, auto_labels = self.auto[cam]
         old = self.pickers[cam]
-        new = LabelPicker(self.images[cam], thr, auto_labels if thr == auto_thr else (), scale=old._scale)
+        self.default_labels[cam] = auto_labels if thr == auto_thr else ()
+        new = LabelPicker(self.images[cam], thr, self.default_labels[cam], scale=old._scale)
         self.pickers[cam] = new
         self.boxes[cam].children = [self.sliders[cam], new]
         new.select.observe(lambda ch: self._touch(), "value")
         self._touch()
+
+    def show(self, chosen: dict) -> None:
+        """Put a stored choice (``stills[kind]``) into the tabs: thresholds, then labels."""
+        for cam in self.images:
+            given = {**chosen.get("all", {}), **chosen.get(cam, {})}
+            if "threshold" in given:
+                self.sliders[cam].value = int(given["threshold"])
+            if given.get("labels"):
+                opts = {o[1] for o in self.pickers[cam].select.options}
+                self.pickers[cam].select.value = tuple(int(x) for x in given["labels"] if int(x) in opts)
 
     def on_change(self, callback):
         """Call ``callback()`` whenever ``.value`` may have changed (used by ``Workspace.bind``)."""
@@ -87,7 +99,7 @@ class StillControls(W.VBox):
 
     @property
     def value(self) -> dict:
-        labels_changed = any(tuple(self.pickers[c].value) != self.auto[c][1] for c in self.images)
+        labels_changed = any(tuple(self.pickers[c].value) != self.default_labels[c] for c in self.images)
         if labels_changed:
             return {c: {"threshold": int(self.sliders[c].value), "labels": [int(x) for x in self.pickers[c].value]}
                     for c in self.images}

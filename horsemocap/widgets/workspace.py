@@ -33,8 +33,11 @@ class SessionPicker(W.VBox):
         self.path = W.Text(value="", placeholder="/path/to/session folder (holding session.json)",
                            description="folder", style=WIDE, layout=W.Layout(width="520px", display="none"))
         self.use = W.Button(description="use this folder", layout=W.Layout(width="auto", display="none"))
+        self.reset = W.Button(description="forget this session's choices", layout=W.Layout(width="auto"),
+                              tooltip="back to the automatic choice of every prompt (deletes choices.json)")
         self.message = W.HTML()
-        super().__init__([self.dropdown, W.HBox([self.path, self.use]), self.message])
+        super().__init__([W.HBox([self.dropdown, self.reset]), W.HBox([self.path, self.use]), self.message])
+        self.reset.on_click(self._on_reset)
         self.dropdown.observe(self._on_dropdown, "value")
         self.use.on_click(self._on_use)
         self.path.on_submit(self._on_use)
@@ -58,6 +61,12 @@ class SessionPicker(W.VBox):
         self.path.layout.display = self.use.layout.display = ("" if show == "" else "none")
         if change.new:
             self._choose(change.new)
+
+    def _on_reset(self, *_):
+        from ..workspace import clear_choices
+
+        clear_choices(self.workspace.session_dir)
+        self._say()
 
     def _on_use(self, *_):
         self._choose(self.path.value.strip())
