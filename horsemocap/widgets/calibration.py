@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import cv2
 import ipywidgets as w
+
+from ._text import ControlText
 import numpy as np
 
 
@@ -17,7 +19,7 @@ def ui_camera(cameras, value: str | None = None) -> w.Dropdown:
     return w.Dropdown(options=cameras, value=value or cameras[0], description="camera")
 
 
-class ViewBrowser(w.VBox):
+class ViewBrowser(ControlText, w.VBox):
     """Browse the checkerboard views of a calibration: detected (green +) and reprojected (red x) corners.
 
     ``.value`` is ``(camera, view name)`` shown.
@@ -65,7 +67,7 @@ def ui_view_browser(result, camera: str | None = None) -> ViewBrowser:
     return ViewBrowser(result, camera)
 
 
-class ViewExcluder(w.VBox):
+class ViewExcluder(ControlText, w.VBox):
     """A checkbox per view and camera to leave the view out; labels give the per-view error.
 
     ``.value`` is ``{camera: [view names excluded]}``, the ``exclude`` of

@@ -15,6 +15,8 @@ from dataclasses import replace
 
 import cv2
 import ipywidgets as W
+
+from ._text import ControlText
 import numpy as np
 
 from .. import detection as det
@@ -49,7 +51,7 @@ def threshold_preview(gray: np.ndarray, threshold: int, params: det.DetectionPar
     return out, n - 1, n_ok
 
 
-class ThresholdPicker(W.VBox):
+class ThresholdPicker(ControlText, W.VBox):
     """Threshold slider with a live binary preview and region count.
 
     ``.value`` is the threshold ``l`` of eq. (4.5). The frame slider lets one
@@ -125,7 +127,7 @@ def draw_labels(image, regions: det.Regions, index=None, chosen=(), scale: int =
     return rgb
 
 
-class LabelPicker(W.VBox):
+class LabelPicker(ControlText, W.VBox):
     """Pick the marker labels on the labelled first image (``left_labels``).
 
     Shows the regions of the chosen frame at the threshold with their label
@@ -161,7 +163,7 @@ class LabelPicker(W.VBox):
         self.picture.value = _png(draw_labels(self._image, self.regions, self.index, self.value, self._scale))
 
 
-class WindowPicker(W.HBox):
+class WindowPicker(ControlText, W.HBox):
     """Window size ``(W_du, W_dv)`` of thesis 4.5.4; ``.value`` is the tuple."""
 
     def __init__(self, window=(100, 60), max_size=(640, 480)):
@@ -215,7 +217,7 @@ def ui_distance_tolerance(params: det.DetectionParams) -> W.FloatSlider:
                          description="DT")
 
 
-class DetectionControls(W.VBox):
+class DetectionControls(ControlText, W.VBox):
     """All detection prompts together; ``.value`` is a :class:`DetectionParams`.
 
     The first frame (the frame whose regions the labels name, ``first_frame``)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import ipywidgets as W
 
+from ._text import ControlText
+
 from .. import fitting
 
 __all__ = ["ui_x_degree", "ui_fourier_order"]
@@ -81,7 +83,9 @@ def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, 
 
     ext.observe(on_e, names="value")
 
-    class _Box(W.HBox):
+    class _Box(ControlText, W.HBox):
+        """Fourier order of one coordinate"""
+
         @property
         def value(self):
             return int(choice.value)

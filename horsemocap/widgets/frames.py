@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import ipywidgets as W
 
+from ._text import ControlText
+
 __all__ = ["ui_triangulation_mode", "ui_smoothing", "ui_motion_marker", "ui_period", "ui_n_periods"]
 
 
@@ -17,7 +19,7 @@ def ui_triangulation_mode(value: str = "joint"):
                            value=value, description="mode", style={"button_width": "auto", "description_width": "initial"})
 
 
-class SmoothingControls(W.VBox):
+class SmoothingControls(ControlText, W.VBox):
     """Method dropdown and span box; ``.value`` is ``{"method": ..., "span": ...}``.
 
     ``"none"`` keeps the triangulated positions (the pipeline's default, see

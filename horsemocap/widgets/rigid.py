@@ -5,6 +5,8 @@ and the method."""
 from __future__ import annotations
 
 import ipywidgets as W
+
+from ._text import ControlText
 import numpy as np
 
 from ..rigid import VERSION_LABELS
@@ -20,7 +22,9 @@ def ui_versions(name: str = "omega", value=None):
                         layout=W.Layout(width="auto", margin="0 12px 0 0"))
              for lab, v in zip(VERSION_LABELS, value)]
 
-    class _Box(W.HBox):
+    class _Box(ControlText, W.HBox):
+        """The versions that enter the average"""
+
         @property
         def value(self):
             return np.array([b.value for b in boxes], bool)

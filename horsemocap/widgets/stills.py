@@ -9,6 +9,8 @@
 from __future__ import annotations
 
 import ipywidgets as W
+
+from ._text import ControlText
 import numpy as np
 
 from .. import detection as det
@@ -35,7 +37,7 @@ def automatic_labels(image, threshold: int, marker_px) -> tuple:
     return tuple(out)
 
 
-class StillControls(W.VBox):
+class StillControls(ControlText, W.VBox):
     """Threshold and labels of one still per camera (one tab per camera).
 
     ``.value``: ``{}`` while every camera is at its automatic choice;

@@ -5,11 +5,13 @@ from pathlib import Path
 
 import ipywidgets as W
 
+from ._text import ControlText
+
 WIDE = {"description_width": "initial"}
 OTHER = "another folder ..."
 
 
-class SessionPicker(W.VBox):
+class SessionPicker(ControlText, W.VBox):
     """A dropdown of the ``data_samples/`` sessions and a field for any session folder.
 
     ``.value`` is the chosen session folder. Choosing one makes it the
