@@ -207,3 +207,52 @@ def test_detection_controls_have_a_first_frame_and_report_only_changes():
     ch = wsm.detection_changes(ui.value, p)
     assert ch == {"first_frame": (p.first_frame or 0) + 1}   # labels of the old first frame are dropped
     AnalysisParams(detection={"left": ch}).validate("test")
+
+
+def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
+    """Appendix A 7a the thesis' way: the labels of the regions the automatic matching chose, at the
+    automatic threshold, taken as they are, give the same plumb centres."""
+    from horsemocap.detection import auto_threshold, detect_still_views, to_gray
+    from horsemocap.pipeline import _still_points, still_params
+    from horsemocap.sources import read_image
+    from horsemocap.virtuallab import load_truth
+    from horsemocap.widgets.stills import automatic_labels
+
+    session = load_session(default_session_dir())
+    rig = load_truth(default_session_dir()).rig
+    images = {c: read_image(p) for c, p in session.plumb.items()}
+    auto = detect_still_views(images, rig, 2)
+    given = {}
+    for c, im in images.items():
+        thr = int(auto_threshold([to_gray(im)], "otsu3"))
+        given[c] = {"threshold": thr, "labels": list(automatic_labels(im, thr, auto[c]))}
+    params = AnalysisParams(stills={"plumb": given})
+    params.check_session(session)
+    pts, px = _still_points(session, rig, session.plumb, 2, "plumb", "joint",
+                            still_params(params, "plumb", session.cameras))
+    for c in session.cameras:
+        np.testing.assert_allclose(px[c], auto[c], atol=1e-9)
+    # a threshold alone keeps the matching of the cameras; far too high a level finds nothing, and says so
+    from horsemocap.pipeline import AnalysisError
+    with pytest.raises(AnalysisError, match="step 'plumb'.*plumb"):
+        _still_points(session, rig, session.plumb, 2, "plumb", "joint",
+                      still_params(AnalysisParams(stills={"plumb": {"all": {"threshold": 254}}}), "plumb",
+                                   session.cameras))
+
+
+def test_a_named_saddle_marker_is_never_matched_to_a_ride_marker():
+    from horsemocap.rigid import match_static_markers
+
+    rng = np.random.default_rng(1)
+    markers = np.array([[0.0, 0, 0], [0.30, 0.02, 0], [0.12, 0.01, 0.25]])
+    saddle = np.array([0.15, -0.20, 0.10])
+    static = np.vstack([markers[[1]], saddle, markers[[0, 2]]])     # static order: m2, saddle, m1, m3
+    ride = markers[None] + rng.normal(0, 1e-4, (20, 3, 3)) + np.linspace(0, 1, 20)[:, None, None] * [1, 0, 0]
+    idx, s = match_static_markers(static, ride)
+    assert (idx.tolist(), s) == ([2, 0, 3], 1)
+    idx, s = match_static_markers(static, ride, saddle=1)
+    assert (idx.tolist(), s) == ([2, 0, 3], 1)
+    idx, s = match_static_markers(static, ride, saddle=3)              # the user's (wrong) choice is kept
+    assert s == 3 and 3 not in idx.tolist()
+    with pytest.raises(ValueError, match="saddle marker: expected the index"):
+        match_static_markers(static, ride, saddle=7)
