@@ -80,6 +80,9 @@ class ViewExcluder(ControlText, w.VBox):
         self.result = result
         self.boxes = {}
         rows = [w.HTML("<b>exclude</b> (RMS reprojection error of the view alone, px)")]
+        # one layout and one style for every checkbox: a notebook saves each widget model once
+        layout, style = w.Layout(width="auto", margin="0 12px 0 0"), w.widgets.widget_bool.CheckboxStyle()
+        row_layout = w.Layout()
         for k, name in enumerate(result.view_names):
             items = []
             for cam in result.cameras:
@@ -88,10 +91,10 @@ class ViewExcluder(ControlText, w.VBox):
                 e = s.per_view_rms[k]
                 txt = f"{cam} {name}: " + (f"{e:.3f}" if np.isfinite(e) else (v.reasons[k] or s.reasons[k]))
                 cb = w.Checkbox(value=name in excluded.get(cam, ()), description=txt, indent=False,
-                                disabled=bool(v.reasons[k]), layout=w.Layout(width="auto", margin="0 12px 0 0"))
+                                disabled=bool(v.reasons[k]), layout=layout, style=style)
                 self.boxes[(cam, name)] = cb
                 items.append(cb)
-            rows.append(w.HBox(items))
+            rows.append(w.HBox(items, layout=row_layout))
         super().__init__(rows)
 
     @property

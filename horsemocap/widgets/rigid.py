@@ -18,8 +18,9 @@ def ui_versions(name: str = "omega", value=None):
     """Six checkboxes; ``.value`` is the (6,) bool ``use`` of
     :func:`horsemocap.rigid.average_versions` (default: all, as the issue asks)."""
     value = np.ones(6, bool) if value is None else np.asarray(value, bool)
+    layout, style = W.Layout(width="auto", margin="0 12px 0 0"), W.widgets.widget_bool.CheckboxStyle()
     boxes = [W.Checkbox(value=bool(v), description=lab.replace("omega", name), indent=False,
-                        layout=W.Layout(width="auto", margin="0 12px 0 0"))
+                        layout=layout, style=style)
              for lab, v in zip(VERSION_LABELS, value)]
 
     class _Box(ControlText, W.HBox):
