@@ -73,7 +73,9 @@ def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, 
         n1, n2 = fitting.proposed_orders(e)
         return [(f"fourier{n1} (E/2)", n1), (f"fourier{n2} (E/2+1)", n2)]
 
-    choice = W.ToggleButtons(options=options(e0), value=n_auto, description="fit", style={"button_width": "auto", "description_width": "initial"})
+    choice = W.ToggleButtons(options=options(e0), value=n_auto, description="fit",
+                             style={"button_width": "auto", "description_width": "initial"},
+                             layout=W.Layout(width="auto", flex="0 0 auto"))
 
     def on_e(change):
         idx = [v for _, v in choice.options].index(choice.value) if choice.value is not None else 0
@@ -90,6 +92,7 @@ def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, 
         def value(self):
             return int(choice.value)
 
-    box = _Box([W.Label(label, layout=W.Layout(width="110px")), ext, choice])
+    box = _Box([W.Label(label, layout=W.Layout(width="110px")), ext, choice],
+               layout=W.Layout(flex_flow="row nowrap", align_items="center"))
     box.extremes, box.choice = ext, choice
     return box
