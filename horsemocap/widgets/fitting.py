@@ -73,7 +73,7 @@ def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, 
         n1, n2 = fitting.proposed_orders(e)
         return [(f"fourier{n1} (E/2)", n1), (f"fourier{n2} (E/2+1)", n2)]
 
-    choice = W.ToggleButtons(options=options(e0), value=n_auto, description="fit",
+    choice = W.ToggleButtons(options=options(e0), value=n_auto, tooltips=["E/2", "E/2+1"],
                              style={"button_width": "auto", "description_width": "initial"},
                              layout=W.Layout(width="auto", flex="0 0 auto"))
 
