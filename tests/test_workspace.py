@@ -278,3 +278,23 @@ def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
     with pytest.raises(RuntimeError):
         step_rig(session, AnalysisParams(recalibrate=True), {}, lambda *a: None)
     assert seen["exclude"] is None
+
+
+def test_the_session_picker_switches_the_workspace_and_refuses_a_folder_without_a_session(store, tmp_path):
+    from horsemocap.widgets import ui_session
+
+    ws = wsm.open_workspace()
+    picker = ui_session(ws)
+    names = [n for n, _ in picker.dropdown.options]
+    assert "horse2_canter" in names and "ball_drop" in names and picker.value == default_session_dir().resolve()
+    picker.dropdown.value = str((data_samples_dir() / "ball_drop").resolve())
+    assert wsm.current_session() == (data_samples_dir() / "ball_drop").resolve() == picker.value
+    picker.dropdown.value = ""                       # "another folder ...": a path field appears
+    assert picker.path.layout.display == ""
+    picker.path.value = str(tmp_path)
+    picker.use.click()
+    assert "not a session folder" in picker.message.value
+    assert wsm.current_session() == (data_samples_dir() / "ball_drop").resolve()   # unchanged
+    wsm.set_choice(None, "weighting_mode", "thesis")
+    picker.reset.click()                             # forget this session's choices
+    assert wsm.read_choices() == {}

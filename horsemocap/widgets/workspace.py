@@ -42,7 +42,6 @@ class SessionPicker(ControlText, W.VBox):
         self.reset.on_click(self._on_reset)
         self.dropdown.observe(self._on_dropdown, "value")
         self.use.on_click(self._on_use)
-        self.path.on_submit(self._on_use)
         self._say()
 
     @property
