@@ -27,6 +27,19 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="calibrate from the session's checkerboard views even if it has a rig")
     g.add_argument("--threshold", type=int, metavar="LEVEL",
                    help="gray-level threshold for every camera (thesis eq. 4.5; default Otsu-based)")
+    g.add_argument("--first-frame", type=int, dest="first_frame", metavar="FRAME",
+                   help="frame (0-based, synchronised) in which the markers are picked for every camera "
+                        "(Appendix A step 4; default found automatically)")
+    g.add_argument("--exclude-views", dest="exclude_views", metavar="CAM=VIEW[+VIEW],...",
+                   help="checkerboard views left out of the calibration, e.g. left=view03.png+view07.png,"
+                        "right=view03.png")
+    g.add_argument("--plumb-threshold", type=int, dest="plumb_threshold", metavar="LEVEL",
+                   help="gray-level threshold of the plumb stills, every camera (Appendix A 7a)")
+    g.add_argument("--static-threshold", type=int, dest="static_threshold", metavar="LEVEL",
+                   help="gray-level threshold of the static-shot stills, every camera (Appendix A 8a, 12a)")
+    g.add_argument("--saddle-marker", type=int, dest="saddle_marker", metavar="INDEX",
+                   help="which static-shot point (0-based, left to right in the reference camera) is the "
+                        "saddle marker (Appendix A 12a; default: the one the ride's markers leave over)")
     g.add_argument("--detection", choices=["multiview", "thesis"], dest="detection_method",
                    help="multiview: markers identified by all cameras together and followed in 3D "
                         "(default); thesis: each camera alone with the filters of chapter 4")
@@ -48,6 +61,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--angular", choices=["rotation", "lstsq", "thesis"], dest="angular_method",
                    help="omega/alpha from the fitted orientation (default), least squares over all "
                         "markers, or the average of the thesis versions")
+    g.add_argument("--omega-versions", dest="omega_versions", metavar="N,N,...",
+                   help="with --angular thesis: which of the six thesis versions of omega (1-6, eq. 6.3/6.4) "
+                        "are averaged, e.g. 1,2,4 (default all)")
+    g.add_argument("--alpha-versions", dest="alpha_versions", metavar="N,N,...",
+                   help="with --angular thesis: which of the six versions of alpha (1-6, eq. 6.38/6.39) are "
+                        "averaged (default all)")
     g.add_argument("--saddle", choices=["pose", "direct", "thesis"], dest="saddle_method",
                    help="saddle velocity/acceleration from the fitted pose (default), the fitted eq. 6.48 "
                         "path, or the thesis' eq. 6.54/6.55")
@@ -79,22 +98,50 @@ def _params_from_args(args, base):
         except ValueError:
             raise ParamsError(f"--fourier-orders: expected Y,Z (two integers), got {args.fourier_orders!r}") from None
         changes["fourier_orders"] = {"y": y, "z": z}
-    if args.threshold is not None:
-        det = dict(base.detection)
-        det["all"] = {**det.get("all", {}), "threshold": args.threshold}
-        changes["detection"] = det
+    det = dict(base.detection)
+    for name, key in (("threshold", "threshold"), ("first_frame", "first_frame")):
+        if getattr(args, name, None) is not None:
+            det["all"] = {**det.get("all", {}), key: getattr(args, name)}
+            changes["detection"] = det
+    if getattr(args, "exclude_views", None):
+        try:
+            pairs = [kv.split("=", 1) for kv in args.exclude_views.split(",")]
+            changes["calibration_exclude"] = {c.strip(): [v for v in views.split("+") if v]
+                                              for c, views in pairs}
+        except ValueError:
+            raise ParamsError(f"--exclude-views: expected CAM=VIEW[+VIEW],..., got {args.exclude_views!r}") from None
+    stills = {k: dict(v) for k, v in base.stills.items()}
+    for kind in ("plumb", "static"):
+        level = getattr(args, f"{kind}_threshold", None)
+        if level is not None:
+            stills[kind] = {**stills.get(kind, {}), "all": {**stills.get(kind, {}).get("all", {}), "threshold": level}}
+            changes["stills"] = stills
+    changes["saddle_marker"] = getattr(args, "saddle_marker", None)
+    for name in ("omega_versions", "alpha_versions"):
+        text = getattr(args, name, None)
+        if text:
+            try:
+                picked = {int(v) for v in text.split(",")}
+            except ValueError:
+                picked = set()
+            if not picked or not picked <= set(range(1, 7)):
+                raise ParamsError(f"--{name.replace('_', '-')}: expected version numbers 1-6 separated by commas, "
+                                  f"got {text!r}")
+            changes[name] = [k in picked for k in range(1, 7)]
     return base.updated(**changes)
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
-    from .params import load_params
+    from .params import read_params
     from .pipeline import resolve_params
     from .run import run_analysis
     from .session import load_session
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
-    base = load_params(args.params) if args.params else resolve_params(session)
+    # a parameter file gives overrides on top of the session's own 'analysis' object: an earlier
+    # run's analysis.json (every parameter) or a notebooks' choices.json (only the choices made)
+    base = resolve_params(session, read_params(args.params)) if args.params else resolve_params(session)
     params = _params_from_args(args, base)
     params.check_session(session, f"{args.params}" if args.params else "parameters")
     outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False))
@@ -266,7 +313,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("session", metavar="SESSION", help="session folder holding session.json")
     p.add_argument("--out", required=True, metavar="DIR", help="results folder (outside the session)")
     p.add_argument("--params", metavar="analysis.json",
-                   help="repeat a run exactly: the parameters recorded in an earlier analysis.json")
+                   help="repeat a run exactly: the parameters recorded in an earlier analysis.json, or the "
+                        "choices made in the notebooks (choices.json in the notebooks' results folder)")
     p.add_argument("--no-report", action="store_true", help="do not write report.html (faster batch runs)")
     _add_choice_options(p)
     p.set_defaults(func=cmd_analyze)

@@ -29,6 +29,10 @@ class AnalysisParams:
         None = found from the flashlight.
     recalibrate : bool
         Calibrate from the session's checkerboard views even if it has a rig.
+    calibration_exclude : dict
+        ``{camera: [view file names]}`` left out of the calibration from the
+        session's checkerboard views (the views the thesis user discarded in
+        the toolbox; notebook 03's checkboxes); default none.
     detection_method : str
         ``"multiview"`` (default): the markers are identified by all cameras
         together (consistent triangulation, the static shot's rigid shape and
@@ -41,6 +45,21 @@ class AnalysisParams:
         Per camera (or ``"all"``) overrides of the detector's parameters
         (threshold, area range, circularity, centroid; the thesis chain also
         window size, distance tolerance, labels).
+    stills : dict
+        The prompts of the still images (Appendix A 7a plumb, 8a static shot
+        of the markers, 12a static shot of the saddle marker:
+        ``left_levelinput``, ``left_labels``, ... per camera):
+        ``{"plumb" or "static": {camera or "all": {"threshold": l, "labels": [...]}}}``.
+        A threshold alone keeps the automatic matching of the cameras
+        (:func:`horsemocap.detection.match_still_views`); labels (the
+        :func:`~horsemocap.detection.label_regions` numbers at that
+        threshold) must then be given for every camera and are taken as they
+        are (:func:`horsemocap.detection.detect_still`). Default: automatic.
+    saddle_marker : int or None
+        Which static-shot point (0-based, in the static shot's order:
+        ascending image ``u`` in the reference camera) is the saddle marker
+        (Appendix A 12a); None = the point left over by the matching of the
+        static shot to the ride (:func:`horsemocap.rigid.match_static_markers`).
     max_gap_frames : int or None
         Longest run of frames in which a marker has no 3D position (fewer
         than two cameras see it) that is bridged by interpolation and marked
@@ -154,8 +173,11 @@ class AnalysisParams:
 
     sync_offsets: dict | None = None
     recalibrate: bool = False
+    calibration_exclude: dict = field(default_factory=dict)
     detection_method: str = "multiview"
     detection: dict = field(default_factory=dict)
+    stills: dict = field(default_factory=dict)
+    saddle_marker: int | None = None
     max_gap_frames: int | None = None
     triangulation: str = "joint"
     smoothing_span: float = 0.1
@@ -240,6 +262,34 @@ class AnalysisParams:
             except (ValueError, TypeError) as exc:
                 raise ParamsError(f"{source}: parameter 'detection.{cam}': {exc}") from None
         choice("detection_method", ("multiview", "thesis"))
+        ce = self.calibration_exclude
+        if not isinstance(ce, dict) or not all(
+                isinstance(v, (list, tuple)) and all(isinstance(x, str) and x for x in v) for v in ce.values()):
+            bad("calibration_exclude", "an object {camera: [view file names]}")
+        if not isinstance(self.stills, dict):
+            bad("stills", 'an object {"plumb" or "static": {camera or "all": {"threshold": l, "labels": [...]}}}')
+        for kind, per_cam in self.stills.items():
+            if kind not in ("plumb", "static"):
+                bad("stills", '"plumb" or "static" as keys', kind)
+            if not isinstance(per_cam, dict):
+                bad("stills", f'an object {{camera or "all": {{"threshold": l, "labels": [...]}}}} for "{kind}"',
+                    per_cam)
+            for cam, given in per_cam.items():
+                if not isinstance(given, dict) or any(k not in ("threshold", "labels") for k in given):
+                    bad("stills", f'{{"threshold": l, "labels": [...]}} for stills.{kind}.{cam}', given)
+                thr = given.get("threshold")
+                if thr is not None and (not _is_int(thr) or not 0 <= thr <= 254):
+                    bad("stills", f"a gray level 0..254 for stills.{kind}.{cam}.threshold", thr)
+                lab = given.get("labels")
+                if lab is not None and (not isinstance(lab, (list, tuple)) or not lab
+                                        or not all(_is_int(x) and x >= 1 for x in lab)
+                                        or len(set(lab)) != len(lab)):
+                    bad("stills", f"distinct region labels (integers >= 1) for stills.{kind}.{cam}.labels", lab)
+                if lab is not None and thr is None:
+                    bad("stills", f"a threshold with the labels of stills.{kind}.{cam} (labels name the "
+                        "regions of one binary image)", given)
+        if self.saddle_marker is not None and (not _is_int(self.saddle_marker) or self.saddle_marker < 0):
+            bad("saddle_marker", "a static-shot point index (integer >= 0) or null")
         if self.max_gap_frames is not None and (not _is_int(self.max_gap_frames) or self.max_gap_frames < 0):
             bad("max_gap_frames", "an integer >= 0 (frames) or null")
         choice("triangulation", ("joint", "thesis"))
@@ -302,7 +352,30 @@ class AnalysisParams:
             if cam != "all" and cam not in cams:
                 raise ParamsError(f"{source}: parameter 'detection': expected 'all' or a camera of {cams}, "
                                   f"got '{cam}'")
+        for cam in self.calibration_exclude:
+            if cam not in cams:
+                raise ParamsError(f"{source}: parameter 'calibration_exclude': expected a camera of {cams}, "
+                                  f"got '{cam}'")
+        for kind, per_cam in self.stills.items():
+            for cam in per_cam:
+                if cam != "all" and cam not in cams:
+                    raise ParamsError(f"{source}: parameter 'stills.{kind}': expected 'all' or a camera of "
+                                      f"{cams}, got '{cam}'")
+            count = 2 if kind == "plumb" else session.marker_count + 1
+            labelled = [c for c in cams if {**per_cam.get("all", {}), **per_cam.get(c, {})}.get("labels")]
+            if labelled and len(labelled) != len(cams):
+                missing = [c for c in cams if c not in labelled]
+                raise ParamsError(f"{source}: parameter 'stills.{kind}': labels given for {labelled} but not for "
+                                  f"{missing}; labels are taken as they are, so every camera needs them")
+            for cam in cams:
+                lab = {**per_cam.get("all", {}), **per_cam.get(cam, {})}.get("labels")
+                if lab is not None and len(lab) != count:
+                    raise ParamsError(f"{source}: parameter 'stills.{kind}': expected {count} labels for camera "
+                                      f"'{cam}' (the {kind} still's markers), got {len(lab)}")
         n = session.marker_count
+        if self.saddle_marker is not None and self.saddle_marker > n:
+            raise ParamsError(f"{source}: parameter 'saddle_marker': expected a static-shot point 0..{n} "
+                              f"(the static shot has {n + 1}), got {self.saddle_marker}")
         if self.x_marker >= n:
             raise ParamsError(f"{source}: parameter 'x_marker': expected a marker index 0..{n - 1} "
                               f"(the session has {n} markers), got {self.x_marker}")
@@ -329,7 +402,17 @@ def _show(v) -> str:
         return repr(v)
 
 
-def load_params(path) -> AnalysisParams:
+def read_params(path) -> dict:
+    """The parameters given in a file, validated, as a dict of only the parameters it names.
+
+    ``analysis.json`` (its ``parameters`` object), a notebooks' ``choices.json``
+    (the same layout, only the choices made) or a flat object.
+    """
+    data = load_params(path, _given_only=True)
+    return data
+
+
+def load_params(path, _given_only: bool = False) -> AnalysisParams:
     """Read ``analysis.json`` (its ``parameters`` object, or a flat object)."""
     path = Path(path)
     if not path.is_file():
@@ -344,4 +427,5 @@ def load_params(path) -> AnalysisParams:
         data = data["parameters"]
     if not isinstance(data, dict):
         raise ParamsError(f"{path}: expected a JSON object of parameters")
-    return AnalysisParams.from_dict(data, str(path))
+    params = AnalysisParams.from_dict(data, str(path))
+    return dict(data) if _given_only else params

@@ -108,10 +108,14 @@ def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cach
         from .calibration.cache import cached_calibration
 
         cache_dirs = [d for d in cache_dirs if d is not None]
+        exclude = {c: list(v) for c, v in params.calibration_exclude.items()} or None
+        if exclude:
+            progress("rig", "views left out: " + "; ".join(f"{c} {', '.join(v)}" for c, v in exclude.items()))
         rig, how = cached_calibration(session.calibration_images, session.board.inner_corners,
                                       session.board.square_size_m, session.reference_camera,
                                       write_to=cache_dirs[0] if cache_dirs else None, read_from=cache_dirs[1:],
-                                      recalibrate=params.recalibrate, progress=lambda m: progress("rig", m))
+                                      recalibrate=params.recalibrate, progress=lambda m: progress("rig", m),
+                                      exclude=exclude)
     else:
         raise AnalysisError("rig", f"{session.json_path}: 'calibration' gives neither a rig nor views")
     missing = [c for c in session.cameras if c not in rig.names]
@@ -195,7 +199,9 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
                        f"(or bridged); labelled in frame {idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
     return {"marker_px": idn.marker_px, "reason": idn.reason, "segment": segment, "detection": chosen,
-            "all_seen": tracked, "sync_check": sync_check, "identification": {
+            "all_seen": tracked, "sync_check": sync_check,
+            **({"sync_corrected": res["sync"]} if any(v["shift"] for v in sync_check.values()) else {}),
+            "identification": {
                 "anchor_frame": idn.anchor_frame, "anchor_margin": idn.anchor_margin,
                 "model_index": [int(i) for i in idn.model_index], "rigid_rms_m": idn.rigid_rms_m}}
 
@@ -355,18 +361,47 @@ def step_triangulate(session: Session, params: AnalysisParams, res: dict, progre
             "segment": segment}
 
 
-def _still_points(session: Session, rig: Rig, images: dict, count: int, step: str, mode: str):
+def still_params(params: AnalysisParams, kind: str, cameras) -> dict:
+    """The detector parameters of one still per camera (``params.stills[kind]``, "all" then the camera).
+
+    Returns ``{camera: DetectionParams}`` (empty when every choice is automatic).
+    """
+    from .detection import DetectionParams
+
+    given = params.stills.get(kind, {})
+    if not given:
+        return {}
+    out = {}
+    for c in cameras:
+        d = {**given.get("all", {}), **given.get(c, {})}
+        if "labels" in d:
+            d["labels"] = tuple(d["labels"])
+        out[c] = DetectionParams(**d)
+    return out
+
+
+def _still_points(session: Session, rig: Rig, images: dict, count: int, step: str, mode: str,
+                  given: dict | None = None):
     """Markers of one still per camera, matched across the cameras and triangulated.
 
     :func:`horsemocap.detection.detect_still_views` keeps only candidates that
     triangulate consistently in every camera (a glint or a buckle seen by one
-    camera is not a marker), then picks the most marker-like ones.
+    camera is not a marker), then picks the most marker-like ones. ``given``
+    (:func:`still_params`): per-camera thresholds for that matching, or, with
+    labels for every camera, the thesis' way (Appendix A 7a, 8a, 12a): the
+    labelled regions of each camera taken as they are
+    (:func:`horsemocap.detection.detect_still`).
     """
-    from .detection import detect_still_views
+    from .detection import detect_still, detect_still_views
     from .reconstruction import triangulate
 
+    given = given or {}
     try:
-        px = detect_still_views({c: read_image(images[c]) for c in session.cameras}, rig, count)
+        imgs = {c: read_image(images[c]) for c in session.cameras}
+        if given and all(given[c].labels is not None for c in session.cameras):
+            px = {c: detect_still(imgs[c], count, given[c]) for c in session.cameras}
+        else:
+            px = detect_still_views(imgs, rig, count, given or None)
     except ValueError as exc:
         files = ", ".join(str(images[c]) for c in session.cameras)
         raise AnalysisError(step, f"{files}: {exc}") from None
@@ -379,7 +414,8 @@ def step_plumb(session: Session, params: AnalysisParams, res: dict, progress) ->
 
     if session.plumb is None:
         raise AnalysisError("plumb", f"{session.json_path}: no 'plumb' stills; gravity cannot be found")
-    pts, px = _still_points(session, res["rig"]["rig"], session.plumb, 2, "plumb", params.triangulation)
+    pts, px = _still_points(session, res["rig"]["rig"], session.plumb, 2, "plumb", params.triangulation,
+                            still_params(params, "plumb", session.cameras))
     # detect_still orders the two plumb markers top first (image v): the upper one is
     # the tail, the lower one the tip, and gravity points from tail to tip (down).
     gravity = gravity_from_plumb(tip_world=pts[1], tail_world=pts[0])
@@ -393,7 +429,7 @@ def step_static(session: Session, params: AnalysisParams, res: dict, progress) -
         return {"static_points": None, "static_px": None,
                 "missing": f"{session.json_path}: no 'static' stills; the saddle marker cannot be placed"}
     pts, px = _still_points(session, res["rig"]["rig"], session.static, session.marker_count + 1,
-                            "static", params.triangulation)
+                            "static", params.triangulation, still_params(params, "static", session.cameras))
     return {"static_points": pts, "static_px": px}
 
 
@@ -534,7 +570,8 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             period_s=None if period is None else period / session.fps, fourier_trend=params.fourier_trend,
             kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
-            pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames)
+            pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
+            saddle_index=params.saddle_marker)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
     orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
@@ -715,9 +752,10 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         check_outside(out_dir, session.root)
         Path(out_dir).mkdir(parents=True, exist_ok=True)
     store = ResultsStore(out_dir) if (reuse and out_dir is not None) else None
-    key = run_key(session, params) if store else ""
+    keys = step_keys(session, params) if store else {}
     for name in STEPS:
         t0 = time.perf_counter()
+        key = keys.get(name, "")
         try:
             stored = store.load(name, key) if store else None
             if stored is not None:
@@ -730,6 +768,7 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
                     analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
                 if store:
                     store.save(name, analysis.results[name], key)
+            _carry_corrections(analysis.results, name)
         except (AnalysisError, SessionError) as exc:
             exc.partial = analysis  # the steps that finished (horsemocap.run marks them partial)
             raise
@@ -757,8 +796,19 @@ def run_steps(session: Session, params: AnalysisParams, results: dict, steps, pr
     for name in steps:
         t0 = time.perf_counter()
         analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
+        _carry_corrections(analysis.results, name)
         analysis.timings[name] = time.perf_counter() - t0
     return analysis
+
+
+def _carry_corrections(results: dict, name: str) -> None:
+    """A step that corrects an earlier one's result says so in its own (also when loaded from the store).
+
+    The detect step's check of the flash offsets by the markers
+    (``sync_corrected``) replaces the sync step's offsets for every later step.
+    """
+    if name == "detect" and results[name].get("sync_corrected"):
+        results["sync"] = results[name]["sync_corrected"]
 
 
 def resolve_params(session: Session, params=None) -> AnalysisParams:
@@ -817,8 +867,10 @@ def file_fingerprint(path: Path, edge: int = FINGERPRINT_EDGE_BYTES) -> str:
     return f"{path}|{st.st_size}|{st.st_mtime_ns}|{h.hexdigest()}"
 
 
-def run_key(session: Session, params: AnalysisParams) -> str:
+def run_key(session: Session, params: AnalysisParams | None) -> str:
     """Fingerprint of a run: every input file of the session, the parameters and the package's code.
+
+    ``params=None``: the files and the code only (:func:`step_keys` adds each step's parameters).
 
     Each file of :func:`session_files` enters by :func:`file_fingerprint`
     (replacing a video or a still recomputes the steps; so does touching it).
@@ -826,10 +878,50 @@ def run_key(session: Session, params: AnalysisParams) -> str:
     h = hashlib.sha256()
     for path in session_files(session):
         h.update(file_fingerprint(path).encode("utf-8", "surrogateescape"))
-    h.update(json.dumps(params.to_dict(), sort_keys=True, default=str).encode())
+    if params is not None:
+        h.update(json.dumps(params.to_dict(), sort_keys=True, default=str).encode())
     for src in sorted(Path(__file__).parent.rglob("*.py")):
         h.update(src.read_bytes())
     return h.hexdigest()
+
+
+# The parameters each step reads; a step's stored result depends on its own and every earlier step's.
+# Parameters no step before the rigid-body step names are the rigid-body step's (and so the comfort
+# step's), so a parameter added later is never left out of a key.
+STEP_PARAMS = {
+    "sync": ("sync_offsets",),
+    "rig": ("recalibrate", "calibration_exclude"),
+    "plumb": ("stills", "triangulation"),
+    "static": ("stills", "triangulation"),
+    "detect": ("detection_method", "detection", "max_gap_frames"),
+    "triangulate": ("triangulation", "max_gap_frames"),
+    "smooth": ("smoothing_method", "smoothing_span"),
+    "motion_frame": ("motion_frame", "x_marker", "period_frames", "n_periods"),
+}
+
+
+def step_keys(session: Session, params: AnalysisParams) -> dict:
+    """The results-store key of every step: :func:`run_key` restricted to what the step depends on.
+
+    A step's key covers the session's files, the package's code and the
+    parameters of :data:`STEP_PARAMS` of this and every earlier step; from
+    the rigid-body step on, every parameter. So a threshold chosen in
+    notebook 04 recomputes the steps from detection on and keeps the
+    calibration, the plumb and the static shot.
+    """
+    base = run_key(session, None)
+    values = params.to_dict()
+    keys, used = {}, set()
+    for name in STEPS:
+        if name in STEP_PARAMS:
+            used |= set(STEP_PARAMS[name])
+            part = {k: values[k] for k in sorted(used)}
+        else:
+            part = values
+        h = hashlib.sha256(base.encode())
+        h.update(json.dumps(part, sort_keys=True, default=str).encode())
+        keys[name] = h.hexdigest()
+    return keys
 
 
 def safe_store_name(name: str) -> str:
@@ -866,14 +958,31 @@ def notebook_results_dir(session: Session | Path) -> Path:
 def results_for(session_dir=None, until: str = "comfort", params=None) -> Analysis:
     """The analysis of a session up to a step, for notebooks.
 
-    Runs the steps with the default (automatic) choices, quietly, and writes
-    the spec's files to :func:`notebook_results_dir` (a clean folder per test
-    run under nbval). Steps an earlier notebook computed for the same
-    session, parameters and code are loaded from the results store, so each
-    notebook runs alone and none repeats another's work.
-    """
-    from .data import default_session_dir
+    Runs the steps quietly and writes the spec's files to
+    :func:`notebook_results_dir` (a clean folder per test run under nbval).
+    Steps an earlier notebook computed for the same session, parameters and
+    code are loaded from the results store, so each notebook runs alone and
+    none repeats another's work.
 
-    session_dir = Path(session_dir or default_session_dir()).resolve()
+    Parameters
+    ----------
+    session_dir : path, optional
+        Default: the session of the workspace (:mod:`horsemocap.workspace`:
+        the one chosen in a notebook's first cell, else the bundled session).
+    until : str
+        The last step to run.
+    params : dict or AnalysisParams, optional
+        The choices made with the notebooks' widgets (the session's
+        ``choices.json``) are applied first, then a dict's overrides; an
+        :class:`AnalysisParams` is used as it is. With no choices made, every
+        choice is the automatic one.
+    """
+    from .workspace import current_session, read_choices
+
+    session_dir = Path(session_dir or current_session()).resolve()
+    if not isinstance(params, AnalysisParams):
+        chosen = read_choices(session_dir)
+        if chosen or params:
+            params = {**chosen, **(params or {})}
     return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
                    progress=lambda *a: None, reuse=True)

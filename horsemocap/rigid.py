@@ -142,7 +142,7 @@ def pairwise_distances(points) -> np.ndarray:
 # --------------------------------------------------------------------------
 # correspondence static shot <-> motion markers
 # --------------------------------------------------------------------------
-def match_static_markers(static_points, motion_points, tolerance: float = 0.004):
+def match_static_markers(static_points, motion_points, tolerance: float = 0.004, saddle: int | None = None):
     """Which static-shot marker is which motion marker, and which is the saddle.
 
     The thesis picked the labels by hand (section 8.4.1, ``left_labels``).
@@ -166,6 +166,10 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004)
         Marker trajectories during the ride in the motion frame (NaN allowed).
     tolerance : float
         Metres of RMS distance mismatch treated as measurement noise.
+    saddle : int, optional
+        The static marker the user named as the saddle marker (Appendix A
+        step 12a, ``left_labels`` of the required marker); it is then never
+        matched to a motion marker and is the one returned.
 
     Returns
     -------
@@ -187,6 +191,13 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004)
     d_motion = np.nanmedian(pairwise_distances(motion), axis=0)
     if not np.all(np.isfinite(d_motion)):
         raise ValueError("motion_points: a marker has no finite frame")
+    if saddle is not None:
+        if not 0 <= int(saddle) < len(static) or int(saddle) not in set(valid.tolist()):
+            raise ValueError(f"saddle marker: expected the index of a finite static-shot marker 0..{len(static) - 1}, "
+                             f"got {saddle!r}")
+        valid = valid[valid != int(saddle)]
+        if valid.size < m:
+            raise ValueError(f"static_points: need {m} finite markers besides the saddle marker, got {valid.size}")
     d_static = pairwise_distances(static)
     iu = np.triu_indices(m, 1)
     cands = []
@@ -206,6 +217,8 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004)
         best = min(close, key=lambda c: angle(c[1]))[1]
     else:
         best = close[0][1]
+    if saddle is not None:
+        return best.astype(int), int(saddle)
     rest = [i for i in valid if i not in set(best.tolist())]
     centroid = static[best].mean(axis=0)
     saddle = int(min(rest, key=lambda i: np.linalg.norm(static[i] - centroid)))
@@ -1100,8 +1113,10 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     t = np.asarray(t, float)
     pts = _check_three("points", points, t.size)
     static = np.asarray(static_points, float)
-    if static_index is None or saddle_index is None:
-        static_index, saddle_index = match_static_markers(static, pts)
+    if static_index is None:
+        static_index, saddle_index = match_static_markers(static, pts, saddle=saddle_index)
+    elif saddle_index is None:
+        raise ValueError("static_index given without saddle_index: name the saddle marker too")
     static_index = np.asarray(static_index, int)
     model = static[static_index]
     s_saddle = static[int(saddle_index)]

@@ -861,11 +861,12 @@ def test_store_round_trips_every_step_and_reuses(tmp_path, template):
     out = tmp_path / "res"
     first = pipeline.analyze(session, out, reuse=True, progress=lambda *a: None)
     store = ResultsStore(out)
-    key = pipeline.run_key(first.session, first.params)
+    keys = pipeline.step_keys(first.session, first.params)
     assert not list((out / "steps").glob("*.pkl"))
     for step in pipeline.STEPS:
         a1, a2 = {}, {}
-        got = store.load(step, key)
+        assert store.load(step, pipeline.run_key(first.session, first.params)) is None  # keyed per step
+        got = store.load(step, keys[step])
         assert got is not None, step
         assert json.dumps(encode_result(got, a2)) == json.dumps(encode_result(first.results[step], a1)), step
         for k in a1:

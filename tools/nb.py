@@ -6,6 +6,11 @@ Each notebook ``notebooks/NN_name.ipynb`` is generated from
 executed top to bottom in ``notebooks/`` with the inline backend, so the stored
 outputs are the ones nbval compares against.
 
+The widget state is saved in the notebook (nbclient stores it). JupyterLab
+draws saved widgets only in a trusted notebook: the builder's own signature
+database trusts what is built here; anyone else runs ``jupyter trust
+notebooks/*.ipynb`` once (README).
+
 Usage: ``python tools/nb.py notebooks/src/04_marker_detection.py [...]``
 (no argument: every source).
 """
@@ -63,6 +68,12 @@ def build(src: Path, execute: bool = True) -> Path:
         NotebookClient(nb, timeout=900, kernel_name="python3",
                        resources={"metadata": {"path": str(NB_DIR)}}).execute()
     nbformat.write(nb, out)
+    if execute:
+        # Run by us: trusted for this user, so JupyterLab draws the saved widgets before the
+        # notebook is run again (trust is kept per user; others run `jupyter trust`, see README)
+        from nbformat.sign import NotebookNotary
+
+        NotebookNotary().sign(nb)
     return out
 
 

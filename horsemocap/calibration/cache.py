@@ -62,8 +62,8 @@ def views_key(folder, inner_corners) -> str:
     return h.hexdigest()
 
 
-def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str) -> str:
-    """Key of a rig calibration: every view, the board, the cameras, the reference and the code."""
+def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str, exclude=None) -> str:
+    """Key of a rig calibration: every view, the board, the cameras, the reference, the views left out and the code."""
     from .. import camera
 
     h = hashlib.sha256()
@@ -72,6 +72,8 @@ def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference:
         h.update(views_key(image_dirs[cam], inner_corners).encode())
     h.update(json.dumps({"inner_corners": [int(x) for x in inner_corners], "square_m": float(square_m),
                          "reference": reference}, sort_keys=True).encode())
+    if exclude:                         # (no key change for calibrations without exclusions)
+        h.update(json.dumps({c: sorted(str(v) for v in exclude[c]) for c in sorted(exclude)}).encode())
     h.update(_code_hash(sorted(p.name for p in Path(__file__).parent.glob("*.py"))))
     h.update(Path(camera.__file__).read_bytes())
     return h.hexdigest()
@@ -139,7 +141,7 @@ def _read(folder) -> dict | None:
 
 
 def cached_calibration(image_dirs: dict, inner_corners, square_m: float, reference: str, *,
-                       write_to=None, read_from=(), recalibrate: bool = False, progress=None):
+                       write_to=None, read_from=(), recalibrate: bool = False, progress=None, exclude=None):
     """The rig calibrated from ``image_dirs`` (as :func:`~.rig.calibrate_rig`), reusing a cached one.
 
     Parameters
@@ -155,6 +157,9 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     recalibrate : bool
         Ignore every cached result.
     progress : callable(message), optional
+    exclude : dict camera -> list of view names, optional
+        Views left out of the calibration (as :func:`~.rig.calibrate_rig`;
+        part of the key; the board corners of every view are still kept).
 
     Returns
     -------
@@ -165,7 +170,7 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     from .rig import calibrate_rig
 
     say = progress or (lambda msg: None)
-    key = calibration_key(image_dirs, inner_corners, square_m, reference)
+    key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude)
     folders = [f for f in ([write_to] + list(read_from)) if f is not None]
     found = [] if recalibrate else [(f, d) for f, d in ((f, _read(f)) for f in folders) if d is not None]
     for folder, d in found:
@@ -196,7 +201,7 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     if reused:
         say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
     say("calibrating from checkerboard views ...")
-    cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views))
+    cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views), exclude=exclude)
     if write_to is not None:
         record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
                   "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},

@@ -399,9 +399,9 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
         Calibrated cameras (world = reference camera frame).
     n_markers : int
         2 for the plumb (thesis 5.3), markers + 1 for the static shot (6.3).
-    params : DetectionParams, optional
-        ``threshold`` (one level for every camera; default automatic per
-        image), ``area_min``/``area_max``, ``min_circularity``, ``centroid``.
+    params : DetectionParams or dict camera -> DetectionParams, optional
+        ``threshold`` (one level for every camera, or one per camera;
+        default automatic per image), ``area_min``/``area_max``, ``min_circularity``, ``centroid``.
         ``labels`` name regions of one image and are refused here.
     max_residual_px : float
         Largest reprojection error (pixels) of a consistent point.
@@ -422,14 +422,15 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
     ValueError
         Bad input (unknown camera, fewer than two cameras, labels given).
     """
-    p = params or DetectionParams()
+    per_cam = params if isinstance(params, dict) else {}
+    p = DetectionParams() if isinstance(params, dict) else (params or DetectionParams())
     M = int(n_markers)
     if M < 1:
         raise ValueError(f"still views: n_markers must be >= 1, got {n_markers!r}")
     order = order or ("v" if M == 2 else "u")
     if order not in ("u", "v"):
         raise ValueError(f"still views: order must be 'u' or 'v', got {order!r}")
-    if p.labels is not None:
+    if p.labels is not None or any(q.labels is not None for q in per_cam.values()):
         raise ValueError("still views: params.labels name the regions of one image; "
                          "use detect_still per camera to give labels")
     if not isinstance(images, dict):
@@ -440,7 +441,7 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
     cams = tuple(c for c in rig.names if c in images)
     if len(cams) < 2:
         raise ValueError(f"still views: need the stills of at least two cameras, got {list(images)}")
-    cand = {c: still_candidates(images[c], p) for c in cams}
+    cand = {c: still_candidates(images[c], per_cam.get(c, p)) for c in cams}
     counts = ", ".join(f"{c}: {len(cand[c])} at threshold {cand[c].threshold}" for c in cams)
     short = [c for c in cams if len(cand[c]) < M]
     if len(cams) - len(short) < 2:

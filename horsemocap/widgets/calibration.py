@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import cv2
 import ipywidgets as w
+
+from ._text import ControlText
 import numpy as np
 
 
@@ -17,7 +19,7 @@ def ui_camera(cameras, value: str | None = None) -> w.Dropdown:
     return w.Dropdown(options=cameras, value=value or cameras[0], description="camera")
 
 
-class ViewBrowser(w.VBox):
+class ViewBrowser(ControlText, w.VBox):
     """Browse the checkerboard views of a calibration: detected (green +) and reprojected (red x) corners.
 
     ``.value`` is ``(camera, view name)`` shown.
@@ -28,8 +30,8 @@ class ViewBrowser(w.VBox):
         self.camera = ui_camera(result.cameras, camera)
         self.view = w.IntSlider(value=0, min=0, max=len(result.view_names) - 1, description="view")
         self.which = w.ToggleButtons(options=["alone", "joint"], value=which if result.joint else "alone",
-                                     description="calibration")
-        self.zoom = w.IntSlider(value=0, min=0, max=200, step=10, description="zoom (px)")
+                                     description="calibration", style={"button_width": "auto", "description_width": "initial"})
+        self.zoom = w.IntSlider(value=0, min=0, max=200, step=10, description="zoom (px)", style={"description_width": "initial"})
         self.image = w.Image(format="png")
         self.label = w.HTML()
         for c in (self.camera, self.view, self.which, self.zoom):
@@ -65,7 +67,7 @@ def ui_view_browser(result, camera: str | None = None) -> ViewBrowser:
     return ViewBrowser(result, camera)
 
 
-class ViewExcluder(w.VBox):
+class ViewExcluder(ControlText, w.VBox):
     """A checkbox per view and camera to leave the view out; labels give the per-view error.
 
     ``.value`` is ``{camera: [view names excluded]}``, the ``exclude`` of
@@ -78,6 +80,9 @@ class ViewExcluder(w.VBox):
         self.result = result
         self.boxes = {}
         rows = [w.HTML("<b>exclude</b> (RMS reprojection error of the view alone, px)")]
+        # one layout and one style for every checkbox: a notebook saves each widget model once
+        layout, style = w.Layout(width="auto", margin="0 12px 0 0"), w.widgets.widget_bool.CheckboxStyle()
+        row_layout = w.Layout()
         for k, name in enumerate(result.view_names):
             items = []
             for cam in result.cameras:
@@ -86,10 +91,10 @@ class ViewExcluder(w.VBox):
                 e = s.per_view_rms[k]
                 txt = f"{cam} {name}: " + (f"{e:.3f}" if np.isfinite(e) else (v.reasons[k] or s.reasons[k]))
                 cb = w.Checkbox(value=name in excluded.get(cam, ()), description=txt, indent=False,
-                                disabled=bool(v.reasons[k]), layout=w.Layout(width="230px"))
+                                disabled=bool(v.reasons[k]), layout=layout, style=style)
                 self.boxes[(cam, name)] = cb
                 items.append(cb)
-            rows.append(w.HBox(items))
+            rows.append(w.HBox(items, layout=row_layout))
         super().__init__(rows)
 
     @property

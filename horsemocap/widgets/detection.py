@@ -15,6 +15,8 @@ from dataclasses import replace
 
 import cv2
 import ipywidgets as W
+
+from ._text import ControlText
 import numpy as np
 
 from .. import detection as det
@@ -49,7 +51,7 @@ def threshold_preview(gray: np.ndarray, threshold: int, params: det.DetectionPar
     return out, n - 1, n_ok
 
 
-class ThresholdPicker(W.VBox):
+class ThresholdPicker(ControlText, W.VBox):
     """Threshold slider with a live binary preview and region count.
 
     ``.value`` is the threshold ``l`` of eq. (4.5). The frame slider lets one
@@ -62,7 +64,7 @@ class ThresholdPicker(W.VBox):
         self._frames = frames
         self._params = params
         self._gray = {}
-        self.slider = W.IntSlider(value=int(threshold), min=0, max=254, description="threshold l",
+        self.slider = W.IntSlider(value=int(threshold), min=0, max=254, description="threshold l", style={"description_width": "initial"},
                                   continuous_update=True)
         self.frame_slider = W.IntSlider(value=int(frame), min=0, max=len(frames) - 1, description="frame")
         self.image = W.Image(format="png")
@@ -125,7 +127,7 @@ def draw_labels(image, regions: det.Regions, index=None, chosen=(), scale: int =
     return rgb
 
 
-class LabelPicker(W.VBox):
+class LabelPicker(ControlText, W.VBox):
     """Pick the marker labels on the labelled first image (``left_labels``).
 
     Shows the regions of the chosen frame at the threshold with their label
@@ -161,7 +163,7 @@ class LabelPicker(W.VBox):
         self.picture.value = _png(draw_labels(self._image, self.regions, self.index, self.value, self._scale))
 
 
-class WindowPicker(W.HBox):
+class WindowPicker(ControlText, W.HBox):
     """Window size ``(W_du, W_dv)`` of thesis 4.5.4; ``.value`` is the tuple."""
 
     def __init__(self, window=(100, 60), max_size=(640, 480)):
@@ -215,26 +217,33 @@ def ui_distance_tolerance(params: det.DetectionParams) -> W.FloatSlider:
                          description="DT")
 
 
-class DetectionControls(W.VBox):
-    """All detection prompts together; ``.value`` is a :class:`DetectionParams`."""
+class DetectionControls(ControlText, W.VBox):
+    """All detection prompts together; ``.value`` is a :class:`DetectionParams`.
+
+    The first frame (the frame whose regions the labels name, ``first_frame``)
+    has its own slider; labels are kept only while the threshold and the
+    first frame are the ones they were picked at.
+    """
 
     def __init__(self, frames, params: det.DetectionParams, scale: int = 1):
         self.base = params
         self.threshold = ui_threshold(frames, params)
         f0 = params.first_frame or 0
+        self.first_frame = W.IntSlider(value=int(f0), min=0, max=len(frames) - 1, description="first frame",
+                                       style={"description_width": "initial"})
         self.labels = ui_label_picker(np.asarray(frames[f0]), params, scale)
         self.area = ui_area_range(params)
         size = (np.asarray(frames[0]).shape[1], np.asarray(frames[0]).shape[0])
         self.window = ui_window(params, size)
         self.tolerance = ui_distance_tolerance(params)
-        super().__init__([self.threshold, self.labels, self.area, self.window, self.tolerance])
+        super().__init__([self.threshold, self.first_frame, self.labels, self.area, self.window, self.tolerance])
 
     @property
     def value(self) -> det.DetectionParams:
-        same_thr = self.threshold.value == self.base.threshold
+        same = self.threshold.value == self.base.threshold and self.first_frame.value == (self.base.first_frame or 0)
         return replace(self.base, threshold=self.threshold.value,
-                       labels=self.labels.value if (same_thr and self.labels.value) else None,
-                       first_frame=self.base.first_frame,
+                       labels=self.labels.value if (same and self.labels.value) else None,
+                       first_frame=int(self.first_frame.value),
                        area_min=float(self.area.value[0]), area_max=float(self.area.value[1]),
                        window=self.window.value, distance_tolerance=float(self.tolerance.value))
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import ipywidgets as W
 
+from ._text import ControlText
+
 from .. import fitting
 
 __all__ = ["ui_x_degree", "ui_fourier_order"]
@@ -15,7 +17,7 @@ __all__ = ["ui_x_degree", "ui_fourier_order"]
 
 def ui_x_degree(value: int = 1):
     """Degree of the x-motion polynomial (thesis ``fit_type_x``; poly1 recommended)."""
-    return W.BoundedIntText(value=value, min=0, max=5, description="x poly deg")
+    return W.BoundedIntText(value=value, min=0, max=5, description="x poly deg", style={"description_width": "initial"})
 
 
 def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, *,
@@ -64,14 +66,16 @@ def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, 
         if n_auto not in fitting.proposed_orders(e0):
             raise ValueError(f"value: fourier{n_auto} is not one of the orders proposed for E = {e0} "
                              f"({fitting.proposed_orders(e0)})")
-    ext = W.BoundedIntText(value=e0, min=0, max=40, description="extremes E",
+    ext = W.BoundedIntText(value=e0, min=0, max=40, description="extremes E", style={"description_width": "initial"},
                            layout=W.Layout(width="170px"))
 
     def options(e):
         n1, n2 = fitting.proposed_orders(e)
         return [(f"fourier{n1} (E/2)", n1), (f"fourier{n2} (E/2+1)", n2)]
 
-    choice = W.ToggleButtons(options=options(e0), value=n_auto, description="fit")
+    choice = W.ToggleButtons(options=options(e0), value=n_auto, tooltips=["E/2", "E/2+1"],
+                             style={"button_width": "auto", "description_width": "initial"},
+                             layout=W.Layout(width="auto", flex="0 0 auto"))
 
     def on_e(change):
         idx = [v for _, v in choice.options].index(choice.value) if choice.value is not None else 0
@@ -81,11 +85,14 @@ def ui_fourier_order(t, y, label: str = "", rule: str = "significant", w0=None, 
 
     ext.observe(on_e, names="value")
 
-    class _Box(W.HBox):
+    class _Box(ControlText, W.HBox):
+        """Fourier order of one coordinate"""
+
         @property
         def value(self):
             return int(choice.value)
 
-    box = _Box([W.Label(label, layout=W.Layout(width="110px")), ext, choice])
+    box = _Box([W.Label(label, layout=W.Layout(width="110px")), ext, choice],
+               layout=W.Layout(flex_flow="row nowrap", align_items="center"))
     box.extremes, box.choice = ext, choice
     return box

@@ -8,16 +8,18 @@ from __future__ import annotations
 
 import ipywidgets as W
 
+from ._text import ControlText
+
 __all__ = ["ui_triangulation_mode", "ui_smoothing", "ui_motion_marker", "ui_period", "ui_n_periods"]
 
 
 def ui_triangulation_mode(value: str = "joint"):
     """``.value`` is the ``mode`` of :func:`horsemocap.reconstruction.triangulate`."""
     return W.ToggleButtons(options=[("joint (all cameras)", "joint"), ("thesis (3 pairs, eq. 5.5)", "thesis")],
-                           value=value, description="mode")
+                           value=value, description="mode", style={"button_width": "auto", "description_width": "initial"})
 
 
-class SmoothingControls(W.VBox):
+class SmoothingControls(ControlText, W.VBox):
     """Method dropdown and span box; ``.value`` is ``{"method": ..., "span": ...}``.
 
     ``"none"`` keeps the triangulated positions (the pipeline's default, see
@@ -78,4 +80,4 @@ def ui_period(value: float, max_frames: int):
 def ui_n_periods(value: int = 2):
     """1 (eq. 5.6) or 2 (eq. 5.7) periods for the net displacement."""
     return W.ToggleButtons(options=[("one period (5.6)", 1), ("two periods (5.7)", 2)], value=value,
-                           description="u1 over")
+                           description="u1 over", style={"button_width": "auto", "description_width": "initial"})

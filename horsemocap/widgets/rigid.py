@@ -5,6 +5,8 @@ and the method."""
 from __future__ import annotations
 
 import ipywidgets as W
+
+from ._text import ControlText
 import numpy as np
 
 from ..rigid import VERSION_LABELS
@@ -16,11 +18,14 @@ def ui_versions(name: str = "omega", value=None):
     """Six checkboxes; ``.value`` is the (6,) bool ``use`` of
     :func:`horsemocap.rigid.average_versions` (default: all, as the issue asks)."""
     value = np.ones(6, bool) if value is None else np.asarray(value, bool)
+    layout, style = W.Layout(width="auto", margin="0 12px 0 0"), W.widgets.widget_bool.CheckboxStyle()
     boxes = [W.Checkbox(value=bool(v), description=lab.replace("omega", name), indent=False,
-                        layout=W.Layout(width="140px"))
+                        layout=layout, style=style)
              for lab, v in zip(VERSION_LABELS, value)]
 
-    class _Box(W.HBox):
+    class _Box(ControlText, W.HBox):
+        """The versions that enter the average"""
+
         @property
         def value(self):
             return np.array([b.value for b in boxes], bool)
@@ -42,7 +47,7 @@ def ui_angular_method(value: str | None = None):
         value = AnalysisParams().angular_method
     return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq"),
                                     ("fit of the orientation", "rotation")],
-                           value=value, description="omega, alfa")
+                           value=value, description="omega, alfa", style={"button_width": "auto", "description_width": "initial"})
 
 
 def ui_saddle_method(value: str | None = None):
@@ -54,4 +59,4 @@ def ui_saddle_method(value: str | None = None):
         value = AnalysisParams().saddle_method
     return W.ToggleButtons(options=[("eq. 6.54/6.55 mean", "thesis"), ("fit of eq. 6.48 path", "direct"),
                                     ("fit of the smoothed-pose path", "pose")],
-                           value=value, description="saddle v, a")
+                           value=value, description="saddle v, a", style={"button_width": "auto", "description_width": "initial"})

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import cv2
 import ipywidgets as w
+
+from ._text import ControlText
 import numpy as np
 
 
@@ -20,7 +22,7 @@ def _frame(src, k):
         return None
 
 
-class SyncChooser(w.VBox):
+class SyncChooser(ControlText, w.VBox):
     """Offsets per camera (``IntText``) with a preview of the frames they align.
 
     ``.value`` is ``{camera: offset}`` (the session's ``sync.offsets``).

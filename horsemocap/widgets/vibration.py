@@ -12,9 +12,9 @@ def ui_weighting_mode(value: str = "iso"):
     Table 8.7). ``.value`` is the ``mode`` of ``vibration.comfort_indicators``."""
     return W.ToggleButtons(options=[("ISO 2631 (per harmonic)", "iso"),
                                     ("thesis (scalar W)", "thesis")],
-                           value=value, description="weighting")
+                           value=value, description="weighting", style={"button_width": "auto", "description_width": "initial"})
 
 
 def ui_periods(value: int = 2):
     """tau in gait periods (the thesis: 2). ``.value`` is ``n_periods``."""
-    return W.IntSlider(value=value, min=1, max=10, description="tau (periods)")
+    return W.IntSlider(value=value, min=1, max=10, description="tau (periods)", style={"description_width": "initial"})

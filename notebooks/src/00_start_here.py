@@ -15,6 +15,16 @@
 # whole-body vibration indicators of ISO 2631-1 and BS 6841, and how long a rider may ride before
 # reaching the exposure values of the EU directive 2002/44/EC.
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import json
 
@@ -64,7 +74,7 @@ plt.show()
 # (the contract is in `docs/sessions.md`):
 
 # %%
-session_dir = data.default_session_dir()
+session_dir = ws.session_dir
 doc = json.loads((session_dir / "session.json").read_text())
 print(json.dumps({k: doc[k] for k in ("name", "fps", "cameras", "reference_camera", "sync", "markers")}, indent=1))
 session = load_session(session_dir)

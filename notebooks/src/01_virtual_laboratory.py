@@ -26,6 +26,16 @@
 # eq. 5.6-5.12 (x along the net displacement, y along gravity, down, $z = x \times y$) and the
 # saddle marker is a body-fixed point, $\mathbf{r}_S(t) = \mathbf{R}_{MB}(t)\,\mathbf{r}_{BS}^{(B)} + \mathbf{r}_{MB}(t)$ (6.48).
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import json
 
@@ -39,7 +49,7 @@ from horsemocap.data import data_samples_dir, default_session_dir
 from horsemocap.sources import FrameSource
 from horsemocap.virtuallab.measure import naive_regions, session_centroid_errors
 
-session = default_session_dir()
+session = ws.session_dir
 truth = vl.load_truth(session)
 meta = json.loads((session / "session.json").read_text())
 print("session:", meta["name"], "|", meta["metadata"]["horse"], meta["metadata"]["gait"])

@@ -22,6 +22,16 @@
 # `horsemocap` stores the flash frame of each camera, `offsets`, so that
 # $\Delta F_{LM}$ = `offsets["middle"] - offsets["left"]`.
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import json
 
@@ -34,7 +44,7 @@ from horsemocap.data import default_session_dir
 from horsemocap.sources import FrameSource
 from horsemocap.sync import aligned_index, detect_flash, flash_offsets, frame_differences
 
-session = default_session_dir()
+session = ws.session_dir
 meta = json.loads((session / "session.json").read_text())
 sources = {cam: FrameSource(session / path) for cam, path in meta["motion"].items()}
 for cam, src in sources.items():
@@ -113,6 +123,7 @@ print(aligned_index(offsets, 20))
 
 # %% tags=["nbval-ignore-output"]
 ui = widgets.ui_sync(sources, offsets, {cam: det.region for cam, det in detections.items()})
+ws.bind(ui, "sync_offsets")  # the offsets chosen here are the pipeline's from now on
 display(ui)
 
 # %%

@@ -21,6 +21,16 @@
 # $k_c = [k_1, k_2, p_1, p_2, k_3]$ with $k_3 = 0$, as in the thesis. For a pair,
 # $x_{right} = R\,x_{left} + T$ (the thesis' $R_{ML}, t_{ML}$...).
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import tempfile
 from pathlib import Path
@@ -176,7 +186,7 @@ print(chk_real.table())
 # %%
 from horsemocap.virtuallab import load_truth, thesis_rig
 
-session = default_session_dir()
+session = ws.session_dir
 calib_dir = session / "calibration"
 import json
 
@@ -195,6 +205,15 @@ for cam in virtual.cameras:
     print(f"{cam:7s} boards found {int(virtual.views[cam].found.sum())}/{len(virtual.view_names)}",
           f"missing: {virtual.views[cam].missing() or 'none'}")
 print(cal.format_calibration_tables(virtual, decimals=3))
+
+# %% [markdown]
+# The same checkboxes for the session's own views: a view ticked here is left out when the pipeline
+# calibrates the session from its views (the analysis parameter `calibration_exclude`).
+
+# %% tags=["nbval-ignore-output"]
+exclude_session = widgets.ui_exclude_views(virtual)
+ws.bind(exclude_session, "calibration_exclude", convert=lambda v: {c: n for c, n in v.items() if n})
+display(exclude_session)
 
 # %% [markdown]
 # ### Against the truth

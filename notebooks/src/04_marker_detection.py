@@ -27,6 +27,16 @@
 # that a mirrored second marker cannot take the place of the true one. The window of size
 # $(W_{du}, W_{dv})$ slides with the markers' overall centre: $W_c(k+1) = W_c^e(k)$ (Figure 4.11).
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import tempfile
 import time
@@ -36,7 +46,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from horsemocap import detection, plots, widgets
+from horsemocap import detection, plots, widgets, workspace
 from horsemocap.data import default_session_dir
 from horsemocap.sources import FrameSource, read_image
 from horsemocap.virtuallab import load_truth
@@ -51,7 +61,7 @@ from horsemocap.virtuallab import load_truth
 # with the left camera.
 
 # %%
-session = default_session_dir()
+session = ws.session_dir
 truth = load_truth(session)
 frames = FrameSource(session / "motion" / "left.avi").read()
 n_frames, height, width = frames.shape[:3]
@@ -102,6 +112,7 @@ print(f"frames with all 3 markers: {int(track.all_found.sum())} of {n_frames}")
 
 # %% tags=["nbval-ignore-output"]
 ui_thr = widgets.ui_threshold(frames, p)
+ws.bind(ui_thr, "detection.left.threshold", automatic=p.threshold)  # the pipeline's threshold from now on
 display(ui_thr)
 
 # %%
@@ -144,6 +155,7 @@ for lab, i in zip(picked, idx):
 
 # %% tags=["nbval-ignore-output"]
 ui_all = widgets.ui_detection(frames, p)
+ws.bind(ui_all, "detection.left", automatic={}, convert=lambda chosen: workspace.detection_changes(chosen, p))
 display(ui_all)
 
 # %%
@@ -285,13 +297,14 @@ print("\n".join(lines[:2] + [l for l in lines if l.startswith(f"left,{p.first_fr
 # %% [markdown]
 # **Speed of the preview.** The threshold preview must keep up with the slider (aim: well under
 # 100 ms per redraw at 640x480). Timing varies from machine to machine, so this cell's output is
-# not checked.
+# not checked. It moves a preview of its own, never shown, so the threshold chosen above stays.
 
 # %% tags=["nbval-ignore-output"]
+timed = widgets.ui_threshold(frames, p)
 times = []
 for level in range(100, 200, 10):
-    ui_thr.slider.value = level
-    times.append(ui_thr.last_ms)
+    timed.slider.value = level
+    times.append(timed.last_ms)
 t0 = time.perf_counter()
 detection.detect_markers(frames, 3, p)
 t_track = (time.perf_counter() - t0) / n_frames
@@ -372,6 +385,34 @@ for cam, e in ident["cameras"].items():
     print(f"{cam:6s}: {e['used']:3d} centres used, {e['wrong']} wrong identities, median error "
           f"{e['median_px']:.3f} px; visible but not used: {e['missed']} ({why})")
 print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with a 3D position: {ident['with_3d']}")
+
+# %% [markdown]
+# ## Every camera's prompts
+#
+# The thesis ran `left_data_from_first_image_2.m`, then the same program for the middle and the right
+# camera. One tab per camera gathers the prompts of that camera (threshold, first frame, labels, area
+# range, window, tolerance), at its automatic choice. What is changed in a tab becomes the session's
+# choice for that camera (the left tab and the controls above are the same choice).
+
+# %% tags=["nbval-ignore-output"]
+import ipywidgets as W
+
+cam_frames = {cam: FrameSource(session / "motion" / f"{cam}.avi").read() for cam in truth.cameras if cam != "left"}
+ui_cams = {"left": ui_all}
+for cam, fr in cam_frames.items():
+    ui_cams[cam] = widgets.ui_detection(fr, tracks[cam].params)
+    ws.bind(ui_cams[cam], f"detection.{cam}", automatic={},
+            convert=lambda chosen, q=tracks[cam].params: workspace.detection_changes(chosen, q))
+tabs = W.Tab(children=[ui_cams[c] for c in truth.cameras if c != "left"])
+for k, cam in enumerate(c for c in truth.cameras if c != "left"):
+    tabs.set_title(k, cam)
+display(tabs)
+
+# %%
+for cam in truth.cameras:
+    q = ui_cams[cam].value
+    print(f"{cam:6s}: threshold {q.threshold}, first frame {q.first_frame}, labels {list(q.labels or [])}, "
+          f"area [{q.area_min:.0f}, {q.area_max:.0f}] px, window {q.window} px, DT {q.distance_tolerance:.3f}")
 
 # %% [markdown]
 # ## Exercises

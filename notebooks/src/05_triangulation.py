@@ -28,6 +28,16 @@
 #
 # $$\mathbf{CM}_L = \tfrac{1}{3}\left(\mathbf{CM}_{LM,L} + \mathbf{CM}_{LR,L} + \mathbf{CM}_{MR,L}\right)\qquad(5.5)$$
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import matplotlib.pyplot as plt
 import numpy as np
@@ -54,7 +64,7 @@ from horsemocap.virtuallab import load_truth
 # about 20 s).
 
 # %%
-session_dir = default_session_dir()
+session_dir = ws.session_dir
 analysis = results_for(session_dir, until="triangulate")
 res = analysis.results
 rig = res["rig"]["rig"]                                   # calibrated by the pipeline
@@ -147,6 +157,7 @@ print(f"average (eq. 5.5)                                        error vs truth:
 
 # %% tags=["nbval-ignore-output"]
 ui_mode = widgets.ui_triangulation_mode(analysis.params.triangulation)
+ws.bind(ui_mode, "triangulation")
 display(ui_mode)
 
 # %%

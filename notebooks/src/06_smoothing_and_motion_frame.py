@@ -28,6 +28,16 @@
 # with $\mathbf{u}_2^e$ the gravity direction estimated from the plumb and $k$ the 1-based frame
 # number (0-based here: $t = k/\mathrm{fps}$).
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import matplotlib.pyplot as plt
 import numpy as np
@@ -49,7 +59,7 @@ from horsemocap.virtuallab import load_truth
 # printed; the widgets below start from them.
 
 # %%
-session_dir = default_session_dir()
+session_dir = ws.session_dir
 analysis = results_for(session_dir, until="motion_frame")
 res = analysis.results
 rig = res["rig"]["rig"]                                     # calibrated by the pipeline
@@ -246,6 +256,8 @@ print(f"window: {k_win:d} frames = {k_win / fps:.2f} s, {k_win / mf_pipeline.per
 
 # %% tags=["nbval-ignore-output"]
 ui_smooth = widgets.ui_smoothing(par.smoothing_method, par.smoothing_span)
+ws.bind(ui_smooth.method, "smoothing_method")
+ws.bind(ui_smooth.span, "smoothing_span")
 display(ui_smooth)
 
 # %%
@@ -338,6 +350,9 @@ plt.show()
 ui_marker = widgets.ui_motion_marker(points.shape[1], mf_pipeline.marker)
 ui_T = widgets.ui_period(mf_pipeline.period_frames, n - 1)
 ui_np = widgets.ui_n_periods(mf_pipeline.n_periods)
+ws.bind(ui_marker, "x_marker")
+ws.bind(ui_T, "period_frames")
+ws.bind(ui_np, "n_periods")
 display(ui_marker, ui_T, ui_np)
 
 # %%

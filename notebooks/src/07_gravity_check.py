@@ -13,6 +13,16 @@
 #
 # $$CM_g(t) = c_0 + c_1 t + c_2 t^2,\qquad v(t) = c_1 + 2c_2 t,\qquad a = 2c_2 \approx g.$$
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import matplotlib.pyplot as plt
 import numpy as np
@@ -140,7 +150,30 @@ print(f"calibrated minus exact rig (joint): {d_cal:+.3f} % of {g_ref:.2f}; the f
 # centroid of a shaded sphere); the calibrated rig changes $g$ by much less than the fit's own
 # uncertainty (last line above): its scale error is small. Notebook 14 follows the error through
 # every stage.
+
+# %% [markdown]
+# ## The plumb of the session: threshold and labels (Appendix A 7a)
 #
+# `one_image_centroids.m` asked, for each camera's plumb image, the threshold and the labels of the
+# plumb's two markers. The pipeline finds both automatically: the markers are the points seen
+# consistently by every camera. The tabs show each camera's automatic choice; a threshold moved, or
+# other labels picked, becomes the session's choice for the plumb, and the later notebooks use it.
+
+# %% tags=["nbval-ignore-output"]
+from horsemocap import widgets
+from horsemocap.sources import read_image
+
+plumb_run = results_for(ws.session_dir, until="plumb")
+ui_plumb = widgets.ui_still({c: read_image(p) for c, p in plumb_run.session.plumb.items()}, 2,
+                            plumb_run.results["plumb"]["plumb_px"])
+ws.bind(ui_plumb, "stills.plumb")
+display(ui_plumb)
+
+# %%
+print("plumb prompts:", ui_plumb.value or "automatic")
+print("gravity in the reference camera's frame:", np.round(plumb_run.results["plumb"]["gravity"], 4).tolist())
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. How does the error in $g$ grow with the pixel noise? Add 0.3 px and 1 px of noise to the detections.

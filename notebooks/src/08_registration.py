@@ -25,6 +25,16 @@
 # $\mathbf{q}_R$. `horsemocap.rigid.register` returns the *pose* of the model in each frame,
 # `registered = rotation @ model + translation`, so the thesis' $\mathbf{R} = $ `rotation.T`.
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import warnings
 
@@ -69,7 +79,7 @@ moved = 1000 * np.linalg.norm(an["smooth"]["smoothed"] - an["smooth"]["raw"], ax
 print(f"smoothing: {an.params.smoothing_method}, span {an.params.smoothing_span}; it moved the triangulated "
       f"markers by median {np.median(moved):.2f} mm, max {moved.max():.2f} mm")
 
-truth = virtuallab.load_truth(data.default_session_dir())
+truth = virtuallab.load_truth(ws.session_dir)
 true_pos = accuracy.analysed_truth(an, truth)["marker_pos"]   # the truth at the analysed frames, pipeline's frame
 
 # %% [markdown]
@@ -150,6 +160,26 @@ q_t = -R_th @ reg.translation[k]
 x_r = (np.linalg.inv(R_th) @ (model - q_t).T).T                   # eq. 5.20 / 5.21
 print(f"eq. 5.20 gives the registered points of frame 27 (to 1e-12 m): {np.abs(x_r - reg.registered[k]).max() < 1e-12}")
 print(f"det R = {np.linalg.det(R_th):.6f};  rotation angle {np.degrees(np.arccos((np.trace(R_th) - 1) / 2)):.2f} deg")
+
+# %% [markdown]
+# ## The static shot of the session: threshold and labels (Appendix A 8a, 12a)
+#
+# The static shot shows the three markers and the saddle marker; the thesis asked for each camera's
+# threshold and the labels of the markers. The tabs show the automatic choice of each camera; a change
+# becomes the session's choice for the static shot, which the registration above and every later
+# notebook use.
+
+# %% tags=["nbval-ignore-output"]
+from horsemocap import widgets
+from horsemocap.sources import read_image
+
+ui_static = widgets.ui_still({c: read_image(p) for c, p in an.session.static.items()},
+                             an.session.marker_count + 1, an.results["static"]["static_px"])
+ws.bind(ui_static, "stills.static")
+display(ui_static)
+
+# %%
+print("static-shot prompts:", ui_static.value or "automatic")
 
 # %% [markdown]
 # ## Exercises

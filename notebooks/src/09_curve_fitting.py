@@ -26,6 +26,16 @@
 # the default choice takes $E/2+1$ only if it raises the adjusted R² *and* its extra harmonic is
 # significant (a 95 % bound excludes zero).
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import warnings
 
@@ -59,7 +69,7 @@ w0 = 2 * np.pi / period_s                                 # start point of every
 print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smoothing_method}'; order rule '{prm.order_rule}', "
       f"trend {prm.fourier_trend}, x degree {prm.x_degree}; period {an['motion_frame']['period_frames']:.2f} frames = {period_s:.3f} s")
 
-truth = virtuallab.load_truth(data.default_session_dir())
+truth = virtuallab.load_truth(ws.session_dir)
 a, b = an["triangulate"]["segment"]
 tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
 true_kin = {"pos": tt["marker_pos"], "vel": tt["marker_vel"], "acc": tt["marker_acc"]}
@@ -162,6 +172,9 @@ ui_orders = {(m, ax): widgets.ui_fourier_order(t, registered[:, m, ax], f"marker
                                                  value=auto.orders[m, ax], n_extremes=auto.n_extremes[m, ax])
              for m in range(3) for ax in (1, 2)}
 ui_x = widgets.ui_x_degree(prm.x_degree)
+ws.bind(list(ui_orders.values()), "fourier_orders",
+        read=lambda: [[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(3)])
+ws.bind(ui_x, "x_degree")
 for w in ui_orders.values():
     display(w)
 display(ui_x)

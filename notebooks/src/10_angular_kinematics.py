@@ -29,6 +29,16 @@
 # Both solutions become $0/0$ when $\boldsymbol\omega\cdot\mathbf n = 0$,
 # $\mathbf n = \mathbf r_{21}\times\mathbf r_{31}/|\mathbf r_{21}\times\mathbf r_{31}|$ (eq. 6.33-6.35).
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import warnings
 
@@ -59,7 +69,7 @@ t, pos, vel, acc = rb.t, rb.pos, rb.vel, rb.acc
 print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
       f"angular method '{prm.angular_method}'; versions used: omega {sum(prm.omega_versions)}, alfa {sum(prm.alpha_versions)}")
 
-truth = virtuallab.load_truth(data.default_session_dir())
+truth = virtuallab.load_truth(ws.session_dir)
 a, b = an["triangulate"]["segment"]
 tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
 omega_true, alpha_true = tt["omega"], tt["alpha"]
@@ -109,6 +119,9 @@ for c in range(3):
 ui_w = widgets.ui_versions("omega", value=prm.omega_versions)
 ui_a = widgets.ui_versions("alfa", value=prm.alpha_versions)
 ui_method = widgets.ui_angular_method(value=prm.angular_method)
+ws.bind(ui_w, "omega_versions")
+ws.bind(ui_a, "alpha_versions")
+ws.bind(ui_method, "angular_method")
 display(ui_w, ui_a, ui_method)
 
 # %%

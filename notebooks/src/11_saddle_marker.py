@@ -24,6 +24,16 @@
 #   \mathbf a_S = \mathbf a_i + \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r_{iS}) + \boldsymbol\alpha\times\mathbf r_{iS}
 #   \qquad (6.54, 6.55),\ i = 1, 2, 3,\ \text{then the mean.}$$
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import warnings
 
@@ -52,7 +62,7 @@ print(f"{len(t)} frames; static shot {static.shape}: markers 1-3 are static poin
 print(f"the pipeline's choices: smoothing '{prm.smoothing_method}', omega/alfa by '{prm.angular_method}', "
       f"saddle v/a by '{prm.saddle_method}'")
 
-truth = virtuallab.load_truth(data.default_session_dir())
+truth = virtuallab.load_truth(ws.session_dir)
 a, b = an["triangulate"]["segment"]
 tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
 S_true = {"pos": tt["saddle_pos"], "vel": tt["saddle_vel"], "acc": tt["saddle_acc"]}
@@ -85,6 +95,9 @@ ui_w = widgets.ui_versions("omega", value=prm.omega_versions)
 ui_a = widgets.ui_versions("alfa", value=prm.alpha_versions)
 ui_method = widgets.ui_angular_method(value=prm.angular_method)
 ui_saddle = widgets.ui_saddle_method(value=prm.saddle_method)
+for ui, name in ((ui_w, "omega_versions"), (ui_a, "alpha_versions"), (ui_method, "angular_method"),
+                 (ui_saddle, "saddle_method")):
+    ws.bind(ui, name)
 display(ui_w, ui_a, ui_method, ui_saddle)
 
 # %%
@@ -205,7 +218,24 @@ for sm in ("none", "loess", "rloess"):
 # rendering of it gave 2.8 %, the lowest of the 16). The comfort indicators computed from that acceleration
 # come out closer to the truth than the acceleration itself (median 7.9 % for the Wb-weighted rms), and the
 # default was chosen on them. Notebook 14 follows detection noise through the whole chain.
+
+# %% [markdown]
+# ## Which point of the static shot is the saddle marker? (Appendix A 12a)
 #
+# The thesis' user typed the label of the saddle marker in the static shot. The pipeline takes the
+# point that the ride's three markers leave over; the dropdown lists the static shot's points (left
+# to right in the reference camera) with that choice selected.
+
+# %% tags=["nbval-ignore-output"]
+auto_saddle = an.results["rigid_body"]["saddle_index"]
+ui_saddle_marker = widgets.ui_saddle_marker(an.results["static"]["static_px"], auto_saddle)
+ws.bind(ui_saddle_marker, "saddle_marker")
+display(ui_saddle_marker)
+
+# %%
+print(f"saddle marker: static-shot point {ui_saddle_marker.value} (the pipeline's choice: point {auto_saddle})")
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. Use the base-2 body frame (`rigid.saddle_in_body(rb.model, rb.static_saddle, base=1)`) and eq. 6.48

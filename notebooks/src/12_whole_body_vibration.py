@@ -26,6 +26,16 @@
 # $$T_{A(8)} = 8\Big(\frac{A(8)_\mathrm{threshold}}{a_{w,\mathrm{rms}}}\Big)^2\ \mathrm{h},\qquad
 #   T_{VDV} = \tau\Big(\frac{VDV_\mathrm{threshold}}{VDV_w}\Big)^{4},\qquad D = V_{x,avg}\,T$$
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import tempfile
 import warnings
@@ -235,6 +245,7 @@ for k in range(5):
 # %% tags=["nbval-ignore-output"]
 ui_mode = widgets.ui_weighting_mode()
 ui_tau = widgets.ui_periods()
+ws.bind(ui_mode, "weighting_mode")
 display(ui_mode, ui_tau)
 
 # %%

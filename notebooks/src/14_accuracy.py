@@ -14,6 +14,16 @@
 # resolution of a stereo pair: $\delta Z \approx Z^2 \, \delta u / (f B)$, with $Z$ the distance,
 # $f$ the focal length in pixels, $B$ the baseline and $\delta u$ the pixel error.
 
+# %% tags=["nbval-ignore-output"]
+# The riding session of this notebook and of the next ones: a session of data_samples/ or any session
+# folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
+# choices made with this notebook's widgets are kept for the session and used by every later notebook.
+from IPython.display import display
+from horsemocap.workspace import open_workspace
+
+ws = open_workspace()
+display(ws.ui())
+
 # %%
 import numpy as np
 import matplotlib.pyplot as plt
@@ -23,8 +33,8 @@ from horsemocap.data import default_session_dir
 from horsemocap.pipeline import results_for
 from horsemocap.virtuallab import load_truth, thesis_rig
 
-analysis = results_for(default_session_dir())
-truth = load_truth(default_session_dir())
+analysis = results_for(ws.session_dir)
+truth = load_truth(ws.session_dir)
 res = analysis.results
 
 # %% [markdown]

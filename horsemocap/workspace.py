@@ -1,0 +1,440 @@
+"""The session workspace: one riding session analysed step by step across the notebooks.
+
+The thesis' user answered the prompts of Appendix A one program after another,
+and every later program read the files the earlier ones wrote. The notebooks
+do the same through two small files in the notebooks' results store
+(:func:`horsemocap.pipeline.notebook_results_dir`, ``$HORSEMOCAP_RESULTS``):
+
+``workspace.json`` (in the store's root)
+    ``{"session": "/path/to/session"}``: the session every notebook analyses,
+    chosen in the first cell of any notebook (default: the bundled session).
+``choices.json`` (in the session's results folder)
+    ``{"parameters": {...}}``: the analysis parameters chosen with the
+    notebooks' widgets, only those that differ from the automatic choice
+    (optional file of the results contract, ``docs/sessions.md``).
+    :func:`horsemocap.pipeline.results_for` applies them on top of the
+    session's own ``analysis`` object, and ``horsemocap analyze SESSION --out
+    DIR --params choices.json`` runs the same analysis from the command line.
+
+So a teacher who moves the threshold in notebook 04 and runs 05-14 sees
+every later step (and the numbers of 12 and 14) follow. Nothing is ever
+written into the session folder.
+
+The functions here are pure file operations; :class:`Workspace` adds the
+binding of a widget to a parameter (:meth:`Workspace.bind`).
+"""
+from __future__ import annotations
+
+import copy
+import json
+import os
+from pathlib import Path
+
+from .params import AnalysisParams, ParamsError
+
+CHOICES_FILE = "choices.json"
+WORKSPACE_FILE = "workspace.json"
+
+
+# ---------------------------------------------------------------------------
+# where things are
+# ---------------------------------------------------------------------------
+
+def results_root() -> Path:
+    """The notebooks' results store: ``$HORSEMOCAP_RESULTS`` or ``<cache>/results``."""
+    from .data import cache_dir
+
+    root = os.environ.get("HORSEMOCAP_RESULTS")
+    return Path(root).resolve() if root else (cache_dir() / "results").resolve()
+
+
+def sample_sessions() -> dict:
+    """Sessions bundled in ``data_samples/`` (folders holding ``session.json``): name -> folder."""
+    from .data import data_samples_dir
+
+    root = data_samples_dir()
+    if not root.is_dir():
+        return {}
+    return {p.name: p.resolve() for p in sorted(root.iterdir()) if (p / "session.json").is_file()}
+
+
+def check_session_dir(path) -> Path:
+    """``path`` resolved, if it is a session folder; else :class:`ParamsError` naming it."""
+    p = Path(path).expanduser()
+    if not (p / "session.json").is_file():
+        raise ParamsError(f"{p}: not a session folder (expected a folder holding session.json)")
+    return p.resolve()
+
+
+def current_session() -> Path:
+    """The session of the workspace (``workspace.json``), else the bundled default session.
+
+    A ``workspace.json`` that names a folder which no longer holds a session
+    raises :class:`ParamsError` naming both (it is not silently replaced).
+    """
+    from .data import default_session_dir
+
+    path = results_root() / WORKSPACE_FILE
+    if not path.is_file():
+        return default_session_dir().resolve()
+    data = _read_json(path)
+    if not isinstance(data, dict) or not isinstance(data.get("session"), str):
+        raise ParamsError(f"{path}: expected {{\"session\": \"<session folder>\"}}")
+    try:
+        return check_session_dir(data["session"])
+    except ParamsError as exc:
+        raise ParamsError(f"{path}: {exc}; choose the session again in a notebook's first cell "
+                          f"or delete {path}") from None
+
+
+def set_current_session(session_dir) -> Path:
+    """Make ``session_dir`` the session of every notebook (writes ``workspace.json``)."""
+    from .store import atomic_write_json
+
+    p = check_session_dir(session_dir)
+    root = results_root()
+    root.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(root / WORKSPACE_FILE, {"session": str(p)})
+    return p
+
+
+def choices_path(session_dir=None) -> Path:
+    """``choices.json`` of a session's results folder (the session of the workspace by default)."""
+    from .pipeline import notebook_results_dir
+
+    return notebook_results_dir(Path(session_dir or current_session()).resolve()) / CHOICES_FILE
+
+
+# ---------------------------------------------------------------------------
+# the choices
+# ---------------------------------------------------------------------------
+
+def _read_json(path: Path):
+    from .store import read_text_utf8
+
+    try:
+        return json.loads(read_text_utf8(path, ParamsError))
+    except json.JSONDecodeError as exc:
+        raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+
+
+def read_choices(session_dir=None) -> dict:
+    """The parameters chosen with widgets for a session (only the overrides; ``{}`` when none)."""
+    path = choices_path(session_dir)
+    if not path.is_file():
+        return {}
+    data = _read_json(path)
+    if not isinstance(data, dict) or not isinstance(data.get("parameters", None), dict):
+        raise ParamsError(f"{path}: expected {{\"parameters\": {{...}}}}")
+    return data["parameters"]
+
+
+def session_params(session_dir=None, choices: dict | None = None) -> AnalysisParams:
+    """Defaults, then the session's ``analysis`` object, then the choices (validated).
+
+    Raises :class:`ParamsError` naming ``choices.json`` and the parameter
+    when a choice is not valid for the session (a camera it does not have).
+    """
+    from .pipeline import resolve_params
+    from .session import load_session
+
+    session_dir = Path(session_dir or current_session())
+    session = load_session(session_dir, open_sources=False)
+    choices = read_choices(session_dir) if choices is None else choices
+    source = str(choices_path(session_dir))
+    merged = resolve_params(session).to_dict()
+    merged.update(copy.deepcopy(choices))
+    params = AnalysisParams.from_dict(merged, source)
+    params.check_session(session, source)
+    return params
+
+
+def write_choices(session_dir, choices: dict) -> Path:
+    """Replace a session's choices (validated first: a bad one writes nothing)."""
+    from .store import atomic_write_json
+
+    session_params(session_dir, choices)
+    path = choices_path(session_dir)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(path, {"parameters": choices})
+    return path
+
+
+def _split(name: str) -> list[str]:
+    keys = name.split(".")
+    if not all(keys):
+        raise ParamsError(f"choice '{name}': expected a parameter name or a dotted path such as "
+                          "'detection.left.threshold'")
+    return keys
+
+
+def get_choice(session_dir, name: str, default=None):
+    """A chosen value by (dotted) name, e.g. ``"detection.left.threshold"``; ``default`` if not chosen."""
+    node = read_choices(session_dir)
+    for k in _split(name):
+        if not isinstance(node, dict) or k not in node:
+            return default
+        node = node[k]
+    return node
+
+
+def set_choice(session_dir, name: str, value) -> dict:
+    """Choose one parameter (dotted name into nested objects); ``None`` takes the choice back.
+
+    Taking a nested choice back removes the objects it leaves empty, so an
+    untouched widget leaves no trace. Returns the new choices.
+    """
+    choices = copy.deepcopy(read_choices(session_dir))
+    keys = _split(name)
+    if value is None:
+        trail, node = [], choices
+        for k in keys[:-1]:
+            if not isinstance(node.get(k), dict):
+                return choices
+            trail.append((node, k))
+            node = node[k]
+        node.pop(keys[-1], None)
+        for parent, k in reversed(trail):
+            if parent[k] == {}:
+                del parent[k]
+    else:
+        node = choices
+        for k in keys[:-1]:
+            if not isinstance(node.get(k), dict):
+                node[k] = {}
+            node = node[k]
+        node[keys[-1]] = value
+    write_choices(session_dir, choices)
+    return choices
+
+
+def clear_choices(session_dir=None) -> None:
+    """Forget every choice of a session (back to the automatic analysis)."""
+    path = choices_path(session_dir)
+    if path.is_file():
+        path.unlink()
+
+
+def to_json_value(value):
+    """A widget's value as a JSON value (NumPy scalars and arrays, tuples -> Python)."""
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        return [to_json_value(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [to_json_value(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): to_json_value(v) for k, v in value.items()}
+    return value
+
+
+def detection_changes(chosen, automatic) -> dict:
+    """The fields of a chosen :class:`~horsemocap.detection.DetectionParams` that differ from the automatic one.
+
+    Labels name regions of one frame, so they carry their ``first_frame``.
+    """
+    a, b = to_json_value(automatic.to_dict()), to_json_value(chosen.to_dict())
+    out = {k: v for k, v in b.items() if a.get(k) != v and v is not None}  # None: automatic
+    if out.get("labels") is not None:
+        out["first_frame"] = b["first_frame"]
+    return out
+
+
+# ---------------------------------------------------------------------------
+# the workspace of a notebook
+# ---------------------------------------------------------------------------
+
+_UNSET = object()
+_UNSET_AUTO = object()
+_NEVER = object()
+
+
+def _value_widgets(widget):
+    """The widget and its descendants that carry a ``value`` trait."""
+    import ipywidgets as W
+
+    shown_only = (W.Image, W.HTML, W.HTMLMath, W.Label, W.Output)
+    out, todo = [], list(widget) if isinstance(widget, (list, tuple)) else [widget]
+    while todo:
+        w = todo.pop()
+        if hasattr(w, "has_trait") and w.has_trait("value") and not isinstance(w, shown_only):
+            out.append(w)
+        todo.extend(getattr(w, "children", ()) or ())
+    return out
+
+
+def _show_value(widget, value) -> bool:
+    """Put a stored choice into a widget (its own value, a threshold slider or checkboxes)."""
+    try:
+        if hasattr(widget, "show") and callable(widget.show) and isinstance(value, dict):
+            widget.show(value)
+            return True
+        if hasattr(widget, "has_trait") and widget.has_trait("value"):
+            opts = getattr(widget, "options", None)
+            if opts is not None and not isinstance(value, (list, tuple)):
+                vals = [o[1] if isinstance(o, tuple) else o for o in opts]
+                if value not in vals:
+                    return False
+            widget.value = tuple(value) if isinstance(widget.value, tuple) else value
+            return True
+        inner = getattr(widget, "threshold", None)
+        if isinstance(value, dict) and hasattr(inner, "slider") and "threshold" in value:
+            inner.slider.value = value["threshold"]   # a whole detection control: its threshold
+            return True
+        if hasattr(widget, "slider") and isinstance(value, (int, float)):
+            widget.slider.value = value
+            return True
+        boxes = getattr(widget, "checkboxes", None)
+        if boxes is not None and isinstance(value, (list, tuple)) and len(value) == len(boxes):
+            for b, v in zip(boxes, value):
+                b.value = bool(v)
+            return True
+    except Exception:  # noqa: BLE001 - a stored value the widget cannot show stays only in the file
+        return False
+    return False
+
+
+class Workspace:
+    """The session a notebook analyses and the choices made for it.
+
+    Parameters
+    ----------
+    session_dir : path, optional
+        Default: the workspace's session (:func:`current_session`).
+
+    Attributes
+    ----------
+    session_dir : Path
+    picker : widget
+        The session picker (:meth:`ui`), once built.
+    """
+
+    def __init__(self, session_dir=None):
+        self.session_dir = check_session_dir(session_dir) if session_dir else current_session()
+        self.picker = None
+        self.bound = {}
+        self.last_error = ""
+
+    @property
+    def name(self) -> str:
+        return self.session_dir.name
+
+    @property
+    def choices(self) -> dict:
+        return read_choices(self.session_dir)
+
+    @property
+    def params(self) -> AnalysisParams:
+        """The parameters the notebooks use (the session's, plus the choices)."""
+        return session_params(self.session_dir)
+
+    @property
+    def automatic(self) -> AnalysisParams:
+        """The parameters without any choice (the session's ``analysis`` and the defaults)."""
+        return session_params(self.session_dir, {})
+
+    def choose(self, name: str, value) -> None:
+        """Choose one parameter (dotted name); ``None`` takes the choice back."""
+        set_choice(self.session_dir, name, value)
+
+    def use(self, session_dir) -> Path:
+        """Analyse another session from now on, in this notebook and the next ones."""
+        self.session_dir = set_current_session(session_dir)
+        self.bound = {}
+        return self.session_dir
+
+    def ui(self):
+        """The session picker: a dropdown of ``data_samples/`` sessions and a folder path."""
+        from .widgets.workspace import SessionPicker
+
+        self.picker = SessionPicker(self)
+        return self.picker
+
+    def bind(self, widget, name: str, *, automatic=_UNSET, convert=None, read=None):
+        """Let a widget that stands in for a prompt write its choice into ``choices.json``.
+
+        Parameters
+        ----------
+        widget : ipywidgets widget
+            Any control with a ``.value`` (composite controls too: every
+            child with a value is observed).
+        name : str
+            The parameter, a field of :class:`AnalysisParams` or a dotted path
+            into one (``"detection.left.threshold"``).
+        automatic : optional
+            The automatic choice: the widget at this value leaves no choice
+            in the file. Default: the parameter's value without choices when
+            it is set, else the widget's value as built (the notebooks build
+            every widget at the automatic choice); when neither is known (a
+            choice is stored and the parameter's default is "automatic"),
+            the choice is replaced but never taken back by the widget.
+        convert : callable, optional
+            Widget value -> parameter value (default: JSON conversion).
+        read : callable, optional
+            Returns the widget value (default ``widget.value``); for a list of
+            widgets that give one parameter together.
+
+        A choice stored earlier is shown in the widget; moving the widget
+        back to the automatic value takes the choice back.
+
+        Returns
+        -------
+        widget
+        """
+        convert = convert or to_json_value
+        read = read or (lambda: widget.value)
+        if automatic is _UNSET:
+            automatic = None
+            node = self.automatic.to_dict()
+            for k in _split(name):
+                node = node.get(k) if isinstance(node, dict) else None
+            automatic = to_json_value(node)
+            if automatic is None or automatic == {}:
+                automatic = _UNSET_AUTO
+        else:
+            automatic = to_json_value(automatic)
+        stored = get_choice(self.session_dir, name)
+        if stored is not None:
+            if automatic is _UNSET_AUTO:
+                # the widget was built from parameters that hold this choice: its automatic value is not
+                # known here, so the choice is only ever replaced, never taken back by this widget
+                automatic = _NEVER
+            _show_value(widget, stored)
+        if automatic is _UNSET_AUTO:
+            automatic = convert(read())
+
+        last = {"value": convert(read())}
+
+        def write(*_):
+            value = convert(read())
+            if value == last["value"]:
+                return
+            last["value"] = value
+            try:
+                self.choose(name, None if value == automatic else value)
+                self.last_error = ""
+            except ParamsError as exc:  # shown beside the control when it has a message line, else raised
+                self.last_error = str(exc)
+                if hasattr(getattr(widget, "message", None), "value"):
+                    widget.message.value = f"<span style='color:#b00'>not saved: {exc}</span>"
+                else:
+                    raise
+
+        if hasattr(widget, "on_change"):
+            widget.on_change(write)
+        else:
+            for w in _value_widgets(widget):
+                w.observe(write, "value")
+        self.bound[name] = widget
+        return widget
+
+    def __repr__(self) -> str:
+        n = len(self.choices)
+        return f"Workspace({self.name!r}, {n} choice{'s' if n != 1 else ''})"
+
+
+def open_workspace(session_dir=None) -> Workspace:
+    """The workspace of the current session (or of ``session_dir``)."""
+    return Workspace(session_dir)

@@ -1,0 +1,300 @@
+"""The session workspace: choices made with the notebooks' widgets carry to every later step."""
+import json
+import shutil
+
+import ipywidgets as W
+import numpy as np
+import pytest
+
+from horsemocap import workspace as wsm
+from horsemocap.cli import build_parser, _params_from_args
+from horsemocap.data import data_samples_dir, default_session_dir
+from horsemocap.params import AnalysisParams, ParamsError, read_params
+from horsemocap.pipeline import notebook_results_dir, resolve_params, results_for, step_keys
+from horsemocap.session import load_session
+
+
+@pytest.fixture
+def store(tmp_path, monkeypatch):
+    """A fresh notebooks' results store for one test."""
+    monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path / "results"))
+    return tmp_path / "results"
+
+
+def test_the_default_session_is_the_bundled_one_until_another_is_chosen(store):
+    assert wsm.current_session() == default_session_dir().resolve()
+    ball = data_samples_dir() / "ball_drop"
+    wsm.set_current_session(ball)
+    assert wsm.current_session() == ball.resolve()
+    assert json.loads((store / "workspace.json").read_text()) == {"session": str(ball.resolve())}
+    with pytest.raises(ParamsError, match="not a session folder"):
+        wsm.set_current_session(store)
+
+
+def test_a_workspace_naming_a_vanished_session_says_so(store):
+    store.mkdir(parents=True)
+    (store / "workspace.json").write_text(json.dumps({"session": str(store / "gone")}))
+    with pytest.raises(ParamsError, match="workspace.json.*not a session folder"):
+        wsm.current_session()
+
+
+def test_nested_choices_are_set_validated_and_taken_back(store):
+    s = default_session_dir()
+    wsm.set_choice(s, "detection.left.threshold", 150)
+    wsm.set_choice(s, "smoothing_method", "rloess")
+    assert wsm.read_choices(s) == {"detection": {"left": {"threshold": 150}}, "smoothing_method": "rloess"}
+    assert wsm.session_params(s).detection == {"left": {"threshold": 150}}
+    # a bad choice names the file and the parameter and writes nothing
+    with pytest.raises(ParamsError, match=r"choices.json: parameter 'detection'.*'top'"):
+        wsm.set_choice(s, "detection.top.threshold", 3)
+    with pytest.raises(ParamsError, match="smoothing_span"):
+        wsm.set_choice(s, "smoothing_span", 3)
+    assert wsm.get_choice(s, "detection.left.threshold") == 150
+    # taking a nested choice back leaves no empty objects
+    wsm.set_choice(s, "detection.left.threshold", None)
+    assert wsm.read_choices(s) == {"smoothing_method": "rloess"}
+    wsm.clear_choices(s)
+    assert wsm.read_choices(s) == {}
+
+
+def test_a_bound_widget_writes_only_what_differs_from_the_automatic_choice(store):
+    ws = wsm.open_workspace()
+    mode = ws.bind(W.ToggleButtons(options=["joint", "thesis"], value="joint"), "triangulation")
+    assert ws.choices == {}                      # built at the automatic choice: nothing written
+    mode.value = "thesis"
+    assert ws.choices == {"triangulation": "thesis"}
+    assert ws.params.triangulation == "thesis"
+    # a widget built later (the next notebook, or the same one run again) shows the choice
+    again = ws.bind(W.ToggleButtons(options=["joint", "thesis"], value="joint"), "triangulation")
+    assert again.value == "thesis"
+    again.value = "joint"                        # back to the automatic choice: taken back
+    assert ws.choices == {}
+    boxes = [W.Checkbox(value=True) for _ in range(6)]
+    ws.bind(boxes, "omega_versions", read=lambda: [b.value for b in boxes])
+    boxes[2].value = False
+    assert ws.params.omega_versions == [True, True, False, True, True, True]
+
+
+def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store, tmp_path):
+    s = default_session_dir()
+    wsm.set_choice(s, "detection.middle.threshold", 140)
+    path = wsm.choices_path(s)
+    assert read_params(path) == {"detection": {"middle": {"threshold": 140}}}
+    args = build_parser().parse_args(["analyze", str(s), "--out", str(tmp_path / "o"), "--params", str(path),
+                                      "--angular", "thesis", "--omega-versions", "1,2,4", "--alpha-versions",
+                                      "6", "--first-frame", "3", "--saddle-marker", "1",
+                                      "--static-threshold", "200", "--exclude-views", "left=a.png+b.png"])
+    base = resolve_params(load_session(s), read_params(path))
+    p = _params_from_args(args, base)
+    assert p.detection == {"middle": {"threshold": 140}, "all": {"first_frame": 3}}
+    assert p.omega_versions == [True, True, False, True, False, False]
+    assert p.alpha_versions == [False] * 5 + [True]
+    assert (p.angular_method, p.saddle_marker) == ("thesis", 1)
+    assert p.stills == {"static": {"all": {"threshold": 200}}}
+    assert p.calibration_exclude == {"left": ["a.png", "b.png"]}
+    bad = build_parser().parse_args(["analyze", str(s), "--out", "o", "--omega-versions", "0,7"])
+    with pytest.raises(ParamsError, match="--omega-versions: expected version numbers 1-6"):
+        _params_from_args(bad, AnalysisParams())
+
+
+def test_still_and_saddle_choices_are_checked_against_the_session():
+    session = load_session(default_session_dir(), open_sources=False)
+    with pytest.raises(ParamsError, match="labels given for .*'left'.* but not for"):
+        AnalysisParams(stills={"static": {"left": {"threshold": 150, "labels": [1, 2, 3, 4]}}}).check_session(session)
+    with pytest.raises(ParamsError, match="expected 2 labels for camera 'left'"):
+        AnalysisParams(stills={"plumb": {"all": {"threshold": 150, "labels": [1, 2, 3]}}}).check_session(session)
+    with pytest.raises(ParamsError, match="a threshold with the labels"):
+        AnalysisParams(stills={"plumb": {"all": {"labels": [1, 2]}}}).validate("x")
+    with pytest.raises(ParamsError, match="saddle_marker"):
+        AnalysisParams(saddle_marker=9).check_session(session)
+    with pytest.raises(ParamsError, match="calibration_exclude"):
+        AnalysisParams(calibration_exclude={"top": ["v.png"]}).check_session(session)
+
+
+def test_step_keys_change_only_from_the_first_step_that_reads_a_parameter():
+    session = load_session(default_session_dir(), open_sources=False)
+    a = step_keys(session, AnalysisParams())
+    b = step_keys(session, AnalysisParams(detection={"left": {"threshold": 150}}))
+    c = step_keys(session, AnalysisParams(weighting_mode="thesis"))
+    steps = list(a)
+    assert [s for s in steps if a[s] != b[s]] == steps[steps.index("detect"):]
+    assert [s for s in steps if a[s] != c[s]] == ["rigid_body", "comfort"]
+
+
+def test_a_threshold_moved_in_notebook_04_reaches_the_numbers_of_notebooks_12_and_14(tmp_path, monkeypatch):
+    """The whole path a teacher takes: 04's threshold widget -> choices.json -> results_for in 12/14.
+
+    The automatic run uses the test session's shared store (the notebooks reuse it); the chosen run a
+    copy of it, so no choice ever reaches the notebooks' store and only the steps from detection on
+    are recomputed (seconds).
+    """
+    from horsemocap import accuracy, widgets
+    from horsemocap.detection import DetectionParams
+    from horsemocap.sources import FrameSource
+    from horsemocap.virtuallab import load_truth
+
+    session = default_session_dir()
+    auto = results_for(session)
+    shared = notebook_results_dir(session)
+    monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path))
+    shutil.copytree(shared, notebook_results_dir(session))
+    ws = wsm.open_workspace()
+    level = auto.results["detect"]["detection"]["left"]["threshold"]
+    frames = FrameSource(auto.session.motion["left"]).read()[:3]
+    ui = ws.bind(widgets.ui_threshold(frames, DetectionParams(threshold=level)), "detection.left.threshold")
+    ui.slider.value = level + 30                       # what a teacher does in notebook 04
+    assert ws.choices == {"detection": {"left": {"threshold": level + 30}}}
+
+    chosen = results_for()                             # what notebooks 05-14 call
+    det = chosen.results["detect"]["detection"]
+    assert det["left"]["threshold"] == level + 30
+    assert det["middle"]["threshold"] == auto.results["detect"]["detection"]["middle"]["threshold"]
+    a, c = auto.results["comfort"]["indicators"], chosen.results["comfort"]["indicators"]
+    assert a["acc_y_Wk_rms"] != c["acc_y_Wk_rms"]     # notebook 12's numbers follow
+    truth = load_truth(session)
+    e_auto = accuracy.errors_2d(auto, truth)["left"]["median"]
+    e_chosen = accuracy.errors_2d(chosen, truth)["left"]["median"]
+    assert e_auto != e_chosen                          # and notebook 14's
+    record = json.loads((notebook_results_dir(session) / "analysis.json").read_text())
+    assert record["parameters"]["detection"]["left"]["threshold"] == level + 30
+
+    ui.slider.value = level                            # back to the automatic threshold
+    assert ws.choices == {}
+    again = results_for()
+    assert np.array_equal(again.results["comfort"]["indicators"]["acc_y_Wk_rms"], a["acc_y_Wk_rms"])
+
+
+def test_still_prompts_are_empty_at_the_automatic_choice_and_name_what_changed(store):
+    from horsemocap.pipeline import _still_points, still_params, step_rig  # noqa: F401
+    from horsemocap.sources import read_image
+    from horsemocap.widgets import ui_still
+
+    session = load_session(default_session_dir(), open_sources=False)
+    images = {c: read_image(p) for c, p in session.plumb.items()}
+    # the automatic centres: the regions the automatic matching found (here: the two brightest round blobs)
+    from horsemocap.detection import detect_still
+    px = {c: detect_still(im, 2) for c, im in images.items()}
+    ui = ui_still(images, 2, px)
+    assert ui.value == {}
+    assert all(len(ui.auto[c][1]) == 2 for c in images)
+    thr = ui.auto["middle"][0]
+    ui.sliders["middle"].value = thr + 10
+    assert ui.value == {"middle": {"threshold": thr + 10}}
+    ws = wsm.open_workspace()
+    ws.bind(ui, "stills.plumb")
+    ui.sliders["middle"].value = thr + 20            # a move after binding is written
+    assert ws.choices == {"stills": {"plumb": {"middle": {"threshold": thr + 20}}}}
+    ui.sliders["middle"].value = thr
+    left = ui.pickers["left"]
+    left.select.value = left.select.value[:1]          # a label taken away: every camera's labels are given
+    v = ui.value
+    assert set(v) == set(images) and v["left"]["labels"] == list(left.select.value)
+    assert v["right"] == {"threshold": ui.auto["right"][0], "labels": list(ui.auto["right"][1])}
+    # one label for a two-marker plumb is refused with the reason, beside the control
+    assert "expected 2 labels" in ws.last_error and "not saved" in ui.message.value
+
+
+def test_detection_controls_have_a_first_frame_and_report_only_changes():
+    from horsemocap import detection
+    from horsemocap.sources import FrameSource
+    from horsemocap.widgets import ui_detection
+
+    frames = FrameSource(default_session_dir() / "motion" / "left.avi").read()
+    p = detection.detect_markers(frames, 3).params
+    ui = ui_detection(frames, p)
+    assert wsm.detection_changes(ui.value, p) == {}
+    ui.first_frame.value = (p.first_frame or 0) + 1
+    ch = wsm.detection_changes(ui.value, p)
+    assert ch == {"first_frame": (p.first_frame or 0) + 1}   # labels of the old first frame are dropped
+    AnalysisParams(detection={"left": ch}).validate("test")
+
+
+def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
+    """Appendix A 7a the thesis' way: the labels of the regions the automatic matching chose, at the
+    automatic threshold, taken as they are, give the same plumb centres."""
+    from horsemocap.detection import auto_threshold, detect_still_views, to_gray
+    from horsemocap.pipeline import _still_points, still_params
+    from horsemocap.sources import read_image
+    from horsemocap.virtuallab import load_truth
+    from horsemocap.widgets.stills import automatic_labels
+
+    session = load_session(default_session_dir())
+    rig = load_truth(default_session_dir()).rig
+    images = {c: read_image(p) for c, p in session.plumb.items()}
+    auto = detect_still_views(images, rig, 2)
+    given = {}
+    for c, im in images.items():
+        thr = int(auto_threshold([to_gray(im)], "otsu3"))
+        given[c] = {"threshold": thr, "labels": list(automatic_labels(im, thr, auto[c]))}
+    params = AnalysisParams(stills={"plumb": given})
+    params.check_session(session)
+    pts, px = _still_points(session, rig, session.plumb, 2, "plumb", "joint",
+                            still_params(params, "plumb", session.cameras))
+    for c in session.cameras:
+        np.testing.assert_allclose(px[c], auto[c], atol=1e-9)
+    # a threshold alone keeps the matching of the cameras; far too high a level finds nothing, and says so
+    from horsemocap.pipeline import AnalysisError
+    with pytest.raises(AnalysisError, match="step 'plumb'.*plumb"):
+        _still_points(session, rig, session.plumb, 2, "plumb", "joint",
+                      still_params(AnalysisParams(stills={"plumb": {"all": {"threshold": 254}}}), "plumb",
+                                   session.cameras))
+
+
+def test_a_named_saddle_marker_is_never_matched_to_a_ride_marker():
+    from horsemocap.rigid import match_static_markers
+
+    rng = np.random.default_rng(1)
+    markers = np.array([[0.0, 0, 0], [0.30, 0.02, 0], [0.12, 0.01, 0.25]])
+    saddle = np.array([0.15, -0.20, 0.10])
+    static = np.vstack([markers[[1]], saddle, markers[[0, 2]]])     # static order: m2, saddle, m1, m3
+    ride = markers[None] + rng.normal(0, 1e-4, (20, 3, 3)) + np.linspace(0, 1, 20)[:, None, None] * [1, 0, 0]
+    idx, s = match_static_markers(static, ride)
+    assert (idx.tolist(), s) == ([2, 0, 3], 1)
+    idx, s = match_static_markers(static, ride, saddle=1)
+    assert (idx.tolist(), s) == ([2, 0, 3], 1)
+    idx, s = match_static_markers(static, ride, saddle=3)              # the user's (wrong) choice is kept
+    assert s == 3 and 3 not in idx.tolist()
+    with pytest.raises(ValueError, match="saddle marker: expected the index"):
+        match_static_markers(static, ride, saddle=7)
+
+
+def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
+    import horsemocap.calibration as calibration
+    from horsemocap.pipeline import step_rig
+
+    session = load_session(default_session_dir(), open_sources=False)
+    assert session.calibration_images is not None
+    seen = {}
+
+    def fake_calibrate_rig(images, inner, square, **kw):
+        seen.update(kw)
+        raise RuntimeError("stop after the call")
+
+    monkeypatch.setattr(calibration, "calibrate_rig", fake_calibrate_rig)
+    params = AnalysisParams(recalibrate=True, calibration_exclude={"left": ["view03.png"]})
+    with pytest.raises(RuntimeError, match="stop after the call"):
+        step_rig(session, params, {}, lambda *a: None)
+    assert seen["exclude"] == {"left": ["view03.png"]}
+    with pytest.raises(RuntimeError):
+        step_rig(session, AnalysisParams(recalibrate=True), {}, lambda *a: None)
+    assert seen["exclude"] is None
+
+
+def test_the_session_picker_switches_the_workspace_and_refuses_a_folder_without_a_session(store, tmp_path):
+    from horsemocap.widgets import ui_session
+
+    ws = wsm.open_workspace()
+    picker = ui_session(ws)
+    names = [n for n, _ in picker.dropdown.options]
+    assert "horse2_canter" in names and "ball_drop" in names and picker.value == default_session_dir().resolve()
+    picker.dropdown.value = str((data_samples_dir() / "ball_drop").resolve())
+    assert wsm.current_session() == (data_samples_dir() / "ball_drop").resolve() == picker.value
+    picker.dropdown.value = ""                       # "another folder ...": a path field appears
+    assert picker.path.layout.display == ""
+    picker.path.value = str(tmp_path)
+    picker.use.click()
+    assert "not a session folder" in picker.message.value
+    assert wsm.current_session() == (data_samples_dir() / "ball_drop").resolve()   # unchanged
+    wsm.set_choice(None, "weighting_mode", "thesis")
+    picker.reset.click()                             # forget this session's choices
+    assert wsm.read_choices() == {}
