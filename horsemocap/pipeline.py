@@ -66,9 +66,11 @@ class Analysis:
 
 
 def _progress_printer(stream=None):
-    def report(step: str, message: str):
-        print(f"[horsemocap] {step}: {message}", file=stream or sys.stderr, flush=True)
-    return report
+    """``[horsemocap] step: message`` lines; counts inside long steps as a bar on a terminal
+    (:class:`horsemocap.progress.ProgressPrinter`)."""
+    from .progress import ProgressPrinter
+
+    return ProgressPrinter(stream)
 
 
 # ---------------------------------------------------------------------------
@@ -100,10 +102,11 @@ def step_rig(session: Session, params: AnalysisParams, res: dict, progress) -> d
     elif session.calibration_images is not None:
         from .calibration import calibrate_rig
 
-        progress("rig", "calibrating from checkerboard views ...")
+        progress("rig", f"calibrating from checkerboard views ({params.calibration_mode}) ...")
         cal = calibrate_rig(session.calibration_images, session.board.inner_corners,
-                            session.board.square_size_m, reference=session.reference_camera)
-        rig, how = cal.rig, "calibrated from checkerboard views"
+                            session.board.square_size_m, reference=session.reference_camera,
+                            mode=params.calibration_mode, progress=progress)
+        rig, how = cal.rig, f"calibrated from checkerboard views ({params.calibration_mode})"
     else:
         raise AnalysisError("rig", f"{session.json_path}: 'calibration' gives neither a rig nor views")
     missing = [c for c in session.cameras if c not in rig.names]
@@ -149,9 +152,15 @@ def step_detect(session: Session, params: AnalysisParams, res: dict, progress) -
     return out
 
 
-def _frames_of(session: Session, res: dict, cam: str):
+def _frames_of(session: Session, res: dict, cam: str, progress=None, message: str = ""):
+    """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted."""
+    from .progress import CountingFrames, counter
+
     offsets, n = res["sync"]["offsets"], res["sync"]["n_frames"]
-    return FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+    seq = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+    if progress is None or not getattr(progress, "counts", False):
+        return seq
+    return CountingFrames(seq, counter(progress, "detect", message or f"camera '{cam}' frames", n))
 
 
 def _max_gap(session: Session, params: AnalysisParams) -> int:
@@ -164,7 +173,9 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
     from .detection import DetectionError, DetectionParams, bridge_gaps, identify_markers
 
     rig = res["rig"]["rig"]
-    frames = {c: _frames_of(session, res, c) for c in session.cameras}
+    first = session.cameras[0]
+    frames = {c: _frames_of(session, res, c, progress if c == first else None, "frames identified")
+              for c in session.cameras}
     given = {c: _detection_params(params, c) or DetectionParams() for c in session.cameras}
     progress("detect", f"{res['sync']['n_frames']} frames of cameras {', '.join(session.cameras)}: "
                        "markers identified by all cameras together ...")
@@ -202,7 +213,7 @@ def _detect_per_camera(session: Session, params: AnalysisParams, res: dict, prog
     marker_px, reasons, chosen = {}, {}, {}
     for cam in session.cameras:
         progress("detect", f"camera '{cam}': {n} frames ...")
-        frames = _frames_of(session, res, cam)
+        frames = _frames_of(session, res, cam, progress, f"camera '{cam}' frames")
         track = detect_markers(frames, session.marker_count, params=_detection_params(params, cam))
         marker_px[cam], reasons[cam] = track.marker_px, track.reason
         chosen[cam] = track.params.to_dict()
@@ -665,9 +676,8 @@ def resolve_params(session: Session, params=None) -> AnalysisParams:
         return base
     if isinstance(params, AnalysisParams):
         return params
-    merged = base.to_dict()
-    merged.update(params)
-    return AnalysisParams.from_dict(merged)
+    # the given values only (not the defaults filled in), so a preset named in either is not undone
+    return AnalysisParams.from_dict({**session.analysis, **params})
 
 
 def session_files(session: Session) -> list[Path]:
