@@ -5,7 +5,7 @@ parameters and the results of the steps before it, calls the package
 function of its module, and returns a small dict of arrays and chosen values.
 :func:`analyze` runs the steps in order, saves each one whole in the results
 store (so the steps before a failure stay written) and writes the files of
-``shared/spec/sessions.md``. Notebooks call :func:`results_for` to load what
+``docs/sessions.md``. Notebooks call :func:`results_for` to load what
 earlier steps computed (computing it with the defaults when absent).
 """
 from __future__ import annotations
@@ -360,10 +360,11 @@ def step_smooth(session: Session, params: AnalysisParams, res: dict, progress) -
 def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
     """Motion reference frame: x along net displacement, y along gravity (5.3).
 
-    ``params.motion_frame = "record"`` (default): x from the net displacement
-    over the whole record (:func:`horsemocap.frames.motion_frame_from_record`);
-    the period is then only estimated for the comfort step and may be absent.
-    ``"period"``: the thesis' eq. 5.6/5.7 over one or two periods.
+    ``params.motion_frame = "period"``: the thesis' eq. 5.6/5.7 over one or
+    two periods; ``"record"``: x from the net displacement over the whole
+    record (:func:`horsemocap.frames.motion_frame_from_record`), the period
+    then only estimated for the comfort step and possibly absent; ``"auto"``
+    (default): ``"period"`` when a period is given or found, else ``"record"``.
     """
     from .frames import estimate_period, motion_frame, motion_frame_from_record, to_motion_frame
 
@@ -440,12 +441,12 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     """Registration, pose trajectory, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
 
     One call of :func:`horsemocap.rigid.analyse_rigid_body`. With
-    ``kinematics="pose_spline"`` (default) the markers' poses are registered
+    ``kinematics="pose_spline"`` the markers' poses are registered
     frame by frame to the static shot and smoothed (:mod:`horsemocap.pose`),
     and omega, alpha, the markers' and the saddle's kinematics come from that
     pose trajectory; the thesis' chain (poly x, Fourier y/z with the order
     rule of 5.5.2.2, the six versions, eq. 6.48-6.55) is computed too and is
-    what ``kinematics="fits"`` passes on. Per-frame conditioning (the eq. 6.35
+    what ``kinematics="fits"`` (default) passes on. Per-frame conditioning (the eq. 6.35
     angle, the marker triangle's smallest height, the registration residual)
     is kept, and a warning is printed when it makes the result unreliable.
     """

@@ -562,7 +562,7 @@ COMFORT_KEYS = (
     "Distance_TVDV_limit_Wb", "Distance_TVDV_limit_Wk", "vel_x_avg", "amplitude_y",
     "duration_s", "f0_hz", "period_s",
 )
-"""The indicators of ``comfort.csv`` (spec/sessions.md), in Table 8.7's order."""
+"""The indicators of ``comfort.csv`` (docs/sessions.md), in Table 8.7's order."""
 
 
 def _unit(k: str) -> str:
@@ -924,7 +924,7 @@ def comfort_table_rows(indicators: dict) -> list[tuple[str, float, str]]:
 
 
 def write_comfort_csv(path, indicators: dict) -> Path:
-    """Write ``comfort.csv`` (columns ``indicator,value,unit``; spec/sessions.md)."""
+    """Write ``comfort.csv`` (columns ``indicator,value,unit``; docs/sessions.md)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["indicator", "value", "unit"])
