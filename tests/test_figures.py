@@ -82,3 +82,5 @@ def test_filtered_images_keep_only_regions_in_the_area_range():
     assert shown[11, 11] and not shown[25, 40]
     assert original.get_title() == "static shot" and filtered.get_title() == "threshold 128, area 5-50 px"
     assert [t.get_text() for t in original.texts] == ["saddle"]
+    fig = plots.plot_filtered_images([img, img], 128, marker_px=[np.array([[11.5, 11.5]]), None], zoom="markers")
+    assert fig.axes[0].get_xlim() == pytest.approx((11.5 - 4.8, 11.5 + 4.8))  # 8 % of 60 px around the marker

@@ -206,14 +206,26 @@ def plot_filtered_images(images, threshold: int, area_range=None, marker_px=None
         One label per marker (default ``1..M``).
     titles : list of str, optional
         One per image.
-    zoom : (u0, v0, u1, v1), optional
-        Region shown (the thesis crops its figures).
+    zoom : (u0, v0, u1, v1) or "markers", optional
+        Region shown (the thesis crops its figures); ``"markers"``: the
+        markers' bounding box with a margin of 8 % of the image width.
     """
     from ..detection import binarize, filter_area, label_regions, to_gray
 
     images = list(images)
     n = len(images)
-    fig = fig or plt.figure(figsize=(min(3.2 * n, 16), 5.6 if n > 1 else 4.2))
+    if isinstance(zoom, str):
+        if zoom != "markers":
+            raise ValueError(f"zoom: expected (u0, v0, u1, v1), 'markers' or None, got {zoom!r}")
+        pts = np.vstack([np.atleast_2d(np.asarray(p, float)) for p in (marker_px or []) if p is not None]
+                        or [np.full((1, 2), np.nan)])
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        if len(pts):
+            m = 0.08 * np.asarray(images[0]).shape[1]
+            zoom = (pts[:, 0].min() - m, pts[:, 1].min() - m, pts[:, 0].max() + m, pts[:, 1].max() + m)
+        else:
+            zoom = None
+    fig = fig or plt.figure(figsize=(min(3.2 * n, 16), 5.6) if n > 1 else (11, 4.6))
     axs = np.asarray(fig.subplots(2, n, squeeze=False)) if n > 1 else np.asarray(fig.subplots(1, 2)).reshape(2, 1)
     for i, img in enumerate(images):
         img = np.asarray(img)
@@ -236,11 +248,15 @@ def plot_filtered_images(images, threshold: int, area_range=None, marker_px=None
                     top.annotate(name, (u, v), xytext=(7, -7), textcoords="offset points", color="lime", fontsize=8)
         if titles is not None:
             top.set_title(titles[i], fontsize=9)
-        bottom.set_title(f"threshold {int(threshold)}" + (f", area {area_range[0]:g}-{area_range[1]:g} px"
-                                                          if area_range is not None else ""), fontsize=8)
+        what = f"threshold {int(threshold)}" + (f", area {area_range[0]:g}-{area_range[1]:g} px"
+                                                 if area_range is not None else "")
+        if n == 1:
+            bottom.set_title(what, fontsize=9)
         for ax in (top, bottom):
             _zoom(ax, zoom, img.shape)
             ax.set_xticks([])
             ax.set_yticks([])
+    if n > 1:
+        fig.text(0.5, 0.01, f"bottom row: {what}", ha="center", fontsize=9)
     fig.tight_layout()
     return fig

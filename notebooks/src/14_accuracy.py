@@ -213,3 +213,97 @@ for fps in (30.0, 60.0):
 #    frame rate is still open.
 #
 # </details>
+
+# %% [markdown]
+# ## The thesis' own chain beside the default (`--preset thesis`)
+#
+# Everything above uses the pipeline's automatic choices. The thesis made other ones, and the
+# package can run them all at once: `horsemocap analyze SESSION --out DIR --preset thesis` on the
+# command line, `{"preset": "thesis"}` in a parameter file, or
+# `results_for(params={"preset": "thesis"})` in a notebook (options given beside it override it, and
+# `analysis.json` records `"preset": "thesis"`). The preset's values, with the default's:
+
+# %%
+import dataclasses
+import json
+
+from horsemocap import pipeline
+from horsemocap.data import repository_file
+from horsemocap.params import PRESETS, AnalysisParams
+from horsemocap.report import format_value
+
+default_params = analysis.params
+thesis_params = AnalysisParams.from_dict({"preset": "thesis"})
+print(f"{'choice':20s} {'default':48s} thesis")
+for name in PRESETS["thesis"]:
+    d, th = getattr(default_params, name), getattr(thesis_params, name)
+    if d != th:
+        print(f"{name:20s} {format_value(d)[:48]:48s} {format_value(th)}")
+
+# %% [markdown]
+# ### On this session, step by step
+#
+# The cell below runs the thesis' chain from the detection on, on top of this session's
+# synchronisation, rig, plumb line and static shot (`pipeline.run_steps`; the preset's pairwise
+# calibration is the only step it skips, and the benchmark below measures the preset whole, pairwise
+# calibration included). Then it swaps single thesis choices back to the default's, keeping the
+# thesis' detections and positions, to see which choice makes the difference.
+
+# %%
+keys = ("acc_y_Wb_rms", "VDV_y_Wb")
+
+
+def errors(a):
+    st = accuracy.stage_errors(a, truth)
+    ce = accuracy.comfort_errors(a["comfort"]["indicators"], truth.comfort, keys)
+    return st["saddle_acc_y_rmse_pct_of_rms"], ce["acc_y_Wb_rms"], ce["VDV_y_Wb"]
+
+
+before = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
+thesis = pipeline.run_steps(analysis.session, thesis_params, before,
+                            ["detect", "triangulate", "smooth", "motion_frame", "rigid_body", "comfort"])
+rows = [("default (every automatic choice)", errors(analysis)), ("thesis preset", errors(thesis))]
+for label, change in [("thesis, omega by the fitted orientation", dict(angular_method="rotation")),
+                      ("thesis, saddle by the fitted pose", dict(saddle_method="pose")),
+                      ("thesis, orders E/2 or E/2+1 with a drift term",
+                       dict(order_rule="significant", fourier_trend=True)),
+                      ("thesis, weighting per harmonic (iso)", dict(weighting_mode="iso")),
+                      ("thesis, kinematics from the smoothed pose", dict(kinematics="pose_spline"))]:
+    a = pipeline.run_steps(analysis.session, dataclasses.replace(thesis_params, **change), thesis.results,
+                           ["rigid_body", "comfort"])
+    rows.append((label, errors(a)))
+a = pipeline.run_steps(analysis.session, default_params, thesis.results,
+                       ["triangulate", "smooth", "motion_frame", "rigid_body", "comfort"])
+rows.append(("default after the thesis' detection", errors(a)))
+print(f"{'chain':48s} {'saddle A_y RMSE':>16s} {'Wb rms error':>13s} {'VDV Wb error':>13s}")
+for label, (ay, wb, vdv) in rows:
+    print(f"{label:48s} {ay:14.1f} % {wb:+12.1f} % {vdv:+12.1f} %")
+print("warnings of the thesis chain:", *thesis["rigid_body"]["warnings"], sep="\n  ")
+
+# %% [markdown]
+# ### On the 16 herd sessions
+#
+# `benchmarks/bench_preset.py` runs both, whole, on the bundled session and on the 16 sessions of
+# the virtual herd (`benchmarks/results/preset_thesis.json`; read here, not recomputed: it takes
+# about 20 minutes). The herd sessions carry a rig file, so the pairwise calibration applies to the
+# bundled session only. "weighting only" is the thesis' single-scalar weighting applied to the *true*
+# motion, against the standards' per-harmonic weighting: the part of the error that is the weighting.
+
+# %%
+bench = json.loads(repository_file("benchmarks/results/preset_thesis.json").read_text())
+print(f"{'session':24s} {'default A_y':>11s} {'thesis A_y':>11s} {'default Wb':>11s} {'thesis Wb':>11s} "
+      f"{'weighting only':>15s}")
+for row in bench["rows"]:
+    d, th = row["default"], row["thesis"]
+    cell = lambda r, v: f"{v:10.1f}%" if r["completed"] else "   stopped"
+    w = row.get("weighting_only_pct", {}).get("acc_y_Wb_rms")
+    print(f"{row['session']:24s} {cell(d, d.get('saddle_acc_y_pct')):>11s} {cell(th, th.get('saddle_acc_y_pct')):>11s} "
+          f"{cell(d, d.get('comfort_error_pct', {}).get('acc_y_Wb_rms')):>11s} "
+          f"{cell(th, th.get('comfort_error_pct', {}).get('acc_y_Wb_rms')):>11s} "
+          + (f"{w:+14.1f}%" if w is not None else ""))
+for label in ("default", "thesis"):
+    s = bench["summary"][label]
+    print(f"{label}: {s['herd_completed']} of 16 herd sessions; saddle A_y error median "
+          f"{s['median_saddle_acc_y_pct']:.1f} %, worst {s['worst_saddle_acc_y_pct']:.0f} %; median |error| of "
+          f"the Wb rms {s['median_abs_comfort_error_pct']['acc_y_Wb_rms']:.1f} %; "
+          f"{s['sessions_with_warnings']} with conditioning warnings")
