@@ -85,6 +85,7 @@ PARAMETER_NAMES = {
     "analysed_frames": "analysed frames (first, last + 1)",
     "static_order": "markers in the static shot's order",
     "saddle_index_in_static": "saddle marker in the static shot",
+    "rigid_body_warnings": "warnings of the rigid-body step",
 }
 """A person's name for each parameter and chosen value of ``analysis.json``."""
 
@@ -119,8 +120,9 @@ INDICATORS = {
     "acc_y_Wk_rms": ("vertical acceleration, Wk-weighted rms", "the vibration felt seated, ISO 2631 weighting Wk"),
     "VDV_y_Wb": ("vibration dose value, Wb", "fourth-power dose: weighs the shocks more than the rms"),
     "VDV_y_Wk": ("vibration dose value, Wk", "fourth-power dose: weighs the shocks more than the rms"),
-    "acc_y_max": ("largest vertical acceleration", "the peak of the weighted vertical acceleration"),
-    "crest_factor_y": ("crest factor", "peak over rms; above 9 the rms understates the shocks"),
+    "acc_y_max": ("largest vertical acceleration", "the peak of the saddle's vertical acceleration, unweighted"),
+    "crest_factor_y": ("crest factor", "peak over rms of the Wb-weighted acceleration; above 9 the rms "
+                       "understates the shocks"),
     "TA_8_action_Wb": ("time to the daily action value by A(8), Wb", "riding time until the EU action value is reached"),
     "TA_8_action_Wk": ("time to the daily action value by A(8), Wk", "riding time until the EU action value is reached"),
     "TA_8_limit_Wb": ("time to the daily limit value by A(8), Wb", "riding time until the EU limit value is reached"),
@@ -209,7 +211,14 @@ def choice_rows(record: dict) -> list[tuple[str, str]]:
 
     The detection settings get one row per camera.
     """
-    rows = [(PARAMETER_NAMES.get(k, k), format_value(v)) for k, v in record["parameters"].items()
+    def shown(k, v):
+        if k == "x_marker" and isinstance(v, int):
+            return f"marker {v + 1}"
+        if k == "preset" and v is None:
+            return "none (the automatic choices)"
+        return format_value(v)
+
+    rows = [(PARAMETER_NAMES.get(k, k), shown(k, v)) for k, v in record["parameters"].items()
             if k != "detection"]
     rows += [(f"detector settings ({cam})", format_value(v))
              for cam, v in record["parameters"].get("detection", {}).items()]
@@ -242,26 +251,35 @@ def x_acceleration_note(params) -> str | None:
     return None
 
 
+def text_html(text: str) -> str:
+    """Escaped text with the powers of its units as superscripts (``m/s^2`` -> ``m/s<sup>2</sup>``)."""
+    import re
+
+    return re.sub(r"\^([0-9]+(?:\.[0-9]+)?)", r"<sup>\1</sup>", html.escape(str(text)))
+
+
 def quality_section(record: dict) -> list[str]:
     """The report's first section: the verdict of :mod:`horsemocap.quality` and every check."""
     colour = {"ok": "#1a7f37", "warning": "#9a6700", "unreliable": "#cf222e"}.get(record["verdict"], "#222")
-    rows = [(c["name"].replace("_", " "),
+    rows = [(html.escape(c["name"].replace("_", " ")),
              "" if c["figure"] is None else (format_value(float(c["figure"])) if isinstance(c["figure"], (int, float))
-                                            else str(c["figure"])),
-             c["unit"], format_value(c["threshold"]) if not isinstance(c["threshold"], str) else c["threshold"],
-             c["level"], c["message"]) for c in record["checks"]]
+                                            else html.escape(str(c["figure"]))),
+             unit_html(c["unit"]) if c["unit"] else "",
+             text_html(c["threshold"] if isinstance(c["threshold"], str) else format_value(c["threshold"])),
+             html.escape(c["level"]), text_html(c["message"])) for c in record["checks"]]
     words = {"ok": "every plausibility check passed.",
              "warning": "some figures are outside their usual range; read the checks before using the numbers.",
              "unreliable": "do not use these numbers: a check shows the input or the result is wrong."}
     return [f'<h2>Quality verdict: <span style="color:{colour}">{html.escape(record["verdict"].upper())}</span></h2>',
             f'<p class="note">{html.escape(words.get(record["verdict"], ""))} Also in quality.json.</p>',
-            _table(rows, ["check", "figure", "unit", "threshold", "level", "message"])]
+            _html_table(rows, ["check", "figure", "unit", "threshold", "level", "message"])]
 
 
-def _html_table(rows, header) -> str:
-    """A table whose cells are already HTML (escaped by the caller)."""
+def _html_table(rows, header, align_numbers: bool = True) -> str:
+    """A table whose cells are already HTML (escaped by the caller); numbers right-aligned unless told."""
     head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f'<td class="num">{v}</td>' if _is_num(v) else f"<td>{v}</td>" for v in row)
+    body = "".join("<tr>" + "".join(f'<td class="num">{v}</td>' if align_numbers and _is_num(v) else f"<td>{v}</td>"
+                                    for v in row)
                    + "</tr>" for row in rows)
     return f"<table><tr>{head}</tr>{body}</table>"
 
@@ -304,7 +322,8 @@ def report_html(analysis, quality: dict | None = None) -> str:
     record = analysis_record(analysis)
     parts += ["<h2>Choices made</h2>", '<p class="note">Automatic unless given; values rounded here, '
               "exact in analysis.json (<code>horsemocap analyze --params analysis.json</code> repeats the run "
-              "exactly).</p>", _table(choice_rows(record), ["choice", "value"])]
+              "exactly).</p>", _html_table([(html.escape(a), html.escape(b)) for a, b in choice_rows(record)],
+                                            ["choice", "value"], align_numbers=False)]
 
     warn = res.get("rigid_body", {}).get("warnings") or []
     if warn:

@@ -34,11 +34,14 @@ def test_format_value_rounds_and_spells_out(value, expected):
 
 
 def test_choice_rows_have_names_and_no_json():
-    record = {"parameters": {"triangulation": "joint", "period_frames": 17.98881515983109,
+    record = {"parameters": {"triangulation": "joint", "period_frames": 17.98881515983109, "x_marker": 0,
+                             "preset": None,
                              "detection": {"left": {"threshold": 128, "centroid": "weighted"}}},
               "chosen": {"rig": "calibrated from checkerboard views (joint)", "analysed_frames": [21, 60]}}
     rows = report.choice_rows(record)
     assert rows == [("triangulation", "joint (all cameras at once)"), ("stride period (frames)", "17.99"),
+                    ("marker defining the direction of motion", "marker 1"),
+                    ("preset", "none (the automatic choices)"),
                     ("detector settings (left)", "threshold: 128; centroid: weighted"),
                     ("rig", "calibrated from checkerboard views (joint)"),
                     ("analysed frames (first, last + 1)", "21, 60")]
@@ -73,9 +76,13 @@ def test_x_acceleration_note_only_when_zero_by_construction():
 def test_quality_section_rounds_figures():
     rec = {"verdict": "warning", "checks": [
         {"name": "sync_flash", "figure": 0.123456789, "unit": "frames", "threshold": 0.5, "level": "warning",
-         "message": "late"}]}
+         "message": "late"},
+        {"name": "saddle_acceleration", "figure": 12.15, "unit": "m/s^2", "threshold": "ok 0.5..40 m/s^2",
+         "level": "ok", "message": "peak <12.15 m/s^2>"}]}
     text = "".join(report.quality_section(rec))
     assert "WARNING" in text and "0.1235" in text and "0.123456789" not in text and "sync flash" in text
+    assert "<td>m/s<sup>2</sup></td>" in text and "ok 0.5..40 m/s<sup>2</sup>" in text
+    assert "peak &lt;12.15 m/s<sup>2</sup>&gt;" in text and "m/s^2" not in text
 
 
 # --- progress ---------------------------------------------------------------
