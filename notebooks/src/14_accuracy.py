@@ -338,7 +338,7 @@ print(f"the thesis' weighting alone, on the true motion: median {w['acc_y_Wb_rms
 # %% [markdown]
 # Over the herd the pattern is the same. At walk and the trots, where $\boldsymbol\omega$ stays away
 # from the markers' plane, the thesis chain completes with errors of tens of per cent and
-# *under*estimates the weighted rms by about half at walk: roughly a third of that is its
+# *under*estimates the weighted rms by about half at walk: about half of that is its
 # single-scalar weighting (the "weighting only" column), the rest the low Fourier orders and the
 # thesis' saddle formula on noisy $\boldsymbol\alpha$. At canter the eq. 6.35 singularity makes the
 # thesis' numbers meaningless (errors of thousands of per cent) on every horse. One session (Horse 4,
