@@ -83,3 +83,15 @@ def test_resolve_params_keeps_a_preset_given_to_a_notebook():
     p = resolve_params(session, {"preset": "thesis"})
     assert p.preset == "thesis" and p.triangulation == "thesis" and p.period_frames == 18.0
     assert resolve_params(session, {"triangulation": "thesis"}).smoothing_method == "loess"
+
+
+def test_analysis_json_records_the_preset():
+    from types import SimpleNamespace
+
+    from horsemocap.pipeline import Analysis
+    from horsemocap.results import analysis_record
+
+    a = Analysis(SimpleNamespace(root="S", name="s"), AnalysisParams.from_dict({"preset": "thesis"}))
+    p = analysis_record(a)["parameters"]
+    assert p["preset"] == "thesis" and p["calibration_mode"] == "pairwise"
+    assert AnalysisParams.from_dict(p) == a.params  # --params analysis.json repeats it
