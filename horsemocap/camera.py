@@ -13,7 +13,7 @@ camera (thesis: the left camera, ``CM_L``). Extrinsics follow OpenCV:
 ``x_right = R x_left + T`` (Table 8.4's ``R_ML, t_ML``).
 
 ``rig.toml`` is the aniposelib / anipose / caliscope camera format described in
-``shared/spec/sessions.md``.
+``docs/sessions.md``.
 """
 from __future__ import annotations
 

@@ -21,6 +21,10 @@ automatically; any choice can be given in a parameter file or on the line."""
 
 def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("analysis choices (default: automatic, as recorded in analysis.json)")
+    g.add_argument("--preset", choices=["default", "thesis"],
+                   help="a named set of choices; thesis: the thesis' own chain end to end (pairwise "
+                        "calibration, per-camera detection, pairs triangulation, rloess 0.1, the E/2 order, "
+                        "the averaged versions, one scalar weight); the options below still override it")
     g.add_argument("--offsets", metavar="CAM=FRAME,...",
                    help="sync offsets instead of the flashlight, e.g. left=0,middle=53,right=126")
     g.add_argument("--recalibrate", action="store_true", default=None,
@@ -49,7 +53,7 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--triangulation", choices=["joint", "thesis"],
                    help="joint: all cameras at once (default); thesis: three pairs averaged (eq. 5.5)")
     g.add_argument("--span", type=float, dest="smoothing_span", metavar="FRACTION",
-                   help="rloess span as a fraction of the points (thesis 0.1)")
+                   help="smoothing span as a fraction of the points (thesis 0.1)")
     g.add_argument("--period", type=float, dest="period_frames", metavar="FRAMES",
                    help="motion period in frames (thesis typed 18; default estimated)")
     g.add_argument("--x-marker", type=int, dest="x_marker", metavar="INDEX",
@@ -57,7 +61,7 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fourier-orders", metavar="Y,Z",
                    help="Fourier orders of the y and z fits (default: order rule of 5.5.2.2)")
     g.add_argument("--smoothing", choices=["none", "rloess", "loess", "lowess", "rlowess", "moving"],
-                   dest="smoothing_method", help="smoothing of the 3D positions (thesis: rloess)")
+                   dest="smoothing_method", help="smoothing of the 3D positions (default loess; thesis: rloess)")
     g.add_argument("--angular", choices=["rotation", "lstsq", "thesis"], dest="angular_method",
                    help="omega/alpha from the fitted orientation (default), least squares over all "
                         "markers, or the average of the thesis versions")
@@ -83,6 +87,8 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
 def _params_from_args(args, base):
     from .params import ParamsError
 
+    if getattr(args, "preset", None):
+        base = base.with_preset(args.preset)
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
                 "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
@@ -160,7 +166,7 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
         print(f"  {c.level}: {c.name}: {c.message}")
     ind = outcome.analysis.results.get("comfort", {}).get("indicators")
     if ind:
-        print(f"comfort [quality {outcome.verdict}]: Wk-weighted rms {ind['acc_y_Wk_rms']:.3f} m/s^2, "
+        print(f"comfort [quality {outcome.verdict}]: Wk-weighted rms {ind['acc_y_Wk_rms']:.3f} m/s², "
               f"VDV {ind['VDV_y_Wk']:.3f} m/s^1.75, 8-h action value reached in {ind['TA_8_action_Wk']:.3f} h "
               f"at {ind['vel_x_avg']:.1f} km/h")
     if outcome.exit_code == 3:

@@ -2,8 +2,8 @@
 
 - x-motion: a polynomial (``poly1`` by default, section 5.5.2.1).
 - y and z: a Fourier series with its fundamental frequency fitted too
-  (eq. 5.23), as MATLAB's ``fit(t, y, 'fourierN')`` does (see
-  ``/work/shared/notes/matlab-algorithms.md``): spectral start point,
+  (eq. 5.23), as MATLAB's ``fit(t, y, 'fourierN')`` does (Curve Fitting
+  Toolbox documentation, "Fourier Series" and ``fit``): spectral start point,
   separable nonlinear least squares on ``w`` only, goodness of fit and 95 %
   confidence bounds as MATLAB reports them (section 5.5.1).
 - The order rule of section 5.5.2.2: with E extremes (maxima and minima)

@@ -147,19 +147,50 @@ def analytic_indicators(horse: str = "Horse 2", gait: str = "canter", *, mode: s
                                   f0_hz=1.0 / period)
 
 
-def pipeline_indicators(horse: str, gait: str, *, mode: str = "iso", out_dir=None) -> dict:
-    """Indicators of a virtual session from its rendered videos (full analysis).
+def pipeline_analysis(horse: str, gait: str, params=None, *, until: str = "comfort"):
+    """The pipeline's analysis of one virtual herd session (an :class:`~horsemocap.pipeline.Analysis`).
 
     Renders the session into the cache on first use
-    (``virtuallab.herd_session``) and runs ``pipeline.analyze``; slow
-    (minutes per session on this machine).
+    (``virtuallab.herd_session``) and analyses it through
+    :func:`horsemocap.pipeline.results_for`, so the steps are kept in the
+    notebooks' results store and a second call with the same parameters
+    (e.g. another section of notebook 13) loads them instead of repeating
+    minutes of work.
     """
     from . import pipeline
     from .virtuallab import herd_session  # rendered on demand into the cache
 
-    session_dir = herd_session(horse, gait)
-    res = pipeline.analyze(session_dir, out_dir, {"weighting_mode": mode}, progress=lambda *a: None)
+    return pipeline.results_for(herd_session(horse, gait), until=until, params=params)
+
+
+def pipeline_indicators(horse: str, gait: str, *, mode: str = "iso", out_dir=None) -> dict:
+    """Indicators of a virtual session from its rendered videos (full analysis).
+
+    :func:`pipeline_analysis` with ``weighting_mode=mode``; with ``out_dir``
+    the result files are written there instead of the results store. Slow
+    on first use (minutes per session on this machine).
+    """
+    if out_dir is not None:
+        from . import pipeline
+        from .virtuallab import herd_session
+
+        res = pipeline.analyze(herd_session(horse, gait), out_dir, {"weighting_mode": mode},
+                               progress=lambda *a: None)
+    else:
+        res = pipeline_analysis(horse, gait, {"weighting_mode": mode})
     return dict(res["comfort"]["indicators"])
+
+
+def horse_table() -> list[dict]:
+    """Thesis Table 8.6, the horses' features: ``[{"horse", "age", "breed", "withers_m"}, ...]``.
+
+    The virtual herd takes them from the table
+    (:data:`horsemocap.virtuallab.horse.HERD`).
+    """
+    from .virtuallab.horse import HERD
+
+    return [{"horse": h, "age": HERD[h].age, "breed": HERD[h].breed, "withers_m": HERD[h].withers_m}
+            for h in HORSES]
 
 
 def herd_indicators(source: str = "analytic", *, mode: str = "iso", horses=HORSES, gaits=GAITS,

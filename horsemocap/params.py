@@ -33,6 +33,12 @@ class AnalysisParams:
         ``{camera: [view file names]}`` left out of the calibration from the
         session's checkerboard views (the views the thesis user discarded in
         the toolbox; notebook 03's checkboxes); default none.
+    calibration_mode : str
+        How a calibration from the session's checkerboard views builds the
+        rig: ``"joint"`` (default; one bundle adjustment of every camera) or
+        ``"pairwise"`` (the thesis' stereo pairs with the reference camera,
+        section 3.3; :func:`horsemocap.calibration.calibrate_rig`). Not used
+        when the session gives a ``rig.toml`` (unless ``recalibrate``).
     detection_method : str
         ``"multiview"`` (default): the markers are identified by all cameras
         together (consistent triangulation, the static shot's rigid shape and
@@ -169,11 +175,16 @@ class AnalysisParams:
         period) or ``"record"`` (the net displacement of the markers'
         centroid over the whole record, orthogonal to gravity: no period
         needed; the period is then only estimated for the comfort step).
+    preset : str or None
+        The named set of choices (:data:`PRESETS`) these parameters started
+        from, recorded so ``analysis.json`` says so; ``None`` = the defaults.
+        Values given explicitly override the preset's.
     """
 
     sync_offsets: dict | None = None
     recalibrate: bool = False
     calibration_exclude: dict = field(default_factory=dict)
+    calibration_mode: str = "joint"
     detection_method: str = "multiview"
     detection: dict = field(default_factory=dict)
     stills: dict = field(default_factory=dict)
@@ -198,6 +209,7 @@ class AnalysisParams:
     pose_smoothing: str = "gcv"
     pose_partial_frames: bool = True
     motion_frame: str = "auto"
+    preset: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -213,8 +225,26 @@ class AnalysisParams:
                 close = difflib.get_close_matches(key, names, n=1)
                 hint = f"; did you mean '{close[0]}'?" if close else ""
                 raise ParamsError(f"{source}: unknown parameter '{key}'{hint}")
+        preset = data.get("preset")
+        if preset is not None:
+            if not isinstance(preset, str) or preset not in PRESETS:
+                raise ParamsError(f"{source}: parameter 'preset': expected "
+                                  + " or ".join(f'"{k}"' for k in PRESETS) + f" or null, got {_show(preset)}")
+            data = {**PRESETS[preset], **data}
         p = cls(**data)
         p.validate(source)
+        return p
+
+    def with_preset(self, name: str) -> "AnalysisParams":
+        """These parameters with the values of preset ``name`` (:data:`PRESETS`) put over them.
+
+        Options given after (e.g. on the command line, by :meth:`updated`)
+        still override the preset's values.
+        """
+        if name not in PRESETS:
+            raise ParamsError(f"preset: expected " + " or ".join(f'"{k}"' for k in PRESETS) + f", got {_show(name)}")
+        p = replace(self, **PRESETS[name], preset=name)
+        p.validate(f"preset '{name}'")
         return p
 
     def updated(self, **changes) -> "AnalysisParams":
@@ -250,6 +280,7 @@ class AnalysisParams:
                 if not _is_int(v) or v < 0:
                     bad("sync_offsets", f"a frame index (integer >= 0) for camera '{cam}'", v)
         boolean("recalibrate")
+        choice("calibration_mode", ("joint", "pairwise"))
         if not isinstance(self.detection, dict):
             bad("detection", 'an object {camera or "all": {detector parameter: value}}')
         from .detection import DetectionParams
@@ -332,6 +363,8 @@ class AnalysisParams:
         choice("kinematics", ("pose_spline", "fits"))
         choice("pose_smoothing", ("adaptive", "gcv", "gcv_cubic", "none"))
         choice("motion_frame", ("auto", "record", "period"))
+        if self.preset is not None and self.preset not in PRESETS:
+            bad("preset", " or ".join(f'"{k}"' for k in PRESETS) + " or null")
 
     def check_session(self, session, source: str = "analysis parameters") -> None:
         """Check the parameters that refer to the session: cameras and markers.
@@ -385,6 +418,35 @@ class AnalysisParams:
 
 
 _MISSING = object()
+
+
+PRESETS: dict[str, dict] = {
+    "default": {},
+    "thesis": {
+        "calibration_mode": "pairwise",      # 3.3: stereo pairs with the left camera (Table 8.4)
+        "detection_method": "thesis",        # chapter 4: each camera alone, threshold + filters
+        "triangulation": "thesis",           # eq. 5.1-5.5: the three pairs averaged
+        "smoothing_method": "rloess",        # 5.2.2: MATLAB smooth(y, 0.1, 'rloess')
+        "smoothing_span": 0.1,
+        "motion_frame": "period",            # eq. 5.6/5.7: net displacement over whole periods
+        "x_degree": 1,                       # 5.5.2.1: x-motion a line in time
+        "order_rule": "thesis",              # 5.5.2.2: N = E/2, the thesis' suggested order
+        "fourier_trend": False,              # the thesis' Fourier series have no drift term
+        "kinematics": "fits",                # 5.5 and chapter 6: the chain of fits
+        "angular_method": "thesis",          # eq. 6.3/6.4/6.38/6.39: the versions averaged
+        "omega_versions": [True] * 6,
+        "alpha_versions": [True] * 6,
+        "saddle_method": "thesis",           # eq. 6.54/6.55 averaged over the three markers
+        "weighting_mode": "thesis",          # 7.2: one scalar weight W per record
+    },
+}
+"""Named sets of choices: ``"default"`` (the automatic pipeline) and
+``"thesis"`` (the thesis' own chain end to end, each value with its
+section). ``--preset thesis`` on the command line, ``{"preset": "thesis"}``
+in a parameter file or ``results_for(params={"preset": "thesis"})`` in a
+notebook; values given explicitly override the preset's. The pairwise
+calibration only applies to sessions calibrated from checkerboard views
+(the herd sessions carry a rig file)."""
 
 
 def _is_int(v) -> bool:

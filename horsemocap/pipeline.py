@@ -5,7 +5,7 @@ parameters and the results of the steps before it, calls the package
 function of its module, and returns a small dict of arrays and chosen values.
 :func:`analyze` runs the steps in order, saves each one whole in the results
 store (so the steps before a failure stay written) and writes the files of
-``shared/spec/sessions.md``. Notebooks call :func:`results_for` to load what
+``docs/sessions.md``. Notebooks call :func:`results_for` to load what
 earlier steps computed (computing it with the defaults when absent).
 """
 from __future__ import annotations
@@ -66,9 +66,11 @@ class Analysis:
 
 
 def _progress_printer(stream=None):
-    def report(step: str, message: str):
-        print(f"[horsemocap] {step}: {message}", file=stream or sys.stderr, flush=True)
-    return report
+    """``[horsemocap] step: message`` lines; counts inside long steps as a bar on a terminal
+    (:class:`horsemocap.progress.ProgressPrinter`)."""
+    from .progress import ProgressPrinter
+
+    return ProgressPrinter(stream)
 
 
 # ---------------------------------------------------------------------------
@@ -114,8 +116,8 @@ def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cach
         rig, how = cached_calibration(session.calibration_images, session.board.inner_corners,
                                       session.board.square_size_m, session.reference_camera,
                                       write_to=cache_dirs[0] if cache_dirs else None, read_from=cache_dirs[1:],
-                                      recalibrate=params.recalibrate, progress=lambda m: progress("rig", m),
-                                      exclude=exclude)
+                                      recalibrate=params.recalibrate, progress=progress,
+                                      exclude=exclude, mode=params.calibration_mode)
     else:
         raise AnalysisError("rig", f"{session.json_path}: 'calibration' gives neither a rig nor views")
     missing = [c for c in session.cameras if c not in rig.names]
@@ -161,9 +163,15 @@ def step_detect(session: Session, params: AnalysisParams, res: dict, progress) -
     return out
 
 
-def _frames_of(session: Session, res: dict, cam: str):
+def _frames_of(session: Session, res: dict, cam: str, progress=None, message: str = ""):
+    """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted."""
+    from .progress import CountingFrames, counter
+
     offsets, n = res["sync"]["offsets"], res["sync"]["n_frames"]
-    return FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+    seq = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+    if progress is None or not getattr(progress, "counts", False):
+        return seq
+    return CountingFrames(seq, counter(progress, "detect", message or f"camera '{cam}' frames", n))
 
 
 def _max_gap(session: Session, params: AnalysisParams) -> int:
@@ -176,7 +184,9 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
     from .detection import DetectionParams, bridge_gaps
 
     rig = res["rig"]["rig"]
-    frames = {c: _frames_of(session, res, c) for c in session.cameras}
+    first = session.cameras[0]
+    frames = {c: _frames_of(session, res, c, progress if c == first else None, "frames identified")
+              for c in session.cameras}
     given = {c: _detection_params(params, c) or DetectionParams() for c in session.cameras}
     progress("detect", f"{res['sync']['n_frames']} frames of cameras {', '.join(session.cameras)}: "
                        "markers identified by all cameras together ...")
@@ -275,7 +285,7 @@ def _detect_per_camera(session: Session, params: AnalysisParams, res: dict, prog
     marker_px, reasons, chosen = {}, {}, {}
     for cam in session.cameras:
         progress("detect", f"camera '{cam}': {n} frames ...")
-        frames = _frames_of(session, res, cam)
+        frames = _frames_of(session, res, cam, progress, f"camera '{cam}' frames")
         track = detect_markers(frames, session.marker_count, params=_detection_params(params, cam))
         marker_px[cam], reasons[cam] = track.marker_px, track.reason
         chosen[cam] = track.params.to_dict()
@@ -452,10 +462,11 @@ def step_smooth(session: Session, params: AnalysisParams, res: dict, progress) -
 def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
     """Motion reference frame: x along net displacement, y along gravity (5.3).
 
-    ``params.motion_frame = "record"`` (default): x from the net displacement
-    over the whole record (:func:`horsemocap.frames.motion_frame_from_record`);
-    the period is then only estimated for the comfort step and may be absent.
-    ``"period"``: the thesis' eq. 5.6/5.7 over one or two periods.
+    ``params.motion_frame = "period"``: the thesis' eq. 5.6/5.7 over one or
+    two periods; ``"record"``: x from the net displacement over the whole
+    record (:func:`horsemocap.frames.motion_frame_from_record`), the period
+    then only estimated for the comfort step and possibly absent; ``"auto"``
+    (default): ``"period"`` when a period is given or found, else ``"record"``.
     """
     from .frames import estimate_period, motion_frame, motion_frame_from_record, to_motion_frame
 
@@ -532,12 +543,12 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     """Registration, pose trajectory, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
 
     One call of :func:`horsemocap.rigid.analyse_rigid_body`. With
-    ``kinematics="pose_spline"`` (default) the markers' poses are registered
+    ``kinematics="pose_spline"`` the markers' poses are registered
     frame by frame to the static shot and smoothed (:mod:`horsemocap.pose`),
     and omega, alpha, the markers' and the saddle's kinematics come from that
     pose trajectory; the thesis' chain (poly x, Fourier y/z with the order
     rule of 5.5.2.2, the six versions, eq. 6.48-6.55) is computed too and is
-    what ``kinematics="fits"`` passes on. Per-frame conditioning (the eq. 6.35
+    what ``kinematics="fits"`` (default) passes on. Per-frame conditioning (the eq. 6.35
     angle, the marker triangle's smallest height, the registration residual)
     is kept, and a warning is printed when it makes the result unreliable.
     """
@@ -818,9 +829,8 @@ def resolve_params(session: Session, params=None) -> AnalysisParams:
         return base
     if isinstance(params, AnalysisParams):
         return params
-    merged = base.to_dict()
-    merged.update(params)
-    return AnalysisParams.from_dict(merged)
+    # the given values only (not the defaults filled in), so a preset named in either is not undone
+    return AnalysisParams.from_dict({**session.analysis, **params})
 
 
 def session_files(session: Session) -> list[Path]:

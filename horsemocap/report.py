@@ -8,7 +8,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import json
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -53,18 +52,236 @@ def _is_num(s: str) -> bool:
         return False
 
 
+PARAMETER_NAMES = {
+    "sync_offsets": "synchronisation offsets (frame of the flash per camera)",
+    "recalibrate": "calibrate again from the checkerboard views",
+    "calibration_mode": "calibration of the rig",
+    "detection_method": "marker detection",
+    "detection": "detector settings",
+    "max_gap_frames": "longest gap bridged (frames)",
+    "triangulation": "triangulation",
+    "smoothing_span": "smoothing span (fraction of the points)",
+    "smoothing_method": "smoothing of the 3D positions",
+    "x_marker": "marker defining the direction of motion",
+    "period_frames": "stride period (frames)",
+    "n_periods": "periods used for the direction of motion",
+    "x_degree": "polynomial degree of the forward (x) motion",
+    "fourier_orders": "Fourier orders (y, z) per marker",
+    "order_rule": "rule choosing the Fourier order",
+    "fourier_trend": "linear drift term in the Fourier fits",
+    "angular_method": "angular velocity and acceleration from",
+    "omega_versions": "thesis versions averaged for the angular velocity",
+    "alpha_versions": "thesis versions averaged for the angular acceleration",
+    "saddle_method": "saddle velocity and acceleration from",
+    "weighting_mode": "frequency weighting (ISO 2631)",
+    "kinematics": "kinematics passed on",
+    "pose_smoothing": "smoothing of the pose trajectory",
+    "motion_frame": "direction of motion (x axis) from",
+    "preset": "preset",
+    "sync": "synchronisation",
+    "rig": "rig",
+    "detection_method_note": "why the detection method changed",
+    "identification": "marker labelling",
+    "analysed_frames": "analysed frames (first, last + 1)",
+    "static_order": "markers in the static shot's order",
+    "saddle_index_in_static": "saddle marker in the static shot",
+    "rigid_body_warnings": "warnings of the rigid-body step",
+}
+"""A person's name for each parameter and chosen value of ``analysis.json``."""
+
+VALUE_WORDS = {
+    "joint": "joint (all cameras at once)",
+    "pairwise": "pairwise (stereo pairs with the reference camera, as the thesis)",
+    "multiview": "all cameras together, followed in 3D",
+    "loess": "loess (local quadratic regression)",
+    "rloess": "robust loess (the thesis' rloess)",
+    "lowess": "lowess (local linear regression)",
+    "rlowess": "robust lowess",
+    "moving": "moving average",
+    "significant": "E/2, or E/2 + 1 if its extra harmonic is significant",
+    "every_significant": "highest significant harmonic",
+    "adjrsquare": "larger adjusted R-square",
+    "rotation": "the fitted orientation",
+    "lstsq": "least squares over all markers",
+    "pose": "the fitted pose",
+    "direct": "the fitted saddle path (eq. 6.48)",
+    "iso": "each harmonic at its own frequency",
+    "fits": "the thesis' chain of fits",
+    "pose_spline": "the smoothed pose trajectory",
+    "gcv": "generalised cross-validation",
+    "auto": "automatic",
+    "period": "net displacement over whole periods (eq. 5.6/5.7)",
+    "record": "net displacement over the whole record",
+}
+"""Readable forms of the string values of parameters (the thesis' own choices say "thesis")."""
+
+INDICATORS = {
+    "acc_y_Wb_rms": ("vertical acceleration, Wb-weighted rms", "the vibration felt seated, ISO 2631 weighting Wb"),
+    "acc_y_Wk_rms": ("vertical acceleration, Wk-weighted rms", "the vibration felt seated, ISO 2631 weighting Wk"),
+    "VDV_y_Wb": ("vibration dose value, Wb", "fourth-power dose: weighs the shocks more than the rms"),
+    "VDV_y_Wk": ("vibration dose value, Wk", "fourth-power dose: weighs the shocks more than the rms"),
+    "acc_y_max": ("largest vertical acceleration", "the peak of the saddle's vertical acceleration, unweighted"),
+    "crest_factor_y": ("crest factor", "peak over rms of the Wb-weighted acceleration; above 9 the rms "
+                       "understates the shocks"),
+    "TA_8_action_Wb": ("time to the daily action value by A(8), Wb", "riding time until the EU action value is reached"),
+    "TA_8_action_Wk": ("time to the daily action value by A(8), Wk", "riding time until the EU action value is reached"),
+    "TA_8_limit_Wb": ("time to the daily limit value by A(8), Wb", "riding time until the EU limit value is reached"),
+    "TA_8_limit_Wk": ("time to the daily limit value by A(8), Wk", "riding time until the EU limit value is reached"),
+    "TVDV_action_Wb": ("time to the action value by VDV, Wb", "riding time until the dose reaches the action value"),
+    "TVDV_action_Wk": ("time to the action value by VDV, Wk", "riding time until the dose reaches the action value"),
+    "TVDV_limit_Wb": ("time to the limit value by VDV, Wb", "riding time until the dose reaches the limit value"),
+    "TVDV_limit_Wk": ("time to the limit value by VDV, Wk", "riding time until the dose reaches the limit value"),
+    "Distance_TA_8_action_Wb": ("distance to the action value by A(8), Wb", "distance ridden in that time at the measured speed"),
+    "Distance_TA_8_action_Wk": ("distance to the action value by A(8), Wk", "distance ridden in that time at the measured speed"),
+    "Distance_TA_8_limit_Wb": ("distance to the limit value by A(8), Wb", "distance ridden in that time at the measured speed"),
+    "Distance_TA_8_limit_Wk": ("distance to the limit value by A(8), Wk", "distance ridden in that time at the measured speed"),
+    "Distance_TVDV_action_Wb": ("distance to the action value by VDV, Wb", "distance ridden in that time at the measured speed"),
+    "Distance_TVDV_action_Wk": ("distance to the action value by VDV, Wk", "distance ridden in that time at the measured speed"),
+    "Distance_TVDV_limit_Wb": ("distance to the limit value by VDV, Wb", "distance ridden in that time at the measured speed"),
+    "Distance_TVDV_limit_Wk": ("distance to the limit value by VDV, Wk", "distance ridden in that time at the measured speed"),
+    "vel_x_avg": ("average forward speed", "net distance over time along the direction of motion"),
+    "amplitude_y": ("vertical amplitude of the saddle", "half the peak-to-peak of its fitted vertical position "
+                    "(the thesis does not define it)"),
+    "duration_s": ("duration of the record", "the time the indicators are computed over"),
+    "f0_hz": ("stride frequency", "strides per second, the base of the harmonic series"),
+    "period_s": ("stride period", "the time of one stride"),
+}
+"""For each comfort indicator (:data:`horsemocap.vibration.COMFORT_KEYS`): a
+name and a one-line meaning (chapter 7, EU directive 2002/44/EC)."""
+
+
+def unit_html(unit: str) -> str:
+    """A unit with its powers as superscripts: ``m/s^2`` -> ``m/s<sup>2</sup>``;
+    ``"1"`` (a ratio) -> ``""``; other text escaped."""
+    if unit == "1":
+        return ""
+    import re
+
+    parts = re.split(r"\^([0-9.+-]+)", unit)
+    out = html.escape(parts[0])
+    for i in range(1, len(parts), 2):
+        out += f"<sup>{html.escape(parts[i])}</sup>" + html.escape(parts[i + 1])
+    return out
+
+
+def unit_text(unit: str) -> str:
+    """A unit for plain text and figure labels: ``m/s^2`` -> ``m/s²``, ``m/s^1.75`` -> ``m/s^1.75``
+    (no superscript decimal point in Unicode) and ``"1"`` -> ``""``."""
+    if unit == "1":
+        return ""
+    sup = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
+    import re
+
+    return re.sub(r"\^(-?[0-9]+)(?![0-9.])", lambda m: m.group(1).translate(sup), unit)
+
+
+def format_value(value, digits: int = 4) -> str:
+    """A parameter or chosen value as a person reads it.
+
+    Floats to ``digits`` significant digits (``17.98881515983109`` ->
+    ``17.99``), strings unquoted and spelled out by :data:`VALUE_WORDS`,
+    ``None`` -> ``automatic``, booleans yes/no, lists comma-separated (a list
+    of six booleans: the numbers of the versions used), dicts as
+    ``key: value`` pairs.
+    """
+    if value is None:
+        return "automatic"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return "not a number" if value != value else f"{value:.{digits}g}"
+    if isinstance(value, str):
+        return VALUE_WORDS.get(value, value)
+    if isinstance(value, (list, tuple)):
+        if len(value) == 6 and all(isinstance(v, bool) for v in value):
+            used = [str(i + 1) for i, v in enumerate(value) if v]
+            return "all six" if len(used) == 6 else "versions " + ", ".join(used)
+        if value and all(isinstance(v, (list, tuple)) for v in value):
+            return "; ".join("(" + ", ".join(format_value(x, digits) for x in v) + ")" for v in value)
+        return ", ".join(format_value(v, digits) for v in value)
+    if isinstance(value, dict):
+        return "; ".join(f"{str(k).replace('_', ' ')}: {format_value(v, digits)}" for k, v in value.items())
+    return str(value)
+
+
+def choice_rows(record: dict) -> list[tuple[str, str]]:
+    """``(name, value)`` rows of an ``analysis.json`` record's parameters and choices, rounded.
+
+    The detection settings get one row per camera.
+    """
+    def shown(k, v):
+        if k == "x_marker" and isinstance(v, int):
+            return f"marker {v + 1}"
+        if k == "preset" and v is None:
+            return "none (the automatic choices)"
+        return format_value(v)
+
+    rows = [(PARAMETER_NAMES.get(k, k), shown(k, v)) for k, v in record["parameters"].items()
+            if k != "detection"]
+    rows += [(f"detector settings ({cam})", format_value(v))
+             for cam, v in record["parameters"].get("detection", {}).items()]
+    rows += [(PARAMETER_NAMES.get(k, k), format_value(v)) for k, v in record["chosen"].items()]
+    return rows
+
+
+def comfort_rows(indicators: dict) -> list[tuple[str, str, str, str]]:
+    """``(name, meaning, value, unit as HTML)`` for every indicator of ``comfort.csv``, Table 8.7's order.
+
+    Values to 4 significant digits; the identifier of ``comfort.csv`` is
+    kept in the name, in brackets.
+    """
+    from .vibration import comfort_table_rows
+
+    out = []
+    for key, value, unit in comfort_table_rows(indicators):
+        name, meaning = INDICATORS.get(key, (key, ""))
+        out.append((f"{name} [{key}]", meaning, format_value(float(value)), unit_html(unit)))
+    return out
+
+
+def x_acceleration_note(params) -> str | None:
+    """Why the x acceleration is flat zero, if it is by construction (section 5.5.2.1)."""
+    if params.kinematics == "fits" and params.x_degree <= 1:
+        return (f"The forward (x) motion is fitted by a polynomial of degree {params.x_degree} in time (section "
+                "5.5.2.1: the horse moves at a steady speed), so its second derivative, the x acceleration, is zero "
+                "by construction: the flat line in the x panels is the model, not a measurement. A higher degree "
+                "(x_degree) or kinematics 'pose_spline' measures it.")
+    return None
+
+
+def text_html(text: str) -> str:
+    """Escaped text with the powers of its units as superscripts (``m/s^2`` -> ``m/s<sup>2</sup>``)."""
+    import re
+
+    return re.sub(r"\^([0-9]+(?:\.[0-9]+)?)", r"<sup>\1</sup>", html.escape(str(text)))
+
+
 def quality_section(record: dict) -> list[str]:
     """The report's first section: the verdict of :mod:`horsemocap.quality` and every check."""
     colour = {"ok": "#1a7f37", "warning": "#9a6700", "unreliable": "#cf222e"}.get(record["verdict"], "#222")
-    rows = [(c["name"], "" if c["figure"] is None else (f"{c['figure']:.4g}" if isinstance(c["figure"], (int, float))
-                                                         else str(c["figure"])),
-             c["unit"], c["threshold"], c["level"], c["message"]) for c in record["checks"]]
+    rows = [(html.escape(c["name"].replace("_", " ")),
+             "" if c["figure"] is None else (format_value(float(c["figure"])) if isinstance(c["figure"], (int, float))
+                                            else html.escape(str(c["figure"]))),
+             unit_html(c["unit"]) if c["unit"] else "",
+             text_html(c["threshold"] if isinstance(c["threshold"], str) else format_value(c["threshold"])),
+             html.escape(c["level"]), text_html(c["message"])) for c in record["checks"]]
     words = {"ok": "every plausibility check passed.",
              "warning": "some figures are outside their usual range; read the checks before using the numbers.",
              "unreliable": "do not use these numbers: a check shows the input or the result is wrong."}
     return [f'<h2>Quality verdict: <span style="color:{colour}">{html.escape(record["verdict"].upper())}</span></h2>',
             f'<p class="note">{html.escape(words.get(record["verdict"], ""))} Also in quality.json.</p>',
-            _table(rows, ["check", "figure", "unit", "threshold", "level", "message"])]
+            _html_table(rows, ["check", "figure", "unit", "threshold", "level", "message"])]
+
+
+def _html_table(rows, header, align_numbers: bool = True) -> str:
+    """A table whose cells are already HTML (escaped by the caller); numbers right-aligned unless told."""
+    head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f'<td class="num">{v}</td>' if align_numbers and _is_num(v) else f"<td>{v}</td>"
+                                    for v in row)
+                   + "</tr>" for row in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
 
 
 def report_html(analysis, quality: dict | None = None) -> str:
@@ -82,60 +299,66 @@ def report_html(analysis, quality: dict | None = None) -> str:
              f"{html.escape(str(s.root))}</p>"]
     if quality is not None:
         parts += quality_section(quality)
-    meta = [(k, v) for k, v in s.metadata.items()] + [("fps", f"{s.fps:g}"), ("cameras", ", ".join(s.cameras))]
+    meta = [(k, format_value(v)) for k, v in s.metadata.items()] + [
+        ("frames per second", f"{s.fps:g}"), ("cameras", ", ".join(s.cameras))]
     parts += ["<h2>Session</h2>", _table(meta, ["field", "value"])]
 
+    if "comfort" in res and res["comfort"].get("indicators") is None:
+        parts += ["<h2>Comfort indicators</h2>",
+                  f"<p>Not computed: {html.escape(str(res['comfort'].get('reason', '')))}</p>"]
+    elif "comfort" in res:
+        rows = [(html.escape(n), html.escape(m), v, u) for n, m, v, u in comfort_rows(res["comfort"]["indicators"])]
+        verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
+        weighting = ("one weight per record at the stride frequency (the thesis)"
+                     if analysis.params.weighting_mode == "thesis" else "each harmonic weighted at its own frequency")
+        parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
+                  f'<p class="note">Frequency weighting (ISO 2631-1 Wb and Wk): {html.escape(weighting)}. '
+                  "The times are how long a rider can ride this way before reaching the exposure action value "
+                  "(EAV) and the exposure limit value (ELV) of the EU directive 2002/44/EC, by the daily "
+                  "exposure A(8) and by the vibration dose value (VDV); the distances are those ridden in "
+                  "those times at the measured speed.</p>",
+                  _html_table(rows, ["indicator", "meaning", "value", "unit"])]
+
     record = analysis_record(analysis)
-    choices = [(k, json.dumps(v)) for k, v in record["parameters"].items() if k != "detection"]
-    choices += [(f"detection ({cam})", json.dumps(v)) for cam, v in record["parameters"].get("detection", {}).items()]
-    choices += [(k, json.dumps(v)) for k, v in record["chosen"].items()]
-    parts += ["<h2>Choices made</h2>", '<p class="note">Automatic unless given; '
-              "<code>--params analysis.json</code> repeats the run exactly.</p>",
-              _table(choices, ["parameter", "value"])]
+    parts += ["<h2>Choices made</h2>", '<p class="note">Automatic unless given; values rounded here, '
+              "exact in analysis.json (<code>horsemocap analyze --params analysis.json</code> repeats the run "
+              "exactly).</p>", _html_table([(html.escape(a), html.escape(b)) for a, b in choice_rows(record)],
+                                            ["choice", "value"], align_numbers=False)]
 
     warn = res.get("rigid_body", {}).get("warnings") or []
     if warn:
         parts += ["<h2>Warnings</h2>", "<p class=\"note\">The rigid-body step's conditioning (angular.csv: "
                   "singularity_deg, triangle_height_m, registration_rms_m) makes these results unreliable:</p>",
                   "<ul>" + "".join(f"<li>{html.escape(w)}</li>" for w in warn) + "</ul>"]
-    if "comfort" in res and res["comfort"].get("indicators") is None:
-        parts += ["<h2>Comfort indicators</h2>",
-                  f"<p>Not computed: {html.escape(str(res['comfort'].get('reason', '')))}</p>"]
-    elif "comfort" in res:
-        from .vibration import comfort_table_rows
-
-        rows = [(name, f"{value:.4f}", unit) for name, value, unit in comfort_table_rows(res["comfort"]["indicators"])]
-        verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
-        parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
-                  f'<p class="note">Weighting mode: {html.escape(analysis.params.weighting_mode)}. '
-                  "Times to reach the EU directive 2002/44/EC exposure action (EAV) and limit (ELV) values "
-                  "by A(8) and by VDV, and the distances ridden in those times at the measured speed. "
-                  "amplitude_y is half the peak-to-peak of the saddle's fitted vertical position (the thesis "
-                  "does not define it).</p>",
-                  _table(rows, ["indicator", "value", "unit"])]
 
     parts.append("<h2>Figures</h2>")
     if "detect" in res:
         rig = res["rig"]["rig"]
         parts.append(_figure(plots.plot_marker_tracks(res["detect"]["marker_px"], rig.cameras[0].size),
-                             "Detected marker centroids in each camera (chapter 4)."))
+                             "Detected marker centroids in each camera, in pixels (chapter 4)."))
     if "triangulate" in res:
         parts.append(_figure(plots.plot_reprojection_residuals(res["triangulate"]["residual_px"]),
-                             "Reprojection residuals of the triangulated markers (section 5.1)."))
+                             "Reprojection residuals of the triangulated markers, in pixels (section 5.1)."))
     if "rigid_body" in res:
         rb = res["rigid_body"]
         t, pos = rb["t"], rb["registered"]
         series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
         series["saddle"] = rb["saddle_position"]
         parts.append(_figure(plots.plot_axes_timeseries(t, series, "m", "Positions in the motion frame"),
-                             "Registered marker positions and the saddle marker (sections 5.3-5.4, 6.3)."))
-        parts.append(_figure(plots.plot_axes_timeseries(
-            t, {"omega (rad/s)": rb["omega"], "alpha / 10 (rad/s^2)": rb["alpha"] / 10},
-            "", "Angular velocity and acceleration"), "Angular kinematics of the body (chapter 6)."))
-        parts.append(_figure(plots.plot_axes_timeseries(t, {"saddle": rb["saddle_acceleration"]}, "m/s^2",
+                             "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."))
+        parts.append(_figure(plots.plot_axes_timeseries(t, {"omega": rb["omega"]}, "rad/s", "Angular velocity"),
+                             "Angular velocity of the body, in rad/s (chapter 6)."))
+        parts.append(_figure(plots.plot_axes_timeseries(t, {"alpha": rb["alpha"]}, "rad/s²",
+                                                        "Angular acceleration"),
+                             "Angular acceleration of the body, in rad/s² (chapter 6)."))
+        parts.append(_figure(plots.plot_axes_timeseries(t, {"saddle": rb["saddle_acceleration"]}, "m/s²",
                                                         "Saddle acceleration"),
-                             "Acceleration of the hidden saddle marker (section 6.4)."))
-    timing = [(k, f"{v:.2f}") for k, v in analysis.timings.items()]
+                             "Acceleration of the hidden saddle marker, in m/s² (section 6.4)."))
+        note = x_acceleration_note(analysis.params)
+        if note:
+            parts.append(f'<p class="note">{html.escape(note)}</p>')
+    timing = [(PARAMETER_NAMES.get(k, k) if k in ("sync", "rig") else k.replace("_", " "), f"{v:.2f}")
+              for k, v in analysis.timings.items()]
     parts += ["<h2>Steps</h2>", _table(timing, ["step", "seconds"])]
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
             f"<title>horsemocap: {html.escape(s.name)}</title><style>{CSS}</style></head><body>"

@@ -11,7 +11,7 @@ The rules implemented here are those of MathWorks' documentation of
 Average Filtering*, *Local Regression Smoothing* and *Robust Smoothing
 Procedure*; https://www.mathworks.com/help/curvefit/smoothing-data.html and
 https://www.mathworks.com/help/curvefit/smooth.html) and of the behaviour of
-``smooth.m``, as written down in ``shared/notes/matlab-algorithms.md``:
+``smooth.m`` (MATLAB R2009a, the thesis' version), as follows:
 
 1. **Span.** A span below 1 is a fraction of the number of points ``n``:
    ``span = ceil(span * n)``; then ``floor``, at most ``n``. A span of 1

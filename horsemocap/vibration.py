@@ -562,7 +562,7 @@ COMFORT_KEYS = (
     "Distance_TVDV_limit_Wb", "Distance_TVDV_limit_Wk", "vel_x_avg", "amplitude_y",
     "duration_s", "f0_hz", "period_s",
 )
-"""The indicators of ``comfort.csv`` (spec/sessions.md), in Table 8.7's order."""
+"""The indicators of ``comfort.csv`` (docs/sessions.md), in Table 8.7's order."""
 
 
 def _unit(k: str) -> str:
@@ -924,7 +924,7 @@ def comfort_table_rows(indicators: dict) -> list[tuple[str, float, str]]:
 
 
 def write_comfort_csv(path, indicators: dict) -> Path:
-    """Write ``comfort.csv`` (columns ``indicator,value,unit``; spec/sessions.md)."""
+    """Write ``comfort.csv`` (columns ``indicator,value,unit``; docs/sessions.md)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["indicator", "value", "unit"])
@@ -1019,3 +1019,70 @@ def write_comfort_spreadsheet(path, indicators: dict, *, title: str = "comfort")
             info.compress_type = zipfile.ZIP_DEFLATED
             z.writestr(info, text.encode("utf-8"))
     return atomic_write_bytes(path, buf.getvalue())
+
+
+def marker_comfort(t, positions, accelerations, velocities, *, mode: str = "iso",
+                   f0_hz: float | None = None, **kwargs) -> list[dict]:
+    """Comfort indicators of every visible marker (Appendix A step 10, ``performance_measure.m``).
+
+    The thesis computes the performance measures of the visible markers
+    before it turns to the hidden saddle marker; this is
+    :func:`saddle_comfort` applied to each marker's kinematics in turn.
+
+    Parameters
+    ----------
+    t : (n,) seconds
+    positions, accelerations, velocities : (n, M, 3)
+        The markers' fitted kinematics in the motion frame (m, m/s^2, m/s).
+    mode, f0_hz, **kwargs
+        As :func:`saddle_comfort`; give the stride frequency ``f0_hz`` so
+        every marker is weighted on the same harmonics.
+
+    Returns
+    -------
+    list of M dicts of :data:`COMFORT_KEYS`; a marker whose frames are all
+    missing gets ``None``, never a silent zero.
+    """
+    pos = np.asarray(positions, float)
+    acc = np.asarray(accelerations, float)
+    vel = np.asarray(velocities, float)
+    t = np.asarray(t, float)
+    if pos.ndim != 3 or pos.shape[2] != 3 or acc.shape != pos.shape or vel.shape != pos.shape \
+            or pos.shape[0] != t.size:
+        raise ValueError(f"marker_comfort: positions, accelerations and velocities must have shape "
+                         f"({t.size}, M, 3), got {pos.shape}, {acc.shape}, {vel.shape}")
+    out = []
+    for m in range(pos.shape[1]):
+        ok = np.all(np.isfinite(pos[:, m]), 1) & np.all(np.isfinite(acc[:, m]), 1) & np.all(np.isfinite(vel[:, m]), 1)
+        if ok.sum() < 4:
+            out.append(None)
+            continue
+        out.append(saddle_comfort(t[ok], pos[ok, m], acc[ok, m], vel[ok, m], mode=mode, f0_hz=f0_hz, **kwargs))
+    return out
+
+
+def half_peak_to_peak(positions) -> np.ndarray:
+    """Half the peak-to-peak of each marker's y and z position, ``(M, 2)`` in metres.
+
+    The per-marker amplitudes the thesis saves with its fits (Appendix A
+    step 9, ``Z_amplitudes_marker*``): ``(max - min) / 2`` over the finite
+    frames given (``amplitude_y`` of :func:`saddle_comfort` is the same over
+    the fitted harmonic position of tau); NaN for a marker with no finite
+    frame.
+
+    Parameters
+    ----------
+    positions : (n, M, 3)
+        Positions in the motion frame (x, y, z).
+    """
+    p = np.asarray(positions, float)
+    if p.ndim != 3 or p.shape[2] != 3:
+        raise ValueError(f"half_peak_to_peak: positions must have shape (n, M, 3), got {p.shape}")
+    out = np.full((p.shape[1], 2), np.nan)
+    for m in range(p.shape[1]):
+        for j, axis in enumerate((1, 2)):
+            v = p[:, m, axis]
+            v = v[np.isfinite(v)]
+            if v.size:
+                out[m, j] = 0.5 * (v.max() - v.min())
+    return out

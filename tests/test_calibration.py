@@ -17,7 +17,7 @@ from horsemocap.data import data_samples_dir
 
 BS = data_samples_dir() / "bouguet_stereo"
 
-# The toolbox's own numbers (shared/real/bouguet_stereo/README.md)
+# The toolbox's own numbers (data_samples/bouguet_stereo/PROVENANCE.md)
 TOOLBOX = {
     "left": dict(fc=[533.00371, 533.15260], cc=[341.58612, 234.25940]),
     "right": dict(fc=[536.98262, 536.56938], cc=[326.47209, 249.33257]),

@@ -47,3 +47,51 @@ def test_command_line_choices_override():
     assert p.period_frames == 18 and p.triangulation == "thesis"
     assert p.sync_offsets == {"left": 0, "middle": 53, "right": 126}
     assert p.fourier_orders == {"y": 3, "z": 2}
+
+
+def test_thesis_preset_sets_the_thesis_chain_and_explicit_values_override():
+    from horsemocap.params import PRESETS
+
+    p = AnalysisParams.from_dict({"preset": "thesis"})
+    assert p.preset == "thesis"
+    for name, value in PRESETS["thesis"].items():
+        assert getattr(p, name) == value
+    assert (p.calibration_mode, p.detection_method, p.triangulation, p.smoothing_method, p.order_rule,
+            p.angular_method, p.saddle_method, p.weighting_mode) == (
+        "pairwise", "thesis", "thesis", "rloess", "thesis", "thesis", "thesis", "thesis")
+    q = AnalysisParams.from_dict({"preset": "thesis", "smoothing_method": "loess"})
+    assert q.smoothing_method == "loess" and q.triangulation == "thesis"
+    # a recorded analysis.json (every field written out) reads back unchanged
+    assert AnalysisParams.from_dict(q.to_dict()) == q
+    assert AnalysisParams.from_dict({"preset": "default"}) == AnalysisParams(preset="default")
+    with pytest.raises(ParamsError, match="parameter 'preset'.*got \"thesys\""):
+        AnalysisParams.from_dict({"preset": "thesys"}, "analysis.json")
+
+
+def test_command_line_preset_then_options():
+    args = build_parser().parse_args(["analyze", "S", "--out", "O", "--preset", "thesis", "--smoothing", "loess"])
+    p = _params_from_args(args, AnalysisParams())
+    assert p.preset == "thesis" and p.triangulation == "thesis" and p.smoothing_method == "loess"
+
+
+def test_resolve_params_keeps_a_preset_given_to_a_notebook():
+    from types import SimpleNamespace
+
+    from horsemocap.pipeline import resolve_params
+
+    session = SimpleNamespace(analysis={"period_frames": 18.0}, json_path="session.json")
+    p = resolve_params(session, {"preset": "thesis"})
+    assert p.preset == "thesis" and p.triangulation == "thesis" and p.period_frames == 18.0
+    assert resolve_params(session, {"triangulation": "thesis"}).smoothing_method == "loess"
+
+
+def test_analysis_json_records_the_preset():
+    from types import SimpleNamespace
+
+    from horsemocap.pipeline import Analysis
+    from horsemocap.results import analysis_record
+
+    a = Analysis(SimpleNamespace(root="S", name="s"), AnalysisParams.from_dict({"preset": "thesis"}))
+    p = analysis_record(a)["parameters"]
+    assert p["preset"] == "thesis" and p["calibration_mode"] == "pairwise"
+    assert AnalysisParams.from_dict(p) == a.params  # --params analysis.json repeats it

@@ -285,7 +285,7 @@ def view_keys(files, camera: str | None = None) -> list[str]:
 
 
 def detect_views(folder, inner_corners: tuple[int, int], camera: str | None = None,
-                 window: int | None = None) -> BoardViews:
+                 window: int | None = None, tick=None) -> BoardViews:
     """Detect the board in every image of a folder (natural order).
 
     Parameters
@@ -297,6 +297,8 @@ def detect_views(folder, inner_corners: tuple[int, int], camera: str | None = No
         Camera name (default: the folder name).
     window : int, optional
         Fixed sub-pixel half-window; default chosen per view from its squares.
+    tick : callable(done, total), optional
+        Called after each view (progress of a long calibration).
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -320,6 +322,8 @@ def detect_views(folder, inner_corners: tuple[int, int], camera: str | None = No
             corners[k] = c
         reasons.append(why)
         windows[k] = w
+        if tick is not None:
+            tick(k + 1, len(files))
     return BoardViews(camera, tuple(view_keys(files, camera)), tuple(files), corners,
                       tuple(reasons), windows, size, (int(inner_corners[0]), int(inner_corners[1])))
 

@@ -62,7 +62,8 @@ def views_key(folder, inner_corners) -> str:
     return h.hexdigest()
 
 
-def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str, exclude=None) -> str:
+def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str, exclude=None,
+                    mode: str = "joint") -> str:
     """Key of a rig calibration: every view, the board, the cameras, the reference, the views left out and the code."""
     from .. import camera
 
@@ -72,6 +73,8 @@ def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference:
         h.update(views_key(image_dirs[cam], inner_corners).encode())
     h.update(json.dumps({"inner_corners": [int(x) for x in inner_corners], "square_m": float(square_m),
                          "reference": reference}, sort_keys=True).encode())
+    if mode != "joint":                 # (no key change for the default joint calibration)
+        h.update(f"mode={mode}".encode())
     if exclude:                         # (no key change for calibrations without exclusions)
         h.update(json.dumps({c: sorted(str(v) for v in exclude[c]) for c in sorted(exclude)}).encode())
     h.update(_code_hash(sorted(p.name for p in Path(__file__).parent.glob("*.py"))))
@@ -141,7 +144,8 @@ def _read(folder) -> dict | None:
 
 
 def cached_calibration(image_dirs: dict, inner_corners, square_m: float, reference: str, *,
-                       write_to=None, read_from=(), recalibrate: bool = False, progress=None, exclude=None):
+                       write_to=None, read_from=(), recalibrate: bool = False, progress=None, exclude=None,
+                       mode: str = "joint"):
     """The rig calibrated from ``image_dirs`` (as :func:`~.rig.calibrate_rig`), reusing a cached one.
 
     Parameters
@@ -156,7 +160,10 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         is looked at first).
     recalibrate : bool
         Ignore every cached result.
-    progress : callable(message), optional
+    progress : callable(step, message[, done, total]), optional
+        The pipeline's progress (messages under ``"rig"``; board views counted).
+    mode : {"joint", "pairwise"}
+        As :func:`~.rig.calibrate_rig` (part of the key).
     exclude : dict camera -> list of view names, optional
         Views left out of the calibration (as :func:`~.rig.calibrate_rig`;
         part of the key; the board corners of every view are still kept).
@@ -169,8 +176,8 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     """
     from .rig import calibrate_rig
 
-    say = progress or (lambda msg: None)
-    key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude)
+    say = (lambda msg: progress("rig", msg)) if progress else (lambda msg: None)
+    key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode)
     folders = [f for f in ([write_to] + list(read_from)) if f is not None]
     found = [] if recalibrate else [(f, d) for f, d in ((f, _read(f)) for f in folders) if d is not None]
     for folder, d in found:
@@ -201,7 +208,8 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     if reused:
         say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
     say("calibrating from checkerboard views ...")
-    cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views), exclude=exclude)
+    cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views), exclude=exclude,
+                        mode=mode, progress=progress)
     if write_to is not None:
         record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
                   "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},
@@ -209,4 +217,4 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
                   "views": {cam: _views_to_json(views[cam], views_key(image_dirs[cam], inner_corners))
                             for cam in image_dirs}}
         _write(Path(write_to), record)
-    return cal.rig, "calibrated from checkerboard views"
+    return cal.rig, f"calibrated from checkerboard views ({mode})"

@@ -141,7 +141,7 @@ def _exclusions(exclude, cameras) -> dict:
 
 def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.05, *, mode: str = "joint",
                   reference: str = "left", exclude=None, fix_k3: bool = True, views: dict | None = None,
-                  pairs: bool = True) -> RigCalibration:
+                  pairs: bool = True, progress=None) -> RigCalibration:
     """Calibrate every camera, every pair and the whole rig from checkerboard views.
 
     Parameters
@@ -168,6 +168,10 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
         Already detected corners (skips detection).
     pairs : bool
         Also calibrate every pair (Table 8.4). Always done for ``"pairwise"``.
+    progress : callable(step, message[, done, total]), optional
+        Reports each camera's board detection view by view (as step
+        ``"rig"``; see :func:`horsemocap.progress.counter`) and the
+        calibrations as they start.
 
     Returns
     -------
@@ -176,14 +180,23 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
     if mode not in ("joint", "pairwise"):
         raise CalibrationError(f"mode must be 'joint' or 'pairwise', got {mode!r}")
     inner_corners = (int(inner_corners[0]), int(inner_corners[1]))
+    report = progress or (lambda *a: None)
     if views is None:
-        views = {c: detect_views(Path(d), inner_corners, camera=c) for c, d in image_dirs.items()}
+        from ..progress import counter
+
+        def detect(c, d):
+            def tick(done, total):
+                counter(progress, "rig", f"board corners in camera '{c}' views", total)(done)
+            return detect_views(Path(d), inner_corners, camera=c, tick=tick)
+
+        views = {c: detect(c, d) for c, d in image_dirs.items()}
     cameras = tuple(views)
     if reference not in cameras:
         raise CalibrationError(f"reference camera {reference!r} is not among the cameras {list(cameras)}")
     views = align_views(views)
     bp = board_points(inner_corners, square_m)
     excl = _exclusions(exclude, cameras)
+    report("rig", f"calibrating each camera alone ({', '.join(cameras)}) ...")
     singles = {c: calibrate_camera(views[c], bp, excl[c], fix_k3=fix_k3) for c in cameras}
     order = [reference] + [c for c in cameras if c != reference]
     hv, hs, flipped = harmonize_views([views[c] for c in order], [singles[c] for c in order], bp)
@@ -199,7 +212,9 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
                                        f"{int(both.sum())} views (need at least 3)")
             sa = replace(singles[a], used=both)
             sb = replace(singles[b], used=both)
+            report("rig", f"stereo calibration of the pair {a}-{b} ({int(both.sum())} views) ...")
             pair_results[(a, b)] = bundle_adjust([views[a], views[b]], [sa, sb], bp, fix_k3=fix_k3)
+    report("rig", "joint bundle adjustment of every camera ...")
     joint = bundle_adjust([views[c] for c in order], [singles[c] for c in order], bp, fix_k3=fix_k3)
 
     result = RigCalibration(None, mode, reference, cameras, inner_corners, float(square_m), views, singles,

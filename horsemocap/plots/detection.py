@@ -5,7 +5,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-__all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors", "plot_identification"]
+__all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors", "plot_identification",
+           "plot_filtered_images"]
 
 
 def _zoom(ax, box, shape=None):
@@ -180,4 +181,82 @@ def plot_identification(images: dict, candidates: dict, views, fit, zoom=None, f
                 labels.append(l)
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
+    return fig
+
+
+def plot_filtered_images(images, threshold: int, area_range=None, marker_px=None, labels=None, titles=None,
+                         zoom=None, fig=None):
+    """The thesis' image figures (8.3, 8.4, 8.7, 8.11, 8.21): originals above, filtered below.
+
+    Top row: the original image with the markers found circled and labelled;
+    bottom row: the black-and-white image of the threshold (eq. 4.5) and, if
+    ``area_range`` is given, only the regions of that area (4.5.2), i.e. what
+    the thesis' user saw after typing the level and the area range.
+
+    Parameters
+    ----------
+    images : list of (h, w, 3) or (h, w) images
+    threshold : int
+        Gray level ``l`` (eq. 4.5).
+    area_range : (min, max) pixels, optional
+        Keep only regions of that area in the bottom row.
+    marker_px : list of (M, 2) arrays (one per image) or None
+        Marker centres to draw (NaN rows skipped).
+    labels : list of str, optional
+        One label per marker (default ``1..M``).
+    titles : list of str, optional
+        One per image.
+    zoom : (u0, v0, u1, v1) or "markers", optional
+        Region shown (the thesis crops its figures); ``"markers"``: the
+        markers' bounding box with a margin of 8 % of the image width.
+    """
+    from ..detection import binarize, filter_area, label_regions, to_gray
+
+    images = list(images)
+    n = len(images)
+    if isinstance(zoom, str):
+        if zoom != "markers":
+            raise ValueError(f"zoom: expected (u0, v0, u1, v1), 'markers' or None, got {zoom!r}")
+        pts = np.vstack([np.atleast_2d(np.asarray(p, float)) for p in (marker_px or []) if p is not None]
+                        or [np.full((1, 2), np.nan)])
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        if len(pts):
+            m = 0.08 * np.asarray(images[0]).shape[1]
+            zoom = (pts[:, 0].min() - m, pts[:, 1].min() - m, pts[:, 0].max() + m, pts[:, 1].max() + m)
+        else:
+            zoom = None
+    fig = fig or plt.figure(figsize=(min(3.2 * n, 16), 5.6) if n > 1 else (11, 4.6))
+    axs = np.asarray(fig.subplots(2, n, squeeze=False)) if n > 1 else np.asarray(fig.subplots(1, 2)).reshape(2, 1)
+    for i, img in enumerate(images):
+        img = np.asarray(img)
+        top, bottom = axs[0, i], axs[1, i]
+        top.imshow(img, cmap=None if img.ndim == 3 else "gray")
+        binary = binarize(to_gray(img), int(threshold))
+        if area_range is not None:
+            r = label_regions(binary)
+            keep = np.zeros(len(r) + 1, bool)
+            keep[r.ids[np.flatnonzero(filter_area(r.area, area_range[0], area_range[1]))]] = True
+            binary = keep[r.labels]
+        bottom.imshow(binary, cmap="gray")
+        if marker_px is not None and marker_px[i] is not None:
+            px = np.atleast_2d(np.asarray(marker_px[i], float))
+            names = labels or [str(m + 1) for m in range(len(px))]
+            for (u, v), name in zip(px, names):
+                if np.isfinite(u) and np.isfinite(v):
+                    for ax in (top, bottom):
+                        ax.plot(u, v, "o", mfc="none", mec="lime", ms=11, mew=1.2)
+                    top.annotate(name, (u, v), xytext=(7, -7), textcoords="offset points", color="lime", fontsize=8)
+        if titles is not None:
+            top.set_title(titles[i], fontsize=9)
+        what = f"threshold {int(threshold)}" + (f", area {area_range[0]:g}-{area_range[1]:g} px"
+                                                 if area_range is not None else "")
+        if n == 1:
+            bottom.set_title(what, fontsize=9)
+        for ax in (top, bottom):
+            _zoom(ax, zoom, img.shape)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    if n > 1:
+        fig.text(0.5, 0.01, f"bottom row: {what}", ha="center", fontsize=9)
+    fig.tight_layout()
     return fig

@@ -7,7 +7,7 @@ import numpy as np
 from .. import herd as _herd
 from ..vibration import COMFORT_UNITS
 
-__all__ = ["plot_indicators_by_gait", "plot_indicators_vs_grades"]
+__all__ = ["plot_indicators_by_gait", "plot_indicators_vs_grades", "plot_saddle_by_gait"]
 
 
 def _label(key):
@@ -71,5 +71,51 @@ def plot_indicators_vs_grades(table: dict, gait: str, correlations=None,
     for ax in axs[n:]:
         ax.set_visible(False)
     fig.suptitle(f"{_herd.GAIT_LABELS.get(gait, gait)}: indicators vs riders' grades", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def plot_saddle_by_gait(series: dict, gait: str = "", fig=None):
+    """Thesis Figures 8.25-8.28: the saddle marker of each horse in one gait.
+
+    Two rows (position, acceleration) by three columns (x-, y-, z-motion),
+    one line per horse, each against its own time from the first analysed
+    frame.
+
+    Parameters
+    ----------
+    series : dict horse -> (t, position, acceleration)
+        ``t`` (n,) in s, ``position`` (n, 3) in m and ``acceleration`` (n, 3)
+        in m/s² of the saddle marker in the motion frame (the pipeline's
+        ``rigid_body`` step: ``t``, ``saddle_position``, ``saddle_acceleration``).
+        A horse whose session did not complete may be given as None: it is
+        named in the legend as missing, never left out silently.
+    gait : str
+        Used in the title.
+    """
+    fig = fig or plt.figure(figsize=(13, 6))
+    axs = fig.subplots(2, 3, sharex=True)
+    names = ("x-motion", "y-motion (down)", "z-motion")
+    for horse, s in series.items():
+        if s is None:
+            axs[0, 0].plot([], [], label=f"{horse} (not analysed)")
+            continue
+        t, pos, acc = (np.asarray(v, float) for v in s)
+        t = t - t[0]
+        for k in range(3):
+            # x position relative to its start: the horse travels metres along x
+            p = pos[:, k] - pos[0, k] if k == 0 else pos[:, k]
+            axs[0, k].plot(t, p, lw=1.2, label=horse)
+            axs[1, k].plot(t, acc[:, k], lw=1.2, label=horse)
+    for k in range(3):
+        axs[0, k].set_title(f"{names[k]}: position (m)" + (" from the start" if k == 0 else ""))
+        axs[1, k].set_title(f"{names[k]}: acceleration (m/s²)")
+        axs[1, k].set_xlabel("t (s)")
+        for r in range(2):
+            axs[r, k].grid(True, alpha=0.3)
+    axs[0, 0].set_ylabel("position (m)")
+    axs[1, 0].set_ylabel("acceleration (m/s²)")
+    axs[0, 0].legend(fontsize=7)
+    fig.suptitle(f"Saddle marker of the four horses{': ' + gait if gait else ''}")
     fig.tight_layout()
     return fig

@@ -6,7 +6,7 @@ import numpy as np
 
 from .. import vibration as vib
 
-__all__ = ["plot_weightings", "plot_weighted_acceleration", "plot_mode_comparison"]
+__all__ = ["plot_weightings", "plot_weighted_acceleration", "plot_mode_comparison", "plot_marker_comfort"]
 
 
 def plot_weightings(names=("Wb", "Wk"), f_range=(0.1, 100.0), zoom=(0.8, 1.8), table=None,
@@ -73,3 +73,30 @@ def plot_mode_comparison(iso: dict, thesis: dict, keys=("acc_y_Wb_rms", "acc_y_W
     ax.axhline(0, color="k", lw=0.8)
     ax.grid(True, axis="y", alpha=0.3)
     return ax
+
+
+def plot_marker_comfort(rows: dict, keys=("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk"), fig=None):
+    """Appendix A step 10: the comfort indicators of each visible marker (and the saddle).
+
+    Parameters
+    ----------
+    rows : dict label -> indicators dict (or None: drawn as "not computed")
+        E.g. ``{"marker 1": ..., "marker 2": ..., "saddle": ...}``.
+    keys : indicators shown, one panel each, with their units.
+    """
+    from ..report import unit_text
+
+    fig = fig or plt.figure(figsize=(3.2 * len(keys), 3.2))
+    axs = np.atleast_1d(fig.subplots(1, len(keys)))
+    labels = list(rows)
+    for ax, key in zip(axs, keys):
+        vals = [np.nan if rows[l] is None else rows[l][key] for l in labels]
+        bars = ax.bar(range(len(labels)), vals, color=["C0" if l != "saddle" else "C3" for l in labels])
+        for b, v in zip(bars, vals):
+            ax.annotate("not computed" if not np.isfinite(v) else f"{v:.2f}", (b.get_x() + b.get_width() / 2,
+                        0 if not np.isfinite(v) else v), ha="center", va="bottom", fontsize=7)
+        ax.set_xticks(range(len(labels)), labels, fontsize=8, rotation=20)
+        ax.set_title(f"{key} ({unit_text(vib.COMFORT_UNITS[key])})", fontsize=9)
+        ax.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    return fig

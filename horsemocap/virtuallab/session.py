@@ -1,4 +1,4 @@
-"""Render complete riding sessions (shared/spec/sessions.md) with their truth.
+"""Render complete riding sessions (docs/sessions.md) with their truth.
 
 Timeline (thesis 3.5, 8.2): the cameras are started one after the other and
 record the same instants (frame-locked). A flashlight in view switches on at

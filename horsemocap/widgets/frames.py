@@ -44,7 +44,7 @@ def ui_smoothing(method: str | None = None, span: float | None = None):
     """Method and span of the pipeline's smoothing step (thesis: rloess, 0.1).
 
     Defaults are the pipeline's automatic choice,
-    ``AnalysisParams().smoothing_method`` (``"none"``, a measured deviation
+    ``AnalysisParams().smoothing_method`` (``"loess"``, a measured deviation
     from the thesis documented there and in notebook 06) and
     ``AnalysisParams().smoothing_span`` (0.1). ``.value`` is
     ``{"method": ..., "span": ...}``, the ``smoothing_method`` and

@@ -258,7 +258,7 @@ plt.show()
 #   is largest along the depth, then along gravity, smallest along the travel. The bias along
 #   gravity is why the absolute y-motion RMSE is several millimetres although the vertical motion
 #   itself is measured to a fraction of a millimetre (the "no bias" column).
-# - The target set for this suite is x- and y-motion RMSE below 3 mm **after smoothing**, i.e. with the
+# - The accuracy goal of this reproduction is x- and y-motion RMSE below 3 mm **after smoothing**, i.e. with the
 #   pipeline's default `loess`. The computed check below says, for each mode, whether the absolute
 #   and the bias-removed errors meet it.
 # - `loess` changes little here: it lowers the x- and z-motion errors a little and adds a few

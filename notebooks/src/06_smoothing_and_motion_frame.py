@@ -400,7 +400,7 @@ for mode in ("thesis", "joint"):
               f"x-motion axis {st['x_axis_deg']:.3f} deg")
 
 # %% [markdown]
-# The suite's targets, checked on these numbers (x- and y-motion RMSE below 3 mm after smoothing,
+# The reproduction's accuracy goals, checked on these numbers (x- and y-motion RMSE below 3 mm after smoothing,
 # i.e. with the pipeline's default `loess` — the other two methods are shown for comparison;
 # joint no worse than thesis; plumb gravity within 0.2°). Differences under 0.05 mm between the
 # modes are counted as equal (they are far below the detector's own error).

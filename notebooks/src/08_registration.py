@@ -210,3 +210,79 @@ print("static-shot prompts:", ui_static.value or "automatic")
 #    pipeline's detector and triangulation produce no such outlier on this session.
 #
 # </details>
+
+# %% [markdown]
+# ## Chapter 8's images, filtered and labelled (Figures 8.3, 8.4, 8.7, 8.11, 8.21)
+#
+# The thesis shows each image its user worked on next to what the chosen threshold and area range
+# left of it. Here, from the same analysis: the **top** row is the original image with the markers
+# the pipeline found circled and labelled, the **bottom** row the black-and-white image of the
+# threshold (eq. 4.5), restricted to the regions of the area range (4.5.3) where the thesis used one.
+# The stills' thresholds and area ranges are those of the pipeline's automatic still detector
+# (`detection.still_candidates`).
+
+# %%
+from horsemocap import detection, sources
+
+session = an.session
+cam = session.cameras[0]
+
+
+def still_figure(image, marker_px, labels, title):
+    """The original still and what its automatic threshold and area range keep."""
+    cand = detection.still_candidates(image)
+    return plots.plot_filtered_images([image], cand.threshold, (cand.area.min(), cand.area.max()),
+                                      marker_px=[marker_px], labels=labels, titles=[title], zoom="markers")
+
+
+plumb = sources.read_image(session.plumb[cam])
+fig = still_figure(plumb, an["plumb"]["plumb_px"][cam], ["top", "tip"],
+                   f"Figure 8.4: plumb line, {cam} camera")
+plt.show()
+
+# %% [markdown]
+# Figure 8.7: the first analysed frame of the left camera, in colour and in black and white at the
+# detection's threshold (no area filter: every bright region shows), with the three markers the
+# detection labelled in that frame.
+
+# %%
+offset, det = an["sync"]["offsets"][cam], an["detect"]
+first = sources.FrameSource(session.motion[cam]).sequence(offset + a, offset + a + 1, color=True)[0]
+fig = plots.plot_filtered_images([first], det["detection"][cam]["threshold"], None,
+                                 marker_px=[det["marker_px"][cam][a]],
+                                 titles=[f"Figure 8.7: frame {a}, {cam} camera"], zoom="markers")
+plt.show()
+
+# %% [markdown]
+# Figures 8.11 and 8.21: the static shot, where the three skin markers **and** the saddle marker are
+# visible. The thesis typed the labels of the markers (8.11) and of the saddle marker (8.21) by
+# hand; the pipeline found them (`static_order`, `saddle_index` of the rigid-body step).
+
+# %%
+static_img = sources.read_image(session.static[cam])
+order, saddle = an["rigid_body"]["static_order"], an["rigid_body"]["saddle_index"]
+labels = ["saddle" if s == saddle else f"marker {order.index(s) + 1}" if s in order else "?"
+          for s in range(len(an["static"]["static_px"][cam]))]
+fig = still_figure(static_img, an["static"]["static_px"][cam], labels,
+                   f"Figures 8.11 and 8.21: static shot, {cam} camera")
+plt.show()
+
+# %% [markdown]
+# Figure 8.3: ten frames of the falling ball (`data_samples/ball_drop`, notebook 07) in the left
+# camera, and what the detection's threshold and area range keep of them (the thesis used [10, 35]
+# pixels and a window; the pipeline chose its own range for this ball).
+
+# %%
+ball = pipeline.results_for(data.data_samples_dir() / "ball_drop", until="detect")
+bcam = ball.session.cameras[0]
+bdet = ball["detect"]["detection"][bcam]
+boff, bn = ball["sync"]["offsets"][bcam], ball["sync"]["n_frames"]
+pick = np.linspace(0, bn - 1, 10).round().astype(int)
+bframes = sources.FrameSource(ball.session.motion[bcam]).sequence(boff, boff + bn, color=True)
+bpx = ball["detect"]["marker_px"][bcam][pick, 0]                    # (10, 2), NaN where not found
+lo, hi = np.nanmin(bpx, axis=0) - 40, np.nanmax(bpx, axis=0) + 40    # the thesis crops its figure too
+fig = plots.plot_filtered_images([bframes[k] for k in pick], bdet["threshold"], (bdet["area_min"], bdet["area_max"]),
+                                 marker_px=[bpx[i:i + 1] for i in range(len(pick))], labels=["ball"],
+                                 titles=[f"frame {k}" for k in pick], zoom=(lo[0], lo[1], hi[0], hi[1]))
+fig.suptitle(f"Figure 8.3: the ball in the {bcam} camera, original (top) and area-filtered (bottom)")
+plt.show()

@@ -143,7 +143,7 @@ plt.show()
 # %% [markdown]
 # ## How accurate is the saddle's vertical acceleration?
 #
-# The target set for this suite: RMSE of the saddle's vertical acceleration at most 5 % of the rms of the true
+# The accuracy goal of this reproduction: RMSE of the saddle's vertical acceleration at most 5 % of the rms of the true
 # one. Every saddle method, with the pipeline's other choices, and the thesis' whole chain (its six-version
 # $\boldsymbol\omega$, $\boldsymbol\alpha$ in eq. 6.55), each a run of the pipeline's rigid-body step
 # measured by `accuracy.stage_errors`:

@@ -346,3 +346,41 @@ print(f"read back acc_y_Wk_rms = {back['acc_y_Wk_rms']:.4f} m/s^2")
 # 4. $D = V \cdot T$: $V = 25 / 1.0393 = 24.1$ km/h.
 #
 # </details>
+
+# %% [markdown]
+# ## Comfort of the visible markers and their amplitudes (Appendix A steps 9 and 10)
+#
+# Before it turned to the hidden saddle marker, the thesis computed the same performance measures
+# for each visible marker (`performance_measure.m`, Appendix A step 10) and saved each marker's
+# vertical and lateral amplitudes with its fits (`Z_amplitudes_marker3`, step 9). From this
+# session's analysis (the pipeline's fitted marker kinematics in the motion frame, every marker
+# weighted on the same stride harmonics as the saddle):
+
+# %%
+from horsemocap import pipeline
+from horsemocap.report import unit_text
+
+an = pipeline.results_for()
+rb = an["rigid_body"]
+period = an["motion_frame"]["period_frames"]
+f0 = None if period is None else an.session.fps / period
+per_marker = vibration.marker_comfort(rb["t"], rb["registered"], rb["acceleration"], rb["velocity"], f0_hz=f0)
+rows = {f"marker {m + 1}": ind for m, ind in enumerate(per_marker)}
+rows["saddle"] = an["comfort"]["indicators"]
+amp = vibration.half_peak_to_peak(np.concatenate([rb["registered"], rb["saddle_position"][:, None]], axis=1))
+shown = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk", "TA_8_limit_Wb")
+print(f"{'point':9s}" + "".join(f"{k:>15s}" for k in shown) + f"{'y amplitude':>13s}{'z amplitude':>13s}")
+print(f"{'':9s}" + "".join(f"{unit_text(vibration.COMFORT_UNITS[k]):>15s}" for k in shown) + f"{'mm':>13s}{'mm':>13s}")
+for (label, ind), (ay, az) in zip(rows.items(), amp):
+    vals = "".join(f"{'not computed':>15s}" if ind is None else f"{ind[k]:15.3f}" for k in shown)
+    print(f"{label:9s}{vals}{1000 * ay:13.1f}{1000 * az:13.1f}")
+
+# %%
+plots.plot_marker_comfort(rows)
+plt.show()
+
+# %% [markdown]
+# The markers sit on the horse's back, the saddle marker behind and below them: each point moves
+# differently because the back also pitches and rolls, so its vertical acceleration, and with it
+# the time to the EU limits, differ from point to point. This is why the thesis went on to the
+# saddle marker (section 6.4): the rider sits there, not on the markers.

@@ -241,3 +241,39 @@ for g in list(herd.GAITS) + ["pooled"]:
 #    acceleration is not what the rider feels.
 #
 # </details>
+
+# %% [markdown]
+# ## 7 · The horses and their saddles, gait by gait (Table 8.6, Figures 8.25-8.28)
+#
+# The four horses of the experiments (thesis Table 8.6; the virtual herd takes its ages, breeds and
+# heights from it):
+
+# %%
+print(f"{'':22s}" + "".join(f"{r['horse']:>10s}" for r in herd.horse_table()))
+for key, label, fmt in (("age", "age", "{:10d}"), ("breed", "breed", "{:>10s}"),
+                        ("withers_m", "height at withers (m)", "{:10.2f}")):
+    print(f"{label:22s}" + "".join(fmt.format(r[key]) for r in herd.horse_table()))
+
+# %% [markdown]
+# Figures 8.25-8.28 of the thesis show, for each gait, the x-, y- and z-motion of the saddle marker's
+# position and acceleration for the four horses. Here they are from the same analyses as section 6
+# (kept in the results store, so nothing is analysed twice). The x position is drawn from the
+# start of each record (the horse travels metres along x); its acceleration is flat zero because
+# the thesis fits x with a straight line in time (section 5.5.2.1: a steady speed), so the x panel
+# of the acceleration shows the model, not a measurement. The rising trot's saddle moves with the
+# rider out of the saddle every other beat (section 8.5).
+
+# %%
+from horsemocap.pipeline import AnalysisError
+
+for g in herd.GAITS:
+    series = {}
+    for h in herd.HORSES:
+        try:
+            rb = herd.pipeline_analysis(h, g, {"weighting_mode": "iso"})["rigid_body"]
+            series[h] = (rb["t"], rb["saddle_position"], rb["saddle_acceleration"])
+        except AnalysisError as exc:
+            print(f"{h} {herd.GAIT_LABELS[g]}: not analysed ({exc})")
+            series[h] = None
+    plots.plot_saddle_by_gait(series, herd.GAIT_LABELS[g])
+    plt.show()

@@ -1,0 +1,140 @@
+"""Progress of a run for a person: step lines, and counts inside the long steps.
+
+A progress callback is ``progress(step, message)``. The long steps
+(calibration views, detection frames) also report counts through
+:func:`counter`, which calls ``progress(step, message, done, total)`` only on
+a callback that says it takes counts (``counts = True``, as
+:class:`ProgressPrinter`); any other callback (``lambda *a: None``, a
+two-argument function) sees the step lines only.
+
+On a terminal (``stream.isatty()``) a count is a bar redrawn in place::
+
+    [horsemocap] rig: detecting the board in camera 'left' [########------------]  12/30
+
+otherwise (a log file, a notebook, CI) it is a plain line at the first
+count, at every quarter and at the last, so a log shows that the step works
+without one line per frame.
+"""
+from __future__ import annotations
+
+import sys
+
+BAR_WIDTH = 24
+
+
+def progress_bar(done: int, total: int, width: int = BAR_WIDTH) -> str:
+    """``[#####-----]  done/total`` with ``round(width * done / total)`` filled cells.
+
+    ``done`` is clipped to ``0..total``; a ``total`` below 1 gives an empty bar.
+    """
+    total = int(total)
+    done = min(max(int(done), 0), max(total, 0))
+    filled = 0 if total < 1 else round(width * done / total)
+    digits = len(str(max(total, 0)))
+    return f"[{'#' * filled}{'-' * (width - filled)}] {done:>{digits}}/{total}"
+
+
+def plain_count_due(done: int, total: int) -> bool:
+    """Whether a plain (non-terminal) line is printed for count ``done`` of ``total``:
+    the first, the last, and the first count at or past each quarter."""
+    if total <= 0:
+        return False
+    if done in (1, total):
+        return True
+    quarter = [int(-(-q * total // 4)) for q in (1, 2, 3)]  # ceil(q * total / 4)
+    return done in quarter
+
+
+class ProgressPrinter:
+    """The command's progress callback: ``[horsemocap] step: message`` lines on ``stream``.
+
+    Parameters
+    ----------
+    stream : file, optional
+        Default ``sys.stderr`` (looked up when printing).
+    tty : bool, optional
+        Draw counts as a bar redrawn in place; default ``stream.isatty()``.
+    """
+
+    counts = True
+
+    def __init__(self, stream=None, tty: bool | None = None):
+        self._stream = stream
+        self._tty = tty
+        self._open = False  # a bar is drawn on the current line
+
+    @property
+    def stream(self):
+        return self._stream or sys.stderr
+
+    @property
+    def tty(self) -> bool:
+        if self._tty is not None:
+            return self._tty
+        try:
+            return bool(self.stream.isatty())
+        except (AttributeError, ValueError):
+            return False
+
+    def __call__(self, step: str, message: str, done: int | None = None, total: int | None = None) -> None:
+        out = self.stream
+        if done is None or total is None:
+            self._close()
+            print(f"[horsemocap] {step}: {message}", file=out, flush=True)
+            return
+        if self.tty:
+            out.write(f"\r[horsemocap] {step}: {message} {progress_bar(done, total)}")
+            self._open = done < total
+            if not self._open:
+                out.write("\n")
+            out.flush()
+        elif plain_count_due(done, total):
+            print(f"[horsemocap] {step}: {message} {done}/{total}", file=out, flush=True)
+
+    def _close(self):
+        if self._open:
+            self.stream.write("\n")
+            self._open = False
+
+
+def counter(progress, step: str, message: str, total: int):
+    """A function ``tick(done)`` reporting ``done`` of ``total`` to ``progress``.
+
+    Does nothing when ``progress`` is None or does not take counts
+    (no ``counts = True`` attribute).
+    """
+    if progress is None or not getattr(progress, "counts", False):
+        return lambda done: None
+    return lambda done: progress(step, message, int(done), int(total))
+
+
+class CountingFrames:
+    """A frame sequence that reports how many distinct frames were read so far.
+
+    Wraps a sequence (``len``, ``[k]``, ``close``) and calls ``tick(count)``
+    the first time each index is read, so a step that reads every frame once
+    in any order (forward, then backward from an anchor) counts to ``len``.
+    Every other attribute is the wrapped sequence's.
+    """
+
+    def __init__(self, frames, tick):
+        self._frames, self._tick, self._seen = frames, tick, set()
+
+    def __len__(self):
+        return len(self._frames)
+
+    def __getitem__(self, k):
+        item = self._frames[k]
+        if isinstance(k, (int,)) or hasattr(k, "__index__"):
+            i = int(k) % max(len(self), 1)
+            if i not in self._seen:
+                self._seen.add(i)
+                self._tick(len(self._seen))
+        return item
+
+    def __iter__(self):
+        for k in range(len(self)):
+            yield self[k]
+
+    def __getattr__(self, name):
+        return getattr(self._frames, name)

@@ -1,0 +1,138 @@
+"""The report as a person reads it, and the progress lines: known input -> expected text."""
+from __future__ import annotations
+
+import io
+
+import pytest
+
+from horsemocap import report
+from horsemocap.params import AnalysisParams
+from horsemocap.progress import CountingFrames, ProgressPrinter, counter, plain_count_due, progress_bar
+from horsemocap.vibration import COMFORT_KEYS, COMFORT_UNITS
+
+
+@pytest.mark.parametrize("unit, expected", [
+    ("m/s^2", "m/s<sup>2</sup>"), ("m/s^1.75", "m/s<sup>1.75</sup>"), ("km/h", "km/h"), ("1", ""),
+    ("rad/s^2", "rad/s<sup>2</sup>"), ("a<b", "a&lt;b")])
+def test_unit_html_writes_powers_as_superscripts(unit, expected):
+    assert report.unit_html(unit) == expected
+
+
+def test_unit_text_uses_unicode_powers_where_they_exist():
+    assert report.unit_text("m/s^2") == "m/s²"
+    assert report.unit_text("m/s^1.75") == "m/s^1.75"  # no superscript decimal point
+    assert report.unit_text("1") == ""
+
+
+@pytest.mark.parametrize("value, expected", [
+    (17.98881515983109, "17.99"), (0.1, "0.1"), (3, "3"), (None, "automatic"), (True, "yes"),
+    ("joint", "joint (all cameras at once)"), ("thesis", "thesis"), ([True] * 6, "all six"),
+    ([True, False, True, False, False, True], "versions 1, 3, 6"), ([[3, 2], [4, 2]], "(3, 2); (4, 2)"),
+    ({"y": 3, "z": 2}, "y: 3; z: 2"), ([21, 60], "21, 60"), (float("nan"), "not a number")])
+def test_format_value_rounds_and_spells_out(value, expected):
+    assert report.format_value(value) == expected
+
+
+def test_choice_rows_have_names_and_no_json():
+    record = {"parameters": {"triangulation": "joint", "period_frames": 17.98881515983109, "x_marker": 0,
+                             "preset": None,
+                             "detection": {"left": {"threshold": 128, "centroid": "weighted"}}},
+              "chosen": {"rig": "calibrated from checkerboard views (joint)", "analysed_frames": [21, 60]}}
+    rows = report.choice_rows(record)
+    assert rows == [("triangulation", "joint (all cameras at once)"), ("stride period (frames)", "17.99"),
+                    ("marker defining the direction of motion", "marker 1"),
+                    ("preset", "none (the automatic choices)"),
+                    ("detector settings (left)", "threshold: 128; centroid: weighted"),
+                    ("rig", "calibrated from checkerboard views (joint)"),
+                    ("analysed frames (first, last + 1)", "21, 60")]
+    assert not any('"' in v for _, v in rows)
+
+
+def test_every_parameter_and_indicator_has_a_name():
+    assert set(AnalysisParams().to_dict()) <= set(report.PARAMETER_NAMES)
+    assert set(COMFORT_KEYS) <= set(report.INDICATORS)
+    assert all(meaning for _, meaning in report.INDICATORS.values())
+
+
+def test_comfort_rows_name_meaning_value_unit():
+    ind = {k: 1.0 for k in COMFORT_KEYS}
+    ind["acc_y_Wk_rms"] = 4.27654321
+    ind["VDV_y_Wk"] = 5.5129
+    rows = {r[0]: r for r in report.comfort_rows(ind)}
+    name = "vertical acceleration, Wk-weighted rms [acc_y_Wk_rms]"
+    assert rows[name][2:] == ("4.277", "m/s<sup>2</sup>")
+    assert rows["vibration dose value, Wk [VDV_y_Wk]"][2:] == ("5.513", "m/s<sup>1.75</sup>")
+    assert "action value" in rows["time to the action value by VDV, Wk [TVDV_action_Wk]"][1]
+    assert len(rows) == len(COMFORT_KEYS)
+    assert COMFORT_UNITS["crest_factor_y"] == "1" and rows["crest factor [crest_factor_y]"][3] == ""
+
+
+def test_x_acceleration_note_only_when_zero_by_construction():
+    assert "zero by construction" in report.x_acceleration_note(AnalysisParams(x_degree=1, kinematics="fits"))
+    assert report.x_acceleration_note(AnalysisParams(x_degree=2, kinematics="fits")) is None
+    assert report.x_acceleration_note(AnalysisParams(kinematics="pose_spline")) is None
+
+
+def test_quality_section_rounds_figures():
+    rec = {"verdict": "warning", "checks": [
+        {"name": "sync_flash", "figure": 0.123456789, "unit": "frames", "threshold": 0.5, "level": "warning",
+         "message": "late"},
+        {"name": "saddle_acceleration", "figure": 12.15, "unit": "m/s^2", "threshold": "ok 0.5..40 m/s^2",
+         "level": "ok", "message": "peak <12.15 m/s^2>"}]}
+    text = "".join(report.quality_section(rec))
+    assert "WARNING" in text and "0.1235" in text and "0.123456789" not in text and "sync flash" in text
+    assert "<td>m/s<sup>2</sup></td>" in text and "ok 0.5..40 m/s<sup>2</sup>" in text
+    assert "peak &lt;12.15 m/s<sup>2</sup>&gt;" in text and "m/s^2" not in text
+
+
+# --- progress ---------------------------------------------------------------
+
+def test_progress_bar_text():
+    assert progress_bar(0, 4, width=8) == "[--------] 0/4"
+    assert progress_bar(3, 12, width=8) == "[##------]  3/12"
+    assert progress_bar(12, 12, width=8) == "[########] 12/12"
+    assert progress_bar(20, 12, width=8) == "[########] 12/12"  # clipped
+
+
+def test_plain_lines_at_first_quarters_and_last():
+    assert [d for d in range(1, 46) if plain_count_due(d, 45)] == [1, 12, 23, 34, 45]
+    assert [d for d in range(1, 3) if plain_count_due(d, 2)] == [1, 2]
+    assert not plain_count_due(0, 0)
+
+
+def test_printer_on_a_file_prints_plain_lines():
+    buf = io.StringIO()
+    p = ProgressPrinter(buf)
+    p("rig", "calibrating ...")
+    tick = counter(p, "rig", "views", 8)
+    for k in range(1, 9):
+        tick(k)
+    assert buf.getvalue().splitlines() == ["[horsemocap] rig: calibrating ...", "[horsemocap] rig: views 1/8",
+                                           "[horsemocap] rig: views 2/8", "[horsemocap] rig: views 4/8",
+                                           "[horsemocap] rig: views 6/8", "[horsemocap] rig: views 8/8"]
+
+
+def test_printer_on_a_terminal_redraws_one_bar():
+    buf = io.StringIO()
+    p = ProgressPrinter(buf, tty=True)
+    tick = counter(p, "detect", "frames", 2)
+    tick(1)
+    p("detect", "half way")  # a step line ends the open bar first
+    tick(2)
+    text = buf.getvalue()
+    assert text == ("\r[horsemocap] detect: frames " + progress_bar(1, 2) + "\n[horsemocap] detect: half way\n"
+                    "\r[horsemocap] detect: frames " + progress_bar(2, 2) + "\n")
+
+
+def test_counter_ignores_callbacks_without_counts():
+    calls = []
+    tick = counter(lambda *a: calls.append(a), "detect", "frames", 3)
+    tick(1)
+    assert calls == []
+
+
+def test_counting_frames_counts_each_frame_once_in_any_order():
+    seen = []
+    frames = CountingFrames(list("abcd"), seen.append)
+    assert [frames[k] for k in (2, 3, 2, 1, 0)] == ["c", "d", "c", "b", "a"]
+    assert seen == [1, 2, 3, 4] and len(frames) == 4
