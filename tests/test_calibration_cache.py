@@ -111,3 +111,14 @@ def test_a_damaged_cache_file_is_calibrated_again(views_dirs, calls, tmp_path):
     (out / cache.CACHE_FILE).write_text('{"format": "horsemocap-calibration-cache/1", "key": "x", "rig": 3')
     cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
     assert calls["calibrate"] == 2 and len(calls["detect"]) == 4
+
+
+def test_excluded_views_and_the_mode_are_part_of_the_key(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out, exclude={"left": ["01"]})
+    assert calls["calibrate"] == 2 and len(calls["detect"]) == 2       # calibrated again, corners reused
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out, exclude={"left": ["01"]})
+    assert calls["calibrate"] == 2                                       # the same exclusion: reused
+    _, how = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out, mode="pairwise")
+    assert calls["calibrate"] == 3 and "pairwise" in how

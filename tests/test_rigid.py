@@ -350,10 +350,11 @@ def _saddle_errors(truth, pts, static, conv):
     return rmse, rms, pos_rmse
 
 
-def test_default_session_saddle_acc():
-    """The pipeline's own default path on the default session, against its truth.
+@pytest.mark.parametrize("kinematics, target", [("fits", 5.0), ("pose_spline", 15.0)])
+def test_default_session_saddle_acc(kinematics, target):
+    """The pipeline's path on the default session, against its truth.
 
-    ``results_for(until="rigid_body")`` (detection -> triangulation -> motion
+    ``kinematics="fits"``: ``results_for(until="rigid_body")`` (detection -> triangulation -> motion
     frame -> registration -> fits -> omega/alpha -> saddle, every choice
     automatic) measured by :func:`horsemocap.accuracy.stage_errors` in the
     true motion frame. Target (issue 7): vertical saddle acceleration RMSE
@@ -363,10 +364,13 @@ def test_default_session_saddle_acc():
     chain, eq. 6.55 with the six-version averages, gives about 1560 %:
     notebook 11). This one session is among the easiest: over the 16 virtual
     herd sessions the median is 24.6 % with loess (benchmarks/bench_herd.py).
+    ``kinematics="pose_spline"`` (the default since 2026-11-23): issue 13's
+    worst-session target, 15 % (measured 10.1 %; herd median 10.4 %, worst
+    13.4 %; hard set 3.2 %, worst 9.6 %).
     """
     d, truth = _default_truth()
     from horsemocap import accuracy, pipeline
-    an = pipeline.results_for(d, until="rigid_body")
+    an = pipeline.results_for(d, until="rigid_body", params={"kinematics": kinematics})
     rb = an["rigid_body"]["analysis"]
     assert (rb.method, rb.saddle_method) == (an.params.angular_method, an.params.saddle_method)
     st = accuracy.stage_errors(an, truth)
@@ -376,11 +380,11 @@ def test_default_session_saddle_acc():
     # not whole in every camera; the multi-view identification measures those with two cameras)
     assert st["frames"] == int(np.isin(frames, truth.ref_frames).sum()) >= len(frames) - 2
     pct = st["saddle_acc_y_rmse_pct_of_rms"]
-    msg = (f"[pipeline default: smoothing {an.params.smoothing_method}, omega {rb.method}, saddle "
+    msg = (f"[kinematics {kinematics}: smoothing {an.params.smoothing_method}, omega {rb.method}, saddle "
            f"{rb.saddle_method}] saddle position RMSE x/y/z mm {np.round(1000 * st['saddle_position'], 1)}; "
            f"vertical acc RMSE {st['saddle_acceleration'][1]:.3f} m/s^2 = {pct:.1f} % of rms")
     print(msg)
-    assert pct <= 5.0, msg
+    assert pct <= target, msg
 
 
 def test_default_session_saddle_acc_noise_free():

@@ -259,18 +259,18 @@ def test_a_named_saddle_marker_is_never_matched_to_a_ride_marker():
 
 
 def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
-    import horsemocap.calibration as calibration
+    import horsemocap.calibration.cache as calibration
     from horsemocap.pipeline import step_rig
 
     session = load_session(default_session_dir(), open_sources=False)
     assert session.calibration_images is not None
     seen = {}
 
-    def fake_calibrate_rig(images, inner, square, **kw):
+    def fake_calibration(images, inner, square, reference, **kw):
         seen.update(kw)
         raise RuntimeError("stop after the call")
 
-    monkeypatch.setattr(calibration, "calibrate_rig", fake_calibrate_rig)
+    monkeypatch.setattr(calibration, "cached_calibration", fake_calibration)
     params = AnalysisParams(recalibrate=True, calibration_exclude={"left": ["view03.png"]})
     with pytest.raises(RuntimeError, match="stop after the call"):
         step_rig(session, params, {}, lambda *a: None)
