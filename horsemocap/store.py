@@ -111,7 +111,8 @@ def encode_result(obj, arrays: dict):
 
     Values: None, bool, int, float, str, lists, tuples, dicts (any JSON-able
     keys), :class:`pathlib.Path`, NumPy arrays and scalars of numeric, bool,
-    string or datetime types, and dataclasses defined in the ``horsemocap``
+    string or datetime types, SciPy's :class:`~scipy.interpolate.BSpline`
+    (knots, coefficients, degree), and dataclasses defined in the ``horsemocap``
     package (their fields, recursively). Anything else (an object array, a
     callable, another package's class) raises ``TypeError`` naming it: the
     store never falls back to pickle.
@@ -139,6 +140,13 @@ def encode_result(obj, arrays: dict):
             raise TypeError(f"cannot store a {cls.__module__}.{cls.__qualname__} (only horsemocap's dataclasses)")
         return {"$": "dataclass", "class": f"{cls.__module__}:{cls.__qualname__}",
                 "fields": {f.name: encode_result(getattr(obj, f.name), arrays) for f in dataclasses.fields(obj)}}
+    from scipy.interpolate import BSpline
+
+    if type(obj) is BSpline:           # the pose trajectory's smoothing splines: knots, coefficients, degree
+        return {"$": "bspline", "t": encode_result(np.asarray(obj.t), arrays),
+                "c": encode_result(np.asarray(obj.c), arrays), "k": int(obj.k),
+                "extrapolate": obj.extrapolate if isinstance(obj.extrapolate, bool) else str(obj.extrapolate),
+                "axis": int(obj.axis)}
     raise TypeError(f"cannot store a {type(obj).__module__}.{type(obj).__qualname__} without pickle")
 
 
@@ -174,6 +182,11 @@ def decode_result(tree, arrays):
         return tuple(decode_result(v, arrays) for v in tree["items"])
     if tag == "dict":
         return {_hashable(decode_result(k, arrays)): decode_result(v, arrays) for k, v in tree["items"]}
+    if tag == "bspline":
+        from scipy.interpolate import BSpline
+
+        return BSpline(decode_result(tree["t"], arrays), decode_result(tree["c"], arrays), int(tree["k"]),
+                       extrapolate=tree["extrapolate"], axis=int(tree["axis"]))
     if tag == "dataclass":
         cls = _dataclass_type(tree["class"])
         values = {k: decode_result(v, arrays) for k, v in tree["fields"].items()}

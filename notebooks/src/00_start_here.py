@@ -125,8 +125,8 @@ print(" -> ".join(STEPS))
 # 1. `motion` and `calibration.images`; `sync` becomes `{"offsets": {"left": ..., "middle": ..., "right": ...}}`.
 # 2. `--threshold` (threshold slider), `--period` and `--x-marker` (motion frame), `--fourier-orders`
 #    (order chooser), `--angular` (how omega/alfa are computed: `thesis` averages the versions ticked in
-#    the six checkboxes, which are a parameter of `analysis.json`, `omega_versions`/`alpha_versions`, not
-#    an option of the command), `--weighting` (iso/thesis toggle), `--offsets`, `--preset thesis` (every
+#    the six checkboxes), `--omega-versions` and `--alpha-versions` (those checkboxes, e.g. `1,2,4`),
+#    `--weighting` (iso/thesis toggle), `--offsets`, `--preset thesis` (every
 #    thesis choice at once).
 # 3. The static shot: detection (the default identifies the markers by its rigid shape), registration
 #    (the rigid model) and the saddle marker. The plumb line: the motion
