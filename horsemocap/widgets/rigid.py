@@ -16,7 +16,7 @@ __all__ = ["ui_versions", "ui_angular_method", "ui_saddle_method"]
 
 def ui_versions(name: str = "omega", value=None):
     """Six checkboxes; ``.value`` is the (6,) bool ``use`` of
-    :func:`horsemocap.rigid.average_versions` (default: all, as the issue asks)."""
+    :func:`horsemocap.rigid.average_versions` (default: all six, the pipeline's automatic choice)."""
     value = np.ones(6, bool) if value is None else np.asarray(value, bool)
     layout, style = W.Layout(width="auto", margin="0 12px 0 0"), W.widgets.widget_bool.CheckboxStyle()
     boxes = [W.Checkbox(value=bool(v), description=lab.replace("omega", name), indent=False,
