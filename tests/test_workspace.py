@@ -298,3 +298,25 @@ def test_the_session_picker_switches_the_workspace_and_refuses_a_folder_without_
     wsm.set_choice(None, "weighting_mode", "thesis")
     picker.reset.click()                             # forget this session's choices
     assert wsm.read_choices() == {}
+
+
+def test_drawing_the_detection_controls_in_a_browser_writes_no_choice(store):
+    """A browser snaps a slider to its grid when it draws it (0.1871 -> 0.185) and, for a slider with
+    continuous updates, sends the snapped value back: that must not become a choice (seen in
+    JupyterLab: Run All of notebook 04 wrote the middle and right cameras' distance tolerance)."""
+    from horsemocap import detection
+    from horsemocap.sources import FrameSource
+    from horsemocap.widgets import ui_detection
+    from horsemocap.widgets.detection import TOLERANCE_STEP
+
+    frames = FrameSource(default_session_dir() / "motion" / "middle.avi").read()
+    p = detection.detect_markers(frames, 3).params
+    ui = ui_detection(frames, p)
+    assert ui.tolerance.continuous_update is False
+    ws = wsm.open_workspace()
+    ws.bind(ui, "detection.middle", automatic={}, convert=lambda c: wsm.detection_changes(c, p))
+    snapped = round(p.distance_tolerance / TOLERANCE_STEP) * TOLERANCE_STEP
+    ui.tolerance.value = snapped                     # what the browser sends back
+    assert ws.choices == {}
+    ui.tolerance.value = snapped + 2 * TOLERANCE_STEP  # a real move is a choice
+    assert ws.choices == {"detection": {"middle": {"distance_tolerance": snapped + 2 * TOLERANCE_STEP}}}

@@ -210,11 +210,22 @@ def ui_window(params: det.DetectionParams, image_size=(640, 480)) -> WindowPicke
     return WindowPicker(params.window or (100, 60), image_size)
 
 
+TOLERANCE_STEP = 0.005   # the distance tolerance slider's grid
+
+
 def ui_distance_tolerance(params: det.DetectionParams) -> W.FloatSlider:
-    """Distance tolerance ``DT`` of eq. (4.11), as a fraction."""
+    """Distance tolerance ``DT`` of eq. (4.11), as a fraction.
+
+    The automatic tolerance is rarely on the slider's 0.005 grid, and a
+    browser snaps a slider to its grid when it draws it; with
+    ``continuous_update=False`` that snapped value is not sent back to the
+    kernel until the slider is moved, so drawing the control never changes
+    the choice.
+    """
     v = params.distance_tolerance if params.distance_tolerance is not None else 0.15
-    return W.FloatSlider(value=float(v), min=0.01, max=0.5, step=0.005, readout_format=".3f",
-                         description="DT")
+    return W.FloatSlider(value=float(v), min=0.01, max=0.5, step=TOLERANCE_STEP, readout_format=".3f",
+                         description="DT", continuous_update=False)
+
 
 
 class DetectionControls(ControlText, W.VBox):
@@ -241,11 +252,14 @@ class DetectionControls(ControlText, W.VBox):
     @property
     def value(self) -> det.DetectionParams:
         same = self.threshold.value == self.base.threshold and self.first_frame.value == (self.base.first_frame or 0)
+        dt = float(self.tolerance.value)
+        if self.base.distance_tolerance is not None and abs(dt - self.base.distance_tolerance) <= TOLERANCE_STEP / 2:
+            dt = float(self.base.distance_tolerance)   # the slider's grid point of the automatic value
         return replace(self.base, threshold=self.threshold.value,
                        labels=self.labels.value if (same and self.labels.value) else None,
                        first_frame=int(self.first_frame.value),
                        area_min=float(self.area.value[0]), area_max=float(self.area.value[1]),
-                       window=self.window.value, distance_tolerance=float(self.tolerance.value))
+                       window=self.window.value, distance_tolerance=dt)
 
 
 def ui_detection(frames, params: det.DetectionParams, scale: int = 1) -> DetectionControls:
