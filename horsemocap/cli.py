@@ -58,6 +58,9 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="motion period in frames (thesis typed 18; default estimated)")
     g.add_argument("--x-marker", type=int, dest="x_marker", metavar="INDEX",
                    help="marker (0-based) whose net displacement defines x-motion")
+    g.add_argument("--x-degree", type=int, dest="x_degree", metavar="N",
+                   help="degree of the polynomial fitted to the x-motion (Appendix A 9.i, fit_type_x; thesis "
+                        "poly1: 1)")
     g.add_argument("--fourier-orders", metavar="Y,Z",
                    help="Fourier orders of the y and z fits (default: order rule of 5.5.2.2)")
     g.add_argument("--smoothing", choices=["none", "rloess", "loess", "lowess", "rlowess", "moving"],
@@ -82,6 +85,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                         "displacement (no period needed), or auto (default: period if one is found)")
     g.add_argument("--weighting", choices=["iso", "thesis"], dest="weighting_mode",
                    help="iso: each harmonic weighted at its frequency (default); thesis: one scalar W")
+    g.add_argument("--set", action="append", dest="set", metavar="NAME=VALUE",
+                   help="any parameter by its (dotted) name, the value in JSON, applied after the options "
+                        "above; repeatable. Every prompt of one camera, e.g. --set detection.left.labels=[3,4,5] "
+                        "--set detection.left.first_frame=36 --set detection.all.area_min=5 "
+                        "--set detection.right.window=[180,140] --set detection.middle.distance_tolerance=0.2 "
+                        "--set stills.static.left.threshold=150 (names as in analysis.json and choices.json)")
 
 
 def _params_from_args(args, base):
@@ -92,7 +101,7 @@ def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
                 "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
-                "kinematics", "motion_frame")}
+                "kinematics", "motion_frame", "x_degree")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}
@@ -134,7 +143,36 @@ def _params_from_args(args, base):
                 raise ParamsError(f"--{name.replace('_', '-')}: expected version numbers 1-6 separated by commas, "
                                   f"got {text!r}")
             changes[name] = [k in picked for k in range(1, 7)]
-    return base.updated(**changes)
+    params = base.updated(**changes)
+    for item in getattr(args, "set", None) or []:
+        params = _set_param(params, item)
+    return params
+
+
+def _set_param(params, item: str):
+    """``--set NAME=VALUE``: one parameter by its dotted name (JSON value, else the text as a string)."""
+    from .params import AnalysisParams, ParamsError
+
+    name, sep, text = item.partition("=")
+    keys = name.strip().split(".")
+    if not sep or not all(keys):
+        raise ParamsError(f"--set: expected NAME=VALUE such as detection.left.threshold=140, got {item!r}")
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError:
+        value = text
+    data = params.to_dict()
+    if keys[0] not in data:
+        AnalysisParams.from_dict({keys[0]: value}, f"--set {item}")   # names the unknown parameter
+    node = data
+    for k in keys[:-1]:
+        if not isinstance(node.get(k), dict):
+            if k in node and node[k] is not None:
+                raise ParamsError(f"--set {item}: parameter '{k}' is not an object of named values")
+            node[k] = {}
+        node = node[k]
+    node[keys[-1]] = value
+    return AnalysisParams.from_dict(data, f"--set {item}")
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:

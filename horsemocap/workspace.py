@@ -142,8 +142,10 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
     session = load_session(session_dir, open_sources=False)
     choices = read_choices(session_dir) if choices is None else choices
     source = str(choices_path(session_dir))
-    merged = resolve_params(session).to_dict()
-    merged.update(copy.deepcopy(choices))
+    resolve_params(session)   # the session's own analysis object, checked (its errors name session.json)
+    # the given values only, not the defaults filled in: a preset chosen in a notebook is not undone
+    # by the defaults it replaces (as in pipeline.resolve_params, which results_for and the CLI use)
+    merged = {**copy.deepcopy(session.analysis or {}), **copy.deepcopy(choices)}
     params = AnalysisParams.from_dict(merged, source)
     params.check_session(session, source)
     return params
@@ -332,8 +334,14 @@ class Workspace:
 
     @property
     def automatic(self) -> AnalysisParams:
-        """The parameters without any choice (the session's ``analysis`` and the defaults)."""
-        return session_params(self.session_dir, {})
+        """The parameters without any choice but the preset (the session's ``analysis``, the preset, the defaults).
+
+        With the thesis' chain chosen (``"preset": "thesis"``), a widget's
+        automatic value is the preset's: moving it back there takes its
+        choice back, and the preset holds.
+        """
+        preset = self.choices.get("preset")
+        return session_params(self.session_dir, {"preset": preset} if preset else {})
 
     def choose(self, name: str, value) -> None:
         """Choose one parameter (dotted name); ``None`` takes the choice back."""

@@ -92,6 +92,21 @@ def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store,
     assert (p.angular_method, p.saddle_marker) == ("thesis", 1)
     assert p.stills == {"static": {"all": {"threshold": 200}}}
     assert p.calibration_exclude == {"left": ["a.png", "b.png"]}
+    # the other prompts of Appendix A: fit_type_x (9.i), and every value of one camera (4.ii, 7a, 8a, 12a)
+    args = build_parser().parse_args(["analyze", str(s), "--out", "o", "--x-degree", "2",
+                                      "--set", "detection.left.labels=[3,4,5]", "--set", "detection.left.first_frame=36",
+                                      "--set", "detection.right.window=[180,140]",
+                                      "--set", "detection.middle.distance_tolerance=0.2",
+                                      "--set", "stills.plumb.left.threshold=150"])
+    p = _params_from_args(args, base)
+    assert p.x_degree == 2
+    assert p.detection == {"middle": {"threshold": 140, "distance_tolerance": 0.2},
+                           "left": {"labels": [3, 4, 5], "first_frame": 36}, "right": {"window": [180, 140]}}
+    assert p.stills == {"plumb": {"left": {"threshold": 150}}}
+    for wrong, said in (("nope=3", "unknown parameter 'nope'"), ("smoothing_span", "expected NAME=VALUE"),
+                        ("smoothing_span=2", "smoothing_span")):
+        with pytest.raises(ParamsError, match=said):
+            _params_from_args(build_parser().parse_args(["analyze", str(s), "--out", "o", "--set", wrong]), base)
     bad = build_parser().parse_args(["analyze", str(s), "--out", "o", "--omega-versions", "0,7"])
     with pytest.raises(ParamsError, match="--omega-versions: expected version numbers 1-6"):
         _params_from_args(bad, AnalysisParams())
@@ -320,3 +335,32 @@ def test_drawing_the_detection_controls_in_a_browser_writes_no_choice(store):
     assert ws.choices == {}
     ui.tolerance.value = snapped + 2 * TOLERANCE_STEP  # a real move is a choice
     assert ws.choices == {"detection": {"middle": {"distance_tolerance": snapped + 2 * TOLERANCE_STEP}}}
+
+
+def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_command_line(store):
+    from horsemocap.params import PRESETS
+    from horsemocap.widgets import ui_preset
+
+    s = default_session_dir()
+    ws = wsm.open_workspace()
+    switch = ui_preset(ws)
+    assert switch.value == "default" and ws.choices == {}
+    switch.value = "thesis"
+    assert ws.choices == {"preset": "thesis"}
+    p = ws.params                                    # what the notebooks' widgets start from
+    assert p.preset == "thesis"
+    assert all(getattr(p, k) == v for k, v in PRESETS["thesis"].items())
+    # results_for and `horsemocap analyze --params choices.json` resolve the choices the same way
+    session = load_session(s, open_sources=False)
+    for q in (resolve_params(session, wsm.read_choices(s)), resolve_params(session, read_params(wsm.choices_path(s)))):
+        assert q.to_dict() == p.to_dict()
+    # a widget bound under the preset starts from the preset's value; a choice still overrides it,
+    # and moving back to the preset's value takes the choice back (the preset holds)
+    smooth = ws.bind(W.Dropdown(options=["loess", "rloess"], value=p.smoothing_method), "smoothing_method")
+    smooth.value = "loess"
+    assert ws.choices == {"preset": "thesis", "smoothing_method": "loess"} and ws.params.smoothing_method == "loess"
+    smooth.value = "rloess"
+    assert ws.choices == {"preset": "thesis"}
+    assert ui_preset(ws).value == "thesis"           # the next notebook's switch shows it
+    switch.value = "default"
+    assert ws.choices == {} and ws.params.smoothing_method == "loess"

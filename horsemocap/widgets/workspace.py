@@ -88,3 +88,33 @@ def ui_session(workspace=None) -> SessionPicker:
     from ..workspace import Workspace
 
     return SessionPicker(workspace or Workspace())
+
+
+PRESET_OPTIONS = (("the automatic choices", "default"), ("the thesis' own chain (--preset thesis)", "thesis"))
+
+
+class PresetSwitch(ControlText, W.ToggleButtons):
+    """The chain every notebook runs: the automatic choices, or the thesis' own chain end to end.
+
+    ``.value`` is the preset's name (``"default"`` or ``"thesis"``). The
+    thesis' chain is ``--preset thesis`` of the command line: stereo pairs
+    with the left camera, each camera alone, the pairs averaged, rloess, the
+    E/2 order, the averaged omega/alpha versions, one weight per record.
+    Choosing it writes ``"preset": "thesis"`` into the session's choices;
+    the widgets of the later notebooks then start from the thesis' values,
+    and a choice made with them still overrides the preset's.
+    """
+
+
+def ui_preset(workspace=None) -> PresetSwitch:
+    """The preset switch (:class:`PresetSwitch`), bound to the session's choices."""
+    from ..workspace import Workspace
+
+    ws = workspace or Workspace()
+    switch = PresetSwitch(options=PRESET_OPTIONS, value="default", description="analysis",
+                          style={"description_width": "initial", "button_width": "auto"},
+                          tooltips=["every choice automatic (the default pipeline)",
+                                    "the thesis' chain: pairwise calibration, per-camera detection, pairs "
+                                    "averaged, rloess, order E/2, averaged versions, one scalar weight"])
+    ws.bind(switch, "preset", automatic=None, convert=lambda v: None if v == "default" else v)
+    return switch
