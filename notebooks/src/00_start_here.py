@@ -25,6 +25,19 @@ from horsemocap.workspace import open_workspace
 ws = open_workspace()
 display(ws.ui())
 
+# %% [markdown]
+# **Which chain.** The notebooks run the pipeline's automatic choices. The switch below runs every
+# notebook of this session with the thesis' own chain instead (`--preset thesis` on the command
+# line): stereo pairs with the left camera, each camera alone for the markers, the three pairs
+# averaged, MATLAB's robust loess, the Fourier order $E/2$, the averaged omega and alpha versions
+# and one weight per record. Notebook 14 puts both chains' numbers side by side and explains the
+# differences. The thesis' pairwise calibration takes a minute or two the first time.
+
+# %% tags=["nbval-ignore-output"]
+from horsemocap.widgets import ui_preset
+
+display(ui_preset(ws))
+
 # %%
 import json
 
@@ -51,7 +64,7 @@ plt.show()
 #
 # | notebook | step | thesis |
 # | --- | --- | --- |
-# | 01 virtual laboratory | synthetic rides with exact truth (the thesis videos are not public) | seed 000 §3, 8.1 |
+# | 01 virtual laboratory | synthetic rides with exact truth (the thesis videos are not public) | Guchin et al. §3, 8.1 |
 # | 02 synchronization | the flashlight frame in each camera | 3.5, eq. 3.11-3.14 |
 # | 03 calibration | checkerboards, intrinsics, stereo pairs, a joint rig | 3.3-3.6, 8.2 |
 # | 04 marker detection | threshold, labels, area, window, distance and cross-product filters; all cameras together in 3D (the default) | 4 |
@@ -64,7 +77,12 @@ plt.show()
 # | 11 saddle marker | the hidden saddle point | 6.3-6.4 |
 # | 12 whole-body vibration | Wb, Wk, Wd, rms, VDV, exposure times and distances | 7, Table 8.7 |
 # | 13 horses and gaits | four horses, four gaits, riders' grades | 8.5 |
-# | 14 accuracy | the error of every stage, and what a better rig buys | seed 000 §6 |
+# | 14 accuracy | the error of every stage, and what a better rig buys | Guchin et al. §6 |
+#
+# Section numbers alone are the thesis'. *Guchin et al.* is A. Guchin, G. Pereira, G. Ottado, M. Ramos
+# and J. Cardelino, *Biomechanic motion capture system*: an open-source marker-based capture system
+# whose virtual laboratory, three-class Otsu threshold, circularity filter and accuracy metrics these
+# notebooks borrow.
 
 # %% [markdown]
 # ## The bundled riding session
@@ -88,16 +106,25 @@ print("motion sources:", {cam: p.name for cam, p in session.motion.items()})
 # to average*. Here each question is a widget whose **default is the automatic choice**, so a notebook
 # run top to bottom without a person gives exactly the numbers of the command line:
 #
-# | thesis prompt | widget | notebook |
-# | --- | --- | --- |
-# | gray-level threshold | threshold slider with a live binary preview | 04 |
-# | marker labels in the first image | label picker over the numbered regions | 04 |
-# | area range, window size, distance tolerance | sliders | 04 |
-# | frame offsets | frame-by-frame flash checker | 02 |
-# | marker for x-motion, period | dropdown and slider | 06 |
-# | number of extremes, Fourier order | order chooser with fits and residuals | 09 |
-# | omega / alfa versions | six checkboxes | 10 |
-# | weighting mode | iso / thesis toggle | 12 |
+# | thesis prompt (Appendix A step) | widget | notebook | command line |
+# | --- | --- | --- | --- |
+# | frame offsets from the flashlight (1) | frame-by-frame flash checker | 02 | `--offsets` |
+# | calibration views to leave out (2, 3) | a checkbox per view | 03 | `--exclude-views` |
+# | gray-level threshold, every camera (4.i) | threshold slider with a live binary preview | 04 | `--threshold` |
+# | first image, marker labels, area range, window size, distance tolerance (4.ii) | a tab of sliders and a label picker per camera | 04 | `--first-frame`, `--set detection.left.labels=[3,4,5]` ... |
+# | smoothing (6) | method and span | 06 | `--smoothing`, `--span` |
+# | period (6), marker for x-motion (7c) | dropdown and sliders | 06 | `--period`, `--x-marker` |
+# | plumb still: threshold and labels, every camera (7a) | still picker | 07 | `--plumb-threshold`, `--set stills.plumb....` |
+# | static shot: threshold and labels, every camera (8a) | still picker | 08 | `--static-threshold`, `--set stills.static....` |
+# | fit type for x (9.i) | polynomial degree | 09 | `--x-degree` |
+# | number of extremes, Fourier order (9.ii-iii) | order chooser with fits and residuals | 09 | `--fourier-orders` |
+# | omega / alfa versions (11) | six checkboxes each | 10 | `--angular thesis`, `--omega-versions`, `--alpha-versions` |
+# | saddle marker in the static shot (12a; the static shot's threshold and labels as in 8a) | dropdown of the static shot's points | 11 | `--saddle-marker` |
+# | weighting of the comfort indicators (10, 13) | iso / thesis toggle | 12 | `--weighting` |
+#
+# Every choice is a field of `horsemocap.params.AnalysisParams`. On the command line, `--set NAME=VALUE`
+# gives any of them by the name it has in `analysis.json` (one camera's labels, area range, window and
+# tolerance included), and `--params choices.json` gives all the choices made in the notebooks at once.
 #
 # The pattern is always the same: one cell shows the widget, the next cell reads `widget.value` and
 # calls the same package function the pipeline calls.
@@ -123,8 +150,8 @@ print(" -> ".join(STEPS))
 # <details><summary>Solutions</summary>
 #
 # 1. `motion` and `calibration.images`; `sync` becomes `{"offsets": {"left": ..., "middle": ..., "right": ...}}`.
-# 2. `--threshold` (threshold slider), `--period` and `--x-marker` (motion frame), `--fourier-orders`
-#    (order chooser), `--angular` (how omega/alfa are computed: `thesis` averages the versions ticked in
+# 2. The last column of the table above: `--threshold` (threshold slider), `--period` and `--x-marker`
+#    (motion frame), `--x-degree` and `--fourier-orders` (order chooser), `--angular` (how omega/alfa are computed: `thesis` averages the versions ticked in
 #    the six checkboxes), `--omega-versions` and `--alpha-versions` (those checkboxes, e.g. `1,2,4`),
 #    `--weighting` (iso/thesis toggle), `--offsets`, `--preset thesis` (every
 #    thesis choice at once).

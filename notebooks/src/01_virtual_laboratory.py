@@ -3,7 +3,7 @@
 #
 # **What you will learn**
 # - why we need a virtual laboratory (the thesis' videos are not public, and only a known truth says
-#   how good each step is), as seed 000 (section 3) built one in Blender;
+#   how good each step is), as Guchin et al. (section 3) built one in Blender;
 # - the thesis rig of Tables 8.1-8.4, and by how much its three pairwise calibrations disagree;
 # - the horse-and-saddle model: one rigid body (3 skin markers + the saddle marker) with a steady
 #   forward speed and periodic translation and rotation, per horse and gait (chapter 2);

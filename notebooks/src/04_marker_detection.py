@@ -73,7 +73,7 @@ print(f"left camera: {n_frames} frames of {width}x{height} px, RGB {frames.dtype
 # The thesis asks the user for $l$ and to check that "the markers are visible and isolated in all
 # motion images". The automatic start is Otsu's method on the histogram of frames sampled over
 # the whole motion. The plain two-class Otsu splits the dark arena from everything lit; the
-# three-class Otsu of seed 000 (section 5.2.1) gives two levels, and its upper one separates the
+# three-class Otsu of Guchin et al. (section 5.2.1) gives two levels, and its upper one separates the
 # brightest class (markers, rail, bandages) from the horse's coat.
 
 # %%
@@ -127,7 +127,7 @@ print(f"threshold {level}: {len(regions)} white regions in frame {p.first_frame}
 #
 # The thesis labels the white regions with 8-connectivity and asks for the labels of the markers
 # in the first image. Here the markers are chosen automatically: among round regions (the
-# circularity by geometric moments of seed 000, $c = A / (2\pi(\sigma_u^2+\sigma_v^2))$, 1 for a
+# circularity by geometric moments of Guchin et al., $c = A / (2\pi(\sigma_u^2+\sigma_v^2))$, 1 for a
 # disc) of similar area, the cluster of 3 that keeps its shape over the next frames, moves, and
 # looks most like a marker (round and white) is followed through the sequence; the cluster
 # followed through the most frames wins (chance clusters of bandages, stirrup and glints break
@@ -316,7 +316,7 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 #
 # Everything above looks at one camera at a time, as the thesis does. One camera cannot tell a
 # marker from a round bright pseudo marker of the same size: a shining stirrup, the girth
-# buckle, a reflector that crosses the markers. The three cameras together can (seed 000,
+# buckle, a reflector that crosses the markers. The three cameras together can (Guchin et al.,
 # section 5.2.3). The pipeline's default, `detection_method="multiview"`, therefore
 #
 # 1. takes the candidate regions of every camera (the same threshold, labels, area and
@@ -390,9 +390,9 @@ print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with 
 # ## Every camera's prompts
 #
 # The thesis ran `left_data_from_first_image_2.m`, then the same program for the middle and the right
-# camera. One tab per camera gathers the prompts of that camera (threshold, first frame, labels, area
-# range, window, tolerance), at its automatic choice. What is changed in a tab becomes the session's
-# choice for that camera (the left tab and the controls above are the same choice).
+# camera. The left camera's prompts are the controls of section 3 above; below, one tab per other
+# camera gathers the same prompts (threshold, first frame, labels, area range, window, tolerance) at
+# that camera's automatic choice. What is changed in a tab becomes the session's choice for that camera.
 
 # %% tags=["nbval-ignore-output"]
 import ipywidgets as W

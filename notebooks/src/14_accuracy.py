@@ -3,10 +3,10 @@
 #
 # **What you will learn**
 # - how to measure a motion-capture pipeline stage by stage against an exact truth, with the
-#   metrics of seed 000 (Guchin et al., section 6): *match the points, then measure the Euclidean
+#   metrics of Guchin et al. (section 6): *match the points, then measure the Euclidean
 #   distance*, in pixels per camera and in metres in 3D;
 # - how a small error in the images grows on its way to the saddle's acceleration and the comfort
-#   indicators (noise injection, seed 000 section 6.3);
+#   indicators (noise injection, Guchin et al. section 6.3);
 # - why the thesis' rig (640x480, 30 fps, cameras 0.24 and 0.45 m apart at 7.5 m) limits what it can
 #   measure, and how much resolution, frame rate and baseline each buy.
 #
@@ -106,7 +106,7 @@ for key, e in cerr.items():
 # %% [markdown]
 # ## 5. Noise injection: how detection error propagates
 #
-# As seed 000 did, replace the detections by the true projections plus Gaussian noise of
+# As Guchin et al. did, replace the detections by the true projections plus Gaussian noise of
 # standard deviation $\sigma$ (up to 3 px) and run every later step again with the same choices.
 
 # %%
