@@ -72,7 +72,9 @@ offsets = res["sync"]["offsets"]                          # from the flashlight
 a, b = res["detect"]["segment"]                           # analysed frames a..b-1 (synchronised numbering)
 marker_px = {cam: px[a:b] for cam, px in res["detect"]["marker_px"].items()}   # PM per camera, (n, 3, 2)
 fps = analysis.session.fps
-print(f"rig: {res['rig']['rig_from']}; cameras {list(rig.names)}")
+# where the rig comes from ("(cached ...)" when an earlier run calibrated it: the same rig)
+rig_from = res["rig"]["rig_from"].replace(" (cached in calibration.json)", f" ({analysis.params.calibration_mode})")
+print(f"rig: {rig_from}; cameras {list(rig.names)}")
 print("sync offsets (" + res["sync"]["offsets_from"] + "): "
       + ", ".join(f"{c} {v:d}" for c, v in offsets.items()))
 print(f"{res['sync']['n_frames']:d} synchronised frames; analysed {a:d}..{b - 1:d} ({b - a:d} frames, "

@@ -70,7 +70,8 @@ mf_pipeline = res["motion_frame"]["frame"]
 fps = analysis.session.fps
 n = points.shape[0]
 par = analysis.params
-print(f"rig {res['rig']['rig_from']}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
+rig_from = res["rig"]["rig_from"].replace(" (cached in calibration.json)", f" ({par.calibration_mode})")
+print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
       f"{analysis.params.triangulation} triangulation")
 print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.smoothing_span:.2f} if used), "
       f"x-motion marker {mf_pipeline.marker + 1:d}, period {mf_pipeline.period_frames:.2f} frames (estimated), "
