@@ -120,8 +120,10 @@ VALUE_WORDS = {
 """Readable forms of the string values of parameters (the thesis' own choices say "thesis")."""
 
 INDICATORS = {
-    "acc_y_Wb_rms": ("vertical acceleration, Wb-weighted rms", "the vibration felt seated, ISO 2631 weighting Wb"),
-    "acc_y_Wk_rms": ("vertical acceleration, Wk-weighted rms", "the vibration felt seated, ISO 2631 weighting Wk"),
+    "acc_y_Wb_rms": ("vertical acceleration, Wb-weighted rms", "the vertical vibration a seated person feels, "
+                     "weighted for comfort (BS 6841 Wb)"),
+    "acc_y_Wk_rms": ("vertical acceleration, Wk-weighted rms", "the vertical vibration a seated person feels, "
+                     "weighted for health (ISO 2631-1 Wk; the EU values apply to it)"),
     "VDV_y_Wb": ("vibration dose value, Wb", "fourth-power dose: weighs the shocks more than the rms"),
     "VDV_y_Wk": ("vibration dose value, Wk", "fourth-power dose: weighs the shocks more than the rms"),
     "acc_y_max": ("largest vertical acceleration", "the peak of the saddle's vertical acceleration, unweighted"),
@@ -198,6 +200,8 @@ def format_value(value, digits: int = 4) -> str:
         return "not a number" if value != value else f"{value:.{digits}g}"
     if isinstance(value, str):
         return VALUE_WORDS.get(value, value)
+    if isinstance(value, (list, tuple, dict)) and len(value) == 0:
+        return "none"
     if isinstance(value, (list, tuple)):
         if len(value) == 6 and all(isinstance(v, bool) for v in value):
             used = [str(i + 1) for i, v in enumerate(value) if v]
@@ -262,6 +266,26 @@ def text_html(text: str) -> str:
     return re.sub(r"\^([0-9]+(?:\.[0-9]+)?)", r"<sup>\1</sup>", html.escape(str(text)))
 
 
+def threshold_text(text: str) -> str:
+    """A check's threshold as a person reads it.
+
+    Numbers rounded (``0.314271`` -> ``0.3143``), ranges with a dash
+    (``0.5..40`` -> ``0.5 – 40``), a range of one value as that value,
+    ``unreliable outside <= 7.7`` as ``unreliable above 7.7``, and an
+    unreliable band that is the ok band itself as ``unreliable otherwise``.
+    """
+    import re
+
+    t = re.sub(r"\d+\.\d{5,}", lambda m: format_value(float(m.group(0))), str(text))
+    t = re.sub(r"(?<![\d.])(-?\d+(?:\.\d+)?)\.\.\1(?![\d.])", r"\1", t)
+    t = re.sub(r"(\d)\.\.(-?\d)", "\\1 – \\2", t)
+    t = t.replace(" ;", ";").replace("unreliable outside <=", "unreliable above")
+    m = re.fullmatch(r"ok (.+); unreliable outside (.+)", t)
+    if m and m.group(1).strip() == m.group(2).strip():
+        t = f"ok {m.group(1).strip()}; unreliable otherwise"
+    return t
+
+
 def quality_section(record: dict) -> list[str]:
     """The report's first section: the verdict of :mod:`horsemocap.quality` and every check."""
     colour = {"ok": "#1a7f37", "warning": "#9a6700", "unreliable": "#cf222e"}.get(record["verdict"], "#222")
@@ -269,7 +293,8 @@ def quality_section(record: dict) -> list[str]:
              "" if c["figure"] is None else (format_value(float(c["figure"])) if isinstance(c["figure"], (int, float))
                                             else html.escape(str(c["figure"]))),
              unit_html(c["unit"]) if c["unit"] else "",
-             text_html(c["threshold"] if isinstance(c["threshold"], str) else format_value(c["threshold"])),
+             text_html(threshold_text(c["threshold"]) if isinstance(c["threshold"], str)
+                       else format_value(c["threshold"])),
              html.escape(c["level"]), text_html(c["message"])) for c in record["checks"]]
     words = {"ok": "every plausibility check passed.",
              "warning": "some figures are outside their usual range; read the checks before using the numbers.",

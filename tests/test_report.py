@@ -28,7 +28,8 @@ def test_unit_text_uses_unicode_powers_where_they_exist():
     (17.98881515983109, "17.99"), (0.1, "0.1"), (3, "3"), (None, "automatic"), (True, "yes"),
     ("joint", "joint (all cameras at once)"), ("thesis", "thesis"), ([True] * 6, "all six"),
     ([True, False, True, False, False, True], "versions 1, 3, 6"), ([[3, 2], [4, 2]], "(3, 2); (4, 2)"),
-    ({"y": 3, "z": 2}, "y: 3; z: 2"), ([21, 60], "21, 60"), (float("nan"), "not a number")])
+    ({"y": 3, "z": 2}, "y: 3; z: 2"), ([21, 60], "21, 60"), (float("nan"), "not a number"),
+    ({}, "none"), ([], "none")])
 def test_format_value_rounds_and_spells_out(value, expected):
     assert report.format_value(value) == expected
 
@@ -48,10 +49,23 @@ def test_choice_rows_have_names_and_no_json():
     assert not any('"' in v for _, v in rows)
 
 
+@pytest.mark.parametrize("text, expected", [
+    ("ok <= 0.314271 px; unreliable outside <= 7.71295 px", "ok <= 0.3143 px; unreliable above 7.713 px"),
+    ("ok 0..0 images; unreliable outside 0..0 images", "ok 0 images; unreliable otherwise"),
+    ("ok <= 20 ; unreliable outside <= 1000", "ok <= 20; unreliable above 1000"),
+    ("ok 0..0.5 %; unreliable outside 0..2.5 %", "ok 0 – 0.5 %; unreliable outside 0 – 2.5 %"),
+    ("0 frames: ok; any correction: warning", "0 frames: ok; any correction: warning")])
+def test_thresholds_read_as_a_person_writes_them(text, expected):
+    """Seen in the report in a browser: unrounded bounds, '0..0 images', 'outside <= 1000', ' ;'."""
+    assert report.threshold_text(text) == expected
+
+
 def test_every_parameter_and_indicator_has_a_name():
     assert set(AnalysisParams().to_dict()) <= set(report.PARAMETER_NAMES)
     assert set(COMFORT_KEYS) <= set(report.INDICATORS)
     assert all(meaning for _, meaning in report.INDICATORS.values())
+    # two indicators of different keys that differ only by their weighting say how the weightings differ
+    assert report.INDICATORS["acc_y_Wb_rms"][1] != report.INDICATORS["acc_y_Wk_rms"][1]
 
 
 def test_comfort_rows_name_meaning_value_unit():
@@ -81,7 +95,7 @@ def test_quality_section_rounds_figures():
          "level": "ok", "message": "peak <12.15 m/s^2>"}]}
     text = "".join(report.quality_section(rec))
     assert "WARNING" in text and "0.1235" in text and "0.123456789" not in text and "sync flash" in text
-    assert "<td>m/s<sup>2</sup></td>" in text and "ok 0.5..40 m/s<sup>2</sup>" in text
+    assert "<td>m/s<sup>2</sup></td>" in text and "ok 0.5 – 40 m/s<sup>2</sup>" in text
     assert "peak &lt;12.15 m/s<sup>2</sup>&gt;" in text and "m/s^2" not in text
 
 
