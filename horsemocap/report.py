@@ -278,7 +278,7 @@ def threshold_text(text: str) -> str:
 
     t = re.sub(r"\d+\.\d{5,}", lambda m: format_value(float(m.group(0))), str(text))
     t = re.sub(r"(?<![\d.])(-?\d+(?:\.\d+)?)\.\.\1(?![\d.])", r"\1", t)
-    t = re.sub(r"(\d)\.\.(-?\d)", "\\1 – \\2", t)
+    t = re.sub(r"(\d)\.\.(-?\d)", "\\1\u00a0–\u00a0\\2", t)   # no line break inside a range
     t = t.replace(" ;", ";").replace("unreliable outside <=", "unreliable above")
     m = re.fullmatch(r"ok (.+); unreliable outside (.+)", t)
     if m and m.group(1).strip() == m.group(2).strip():
@@ -341,7 +341,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
         weighting = ("one weight per record at the stride frequency (the thesis)"
                      if analysis.params.weighting_mode == "thesis" else "each harmonic weighted at its own frequency")
         parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
-                  f'<p class="note">Frequency weighting (ISO 2631-1 Wb and Wk): {html.escape(weighting)}. '
+                  f'<p class="note">Frequency weighting (Wb of BS 6841, Wk of ISO 2631-1): {html.escape(weighting)}. '
                   "The times are how long a rider can ride this way before reaching the exposure action value "
                   "(EAV) and the exposure limit value (ELV) of the EU directive 2002/44/EC, by the daily "
                   "exposure A(8) and by the vibration dose value (VDV); the distances are those ridden in "

@@ -53,7 +53,7 @@ def test_choice_rows_have_names_and_no_json():
     ("ok <= 0.314271 px; unreliable outside <= 7.71295 px", "ok <= 0.3143 px; unreliable above 7.713 px"),
     ("ok 0..0 images; unreliable outside 0..0 images", "ok 0 images; unreliable otherwise"),
     ("ok <= 20 ; unreliable outside <= 1000", "ok <= 20; unreliable above 1000"),
-    ("ok 0..0.5 %; unreliable outside 0..2.5 %", "ok 0 – 0.5 %; unreliable outside 0 – 2.5 %"),
+    ("ok 0..0.5 %; unreliable outside 0..2.5 %", "ok 0\u00a0–\u00a00.5 %; unreliable outside 0\u00a0–\u00a02.5 %"),
     ("0 frames: ok; any correction: warning", "0 frames: ok; any correction: warning")])
 def test_thresholds_read_as_a_person_writes_them(text, expected):
     """Seen in the report in a browser: unrounded bounds, '0..0 images', 'outside <= 1000', ' ;'."""
@@ -95,7 +95,7 @@ def test_quality_section_rounds_figures():
          "level": "ok", "message": "peak <12.15 m/s^2>"}]}
     text = "".join(report.quality_section(rec))
     assert "WARNING" in text and "0.1235" in text and "0.123456789" not in text and "sync flash" in text
-    assert "<td>m/s<sup>2</sup></td>" in text and "ok 0.5 – 40 m/s<sup>2</sup>" in text
+    assert "<td>m/s<sup>2</sup></td>" in text and "ok 0.5\u00a0–\u00a040 m/s<sup>2</sup>" in text
     assert "peak &lt;12.15 m/s<sup>2</sup>&gt;" in text and "m/s^2" not in text
 
 
