@@ -344,8 +344,13 @@ class Workspace:
         return session_params(self.session_dir, {"preset": preset} if preset else {})
 
     def choose(self, name: str, value) -> None:
-        """Choose one parameter (dotted name); ``None`` takes the choice back."""
+        """Choose one parameter (dotted name); ``None`` takes the choice back.
+
+        The session picker of the notebook (:meth:`ui`), if shown, says the new choices at once.
+        """
         set_choice(self.session_dir, name, value)
+        if self.picker is not None:
+            self.picker._say()
 
     def use(self, session_dir) -> Path:
         """Analyse another session from now on, in this notebook and the next ones."""
