@@ -366,3 +366,16 @@ def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_com
     assert ui_preset(ws).value == "thesis"           # the next notebook's switch shows it
     switch.value = "default"
     assert ws.choices == {} and ws.params.smoothing_method == "loess"
+
+
+def test_the_period_widget_keeps_the_exact_period_and_shows_it_rounded(store):
+    """Seen in notebook 06: the period field showed 17.988538425613434."""
+    from horsemocap.widgets import ui_period
+
+    w = ui_period(17.988538425613434, 37)
+    assert w.value == 17.988538425613434 and w.readout_format == ".2f" and w.continuous_update is False
+    ws = wsm.open_workspace()
+    ws.bind(w, "period_frames")
+    assert ws.choices == {}
+    w.value = 18.0
+    assert ws.choices == {"period_frames": 18.0}

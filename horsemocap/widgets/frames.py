@@ -71,10 +71,14 @@ def ui_motion_marker(n_markers: int, value: int = 0):
 def ui_period(value: float, max_frames: int):
     """Gait period in frames (thesis: ``period = 18`` typed); default the automatic estimate.
 
-    ``.value`` is the ``period`` of :func:`horsemocap.frames.motion_frame`.
+    ``.value`` is the ``period`` of :func:`horsemocap.frames.motion_frame`,
+    kept exact (the readout shows it to 0.01 frame, not as 17.988538425613434;
+    no continuous updates, so a browser drawing the slider on its grid never
+    sends a rounded period back as a choice).
     """
-    return W.BoundedFloatText(value=float(value), min=2.0, max=float(max_frames), step=0.1,
-                              description="period (fr)")
+    return W.FloatSlider(value=float(value), min=2.0, max=float(max_frames), step=0.01, readout_format=".2f",
+                         continuous_update=False, description="period (frames)",
+                         style={"description_width": "initial"})
 
 
 def ui_n_periods(value: int = 2):
