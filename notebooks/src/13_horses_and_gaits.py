@@ -258,10 +258,12 @@ for key, label, fmt in (("age", "age", "{:10d}"), ("breed", "breed", "{:>10s}"),
 # Figures 8.25-8.28 of the thesis show, for each gait, the x-, y- and z-motion of the saddle marker's
 # position and acceleration for the four horses. Here they are from the same analyses as section 6
 # (kept in the results store, so nothing is analysed twice). The x position is drawn from the
-# start of each record (the horse travels metres along x); its acceleration is flat zero because
-# the thesis fits x with a straight line in time (section 5.5.2.1: a steady speed), so the x panel
-# of the acceleration shows the model, not a measurement. The rising trot's saddle moves with the
-# rider out of the saddle every other beat (section 8.5).
+# start of each record (the horse travels metres along x). The x acceleration is measured here: the
+# pipeline's default differentiates the smoothed pose trajectory. In the thesis' figures it is flat
+# zero, because the thesis fits x with a straight line in time (section 5.5.2.1: a steady speed);
+# with `{"kinematics": "fits"}` (the thesis' chain of fits) these panels are flat too, the model
+# and not a measurement. The rising trot's saddle moves with the rider out of the saddle every
+# other beat (section 8.5).
 
 # %%
 from horsemocap.pipeline import AnalysisError
