@@ -29,8 +29,11 @@ def calls(monkeypatch):
     seen = {"detect": [], "calibrate": 0}
     rng = np.random.default_rng(0)
 
-    def detect(folder, inner, camera=None):
+    def detect(folder, inner, camera=None, tick=None):
         seen["detect"].append(camera)
+        for k in range(3):
+            if tick is not None:
+                tick(k + 1, 3)
         corners = rng.uniform(0, 600, (3, inner[0] * inner[1], 2))
         corners[1, 0] = np.nan                            # a view without the board
         return views_from_corners(camera, corners, (640, 480), inner, names=["00", "01", "02"])
@@ -122,3 +125,26 @@ def test_excluded_views_and_the_mode_are_part_of_the_key(views_dirs, calls, tmp_
     assert calls["calibrate"] == 2                                       # the same exclusion: reused
     _, how = cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out, mode="pairwise")
     assert calls["calibrate"] == 3 and "pairwise" in how
+
+
+def test_the_board_views_are_counted_on_the_progress(views_dirs, calls, tmp_path):
+    """A long calibration shows progress per view (issue 15): a callback that takes counts gets
+    ``done/total`` for every camera's board views; a plain two-argument callback gets lines only."""
+    class Counting:
+        counts = True
+
+        def __init__(self):
+            self.seen = []
+
+        def __call__(self, step, message, done=None, total=None):
+            self.seen.append((step, message, done, total))
+
+    progress = Counting()
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", progress=progress)
+    counted = [(m, d, t) for s, m, d, t in progress.seen if d is not None]
+    for cam in ("left", "right"):
+        assert [(d, t) for m, d, t in counted if f"'{cam}'" in m] == [(1, 3), (2, 3), (3, 3)]
+    lines = []
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", progress=lambda s, m: lines.append(m),
+                             recalibrate=True)
+    assert lines and all(isinstance(m, str) for m in lines)

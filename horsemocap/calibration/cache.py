@@ -174,7 +174,7 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     how : str
         ``"calibrated from checkerboard views"`` or ``"... (cached in calibration.json)"``.
     """
-    from .rig import calibrate_rig
+    from .rig import board_view_counter, calibrate_rig
 
     say = (lambda msg: progress("rig", msg)) if progress else (lambda msg: None)
     key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode)
@@ -204,7 +204,7 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         if views[cam] is not None:
             reused.append(cam)
         else:
-            views[cam] = detect_views(Path(folder), inner_corners, camera=cam)
+            views[cam] = detect_views(Path(folder), inner_corners, camera=cam, tick=board_view_counter(progress, cam))
     if reused:
         say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
     say("calibrating from checkerboard views ...")

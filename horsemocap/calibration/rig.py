@@ -139,6 +139,17 @@ def _exclusions(exclude, cameras) -> dict:
     return {c: set(exclude) for c in cameras}
 
 
+def board_view_counter(progress, cam: str):
+    """``tick(done, total)`` counting the board views of ``cam`` on ``progress`` (None: no counting)."""
+    if progress is None:
+        return None
+    from ..progress import counter
+
+    def tick(done, total):
+        counter(progress, "rig", f"board corners in camera '{cam}' views", total)(done)
+    return tick
+
+
 def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.05, *, mode: str = "joint",
                   reference: str = "left", exclude=None, fix_k3: bool = True, views: dict | None = None,
                   pairs: bool = True, progress=None) -> RigCalibration:
@@ -182,14 +193,8 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
     inner_corners = (int(inner_corners[0]), int(inner_corners[1]))
     report = progress or (lambda *a: None)
     if views is None:
-        from ..progress import counter
-
-        def detect(c, d):
-            def tick(done, total):
-                counter(progress, "rig", f"board corners in camera '{c}' views", total)(done)
-            return detect_views(Path(d), inner_corners, camera=c, tick=tick)
-
-        views = {c: detect(c, d) for c, d in image_dirs.items()}
+        views = {c: detect_views(Path(d), inner_corners, camera=c, tick=board_view_counter(progress, c))
+                 for c, d in image_dirs.items()}
     cameras = tuple(views)
     if reference not in cameras:
         raise CalibrationError(f"reference camera {reference!r} is not among the cameras {list(cameras)}")
