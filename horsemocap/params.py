@@ -168,6 +168,17 @@ class AnalysisParams:
         the two markers' line, :func:`horsemocap.pose.partial_pose`), and
         report only the analysed frames. The spline's natural boundary
         conditions then bias the acceleration outside the reported frames.
+    pose_harmonics : str
+        With ``"pose_spline"``: ``"auto"`` (default) smooths each pose
+        component with a partial spline: harmonics of the stride, not
+        penalised, plus a smoothing spline of the rest, the number of harmonics
+        (0: none, a record that is not periodic) chosen with the smoothing by
+        the same cross-validation; the fundamental is estimated from the record
+        (:func:`horsemocap.splines.estimate_fundamental`); the rotation's
+        harmonics only below the plain spline's cutoff frequency.
+        ``"all"``: every component up to 0.4 of the frame rate. ``"none"``:
+        plain smoothing splines (:func:`horsemocap.pose.fit_pose_trajectory`,
+        ``harmonics``; ``--pose-harmonics``).
     motion_frame : str
         x-motion axis: ``"auto"`` (default: the thesis' eq. 5.6/5.7 over one
         or two periods of ``x_marker`` when a period is given or found, else
@@ -208,6 +219,7 @@ class AnalysisParams:
     kinematics: str = "pose_spline"
     pose_smoothing: str = "gcv"
     pose_partial_frames: bool = True
+    pose_harmonics: str = "auto"
     motion_frame: str = "auto"
     preset: str | None = None
 
@@ -362,6 +374,7 @@ class AnalysisParams:
         choice("weighting_mode", ("iso", "thesis"))
         choice("kinematics", ("pose_spline", "fits"))
         choice("pose_smoothing", ("adaptive", "gcv", "gcv_cubic", "none"))
+        choice("pose_harmonics", ("auto", "all", "none"))
         choice("motion_frame", ("auto", "record", "period"))
         if self.preset is not None and self.preset not in PRESETS:
             bad("preset", " or ".join(f'"{k}"' for k in PRESETS) + " or null")

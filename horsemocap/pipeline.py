@@ -582,6 +582,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
             pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
+            pose_harmonics=params.pose_harmonics,
             saddle_index=params.saddle_marker)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
