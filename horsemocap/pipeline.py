@@ -595,6 +595,10 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         progress("rigid_body", f"pose trajectory ({params.pose_smoothing} smoothing, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond['registration_rms_m']):.2f} mm")
+        f0 = [v["fundamental_hz"] for v in sm.values() if v.get("fundamental_hz")]
+        if f0:
+            progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "
+                     + ", ".join(f"{k} {v.get('harmonics', 0)}" for k, v in sm.items()))
         if rb.chain_error:
             progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
     else:
