@@ -40,6 +40,9 @@ from scipy.optimize import minimize_scalar
 __all__ = ["SmoothingSpline", "HarmonicTerms", "smoothing_spline", "harmonic_columns", "estimate_fundamental", "MAX_BASIS"]
 
 MAX_BASIS = 400
+MAX_GRID = 4000
+"""Most trial frequencies of :func:`estimate_fundamental` on a grid; longer records use the
+periodogram's peaks."""
 """Largest number of B-spline basis functions of a quintic smoothing spline."""
 
 GCV_GAMMA = 1.4
@@ -242,6 +245,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     X0w = sw[:, None] * (B @ U0)
     t0 = float(x[0])
     best = None
+    ZtZ = Zty = None
     for K in orders:
         X = X0w if K == 0 else np.hstack([X0w, sw[:, None] * harmonic_columns(x, fundamental_hz, K, t0)])
         q = X.shape[1]
@@ -250,13 +254,24 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
         Q1, Rx = np.linalg.qr(X)
         if np.min(np.abs(np.diag(Rx))) < 1e-9 * np.max(np.abs(np.diag(Rx))):
             continue                               # harmonics not resolved by the samples
-        M = Zw - Q1 @ (Q1.T @ Zw)
-        V, s, Wt = np.linalg.svd(M, full_matrices=False)
-        keep = s > 1e-12 * s.max()
-        V, s, Wt = V[:, keep], s[keep], Wt[keep]
-        s2 = s * s
         yq = Q1.T @ yw
-        z = V.T @ yw
+        if n <= 2 * Zw.shape[1]:
+            M = Zw - Q1 @ (Q1.T @ Zw)
+            V, s, Wt = np.linalg.svd(M, full_matrices=False)
+            keep = s > 1e-12 * s.max()
+            V, s, Wt = V[:, keep], s[keep], Wt[keep]
+            z = V.T @ yw
+        else:
+            # a long record (knots every few samples): the same from the p x p Gram matrix of the
+            # projected basis, M^T M = Z^T Z - (Q1^T Z)^T (Q1^T Z); n p^2 once, not an n x p SVD per K
+            if ZtZ is None:
+                ZtZ, Zty = Zw.T @ Zw, Zw.T @ yw
+            QZ = Q1.T @ Zw
+            ev, Wv = np.linalg.eigh(ZtZ - QZ.T @ QZ)
+            keep = ev > 1e-12 * ev.max()
+            s, Wt = np.sqrt(ev[keep]), Wv[:, keep].T
+            z = (Wt @ (Zty - QZ.T @ yq)) / s
+        s2 = s * s
         rss0 = max(float(yw @ yw - yq @ yq - z @ z), 0.0)
 
         def fit(lmb, s2=s2, z=z, rss0=rss0, q=q):
@@ -278,10 +293,10 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
         else:
             lk, sc = float(lam), score(np.log10(lam))
         if best is None or sc < best[0]:
-            best = (sc, K, lk, Q1, Rx, V, s, Wt, z, fit)
+            best = (sc, K, lk, Q1, Rx, s, Wt, z, fit)
     if best is None:
         raise ValueError(f"y: {n} samples are too few for a partial spline with harmonics {list(orders)}")
-    sc, K, lk, Q1, Rx, V, s, Wt, z, fit = best
+    sc, K, lk, Q1, Rx, s, Wt, z, fit = best
     u = Wt.T @ (s / (s * s + lk) * z)
     beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
     c = U0 @ beta[:m] + Up @ (u / np.sqrt(dp))
@@ -354,9 +369,28 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 1.5, max_hz: float | None 
         return out
 
     grid = np.arange(fmin, fmax, 1.0 / (8 * T))
+    if grid.size > MAX_GRID:
+        # a long record: the trial frequencies are the largest peaks of the summed periodogram of
+        # the detrended components (resampled to a uniform grid, padded 4 times) and their halves
+        # and thirds, each refined below
+        coef, *_ = np.linalg.lstsq(X0, Ys, rcond=None)
+        r = Ys - X0 @ coef
+        tu = np.linspace(t[0], t[-1], n)
+        ru = np.column_stack([np.interp(tu, t, r[:, c]) for c in range(nc)])
+        P = (np.abs(np.fft.rfft(ru, 4 * n, axis=0)) ** 2).sum(1)
+        fr = np.fft.rfftfreq(4 * n, tu[1] - tu[0])
+        peak = np.flatnonzero((P[1:-1] > P[:-2]) & (P[1:-1] >= P[2:])) + 1
+        peak = peak[(fr[peak] >= fmin) & (fr[peak] <= fmax)]
+        top = fr[peak[np.argsort(P[peak])[::-1][:8]]]
+        cand = np.unique(np.concatenate([top / j for j in (1, 2, 3)]))
+        grid = cand[(cand >= fmin) & (cand <= fmax)]
+        if grid.size == 0:
+            raise ValueError(f"t: no periodic component between {fmin:.3g} and {fmax:.3g} Hz")
     scores = np.array([bic(f) for f in grid])
     i = int(np.argmin(scores))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    if grid.size and (b - a) > 2.0 / (8 * T) + 1e-12:
+        a, b = grid[i] - 1.0 / (8 * T), grid[i] + 1.0 / (8 * T)
     res = minimize_scalar(bic, bounds=(a, b), method="bounded", options={"xatol": 1e-6 / T})
     f, sc = (float(res.x), float(res.fun)) if res.fun <= scores[i] else (float(grid[i]), float(scores[i]))
     return f, (sc - bic0) / (n * nc)

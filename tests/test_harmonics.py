@@ -165,3 +165,19 @@ def test_spline_with_harmonics_is_stored_without_pickle():
     tree = encode_result(s, arrays)
     back = decode_result(tree, arrays)
     np.testing.assert_allclose(back(t, 2), s(t, 2))
+
+
+def test_long_record_uses_the_gram_route_and_stays_exact(monkeypatch):
+    """A record longer than twice the spline basis (knots every few samples) goes through the
+    Gram-matrix route of the partial spline, and the fundamental through the periodogram's peaks:
+    a harmonic + quadratic motion still comes out exact."""
+    t = np.arange(1500) / 30.0
+    f0 = 1.3
+    y, a = _motion(t, f0)
+    s = splines.smoothing_spline(t, y, fundamental_hz=f0)
+    np.testing.assert_allclose(s(t, 2), a, atol=1e-6 * np.abs(a).max())
+    monkeypatch.setattr(splines, "MAX_GRID", 50)
+    rng = np.random.default_rng(4)
+    Y = np.column_stack([y, np.cos(2 * np.pi * 2 * f0 * t)]) + rng.normal(0, 1e-3, (t.size, 2))
+    f, _ = splines.estimate_fundamental(t, Y)
+    assert f == pytest.approx(f0, rel=1e-4)
