@@ -20,8 +20,14 @@ object throughout:
    rotation vector in the motion frame, unwrapped so that it is continuous)
    are smoothed component by component with a smoothing spline whose
    smoothing parameter is chosen from the data by generalised
-   cross-validation (:func:`horsemocap.splines.smoothing_spline`). Nothing
-   assumes a period: steady gait, a transition or a lift are treated alike.
+   cross-validation (:func:`horsemocap.splines.smoothing_spline`). With
+   ``harmonics="auto"`` (default) each component is a partial spline: the
+   harmonics of the stride frequency (estimated from the record,
+   :func:`horsemocap.splines.estimate_fundamental`) are not penalised, and
+   their number, zero for a record that is not periodic, is chosen with the
+   smoothing; a steady gait keeps its higher harmonics and the spline's end
+   effects act only on the non-periodic remainder. Nothing requires a
+   period: a transition or a lift keeps the plain spline.
    Frames without a pose are bridged by the spline when the gap is short
    (``max_gap_s``) and NaN with the reason otherwise. Frames with only two
    markers (beyond the ends of a record, where a marker leaves the view)
