@@ -8,7 +8,8 @@ acceleration RMSE (% of its rms) and the errors (%) of the Wb/Wk-weighted rms
 and VDV against the truth; then the medians and worst cases.
 
 Usage: ``python benchmarks/bench_herd_kinematics.py ['{"kinematics": "fits"}' ...]``
-(default variants: fits, pose_spline without and with the partial frames beyond the ends).
+(default variants: fits; pose_spline with plain splines, with the stride's harmonics in every
+component, and the default ``pose_harmonics: auto``).
 """
 from __future__ import annotations
 
@@ -24,8 +25,8 @@ KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk")
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     variants = [json.loads(a) for a in argv] or [
-        {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_partial_frames": False},
-        {"kinematics": "pose_spline", "pose_partial_frames": True}]
+        {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_harmonics": "none"},
+        {"kinematics": "pose_spline", "pose_harmonics": "all"}, {"kinematics": "pose_spline", "pose_harmonics": "auto"}]
     from horsemocap import accuracy
     from horsemocap.pipeline import analyze, run_steps
     from horsemocap.virtuallab import GAITS, HORSES, herd_session, load_truth

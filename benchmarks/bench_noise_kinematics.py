@@ -8,7 +8,7 @@ each variant of the parameters. Printed: variant, sigma, draws, the saddle's
 vertical acceleration RMSE (% of its rms) and the indicator errors (%).
 
 Usage: ``python benchmarks/bench_noise_kinematics.py [--sigmas 0.1 0.25 0.5] ['{"kinematics": "fits"}' ...]``
-(default variants: fits, pose_spline without and with the partial frames).
+(default variants: fits; pose_spline with ``pose_harmonics`` none, all and auto, the default).
 """
 from __future__ import annotations
 
@@ -23,8 +23,8 @@ def main(argv=None):
     ap.add_argument("variants", nargs="*")
     args = ap.parse_args(argv)
     variants = [json.loads(a) for a in args.variants] or [
-        {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_partial_frames": False},
-        {"kinematics": "pose_spline", "pose_partial_frames": True}]
+        {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_harmonics": "none"},
+        {"kinematics": "pose_spline", "pose_harmonics": "all"}, {"kinematics": "pose_spline", "pose_harmonics": "auto"}]
     from horsemocap import accuracy
     from horsemocap.data import default_session_dir
     from horsemocap.pipeline import analyze

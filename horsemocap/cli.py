@@ -80,6 +80,10 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--kinematics", choices=["fits", "pose_spline"],
                    help="pose_spline: the smoothed pose trajectory of all markers (default; no period, "
                         "no eq. 6.35 singularity); fits: the thesis' chain of fits")
+    g.add_argument("--pose-harmonics", choices=["auto", "all", "none"], dest="pose_harmonics",
+                   help="with pose_spline: unpenalised harmonics of the stride (fundamental from the record) "
+                        "in the pose smoothing, chosen with the smoothing; auto (default): the rotation's only "
+                        "below the plain spline's cutoff; none: plain smoothing splines")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
@@ -101,7 +105,7 @@ def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
                 "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
-                "kinematics", "motion_frame", "x_degree")}
+                "kinematics", "pose_harmonics", "motion_frame", "x_degree")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}

@@ -129,32 +129,29 @@ class AnalysisParams:
         through the pipeline with the multi-view detection
         (``benchmarks/bench_herd_kinematics.py``, the same detections for
         every variant; ``benchmarks/results/herd_kinematics.txt``): saddle
-        vertical acceleration RMSE median 10.4 % (worst 13.4 %) of its rms
-        with pose_spline (12.7 %, worst 26.5 %, without
-        ``pose_partial_frames``) against 21.2 % (39.9 %) with the fits;
-        median |error| of the Wb-weighted rms 5.0 % against 9.2 %, of the
-        Wk-weighted rms 4.1 % against 6.7 %, of VDV Wb 7.4 % against 10.9 %,
-        of VDV Wk 5.8 % against 9.1 %. On the bundled Horse 2 canter (38
-        frames) the fits do better: 2.6 % against 10.1 % (17.4 % without the
-        partial frames; 2.2 % against 2.1 % from the true projections
-        without noise): its motion is periodic and a Fourier series of the
-        stride is its exact model, while the splines' smoothing lowers the
-        weighted rms by 5-7 %.
+        vertical acceleration RMSE median 2.5 % (worst 11.7 %) of its rms
+        with pose_spline and its default ``pose_harmonics`` (10.4 %, worst
+        13.4 %, with plain splines) against 21.2 % (39.9 %) with the fits;
+        median |error| of the Wb-weighted rms 0.8 % against 9.2 %, of the
+        Wk-weighted rms 0.7 % against 6.7 %, of VDV Wb 0.8 % against 10.9 %,
+        of VDV Wk 0.7 % against 9.1 %.
         With white detection noise (notebook 14's study, bundled session,
         medians of 3 draws, ``benchmarks/bench_noise_kinematics.py``;
         ``benchmarks/results/noise_kinematics.txt``) the saddle error at
-        0.1 / 0.25 / 0.5 px is 30.8 / 40.2 / 51.2 % with pose_spline and
+        0.1 / 0.25 / 0.5 px is 32.4 / 37.3 / 48.6 % with pose_spline and
         84.0 / 192.9 / 673 % with the fits. A non-periodic record (a lift,
         a set-down, 10 Hz ringing) has only pose_spline
         (``benchmarks/bench_kinematics.py``). On the 8 harder sessions
         (``benchmarks/bench_identification.py --set hard``: other rigs,
         resolutions and frame rates, speed changes) the saddle error is
-        3.2 % median (worst 9.6 %) with pose_spline against 17.9 % (28.6 %)
-        with the fits, the Wb rms 0.9 % (3.8 %) against 5.7 % (11.4 %).
+        1.1 % median (worst 2.2 %) with pose_spline against 17.9 % (28.6 %)
+        with the fits, the Wb rms 0.3 % (0.8 %) against 5.7 % (11.4 %).
         The default is ``"pose_spline"``: better on 24 sessions of two
-        independent sets, median and worst, and with noise; worse on the
-        one bundled session, whose synthetic motion is exactly a Fourier
-        series. ``"fits"`` is the thesis' chain (``--kinematics fits``).
+        independent sets, median and worst, and with noise. ``"fits"`` is
+        the thesis' chain (``--kinematics fits``). On the bundled Horse 2
+        canter (38 frames, a motion that is exactly a Fourier series) the
+        saddle error is 2.2 % (Wb rms +0.1 %) against 2.6 % (-1.4 %) with
+        the fits and 10.1 % (-5.6 %) with plain splines.
     pose_smoothing : str
         Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`):
         ``"gcv"`` (default; quintic, one generalised cross-validation
@@ -168,6 +165,17 @@ class AnalysisParams:
         the two markers' line, :func:`horsemocap.pose.partial_pose`), and
         report only the analysed frames. The spline's natural boundary
         conditions then bias the acceleration outside the reported frames.
+    pose_harmonics : str
+        With ``"pose_spline"``: ``"auto"`` (default) smooths each pose
+        component with a partial spline: harmonics of the stride, not
+        penalised, plus a smoothing spline of the rest, the number of harmonics
+        (0: none, a record that is not periodic) chosen with the smoothing by
+        the same cross-validation; the fundamental is estimated from the record
+        (:func:`horsemocap.splines.estimate_fundamental`); the rotation's
+        harmonics only below the plain spline's cutoff frequency.
+        ``"all"``: every component up to 0.4 of the frame rate. ``"none"``:
+        plain smoothing splines (:func:`horsemocap.pose.fit_pose_trajectory`,
+        ``harmonics``; ``--pose-harmonics``).
     motion_frame : str
         x-motion axis: ``"auto"`` (default: the thesis' eq. 5.6/5.7 over one
         or two periods of ``x_marker`` when a period is given or found, else
@@ -208,6 +216,7 @@ class AnalysisParams:
     kinematics: str = "pose_spline"
     pose_smoothing: str = "gcv"
     pose_partial_frames: bool = True
+    pose_harmonics: str = "auto"
     motion_frame: str = "auto"
     preset: str | None = None
 
@@ -362,6 +371,7 @@ class AnalysisParams:
         choice("weighting_mode", ("iso", "thesis"))
         choice("kinematics", ("pose_spline", "fits"))
         choice("pose_smoothing", ("adaptive", "gcv", "gcv_cubic", "none"))
+        choice("pose_harmonics", ("auto", "all", "none"))
         choice("motion_frame", ("auto", "record", "period"))
         if self.preset is not None and self.preset not in PRESETS:
             bad("preset", " or ".join(f'"{k}"' for k in PRESETS) + " or null")

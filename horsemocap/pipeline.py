@@ -582,6 +582,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
             pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
+            pose_harmonics=params.pose_harmonics,
             saddle_index=params.saddle_marker)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
@@ -594,6 +595,10 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         progress("rigid_body", f"pose trajectory ({params.pose_smoothing} smoothing, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond['registration_rms_m']):.2f} mm")
+        f0 = [v["fundamental_hz"] for v in sm.values() if v.get("fundamental_hz")]
+        if f0:
+            progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "
+                     + ", ".join(f"{k} {v.get('harmonics', 0)}" for k, v in sm.items()))
         if rb.chain_error:
             progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
     else:

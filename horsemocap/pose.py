@@ -20,8 +20,14 @@ object throughout:
    rotation vector in the motion frame, unwrapped so that it is continuous)
    are smoothed component by component with a smoothing spline whose
    smoothing parameter is chosen from the data by generalised
-   cross-validation (:func:`horsemocap.splines.smoothing_spline`). Nothing
-   assumes a period: steady gait, a transition or a lift are treated alike.
+   cross-validation (:func:`horsemocap.splines.smoothing_spline`). With
+   ``harmonics="auto"`` (default) each component is a partial spline: the
+   harmonics of the stride frequency (estimated from the record,
+   :func:`horsemocap.splines.estimate_fundamental`) are not penalised, and
+   their number, zero for a record that is not periodic, is chosen with the
+   smoothing; a steady gait keeps its higher harmonics and the spline's end
+   effects act only on the non-periodic remainder. Nothing requires a
+   period: a transition or a lift keeps the plain spline.
    Frames without a pose are bridged by the spline when the gap is short
    (``max_gap_s``) and NaN with the reason otherwise. Frames with only two
    markers (beyond the ends of a record, where a marker leaves the view)
@@ -587,7 +593,8 @@ def partial_pose(points, model, rotation, centre):
 
 def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: str = "gcv",
                         order: int = 5, max_gap_s: float | None = None, lam=None,
-                        points=None, partial: bool = False, iterations: int = 3) -> PoseTrajectory:
+                        points=None, partial: bool = False, iterations: int = 3,
+                        harmonics: str = "auto", fundamental_hz: float | None = None) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     Parameters
@@ -630,8 +637,27 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         that are reported (``benchmarks/bench_herd_kinematics.py``).
     iterations : int
         Re-smoothings with the partial frames' poses updated.
+    harmonics : "auto", "all" or "none"
+        ``"auto"`` (default) and ``"all"``: each component is a partial spline
+        (:func:`horsemocap.splines.smoothing_spline` with ``fundamental_hz``): unpenalised
+        harmonics of the stride plus a smoothing spline of the remainder, the number of harmonics
+        (0 = none: a record that is not periodic) chosen with the smoothing by the same
+        criterion. ``"auto"`` tries, for the rotation vector, only the harmonics below the plain
+        spline's cutoff frequency (``harmonic_cutoff``): the rotation is seen through the markers'
+        small differences, and a periodic error of the measurement (a detection bias, skin
+        movement repeating with the stride) is as large there as the higher harmonics of the
+        motion (measured: Horse 1 canter 20.2 % saddle error with every harmonic against 3.6 %,
+        the occluded hard session 17.9 % against 2.2 %); the centroid keeps every harmonic below
+        0.4 of the sampling rate (the trots' 4th and 6th harmonics of the vertical motion, which
+        the plain spline flattens). ``"none"``: plain smoothing splines. The fundamental is
+        ``fundamental_hz`` or, if None, estimated from the six pose components together
+        (:func:`horsemocap.splines.estimate_fundamental`); a record shorter than 1.5 cycles of
+        any frequency tried gets no harmonics. With ``smoothing`` "gcv" or "noise" (quintic)
+        only; other smoothings ignore it.
+    fundamental_hz : float, optional
+        The stride frequency (Hz) for ``harmonics="auto"``; estimated from the data if None.
     """
-    from .splines import smoothing_spline
+    from .splines import estimate_fundamental, smoothing_spline
 
     t = np.asarray(t, float)
     reg = registration
@@ -658,6 +684,16 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         if points is None:
             raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
         sig = pose_noise(reg, points, model)
+    if harmonics not in ("none", "auto", "all"):
+        raise ValueError(f"harmonics: expected 'none', 'auto' or 'all', got {harmonics!r}")
+    f0 = None
+    if harmonics != "none" and smoothing in ("gcv", "noise") and order == 5:
+        f0 = fundamental_hz
+        if f0 is None:
+            try:
+                f0, _ = estimate_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]))
+            except ValueError:
+                f0 = None
     two = np.zeros(n, bool)
     if partial:
         if points is None:
@@ -671,9 +707,10 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     x_model = np.asarray(model, float)
     for it in range(iterations + 1 if two.any() else 1):
         cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
-                                    noise=sig[i]) for i in range(3))
+                                    noise=sig[i], fundamental_hz=f0) for i in range(3))
         ps = tuple(smoothing_spline(t[use], phi[use, i], method=smoothing, order=order, lam=lam[3 + i],
-                                    noise=sig[3 + i]) for i in range(3))
+                                    noise=sig[3 + i], fundamental_hz=f0,
+                                    harmonic_cutoff=harmonics != "all") for i in range(3))
         if it == iterations or not two.any():
             break
         tk = t[two]

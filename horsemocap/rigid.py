@@ -1020,7 +1020,8 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                        fourier_start: str = "matlab", fourier_trend: bool = True,
                        kinematics: str = "fits", pose_smoothing: str = "adaptive",
                        rotation_orders=None, saddle_orders=None, weights=None,
-                       pose_points=None, pose_t=None, pose_partial: bool = False) -> RigidBodyAnalysis:
+                       pose_points=None, pose_t=None, pose_partial: bool = False,
+                       pose_harmonics: str = "auto") -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call.
 
     Parameters
@@ -1099,6 +1100,9 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     pose_partial : bool
         Use frames with exactly two visible markers in the pose smoothing
         (:func:`horsemocap.pose.fit_pose_trajectory`, ``partial``).
+    pose_harmonics : "auto", "all" or "none"
+        Unpenalised harmonics of the stride in the pose smoothing
+        (:func:`horsemocap.pose.fit_pose_trajectory`, ``harmonics``).
     """
     from . import fitting
 
@@ -1135,7 +1139,7 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         order = 3 if pose_smoothing == "gcv_cubic" else 5
         sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
         traj = pose_mod.fit_pose_trajectory(pt, preg_all, model, smoothing=sm, order=order, points=ppts,
-                                            partial=pose_partial)
+                                            partial=pose_partial, harmonics=pose_harmonics)
         psaddle = traj.point(t, s_saddle)
         pmarkers = traj.points(t, model)
         try:

@@ -19,6 +19,15 @@ Used by :mod:`horsemocap.pose` for the pose trajectory. Two kinds:
   the acceleration to zero at both ends of the record.
 
 ``method="none"`` interpolates (no smoothing; ``lam = 0``).
+
+With ``fundamental_hz`` the quintic spline becomes a *partial spline* (Wahba 1990,
+"Spline models for observational data", ch. 6): ``f = h + s`` with ``h`` the first K harmonics
+of the fundamental, unpenalised, and the penalty on the remainder ``s`` only. A periodic motion
+(a steady gait) then keeps its harmonics whole (a plain smoothing spline flattens the higher
+ones) and the natural boundary conditions act only on the small non-periodic remainder. K = 0
+(a plain spline) is always a candidate: K and ``lam`` minimise the same criterion, so a record
+that is not periodic keeps the plain spline. :func:`estimate_fundamental` finds the fundamental
+from the record.
 """
 from __future__ import annotations
 
@@ -28,9 +37,12 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
 from scipy.optimize import minimize_scalar
 
-__all__ = ["SmoothingSpline", "smoothing_spline", "MAX_BASIS"]
+__all__ = ["SmoothingSpline", "HarmonicTerms", "smoothing_spline", "harmonic_columns", "estimate_fundamental", "MAX_BASIS"]
 
 MAX_BASIS = 400
+MAX_GRID = 4000
+"""Most trial frequencies of :func:`estimate_fundamental` on a grid; longer records use the
+periodogram's peaks."""
 """Largest number of B-spline basis functions of a quintic smoothing spline."""
 
 GCV_GAMMA = 1.4
@@ -55,12 +67,47 @@ class SmoothingSpline:
 
     spline: BSpline
     info: dict
+    harmonics: "HarmonicTerms | None" = None
 
     def __call__(self, t, derivative: int = 0) -> np.ndarray:
         t = np.asarray(t, float)
-        if derivative == 0:
-            return self.spline(t)
-        return self.spline.derivative(derivative)(t)
+        out = self.spline(t) if derivative == 0 else self.spline.derivative(derivative)(t)
+        if self.harmonics is not None:
+            out = out + self.harmonics(t, derivative)
+        return out
+
+
+@dataclass(frozen=True)
+class HarmonicTerms:
+    """``h(t) = sum_k a_k cos(2 pi k f (t - t0)) + b_k sin(2 pi k f (t - t0))``, k = 1..K.
+
+    The unpenalised periodic part of a partial smoothing spline
+    (:func:`smoothing_spline` with ``fundamental_hz``).
+
+    Attributes
+    ----------
+    frequency_hz : float
+        The fundamental ``f``.
+    cos, sin : (K,)
+        ``a_k``, ``b_k``.
+    t0 : float
+        Time origin.
+    """
+
+    frequency_hz: float
+    cos: np.ndarray
+    sin: np.ndarray
+    t0: float = 0.0
+
+    def __call__(self, t, derivative: int = 0) -> np.ndarray:
+        t = np.asarray(t, float)
+        k = np.arange(1, len(self.cos) + 1)
+        w = 2 * np.pi * self.frequency_hz * k
+        arg = (t[..., None] - self.t0) * w
+        # d^j/dt^j of cos(w t) = w^j cos(w t + j pi/2), of sin(w t) = w^j sin(w t + j pi/2)
+        s = w ** derivative
+        ph = derivative * np.pi / 2
+        return (np.cos(arg + ph) * (s * self.cos) + np.sin(arg + ph) * (s * self.sin)).sum(-1)
 
 
 def _penalty(knots, k, m, weight=None):
@@ -87,12 +134,7 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
-    # knots at the samples (every step-th one for long records), leaving out the m nearest each
-    # end so that the basis has at most n functions and B^T W B is non-singular
-    step = max(1, int(np.ceil(n / (MAX_BASIS - k + 1))))
-    inner = x[m:-m:step]
-    inner = inner[(inner > x[0]) & (inner < x[-1])]
-    knots = np.r_[[x[0]] * (k + 1), inner, [x[-1]] * (k + 1)]
+    knots = _knots(x, m)          # at most n basis functions: B^T W B is non-singular
     B = BSpline.design_matrix(x, knots, k).toarray()
     P = _penalty(knots, k, m, weight)
     sw = np.sqrt(w)
@@ -141,6 +183,219 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
                     "noise": float("nan") if noise is None else float(noise)}
 
 
+def harmonic_columns(t, frequency_hz: float, order: int, t0: float = 0.0, derivative: int = 0) -> np.ndarray:
+    """``[cos(2 pi k f (t - t0)) ..., sin(2 pi k f (t - t0)) ...]`` for k = 1..order, (n, 2 order)."""
+    t = np.asarray(t, float)
+    k = np.arange(1, order + 1)
+    w = 2 * np.pi * frequency_hz * k
+    arg = (t[:, None] - t0) * w[None] + derivative * np.pi / 2
+    s = w[None] ** derivative
+    return np.hstack([s * np.cos(arg), s * np.sin(arg)])
+
+
+def _knots(x, m):
+    """Knots of the quintic (degree ``2m - 1``) smoothing spline: at the samples (every step-th one for
+    long records), leaving out the m nearest each end so that the basis has at most n functions."""
+    n, k = x.size, 2 * m - 1
+    step = max(1, int(np.ceil(n / (MAX_BASIS - k + 1))))
+    inner = x[m:-m:step]
+    inner = inner[(inner > x[0]) & (inner < x[-1])]
+    return np.r_[[x[0]] * (k + 1), inner, [x[-1]] * (k + 1)]
+
+
+def _choose_lam(score, s2):
+    """Minimise ``score(log10 lam)`` over the range the shrinkage factors ``s2 / (s2 + lam)`` span."""
+    pos = s2[s2 > 1e-12 * max(s2.max(), 1e-300)]
+    lo, hi = np.log10(pos.min()) - 2, np.log10(pos.max()) + 2
+    grid = np.linspace(lo, hi, 60)
+    scores = [score(g) for g in grid]
+    i = int(np.argmin(scores))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = minimize_scalar(score, bounds=(a, b), method="bounded", options={"xatol": 1e-3})
+    if res.fun <= scores[i]:
+        return 10.0 ** float(res.x), float(res.fun)
+    return 10.0 ** float(grid[i]), float(scores[i])
+
+
+def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamma=None):
+    """Partial smoothing spline: ``f = s + h``, ``h`` harmonics of ``fundamental_hz`` (unpenalised), ``s`` a
+    spline of degree ``2m - 1`` with the penalty ``lam integral s^(m)^2``.
+
+    Mixed-model form: with the penalty ``P = U diag(d) U^T`` (its m null vectors, the polynomials of
+    degree < m, ``U0``) the coefficients are ``c = U0 b0 + U+ d+^(-1/2) u`` and the problem is a ridge
+    regression of ``y`` on ``Z = B U+ d+^(-1/2)`` (penalty ``lam |u|^2``) after the unpenalised columns
+    ``X = [B U0, harmonics]`` are projected out; one SVD of the projected ``Z`` gives the fit, the
+    residual and the trace of the hat matrix for every ``lam``. The number of harmonics (``orders``,
+    0 = none) and ``lam`` minimise the same criterion as :func:`_quintic_gcv` (GCV with ``gamma`` or,
+    with ``noise`` given, the unbiased risk).
+    """
+    from scipy.linalg import solve_triangular
+
+    n = x.size
+    k = 2 * m - 1
+    gamma = GCV_GAMMA if gamma is None else gamma
+    knots = _knots(x, m)
+    B = BSpline.design_matrix(x, knots, k).toarray()
+    P = _penalty(knots, k, m)
+    d, U = np.linalg.eigh((P + P.T) / 2)
+    U0, Up, dp = U[:, :m], U[:, m:], np.clip(d[m:], 1e-14 * d[-1], None)
+    sw = np.sqrt(w)
+    yw = sw * y
+    Zw = sw[:, None] * (B @ Up) / np.sqrt(dp)[None]
+    X0w = sw[:, None] * (B @ U0)
+    t0 = float(x[0])
+    best = None
+    ZtZ = Zty = None
+    for K in orders:
+        X = X0w if K == 0 else np.hstack([X0w, sw[:, None] * harmonic_columns(x, fundamental_hz, K, t0)])
+        q = X.shape[1]
+        if q >= n - 2:
+            continue
+        Q1, Rx = np.linalg.qr(X)
+        if np.min(np.abs(np.diag(Rx))) < 1e-9 * np.max(np.abs(np.diag(Rx))):
+            continue                               # harmonics not resolved by the samples
+        yq = Q1.T @ yw
+        if n <= 2 * Zw.shape[1]:
+            M = Zw - Q1 @ (Q1.T @ Zw)
+            V, s, Wt = np.linalg.svd(M, full_matrices=False)
+            keep = s > 1e-12 * s.max()
+            V, s, Wt = V[:, keep], s[keep], Wt[keep]
+            z = V.T @ yw
+        else:
+            # a long record (knots every few samples): the same from the p x p Gram matrix of the
+            # projected basis, M^T M = Z^T Z - (Q1^T Z)^T (Q1^T Z); n p^2 once, not an n x p SVD per K
+            if ZtZ is None:
+                ZtZ, Zty = Zw.T @ Zw, Zw.T @ yw
+            QZ = Q1.T @ Zw
+            ev, Wv = np.linalg.eigh(ZtZ - QZ.T @ QZ)
+            keep = ev > 1e-12 * ev.max()
+            s, Wt = np.sqrt(ev[keep]), Wv[:, keep].T
+            z = (Wt @ (Zty - QZ.T @ yq)) / s
+        s2 = s * s
+        rss0 = max(float(yw @ yw - yq @ yq - z @ z), 0.0)
+
+        def fit(lmb, s2=s2, z=z, rss0=rss0, q=q):
+            shrink = s2 / (s2 + lmb)
+            r = z * (1 - shrink)
+            return shrink, rss0 + float(r @ r), q + float(shrink.sum())
+
+        if noise is None:
+            def score(loglam, fit=fit):
+                _, rss, tr = fit(10.0 ** loglam)
+                return n * rss / max(n - gamma * tr, 1e-9) ** 2
+        else:
+            def score(loglam, fit=fit):
+                _, rss, tr = fit(10.0 ** loglam)
+                return rss / n + 2 * noise ** 2 * tr / n
+
+        if lam is None:
+            lk, sc = _choose_lam(score, s2)
+        else:
+            lk, sc = float(lam), score(np.log10(lam))
+        if best is None or sc < best[0]:
+            best = (sc, K, lk, Q1, Rx, s, Wt, z, fit)
+    if best is None:
+        raise ValueError(f"y: {n} samples are too few for a partial spline with harmonics {list(orders)}")
+    sc, K, lk, Q1, Rx, s, Wt, z, fit = best
+    u = Wt.T @ (s / (s * s + lk) * z)
+    beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
+    c = U0 @ beta[:m] + Up @ (u / np.sqrt(dp))
+    spline = BSpline(knots, c, k)
+    harm = None if K == 0 else HarmonicTerms(float(fundamental_hz), beta[m:m + K].copy(), beta[m + K:].copy(), t0)
+    _, rss, tr = fit(lk)
+    return spline, harm, {"lam": float(lk), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())), "n": n,
+                          "order": k, "method": "gcv" if noise is None else "noise",
+                          "noise": float("nan") if noise is None else float(noise),
+                          "harmonics": int(K), "fundamental_hz": float(fundamental_hz)}
+
+
+def estimate_fundamental(t, Y, *, min_cycles: float = 1.5, max_hz: float | None = None,
+                         max_order: int = 6) -> tuple[float, float]:
+    """The fundamental frequency of a record's periodic part, from all its components at once.
+
+    For each trial frequency ``f`` and number of harmonics ``K`` every component is fitted by least
+    squares with a quadratic in t plus K harmonics of f; the score is the Bayesian information
+    criterion of all components together, ``sum_c n log(RSS_c / n) + p log(n_total)`` with p the
+    number of coefficients: a sub-multiple ``f/2`` reproduces the harmonics of ``f`` only with twice
+    as many coefficients and loses. The best grid frequency (steps of ``1 / (8 T)``) is refined by a
+    bounded search.
+
+    Parameters
+    ----------
+    t : (n,)
+    Y : (n, c)
+        Components (any units: each is scored by its own residual).
+    min_cycles : float
+        The lowest frequency tried has this many cycles in the record.
+    max_hz : float, optional
+        Highest frequency tried (default a fifth of the sampling rate).
+    max_order : int
+        Most harmonics tried.
+
+    Returns
+    -------
+    frequency_hz : float
+    gain : float
+        BIC of the periodic model minus that of the quadratic alone, per sample (negative: the
+        harmonics explain the record).
+    """
+    t = np.asarray(t, float)
+    Y = np.asarray(Y, float).reshape(t.size, -1)
+    n, nc = Y.shape
+    T = float(t[-1] - t[0])
+    fs = 1.0 / float(np.median(np.diff(t)))
+    fmax = fs / 5 if max_hz is None else float(max_hz)
+    fmin = min_cycles / T
+    if not fmax > fmin:
+        raise ValueError(f"t: a record of {T:.3g} s at {fs:.3g} Hz is too short for {min_cycles} cycles")
+    u = (t - t.mean()) / max(T, 1e-12)
+    X0 = np.column_stack([np.ones(n), u, u * u])
+    Ys = (Y - Y.mean(0)) / np.maximum(Y.std(0), 1e-300)
+
+    def rss(X):
+        coef, *_ = np.linalg.lstsq(X, Ys, rcond=None)
+        r = Ys - X @ coef
+        return np.maximum((r * r).sum(0), 1e-300)
+
+    bic0 = float(n * np.sum(np.log(rss(X0) / n)) + 3 * nc * np.log(n * nc))
+
+    def bic(f):
+        out = np.inf
+        for K in range(1, max_order + 1):
+            if K * f >= fs / 2 or 3 + 2 * K >= n - 2:
+                break
+            X = np.hstack([X0, harmonic_columns(t, f, K, t[0])])
+            out = min(out, float(n * np.sum(np.log(rss(X) / n)) + (3 + 2 * K) * nc * np.log(n * nc)))
+        return out
+
+    grid = np.arange(fmin, fmax, 1.0 / (8 * T))
+    if grid.size > MAX_GRID:
+        # a long record: the trial frequencies are the largest peaks of the summed periodogram of
+        # the detrended components (resampled to a uniform grid, padded 4 times) and their halves
+        # and thirds, each refined below
+        coef, *_ = np.linalg.lstsq(X0, Ys, rcond=None)
+        r = Ys - X0 @ coef
+        tu = np.linspace(t[0], t[-1], n)
+        ru = np.column_stack([np.interp(tu, t, r[:, c]) for c in range(nc)])
+        P = (np.abs(np.fft.rfft(ru, 4 * n, axis=0)) ** 2).sum(1)
+        fr = np.fft.rfftfreq(4 * n, tu[1] - tu[0])
+        peak = np.flatnonzero((P[1:-1] > P[:-2]) & (P[1:-1] >= P[2:])) + 1
+        peak = peak[(fr[peak] >= fmin) & (fr[peak] <= fmax)]
+        top = fr[peak[np.argsort(P[peak])[::-1][:8]]]
+        cand = np.unique(np.concatenate([top / j for j in (1, 2, 3)]))
+        grid = cand[(cand >= fmin) & (cand <= fmax)]
+        if grid.size == 0:
+            raise ValueError(f"t: no periodic component between {fmin:.3g} and {fmax:.3g} Hz")
+    scores = np.array([bic(f) for f in grid])
+    i = int(np.argmin(scores))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    if grid.size and (b - a) > 2.0 / (8 * T) + 1e-12:
+        a, b = grid[i] - 1.0 / (8 * T), grid[i] + 1.0 / (8 * T)
+    res = minimize_scalar(bic, bounds=(a, b), method="bounded", options={"xatol": 1e-6 / T})
+    f, sc = (float(res.x), float(res.fun)) if res.fun <= scores[i] else (float(grid[i]), float(scores[i]))
+    return f, (sc - bic0) / (n * nc)
+
+
 def _adaptive(x, y, w, lam):
     """Two passes: GCV with a uniform penalty, then GCV of the global scale of a penalty
     weighted by the inverse local roughness of the first fit (a locally adaptive spline)."""
@@ -165,7 +420,8 @@ def _adaptive(x, y, w, lam):
 
 
 def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | None = None,
-                     weights=None, noise: float | None = None) -> SmoothingSpline:
+                     weights=None, noise: float | None = None, fundamental_hz: float | None = None,
+                     max_harmonics: int = 10, harmonic_cutoff: bool = False) -> SmoothingSpline:
     """Fit a smoothing spline to samples ``y(t)``; its smoothing chosen by GCV.
 
     Parameters
@@ -188,6 +444,21 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         Smoothing parameter (for the same units of t and y); chosen if None.
     weights : (n,), optional
         Inverse variances of the samples.
+    fundamental_hz : float, optional
+        A partial spline (``method`` "gcv" or "noise", order 5): ``f = s + h`` with ``h`` the
+        first K harmonics of this frequency, *not* penalised, and the penalty acting on the
+        spline ``s`` alone (Wahba 1990, ch. 6). K (0 to ``max_harmonics``, below 0.8 of the
+        Nyquist frequency) is chosen with ``lam`` by the same criterion; K = 0 is the plain
+        smoothing spline. A periodic motion's harmonics are then kept whole (the smoothing no
+        longer flattens their peaks) and the spline's end effects act only on the remainder.
+    max_harmonics : int
+        Most harmonics tried with ``fundamental_hz``.
+    harmonic_cutoff : bool
+        With ``fundamental_hz``: try only the harmonics below the cutoff frequency of the plain
+        smoothing spline (its smoothing chosen first by the same criterion). A harmonic above it
+        is one the noise hides, or a periodic error of the measurement (a marker's detection
+        bias or skin movement repeating with the stride), which an unpenalised term would take
+        whole.
     """
     x = np.asarray(t, float)
     y = np.asarray(y, float)
@@ -205,6 +476,11 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         raise ValueError("method 'adaptive' is a quintic spline: order must be 5")
     if order not in (3, 5):
         raise ValueError(f"order: expected 3 or 5, got {order!r}")
+    if fundamental_hz is not None:
+        if not (np.isfinite(fundamental_hz) and fundamental_hz > 0):
+            raise ValueError(f"fundamental_hz: expected a positive frequency, got {fundamental_hz!r}")
+        if order != 5 or method not in ("gcv", "noise"):
+            raise ValueError("fundamental_hz: harmonics are fitted by the quintic 'gcv' or 'noise' spline only")
     n = x.size
     w = np.ones(n) if weights is None else np.asarray(weights, float)
     if w.shape != (n,) or np.any(w <= 0):
@@ -221,6 +497,24 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         return SmoothingSpline(s, {"lam": float("nan") if lam is None else float(lam), "edf": float("nan"),
                                    "rms_residual": float(np.sqrt(np.sum(w * r * r) / w.sum())), "n": n,
                                    "order": 3, "method": "gcv"})
+    if fundamental_hz is not None:
+        dt = float(np.median(np.diff(x)))
+        kmax = int(min(max_harmonics, np.floor(0.4 / dt / fundamental_hz - 1e-9)))
+        nz = noise if method == "noise" else None
+        cutoff = float("nan")
+        if harmonic_cutoff:
+            # harmonics only where the plain spline passes the signal: below its cutoff frequency
+            # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
+            # hides from the plain spline is not taken whole
+            s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz)
+            cutoff = (float(np.mean(w)) / (dt * max(info0["lam"], 1e-300))) ** (1 / 6) / (2 * np.pi)
+            kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
+            if kmax < 1:
+                info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
+                return SmoothingSpline(s0, info0, None)
+        s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, range(0, max(kmax, 0) + 1), noise=nz)
+        info["cutoff_hz"] = cutoff
+        return SmoothingSpline(s, info, harm)
     if method == "noise":
         if order != 5:
             raise ValueError("method 'noise' is a quintic spline: order must be 5")
