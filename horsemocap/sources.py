@@ -90,7 +90,24 @@ class FrameSource:
         """Number of frames actually readable (videos are decoded to count)."""
         if not self.is_video:
             return len(list_images(self.path))
-        return sum(1 for _ in self.iter_frames())
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            # the count the container declares, if its last frame is read and nothing after it
+            # (no decoding of the whole video: a ten-minute session would be decoded twice)
+            n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            if n > 0:
+                cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
+                if int(cap.get(cv2.CAP_PROP_POS_FRAMES)) == n - 1 and cap.grab() and not cap.grab():
+                    return n
+            # otherwise (no count, a truncated or an inexact one): count every frame
+            cap.release()
+            cap = cv2.VideoCapture(str(self.path))
+            count = 0
+            while cap.grab():
+                count += 1
+            return count
+        finally:
+            cap.release()
 
     def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True):
         """Yield ``(index, frame)`` for frames ``start <= index < stop``."""
