@@ -1,0 +1,69 @@
+"""Equal results of the faster paths of issue 16 (no timing here: see benchmarks/)."""
+import cv2
+import numpy as np
+import pytest
+
+from horsemocap.detection.identification import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, _whole_frame_search,
+                                                 frame_candidates)
+from horsemocap.detection.thresholds import label_bright
+from horsemocap.virtuallab.longsession import _EmptyArena, pass_starts
+
+
+def _sparse_image(seed, size=(477, 634)):
+    """Dark noisy image with glints, discs, a big blob and spots on the border (size not a multiple of 8)."""
+    rng = np.random.default_rng(seed)
+    H, W = size
+    img = rng.normal(40, 6, size).clip(0, 255).astype(np.uint8)
+    for _ in range(25):
+        cv2.circle(img, (int(rng.integers(-3, W + 3)), int(rng.integers(-3, H + 3))), int(rng.integers(0, 9)),
+                   int(rng.integers(120, 256)), -1)
+    cv2.rectangle(img, (50, 60), (120, 130), 230, -1)
+    img[0, :5] = 255
+    img[-2:, -3:] = 255
+    return img
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_label_bright_equals_labelling_the_whole_image(seed):
+    img = _sparse_image(seed)
+    for thr in (90, 127, 200, 255):
+        a = cv2.connectedComponentsWithStats(cv2.threshold(img, thr, 255, cv2.THRESH_BINARY)[1], connectivity=8,
+                                             ltype=cv2.CV_32S)
+        b = label_bright(img, thr)
+        assert a[0] == b[0]
+        assert np.array_equal(a[1], b[1])
+        assert np.array_equal(a[2], b[2])
+        assert np.array_equal(a[3][1:], b[3][1:])
+
+
+def test_label_bright_on_a_bright_image_labels_it_whole():
+    img = np.full((64, 80), 200, np.uint8)
+    img[::3] = 0
+    a = cv2.connectedComponentsWithStats(cv2.threshold(img, 127, 255, cv2.THRESH_BINARY)[1], connectivity=8,
+                                         ltype=cv2.CV_32S)
+    b = label_bright(img, 127)
+    assert a[0] == b[0] and np.array_equal(a[1], b[1]) and np.array_equal(a[2], b[2])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_whole_frame_search_equals_frame_candidates(seed):
+    img = _sparse_image(seed + 10)
+    for centroid in ("weighted", "binary"):
+        for max_count in (3, 24):
+            a = frame_candidates(img, 127, (GENERIC_AREA[0], None), AUTO_MIN_CIRCULARITY, centroid=centroid,
+                                 max_count=max_count)
+            b = _whole_frame_search(img, 127, (GENERIC_AREA[0], None), AUTO_MIN_CIRCULARITY, centroid=centroid,
+                                    max_count=max_count)
+            assert np.array_equal(a.centre, b.centre) and np.array_equal(a.area, b.area)
+            assert np.array_equal(a.cut, b.cut)
+
+
+def test_long_session_passes_and_empty_frames():
+    assert pass_starts(18000, 68, 900) == list(range(0, 17101, 900))
+    assert pass_starts(100, 68, 900) == [0]
+    bg = np.full((48, 64, 3), 100.0)
+    arena = _EmptyArena(bg, 3)
+    a, b = arena.frame(), arena.frame()
+    assert a.dtype == np.uint8 and a.shape == (48, 64, 3)
+    assert not np.array_equal(a, b)                          # fresh noise every frame
+    assert abs(float(a.mean()) - 100) < 1.5 and 2.0 < float(a.astype(float).std()) < 6.0
