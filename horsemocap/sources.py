@@ -13,6 +13,9 @@ import cv2
 import numpy as np
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm"}
+#: A video read ahead by fewer frames than this is decoded through, not sought (OpenCV's seek in an
+#: MJPEG AVI costs 6-8 ms, about 15 frames' decoding at 640 x 480).
+_DECODE_THROUGH = 16
 
 
 class SourceError(ValueError):
@@ -228,12 +231,15 @@ class FrameSequence:
             frame = read_image(self._files[self.start + k], self.color)
             self._keep(k, frame)
             return frame
-        # a video: decode forwards from where the capture is, or from a block before k
-        first = k if self._next is not None and k >= self._next and k - self._next < 32 else None
+        # a video: decode forwards from where the capture is (a seek costs about as much as decoding
+        # 15 frames), or, reading backwards (the frame after k was read), from a block of half the
+        # cache before k; a jump elsewhere seeks to k itself
+        ahead = _DECODE_THROUGH
+        first = k if self._next is not None and k >= self._next and k - self._next < ahead else None
         if first is None:
-            backwards = self._next is not None and k < self._next
-            first = max(0, k - self.cache_frames // 4 + 1) if backwards else k
-        if self._cap is None or self._next is None or first < self._next or first - self._next >= 32:
+            backwards = self._next is not None and k < self._next and (k + 1) in self._cache
+            first = max(0, k - self.cache_frames // 2 + 1) if backwards else k
+        if self._cap is None or self._next is None or first < self._next or first - self._next >= ahead:
             self._seek(first)
         frame = None
         while self._next <= k:
