@@ -47,6 +47,7 @@ total = time.perf_counter() - t0
 seg = a.results["triangulate"]["segment"]
 print(json.dumps({"timings": a.timings, "total_s": total, "synced_frames": a.results["sync"]["n_frames"],
                   "analysed_frames": seg[1] - seg[0], "segment": list(seg), "progress_lines": len(lines),
+                  "cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
@@ -63,6 +64,7 @@ for c in s.cameras:
     for _ in FrameSource(s.motion[c]).iter_frames(color=False):
         n += 1
 print(json.dumps({"camera_frames": n, "seconds": time.perf_counter() - t0,
+                  "cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
@@ -85,7 +87,8 @@ def show(name: str, r: dict) -> None:
     for step, s in r["timings"].items():
         print(f"  {step:<14s} {s:8.3f} s")
     fps = r["synced_frames"] * 3 / r["total_s"]
-    print(f"  {'total':<14s} {r['total_s']:8.3f} s   ({fps:.0f} camera-frames/s), peak memory {r['peak_rss_mb']:.0f} MB",
+    print(f"  {'total':<14s} {r['total_s']:8.3f} s   ({fps:.0f} camera-frames/s), CPU {r['cpu_s']:.1f} s, "
+          f"peak memory {r['peak_rss_mb']:.0f} MB",
           flush=True)
 
 
@@ -122,12 +125,15 @@ def main():
         print(f"decode-only again: {dec2['seconds']:.1f} s", flush=True)
         dec_s = 0.5 * (dec1["seconds"] + dec2["seconds"])
         ratio = dec_s / r["total_s"]
+        cpu_ratio = 0.5 * (dec1["cpu_s"] + dec2["cpu_s"]) / r["cpu_s"]
         out["long"] = {"session": str(long_dir), "frames_after_flash": args.long_frames, "analyze": r,
                        "decode_s": [dec1["seconds"], dec2["seconds"]], "camera_frames": dec1["camera_frames"],
-                       "decode_peak_rss_mb": dec1["peak_rss_mb"], "throughput_ratio": ratio}
+                       "decode_peak_rss_mb": dec1["peak_rss_mb"], "throughput_ratio": ratio,
+                       "decode_cpu_s": [dec1["cpu_s"], dec2["cpu_s"]], "cpu_ratio": cpu_ratio}
         print(f"\nlong session: analyze {r['total_s']:.1f} s, decode-only {dec_s:.1f} s (mean of "
               f"{dec1['seconds']:.1f}, {dec2['seconds']:.1f}) for {dec1['camera_frames']} camera-frames: "
-              f"throughput {ratio:.2f} of decode-only (target >= 0.5); peak memory analyze "
+              f"throughput {ratio:.2f} of decode-only (target >= 0.5); CPU time analyze {r['cpu_s']:.1f} s, "
+              f"decode-only {dec1['cpu_s']:.1f} / {dec2['cpu_s']:.1f} s (ratio {cpu_ratio:.2f}); peak memory analyze "
               f"{r['peak_rss_mb']:.0f} MB, decode {dec1['peak_rss_mb']:.0f} MB", flush=True)
     out["load_after"] = load()
     print(f"load average after {out['load_after']}")

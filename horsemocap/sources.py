@@ -16,6 +16,8 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 #: A video read ahead by fewer frames than this is decoded through, not sought (OpenCV's seek in an
 #: MJPEG AVI costs 6-8 ms, about 15 frames' decoding at 640 x 480).
 _DECODE_THROUGH = 16
+#: Frames a :class:`FrameSequence` read forwards decodes ahead in a second thread.
+READ_AHEAD = 8
 
 
 class SourceError(ValueError):
@@ -193,6 +195,7 @@ class FrameSequence:
         self._cache: dict[int, np.ndarray] = {}
         self._files = None if source.is_video else list_images(source.path)
         self._cap, self._next = None, None
+        self._last, self._job, self._pool = None, None, None
         first = self[0]
         self.shape = (stop - start,) + first.shape
         self.dtype = first.dtype
@@ -214,10 +217,47 @@ class FrameSequence:
         k = int(k) + (len(self) if k < 0 else 0)
         if not 0 <= k < len(self):
             raise IndexError(f"frame {k} outside 0..{len(self) - 1}")
+        if self._job is not None and self._job.done():
+            self._collect()
         frame = self._cache.get(k)
         if frame is None:
             frame = self._load(k)
+        if self._files is None and self._last is not None and k == self._last + 1:
+            self._read_ahead(k)
+        self._last = k
         return frame
+
+    # reading ahead: while the caller works on frame k, a second thread decodes the next frames
+    # (OpenCV releases the interpreter while it decodes); only when reading forwards, frame by frame
+    def _read_ahead(self, k: int) -> None:
+        if (self._job is None and self._cap is not None and self._next is not None
+                and k < self._next <= k + READ_AHEAD and self._next < len(self)):
+            if self._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
+            count = min(READ_AHEAD, len(self) - self._next)
+            self._job = self._pool.submit(self._decode, self._cap, count)
+            self._job.count = count
+
+    def _decode(self, cap, count: int) -> list:
+        frames = []
+        for _ in range(count):
+            ok, bgr = cap.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB if self.color else cv2.COLOR_BGR2GRAY))
+        return frames
+
+    def _collect(self) -> None:
+        """Wait for the frames being read ahead and keep them (the capture is free again)."""
+        job, self._job = self._job, None
+        frames = job.result()
+        for f in frames:
+            self._keep(self._next, f)
+            self._next += 1
+        if len(frames) < job.count:
+            self._next = None          # the source ended early: _load seeks and reports it
 
     def _keep(self, k: int, frame: np.ndarray) -> None:
         self._cache[k] = frame
@@ -225,6 +265,10 @@ class FrameSequence:
             self._cache.pop(next(iter(self._cache)))
 
     def _load(self, k: int) -> np.ndarray:
+        if self._job is not None:
+            self._collect()
+            if k in self._cache:
+                return self._cache[k]
         if self._files is not None:
             if self.start + k >= len(self._files):
                 raise SourceError(f"{self.source.path}: no image for frame {self.start + k}")
@@ -268,6 +312,12 @@ class FrameSequence:
 
     def close(self) -> None:
         """Release the video (also done when the sequence is garbage-collected)."""
+        if self._job is not None:
+            self._job.result()
+            self._job = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
         if self._cap is not None:
             self._cap.release()
             self._cap = None

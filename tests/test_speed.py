@@ -67,3 +67,21 @@ def test_long_session_passes_and_empty_frames():
     assert a.dtype == np.uint8 and a.shape == (48, 64, 3)
     assert not np.array_equal(a, b)                          # fresh noise every frame
     assert abs(float(a.mean()) - 100) < 1.5 and 2.0 < float(a.astype(float).std()) < 6.0
+
+
+def test_frame_sequence_reads_ahead_the_same_frames(tmp_path):
+    from horsemocap.sources import FrameSource
+
+    w = cv2.VideoWriter(str(tmp_path / "v.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 30, (40, 30))
+    for k in range(60):
+        img = np.full((30, 40, 3), 4 * k, np.uint8)
+        w.write(img)
+    w.release()
+    src = FrameSource(tmp_path / "v.avi")
+    arr = src.read(3, 60, color=False)
+    seq = src.sequence(3, 60, color=False, cache_frames=12)
+    order = list(range(0, 30)) + [40, 41, 42, 10, 11, 12] + list(range(56, 30, -1)) + list(range(44, 57))
+    for k in order:
+        np.testing.assert_array_equal(seq[k], arr[k])
+    assert seq._pool is not None and len(seq._cache) <= 12 + 8    # read ahead, bounded
+    seq.close()
