@@ -6,6 +6,7 @@ Thesis Appendix A spends pages renaming files so that MATLAB reads
 from __future__ import annotations
 
 import re
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +19,39 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 _DECODE_THROUGH = 16
 #: Frames a :class:`FrameSequence` read forwards decodes ahead in a second thread.
 READ_AHEAD = 8
+#: Bytes of decoded gray video frames shared by the readers of a video in one process: the flash
+#: search decodes the first frames of each video, the detection and its check read them again.
+SHARED_GRAY_BYTES = 160 * 2 ** 20
+
+
+class _SharedGray:
+    """Decoded gray frames of videos, least recently used first out, at most ``limit`` bytes."""
+
+    def __init__(self, limit: int):
+        self.limit, self.size, self.frames = int(limit), 0, OrderedDict()
+
+    @staticmethod
+    def video_key(path: Path):
+        st = path.stat()
+        return str(path.resolve()), st.st_mtime_ns, st.st_size
+
+    def get(self, video, index: int):
+        f = self.frames.get((video, index))
+        if f is not None:
+            self.frames.move_to_end((video, index))
+        return f
+
+    def put(self, video, index: int, frame: np.ndarray) -> None:
+        if frame.nbytes > self.limit or (video, index) in self.frames:
+            return
+        self.frames[(video, index)] = frame
+        self.size += frame.nbytes
+        while self.size > self.limit:
+            _, old = self.frames.popitem(last=False)
+            self.size -= old.nbytes
+
+
+_SHARED = _SharedGray(SHARED_GRAY_BYTES)
 
 
 class SourceError(ValueError):
@@ -121,6 +155,7 @@ class FrameSource:
             for i, f in enumerate(files, start):
                 yield i, read_image(f, color)
             return
+        video = None if color else _SharedGray.video_key(self.path)
         cap = cv2.VideoCapture(str(self.path))
         try:
             if start:
@@ -135,7 +170,12 @@ class FrameSource:
                 ok, bgr = cap.read()
                 if not ok:
                     return
-                yield i, (cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB) if color else cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+                if color:
+                    yield i, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+                else:
+                    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+                    _SHARED.put(video, i, gray)
+                    yield i, gray
                 i += 1
         finally:
             cap.release()
@@ -196,6 +236,7 @@ class FrameSequence:
         self._files = None if source.is_video else list_images(source.path)
         self._cap, self._next = None, None
         self._last, self._job, self._pool = None, None, None
+        self._video = None if (self._files is not None or color) else _SharedGray.video_key(source.path)
         first = self[0]
         self.shape = (stop - start,) + first.shape
         self.dtype = first.dtype
@@ -255,6 +296,8 @@ class FrameSequence:
         frames = job.result()
         for f in frames:
             self._keep(self._next, f)
+            if self._video is not None:
+                _SHARED.put(self._video, self.start + self._next, f)
             self._next += 1
         if len(frames) < job.count:
             self._next = None          # the source ended early: _load seeks and reports it
@@ -269,6 +312,11 @@ class FrameSequence:
             self._collect()
             if k in self._cache:
                 return self._cache[k]
+        if self._video is not None:                 # decoded already by another reader of the video
+            frame = _SHARED.get(self._video, self.start + k)
+            if frame is not None:
+                self._keep(k, frame)
+                return frame
         if self._files is not None:
             if self.start + k >= len(self._files):
                 raise SourceError(f"{self.source.path}: no image for frame {self.start + k}")
@@ -292,6 +340,8 @@ class FrameSequence:
                 raise SourceError(f"{self.source.path}: no frame {self.start + self._next}")
             f = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB if self.color else cv2.COLOR_BGR2GRAY)
             self._keep(self._next, f)
+            if self._video is not None:
+                _SHARED.put(self._video, self.start + self._next, f)
             if self._next == k:
                 frame = f
             self._next += 1

@@ -78,10 +78,32 @@ def test_frame_sequence_reads_ahead_the_same_frames(tmp_path):
         w.write(img)
     w.release()
     src = FrameSource(tmp_path / "v.avi")
-    arr = src.read(3, 60, color=False)
+    rgb = src.read(3, 60, color=True)                          # (not kept in the shared gray frames)
+    arr = np.stack([cv2.cvtColor(cv2.cvtColor(a, cv2.COLOR_RGB2BGR), cv2.COLOR_BGR2GRAY) for a in rgb])
     seq = src.sequence(3, 60, color=False, cache_frames=12)
     order = list(range(0, 30)) + [40, 41, 42, 10, 11, 12] + list(range(56, 30, -1)) + list(range(44, 57))
     for k in order:
         np.testing.assert_array_equal(seq[k], arr[k])
     assert seq._pool is not None and len(seq._cache) <= 12 + 8    # read ahead, bounded
+    seq.close()
+
+
+def test_frames_decoded_once_are_shared_by_the_readers_of_a_video(tmp_path, monkeypatch):
+    from horsemocap import sources
+
+    monkeypatch.setattr(sources, "_SHARED", sources._SharedGray(30 * 40 * 20))     # room for 20 frames
+    w = cv2.VideoWriter(str(tmp_path / "v.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 30, (40, 30))
+    for k in range(60):
+        w.write(np.full((30, 40, 3), 4 * k, np.uint8))
+    w.release()
+    src = sources.FrameSource(tmp_path / "v.avi")
+    arr = src.read(0, 60, color=False)
+    assert len(sources._SHARED.frames) == 20 and sources._SHARED.size <= 30 * 40 * 20    # the last 20, bounded
+    decoded = []
+    orig = sources.FrameSequence._seek
+    monkeypatch.setattr(sources.FrameSequence, "_seek", lambda self, k: (decoded.append(k), orig(self, k))[1])
+    seq = src.sequence(45, 60, color=False)
+    for k in range(15):
+        np.testing.assert_array_equal(seq[k], arr[45 + k])
+    assert decoded == []                                     # every frame came from the shared ones
     seq.close()
