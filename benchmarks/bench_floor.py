@@ -20,6 +20,11 @@ before and after:
   converted on access as the pipeline's ``FrameSequence`` does).
   Sessions: the bundled one (640 x 480) and the hard 1080p session
   ``canter1080_toedin_50_speed`` (render cache, rendered on first use).
+* **whole-frame search**: identification's search of a whole frame
+  (``_whole_frame_search``, labelling crops around the bright pixels), the
+  same search labelling whole frames (``frame_candidates``) and the floor
+  ``threshold + connectedComponentsWithStats``, on the first synchronised
+  frames (the horse not in view yet).
 * **decoding**: reading every frame of every video (gray, as the pipeline
   reads them): the floor of the whole pipeline.
 * **joint triangulation** (``reconstruction.triangulate``, all cameras, DLT
@@ -243,6 +248,49 @@ def bench_detection(name, s, res, n_frames, repeat, out):
     del rgb
 
 
+def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
+    """The whole-frame candidate search (identification's, in crops) against labelling whole frames.
+
+    Frames: the synchronised gray frames of every camera from the start (the
+    horse not yet in view: what a long session is mostly made of), up to
+    ``n_frames`` per camera, in memory. Rows: ``_whole_frame_search`` (the
+    search the identification runs while the horse is out of view),
+    ``frame_candidates`` on the whole frame (the same result, labelling the
+    whole image) and the floor ``threshold + connectedComponentsWithStats``.
+    """
+    from horsemocap.detection.identification import AUTO_MIN_CIRCULARITY, GENERIC_AREA, _whole_frame_search, \
+        frame_candidates
+    from horsemocap.sources import FrameSource
+
+    off, n = res["sync"]["offsets"], res["sync"]["n_frames"]
+    thr = {c: int(res["detect"]["detection"][c]["threshold"]) for c in s.cameras}
+    gray = {c: FrameSource(s.motion[c]).read(off[c], off[c] + min(n, n_frames), color=False) for c in s.cameras}
+    area = (GENERIC_AREA[0], None)
+
+    def crops():
+        for c in s.cameras:
+            for g in gray[c]:
+                _whole_frame_search(g, thr[c], area, AUTO_MIN_CIRCULARITY)
+
+    def whole():
+        for c in s.cameras:
+            for g in gray[c]:
+                frame_candidates(g, thr[c], area, AUTO_MIN_CIRCULARITY)
+
+    def floor():
+        for c in s.cameras:
+            for g in gray[c]:
+                cv2.connectedComponentsWithStats(cv2.threshold(g, thr[c], 255, cv2.THRESH_BINARY)[1], connectivity=8)
+    t = rounds({"crops": crops, "whole": whole, "floor": floor}, repeat)
+    count = sum(len(g) for g in gray.values())
+    row = {"session": name, "frames": count, **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},
+           "crops_ratio": t["floor"] / t["crops"], "whole_ratio": t["floor"] / t["whole"]}
+    print(f"whole-frame search, {name} ({count} frames from the start): in crops {row['crops_ms_per_frame']:.2f} "
+          f"ms/frame (floor/step {row['crops_ratio']:.2f}), labelling whole frames {row['whole_ms_per_frame']:.2f} "
+          f"({row['whole_ratio']:.2f}), bare threshold + labels {row['floor_ms_per_frame']:.2f}", flush=True)
+    out.setdefault("whole_frame_search", []).append(row)
+
+
 def bench_decode(name, s, repeat, out):
     from horsemocap.sources import FrameSource
 
@@ -404,12 +452,14 @@ def main(argv=None):
     s, res = prepare(bundled, rig)
     dec_b = bench_decode("bundled", s, args.repeat, out)
     bench_detection("bundled", s, res, args.frames, args.repeat, out)
+    bench_whole_frame("bundled", s, res, args.repeat, out)
     bench_triangulation("bundled", s, res, args.points, args.repeat, out)
     if "hard" not in args.skip:
         from horsemocap.virtuallab.hard import hard_session
         hs, hres = prepare(hard_session(HARD_1080))
         bench_decode(HARD_1080, hs, args.repeat, out)
         bench_detection(HARD_1080, hs, hres, args.frames, args.repeat, out)
+        bench_whole_frame(HARD_1080, hs, hres, args.repeat, out)
         bench_triangulation(HARD_1080, hs, hres, args.points, args.repeat, out)
     if "analyze" not in args.skip and cal_row is not None:
         bench_analyze(bundled, args.repeat, out, cal_row["board_detection_s"] + cal_row["solve_s"],

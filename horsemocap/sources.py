@@ -148,14 +148,19 @@ class FrameSource:
         finally:
             cap.release()
 
-    def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True):
-        """Yield ``(index, frame)`` for frames ``start <= index < stop``."""
+    def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True, share: bool = False):
+        """Yield ``(index, frame)`` for frames ``start <= index < stop``.
+
+        ``share`` (gray frames of a video): keep them for the other readers of
+        the video in this process (:data:`SHARED_GRAY_BYTES`; what the flash
+        search decodes, the detection reads again).
+        """
         if not self.is_video:
             files = list_images(self.path)[start:stop]
             for i, f in enumerate(files, start):
                 yield i, read_image(f, color)
             return
-        video = None if color else _SharedGray.video_key(self.path)
+        video = _SharedGray.video_key(self.path) if share and not color else None
         cap = cv2.VideoCapture(str(self.path))
         try:
             if start:
@@ -174,7 +179,8 @@ class FrameSource:
                     yield i, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
                 else:
                     gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
-                    _SHARED.put(video, i, gray)
+                    if video is not None:
+                        _SHARED.put(video, i, gray)
                     yield i, gray
                 i += 1
         finally:

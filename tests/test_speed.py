@@ -98,6 +98,8 @@ def test_frames_decoded_once_are_shared_by_the_readers_of_a_video(tmp_path, monk
     w.release()
     src = sources.FrameSource(tmp_path / "v.avi")
     arr = src.read(0, 60, color=False)
+    assert len(sources._SHARED.frames) == 0                  # not shared unless asked
+    assert all(np.array_equal(f, arr[i]) for i, f in src.iter_frames(color=False, share=True))
     assert len(sources._SHARED.frames) == 20 and sources._SHARED.size <= 30 * 40 * 20    # the last 20, bounded
     decoded = []
     orig = sources.FrameSequence._seek
