@@ -196,8 +196,12 @@ def _bright_boxes(binary: np.ndarray, block: int, pad: int) -> list:
     Hb, Wb = -(-H // block), -(-W // block)
     b = binary if (Hb * block, Wb * block) == (H, W) else \
         cv2.copyMakeBorder(binary, 0, Hb * block - H, 0, Wb * block - W, cv2.BORDER_CONSTANT, value=0)
-    small = cv2.resize(b, (Wb, Hb), interpolation=cv2.INTER_AREA)  # a block's mean: > 0 iff a white pixel
-    n, _, st, _ = cv2.connectedComponentsWithStats((small > 0).view(np.uint8), connectivity=8)
+    if block == 8:      # the 8 bytes of a block's row as one 64-bit word: OR over the block's 8 rows
+        v = np.ascontiguousarray(b).view(np.uint64).reshape(Hb, 8, Wb)
+        small = ((v[:, 0] | v[:, 1] | v[:, 2] | v[:, 3] | v[:, 4] | v[:, 5] | v[:, 6] | v[:, 7]) != 0)
+    else:
+        small = cv2.resize(b, (Wb, Hb), interpolation=cv2.INTER_AREA) > 0   # a block's mean: > 0 iff a white pixel
+    n, _, st, _ = cv2.connectedComponentsWithStats(small.view(np.uint8), connectivity=8)
     boxes = [[max(x * block - pad, 0), max(y * block - pad, 0), min((x + w) * block + pad, W),
               min((y + h) * block + pad, H)] for x, y, w, h in st[1:, :4].tolist()]
     merged = True
@@ -240,42 +244,44 @@ def label_bright(gray: np.ndarray, threshold: int, block: int = BRIGHT_BLOCK, pa
     labels = np.zeros((H, W), np.int32)
     parts, keys = [], []
     for u0, v0, u1, v1 in boxes:
-        n, lab, st, _ = cv2.connectedComponentsWithStats(binary[v0:v1, u0:u1], connectivity=8, ltype=cv2.CV_32S)
+        n, lab, st, ce = cv2.connectedComponentsWithStats(binary[v0:v1, u0:u1], connectivity=8, ltype=cv2.CV_32S)
         if n <= 1:
             continue
-        v, u = np.nonzero(lab)
-        ll = lab[v, u]
-        v = v + v0
-        u = u + u0
-        key = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(key, ll, (v // 2).astype(np.int64) * (W + 2) + u // 2)
-        sx = np.bincount(ll, u, n)
-        sy = np.bincount(ll, v, n)
-        st = st.astype(np.int64)
+        st = st[1:].astype(np.int64)
+        area = st[:, 4]
+        # OpenCV's centre is (sum of coordinates) / area; the sums are integers, recovered exactly
+        sums = np.rint(ce[1:] * area[:, None]) + np.array([u0, v0]) * area[:, None]
+        # labelling order of the whole image: the first pair of rows a region reaches (from its top
+        # row), then the first pair of columns it reaches within that pair of rows
+        top = st[:, 1] + v0
+        key = np.empty(n - 1, np.int64)
+        for i in range(n - 1):
+            r0 = max((top[i] // 2) * 2 - v0, 0)
+            x, w = st[i, 0], st[i, 2]
+            cols = np.flatnonzero((lab[r0:r0 + 2, x:x + w] == i + 1).any(axis=0))
+            key[i] = (top[i] // 2) * (W + 2) + (cols[0] + x + u0) // 2
         st[:, 0] += u0
         st[:, 1] += v0
-        parts.append((u0, v0, u1, v1, lab, st[1:], sx[1:], sy[1:], n))
-        keys.append(key[1:])
+        parts.append((u0, v0, u1, v1, lab, st, sums, n))
+        keys.append(key)
     if not parts:
         stats = np.array([[0, 0, W, H, H * W]], np.int32)
         return 1, labels, stats, np.array([[(W - 1) / 2.0, (H - 1) / 2.0]])
     key = np.concatenate(keys)
-    order = np.argsort(key, kind="stable")
     new = np.empty(len(key), np.int32)
-    new[order] = np.arange(1, len(key) + 1, dtype=np.int32)
+    new[np.argsort(key, kind="stable")] = np.arange(1, len(key) + 1, dtype=np.int32)
     stats = np.empty((len(key) + 1, 5), np.int64)
     cents = np.empty((len(key) + 1, 2))
     at = 0
-    for u0, v0, u1, v1, lab, st, sx, sy, n in parts:
+    for u0, v0, u1, v1, lab, st, sums, n in parts:
         ids = new[at:at + n - 1]
-        lut = np.concatenate([[0], ids]).astype(np.int32)
-        crop = labels[v0:v1, u0:u1]
-        np.copyto(crop, lut[lab], where=lab > 0)
+        if n == 2:
+            np.multiply(lab, ids[0], out=labels[v0:v1, u0:u1])   # the crops are disjoint: no mask needed
+        else:
+            labels[v0:v1, u0:u1] = np.concatenate([[0], ids]).astype(np.int32)[lab]
         stats[ids] = st
-        cents[ids, 0] = sx / st[:, 4]
-        cents[ids, 1] = sy / st[:, 4]
+        cents[ids] = sums / st[:, 4:5]
         at += n - 1
-    bright = int(stats[1:, 4].sum())
-    stats[0] = (0, 0, W, H, H * W - bright)
+    stats[0] = (0, 0, W, H, H * W - int(stats[1:, 4].sum()))
     cents[0] = np.nan                                   # the background's centre is never used
     return len(key) + 1, labels, stats.astype(np.int32), cents
