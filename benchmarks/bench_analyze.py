@@ -69,16 +69,17 @@ print(json.dumps({"camera_frames": n, "seconds": time.perf_counter() - t0,
 """
 
 
-def child(code: str, *args) -> dict:
-    proc = subprocess.run([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, text=True)
+def child(code: str, *args, pythonpath=None) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(pythonpath)) if pythonpath else None
+    proc = subprocess.run([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, text=True, env=env)
     if proc.returncode:
         raise SystemExit(f"child failed ({proc.returncode})")
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def run(session: Path) -> dict:
+def run(session: Path, pythonpath=None) -> dict:
     with tempfile.TemporaryDirectory() as out:
-        return child(CHILD, session, out)
+        return child(CHILD, session, out, pythonpath=pythonpath)
 
 
 def show(name: str, r: dict) -> None:
@@ -102,6 +103,8 @@ def main():
     ap.add_argument("--skip-long", action="store_true")
     ap.add_argument("--skip-default", action="store_true")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "analyze_long.json"))
+    ap.add_argument("--compare-with", default=None,
+                    help="another checkout of horsemocap (e.g. the code before a change): its analyze is run too")
     args = ap.parse_args()
     from horsemocap.data import default_session_dir
 
@@ -111,6 +114,9 @@ def main():
     if not args.skip_default:
         out["default"] = run(default_session_dir())
         show("default session", out["default"])
+        if args.compare_with:
+            out["default_compared"] = run(default_session_dir(), args.compare_with)
+            show(f"default session, code of {args.compare_with}", out["default_compared"])
     if not args.skip_long:
         from horsemocap.virtuallab.longsession import long_session
 
@@ -123,6 +129,16 @@ def main():
         show(f"long session ({args.long_frames} frames)", r)
         dec2 = child(DECODE, long_dir)
         print(f"decode-only again: {dec2['seconds']:.1f} s", flush=True)
+        if args.compare_with:
+            rc = run(long_dir, args.compare_with)
+            show(f"long session, code of {args.compare_with}", rc)
+            dec3 = child(DECODE, long_dir)
+            print(f"decode-only a third time: {dec3['seconds']:.1f} s", flush=True)
+            out["long_compared"] = {"code": args.compare_with, "analyze": rc, "decode_s": dec3["seconds"],
+                                    "throughput_ratio": 0.5 * (dec2["seconds"] + dec3["seconds"]) / rc["total_s"]}
+            print(f"long session, code of {args.compare_with}: throughput "
+                  f"{out['long_compared']['throughput_ratio']:.2f} of decode-only (decode {dec2['seconds']:.1f} and "
+                  f"{dec3['seconds']:.1f} s around it)", flush=True)
         dec_s = 0.5 * (dec1["seconds"] + dec2["seconds"])
         ratio = dec_s / r["total_s"]
         cpu_ratio = 0.5 * (dec1["cpu_s"] + dec2["cpu_s"]) / r["cpu_s"]
