@@ -45,7 +45,9 @@ class Progress:
 a = analyze(sys.argv[1], sys.argv[2], progress=Progress())
 total = time.perf_counter() - t0
 seg = a.results["triangulate"]["segment"]
-print(json.dumps({"timings": a.timings, "total_s": total, "synced_frames": a.results["sync"]["n_frames"],
+import horsemocap.pipeline
+print(json.dumps({"code": horsemocap.pipeline.__file__, "timings": a.timings, "total_s": total,
+                  "synced_frames": a.results["sync"]["n_frames"],
                   "analysed_frames": seg[1] - seg[0], "segment": list(seg), "progress_lines": len(lines),
                   "cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
@@ -71,7 +73,9 @@ print(json.dumps({"camera_frames": n, "seconds": time.perf_counter() - t0,
 
 def child(code: str, *args, pythonpath=None) -> dict:
     env = dict(os.environ, PYTHONPATH=str(pythonpath)) if pythonpath else None
-    proc = subprocess.run([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, text=True, env=env)
+    # run from the checkout itself: "python -c" puts the working folder first on the import path
+    proc = subprocess.run([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, text=True, env=env,
+                          cwd=str(pythonpath) if pythonpath else None)
     if proc.returncode:
         raise SystemExit(f"child failed ({proc.returncode})")
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -83,7 +87,7 @@ def run(session: Path, pythonpath=None) -> dict:
 
 
 def show(name: str, r: dict) -> None:
-    print(f"\n{name}: {r['synced_frames']} synchronised frames per camera, {r['analysed_frames']} analysed "
+    print(f"\n{name} ({r['code']}): {r['synced_frames']} synchronised frames per camera, {r['analysed_frames']} analysed "
           f"(frames {r['segment'][0]}..{r['segment'][1] - 1}), {r['progress_lines']} progress lines")
     for step, s in r["timings"].items():
         print(f"  {step:<14s} {s:8.3f} s")
