@@ -1,18 +1,25 @@
-"""End-to-end time and memory of ``horsemocap analyze``, per stage.
+"""End-to-end time and memory of ``analyze``, per step, against decoding alone.
 
-Runs the analysis of the bundled default session and of a long virtual
-session (a few thousand frames per camera, rendered by the virtual
-laboratory into the cache on first use) and prints seconds per step, total
-seconds, frames per second and the peak resident memory of the process.
+Runs the analysis of the bundled default session and of the long session of
+issue 16 (3 cameras x ``--long-frames`` frames after the flash, ten minutes
+at 30 fps by default: the horse passes every 30 s, the arena is empty in
+between; composed into the render cache on first use by
+:func:`horsemocap.virtuallab.longsession.long_session`, never committed).
+For the long session the same run also reads every frame of every video as
+gray (decode-only: the floor of the pipeline, as ``bench_floor.py``), before
+and after the analysis, and prints the pipeline's throughput as a fraction
+of decode-only (issue 16's target: at least 0.5), the peak resident memory
+of each process and the analysis' progress lines with their times.
 
-Usage: ``python benchmarks/bench_analyze.py [--long-frames 3000] [--skip-long]``
-Each session runs in its own process so the peak memory is its own.
+Usage: ``python benchmarks/bench_analyze.py [--long-frames 18000] [--skip-long] [--skip-default]
+[--out benchmarks/results/analyze_long.json]``
+Each measurement runs in its own process so the peak memory is its own.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import resource
+import os
 import subprocess
 import sys
 import tempfile
@@ -21,50 +28,139 @@ from pathlib import Path
 
 CHILD = r"""
 import json, resource, sys, time
+import cv2
+cv2.setNumThreads(1)
 from horsemocap.pipeline import analyze
+lines = []
 t0 = time.perf_counter()
-a = analyze(sys.argv[1], sys.argv[2], progress=lambda *x: None)
+
+class Progress:
+    counts = True
+    def __call__(self, step, message, done=None, total=None):
+        if done is None or done == total or done % 3000 == 0:
+            text = f"{step}: {message}" + (f" {done}/{total}" if done is not None else "")
+            lines.append((round(time.perf_counter() - t0, 1), text))
+            print(f"  [{time.perf_counter() - t0:7.1f} s] {text}", file=sys.stderr, flush=True)
+
+a = analyze(sys.argv[1], sys.argv[2], progress=Progress())
 total = time.perf_counter() - t0
 seg = a.results["triangulate"]["segment"]
-print(json.dumps({"timings": a.timings, "total_s": total, "synced_frames": a.results["sync"]["n_frames"],
-                  "analysed_frames": seg[1] - seg[0],
+import horsemocap.pipeline
+print(json.dumps({"code": horsemocap.pipeline.__file__, "timings": a.timings, "total_s": total,
+                  "synced_frames": a.results["sync"]["n_frames"],
+                  "analysed_frames": seg[1] - seg[0], "segment": list(seg), "progress_lines": len(lines),
+                  "cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+DECODE = r"""
+import json, resource, sys, time
+import cv2
+cv2.setNumThreads(1)
+from horsemocap.session import load_session
+from horsemocap.sources import FrameSource
+s = load_session(sys.argv[1])
+t0 = time.perf_counter()
+n = 0
+for c in s.cameras:
+    for _ in FrameSource(s.motion[c]).iter_frames(color=False):
+        n += 1
+print(json.dumps({"camera_frames": n, "seconds": time.perf_counter() - t0,
+                  "cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
 
-def run(session: Path) -> dict:
-    with tempfile.TemporaryDirectory() as out:
-        proc = subprocess.run([sys.executable, "-c", CHILD, str(session), out], capture_output=True, text=True)
+def child(code: str, *args, pythonpath=None) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(pythonpath)) if pythonpath else None
+    # run from the checkout itself: "python -c" puts the working folder first on the import path
+    proc = subprocess.run([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, text=True, env=env,
+                          cwd=str(pythonpath) if pythonpath else None)
     if proc.returncode:
-        raise SystemExit(proc.stderr)
+        raise SystemExit(f"child failed ({proc.returncode})")
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def run(session: Path, pythonpath=None) -> dict:
+    with tempfile.TemporaryDirectory() as out:
+        return child(CHILD, session, out, pythonpath=pythonpath)
+
+
 def show(name: str, r: dict) -> None:
-    print(f"\n{name}: {r['synced_frames']} synchronised frames per camera, {r['analysed_frames']} analysed")
+    print(f"\n{name} ({r['code']}): {r['synced_frames']} synchronised frames per camera, {r['analysed_frames']} analysed "
+          f"(frames {r['segment'][0]}..{r['segment'][1] - 1}), {r['progress_lines']} progress lines")
     for step, s in r["timings"].items():
         print(f"  {step:<14s} {s:8.3f} s")
     fps = r["synced_frames"] * 3 / r["total_s"]
-    print(f"  {'total':<14s} {r['total_s']:8.3f} s   ({fps:.0f} camera-frames/s), peak memory {r['peak_rss_mb']:.0f} MB")
+    print(f"  {'total':<14s} {r['total_s']:8.3f} s   ({fps:.0f} camera-frames/s), CPU {r['cpu_s']:.1f} s, "
+          f"peak memory {r['peak_rss_mb']:.0f} MB",
+          flush=True)
+
+
+def load():
+    return tuple(round(x, 2) for x in os.getloadavg())
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--long-frames", type=int, default=3000)
+    ap.add_argument("--long-frames", type=int, default=18000)
     ap.add_argument("--skip-long", action="store_true")
+    ap.add_argument("--skip-default", action="store_true")
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "analyze_long.json"))
+    ap.add_argument("--compare-with", default=None,
+                    help="another checkout of horsemocap (e.g. the code before a change): its analyze is run too")
     args = ap.parse_args()
-    from horsemocap.data import cache_dir, default_session_dir
+    from horsemocap.data import default_session_dir
 
-    show("default session", run(default_session_dir()))
+    out = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "cpus": os.cpu_count(),
+           "load_before": load()}
+    print(f"load average {out['load_before']}", flush=True)
+    if not args.skip_default:
+        out["default"] = run(default_session_dir())
+        show("default session", out["default"])
+        if args.compare_with:
+            out["default_compared"] = run(default_session_dir(), args.compare_with)
+            show(f"default session, code of {args.compare_with}", out["default_compared"])
     if not args.skip_long:
-        from horsemocap.virtuallab import render_session
+        from horsemocap.virtuallab.longsession import long_session
 
         t0 = time.perf_counter()
-        long_dir = cache_dir() / f"long_{args.long_frames}"
-        if not (long_dir / "session.json").is_file():
-            render_session(long_dir, n_motion_frames=args.long_frames, calibration_views=0)
-        print(f"\n(long session ready in {time.perf_counter() - t0:.1f} s: {long_dir})")
-        show(f"long session ({args.long_frames} frames)", run(long_dir))
+        long_dir = long_session(args.long_frames, progress=lambda m: print(m, flush=True))
+        print(f"\n(long session ready in {time.perf_counter() - t0:.1f} s: {long_dir})", flush=True)
+        dec1 = child(DECODE, long_dir)
+        print(f"decode-only: {dec1['camera_frames']} camera-frames in {dec1['seconds']:.1f} s", flush=True)
+        r = run(long_dir)
+        show(f"long session ({args.long_frames} frames)", r)
+        dec2 = child(DECODE, long_dir)
+        print(f"decode-only again: {dec2['seconds']:.1f} s", flush=True)
+        if args.compare_with:
+            rc = run(long_dir, args.compare_with)
+            show(f"long session, code of {args.compare_with}", rc)
+            dec3 = child(DECODE, long_dir)
+            print(f"decode-only a third time: {dec3['seconds']:.1f} s", flush=True)
+            out["long_compared"] = {"code": args.compare_with, "analyze": rc, "decode_s": dec3["seconds"],
+                                    "throughput_ratio": 0.5 * (dec2["seconds"] + dec3["seconds"]) / rc["total_s"]}
+            print(f"long session, code of {args.compare_with}: throughput "
+                  f"{out['long_compared']['throughput_ratio']:.2f} of decode-only (decode {dec2['seconds']:.1f} and "
+                  f"{dec3['seconds']:.1f} s around it)", flush=True)
+        dec_s = 0.5 * (dec1["seconds"] + dec2["seconds"])
+        ratio = dec_s / r["total_s"]
+        cpu_ratio = 0.5 * (dec1["cpu_s"] + dec2["cpu_s"]) / r["cpu_s"]
+        out["long"] = {"session": str(long_dir), "frames_after_flash": args.long_frames, "analyze": r,
+                       "decode_s": [dec1["seconds"], dec2["seconds"]], "camera_frames": dec1["camera_frames"],
+                       "decode_peak_rss_mb": dec1["peak_rss_mb"], "throughput_ratio": ratio,
+                       "decode_cpu_s": [dec1["cpu_s"], dec2["cpu_s"]], "cpu_ratio": cpu_ratio}
+        print(f"\nlong session: analyze {r['total_s']:.1f} s, decode-only {dec_s:.1f} s (mean of "
+              f"{dec1['seconds']:.1f}, {dec2['seconds']:.1f}) for {dec1['camera_frames']} camera-frames: "
+              f"throughput {ratio:.2f} of decode-only (target >= 0.5); CPU time analyze {r['cpu_s']:.1f} s, "
+              f"decode-only {dec1['cpu_s']:.1f} / {dec2['cpu_s']:.1f} s (ratio {cpu_ratio:.2f}); peak memory analyze "
+              f"{r['peak_rss_mb']:.0f} MB, decode {dec1['peak_rss_mb']:.0f} MB", flush=True)
+    out["load_after"] = load()
+    print(f"load average after {out['load_after']}")
+    if not args.skip_long:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+        print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":

@@ -9,7 +9,9 @@ before and after:
   ``cv2.cvtColor`` it calls (input shape) and every image it thresholds and
   labels (``filters._candidates_in``: the gray crop itself) are recorded;
   the floor is ``cvtColor`` on RGB arrays of the same shapes plus
-  ``threshold + connectedComponentsWithStats`` on the same gray crops.
+  ``threshold + connectedComponentsWithStats`` on the same gray crops (for
+  the whole-frame search, ``thresholds.label_bright``: the whole frame
+  thresholded and the same crops labelled).
   Ratio = floor time / detector time (1 = no overhead beyond OpenCV).
 * **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
   + connectedComponentsWithStats`` on every whole frame the detector was
@@ -20,6 +22,11 @@ before and after:
   converted on access as the pipeline's ``FrameSequence`` does).
   Sessions: the bundled one (640 x 480) and the hard 1080p session
   ``canter1080_toedin_50_speed`` (render cache, rendered on first use).
+* **whole-frame search**: identification's search of a whole frame
+  (``_whole_frame_search``, labelling crops around the bright pixels), the
+  same search labelling whole frames (``frame_candidates``) and the floor
+  ``threshold + connectedComponentsWithStats``, on the first synchronised
+  frames (the horse not in view yet).
 * **decoding**: reading every frame of every video (gray, as the pipeline
   reads them): the floor of the whole pipeline.
 * **joint triangulation** (``reconstruction.triangulate``, all cameras, DLT
@@ -35,7 +42,7 @@ before and after:
   calibration (board detection + solve) + decoding.
 
 Usage: ``python benchmarks/bench_floor.py [--repeat 3] [--frames 80] [--points 20000]
-[--out benchmarks/results/floor.json]``
+[--out benchmarks/results/floor.json] [--compare-with CHECKOUT]``
 """
 from __future__ import annotations
 
@@ -78,12 +85,22 @@ class Recorder:
     def __init__(self):
         self.convert_shapes = []
         self.labelled = []          # (gray crop copy, threshold)
+        self.bright = []            # (gray frame, threshold, crops): label_bright's work
 
     def __enter__(self):
-        from horsemocap.detection import filters, tracking
+        from horsemocap.detection import filters, thresholds, tracking
 
-        self._orig = (cv2.cvtColor, filters._candidates_in, tracking._candidates_in)
-        orig_cvt, orig_cand = self._orig[0], self._orig[1]
+        self._orig = (cv2.cvtColor, filters._candidates_in, tracking._candidates_in, thresholds.label_bright)
+        orig_cvt, orig_cand, orig_bright = self._orig[0], self._orig[1], self._orig[3]
+
+        def bright(gray, threshold, *a, **k):
+            binary = cv2.threshold(gray, int(threshold), 255, cv2.THRESH_BINARY)[1]
+            boxes = thresholds._bright_boxes(binary, thresholds.BRIGHT_BLOCK, thresholds.BRIGHT_PAD)
+            if sum((b[2] - b[0]) * (b[3] - b[1]) for b in boxes) > thresholds.BRIGHT_MAX_FRACTION * gray.size:
+                boxes = [(0, 0, gray.shape[1], gray.shape[0])]
+            self.bright.append((np.array(gray), int(threshold), boxes))
+            return orig_bright(gray, threshold, *a, **k)
+        thresholds.label_bright = bright
 
         def cvt(src, code, *a, **k):
             if code == cv2.COLOR_RGB2GRAY:
@@ -101,15 +118,16 @@ class Recorder:
         return self
 
     def __exit__(self, *exc):
-        from horsemocap.detection import filters, tracking
+        from horsemocap.detection import filters, thresholds, tracking
 
-        cv2.cvtColor, filters._candidates_in, tracking._candidates_in = self._orig
+        cv2.cvtColor, filters._candidates_in, tracking._candidates_in, thresholds.label_bright = self._orig
 
     def floor(self, rgb_like: np.ndarray):
         """A function doing the recorded OpenCV work alone."""
         H, W = rgb_like.shape[:2]
         conv = [rgb_like[:s[0], :s[1]] for s in self.convert_shapes if s[0] <= H and s[1] <= W]
         lab = self.labelled
+        bright = self.bright
 
         def run():
             for a in conv:
@@ -117,13 +135,20 @@ class Recorder:
             for g, t in lab:
                 b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
                 cv2.connectedComponentsWithStats(b, connectivity=8)
+            for g, t, boxes in bright:          # the whole frame thresholded, the crops labelled
+                b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
+                for u0, v0, u1, v1 in boxes:
+                    cv2.connectedComponentsWithStats(b[v0:v1, u0:u1], connectivity=8)
         return run
 
     def summary(self):
         px_conv = sum(s[0] * s[1] for s in self.convert_shapes)
-        px_lab = sum(g.size for g, _ in self.labelled)
+        px_lab = sum(g.size for g, _ in self.labelled) + sum((b[2] - b[0]) * (b[3] - b[1])
+                                                            for _, _, boxes in self.bright for b in boxes)
         return {"conversions": len(self.convert_shapes), "converted_px": int(px_conv),
-                "labellings": len(self.labelled), "labelled_px": int(px_lab)}
+                "labellings": len(self.labelled) + sum(len(boxes) for _, _, boxes in self.bright),
+                "labelled_px": int(px_lab), "whole_frames_searched_in_crops": len(self.bright),
+                "thresholded_whole_px": int(sum(g.size for g, _, _ in self.bright))}
 
 
 def whole_frame_floor(rgb_frames: list, thresholds: list):
@@ -243,6 +268,49 @@ def bench_detection(name, s, res, n_frames, repeat, out):
     del rgb
 
 
+def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
+    """The whole-frame candidate search (identification's, in crops) against labelling whole frames.
+
+    Frames: the synchronised gray frames of every camera from the start (the
+    horse not yet in view: what a long session is mostly made of), up to
+    ``n_frames`` per camera, in memory. Rows: ``_whole_frame_search`` (the
+    search the identification runs while the horse is out of view),
+    ``frame_candidates`` on the whole frame (the same result, labelling the
+    whole image) and the floor ``threshold + connectedComponentsWithStats``.
+    """
+    from horsemocap.detection.identification import AUTO_MIN_CIRCULARITY, GENERIC_AREA, _whole_frame_search, \
+        frame_candidates
+    from horsemocap.sources import FrameSource
+
+    off, n = res["sync"]["offsets"], res["sync"]["n_frames"]
+    thr = {c: int(res["detect"]["detection"][c]["threshold"]) for c in s.cameras}
+    gray = {c: FrameSource(s.motion[c]).read(off[c], off[c] + min(n, n_frames), color=False) for c in s.cameras}
+    area = (GENERIC_AREA[0], None)
+
+    def crops():
+        for c in s.cameras:
+            for g in gray[c]:
+                _whole_frame_search(g, thr[c], area, AUTO_MIN_CIRCULARITY)
+
+    def whole():
+        for c in s.cameras:
+            for g in gray[c]:
+                frame_candidates(g, thr[c], area, AUTO_MIN_CIRCULARITY)
+
+    def floor():
+        for c in s.cameras:
+            for g in gray[c]:
+                cv2.connectedComponentsWithStats(cv2.threshold(g, thr[c], 255, cv2.THRESH_BINARY)[1], connectivity=8)
+    t = rounds({"crops": crops, "whole": whole, "floor": floor}, repeat)
+    count = sum(len(g) for g in gray.values())
+    row = {"session": name, "frames": count, **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},
+           "crops_ratio": t["floor"] / t["crops"], "whole_ratio": t["floor"] / t["whole"]}
+    print(f"whole-frame search, {name} ({count} frames from the start): in crops {row['crops_ms_per_frame']:.2f} "
+          f"ms/frame (floor/step {row['crops_ratio']:.2f}), labelling whole frames {row['whole_ms_per_frame']:.2f} "
+          f"({row['whole_ratio']:.2f}), bare threshold + labels {row['floor_ms_per_frame']:.2f}", flush=True)
+    out.setdefault("whole_frame_search", []).append(row)
+
+
 def bench_decode(name, s, repeat, out):
     from horsemocap.sources import FrameSource
 
@@ -283,7 +351,21 @@ def pair_floor(rig, px, a, b):
     return run, int(ok.sum())
 
 
-def bench_triangulation(name, s, res, n_points, repeat, out):
+def _other_triangulate(checkout):
+    """``triangulate`` of another checkout's ``reconstruction.py`` (e.g. the code before a change)."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("horsemocap._compared_reconstruction",
+                                                  Path(checkout) / "horsemocap" / "reconstruction.py")
+    mod = importlib.util.module_from_spec(spec)
+    mod.__package__ = "horsemocap"
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod.triangulate
+
+
+def bench_triangulation(name, s, res, n_points, repeat, out, compare_with=None):
     from horsemocap.reconstruction import triangulate
 
     rig = res["rig"]["rig"]
@@ -295,13 +377,24 @@ def bench_triangulation(name, s, res, n_points, repeat, out):
     total = px[cams[0]].shape[0] * m
     seen = int(np.sum(np.sum([np.all(np.isfinite(px[c]), -1) for c in cams], 0) >= 2))
     floor, n_pair = pair_floor(rig, px, cams[0], cams[1])
-    t = rounds({"joint": lambda: triangulate(rig, px), "pair": floor}, repeat)
+    fns = {"joint": lambda: triangulate(rig, px), "pair": floor}
+    if compare_with:
+        other = _other_triangulate(compare_with)
+        fns["compared"] = lambda: other(rig, px)
+        a, b = triangulate(rig, px), other(rig, px)
+        diff = float(np.nanmax(np.abs(a.points - b.points)))
+    t = rounds(fns, repeat)
     row = {"session": name, "points": total, "points_two_or_more_views": seen, "pair_points": n_pair,
            "joint_ms_per_1000": 1e3 * t["joint"] / seen * 1000, "pair_ms_per_1000": 1e3 * t["pair"] / n_pair * 1000}
     row["ratio"] = row["joint_ms_per_1000"] / row["pair_ms_per_1000"]
+    if compare_with:
+        row["compared"] = {"code": str(compare_with), "ms_per_1000": 1e3 * t["compared"] / seen * 1000,
+                           "ratio": t["compared"] / seen / (t["pair"] / n_pair), "max_point_difference_m": diff}
+        print(f"  the code of {compare_with}: {row['compared']['ms_per_1000']:.2f} ms per 1000 points, "
+              f"{row['compared']['ratio']:.2f} x the floor; points differ by {diff:.1e} m at most", flush=True)
     print(f"joint triangulation, {name}: {seen} points seen by two or more cameras; joint "
           f"{row['joint_ms_per_1000']:.2f} ms per 1000 points, OpenCV pair floor {row['pair_ms_per_1000']:.2f} "
-          f"ms per 1000 ({n_pair} points): {row['ratio']:.1f} x the floor", flush=True)
+          f"ms per 1000 ({n_pair} points): {row['ratio']:.2f} x the floor", flush=True)
     out.setdefault("triangulation", []).append(row)
 
 
@@ -388,6 +481,8 @@ def main(argv=None):
     ap.add_argument("--points", type=int, default=20000, help="points for triangulation (tiled)")
     ap.add_argument("--skip", nargs="*", default=[], choices=["hard", "analyze", "calibration"])
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "floor.json"))
+    ap.add_argument("--compare-with", default=None,
+                    help="another checkout of horsemocap whose joint triangulation is timed in the same rounds")
     args = ap.parse_args(argv)
     cv2.setNumThreads(1)
     from horsemocap.data import default_session_dir
@@ -404,13 +499,15 @@ def main(argv=None):
     s, res = prepare(bundled, rig)
     dec_b = bench_decode("bundled", s, args.repeat, out)
     bench_detection("bundled", s, res, args.frames, args.repeat, out)
-    bench_triangulation("bundled", s, res, args.points, args.repeat, out)
+    bench_whole_frame("bundled", s, res, args.repeat, out)
+    bench_triangulation("bundled", s, res, args.points, args.repeat, out, args.compare_with)
     if "hard" not in args.skip:
         from horsemocap.virtuallab.hard import hard_session
         hs, hres = prepare(hard_session(HARD_1080))
         bench_decode(HARD_1080, hs, args.repeat, out)
         bench_detection(HARD_1080, hs, hres, args.frames, args.repeat, out)
-        bench_triangulation(HARD_1080, hs, hres, args.points, args.repeat, out)
+        bench_whole_frame(HARD_1080, hs, hres, args.repeat, out)
+        bench_triangulation(HARD_1080, hs, hres, args.points, args.repeat, out, args.compare_with)
     if "analyze" not in args.skip and cal_row is not None:
         bench_analyze(bundled, args.repeat, out, cal_row["board_detection_s"] + cal_row["solve_s"],
                       dec_b["seconds"])

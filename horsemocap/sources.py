@@ -6,6 +6,7 @@ Thesis Appendix A spends pages renaming files so that MATLAB reads
 from __future__ import annotations
 
 import re
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -13,6 +14,44 @@ import cv2
 import numpy as np
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm"}
+#: A video read ahead by fewer frames than this is decoded through, not sought (OpenCV's seek in an
+#: MJPEG AVI costs 6-8 ms, about 15 frames' decoding at 640 x 480).
+_DECODE_THROUGH = 16
+#: Frames a :class:`FrameSequence` read forwards decodes ahead in a second thread.
+READ_AHEAD = 8
+#: Bytes of decoded gray video frames shared by the readers of a video in one process: the flash
+#: search decodes the first frames of each video, the detection and its check read them again.
+SHARED_GRAY_BYTES = 160 * 2 ** 20
+
+
+class _SharedGray:
+    """Decoded gray frames of videos, least recently used first out, at most ``limit`` bytes."""
+
+    def __init__(self, limit: int):
+        self.limit, self.size, self.frames = int(limit), 0, OrderedDict()
+
+    @staticmethod
+    def video_key(path: Path):
+        st = path.stat()
+        return str(path.resolve()), st.st_mtime_ns, st.st_size
+
+    def get(self, video, index: int):
+        f = self.frames.get((video, index))
+        if f is not None:
+            self.frames.move_to_end((video, index))
+        return f
+
+    def put(self, video, index: int, frame: np.ndarray) -> None:
+        if frame.nbytes > self.limit or (video, index) in self.frames:
+            return
+        self.frames[(video, index)] = frame
+        self.size += frame.nbytes
+        while self.size > self.limit:
+            _, old = self.frames.popitem(last=False)
+            self.size -= old.nbytes
+
+
+_SHARED = _SharedGray(SHARED_GRAY_BYTES)
 
 
 class SourceError(ValueError):
@@ -90,15 +129,38 @@ class FrameSource:
         """Number of frames actually readable (videos are decoded to count)."""
         if not self.is_video:
             return len(list_images(self.path))
-        return sum(1 for _ in self.iter_frames())
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            # the count the container declares, if its last frame is read and nothing after it
+            # (no decoding of the whole video: a ten-minute session would be decoded twice)
+            n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            if n > 0:
+                cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
+                if int(cap.get(cv2.CAP_PROP_POS_FRAMES)) == n - 1 and cap.grab() and not cap.grab():
+                    return n
+            # otherwise (no count, a truncated or an inexact one): count every frame
+            cap.release()
+            cap = cv2.VideoCapture(str(self.path))
+            count = 0
+            while cap.grab():
+                count += 1
+            return count
+        finally:
+            cap.release()
 
-    def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True):
-        """Yield ``(index, frame)`` for frames ``start <= index < stop``."""
+    def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True, share: bool = False):
+        """Yield ``(index, frame)`` for frames ``start <= index < stop``.
+
+        ``share`` (gray frames of a video): keep them for the other readers of
+        the video in this process (:data:`SHARED_GRAY_BYTES`; what the flash
+        search decodes, the detection reads again).
+        """
         if not self.is_video:
             files = list_images(self.path)[start:stop]
             for i, f in enumerate(files, start):
                 yield i, read_image(f, color)
             return
+        video = _SharedGray.video_key(self.path) if share and not color else None
         cap = cv2.VideoCapture(str(self.path))
         try:
             if start:
@@ -113,7 +175,13 @@ class FrameSource:
                 ok, bgr = cap.read()
                 if not ok:
                     return
-                yield i, (cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB) if color else cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+                if color:
+                    yield i, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+                else:
+                    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+                    if video is not None:
+                        _SHARED.put(video, i, gray)
+                    yield i, gray
                 i += 1
         finally:
             cap.release()
@@ -173,6 +241,8 @@ class FrameSequence:
         self._cache: dict[int, np.ndarray] = {}
         self._files = None if source.is_video else list_images(source.path)
         self._cap, self._next = None, None
+        self._last, self._job, self._pool = None, None, None
+        self._video = None if (self._files is not None or color) else _SharedGray.video_key(source.path)
         first = self[0]
         self.shape = (stop - start,) + first.shape
         self.dtype = first.dtype
@@ -194,10 +264,49 @@ class FrameSequence:
         k = int(k) + (len(self) if k < 0 else 0)
         if not 0 <= k < len(self):
             raise IndexError(f"frame {k} outside 0..{len(self) - 1}")
+        if self._job is not None and self._job.done():
+            self._collect()
         frame = self._cache.get(k)
         if frame is None:
             frame = self._load(k)
+        if self._files is None and self._last is not None and k == self._last + 1:
+            self._read_ahead(k)
+        self._last = k
         return frame
+
+    # reading ahead: while the caller works on frame k, a second thread decodes the next frames
+    # (OpenCV releases the interpreter while it decodes); only when reading forwards, frame by frame
+    def _read_ahead(self, k: int) -> None:
+        if (self._job is None and self._cap is not None and self._next is not None
+                and k < self._next <= k + READ_AHEAD and self._next < len(self)):
+            if self._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
+            count = min(READ_AHEAD, len(self) - self._next)
+            self._job = self._pool.submit(self._decode, self._cap, count)
+            self._job.count = count
+
+    def _decode(self, cap, count: int) -> list:
+        frames = []
+        for _ in range(count):
+            ok, bgr = cap.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB if self.color else cv2.COLOR_BGR2GRAY))
+        return frames
+
+    def _collect(self) -> None:
+        """Wait for the frames being read ahead and keep them (the capture is free again)."""
+        job, self._job = self._job, None
+        frames = job.result()
+        for f in frames:
+            self._keep(self._next, f)
+            if self._video is not None:
+                _SHARED.put(self._video, self.start + self._next, f)
+            self._next += 1
+        if len(frames) < job.count:
+            self._next = None          # the source ended early: _load seeks and reports it
 
     def _keep(self, k: int, frame: np.ndarray) -> None:
         self._cache[k] = frame
@@ -205,18 +314,30 @@ class FrameSequence:
             self._cache.pop(next(iter(self._cache)))
 
     def _load(self, k: int) -> np.ndarray:
+        if self._job is not None:
+            self._collect()
+            if k in self._cache:
+                return self._cache[k]
+        if self._video is not None:                 # decoded already by another reader of the video
+            frame = _SHARED.get(self._video, self.start + k)
+            if frame is not None:
+                self._keep(k, frame)
+                return frame
         if self._files is not None:
             if self.start + k >= len(self._files):
                 raise SourceError(f"{self.source.path}: no image for frame {self.start + k}")
             frame = read_image(self._files[self.start + k], self.color)
             self._keep(k, frame)
             return frame
-        # a video: decode forwards from where the capture is, or from a block before k
-        first = k if self._next is not None and k >= self._next and k - self._next < 32 else None
+        # a video: decode forwards from where the capture is (a seek costs about as much as decoding
+        # 15 frames), or, reading backwards (the frame after k was read), from a block of half the
+        # cache before k; a jump elsewhere seeks to k itself
+        ahead = _DECODE_THROUGH
+        first = k if self._next is not None and k >= self._next and k - self._next < ahead else None
         if first is None:
-            backwards = self._next is not None and k < self._next
-            first = max(0, k - self.cache_frames // 4 + 1) if backwards else k
-        if self._cap is None or self._next is None or first < self._next or first - self._next >= 32:
+            backwards = self._next is not None and k < self._next and (k + 1) in self._cache
+            first = max(0, k - self.cache_frames // 2 + 1) if backwards else k
+        if self._cap is None or self._next is None or first < self._next or first - self._next >= ahead:
             self._seek(first)
         frame = None
         while self._next <= k:
@@ -225,6 +346,8 @@ class FrameSequence:
                 raise SourceError(f"{self.source.path}: no frame {self.start + self._next}")
             f = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB if self.color else cv2.COLOR_BGR2GRAY)
             self._keep(self._next, f)
+            if self._video is not None:
+                _SHARED.put(self._video, self.start + self._next, f)
             if self._next == k:
                 frame = f
             self._next += 1
@@ -245,6 +368,12 @@ class FrameSequence:
 
     def close(self) -> None:
         """Release the video (also done when the sequence is garbage-collected)."""
+        if self._job is not None:
+            self._job.result()
+            self._job = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
         if self._cap is not None:
             self._cap.release()
             self._cap = None

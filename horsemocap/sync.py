@@ -90,7 +90,7 @@ def _gray_stack(frames, scale: int) -> np.ndarray:
 def _read(source, search_frames, start):
     if isinstance(source, FrameSource):
         stop = None if search_frames is None else start + int(search_frames)
-        frames = [f for _, f in source.iter_frames(start, stop, color=False)]
+        frames = [f for _, f in source.iter_frames(start, stop, color=False, share=True)]
         if not frames:
             raise SyncError(f"{source.path}: no frames from index {start} to search for the flash")
         return frames, str(source.path)

@@ -194,3 +194,12 @@ def test_detection_on_a_frame_sequence_is_the_same():
     np.testing.assert_array_equal(a.marker_px, b.marker_px)
     np.testing.assert_array_equal(a.reason, b.reason)
     assert a.params == b.params
+
+
+def test_video_length_without_decoding_and_when_truncated(tmp_path):
+    src = _numbered_video(tmp_path / "n.avi", n=40)
+    assert len(src) == 40 == sum(1 for _ in src.iter_frames(color=False))
+    data = (tmp_path / "n.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[: len(data) * 2 // 3])   # no index, frames missing
+    cut = FrameSource(tmp_path / "cut.avi")
+    assert len(cut) == sum(1 for _ in cut.iter_frames(color=False)) < 40

@@ -644,8 +644,40 @@ def label_frame(rig, cands: dict, model: np.ndarray, n_markers: int, max_residua
 
 def _whole_frame_candidates(frames, k, cams, thr, cparams) -> dict:
     """Candidates of frame ``k`` of every camera, searched in the whole image (no prediction)."""
-    return {c: frame_candidates(frames[c][k], thr[c], _area_range(cparams[c]), _min_circ(cparams[c]),
-                                centroid=cparams[c].centroid) for c in cams}
+    return {c: _whole_frame_search(frames[c][k], thr[c], _area_range(cparams[c]), _min_circ(cparams[c]),
+                                   centroid=cparams[c].centroid) for c in cams}
+
+
+def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circularity, centroid: str = "weighted",
+                        max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
+    """:func:`frame_candidates` of a whole image, labelled in crops around its bright pixels.
+
+    The same candidates (same regions, same order, same centres), with the
+    labelling of :func:`~horsemocap.detection.thresholds.label_bright`: in a
+    frame without the horse (most of a long session) only glints and lamps
+    are bright, and labelling crops around them costs a fraction of
+    labelling the whole image (issue 16).
+    """
+    from .base import Regions
+    from .thresholds import label_bright
+
+    H, W = gray.shape[:2]
+    amax = area_range[1] if area_range[1] is not None else max(50.0, GENERIC_MAX_AREA_FRACTION * H * W)
+    n, labels, stats, cents = label_bright(gray, threshold)
+    regions = Regions(labels=labels, ids=np.arange(1, n), area=stats[1:, 4].astype(np.int64),
+                      bbox=stats[1:, :4].astype(np.int64), centroid=cents[1:] + np.array([0, 0], float),
+                      origin=(0, 0), image_size=(W, H))
+    area = regions.area
+    keep = np.flatnonzero((area >= area_range[0]) & (area <= amax))
+    if len(keep) and min_circularity is not None:
+        circ = region_circularity(regions.subset(keep))
+        keep = keep[circ >= min_circularity]
+    if len(keep) > max_count:
+        keep = keep[np.argsort(-regions.area[keep], kind="stable")[:max_count]]
+    if len(keep) == 0:
+        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    centre = regions.centroid[keep].astype(float) if centroid == "binary" else weighted_centroids(gray, regions, keep)
+    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy())
 
 
 #: Frames labelled on their own before the skin markers among the static shot's points are

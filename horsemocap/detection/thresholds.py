@@ -17,6 +17,7 @@ __all__ = [
     "otsu_threshold",
     "otsu3_thresholds",
     "auto_threshold",
+    "label_bright",
 ]
 
 
@@ -175,3 +176,112 @@ def auto_threshold(images, method: str = "otsu3") -> int:
     if method == "otsu3":
         return otsu3_thresholds(hist)[1]
     raise ValueError(f"auto_threshold: method must be 'otsu' or 'otsu3', got {method!r}")
+
+
+# --------------------------------------------------------------------------
+# labelling a sparse bright image in crops (the whole-frame search, issue 16)
+# --------------------------------------------------------------------------
+#: Block size (px) of the decimated image in which :func:`label_bright` looks for bright pixels.
+BRIGHT_BLOCK = 8
+#: Pixels labelled around each group of bright blocks: more than a weighted centre looks
+#: beyond its region (6 px, plus 1 for the other regions' dilation).
+BRIGHT_PAD = 10
+#: Above this fraction of the image in crops, the whole image is labelled at once.
+BRIGHT_MAX_FRACTION = 0.5
+
+
+def _bright_boxes(binary: np.ndarray, block: int, pad: int) -> list:
+    """Disjoint crops ``(u0, v0, u1, v1)`` that hold every white region of ``binary`` whole, with ``pad`` around."""
+    H, W = binary.shape
+    Hb, Wb = -(-H // block), -(-W // block)
+    b = binary if (Hb * block, Wb * block) == (H, W) else \
+        cv2.copyMakeBorder(binary, 0, Hb * block - H, 0, Wb * block - W, cv2.BORDER_CONSTANT, value=0)
+    if block == 8:      # the 8 bytes of a block's row as one 64-bit word: OR over the block's 8 rows
+        v = np.ascontiguousarray(b).view(np.uint64).reshape(Hb, 8, Wb)
+        small = ((v[:, 0] | v[:, 1] | v[:, 2] | v[:, 3] | v[:, 4] | v[:, 5] | v[:, 6] | v[:, 7]) != 0)
+    else:
+        small = cv2.resize(b, (Wb, Hb), interpolation=cv2.INTER_AREA) > 0   # a block's mean: > 0 iff a white pixel
+    n, _, st, _ = cv2.connectedComponentsWithStats(small.view(np.uint8), connectivity=8)
+    boxes = [[max(x * block - pad, 0), max(y * block - pad, 0), min((x + w) * block + pad, W),
+              min((y + h) * block + pad, H)] for x, y, w, h in st[1:, :4].tolist()]
+    merged = True
+    while merged and len(boxes) > 1:                  # overlapping crops become one
+        merged = False
+        out = []
+        for bx in boxes:
+            for o in out:
+                if bx[0] < o[2] and o[0] < bx[2] and bx[1] < o[3] and o[1] < bx[3]:
+                    o[0], o[1], o[2], o[3] = min(o[0], bx[0]), min(o[1], bx[1]), max(o[2], bx[2]), max(o[3], bx[3])
+                    merged = True
+                    break
+            else:
+                out.append(bx)
+        boxes = out
+    return boxes
+
+
+def label_bright(gray: np.ndarray, threshold: int, block: int = BRIGHT_BLOCK, pad: int = BRIGHT_PAD):
+    """``cv2.connectedComponentsWithStats`` (8-connected, int32 labels) of ``gray > threshold``, in crops.
+
+    The same ``(n, labels, stats, centroids)`` for the whole image, found by
+    labelling only crops around the bright pixels: the thresholded image
+    reduced by ``block`` marks the blocks holding a bright pixel; each group of
+    such blocks (8-connected, so a region never spans two groups), grown by
+    ``pad`` pixels (crops that overlap merged), is labelled alone, and the
+    labels are renumbered in the order OpenCV's labelling of the whole image
+    gives them (its 2 x 2-block scan: by the first pixel pair of rows, then
+    pixel pair of columns, that a region reaches). An image of sparse bright
+    spots (an empty arena: glints, a lamp) costs a fraction of labelling it
+    whole; when the crops would cover more than :data:`BRIGHT_MAX_FRACTION`
+    of the image, the whole image is labelled at once. Row 0 (the
+    background) has OpenCV's area and box, and no centre (NaN).
+    """
+    binary = cv2.threshold(gray, int(threshold), 255, cv2.THRESH_BINARY)[1]
+    H, W = binary.shape
+    boxes = _bright_boxes(binary, block, pad)
+    if sum((b[2] - b[0]) * (b[3] - b[1]) for b in boxes) > BRIGHT_MAX_FRACTION * H * W:
+        return cv2.connectedComponentsWithStats(binary, connectivity=8, ltype=cv2.CV_32S)
+    labels = np.zeros((H, W), np.int32)
+    parts, keys = [], []
+    for u0, v0, u1, v1 in boxes:
+        n, lab, st, ce = cv2.connectedComponentsWithStats(binary[v0:v1, u0:u1], connectivity=8, ltype=cv2.CV_32S)
+        if n <= 1:
+            continue
+        st = st[1:].astype(np.int64)
+        area = st[:, 4]
+        # OpenCV's centre is (sum of coordinates) / area; the sums are integers, recovered exactly
+        sums = np.rint(ce[1:] * area[:, None]) + np.array([u0, v0]) * area[:, None]
+        # labelling order of the whole image: the first pair of rows a region reaches (from its top
+        # row), then the first pair of columns it reaches within that pair of rows
+        top = st[:, 1] + v0
+        key = np.empty(n - 1, np.int64)
+        for i in range(n - 1):
+            r0 = max((top[i] // 2) * 2 - v0, 0)
+            x, w = st[i, 0], st[i, 2]
+            cols = np.flatnonzero((lab[r0:r0 + 2, x:x + w] == i + 1).any(axis=0))
+            key[i] = (top[i] // 2) * (W + 2) + (cols[0] + x + u0) // 2
+        st[:, 0] += u0
+        st[:, 1] += v0
+        parts.append((u0, v0, u1, v1, lab, st, sums, n))
+        keys.append(key)
+    if not parts:
+        stats = np.array([[0, 0, W, H, H * W]], np.int32)
+        return 1, labels, stats, np.array([[(W - 1) / 2.0, (H - 1) / 2.0]])
+    key = np.concatenate(keys)
+    new = np.empty(len(key), np.int32)
+    new[np.argsort(key, kind="stable")] = np.arange(1, len(key) + 1, dtype=np.int32)
+    stats = np.empty((len(key) + 1, 5), np.int64)
+    cents = np.empty((len(key) + 1, 2))
+    at = 0
+    for u0, v0, u1, v1, lab, st, sums, n in parts:
+        ids = new[at:at + n - 1]
+        if n == 2:
+            np.multiply(lab, ids[0], out=labels[v0:v1, u0:u1])   # the crops are disjoint: no mask needed
+        else:
+            labels[v0:v1, u0:u1] = np.concatenate([[0], ids]).astype(np.int32)[lab]
+        stats[ids] = st
+        cents[ids] = sums / st[:, 4:5]
+        at += n - 1
+    stats[0] = (0, 0, W, H, H * W - int(stats[1:, 4].sum()))
+    cents[0] = np.nan                                   # the background's centre is never used
+    return len(key) + 1, labels, stats.astype(np.int32), cents
