@@ -252,7 +252,9 @@ def _flatten_light(wgt: np.ndarray, sub: np.ndarray, own: np.ndarray, b: float, 
     the coverage alone, whose centre is the disc's. Fewer than ``min_inner``
     interior pixels (a small or a long smeared marker): unchanged.
     """
-    inner = cv2.erode(own.view(np.uint8), _K3, iterations=1).view(bool)
+    # pixels on the image border are not inner (what lies beyond them is unknown)
+    inner = cv2.erode(own.view(np.uint8), _K3, iterations=1, borderType=cv2.BORDER_CONSTANT,
+                      borderValue=0).view(bool)
     n_in = int(np.count_nonzero(inner))
     if n_in < min_inner:
         return wgt
@@ -297,6 +299,7 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     lab = regions.labels
     h, w = lab.shape
     u0, v0 = regions.origin
+    W, H = regions.image_size
     out = np.full((len(idx), 2), np.nan)
     g = 2 * margin + 2
     for k, i in enumerate(idx):
@@ -317,15 +320,65 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
         ring = far & ~near & ~other
         b = _median(sub[ring]) if ring.any() else float(sub[own_b].min()) - 1
         wgt = np.where(near & ~(other & ~own_b), np.maximum(sub - b, 0.0), 0.0)
-        if flatten:
+        cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
+        if flatten and not any(cut):      # (the interior of a cut region is one-sided: its slope is the profile's)
             wgt = _flatten_light(wgt, sub, own_b, b)
         s = wgt.sum()
         if s <= 0:
             out[k] = regions.centroid[i]
             continue
         # the weighted means of the columns' and rows' indices (one sum per axis, no index grids)
-        out[k] = (wgt.sum(axis=0) @ np.arange(x0, x1) / s + u0, wgt.sum(axis=1) @ np.arange(y0, y1) / s + v0)
+        cols, rows = np.arange(x0, x1) + u0, np.arange(y0, y1) + v0
+        wu, wv = wgt.sum(axis=0), wgt.sum(axis=1)
+        out[k] = (wu @ cols / s, wv @ rows / s)
+        if any(cut):
+            out[k] = _symmetric_in_image(wgt, cols, rows, out[k], cut, (W, H))
     return out
+
+
+def _symmetric_in_image(wgt, cols, rows, centre, cut, size, iterations: int = 5):
+    """Centre of a region cut by the image border, from the part symmetric about it.
+
+    The image edge (``-0.5`` or ``W - 0.5``) cuts off one side of the
+    marker's profile (its blurred rim, or more), which pulls the weighted
+    centre inwards. Mirrored about the centre, the edge also cuts the other
+    side: the weights beyond the mirrored edge are left out, and the centre
+    of what remains, a profile cut symmetrically, is the marker's own. Per
+    axis, on the weights summed over the other axis (a cut along ``u`` keeps
+    the ``v`` profile symmetric); a few fixed-point iterations from the
+    plain weighted centre. ``cut``: (left, right, top, bottom) edges the
+    region touches.
+    """
+    W, H = size
+    cu = _symmetric_1d(wgt.sum(axis=0), cols, centre[0], cut[0], cut[1], W, iterations)
+    cv = _symmetric_1d(wgt.sum(axis=1), rows, centre[1], cut[2], cut[3], H, iterations)
+    return cu, cv
+
+
+def _symmetric_1d(p, x, c, cut_low, cut_high, n, iterations):
+    """1-D centre of profile ``p`` at pixels ``x``, cut by the image edge(s) and mirrored (see above).
+
+    The pixel straddling the mirrored edge counts by the part of it inside,
+    the profile taken linear across that pixel (its slope from its
+    neighbours), so that the centre moves smoothly with the edge.
+    """
+    if not (cut_low or cut_high):
+        return c
+    p = np.asarray(p, float)
+    slope = np.gradient(p) if len(p) > 1 else np.zeros_like(p)
+    for _ in range(iterations):
+        lo = 2 * c - (n - 0.5) if cut_high else -np.inf      # window [lo, hi]
+        hi = 2 * c + 0.5 if cut_low else np.inf
+        t0 = np.clip(lo - x, -0.5, 0.5)                     # the part of each pixel inside, about its centre
+        t1 = np.clip(hi - x, -0.5, 0.5)
+        t1 = np.maximum(t1, t0)
+        mass = p * (t1 - t0) + slope * (t1 ** 2 - t0 ** 2) / 2
+        moment = x * mass + p * (t1 ** 2 - t0 ** 2) / 2 + slope * (t1 ** 3 - t0 ** 3) / 3
+        s = mass.sum()
+        if not s > 0:
+            break
+        c = moment.sum() / s
+    return float(c)
 
 
 # --------------------------------------------------------------------------
