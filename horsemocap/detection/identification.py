@@ -778,6 +778,27 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     return tracker.result(fit0.model_index, k0, fit0.margin)
 
 
+def _whole_inside(centre, ref_area: float, size) -> bool:
+    """May a region touching the image border stand for its marker?
+
+    Its centre is measured from the part of the marker symmetric about it
+    (:func:`~horsemocap.detection.filters.weighted_centroids`: unbiased
+    while a little of the marker is cut off). The disc of the marker's
+    recent area (radius ``sqrt(area / pi)``, centred on the region's
+    centre) may reach at most one pixel beyond the image edge (``-0.5`` or
+    ``W - 0.5``): the thresholded disc is wider than the marker by the
+    blurred rim above the threshold (up to ~0.5 px), and the marker's own
+    rim then reaches into the border pixels. Unknown area (no recent view in
+    this camera): no.
+    """
+    if not np.isfinite(ref_area):
+        return False
+    r = math.sqrt(ref_area / math.pi) - 1.0
+    u, v = centre
+    W, H = size
+    return bool(u - r >= -0.5 and v - r >= -0.5 and u + r <= W - 0.5 and v + r <= H - 0.5)
+
+
 def _in_image(camera, point) -> bool:
     """Does the 3D ``point`` project inside the camera's image (and lie in front of it)?"""
     if camera.world_to_camera(np.asarray(point, float)[None])[0, 2] <= 0:
@@ -976,20 +997,18 @@ class _Tracker:
                 inside = 0 <= p[0] <= W - 1 and 0 <= p[1] <= H - 1
                 why[c] = "occluded" if inside else "outside_image"
                 continue
-            good = []
-            why[c] = "occluded"
+            good, rejected = [], []           # (the reason of the nearest rejected region is kept)
+            ra = ref_area[c][m]
             for j in near:
-                if cc.cut[j]:
-                    why[c] = "outside_image"
-                    continue
-                ra = ref_area[c][m]
-                if np.isfinite(ra) and cc.area[j] > ra * AREA_FACTOR:
-                    why[c] = "merged"
-                    continue
-                if np.isfinite(ra) and cc.area[j] < ra / AREA_FACTOR:
-                    why[c] = "partly_occluded"
-                    continue
-                good.append(int(j))
+                if cc.cut[j] and not _whole_inside(cc.centre[j], ra, (W, H)):
+                    rejected.append("outside_image")
+                elif np.isfinite(ra) and cc.area[j] > ra * AREA_FACTOR:
+                    rejected.append("merged")
+                elif np.isfinite(ra) and cc.area[j] < ra / AREA_FACTOR:
+                    rejected.append("partly_occluded")
+                else:
+                    good.append(int(j))
+            why[c] = rejected[0] if rejected else "occluded"
             options.append(good + [-1] if good else [-1])
         combos = np.array(list(itertools.product(*options)), dtype=int)
         nviews = (combos >= 0).sum(axis=1)
@@ -1116,9 +1135,10 @@ class _Tracker:
         It is used when every camera that can validate it does (at least
         three views with three or more cameras), or, seen by two, when its
         own track saw it in each of the two frames before and it lies within
-        a quarter of the marker spacing of its constant-velocity prediction (a
-        marker entering or leaving the third camera's view while the others
-        are out of sight). A 2-view point on a stale or borrowed track may be
+        a quarter of the marker spacing of its constant-velocity prediction,
+        in 3D or, in each of its two views, in that camera's image
+        (:meth:`_on_image_tracks`; a marker entering or leaving the third
+        camera's view while the others are out of sight). A 2-view point on a stale or borrowed track may be
         a chance match along an epipolar line, off in depth.
         """
         have = np.flatnonzero(np.all(np.isfinite(self.X[k]), axis=1))
@@ -1133,8 +1153,41 @@ class _Tracker:
             return
         hist, gap = self._history(k, direction, m)
         own = gap == 0 and len(hist) >= 2 and hist[0][0] == 1 and hist[1][0] == 2
-        if not own or np.linalg.norm(self.X[k, m] - pred[m]) > 0.5 * self.max_step:
+        if not own:
             self._reject(k, m, "unconfirmed")
+        elif not (np.linalg.norm(self.X[k, m] - pred[m]) <= 0.5 * self.max_step
+                  or self._on_image_tracks(k, m, direction)):
+            self._reject(k, m, "unconfirmed")
+
+    def _on_image_tracks(self, k, m, direction) -> bool:
+        """Does every view of marker ``m`` in frame ``k`` continue that camera's own image track?
+
+        The depth of a point seen by two cameras only, near the edge of an
+        image, carries the calibration's error there (several cm: its
+        constant-velocity prediction in 3D misses by more than the quarter
+        marker spacing allowed), while each camera's own centres move on
+        smoothly. Each view must lie within the same quarter spacing, seen
+        at the point's depth, of the constant-velocity prediction of the
+        centres this camera gave the marker in the two frames before.
+        """
+        X = self.X[k, m]
+        for c in self.cams:
+            if self.reason[c][k, m] != "":
+                continue
+            j1, j2 = k - direction, k - 2 * direction
+            if not (0 <= j2 < self.n and 0 <= j1 < self.n):
+                return False
+            p1, p2 = self.px[c][j1, m], self.px[c][j2, m]
+            if not (np.all(np.isfinite(p1)) and np.all(np.isfinite(p2))):
+                return False
+            cam = self.rig[c]
+            depth = float(cam.world_to_camera(X[None])[0, 2])
+            if not depth > 0:
+                return False
+            gate = float(np.mean(cam.focal)) * 0.5 * self.max_step / depth
+            if np.linalg.norm(self.px[c][k, m] - (2 * p1 - p2)) > gate:
+                return False
+        return True
 
     def _reject(self, k, m, why):
         """Marker ``m`` gets no position in frame ``k``: its used views are dropped with ``why``."""
