@@ -38,6 +38,7 @@ __all__ = [
     "cross_product_signs",
     "filter_cross_product",
     "weighted_centroids",
+    "light_terms",
     "find_candidates",
     "filter_stages",
 ]
@@ -240,67 +241,18 @@ def _median(v: np.ndarray) -> float:
     return float(v[n // 2]) if n % 2 else float((v[n // 2 - 1] + v[n // 2]) / 2)
 
 
-def _flatten_light(wgt: np.ndarray, sub: np.ndarray, own: np.ndarray, b: float, min_inner: int = 8) -> np.ndarray:
-    """Weights divided by the marker's own light, a plane fitted to its interior.
+def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
+    """Per region: ``(k, i, sub, own, wgt, x0, y0, cut)``, the weights of :func:`weighted_centroids`.
 
-    A marker lit unevenly has brightness ``H (1 + g . (p - p0))`` across it;
-    intensity weights then pull the centre towards the bright side by about
-    ``|g| r / 4`` (0.1-0.15 px for a marker of 8-15 px radius). The pixels
-    one pixel inside the thresholded region are fully covered: a plane
-    ``a + g_u du + g_v dv`` fitted to their heights above the background
-    ``b`` gives the light, and ``wgt / (1 + (g_u du + g_v dv) / a)`` leaves
-    the coverage alone, whose centre is the disc's. Fewer than ``min_inner``
-    interior pixels (a small or a long smeared marker): unchanged.
+    ``sub`` the gray patch (float), ``own`` the region's pixels in it,
+    ``wgt = max(I - b, 0)`` on the region grown by ``margin`` (other regions
+    left out), ``(x0, y0)`` the patch's offset in the labelled area and
+    ``cut`` the (left, right, top, bottom) image edges the region touches.
     """
-    # pixels on the image border are not inner (what lies beyond them is unknown)
-    inner = cv2.erode(own.view(np.uint8), _K3, iterations=1, borderType=cv2.BORDER_CONSTANT,
-                      borderValue=0).view(bool)
-    n_in = int(np.count_nonzero(inner))
-    if n_in < min_inner:
-        return wgt
-    yy, xx = np.nonzero(inner)
-    xm, ym = xx.mean(), yy.mean()
-    A = np.column_stack([np.ones(n_in), xx - xm, yy - ym])
-    a, gu, gv = np.linalg.lstsq(A, sub[inner] - b, rcond=None)[0]
-    if not a > 0:
-        return wgt
-    light = 1.0 + (gu / a) * (np.arange(sub.shape[1]) - xm)[None, :] + (gv / a) * (np.arange(sub.shape[0]) - ym)[:, None]
-    return wgt / np.clip(light, 0.5, 2.0)
-
-
-def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
-                       flatten: bool = True) -> np.ndarray:
-    """Intensity-weighted centres of regions, above the local background.
-
-    For each region the mask is grown by ``margin`` pixels (to take in the
-    anti-aliased rim below the threshold), pixels of other regions are
-    excluded, the background ``b`` is the median of a 2-pixel ring outside
-    the grown mask, and the centre is ``sum w (u, v) / sum w`` with
-    ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
-    more precise than the binary centre (which moves by whole pixels).
-
-    With ``flatten`` (default) the weights are first divided by the
-    marker's own light, a plane fitted to its interior (:func:`_flatten_light`):
-    a marker lit unevenly is measured by its shape, not its light (issue 17:
-    0.10-0.15 px of bias on 1080p markers removed; markers of fewer than 8
-    interior pixels, as at 640x480, are unchanged).
-
-    Parameters
-    ----------
-    gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
-    regions : Regions
-    index : indices into ``regions`` (default all)
-
-    Returns
-    -------
-    (K, 2) centres ``(u, v)`` in full-image pixels.
-    """
-    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     lab = regions.labels
     h, w = lab.shape
     u0, v0 = regions.origin
     W, H = regions.image_size
-    out = np.full((len(idx), 2), np.nan)
     g = 2 * margin + 2
     for k, i in enumerate(idx):
         rid = regions.ids[i]
@@ -321,19 +273,100 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
         b = _median(sub[ring]) if ring.any() else float(sub[own_b].min()) - 1
         wgt = np.where(near & ~(other & ~own_b), np.maximum(sub - b, 0.0), 0.0)
         cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
-        if flatten and not any(cut):      # (the interior of a cut region is one-sided: its slope is the profile's)
-            wgt = _flatten_light(wgt, sub, own_b, b)
+        yield k, i, sub - b, own_b, wgt, x0, y0, cut
+
+
+def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2) -> np.ndarray:
+    """Intensity-weighted centres of regions, above the local background.
+
+    For each region the mask is grown by ``margin`` pixels (to take in the
+    anti-aliased rim below the threshold), pixels of other regions are
+    excluded, the background ``b`` is the median of a 2-pixel ring outside
+    the grown mask, and the centre is ``sum w (u, v) / sum w`` with
+    ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
+    more precise than the binary centre (which moves by whole pixels).
+
+    A region touching the image border is measured from the part of it
+    symmetric about its centre (:func:`_symmetric_in_image`): the profile
+    cut off by the border no longer pulls the centre inwards.
+
+    A marker lit unevenly pulls its weighted centre towards its bright side
+    (:func:`light_terms` measures the light; the multi-view identification
+    corrects it with the light pooled over the marker's track).
+
+    Parameters
+    ----------
+    gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
+    regions : Regions
+    index : indices into ``regions`` (default all)
+
+    Returns
+    -------
+    (K, 2) centres ``(u, v)`` in full-image pixels.
+    """
+    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
+    u0, v0 = regions.origin
+    out = np.full((len(idx), 2), np.nan)
+    for k, i, _, _, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
         s = wgt.sum()
         if s <= 0:
             out[k] = regions.centroid[i]
             continue
         # the weighted means of the columns' and rows' indices (one sum per axis, no index grids)
-        cols, rows = np.arange(x0, x1) + u0, np.arange(y0, y1) + v0
-        wu, wv = wgt.sum(axis=0), wgt.sum(axis=1)
-        out[k] = (wu @ cols / s, wv @ rows / s)
+        cols, rows = np.arange(x0, x0 + wgt.shape[1]) + u0, np.arange(y0, y0 + wgt.shape[0]) + v0
+        out[k] = (wgt.sum(axis=0) @ cols / s, wgt.sum(axis=1) @ rows / s)
         if any(cut):
-            out[k] = _symmetric_in_image(wgt, cols, rows, out[k], cut, (W, H))
+            out[k] = _symmetric_in_image(wgt, cols, rows, out[k], cut, regions.image_size)
     return out
+
+
+def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5):
+    """The light across each region and the second moments of its weights.
+
+    A marker lit unevenly has brightness ``H (1 + s . (p - p0))`` across it
+    (``s`` the relative slope, 1/px); its weighted centre
+    (:func:`weighted_centroids`) then lies ``S s`` from the disc's centre,
+    ``S`` the weights' second central moments (px^2): ``|s| r^2 / 4`` for a
+    disc of radius ``r``, 0.1-0.15 px on 1080p markers. The pixels one
+    pixel inside the thresholded region are (nearly) fully covered: the
+    plane ``a + g . (p - p0)`` fitted to their heights above the background
+    gives ``s = g / a``. One frame's slope is noisy (a few pixels, the
+    sensor's noise); pooled over a marker's track it is precise
+    (:func:`~horsemocap.detection.identification.correct_light`).
+
+    Returns
+    -------
+    slope : (K, 2)
+        ``s`` per region, NaN with fewer than ``min_inner`` interior pixels or
+        for a region touching the image border (its interior is one-sided).
+    moments : (K, 2, 2)
+        ``S`` per region.
+    """
+    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
+    slope = np.full((len(idx), 2), np.nan)
+    moments = np.full((len(idx), 2, 2), np.nan)
+    for k, i, sub, own, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
+        s = wgt.sum()
+        if s <= 0:
+            continue
+        yy, xx = np.mgrid[0:wgt.shape[0], 0:wgt.shape[1]]
+        cu, cv = (wgt * xx).sum() / s, (wgt * yy).sum() / s
+        du, dv = xx - cu, yy - cv
+        moments[k] = [[(wgt * du * du).sum() / s, (wgt * du * dv).sum() / s],
+                      [(wgt * du * dv).sum() / s, (wgt * dv * dv).sum() / s]]
+        if any(cut):
+            continue
+        inner = cv2.erode(own.view(np.uint8), _K3, iterations=1, borderType=cv2.BORDER_CONSTANT,
+                          borderValue=0).view(bool)
+        n_in = int(np.count_nonzero(inner))
+        if n_in < min_inner:
+            continue
+        iy, ix = np.nonzero(inner)
+        A = np.column_stack([np.ones(n_in), ix - cu, iy - cv])
+        a, gu, gv = np.linalg.lstsq(A, sub[inner], rcond=None)[0]
+        if a > 0:
+            slope[k] = (gu / a, gv / a)
+    return slope, moments
 
 
 def _symmetric_in_image(wgt, cols, rows, centre, cut, size, iterations: int = 5):

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from .base import DetectionError, DetectionParams
-from .filters import find_candidates, region_circularity, weighted_centroids
+from .filters import find_candidates, light_terms, region_circularity, weighted_centroids
 from .thresholds import auto_threshold
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -90,6 +90,8 @@ MAX_LOST_FRAMES = 10
 #: A marker neither seen lately nor carried by the others is looked for this many frames on its
 #: own extrapolated track, then no more (until the set is found again).
 MAX_STALE_FRAMES = 3
+#: Frames on either side whose light slopes are pooled (:func:`correct_light`).
+LIGHT_WINDOW = 100
 #: Cost of one camera that should see a labelled point and does not (a
 #: normalised distance error of 1 costs 1).
 MISSING_VIEW_COST = 0.5
@@ -114,12 +116,18 @@ class Candidates:
     area : ndarray (K,)
         Pixel count.
     cut : ndarray (K,) bool
-        Region cut by the image border (its centre is biased; never used).
+        Region touching the image border (its centre from the part symmetric
+        about it; used only as described in :func:`_whole_inside`).
+    slope, moments : ndarray (K, 2) and (K, 2, 2), optional
+        The light across the region and its weights' second moments
+        (:func:`~horsemocap.detection.filters.light_terms`), when asked for.
     """
 
     centre: np.ndarray
     area: np.ndarray
     cut: np.ndarray
+    slope: np.ndarray | None = None
+    moments: np.ndarray | None = None
 
     def __len__(self):
         return len(self.area)
@@ -127,7 +135,8 @@ class Candidates:
 
 def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[0], None),
                      min_circularity: float | None = AUTO_MIN_CIRCULARITY, crop=None,
-                     centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
+                     centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA,
+                     light: bool = False) -> Candidates:
     """Candidate marker regions of one gray image, or of a crop of it.
 
     Threshold ``l`` (eq. 4.5), 8-connected labels (4.5.2), area range (4.5.3),
@@ -165,7 +174,10 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
         u0, v0 = regions.origin
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
         centre = weighted_centroids(sub, regions, keep)
-    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy())
+    slope = moments = None
+    if light and centroid != "binary":
+        slope, moments = light_terms(sub, regions, keep)
+    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy(), slope, moments)
 
 
 # --------------------------------------------------------------------------
@@ -785,15 +797,17 @@ def _whole_inside(centre, ref_area: float, size) -> bool:
     (:func:`~horsemocap.detection.filters.weighted_centroids`: unbiased
     while a little of the marker is cut off). The disc of the marker's
     recent area (radius ``sqrt(area / pi)``, centred on the region's
-    centre) may reach at most one pixel beyond the image edge (``-0.5`` or
-    ``W - 0.5``): the thresholded disc is wider than the marker by the
-    blurred rim above the threshold (up to ~0.5 px), and the marker's own
-    rim then reaches into the border pixels. Unknown area (no recent view in
+    centre) may reach at most half a pixel beyond the image edge (``-0.5``
+    or ``W - 0.5``): the thresholded disc is wider than the marker by the
+    blurred rim above the threshold (~0.5 px at a threshold a quarter of the
+    marker's height up), so the marker itself is then whole in the image.
+    Such a view is used only to make up a second view
+    (:meth:`_Tracker._without_edge_views`). Unknown area (no recent view in
     this camera): no.
     """
     if not np.isfinite(ref_area):
         return False
-    r = math.sqrt(ref_area / math.pi) - 1.0
+    r = math.sqrt(ref_area / math.pi) - 0.5
     u, v = centre
     W, H = size
     return bool(u - r >= -0.5 and v - r >= -0.5 and u + r <= W - 0.5 and v + r <= H - 0.5)
@@ -817,6 +831,8 @@ class _Tracker:
         C = len(cams)
         self.px = {c: np.full((n, M, 2), np.nan) for c in cams}
         self.area = {c: np.full((n, M), np.nan) for c in cams}
+        self.slope = {c: np.full((n, M, 2), np.nan) for c in cams}
+        self.moments = {c: np.full((n, M, 2, 2), np.nan) for c in cams}
         self.reason = {c: np.full((n, M), "not_tracked", dtype=object) for c in cams}
         self.X = np.full((n, M, 3), np.nan)
         self.rigid = np.full(n, np.nan)
@@ -827,6 +843,7 @@ class _Tracker:
         self.C = C
         self._loo = {}
         self.anchor_rms = 0.0
+        self.light = True
 
     # -- bookkeeping -------------------------------------------------------
     def start(self, k, cands, vp, fit):
@@ -964,7 +981,7 @@ class _Tracker:
             crop = (lo[0], lo[1], hi[0] + 1, hi[1] + 1)
             cp = self.cparams[c]
             cands[c] = frame_candidates(self.frames[c][k], self.thr[c], _area_range(cp), None, crop=crop,
-                                        centroid=cp.centroid)
+                                        centroid=cp.centroid, light=self.light)
         # options per marker and camera
         for m in range(M):              # a marker with no prediction (or too stale a one) is not searched
             if predicted[m] and gaps[m] <= MAX_STALE_FRAMES:
@@ -1013,7 +1030,7 @@ class _Tracker:
         combos = np.array(list(itertools.product(*options)), dtype=int)
         nviews = (combos >= 0).sum(axis=1)
         combos = combos[nviews >= 2]
-        used, dropped, why_all = None, set(), None
+        used, dropped, why_all, edge = None, set(), None, set()
         if len(combos):
             X, worst, ok = _triangulate_rows(self.rig, cams, cands, combos, self.tol)
             if ok.any():
@@ -1037,15 +1054,23 @@ class _Tracker:
                     why_all = "off_track"
                 b = int(np.argmin(cost))
                 if np.isfinite(cost[b]):          # else no combination is consistent and on track: none used
-                    used, self.X[k, m], dropped = self._consistent_views(cams, cands, combos[b], X[b])
+                    best, Xb, edge = self._without_edge_views(cams, cands, combos[b], X[b])
+                    used, self.X[k, m], dropped = self._consistent_views(cams, cands, best, Xb)
         else:
             dropped = set()
         n_good = sum(1 for o in options if len(o) > 1)
         for ci, c in enumerate(cams):
+            if used is not None and used[ci] < 0 and ci in edge and ci not in dropped:
+                self._cand_index[(c, m)] = -1
+                self.reason[c][k, m] = "outside_image"
+                continue
             if used is not None and used[ci] >= 0:
                 j = int(used[ci])
                 self.px[c][k, m] = cands[c].centre[j]
                 self.area[c][k, m] = cands[c].area[j]
+                if cands[c].slope is not None:
+                    self.slope[c][k, m] = cands[c].slope[j]
+                    self.moments[c][k, m] = cands[c].moments[j]
                 self.reason[c][k, m] = ""
                 self._cand_index[(c, m)] = j
                 continue
@@ -1057,6 +1082,25 @@ class _Tracker:
             else:
                 r = why.get(c, "occluded")
             self.reason[c][k, m] = r
+
+    def _without_edge_views(self, cams, cands, combo, X):
+        """Leave out the views whose region touches the image edge when two whole views remain.
+
+        Such a region (:func:`_whole_inside`) only makes up a second view of
+        a marker entering or leaving an image: its centre, from the part of
+        the marker symmetric about it, is less precise than a whole one's,
+        and it must not outvote a whole view in the consistency check.
+        Returns the combination, its point and the views left out.
+        """
+        edge = [ci for ci in range(len(cams)) if combo[ci] >= 0 and cands[cams[ci]].cut[combo[ci]]]
+        if not edge or (combo >= 0).sum() - len(edge) < 2:
+            return combo, X, set()
+        alt = combo.copy()
+        alt[edge] = -1
+        Xa, _, oka = _triangulate_rows(self.rig, cams, cands, alt[None], self.tol)
+        if not oka[0]:
+            return combo, X, set()
+        return alt, Xa[0], set(edge)
 
     def _limit(self, c):
         """Largest leave-one-out residual (px) of a view of camera ``c``: six times its recent median.
@@ -1280,10 +1324,65 @@ class _Tracker:
         return True
 
     def result(self, model_index, k0, margin):
+        px = self.px
+        if self.light:
+            px = {c: correct_light(self.px[c], self.slope[c], self.moments[c]) for c in self.cams}
         return Identification(
-            marker_px=self.px, reason={c: r.astype(str) for c, r in self.reason.items()}, area=self.area,
+            marker_px=px, reason={c: r.astype(str) for c, r in self.reason.items()}, area=self.area,
             points=self.X, model_index=np.asarray(model_index, int), rigid_rms_m=self.rigid,
             thresholds=dict(self.thr), anchor_frame=int(k0), anchor_margin=float(margin), cameras=self.cams)
+
+
+# --------------------------------------------------------------------------
+# uneven light
+# --------------------------------------------------------------------------
+def correct_light(marker_px: np.ndarray, slope: np.ndarray, moments: np.ndarray, window: int = LIGHT_WINDOW,
+                  min_count: int = 5) -> np.ndarray:
+    """Centres of one camera freed of the pull of uneven light, pooled over each marker's track.
+
+    A marker lit unevenly (brightness ``1 + s . (p - p0)`` across it) has its
+    weighted centre ``S s`` from its disc's centre (``S`` the weights' second
+    moments; :func:`~horsemocap.detection.filters.light_terms`): up to
+    0.15 px on 1080p markers, the same in every frame of the marker's track
+    while the lamps and the tape do not change. One frame's slope is too
+    noisy to correct that frame alone (it would add more noise to the
+    centres, and to the accelerations, than the bias it removes); the median
+    slope of the marker's frames within ``window`` frames (at least
+    ``min_count`` of them, else the nearest ``min_count``) is precise, and
+    with a wide window (a ride past the rig) it hardly changes from frame to
+    frame, so that it adds no motion of its own. A frame without its own
+    moments takes those of the nearest frame (at most 3 away). Fewer than
+    ``min_count`` slopes in the record: unchanged.
+
+    Parameters
+    ----------
+    marker_px : (n, M, 2)
+    slope : (n, M, 2)
+        Per frame and marker (NaN: not measured).
+    moments : (n, M, 2, 2)
+
+    Returns
+    -------
+    (n, M, 2) corrected centres (NaN where ``marker_px`` is NaN).
+    """
+    out = np.array(marker_px, float, copy=True)
+    for m in range(out.shape[1]):
+        have = np.flatnonzero(np.all(np.isfinite(slope[:, m]), axis=1))
+        if len(have) < min_count:
+            continue
+        with_s = np.flatnonzero(np.all(np.isfinite(moments[:, m]), axis=(1, 2)))
+        for k in np.flatnonzero(np.all(np.isfinite(out[:, m]), axis=1)):
+            # moments not measured (a frame labelled in the whole image): the nearest frame's, so
+            # that no frame of the track goes uncorrected (a step in the centres)
+            j = with_s[np.argmin(np.abs(with_s - k))] if len(with_s) else -1
+            if j < 0 or abs(j - k) > 3:
+                continue
+            S = moments[j, m]
+            near = have[np.abs(have - k) <= window]
+            if len(near) < min_count:
+                near = have[np.argsort(np.abs(have - k), kind="stable")[:min_count]]
+            out[k, m] = out[k, m] - S @ np.median(slope[near, m], axis=0)
+    return out
 
 
 # --------------------------------------------------------------------------
