@@ -276,7 +276,8 @@ def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
         yield k, i, sub - b, own_b, wgt, x0, y0, cut
 
 
-def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2) -> np.ndarray:
+def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
+                       symmetric_border: bool = False) -> np.ndarray:
     """Intensity-weighted centres of regions, above the local background.
 
     For each region the mask is grown by ``margin`` pixels (to take in the
@@ -286,9 +287,12 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
     more precise than the binary centre (which moves by whole pixels).
 
-    A region touching the image border is measured from the part of it
+    With ``symmetric_border`` (the multi-view identification's choice) a
+    region touching the image border is measured from the part of it
     symmetric about its centre (:func:`_symmetric_in_image`): the profile
-    cut off by the border no longer pulls the centre inwards.
+    cut off by the border no longer pulls the centre inwards. (Off by
+    default: the per-camera chain never uses such a region, and its results
+    stay as they were.)
 
     A marker lit unevenly pulls its weighted centre towards its bright side
     (:func:`light_terms` measures the light; the multi-view identification
@@ -315,7 +319,7 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
         # the weighted means of the columns' and rows' indices (one sum per axis, no index grids)
         cols, rows = np.arange(x0, x0 + wgt.shape[1]) + u0, np.arange(y0, y0 + wgt.shape[0]) + v0
         out[k] = (wgt.sum(axis=0) @ cols / s, wgt.sum(axis=1) @ rows / s)
-        if any(cut):
+        if symmetric_border and any(cut):
             out[k] = _symmetric_in_image(wgt, cols, rows, out[k], cut, regions.image_size)
     return out
 

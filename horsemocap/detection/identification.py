@@ -173,7 +173,7 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
     else:
         u0, v0 = regions.origin
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
-        centre = weighted_centroids(sub, regions, keep)
+        centre = weighted_centroids(sub, regions, keep, symmetric_border=True)
     slope = moments = None
     if light and centroid != "binary":
         slope, moments = light_terms(sub, regions, keep)
