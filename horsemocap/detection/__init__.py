@@ -67,8 +67,8 @@ from __future__ import annotations
 from .base import REASONS, DetectionError, DetectionParams, MarkerTrack, Regions
 from .filters import (cross_product_signs, filter_area, filter_circularity, filter_cross_product,
                       filter_distance, filter_stages, filter_window, find_candidates, label_regions,
-                      marker_distances, region_circularity, weighted_centroids, window_center)
-from .identification import (IDENTIFICATION_REASONS, Identification, bridge_gaps, default_max_gap,
+                      light_terms, marker_distances, region_circularity, weighted_centroids, window_center)
+from .identification import (IDENTIFICATION_REASONS, Identification, bridge_gaps, correct_light, default_max_gap,
                              fit_marker_model, frame_candidates, identify_markers, label_frame, match_views)
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
 from .stills import (StillCandidates, StillViews, detect_still, detect_still_views, match_still_views,
@@ -82,7 +82,7 @@ __all__ = [
     "to_gray", "binarize", "otsu_threshold", "otsu3_thresholds", "auto_threshold",
     "label_regions", "region_circularity", "filter_area", "filter_circularity",
     "filter_window", "window_center", "marker_distances", "filter_distance",
-    "cross_product_signs", "filter_cross_product", "weighted_centroids",
+    "cross_product_signs", "filter_cross_product", "weighted_centroids", "light_terms", "correct_light",
     "find_candidates", "follow_cluster", "choose_markers", "cluster_persistence", "CandidateCache", "filter_stages", "detect_markers", "detect_still",
     "StillCandidates", "still_candidates", "StillViews", "match_still_views", "detect_still_views",
     "valid_frames", "usable_frames", "markers_2d_rows", "markers_2d_csv_text", "marker_label", "write_markers_2d_csv",

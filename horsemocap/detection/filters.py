@@ -38,6 +38,7 @@ __all__ = [
     "cross_product_signs",
     "filter_cross_product",
     "weighted_centroids",
+    "light_terms",
     "find_candidates",
     "filter_stages",
 ]
@@ -240,31 +241,18 @@ def _median(v: np.ndarray) -> float:
     return float(v[n // 2]) if n % 2 else float((v[n // 2 - 1] + v[n // 2]) / 2)
 
 
-def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2) -> np.ndarray:
-    """Intensity-weighted centres of regions, above the local background.
+def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
+    """Per region: ``(k, i, sub, own, wgt, x0, y0, cut)``, the weights of :func:`weighted_centroids`.
 
-    For each region the mask is grown by ``margin`` pixels (to take in the
-    anti-aliased rim below the threshold), pixels of other regions are
-    excluded, the background ``b`` is the median of a 2-pixel ring outside
-    the grown mask, and the centre is ``sum w (u, v) / sum w`` with
-    ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
-    more precise than the binary centre (which moves by whole pixels).
-
-    Parameters
-    ----------
-    gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
-    regions : Regions
-    index : indices into ``regions`` (default all)
-
-    Returns
-    -------
-    (K, 2) centres ``(u, v)`` in full-image pixels.
+    ``sub`` the gray patch (float), ``own`` the region's pixels in it,
+    ``wgt = max(I - b, 0)`` on the region grown by ``margin`` (other regions
+    left out), ``(x0, y0)`` the patch's offset in the labelled area and
+    ``cut`` the (left, right, top, bottom) image edges the region touches.
     """
-    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     lab = regions.labels
     h, w = lab.shape
     u0, v0 = regions.origin
-    out = np.full((len(idx), 2), np.nan)
+    W, H = regions.image_size
     g = 2 * margin + 2
     for k, i in enumerate(idx):
         rid = regions.ids[i]
@@ -284,13 +272,150 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
         ring = far & ~near & ~other
         b = _median(sub[ring]) if ring.any() else float(sub[own_b].min()) - 1
         wgt = np.where(near & ~(other & ~own_b), np.maximum(sub - b, 0.0), 0.0)
+        cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
+        yield k, i, sub - b, own_b, wgt, x0, y0, cut
+
+
+def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
+                       symmetric_border: bool = False) -> np.ndarray:
+    """Intensity-weighted centres of regions, above the local background.
+
+    For each region the mask is grown by ``margin`` pixels (to take in the
+    anti-aliased rim below the threshold), pixels of other regions are
+    excluded, the background ``b`` is the median of a 2-pixel ring outside
+    the grown mask, and the centre is ``sum w (u, v) / sum w`` with
+    ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
+    more precise than the binary centre (which moves by whole pixels).
+
+    With ``symmetric_border`` (the multi-view identification's choice) a
+    region touching the image border is measured from the part of it
+    symmetric about its centre (:func:`_symmetric_in_image`): the profile
+    cut off by the border no longer pulls the centre inwards. (Off by
+    default: the per-camera chain never uses such a region, and its results
+    stay as they were.)
+
+    A marker lit unevenly pulls its weighted centre towards its bright side
+    (:func:`light_terms` measures the light; the multi-view identification
+    corrects it with the light pooled over the marker's track).
+
+    Parameters
+    ----------
+    gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
+    regions : Regions
+    index : indices into ``regions`` (default all)
+
+    Returns
+    -------
+    (K, 2) centres ``(u, v)`` in full-image pixels.
+    """
+    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
+    u0, v0 = regions.origin
+    out = np.full((len(idx), 2), np.nan)
+    for k, i, _, _, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
         s = wgt.sum()
         if s <= 0:
             out[k] = regions.centroid[i]
             continue
         # the weighted means of the columns' and rows' indices (one sum per axis, no index grids)
-        out[k] = (wgt.sum(axis=0) @ np.arange(x0, x1) / s + u0, wgt.sum(axis=1) @ np.arange(y0, y1) / s + v0)
+        cols, rows = np.arange(x0, x0 + wgt.shape[1]) + u0, np.arange(y0, y0 + wgt.shape[0]) + v0
+        out[k] = (wgt.sum(axis=0) @ cols / s, wgt.sum(axis=1) @ rows / s)
+        if symmetric_border and any(cut):
+            out[k] = _symmetric_in_image(wgt, cols, rows, out[k], cut, regions.image_size)
     return out
+
+
+def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5):
+    """The light across each region and the second moments of its weights.
+
+    A marker lit unevenly has brightness ``H (1 + s . (p - p0))`` across it
+    (``s`` the relative slope, 1/px); its weighted centre
+    (:func:`weighted_centroids`) then lies ``S s`` from the disc's centre,
+    ``S`` the weights' second central moments (px^2): ``|s| r^2 / 4`` for a
+    disc of radius ``r``, 0.1-0.15 px on 1080p markers. The pixels one
+    pixel inside the thresholded region are (nearly) fully covered: the
+    plane ``a + g . (p - p0)`` fitted to their heights above the background
+    gives ``s = g / a``. One frame's slope is noisy (a few pixels, the
+    sensor's noise); pooled over a marker's track it is precise
+    (:func:`~horsemocap.detection.identification.correct_light`).
+
+    Returns
+    -------
+    slope : (K, 2)
+        ``s`` per region, NaN with fewer than ``min_inner`` interior pixels or
+        for a region touching the image border (its interior is one-sided).
+    moments : (K, 2, 2)
+        ``S`` per region.
+    """
+    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
+    slope = np.full((len(idx), 2), np.nan)
+    moments = np.full((len(idx), 2, 2), np.nan)
+    for k, i, sub, own, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
+        s = wgt.sum()
+        if s <= 0:
+            continue
+        yy, xx = np.mgrid[0:wgt.shape[0], 0:wgt.shape[1]]
+        cu, cv = (wgt * xx).sum() / s, (wgt * yy).sum() / s
+        du, dv = xx - cu, yy - cv
+        moments[k] = [[(wgt * du * du).sum() / s, (wgt * du * dv).sum() / s],
+                      [(wgt * du * dv).sum() / s, (wgt * dv * dv).sum() / s]]
+        if any(cut):
+            continue
+        inner = cv2.erode(own.view(np.uint8), _K3, iterations=1, borderType=cv2.BORDER_CONSTANT,
+                          borderValue=0).view(bool)
+        n_in = int(np.count_nonzero(inner))
+        if n_in < min_inner:
+            continue
+        iy, ix = np.nonzero(inner)
+        A = np.column_stack([np.ones(n_in), ix - cu, iy - cv])
+        a, gu, gv = np.linalg.lstsq(A, sub[inner], rcond=None)[0]
+        if a > 0:
+            slope[k] = (gu / a, gv / a)
+    return slope, moments
+
+
+def _symmetric_in_image(wgt, cols, rows, centre, cut, size, iterations: int = 5):
+    """Centre of a region cut by the image border, from the part symmetric about it.
+
+    The image edge (``-0.5`` or ``W - 0.5``) cuts off one side of the
+    marker's profile (its blurred rim, or more), which pulls the weighted
+    centre inwards. Mirrored about the centre, the edge also cuts the other
+    side: the weights beyond the mirrored edge are left out, and the centre
+    of what remains, a profile cut symmetrically, is the marker's own. Per
+    axis, on the weights summed over the other axis (a cut along ``u`` keeps
+    the ``v`` profile symmetric); a few fixed-point iterations from the
+    plain weighted centre. ``cut``: (left, right, top, bottom) edges the
+    region touches.
+    """
+    W, H = size
+    cu = _symmetric_1d(wgt.sum(axis=0), cols, centre[0], cut[0], cut[1], W, iterations)
+    cv = _symmetric_1d(wgt.sum(axis=1), rows, centre[1], cut[2], cut[3], H, iterations)
+    return cu, cv
+
+
+def _symmetric_1d(p, x, c, cut_low, cut_high, n, iterations):
+    """1-D centre of profile ``p`` at pixels ``x``, cut by the image edge(s) and mirrored (see above).
+
+    The pixel straddling the mirrored edge counts by the part of it inside,
+    the profile taken linear across that pixel (its slope from its
+    neighbours), so that the centre moves smoothly with the edge.
+    """
+    if not (cut_low or cut_high):
+        return c
+    p = np.asarray(p, float)
+    slope = np.gradient(p) if len(p) > 1 else np.zeros_like(p)
+    for _ in range(iterations):
+        lo = 2 * c - (n - 0.5) if cut_high else -np.inf      # window [lo, hi]
+        hi = 2 * c + 0.5 if cut_low else np.inf
+        t0 = np.clip(lo - x, -0.5, 0.5)                     # the part of each pixel inside, about its centre
+        t1 = np.clip(hi - x, -0.5, 0.5)
+        t1 = np.maximum(t1, t0)
+        mass = p * (t1 - t0) + slope * (t1 ** 2 - t0 ** 2) / 2
+        moment = x * mass + p * (t1 ** 2 - t0 ** 2) / 2 + slope * (t1 ** 3 - t0 ** 3) / 3
+        s = mass.sum()
+        if not s > 0:
+            break
+        c = moment.sum() / s
+    return float(c)
 
 
 # --------------------------------------------------------------------------

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from .base import DetectionError, DetectionParams
-from .filters import find_candidates, region_circularity, weighted_centroids
+from .filters import find_candidates, light_terms, region_circularity, weighted_centroids
 from .thresholds import auto_threshold
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -90,6 +90,8 @@ MAX_LOST_FRAMES = 10
 #: A marker neither seen lately nor carried by the others is looked for this many frames on its
 #: own extrapolated track, then no more (until the set is found again).
 MAX_STALE_FRAMES = 3
+#: Frames on either side whose light slopes are pooled (:func:`correct_light`).
+LIGHT_WINDOW = 100
 #: Cost of one camera that should see a labelled point and does not (a
 #: normalised distance error of 1 costs 1).
 MISSING_VIEW_COST = 0.5
@@ -114,12 +116,18 @@ class Candidates:
     area : ndarray (K,)
         Pixel count.
     cut : ndarray (K,) bool
-        Region cut by the image border (its centre is biased; never used).
+        Region touching the image border (its centre from the part symmetric
+        about it; used only as described in :func:`_whole_inside`).
+    slope, moments : ndarray (K, 2) and (K, 2, 2), optional
+        The light across the region and its weights' second moments
+        (:func:`~horsemocap.detection.filters.light_terms`), when asked for.
     """
 
     centre: np.ndarray
     area: np.ndarray
     cut: np.ndarray
+    slope: np.ndarray | None = None
+    moments: np.ndarray | None = None
 
     def __len__(self):
         return len(self.area)
@@ -127,7 +135,8 @@ class Candidates:
 
 def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[0], None),
                      min_circularity: float | None = AUTO_MIN_CIRCULARITY, crop=None,
-                     centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
+                     centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA,
+                     light: bool = False) -> Candidates:
     """Candidate marker regions of one gray image, or of a crop of it.
 
     Threshold ``l`` (eq. 4.5), 8-connected labels (4.5.2), area range (4.5.3),
@@ -164,8 +173,11 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
     else:
         u0, v0 = regions.origin
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
-        centre = weighted_centroids(sub, regions, keep)
-    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy())
+        centre = weighted_centroids(sub, regions, keep, symmetric_border=True)
+    slope = moments = None
+    if light and centroid != "binary":
+        slope, moments = light_terms(sub, regions, keep)
+    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy(), slope, moments)
 
 
 # --------------------------------------------------------------------------
@@ -810,6 +822,29 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     return tracker.result(fit0.model_index, k0, fit0.margin)
 
 
+def _whole_inside(centre, ref_area: float, size) -> bool:
+    """May a region touching the image border stand for its marker?
+
+    Its centre is measured from the part of the marker symmetric about it
+    (:func:`~horsemocap.detection.filters.weighted_centroids`: unbiased
+    while a little of the marker is cut off). The disc of the marker's
+    recent area (radius ``sqrt(area / pi)``, centred on the region's
+    centre) may reach at most half a pixel beyond the image edge (``-0.5``
+    or ``W - 0.5``): the thresholded disc is wider than the marker by the
+    blurred rim above the threshold (~0.5 px at a threshold a quarter of the
+    marker's height up), so the marker itself is then whole in the image.
+    Such a view is used only to make up a second view
+    (:meth:`_Tracker._without_edge_views`). Unknown area (no recent view in
+    this camera): no.
+    """
+    if not np.isfinite(ref_area):
+        return False
+    r = math.sqrt(ref_area / math.pi) - 0.5
+    u, v = centre
+    W, H = size
+    return bool(u - r >= -0.5 and v - r >= -0.5 and u + r <= W - 0.5 and v + r <= H - 0.5)
+
+
 def _in_image(camera, point) -> bool:
     """Does the 3D ``point`` project inside the camera's image (and lie in front of it)?"""
     if camera.world_to_camera(np.asarray(point, float)[None])[0, 2] <= 0:
@@ -828,6 +863,8 @@ class _Tracker:
         C = len(cams)
         self.px = {c: np.full((n, M, 2), np.nan) for c in cams}
         self.area = {c: np.full((n, M), np.nan) for c in cams}
+        self.slope = {c: np.full((n, M, 2), np.nan) for c in cams}
+        self.moments = {c: np.full((n, M, 2, 2), np.nan) for c in cams}
         self.reason = {c: np.full((n, M), "not_tracked", dtype=object) for c in cams}
         self.X = np.full((n, M, 3), np.nan)
         self.rigid = np.full(n, np.nan)
@@ -838,6 +875,7 @@ class _Tracker:
         self.C = C
         self._loo = {}
         self.anchor_rms = 0.0
+        self.light = True
 
     # -- bookkeeping -------------------------------------------------------
     def start(self, k, cands, vp, fit):
@@ -975,7 +1013,7 @@ class _Tracker:
             crop = (lo[0], lo[1], hi[0] + 1, hi[1] + 1)
             cp = self.cparams[c]
             cands[c] = frame_candidates(self.frames[c][k], self.thr[c], _area_range(cp), None, crop=crop,
-                                        centroid=cp.centroid)
+                                        centroid=cp.centroid, light=self.light)
         # options per marker and camera
         for m in range(M):              # a marker with no prediction (or too stale a one) is not searched
             if predicted[m] and gaps[m] <= MAX_STALE_FRAMES:
@@ -1008,25 +1046,23 @@ class _Tracker:
                 inside = 0 <= p[0] <= W - 1 and 0 <= p[1] <= H - 1
                 why[c] = "occluded" if inside else "outside_image"
                 continue
-            good = []
-            why[c] = "occluded"
+            good, rejected = [], []           # (the reason of the nearest rejected region is kept)
+            ra = ref_area[c][m]
             for j in near:
-                if cc.cut[j]:
-                    why[c] = "outside_image"
-                    continue
-                ra = ref_area[c][m]
-                if np.isfinite(ra) and cc.area[j] > ra * AREA_FACTOR:
-                    why[c] = "merged"
-                    continue
-                if np.isfinite(ra) and cc.area[j] < ra / AREA_FACTOR:
-                    why[c] = "partly_occluded"
-                    continue
-                good.append(int(j))
+                if cc.cut[j] and not _whole_inside(cc.centre[j], ra, (W, H)):
+                    rejected.append("outside_image")
+                elif np.isfinite(ra) and cc.area[j] > ra * AREA_FACTOR:
+                    rejected.append("merged")
+                elif np.isfinite(ra) and cc.area[j] < ra / AREA_FACTOR:
+                    rejected.append("partly_occluded")
+                else:
+                    good.append(int(j))
+            why[c] = rejected[0] if rejected else "occluded"
             options.append(good + [-1] if good else [-1])
         combos = np.array(list(itertools.product(*options)), dtype=int)
         nviews = (combos >= 0).sum(axis=1)
         combos = combos[nviews >= 2]
-        used, dropped, why_all = None, set(), None
+        used, dropped, why_all, edge = None, set(), None, set()
         if len(combos):
             X, worst, ok = _triangulate_rows(self.rig, cams, cands, combos, self.tol)
             if ok.any():
@@ -1050,15 +1086,23 @@ class _Tracker:
                     why_all = "off_track"
                 b = int(np.argmin(cost))
                 if np.isfinite(cost[b]):          # else no combination is consistent and on track: none used
-                    used, self.X[k, m], dropped = self._consistent_views(cams, cands, combos[b], X[b])
+                    best, Xb, edge = self._without_edge_views(cams, cands, combos[b], X[b])
+                    used, self.X[k, m], dropped = self._consistent_views(cams, cands, best, Xb)
         else:
             dropped = set()
         n_good = sum(1 for o in options if len(o) > 1)
         for ci, c in enumerate(cams):
+            if used is not None and used[ci] < 0 and ci in edge and ci not in dropped:
+                self._cand_index[(c, m)] = -1
+                self.reason[c][k, m] = "outside_image"
+                continue
             if used is not None and used[ci] >= 0:
                 j = int(used[ci])
                 self.px[c][k, m] = cands[c].centre[j]
                 self.area[c][k, m] = cands[c].area[j]
+                if cands[c].slope is not None:
+                    self.slope[c][k, m] = cands[c].slope[j]
+                    self.moments[c][k, m] = cands[c].moments[j]
                 self.reason[c][k, m] = ""
                 self._cand_index[(c, m)] = j
                 continue
@@ -1070,6 +1114,25 @@ class _Tracker:
             else:
                 r = why.get(c, "occluded")
             self.reason[c][k, m] = r
+
+    def _without_edge_views(self, cams, cands, combo, X):
+        """Leave out the views whose region touches the image edge when two whole views remain.
+
+        Such a region (:func:`_whole_inside`) only makes up a second view of
+        a marker entering or leaving an image: its centre, from the part of
+        the marker symmetric about it, is less precise than a whole one's,
+        and it must not outvote a whole view in the consistency check.
+        Returns the combination, its point and the views left out.
+        """
+        edge = [ci for ci in range(len(cams)) if combo[ci] >= 0 and cands[cams[ci]].cut[combo[ci]]]
+        if not edge or (combo >= 0).sum() - len(edge) < 2:
+            return combo, X, set()
+        alt = combo.copy()
+        alt[edge] = -1
+        Xa, _, oka = _triangulate_rows(self.rig, cams, cands, alt[None], self.tol)
+        if not oka[0]:
+            return combo, X, set()
+        return alt, Xa[0], set(edge)
 
     def _limit(self, c):
         """Largest leave-one-out residual (px) of a view of camera ``c``: six times its recent median.
@@ -1148,9 +1211,10 @@ class _Tracker:
         It is used when every camera that can validate it does (at least
         three views with three or more cameras), or, seen by two, when its
         own track saw it in each of the two frames before and it lies within
-        a quarter of the marker spacing of its constant-velocity prediction (a
-        marker entering or leaving the third camera's view while the others
-        are out of sight). A 2-view point on a stale or borrowed track may be
+        a quarter of the marker spacing of its constant-velocity prediction,
+        in 3D or, in each of its two views, in that camera's image
+        (:meth:`_on_image_tracks`; a marker entering or leaving the third
+        camera's view while the others are out of sight). A 2-view point on a stale or borrowed track may be
         a chance match along an epipolar line, off in depth.
         """
         have = np.flatnonzero(np.all(np.isfinite(self.X[k]), axis=1))
@@ -1165,8 +1229,41 @@ class _Tracker:
             return
         hist, gap = self._history(k, direction, m)
         own = gap == 0 and len(hist) >= 2 and hist[0][0] == 1 and hist[1][0] == 2
-        if not own or np.linalg.norm(self.X[k, m] - pred[m]) > 0.5 * self.max_step:
+        if not own:
             self._reject(k, m, "unconfirmed")
+        elif not (np.linalg.norm(self.X[k, m] - pred[m]) <= 0.5 * self.max_step
+                  or self._on_image_tracks(k, m, direction)):
+            self._reject(k, m, "unconfirmed")
+
+    def _on_image_tracks(self, k, m, direction) -> bool:
+        """Does every view of marker ``m`` in frame ``k`` continue that camera's own image track?
+
+        The depth of a point seen by two cameras only, near the edge of an
+        image, carries the calibration's error there (several cm: its
+        constant-velocity prediction in 3D misses by more than the quarter
+        marker spacing allowed), while each camera's own centres move on
+        smoothly. Each view must lie within the same quarter spacing, seen
+        at the point's depth, of the constant-velocity prediction of the
+        centres this camera gave the marker in the two frames before.
+        """
+        X = self.X[k, m]
+        for c in self.cams:
+            if self.reason[c][k, m] != "":
+                continue
+            j1, j2 = k - direction, k - 2 * direction
+            if not (0 <= j2 < self.n and 0 <= j1 < self.n):
+                return False
+            p1, p2 = self.px[c][j1, m], self.px[c][j2, m]
+            if not (np.all(np.isfinite(p1)) and np.all(np.isfinite(p2))):
+                return False
+            cam = self.rig[c]
+            depth = float(cam.world_to_camera(X[None])[0, 2])
+            if not depth > 0:
+                return False
+            gate = float(np.mean(cam.focal)) * 0.5 * self.max_step / depth
+            if np.linalg.norm(self.px[c][k, m] - (2 * p1 - p2)) > gate:
+                return False
+        return True
 
     def _reject(self, k, m, why):
         """Marker ``m`` gets no position in frame ``k``: its used views are dropped with ``why``."""
@@ -1259,10 +1356,69 @@ class _Tracker:
         return True
 
     def result(self, model_index, k0, margin):
+        px = self.px
+        if self.light:
+            px = {c: correct_light(self.px[c], self.slope[c], self.moments[c]) for c in self.cams}
         return Identification(
-            marker_px=self.px, reason={c: r.astype(str) for c, r in self.reason.items()}, area=self.area,
+            marker_px=px, reason={c: r.astype(str) for c, r in self.reason.items()}, area=self.area,
             points=self.X, model_index=np.asarray(model_index, int), rigid_rms_m=self.rigid,
             thresholds=dict(self.thr), anchor_frame=int(k0), anchor_margin=float(margin), cameras=self.cams)
+
+
+# --------------------------------------------------------------------------
+# uneven light
+# --------------------------------------------------------------------------
+def correct_light(marker_px: np.ndarray, slope: np.ndarray, moments: np.ndarray, window: int = LIGHT_WINDOW,
+                  min_count: int = 5) -> np.ndarray:
+    """Centres of one camera freed of the pull of uneven light, pooled over each marker's track.
+
+    A marker lit unevenly (brightness ``1 + s . (p - p0)`` across it) has its
+    weighted centre ``S s`` from its disc's centre (``S`` the weights' second
+    moments; :func:`~horsemocap.detection.filters.light_terms`): up to
+    0.15 px on 1080p markers, the same in every frame of the marker's track
+    while the lamps and the tape do not change. One frame's slope is too
+    noisy to correct that frame alone (it would add more noise to the
+    centres, and to the accelerations, than the bias it removes); the median
+    slope of the marker's frames within ``window`` frames (at least
+    ``min_count`` of them, else the nearest ``min_count``) is precise. The
+    moments are pooled alike (their median over the same frames): the
+    correction is the marker's steady offset, which hardly changes from
+    frame to frame, so that it adds no motion of its own. (With each frame's
+    own moments the offset follows the streak's length through the stride,
+    and the slope, taken from a streak's interior, is not exact for a streak
+    longer than the marker: the bundled session's chain of fits, whose
+    motion is exactly a Fourier series, lost 2.6 -> 5.9 % of saddle
+    acceleration.) Fewer than ``min_count`` slopes in the record: unchanged.
+
+    Parameters
+    ----------
+    marker_px : (n, M, 2)
+    slope : (n, M, 2)
+        Per frame and marker (NaN: not measured).
+    moments : (n, M, 2, 2)
+
+    Returns
+    -------
+    (n, M, 2) corrected centres (NaN where ``marker_px`` is NaN).
+    """
+    out = np.array(marker_px, float, copy=True)
+    for m in range(out.shape[1]):
+        have = np.flatnonzero(np.all(np.isfinite(slope[:, m]), axis=1))
+        if len(have) < min_count:
+            continue
+        with_s = np.flatnonzero(np.all(np.isfinite(moments[:, m]), axis=(1, 2)))
+        if len(with_s) == 0:
+            continue
+        for k in np.flatnonzero(np.all(np.isfinite(out[:, m]), axis=1)):
+            near = have[np.abs(have - k) <= window]
+            if len(near) < min_count:
+                near = have[np.argsort(np.abs(have - k), kind="stable")[:min_count]]
+            near_s = with_s[np.abs(with_s - k) <= window]
+            if len(near_s) == 0:
+                near_s = with_s[np.argsort(np.abs(with_s - k), kind="stable")[:min_count]]
+            S = np.median(moments[near_s, m], axis=0)
+            out[k, m] = out[k, m] - S @ np.median(slope[near, m], axis=0)
+    return out
 
 
 # --------------------------------------------------------------------------
