@@ -158,9 +158,19 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
     -------
     Candidates
     """
+    regions, keep = find_candidates(gray, threshold, (area_range[0], _max_area(area_range, gray)), None, crop=crop)
+    return _candidates_of(gray, regions, keep, min_circularity, centroid, max_count, light)
+
+
+def _max_area(area_range, gray) -> float:
+    """The area range's upper end; None: 0.5 % of the image (at least 50 pixels)."""
     H, W = gray.shape[:2]
-    amax = area_range[1] if area_range[1] is not None else max(50.0, GENERIC_MAX_AREA_FRACTION * H * W)
-    regions, keep = find_candidates(gray, threshold, (area_range[0], amax), None, crop=crop)
+    return area_range[1] if area_range[1] is not None else max(50.0, GENERIC_MAX_AREA_FRACTION * H * W)
+
+
+def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_count: int, light: bool) -> Candidates:
+    """The labelled regions ``keep`` (area already filtered) of ``gray`` as :class:`Candidates`:
+    circularity, at most ``max_count`` of the largest, their centres (and light, when asked)."""
     if len(keep) and min_circularity is not None:
         circ = region_circularity(regions.subset(keep))
         keep = keep[circ >= min_circularity]
@@ -674,22 +684,12 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
     from .thresholds import label_bright
 
     H, W = gray.shape[:2]
-    amax = area_range[1] if area_range[1] is not None else max(50.0, GENERIC_MAX_AREA_FRACTION * H * W)
     n, labels, stats, cents = label_bright(gray, threshold)
     regions = Regions(labels=labels, ids=np.arange(1, n), area=stats[1:, 4].astype(np.int64),
                       bbox=stats[1:, :4].astype(np.int64), centroid=cents[1:] + np.array([0, 0], float),
                       origin=(0, 0), image_size=(W, H))
-    area = regions.area
-    keep = np.flatnonzero((area >= area_range[0]) & (area <= amax))
-    if len(keep) and min_circularity is not None:
-        circ = region_circularity(regions.subset(keep))
-        keep = keep[circ >= min_circularity]
-    if len(keep) > max_count:
-        keep = keep[np.argsort(-regions.area[keep], kind="stable")[:max_count]]
-    if len(keep) == 0:
-        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
-    centre = regions.centroid[keep].astype(float) if centroid == "binary" else weighted_centroids(gray, regions, keep)
-    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy())
+    keep = np.flatnonzero((regions.area >= area_range[0]) & (regions.area <= _max_area(area_range, gray)))
+    return _candidates_of(gray, regions, keep, min_circularity, centroid, max_count, light=False)
 
 
 #: Frames labelled on their own before the skin markers among the static shot's points are
