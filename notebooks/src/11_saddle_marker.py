@@ -176,12 +176,14 @@ for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
 # The first five rows are the thesis' chain of fits (`kinematics="fits"`) with its choices of
 # $\boldsymbol\omega$, $\boldsymbol\alpha$ and saddle path; the last is the pipeline's default since
 # November 2026 (`kinematics="pose_spline"`): every frame's pose registered from all markers, its trajectory
-# smoothed by splines, the saddle's acceleration from the smoothed pose. On this one session the chain of fits
-# does better: its motion is exactly a Fourier series of the stride (the virtual laboratory builds it that
-# way), the fits' own model. On 24 other sessions (the 16 of the virtual herd and 8 harder ones: other rigs,
-# frame rates, a horse that slows down) the pose trajectory is far better: saddle error median 10.4 % and
-# 3.2 % against 21.2 % and 17.9 % (`benchmarks/README.md`, Kinematics and Marker identification), and so
-# it is the default; a real horse's motion is not an exact Fourier series.
+# smoothed by splines that keep the stride's harmonics whole (their frequency found in the record), the
+# saddle's acceleration from the smoothed pose. On this one session the best of the chain of fits (the pose
+# path, fitted) is about as good: the session's motion is exactly a Fourier series of the stride (the
+# virtual laboratory builds it that way), the fits' own model. On 24 other sessions (the 16 of the virtual
+# herd and 8 harder ones: other rigs, frame rates, a horse that slows down) the pose trajectory is far
+# better: saddle error median 2.8 % and 1.1 % against 24.1 % and 17.9 % with the fits (`benchmarks/README.md`,
+# Kinematics and Marker identification), and so it is the default; a real horse's motion is not an exact
+# Fourier series, and the pose trajectory needs no period at all (a lift, a transition).
 #
 # Among the fits, the saddle path built with the fitted orientation ("pose", then fitted) meets the 5 %
 # target on this session, and so does the thesis' eq. 6.55 *if* it is fed the
