@@ -589,7 +589,13 @@ def test_interrupt_leaves_results_as_before(step, signal_name, tmp_path, templat
         return real(*a, **k)
 
     monkeypatch.setitem(pipeline.STEP_FUNCTIONS, step, interrupted)
-    code, _, err = run_cli(["analyze", session, "--out", out], capsys)
+    # Python turns SIGINT into KeyboardInterrupt unless the process started with SIGINT ignored
+    # (a shell's background job): give it Python's own handler for this run, as a terminal does
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        code, _, err = run_cli(["analyze", session, "--out", out], capsys)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert code == 2 and "Traceback" not in err
     assert ("interrupted" if signal_name == "SIGINT" else "terminated") in err.splitlines()[-1]
     assert snapshot(out) == before
