@@ -129,12 +129,12 @@ class AnalysisParams:
         through the pipeline with the multi-view detection
         (``benchmarks/bench_herd_kinematics.py``, the same detections for
         every variant; ``benchmarks/results/herd_kinematics.txt``): saddle
-        vertical acceleration RMSE median 2.5 % (worst 11.7 %) of its rms
+        vertical acceleration RMSE median 2.8 % (worst 15.6 %) of its rms
         with pose_spline and its default ``pose_harmonics`` (10.4 %, worst
-        13.4 %, with plain splines) against 21.2 % (39.9 %) with the fits;
-        median |error| of the Wb-weighted rms 0.8 % against 9.2 %, of the
-        Wk-weighted rms 0.7 % against 6.7 %, of VDV Wb 0.8 % against 10.9 %,
-        of VDV Wk 0.7 % against 9.1 %.
+        13.4 %, with plain splines) against 24.1 % (38.6 %) with the fits;
+        median |error| of the Wb-weighted rms 0.5 % against 7.0 %, of the
+        Wk-weighted rms 0.5 % against 5.4 %, of VDV Wb 0.6 % against 9.5 %,
+        of VDV Wk 0.6 % against 8.3 %.
         With white detection noise (notebook 14's study, bundled session,
         medians of 3 draws, ``benchmarks/bench_noise_kinematics.py``;
         ``benchmarks/results/noise_kinematics.txt``) the saddle error at
@@ -144,13 +144,13 @@ class AnalysisParams:
         (``benchmarks/bench_kinematics.py``). On the 8 harder sessions
         (``benchmarks/bench_identification.py --set hard``: other rigs,
         resolutions and frame rates, speed changes) the saddle error is
-        1.1 % median (worst 2.2 %) with pose_spline against 17.9 % (28.6 %)
-        with the fits, the Wb rms 0.3 % (0.8 %) against 5.7 % (11.4 %).
+        1.1 % median (worst 2.4 %) with pose_spline against 17.9 % (28.6 %)
+        with the fits, the Wb rms 0.3 % (0.9 %) against 5.7 % (11.4 %).
         The default is ``"pose_spline"``: better on 24 sessions of two
         independent sets, median and worst, and with noise. ``"fits"`` is
         the thesis' chain (``--kinematics fits``). On the bundled Horse 2
         canter (38 frames, a motion that is exactly a Fourier series) the
-        saddle error is 2.2 % (Wb rms +0.1 %) against 2.6 % (-1.4 %) with
+        saddle error is 2.5 % against 2.7 % with
         the fits and 10.1 % (-5.6 %) with plain splines.
     pose_smoothing : str
         Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`):

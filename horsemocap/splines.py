@@ -40,10 +40,11 @@ from scipy.optimize import minimize_scalar
 __all__ = ["SmoothingSpline", "HarmonicTerms", "smoothing_spline", "harmonic_columns", "estimate_fundamental", "MAX_BASIS"]
 
 MAX_BASIS = 400
+"""Largest number of B-spline basis functions of a quintic smoothing spline."""
+
 MAX_GRID = 4000
 """Most trial frequencies of :func:`estimate_fundamental` on a grid; longer records use the
 periodogram's peaks."""
-"""Largest number of B-spline basis functions of a quintic smoothing spline."""
 
 GCV_GAMMA = 1.4
 """Cost of a degree of freedom in the GCV score ``n RSS / (n - gamma tr H)^2``: 1.4, the
@@ -101,13 +102,8 @@ class HarmonicTerms:
 
     def __call__(self, t, derivative: int = 0) -> np.ndarray:
         t = np.asarray(t, float)
-        k = np.arange(1, len(self.cos) + 1)
-        w = 2 * np.pi * self.frequency_hz * k
-        arg = (t[..., None] - self.t0) * w
-        # d^j/dt^j of cos(w t) = w^j cos(w t + j pi/2), of sin(w t) = w^j sin(w t + j pi/2)
-        s = w ** derivative
-        ph = derivative * np.pi / 2
-        return (np.cos(arg + ph) * (s * self.cos) + np.sin(arg + ph) * (s * self.sin)).sum(-1)
+        cols = harmonic_columns(t.ravel(), self.frequency_hz, len(self.cos), self.t0, derivative)
+        return (cols @ np.r_[self.cos, self.sin]).reshape(t.shape)
 
 
 def _penalty(knots, k, m, weight=None):
@@ -169,13 +165,7 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
     if lam is None:
         # the scale of lam: penalty eigenvalues span many decades; search the range they give
         pos = d[d > 1e-12 * max(d.max(), 1e-300)]
-        lo, hi = -np.log10(pos.max()) - 2, -np.log10(pos.min()) + 2
-        grid = np.linspace(lo, hi, 60)
-        scores = [gcv(g) for g in grid]
-        i = int(np.argmin(scores))
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-        res = minimize_scalar(gcv, bounds=(a, b), method="bounded", options={"xatol": 1e-3})
-        lam = 10.0 ** float(res.x if res.fun <= scores[i] else grid[i])
+        lam, _ = _choose_lam(gcv, -np.log10(pos.max()) - 2, -np.log10(pos.min()) + 2)
     f, rss, tr = fit(lam)
     spline = BSpline(knots, T @ f, k)
     return spline, {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
@@ -184,7 +174,8 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
 
 
 def harmonic_columns(t, frequency_hz: float, order: int, t0: float = 0.0, derivative: int = 0) -> np.ndarray:
-    """``[cos(2 pi k f (t - t0)) ..., sin(2 pi k f (t - t0)) ...]`` for k = 1..order, (n, 2 order)."""
+    """``[cos(2 pi k f (t - t0)) ..., sin(2 pi k f (t - t0)) ...]`` for k = 1..order, (n, 2 order),
+    or their ``derivative``-th derivatives (``d^j/dt^j cos(w t) = w^j cos(w t + j pi/2)``, sin alike)."""
     t = np.asarray(t, float)
     k = np.arange(1, order + 1)
     w = 2 * np.pi * frequency_hz * k
@@ -203,10 +194,8 @@ def _knots(x, m):
     return np.r_[[x[0]] * (k + 1), inner, [x[-1]] * (k + 1)]
 
 
-def _choose_lam(score, s2):
-    """Minimise ``score(log10 lam)`` over the range the shrinkage factors ``s2 / (s2 + lam)`` span."""
-    pos = s2[s2 > 1e-12 * max(s2.max(), 1e-300)]
-    lo, hi = np.log10(pos.min()) - 2, np.log10(pos.max()) + 2
+def _choose_lam(score, lo: float, hi: float):
+    """``(lam, score)`` minimising ``score(log10 lam)``: a grid of 60 over ``[lo, hi]``, refined."""
     grid = np.linspace(lo, hi, 60)
     scores = [score(g) for g in grid]
     i = int(np.argmin(scores))
@@ -289,7 +278,9 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
                 return rss / n + 2 * noise ** 2 * tr / n
 
         if lam is None:
-            lk, sc = _choose_lam(score, s2)
+            # the range the shrinkage factors s2 / (s2 + lam) span
+            pos = s2[s2 > 1e-12 * max(s2.max(), 1e-300)]
+            lk, sc = _choose_lam(score, np.log10(pos.min()) - 2, np.log10(pos.max()) + 2)
         else:
             lk, sc = float(lam), score(np.log10(lam))
         if best is None or sc < best[0]:

@@ -875,7 +875,6 @@ class _Tracker:
         self.C = C
         self._loo = {}
         self.anchor_rms = 0.0
-        self.light = True
 
     # -- bookkeeping -------------------------------------------------------
     def start(self, k, cands, vp, fit):
@@ -1013,7 +1012,7 @@ class _Tracker:
             crop = (lo[0], lo[1], hi[0] + 1, hi[1] + 1)
             cp = self.cparams[c]
             cands[c] = frame_candidates(self.frames[c][k], self.thr[c], _area_range(cp), None, crop=crop,
-                                        centroid=cp.centroid, light=self.light)
+                                        centroid=cp.centroid, light=True)
         # options per marker and camera
         for m in range(M):              # a marker with no prediction (or too stale a one) is not searched
             if predicted[m] and gaps[m] <= MAX_STALE_FRAMES:
@@ -1356,9 +1355,7 @@ class _Tracker:
         return True
 
     def result(self, model_index, k0, margin):
-        px = self.px
-        if self.light:
-            px = {c: correct_light(self.px[c], self.slope[c], self.moments[c]) for c in self.cams}
+        px = {c: correct_light(self.px[c], self.slope[c], self.moments[c]) for c in self.cams}
         return Identification(
             marker_px=px, reason={c: r.astype(str) for c, r in self.reason.items()}, area=self.area,
             points=self.X, model_index=np.asarray(model_index, int), rigid_rms_m=self.rigid,

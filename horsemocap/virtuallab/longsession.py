@@ -35,8 +35,8 @@ from ..camera import write_rig
 from ..store import atomic_write_json
 from .render import add_glints
 from .rig import FPS
-from .session import (_scene_and_backgrounds, _write_still, _write_video, build_truth, flash_frames,
-                      plan_timeline, render_motion_frame, render_plumb, render_static, session_json)
+from .session import (_scene_and_backgrounds, _write_video, build_truth, flash_frames, plan_timeline,
+                      render_motion_frame, session_json, write_stills)
 from .truth import save_truth
 
 #: Bump when the composition changes (part of the cache key).
@@ -118,12 +118,7 @@ def render_long(out_dir, n_frames: int = 18000, *, horse: str = "Horse 2", gait:
         _write_video(out / "motion" / f"{cam.name}.avi", frames(), cam.size, FPS, True)
         motion_paths[cam.name] = f"motion/{cam.name}.avi"
         del passed
-    stills = {"plumb": {}, "static": {}}
-    for cam in rig:
-        stills["plumb"][cam.name] = "plumb/" + _write_still(out / "plumb" / f"{cam.name}.png",
-                                                            render_plumb(scene, cam, bgs[cam.name], noise=True), True)
-        stills["static"][cam.name] = "static/" + _write_still(out / "static" / f"{cam.name}.png",
-                                                              render_static(scene, cam, bgs[cam.name], noise=True), True)
+    stills = write_stills(out, scene, bgs)
     (out / "calibration").mkdir(exist_ok=True)
     write_rig(rig, out / "calibration" / "rig.toml")
     truth = build_truth(scene, offsets, {c: offsets[c] + n_pass for c in offsets}, FPS)

@@ -232,6 +232,17 @@ def _write_video(path: Path, frames_iter, size, fps, compress: bool):
             cv2.imwrite(str(path / f"{path.name}{k}.png"), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
 
 
+def write_stills(out: Path, scene, backgrounds: dict, noise: bool = True, compress: bool = True) -> dict:
+    """Render and write every camera's plumb and static still into ``out``; returns
+    ``{"plumb": {camera: path}, "static": {camera: path}}`` relative to ``out`` (session.json's)."""
+    stills = {"plumb": {}, "static": {}}
+    for cam in scene.rig:
+        for kind, render in (("plumb", render_plumb), ("static", render_static)):
+            img = render(scene, cam, backgrounds[cam.name], noise=noise)
+            stills[kind][cam.name] = f"{kind}/" + _write_still(out / kind / f"{cam.name}.png", img, compress)
+    return stills
+
+
 def _write_still(path: Path, img_rgb: np.ndarray, compress: bool) -> str:
     path.parent.mkdir(parents=True, exist_ok=True)
     bgr = cv2.cvtColor(img_rgb, cv2.COLOR_RGB2BGR)
@@ -519,13 +530,7 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         else:
             _write_video(out / "motion" / cam.name, frames, cam.size, fps, False)
             motion_paths[cam.name] = f"motion/{cam.name}"
-    # stills
-    stills = {"plumb": {}, "static": {}}
-    for cam in rig:
-        stills["plumb"][cam.name] = "plumb/" + _write_still(out / "plumb" / f"{cam.name}.png",
-                                                            render_plumb(scene, cam, bgs[cam.name], noise=noise), compress)
-        stills["static"][cam.name] = "static/" + _write_still(out / "static" / f"{cam.name}.png",
-                                                              render_static(scene, cam, bgs[cam.name], noise=noise), compress)
+    stills = write_stills(out, scene, bgs, noise=noise, compress=compress)
     # calibration: checkerboard views for the pipeline to calibrate from (the true rig
     # stays in truth/rig.toml); without views, the session carries the true rig as a
     # lab that calibrated once would carry its rig.toml.
