@@ -128,13 +128,14 @@ class AnalysisParams:
         when the record allows. Measured on the 16 virtual herd sessions
         through the pipeline with the multi-view detection
         (``benchmarks/bench_herd_kinematics.py``, the same detections for
-        every variant; ``benchmarks/results/herd_kinematics.txt``): saddle
-        vertical acceleration RMSE median 2.8 % (worst 15.6 %) of its rms
-        with pose_spline and its default ``pose_harmonics`` (10.4 %, worst
-        13.4 %, with plain splines) against 24.1 % (38.6 %) with the fits;
-        median |error| of the Wb-weighted rms 0.5 % against 7.0 %, of the
-        Wk-weighted rms 0.5 % against 5.4 %, of VDV Wb 0.6 % against 9.5 %,
-        of VDV Wk 0.6 % against 8.3 %.
+        every variant; ``benchmarks/results/herd_kinematics_noise_test.txt``
+        and ``herd_kinematics_merged.txt`` for the fits): saddle vertical
+        acceleration RMSE median 2.7 % (worst 4.1 %) of its rms with
+        pose_spline and its default ``pose_harmonics`` (10.6 %, worst
+        13.0 %, with plain splines) against 24.1 % (38.6 %) with the fits;
+        median |error| of the Wb-weighted rms 0.4 % (worst 2.8 %) against
+        7.0 %, of the Wk-weighted rms 0.4 % (2.5 %) against 5.4 %, of VDV Wb
+        0.7 % (2.6 %) against 9.5 %, of VDV Wk 0.6 % (2.4 %) against 8.3 %.
         With white detection noise (notebook 14's study, bundled session,
         medians of 3 draws, ``benchmarks/bench_noise_kinematics.py``;
         ``benchmarks/results/noise_kinematics.txt``) the saddle error at
@@ -144,8 +145,9 @@ class AnalysisParams:
         (``benchmarks/bench_kinematics.py``). On the 8 harder sessions
         (``benchmarks/bench_identification.py --set hard``: other rigs,
         resolutions and frame rates, speed changes) the saddle error is
-        1.1 % median (worst 2.4 %) with pose_spline against 17.9 % (28.6 %)
-        with the fits, the Wb rms 0.3 % (0.9 %) against 5.7 % (11.4 %).
+        1.1 % median (worst 2.3 %) with pose_spline against 17.9 % (28.6 %)
+        with the fits, the Wb rms 0.3 % (1.0 %) against 5.7 % (11.4 %)
+        (``benchmarks/results/hard_kinematics_noise_test.txt``).
         The default is ``"pose_spline"``: better on 24 sessions of two
         independent sets, median and worst, and with noise. ``"fits"`` is
         the thesis' chain (``--kinematics fits``). On the bundled Horse 2
@@ -172,7 +174,11 @@ class AnalysisParams:
         (0: none, a record that is not periodic) chosen with the smoothing by
         the same cross-validation; the fundamental is estimated from the record
         (:func:`horsemocap.splines.estimate_fundamental`); the rotation's
-        harmonics only below the plain spline's cutoff frequency.
+        harmonics only below the plain spline's cutoff frequency and larger
+        than the rotation noise the registration residual and the marker
+        geometry predict (a periodic measurement error is not told from
+        motion below that size: Horse 1 canter 15.6 % without this test,
+        2.7 % with it).
         ``"all"``: every component up to 0.4 of the frame rate. ``"none"``:
         plain smoothing splines (:func:`horsemocap.pose.fit_pose_trajectory`,
         ``harmonics``; ``--pose-harmonics``).
