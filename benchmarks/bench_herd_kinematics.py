@@ -7,7 +7,8 @@ detections. Printed per session and variant: the saddle's vertical
 acceleration RMSE (% of its rms) and the errors (%) of the Wb/Wk-weighted rms
 and VDV against the truth; then the medians and worst cases.
 
-Usage: ``python benchmarks/bench_herd_kinematics.py ['{"kinematics": "fits"}' ...]``
+Usage: ``python benchmarks/bench_herd_kinematics.py [--set herd|hard] ['{"kinematics": "fits"}' ...]``
+(``--set hard``: the 8 harder sessions of :mod:`horsemocap.virtuallab.hard` instead of the herd)
 (default variants: fits; pose_spline with plain splines, with the stride's harmonics in every
 component, and the default ``pose_harmonics: auto``).
 """
@@ -23,7 +24,14 @@ KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk")
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else argv
+    argv = sys.argv[1:] if argv is None else list(argv)
+    which = "herd"
+    if "--set" in argv:
+        i = argv.index("--set")
+        which = argv[i + 1]
+        del argv[i:i + 2]
+    if which not in ("herd", "hard"):
+        raise SystemExit(f"--set: expected herd or hard, got {which!r}")
     variants = [json.loads(a) for a in argv] or [
         {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_harmonics": "none"},
         {"kinematics": "pose_spline", "pose_harmonics": "all"}, {"kinematics": "pose_spline", "pose_harmonics": "auto"}]
@@ -35,20 +43,24 @@ def main(argv=None):
     for i, v in enumerate(variants):
         print(f"variant {i}: {v}")
     print(f"{'session':24s} {'frames':>6s}  " + " | ".join(f"v{i}: Ay%  Wb%  Wk%  VDVb% VDVk%" for i in range(len(variants))))
-    for horse in HORSES:
-        for gait in GAITS:
-            folder = herd_session(horse, gait)
-            base = analyze(folder, None, {}, until="motion_frame", progress=lambda *a: None)
-            truth = load_truth(folder)
-            cells = []
-            for i, v in enumerate(variants):
-                a = run_steps(base.session, replace(base.params, **v), base.results, ["rigid_body", "comfort"])
-                st = accuracy.stage_errors(a, truth)
-                ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, KEYS)
-                row = [st["saddle_acc_y_rmse_pct_of_rms"], *(ce[k] for k in KEYS)]
-                table[i].append(row)
-                cells.append(" ".join(f"{x:5.1f}" for x in row))
-            print(f"{horse + ' ' + gait:24s} {st['frames']:6d}  " + " | ".join(cells), flush=True)
+    if which == "herd":
+        sessions = [(f"{h} {g}", lambda h=h, g=g: herd_session(h, g)) for h in HORSES for g in GAITS]
+    else:
+        from horsemocap.virtuallab.hard import HARD_SESSIONS, hard_session
+        sessions = [(name, lambda name=name: hard_session(name)) for name in HARD_SESSIONS]
+    for name, make in sessions:
+        folder = make()
+        base = analyze(folder, None, {}, until="motion_frame", progress=lambda *a: None)
+        truth = load_truth(folder)
+        cells = []
+        for i, v in enumerate(variants):
+            a = run_steps(base.session, replace(base.params, **v), base.results, ["rigid_body", "comfort"])
+            st = accuracy.stage_errors(a, truth)
+            ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, KEYS)
+            row = [st["saddle_acc_y_rmse_pct_of_rms"], *(ce[k] for k in KEYS)]
+            table[i].append(row)
+            cells.append(" ".join(f"{x:5.1f}" for x in row))
+        print(f"{name:24s} {st['frames']:6d}  " + " | ".join(cells), flush=True)
     for i, v in enumerate(variants):
         arr = np.abs(np.asarray(table[i]))
         med, worst = np.median(arr, axis=0), arr.max(axis=0)

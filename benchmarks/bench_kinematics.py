@@ -8,7 +8,11 @@ omega and alpha are compared with the truth (RMSE of the vector error as a
 percentage of the truth's rms), over several noise draws. The thesis' chain
 of fits is not run: it needs a periodic record.
 
-Usage: ``python benchmarks/bench_kinematics.py [--draws 3]``
+``--fixture second``: another non-periodic motion built the same way with other numbers (200 Hz,
+6 Hz and 14 Hz modes, 0.5 s decay, 30 ms onset from 2.9 s), to check that a smoother is not
+tuned to the first.
+
+Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture issue13|second]``
 """
 from __future__ import annotations
 
@@ -18,6 +22,11 @@ import time
 import numpy as np
 
 
+FIXTURES = {"issue13": {},
+            "second": {"fps": 200.0, "ring_hz": 6.0, "second_ring_hz": 14.0, "ring_decay_s": 0.5,
+                       "ring_rise_s": 0.03, "ring_start_s": 2.9}}
+
+
 def pct(est, true):
     return 100 * np.sqrt(np.nanmean(np.sum((est - true) ** 2, -1))) / np.sqrt(np.mean(np.sum(true ** 2, -1)))
 
@@ -25,7 +34,9 @@ def pct(est, true):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=3)
+    ap.add_argument("--fixture", default="issue13", choices=sorted(FIXTURES))
     args = ap.parse_args()
+    print(f"fixture {args.fixture}: {FIXTURES[args.fixture]}")
     from horsemocap import pose, synthetic
 
     print(f"{'smoothing':13s} {'draw':>4s} {'noise_mm':>8s} {'vel_%':>6s} {'acc_%':>6s} {'omega_%':>7s} "
@@ -34,7 +45,7 @@ def main():
                                      ("gcv", 3, "none")):
         res = []
         for seed in range(args.draws):
-            d = synthetic.lift_with_ringing(seed=seed)
+            d = synthetic.lift_with_ringing(seed=seed, **FIXTURES[args.fixture])
             t0 = time.perf_counter()
             reg = pose.register_pose(d["markers"], d["model"])
             tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing=method, order=order,

@@ -147,7 +147,7 @@ class AnalysisParams:
         resolutions and frame rates, speed changes) the saddle error is
         1.1 % median (worst 2.3 %) with pose_spline against 17.9 % (28.6 %)
         with the fits, the Wb rms 0.3 % (1.0 %) against 5.7 % (11.4 %)
-        (``benchmarks/results/hard_kinematics_noise_test.txt``).
+        (``benchmarks/bench_herd_kinematics.py --set hard``, ``benchmarks/results/hard_kinematics.txt``).
         The default is ``"pose_spline"``: better on 24 sessions of two
         independent sets, median and worst, and with noise. ``"fits"`` is
         the thesis' chain (``--kinematics fits``). On the bundled Horse 2

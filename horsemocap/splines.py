@@ -34,6 +34,7 @@ data alone.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
@@ -44,6 +45,10 @@ __all__ = ["SmoothingSpline", "HarmonicTerms", "smoothing_spline", "harmonic_col
 
 MAX_BASIS = 400
 """Largest number of B-spline basis functions of a quintic smoothing spline."""
+
+CACHE_SAMPLES = 1600
+"""Records of at most this many samples keep their spline basis cached (:func:`_basis`): four of
+them hold at most about 40 MB; a longer record recomputes it."""
 
 MAX_GRID = 4000
 """Most trial frequencies of :func:`estimate_fundamental` on a grid; longer records use the
@@ -129,13 +134,53 @@ def _penalty(knots, k, m, weight=None):
     return D.T @ (wts[:, None] * D)
 
 
-def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
-    n = x.size
+def _basis(x_bytes: bytes, m: int):
+    """:func:`_basis_of`, cached for records of at most :data:`CACHE_SAMPLES` samples."""
+    if len(x_bytes) <= 8 * CACHE_SAMPLES:
+        return _basis_cached(x_bytes, m)
+    return _basis_of(x_bytes, m)
+
+
+def _gcv_basis(x_bytes: bytes, w_bytes: bytes, m: int):
+    """:func:`_gcv_basis_of`, cached for records of at most :data:`CACHE_SAMPLES` samples."""
+    if len(x_bytes) <= 8 * CACHE_SAMPLES:
+        return _gcv_basis_cached(x_bytes, w_bytes, m)
+    return _gcv_basis_of(x_bytes, w_bytes, m)
+
+
+def _basis_of(x_bytes: bytes, m: int):
+    """Knots, design matrix, penalty and the penalty's eigen-decomposition of the samples' times
+    (``x_bytes``: the float64 bytes of x). A pure function of the times, cached: the six pose
+    components and the re-smoothings of one trajectory share their times (the penalty's quadrature
+    and its decomposition were half of the pose fit's time). The arrays are read-only."""
+    x = np.frombuffer(x_bytes, float)
     k = 2 * m - 1
-    gamma = GCV_GAMMA if gamma is None else gamma
     knots = _knots(x, m)          # at most n basis functions: B^T W B is non-singular
     B = BSpline.design_matrix(x, knots, k).toarray()
-    P = _penalty(knots, k, m, weight)
+    P = _penalty(knots, k, m)
+    d, U = np.linalg.eigh((P + P.T) / 2)
+    for a in (knots, B, P, d, U):
+        a.flags.writeable = False
+    return knots, B, P, d, U
+
+
+def _gcv_basis_of(x_bytes: bytes, w_bytes: bytes, m: int):
+    """Demmler-Reinsch basis of the quintic smoothing spline with a uniform penalty (``T``, ``d``, ``Z``
+    of :func:`_quintic_gcv`), a pure function of the times and weights, cached like :func:`_basis`."""
+    knots, B, P, _, _ = _basis(x_bytes, m)
+    out = _demmler_reinsch(B, P, np.frombuffer(w_bytes, float))
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
+_basis_cached = lru_cache(maxsize=4)(_basis_of)
+_gcv_basis_cached = lru_cache(maxsize=4)(_gcv_basis_of)
+
+
+def _demmler_reinsch(B, P, w):
+    """``T, d, Z``: ``c = T (z / (1 + lam d))`` are the coefficients, ``Z (z / (1 + lam d))`` the
+    weighted fitted values, ``z = Z^T (sqrt(w) y)``."""
     sw = np.sqrt(w)
     Bw = B * sw[:, None]
     G = Bw.T @ Bw
@@ -146,8 +191,23 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
     Pt = Li @ P @ Li.T
     d, U = np.linalg.eigh((Pt + Pt.T) / 2)
     d = np.clip(d, 0, None)
-    T = Li.T @ U                       # coefficients c = T (z / (1 + lam d))
-    Z = Bw @ T                         # weighted fitted values = Z (z / (1 + lam d))
+    T = Li.T @ U
+    return T, d, Bw @ T
+
+
+def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
+    n = x.size
+    k = 2 * m - 1
+    gamma = GCV_GAMMA if gamma is None else gamma
+    x = np.ascontiguousarray(x, float)
+    w = np.ascontiguousarray(w, float)
+    if weight is None:
+        knots = _basis(x.tobytes(), m)[0]
+        T, d, Z = _gcv_basis(x.tobytes(), w.tobytes(), m)
+    else:
+        knots, B = _basis(x.tobytes(), m)[:2]
+        T, d, Z = _demmler_reinsch(B, _penalty(knots, k, m, weight), w)
+    sw = np.sqrt(w)
     z = Z.T @ (sw * y)
     yw = sw * y
 
@@ -244,10 +304,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
-    knots = _knots(x, m)
-    B = BSpline.design_matrix(x, knots, k).toarray()
-    P = _penalty(knots, k, m)
-    d, U = np.linalg.eigh((P + P.T) / 2)
+    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m)
     U0, Up, dp = U[:, :m], U[:, m:], np.clip(d[m:], 1e-14 * d[-1], None)
     sw = np.sqrt(w)
     yw = sw * y

@@ -96,8 +96,14 @@ def _rotation_jets(a: Jet, b: Jet, c: Jet):
 
 
 def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: float = 3e-4, seed: int = 0,
-                      ring_hz: float = 10.0) -> dict:
+                      ring_hz: float = 10.0, ring_decay_s: float = 0.3, ring_rise_s: float = 0.02,
+                      ring_start_s: float = 2.8, second_ring_hz: float | None = None) -> dict:
     """A marker box lifted, held, set down, ringing at ``ring_hz``; exact truth.
+
+    The defaults are issue 13's fixture. ``ring_decay_s``, ``ring_rise_s`` (the onset's time
+    constant), ``ring_start_s`` and ``second_ring_hz`` (a second mode, half the amplitude, in the
+    rotation about x and the vertical, from the same onset) build other non-periodic motions
+    with the same exact truth.
 
     The box (0.40 x 0.30 x 0.20 m) carries 4 markers on its top and sides;
     the hidden point is a bottom corner. Motion (y up): lift of 0.30 m over
@@ -116,15 +122,22 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(round(duration_s * fps))) / fps
-    lift, down, t_ring = 0.5, 2.2, 2.8
-    y = minimum_jerk_step(t, lift, 0.8, 0.30) + minimum_jerk_step(t, down, 0.6, -0.30) \
-        + ringing(t, t_ring, 0.006, ring_hz)
+    lift, down, t_ring = 0.5, 2.2, ring_start_s
+
+    def ring(amplitude, phase=0.0):
+        out = ringing(t, t_ring, amplitude, ring_hz, ring_decay_s, ring_rise_s, phase)
+        return out
+
+    y = minimum_jerk_step(t, lift, 0.8, 0.30) + minimum_jerk_step(t, down, 0.6, -0.30) + ring(0.006)
     x = minimum_jerk_step(t, lift, 0.8, 0.15) + minimum_jerk_step(t, down, 0.6, -0.05)
-    z = ringing(t, t_ring, 0.002, ring_hz, phase=1.0)
+    z = ring(0.002, phase=1.0)
     # angles about z, y and x (y up): R = Rz(tilt_z) Ry(turn_y) Rx(roll_x)
     pitch = minimum_jerk_step(t, lift, 0.8, np.radians(8)) + minimum_jerk_step(t, down, 0.6, -np.radians(8)) \
-        + ringing(t, t_ring, np.radians(1.5), ring_hz, phase=0.5)
-    roll = ringing(t, t_ring, np.radians(3.0), ring_hz)
+        + ring(np.radians(1.5), phase=0.5)
+    roll = ring(np.radians(3.0))
+    if second_ring_hz is not None:
+        y = y + ringing(t, t_ring, 0.003, second_ring_hz, ring_decay_s, ring_rise_s, 0.8)
+        roll = roll + ringing(t, t_ring, np.radians(1.5), second_ring_hz, ring_decay_s, ring_rise_s, 2.0)
     yaw = minimum_jerk_step(t, lift, 0.8, np.radians(5))
     R, omega, alpha = _rotation_jets(yaw, pitch, roll)          # about z, y, x in that order
     # box centre at the origin of its own frame

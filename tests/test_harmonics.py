@@ -257,3 +257,26 @@ def test_thin_triangle_periodic_error_is_not_taken_for_rotation():
     omega = pose.angular_velocity_from_rotvec(phi, dphi)
     err = lambda tr: np.sqrt(np.mean((tr.omega(t)[:, 2] - omega[:, 2]) ** 2))  # noqa: E731
     assert err(auto) < 0.5 * err(old)           # measured 0.0065 against 0.0435 rad/s
+
+
+def test_cached_spline_basis_gives_the_same_fit_as_a_fresh_one():
+    """The basis of a record's times is cached (the six pose components share it): a fit through the
+    cache equals one computed afresh, bit for bit, and the cached arrays cannot be changed."""
+    rng = np.random.default_rng(7)
+    t = np.arange(70) / 30.0
+    y1, _ = _motion(t, 1.7)
+    y2 = np.cos(3 * t) + rng.normal(0, 1e-3, t.size)
+    splines.smoothing_spline(t, y1, fundamental_hz=1.7)              # fills the cache
+    cached = splines.smoothing_spline(t, y2, fundamental_hz=1.7)
+    cached_plain = splines.smoothing_spline(t, y2)
+    splines._basis_cached.cache_clear()
+    splines._gcv_basis_cached.cache_clear()
+    fresh = splines.smoothing_spline(t, y2, fundamental_hz=1.7)
+    splines._basis_cached.cache_clear()
+    splines._gcv_basis_cached.cache_clear()
+    fresh_plain = splines.smoothing_spline(t, y2)
+    np.testing.assert_array_equal(cached(t, 2), fresh(t, 2))
+    np.testing.assert_array_equal(cached_plain(t, 2), fresh_plain(t, 2))
+    B = splines._basis(t.tobytes(), 3)[1]
+    with pytest.raises(ValueError):
+        B[0, 0] = 1.0

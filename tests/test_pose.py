@@ -132,12 +132,16 @@ def test_noise_of_the_ringing_fixture_is_measured_from_the_residuals():
     assert reg.noise_m == pytest.approx(d["noise_m"], rel=0.05)
 
 
-def test_synthetic_truth_is_consistent():
-    """The exact kinematics of the fixture agree with finite differences of its positions."""
-    d = synthetic.lift_with_ringing(fps=2000.0, duration_s=4.0, noise_m=0.0)
+@pytest.mark.parametrize("extra", [{}, {"ring_hz": 6.0, "second_ring_hz": 14.0, "ring_decay_s": 0.5,
+                                       "ring_rise_s": 0.03, "ring_start_s": 2.9}])
+def test_synthetic_truth_is_consistent(extra):
+    """The exact kinematics of the fixture (and of the second one, bench_kinematics.py --fixture
+    second) agree with finite differences of its positions."""
+    d = synthetic.lift_with_ringing(fps=2000.0, duration_s=4.0, noise_m=0.0, **extra)
     dt = 1 / 2000.0
-    # away from the ringing's onset at 2.8 s, where the jerk jumps (finite differences are poor there)
-    keep = (np.abs(d["t"] - 2.8) > 0.005) & (d["t"] > 0.002) & (d["t"] < 3.998)
+    onset = extra.get("ring_start_s", 2.8)
+    # away from the ringing's onset, where the jerk jumps (finite differences are poor there)
+    keep = (np.abs(d["t"] - onset) > 0.005) & (d["t"] > 0.002) & (d["t"] < 3.998)
     v = np.gradient(d["hidden_pos"], dt, axis=0)
     np.testing.assert_allclose(v[keep], d["hidden_vel"][keep], atol=2e-3)
     a = np.gradient(d["hidden_vel"], dt, axis=0)
