@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from .base import DetectionParams, Regions
-from .thresholds import binarize, to_gray
+from .thresholds import binarize, connected_components, to_gray
 
 __all__ = [
     "label_regions",
@@ -60,7 +60,7 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
     b = np.asarray(binary)
     if b.dtype != np.uint8:
         b = (b > 0).astype(np.uint8)
-    n, labels, stats, cents = cv2.connectedComponentsWithStats(b, connectivity=connectivity, ltype=cv2.CV_32S)
+    n, labels, stats, cents = connected_components(b, connectivity)
     u0, v0 = int(origin[0]), int(origin[1])
     bbox = stats[1:, :4].astype(np.int64)
     bbox[:, 0] += u0
@@ -70,7 +70,7 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
                    centroid=cents[1:] + np.array([u0, v0], float), origin=(u0, v0), image_size=size)
 
 
-def region_circularity(regions: Regions) -> np.ndarray:
+def region_circularity(regions: Regions, by_moments: bool | None = None) -> np.ndarray:
     """Circularity from geometric moments (seed 000 section 5.2.1; Hu 1962).
 
     ``c = A / (2 pi (var_u + var_v))`` = ``1 / (2 pi phi_1)`` where
@@ -78,6 +78,12 @@ def region_circularity(regions: Regions) -> np.ndarray:
     variances include each pixel's own extent (1/12). ``c`` is 1 for a disc,
     ``2r / (1 + r^2)`` for an ellipse of axis ratio ``r`` and
     ``6k / (pi (1 + k^2))`` for a ``k``:1 bar.
+
+    Up to 8 regions each region's moments are taken by ``cv2.moments`` on
+    its box, more by one pass of sums over the labelled area (the two agree
+    to rounding); ``by_moments`` forces one of the two (a search labelling an
+    image in crops takes the path the whole image's regions would; forced
+    sums are taken in full-image pixels, as for the whole image).
     """
     C = len(regions)
     if C == 0:
@@ -85,7 +91,7 @@ def region_circularity(regions: Regions) -> np.ndarray:
     lab = regions.labels
     u0, v0 = regions.origin
     out = np.empty(C)
-    if C <= 8:
+    if (C <= 8) if by_moments is None else by_moments:
         for i, (rid, bb) in enumerate(zip(regions.ids, regions.bbox)):
             x, y = bb[0] - u0, bb[1] - v0
             sub = (lab[y:y + bb[3], x:x + bb[2]] == rid).astype(np.uint8)
@@ -96,6 +102,8 @@ def region_circularity(regions: Regions) -> np.ndarray:
         return out
     v, u = np.nonzero(lab)
     ll = lab[v, u]
+    if by_moments is False:                 # forced: full-image coordinates, the whole image's very sums
+        u, v = u + u0, v + v0
     n = int(lab.max()) + 1
     a = np.bincount(ll, minlength=n).astype(float)
     su, sv = np.bincount(ll, u, n), np.bincount(ll, v, n)
