@@ -262,9 +262,10 @@ def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
     u0, v0 = regions.origin
     W, H = regions.image_size
     g = 2 * margin + 2
-    for k, i in enumerate(idx):
-        rid = regions.ids[i]
-        bx, by, bw, bh = regions.bbox[i]
+    ids, boxes = regions.ids.tolist(), regions.bbox.tolist()      # Python ints: no NumPy scalar arithmetic
+    for k, i in enumerate(np.asarray(idx).tolist()):
+        rid = ids[i]
+        bx, by, bw, bh = boxes[i]
         bx, by = bx - u0, by - v0
         x0, y0 = max(bx - g, 0), max(by - g, 0)
         x1, y1 = min(bx + bw + g, w), min(by + bh + g, h)
@@ -285,7 +286,7 @@ def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
 
 
 def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
-                       symmetric_border: bool = False) -> np.ndarray:
+                       symmetric_border: bool = False, patches=None) -> np.ndarray:
     """Intensity-weighted centres of regions, above the local background.
 
     For each region the mask is grown by ``margin`` pixels (to take in the
@@ -311,6 +312,9 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
     regions : Regions
     index : indices into ``regions`` (default all)
+    patches : list, optional
+        ``list(region_patches(gray, regions, index, margin))``, when
+        :func:`light_terms` takes them too (each region's patch made once).
 
     Returns
     -------
@@ -319,7 +323,8 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     u0, v0 = regions.origin
     out = np.full((len(idx), 2), np.nan)
-    for k, i, _, _, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
+    for k, i, _, _, wgt, x0, y0, cut in (patches if patches is not None else
+                                         _region_patches(gray, regions, idx, margin)):
         s = wgt.sum()
         if s <= 0:
             out[k] = regions.centroid[i]
@@ -332,7 +337,8 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     return out
 
 
-def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5):
+def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5,
+                patches=None):
     """The light across each region and the second moments of its weights.
 
     A marker lit unevenly has brightness ``H (1 + s . (p - p0))`` across it
@@ -346,6 +352,8 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     sensor's noise); pooled over a marker's track it is precise
     (:func:`~horsemocap.detection.identification.correct_light`).
 
+    ``patches``: as for :func:`weighted_centroids`.
+
     Returns
     -------
     slope : (K, 2)
@@ -357,7 +365,8 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     slope = np.full((len(idx), 2), np.nan)
     moments = np.full((len(idx), 2, 2), np.nan)
-    for k, i, sub, own, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
+    for k, i, sub, own, wgt, x0, y0, cut in (patches if patches is not None else
+                                             _region_patches(gray, regions, idx, margin)):
         s = wgt.sum()
         if s <= 0:
             continue
