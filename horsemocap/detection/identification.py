@@ -679,19 +679,26 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
     label image of the whole frame: each crop of
     :func:`~horsemocap.detection.thresholds.bright_crops` (padded groups of
     bright 8 x 8 blocks; in a frame without the horse, most of a long
-    session, only glints, lamps and rails are bright) is labelled alone; its
-    regions in the area range get their circularity (by the method the whole
-    image's would: :func:`~horsemocap.detection.filters.region_circularity`)
-    and their centres from the crop (a weighted centre looks at most 7 px
-    beyond its region, a crop holds 10); the candidates of all crops are put
-    in the order OpenCV's labelling of the whole image gives them
+    session, only glints, lamps and rails are bright) is labelled alone
+    (:func:`_bright_regions`); its regions in the area range get their
+    circularity (by the method the whole image's would:
+    :func:`~horsemocap.detection.filters.region_circularity`) and their
+    centres from the crop (a weighted centre looks at most 7 px beyond its
+    region, a crop holds 10); the candidates of all crops are put in the
+    order OpenCV's labelling of the whole image gives them
     (:func:`~horsemocap.detection.thresholds.region_order_key`) before the
-    ``max_count`` largest are kept. Issue 16: labelling crops instead of the
-    whole image, then no whole-frame label image.
+    ``max_count`` largest are kept (:func:`_crop_candidates`). Issue 16:
+    labelling crops instead of the whole image, then no whole-frame label
+    image.
     """
+    crops = _bright_regions(gray, threshold, area_range)
+    return _crop_candidates(gray, crops, min_circularity, centroid, max_count)
+
+
+def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
+    """The regions in the area range of each crop around the bright pixels (:class:`Regions` per crop)."""
     from .base import Regions
-    from .filters import region_circularity
-    from .thresholds import bright_crops, connected_components, region_order_key
+    from .thresholds import bright_crops, connected_components
 
     H, W = gray.shape[:2]
     amin, amax = area_range[0], _max_area(area_range, gray)
@@ -708,6 +715,15 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
         cents = (np.rint(ce[1:] * area[:, None]) + np.array([u0, v0]) * area[:, None]) / area[:, None]
         crops.append(Regions(labels=lab, ids=np.arange(1, n), area=area, bbox=bbox, centroid=cents,
                              origin=(u0, v0), image_size=(W, H)).subset(keep))
+    return crops
+
+
+def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: str, max_count: int) -> Candidates:
+    """:class:`Candidates` of the regions of :func:`_bright_regions`, in the whole image's labelling order."""
+    from .filters import region_circularity
+    from .thresholds import region_order_key
+
+    W = gray.shape[1]
     if min_circularity is not None and crops:
         by_moments = sum(len(r) for r in crops) <= 8
         crops = [r.subset(region_circularity(r, by_moments) >= min_circularity) for r in crops]
@@ -1401,10 +1417,15 @@ class _Tracker:
         gray = {c: self.frames[c][k] for c in self.cams}    # every camera read in turn (its reading ahead goes on)
         have, cands = 0, {}
         for i, c in enumerate(self.cams):
-            cands[c] = _whole_frame_search(gray[c], self.thr[c], _area_range(self.cparams[c]),
-                                           _min_circ(self.cparams[c]), centroid=self.cparams[c].centroid)
+            left = self.M * (self.C - 1 - i)                # the most the cameras after this one can add
+            regions = _bright_regions(gray[c], self.thr[c], _area_range(self.cparams[c]))
+            whole = sum(int(np.count_nonzero(~r.touches_border)) for r in regions)   # before the shape rule
+            if have + min(whole, self.M) + left < need:
+                return None
+            cands[c] = _crop_candidates(gray[c], regions, _min_circ(self.cparams[c]), self.cparams[c].centroid,
+                                        MAX_CANDIDATES_PER_CAMERA)
             have += min(int(np.count_nonzero(~cands[c].cut)), self.M)
-            if have + self.M * (self.C - 1 - i) < need:
+            if have + left < need:
                 return None
         return cands
 
