@@ -9,23 +9,31 @@ before and after:
   ``cv2.cvtColor`` it calls (input shape) and every image it thresholds and
   labels (``filters._candidates_in``: the gray crop itself) are recorded;
   the floor is ``cvtColor`` on RGB arrays of the same shapes plus
-  ``threshold + connectedComponentsWithStats`` on the same gray crops (for
-  the whole-frame search, ``thresholds.label_bright``: the whole frame
-  thresholded and the same crops labelled).
+  ``threshold`` + labelling on the same gray crops (for the whole-frame
+  search, ``identification._whole_frame_search``: the whole frame
+  thresholded and the crops of ``thresholds.bright_crops`` labelled).
+  Labelling: ``thresholds.connected_components``, the detectors' own call
+  (OpenCV's block-based algorithm, faster in OpenCV 5.0 than the default
+  ``cv2.connectedComponentsWithStats`` with int32 labels, same result); the
+  ratio against the default call (the floor of the runs before 2026-11-24
+  10:00) is printed beside it.
   Ratio = floor time / detector time (1 = no overhead beyond OpenCV).
+  Thesis chain: ``detect_markers`` with the parameters of its automatic run
+  given back (RGB frames). Identification: the default multi-view
+  ``identify_markers`` on gray frames (as the pipeline's decoder gives
+  them: no conversion), its 2D stage timed alone (every call of
+  ``frame_candidates`` and ``_whole_frame_search`` it made, replayed: the
+  equal-work ratio) and whole (3D matching, the rigid model and the
+  tracking included: its time per frame, and the 2D floor over it).
 * **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
-  + connectedComponentsWithStats`` on every whole frame the detector was
-  given (what a detector without the thesis' sliding window must do).
-  Detectors: the thesis' per-camera chain (``detect_markers`` with the
-  parameters of its automatic run given back, RGB frames) and the default
-  multi-view identification (``identify_markers``, all cameras, gray
-  converted on access as the pipeline's ``FrameSequence`` does).
+  + labelling`` of every whole frame the detector was given (what a
+  detector without the thesis' sliding window must do).
   Sessions: the bundled one (640 x 480) and the hard 1080p session
   ``canter1080_toedin_50_speed`` (render cache, rendered on first use).
 * **whole-frame search**: identification's search of a whole frame
   (``_whole_frame_search``, labelling crops around the bright pixels), the
   same search labelling whole frames (``frame_candidates``) and the floor
-  ``threshold + connectedComponentsWithStats``, on the first synchronised
+  ``threshold`` + labelling of the whole frame, on the first synchronised
   frames (the horse not in view yet).
 * **decoding**: reading every frame of every video (gray, as the pipeline
   reads them): the floor of the whole pipeline.
@@ -80,27 +88,37 @@ def rounds(fns: dict, repeat: int) -> dict:
 # ---------------------------------------------------------------------------
 
 class Recorder:
-    """Patches ``cv2.cvtColor`` and the detectors' labelling call to record their inputs."""
+    """Patches ``cv2.cvtColor`` and the detectors' labelling calls to record their inputs.
+
+    Thesis chain: every gray crop ``filters._candidates_in`` thresholds and
+    labels. Identification: every call of its 2D stage
+    (``identification.frame_candidates``: a crop around the predicted
+    markers, whose gray crop ``_candidates_in`` records too;
+    ``identification._whole_frame_search``: the whole frame thresholded, the
+    crops of ``thresholds.bright_crops`` labelled), kept to be replayed.
+    """
 
     def __init__(self):
         self.convert_shapes = []
         self.labelled = []          # (gray crop copy, threshold)
-        self.bright = []            # (gray frame, threshold, crops): label_bright's work
+        self.bright = []            # (gray frame, threshold, crops): the whole-frame search's work
+        self.calls = []             # (function name, args, kwargs): identification's 2D stage
 
     def __enter__(self):
-        from horsemocap.detection import filters, thresholds, tracking
+        from horsemocap.detection import filters, identification, thresholds, tracking
 
-        self._orig = (cv2.cvtColor, filters._candidates_in, tracking._candidates_in, thresholds.label_bright)
-        orig_cvt, orig_cand, orig_bright = self._orig[0], self._orig[1], self._orig[3]
+        self._orig = (cv2.cvtColor, filters._candidates_in, tracking._candidates_in,
+                      identification.frame_candidates, identification._whole_frame_search)
+        orig_cvt, orig_cand, _, orig_fc, orig_search = self._orig
 
-        def bright(gray, threshold, *a, **k):
-            binary = cv2.threshold(gray, int(threshold), 255, cv2.THRESH_BINARY)[1]
-            boxes = thresholds._bright_boxes(binary, thresholds.BRIGHT_BLOCK, thresholds.BRIGHT_PAD)
-            if sum((b[2] - b[0]) * (b[3] - b[1]) for b in boxes) > thresholds.BRIGHT_MAX_FRACTION * gray.size:
-                boxes = [(0, 0, gray.shape[1], gray.shape[0])]
-            self.bright.append((np.array(gray), int(threshold), boxes))
-            return orig_bright(gray, threshold, *a, **k)
-        thresholds.label_bright = bright
+        def search(gray, threshold, *a, **k):
+            self.bright.append((gray, int(threshold), thresholds.bright_crops(gray, threshold)[1]))
+            self.calls.append(("_whole_frame_search", (gray, threshold, *a), k))
+            return orig_search(gray, threshold, *a, **k)
+
+        def frame_cands(*a, **k):
+            self.calls.append(("frame_candidates", a, k))
+            return orig_fc(*a, **k)
 
         def cvt(src, code, *a, **k):
             if code == cv2.COLOR_RGB2GRAY:
@@ -115,30 +133,52 @@ class Recorder:
         cv2.cvtColor = cvt
         filters._candidates_in = cand
         tracking._candidates_in = cand
+        identification.frame_candidates = frame_cands
+        identification._whole_frame_search = search
         return self
 
     def __exit__(self, *exc):
-        from horsemocap.detection import filters, thresholds, tracking
+        from horsemocap.detection import filters, identification, tracking
 
-        cv2.cvtColor, filters._candidates_in, tracking._candidates_in, thresholds.label_bright = self._orig
+        (cv2.cvtColor, filters._candidates_in, tracking._candidates_in, identification.frame_candidates,
+         identification._whole_frame_search) = self._orig
 
-    def floor(self, rgb_like: np.ndarray):
-        """A function doing the recorded OpenCV work alone."""
+    def floor(self, rgb_like: np.ndarray, default_cc: bool = False):
+        """A function doing the recorded OpenCV work alone.
+
+        Labelling by ``thresholds.connected_components`` (the detectors' own
+        call: OpenCV's block-based algorithm), or with ``default_cc`` by
+        ``cv2.connectedComponentsWithStats`` as called by default (slower in
+        OpenCV 5.0 with int32 labels; the floor of the earlier runs).
+        """
+        from horsemocap.detection.thresholds import connected_components
+
         H, W = rgb_like.shape[:2]
         conv = [rgb_like[:s[0], :s[1]] for s in self.convert_shapes if s[0] <= H and s[1] <= W]
         lab = self.labelled
         bright = self.bright
+        label = (lambda b: cv2.connectedComponentsWithStats(b, connectivity=8)) if default_cc else connected_components
 
         def run():
             for a in conv:
                 cv2.cvtColor(a, cv2.COLOR_RGB2GRAY)
             for g, t in lab:
-                b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
-                cv2.connectedComponentsWithStats(b, connectivity=8)
+                label(cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1])
             for g, t, boxes in bright:          # the whole frame thresholded, the crops labelled
                 b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
                 for u0, v0, u1, v1 in boxes:
-                    cv2.connectedComponentsWithStats(b[v0:v1, u0:u1], connectivity=8)
+                    label(b[v0:v1, u0:u1])
+        return run
+
+    def replay(self):
+        """A function making the recorded calls of identification's 2D stage again."""
+        from horsemocap.detection import identification
+
+        calls = [(getattr(identification, name), a, k) for name, a, k in self.calls]
+
+        def run():
+            for fn, a, k in calls:
+                fn(*a, **k)
         return run
 
     def summary(self):
@@ -148,36 +188,19 @@ class Recorder:
         return {"conversions": len(self.convert_shapes), "converted_px": int(px_conv),
                 "labellings": len(self.labelled) + sum(len(boxes) for _, _, boxes in self.bright),
                 "labelled_px": int(px_lab), "whole_frames_searched_in_crops": len(self.bright),
-                "thresholded_whole_px": int(sum(g.size for g, _, _ in self.bright))}
+                "thresholded_whole_px": int(sum(g.size for g, _, _ in self.bright)),
+                "calls_2d_stage": len(self.calls)}
 
 
 def whole_frame_floor(rgb_frames: list, thresholds: list):
+    from horsemocap.detection.thresholds import connected_components
+
     def run():
         for frames, t in zip(rgb_frames, thresholds):
             for f in frames:
                 g = cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)
-                b = cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1]
-                cv2.connectedComponentsWithStats(b, connectivity=8)
+                connected_components(cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1])
     return run
-
-
-class GrayOnAccess:
-    """RGB frames in memory, converted to gray when indexed (the last few kept, as FrameSequence)."""
-
-    def __init__(self, rgb, keep=16):
-        self.rgb, self.keep, self.cache = rgb, keep, {}
-
-    def __len__(self):
-        return len(self.rgb)
-
-    def __getitem__(self, k):
-        g = self.cache.pop(k, None)
-        if g is None:
-            g = cv2.cvtColor(self.rgb[k], cv2.COLOR_RGB2GRAY)
-        self.cache[k] = g
-        while len(self.cache) > self.keep:
-            self.cache.pop(next(iter(self.cache)))
-        return g
 
 
 # ---------------------------------------------------------------------------
@@ -212,8 +235,9 @@ def bench_detection(name, s, res, n_frames, repeat, out):
     k1 = min(n, k0 + n_frames)
     cams = list(s.cameras)
     rgb = {c: FrameSource(s.motion[c]).read(off[c] + k0, off[c] + k1) for c in cams}
+    # the identification reads gray frames, as the pipeline's decoder gives them (FrameSequence, color=False)
+    gray = {c: np.stack([cv2.cvtColor(f, cv2.COLOR_RGB2GRAY) for f in rgb[c]]) for c in cams}
     H, W = rgb[cams[0]].shape[1:3]
-    rows = {}
 
     # thesis chain, one camera at a time, parameters of its automatic run given back
     given, rec_t = {}, Recorder()
@@ -232,15 +256,16 @@ def bench_detection(name, s, res, n_frames, repeat, out):
     thr = {}
 
     def ident():
-        idn = identify_markers({c: GrayOnAccess(rgb[c]) for c in cams}, rig, static, s.marker_count,
-                               params={c: DetectionParams() for c in cams})
+        idn = identify_markers(gray, rig, static, s.marker_count, params={c: DetectionParams() for c in cams})
         thr.update(idn.thresholds)
     rec_i = Recorder()
     with rec_i:
         ident()
 
     t = rounds({"thesis": thesis, "thesis_floor_crops": rec_t.floor(rgb[cams[0]][0]),
-                "ident": ident, "ident_floor_crops": rec_i.floor(rgb[cams[0]][0]),
+                "thesis_floor_crops_default_cc": rec_t.floor(rgb[cams[0]][0], default_cc=True),
+                "ident": ident, "ident_2d": rec_i.replay(), "ident_floor_crops": rec_i.floor(rgb[cams[0]][0]),
+                "ident_floor_crops_default_cc": rec_i.floor(rgb[cams[0]][0], default_cc=True),
                 "floor_whole_thesis": whole_frame_floor([rgb[c] for c in cams], [given[c].threshold for c in cams]),
                 "floor_whole_ident": whole_frame_floor([rgb[c] for c in cams], [int(thr[c]) for c in cams])},
                repeat)
@@ -249,9 +274,13 @@ def bench_detection(name, s, res, n_frames, repeat, out):
         "session": name, "size": [W, H], "cameras": len(cams), "frames_per_camera": k1 - k0,
         "thesis_ms_per_frame": 1e3 * t["thesis"] / per,
         "thesis_equal_work_ratio": t["thesis_floor_crops"] / t["thesis"],
+        "thesis_equal_work_ratio_default_cc": t["thesis_floor_crops_default_cc"] / t["thesis"],
         "thesis_whole_frame_ratio": t["floor_whole_thesis"] / t["thesis"],
         "thesis_work": rec_t.summary(),
         "ident_ms_per_frame": 1e3 * t["ident"] / per,
+        "ident_2d_ms_per_frame": 1e3 * t["ident_2d"] / per,
+        "ident_2d_equal_work_ratio": t["ident_floor_crops"] / t["ident_2d"],
+        "ident_2d_equal_work_ratio_default_cc": t["ident_floor_crops_default_cc"] / t["ident_2d"],
         "ident_equal_work_ratio": t["ident_floor_crops"] / t["ident"],
         "ident_whole_frame_ratio": t["floor_whole_ident"] / t["ident"],
         "ident_work": rec_i.summary(),
@@ -260,12 +289,17 @@ def bench_detection(name, s, res, n_frames, repeat, out):
     }
     print(f"detection, {name} ({W}x{H}, {len(cams)} cameras x {k1 - k0} frames; bare OpenCV whole frame "
           f"{rows['bare_whole_ms_per_frame']:.2f} ms/frame):")
-    print(f"  thesis chain   {rows['thesis_ms_per_frame']:7.2f} ms/frame  equal work {rows['thesis_equal_work_ratio']:.2f}"
-          f"  whole frame {rows['thesis_whole_frame_ratio']:.2f}   ({rec_t.summary()})")
-    print(f"  identification {rows['ident_ms_per_frame']:7.2f} ms/frame  equal work {rows['ident_equal_work_ratio']:.2f}"
-          f"  whole frame {rows['ident_whole_frame_ratio']:.2f}   ({rec_i.summary()})", flush=True)
+    print(f"  thesis chain         {rows['thesis_ms_per_frame']:7.2f} ms/frame  equal work "
+          f"{rows['thesis_equal_work_ratio']:.2f} (default labelling call as floor: "
+          f"{rows['thesis_equal_work_ratio_default_cc']:.2f})  whole frame {rows['thesis_whole_frame_ratio']:.2f}"
+          f"   ({rec_t.summary()})")
+    print(f"  identification, 2D   {rows['ident_2d_ms_per_frame']:7.2f} ms/frame  equal work "
+          f"{rows['ident_2d_equal_work_ratio']:.2f} (default labelling call as floor: "
+          f"{rows['ident_2d_equal_work_ratio_default_cc']:.2f})   ({rec_i.summary()})")
+    print(f"  identification, all  {rows['ident_ms_per_frame']:7.2f} ms/frame  equal work (2D floor / all) "
+          f"{rows['ident_equal_work_ratio']:.2f}  whole frame {rows['ident_whole_frame_ratio']:.2f}", flush=True)
     out.setdefault("detection", []).append(rows)
-    del rgb
+    del rgb, gray
 
 
 def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
@@ -276,10 +310,11 @@ def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
     ``n_frames`` per camera, in memory. Rows: ``_whole_frame_search`` (the
     search the identification runs while the horse is out of view),
     ``frame_candidates`` on the whole frame (the same result, labelling the
-    whole image) and the floor ``threshold + connectedComponentsWithStats``.
+    whole image) and the floor ``threshold`` + labelling (``connected_components``).
     """
     from horsemocap.detection.identification import AUTO_MIN_CIRCULARITY, GENERIC_AREA, _whole_frame_search, \
         frame_candidates
+    from horsemocap.detection.thresholds import connected_components
     from horsemocap.sources import FrameSource
 
     off, n = res["sync"]["offsets"], res["sync"]["n_frames"]
@@ -300,7 +335,7 @@ def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
     def floor():
         for c in s.cameras:
             for g in gray[c]:
-                cv2.connectedComponentsWithStats(cv2.threshold(g, thr[c], 255, cv2.THRESH_BINARY)[1], connectivity=8)
+                connected_components(cv2.threshold(g, thr[c], 255, cv2.THRESH_BINARY)[1])
     t = rounds({"crops": crops, "whole": whole, "floor": floor}, repeat)
     count = sum(len(g) for g in gray.values())
     row = {"session": name, "frames": count, **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},

@@ -241,7 +241,7 @@ class FrameSequence:
         self._cache: dict[int, np.ndarray] = {}
         self._files = None if source.is_video else list_images(source.path)
         self._cap, self._next = None, None
-        self._last, self._job, self._pool = None, None, None
+        self._last, self._job, self._pool, self._low = None, None, None, None
         self._video = None if (self._files is not None or color) else _SharedGray.video_key(source.path)
         first = self[0]
         self.shape = (stop - start,) + first.shape
@@ -271,6 +271,8 @@ class FrameSequence:
             frame = self._load(k)
         if self._files is None and self._last is not None and k == self._last + 1:
             self._read_ahead(k)
+        elif self._files is None and self._last is not None and k == self._last - 1:
+            self._read_behind(k)
         self._last = k
         return frame
 
@@ -287,6 +289,29 @@ class FrameSequence:
             self._job = self._pool.submit(self._decode, self._cap, count)
             self._job.count = count
 
+    # reading backwards: while the caller works down the block decoded last (frames low.. upwards), a second
+    # thread seeks to the block before it and decodes that (the first half of the cache holds the one, the
+    # second half the other)
+    def _read_behind(self, k: int) -> None:
+        low, block = self._low, self.cache_frames // 2
+        if (self._job is None and self._cap is not None and low is not None and 0 < low <= k < low + block
+                and (low - 1) not in self._cache):
+            if self._pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+
+                self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
+            first = max(0, low - block)
+            self._job = self._pool.submit(self._decode_block, self._cap, first, low - first)
+            self._job.count, self._job.first = low - first, first
+
+    def _decode_block(self, cap, first: int, count: int):
+        """Frames ``first..first+count-1`` (seek, then decode); None when the codec cannot seek."""
+        index = self.start + first
+        cap.set(cv2.CAP_PROP_POS_FRAMES, index)
+        if int(cap.get(cv2.CAP_PROP_POS_FRAMES)) != index:
+            return None
+        return self._decode(cap, count)
+
     def _decode(self, cap, count: int) -> list:
         frames = []
         for _ in range(count):
@@ -300,6 +325,12 @@ class FrameSequence:
         """Wait for the frames being read ahead and keep them (the capture is free again)."""
         job, self._job = self._job, None
         frames = job.result()
+        first = getattr(job, "first", None)
+        if first is not None:                  # a block before the one read last (reading backwards)
+            if frames is None:                 # the codec cannot seek: _load reads through instead
+                self._next = None
+                return
+            self._next = self._low = first
         for f in frames:
             self._keep(self._next, f)
             if self._video is not None:
@@ -334,9 +365,12 @@ class FrameSequence:
         # cache before k; a jump elsewhere seeks to k itself
         ahead = _DECODE_THROUGH
         first = k if self._next is not None and k >= self._next and k - self._next < ahead else None
+        self._low = None
         if first is None:
             backwards = self._next is not None and k < self._next and (k + 1) in self._cache
             first = max(0, k - self.cache_frames // 2 + 1) if backwards else k
+            if backwards:
+                self._low = first              # the block read backwards starts here (see _read_behind)
         if self._cap is None or self._next is None or first < self._next or first - self._next >= ahead:
             self._seek(first)
         frame = None

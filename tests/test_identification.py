@@ -190,6 +190,10 @@ def test_model_fit_never_gives_one_region_to_two_markers():
     assert free.assignment.tolist() == [0, 1, 3]
     fit = fit_marker_model(pts, _cov(4), static, 3, RIG["left"].center, model_index=[0, 1, 2], views=views)
     assert fit.assignment.tolist() == [0, 1, 2]
+    # the same with the regions' areas given (as label_frame gives them): the area rule kept the shared region
+    fit = fit_marker_model(pts, _cov(4), static, 3, RIG["left"].center, model_index=[0, 1, 2], views=views,
+                           areas=np.full((4, 3), 30.0))
+    assert fit.assignment.tolist() == [0, 1, 2]
 
 
 def test_handedness_is_not_used_for_a_triangle_seen_edge_on():
@@ -380,3 +384,31 @@ def test_uneven_light_is_corrected_by_the_slope_pooled_over_the_track():
         assert np.median(np.hypot(*plain.T)) > 0.05                                 # the pull of the light
         assert np.median(np.hypot(*fixed.T)) < 0.03, r
         assert np.all(np.std(fixed, axis=0) <= np.std(plain, axis=0) * 1.2 + 0.005)   # no noise added
+
+
+def _tracker(frames, static):
+    from horsemocap.detection import DetectionParams
+
+    cams = RIG.names
+    thr = {c: ident.auto_threshold(frames[c], "otsu3") for c in cams}
+    return ident._Tracker(frames, RIG, cams, thr, {c: DetectionParams() for c in cams}, static[:3], 3,
+                          ident.DEFAULT_MAX_RESIDUAL_PX, ident.RIGID_SLACK_M, len(frames[cams[0]]))
+
+
+def test_reacquiring_stops_searching_once_the_cameras_cannot_see_every_marker(monkeypatch):
+    """A frame where a camera sees fewer than every marker cannot be reacquired: its search ends there (issue 16)."""
+    calls = []
+    search = ident._bright_regions
+    monkeypatch.setattr(ident, "_bright_regions", lambda *a, **k: calls.append(1) or search(*a, **k))
+    frames, _, static = render(n=2, hide=(RIG.names[0], 0, 0, 2), blob=False, stirrup=False)
+    tr = _tracker(frames, static)
+    assert tr._reacquire_candidates(0) is None and len(calls) == 1
+    assert not tr._reacquire(0)
+    cands = ident._whole_frame_candidates(frames, 0, RIG.names, tr.thr, tr.cparams)    # the full test agrees
+    vp, fit, _ = ident.label_frame(RIG, cands, tr.model, 3, tr.tol, np.arange(3), tr.slack)
+    assert fit is None or np.any((vp.index[fit.assignment] >= 0).sum(axis=1) < 3)
+    frames, _, static = render(n=2, blob=False, stirrup=False)
+    tr = _tracker(frames, static)
+    calls.clear()
+    assert tr._reacquire(0) and len(calls) == 3
+    assert np.all(np.isfinite(tr.X[0]))

@@ -5,7 +5,7 @@ import pytest
 
 from horsemocap.detection.identification import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, _whole_frame_search,
                                                  frame_candidates)
-from horsemocap.detection.thresholds import label_bright
+from horsemocap.detection.thresholds import connected_components, label_bright
 from horsemocap.virtuallab.longsession import _EmptyArena, pass_starts
 
 
@@ -36,6 +36,20 @@ def test_label_bright_equals_labelling_the_whole_image(seed):
         assert np.array_equal(a[3][1:], b[3][1:])
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_connected_components_equal_opencvs_default_call(seed):
+    """The block-based labelling (faster in OpenCV 5.0) gives the default call's labels, stats and centres."""
+    rng = np.random.default_rng(seed)
+    images = [cv2.threshold(_sparse_image(seed), t, 255, cv2.THRESH_BINARY)[1] for t in (60, 127, 200)]
+    images.append(((rng.random((97, 131)) < 0.45) * 255).astype(np.uint8))        # dense noise: many regions
+    images.append(images[0][1:, 3:])                                               # odd offsets, a view
+    for b in images:
+        a = cv2.connectedComponentsWithStats(b, connectivity=8, ltype=cv2.CV_32S)
+        c = connected_components(b)
+        assert a[0] == c[0] and np.array_equal(a[1], c[1]) and np.array_equal(a[2], c[2])
+        assert np.array_equal(a[3], c[3])
+
+
 def test_label_bright_on_a_bright_image_labels_it_whole():
     img = np.full((64, 80), 200, np.uint8)
     img[::3] = 0
@@ -45,9 +59,9 @@ def test_label_bright_on_a_bright_image_labels_it_whole():
     assert a[0] == b[0] and np.array_equal(a[1], b[1]) and np.array_equal(a[2], b[2])
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(6))
 def test_whole_frame_search_equals_frame_candidates(seed):
-    img = _sparse_image(seed + 10)
+    img = _sparse_image(seed + 10) if seed < 4 else _sparse_image(seed + 10, (480, 640))[:, :200]  # few regions
     for centroid in ("weighted", "binary"):
         for max_count in (3, 24):
             a = frame_candidates(img, 127, (GENERIC_AREA[0], None), AUTO_MIN_CIRCULARITY, centroid=centroid,
@@ -85,6 +99,11 @@ def test_frame_sequence_reads_ahead_the_same_frames(tmp_path):
     for k in order:
         np.testing.assert_array_equal(seq[k], arr[k])
     assert seq._pool is not None and len(seq._cache) <= 12 + 8    # read ahead, bounded
+    seq.close()
+    seq = src.sequence(3, 60, color=False, cache_frames=12)
+    for k in list(range(56, -1, -1)) + list(range(20, 30)) + list(range(25, 5, -1)):   # backwards, read behind
+        np.testing.assert_array_equal(seq[k], arr[k])
+        assert len(seq._cache) <= 12
     seq.close()
 
 

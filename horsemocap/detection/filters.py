@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from .base import DetectionParams, Regions
-from .thresholds import binarize, to_gray
+from .thresholds import binarize, connected_components, to_gray
 
 __all__ = [
     "label_regions",
@@ -60,7 +60,7 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
     b = np.asarray(binary)
     if b.dtype != np.uint8:
         b = (b > 0).astype(np.uint8)
-    n, labels, stats, cents = cv2.connectedComponentsWithStats(b, connectivity=connectivity, ltype=cv2.CV_32S)
+    n, labels, stats, cents = connected_components(b, connectivity)
     u0, v0 = int(origin[0]), int(origin[1])
     bbox = stats[1:, :4].astype(np.int64)
     bbox[:, 0] += u0
@@ -70,7 +70,7 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
                    centroid=cents[1:] + np.array([u0, v0], float), origin=(u0, v0), image_size=size)
 
 
-def region_circularity(regions: Regions) -> np.ndarray:
+def region_circularity(regions: Regions, by_moments: bool | None = None) -> np.ndarray:
     """Circularity from geometric moments (seed 000 section 5.2.1; Hu 1962).
 
     ``c = A / (2 pi (var_u + var_v))`` = ``1 / (2 pi phi_1)`` where
@@ -78,6 +78,12 @@ def region_circularity(regions: Regions) -> np.ndarray:
     variances include each pixel's own extent (1/12). ``c`` is 1 for a disc,
     ``2r / (1 + r^2)`` for an ellipse of axis ratio ``r`` and
     ``6k / (pi (1 + k^2))`` for a ``k``:1 bar.
+
+    Up to 8 regions each region's moments are taken by ``cv2.moments`` on
+    its box, more by one pass of sums over the labelled area (the two agree
+    to rounding); ``by_moments`` forces one of the two (a search labelling an
+    image in crops takes the path the whole image's regions would; forced
+    sums are taken in full-image pixels, as for the whole image).
     """
     C = len(regions)
     if C == 0:
@@ -85,7 +91,7 @@ def region_circularity(regions: Regions) -> np.ndarray:
     lab = regions.labels
     u0, v0 = regions.origin
     out = np.empty(C)
-    if C <= 8:
+    if (C <= 8) if by_moments is None else by_moments:
         for i, (rid, bb) in enumerate(zip(regions.ids, regions.bbox)):
             x, y = bb[0] - u0, bb[1] - v0
             sub = (lab[y:y + bb[3], x:x + bb[2]] == rid).astype(np.uint8)
@@ -96,6 +102,8 @@ def region_circularity(regions: Regions) -> np.ndarray:
         return out
     v, u = np.nonzero(lab)
     ll = lab[v, u]
+    if by_moments is False:                 # forced: full-image coordinates, the whole image's very sums
+        u, v = u + u0, v + v0
     n = int(lab.max()) + 1
     a = np.bincount(ll, minlength=n).astype(float)
     su, sv = np.bincount(ll, u, n), np.bincount(ll, v, n)
@@ -254,9 +262,10 @@ def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
     u0, v0 = regions.origin
     W, H = regions.image_size
     g = 2 * margin + 2
-    for k, i in enumerate(idx):
-        rid = regions.ids[i]
-        bx, by, bw, bh = regions.bbox[i]
+    ids, boxes = regions.ids.tolist(), regions.bbox.tolist()      # Python ints: no NumPy scalar arithmetic
+    for k, i in enumerate(np.asarray(idx).tolist()):
+        rid = ids[i]
+        bx, by, bw, bh = boxes[i]
         bx, by = bx - u0, by - v0
         x0, y0 = max(bx - g, 0), max(by - g, 0)
         x1, y1 = min(bx + bw + g, w), min(by + bh + g, h)
@@ -277,7 +286,7 @@ def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
 
 
 def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
-                       symmetric_border: bool = False) -> np.ndarray:
+                       symmetric_border: bool = False, patches=None) -> np.ndarray:
     """Intensity-weighted centres of regions, above the local background.
 
     For each region the mask is grown by ``margin`` pixels (to take in the
@@ -303,6 +312,9 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     gray : (h, w) gray image of the labelled area (same crop as ``regions.labels``)
     regions : Regions
     index : indices into ``regions`` (default all)
+    patches : list, optional
+        ``list(region_patches(gray, regions, index, margin))``, when
+        :func:`light_terms` takes them too (each region's patch made once).
 
     Returns
     -------
@@ -311,7 +323,8 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     u0, v0 = regions.origin
     out = np.full((len(idx), 2), np.nan)
-    for k, i, _, _, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
+    for k, i, _, _, wgt, x0, y0, cut in (patches if patches is not None else
+                                         _region_patches(gray, regions, idx, margin)):
         s = wgt.sum()
         if s <= 0:
             out[k] = regions.centroid[i]
@@ -324,7 +337,8 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     return out
 
 
-def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5):
+def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5,
+                patches=None):
     """The light across each region and the second moments of its weights.
 
     A marker lit unevenly has brightness ``H (1 + s . (p - p0))`` across it
@@ -338,6 +352,8 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     sensor's noise); pooled over a marker's track it is precise
     (:func:`~horsemocap.detection.identification.correct_light`).
 
+    ``patches``: as for :func:`weighted_centroids`.
+
     Returns
     -------
     slope : (K, 2)
@@ -349,7 +365,8 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     slope = np.full((len(idx), 2), np.nan)
     moments = np.full((len(idx), 2, 2), np.nan)
-    for k, i, sub, own, wgt, x0, y0, cut in _region_patches(gray, regions, idx, margin):
+    for k, i, sub, own, wgt, x0, y0, cut in (patches if patches is not None else
+                                             _region_patches(gray, regions, idx, margin)):
         s = wgt.sum()
         if s <= 0:
             continue

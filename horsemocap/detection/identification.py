@@ -41,7 +41,7 @@ import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from .base import DetectionError, DetectionParams
-from .filters import find_candidates, light_terms, region_circularity, weighted_centroids
+from .filters import _region_patches, find_candidates, light_terms, region_circularity, weighted_centroids
 from .thresholds import auto_threshold
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -183,10 +183,11 @@ def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_coun
     else:
         u0, v0 = regions.origin
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
-        centre = weighted_centroids(sub, regions, keep, symmetric_border=True)
+        patches = list(_region_patches(sub, regions, keep, 2)) if light else None   # made once for both
+        centre = weighted_centroids(sub, regions, keep, symmetric_border=True, patches=patches)
     slope = moments = None
     if light and centroid != "binary":
-        slope, moments = light_terms(sub, regions, keep)
+        slope, moments = light_terms(sub, regions, keep, patches=patches)
     return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy(), slope, moments)
 
 
@@ -522,7 +523,7 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
     if areas is not None:
         la = np.log(np.asarray(areas, float))[perms]               # (K, M, C), NaN where unseen
         spread = np.fmax.reduce(la, axis=1) - np.fmin.reduce(la, axis=1)
-        size_ok = np.all(~(spread > math.log(SIZE_SPREAD)), axis=1)
+        size_ok &= np.all(~(spread > math.log(SIZE_SPREAD)), axis=1)   # (and kept the shared-region rule)
     best = []
     for sub in subsets:
         ms = model[sub]
@@ -674,22 +675,81 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
                         max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
     """:func:`frame_candidates` of a whole image, labelled in crops around its bright pixels.
 
-    The same candidates (same regions, same order, same centres), with the
-    labelling of :func:`~horsemocap.detection.thresholds.label_bright`: in a
-    frame without the horse (most of a long session) only glints and lamps
-    are bright, and labelling crops around them costs a fraction of
-    labelling the whole image (issue 16).
+    The same candidates (same regions, same order, same centres), without a
+    label image of the whole frame: each crop of
+    :func:`~horsemocap.detection.thresholds.bright_crops` (padded groups of
+    bright 8 x 8 blocks; in a frame without the horse, most of a long
+    session, only glints, lamps and rails are bright) is labelled alone
+    (:func:`_bright_regions`); its regions in the area range get their
+    circularity (by the method the whole image's would:
+    :func:`~horsemocap.detection.filters.region_circularity`) and their
+    centres from the crop (a weighted centre looks at most 7 px beyond its
+    region, a crop holds 10); the candidates of all crops are put in the
+    order OpenCV's labelling of the whole image gives them
+    (:func:`~horsemocap.detection.thresholds.region_order_key`) before the
+    ``max_count`` largest are kept (:func:`_crop_candidates`). Issue 16:
+    labelling crops instead of the whole image, then no whole-frame label
+    image.
     """
+    crops = _bright_regions(gray, threshold, area_range)
+    return _crop_candidates(gray, crops, min_circularity, centroid, max_count)
+
+
+def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
+    """The regions in the area range of each crop around the bright pixels (:class:`Regions` per crop)."""
     from .base import Regions
-    from .thresholds import label_bright
+    from .thresholds import bright_crops, connected_components
 
     H, W = gray.shape[:2]
-    n, labels, stats, cents = label_bright(gray, threshold)
-    regions = Regions(labels=labels, ids=np.arange(1, n), area=stats[1:, 4].astype(np.int64),
-                      bbox=stats[1:, :4].astype(np.int64), centroid=cents[1:] + np.array([0, 0], float),
-                      origin=(0, 0), image_size=(W, H))
-    keep = np.flatnonzero((regions.area >= area_range[0]) & (regions.area <= _max_area(area_range, gray)))
-    return _candidates_of(gray, regions, keep, min_circularity, centroid, max_count, light=False)
+    amin, amax = area_range[0], _max_area(area_range, gray)
+    binary, boxes = bright_crops(gray, threshold)
+    crops = []
+    for u0, v0, u1, v1 in boxes:
+        n, lab, st, ce = connected_components(binary[v0:v1, u0:u1])
+        area = st[1:, 4].astype(np.int64)
+        keep = np.flatnonzero((area >= amin) & (area <= amax))
+        if len(keep) == 0:
+            continue
+        bbox = st[1:, :4].astype(np.int64) + np.array([u0, v0, 0, 0])
+        # OpenCV's centre is (sum of coordinates) / area: the sums are integers, recovered exactly
+        cents = (np.rint(ce[1:] * area[:, None]) + np.array([u0, v0]) * area[:, None]) / area[:, None]
+        crops.append(Regions(labels=lab, ids=np.arange(1, n), area=area, bbox=bbox, centroid=cents,
+                             origin=(u0, v0), image_size=(W, H)).subset(keep))
+    return crops
+
+
+def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: str, max_count: int) -> Candidates:
+    """:class:`Candidates` of the regions of :func:`_bright_regions`, in the whole image's labelling order."""
+    from .filters import region_circularity
+    from .thresholds import region_order_key
+
+    W = gray.shape[1]
+    if min_circularity is not None and crops:
+        by_moments = sum(len(r) for r in crops) <= 8
+        crops = [r.subset(region_circularity(r, by_moments) >= min_circularity) for r in crops]
+    found = [(ci, i) for ci, r in enumerate(crops) for i in range(len(r))]
+    if not found:
+        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    key = np.array([region_order_key(crops[ci].labels, crops[ci].ids[i], crops[ci].bbox[i, 1], crops[ci].bbox[i, 0],
+                                     crops[ci].bbox[i, 2], crops[ci].origin, W) for ci, i in found])
+    order = np.argsort(key, kind="stable")
+    if len(order) > max_count:
+        areas = np.array([crops[ci].area[i] for ci, i in found])
+        order = order[np.argsort(-areas[order], kind="stable")[:max_count]]
+    centre = np.empty((len(order), 2))
+    for ci, r in enumerate(crops):
+        at = np.flatnonzero([found[j][0] == ci for j in order])
+        if len(at) == 0:
+            continue
+        idx = np.array([found[order[j]][1] for j in at])
+        if centroid == "binary":
+            centre[at] = r.centroid[idx]
+        else:
+            (u0, v0), (h, w) = r.origin, r.labels.shape
+            centre[at] = weighted_centroids(gray[v0:v0 + h, u0:u0 + w], r, idx, symmetric_border=True)
+    area = np.array([crops[found[j][0]].area[found[j][1]] for j in order], float)
+    cut = np.array([bool(crops[found[j][0]].touches_border[found[j][1]]) for j in order])
+    return Candidates(centre, area, cut)
 
 
 #: Frames labelled on their own before the skin markers among the static shot's points are
@@ -1341,8 +1401,39 @@ class _Tracker:
         vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         return cands, vp, fit
 
+    def _reacquire_candidates(self, k):
+        """Candidates of frame ``k`` for :meth:`_reacquire`, or None where it cannot succeed.
+
+        Reacquiring needs every marker seen by ``min(3, C)`` cameras, and two
+        markers never share a region (:func:`fit_marker_model`); regions cut
+        by the border never take part (:func:`match_views`). So the cameras'
+        counts of whole candidates, at most ``M`` each, must add up to
+        ``M * min(3, C)``. The cameras are searched in turn, and the search
+        stops when the cameras left cannot make up the count: in an empty
+        arena (most of a long session) one camera's search usually settles
+        it (issue 16). Exact: a frame rejected here fails the full test too.
+        """
+        need = self.M * min(3, self.C)
+        gray = {c: self.frames[c][k] for c in self.cams}    # every camera read in turn (its reading ahead goes on)
+        have, cands = 0, {}
+        for i, c in enumerate(self.cams):
+            left = self.M * (self.C - 1 - i)                # the most the cameras after this one can add
+            regions = _bright_regions(gray[c], self.thr[c], _area_range(self.cparams[c]))
+            whole = sum(int(np.count_nonzero(~r.touches_border)) for r in regions)   # before the shape rule
+            if have + min(whole, self.M) + left < need:
+                return None
+            cands[c] = _crop_candidates(gray[c], regions, _min_circ(self.cparams[c]), self.cparams[c].centroid,
+                                        MAX_CANDIDATES_PER_CAMERA)
+            have += min(int(np.count_nonzero(~cands[c].cut)), self.M)
+            if have + left < need:
+                return None
+        return cands
+
     def _reacquire(self, k):
-        cands, vp, fit = self._label_whole_frame(k)
+        cands = self._reacquire_candidates(k)
+        if cands is None:
+            return False
+        vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         if fit is None:
             return False
         # stricter than the anchor search (which picks the clearest of many frames): every marker

@@ -56,9 +56,22 @@ def markers_2d_rows(camera: str, track, frame_offset: int = 0, reason=None, resi
     why = reason if reason is not None else getattr(track, "reason", None)
     why = np.full(px.shape[:2], "", dtype=object) if why is None else np.asarray(why, dtype=object)
     res = np.full(px.shape[:2], np.nan) if residual_px is None else np.asarray(residual_px, float)
-    return [[camera, k + int(frame_offset), marker_label(m), _px_text(px[k, m, 0]), _px_text(px[k, m, 1]),
-             str(why[k, m]), f"{res[k, m]:.4f}" if np.isfinite(res[k, m]) else ""]
-            for k in range(px.shape[0]) for m in range(px.shape[1])]
+    n, M = px.shape[:2]
+    u, v = _column_text(px[..., 0], _px_text), _column_text(px[..., 1], _px_text)
+    r = _column_text(res, lambda x: f"{x:.4f}")
+    names = [marker_label(m) for m in range(M)]
+    frames = np.repeat(np.arange(n) + int(frame_offset), M).tolist()
+    return [[camera, f, names[i % M], a, b, str(w), e]
+            for i, (f, a, b, w, e) in enumerate(zip(frames, u, v, why.ravel().tolist(), r))]
+
+
+def _column_text(values: np.ndarray, text) -> list:
+    """``text(x)`` of every finite value (row-major), ``""`` elsewhere; a long record is mostly empty."""
+    flat = np.asarray(values, float).ravel()
+    out = [""] * flat.size
+    for i in np.flatnonzero(np.isfinite(flat)).tolist():
+        out[i] = text(flat[i])
+    return out
 
 
 def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None, reasons: dict | None = None,
