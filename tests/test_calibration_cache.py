@@ -25,18 +25,22 @@ def views_dirs(tmp_path):
 
 @pytest.fixture
 def calls(monkeypatch):
-    """detect_views and calibrate_rig replaced by counting fakes with exact, distinct results."""
+    """detect_cameras and calibrate_rig replaced by counting fakes with exact, distinct results."""
     seen = {"detect": [], "calibrate": 0}
     rng = np.random.default_rng(0)
 
-    def detect(folder, inner, camera=None, tick=None):
-        seen["detect"].append(camera)
-        for k in range(3):
-            if tick is not None:
-                tick(k + 1, 3)
-        corners = rng.uniform(0, 600, (3, inner[0] * inner[1], 2))
-        corners[1, 0] = np.nan                            # a view without the board
-        return views_from_corners(camera, corners, (640, 480), inner, names=["00", "01", "02"])
+    def detect(image_dirs, inner, window=None, ticks=None, workers=None):
+        out = {}
+        for camera in image_dirs:
+            seen["detect"].append(camera)
+            tick = (ticks or {}).get(camera)
+            for k in range(3):
+                if tick is not None:
+                    tick(k + 1, 3)
+            corners = rng.uniform(0, 600, (3, inner[0] * inner[1], 2))
+            corners[1, 0] = np.nan                            # a view without the board
+            out[camera] = views_from_corners(camera, corners, (640, 480), inner, names=["00", "01", "02"])
+        return out
 
     def calibrate(image_dirs, inner, square_m, reference="left", views=None, **kw):
         seen["calibrate"] += 1
@@ -45,7 +49,7 @@ def calls(monkeypatch):
                             rng.normal(0, 0.01, 5), rng.normal(0, 0.1, 3), rng.normal(0, 1, 3)) for c in image_dirs)
         return SimpleNamespace(rig=Rig(cams, {"error": 0.1 + rng.random(), "method": "fake"}))
 
-    monkeypatch.setattr(cache, "detect_views", detect)
+    monkeypatch.setattr(cache, "detect_cameras", detect)
     monkeypatch.setattr(rig_module, "calibrate_rig", calibrate)
     return seen
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera, Rig
-from .board import BoardViews, detect_views
+from .board import BoardViews, detect_cameras
 
 CACHE_FILE = "calibration.json"
 CACHE_FORMAT = "horsemocap-calibration-cache/1"
@@ -203,13 +203,17 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
             views[cam] = None                           # damaged: detect again
         if views[cam] is not None:
             reused.append(cam)
-        else:
-            views[cam] = detect_views(Path(folder), inner_corners, camera=cam, tick=board_view_counter(progress, cam))
+    missing = {cam: image_dirs[cam] for cam in image_dirs if views[cam] is None}
+    if missing:                                         # every camera's views in one pool of threads
+        views.update(detect_cameras(missing, inner_corners,
+                                    ticks={cam: board_view_counter(progress, cam) for cam in missing}))
     if reused:
         say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
     say("calibrating from checkerboard views ...")
+    # the pairs' stereo calibrations (Table 8.4) are not part of a joint rig: not computed here
+    # (``horsemocap calibrate`` reports them); the pairwise rig computes the pairs it needs
     cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views), exclude=exclude,
-                        mode=mode, progress=progress)
+                        mode=mode, progress=progress, pairs=False)
     if write_to is not None:
         record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
                   "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},
