@@ -95,14 +95,16 @@ def step_sync(session: Session, params: AnalysisParams, res: dict, progress) -> 
     return {"offsets": offsets, "frame_counts": counts, "n_frames": n, "offsets_from": how}
 
 
-def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cache_dirs=()) -> dict:
+def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cache_dirs=(), board_views=None) -> dict:
     """The calibrated rig: the session's ``rig.toml`` or a calibration of its views.
 
     ``cache_dirs``: results folders (the run's own first) where a calibration
     of the same views, board, cameras and code is reused from
     ``calibration.json`` and the new one is kept
     (:func:`horsemocap.calibration.cache.cached_calibration`; ``recalibrate``
-    ignores it).
+    ignores it). ``board_views``: a
+    :class:`~horsemocap.calibration.cache.BoardDetectionJob` already
+    detecting the views.
     """
     if session.rig_path is not None and not params.recalibrate:
         rig, how = read_rig(session.rig_path), f"read {session.rig_path.name}"
@@ -117,7 +119,7 @@ def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cach
                                       session.board.square_size_m, session.reference_camera,
                                       write_to=cache_dirs[0] if cache_dirs else None, read_from=cache_dirs[1:],
                                       recalibrate=params.recalibrate, progress=progress,
-                                      exclude=exclude, mode=params.calibration_mode)
+                                      exclude=exclude, mode=params.calibration_mode, detected=board_views)
     else:
         raise AnalysisError("rig", f"{session.json_path}: 'calibration' gives neither a rig nor views")
     missing = [c for c in session.cameras if c not in rig.names]
@@ -720,7 +722,7 @@ STEP_FUNCTIONS = {name: globals()[f"step_{name}"] for name in STEPS}
 
 def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = None, *,
             until: str | None = None, progress=None, write_outputs: bool = True,
-            reuse: bool = False, previous_results=None) -> Analysis:
+            reuse: bool = False, previous_results=None, board_views=None) -> Analysis:
     """Run the analysis of a session, step by step.
 
     Parameters
@@ -745,6 +747,10 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         new folder that replaces it): its cached calibration
         (``calibration.json``) is reused when the views, board, cameras and
         code are the same, as one in ``out_dir`` is.
+    board_views : horsemocap.calibration.cache.BoardDetectionJob, optional
+        The board detection of the session's views, started earlier by the
+        caller (``horsemocap analyze`` starts it as soon as the session is
+        read); its views are used when they are those of the session.
 
     Returns
     -------
@@ -777,9 +783,11 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     early_rig = None
     if store is None and _calibrates_from_views(session, params) and (until is None or until != "sync"):
         progress = _serialised(progress)
-        early_rig = _BackgroundStep(step_rig, session, params, {}, progress, cache_dirs=(out_dir, previous_results))
+        early_rig = _BackgroundStep(step_rig, session, params, {}, progress, cache_dirs=(out_dir, previous_results),
+                                    board_views=board_views)
     try:
-        _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig)
+        _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
+                   board_views)
     finally:
         if early_rig is not None:
             early_rig.wait()    # never left running: it writes calibration.json into out_dir
@@ -842,7 +850,7 @@ def _serialised(progress):
 
 
 def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outputs: bool, progress,
-               previous_results, early_rig) -> None:
+               previous_results, early_rig, board_views) -> None:
     """:func:`analyze`'s loop over the steps (``early_rig``: the rig step already running)."""
     from . import results as result_files
 
@@ -860,7 +868,7 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
             else:
                 if name == "rig":
                     analysis.results[name] = step_rig(session, params, analysis.results, progress,
-                                                      cache_dirs=(out_dir, previous_results))
+                                                      cache_dirs=(out_dir, previous_results), board_views=board_views)
                 else:
                     analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
                 if store:

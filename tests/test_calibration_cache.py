@@ -152,3 +152,66 @@ def test_the_board_views_are_counted_on_the_progress(views_dirs, calls, tmp_path
     cache.cached_calibration(views_dirs, INNER, 0.05, "left", progress=lambda s, m: lines.append(m),
                              recalibrate=True)
     assert lines and all(isinstance(m, str) for m in lines)
+
+
+def _copy_views(tmp_path, picks):
+    import shutil
+
+    from horsemocap.data import data_samples_dir
+
+    src = data_samples_dir() / "horse2_canter" / "calibration"
+    dirs = {}
+    for cam, names in picks.items():
+        dirs[cam] = tmp_path / "views" / cam
+        dirs[cam].mkdir(parents=True)
+        for name in names:
+            shutil.copy(src / cam / f"{name}.jpg", dirs[cam])
+    return dirs
+
+
+def test_board_detection_started_early_is_used_when_its_views_are_the_sessions(tmp_path):
+    """BoardDetectionJob (issue 16): the same corners as detecting in the calibration, taken only for the same files."""
+    from horsemocap.calibration.board import detect_cameras
+
+    dirs = _copy_views(tmp_path, {"left": ["left1", "left17"], "middle": ["middle1", "middle2"]})
+    job = cache.BoardDetectionJob(dirs, (7, 14), workers=2)
+    direct = detect_cameras(dirs, (7, 14), workers=1)
+    lines = []
+
+    class Progress:
+        counts = True
+
+        def __call__(self, step, message, done=None, total=None):
+            lines.append((step, message, done, total))
+
+    for cam in dirs:
+        got = job.views(cam, cache.views_key(dirs[cam], (7, 14)), Progress())
+        np.testing.assert_array_equal(got.corners, direct[cam].corners)
+        assert got.reasons == direct[cam].reasons and got.names == direct[cam].names
+    assert job.views("left", "another key") is None and job.views("right", "any") is None
+    assert all(step == "rig" for step, *_ in lines)
+    job.close()
+    # the job's error (a view of another size) comes out where the views are asked for
+    (dirs["left"] / "odd.png").write_bytes(__import__("cv2").imencode(".png", np.zeros((10, 10), np.uint8))[1])
+    bad = cache.BoardDetectionJob(dirs, (7, 14))
+    with pytest.raises(Exception, match="differs from"):
+        bad.views("left", cache.views_key(dirs["left"], (7, 14)))
+    bad.close()
+
+
+def test_board_detection_job_stops_when_closed(tmp_path):
+    dirs = _copy_views(tmp_path, {"left": ["left1", "left2", "left3", "left4", "left5", "left6"]})
+    job = cache.BoardDetectionJob(dirs, (7, 14), workers=1)
+    job.close()                                   # at once: the views not started are not detected
+    from horsemocap.calibration.board import DetectionStopped
+
+    assert isinstance(job._error, DetectionStopped) or job._views is not None
+    assert not job._thread.is_alive()
+
+
+def test_views_cached_says_whether_the_corners_are_in_the_folder(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    assert not cache.views_cached(views_dirs, INNER, [out])
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    assert cache.views_cached(views_dirs, INNER, [None, out])
+    assert not cache.views_cached(views_dirs, (4, 2), [out])        # another board: detected again

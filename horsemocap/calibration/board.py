@@ -316,10 +316,19 @@ def _camera_files(folder, camera: str | None) -> tuple[Path, str, list]:
     return folder, camera or folder.name, files
 
 
-def _detect_file(path: Path, inner_corners: tuple[int, int], window: int | None):
+class DetectionStopped(CalibrationError):
+    """Board detection stopped on request (:func:`detect_cameras`' ``stop``)."""
+
+
+def _detect_file(path: Path, inner_corners: tuple[int, int], window: int | None, stop=None):
     """One view: ``((width, height), corners or None, window, reason)``."""
+    if stop is not None and stop.is_set():
+        raise DetectionStopped("board detection stopped")
     img = read_image(path, color=False)
-    corners, w, why = detect_board(img, inner_corners, window)
+    try:
+        corners, w, why = detect_board(img, inner_corners, window)
+    except Exception as exc:         # raised in file order, after the view's size is checked
+        return (img.shape[1], img.shape[0]), None, 0, exc
     return (img.shape[1], img.shape[0]), corners, w, why
 
 
@@ -334,6 +343,8 @@ def _camera_views(camera: str, files: list, detected, inner_corners, tick=None) 
         elif view_size != size:
             raise CalibrationError(f"{f}: image size {view_size[0]}x{view_size[1]} differs from "
                                    f"{size[0]}x{size[1]} of the other views of camera {camera!r}")
+        if isinstance(why, Exception):
+            raise why
         if c is not None:
             corners[k] = c
         reasons.append(why)
@@ -345,7 +356,7 @@ def _camera_views(camera: str, files: list, detected, inner_corners, tick=None) 
 
 
 def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int | None = None,
-                   ticks: dict | None = None, workers: int | None = None) -> dict:
+                   ticks: dict | None = None, workers: int | None = None, stop=None) -> dict:
     """Detect the board in every view of several cameras, the views shared among threads.
 
     Each view is detected exactly as :func:`detect_board` alone would (same
@@ -364,6 +375,9 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
     workers : int, optional
         Threads (:func:`detection_workers`; 1 = one view after the other in
         this thread).
+    stop : threading.Event, optional
+        Once set, no further view is started and :class:`DetectionStopped`
+        is raised.
 
     Returns
     -------
@@ -376,7 +390,7 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
     ticks = ticks or {}
     out = {}
     if workers == 1:
-        detected = (_detect_file(f, inner_corners, window) for f in jobs)
+        detected = (_detect_file(f, inner_corners, window, stop) for f in jobs)
         for cam, (_, camera, files) in zip(image_dirs, listed):
             out[cam] = _camera_views(camera, files, itertools.islice(detected, len(files)), inner_corners,
                                      ticks.get(cam))
@@ -387,7 +401,7 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
     cv2.setNumThreads(1)
     try:
         with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="board") as pool:
-            futures = [pool.submit(_detect_file, f, inner_corners, window) for f in jobs]
+            futures = [pool.submit(_detect_file, f, inner_corners, window, stop) for f in jobs]
             try:
                 done = (fut.result() for fut in futures)
                 for cam, (_, camera, files) in zip(image_dirs, listed):
