@@ -13,6 +13,12 @@ of each process and the analysis' progress lines with their times.
 
 Usage: ``python benchmarks/bench_analyze.py [--long-frames 18000] [--skip-long] [--skip-default]
 [--out benchmarks/results/analyze_long.json]``
+
+``--demo-rounds N [--compare-with CHECKOUT]`` instead times the bundled ``horsemocap demo`` into a
+new results folder (calibration not cached) and again into the same folder, against its floor
+``horsemocap calibrate`` (the session's three view folders) + decode-only of its videos, in N
+interleaved rounds (results/analyze_demo.json); with ``--compare-with`` another checkout's demo and
+calibrate take turns in the same rounds.
 Each measurement runs in its own process so the peak memory is its own.
 """
 from __future__ import annotations
@@ -101,12 +107,69 @@ def load():
     return tuple(round(x, 2) for x in os.getloadavg())
 
 
+def timed(cmd, pythonpath=None, cwd=None) -> dict:
+    """Wall and CPU seconds of one command in its own process (its output discarded, its failure an error)."""
+    env = dict(os.environ, PYTHONPATH=str(pythonpath)) if pythonpath else None
+    before = os.times()
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env, cwd=cwd)
+    wall = time.perf_counter() - t0
+    after = os.times()
+    if proc.returncode:
+        raise SystemExit(f"{' '.join(map(str, cmd))} failed ({proc.returncode}): {proc.stderr[-2000:]}")
+    return {"wall_s": wall, "cpu_s": (after.children_user - before.children_user)
+            + (after.children_system - before.children_system), "load": load()[0]}
+
+
+def demo_rounds(rounds: int, compare_with=None) -> dict:
+    """The bundled ``horsemocap demo`` into a new results folder and again into the same one, against its floor.
+
+    Floor (issue 16): ``horsemocap calibrate`` of the session's three view folders (board detection,
+    each camera, the pairs, the joint rig) + decode-only of its three videos, each in its own process.
+    Interleaved rounds (each code's fresh run, its repeated run, then the floor), medians.
+    """
+    import statistics
+
+    from horsemocap.data import default_session_dir
+
+    session = default_session_dir()
+    codes = {"this": Path(__file__).resolve().parents[1]}
+    if compare_with:
+        codes["compared"] = Path(compare_with).resolve()
+    demo = [sys.executable, "-m", "horsemocap.cli", "demo", "--out"]
+    cal = [sys.executable, "-m", "horsemocap.cli", "calibrate"] + [str(session / "calibration" / c)
+                                                                    for c in ("left", "middle", "right")]
+    rows = {f"{k} {what}": [] for k in codes for what in ("fresh", "repeated", "calibrate")}
+    rows["decode"] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(rounds):
+            for name, code in codes.items():
+                out = Path(tmp) / f"{name}-{r}"
+                rows[f"{name} fresh"].append(timed(demo + [str(out)], code, cwd=code))
+                rows[f"{name} repeated"].append(timed(demo + [str(out)], code, cwd=code))
+                rows[f"{name} calibrate"].append(timed(cal + ["--board", "7x14", "--square", "0.1", "--out",
+                                                              str(Path(tmp) / f"rig-{name}-{r}.toml")], code, cwd=code))
+            dec = child(DECODE, session)
+            rows["decode"].append({"wall_s": dec["seconds"], "cpu_s": dec["cpu_s"], "load": load()[0]})
+            print(f"round {r + 1}: " + ", ".join(f"{k} {v[-1]['wall_s']:.2f} s" for k, v in rows.items()), flush=True)
+    med = {k: {"wall_s": statistics.median(x["wall_s"] for x in v), "cpu_s": statistics.median(x["cpu_s"] for x in v),
+               "loads": [x["load"] for x in v]} for k, v in rows.items()}
+    for name in codes:
+        floor = med[f"{name} calibrate"]["wall_s"] + med["decode"]["wall_s"]
+        med[f"{name} ratio fresh / (calibrate + decode)"] = med[f"{name} fresh"]["wall_s"] / floor
+    return {"session": str(session), "rounds": rounds, "codes": {k: str(v) for k, v in codes.items()},
+            "runs": rows, "medians": med}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--long-frames", type=int, default=18000)
     ap.add_argument("--skip-long", action="store_true")
     ap.add_argument("--skip-default", action="store_true")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "analyze_long.json"))
+    ap.add_argument("--demo-rounds", type=int, default=0,
+                    help="time `horsemocap demo` fresh and repeated against calibrate + decode in this many "
+                         "interleaved rounds (results/analyze_demo.json), then stop")
     ap.add_argument("--compare-with", default=None,
                     help="another checkout of horsemocap (e.g. the code before a change): its analyze is run too")
     args = ap.parse_args()
@@ -115,6 +178,17 @@ def main():
     out = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "cpus": os.cpu_count(),
            "load_before": load()}
     print(f"load average {out['load_before']}", flush=True)
+    if args.demo_rounds:
+        out["demo"] = demo_rounds(args.demo_rounds, args.compare_with)
+        for k, v in out["demo"]["medians"].items():
+            print(f"  {k:<42s} " + (f"{v:.2f}" if isinstance(v, float) else
+                                   f"{v['wall_s']:6.2f} s wall, {v['cpu_s']:6.2f} s CPU (load {v['loads']})"))
+        out["load_after"] = load()
+        print(f"load average after {out['load_after']}")
+        path = Path(__file__).parent / "results" / "analyze_demo.json"
+        path.write_text(json.dumps(out, indent=1) + "\n")
+        print(f"wrote {path}")
+        return
     if not args.skip_default:
         out["default"] = run(default_session_dir())
         show("default session", out["default"])

@@ -179,20 +179,51 @@ def _set_param(params, item: str):
     return AnalysisParams.from_dict(data, f"--set {item}")
 
 
+def _early_board_detection(session, out_dir: Path, args):
+    """The board detection of the session's views, started before the analysis' modules are imported.
+
+    Started when the rig is calibrated from views (no ``rig.toml``, or
+    ``--recalibrate``) and the results folder's ``calibration.json`` does not
+    already hold their corners; None otherwise. Issue 16: the views are
+    detected by threads while this thread imports the analysis' modules and
+    checks the parameters (about 1 s of the bundled analysis).
+    """
+    recalibrate = bool(getattr(args, "recalibrate", None))
+    if session.calibration_images is None or (session.rig_path is not None and not recalibrate):
+        return None
+    from .calibration.cache import BoardDetectionJob, views_cached
+
+    inner = session.board.inner_corners
+    if not recalibrate and views_cached(session.calibration_images, inner, [out_dir]):
+        return None
+    return BoardDetectionJob(session.calibration_images, inner)
+
+
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
-    from .params import read_params
-    from .pipeline import resolve_params
-    from .run import run_analysis
     from .session import load_session
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
+    board_views = _early_board_detection(session, out_dir, args)
+    try:
+        return _analyse_session(session, session_dir, out_dir, args, board_views)
+    finally:
+        if board_views is not None:
+            board_views.close()
+
+
+def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views) -> int:
+    from .params import read_params
+    from .pipeline import resolve_params
+    from .run import run_analysis
+
     # a parameter file gives overrides on top of the session's own 'analysis' object: an earlier
     # run's analysis.json (every parameter) or a notebooks' choices.json (only the choices made)
     base = resolve_params(session, read_params(args.params)) if args.params else resolve_params(session)
     params = _params_from_args(args, base)
     params.check_session(session, f"{args.params}" if args.params else "parameters")
-    outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False))
+    outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False),
+                           board_views=board_views)
     if outcome.error is not None:
         print(f"horsemocap: error: {_one_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "

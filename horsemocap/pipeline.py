@@ -95,14 +95,16 @@ def step_sync(session: Session, params: AnalysisParams, res: dict, progress) -> 
     return {"offsets": offsets, "frame_counts": counts, "n_frames": n, "offsets_from": how}
 
 
-def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cache_dirs=()) -> dict:
+def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cache_dirs=(), board_views=None) -> dict:
     """The calibrated rig: the session's ``rig.toml`` or a calibration of its views.
 
     ``cache_dirs``: results folders (the run's own first) where a calibration
     of the same views, board, cameras and code is reused from
     ``calibration.json`` and the new one is kept
     (:func:`horsemocap.calibration.cache.cached_calibration`; ``recalibrate``
-    ignores it).
+    ignores it). ``board_views``: a
+    :class:`~horsemocap.calibration.cache.BoardDetectionJob` already
+    detecting the views.
     """
     if session.rig_path is not None and not params.recalibrate:
         rig, how = read_rig(session.rig_path), f"read {session.rig_path.name}"
@@ -117,7 +119,7 @@ def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cach
                                       session.board.square_size_m, session.reference_camera,
                                       write_to=cache_dirs[0] if cache_dirs else None, read_from=cache_dirs[1:],
                                       recalibrate=params.recalibrate, progress=progress,
-                                      exclude=exclude, mode=params.calibration_mode)
+                                      exclude=exclude, mode=params.calibration_mode, detected=board_views)
     else:
         raise AnalysisError("rig", f"{session.json_path}: 'calibration' gives neither a rig nor views")
     missing = [c for c in session.cameras if c not in rig.names]
@@ -720,7 +722,7 @@ STEP_FUNCTIONS = {name: globals()[f"step_{name}"] for name in STEPS}
 
 def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = None, *,
             until: str | None = None, progress=None, write_outputs: bool = True,
-            reuse: bool = False, previous_results=None) -> Analysis:
+            reuse: bool = False, previous_results=None, board_views=None) -> Analysis:
     """Run the analysis of a session, step by step.
 
     Parameters
@@ -745,6 +747,10 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         new folder that replaces it): its cached calibration
         (``calibration.json``) is reused when the views, board, cameras and
         code are the same, as one in ``out_dir`` is.
+    board_views : horsemocap.calibration.cache.BoardDetectionJob, optional
+        The board detection of the session's views, started earlier by the
+        caller (``horsemocap analyze`` starts it as soon as the session is
+        read); its views are used when they are those of the session.
 
     Returns
     -------
@@ -754,9 +760,14 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     ------
     SessionError, AnalysisError
         Naming the input to look at; the steps before stay written.
-    """
-    from . import results as result_files
 
+    Notes
+    -----
+    When the rig is calibrated from checkerboard views, the rig step starts
+    in a thread at once and runs while the sync step reads the videos (it
+    needs nothing of it); its progress lines may come before the sync's.
+    ``timings["rig"]`` is the step's own duration.
+    """
     session = load_session(session_dir)
     params = resolve_params(session, params)
     params.check_session(session)
@@ -769,6 +780,81 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         Path(out_dir).mkdir(parents=True, exist_ok=True)
     store = ResultsStore(out_dir) if (reuse and out_dir is not None) else None
     keys = step_keys(session, params) if store else {}
+    early_rig = None
+    if store is None and _calibrates_from_views(session, params) and (until is None or until != "sync"):
+        progress = _serialised(progress)
+        early_rig = _BackgroundStep(step_rig, session, params, {}, progress, cache_dirs=(out_dir, previous_results),
+                                    board_views=board_views)
+    try:
+        _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
+                   board_views)
+    finally:
+        if early_rig is not None:
+            early_rig.wait()    # never left running: it writes calibration.json into out_dir
+    return analysis
+
+
+def _calibrates_from_views(session: Session, params: AnalysisParams) -> bool:
+    """Whether the rig step calibrates from the session's checkerboard views (or reads them from the cache)."""
+    return session.calibration_images is not None and (session.rig_path is None or params.recalibrate)
+
+
+class _BackgroundStep:
+    """One step run in a thread: the rig's calibration while the sync step reads the videos (issue 16).
+
+    The rig step needs nothing of the sync step's result; the board
+    detection's threads and the bundle adjustment then share the processors
+    with the flash search. :meth:`result` gives the step's result or raises
+    its error; ``seconds`` is the step's own duration.
+    """
+
+    def __init__(self, function, *args, **kwargs):
+        import threading
+
+        self.seconds = 0.0
+        self._value, self._error = None, None
+        self._thread = threading.Thread(target=self._run, args=(function, args, kwargs),
+                                        name="horsemocap-rig", daemon=True)
+        self._thread.start()
+
+    def _run(self, function, args, kwargs):
+        t0 = time.perf_counter()
+        try:
+            self._value = function(*args, **kwargs)
+        except BaseException as exc:  # given to the caller by result()
+            self._error = exc
+        finally:
+            self.seconds = time.perf_counter() - t0
+
+    def wait(self) -> None:
+        self._thread.join()
+
+    def result(self):
+        self.wait()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
+def _serialised(progress):
+    """``progress`` called by one thread at a time (the rig step reports from its own thread)."""
+    import threading
+
+    lock = threading.Lock()
+
+    def report(*args):
+        with lock:
+            progress(*args)
+    report.counts = getattr(progress, "counts", False)
+    return report
+
+
+def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outputs: bool, progress,
+               previous_results, early_rig, board_views) -> None:
+    """:func:`analyze`'s loop over the steps (``early_rig``: the rig step already running)."""
+    from . import results as result_files
+
+    session, params = analysis.session, analysis.params
     for name in STEPS:
         t0 = time.perf_counter()
         key = keys.get(name, "")
@@ -776,10 +862,13 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
             stored = store.load(name, key) if store else None
             if stored is not None:
                 analysis.results[name] = stored
+            elif name == "rig" and early_rig is not None:
+                analysis.results[name] = early_rig.result()
+                t0 = time.perf_counter() - early_rig.seconds      # the step's own time, not the wait
             else:
                 if name == "rig":
                     analysis.results[name] = step_rig(session, params, analysis.results, progress,
-                                                      cache_dirs=(out_dir, previous_results))
+                                                      cache_dirs=(out_dir, previous_results), board_views=board_views)
                 else:
                     analysis.results[name] = STEP_FUNCTIONS[name](session, params, analysis.results, progress)
                 if store:
@@ -798,7 +887,6 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
                 result_files.write_available(Path(out_dir), analysis)
         if name == until:
             break
-    return analysis
 
 
 def run_steps(session: Session, params: AnalysisParams, results: dict, steps, progress=None) -> Analysis:

@@ -75,7 +75,8 @@ def _mark_record(folder: Path, **fields) -> None:
     atomic_write_json(path, record)
 
 
-def run_analysis(session_dir, out, params=None, *, progress=None, report: bool = True) -> RunOutcome:
+def run_analysis(session_dir, out, params=None, *, progress=None, report: bool = True,
+                 board_views=None) -> RunOutcome:
     """Analyse ``session_dir`` into ``out`` as one whole run.
 
     Parameters
@@ -88,6 +89,8 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
     progress : callable(step, message), optional
     report : bool
         Write ``report.html``.
+    board_views : horsemocap.calibration.cache.BoardDetectionJob, optional
+        Board detection already under way (:func:`horsemocap.pipeline.analyze`).
 
     Returns
     -------
@@ -119,7 +122,8 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
     with folder as tmp:
         outcome = RunOutcome(Path(target), None)
         try:
-            analysis = analyze(session_dir, tmp, params, progress=progress, previous_results=target)
+            analysis = analyze(session_dir, tmp, params, progress=progress, previous_results=target,
+                               board_views=board_views)
         except (AnalysisError, SessionError) as exc:
             analysis = getattr(exc, "partial", None)
             outcome.error = exc

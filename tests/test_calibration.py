@@ -276,3 +276,48 @@ def test_foreshortened_board_is_not_pulled_onto_its_neighbours(yaw):
     err = np.linalg.norm(corners - true, axis=1)
     assert err.max() < 0.5, err.max()
     assert grid_irregularity(corners, inner) <= MAX_GRID_IRREGULARITY
+
+
+def test_board_detection_in_threads_gives_the_same_views_in_order(tmp_path):
+    """detect_cameras shares the views among threads: corners, reasons, windows and ticks as one thread gives."""
+    import shutil
+
+    from horsemocap.calibration.board import detect_cameras
+
+    src = data_samples_dir() / "horse2_canter" / "calibration"
+    # views found by the classic detector, views only the sector detector finds (left17, middle3) and one
+    # where neither finds the board (middle1)
+    picks = {"left": ["left1", "left17", "left2"], "middle": ["middle1", "middle3", "middle2"]}
+    dirs = {}
+    for cam, names in picks.items():
+        dirs[cam] = tmp_path / cam
+        dirs[cam].mkdir()
+        for name in names:
+            shutil.copy(src / cam / f"{name}.jpg", dirs[cam])
+    ticks = {cam: [] for cam in dirs}
+    alone = detect_cameras(dirs, (7, 14), workers=1)
+    shared = detect_cameras(dirs, (7, 14), workers=3,
+                            ticks={cam: (lambda d, t, cam=cam: ticks[cam].append((d, t))) for cam in dirs})
+    assert list(shared) == ["left", "middle"]
+    for cam in dirs:
+        a, b = alone[cam], shared[cam]
+        assert a.names == b.names and a.files == b.files and a.reasons == b.reasons and a.size == b.size
+        np.testing.assert_array_equal(a.corners, b.corners)          # NaN where not found, bit for bit
+        np.testing.assert_array_equal(a.windows, b.windows)
+        assert ticks[cam] == [(1, 3), (2, 3), (3, 3)]
+    assert alone["middle"].reasons[0] != "" and alone["middle"].found[1:].all() and alone["left"].found.all()
+    with pytest.raises(CalibrationError, match="at least 1 worker"):
+        detect_cameras(dirs, (7, 14), workers=0)
+
+
+def test_board_detection_in_threads_names_a_view_of_another_size(tmp_path):
+    from horsemocap.calibration.board import detect_cameras
+
+    d = tmp_path / "left"
+    d.mkdir()
+    import cv2
+
+    cv2.imwrite(str(d / "01.png"), np.full((60, 80), 90, np.uint8))
+    cv2.imwrite(str(d / "02.png"), np.full((50, 80), 90, np.uint8))
+    with pytest.raises(CalibrationError, match=r"02\.png: image size 80x50 differs from 80x60"):
+        detect_cameras({"left": d}, (7, 5), workers=2)

@@ -25,18 +25,22 @@ def views_dirs(tmp_path):
 
 @pytest.fixture
 def calls(monkeypatch):
-    """detect_views and calibrate_rig replaced by counting fakes with exact, distinct results."""
+    """detect_cameras and calibrate_rig replaced by counting fakes with exact, distinct results."""
     seen = {"detect": [], "calibrate": 0}
     rng = np.random.default_rng(0)
 
-    def detect(folder, inner, camera=None, tick=None):
-        seen["detect"].append(camera)
-        for k in range(3):
-            if tick is not None:
-                tick(k + 1, 3)
-        corners = rng.uniform(0, 600, (3, inner[0] * inner[1], 2))
-        corners[1, 0] = np.nan                            # a view without the board
-        return views_from_corners(camera, corners, (640, 480), inner, names=["00", "01", "02"])
+    def detect(image_dirs, inner, window=None, ticks=None, workers=None):
+        out = {}
+        for camera in image_dirs:
+            seen["detect"].append(camera)
+            tick = (ticks or {}).get(camera)
+            for k in range(3):
+                if tick is not None:
+                    tick(k + 1, 3)
+            corners = rng.uniform(0, 600, (3, inner[0] * inner[1], 2))
+            corners[1, 0] = np.nan                            # a view without the board
+            out[camera] = views_from_corners(camera, corners, (640, 480), inner, names=["00", "01", "02"])
+        return out
 
     def calibrate(image_dirs, inner, square_m, reference="left", views=None, **kw):
         seen["calibrate"] += 1
@@ -45,7 +49,7 @@ def calls(monkeypatch):
                             rng.normal(0, 0.01, 5), rng.normal(0, 0.1, 3), rng.normal(0, 1, 3)) for c in image_dirs)
         return SimpleNamespace(rig=Rig(cams, {"error": 0.1 + rng.random(), "method": "fake"}))
 
-    monkeypatch.setattr(cache, "detect_views", detect)
+    monkeypatch.setattr(cache, "detect_cameras", detect)
     monkeypatch.setattr(rig_module, "calibrate_rig", calibrate)
     return seen
 
@@ -148,3 +152,66 @@ def test_the_board_views_are_counted_on_the_progress(views_dirs, calls, tmp_path
     cache.cached_calibration(views_dirs, INNER, 0.05, "left", progress=lambda s, m: lines.append(m),
                              recalibrate=True)
     assert lines and all(isinstance(m, str) for m in lines)
+
+
+def _copy_views(tmp_path, picks):
+    import shutil
+
+    from horsemocap.data import data_samples_dir
+
+    src = data_samples_dir() / "horse2_canter" / "calibration"
+    dirs = {}
+    for cam, names in picks.items():
+        dirs[cam] = tmp_path / "views" / cam
+        dirs[cam].mkdir(parents=True)
+        for name in names:
+            shutil.copy(src / cam / f"{name}.jpg", dirs[cam])
+    return dirs
+
+
+def test_board_detection_started_early_is_used_when_its_views_are_the_sessions(tmp_path):
+    """BoardDetectionJob (issue 16): the same corners as detecting in the calibration, taken only for the same files."""
+    from horsemocap.calibration.board import detect_cameras
+
+    dirs = _copy_views(tmp_path, {"left": ["left1", "left17"], "middle": ["middle1", "middle2"]})
+    job = cache.BoardDetectionJob(dirs, (7, 14), workers=2)
+    direct = detect_cameras(dirs, (7, 14), workers=1)
+    lines = []
+
+    class Progress:
+        counts = True
+
+        def __call__(self, step, message, done=None, total=None):
+            lines.append((step, message, done, total))
+
+    for cam in dirs:
+        got = job.views(cam, cache.views_key(dirs[cam], (7, 14)), Progress())
+        np.testing.assert_array_equal(got.corners, direct[cam].corners)
+        assert got.reasons == direct[cam].reasons and got.names == direct[cam].names
+    assert job.views("left", "another key") is None and job.views("right", "any") is None
+    assert all(step == "rig" for step, *_ in lines)
+    job.close()
+    # the job's error (a view of another size) comes out where the views are asked for
+    (dirs["left"] / "odd.png").write_bytes(__import__("cv2").imencode(".png", np.zeros((10, 10), np.uint8))[1])
+    bad = cache.BoardDetectionJob(dirs, (7, 14))
+    with pytest.raises(Exception, match="differs from"):
+        bad.views("left", cache.views_key(dirs["left"], (7, 14)))
+    bad.close()
+
+
+def test_board_detection_job_stops_when_closed(tmp_path):
+    dirs = _copy_views(tmp_path, {"left": ["left1", "left2", "left3", "left4", "left5", "left6"]})
+    job = cache.BoardDetectionJob(dirs, (7, 14), workers=1)
+    job.close()                                   # at once: the views not started are not detected
+    from horsemocap.calibration.board import DetectionStopped
+
+    assert isinstance(job._error, DetectionStopped) or job._views is not None
+    assert not job._thread.is_alive()
+
+
+def test_views_cached_says_whether_the_corners_are_in_the_folder(views_dirs, calls, tmp_path):
+    out = tmp_path / "results"
+    assert not cache.views_cached(views_dirs, INNER, [out])
+    cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
+    assert cache.views_cached(views_dirs, INNER, [None, out])
+    assert not cache.views_cached(views_dirs, (4, 2), [out])        # another board: detected again

@@ -169,3 +169,27 @@ def test_matlab_rules_on_short_records_run_away_at_the_ends():
     exact = sm.rloess(y, 0.1)
     assert np.max(np.abs(exact - y)) > 0.05   # the extrapolated ends
     np.testing.assert_allclose(sm.smooth(y, 0.1, "loess")[2:-2], y[2:-2])
+
+
+@pytest.mark.parametrize("method", ["rloess", "loess", "rlowess", "lowess"])
+@pytest.mark.parametrize("windows", ["matlab", "fixed"])
+def test_batched_local_fits_equal_the_fits_one_by_one(method, windows):
+    """All windows solved at once (issue 16) give smooth.m's loop's values: uniform and irregular x,
+    outliers (robust weights of zero move the windows), spans from the thesis' 0.1 to 11 points."""
+    rng = np.random.default_rng(7)
+    degree, robust = {"rloess": (2, True), "loess": (2, False), "rlowess": (1, True), "lowess": (1, False)}[method]
+    for n, span, irregular in [(38, 0.1, False), (97, 0.1, False), (60, 11, False), (45, 7, True), (120, 0.2, True)]:
+        x = np.sort(rng.choice(3 * n, n, replace=False)).astype(float) if irregular else np.arange(n, dtype=float)
+        y = 40 * np.sin(x / 6) + rng.normal(0, 0.3, n)
+        y[rng.choice(n, n // 8, replace=False)] += rng.normal(0, 8, n // 8)
+        k = sm.span_points(span, n, uniform=not irregular)
+        loop = sm._local_regression_loop(x, y, k, degree, robust, sm.ROBUST_ITERATIONS, windows, not irregular)
+        batched = sm.smooth(y, span, method, x=None if not irregular else x, windows=windows)
+        np.testing.assert_allclose(batched, loop, rtol=0, atol=1e-12 * np.abs(y).max())
+
+
+def test_repeated_x_keeps_the_loop():
+    x = np.array([0, 1, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10.0])
+    y = np.random.default_rng(2).normal(size=x.size)
+    out = sm.smooth(y, 5, "rloess", x=x)
+    assert out[1] == out[2]  # the same x, the same fit (smooth.m)

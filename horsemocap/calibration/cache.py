@@ -33,12 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera, Rig
-from .board import BoardViews, detect_views
+from .board import BoardViews, detect_cameras
 
 CACHE_FILE = "calibration.json"
 CACHE_FORMAT = "horsemocap-calibration-cache/1"
 
-__all__ = ["CACHE_FILE", "CACHE_FORMAT", "calibration_key", "views_key", "cached_calibration"]
+__all__ = ["CACHE_FILE", "CACHE_FORMAT", "calibration_key", "views_key", "cached_calibration", "BoardDetectionJob",
+           "views_cached"]
 
 
 def _code_hash(names) -> bytes:
@@ -143,9 +144,89 @@ def _read(folder) -> dict | None:
     return d if isinstance(d, dict) and d.get("format") == CACHE_FORMAT else None
 
 
+class BoardDetectionJob:
+    """The board detection of a session's views, started in a thread before the analysis needs it (issue 16).
+
+    ``horsemocap analyze`` starts it as soon as the session is read, so the
+    views are detected while the interpreter imports the analysis' modules
+    and checks the parameters; :func:`cached_calibration` takes the views
+    from it (``detected``) when their key (:func:`views_key`: the same files,
+    board and detector code) is the one it would detect.
+
+    Parameters
+    ----------
+    image_dirs : dict camera -> folder
+    inner_corners : (cols, rows)
+    workers : int, optional
+        As :func:`~.board.detect_cameras`.
+    """
+
+    def __init__(self, image_dirs: dict, inner_corners, workers: int | None = None):
+        import threading
+
+        self.keys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
+        self.done = {cam: 0 for cam in image_dirs}
+        self.totals = {cam: 0 for cam in image_dirs}
+        self._views, self._error = None, None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, args=(dict(image_dirs), inner_corners, workers),
+                                        name="horsemocap-board", daemon=True)
+        self._thread.start()
+
+    def _count(self, cam):
+        def tick(done, total):
+            self.done[cam], self.totals[cam] = done, total
+        return tick
+
+    def _run(self, image_dirs, inner_corners, workers):
+        try:
+            self._views = detect_cameras(image_dirs, inner_corners, workers=workers, stop=self._stop,
+                                         ticks={cam: self._count(cam) for cam in image_dirs})
+        except BaseException as exc:  # given to the caller by views()
+            self._error = exc
+
+    def views(self, cam: str, key: str, progress=None) -> BoardViews | None:
+        """The views of ``cam`` if this job detects the files of ``key`` (waits for it), else None.
+
+        ``progress`` (as :func:`cached_calibration`'s) is told the views
+        counted while it waits. The job's error (a view of another size...)
+        is raised here.
+        """
+        from .rig import board_view_counter
+
+        if self.keys.get(cam) != key:
+            return None
+        told = {}
+        while self._thread.is_alive():
+            self._thread.join(0.25)
+            for c in self.done:
+                if progress is not None and self.totals[c] and told.get(c) != self.done[c]:
+                    told[c] = self.done[c]
+                    board_view_counter(progress, c)(self.done[c], self.totals[c])
+        if self._error is not None:
+            raise self._error
+        return self._views[cam]
+
+    def close(self) -> None:
+        """Start no further view and wait for those under way (at the end of a run, or after its error)."""
+        self._stop.set()
+        self._thread.join()
+
+
+def views_cached(image_dirs: dict, inner_corners, folders) -> bool:
+    """Whether ``calibration.json`` in one of ``folders`` holds every camera's corners for these views."""
+    found = [d for d in (_read(f) for f in folders if f is not None) if d is not None]
+    for cam, folder in image_dirs.items():
+        key = views_key(folder, inner_corners)
+        if not any(isinstance(d.get("views"), dict) and isinstance(d["views"].get(cam), dict)
+                   and d["views"][cam].get("key") == key for d in found):
+            return False
+    return True
+
+
 def cached_calibration(image_dirs: dict, inner_corners, square_m: float, reference: str, *,
                        write_to=None, read_from=(), recalibrate: bool = False, progress=None, exclude=None,
-                       mode: str = "joint"):
+                       mode: str = "joint", detected: BoardDetectionJob | None = None):
     """The rig calibrated from ``image_dirs`` (as :func:`~.rig.calibrate_rig`), reusing a cached one.
 
     Parameters
@@ -167,6 +248,9 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     exclude : dict camera -> list of view names, optional
         Views left out of the calibration (as :func:`~.rig.calibrate_rig`;
         part of the key; the board corners of every view are still kept).
+    detected : BoardDetectionJob, optional
+        Board detection already under way: the views it detects (same key)
+        are taken from it instead of detected again.
 
     Returns
     -------
@@ -203,13 +287,24 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
             views[cam] = None                           # damaged: detect again
         if views[cam] is not None:
             reused.append(cam)
-        else:
-            views[cam] = detect_views(Path(folder), inner_corners, camera=cam, tick=board_view_counter(progress, cam))
+    if detected is not None:
+        early = [cam for cam in image_dirs if views[cam] is None]
+        for cam in early:
+            views[cam] = detected.views(cam, views_key(image_dirs[cam], inner_corners), progress)
+        early = [cam for cam in early if views[cam] is not None]
+        if early:
+            say(f"board corners of camera(s) {', '.join(early)} detected while the analysis started")
+    missing = {cam: image_dirs[cam] for cam in image_dirs if views[cam] is None}
+    if missing:                                         # every camera's views in one pool of threads
+        views.update(detect_cameras(missing, inner_corners,
+                                    ticks={cam: board_view_counter(progress, cam) for cam in missing}))
     if reused:
         say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
     say("calibrating from checkerboard views ...")
+    # the pairs' stereo calibrations (Table 8.4) are not part of a joint rig: not computed here
+    # (``horsemocap calibrate`` reports them); the pairwise rig computes the pairs it needs
     cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views), exclude=exclude,
-                        mode=mode, progress=progress)
+                        mode=mode, progress=progress, pairs=False)
     if write_to is not None:
         record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
                   "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},

@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
 from ..camera import Rig, rotation_matrix
 from ..sources import natural_key
-from .board import BoardViews, CalibrationError, board_points, detect_views
+from .board import BoardViews, CalibrationError, board_points, detect_cameras
 from .bundle import BundleResult, bundle_adjust, calibrate_camera, harmonize_views
 
 
@@ -193,8 +192,8 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
     inner_corners = (int(inner_corners[0]), int(inner_corners[1]))
     report = progress or (lambda *a: None)
     if views is None:
-        views = {c: detect_views(Path(d), inner_corners, camera=c, tick=board_view_counter(progress, c))
-                 for c, d in image_dirs.items()}
+        views = detect_cameras(image_dirs, inner_corners,
+                               ticks={c: board_view_counter(progress, c) for c in image_dirs})
     cameras = tuple(views)
     if reference not in cameras:
         raise CalibrationError(f"reference camera {reference!r} is not among the cameras {list(cameras)}")
