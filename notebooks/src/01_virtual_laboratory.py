@@ -132,7 +132,7 @@ v_fd = (truth.marker_pos[2:] - truth.marker_pos[:-2]) / (2 * dt_)
 a_fd = (truth.marker_pos[2:] - 2 * truth.marker_pos[1:-1] + truth.marker_pos[:-2]) / dt_ ** 2
 print(f"|v - central difference| max {np.abs(v_fd - truth.marker_vel[1:-1]).max():.3f} m/s "
       f"(of {np.abs(truth.marker_vel).max():.2f}); |a - 2nd difference| max "
-      f"{np.abs(a_fd - truth.marker_acc[1:-1]).max():.2f} m/s^2 (of {np.abs(truth.marker_acc).max():.1f})")
+      f"{np.abs(a_fd - truth.marker_acc[1:-1]).max():.2f} m/s² (of {np.abs(truth.marker_acc).max():.1f})")
 
 # %% [markdown]
 # At 30 fps the differences are those of sampling, not of the truth: the unit tests compare the
@@ -287,7 +287,7 @@ ball = data_samples_dir() / "ball_drop"
 bt = vl.load_truth(ball)
 z = bt.marker_pos[:, 0] @ bt.gravity
 print(f"frames {len(bt.time_s)}, duration {bt.time_s[-1]:.3f} s, rise {z.max() - z.min():.3f} m, "
-      f"acceleration along gravity {bt.marker_acc[0, 0] @ bt.gravity:.2f} m/s^2")
+      f"acceleration along gravity {bt.marker_acc[0, 0] @ bt.gravity:.2f} m/s²")
 fig, axs = plt.subplots(1, 2, figsize=(10, 3.4))
 axs[0].plot(bt.time_s, -z, "o-")
 axs[0].set_xlabel("time (s)")

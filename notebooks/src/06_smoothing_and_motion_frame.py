@@ -218,7 +218,7 @@ for method in ("none", "loess", "rloess"):
     st = accuracy.stage_errors(run, truth)
     downstream[method] = st
     print(f"smoothing {method:7s}: marker RMSE y-motion {1000 * st['smoothed'][1]:5.2f} mm, "
-          f"marker acceleration RMSE y-motion {st['acceleration'][1]:5.3f} m/s^2, "
+          f"marker acceleration RMSE y-motion {st['acceleration'][1]:5.3f} m/s², "
           f"saddle vertical acceleration error {st['saddle_acc_y_rmse_pct_of_rms']:5.1f} % of its RMS")
 pct = {m: downstream[m]["saddle_acc_y_rmse_pct_of_rms"] for m in downstream}
 best = min(pct, key=pct.get)

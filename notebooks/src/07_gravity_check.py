@@ -97,10 +97,10 @@ print(f"gravity direction error: {g_dir_err:.3f} deg "
 
 # %%
 fall = frames.free_fall_g(ball[:, 0], gravity, fps)
-print(f"g = {fall['g']:.3f} m/s^2 +- {fall['g_std']:.3f} (1 sigma of the fit), "
+print(f"g = {fall['g']:.3f} m/s² +- {fall['g_std']:.3f} (1 sigma of the fit), "
       f"error {fall['error_pct']:.2f} % of {fall['g_reference']:.2f}")
 print(f"fit residual RMS: {1000 * fall['rmse']:.2f} mm over {fall['n_used']} frames")
-print("thesis (section 8.3): g = 9.5 m/s^2, 3.6 % off")
+print("thesis (section 8.3): g = 9.5 m/s², 3.6 % off")
 
 # %%
 _ = plots.plot_free_fall(fall, title="ball along gravity (virtual laboratory)")
@@ -136,7 +136,7 @@ for label, (pts, g_dir) in cases.items():
     g_of[label] = r
     ok = "meets" if abs(r["error_pct"]) < 1.5 else "MISSES"
     signed = 100 * (r["g"] - r["g_reference"]) / r["g_reference"]
-    print(f"{label:37s} g = {r['g']:.3f} m/s^2, error {signed:+.2f} % ({ok} the 1.5 % target); "
+    print(f"{label:37s} g = {r['g']:.3f} m/s², error {signed:+.2f} % ({ok} the 1.5 % target); "
           f"gravity off by {frames.angle_deg(g_dir, truth.gravity):.3f} deg")
 g_ref = g_of["joint, exact rig, plumb gravity"]["g_reference"]
 d_cal = 100 * (g_of["joint, CALIBRATED rig, plumb gravity"]["g"] - g_of["joint, exact rig, plumb gravity"]["g"]) / g_ref

@@ -91,7 +91,7 @@ x_true = true_kin["pos"][:, 0, 0]
 known = np.isfinite(x_true)                              # frames the truth covers
 surge = x_true - np.polyval(np.polyfit(t[known], x_true[known], 1), t)
 print(f"true surge of marker 1 about a straight line: {100 * np.nanmin(surge):+.1f} to {100 * np.nanmax(surge):+.1f} cm; "
-      f"rms of its true A_x {np.sqrt(np.nanmean(true_kin['acc'][:, 0, 0] ** 2)):.2f} m/s^2")
+      f"rms of its true A_x {np.sqrt(np.nanmean(true_kin['acc'][:, 0, 0] ** 2)):.2f} m/s²")
 
 # %% [markdown]
 # The virtual horse, like a real one, surges a little within each stride (printed above): a straight
@@ -141,8 +141,8 @@ for N in (1, 2, 3, 4):
     fm = fitting.fit_fourier(t, y, N, trend=prm.fourier_trend)
     fp = fitting.fit_fourier(t, y, N, w0=w0, trend=prm.fourier_trend)
     err = lambda f: np.sqrt(np.nanmean((f.evaluate(t, 2) - truth_y["acc"]) ** 2))
-    print(f"fourier{N}: MATLAB start w = {fm.frequency:6.3f} rad/s, acc RMSE {err(fm):5.2f} m/s^2 | "
-          f"start at the period, w = {fp.frequency:6.3f}, acc RMSE {err(fp):5.2f} m/s^2")
+    print(f"fourier{N}: MATLAB start w = {fm.frequency:6.3f} rad/s, acc RMSE {err(fm):5.2f} m/s² | "
+          f"start at the period, w = {fp.frequency:6.3f}, acc RMSE {err(fp):5.2f} m/s²")
 
 # %% [markdown]
 # ## z-motion of marker 1 (Figure 5.9)
@@ -189,7 +189,7 @@ for m in range(3):
     ev = frames.rmse_per_axis(vel[:, m], true_kin["vel"][:, m])
     ea = frames.rmse_per_axis(acc[:, m], true_kin["acc"][:, m])
     print(f"marker {m + 1}: velocity RMSE x/y/z " + " ".join(f"{e:.3f}" for e in ev)
-          + " m/s; acceleration RMSE " + " ".join(f"{e:.2f}" for e in ea) + " m/s^2")
+          + " m/s; acceleration RMSE " + " ".join(f"{e:.2f}" for e in ea) + " m/s²")
 
 # %% [markdown]
 # Figure 8.13: the kinematics of marker 1 with the chosen fits (positions are the registered data; the

@@ -176,8 +176,8 @@ plt.show()
 
 # %%
 alpha_avg = rigid.average_versions(rb2.alpha_versions, use_a)
-print(f"rms of the true alpha: {np.sqrt(np.nanmean(alpha_true ** 2)):.2f} rad/s^2")
-print("alpha RMSE (rad/s^2, all components):")
+print(f"rms of the true alpha: {np.sqrt(np.nanmean(alpha_true ** 2)):.2f} rad/s²")
+print("alpha RMSE (rad/s², all components):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
     print(f"  {lab.replace('omega', 'alfa')}: {rmse(rb2.alpha_versions[i], alpha_true):9.2f}" + ("" if use_a[i] else "  (not used)"))
 print(f"  average of chosen versions:        {rmse(alpha_avg, alpha_true):9.2f}")

@@ -116,7 +116,7 @@ print(f"saddle path passed on ({res.saddle_method}) RMSE x/y/z (mm): "
 print("per-base position versions agree (to 1e-9 m):",
       bool(np.abs(res.saddle.position_versions - res.saddle.position).max() < 1e-9))
 print(f"fit of the saddle path: orders {res.saddle_fit.orders.tolist()}")
-print("saddle acceleration RMSE x/y/z (m/s^2): " + "  ".join(f"{e:.2f}" for e in st["saddle_acceleration"])
+print("saddle acceleration RMSE x/y/z (m/s²): " + "  ".join(f"{e:.2f}" for e in st["saddle_acceleration"])
       + f"; vertical: {st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of its rms")
 
 # %% [markdown]
@@ -155,7 +155,7 @@ variants = [("eq. 6.55 mean", prm.angular_method, "thesis"),
             ("fit of eq. 6.48 path", prm.angular_method, "direct"),
             ("fit of pose path", prm.angular_method, "pose")]
 ay = S_true["acc"][:, 1]
-print(f"rms of the true vertical acceleration: {np.sqrt(np.nanmean(ay ** 2)):.2f} m/s^2")
+print(f"rms of the true vertical acceleration: {np.sqrt(np.nanmean(ay ** 2)):.2f} m/s²")
 print("saddle v/a from          omega/alfa  position RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
 fits_default = prm.kinematics == "fits"
 for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
@@ -169,7 +169,7 @@ for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
     default = (am == "-" and not fits_default) or \
         (fits_default and (am, sm) == (prm.angular_method, prm.saddle_method))
     print(f"{label:24s} {am:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
-          + f"   {e['saddle_acceleration'][1]:8.3f} m/s^2 {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
+          + f"   {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
           + ("   <- pipeline default" if default else ""))
 
 # %% [markdown]
@@ -210,7 +210,7 @@ for sm in ("none", "loess", "rloess"):
     e = accuracy.stage_errors(r, truth)
     pct = e["saddle_acc_y_rmse_pct_of_rms"]
     print(f"{sm:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
-          + f"          {e['saddle_acceleration'][1]:8.3f} m/s^2 {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
+          + f"          {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
           + ("   <- pipeline default" if sm == prm.smoothing_method else ""))
 
 # %% [markdown]

@@ -200,8 +200,8 @@ ratio = np.abs(vibration.weighting("Wk", ff)) / np.abs(vibration.weighting("Wb",
 f_match = ff[np.flatnonzero(np.diff(np.sign(ratio - 1.15988)))]
 print("frequencies where |Wk|/|Wb| = 1.15988: " + ", ".join(f"{x:.2f} Hz" for x in f_match))
 unweighted_rms = T["acc_y_max"] / T["crest_factor_y"]
-print(f"acc_y_max / CF = {unweighted_rms:.3f} m/s^2, but rms_Wb / |Wb(3.5 Hz)| = "
-      f"{T['acc_y_Wb_rms'] / abs(vibration.weighting('Wb', 3.5)):.3f} m/s^2")
+print(f"acc_y_max / CF = {unweighted_rms:.3f} m/s², but rms_Wb / |Wb(3.5 Hz)| = "
+      f"{T['acc_y_Wb_rms'] / abs(vibration.weighting('Wb', 3.5)):.3f} m/s²")
 
 # %% [markdown]
 # Our $W_b$ and $W_k$ reproduce the thesis' ratio, a check that they are the weightings it used.
@@ -236,7 +236,7 @@ harm = vibration.harmonics_from_periodic_samples(acc_y, period, max_harmonic=40)
 harm = vibration.Harmonics(harm.freq_hz, harm.amplitude, 0.0)
 print(f"stride {1 / period:.4f} Hz, period {period:.4f} s ({period * 30:.1f} frames at 30 fps)")
 for k in range(5):
-    print(f"harmonic {k + 1}: {harm.freq_hz[k]:.3f} Hz, |c| = {abs(harm.amplitude[k]):.3f} m/s^2")
+    print(f"harmonic {k + 1}: {harm.freq_hz[k]:.3f} Hz, |c| = {abs(harm.amplitude[k]):.3f} m/s²")
 
 # %% [markdown]
 # Choose the weighting mode and $\tau$ (defaults: the standards' per-harmonic weighting, two
@@ -318,7 +318,7 @@ print(csv_path.name, "and", xlsx_path.name, "written")
 lines = csv_path.read_text().splitlines()
 print(f"{lines[0]}  + {len(lines) - 1} rows, e.g. {lines[1].split(',')[0]} ... {lines[-1].split(',')[0]}")
 back = vibration.read_comfort_csv(csv_path)
-print(f"read back acc_y_Wk_rms = {back['acc_y_Wk_rms']:.4f} m/s^2")
+print(f"read back acc_y_Wk_rms = {back['acc_y_Wk_rms']:.4f} m/s²")
 
 # %% [markdown]
 # ## Exercises

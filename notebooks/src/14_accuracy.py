@@ -75,9 +75,9 @@ print(f"analysed frames: {st['frames']}")
 print(f"gravity direction error: {st['gravity_deg']:.3f} deg;  x-motion axis error: {st['x_axis_deg']:.3f} deg")
 print("stage                      RMSE x       y       z")
 for key, unit, scale in (("triangulated", "mm", 1000), ("smoothed", "mm", 1000), ("registered", "mm", 1000),
-                         ("velocity", "mm/s", 1000), ("acceleration", "m/s^2", 1), ("omega", "rad/s", 1),
-                         ("alpha", "rad/s^2", 1), ("saddle_position", "mm", 1000),
-                         ("saddle_acceleration", "m/s^2", 1)):
+                         ("velocity", "mm/s", 1000), ("acceleration", "m/s²", 1), ("omega", "rad/s", 1),
+                         ("alpha", "rad/s²", 1), ("saddle_position", "mm", 1000),
+                         ("saddle_acceleration", "m/s²", 1)):
     x, y, z = scale * st[key]
     print(f"{key:20s} {unit:>6s} {x:7.2f} {y:7.2f} {z:7.2f}")
 print(f"saddle vertical acceleration RMSE: {st['saddle_acc_y_rmse_pct_of_rms']:.2f} % of its rms")
