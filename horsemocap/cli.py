@@ -194,9 +194,12 @@ def _early_board_detection(session, out_dir: Path, args):
     from .calibration.cache import BoardDetectionJob, views_cached
 
     inner = session.board.inner_corners
-    if not recalibrate and views_cached(session.calibration_images, inner, [out_dir]):
+    try:
+        if not recalibrate and views_cached(session.calibration_images, inner, [out_dir]):
+            return None
+        return BoardDetectionJob(session.calibration_images, inner)
+    except Exception:   # (a view folder that is a file, an unreadable view...): the rig step reports it
         return None
-    return BoardDetectionJob(session.calibration_images, inner)
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:

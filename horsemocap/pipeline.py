@@ -600,7 +600,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         f0 = [v["fundamental_hz"] for v in sm.values() if v.get("fundamental_hz")]
         if f0:
             progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "
-                     + ", ".join(f"{k} {v.get('harmonics', 0)}" for k, v in sm.items()))
+                     + ", ".join(f"{k} {_harmonics_text(v)}" for k, v in sm.items()))
         if rb.chain_error:
             progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
     else:
@@ -788,10 +788,21 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     try:
         _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
                    board_views)
+    except BaseException:
+        if board_views is not None:
+            board_views.stop()  # an error or Ctrl-C: the rig step waiting for the views ends at once
+        raise
     finally:
         if early_rig is not None:
             early_rig.wait()    # never left running: it writes calibration.json into out_dir
     return analysis
+
+
+def _harmonics_text(info: dict) -> str:
+    """How many stride harmonics a pose component kept, with their orders when they are not 1..K."""
+    n = int(info.get("harmonics", 0))
+    orders = [int(k) for k in info.get("harmonic_indices", range(1, n + 1))]
+    return str(n) if orders == list(range(1, n + 1)) else f"{n} (order {', '.join(map(str, orders))})"
 
 
 def _calibrates_from_views(session: Session, params: AnalysisParams) -> bool:

@@ -237,7 +237,7 @@ def _window_fits(x, y, cols, member, degree, sqrt_robust=None, at=None) -> np.nd
     pinv = np.empty((cols.shape[0], degree + 1, cols.shape[1]))
     for r in np.unique(rows):
         sel = rows == r
-        pinv[sel] = np.linalg.pinv(V[sel], rtol=max(int(r), degree + 1) * _EPS)
+        pinv[sel] = np.linalg.pinv(V[sel], rcond=max(int(r), degree + 1) * _EPS)
     return np.einsum("ij,ij->i", pinv[:, 0, :], w * y[cols])
 
 

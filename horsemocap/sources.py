@@ -328,7 +328,7 @@ class FrameSequence:
         first = getattr(job, "first", None)
         if first is not None:                  # a block before the one read last (reading backwards)
             if frames is None:                 # the codec cannot seek: _load reads through instead
-                self._next = None
+                self._next = self._low = None
                 return
             self._next = self._low = first
         for f in frames:

@@ -199,13 +199,34 @@ def test_board_detection_started_early_is_used_when_its_views_are_the_sessions(t
     bad.close()
 
 
-def test_board_detection_job_stops_when_closed(tmp_path):
-    dirs = _copy_views(tmp_path, {"left": ["left1", "left2", "left3", "left4", "left5", "left6"]})
-    job = cache.BoardDetectionJob(dirs, (7, 14), workers=1)
-    job.close()                                   # at once: the views not started are not detected
+def test_board_detection_job_stops_when_closed(tmp_path, monkeypatch):
+    """Stopped, the job starts no further view and says so where the views are asked for."""
+    import threading
+    import time
+
+    from horsemocap.calibration import board
     from horsemocap.calibration.board import DetectionStopped
 
-    assert isinstance(job._error, DetectionStopped) or job._views is not None
+    dirs = _copy_views(tmp_path, {"left": ["left1", "left2", "left3", "left4", "left5", "left6"]})
+    started, release = [], threading.Event()
+    real = board.detect_board
+
+    def slow(*args, **kwargs):
+        started.append(1)
+        release.wait(5)                           # the first view is under way when the job is stopped
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(board, "detect_board", slow)
+    job = cache.BoardDetectionJob(dirs, (7, 14), workers=1)
+    t0 = time.perf_counter()
+    while not started and time.perf_counter() - t0 < 5:
+        time.sleep(0.01)
+    job.stop()
+    release.set()
+    with pytest.raises(DetectionStopped):
+        job.views("left", cache.views_key(dirs["left"], (7, 14)))
+    job.close()
+    assert len(started) == 1                      # the five other views were never started
     assert not job._thread.is_alive()
 
 
@@ -215,3 +236,40 @@ def test_views_cached_says_whether_the_corners_are_in_the_folder(views_dirs, cal
     cache.cached_calibration(views_dirs, INNER, 0.05, "left", write_to=out)
     assert cache.views_cached(views_dirs, INNER, [None, out])
     assert not cache.views_cached(views_dirs, (4, 2), [out])        # another board: detected again
+
+
+def test_analysis_error_stops_the_board_detection_started_early(tmp_path, monkeypatch):
+    """A step failing while the views are detected (here the sync's offset) stops the detection at once.
+
+    The rig step runs in a thread waiting for the early job's views; before
+    the fix the error came only after every one of the 135 views.
+    """
+    import json
+    from pathlib import Path
+
+    from horsemocap.calibration import board
+    from horsemocap.data import default_session_dir
+    from horsemocap.pipeline import analyze
+    from horsemocap.session import SessionError, load_session
+
+    bundled = Path(default_session_dir())
+    root = tmp_path / "session"
+    root.mkdir()
+    for sub in ("motion", "plumb", "static", "calibration"):
+        (root / sub).symlink_to(bundled / sub, target_is_directory=True)
+    doc = json.loads((bundled / "session.json").read_text())
+    doc["sync"] = {"offsets": {"left": 100000, "middle": 61, "right": 134}}   # beyond the left video
+    (root / "session.json").write_text(json.dumps(doc))
+    detected, real = [], board.detect_board
+
+    def counted(*args, **kwargs):
+        detected.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(board, "detect_board", counted)
+    session = load_session(root)
+    job = cache.BoardDetectionJob(session.calibration_images, session.board.inner_corners, workers=1)
+    with pytest.raises(SessionError, match="sync offset"):
+        analyze(root, tmp_path / "out", board_views=job, progress=lambda *a, **k: None)
+    job.close()
+    assert len(detected) < 45                     # of 135 views: stopped, not waited for

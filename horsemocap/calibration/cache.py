@@ -207,9 +207,13 @@ class BoardDetectionJob:
             raise self._error
         return self._views[cam]
 
+    def stop(self) -> None:
+        """Start no further view (without waiting): :meth:`views` then raises ``DetectionStopped``."""
+        self._stop.set()
+
     def close(self) -> None:
         """Start no further view and wait for those under way (at the end of a run, or after its error)."""
-        self._stop.set()
+        self.stop()
         self._thread.join()
 
 

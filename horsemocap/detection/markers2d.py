@@ -62,7 +62,7 @@ def markers_2d_rows(camera: str, track, frame_offset: int = 0, reason=None, resi
     names = [marker_label(m) for m in range(M)]
     frames = np.repeat(np.arange(n) + int(frame_offset), M).tolist()
     return [[camera, f, names[i % M], a, b, str(w), e]
-            for i, (f, a, b, w, e) in enumerate(zip(frames, u, v, why.ravel().tolist(), r))]
+            for i, (f, a, b, w, e) in enumerate(zip(frames, u, v, why.ravel().tolist(), r, strict=True))]
 
 
 def _column_text(values: np.ndarray, text) -> list:
