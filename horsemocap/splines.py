@@ -47,8 +47,10 @@ MAX_BASIS = 400
 """Largest number of B-spline basis functions of a quintic smoothing spline."""
 
 CACHE_SAMPLES = 1600
-"""Records of at most this many samples keep their spline basis cached (:func:`_basis`): four of
-them hold at most about 40 MB; a longer record recomputes it."""
+"""Records of at most this many samples keep their spline basis cached (:func:`_basis`,
+:func:`_gcv_basis`; four records each, about 57 MB at most together); a longer record recomputes
+it. The caches are keyed by the times (and weights) alone: :data:`MAX_BASIS` is read when a basis
+is first built, so changing it takes effect for records not yet cached."""
 
 MAX_GRID = 4000
 """Most trial frequencies of :func:`estimate_fundamental` on a grid; longer records use the
