@@ -321,3 +321,24 @@ def test_board_detection_in_threads_names_a_view_of_another_size(tmp_path):
     cv2.imwrite(str(d / "02.png"), np.full((50, 80), 90, np.uint8))
     with pytest.raises(CalibrationError, match=r"02\.png: image size 80x50 differs from 80x60"):
         detect_cameras({"left": d}, (7, 5), workers=2)
+
+
+def test_opencv_single_threaded_blocks_overlapping_in_threads_restore_the_setting():
+    """Two blocks interleaved (A in, B in, A out, B out) leave OpenCV's thread count as it was."""
+    import cv2
+
+    from horsemocap.calibration.board import opencv_single_threaded
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    try:
+        a, b = opencv_single_threaded(), opencv_single_threaded()
+        a.__enter__()
+        assert cv2.getNumThreads() == 1
+        b.__enter__()
+        a.__exit__(None, None, None)
+        assert cv2.getNumThreads() == 1          # B still inside: not restored under it
+        b.__exit__(None, None, None)
+        assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(before)

@@ -17,7 +17,9 @@ from __future__ import annotations
 import itertools
 import os
 import re
+import threading
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -395,12 +397,9 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
             out[cam] = _camera_views(camera, files, itertools.islice(detected, len(files)), inner_corners,
                                      ticks.get(cam))
         return out
-    threads = cv2.getNumThreads()
     # the views are the parallel work: OpenCV's own threads inside each call would only compete with them
     # (measured on the bundled session's 135 views, 2 cores: 2.85 s with them, 2.6 s without)
-    cv2.setNumThreads(1)
-    try:
-        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="board") as pool:
+    with opencv_single_threaded(), ThreadPoolExecutor(max_workers=workers, thread_name_prefix="board") as pool:
             futures = [pool.submit(_detect_file, f, inner_corners, window, stop) for f in jobs]
             try:
                 done = (fut.result() for fut in futures)
@@ -410,9 +409,35 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
             finally:
                 for fut in futures:          # an error (or an interrupt): start no further view
                     fut.cancel()
-    finally:
-        cv2.setNumThreads(threads)
     return out
+
+
+_single_thread_lock = threading.Lock()
+_single_thread_users = [0, None]     # [calls inside, OpenCV's thread count before the first]
+
+
+@contextmanager
+def opencv_single_threaded():
+    """OpenCV limited to one thread of its own inside the block, restored after the last such block.
+
+    ``cv2.setNumThreads`` is process-wide: two blocks overlapping in threads
+    (the board detection and a calibration started beside it) would
+    otherwise restore each other's setting and could leave the process at
+    one thread. The count of blocks inside is kept under a lock; the first
+    saves the setting, the last restores it.
+    """
+    with _single_thread_lock:
+        if _single_thread_users[0] == 0:
+            _single_thread_users[1] = cv2.getNumThreads()
+            cv2.setNumThreads(1)
+        _single_thread_users[0] += 1
+    try:
+        yield
+    finally:
+        with _single_thread_lock:
+            _single_thread_users[0] -= 1
+            if _single_thread_users[0] == 0:
+                cv2.setNumThreads(_single_thread_users[1])
 
 
 def detect_views(folder, inner_corners: tuple[int, int], camera: str | None = None,

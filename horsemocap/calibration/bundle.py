@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
-from .board import BoardViews, CalibrationError
+from .board import BoardViews, CalibrationError, opencv_single_threaded
 
 #: Names of the 9 intrinsic parameters, in OpenCV's order.
 INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
@@ -157,13 +157,9 @@ def calibrate_camera(views: BoardViews, board_pts: np.ndarray, exclude=(), *, fi
     if fix_tangential:
         flags |= cv2.CALIB_ZERO_TANGENT_DIST
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)  # OpenCV's parallel sums change the last digits from run to run
-    try:
+    with opencv_single_threaded():  # OpenCV's parallel sums change the last digits from run to run
         rms, K, dist, rv, tv, std_i, _std_e, per_view = cv2.calibrateCameraExtended(
             obj, img, tuple(views.size), None, None, flags=flags, criteria=crit)
-    finally:
-        cv2.setNumThreads(threads)
     dist = np.asarray(dist, float).ravel()[:5]
     sigma3 = 3.0 * np.asarray(std_i, float).ravel()[:9]
     nv = len(views.names)
