@@ -189,7 +189,7 @@ def _early_board_detection(session, out_dir: Path, args):
     checks the parameters (about 1 s of the bundled analysis).
     """
     recalibrate = bool(getattr(args, "recalibrate", None))
-    if session.calibration_images is None or (session.rig_path is not None and not recalibrate):
+    if not session.calibrates_from_views(recalibrate):
         return None
     from .calibration.cache import BoardDetectionJob, views_cached
 

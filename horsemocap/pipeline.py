@@ -781,7 +781,7 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     store = ResultsStore(out_dir) if (reuse and out_dir is not None) else None
     keys = step_keys(session, params) if store else {}
     early_rig = None
-    if store is None and _calibrates_from_views(session, params) and (until is None or until != "sync"):
+    if store is None and session.calibrates_from_views(params.recalibrate) and until != "sync":
         progress = _serialised(progress)
         early_rig = _BackgroundStep(step_rig, session, params, {}, progress, cache_dirs=(out_dir, previous_results),
                                     board_views=board_views)
@@ -803,11 +803,6 @@ def _harmonics_text(info: dict) -> str:
     n = int(info.get("harmonics", 0))
     orders = [int(k) for k in info.get("harmonic_indices", range(1, n + 1))]
     return str(n) if orders == list(range(1, n + 1)) else f"{n} (order {', '.join(map(str, orders))})"
-
-
-def _calibrates_from_views(session: Session, params: AnalysisParams) -> bool:
-    """Whether the rig step calibrates from the session's checkerboard views (or reads them from the cache)."""
-    return session.calibration_images is not None and (session.rig_path is None or params.recalibrate)
 
 
 class _BackgroundStep:

@@ -724,20 +724,19 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     centre = reg.centre.copy()
     use = ok
     x_model = np.asarray(model, float)
-    hn = [None] * 6
+    rot_noise = [None] * 3      # the rotation components' noise, against which their harmonics are tested
     if f0 is not None and harmonics == "auto" and rotation_noise_test:
         # each rotation component's noise predicted from the registration residual and the marker
         # geometry (isotropic marker noise; pose_noise without the points)
-        pn = pose_noise(reg, None, model)
-        for i in range(3, 6):
-            hn[i] = float(pn[i]) if np.isfinite(pn[i]) else None
+        pn = pose_noise(reg, None, model)[3:]
+        rot_noise = [float(v) if np.isfinite(v) else None for v in pn]
     for it in range(iterations + 1 if two.any() else 1):
         cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
-                                    noise=sig[i], fundamental_hz=f0, harmonic_noise=hn[i]) for i in range(3))
+                                    noise=sig[i], fundamental_hz=f0) for i in range(3))
         ps = tuple(smoothing_spline(t[use], phi[use, i], method=smoothing, order=order, lam=lam[3 + i],
                                     noise=sig[3 + i], fundamental_hz=f0,
                                     harmonic_cutoff=harmonics != "all",
-                                    harmonic_noise=hn[3 + i]) for i in range(3))
+                                    harmonic_noise=rot_noise[i]) for i in range(3))
         if it == iterations or not two.any():
             break
         tk = t[two]

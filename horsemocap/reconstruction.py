@@ -254,11 +254,6 @@ STEP_TOLERANCE_M = 1e-8
 FINAL_STEP_M = 1e-4
 
 
-def _finite2(a: np.ndarray) -> np.ndarray:
-    """Both coordinates of ``a`` (..., 2) finite (``np.all(np.isfinite(a), axis=-1)``, cheaper)."""
-    return np.isfinite(a[..., 0]) & np.isfinite(a[..., 1])
-
-
 def _undistort(cam: Camera, px: np.ndarray, ok: np.ndarray | None = None,
                criteria=_UNDISTORT_CRITERIA) -> np.ndarray:
     """Undistorted normalised coordinates (N, 2) of pixels (N, 2); NaN stays NaN.
@@ -270,7 +265,7 @@ def _undistort(cam: Camera, px: np.ndarray, ok: np.ndarray | None = None,
     """
     out = np.full(px.shape, np.nan)
     if ok is None:
-        ok = _finite2(px)
+        ok = _observed(px)
     if ok.any():
         K = cam.matrix
         yd = (px[ok, 1] - K[1, 2]) / K[1, 1]
@@ -519,7 +514,7 @@ def _triangulate_joint(rig, cams, px_all, seen_all, max_residual_px=None):
     seen = seen_all.reshape(C, N)
     cam_objs = [rig[c] for c in cams]
     xn = np.stack([_undistort(cam, px[i], seen[i], _START_CRITERIA) for i, cam in enumerate(cam_objs)])
-    seen = seen & _finite2(xn)
+    seen = seen & _observed(xn)
     n_views = seen.sum(axis=0)
     points = np.full((3, N), np.nan)            # rows x, y, z
     reason = np.full(N, _FEW, np.int8)          # codes into _REASON_NAMES

@@ -64,6 +64,10 @@ class Session:
     def json_path(self) -> Path:
         return self.root / "session.json"
 
+    def calibrates_from_views(self, recalibrate: bool = False) -> bool:
+        """Whether the rig comes from the checkerboard views: no ``rig.toml``, or ``recalibrate``."""
+        return self.calibration_images is not None and (self.rig_path is None or recalibrate)
+
     def source(self, camera: str) -> FrameSource:
         """The motion frame source of a camera."""
         return FrameSource(self.motion[camera])

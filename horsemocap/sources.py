@@ -281,13 +281,8 @@ class FrameSequence:
     def _read_ahead(self, k: int) -> None:
         if (self._job is None and self._cap is not None and self._next is not None
                 and k < self._next <= k + READ_AHEAD and self._next < len(self)):
-            if self._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-
-                self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
             count = min(READ_AHEAD, len(self) - self._next)
-            self._job = self._pool.submit(self._decode, self._cap, count)
-            self._job.count = count
+            self._submit(self._decode, self._cap, count, count=count)
 
     # reading backwards: while the caller works down the block decoded last (frames low.. upwards), a second
     # thread seeks to the block before it and decodes that (the first half of the cache holds the one, the
@@ -296,13 +291,18 @@ class FrameSequence:
         low, block = self._low, self.cache_frames // 2
         if (self._job is None and self._cap is not None and low is not None and 0 < low <= k < low + block
                 and (low - 1) not in self._cache):
-            if self._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
-
-                self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
             first = max(0, low - block)
-            self._job = self._pool.submit(self._decode_block, self._cap, first, low - first)
-            self._job.count, self._job.first = low - first, first
+            self._submit(self._decode_block, self._cap, first, low - first, count=low - first, first=first)
+
+    def _submit(self, fn, *args, **attrs) -> None:
+        """``fn(*args)`` decoded by the reading thread (started on first use) as ``self._job``, with ``attrs`` set on it."""
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
+        self._job = self._pool.submit(fn, *args)
+        for name, value in attrs.items():
+            setattr(self._job, name, value)
 
     def _decode_block(self, cap, first: int, count: int):
         """Frames ``first..first+count-1`` (seek, then decode); None when the codec cannot seek."""

@@ -425,8 +425,7 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 1.5, max_hz: float | None 
     fmin = min_cycles / T
     if not fmax > fmin:
         raise ValueError(f"t: a record of {T:.3g} s at {fs:.3g} Hz is too short for {min_cycles} cycles")
-    u = (t - t.mean()) / max(T, 1e-12)
-    X0 = np.column_stack([np.ones(n), u, u * u])
+    X0 = _trend_columns(t)
     Ys = (Y - Y.mean(0)) / np.maximum(Y.std(0), 1e-300)
 
     def rss(X):
@@ -434,15 +433,17 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 1.5, max_hz: float | None 
         r = Ys - X @ coef
         return np.maximum((r * r).sum(0), 1e-300)
 
-    bic0 = float(n * np.sum(np.log(rss(X0) / n)) + 3 * nc * np.log(n * nc))
+    def bic_of(X):
+        return float(n * np.sum(np.log(rss(X) / n)) + X.shape[1] * nc * np.log(n * nc))
+
+    bic0 = bic_of(X0)
 
     def bic(f):
         out = np.inf
         for K in range(1, max_order + 1):
             if K * f >= fs / 2 or 3 + 2 * K >= n - 2:
                 break
-            X = np.hstack([X0, harmonic_columns(t, f, K, t[0])])
-            out = min(out, float(n * np.sum(np.log(rss(X) / n)) + (3 + 2 * K) * nc * np.log(n * nc)))
+            out = min(out, bic_of(np.hstack([X0, harmonic_columns(t, f, K, t[0])])))
         return out
 
     grid = np.arange(fmin, fmax, 1.0 / (8 * T))
@@ -466,11 +467,17 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 1.5, max_hz: float | None 
     scores = np.array([bic(f) for f in grid])
     i = int(np.argmin(scores))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    if grid.size and (b - a) > 2.0 / (8 * T) + 1e-12:
+    if (b - a) > 2.0 / (8 * T) + 1e-12:
         a, b = grid[i] - 1.0 / (8 * T), grid[i] + 1.0 / (8 * T)
     res = minimize_scalar(bic, bounds=(a, b), method="bounded", options={"xatol": 1e-6 / T})
     f, sc = (float(res.x), float(res.fun)) if res.fun <= scores[i] else (float(grid[i]), float(scores[i]))
     return f, (sc - bic0) / (n * nc)
+
+
+def _trend_columns(t: np.ndarray) -> np.ndarray:
+    """``1, u, u^2`` with ``u`` the time centred and scaled by the record's length (a drift's columns)."""
+    u = (t - t.mean()) / max(float(t[-1] - t[0]), 1e-12)
+    return np.column_stack([np.ones(t.size), u, u * u])
 
 
 def harmonic_amplitudes(t, y, frequency_hz: float, order: int, weights=None) -> np.ndarray:
@@ -479,8 +486,7 @@ def harmonic_amplitudes(t, y, frequency_hz: float, order: int, weights=None) -> 
     drift, so that a trend does not leak into the low harmonics)."""
     t = np.asarray(t, float)
     w = np.ones(t.size) if weights is None else np.asarray(weights, float)
-    u = (t - t.mean()) / max(float(t[-1] - t[0]), 1e-12)
-    X = np.hstack([np.column_stack([np.ones(t.size), u, u * u]), harmonic_columns(t, frequency_hz, order, t[0])])
+    X = np.hstack([_trend_columns(t), harmonic_columns(t, frequency_hz, order, t[0])])
     sw = np.sqrt(w)
     coef, *_ = np.linalg.lstsq(X * sw[:, None], sw * np.asarray(y, float), rcond=None)
     return np.hypot(coef[3:3 + order], coef[3 + order:])

@@ -124,9 +124,8 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
     t = np.arange(int(round(duration_s * fps))) / fps
     lift, down, t_ring = 0.5, 2.2, ring_start_s
 
-    def ring(amplitude, phase=0.0):
-        out = ringing(t, t_ring, amplitude, ring_hz, ring_decay_s, ring_rise_s, phase)
-        return out
+    def ring(amplitude, phase=0.0, hz=ring_hz):
+        return ringing(t, t_ring, amplitude, hz, ring_decay_s, ring_rise_s, phase)
 
     y = minimum_jerk_step(t, lift, 0.8, 0.30) + minimum_jerk_step(t, down, 0.6, -0.30) + ring(0.006)
     x = minimum_jerk_step(t, lift, 0.8, 0.15) + minimum_jerk_step(t, down, 0.6, -0.05)
@@ -136,8 +135,8 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
         + ring(np.radians(1.5), phase=0.5)
     roll = ring(np.radians(3.0))
     if second_ring_hz is not None:
-        y = y + ringing(t, t_ring, 0.003, second_ring_hz, ring_decay_s, ring_rise_s, 0.8)
-        roll = roll + ringing(t, t_ring, np.radians(1.5), second_ring_hz, ring_decay_s, ring_rise_s, 2.0)
+        y = y + ring(0.003, 0.8, second_ring_hz)
+        roll = roll + ring(np.radians(1.5), 2.0, second_ring_hz)
     yaw = minimum_jerk_step(t, lift, 0.8, np.radians(5))
     R, omega, alpha = _rotation_jets(yaw, pitch, roll)          # about z, y, x in that order
     # box centre at the origin of its own frame

@@ -313,7 +313,7 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     regions : Regions
     index : indices into ``regions`` (default all)
     patches : list, optional
-        ``list(region_patches(gray, regions, index, margin))``, when
+        ``list(_region_patches(gray, regions, index, margin))``, when
         :func:`light_terms` takes them too (each region's patch made once).
 
     Returns

@@ -40,9 +40,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
-from .base import DetectionError, DetectionParams
+from .base import DetectionError, DetectionParams, Regions
 from .filters import _region_patches, find_candidates, light_terms, region_circularity, weighted_centroids
-from .thresholds import auto_threshold
+from .thresholds import auto_threshold, bright_crops, connected_components, region_order_key
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
 __all__ = [
@@ -178,6 +178,7 @@ def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_coun
         keep = keep[np.argsort(-regions.area[keep], kind="stable")[:max_count]]
     if len(keep) == 0:
         return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    slope = moments = None
     if centroid == "binary":
         centre = regions.centroid[keep].astype(float)
     else:
@@ -185,9 +186,8 @@ def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_coun
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
         patches = list(_region_patches(sub, regions, keep, 2)) if light else None   # made once for both
         centre = weighted_centroids(sub, regions, keep, symmetric_border=True, patches=patches)
-    slope = moments = None
-    if light and centroid != "binary":
-        slope, moments = light_terms(sub, regions, keep, patches=patches)
+        if light:
+            slope, moments = light_terms(sub, regions, keep, patches=patches)
     return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy(), slope, moments)
 
 
@@ -697,9 +697,6 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
 
 def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
     """The regions in the area range of each crop around the bright pixels (:class:`Regions` per crop)."""
-    from .base import Regions
-    from .thresholds import bright_crops, connected_components
-
     H, W = gray.shape[:2]
     amin, amax = area_range[0], _max_area(area_range, gray)
     binary, boxes = bright_crops(gray, threshold)
@@ -720,9 +717,6 @@ def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
 
 def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: str, max_count: int) -> Candidates:
     """:class:`Candidates` of the regions of :func:`_bright_regions`, in the whole image's labelling order."""
-    from .filters import region_circularity
-    from .thresholds import region_order_key
-
     W = gray.shape[1]
     if min_circularity is not None and crops:
         by_moments = sum(len(r) for r in crops) <= 8
@@ -1395,9 +1389,10 @@ class _Tracker:
     def _any_lost(self, k):
         return any(self.reason[c][k, m] == "lost" for c in self.cams for m in range(self.M))
 
-    def _label_whole_frame(self, k):
-        """Candidates, 3D points and model labelling of frame ``k`` searched without a prediction."""
-        cands = _whole_frame_candidates(self.frames, k, self.cams, self.thr, self.cparams)
+    def _label_whole_frame(self, k, cands=None):
+        """Candidates (searched without a prediction unless given), 3D points and model labelling of frame ``k``."""
+        if cands is None:
+            cands = _whole_frame_candidates(self.frames, k, self.cams, self.thr, self.cparams)
         vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         return cands, vp, fit
 
@@ -1433,7 +1428,7 @@ class _Tracker:
         cands = self._reacquire_candidates(k)
         if cands is None:
             return False
-        vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
+        cands, vp, fit = self._label_whole_frame(k, cands)
         if fit is None:
             return False
         # stricter than the anchor search (which picks the clearest of many frames): every marker

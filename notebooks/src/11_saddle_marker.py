@@ -181,7 +181,7 @@ for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
 # path, fitted) is about as good: the session's motion is exactly a Fourier series of the stride (the
 # virtual laboratory builds it that way), the fits' own model. On 24 other sessions (the 16 of the virtual
 # herd and 8 harder ones: other rigs, frame rates, a horse that slows down) the pose trajectory is far
-# better: saddle error median 2.8 % and 1.1 % against 24.1 % and 17.9 % with the fits (`benchmarks/README.md`,
+# better: saddle error median 2.7 % and 1.1 % against 24.1 % and 17.9 % with the fits (`benchmarks/README.md`,
 # Kinematics and Marker identification), and so it is the default; a real horse's motion is not an exact
 # Fourier series, and the pose trajectory needs no period at all (a lift, a transition).
 #
