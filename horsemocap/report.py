@@ -8,6 +8,8 @@ from __future__ import annotations
 import base64
 import html
 import io
+import os
+import pickle
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -31,9 +33,81 @@ def _png(fig) -> str:
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _figure(fig, caption: str) -> str:
-    return (f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{_png(fig)}">'
+def _figure_html(png: str, caption: str) -> str:
+    return (f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{png}">'
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+
+def report_figures(analysis) -> list:
+    """The report's figures as ``(make, caption)``: ``make()`` draws one and returns it."""
+    from . import plots
+
+    res, figures = analysis.results, []
+    if "detect" in res:
+        size = res["rig"]["rig"].cameras[0].size
+        figures.append((lambda: plots.plot_marker_tracks(res["detect"]["marker_px"], size),
+                        "Detected marker centroids in each camera, in pixels (chapter 4)."))
+    if "triangulate" in res:
+        figures.append((lambda: plots.plot_reprojection_residuals(res["triangulate"]["residual_px"]),
+                        "Reprojection residuals of the triangulated markers, in pixels (section 5.1)."))
+    if "rigid_body" in res:
+        rb = res["rigid_body"]
+        t, pos = rb["t"], rb["registered"]
+        series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
+        series["saddle"] = rb["saddle_position"]
+        for data, unit, title, caption in (
+                (series, "m", "Positions in the motion frame",
+                 "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."),
+                ({"omega": rb["omega"]}, "rad/s", "Angular velocity", "Angular velocity of the body, in rad/s (chapter 6)."),
+                ({"alpha": rb["alpha"]}, "rad/s²", "Angular acceleration",
+                 "Angular acceleration of the body, in rad/s² (chapter 6)."),
+                ({"saddle": rb["saddle_acceleration"]}, "m/s²", "Saddle acceleration",
+                 "Acceleration of the hidden saddle marker, in m/s² (section 6.4).")):
+            figures.append((lambda data=data, unit=unit, title=title: plots.plot_axes_timeseries(t, data, unit, title),
+                            caption))
+    return figures
+
+
+def render_pngs(makers) -> list[str]:
+    """Draw every figure of ``makers`` (callables returning a figure) as a base64 PNG, in order.
+
+    Where the system can ``fork`` and has two or more cores, every other
+    figure is drawn by a forked copy of this process while this one draws
+    the rest (issue 16: the six figures of the bundled report took 0.8 s of
+    matplotlib's text layout on one core). The copies draw with the same
+    code and data, so the PNGs are the same bytes either way; if the copy
+    fails, its figures are drawn here.
+    """
+    makers = list(makers)
+    if len(makers) < 2 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2:
+        return [_png(make()) for make in makers]
+    theirs, mine = makers[::2], makers[1::2]
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                     # the copy: draw, send, leave without cleanup
+        code = 1
+        try:
+            os.close(read_end)
+            with os.fdopen(write_end, "wb") as out:
+                pickle.dump([_png(make()) for make in theirs], out)
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write_end)
+    drawn = None
+    try:
+        own = [_png(make()) for make in mine]
+        with os.fdopen(read_end, "rb") as got:
+            data = got.read()
+    finally:
+        _, status = os.waitpid(pid, 0)
+    if status == 0 and data:
+        drawn = pickle.loads(data)
+    if drawn is None or len(drawn) != len(theirs):
+        drawn = [_png(make()) for make in theirs]
+    out = [None] * len(makers)
+    out[::2], out[1::2] = drawn, own
+    return out
 
 
 def _table(rows, header) -> str:
@@ -320,7 +394,6 @@ def report_html(analysis, quality: dict | None = None) -> str:
     ``quality``: the record of :func:`horsemocap.quality.quality_record`,
     shown first.
     """
-    from . import plots
     from .results import analysis_record
 
     s, res = analysis.session, analysis.results
@@ -362,31 +435,12 @@ def report_html(analysis, quality: dict | None = None) -> str:
                   "<ul>" + "".join(f"<li>{html.escape(w)}</li>" for w in warn) + "</ul>"]
 
     parts.append("<h2>Figures</h2>")
-    if "detect" in res:
-        rig = res["rig"]["rig"]
-        parts.append(_figure(plots.plot_marker_tracks(res["detect"]["marker_px"], rig.cameras[0].size),
-                             "Detected marker centroids in each camera, in pixels (chapter 4)."))
-    if "triangulate" in res:
-        parts.append(_figure(plots.plot_reprojection_residuals(res["triangulate"]["residual_px"]),
-                             "Reprojection residuals of the triangulated markers, in pixels (section 5.1)."))
-    if "rigid_body" in res:
-        rb = res["rigid_body"]
-        t, pos = rb["t"], rb["registered"]
-        series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
-        series["saddle"] = rb["saddle_position"]
-        parts.append(_figure(plots.plot_axes_timeseries(t, series, "m", "Positions in the motion frame"),
-                             "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."))
-        parts.append(_figure(plots.plot_axes_timeseries(t, {"omega": rb["omega"]}, "rad/s", "Angular velocity"),
-                             "Angular velocity of the body, in rad/s (chapter 6)."))
-        parts.append(_figure(plots.plot_axes_timeseries(t, {"alpha": rb["alpha"]}, "rad/s²",
-                                                        "Angular acceleration"),
-                             "Angular acceleration of the body, in rad/s² (chapter 6)."))
-        parts.append(_figure(plots.plot_axes_timeseries(t, {"saddle": rb["saddle_acceleration"]}, "m/s²",
-                                                        "Saddle acceleration"),
-                             "Acceleration of the hidden saddle marker, in m/s² (section 6.4)."))
-        note = x_acceleration_note(analysis.params)
-        if note:
-            parts.append(f'<p class="note">{html.escape(note)}</p>')
+    figures = report_figures(analysis)
+    pngs = render_pngs([make for make, _ in figures])
+    parts += [_figure_html(png, caption) for png, (_, caption) in zip(pngs, figures)]
+    note = x_acceleration_note(analysis.params) if "rigid_body" in res else None
+    if note:
+        parts.append(f'<p class="note">{html.escape(note)}</p>')
     timing = [(PARAMETER_NAMES.get(k, k) if k in ("sync", "rig") else k.replace("_", " "), f"{v:.2f}")
               for k, v in analysis.timings.items()]
     parts += ["<h2>Steps</h2>", _table(timing, ["step", "seconds"])]

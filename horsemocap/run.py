@@ -118,6 +118,9 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
         if c.level in ("warning", "unreliable"):
             progress("quality", f"{c.level}: {c.message} [{c.input}]")
 
+    if report:   # matplotlib's import (0.3 s) here, beside the board detection's threads, not after the analysis
+        from . import report as _report_module  # noqa: F401
+
     folder = RunFolder(out)
     with folder as tmp:
         outcome = RunOutcome(Path(target), None)

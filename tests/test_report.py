@@ -150,3 +150,36 @@ def test_counting_frames_counts_each_frame_once_in_any_order():
     frames = CountingFrames(list("abcd"), seen.append)
     assert [frames[k] for k in (2, 3, 2, 1, 0)] == ["c", "d", "c", "b", "a"]
     assert seen == [1, 2, 3, 4] and len(frames) == 4
+
+
+def _line_figure(k):
+    import matplotlib.pyplot as plt
+
+    def make():
+        fig, ax = plt.subplots(figsize=(2, 1.5))
+        ax.plot([0, 1, 2], [0, k, 2 * k])
+        ax.set_title(f"figure {k}")
+        return fig
+    return make
+
+
+def test_render_pngs_gives_the_sequential_pngs_in_order():
+    makers = [_line_figure(k) for k in range(5)]
+    alone = [report._png(make()) for make in makers]
+    assert report.render_pngs(makers) == alone
+    assert len(set(alone)) == 5          # five different figures: the order is checked
+
+
+def test_render_pngs_draws_here_what_the_forked_copy_failed_to_draw():
+    import os
+
+    parent = os.getpid()
+
+    def fails_in_a_copy():
+        if os.getpid() != parent:
+            raise RuntimeError("only in the forked copy")
+        return _line_figure(7)()
+
+    makers = [fails_in_a_copy, _line_figure(1), fails_in_a_copy]
+    expected = [report._png(_line_figure(7)()), report._png(_line_figure(1)()), report._png(_line_figure(7)())]
+    assert report.render_pngs(makers) == expected
