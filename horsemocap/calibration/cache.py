@@ -64,14 +64,18 @@ def views_key(folder, inner_corners) -> str:
 
 
 def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str, exclude=None,
-                    mode: str = "joint") -> str:
-    """Key of a rig calibration: every view, the board, the cameras, the reference, the views left out and the code."""
+                    mode: str = "joint", view_keys: dict | None = None) -> str:
+    """Key of a rig calibration: every view, the board, the cameras, the reference, the views left out and the code.
+
+    ``view_keys``: each camera's :func:`views_key`, when the caller has them (else computed here).
+    """
     from .. import camera
 
+    view_keys = view_keys or {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
     h = hashlib.sha256()
     for cam in image_dirs:
         h.update(cam.encode())
-        h.update(views_key(image_dirs[cam], inner_corners).encode())
+        h.update(view_keys[cam].encode())
     h.update(json.dumps({"inner_corners": [int(x) for x in inner_corners], "square_m": float(square_m),
                          "reference": reference}, sort_keys=True).encode())
     if mode != "joint":                 # (no key change for the default joint calibration)
@@ -265,7 +269,8 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     from .rig import board_view_counter, calibrate_rig
 
     say = (lambda msg: progress("rig", msg)) if progress else (lambda msg: None)
-    key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode)
+    vkeys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}   # (hashes every view)
+    key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode, vkeys)
     folders = [f for f in ([write_to] + list(read_from)) if f is not None]
     found = [] if recalibrate else [(f, d) for f, d in ((f, _read(f)) for f in folders) if d is not None]
     for folder, d in found:
@@ -281,10 +286,9 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         return rig, "calibrated from checkerboard views (cached in calibration.json)"
     found = [d for _, d in found]
     views, reused = {}, []
-    for cam, folder in image_dirs.items():
-        vkey = views_key(folder, inner_corners)
+    for cam in image_dirs:
         hit = next((d["views"][cam] for d in found
-                    if isinstance(d.get("views"), dict) and d["views"].get(cam, {}).get("key") == vkey), None)
+                    if isinstance(d.get("views"), dict) and d["views"].get(cam, {}).get("key") == vkeys[cam]), None)
         try:
             views[cam] = _views_from_json(cam, hit) if hit is not None else None
         except (KeyError, TypeError, ValueError):
@@ -294,7 +298,7 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     if detected is not None:
         early = [cam for cam in image_dirs if views[cam] is None]
         for cam in early:
-            views[cam] = detected.views(cam, views_key(image_dirs[cam], inner_corners), progress)
+            views[cam] = detected.views(cam, vkeys[cam], progress)
         early = [cam for cam in early if views[cam] is not None]
         if early:
             say(f"board corners of camera(s) {', '.join(early)} detected while the analysis started")
@@ -313,7 +317,6 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
                   "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},
                   "rig": _rig_to_json(cal.rig),
-                  "views": {cam: _views_to_json(views[cam], views_key(image_dirs[cam], inner_corners))
-                            for cam in image_dirs}}
+                  "views": {cam: _views_to_json(views[cam], vkeys[cam]) for cam in image_dirs}}
         _write(Path(write_to), record)
     return cal.rig, f"calibrated from checkerboard views ({mode})"
