@@ -83,8 +83,17 @@ def test_long_session_passes_and_empty_frames():
     assert abs(float(a.mean()) - 100) < 1.5 and 2.0 < float(a.astype(float).std()) < 6.0
 
 
-def test_frame_sequence_reads_ahead_the_same_frames(tmp_path):
-    from horsemocap.sources import FrameSource
+def test_frame_sequence_reads_ahead_the_same_frames(tmp_path, monkeypatch):
+    from horsemocap.sources import FrameSequence, FrameSource
+
+    blocks = []
+    decode_block = FrameSequence._decode_block
+
+    def counted(self, cap, first, count):
+        blocks.append((first, count))
+        return decode_block(self, cap, first, count)
+
+    monkeypatch.setattr(FrameSequence, "_decode_block", counted)
 
     w = cv2.VideoWriter(str(tmp_path / "v.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 30, (40, 30))
     for k in range(60):
@@ -100,11 +109,15 @@ def test_frame_sequence_reads_ahead_the_same_frames(tmp_path):
         np.testing.assert_array_equal(seq[k], arr[k])
     assert seq._pool is not None and len(seq._cache) <= 12 + 8    # read ahead, bounded
     seq.close()
+    # backwards, from a video no reader decoded yet (the gray frames read above are shared, not decoded again)
+    (tmp_path / "v.avi").rename(tmp_path / "w.avi")
+    src = FrameSource(tmp_path / "w.avi")
     seq = src.sequence(3, 60, color=False, cache_frames=12)
     for k in list(range(56, -1, -1)) + list(range(20, 30)) + list(range(25, 5, -1)):   # backwards, read behind
         np.testing.assert_array_equal(seq[k], arr[k])
         assert len(seq._cache) <= 12
     seq.close()
+    assert len(blocks) >= 3 and all(count == 6 or first == 0 for first, count in blocks)   # read behind, by half caches
 
 
 def test_frames_decoded_once_are_shared_by_the_readers_of_a_video(tmp_path, monkeypatch):

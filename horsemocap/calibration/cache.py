@@ -224,12 +224,14 @@ class BoardDetectionJob:
 def views_cached(image_dirs: dict, inner_corners, folders) -> bool:
     """Whether ``calibration.json`` in one of ``folders`` holds every camera's corners for these views."""
     found = [d for d in (_read(f) for f in folders if f is not None) if d is not None]
-    for cam, folder in image_dirs.items():
-        key = views_key(folder, inner_corners)
-        if not any(isinstance(d.get("views"), dict) and isinstance(d["views"].get(cam), dict)
-                   and d["views"][cam].get("key") == key for d in found):
-            return False
-    return True
+    return all(_cached_views(found, cam, views_key(folder, inner_corners)) is not None
+               for cam, folder in image_dirs.items())
+
+
+def _cached_views(records: list, cam: str, key: str) -> dict | None:
+    """The first of the ``calibration.json`` records holding ``cam``'s views under ``key`` (its JSON), else None."""
+    return next((d["views"][cam] for d in records if isinstance(d.get("views"), dict)
+                 and isinstance(d["views"].get(cam), dict) and d["views"][cam].get("key") == key), None)
 
 
 def cached_calibration(image_dirs: dict, inner_corners, square_m: float, reference: str, *,
@@ -287,8 +289,7 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     found = [d for _, d in found]
     views, reused = {}, []
     for cam in image_dirs:
-        hit = next((d["views"][cam] for d in found
-                    if isinstance(d.get("views"), dict) and d["views"].get(cam, {}).get("key") == vkeys[cam]), None)
+        hit = _cached_views(found, cam, vkeys[cam])
         try:
             views[cam] = _views_from_json(cam, hit) if hit is not None else None
         except (KeyError, TypeError, ValueError):
