@@ -41,7 +41,7 @@ import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from .base import DetectionError, DetectionParams, Regions
-from .filters import _region_patches, find_candidates, light_terms, region_circularity, weighted_centroids
+from .filters import find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
 from .thresholds import auto_threshold, bright_crops, connected_components, region_order_key
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -184,7 +184,7 @@ def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_coun
     else:
         u0, v0 = regions.origin
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
-        patches = list(_region_patches(sub, regions, keep, 2)) if light else None   # made once for both
+        patches = region_weights(sub, regions, keep, 2) if light else None   # made once for both
         centre = weighted_centroids(sub, regions, keep, symmetric_border=True, patches=patches)
         if light:
             slope, moments = light_terms(sub, regions, keep, patches=patches)
