@@ -18,8 +18,8 @@
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 from functools import lru_cache
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -65,12 +65,13 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
         b = (b > 0).astype(np.uint8)
     n, labels, stats, cents = connected_components(b, connectivity)
     u0, v0 = int(origin[0]), int(origin[1])
-    bbox = stats[1:, :4].astype(np.int64)
-    bbox[:, 0] += u0
-    bbox[:, 1] += v0
     size = tuple(image_size) if image_size is not None else (b.shape[1] + u0, b.shape[0] + v0)
+    if u0 == 0 and v0 == 0:
+        bbox, centroid = stats[1:, :4].astype(np.int64), cents[1:]
+    else:
+        bbox, centroid = stats[1:, :4] + np.array([u0, v0, 0, 0]), cents[1:] + np.array([u0, v0], float)
     return Regions(labels=labels, ids=np.arange(1, n), area=stats[1:, 4].astype(np.int64), bbox=bbox,
-                   centroid=cents[1:] + np.array([u0, v0], float), origin=(u0, v0), image_size=size)
+                   centroid=centroid, origin=(u0, v0), image_size=size)
 
 
 def region_circularity(regions: Regions, by_moments: bool | None = None) -> np.ndarray:
@@ -103,18 +104,45 @@ def region_circularity(regions: Regions, by_moments: bool | None = None) -> np.n
             var = (m["mu20"] + m["mu02"]) / a + 1.0 / 6.0
             out[i] = a / (2 * np.pi * var)
         return out
-    v, u = np.nonzero(lab)
-    ll = lab[v, u]
-    if by_moments is False:                 # forced: full-image coordinates, the whole image's very sums
-        u, v = u + u0, v + v0
-    n = int(lab.max()) + 1
-    a = np.bincount(ll, minlength=n).astype(float)
-    su, sv = np.bincount(ll, u, n), np.bincount(ll, v, n)
-    suu, svv = np.bincount(ll, u.astype(float) ** 2, n), np.bincount(ll, v.astype(float) ** 2, n)
+    # sums of pixel indices (integers: exact, so the same numbers however they are summed), in
+    # full-image pixels when forced, else in the labelled area's
+    ou, ov = (0, 0) if by_moments is False else (u0, v0)
+    if C <= SUMS_BY_REGION:             # each region's box: its raw moments, shifted exactly
+        a, su, sv, suu, svv = _region_sums(regions, ou, ov)
+    else:                               # one pass over the labelled area
+        v, u = np.nonzero(lab)
+        ll = lab[v, u]
+        u, v = u + (u0 - ou), v + (v0 - ov)
+        n = int(lab.max()) + 1
+        ids = regions.ids
+        a = np.bincount(ll, minlength=n).astype(float)[ids]
+        su, sv = np.bincount(ll, u, n)[ids], np.bincount(ll, v, n)[ids]
+        suu, svv = np.bincount(ll, u.astype(float) ** 2, n)[ids], np.bincount(ll, v.astype(float) ** 2, n)[ids]
     with np.errstate(invalid="ignore", divide="ignore"):
         var = (suu - su ** 2 / a + svv - sv ** 2 / a) / a + 1.0 / 6.0
-        c = a / (2 * np.pi * var)
-    return c[regions.ids]
+        return a / (2 * np.pi * var)
+
+
+#: Up to this many regions :func:`region_circularity`'s sums are taken region by region (their boxes), more
+#: in one pass over the labelled area.
+SUMS_BY_REGION = 64
+
+
+def _region_sums(regions: Regions, ou: int, ov: int):
+    """Area and the sums of ``u``, ``v``, ``u^2``, ``v^2`` over each region's pixels (``u = x - ou``, ...).
+
+    ``x, y`` full-image pixels. ``cv2.moments`` of the region's box (integer
+    raw moments, exact), moved to the origin ``(ou, ov)`` in Python integers.
+    """
+    lab = regions.labels
+    u0, v0 = regions.origin
+    rows = []
+    for rid, (x, y, w, h) in zip(regions.ids.tolist(), regions.bbox.tolist()):
+        m = cv2.moments((lab[y - v0:y - v0 + h, x - u0:x - u0 + w] == rid).view(np.uint8), binaryImage=True)
+        a, m10, m01, m20, m02 = (int(m[k]) for k in ("m00", "m10", "m01", "m20", "m02"))
+        du, dv = x - ou, y - ov
+        rows.append((a, m10 + du * a, m01 + dv * a, m20 + 2 * du * m10 + du * du * a, m02 + 2 * dv * m01 + dv * dv * a))
+    return tuple(np.array(c, float) for c in zip(*rows))
 
 
 def filter_area(area, area_min: float, area_max: float) -> np.ndarray:
@@ -156,7 +184,13 @@ def filter_window(centroid, center, window) -> np.ndarray:
 def marker_distances(marker_px: np.ndarray) -> np.ndarray:
     """All distances ``DM_ij`` between marker centres, eq. (4.6), as an (M, M) matrix."""
     p = np.asarray(marker_px, float)
-    return np.linalg.norm(p[:, None, :] - p[None, :, :], axis=-1)
+    d = p[:, None, :] - p[None, :, :]
+    return _norm(d)
+
+
+def _norm(d: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(d, axis=-1)`` of a real array: the same numbers, without its Python overhead."""
+    return np.sqrt(np.add.reduce(d * d, axis=-1))
 
 
 @lru_cache(maxsize=64)
@@ -210,7 +244,7 @@ def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndar
     r1 = p[1:-1] - p[:-2]
     r2 = p[2:] - p[1:-1]
     z = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
-    norm = np.linalg.norm(r1, axis=1) * np.linalg.norm(r2, axis=1)
+    norm = _norm(r1) * _norm(r2)
     with np.errstate(invalid="ignore", divide="ignore"):
         s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0.0)
     return s.astype(int)
@@ -226,16 +260,16 @@ def filter_cross_product(centroid, choices, reference_signs, min_sine: float = 0
     """
     choices = np.asarray(choices, dtype=np.intp)
     ref = np.asarray(reference_signs)
-    if len(choices) == 0 or choices.shape[1] < 3 or not np.any(ref):
+    if len(choices) == 0 or choices.shape[1] < 3 or not ref.any():
         return choices
     c = np.asarray(centroid, float)
     p = c[choices]                                  # (K, M, 2)
     r1 = p[:, 1:-1] - p[:, :-2]
     r2 = p[:, 2:] - p[:, 1:-1]
     z = r1[..., 0] * r2[..., 1] - r1[..., 1] * r2[..., 0]
-    norm = np.linalg.norm(r1, axis=-1) * np.linalg.norm(r2, axis=-1)
-    s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0)
-    ok = ((s == ref[None]) | (ref[None] == 0) | (s == 0)).all(axis=1)
+    s = np.sign(z)
+    s[np.abs(z) < min_sine * (_norm(r1) * _norm(r2))] = 0
+    ok = ((s == ref) | (ref == 0) | (s == 0)).all(axis=1)
     return choices[ok]
 
 
@@ -251,8 +285,7 @@ def _square(size: int) -> np.ndarray:
     return np.ones((size, size), np.uint8)
 
 
-@dataclass(frozen=True)
-class RegionWeight:
+class RegionWeight(NamedTuple):
     """The weights of one region (:func:`region_weights`), in a patch around it.
 
     Attributes
@@ -330,7 +363,7 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
             b = float(sub8[own_b].min()) - 1
         above = sub8 - b                                # float64
         wgt = np.maximum(above, 0.0)
-        wgt[~near] = 0.0
+        wgt *= near
         cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
         out.append(RegionWeight(k, i, wgt, above, own, x0, y0, cut, cv2.moments(wgt)))
     return out
@@ -466,9 +499,14 @@ def _plane(mi: dict, mz: dict, cu: float, cv: float):
     exx = sxx - 2 * cu * sx + n * cu * cu
     eyy = syy - 2 * cv * sy + n * cv * cv
     exy = sxy - cu * sy - cv * sx + n * cu * cv
-    z, zx, zy = mz["m00"], mz["m10"], mz["m01"]
-    A = np.array([[n, ex, ey], [ex, exx, exy], [ey, exy, eyy]])
-    return np.linalg.solve(A, np.array([z, zx - cu * z, zy - cv * z]))
+    z = mz["m00"]
+    bz, bx, by = z, mz["m10"] - cu * z, mz["m01"] - cv * z
+    # Cramer's rule on the symmetric 3 x 3 system (cofactors), in Python floats
+    c00, c01, c02 = exx * eyy - exy * exy, ey * exy - ex * eyy, ex * exy - ey * exx
+    c11, c12, c22 = n * eyy - ey * ey, ex * ey - n * exy, n * exx - ex * ex
+    det = n * c00 + ex * c01 + ey * c02
+    return ((c00 * bz + c01 * bx + c02 * by) / det, (c01 * bz + c11 * bx + c12 * by) / det,
+            (c02 * bz + c12 * bx + c22 * by) / det)
 
 
 def _symmetric_in_image(wgt, cols, rows, centre, cut, size, iterations: int = 5):
@@ -567,11 +605,16 @@ def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, co
     bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
     regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
     ok = filter_area(regions.area, area_range[0], area_range[1])
-    if (u0 > 0 or v0 > 0 or u1 < W or v1 < H) and len(regions):
+    if len(regions):                  # regions cut by a crop edge that is not an image edge
         b = regions.bbox
-        cut = (((b[:, 0] <= u0) & (u0 > 0)) | ((b[:, 1] <= v0) & (v0 > 0))
-               | ((b[:, 0] + b[:, 2] >= u1) & (u1 < W)) | ((b[:, 1] + b[:, 3] >= v1) & (v1 < H)))
-        ok &= ~cut
+        if u0 > 0:
+            ok &= b[:, 0] > u0
+        if v0 > 0:
+            ok &= b[:, 1] > v0
+        if u1 < W:
+            ok &= b[:, 0] + b[:, 2] < u1
+        if v1 < H:
+            ok &= b[:, 1] + b[:, 3] < v1
     keep = np.flatnonzero(ok)
     if min_circularity is not None and len(keep):
         circ = region_circularity(regions.subset(keep))
