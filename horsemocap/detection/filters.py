@@ -226,12 +226,16 @@ def filter_distance(centroid, reference_distances, tolerance: float) -> np.ndarr
         return np.zeros((0, m), dtype=np.intp)
     perms = _permutations(len(c), m)
     dc = marker_distances(c)
-    ok = np.ones(len(perms), bool)
-    for i in range(m):
-        for j in range(i + 1, m):
-            d = dc[perms[:, i], perms[:, j]]
-            ok &= np.abs(d - dm[i, j]) <= tolerance * dm[i, j]
+    i, j = _pairs(m)
+    ref = dm[i, j]
+    ok = (np.abs(dc[perms[:, i], perms[:, j]] - ref) <= tolerance * ref).all(axis=1)   # every pair at once
     return perms[ok]
+
+
+@lru_cache(maxsize=16)
+def _pairs(m: int):
+    """The pairs ``i < j`` of ``m`` markers, as two index arrays."""
+    return np.triu_indices(m, 1)
 
 
 def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndarray:
