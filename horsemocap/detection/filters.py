@@ -295,8 +295,9 @@ class RegionWeight(NamedTuple):
     Attributes
     ----------
     k, i : position in the regions asked for, index in their :class:`Regions`
-    weight : (p, q) ``max(I - b, 0)`` on the region grown by ``margin`` (other regions left out), else 0
-    above : (p, q) ``I - b``, the gray level above the region's background ``b``
+    weight : (p, q) float32, ``max(I - b, 0)`` on the region grown by ``margin`` (other regions left out),
+        else 0 (multiples of 1/2 below 256: exact in float32)
+    above : (p, q) float32, ``I - b``, the gray level above the region's background ``b``
     own : (p, q) uint8, 1 on the region's own pixels
     x0, y0 : the patch's corner in the labelled area's pixels
     cut : (left, right, top, bottom) image edges the region touches
@@ -365,8 +366,8 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
             b = float(vals[n // 2]) if n % 2 else (float(vals[n // 2 - 1]) + float(vals[n // 2])) / 2
         else:
             b = float(sub8[own_b].min()) - 1
-        above = sub8 - b                                # float64
-        wgt = np.maximum(above, 0.0)
+        above = np.subtract(sub8, b, dtype=np.float32)   # halves within +-256: exact in float32
+        wgt = np.maximum(above, np.float32(0))
         wgt *= near
         cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
         out.append(RegionWeight(k, i, wgt, above, own, x0, y0, cut, cv2.moments(wgt)))

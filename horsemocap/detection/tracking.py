@@ -20,9 +20,9 @@ import numpy as np
 
 from .base import DetectionError, DetectionParams, MarkerTrack
 from .filters import (_candidates_in, _clip_crop, _norm, cross_product_signs, filter_area, filter_cross_product,
-                      filter_distance, filter_window, find_candidates, label_regions, marker_distances,
+                      filter_distance, filter_window, find_candidates, marker_distances,
                       region_circularity, weighted_centroids, window_center)
-from .thresholds import auto_threshold, binarize
+from .thresholds import auto_threshold
 
 __all__ = [
     "CandidateCache",
@@ -645,7 +645,7 @@ def detect_markers(frames, n_markers: int, params: DetectionParams | None = None
         f0 = int(p.first_frame)
         if not 0 <= f0 < n:
             raise ValueError(f"DetectionParams.first_frame: {f0} outside 0..{n - 1}")
-        regions = label_regions(binarize(gc[f0], p.threshold))
+        regions = _candidates_in(gc[f0], (0, 0), (W, H), p.threshold, (0, np.inf), None)[0]   # every region
         missing = [lab for lab in p.labels if lab not in set(regions.ids.tolist())]
         if missing:
             raise DetectionError(f"frame {f0}: labels {missing} do not exist at threshold {p.threshold} "
