@@ -25,6 +25,8 @@ before and after:
   ``frame_candidates`` and ``_whole_frame_search`` it made, replayed: the
   equal-work ratio) and whole (3D matching, the rigid model and the
   tracking included: its time per frame, and the 2D floor over it).
+  ``--compare-with CHECKOUT`` times that checkout's detectors (thesis chain,
+  2D stage replayed) in the same rounds, against the same floor.
 * **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
   + labelling`` of every whole frame the detector was given (what a
   detector without the thesis' sliding window must do).
