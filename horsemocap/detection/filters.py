@@ -248,9 +248,8 @@ def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndar
     r1 = p[1:-1] - p[:-2]
     r2 = p[2:] - p[1:-1]
     z = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
-    norm = _norm(r1) * _norm(r2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0.0)
+    s = np.sign(z)
+    s[~(np.abs(z) >= min_sine * (_norm(r1) * _norm(r2)))] = 0      # (NaN: 0)
     return s.astype(int)
 
 
