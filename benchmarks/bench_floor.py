@@ -25,6 +25,8 @@ before and after:
   ``frame_candidates`` and ``_whole_frame_search`` it made, replayed: the
   equal-work ratio) and whole (3D matching, the rigid model and the
   tracking included: its time per frame, and the 2D floor over it).
+  ``--compare-with CHECKOUT`` times that checkout's detectors (thesis chain,
+  2D stage replayed) in the same rounds, against the same floor.
 * **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
   + labelling`` of every whole frame the detector was given (what a
   detector without the thesis' sliding window must do).
@@ -170,9 +172,11 @@ class Recorder:
                     label(b[v0:v1, u0:u1])
         return run
 
-    def replay(self):
-        """A function making the recorded calls of identification's 2D stage again."""
-        from horsemocap.detection import identification
+    def replay(self, identification=None):
+        """A function making the recorded calls of identification's 2D stage again (of ``identification``:
+        another checkout's module, default this one's)."""
+        if identification is None:
+            from horsemocap.detection import identification
 
         calls = [(getattr(identification, name), a, k) for name, a, k in self.calls]
 
@@ -224,7 +228,7 @@ def prepare(folder, rig=None):
     return s, a.results
 
 
-def bench_detection(name, s, res, n_frames, repeat, out):
+def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
     from horsemocap.detection import DetectionParams, detect_markers, identify_markers
     from horsemocap.sources import FrameSource
 
@@ -262,7 +266,13 @@ def bench_detection(name, s, res, n_frames, repeat, out):
     with rec_i:
         ident()
 
-    t = rounds({"thesis": thesis, "thesis_floor_crops": rec_t.floor(rgb[cams[0]][0]),
+    fns = {}
+    if compare_with:            # the same work by another checkout's detectors, in the same rounds
+        other = _other_detection(compare_with)
+        given_o = {c: other.DetectionParams.from_dict(given[c].to_dict()) for c in cams}
+        fns["thesis_compared"] = lambda: [other.detect_markers(rgb[c], s.marker_count, given_o[c]) for c in cams]
+        fns["ident_2d_compared"] = rec_i.replay(other.identification)
+    t = rounds({**fns, "thesis": thesis, "thesis_floor_crops": rec_t.floor(rgb[cams[0]][0]),
                 "thesis_floor_crops_default_cc": rec_t.floor(rgb[cams[0]][0], default_cc=True),
                 "ident": ident, "ident_2d": rec_i.replay(), "ident_floor_crops": rec_i.floor(rgb[cams[0]][0]),
                 "ident_floor_crops_default_cc": rec_i.floor(rgb[cams[0]][0], default_cc=True),
@@ -287,6 +297,12 @@ def bench_detection(name, s, res, n_frames, repeat, out):
         "bare_whole_ms_per_frame": 1e3 * t["floor_whole_thesis"] / per,
         "seconds": t,
     }
+    if compare_with:
+        rows["compared"] = {"code": str(compare_with),
+                            "thesis_ms_per_frame": 1e3 * t["thesis_compared"] / per,
+                            "thesis_equal_work_ratio": t["thesis_floor_crops"] / t["thesis_compared"],
+                            "ident_2d_ms_per_frame": 1e3 * t["ident_2d_compared"] / per,
+                            "ident_2d_equal_work_ratio": t["ident_floor_crops"] / t["ident_2d_compared"]}
     print(f"detection, {name} ({W}x{H}, {len(cams)} cameras x {k1 - k0} frames; bare OpenCV whole frame "
           f"{rows['bare_whole_ms_per_frame']:.2f} ms/frame):")
     print(f"  thesis chain         {rows['thesis_ms_per_frame']:7.2f} ms/frame  equal work "
@@ -298,6 +314,11 @@ def bench_detection(name, s, res, n_frames, repeat, out):
           f"{rows['ident_2d_equal_work_ratio_default_cc']:.2f})   ({rec_i.summary()})")
     print(f"  identification, all  {rows['ident_ms_per_frame']:7.2f} ms/frame  equal work (2D floor / all) "
           f"{rows['ident_equal_work_ratio']:.2f}  whole frame {rows['ident_whole_frame_ratio']:.2f}", flush=True)
+    if compare_with:
+        cmp = rows["compared"]
+        print(f"  the code of {compare_with}: thesis chain {cmp['thesis_ms_per_frame']:.2f} ms/frame, equal work "
+              f"{cmp['thesis_equal_work_ratio']:.2f}; identification, 2D {cmp['ident_2d_ms_per_frame']:.2f} ms/frame, "
+              f"equal work {cmp['ident_2d_equal_work_ratio']:.2f}", flush=True)
     out.setdefault("detection", []).append(rows)
     del rgb, gray
 
@@ -398,6 +419,22 @@ def _other_triangulate(checkout):
     sys.modules[spec.name] = mod
     spec.loader.exec_module(mod)
     return mod.triangulate
+
+
+def _other_detection(checkout):
+    """``horsemocap.detection`` of another checkout (e.g. the code before a change), as its own package."""
+    import importlib
+    import importlib.util
+    import sys
+
+    name = "horsemocap_compared"
+    if name not in sys.modules:
+        root = Path(checkout) / "horsemocap"
+        spec = importlib.util.spec_from_file_location(name, root / "__init__.py", submodule_search_locations=[str(root)])
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+    return importlib.import_module(name + ".detection")
 
 
 def bench_triangulation(name, s, res, n_points, repeat, out, compare_with=None):
@@ -517,7 +554,8 @@ def main(argv=None):
     ap.add_argument("--skip", nargs="*", default=[], choices=["hard", "analyze", "calibration"])
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "floor.json"))
     ap.add_argument("--compare-with", default=None,
-                    help="another checkout of horsemocap whose joint triangulation is timed in the same rounds")
+                    help="another checkout of horsemocap whose joint triangulation and detectors are timed in the "
+                         "same rounds")
     args = ap.parse_args(argv)
     cv2.setNumThreads(1)
     from horsemocap.data import default_session_dir
@@ -533,14 +571,14 @@ def main(argv=None):
     cal_row, rig = bench_calibration(sb, args.repeat, out) if "calibration" not in args.skip else (None, None)
     s, res = prepare(bundled, rig)
     dec_b = bench_decode("bundled", s, args.repeat, out)
-    bench_detection("bundled", s, res, args.frames, args.repeat, out)
+    bench_detection("bundled", s, res, args.frames, args.repeat, out, args.compare_with)
     bench_whole_frame("bundled", s, res, args.repeat, out)
     bench_triangulation("bundled", s, res, args.points, args.repeat, out, args.compare_with)
     if "hard" not in args.skip:
         from horsemocap.virtuallab.hard import hard_session
         hs, hres = prepare(hard_session(HARD_1080))
         bench_decode(HARD_1080, hs, args.repeat, out)
-        bench_detection(HARD_1080, hs, hres, args.frames, args.repeat, out)
+        bench_detection(HARD_1080, hs, hres, args.frames, args.repeat, out, args.compare_with)
         bench_whole_frame(HARD_1080, hs, hres, args.repeat, out)
         bench_triangulation(HARD_1080, hs, hres, args.points, args.repeat, out, args.compare_with)
     if "analyze" not in args.skip and cal_row is not None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import itertools
 from functools import lru_cache
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -37,6 +38,8 @@ __all__ = [
     "filter_distance",
     "cross_product_signs",
     "filter_cross_product",
+    "RegionWeight",
+    "region_weights",
     "weighted_centroids",
     "light_terms",
     "find_candidates",
@@ -62,12 +65,13 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
         b = (b > 0).astype(np.uint8)
     n, labels, stats, cents = connected_components(b, connectivity)
     u0, v0 = int(origin[0]), int(origin[1])
-    bbox = stats[1:, :4].astype(np.int64)
-    bbox[:, 0] += u0
-    bbox[:, 1] += v0
     size = tuple(image_size) if image_size is not None else (b.shape[1] + u0, b.shape[0] + v0)
+    if u0 == 0 and v0 == 0:
+        bbox, centroid = stats[1:, :4].astype(np.int64), cents[1:]
+    else:
+        bbox, centroid = stats[1:, :4] + np.array([u0, v0, 0, 0]), cents[1:] + np.array([u0, v0], float)
     return Regions(labels=labels, ids=np.arange(1, n), area=stats[1:, 4].astype(np.int64), bbox=bbox,
-                   centroid=cents[1:] + np.array([u0, v0], float), origin=(u0, v0), image_size=size)
+                   centroid=centroid, origin=(u0, v0), image_size=size)
 
 
 def region_circularity(regions: Regions, by_moments: bool | None = None) -> np.ndarray:
@@ -100,18 +104,45 @@ def region_circularity(regions: Regions, by_moments: bool | None = None) -> np.n
             var = (m["mu20"] + m["mu02"]) / a + 1.0 / 6.0
             out[i] = a / (2 * np.pi * var)
         return out
-    v, u = np.nonzero(lab)
-    ll = lab[v, u]
-    if by_moments is False:                 # forced: full-image coordinates, the whole image's very sums
-        u, v = u + u0, v + v0
-    n = int(lab.max()) + 1
-    a = np.bincount(ll, minlength=n).astype(float)
-    su, sv = np.bincount(ll, u, n), np.bincount(ll, v, n)
-    suu, svv = np.bincount(ll, u.astype(float) ** 2, n), np.bincount(ll, v.astype(float) ** 2, n)
+    # sums of pixel indices (integers: exact, so the same numbers however they are summed), in
+    # full-image pixels when forced, else in the labelled area's
+    ou, ov = (0, 0) if by_moments is False else (u0, v0)
+    if C <= SUMS_BY_REGION:             # each region's box: its raw moments, shifted exactly
+        a, su, sv, suu, svv = _region_sums(regions, ou, ov)
+    else:                               # one pass over the labelled area
+        v, u = np.nonzero(lab)
+        ll = lab[v, u]
+        u, v = u + (u0 - ou), v + (v0 - ov)
+        n = int(lab.max()) + 1
+        ids = regions.ids
+        a = np.bincount(ll, minlength=n).astype(float)[ids]
+        su, sv = np.bincount(ll, u, n)[ids], np.bincount(ll, v, n)[ids]
+        suu, svv = np.bincount(ll, u.astype(float) ** 2, n)[ids], np.bincount(ll, v.astype(float) ** 2, n)[ids]
     with np.errstate(invalid="ignore", divide="ignore"):
         var = (suu - su ** 2 / a + svv - sv ** 2 / a) / a + 1.0 / 6.0
-        c = a / (2 * np.pi * var)
-    return c[regions.ids]
+        return a / (2 * np.pi * var)
+
+
+#: Up to this many regions :func:`region_circularity`'s sums are taken region by region (their boxes), more
+#: in one pass over the labelled area.
+SUMS_BY_REGION = 64
+
+
+def _region_sums(regions: Regions, ou: int, ov: int):
+    """Area and the sums of ``u``, ``v``, ``u^2``, ``v^2`` over each region's pixels (``u = x - ou``, ...).
+
+    ``x, y`` full-image pixels. ``cv2.moments`` of the region's box (integer
+    raw moments, exact), moved to the origin ``(ou, ov)`` in Python integers.
+    """
+    lab = regions.labels
+    u0, v0 = regions.origin
+    rows = []
+    for rid, (x, y, w, h) in zip(regions.ids.tolist(), regions.bbox.tolist()):
+        m = cv2.moments((lab[y - v0:y - v0 + h, x - u0:x - u0 + w] == rid).view(np.uint8), binaryImage=True)
+        a, m10, m01, m20, m02 = (int(m[k]) for k in ("m00", "m10", "m01", "m20", "m02"))
+        du, dv = x - ou, y - ov
+        rows.append((a, m10 + du * a, m01 + dv * a, m20 + 2 * du * m10 + du * du * a, m02 + 2 * dv * m01 + dv * dv * a))
+    return tuple(np.array(c, float) for c in zip(*rows))
 
 
 def filter_area(area, area_min: float, area_max: float) -> np.ndarray:
@@ -153,7 +184,13 @@ def filter_window(centroid, center, window) -> np.ndarray:
 def marker_distances(marker_px: np.ndarray) -> np.ndarray:
     """All distances ``DM_ij`` between marker centres, eq. (4.6), as an (M, M) matrix."""
     p = np.asarray(marker_px, float)
-    return np.linalg.norm(p[:, None, :] - p[None, :, :], axis=-1)
+    d = p[:, None, :] - p[None, :, :]
+    return _norm(d)
+
+
+def _norm(d: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(d, axis=-1)`` of a real array: the same numbers, without its Python overhead."""
+    return np.sqrt(np.add.reduce(d * d, axis=-1))
 
 
 @lru_cache(maxsize=64)
@@ -189,12 +226,16 @@ def filter_distance(centroid, reference_distances, tolerance: float) -> np.ndarr
         return np.zeros((0, m), dtype=np.intp)
     perms = _permutations(len(c), m)
     dc = marker_distances(c)
-    ok = np.ones(len(perms), bool)
-    for i in range(m):
-        for j in range(i + 1, m):
-            d = dc[perms[:, i], perms[:, j]]
-            ok &= np.abs(d - dm[i, j]) <= tolerance * dm[i, j]
+    i, j = _pairs(m)
+    ref = dm[i, j]
+    ok = (np.abs(dc[perms[:, i], perms[:, j]] - ref) <= tolerance * ref).all(axis=1)   # every pair at once
     return perms[ok]
+
+
+@lru_cache(maxsize=16)
+def _pairs(m: int):
+    """The pairs ``i < j`` of ``m`` markers, as two index arrays."""
+    return np.triu_indices(m, 1)
 
 
 def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndarray:
@@ -207,9 +248,8 @@ def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndar
     r1 = p[1:-1] - p[:-2]
     r2 = p[2:] - p[1:-1]
     z = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
-    norm = np.linalg.norm(r1, axis=1) * np.linalg.norm(r2, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0.0)
+    s = np.sign(z)
+    s[~(np.abs(z) >= min_sine * (_norm(r1) * _norm(r2)))] = 0      # (NaN: 0)
     return s.astype(int)
 
 
@@ -223,16 +263,16 @@ def filter_cross_product(centroid, choices, reference_signs, min_sine: float = 0
     """
     choices = np.asarray(choices, dtype=np.intp)
     ref = np.asarray(reference_signs)
-    if len(choices) == 0 or choices.shape[1] < 3 or not np.any(ref):
+    if len(choices) == 0 or choices.shape[1] < 3 or not ref.any():
         return choices
     c = np.asarray(centroid, float)
     p = c[choices]                                  # (K, M, 2)
     r1 = p[:, 1:-1] - p[:, :-2]
     r2 = p[:, 2:] - p[:, 1:-1]
     z = r1[..., 0] * r2[..., 1] - r1[..., 1] * r2[..., 0]
-    norm = np.linalg.norm(r1, axis=-1) * np.linalg.norm(r2, axis=-1)
-    s = np.where(np.abs(z) >= min_sine * norm, np.sign(z), 0)
-    ok = ((s == ref[None]) | (ref[None] == 0) | (s == 0)).all(axis=1)
+    s = np.sign(z)
+    s[np.abs(z) < min_sine * (_norm(r1) * _norm(r2))] = 0
+    ok = ((s == ref) | (ref == 0) | (s == 0)).all(axis=1)
     return choices[ok]
 
 
@@ -242,51 +282,99 @@ def filter_cross_product(centroid, choices, reference_signs, min_sine: float = 0
 _K3 = np.ones((3, 3), np.uint8)
 
 
-def _median(v: np.ndarray) -> float:
-    """``np.median`` of a small 1-D array, the same number without its Python overhead."""
-    v = np.sort(v)
-    n = len(v)
-    return float(v[n // 2]) if n % 2 else float((v[n // 2 - 1] + v[n // 2]) / 2)
+@lru_cache(maxsize=16)
+def _square(size: int) -> np.ndarray:
+    """A ``size`` x ``size`` square kernel: one dilation by it = ``(size - 1) / 2`` dilations by 3 x 3."""
+    return np.ones((size, size), np.uint8)
 
 
-def _region_patches(gray: np.ndarray, regions: Regions, idx, margin: int):
-    """Per region: ``(k, i, sub, own, wgt, x0, y0, cut)``, the weights of :func:`weighted_centroids`.
+class RegionWeight(NamedTuple):
+    """The weights of one region (:func:`region_weights`), in a patch around it.
 
-    ``sub`` the gray patch (float), ``own`` the region's pixels in it,
-    ``wgt = max(I - b, 0)`` on the region grown by ``margin`` (other regions
-    left out), ``(x0, y0)`` the patch's offset in the labelled area and
-    ``cut`` the (left, right, top, bottom) image edges the region touches.
+    Attributes
+    ----------
+    k, i : position in the regions asked for, index in their :class:`Regions`
+    weight : (p, q) float32, ``max(I - b, 0)`` on the region grown by ``margin`` (other regions left out),
+        else 0 (multiples of 1/2 below 256: exact in float32)
+    above : (p, q) float32, ``I - b``, the gray level above the region's background ``b``
+    own : (p, q) uint8, 1 on the region's own pixels
+    x0, y0 : the patch's corner in the labelled area's pixels
+    cut : (left, right, top, bottom) image edges the region touches
+    moments : ``cv2.moments(weight)``; its sums (weights times pixel indices) are exact:
+        the weights are multiples of 1/2
     """
+
+    k: int
+    i: int
+    weight: np.ndarray
+    above: np.ndarray
+    own: np.ndarray
+    x0: int
+    y0: int
+    cut: tuple
+    moments: dict
+
+
+def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int = 2) -> list:
+    """The weights of :func:`weighted_centroids` (and :func:`light_terms`) of the regions ``index``.
+
+    For each region its mask is grown by ``margin`` pixels (``near``) and by
+    ``margin + 2`` (``far``: one dilation by a square each, as ``margin`` and
+    ``margin + 2`` dilations by 3 x 3); the pixels of other regions, grown by
+    one, are left out (looked for only when the patch holds more labelled
+    pixels than the region's area); the background ``b`` is the median of
+    the ring ``far \\ near`` (the region's darkest pixel - 1 when the ring is
+    empty) and the weight ``max(I - b, 0)`` on ``near``. The sums of
+    :func:`weighted_centroids` by ``cv2.moments`` (one call per region).
+
+    Returns
+    -------
+    list of :class:`RegionWeight`
+    """
+    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     lab = regions.labels
     h, w = lab.shape
     u0, v0 = regions.origin
     W, H = regions.image_size
-    g = 2 * margin + 2
-    ids, boxes = regions.ids.tolist(), regions.bbox.tolist()      # Python ints: no NumPy scalar arithmetic
-    for k, i in enumerate(np.asarray(idx).tolist()):
-        rid = ids[i]
+    g = 2 * margin + 2                     # the ring reaches margin + 2 px from the region, other regions + 1
+    k_near, k_far = _square(2 * margin + 1), _square(2 * margin + 5)
+    ids, areas = regions.ids.tolist(), regions.area.tolist()
+    boxes = regions.bbox.tolist()
+    out = []
+    for k, i in enumerate(idx.tolist()):
         bx, by, bw, bh = boxes[i]
         bx, by = bx - u0, by - v0
         x0, y0 = max(bx - g, 0), max(by - g, 0)
         x1, y1 = min(bx + bw + g, w), min(by + bh + g, h)
         sl = lab[y0:y1, x0:x1]
-        own_b = sl == rid
-        other = (sl != 0) & ~own_b
-        near_u8 = cv2.dilate(own_b.view(np.uint8), _K3, iterations=margin)
-        far = cv2.dilate(near_u8, _K3, iterations=2).view(bool)     # = own grown by margin + 2
-        near = near_u8.view(bool)
-        if other.any():
-            other = cv2.dilate(other.view(np.uint8), _K3, iterations=1).view(bool)
-        sub = gray[y0:y1, x0:x1].astype(np.float64)
-        ring = far & ~near & ~other
-        b = _median(sub[ring]) if ring.any() else float(sub[own_b].min()) - 1
-        wgt = np.where(near & ~(other & ~own_b), np.maximum(sub - b, 0.0), 0.0)
+        own_b = sl == ids[i]
+        own = own_b.view(np.uint8)
+        near = cv2.dilate(own, k_near).view(bool)
+        far = cv2.dilate(own, k_far).view(bool)
+        sub8 = gray[y0:y1, x0:x1]
+        if np.count_nonzero(sl) > areas[i]:             # other regions in the patch: left out, grown by one
+            other = cv2.dilate(((sl != 0) & ~own_b).view(np.uint8), _K3).view(bool)
+            ring = far & ~near & ~other
+            near = near & ~(other & ~own_b)
+        else:
+            ring = far ^ near
+        vals = sub8[ring]
+        if vals.size:
+            vals.sort()
+            n = vals.size
+            b = float(vals[n // 2]) if n % 2 else (float(vals[n // 2 - 1]) + float(vals[n // 2])) / 2
+        else:
+            b = float(sub8[own_b].min()) - 1
+        above = np.subtract(sub8, b, dtype=np.float32)   # halves within +-256: exact in float32
+        wgt = np.maximum(above, np.float32(0))
+        wgt *= near
         cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
-        yield k, i, sub - b, own_b, wgt, x0, y0, cut
+        out.append(RegionWeight(k, i, wgt, above, own, x0, y0, cut, cv2.moments(wgt)))
+    return out
 
 
 def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
-                       symmetric_border: bool = False, patches=None) -> np.ndarray:
+                       symmetric_border: bool = False, patches: list | None = None) -> np.ndarray:
     """Intensity-weighted centres of regions, above the local background.
 
     For each region the mask is grown by ``margin`` pixels (to take in the
@@ -295,6 +383,8 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     the grown mask, and the centre is ``sum w (u, v) / sum w`` with
     ``w = max(I - b, 0)``. Unbiased for a uniform local background, and far
     more precise than the binary centre (which moves by whole pixels).
+    The weights are multiples of 1/2: their sums (``cv2.moments``) are exact,
+    whatever the order of summation.
 
     With ``symmetric_border`` (the multi-view identification's choice) a
     region touching the image border is measured from the part of it
@@ -313,32 +403,33 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     regions : Regions
     index : indices into ``regions`` (default all)
     patches : list, optional
-        ``list(_region_patches(gray, regions, index, margin))``, when
-        :func:`light_terms` takes them too (each region's patch made once).
+        ``region_weights(gray, regions, index, margin)``, when
+        :func:`light_terms` takes them too (the weights made once).
 
     Returns
     -------
     (K, 2) centres ``(u, v)`` in full-image pixels.
     """
-    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
+    wts = patches if patches is not None else region_weights(gray, regions, index, margin)
     u0, v0 = regions.origin
-    out = np.full((len(idx), 2), np.nan)
-    for k, i, _, _, wgt, x0, y0, cut in (patches if patches is not None else
-                                         _region_patches(gray, regions, idx, margin)):
-        s = wgt.sum()
+    out = np.full((len(wts), 2), np.nan)
+    for r in wts:
+        m = r.moments
+        s = m["m00"]
         if s <= 0:
-            out[k] = regions.centroid[i]
+            out[r.k] = regions.centroid[r.i]
             continue
-        # the weighted means of the columns' and rows' indices (one sum per axis, no index grids)
-        cols, rows = np.arange(x0, x0 + wgt.shape[1]) + u0, np.arange(y0, y0 + wgt.shape[0]) + v0
-        out[k] = (wgt.sum(axis=0) @ cols / s, wgt.sum(axis=1) @ rows / s)
-        if symmetric_border and any(cut):
-            out[k] = _symmetric_in_image(wgt, cols, rows, out[k], cut, regions.image_size)
+        ou, ov = r.x0 + u0, r.y0 + v0                  # the sums in full-image pixels, exact
+        out[r.k] = ((m["m10"] + ou * s) / s, (m["m01"] + ov * s) / s)
+        if symmetric_border and any(r.cut):
+            hh, ww = r.weight.shape
+            out[r.k] = _symmetric_in_image(r.weight, np.arange(ou, ou + ww), np.arange(ov, ov + hh), out[r.k],
+                                           r.cut, regions.image_size)
     return out
 
 
 def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5,
-                patches=None):
+                patches: list | None = None):
     """The light across each region and the second moments of its weights.
 
     A marker lit unevenly has brightness ``H (1 + s . (p - p0))`` across it
@@ -352,6 +443,12 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     sensor's noise); pooled over a marker's track it is precise
     (:func:`~horsemocap.detection.identification.correct_light`).
 
+    The moments and the plane's normal equations come from ``cv2.moments``
+    (of the weights, of the interior pixels and of their heights); the plane
+    is solved in the pixels' offsets from the weighted centre (a region whose
+    interior pixels lie on one line, a rank-deficient fit: least squares, the
+    minimum-norm solution).
+
     ``patches``: as for :func:`weighted_centroids`.
 
     Returns
@@ -362,32 +459,58 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     moments : (K, 2, 2)
         ``S`` per region.
     """
-    idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
-    slope = np.full((len(idx), 2), np.nan)
-    moments = np.full((len(idx), 2, 2), np.nan)
-    for k, i, sub, own, wgt, x0, y0, cut in (patches if patches is not None else
-                                             _region_patches(gray, regions, idx, margin)):
-        s = wgt.sum()
+    wts = patches if patches is not None else region_weights(gray, regions, index, margin)
+    slope = np.full((len(wts), 2), np.nan)
+    moments = np.full((len(wts), 2, 2), np.nan)
+    for r in wts:
+        m = r.moments
+        s = m["m00"]
         if s <= 0:
             continue
-        yy, xx = np.mgrid[0:wgt.shape[0], 0:wgt.shape[1]]
-        cu, cv = (wgt * xx).sum() / s, (wgt * yy).sum() / s
-        du, dv = xx - cu, yy - cv
-        moments[k] = [[(wgt * du * du).sum() / s, (wgt * du * dv).sum() / s],
-                      [(wgt * du * dv).sum() / s, (wgt * dv * dv).sum() / s]]
-        if any(cut):
+        suv = m["mu11"] / s
+        moments[r.k] = ((m["mu20"] / s, suv), (suv, m["mu02"] / s))
+        if any(r.cut):
             continue
-        inner = cv2.erode(own.view(np.uint8), _K3, iterations=1, borderType=cv2.BORDER_CONSTANT,
-                          borderValue=0).view(bool)
-        n_in = int(np.count_nonzero(inner))
-        if n_in < min_inner:
+        inner = cv2.erode(r.own, _K3, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        mi = cv2.moments(inner, binaryImage=True)
+        n = int(mi["m00"])
+        if n < min_inner:
             continue
-        iy, ix = np.nonzero(inner)
-        A = np.column_stack([np.ones(n_in), ix - cu, iy - cv])
-        a, gu, gv = np.linalg.lstsq(A, sub[inner], rcond=None)[0]
+        cu, cv = m["m10"] / s, m["m01"] / s
+        sol = _plane(mi, cv2.moments(r.above * inner), cu, cv)
+        if sol is None:                                 # interior on one line: least squares (minimum norm)
+            iy, ix = np.nonzero(inner)
+            A = np.column_stack([np.ones(n), ix - cu, iy - cv])
+            sol = np.linalg.lstsq(A, r.above[iy, ix], rcond=None)[0]
+        a, gu, gv = sol
         if a > 0:
-            slope[k] = (gu / a, gv / a)
+            slope[r.k] = (gu / a, gv / a)
     return slope, moments
+
+
+def _plane(mi: dict, mz: dict, cu: float, cv: float):
+    """``(a, gu, gv)`` of the plane ``a + gu (x - cu) + gv (y - cv)`` fitted to heights ``z`` at pixels.
+
+    ``mi``: ``cv2.moments`` of the pixels (binary), ``mz``: of their heights.
+    None when the pixels lie on one line (exact: their integer moments).
+    """
+    n, sx, sy = int(mi["m00"]), int(mi["m10"]), int(mi["m01"])
+    sxx, sxy, syy = int(mi["m20"]), int(mi["m11"]), int(mi["m02"])
+    if (n * sxx - sx * sx) * (n * syy - sy * sy) - (n * sxy - sx * sy) ** 2 == 0:   # Python ints: exact
+        return None
+    # the normal equations in offsets from (cu, cv)
+    ex, ey = sx - n * cu, sy - n * cv
+    exx = sxx - 2 * cu * sx + n * cu * cu
+    eyy = syy - 2 * cv * sy + n * cv * cv
+    exy = sxy - cu * sy - cv * sx + n * cu * cv
+    z = mz["m00"]
+    bz, bx, by = z, mz["m10"] - cu * z, mz["m01"] - cv * z
+    # Cramer's rule on the symmetric 3 x 3 system (cofactors), in Python floats
+    c00, c01, c02 = exx * eyy - exy * exy, ey * exy - ex * eyy, ex * exy - ey * exx
+    c11, c12, c22 = n * eyy - ey * ey, ex * ey - n * exy, n * exx - ex * ex
+    det = n * c00 + ex * c01 + ey * c02
+    return ((c00 * bz + c01 * bx + c02 * by) / det, (c01 * bz + c11 * bx + c12 * by) / det,
+            (c02 * bz + c12 * bx + c22 * by) / det)
 
 
 def _symmetric_in_image(wgt, cols, rows, centre, cut, size, iterations: int = 5):
@@ -486,11 +609,16 @@ def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, co
     bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
     regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
     ok = filter_area(regions.area, area_range[0], area_range[1])
-    if (u0 > 0 or v0 > 0 or u1 < W or v1 < H) and len(regions):
+    if len(regions):                  # regions cut by a crop edge that is not an image edge
         b = regions.bbox
-        cut = (((b[:, 0] <= u0) & (u0 > 0)) | ((b[:, 1] <= v0) & (v0 > 0))
-               | ((b[:, 0] + b[:, 2] >= u1) & (u1 < W)) | ((b[:, 1] + b[:, 3] >= v1) & (v1 < H)))
-        ok &= ~cut
+        if u0 > 0:
+            ok &= b[:, 0] > u0
+        if v0 > 0:
+            ok &= b[:, 1] > v0
+        if u1 < W:
+            ok &= b[:, 0] + b[:, 2] < u1
+        if v1 < H:
+            ok &= b[:, 1] + b[:, 3] < v1
     keep = np.flatnonzero(ok)
     if min_circularity is not None and len(keep):
         circ = region_circularity(regions.subset(keep))

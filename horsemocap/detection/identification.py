@@ -41,7 +41,7 @@ import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from .base import DetectionError, DetectionParams, Regions
-from .filters import _region_patches, find_candidates, light_terms, region_circularity, weighted_centroids
+from .filters import find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
 from .thresholds import auto_threshold, bright_crops, connected_components, region_order_key
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -184,7 +184,7 @@ def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_coun
     else:
         u0, v0 = regions.origin
         sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
-        patches = list(_region_patches(sub, regions, keep, 2)) if light else None   # made once for both
+        patches = region_weights(sub, regions, keep, 2) if light else None   # made once for both
         centre = weighted_centroids(sub, regions, keep, symmetric_border=True, patches=patches)
         if light:
             slope, moments = light_terms(sub, regions, keep, patches=patches)
@@ -721,28 +721,32 @@ def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: s
     if min_circularity is not None and crops:
         by_moments = sum(len(r) for r in crops) <= 8
         crops = [r.subset(region_circularity(r, by_moments) >= min_circularity) for r in crops]
-    found = [(ci, i) for ci, r in enumerate(crops) for i in range(len(r))]
-    if not found:
+    crops = [r for r in crops if len(r)]
+    if not crops:
         return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
-    key = np.array([region_order_key(crops[ci].labels, crops[ci].ids[i], crops[ci].bbox[i, 1], crops[ci].bbox[i, 0],
-                                     crops[ci].bbox[i, 2], crops[ci].origin, W) for ci, i in found])
+    crop_of = np.concatenate([np.full(len(r), ci) for ci, r in enumerate(crops)])
+    in_crop = np.concatenate([np.arange(len(r)) for r in crops])
+    key = np.array([region_order_key(r.labels, rid, y, x, w, r.origin, W) for r in crops
+                    for rid, (x, y, w, _) in zip(r.ids.tolist(), r.bbox.tolist())])
     order = np.argsort(key, kind="stable")
     if len(order) > max_count:
-        areas = np.array([crops[ci].area[i] for ci, i in found])
+        areas = np.concatenate([r.area for r in crops])
         order = order[np.argsort(-areas[order], kind="stable")[:max_count]]
     centre = np.empty((len(order), 2))
+    area = np.empty(len(order))
+    cut = np.empty(len(order), bool)
     for ci, r in enumerate(crops):
-        at = np.flatnonzero([found[j][0] == ci for j in order])
+        at = np.flatnonzero(crop_of[order] == ci)
         if len(at) == 0:
             continue
-        idx = np.array([found[order[j]][1] for j in at])
+        idx = in_crop[order[at]]
         if centroid == "binary":
             centre[at] = r.centroid[idx]
         else:
             (u0, v0), (h, w) = r.origin, r.labels.shape
             centre[at] = weighted_centroids(gray[v0:v0 + h, u0:u0 + w], r, idx, symmetric_border=True)
-    area = np.array([crops[found[j][0]].area[found[j][1]] for j in order], float)
-    cut = np.array([bool(crops[found[j][0]].touches_border[found[j][1]]) for j in order])
+        area[at] = r.area[idx]
+        cut[at] = r.touches_border[idx]
     return Candidates(centre, area, cut)
 
 

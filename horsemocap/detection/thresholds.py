@@ -266,8 +266,8 @@ def region_order_key(labels: np.ndarray, label: int, top: int, left: int, width:
     u0, v0 = origin
     r0 = max((top // 2) * 2 - v0, 0)
     x = left - u0
-    cols = np.flatnonzero((labels[r0:r0 + 2, x:x + width] == label).any(axis=0))
-    return (top // 2) * (image_width + 2) + (int(cols[0]) + left) // 2
+    first = int(np.argmax((labels[r0:r0 + 2, x:x + width] == label).any(axis=0)))   # the region is there
+    return (top // 2) * (image_width + 2) + (first + left) // 2
 
 
 def label_bright(gray: np.ndarray, threshold: int, block: int = BRIGHT_BLOCK, pad: int = BRIGHT_PAD):

@@ -19,10 +19,10 @@ import cv2
 import numpy as np
 
 from .base import DetectionError, DetectionParams, MarkerTrack
-from .filters import (_candidates_in, _clip_crop, cross_product_signs, filter_area, filter_cross_product,
-                      filter_distance, filter_window, find_candidates, label_regions, marker_distances,
+from .filters import (_candidates_in, _clip_crop, _norm, cross_product_signs, filter_area, filter_cross_product,
+                      filter_distance, filter_window, find_candidates, marker_distances,
                       region_circularity, weighted_centroids, window_center)
-from .thresholds import auto_threshold, binarize
+from .thresholds import auto_threshold
 
 __all__ = [
     "CandidateCache",
@@ -355,21 +355,25 @@ def _predict(state, k):
     ``max_gap`` frames.
     """
     last_k, last_p, vel = state["last_k"], state["last_p"], state["vel"]
-    M = len(last_p)
     pred = np.full_like(last_p, np.nan)
-    good = np.zeros(M, bool)
-    for m in range(M):
-        if last_k[m] is not None and abs(k - last_k[m]) == 1 and state["vel_known"][m]:
-            pred[m] = last_p[m] + vel[m] * (k - last_k[m])
-            good[m] = True
+    good = np.array([lk is not None and abs(k - lk) == 1 and known
+                     for lk, known in zip(last_k, state["vel_known"].tolist())], bool)
+    _extrapolate(pred, np.flatnonzero(good), k, last_k, last_p, vel)
     if good.any() and not good.all() and state["config"] is not None:
         shift = (pred[good] - state["config"][good]).mean(axis=0)
         pred[~good] = state["config"][~good] + shift
     elif not good.all():
-        for m in np.flatnonzero(~good):
-            if last_k[m] is not None and abs(k - last_k[m]) <= state["max_gap"]:
-                pred[m] = last_p[m] + vel[m] * (k - last_k[m])
+        _extrapolate(pred, [m for m in np.flatnonzero(~good).tolist()
+                            if last_k[m] is not None and abs(k - last_k[m]) <= state["max_gap"]], k, last_k, last_p, vel)
     return pred
+
+
+def _extrapolate(pred, markers, k, last_k, last_p, vel):
+    """``pred[m] = last_p[m] + vel[m] (k - last_k[m])`` for the ``markers`` (one NumPy pass)."""
+    if len(markers):
+        ms = np.asarray(markers, np.intp)
+        dt = np.array([k - last_k[m] for m in ms.tolist()], float)
+        pred[ms] = last_p[ms] + vel[ms] * dt[:, None]
 
 
 def _inside(pred, radius, size):
@@ -434,7 +438,7 @@ def _track_frame(gc, k, state, p):
         ch = filter_cross_product(cent, ch, state["signs"])
         if len(ch):
             if has_pred.any():
-                dev = np.linalg.norm(cent[ch][:, has_pred] - pred[has_pred][None], axis=-1)
+                dev = _norm(cent[ch][:, has_pred] - pred[has_pred][None])
                 err = dev.max(axis=1)
                 gated = (dev <= gate_m[has_pred][None]).all(axis=1)
                 err = np.where(gated, err, np.inf)
@@ -459,7 +463,7 @@ def _track_frame(gc, k, state, p):
             opts = []
             for m in range(M):
                 if has_pred[m] and inside[m]:      # a marker predicted outside cannot be seen
-                    d = np.linalg.norm(cent - pred[m], axis=1)
+                    d = _norm(cent - pred[m])
                     near = np.flatnonzero(d <= gate_m[m])
                     opts.append([(-1, 0.0)] + [(int(j), float(d[j])) for j in near[np.argsort(d[near])][:4]])
                 else:
@@ -540,20 +544,23 @@ def _track_frame(gc, k, state, p):
 
 
 def _update_state(state, k, px, ar, p):
-    M = state["M"]
-    for m in range(M):
-        if np.isfinite(px[m]).all():
-            if state["last_k"][m] is not None and abs(k - state["last_k"][m]) <= state["max_gap"]:
-                state["vel"][m] = (px[m] - state["last_p"][m]) / (k - state["last_k"][m])
-                state["vel_known"][m] = True
-            else:
-                state["vel"][m] = 0.0
-                state["vel_known"][m] = False
-            state["last_k"][m] = k
-            state["last_p"][m] = px[m]
-            a0 = state["area"][m]
-            state["area"][m] = ar[m] if not np.isfinite(a0) else 0.7 * a0 + 0.3 * ar[m]
-    if np.isfinite(px).all():
+    seen = np.isfinite(px).all(axis=1)
+    if seen.any():
+        last_k = state["last_k"]
+        ms = np.flatnonzero(seen)
+        near = np.array([last_k[m] is not None and abs(k - last_k[m]) <= state["max_gap"] for m in ms.tolist()], bool)
+        vel_ms = np.zeros((len(ms), 2))
+        if near.any():
+            dt = np.array([k - last_k[m] for m in ms[near].tolist()], float)
+            vel_ms[near] = (px[ms[near]] - state["last_p"][ms[near]]) / dt[:, None]
+        state["vel"][ms] = vel_ms
+        state["vel_known"][ms] = near
+        for m in ms.tolist():
+            last_k[m] = k
+        state["last_p"][ms] = px[ms]
+        a0 = state["area"][ms]
+        state["area"][ms] = np.where(np.isfinite(a0), 0.7 * a0 + 0.3 * ar[ms], ar[ms])
+    if seen.all():
         state["config"] = px.copy()
         if p.distance_reference == "previous":
             state["dref"] = marker_distances(px)
@@ -638,7 +645,7 @@ def detect_markers(frames, n_markers: int, params: DetectionParams | None = None
         f0 = int(p.first_frame)
         if not 0 <= f0 < n:
             raise ValueError(f"DetectionParams.first_frame: {f0} outside 0..{n - 1}")
-        regions = label_regions(binarize(gc[f0], p.threshold))
+        regions = _candidates_in(gc[f0], (0, 0), (W, H), p.threshold, (0, np.inf), None)[0]   # every region
         missing = [lab for lab in p.labels if lab not in set(regions.ids.tolist())]
         if missing:
             raise DetectionError(f"frame {f0}: labels {missing} do not exist at threshold {p.threshold} "
