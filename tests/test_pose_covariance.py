@@ -224,3 +224,23 @@ def test_nearest_covariance_fills_interpolated_positions():
     fill[[1, 2, 3, 5], 0] = True
     got = reconstruction.nearest_covariance(cov, fill)[:, 0, 0, 0]
     np.testing.assert_array_equal(got, [1, 1, 1, 4, 4, 4])
+
+
+def test_weighted_cost_never_above_horns_with_huge_noise():
+    """Errors far beyond the linearisation (noise of half the marker spacing, depth 20 times the rest):
+    every frame's weighted cost at the result is at most that of Horn's pose it starts from."""
+    rng = np.random.default_rng(10)
+    n = 500
+    R, t = _poses(rng, n)
+    cov, noise = _anisotropic_draws(rng, n, depth_sd=0.15, across_sd=0.0075)
+    noisy = _moved(MODEL, R, t) + noise
+    W = np.linalg.inv(cov)
+    horn = pose.register_pose(noisy, MODEL)
+    reg = pose.register_pose(noisy, MODEL, covariance=cov, extra_noise=0.0)
+
+    def cost(r):
+        e = noisy - r.registered
+        return np.einsum("kmi,kmij,kmj->k", e, W, e)
+
+    assert np.all(cost(reg) <= cost(horn) * (1 + 1e-9))
+    assert np.median(cost(reg) / cost(horn)) < 0.9                # and usually well below
