@@ -340,14 +340,19 @@ def step_triangulate(session: Session, params: AnalysisParams, res: dict, progre
 
     The analysed segment is the longest run, inside the detection's, in
     which every marker was triangulated (a point whose views disagree beyond
-    the residual limit is NaN with reason ``inconsistent_views``).
+    the residual limit is NaN with reason ``inconsistent_views``). Each
+    point's covariance for the detection noise estimated from the residuals
+    (``covariance``, world frame; an interpolated point takes its nearest
+    measured frame's) weights the markers in the rigid-body step's pose
+    registration.
     """
-    from .reconstruction import triangulate
+    from .reconstruction import nearest_covariance, triangulate
 
     from .detection import bridge_gaps
 
-    tri = triangulate(res["rig"]["rig"], res["detect"]["marker_px"], mode=params.triangulation)
+    tri = triangulate(res["rig"]["rig"], res["detect"]["marker_px"], mode=params.triangulation, covariance=True)
     points, bridged = bridge_gaps(tri.points, _max_gap(session, params))
+    cov = None if tri.covariance is None else nearest_covariance(tri.covariance, bridged)
     reason = np.where(bridged, "interpolated", tri.reason)
     if bridged.any():
         progress("triangulate", f"{int(bridged.sum())} marker position(s) in gaps of at most "
@@ -370,7 +375,7 @@ def step_triangulate(session: Session, params: AnalysisParams, res: dict, progre
                                 + ", ".join(sorted({str(r) for r in reason[a:b].ravel() if r and r != "interpolated"}))
                                 + ")")
     return {"points": points, "residual_px": tri.residual_px, "reason": reason, "n_views": tri.n_views,
-            "segment": segment}
+            "segment": segment, "covariance": cov, "noise_px": tri.noise_px}
 
 
 def still_params(params: AnalysisParams, kind: str, cameras) -> dict:
@@ -564,14 +569,18 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     raw = to_motion_frame(res["smooth"]["raw"], res["motion_frame"]["frame"])
     t = time_axis(len(positions), session.fps)
     pose_t, pose_points = None, raw
+    lo, hi = a, b = res["triangulate"]["segment"]
     if params.kinematics == "pose_spline" and params.pose_partial_frames:
         lo, hi = pose_margin(res["triangulate"]["points"], res["triangulate"]["segment"])
-        a, b = res["triangulate"]["segment"]
         if (lo, hi) != (a, b):
             pose_points = to_motion_frame(res["triangulate"]["points"][lo:hi], res["motion_frame"]["frame"])
             pose_t = np.arange(lo - a, hi - a) / float(session.fps)
             progress("rigid_body", f"pose trajectory smoothed over frames {lo}..{hi - 1}: {a - lo} before and "
                                    f"{hi - b} after the analysed frames have two markers (reported: {a}..{b - 1})")
+    cov = res["triangulate"].get("covariance")
+    if cov is not None:   # the markers' covariances in the motion frame (x_M = A (x - o): A C A^T)
+        axes = res["motion_frame"]["frame"].axes
+        cov = axes @ cov[lo:hi] @ axes.T
     period = res["motion_frame"]["period_frames"]
     fo = params.fourier_orders
     try:
@@ -584,7 +593,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
             pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
-            pose_harmonics=params.pose_harmonics,
+            pose_harmonics=params.pose_harmonics, pose_covariance=cov,
             saddle_index=params.saddle_marker)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None

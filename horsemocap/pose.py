@@ -13,7 +13,14 @@ object throughout:
    registered to *all visible* markers of the frame (weighted Horn / Besl-
    McKay, eq. 5.14-5.21 with weights), ``x_m(t) = R(t) X_m + t(t)``. A frame
    with a missing marker still has a pose while at least 3 non-collinear
-   markers remain; otherwise it is NaN with the reason.
+   markers remain; otherwise it is NaN with the reason. Given each marker's
+   3 x 3 covariance (the pipeline's: the triangulation's, whose depth along
+   the viewing rays is several times less certain than the directions across
+   them), Horn's pose is refined by Gauss-Newton on SE(3) with each marker
+   weighted by its inverse covariance (plus an isotropic part estimated from
+   the residuals, :func:`extra_marker_noise`), and the pose noise that the
+   smoothing tests the rotation's harmonics against (:func:`pose_noise`)
+   comes from the same covariances.
 2. **Smoothing of the pose trajectory** (:func:`fit_pose_trajectory`): the
    position of the model's centroid ``c(t)`` and the rotation written as
    ``R(t) = Exp(phi(t)) R_ref`` (``R_ref`` the mean rotation, ``phi`` the
@@ -70,6 +77,8 @@ __all__ = [
     "smallest_height",
     "check_model_conditioning",
     "register_pose",
+    "refine_pose_covariance",
+    "extra_marker_noise",
     "unwrap_rotvec",
     "left_jacobian",
     "angular_velocity_from_rotvec",
@@ -180,7 +189,7 @@ class PoseRegistration:
         Distance of each visible marker from its registered position (m); NaN
         where the marker is missing.
     rms : (n,)
-        Weighted RMS residual of the visible markers.
+        Weighted RMS residual of the visible markers (plain RMS with ``covariance``).
     n_markers : (n,) int
         Markers used in the frame.
     height : (n,)
@@ -191,6 +200,20 @@ class PoseRegistration:
         Marker-position noise estimated from the residuals, ``sqrt(sum w r^2 /
         sum dof)`` with ``3 k - 6`` degrees of freedom per frame of k markers
         (isotropic noise assumed), NaN if no frame has more than 2 markers.
+    information : (n, 6, 6) or None
+        With ``covariance``: the inverse of the pose's covariance per frame,
+        ``sum_m A_m^T Sigma_m^-1 A_m`` with ``A_m = [I, -[r_m]x]`` (``r_m`` the
+        marker about the model's centroid, rotated), for the centroid
+        ``centre`` and a small rotation ``R -> Exp(dphi) R`` (motion frame);
+        NaN where no pose. None without ``covariance``.
+    covariance_scale : float
+        With ``covariance``: ``sqrt(sum e^T Sigma^-1 e / sum (3 k - 6))`` over the
+        frames with the given covariances, about 1 when they describe the markers'
+        noise (their in-plane part: three markers cannot show the rest); NaN otherwise.
+    extra_noise_m : float
+        With ``covariance``: the isotropic noise ``s0`` (m) added to every
+        marker's covariance, ``Sigma_m + s0^2 I`` (:func:`extra_marker_noise`;
+        0 when the given covariances explain the residuals); NaN otherwise.
     """
 
     rotation: np.ndarray
@@ -203,16 +226,178 @@ class PoseRegistration:
     height: np.ndarray
     reason: np.ndarray
     noise_m: float
+    information: np.ndarray | None = field(default=None, repr=False)
+    covariance_scale: float = float("nan")
+    extra_noise_m: float = float("nan")
 
 
-def register_pose(points, model, weights=None, min_height_m: float | None = None) -> PoseRegistration:
+def _skew(v) -> np.ndarray:
+    """``[v]x`` (..., 3, 3) of vectors (..., 3)."""
+    v = np.asarray(v, float)
+    z = np.zeros(v.shape[:-1])
+    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
+                     np.stack([v[..., 2], z, -v[..., 0]], -1),
+                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+
+
+def _check_covariance(covariance, vis, n, m) -> np.ndarray:
+    """Marker covariances (n, m, 3, 3), symmetric, the identity where a marker is missing; clear errors."""
+    C = np.asarray(covariance, float)
+    if C.shape != (n, m, 3, 3):
+        raise ValueError(f"covariance: expected (frames, markers, 3, 3) = {(n, m, 3, 3)}, got shape {C.shape}")
+    bad = vis & ~np.all(np.isfinite(C), axis=(2, 3))
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise ValueError(f"covariance: not finite for visible marker {j + 1} in frame {k} "
+                         f"({int(bad.sum())} such marker position(s))")
+    Cs = np.where(vis[..., None, None], C, np.eye(3))
+    Cs = 0.5 * (Cs + np.swapaxes(Cs, -1, -2))
+    ev = np.linalg.eigvalsh(Cs)
+    bad = vis & ~(ev[..., 0] > 1e-12 * np.maximum(ev[..., -1], 1e-300))
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise ValueError(f"covariance: not positive definite for visible marker {j + 1} in frame {k} "
+                         f"(eigenvalues {ev[k, j].tolist()})")
+    return Cs
+
+
+def _pose_normal_equations(p, d, W, R, c):
+    """``sum A^T W A`` (k, 6, 6) and ``sum A^T W e`` (k, 6) of ``e_m = p_m - c - R d_m``, ``A_m = [I, -[R d_m]x]``."""
+    r = np.einsum("kij,mj->kmi", R, d)
+    e = np.where(np.isfinite(p), p, 0.0) - c[:, None] - r
+    A = np.concatenate([np.broadcast_to(np.eye(3), r.shape + (3,)), -_skew(r)], axis=-1)   # (k, m, 3, 6)
+    WA = W @ A
+    N = np.einsum("kmia,kmib->kab", A, WA)
+    b = np.einsum("kmia,kmi->ka", WA, e)
+    return N, b, e
+
+
+def _pose_cost(p, d, W, R, c):
+    """``sum_m e_m^T W_m e_m`` per frame (k,) of ``e_m = p_m - c - R d_m``."""
+    e = np.where(np.isfinite(p), p, 0.0) - c[:, None] - np.einsum("kij,mj->kmi", R, d)
+    return np.einsum("kmi,kmij,kmj->k", e, W, e)
+
+
+def refine_pose_covariance(points, model, information, rotation, centre, iterations: int = 10,
+                           tolerance: float = 1e-12, halvings: int = 20):
+    """Gauss-Newton on SE(3) for the pose that minimises ``sum_m e_m^T W_m e_m`` (all frames at once).
+
+    ``e_m = p_m - c - R (X_m - mean(X))``: each marker weighted by its 3 x 3
+    information matrix ``W_m`` (inverse covariance; zero for a missing
+    marker), so a coordinate measured poorly (a camera rig's depth) counts
+    less than a well-measured one. Each step solves the 6 x 6 normal
+    equations ``(sum A^T W A) delta = sum A^T W e`` with ``A_m = [I, -[r_m]x]``
+    and updates ``c += delta[:3]``, ``R = Exp(delta[3:]) R``; a step that
+    raises the cost is halved (up to ``halvings`` times, else the frame keeps
+    its pose), so the result is never worse than the start (Horn's) in the
+    weighted cost, also where the errors are too large for the linearisation
+    (measured: 3 px of detection noise, rotation errors of a radian). A frame
+    stops when its largest step is below ``tolerance`` (m or rad).
+
+    Parameters
+    ----------
+    points : (k, m, 3)
+    model : (m, 3)
+    information : (k, m, 3, 3)
+    rotation : (k, 3, 3), centre : (k, 3)
+        The start (e.g. Horn's), ``centre`` the model's centroid moved by it.
+
+    Returns
+    -------
+    rotation : (k, 3, 3), centre : (k, 3), normal : (k, 6, 6)
+        The pose and ``sum A^T W A`` at it (the pose's information matrix).
+    """
+    p = np.asarray(points, float)
+    x = np.asarray(model, float)
+    d = x - x.mean(0)
+    W = np.asarray(information, float)
+    R = np.array(rotation, float)
+    c = np.array(centre, float)
+    cost = _pose_cost(p, d, W, R, c)
+    active = np.ones(len(p), bool)
+    for _ in range(iterations):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        N, b, _ = _pose_normal_equations(p[idx], d, W[idx], R[idx], c[idx])
+        step = np.linalg.solve(N, b[..., None])[..., 0]
+        todo = np.arange(idx.size)
+        for _ in range(halvings + 1):
+            k = idx[todo]
+            Rn = Rotation.from_rotvec(step[todo, 3:]).as_matrix() @ R[k]
+            cn = c[k] + step[todo, :3]
+            new = _pose_cost(p[k], d, W[k], Rn, cn)
+            better = new <= cost[k] * (1 + 1e-12) + 1e-300
+            R[k[better]], c[k[better]], cost[k[better]] = Rn[better], cn[better], new[better]
+            todo = todo[~better]
+            if todo.size == 0:
+                break
+            step[todo] *= 0.5
+        stuck = idx[todo]                                  # no descent along the step: converged
+        small = np.max(np.abs(step), axis=1) < tolerance
+        active[idx[small]] = False
+        active[stuck] = False
+    N, _, _ = _pose_normal_equations(p, d, W, R, c)
+    return R, c, N
+
+
+def extra_marker_noise(residuals, covariance, dof: float) -> float:
+    """Isotropic marker noise ``s0`` (m) that the given covariances leave unexplained.
+
+    The markers' error is the detection noise carried through the
+    triangulation (``covariance``) plus errors that it does not hold: the
+    static shot's own error, the calibration's, markers moving on the skin.
+    With no preferred direction known for them they are modelled as
+    ``s0^2 I``; ``s0`` is chosen so that the residuals' chi-square
+    per degree of freedom is 1, ``sum_m e_m^T (Sigma_m + s0^2 I)^-1 e_m = dof``
+    (a variance-component estimate; 0 when the covariances alone already
+    explain the residuals). Solved by Brent's method on the eigenvalues of
+    each ``Sigma_m``.
+
+    Parameters
+    ----------
+    residuals : (K, 3)
+        Residual vectors of the registered markers (the visible ones of the frames with a pose).
+    covariance : (K, 3, 3)
+        Their covariances.
+    dof : float
+        Residual degrees of freedom (``sum 3 k - 6`` over the frames).
+
+    Returns
+    -------
+    float
+    """
+    from scipy.optimize import brentq
+
+    e = np.asarray(residuals, float)
+    lam, U = np.linalg.eigh(np.asarray(covariance, float))
+    z2 = np.einsum("kij,ki->kj", U, e) ** 2
+    if dof <= 0 or not np.all(np.isfinite(z2)):
+        return float("nan")
+
+    def excess(s2):
+        return float(np.sum(z2 / (lam + s2))) - dof
+
+    if excess(0.0) <= 0:
+        return 0.0
+    hi = float(np.sum(z2)) / dof          # excess(hi) < 0: sum z2 / (lam + hi) < sum z2 / hi = dof
+    return float(np.sqrt(brentq(excess, 0.0, hi, xtol=1e-12 * hi, rtol=1e-10)))
+
+
+def register_pose(points, model, weights=None, min_height_m: float | None = None,
+                  covariance=None, extra_noise: str | float = "estimate") -> PoseRegistration:
     """Register the static-shot model to every frame's visible markers.
 
     Weighted form of Horn's closed-form quaternion solution (eq. 5.14-5.21):
     with weights ``w_m`` (zero for a missing marker) the centroids are
     weighted means and the cross-covariance is ``S = sum_m w_m (X_m - mu_X)
     (x_m - mu_x)^T``; the eigenvector of the largest eigenvalue of ``Q(S)``
-    is the optimal unit quaternion.
+    is the optimal unit quaternion. With ``covariance`` (each marker's 3 x 3
+    covariance, e.g. from the triangulation: a rig measures depth far worse
+    than the directions across the rays) Horn's solution with the inverse
+    mean variances as weights is refined by Gauss-Newton on SE(3) to the
+    pose of smallest ``sum e^T Sigma^-1 e`` (:func:`refine_pose_covariance`);
+    the pose's information matrix per frame is kept for :func:`pose_noise`.
 
     Parameters
     ----------
@@ -227,6 +412,18 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
         A frame whose visible markers' smallest height is below this is left
         NaN (reason ``"visible markers nearly collinear"``); default 1e-3 of
         the model's size.
+    covariance : (n, m, 3, 3), optional
+        Each marker's covariance (m^2, same frame as ``points``); finite and
+        positive definite where the marker is visible. Not with ``weights``.
+    extra_noise : "estimate" or float
+        With ``covariance``: an isotropic noise ``s0`` (m) added to every
+        marker's covariance, ``Sigma_m + s0^2 I``, for the errors the
+        covariances do not hold (the static shot's, the calibration's);
+        ``"estimate"`` (default) chooses it from the residuals
+        (:func:`extra_marker_noise`, alternating with the registration until
+        it changes by less than 1 %). With exact detections the residuals are
+        such errors only and the weighting becomes Horn's; with detection
+        noise well above them it is the covariances'.
 
     Returns
     -------
@@ -242,6 +439,14 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     if min_height_m is None:
         min_height_m = 1e-3 * size
     vis = np.all(np.isfinite(p), axis=2)
+    cov = None
+    if covariance is not None:
+        if weights is not None:
+            raise ValueError("weights and covariance: give one (a covariance holds the marker's weight)")
+        if not (extra_noise == "estimate" or (np.isscalar(extra_noise) and float(extra_noise) >= 0)):
+            raise ValueError(f"extra_noise: expected 'estimate' or a noise >= 0 (m), got {extra_noise!r}")
+        cov = _check_covariance(covariance, vis, n, m)
+        weights = 1.0 / np.trace(cov, axis1=2, axis2=3)   # Horn's start: inverse mean variances
     if weights is None:
         w = vis.astype(float)
     else:
@@ -272,6 +477,17 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     q = quaternion_from_cross_covariance(S)      # scalar first (q0, q1, q2, q3), Horn's method
     R = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, 0]])).as_matrix()
     t = mu_p - np.einsum("kij,kj->ki", R, mu_x)
+    normal = None
+    s0 = float("nan")
+    if cov is not None:
+        normal = np.full((n, 6, 6), np.nan)
+        if ok.any():
+            R[ok], c1, normal[ok], s0 = _register_covariance(pp[ok], x, cov[ok], used[ok], R[ok], t[ok],
+                                                             extra_noise)
+            t[ok] = c1 - np.einsum("kij,j->ki", R[ok], x.mean(0))
+        w = used.astype(float)                   # residual summaries: plain (unweighted) markers
+        wn = np.where(ok[:, None], w, 1.0)
+        wn = wn / wn.sum(1, keepdims=True)
     reg = np.einsum("kij,mj->kmi", R, x) + t[:, None]
     R[~ok] = np.nan
     t[~ok] = np.nan
@@ -285,9 +501,39 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     wm = np.where(used, w / np.where(k > 0, w.sum(1), 1)[:, None] * k[:, None], 0.0)   # mean weight 1
     num = np.nansum(np.where(ok[:, None] & used, wm * res ** 2, 0.0))
     noise = float(np.sqrt(num / dof.sum())) if dof.sum() > 0 else float("nan")
+    scale = float("nan")
+    if cov is not None and dof.sum() > 0:
+        sel = used & ok[:, None]
+        e = (p - reg)[sel]
+        scale = float(np.sqrt(np.einsum("ki,kij,kj->", e, np.linalg.inv(cov[sel]), e) / dof.sum()))
     return PoseRegistration(rotation=R, translation=t, centre=centre, registered=reg, residual=res,
                             rms=rms, n_markers=k.astype(int), height=height, reason=reason.astype(str),
-                            noise_m=noise)
+                            noise_m=noise, information=normal, covariance_scale=scale, extra_noise_m=s0)
+
+
+def _register_covariance(points, model, cov, used, rotation, translation, extra_noise, rounds: int = 6):
+    """Horn's pose refined with the markers' covariances plus the isotropic ``s0^2 I`` (given or estimated).
+
+    Returns rotation, centre, the information matrices and ``s0``.
+    """
+    x = np.asarray(model, float)
+    R = rotation
+    c = np.einsum("kij,j->ki", R, x.mean(0)) + translation
+    estimate = extra_noise == "estimate"
+    s0 = 0.0 if estimate else float(extra_noise)
+    dof = float(np.sum(3 * used.sum(1) - 6))
+    d = x - x.mean(0)
+    for _ in range(rounds):
+        W = np.where(used[..., None, None], np.linalg.inv(cov + s0 ** 2 * np.eye(3)), 0.0)
+        R, c, N = refine_pose_covariance(points, x, W, R, c)
+        if not estimate:
+            break
+        e = points - c[:, None] - np.einsum("kij,mj->kmi", R, d)
+        s_new = extra_marker_noise(e[used], cov[used], dof)
+        if not np.isfinite(s_new) or abs(s_new - s0) <= 0.01 * s_new:
+            break
+        s0 = s_new
+    return R, c, N, s0
 
 
 # --------------------------------------------------------------------------
@@ -517,7 +763,11 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     (mean pose). With ``points`` None the marker noise is taken isotropic,
     ``Sigma = noise_m^2 I`` (the registration's own estimate): with three
     markers the residuals cannot see the noise normal to their plane, so the
-    pooled covariance underestimates it there.
+    pooled covariance underestimates it there. A registration with the
+    markers' covariances (:func:`register_pose` with ``covariance``) carries
+    the pose's information matrix per frame; with ``points`` None the noise
+    is then the RMS over the frames of the square roots of the diagonal of
+    its inverse (the same linearisation, with each marker's own covariance).
 
     Returns
     -------
@@ -526,6 +776,12 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     """
     reg = registration
     ok = np.isfinite(reg.rotation[:, 0, 0])
+    if points is None and reg.information is not None:
+        good = ok & np.all(np.isfinite(reg.information), axis=(1, 2))
+        if not good.any():
+            return np.full(6, np.nan)
+        var = np.diagonal(np.linalg.inv(reg.information[good]), axis1=1, axis2=2)
+        return np.sqrt(np.mean(var, axis=0))
     if points is None:
         if not (ok.any() and np.isfinite(reg.noise_m)):
             return np.full(6, np.nan)
@@ -542,9 +798,7 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     R0 = Rotation.from_matrix(reg.rotation[ok]).mean().as_matrix()
     d = (x - x.mean(0)) @ R0.T
     k = x.shape[0]
-    z = np.zeros(k)
-    D = np.stack([np.stack([z, -d[:, 2], d[:, 1]], -1), np.stack([d[:, 2], z, -d[:, 0]], -1),
-                  np.stack([-d[:, 1], d[:, 0], z], -1)], -2)          # [d_m]x
+    D = _skew(d)                                                       # [d_m]x
     H = np.einsum("mji,mjk->ik", D, D)
     M = np.einsum("mji,jl,mlk->ik", D, Sig, D)
     Hi = np.linalg.inv(H)

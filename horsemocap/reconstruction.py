@@ -39,6 +39,9 @@ __all__ = [
     "relative_pose",
     "camera_to_world",
     "reprojection_residuals",
+    "point_covariance",
+    "nearest_covariance",
+    "pixel_noise",
     "REASON_FEW_CAMERAS",
     "REASON_BEHIND",
     "REASON_FAILED",
@@ -104,6 +107,15 @@ class Triangulation:
         Joint mode: detections left out as inconsistent with the other
         cameras (see ``max_residual_px``); their ``residual_px`` is still
         reported (it shows how far off they were).
+    covariance : ndarray, shape (n_frames, n_markers, 3, 3), or None
+        Only with ``triangulate(..., covariance=True)``: each point's
+        covariance (m^2, world frame) for white detection noise of
+        ``noise_px`` pixels (:func:`point_covariance`); NaN where ``points``
+        is NaN. None when the residuals give no noise to propagate (all zero:
+        exact detections, or no point seen by two cameras).
+    noise_px : float or None
+        The detection noise (pixels) estimated from the reprojection
+        residuals (:func:`pixel_noise`), with ``covariance``.
     """
 
     points: np.ndarray
@@ -114,6 +126,8 @@ class Triangulation:
     cameras: tuple
     pairs: dict = field(default_factory=dict)
     rejected: dict = field(default_factory=dict)
+    covariance: np.ndarray | None = None
+    noise_px: float | None = None
 
     @property
     def valid(self) -> np.ndarray:
@@ -583,6 +597,119 @@ def _triangulate_joint(rig, cams, px_all, seen_all, max_residual_px=None):
 
 
 # ---------------------------------------------------------------------------
+# uncertainty of the triangulated points
+# ---------------------------------------------------------------------------
+
+def pixel_noise(residual_px: dict, used: dict) -> float:
+    """Detection noise (pixels, per image coordinate) estimated from reprojection residuals.
+
+    A point fitted to the ``2 k`` pixel coordinates of the ``k`` cameras that
+    saw it leaves ``2 k - 3`` degrees of freedom, and for white detection
+    noise of ``sigma`` pixels per coordinate ``E sum_c |r_c|^2 = (2 k - 3)
+    sigma^2``. Pooled over every point with ``k >= 2``:
+    ``sigma = sqrt(sum |r|^2 / sum (2 k - 3))``.
+
+    Parameters
+    ----------
+    residual_px : dict of str -> (n, m)
+        Reprojection distances (pixels) per camera (:attr:`Triangulation.residual_px`).
+    used : dict of str -> (n, m) bool
+        The detections the points were computed from (a rejected one is not).
+
+    Returns
+    -------
+    float
+        NaN when no point has two cameras.
+    """
+    cams = list(residual_px)
+    r = np.stack([np.asarray(residual_px[c], float) for c in cams])
+    u = np.stack([np.asarray(used[c], bool) for c in cams]) & np.isfinite(r)
+    k = u.sum(axis=0)
+    both = k >= 2
+    dof = float(np.sum(2 * k[both] - 3))
+    if dof <= 0:
+        return float("nan")
+    return float(np.sqrt(np.sum(np.where(u & both, r, 0.0) ** 2) / dof))
+
+
+def point_covariance(rig: Rig, points: np.ndarray, used: dict, noise_px: float = 1.0) -> np.ndarray:
+    """Covariance (m^2, world frame) of triangulated points for white detection noise.
+
+    Linearised least squares: with ``J`` the Jacobian of the pixels of the
+    cameras that saw the point with respect to the point (eq. 3.1-3.10
+    differentiated, as the joint refinement's normal equations), a noise of
+    ``noise_px`` pixels per image coordinate gives ``noise_px^2 (J^T J)^-1``.
+    Depth, along the viewing rays, comes out far less certain than the
+    directions across them. For the thesis' pairwise average (eq. 5.5) this
+    is the covariance of the best estimate from the same pixels, a little
+    smaller than the average's own.
+
+    Parameters
+    ----------
+    rig : Rig
+    points : (n, m, 3)
+        Triangulated points (world frame), NaN where missing.
+    used : dict of str -> (n, m) bool
+        For each camera, the detections the points were computed from.
+    noise_px : float
+        Detection noise per image coordinate (:func:`pixel_noise`).
+
+    Returns
+    -------
+    (n, m, 3, 3)
+        NaN where the point is missing or seen by fewer than two of the cameras.
+    """
+    p = np.asarray(points, float)
+    shape = p.shape[:-1]
+    X = np.ascontiguousarray(p.reshape(-1, 3).T)
+    h = np.zeros((6, X.shape[1]))
+    k = np.zeros(X.shape[1], int)
+    ok = _finite_rows(X)
+    Xs = np.where(ok, X, 0.0)
+    for c, w in used.items():
+        seen = np.asarray(w, bool).reshape(-1) & ok
+        _, _, gu, gv = _project_jacobian(rig[c], Xs, seen)
+        h += gu[_PI] * gu[_PJ] + gv[_PI] * gv[_PJ]
+        k += seen
+    # (J^T J)^-1 by cofactors, all points at once (as _solve3)
+    a, bb, c, d, e, f = h
+    A = np.stack([d * f - e * e, c * e - bb * f, bb * e - c * d, a * f - c * c, bb * c - a * e, a * d - bb * bb])
+    det = a * A[0] + bb * A[1] + c * A[2]
+    scale = np.maximum(np.maximum(np.abs(a), np.abs(d)), np.abs(f)) ** 3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where((k >= 2) & (np.abs(det) > 1e-13 * scale), noise_px ** 2 / det, np.nan)
+    cov = np.empty((X.shape[1], 3, 3))
+    for n, (i, j) in enumerate(_PAIRS):
+        cov[:, i, j] = cov[:, j, i] = A[n] * inv
+    return cov.reshape(shape + (3, 3))
+
+
+def nearest_covariance(covariance: np.ndarray, fill: np.ndarray) -> np.ndarray:
+    """Covariances (n, m, 3, 3) with the ``fill`` entries (n, m) taken from the marker's nearest frame that has one.
+
+    For positions that were not triangulated but interpolated over a short
+    gap: their error is the interpolation's, which the neighbouring
+    measurements' covariance stands for (an approximation; the frames just
+    before and after the gap are measured with the same geometry). An entry
+    whose marker has no covariance in any frame stays NaN.
+    """
+    cov = np.array(covariance, float, copy=True)
+    fill = np.asarray(fill, bool)
+    have = np.all(np.isfinite(cov), axis=(2, 3)) & ~fill
+    for j in range(cov.shape[1]):
+        src = np.flatnonzero(have[:, j])
+        dst = np.flatnonzero(fill[:, j])
+        if src.size == 0 or dst.size == 0:
+            continue
+        pos = np.searchsorted(src, dst)
+        left = src[np.maximum(pos - 1, 0)]
+        right = src[np.minimum(pos, src.size - 1)]
+        near = np.where(np.abs(dst - left) <= np.abs(right - dst), left, right)
+        cov[dst, j] = cov[near, j]
+    return cov
+
+
+# ---------------------------------------------------------------------------
 # thesis triangulation
 # ---------------------------------------------------------------------------
 
@@ -621,7 +748,8 @@ def _triangulate_thesis(rig, cams, px_all, seen_all, pairs):
 # ---------------------------------------------------------------------------
 
 def triangulate(rig: Rig, marker_px: dict, mode: str = "joint", pairs=None,
-                max_residual_px: float | None = DEFAULT_MAX_RESIDUAL_PX) -> Triangulation:
+                max_residual_px: float | None = DEFAULT_MAX_RESIDUAL_PX,
+                covariance: bool = False) -> Triangulation:
     """3D marker positions from the synchronised detections of several cameras.
 
     Parameters
@@ -649,6 +777,11 @@ def triangulate(rig: Rig, marker_px: dict, mode: str = "joint", pairs=None,
         (recorded in ``rejected``), repeatedly; with two views left the point
         becomes NaN with reason ``"inconsistent_views"``. ``None``: no check
         (the thesis mode never checks).
+    covariance : bool
+        Also return each point's covariance (:attr:`Triangulation.covariance`,
+        :func:`point_covariance` over the detections used) for the detection
+        noise estimated from the residuals (:func:`pixel_noise`). Off by
+        default (it costs one more Jacobian per camera and point).
 
     Returns
     -------
@@ -712,6 +845,12 @@ def triangulate(rig: Rig, marker_px: dict, mode: str = "joint", pairs=None,
         residuals = {c: np.where(dropped, np.nan, resid[i]) for i, c in enumerate(cams)}
     else:
         residuals = {c: resid[i] for i, c in enumerate(cams)}
+    cov = noise = None
+    if covariance:
+        used = {c: seen_all[i] & ~rejected[c] & valid for i, c in enumerate(cams)}
+        noise = pixel_noise(residuals, used)
+        if np.isfinite(noise) and noise > 0:      # else no point has a residual: no noise to propagate
+            cov = point_covariance(rig, points, used, noise)
     return Triangulation(
         points=points,
         residual_px=residuals,
@@ -721,4 +860,6 @@ def triangulate(rig: Rig, marker_px: dict, mode: str = "joint", pairs=None,
         cameras=tuple(cams),
         pairs=pair_results,
         rejected=rejected,
+        covariance=cov,
+        noise_px=noise,
     )

@@ -1021,7 +1021,7 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                        kinematics: str = "fits", pose_smoothing: str = "adaptive",
                        rotation_orders=None, saddle_orders=None, weights=None,
                        pose_points=None, pose_t=None, pose_partial: bool = False,
-                       pose_harmonics: str = "auto") -> RigidBodyAnalysis:
+                       pose_harmonics: str = "auto", pose_covariance=None) -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call.
 
     Parameters
@@ -1103,6 +1103,13 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     pose_harmonics : "auto", "all" or "none"
         Unpenalised harmonics of the stride in the pose smoothing
         (:func:`horsemocap.pose.fit_pose_trajectory`, ``harmonics``).
+    pose_covariance : (N, m, 3, 3), optional
+        Each marker's covariance (m^2, motion frame) for the frames of
+        ``pose_points`` (e.g. the triangulation's, rotated into the motion
+        frame): the pose is then registered with each marker weighted by its
+        inverse covariance (:func:`horsemocap.pose.register_pose`), and the
+        pose noise that the smoothing tests harmonics against comes from it.
+        Not with ``weights``.
     """
     from . import fitting
 
@@ -1133,7 +1140,10 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     inside = np.searchsorted(pt, t - 1e-9)
     if pose_t is not None and (np.any(inside >= pt.size) or not np.allclose(pt[np.minimum(inside, pt.size - 1)], t)):
         raise ValueError("pose_t: expected every time of t among the pose frames' times")
-    preg_all = pose_mod.register_pose(ppts, model, weights)
+    if pose_covariance is not None and np.shape(pose_covariance) != ppts.shape + (3,):
+        raise ValueError(f"pose_covariance: expected {ppts.shape + (3,)} (the pose frames' markers, 3, 3), "
+                         f"got {np.shape(pose_covariance)}")
+    preg_all = pose_mod.register_pose(ppts, model, weights, covariance=pose_covariance)
     preg = preg_all if pose_t is None else _registration_rows(preg_all, inside)
     if kinematics == "pose_spline":
         order = 3 if pose_smoothing == "gcv_cubic" else 5
@@ -1178,7 +1188,8 @@ def _registration_rows(reg, rows):
     """A :class:`~horsemocap.pose.PoseRegistration` of some frames only (same noise estimate)."""
     from dataclasses import fields, replace
 
-    per_frame = {f.name: getattr(reg, f.name)[rows] for f in fields(reg) if f.name != "noise_m"}
+    per_frame = {f.name: getattr(reg, f.name)[rows] for f in fields(reg)
+                 if isinstance(getattr(reg, f.name), np.ndarray)}
     return replace(reg, **per_frame)
 
 
