@@ -857,7 +857,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
                         order: int = 5, max_gap_s: float | None = None, lam=None,
                         points=None, partial: bool = False, iterations: int = 3,
                         harmonics: str = "auto", fundamental_hz: float | None = None,
-                        rotation_noise_test: bool = True) -> PoseTrajectory:
+                        rotation_noise_test: bool = True, events=None) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     Parameters
@@ -929,6 +929,15 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     rotation_noise_test : bool
         With ``harmonics="auto"``: the rotation harmonics' test against the predicted rotation
         noise (default on; off gives the rule before it, for comparison).
+    events : sequence of float, optional
+        Known change points (s; e.g. the instant of an impact from a force plate or an
+        accelerometer): each component becomes a partial spline with an unpenalised truncated
+        power ``(t - tau)_+^2`` at each, so that the acceleration may jump there (``events`` of
+        :func:`horsemocap.splines.smoothing_spline`; ``"adaptive"`` also smooths the roughness of
+        each side apart). With ``smoothing`` "gcv" (and no harmonics: ``harmonics="none"``) or
+        "adaptive", order 5. Not detected from the data: a scan of the onset by GCV, alone or with
+        a test against the noise, placed it inside the ringing of ``bench_kinematics.py``'s fixture
+        and made the acceleration worse (``benchmarks/README.md``).
     """
     from .splines import estimate_fundamental, smoothing_spline
 
@@ -984,13 +993,14 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         # geometry (isotropic marker noise; pose_noise without the points)
         pn = pose_noise(reg, None, model)[3:]
         rot_noise = [float(v) if np.isfinite(v) else None for v in pn]
+    found = _pose_events(events, smoothing, order, f0)
     for it in range(iterations + 1 if two.any() else 1):
         cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
-                                    noise=sig[i], fundamental_hz=f0) for i in range(3))
+                                    noise=sig[i], fundamental_hz=f0, events=found) for i in range(3))
         ps = tuple(smoothing_spline(t[use], phi[use, i], method=smoothing, order=order, lam=lam[3 + i],
                                     noise=sig[3 + i], fundamental_hz=f0,
                                     harmonic_cutoff=harmonics != "all",
-                                    harmonic_noise=rot_noise[i]) for i in range(3))
+                                    harmonic_noise=rot_noise[i], events=found) for i in range(3))
         if it == iterations or not two.any():
             break
         tk = t[two]
@@ -1018,6 +1028,17 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     return PoseTrajectory(t=t, reference=ref.as_matrix(), model_centroid=np.asarray(model, float).mean(0),
                           centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason.astype(str),
                           registration=reg, rotvec_data=phi)
+
+
+def _pose_events(events, smoothing: str, order: int, f0):
+    """The change points :func:`fit_pose_trajectory` fits (``events`` checked), or None."""
+    if events is None or len(events) == 0:
+        return None
+    if order != 5 or smoothing not in ("gcv", "adaptive") or (smoothing == "gcv" and f0 is not None):
+        raise ValueError("events: change points need smoothing 'gcv' (with harmonics='none') or 'adaptive', "
+                         f"order 5; got smoothing={smoothing!r}, order={order}"
+                         + (", harmonics fitted" if f0 is not None else ""))
+    return sorted(float(e) for e in events)
 
 
 def conditioning_warnings(registration: PoseRegistration, lever_m: float | None = None,

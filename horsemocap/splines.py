@@ -40,7 +40,8 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
 from scipy.optimize import minimize_scalar
 
-__all__ = ["SmoothingSpline", "HarmonicTerms", "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
+__all__ = ["SmoothingSpline", "HarmonicTerms", "EventTerms", "truncated_power_columns",
+           "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
            "estimate_fundamental", "MAX_BASIS"]
 
 MAX_BASIS = 400
@@ -79,13 +80,59 @@ class SmoothingSpline:
     spline: BSpline
     info: dict
     harmonics: "HarmonicTerms | None" = None
+    events: "EventTerms | None" = None
 
     def __call__(self, t, derivative: int = 0) -> np.ndarray:
         t = np.asarray(t, float)
         out = self.spline(t) if derivative == 0 else self.spline.derivative(derivative)(t)
         if self.harmonics is not None:
             out = out + self.harmonics(t, derivative)
+        if self.events is not None:
+            out = out + self.events(t, derivative)
         return out
+
+
+@dataclass(frozen=True)
+class EventTerms:
+    """``e(t) = sum_j b_j (t - tau_j)_+^k``: the unpenalised change-point part of a partial spline
+    (:func:`smoothing_spline` with ``events``); with ``k = 2`` a jump ``2 b_j`` of the acceleration
+    at each ``tau_j``.
+
+    Attributes
+    ----------
+    times : (J,)
+        The events ``tau_j`` (s).
+    coef : (J,)
+        ``b_j``.
+    degree : int
+        ``k``.
+    """
+
+    times: np.ndarray
+    coef: np.ndarray
+    degree: int = 2
+
+    def __call__(self, t, derivative: int = 0) -> np.ndarray:
+        t = np.asarray(t, float)
+        cols = truncated_power_columns(t.ravel(), self.times, self.degree, derivative)
+        return (cols @ np.asarray(self.coef, float)).reshape(t.shape)
+
+
+def truncated_power_columns(t, times, degree: int = 2, derivative: int = 0) -> np.ndarray:
+    """``(t - tau_j)_+^degree`` for each ``tau_j`` in ``times`` (n, J), or their ``derivative``-th
+    derivatives (``degree! / (degree - d)! (t - tau)_+^(degree - d)``; the ``degree``-th is a step,
+    higher ones zero away from ``tau``)."""
+    from math import factorial
+
+    t = np.asarray(t, float)
+    times = np.atleast_1d(np.asarray(times, float))
+    if derivative > degree:
+        return np.zeros((t.size, times.size))
+    u = t[:, None] - times[None]
+    scale = factorial(degree) / factorial(degree - derivative)
+    if derivative == degree:
+        return scale * (u > 0).astype(float)
+    return scale * np.clip(u, 0, None) ** (degree - derivative)
 
 
 @dataclass(frozen=True)
@@ -535,10 +582,105 @@ def _adaptive(x, y, w, lam):
     return s2, info2
 
 
+def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None):
+    """Partial smoothing spline with change points: ``f = s + sum_j b_j (t - tau_j)_+^degree``, the
+    truncated powers at ``events`` unpenalised (Wahba 1990, ch. 6), ``s`` a spline of degree
+    ``2m - 1`` with the penalty ``lam integral v(t) s^(m)^2`` (``v`` = ``weight``, default 1).
+
+    Mixed-model form as :func:`_partial_quintic`: the penalty's null space and the event columns
+    are projected out of the penalised basis and one SVD gives the fit for every ``lam``; ``lam``
+    minimises GCV with ``gamma``. Returns ``(spline, EventTerms, info)``."""
+    from scipy.linalg import solve_triangular
+
+    n = x.size
+    k = 2 * m - 1
+    gamma = GCV_GAMMA if gamma is None else gamma
+    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m)
+    if weight is not None:
+        P = _penalty(knots, k, m, weight)
+        d, U = np.linalg.eigh((P + P.T) / 2)
+    U0, Up, dp = U[:, :m], U[:, m:], np.clip(d[m:], 1e-14 * d[-1], None)
+    sw = np.sqrt(w)
+    yw = sw * y
+    Zw = sw[:, None] * (B @ Up) / np.sqrt(dp)[None]
+    X = sw[:, None] * np.hstack([B @ U0, truncated_power_columns(x, events, degree)])
+    q = X.shape[1]
+    if q >= n - 2:
+        raise ValueError(f"y: {n} samples are too few for a spline with {len(events)} event(s)")
+    Q1, Rx = np.linalg.qr(X)
+    if np.min(np.abs(np.diag(Rx))) < 1e-9 * np.max(np.abs(np.diag(Rx))):
+        raise ValueError(f"events: {list(events)} are not resolved by the samples (too close to each other "
+                         "or to the record's ends)")
+    yq = Q1.T @ yw
+    V, sv, Wt = np.linalg.svd(Zw - Q1 @ (Q1.T @ Zw), full_matrices=False)
+    keep = sv > 1e-12 * sv.max()
+    V, sv, Wt = V[:, keep], sv[keep], Wt[keep]
+    z = V.T @ yw
+    s2 = sv * sv
+    rss0 = max(float(yw @ yw - yq @ yq - z @ z), 0.0)
+
+    def fit(lmb):
+        shrink = s2 / (s2 + lmb)
+        r = z * (1 - shrink)
+        return rss0 + float(r @ r), q + float(shrink.sum())
+
+    def score(loglam):
+        rss, tr = fit(10.0 ** loglam)
+        return n * rss / max(n - gamma * tr, 1e-9) ** 2
+
+    if lam is None:
+        pos = s2[s2 > 1e-12 * max(s2.max(), 1e-300)]
+        lam, _ = _choose_lam(score, np.log10(pos.min()) - 2, np.log10(pos.max()) + 2)
+    u = Wt.T @ (sv / (s2 + lam) * z)
+    beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
+    c = U0 @ beta[:m] + Up @ (u / np.sqrt(dp))
+    rss, tr = fit(lam)
+    terms = EventTerms(np.asarray(events, float).copy(), beta[m:].copy(), degree)
+    return BSpline(knots, c, k), terms, {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
+                                         "n": n, "order": k, "method": "gcv", "events": [float(e) for e in events],
+                                         "event_degree": degree}
+
+
+def _roughness_weight(x, fit1, edf, events=()):
+    """Penalty weight ``v(t)`` of the adaptive spline: the inverse of the first fit's squared third
+    derivative averaged over a Gaussian window of the record's effective resolution (``n / edf``
+    samples), the window not reaching across an event (the regimes before and after a change point
+    are smoothed apart), with a floor of 1e-3 of its largest value."""
+    width = max(2.0, x.size / max(edf, 1.0)) * float(np.median(np.diff(x)))
+    grid = np.linspace(x[0], x[-1], 8 * x.size)
+    r = fit1(grid, 3) ** 2
+    xs = grid[::8]
+    g = np.exp(-0.5 * ((grid[:, None] - xs[None]) / width) ** 2)
+    for tau in events:
+        g = g * ((grid[:, None] < tau) == (xs[None] < tau))
+    rs = (g * r[:, None]).sum(0) / np.maximum(g.sum(0), 1e-300)
+    floor = 1e-3 * rs.max() if rs.max() > 0 else 1.0
+
+    def weight(t):
+        return 1.0 / (np.interp(t, xs, rs) + floor)
+
+    return weight
+
+
+def _adaptive_events(x, y, w, lam, events, degree=2):
+    """:func:`_adaptive` with change points: both passes are partial splines with the truncated
+    powers at ``events`` (:func:`_event_quintic`), and the roughness window stops at the events."""
+    s1, e1, info1 = _event_quintic(x, y, w, None, events, degree)
+
+    def first(t, derivative):
+        return s1.derivative(derivative)(t) + e1(t, derivative)
+
+    weight = _roughness_weight(x, first, info1["edf"], events)
+    s2, e2, info2 = _event_quintic(x, y, w, lam, events, degree, weight)
+    info2["method"] = "adaptive"
+    return s2, e2, info2
+
+
 def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | None = None,
                      weights=None, noise: float | None = None, fundamental_hz: float | None = None,
                      max_harmonics: int = 10, harmonic_cutoff: bool = False,
-                     harmonic_noise: float | None = None) -> SmoothingSpline:
+                     harmonic_noise: float | None = None, events=None,
+                     event_degree: int = 2) -> SmoothingSpline:
     """Fit a smoothing spline to samples ``y(t)``; its smoothing chosen by GCV.
 
     Parameters
@@ -583,6 +725,13 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         in increasing order (a trot's pitch may keep the 2nd harmonic without the 1st); a smaller
         one cannot be told from a periodic error of the measurement and is left to the penalised
         spline. ``info["harmonic_amplitudes"]`` holds every candidate's amplitude.
+    events : sequence of float, optional
+        Change points (s; known from elsewhere, e.g. an impact seen by a force plate): a partial spline ``f = s + sum_j b_j
+        (t - tau_j)_+^event_degree`` with the truncated powers unpenalised (``method`` "gcv" or
+        "adaptive", order 5, no ``fundamental_hz``). With ``event_degree = 2`` the acceleration
+        may jump at each ``tau_j`` (an impact), which a smoothing spline with knots at the samples
+        spreads over many samples; ``"adaptive"`` also smooths each side's roughness apart. An
+        empty sequence is the plain spline.
     """
     x = np.asarray(t, float)
     y = np.asarray(y, float)
@@ -607,6 +756,13 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
             raise ValueError(f"fundamental_hz: expected a positive frequency, got {fundamental_hz!r}")
         if order != 5 or method not in ("gcv", "noise"):
             raise ValueError("fundamental_hz: harmonics are fitted by the quintic 'gcv' or 'noise' spline only")
+    if events is not None and len(events):
+        ev = np.asarray(events, float)
+        if ev.ndim != 1 or not np.all(np.isfinite(ev)) or np.any((ev <= x[0]) | (ev >= x[-1])):
+            raise ValueError(f"events: expected finite times inside the record ({x[0]:.6g}, {x[-1]:.6g}), got {events!r}")
+        if order != 5 or method not in ("gcv", "adaptive") or fundamental_hz is not None:
+            raise ValueError("events: change points are fitted by the quintic 'gcv' or 'adaptive' spline "
+                             "without harmonics only")
     n = x.size
     w = np.ones(n) if weights is None else np.asarray(weights, float)
     if w.shape != (n,) or np.any(w <= 0):
@@ -648,6 +804,11 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         info["cutoff_hz"] = cutoff
         info["harmonic_amplitudes"] = amplitude.tolist()
         return SmoothingSpline(s, info, harm)
+    if events is not None and len(events):
+        ev = sorted(float(e) for e in events)
+        fn = _adaptive_events if method == "adaptive" else _event_quintic
+        s, et, info = fn(x, y, w, lam, ev, event_degree)
+        return SmoothingSpline(s, info, None, et)
     if method == "noise":
         if order != 5:
             raise ValueError("method 'noise' is a quintic spline: order must be 5")
