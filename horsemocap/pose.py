@@ -921,7 +921,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         against a predicted noise of 0.41 deg and a true 0.001 deg; saddle error 15.6 % with it,
         2.7 % without). ``"none"``: plain smoothing splines. The fundamental is
         ``fundamental_hz`` or, if None, estimated from the six pose components together
-        (:func:`horsemocap.splines.estimate_fundamental`); a record shorter than 1.5 cycles of
+        (:func:`horsemocap.splines.estimate_fundamental`); a record shorter than 2 cycles of
         any frequency tried gets no harmonics. With ``smoothing`` "gcv" or "noise" (quintic)
         only; other smoothings ignore it.
     fundamental_hz : float, optional

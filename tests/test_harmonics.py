@@ -90,6 +90,19 @@ def test_fundamental_from_all_components_and_not_its_half():
         splines.estimate_fundamental(t[:5], Y[:5], min_cycles=30)
 
 
+def test_a_short_record_does_not_take_half_its_stride_frequency():
+    """Regression: the pose components (centroid, rotation vector) of the virtual hard session
+    sitting640_stirrup_30 (75 frames at 30 fps, stride 1.4 Hz: 3.5 strides), registered with the
+    markers' covariances. With 1.5 cycles as the lowest frequency tried the estimate was 0.700 Hz."""
+    from pathlib import Path
+
+    data = np.load(Path(__file__).parent / "data" / "pose_components_sitting640_stirrup_30.npz")
+    f0, _ = splines.estimate_fundamental(data["t"], data["Y"])
+    assert f0 == pytest.approx(1.4, abs=0.02)
+    half, _ = splines.estimate_fundamental(data["t"], data["Y"], min_cycles=1.5)
+    assert half == pytest.approx(0.7, abs=0.02)      # what the earlier default found
+
+
 def test_bad_fundamental_and_smoothing_combinations_are_refused():
     t = np.arange(30) / 30.0
     with pytest.raises(ValueError, match="fundamental_hz"):
