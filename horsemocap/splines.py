@@ -467,6 +467,14 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 2.0, max_hz: float | None 
     gain : float
         BIC of the periodic model minus that of the quadratic alone, per sample (negative: the
         harmonics explain the record).
+
+    Raises
+    ------
+    ValueError
+        A record too short for ``min_cycles`` cycles, or no period resolved: the best frequency
+        is the lowest tried (the bound of the search; a non-periodic record: issue 13's lift with
+        ringing cut to 2 s took 1.005 Hz with 2 cycles, 0.754 Hz with 1.5, and two harmonics of
+        1.005 Hz in the rotation about z made its omega error 20 % larger than plain splines').
     """
     t = np.asarray(t, float)
     Y = np.asarray(Y, float).reshape(t.size, -1)
@@ -523,6 +531,11 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 2.0, max_hz: float | None 
         a, b = grid[i] - 1.0 / (8 * T), grid[i] + 1.0 / (8 * T)
     res = minimize_scalar(bic, bounds=(a, b), method="bounded", options={"xatol": 1e-6 / T})
     f, sc = (float(res.x), float(res.fun)) if res.fun <= scores[i] else (float(grid[i]), float(scores[i]))
+    if f <= fmin * (1 + 1e-3):
+        # the best frequency is the lowest one tried: the periodic model explains the record's
+        # non-periodic part (a lift, a drift), not a period the record shows
+        raise ValueError(f"t: no period resolved: the best fit is the lowest frequency tried ({f:.3g} Hz, "
+                         f"{min_cycles:g} cycles in the {T:.3g} s record)")
     return f, (sc - bic0) / (n * nc)
 
 

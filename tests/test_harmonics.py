@@ -103,6 +103,16 @@ def test_a_short_record_does_not_take_half_its_stride_frequency():
     assert half == pytest.approx(0.7, abs=0.02)      # what the earlier default found
 
 
+def test_a_record_without_a_period_is_said_to_have_none():
+    """The lift of the ringing fixture cut to 2 s: its best 'period' is the lowest frequency tried."""
+    d = synthetic.lift_with_ringing(seed=0, duration_s=2.0)
+    reg = pose.register_pose(d["markers"], d["model"])
+    phi = Rotation.from_matrix(reg.rotation).as_rotvec()
+    for cycles in (1.5, 2.0):
+        with pytest.raises(ValueError, match="no period resolved"):
+            splines.estimate_fundamental(d["t"], np.column_stack([reg.centre, phi]), min_cycles=cycles)
+
+
 def test_bad_fundamental_and_smoothing_combinations_are_refused():
     t = np.arange(30) / 30.0
     with pytest.raises(ValueError, match="fundamental_hz"):
