@@ -1055,12 +1055,21 @@ def conditioning_warnings(registration: PoseRegistration, lever_m: float | None 
     out = []
     h = reg.height[np.isfinite(reg.rotation[:, 0, 0])]
     if h.size and np.isfinite(reg.noise_m):
-        rot_noise = np.degrees(reg.noise_m / max(float(np.min(h)), 1e-12))
+        if reg.information is not None:
+            # registered with the markers' covariances: the pose's own information gives the rotation
+            # noise (the isotropic residual overstates it: the weighted fit leaves the poorly measured
+            # depth its larger residuals)
+            rot = pose_noise(reg, None, None)[3:]
+            rot_noise = float(np.degrees(np.nanmax(rot))) if np.isfinite(rot).any() else float("nan")
+            basis = "the markers' triangulation covariances give"
+        else:
+            rot_noise = float(np.degrees(reg.noise_m / max(float(np.min(h)), 1e-12)))
+            basis = f"a marker noise of {1000 * reg.noise_m:.2f} mm gives"
         if rot_noise > rotation_noise_limit_deg:
             extra = "" if lever_m is None else (f"; a point {lever_m:.2f} m away moves by about "
                                                 f"{1000 * lever_m * np.radians(rot_noise):.1f} mm per frame")
-            out.append(f"thin marker triangle: smallest height {1000 * np.min(h):.0f} mm against a marker noise of "
-                       f"{1000 * reg.noise_m:.2f} mm gives about {rot_noise:.1f} deg of rotation noise per frame"
+            out.append(f"thin marker triangle: smallest height {1000 * np.min(h):.0f} mm; {basis} about "
+                       f"{rot_noise:.1f} deg of rotation noise per frame"
                        f"{extra}; the smoothing removes part of it, but angular results and far points are unreliable")
     missing = int(np.sum(reg.reason != ""))
     if missing:
