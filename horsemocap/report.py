@@ -94,15 +94,13 @@ def render_pngs(makers) -> list[str]:
         finally:
             os._exit(code)
     os.close(write_end)
-    drawn = None
     try:
         own = [_png(make()) for make in mine]
         with os.fdopen(read_end, "rb") as got:
             data = got.read()
     finally:
         _, status = os.waitpid(pid, 0)
-    if status == 0 and data:
-        drawn = pickle.loads(data)
+    drawn = pickle.loads(data) if status == 0 and data else None
     if drawn is None or len(drawn) != len(theirs):
         drawn = [_png(make()) for make in theirs]
     out = [None] * len(makers)

@@ -162,6 +162,11 @@ def test_cross_product_filter_rejects_the_mirrored_second_marker():
     assert sorted(kept.tolist()) == [[0, 3, 2], [2, 1, 0]]   # never 2' in the order 1-2-3
     # nearly straight references give no sign: no filtering
     assert det.cross_product_signs(np.array([[0, 0], [10, 0.01], [20, 0]]), 0.05).tolist() == [0]
+    # a centre without a number gives no sign, in the reference and in a candidate alike (not tested)
+    assert det.cross_product_signs(np.array([[0, 0], [np.nan, 5], [20, 0]])).tolist() == [0]
+    with_nan = np.vstack([cands, [[np.nan, np.nan]]])
+    assert det.filter_cross_product(with_nan, [[0, 4, 2]], det.cross_product_signs(np.array([p1, p2, p3]))).tolist() \
+        == [[0, 4, 2]]
 
 
 def test_weighted_centroid_is_sub_pixel_and_better_than_binary():

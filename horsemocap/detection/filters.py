@@ -244,13 +244,18 @@ def cross_product_signs(marker_px: np.ndarray, min_sine: float = 0.0) -> np.ndar
     Returns (M-2,) values in {-1, 0, +1}; 0 where the triple is so nearly
     straight (``|sin| < min_sine``) that its sign says nothing.
     """
-    p = np.asarray(marker_px, float)
-    r1 = p[1:-1] - p[:-2]
-    r2 = p[2:] - p[1:-1]
-    z = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
+    return _turn_signs(np.asarray(marker_px, float), min_sine).astype(int)
+
+
+def _turn_signs(p: np.ndarray, min_sine: float) -> np.ndarray:
+    """Signs of ``(r_12 x r_23)_3`` along the marker axis (second to last) of ``p`` (..., M, 2):
+    0 for a triple bent less than ``min_sine`` and for a NaN centre."""
+    r1 = p[..., 1:-1, :] - p[..., :-2, :]
+    r2 = p[..., 2:, :] - p[..., 1:-1, :]
+    z = r1[..., 0] * r2[..., 1] - r1[..., 1] * r2[..., 0]
     s = np.sign(z)
-    s[~(np.abs(z) >= min_sine * (_norm(r1) * _norm(r2)))] = 0      # (NaN: 0)
-    return s.astype(int)
+    s[~(np.abs(z) >= min_sine * (_norm(r1) * _norm(r2)))] = 0
+    return s
 
 
 def filter_cross_product(centroid, choices, reference_signs, min_sine: float = 0.05) -> np.ndarray:
@@ -265,13 +270,7 @@ def filter_cross_product(centroid, choices, reference_signs, min_sine: float = 0
     ref = np.asarray(reference_signs)
     if len(choices) == 0 or choices.shape[1] < 3 or not ref.any():
         return choices
-    c = np.asarray(centroid, float)
-    p = c[choices]                                  # (K, M, 2)
-    r1 = p[:, 1:-1] - p[:, :-2]
-    r2 = p[:, 2:] - p[:, 1:-1]
-    z = r1[..., 0] * r2[..., 1] - r1[..., 1] * r2[..., 0]
-    s = np.sign(z)
-    s[np.abs(z) < min_sine * (_norm(r1) * _norm(r2))] = 0
+    s = _turn_signs(np.asarray(centroid, float)[choices], min_sine)     # (K, M-2)
     ok = ((s == ref) | (ref == 0) | (s == 0)).all(axis=1)
     return choices[ok]
 
