@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-from .rigid import check_model, quaternion_from_cross_covariance
+from .rigid import _skew, check_model, quaternion_from_cross_covariance
 
 __all__ = [
     "CollinearMarkersError",
@@ -231,15 +231,6 @@ class PoseRegistration:
     extra_noise_m: float = float("nan")
 
 
-def _skew(v) -> np.ndarray:
-    """``[v]x`` (..., 3, 3) of vectors (..., 3)."""
-    v = np.asarray(v, float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
-
-
 def _check_covariance(covariance, vis, n, m) -> np.ndarray:
     """Marker covariances (n, m, 3, 3), symmetric, the identity where a marker is missing; clear errors."""
     C = np.asarray(covariance, float)
@@ -264,7 +255,7 @@ def _check_covariance(covariance, vis, n, m) -> np.ndarray:
 def _pose_normal_equations(p, d, W, R, c):
     """``sum A^T W A`` (k, 6, 6) and ``sum A^T W e`` (k, 6) of ``e_m = p_m - c - R d_m``, ``A_m = [I, -[R d_m]x]``."""
     r = np.einsum("kij,mj->kmi", R, d)
-    e = np.where(np.isfinite(p), p, 0.0) - c[:, None] - r
+    e = _pose_residual(p, c, r)
     A = np.concatenate([np.broadcast_to(np.eye(3), r.shape + (3,)), -_skew(r)], axis=-1)   # (k, m, 3, 6)
     WA = W @ A
     N = np.einsum("kmia,kmib->kab", A, WA)
@@ -274,8 +265,13 @@ def _pose_normal_equations(p, d, W, R, c):
 
 def _pose_cost(p, d, W, R, c):
     """``sum_m e_m^T W_m e_m`` per frame (k,) of ``e_m = p_m - c - R d_m``."""
-    e = np.where(np.isfinite(p), p, 0.0) - c[:, None] - np.einsum("kij,mj->kmi", R, d)
+    e = _pose_residual(p, c, np.einsum("kij,mj->kmi", R, d))
     return np.einsum("kmi,kmij,kmj->k", e, W, e)
+
+
+def _pose_residual(p, c, r):
+    """``e_m = p_m - c - r_m`` (k, m, 3) with ``r_m = R d_m``; 0 in place of a missing marker's position."""
+    return np.where(np.isfinite(p), p, 0.0) - c[:, None] - r
 
 
 def refine_pose_covariance(points, model, information, rotation, centre, iterations: int = 10,
@@ -528,7 +524,7 @@ def _register_covariance(points, model, cov, used, rotation, translation, extra_
         R, c, N = refine_pose_covariance(points, x, W, R, c)
         if not estimate:
             break
-        e = points - c[:, None] - np.einsum("kij,mj->kmi", R, d)
+        e = _pose_residual(points, c, np.einsum("kij,mj->kmi", R, d))
         s_new = extra_marker_noise(e[used], cov[used], dof)
         if not np.isfinite(s_new) or abs(s_new - s0) <= 0.01 * s_new:
             break

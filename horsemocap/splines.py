@@ -581,20 +581,7 @@ def _adaptive(x, y, w, lam):
     """Two passes: GCV with a uniform penalty, then GCV of the global scale of a penalty
     weighted by the inverse local roughness of the first fit (a locally adaptive spline)."""
     s1, info1 = _quintic_gcv(x, y, w, None)
-    d3 = s1.derivative(3)
-    # local roughness: the first pass' third derivative squared, averaged over a window
-    # of the record's own effective resolution (n / edf samples)
-    width = max(2.0, x.size / max(info1["edf"], 1.0)) * float(np.median(np.diff(x)))
-    grid = np.linspace(x[0], x[-1], 8 * x.size)
-    r = d3(grid) ** 2
-    xs = grid[::8]
-    g = np.exp(-0.5 * ((grid[:, None] - xs[None]) / width) ** 2)
-    rs = (g * r[:, None]).sum(0) / g.sum(0)
-    floor = 1e-3 * rs.max() if rs.max() > 0 else 1.0
-
-    def weight(t):
-        return 1.0 / (np.interp(t, xs, rs) + floor)
-
+    weight = _roughness_weight(x, lambda t, derivative: s1.derivative(derivative)(t), info1["edf"])
     s2, info2 = _quintic_gcv(x, y, w, lam, weight)
     info2["method"] = "adaptive"
     return s2, info2
