@@ -10,8 +10,8 @@ and VDV against the truth; then the medians and worst cases.
 Usage: ``python benchmarks/bench_herd_kinematics.py [--set herd|hard] ['{"kinematics": "fits"}' ...]``
 (``--set hard``: the 8 harder sessions of :mod:`horsemocap.virtuallab.hard` instead of the herd)
 (default variants: fits; pose_spline with plain splines, with the stride's harmonics in every
-component, and the default ``pose_harmonics: auto``; and the default with ``"marker_covariance":
-false``: the pose registered with equal marker weights (Horn) instead of each marker's inverse
+component, and the default ``pose_harmonics: auto``; and the default with ``"pose_weights":
+"equal"``: the pose registered with equal marker weights (Horn) instead of each marker's inverse
 covariance from the triangulation, as before 2026-11-24).
 """
 from __future__ import annotations
@@ -37,7 +37,7 @@ def main(argv=None):
     variants = [json.loads(a) for a in argv] or [
         {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_harmonics": "none"},
         {"kinematics": "pose_spline", "pose_harmonics": "all"}, {"kinematics": "pose_spline", "pose_harmonics": "auto"},
-        {"kinematics": "pose_spline", "pose_harmonics": "auto", "marker_covariance": False}]
+        {"kinematics": "pose_spline", "pose_harmonics": "auto", "pose_weights": "equal"}]
     from horsemocap import accuracy
     from horsemocap.pipeline import analyze, run_steps
     from horsemocap.virtuallab import GAITS, HORSES, herd_session, load_truth
@@ -57,9 +57,7 @@ def main(argv=None):
         truth = load_truth(folder)
         cells = []
         for i, v in enumerate(variants):
-            changes = {k: x for k, x in v.items() if k != "marker_covariance"}
-            results = base.results if v.get("marker_covariance", True) else accuracy.without_marker_covariance(base.results)
-            a = run_steps(base.session, replace(base.params, **changes), results, ["rigid_body", "comfort"])
+            a = run_steps(base.session, replace(base.params, **v), base.results, ["rigid_body", "comfort"])
             st = accuracy.stage_errors(a, truth)
             ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, KEYS)
             row = [st["saddle_acc_y_rmse_pct_of_rms"], *(ce[k] for k in KEYS)]

@@ -9,7 +9,7 @@ vertical acceleration RMSE (% of its rms) and the indicator errors (%).
 
 Usage: ``python benchmarks/bench_noise_kinematics.py [--sigmas 0.1 0.25 0.5] ['{"kinematics": "fits"}' ...]``
 (default variants: fits; pose_spline with ``pose_harmonics`` none, all and auto, the default; and
-the default with ``"marker_covariance": false``: the pose registered with equal marker weights
+the default with ``"pose_weights": "equal"``: the pose registered with equal marker weights
 (Horn) instead of each marker's inverse covariance from the triangulation, as before 2026-11-24).
 """
 from __future__ import annotations
@@ -27,7 +27,7 @@ def main(argv=None):
     variants = [json.loads(a) for a in args.variants] or [
         {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_harmonics": "none"},
         {"kinematics": "pose_spline", "pose_harmonics": "all"}, {"kinematics": "pose_spline", "pose_harmonics": "auto"},
-        {"kinematics": "pose_spline", "pose_harmonics": "auto", "marker_covariance": False}]
+        {"kinematics": "pose_spline", "pose_harmonics": "auto", "pose_weights": "equal"}]
     from horsemocap import accuracy
     from horsemocap.data import default_session_dir
     from horsemocap.pipeline import analyze
@@ -37,10 +37,8 @@ def main(argv=None):
     base = analyze(folder, None, {}, until="motion_frame", progress=lambda *a: None)
     truth = load_truth(folder)
     for v in variants:
-        changes = {k: x for k, x in v.items() if k != "marker_covariance"}
         rows = accuracy.noise_study(base, truth, sigmas_px=args.sigmas, repeats=args.draws,
-                                    params=accuracy.with_params(base, **changes),
-                                    marker_covariance=v.get("marker_covariance", True))
+                                    params=accuracy.with_params(base, **v))
         for r in rows:
             if not r["draws"]:
                 print(json.dumps(v), r["sigma_px"], 0, "failed:", r["failed"], flush=True)

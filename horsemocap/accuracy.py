@@ -285,21 +285,8 @@ def noisy_projections(truth, offsets: dict, n_frames: int, n_markers: int, sigma
 LATER_STEPS = ("triangulate", "smooth", "motion_frame", "rigid_body", "comfort")
 
 
-def without_marker_covariance(results: dict) -> dict:
-    """Step results with the triangulation's marker covariances dropped (for comparison).
-
-    The rigid-body step then registers the pose with Horn's equal marker
-    weights instead of each marker's inverse covariance
-    (:func:`horsemocap.pose.register_pose`).
-    """
-    out = dict(results)
-    out["triangulate"] = {**results["triangulate"], "covariance": None}
-    return out
-
-
 def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed: int = 0,
-                keys=("acc_y_Wk_rms", "VDV_y_Wk", "acc_y_max"), params=None, repeats: int = 3,
-                marker_covariance: bool = True) -> list[dict]:
+                keys=("acc_y_Wk_rms", "VDV_y_Wk", "acc_y_max"), params=None, repeats: int = 3) -> list[dict]:
     """Follow detection noise through the pipeline (seed 000, section 6.3).
 
     For each sigma the detections are replaced by the true projections plus
@@ -310,8 +297,8 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
     ``(triangulation="thesis")``). Each sigma is repeated ``repeats`` times
     with different noise and the median of every error is reported (one
     draw is a poor guide: the automatic choices can flip with the noise).
-    ``marker_covariance=False``: the pose is registered with equal marker
-    weights (:func:`without_marker_covariance`), as before the covariances.
+    ``with_params(analysis, pose_weights="equal")``: the pose registered with
+    equal marker weights, as before the covariances.
 
     Returns
     -------
@@ -336,10 +323,7 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
             base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
             base["detect"] = {**res["detect"], "marker_px": px}
             try:
-                rerun = run_steps(analysis.session, params, base, LATER_STEPS[:1])
-                if not marker_covariance:
-                    rerun.results.update(without_marker_covariance(rerun.results))
-                rerun = run_steps(analysis.session, params, rerun.results, LATER_STEPS[1:])
+                rerun = run_steps(analysis.session, params, base, LATER_STEPS)
             except AnalysisError as exc:
                 failed.append(str(exc))
                 continue

@@ -84,6 +84,9 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="with pose_spline: unpenalised harmonics of the stride (fundamental from the record) "
                         "in the pose smoothing, chosen with the smoothing; auto (default): the rotation's only "
                         "below the plain spline's cutoff; none: plain smoothing splines")
+    g.add_argument("--pose-weights", choices=["covariance", "equal"], dest="pose_weights",
+                   help="with pose_spline: each marker weighted by its triangulation covariance in the pose "
+                        "registration (default), or all alike (Horn, the thesis' eq. 5.14-5.21)")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
@@ -105,7 +108,7 @@ def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
                 "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
-                "kinematics", "pose_harmonics", "motion_frame", "x_degree")}
+                "kinematics", "pose_harmonics", "pose_weights", "motion_frame", "x_degree")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}

@@ -577,7 +577,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             pose_t = np.arange(lo - a, hi - a) / float(session.fps)
             progress("rigid_body", f"pose trajectory smoothed over frames {lo}..{hi - 1}: {a - lo} before and "
                                    f"{hi - b} after the analysed frames have two markers (reported: {a}..{b - 1})")
-    cov = res["triangulate"].get("covariance")
+    cov = res["triangulate"].get("covariance") if params.pose_weights == "covariance" else None
     if cov is not None:   # the markers' covariances in the motion frame (x_M = A (x - o): A C A^T)
         axes = res["motion_frame"]["frame"].axes
         cov = axes @ cov[lo:hi] @ axes.T

@@ -95,3 +95,13 @@ def test_analysis_json_records_the_preset():
     p = analysis_record(a)["parameters"]
     assert p["preset"] == "thesis" and p["calibration_mode"] == "pairwise"
     assert AnalysisParams.from_dict(p) == a.params  # --params analysis.json repeats it
+
+
+def test_pose_weights_choice_default_and_thesis_preset():
+    from horsemocap.params import AnalysisParams, ParamsError
+
+    assert AnalysisParams().pose_weights == "covariance"
+    assert AnalysisParams().with_preset("thesis").pose_weights == "equal"    # eq. 5.14-5.21: markers alike
+    assert AnalysisParams.from_dict({"pose_weights": "equal"}).pose_weights == "equal"
+    with pytest.raises(ParamsError, match="pose_weights"):
+        AnalysisParams.from_dict({"pose_weights": "inverse"})

@@ -244,3 +244,22 @@ def test_weighted_cost_never_above_horns_with_huge_noise():
 
     assert np.all(cost(reg) <= cost(horn) * (1 + 1e-9))
     assert np.median(cost(reg) / cost(horn)) < 0.9                # and usually well below
+
+
+def test_pose_weights_parameter_reaches_the_registration():
+    """``pose_weights``: "covariance" (default) weights the markers by their triangulation covariance in
+    the bundled session's rigid-body step; "equal" gives Horn's registration, as the thesis preset."""
+    from dataclasses import replace
+
+    from horsemocap.data import default_session_dir
+    from horsemocap.pipeline import analyze, run_steps
+
+    base = analyze(default_session_dir(), None, {}, until="motion_frame", progress=lambda *a: None)
+    assert base.results["triangulate"].get("covariance") is not None
+    out = {w: run_steps(base.session, replace(base.params, pose_weights=w), base.results, ["rigid_body"])
+           for w in ("covariance", "equal")}
+    cov, equal = (out[w].results["rigid_body"] for w in ("covariance", "equal"))
+    # the residual of the weighted fit is larger (depth keeps its residual) and the saddle moves
+    rms = {w: np.nanmedian(r["conditioning"]["registration_rms_m"]) for w, r in (("covariance", cov), ("equal", equal))}
+    assert rms["covariance"] > rms["equal"]
+    assert not np.allclose(cov["saddle_acceleration"], equal["saddle_acceleration"])
