@@ -292,7 +292,7 @@ class RegionWeight(NamedTuple):
 
     Attributes
     ----------
-    k, i : position in the regions asked for, index in their :class:`Regions`
+    i : index in their :class:`Regions` (the list of :func:`region_weights` is in the order asked for)
     weight : (p, q) float32, ``max(I - b, 0)`` on the region grown by ``margin`` (other regions left out),
         else 0 (multiples of 1/2 below 256: exact in float32)
     above : (p, q) float32, ``I - b``, the gray level above the region's background ``b``
@@ -303,7 +303,6 @@ class RegionWeight(NamedTuple):
         the weights are multiples of 1/2
     """
 
-    k: int
     i: int
     weight: np.ndarray
     above: np.ndarray
@@ -340,7 +339,7 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
     ids, areas = regions.ids.tolist(), regions.area.tolist()
     boxes = regions.bbox.tolist()
     out = []
-    for k, i in enumerate(idx.tolist()):
+    for i in idx.tolist():
         bx, by, bw, bh = boxes[i]
         bx, by = bx - u0, by - v0
         x0, y0 = max(bx - g, 0), max(by - g, 0)
@@ -368,7 +367,7 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
         wgt = np.maximum(above, np.float32(0))
         wgt *= near
         cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
-        out.append(RegionWeight(k, i, wgt, above, own, x0, y0, cut, cv2.moments(wgt)))
+        out.append(RegionWeight(i, wgt, above, own, x0, y0, cut, cv2.moments(wgt)))
     return out
 
 
@@ -412,17 +411,17 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     wts = patches if patches is not None else region_weights(gray, regions, index, margin)
     u0, v0 = regions.origin
     out = np.full((len(wts), 2), np.nan)
-    for r in wts:
+    for k, r in enumerate(wts):
         m = r.moments
         s = m["m00"]
         if s <= 0:
-            out[r.k] = regions.centroid[r.i]
+            out[k] = regions.centroid[r.i]
             continue
         ou, ov = r.x0 + u0, r.y0 + v0                  # the sums in full-image pixels, exact
-        out[r.k] = ((m["m10"] + ou * s) / s, (m["m01"] + ov * s) / s)
+        out[k] = ((m["m10"] + ou * s) / s, (m["m01"] + ov * s) / s)
         if symmetric_border and any(r.cut):
             hh, ww = r.weight.shape
-            out[r.k] = _symmetric_in_image(r.weight, np.arange(ou, ou + ww), np.arange(ov, ov + hh), out[r.k],
+            out[k] = _symmetric_in_image(r.weight, np.arange(ou, ou + ww), np.arange(ov, ov + hh), out[k],
                                            r.cut, regions.image_size)
     return out
 
@@ -461,13 +460,13 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     wts = patches if patches is not None else region_weights(gray, regions, index, margin)
     slope = np.full((len(wts), 2), np.nan)
     moments = np.full((len(wts), 2, 2), np.nan)
-    for r in wts:
+    for k, r in enumerate(wts):
         m = r.moments
         s = m["m00"]
         if s <= 0:
             continue
         suv = m["mu11"] / s
-        moments[r.k] = ((m["mu20"] / s, suv), (suv, m["mu02"] / s))
+        moments[k] = ((m["mu20"] / s, suv), (suv, m["mu02"] / s))
         if any(r.cut):
             continue
         inner = cv2.erode(r.own, _K3, borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -483,7 +482,7 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
             sol = np.linalg.lstsq(A, r.above[iy, ix], rcond=None)[0]
         a, gu, gv = sol
         if a > 0:
-            slope[r.k] = (gu / a, gv / a)
+            slope[k] = (gu / a, gv / a)
     return slope, moments
 
 
