@@ -290,17 +290,24 @@ def _undistort(cam: Camera, px: np.ndarray, ok: np.ndarray | None = None,
     return out
 
 
+def _cofactors3(h):
+    """Cofactors ``(A00, A01, A02, A11, A12, A22)``, determinant and the cube of the largest diagonal
+    entry (a scale for the singularity test) of symmetric 3x3 matrices ``h = (h00, h01, h02, h11, h12, h22)``."""
+    a, bb, c, d, e, f = h
+    A00, A01, A02 = d * f - e * e, c * e - bb * f, bb * e - c * d
+    A11, A12, A22 = a * f - c * c, bb * c - a * e, a * d - bb * bb
+    det = a * A00 + bb * A01 + c * A02
+    scale = np.maximum(np.maximum(np.abs(a), np.abs(d)), np.abs(f)) ** 3
+    return (A00, A01, A02, A11, A12, A22), det, scale
+
+
 def _solve3(h, b, rows: bool = False):
     """Batched solve of symmetric 3x3 systems by cofactors; NaN where singular.
 
     ``h`` = ``(h00, h01, h02, h11, h12, h22)`` arrays (N,), ``b`` = ``(b0, b1, b2)``.
     Returns (N, 3), or (3, N) with ``rows``.
     """
-    a, bb, c, d, e, f = h
-    A00, A01, A02 = d * f - e * e, c * e - bb * f, bb * e - c * d
-    A11, A12, A22 = a * f - c * c, bb * c - a * e, a * d - bb * bb
-    det = a * A00 + bb * A01 + c * A02
-    scale = np.maximum(np.maximum(np.abs(a), np.abs(d)), np.abs(f)) ** 3
+    (A00, A01, A02, A11, A12, A22), det, scale = _cofactors3(h)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = np.where(np.abs(det) > 1e-13 * scale, 1.0 / det, np.nan)
         x0 = (A00 * b[0] + A01 * b[1] + A02 * b[2]) * inv
@@ -672,10 +679,8 @@ def point_covariance(rig: Rig, points: np.ndarray, used: dict, noise_px: float =
         h += gu[_PI] * gu[_PJ] + gv[_PI] * gv[_PJ]
         k += seen
     # (J^T J)^-1 by cofactors, all points at once (as _solve3)
-    a, bb, c, d, e, f = h
-    A = np.stack([d * f - e * e, c * e - bb * f, bb * e - c * d, a * f - c * c, bb * c - a * e, a * d - bb * bb])
-    det = a * A[0] + bb * A[1] + c * A[2]
-    scale = np.maximum(np.maximum(np.abs(a), np.abs(d)), np.abs(f)) ** 3
+    cof, det, scale = _cofactors3(h)
+    A = np.stack(cof)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = np.where((k >= 2) & (np.abs(det) > 1e-13 * scale), noise_px ** 2 / det, np.nan)
     cov = np.empty((X.shape[1], 3, 3))
