@@ -23,15 +23,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from bench_calibration import _seeds   # "0-4" or "0,2,5" (this folder is on the path when run)
 
 OUT = Path(__file__).resolve().parent / "results" / "board_detection.json"
-
-
-def _seeds(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
 
 
 def _detect(image_dirs: dict, inner, flags: int):

@@ -333,6 +333,28 @@ def _harmonic_set(order) -> tuple:
     return tuple(sorted(int(k) for k in order))
 
 
+def _projected_svd(Zw, Q1, yw):
+    """The penalised basis ``Zw`` with the unpenalised columns (orthonormal ``Q1``) projected out, by
+    its SVD: singular values ``s`` (the negligible ones dropped), right vectors ``Wt`` and the data's
+    coordinates ``z`` (mixed-model form of :func:`_partial_quintic`)."""
+    V, s, Wt = np.linalg.svd(Zw - Q1 @ (Q1.T @ Zw), full_matrices=False)
+    keep = s > 1e-12 * s.max()
+    V, s, Wt = V[:, keep], s[keep], Wt[keep]
+    return s, Wt, V.T @ yw
+
+
+def _mixed_model_coefficients(s, Wt, z, lam, Q1, Rx, yw, Zw, penalty_basis):
+    """The fit at ``lam`` of the mixed-model form: the spline's coefficients ``c`` and the
+    unpenalised columns' ``beta`` (``penalty_basis`` = ``(U0, Up, dp)``, the penalty's null and
+    positive eigenvectors and eigenvalues; the first ``U0.shape[1]`` entries of ``beta`` are U0's)."""
+    from scipy.linalg import solve_triangular
+
+    U0, Up, dp = penalty_basis
+    u = Wt.T @ (s / (s * s + lam) * z)
+    beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
+    return U0 @ beta[:U0.shape[1]] + Up @ (u / np.sqrt(dp)), beta
+
+
 def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamma=None):
     """Partial smoothing spline: ``f = s + h``, ``h`` harmonics of ``fundamental_hz`` (unpenalised), ``s`` a
     spline of degree ``2m - 1`` with the penalty ``lam integral s^(m)^2``.
@@ -348,8 +370,6 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     0 = none) and ``lam`` minimise the same criterion as :func:`_quintic_gcv` (GCV with ``gamma`` or,
     with ``noise`` given, the unbiased risk).
     """
-    from scipy.linalg import solve_triangular
-
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
@@ -372,11 +392,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
             continue                               # harmonics not resolved by the samples
         yq = Q1.T @ yw
         if n <= 2 * Zw.shape[1]:
-            M = Zw - Q1 @ (Q1.T @ Zw)
-            V, s, Wt = np.linalg.svd(M, full_matrices=False)
-            keep = s > 1e-12 * s.max()
-            V, s, Wt = V[:, keep], s[keep], Wt[keep]
-            z = V.T @ yw
+            s, Wt, z = _projected_svd(Zw, Q1, yw)
         else:
             # a long record (knots every few samples): the same from the p x p Gram matrix of the
             # projected basis, M^T M = Z^T Z - (Q1^T Z)^T (Q1^T Z); n p^2 once, not an n x p SVD per K
@@ -415,9 +431,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     if best is None:
         raise ValueError(f"y: {n} samples are too few for a partial spline with harmonics {list(orders)}")
     sc, K, lk, Q1, Rx, s, Wt, z, fit = best
-    u = Wt.T @ (s / (s * s + lk) * z)
-    beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
-    c = U0 @ beta[:m] + Up @ (u / np.sqrt(dp))
+    c, beta = _mixed_model_coefficients(s, Wt, z, lk, Q1, Rx, yw, Zw, (U0, Up, dp))
     spline = BSpline(knots, c, k)
     harm = None
     if K:
@@ -595,8 +609,6 @@ def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None)
     Mixed-model form as :func:`_partial_quintic`: the penalty's null space and the event columns
     are projected out of the penalised basis and one SVD gives the fit for every ``lam``; ``lam``
     minimises GCV with ``gamma``. Returns ``(spline, EventTerms, info)``."""
-    from scipy.linalg import solve_triangular
-
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
@@ -617,10 +629,7 @@ def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None)
         raise ValueError(f"events: {list(events)} are not resolved by the samples (too close to each other "
                          "or to the record's ends)")
     yq = Q1.T @ yw
-    V, sv, Wt = np.linalg.svd(Zw - Q1 @ (Q1.T @ Zw), full_matrices=False)
-    keep = sv > 1e-12 * sv.max()
-    V, sv, Wt = V[:, keep], sv[keep], Wt[keep]
-    z = V.T @ yw
+    sv, Wt, z = _projected_svd(Zw, Q1, yw)
     s2 = sv * sv
     rss0 = max(float(yw @ yw - yq @ yq - z @ z), 0.0)
 
@@ -636,9 +645,7 @@ def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None)
     if lam is None:
         pos = s2[s2 > 1e-12 * max(s2.max(), 1e-300)]
         lam, _ = _choose_lam(score, np.log10(pos.min()) - 2, np.log10(pos.max()) + 2)
-    u = Wt.T @ (sv / (s2 + lam) * z)
-    beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
-    c = U0 @ beta[:m] + Up @ (u / np.sqrt(dp))
+    c, beta = _mixed_model_coefficients(sv, Wt, z, lam, Q1, Rx, yw, Zw, (U0, Up, dp))
     rss, tr = fit(lam)
     terms = EventTerms(np.asarray(events, float).copy(), beta[m:].copy(), degree)
     return BSpline(knots, c, k), terms, {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
