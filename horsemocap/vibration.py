@@ -68,13 +68,13 @@ periods of 18 frames at 30 fps): e.g. 1.2 (21/3.7932)^4 s = 0.3131 h, its
 from __future__ import annotations
 
 import csv
+import html
 import io
 import math
 import warnings
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 import numpy as np
 from scipy import signal as _signal
@@ -959,9 +959,9 @@ def _xlsx_sheet(rows) -> str:
     def cell(ref, v):
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             if not math.isfinite(v):
-                return f'<c r="{ref}" t="inlineStr"><is><t>{escape(str(v))}</t></is></c>'
+                return f'<c r="{ref}" t="inlineStr"><is><t>{html.escape(str(v), quote=False)}</t></is></c>'
             return f'<c r="{ref}"><v>{repr(float(v))}</v></c>'
-        return f'<c r="{ref}" t="inlineStr"><is><t>{escape(str(v))}</t></is></c>'
+        return f'<c r="{ref}" t="inlineStr"><is><t>{html.escape(str(v), quote=False)}</t></is></c>'
     lines = []
     for r, row in enumerate(rows, start=1):
         cells = "".join(cell(f"{'ABCDEFGHIJ'[c]}{r}", v) for c, v in enumerate(row))
@@ -1004,7 +1004,7 @@ def write_comfort_spreadsheet(path, indicators: dict, *, title: str = "comfort")
             '<?xml version="1.0" encoding="UTF-8" standalone="yes"?>\n'
             '<workbook xmlns="http://schemas.openxmlformats.org/spreadsheetml/2006/main" '
             'xmlns:r="http://schemas.openxmlformats.org/officeDocument/2006/relationships">'
-            f'<sheets><sheet name="{escape(sheet)}" sheetId="1" r:id="rId1"/></sheets></workbook>',
+            f'<sheets><sheet name="{html.escape(sheet)}" sheetId="1" r:id="rId1"/></sheets></workbook>',
         "xl/_rels/workbook.xml.rels":
             '<?xml version="1.0" encoding="UTF-8" standalone="yes"?>\n'
             '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'

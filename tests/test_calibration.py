@@ -342,3 +342,27 @@ def test_opencv_single_threaded_blocks_overlapping_in_threads_restore_the_settin
         assert cv2.getNumThreads() == 2
     finally:
         cv2.setNumThreads(before)
+
+
+def test_blas_single_threaded_blocks_overlapping_in_threads_restore_the_setting():
+    """The BLAS thread limit counts its blocks as OpenCV's does: one thread inside any block, the
+    setting found before the first block back after the last (A in, B in, A out, B out)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from horsemocap.threads import blas_single_threaded
+
+    def blas_threads():
+        return {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    if not blas_threads():
+        pytest.skip("no BLAS library with a thread pool is loaded")
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        a, b = blas_single_threaded(), blas_single_threaded()
+        a.__enter__()
+        assert set(blas_threads().values()) == {1}
+        b.__enter__()
+        a.__exit__(None, None, None)
+        assert set(blas_threads().values()) == {1}      # B still inside: not restored under it
+        b.__exit__(None, None, None)
+        assert blas_threads() == before

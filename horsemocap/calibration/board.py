@@ -17,9 +17,7 @@ from __future__ import annotations
 import itertools
 import os
 import re
-import threading
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +25,7 @@ import cv2
 import numpy as np
 
 from ..sources import list_images, read_image
+from ..threads import opencv_single_threaded  # noqa: F401  (also imported from here)
 
 
 class CalibrationError(ValueError):
@@ -55,6 +54,14 @@ def board_points(inner_corners: tuple[int, int], square_m: float) -> np.ndarray:
     i, j = np.meshgrid(np.arange(cols), np.arange(rows))
     return np.stack([i.ravel() * square_m, j.ravel() * square_m, np.zeros(cols * rows)], axis=1)
 
+
+CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH
+"""Flags of the classic ``findChessboardCorners``: adaptive thresholding, not
+``CALIB_CB_NORMALIZE_IMAGE``. Measured (``benchmarks/bench_board_detection.py``):
+the histogram equalisation made a failing view cost twice as long (78 against
+33 ms on the bundled views, where 27 of 135 views fail and go to the fallback)
+and found 1 view more, which the fallback then finds; the refined corners and
+the rigs are compared there."""
 
 SECTOR_FLAGS = cv2.CALIB_CB_EXHAUSTIVE
 """Flags of the fallback ``findChessboardCornersSB``. Not ``CALIB_CB_ACCURACY``:
@@ -222,11 +229,10 @@ def detect_board(image: np.ndarray, inner_corners: tuple[int, int], window: int 
         raise CalibrationError(f"sub-pixel half-window must be at least 2 pixels, got {window}")
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     pattern = (int(inner_corners[0]), int(inner_corners[1]))
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     why = f"board of {pattern[0]}x{pattern[1]} inner corners not found"
     for detector in ("classic", "sector"):
         if detector == "classic":
-            ok, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
+            ok, corners = cv2.findChessboardCorners(gray, pattern, flags=CLASSIC_FLAGS)
         else:
             ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=SECTOR_FLAGS)
         if not ok:
@@ -416,34 +422,6 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
         finally:
             for fut in futures:          # an error (or an interrupt): start no further view
                 fut.cancel()
-
-
-_single_thread_lock = threading.Lock()
-_single_thread_users = [0, None]     # [calls inside, OpenCV's thread count before the first]
-
-
-@contextmanager
-def opencv_single_threaded():
-    """OpenCV limited to one thread of its own inside the block, restored after the last such block.
-
-    ``cv2.setNumThreads`` is process-wide: two blocks overlapping in threads
-    (the board detection and a calibration started beside it) would
-    otherwise restore each other's setting and could leave the process at
-    one thread. The count of blocks inside is kept under a lock; the first
-    saves the setting, the last restores it.
-    """
-    with _single_thread_lock:
-        if _single_thread_users[0] == 0:
-            _single_thread_users[1] = cv2.getNumThreads()
-            cv2.setNumThreads(1)
-        _single_thread_users[0] += 1
-    try:
-        yield
-    finally:
-        with _single_thread_lock:
-            _single_thread_users[0] -= 1
-            if _single_thread_users[0] == 0:
-                cv2.setNumThreads(_single_thread_users[1])
 
 
 def detect_views(folder, inner_corners: tuple[int, int], camera: str | None = None,

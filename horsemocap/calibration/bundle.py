@@ -26,7 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
-from .board import BoardViews, CalibrationError, opencv_single_threaded
+from ..threads import blas_single_threaded, opencv_single_threaded
+from .board import BoardViews, CalibrationError
 
 #: Names of the 9 intrinsic parameters, in OpenCV's order.
 INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
@@ -408,7 +409,19 @@ def bundle_adjust(views: list[BoardViews], singles: list[IntrinsicResult], board
     Returns
     -------
     BundleResult
+
+    Notes
+    -----
+    Runs with one BLAS thread (:data:`horsemocap.threads.blas_single_threaded`): its normal
+    equations have a few hundred columns, where a second BLAS thread costs more processor time
+    than it saves (measured in :mod:`horsemocap.threads`).
     """
+    with blas_single_threaded():
+        return _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, tol)
+
+
+def _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, tol) -> BundleResult:
+    """:func:`bundle_adjust`'s solve."""
     nc = len(views)
     nv = len(views[0].names)
     if any(len(v.names) != nv for v in views):
