@@ -23,7 +23,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import scipy.sparse as sp
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..threads import blas_single_threaded, opencv_single_threaded
@@ -158,7 +157,8 @@ def calibrate_camera(views: BoardViews, board_pts: np.ndarray, exclude=(), *, fi
     if fix_tangential:
         flags |= cv2.CALIB_ZERO_TANGENT_DIST
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    with opencv_single_threaded():  # OpenCV's parallel sums change the last digits from run to run
+    # OpenCV's parallel sums change the last digits from run to run; its BLAS threads only wait
+    with opencv_single_threaded(), blas_single_threaded():
         rms, K, dist, rv, tv, std_i, _std_e, per_view = cv2.calibrateCameraExtended(
             obj, img, tuple(views.size), None, None, flags=flags, criteria=crit)
     dist = np.asarray(dist, float).ravel()[:5]
@@ -249,16 +249,12 @@ def _pose_mean(rvecs, tvecs):
     Rs = np.array([rotation_matrix(r) for r in rvecs])
     n = len(Rs)
     if n > 2:
-        ang = np.array([[_angle(Rs[i], Rs[j]) for j in range(n)] for i in range(n)])
+        # every pair's angle at once: trace(Ra^T Rb) is the sum of the elementwise products
+        ang = np.arccos(np.clip((np.einsum("aij,bij->ab", Rs, Rs) - 1) / 2, -1, 1))
         med = int(np.argmin(ang.sum(axis=1)))
         keep = ang[med] < np.deg2rad(2.0)
         Rs, tvecs = Rs[keep], np.asarray(tvecs)[keep]
     return rotation_vector(Rs.mean(axis=0)), np.median(np.asarray(tvecs), axis=0)
-
-
-def _angle(Ra, Rb) -> float:
-    """Angle (rad) of the rotation between two rotation matrices."""
-    return float(np.arccos(np.clip((np.trace(Ra.T @ Rb) - 1) / 2, -1, 1)))
 
 
 def flip_view(corners, rvec, tvec, board_pts):
@@ -468,53 +464,46 @@ def _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, 
 
     obs = [(c, v) for c in range(nc) for v in active if used[c, v]]
     npts = board_pts.shape[0]
-    # column index of each intrinsic (or -1 when fixed)
-    int_cols = -np.ones(9, int)
-    int_cols[free_int] = np.arange(nfi)
 
-    def residuals_jacobian(x, want_jac=True):
+    def residuals_normal(x, want_normal=True):
+        """Residuals, and the Gauss-Newton normal equations ``(J^T J, J^T r)``: each observation's
+        Jacobian is dense in its own columns (its camera's intrinsics and pose, its view's pose),
+        so its block ``J_k^T J_k`` is added where those columns meet (no sparse ``J`` is built)."""
         intr, cr, ct, vr, vt = unpack(x)
         res = np.empty(2 * npts * len(obs))
-        rows, cols, vals = [], [], []
+        A, g = (np.zeros((npar, npar)), np.zeros(npar)) if want_normal else (None, None)
         for k, (c, v) in enumerate(obs):
             K = np.array([[intr[c, 0], 0, intr[c, 2]], [0, intr[c, 1], intr[c, 3]], [0, 0, 1.0]])
             dist = intr[c, 4:9]
             (r3, t3, dr3dr1, dr3dt1, dr3dr2, dr3dt2, dt3dr1, dt3dt1, dt3dr2, dt3dt2) = cv2.composeRT(
                 vr[v], vt[v], cr[c], ct[c])
             proj, jac = cv2.projectPoints(board_pts, r3, t3, K, dist)
-            sl = slice(2 * npts * k, 2 * npts * (k + 1))
-            res[sl] = (proj.reshape(-1, 2) - views[c].corners[v]).ravel()
-            if not want_jac:
+            rk = (proj.reshape(-1, 2) - views[c].corners[v]).ravel()
+            res[2 * npts * k:2 * npts * (k + 1)] = rk
+            if not want_normal:
                 continue
             Jr, Jt = jac[:, 0:3], jac[:, 3:6]
             Jint = jac[:, 6:15]  # fx fy cx cy k1 k2 p1 p2 k3
-            r_idx = np.arange(sl.start, sl.stop)
-            blocks = []
+            blocks, cols = [], []
             if nfi:
-                blocks.append((c * nfi + np.arange(nfi), Jint[:, free_int]))
+                blocks.append(Jint[:, free_int])
+                cols.append(c * nfi + np.arange(nfi))
             if c > 0:
-                Jc = np.hstack([Jr @ dr3dr2 + Jt @ dt3dr2, Jr @ dr3dt2 + Jt @ dt3dt2])
-                blocks.append((off_cam + 6 * (c - 1) + np.arange(6), Jc))
-            Jv = np.hstack([Jr @ dr3dr1 + Jt @ dt3dr1, Jr @ dr3dt1 + Jt @ dt3dt1])
-            blocks.append((vpos[v] + np.arange(6), Jv))
-            for cidx, B in blocks:
-                rows.append(np.repeat(r_idx, len(cidx)))
-                cols.append(np.tile(cidx, len(r_idx)))
-                vals.append(B.ravel())
-        if not want_jac:
-            return res, None
-        J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                          shape=(res.size, npar))
-        return res, J
+                blocks += [Jr @ dr3dr2 + Jt @ dt3dr2, Jr @ dr3dt2 + Jt @ dt3dt2]
+                cols.append(off_cam + 6 * (c - 1) + np.arange(6))
+            blocks += [Jr @ dr3dr1 + Jt @ dt3dr1, Jr @ dr3dt1 + Jt @ dt3dt1]
+            cols.append(vpos[v] + np.arange(6))
+            Jk, cols = np.hstack(blocks), np.concatenate(cols)
+            A[np.ix_(cols, cols)] += Jk.T @ Jk
+            g[cols] += Jk.T @ rk
+        return res, (A, g)
 
     x = pack(intr0, cam_r, cam_t, view_r, view_t)
-    r, J = residuals_jacobian(x)
+    r, (A, g) = residuals_normal(x)
     cost = float(r @ r)
     lam = 1e-3
     it = 0
     for it in range(1, max_iter + 1):
-        A = (J.T @ J).toarray()
-        g = J.T @ r
         d = np.sqrt(np.maximum(np.diag(A), 1e-300))
         As = A / d[:, None] / d[None, :]
         gs = g / d
@@ -526,7 +515,7 @@ def _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, 
                 lam *= 10
                 continue
             x_new = x + step
-            r_new, _ = residuals_jacobian(x_new, want_jac=False)
+            r_new, _ = residuals_normal(x_new, want_normal=False)
             cost_new = float(r_new @ r_new)
             if cost_new < cost:
                 improved = True
@@ -536,13 +525,12 @@ def _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, 
             break
         rel = (cost - cost_new) / max(cost, 1e-300)
         x, lam = x_new, max(lam / 10, 1e-12)
-        r, J = residuals_jacobian(x)
+        r, (A, g) = residuals_normal(x)
         cost = float(r @ r)
         if rel < tol:
             break
 
     intr, cr, ct, vr, vt = unpack(x)
-    A = (J.T @ J).toarray()
     dof = max(r.size - npar, 1)
     sigma = float(np.sqrt(cost / dof))
     try:
