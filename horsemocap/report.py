@@ -71,41 +71,54 @@ def report_figures(analysis) -> list:
 def render_pngs(makers) -> list[str]:
     """Draw every figure of ``makers`` (callables returning a figure) as a base64 PNG, in order.
 
-    Where the system can ``fork`` and has two or more cores, every other
-    figure is drawn by a forked copy of this process while this one draws
-    the rest (issue 16: the six figures of the bundled report took 0.8 s of
-    matplotlib's text layout on one core). The copies draw with the same
-    code and data, so the PNGs are the same bytes either way; if the copy
-    fails, its figures are drawn here.
+    Where the system can ``fork`` and has two or more cores, a forked copy of
+    this process draws figures beside this one (issue 16: the six figures of
+    the bundled report took 0.8 s of matplotlib's text layout on one core).
+    The two take the next figure not yet taken as each becomes free (one byte
+    per figure read from a shared pipe: reading one byte is atomic), so a
+    slower figure does not leave one of them waiting. The copy draws with the
+    same code and data, so the PNGs are the same bytes either way; the
+    figures the copy did not deliver are drawn here.
     """
     makers = list(makers)
-    if len(makers) < 2 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2:
+    if len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2:
         return [_png(make()) for make in makers]
-    theirs, mine = makers[::2], makers[1::2]
+    claims_r, claims_w = os.pipe()
+    os.write(claims_w, bytes(range(len(makers))) + b"\xff\xff")    # the figures, then one stop each
+    os.close(claims_w)
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:                                     # the copy: draw, send, leave without cleanup
         code = 1
         try:
             os.close(read_end)
+            drawn = _draw_claimed(makers, claims_r)
             with os.fdopen(write_end, "wb") as out:
-                pickle.dump([_png(make()) for make in theirs], out)
+                pickle.dump(drawn, out)
             code = 0
         finally:
             os._exit(code)
     os.close(write_end)
     try:
-        own = [_png(make()) for make in mine]
+        out = _draw_claimed(makers, claims_r)
         with os.fdopen(read_end, "rb") as got:
             data = got.read()
     finally:
         _, status = os.waitpid(pid, 0)
-    drawn = pickle.loads(data) if status == 0 and data else None
-    if drawn is None or len(drawn) != len(theirs):
-        drawn = [_png(make()) for make in theirs]
-    out = [None] * len(makers)
-    out[::2], out[1::2] = drawn, own
-    return out
+        os.close(claims_r)
+    if status == 0 and data:
+        out.update(pickle.loads(data))
+    return [out[i] if i in out else _png(make()) for i, make in enumerate(makers)]
+
+
+def _draw_claimed(makers, claims_fd: int) -> dict:
+    """The figures this process takes from the shared pipe of figure numbers, drawn: {number: PNG}."""
+    drawn = {}
+    while True:
+        claim = os.read(claims_fd, 1)
+        if not claim or claim[0] >= len(makers):
+            return drawn
+        drawn[claim[0]] = _png(makers[claim[0]]())
 
 
 def _table(rows, header) -> str:
