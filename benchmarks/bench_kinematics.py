@@ -17,6 +17,9 @@ jump of the acceleration; as from a force plate). The onset is the fixture's, no
 tuned to the first.
 
 Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture issue13|second]``
+
+Smoothers tried without the onset given (a one-sided roughness envelope, heavy-tailed jerk, L1 trend
+filtering, a scan for the onset), none meeting the targets: ``bench_kinematics_tries.py``.
 """
 from __future__ import annotations
 
