@@ -465,8 +465,9 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
 
 def _any_cut(regions: Regions, index) -> bool:
     """Whether any region of ``index`` (default all) touches the image border."""
-    cut = regions.touches_border
-    return bool(cut.any() if index is None else cut[np.atleast_1d(np.asarray(index, dtype=np.intp))].any())
+    W, H = regions.image_size
+    bbox = regions.bbox if index is None else regions.bbox[np.atleast_1d(np.asarray(index, dtype=np.intp))]
+    return any(x <= 0 or y <= 0 or x + w >= W or y + h >= H for x, y, w, h in bbox.tolist())
 
 
 def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5,

@@ -379,6 +379,22 @@ def _inside(pred, radius, size):
     return np.array([u >= lo and v >= lo and u <= hu and v <= hv for u, v in pred.tolist()], bool)
 
 
+def _choice_errors(cent: list, choices: list, pred: list, gate: list, has_pred: list) -> list:
+    """Per choice of regions, the largest distance of a predicted marker from its prediction (inf when a
+    marker lies beyond its ``gate``), in Python floats as ``_norm`` computes it."""
+    out = []
+    for row in choices:
+        err, ok = 0.0, True
+        for m, j in enumerate(row):
+            if has_pred[m]:
+                dx, dy = cent[j][0] - pred[m][0], cent[j][1] - pred[m][1]
+                d = math.sqrt(dx * dx + dy * dy)
+                ok = ok and d <= gate[m]
+                err = d if d > err else err
+        out.append(err if ok else math.inf)
+    return out
+
+
 def _in_window(cent: np.ndarray, centre, half) -> np.ndarray:
     """:func:`filter_window` of the centres ``cent`` about ``centre`` (half sizes ``half``), in Python floats."""
     (cu, cv), (hu, hv) = centre, half
@@ -493,12 +509,9 @@ def _track_frame(gc, k, state, p):
         ch = _thesis_choices(cent, dref, tol, state["signs"])
         if len(ch):
             if any_pred:
-                dev = _norm(cent[ch] - pred[None]) if all_pred else _norm(cent[ch][:, has_pred] - pred[has_pred][None])
-                err = dev.max(axis=1)
-                gated = (dev <= (gate_m if all_pred else gate_m[has_pred])[None]).all(axis=1)
-                err = np.where(gated, err, np.inf)
-                order = np.argsort(err)
-                if np.isfinite(err[order[0]]):
+                err = _choice_errors(cent.tolist(), ch.tolist(), pred.tolist(), gate_m.tolist(), has_pred.tolist())
+                order = sorted(range(len(err)), key=err.__getitem__)   # (a tie makes the frame ambiguous)
+                if math.isfinite(err[order[0]]):
                     if len(ch) > 1 and err[order[1]] <= 2 * err[order[0]] + 1.0:
                         ambiguous = True
                     else:
@@ -605,8 +618,7 @@ def _update_state(state, k, px, ar, p):
         last_k = state["last_k"]
         dt = np.array([np.nan if lk is None else float(k - lk) for lk in last_k])
         near = np.abs(dt) <= state["max_gap"]                  # NaN (never seen): False
-        with np.errstate(invalid="ignore"):
-            vel = np.where(near[:, None], (px - state["last_p"]) / dt[:, None], 0.0)
+        vel = np.where(near[:, None], (px - state["last_p"]) / dt[:, None], 0.0)   # (NaN quietly where unused)
         a0 = state["area"]
         area = np.where(np.isfinite(a0), 0.7 * a0 + 0.3 * ar, ar)
         if all(seen_l):
