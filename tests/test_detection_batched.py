@@ -104,3 +104,70 @@ def test_circularity_sums_region_by_region_equal_one_pass(monkeypatch, by_moment
     by_region = det.region_circularity(regions, by_moments)
     monkeypatch.setattr(filters, "SUMS_BY_REGION", 0)
     np.testing.assert_array_equal(det.region_circularity(regions, by_moments), by_region)
+
+
+# -- fourth pass: the same numbers by fewer NumPy calls ------------------------------------------------
+
+@pytest.mark.parametrize("seed", [0, 4])
+def test_centres_without_the_weight_arrays_equal_those_from_them(seed):
+    """``weighted_centroids`` by ``_weight_sums`` (uint8 weights for a whole-level background) gives the
+    very numbers of the float32 weights of ``region_weights``, with and without ``symmetric_border``."""
+    gray = _image(seed)
+    regions, keep = det.find_candidates(gray, 60, (1, 10 ** 6))
+    inside = keep[~regions.touches_border[keep]]
+    assert len(inside) > 20
+    patches = filters.region_weights(gray, regions, inside)
+    whole = [i for i, r in zip(inside, patches) if float(r.above[0, 0]) == int(r.above[0, 0])]
+    assert len(whole) > 5                                   # the uint8 path is taken
+    for sym in (False, True):
+        np.testing.assert_array_equal(det.weighted_centroids(gray, regions, inside, symmetric_border=sym),
+                                      det.weighted_centroids(gray, regions, inside, symmetric_border=sym,
+                                                             patches=patches))
+
+
+def _random_cluster(rng, M, C):
+    base = rng.random((M, 2)) * 100
+    cent = np.vstack([base + rng.normal(0, 2, base.shape), rng.random((max(C - M, 0), 2)) * 100])
+    return base, cent[rng.permutation(len(cent))][:C]
+
+
+def test_thesis_choices_equal_the_distance_and_cross_product_filters():
+    from horsemocap.detection import tracking
+
+    rng = np.random.default_rng(7)
+    kept = 0
+    for t in range(1500):
+        M = int(rng.integers(2, 6))
+        base, cent = _random_cluster(rng, M, int(rng.integers(M - 1, 10)))
+        tol = float(rng.choice([0.05, 0.1, 0.3, 1.0]))
+        d, s = det.marker_distances(base), det.cross_product_signs(base, 0.1)
+        want = det.filter_cross_product(cent, det.filter_distance(cent, d, tol), s)
+        got = tracking._thesis_choices(cent, d, tol, s)
+        assert got.dtype == want.dtype and got.shape == want.shape and (got == want).all()
+        kept += len(got)
+    assert kept > 500
+
+
+def test_signs_in_python_floats_equal_cross_product_signs():
+    from horsemocap.detection import tracking
+
+    rng = np.random.default_rng(8)
+    for t in range(500):
+        p = rng.normal(0, 50, (int(rng.integers(1, 7)), 2))
+        if t % 5 == 0 and len(p) >= 3:
+            p[2] = p[0] + (p[1] - p[0]) * 2.0            # a straight triple: sign 0
+        want = det.cross_product_signs(p, 0.1)
+        got = tracking._signs_of(p.tolist(), 0.1)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("crop", [(0, 0, 200, 150), (17, 9, 150, 120), (40, 0, 200, 100)])
+def test_candidates_kept_in_python_equal_the_array_filters(monkeypatch, crop):
+    gray = _image(5, n=80)
+    u0, v0, u1, v1 = crop
+    args = (gray[v0:v1, u0:u1], (u0, v0), (200, 150), 60, (3, 40))
+    monkeypatch.setattr(filters, "KEEP_IN_PYTHON", 10 ** 6)
+    regions, keep = filters._candidates_in(*args, None)
+    assert 0 < len(keep) < len(regions)
+    monkeypatch.setattr(filters, "KEEP_IN_PYTHON", -1)
+    assert np.array_equal(filters._candidates_in(*args, None)[1], keep)

@@ -329,16 +329,31 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
     -------
     list of :class:`RegionWeight`
     """
+    u0, v0 = regions.origin
+    W, H = regions.image_size
+    out = []
+    for i, x0, y0, own_b, near, sub8, b in _near_and_background(gray, regions, index, margin):
+        above = np.subtract(sub8, b, dtype=np.float32)   # halves within +-256: exact in float32
+        wgt = np.maximum(above, np.float32(0))
+        wgt *= near
+        bx, by, bw, bh = regions.bbox[i].tolist()
+        cut = (bx <= 0, bx + bw >= W, by <= 0, by + bh >= H)
+        out.append(RegionWeight(i, wgt, above, own_b.view(np.uint8), x0, y0, cut, cv2.moments(wgt)))
+    return out
+
+
+def _near_and_background(gray: np.ndarray, regions: Regions, index, margin: int):
+    """Per region of ``index``: ``(i, x0, y0, own, near, sub8, b)``, what :func:`region_weights` describes:
+    the patch's corner, the region's own pixels and its grown mask (bool) in the patch, the gray patch and
+    the background ``b`` (a multiple of 1/2)."""
     idx = np.arange(len(regions)) if index is None else np.atleast_1d(np.asarray(index, dtype=np.intp))
     lab = regions.labels
     h, w = lab.shape
     u0, v0 = regions.origin
-    W, H = regions.image_size
     g = 2 * margin + 2                     # the ring reaches margin + 2 px from the region, other regions + 1
     k_near, k_far = _square(2 * margin + 1), _square(2 * margin + 5)
     ids, areas = regions.ids.tolist(), regions.area.tolist()
     boxes = regions.bbox.tolist()
-    out = []
     for i in idx.tolist():
         bx, by, bw, bh = boxes[i]
         bx, by = bx - u0, by - v0
@@ -363,11 +378,23 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
             b = float(vals[n // 2]) if n % 2 else (float(vals[n // 2 - 1]) + float(vals[n // 2])) / 2
         else:
             b = float(sub8[own_b].min()) - 1
-        above = np.subtract(sub8, b, dtype=np.float32)   # halves within +-256: exact in float32
-        wgt = np.maximum(above, np.float32(0))
-        wgt *= near
-        cut = (bx + u0 <= 0, bx + u0 + bw >= W, by + v0 <= 0, by + v0 + bh >= H)
-        out.append(RegionWeight(i, wgt, above, own, x0, y0, cut, cv2.moments(wgt)))
+        yield i, x0, y0, own_b, near, sub8, b
+
+
+def _weight_sums(gray: np.ndarray, regions: Regions, index, margin: int) -> list:
+    """``(i, x0, y0, m00, m10, m01)`` of each region's weights (:func:`region_weights`), without the arrays
+    :func:`light_terms` needs: a whole-level background ``b`` (most) by one saturating ``cv2.subtract`` on
+    the grown mask (uint8 weights); the sums are the same integers either way."""
+    out = []
+    for i, x0, y0, own_b, near, sub8, b in _near_and_background(gray, regions, index, margin):
+        if b == int(b) and b >= 0 and min(sub8.shape) > 4:   # (cv2 takes a tiny array for a scalar, and
+            # an (n, 2) float array for points: patches are at least 13 px a side but at a crop's edge)
+            wgt = cv2.subtract(sub8, int(b), mask=near.view(np.uint8))
+        else:
+            wgt = np.maximum(np.subtract(sub8, b, dtype=np.float32), np.float32(0))
+            wgt *= near
+        m = cv2.moments(wgt)
+        out.append((i, x0, y0, m["m00"], m["m10"], m["m01"]))
     return out
 
 
@@ -408,8 +435,18 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     -------
     (K, 2) centres ``(u, v)`` in full-image pixels.
     """
-    wts = patches if patches is not None else region_weights(gray, regions, index, margin)
     u0, v0 = regions.origin
+    if patches is None and not (symmetric_border and _any_cut(regions, index)):
+        sums = _weight_sums(gray, regions, index, margin)
+        out = np.empty((len(sums), 2))
+        for k, (i, x0, y0, s, m10, m01) in enumerate(sums):
+            if s <= 0:
+                out[k] = regions.centroid[i]
+            else:
+                ou, ov = x0 + u0, y0 + v0              # the sums in full-image pixels, exact
+                out[k] = ((m10 + ou * s) / s, (m01 + ov * s) / s)
+        return out
+    wts = patches if patches is not None else region_weights(gray, regions, index, margin)
     out = np.full((len(wts), 2), np.nan)
     for k, r in enumerate(wts):
         m = r.moments
@@ -424,6 +461,13 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
             out[k] = _symmetric_in_image(r.weight, np.arange(ou, ou + ww), np.arange(ov, ov + hh), out[k],
                                            r.cut, regions.image_size)
     return out
+
+
+def _any_cut(regions: Regions, index) -> bool:
+    """Whether any region of ``index`` (default all) touches the image border."""
+    W, H = regions.image_size
+    bbox = regions.bbox if index is None else regions.bbox[np.atleast_1d(np.asarray(index, dtype=np.intp))]
+    return any(x <= 0 or y <= 0 or x + w >= W or y + h >= H for x, y, w, h in bbox.tolist())
 
 
 def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5,
@@ -596,6 +640,22 @@ def _clip_crop(crop, W, H):
     return u0, v0, u1, v1
 
 
+#: Up to this many labelled regions :func:`_candidates_in` filters them in Python (:func:`_kept`).
+KEEP_IN_PYTHON = 48
+
+
+def _kept(regions: Regions, area_range, crop, size) -> list:
+    """Indices of the regions in ``area_range`` not cut by an edge of ``crop`` that is not an image edge
+    (the filters of :func:`_candidates_in`, region by region in Python integers: the same test)."""
+    amin, amax = area_range
+    u0, v0, u1, v1 = crop
+    W, H = size
+    lo_u, lo_v = (u0 if u0 > 0 else -1), (v0 if v0 > 0 else -1)
+    hi_u, hi_v = (u1 if u1 < W else np.inf), (v1 if v1 < H else np.inf)
+    return [i for i, ((x, y, w, h), a) in enumerate(zip(regions.bbox.tolist(), regions.area.tolist()))
+            if amin <= a <= amax and x > lo_u and y > lo_v and x + w < hi_u and y + h < hi_v]
+
+
 def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, connectivity=8):
     W, H = size
     u0, v0 = origin
@@ -606,9 +666,11 @@ def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, co
     u1, v1 = u0 + sub.shape[1], v0 + sub.shape[0]
     bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
     regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
-    ok = filter_area(regions.area, area_range[0], area_range[1])
-    if len(regions):                  # regions cut by a crop edge that is not an image edge
-        b = regions.bbox
+    if len(regions) <= KEEP_IN_PYTHON:
+        keep = np.array(_kept(regions, area_range, (u0, v0, u1, v1), (W, H)), np.intp)
+    else:
+        ok = filter_area(regions.area, area_range[0], area_range[1])
+        b = regions.bbox              # regions cut by a crop edge that is not an image edge
         if u0 > 0:
             ok &= b[:, 0] > u0
         if v0 > 0:
@@ -617,7 +679,7 @@ def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, co
             ok &= b[:, 0] + b[:, 2] < u1
         if v1 < H:
             ok &= b[:, 1] + b[:, 3] < v1
-    keep = np.flatnonzero(ok)
+        keep = np.flatnonzero(ok)
     if min_circularity is not None and len(keep):
         circ = region_circularity(regions.subset(keep))
         keep = keep[circ >= min_circularity]

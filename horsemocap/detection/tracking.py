@@ -13,6 +13,7 @@ cover.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import replace
 
 import cv2
@@ -129,8 +130,7 @@ def follow_cluster(px, centroid, tolerance: float = 0.10, max_shift: float | Non
     if max_shift is not None:      # only regions that can belong to the moved cluster
         near = np.linalg.norm(c[:, None] - px[None], axis=-1).min(axis=1) <= max_shift
         c = c[near]
-    ch = filter_distance(c, marker_distances(px), tolerance)
-    ch = filter_cross_product(c, ch, cross_product_signs(px, 0.1))
+    ch = _thesis_choices(c, marker_distances(px), tolerance, cross_product_signs(px, 0.1))
     if not len(ch):
         return None, np.inf
     disp = np.linalg.norm(c[ch] - px[None], axis=-1).max(axis=1)
@@ -355,33 +355,103 @@ def _predict(state, k):
     ``max_gap`` frames.
     """
     last_k, last_p, vel = state["last_k"], state["last_p"], state["vel"]
+    dt = [np.nan if lk is None else float(k - lk) for lk in last_k]
+    good = [lk is not None and abs(k - lk) == 1 and known for lk, known in zip(last_k, state["vel_known"].tolist())]
+    ext = last_p + vel * np.array(dt)[:, None]            # constant velocity, every marker (one NumPy pass)
+    if all(good):
+        return ext
+    good = np.array(good, bool)
     pred = np.full_like(last_p, np.nan)
-    good = np.array([lk is not None and abs(k - lk) == 1 and known
-                     for lk, known in zip(last_k, state["vel_known"].tolist())], bool)
-    _extrapolate(pred, np.flatnonzero(good), k, last_k, last_p, vel)
-    if good.any() and not good.all() and state["config"] is not None:
+    pred[good] = ext[good]
+    if good.any() and state["config"] is not None:
         shift = (pred[good] - state["config"][good]).mean(axis=0)
         pred[~good] = state["config"][~good] + shift
-    elif not good.all():
-        _extrapolate(pred, [m for m in np.flatnonzero(~good).tolist()
-                            if last_k[m] is not None and abs(k - last_k[m]) <= state["max_gap"]], k, last_k, last_p, vel)
+    else:
+        recent = [m for m, (g, t) in enumerate(zip(good.tolist(), dt)) if not g and abs(t) <= state["max_gap"]]
+        pred[recent] = ext[recent]
     return pred
-
-
-def _extrapolate(pred, markers, k, last_k, last_p, vel):
-    """``pred[m] = last_p[m] + vel[m] (k - last_k[m])`` for the ``markers`` (one NumPy pass)."""
-    if len(markers):
-        ms = np.asarray(markers, np.intp)
-        dt = np.array([k - last_k[m] for m in ms.tolist()], float)
-        pred[ms] = last_p[ms] + vel[ms] * dt[:, None]
 
 
 def _inside(pred, radius, size):
     """Boolean per marker: predicted wholly inside the image."""
     W, H = size
-    with np.errstate(invalid="ignore"):
-        return ((pred[:, 0] >= radius - 0.5) & (pred[:, 1] >= radius - 0.5)
-                & (pred[:, 0] <= W - 0.5 - radius) & (pred[:, 1] <= H - 0.5 - radius))
+    lo, hu, hv = radius - 0.5, W - 0.5 - radius, H - 0.5 - radius       # NaN: False
+    return np.array([u >= lo and v >= lo and u <= hu and v <= hv for u, v in pred.tolist()], bool)
+
+
+def _choice_errors(cent: list, choices: list, pred: list, gate: list, has_pred: list) -> list:
+    """Per choice of regions, the largest distance of a predicted marker from its prediction (inf when a
+    marker lies beyond its ``gate``), in Python floats as ``_norm`` computes it."""
+    out = []
+    for row in choices:
+        err, ok = 0.0, True
+        for m, j in enumerate(row):
+            if has_pred[m]:
+                dx, dy = cent[j][0] - pred[m][0], cent[j][1] - pred[m][1]
+                d = math.sqrt(dx * dx + dy * dy)
+                ok = ok and d <= gate[m]
+                err = d if d > err else err
+        out.append(err if ok else math.inf)
+    return out
+
+
+def _in_window(cent: np.ndarray, centre, half) -> np.ndarray:
+    """:func:`filter_window` of the centres ``cent`` about ``centre`` (half sizes ``half``), in Python floats."""
+    (cu, cv), (hu, hv) = centre, half
+    return np.array([abs(u - cu) <= hu and abs(v - cv) <= hv for u, v in cent.tolist()], bool)
+
+
+def _thesis_choices(cent: np.ndarray, dref: np.ndarray, tol: float, signs: np.ndarray) -> np.ndarray:
+    """:func:`filter_distance` then :func:`filter_cross_product` (default ``min_sine``) of the centres ``cent``.
+
+    The ordered choices of regions are built marker by marker, a region joining a choice only when its
+    distances to the regions already chosen pass eq. (4.11): the choices that survive are those the
+    distance filter keeps among all permutations, in the same (lexicographic) order; each distance and
+    sign is computed in Python floats by the same operations as the filters, so the numbers are the same,
+    without building every permutation or NumPy's per-call cost (5-10 candidates for 3 markers in most
+    tracked frames).
+    """
+    C, M = len(cent), len(dref)
+    if C < M or M < 2:
+        return filter_cross_product(cent, filter_distance(cent, dref, tol), signs)
+    pts, ref = cent.tolist(), dref.tolist()
+    dist = [[0.0] * C for _ in range(C)]
+    for a in range(C):
+        xa, ya = pts[a]
+        for b in range(a + 1, C):
+            dx, dy = xa - pts[b][0], ya - pts[b][1]
+            dist[a][b] = dist[b][a] = math.sqrt(dx * dx + dy * dy)
+    lim = [[tol * r for r in row] for row in ref]
+    sg = signs.tolist() if M >= 3 and np.asarray(signs).any() else None
+    kept = []
+
+    def extend(chosen):
+        m = len(chosen)
+        if m == M:
+            if sg is not None:
+                s = _signs_of([pts[a] for a in chosen], 0.05).tolist()
+                if not all(x == y or y == 0 or x == 0 for x, y in zip(s, sg)):
+                    return
+            kept.append(tuple(chosen))
+            return
+        checks = [(dist[c], ref[i][m], lim[i][m]) for i, c in enumerate(chosen)]
+        for a in range(C):
+            if a in chosen:
+                continue
+            for row, r, lm in checks:
+                if not abs(row[a] - r) <= lm:
+                    break
+            else:
+                chosen.append(a)
+                extend(chosen)
+                chosen.pop()
+    extend([])
+    return np.array(kept, dtype=np.intp).reshape(-1, M)
+
+
+def _touches_border(bbox: np.ndarray, W: int, H: int) -> np.ndarray:
+    """:attr:`Regions.touches_border` of the boxes ``bbox`` (a few rows: in Python, one array at the end)."""
+    return np.array([x <= 0 or y <= 0 or x + w >= W or y + h >= H for x, y, w, h in bbox.tolist()], bool)
 
 
 def _missing_reason(pred_m, radius, regions, keep, size):
@@ -400,17 +470,20 @@ def _track_frame(gc, k, state, p):
     H, W = gc.frames.shape[1:3]
     pred = _predict(state, k)
     has_pred = np.isfinite(pred).all(axis=1)
+    all_pred = bool(has_pred.all())
     px = np.full((M, 2), np.nan)
     ar = np.full(M, np.nan)
     reason = np.array(["not_tracked"] * M, dtype=object)
     tol = p.distance_tolerance
     dref = state["dref"]
-    if has_pred.any():
-        centre = pred[has_pred].mean(axis=0) if p.window_predict else window_center(state["last_p"])
-        half = np.asarray(p.window, float) / 2
+    any_pred = bool(has_pred.any())
+    if any_pred:
+        centre = (pred if all_pred else pred[has_pred]).mean(axis=0) if p.window_predict \
+            else window_center(state["last_p"])
+        (cu, cv), (hu, hv) = centre.tolist(), (float(p.window[0]) / 2, float(p.window[1]) / 2)
         pad = state["radius"] * 2 + 2
-        crop = (int(np.floor(centre[0] - half[0] - pad)), int(np.floor(centre[1] - half[1] - pad)),
-                int(np.ceil(centre[0] + half[0] + pad)) + 1, int(np.ceil(centre[1] + half[1] + pad)) + 1)
+        crop = (math.floor(cu - hu - pad), math.floor(cv - hv - pad),
+                math.ceil(cu + hu + pad) + 1, math.ceil(cv + hv + pad) + 1)
     else:
         centre, crop = None, None
     cache = state.get("cache")
@@ -424,26 +497,21 @@ def _track_frame(gc, k, state, p):
         sub, regions, keep = _frame_regions(gc, k, p.threshold, (p.area_min, p.area_max), p.min_circularity,
                                             crop)
     if centre is not None and len(keep):
-        keep = keep[filter_window(regions.centroid[keep], centre, p.window)]
+        keep = keep[_in_window(regions.centroid[keep], (cu, cv), (hu, hv))]
     cent = regions.centroid[keep]
     # markers whose velocity is not known yet may have moved by a whole frame's motion
     gate_m = np.where(state["vel_known"], state["gate"], state["gate"] + 1.5 * state["motion"] + 2.0)
-    gate = float(gate_m[has_pred].max()) if has_pred.any() else state["gate"]
     # 1) the thesis path: all markers, distance + cross-product filters
     choice = None
     ambiguous = False
     inside = _inside(pred, state["radius"], (W, H))
-    if len(keep) >= M and not (has_pred & ~inside).any():
-        ch = filter_distance(cent, dref, tol)
-        ch = filter_cross_product(cent, ch, state["signs"])
+    if len(keep) >= M and (inside | ~has_pred).all():
+        ch = _thesis_choices(cent, dref, tol, state["signs"])
         if len(ch):
-            if has_pred.any():
-                dev = _norm(cent[ch][:, has_pred] - pred[has_pred][None])
-                err = dev.max(axis=1)
-                gated = (dev <= gate_m[has_pred][None]).all(axis=1)
-                err = np.where(gated, err, np.inf)
-                order = np.argsort(err)
-                if np.isfinite(err[order[0]]):
+            if any_pred:
+                err = _choice_errors(cent.tolist(), ch.tolist(), pred.tolist(), gate_m.tolist(), has_pred.tolist())
+                order = sorted(range(len(err)), key=err.__getitem__)   # (a tie makes the frame ambiguous)
+                if math.isfinite(err[order[0]]):
                     if len(ch) > 1 and err[order[1]] <= 2 * err[order[0]] + 1.0:
                         ambiguous = True
                     else:
@@ -459,7 +527,7 @@ def _track_frame(gc, k, state, p):
         # 2) partial: each marker near its prediction, distances kept among the found ones
         found = np.zeros(M, bool)
         sel = np.full(M, -1, dtype=np.intp)
-        if has_pred.any() and len(keep):
+        if any_pred and len(keep):
             opts = []
             for m in range(M):
                 if has_pred[m] and inside[m]:      # a marker predicted outside cannot be seen
@@ -507,7 +575,7 @@ def _track_frame(gc, k, state, p):
         reason[found] = ""
         # a region cut by the image border has a biased centre: the disc of the
         # marker's recent area, centred there, must lie inside the image
-        cut = regions.touches_border[idx]
+        cut = _touches_border(regions.bbox[idx], W, H)
         if cut.any():
             fm0 = np.flatnonzero(found)
             ref_a = np.where(np.isfinite(state["area"][fm0]), state["area"][fm0], ar[fm0])
@@ -545,27 +613,39 @@ def _track_frame(gc, k, state, p):
 
 def _update_state(state, k, px, ar, p):
     seen = np.isfinite(px).all(axis=1)
-    if seen.any():
+    seen_l = seen.tolist()
+    if any(seen_l):
         last_k = state["last_k"]
-        ms = np.flatnonzero(seen)
-        near = np.array([last_k[m] is not None and abs(k - last_k[m]) <= state["max_gap"] for m in ms.tolist()], bool)
-        vel_ms = np.zeros((len(ms), 2))
-        if near.any():
-            dt = np.array([k - last_k[m] for m in ms[near].tolist()], float)
-            vel_ms[near] = (px[ms[near]] - state["last_p"][ms[near]]) / dt[:, None]
-        state["vel"][ms] = vel_ms
-        state["vel_known"][ms] = near
-        for m in ms.tolist():
-            last_k[m] = k
-        state["last_p"][ms] = px[ms]
-        a0 = state["area"][ms]
-        state["area"][ms] = np.where(np.isfinite(a0), 0.7 * a0 + 0.3 * ar[ms], ar[ms])
-    if seen.all():
+        dt = np.array([np.nan if lk is None else float(k - lk) for lk in last_k])
+        near = np.abs(dt) <= state["max_gap"]                  # NaN (never seen): False
+        vel = np.where(near[:, None], (px - state["last_p"]) / dt[:, None], 0.0)   # (NaN quietly where unused)
+        a0 = state["area"]
+        area = np.where(np.isfinite(a0), 0.7 * a0 + 0.3 * ar, ar)
+        if all(seen_l):
+            state["vel"], state["vel_known"], state["area"] = vel, near, area
+            state["last_p"] = px.copy()
+            state["last_k"] = [k] * len(seen_l)
+        else:
+            state["vel"][seen], state["vel_known"][seen], state["area"][seen] = vel[seen], near[seen], area[seen]
+            state["last_p"][seen] = px[seen]
+            state["last_k"] = [k if s else lk for s, lk in zip(seen_l, last_k)]
+    if all(seen_l):
         state["config"] = px.copy()
         if p.distance_reference == "previous":
             state["dref"] = marker_distances(px)
-            s = cross_product_signs(px, 0.1)
-            state["signs"] = s
+            state["signs"] = _signs_of(px.tolist(), 0.1)
+
+
+def _signs_of(pts: list, min_sine: float) -> np.ndarray:
+    """:func:`~horsemocap.detection.filters.cross_product_signs` of finite centres given as a list of
+    ``[u, v]``, in Python floats (the same operations, so the same numbers, without NumPy's per-call cost)."""
+    out = []
+    for (xa, ya), (xb, yb), (xc, yc) in zip(pts, pts[1:], pts[2:]):
+        r1x, r1y, r2x, r2y = xb - xa, yb - ya, xc - xb, yc - yb
+        z = r1x * r2y - r1y * r2x
+        bent = abs(z) >= min_sine * (math.sqrt(r1x * r1x + r1y * r1y) * math.sqrt(r2x * r2x + r2y * r2y))
+        out.append((1 if z > 0 else -1 if z < 0 else 0) if bent else 0)
+    return np.array(out, dtype=int)
 
 
 def _new_state(px, area, k, M, radius, p, motion=0.0):
