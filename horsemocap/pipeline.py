@@ -10,6 +10,7 @@ earlier steps computed (computing it with the defaults when absent).
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -25,6 +26,7 @@ from .params import AnalysisParams
 from .session import Session, SessionError, check_frame_counts, load_session
 from .sources import FrameSource, read_image
 from .store import ResultsStore, check_outside
+from .threads import blas_single_threaded
 
 STEPS = ("sync", "rig", "plumb", "static", "detect", "triangulate", "smooth",
          "motion_frame", "rigid_body", "comfort")
@@ -775,7 +777,8 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     When the rig is calibrated from checkerboard views, the rig step starts
     in a thread at once and runs while the sync step reads the videos (it
     needs nothing of it); its progress lines may come before the sync's.
-    ``timings["rig"]`` is the step's own duration.
+    ``timings["rig"]`` is the step's own duration. The whole run then has
+    one BLAS thread (:data:`horsemocap.threads.blas_single_threaded`).
     """
     session = load_session(session_dir)
     params = resolve_params(session, params)
@@ -789,21 +792,25 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         Path(out_dir).mkdir(parents=True, exist_ok=True)
     store = ResultsStore(out_dir) if (reuse and out_dir is not None) else None
     keys = step_keys(session, params) if store else {}
-    early_rig = None
-    if store is None and session.calibrates_from_views(params.recalibrate) and until != "sync":
-        progress = _serialised(progress)
-        early_rig = _BackgroundStep(step_rig, session, params, {}, progress, cache_dirs=(out_dir, previous_results),
-                                    board_views=board_views)
-    try:
-        _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
-                   board_views)
-    except BaseException:
-        if board_views is not None:
-            board_views.stop()  # an error or Ctrl-C: the rig step waiting for the views ends at once
-        raise
-    finally:
-        if early_rig is not None:
-            early_rig.wait()    # never left running: it writes calibration.json into out_dir
+    early = store is None and session.calibrates_from_views(params.recalibrate) and until != "sync"
+    # the calibration's one BLAS thread (horsemocap.threads) set here, in the main thread, before
+    # the rig's thread starts: its own blocks inside then leave the setting alone
+    with blas_single_threaded() if early else contextlib.nullcontext():
+        early_rig = None
+        if early:
+            progress = _serialised(progress)
+            early_rig = _BackgroundStep(step_rig, session, params, {}, progress,
+                                        cache_dirs=(out_dir, previous_results), board_views=board_views)
+        try:
+            _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
+                       board_views)
+        except BaseException:
+            if board_views is not None:
+                board_views.stop()  # an error or Ctrl-C: the rig step waiting for the views ends at once
+            raise
+        finally:
+            if early_rig is not None:
+                early_rig.wait()    # never left running: it writes calibration.json into out_dir
     return analysis
 
 

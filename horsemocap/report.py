@@ -84,7 +84,7 @@ def render_pngs(makers) -> list[str]:
     if len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2:
         return [_png(make()) for make in makers]
     claims_r, claims_w = os.pipe()
-    os.write(claims_w, bytes(range(len(makers))) + b"\xff\xff")    # the figures, then one stop each
+    os.write(claims_w, bytes(range(len(makers))))    # the figure numbers; read empty once all are taken
     os.close(claims_w)
     read_end, write_end = os.pipe()
     pid = os.fork()
@@ -99,9 +99,12 @@ def render_pngs(makers) -> list[str]:
         finally:
             os._exit(code)
     os.close(write_end)
+    got = os.fdopen(read_end, "rb")
     try:
-        out = _draw_claimed(makers, claims_r)
-        with os.fdopen(read_end, "rb") as got:
+        # an error here closes the read end before the wait: a copy blocked in sending gets a
+        # broken pipe and exits, instead of both waiting for each other
+        with got:
+            out = _draw_claimed(makers, claims_r)
             data = got.read()
     finally:
         _, status = os.waitpid(pid, 0)
@@ -116,7 +119,7 @@ def _draw_claimed(makers, claims_fd: int) -> dict:
     drawn = {}
     while True:
         claim = os.read(claims_fd, 1)
-        if not claim or claim[0] >= len(makers):
+        if not claim:
             return drawn
         drawn[claim[0]] = _png(makers[claim[0]]())
 

@@ -1,19 +1,22 @@
 """Process-wide thread settings of the libraries, limited while the pipeline runs its own threads.
 
 The analysis parallelises by itself (the board views detected by threads,
-each camera calibrated in its own thread, the rig calibrated while the sync
-step reads the videos, the report's figures drawn by a forked process). The
-libraries underneath have thread pools of their own: OpenCV's
-``parallel_for`` and the BLAS behind NumPy and SciPy (OpenBLAS). Their
-matrices here are small (a bundle adjustment's 306 x 306 normal equations, a
-spline's few hundred columns), where a second BLAS thread only waits for
-work: measured on the bundled calibration (2 processors, three other
-processes busy), 3.8 s wall and 1.3 s CPU with one BLAS thread against
+the rig calibrated while the sync step reads the videos, the report's
+figures drawn by a forked process). The libraries underneath have thread
+pools of their own: OpenCV's ``parallel_for`` and the BLAS behind NumPy,
+SciPy and OpenCV (OpenBLAS). The calibration's matrices are small (a bundle
+adjustment's 306 x 306 normal equations), where a second BLAS thread only
+waits for work: measured on the bundled calibration (2 processors, three
+other processes busy), 3.8 s wall and 1.3 s CPU with one BLAS thread against
 13.6 s and 5.3 s with two.
 
 Both settings are process-wide: two blocks overlapping in threads would
 restore each other's setting. :class:`SingleThreaded` counts the blocks
 inside under a lock; the first limits the library, the last restores it.
+Only the first block changes the setting, so a caller that enters a block
+in the main thread before starting threads that enter their own (as
+:func:`horsemocap.pipeline.analyze` does) keeps every change of the BLAS
+setting in the main thread, where threadpoolctl expects it.
 """
 from __future__ import annotations
 

@@ -273,3 +273,27 @@ def test_analysis_error_stops_the_board_detection_started_early(tmp_path, monkey
         analyze(root, tmp_path / "out", board_views=job, progress=lambda *a, **k: None)
     job.close()
     assert len(detected) < 45                     # of 135 views: stopped, not waited for
+
+
+def test_analyze_sets_the_blas_limit_in_the_main_thread_only(monkeypatch):
+    """The calibration's one BLAS thread is set once, by analyze() in the main thread, before the
+    rig's thread starts (threadpoolctl expects its changes there); the rig thread's own blocks
+    (calibrate_camera, bundle_adjust) only count themselves in, and the setting is back after."""
+    import threading
+
+    from horsemocap import pipeline
+    from horsemocap.data import default_session_dir
+    from horsemocap.threads import blas_single_threaded
+
+    calls = []
+    original = blas_single_threaded._limit
+
+    def recording_limit():
+        calls.append(threading.current_thread() is threading.main_thread())
+        return original()
+
+    monkeypatch.setattr(blas_single_threaded, "_limit", recording_limit)
+    analysis = pipeline.analyze(default_session_dir(), None, until="rig", progress=lambda *a: None)
+    assert "rig" in analysis.results
+    assert calls == [True]
+    assert blas_single_threaded._inside == 0

@@ -183,3 +183,33 @@ def test_render_pngs_draws_here_what_the_forked_copy_failed_to_draw():
     makers = [fails_in_a_copy, _line_figure(1), fails_in_a_copy]
     expected = [report._png(_line_figure(7)()), report._png(_line_figure(1)()), report._png(_line_figure(7)())]
     assert report.render_pngs(makers) == expected
+
+
+def test_render_pngs_error_here_neither_hangs_nor_is_swallowed():
+    """A figure failing in this process ends the call with its error, even while the forked copy is
+    sending more than a pipe holds (before, both waited for each other: the copy blocked in sending,
+    this process in waiting for it)."""
+    import os
+    import signal
+
+    import numpy as np
+
+    parent = os.getpid()
+
+    def large_noise_figure():
+        import matplotlib.pyplot as plt
+
+        if os.getpid() == parent:
+            raise RuntimeError("drawing failed here")
+        fig, ax = plt.subplots(figsize=(6, 6))
+        ax.imshow(np.random.default_rng(0).random((300, 300)))     # a PNG of about 200 kB
+        return fig
+
+    signal.signal(signal.SIGALRM, lambda *a: (_ for _ in ()).throw(TimeoutError("render_pngs hung")))
+    signal.alarm(120)
+    try:
+        with pytest.raises(RuntimeError, match="drawing failed here"):
+            report.render_pngs([large_noise_figure] * 4)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)

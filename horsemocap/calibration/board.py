@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from ..sources import list_images, read_image
-from ..threads import opencv_single_threaded  # noqa: F401  (also imported from here)
+from ..threads import opencv_single_threaded
 
 
 class CalibrationError(ValueError):

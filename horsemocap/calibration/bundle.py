@@ -375,6 +375,7 @@ def initial_poses(singles: list[IntrinsicResult], used: np.ndarray):
     return np.array(cam_r), np.array(cam_t), view_r, view_t
 
 
+@blas_single_threaded()
 def bundle_adjust(views: list[BoardViews], singles: list[IntrinsicResult], board_pts: np.ndarray,
                   *, fix_k3: bool = True, fix_intrinsics: bool = False, max_iter: int = 100,
                   tol: float = 1e-10) -> BundleResult:
@@ -412,12 +413,6 @@ def bundle_adjust(views: list[BoardViews], singles: list[IntrinsicResult], board
     equations have a few hundred columns, where a second BLAS thread costs more processor time
     than it saves (measured in :mod:`horsemocap.threads`).
     """
-    with blas_single_threaded():
-        return _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, tol)
-
-
-def _bundle_adjust(views, singles, board_pts, fix_k3, fix_intrinsics, max_iter, tol) -> BundleResult:
-    """:func:`bundle_adjust`'s solve."""
     nc = len(views)
     nv = len(views[0].names)
     if any(len(v.names) != nv for v in views):
