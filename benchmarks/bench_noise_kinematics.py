@@ -71,17 +71,6 @@ ORACLE_HARMONICS = 4            # the oracle tries every subset of stride harmon
 ORACLE_LAMS = 10.0 ** np.arange(-8, 2.01, 0.25)
 
 
-class _Interp:
-    """A noise-free pose component: the quintic interpolating spline of the truth (called as a spline)."""
-
-    def __init__(self, t, y):
-        from scipy.interpolate import make_interp_spline
-        self.s = make_interp_spline(t, y, k=5)
-
-    def __call__(self, t, derivative=0):
-        return self.s(t) if derivative == 0 else self.s.derivative(derivative)(t)
-
-
 def _draw_context(rerun, truth):
     """What the diagnosis needs of one noisy analysis: the pose trajectory, the true pose on the analysed
     frames (the true markers registered to the same model, same reference rotation) and an error
@@ -89,6 +78,7 @@ def _draw_context(rerun, truth):
     from dataclasses import replace
     from scipy.spatial.transform import Rotation
     from horsemocap import pose as P
+    from horsemocap import splines as S
     from horsemocap.accuracy import _truth_rows
     from horsemocap.frames import to_motion_frame
 
@@ -116,10 +106,12 @@ def _draw_context(rerun, truth):
 
     reg = traj.registration
     ok = np.all(np.isfinite(reg.information), axis=(1, 2)) & np.isfinite(reg.rotation[:, 0, 0])
-    var = np.full((traj.t.size, 6), np.nan)          # per-frame predicted variance of each component
-    var[ok] = np.diagonal(np.linalg.inv(reg.information[ok]), axis1=1, axis2=2)
+    var = P.frame_variances(reg)                     # per-frame predicted variance of each component
+    var[~ok] = np.nan
     data = np.column_stack([reg.centre, traj.rotvec_data])
-    return dict(traj=traj, tk=tk, true=[_Interp(tk, true_pose[:, i]) for i in range(6)], true_pose=true_pose,
+    # a noise-free pose component: the quintic interpolating spline of the truth
+    true = [S.smoothing_spline(tk, true_pose[:, i], method="none") for i in range(6)]
+    return dict(traj=traj, tk=tk, true=true, true_pose=true_pose,
                 err=err, error_signal=error_signal, data=data, var=var,
                 frames=np.searchsorted(traj.t, tk - 1e-9))
 

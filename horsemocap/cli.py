@@ -87,6 +87,10 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--pose-weights", choices=["covariance", "equal"], dest="pose_weights",
                    help="with pose_spline: each marker weighted by its triangulation covariance in the pose "
                         "registration (default), or all alike (Horn, the thesis' eq. 5.14-5.21)")
+    g.add_argument("--pose-rotation-weights", choices=["auto", "equal"], dest="pose_rotation_weights",
+                   help="with pose_spline and covariance weights: the rotation smoothed with each frame weighted "
+                        "by its predicted variance where that explains the residuals better (auto, default), "
+                        "or every frame alike (equal)")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
@@ -108,7 +112,8 @@ def _params_from_args(args, base):
     changes = {k: getattr(args, k, None) for k in
                ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
                 "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
-                "kinematics", "pose_harmonics", "pose_weights", "motion_frame", "x_degree")}
+                "kinematics", "pose_harmonics", "pose_weights", "pose_rotation_weights", "motion_frame",
+                "x_degree")}
     if args.offsets:
         try:
             changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}

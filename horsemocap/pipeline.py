@@ -596,7 +596,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
             pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
             pose_harmonics=params.pose_harmonics, pose_covariance=cov,
-            saddle_index=params.saddle_marker)
+            pose_rotation_weights=params.pose_rotation_weights, saddle_index=params.saddle_marker)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
     orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
@@ -608,6 +608,10 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         progress("rigid_body", f"pose trajectory ({params.pose_smoothing} smoothing, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond['registration_rms_m']):.2f} mm")
+        weighted = [k for k, v in sm.items() if v.get("weights", "equal") != "equal"]
+        if weighted:
+            progress("rigid_body", "rotation smoothed with each frame weighted by its predicted variance (its noise "
+                                   f"model explains the residuals better) in {', '.join(weighted)}")
         f0 = [v["fundamental_hz"] for v in sm.values() if v.get("fundamental_hz")]
         if f0:
             progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "

@@ -777,8 +777,7 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
         good = ok & np.all(np.isfinite(reg.information), axis=(1, 2))
         if not good.any():
             return np.full(6, np.nan)
-        var = np.diagonal(np.linalg.inv(reg.information[good]), axis1=1, axis2=2)
-        return np.sqrt(np.mean(var, axis=0))
+        return np.sqrt(np.mean(frame_variances(reg)[good], axis=0))
     if points is None:
         if not (ok.any() and np.isfinite(reg.noise_m)):
             return np.full(6, np.nan)

@@ -170,6 +170,7 @@ PARAMETER_NAMES = {
     "pose_partial_frames": "pose also smoothed over the frames with two markers beyond the analysed ones",
     "pose_harmonics": "stride harmonics kept unpenalised in the pose smoothing",
     "pose_weights": "marker weights in each frame's pose registration",
+    "pose_rotation_weights": "frame weights in the rotation's smoothing",
     "motion_frame": "direction of motion (x axis) from",
     "preset": "preset",
     "sync": "synchronisation",

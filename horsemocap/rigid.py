@@ -1021,7 +1021,8 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                        kinematics: str = "fits", pose_smoothing: str = "adaptive",
                        rotation_orders=None, saddle_orders=None, weights=None,
                        pose_points=None, pose_t=None, pose_partial: bool = False,
-                       pose_harmonics: str = "auto", pose_covariance=None) -> RigidBodyAnalysis:
+                       pose_harmonics: str = "auto", pose_covariance=None,
+                       pose_rotation_weights: str = "auto") -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call.
 
     Parameters
@@ -1110,6 +1111,10 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         inverse covariance (:func:`horsemocap.pose.register_pose`), and the
         pose noise that the smoothing tests harmonics against comes from it.
         Not with ``weights``.
+    pose_rotation_weights : "auto" or "equal"
+        Weights of the rotation components' smoothing
+        (:func:`horsemocap.pose.fit_pose_trajectory`, ``rotation_weights``;
+        ``"auto"`` needs ``pose_covariance``).
     """
     from . import fitting
 
@@ -1149,7 +1154,8 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         order = 3 if pose_smoothing == "gcv_cubic" else 5
         sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
         traj = pose_mod.fit_pose_trajectory(pt, preg_all, model, smoothing=sm, order=order, points=ppts,
-                                            partial=pose_partial, harmonics=pose_harmonics)
+                                            partial=pose_partial, harmonics=pose_harmonics,
+                                            rotation_weights=pose_rotation_weights)
         psaddle = traj.point(t, s_saddle)
         pmarkers = traj.points(t, model)
         try:
