@@ -200,12 +200,17 @@ def write_c3d(path, traj: Trajectories) -> Path:
     return path
 
 
-def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "gcv"):
+def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "gcv",
+                                 events=None):
     """Pose-trajectory kinematics of a rigid body from 3D markers and a static shot.
 
     The markers are the points present in both files; the hidden points are
     those of the static shot absent from the trajectories (e.g. the saddle).
     The static shot's first frame with every point finite is the model.
+    ``events``: known times (s, the file's time axis) where the acceleration
+    may jump, e.g. an impact's onset from a force plate
+    (:func:`horsemocap.pose.fit_pose_trajectory`, ``events``; smoothing
+    "gcv" or "adaptive", a record without stride harmonics).
 
     Returns
     -------
@@ -229,7 +234,7 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     reg = pose.register_pose(traj.subset(markers), model)
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, smoothing=smoothing)
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, smoothing=smoothing, events=events)
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
