@@ -7,7 +7,7 @@ the steps from triangulation to the comfort indicators are run again with
 each variant of the parameters. Printed: variant, sigma, draws, the saddle's
 vertical acceleration RMSE (% of its rms) and the indicator errors (%).
 
-Usage: ``python benchmarks/bench_noise_kinematics.py [--sigmas 0.1 0.25 0.5] ['{"kinematics": "fits"}' ...]``
+Usage: ``python benchmarks/bench_noise_kinematics.py ['{"kinematics": "fits"}' ...] [--sigmas 0.1 0.25 0.5] [--seed S]``
 (default variants: fits; pose_spline with ``pose_harmonics`` none, all and auto, the default; and
 the default with ``"pose_weights": "equal"``: the pose registered with equal marker weights
 (Horn) instead of each marker's inverse covariance from the triangulation, as before 2026-11-24).
@@ -32,12 +32,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sigmas", type=float, nargs="+", default=[0.0, 0.1, 0.25, 0.5])
     ap.add_argument("--draws", type=int, default=3)
+    ap.add_argument("--seed", type=int, default=0, help="the noise's seed (accuracy.noise_study's)")
     ap.add_argument("--diagnose", action="store_true",
                     help="the default's error per pose component and stride harmonic, and oracle bounds")
     ap.add_argument("variants", nargs="*")
     args = ap.parse_args(argv)
     if args.diagnose:
-        return diagnose([s for s in args.sigmas if s > 0], args.draws)
+        return diagnose([s for s in args.sigmas if s > 0], args.draws, args.seed)
     variants = [json.loads(a) for a in args.variants] or [
         {"kinematics": "fits"}, {"kinematics": "pose_spline", "pose_harmonics": "none"},
         {"kinematics": "pose_spline", "pose_harmonics": "all"}, {"kinematics": "pose_spline", "pose_harmonics": "auto"},
@@ -51,7 +52,7 @@ def main(argv=None):
     base = analyze(folder, None, {}, until="motion_frame", progress=lambda *a: None)
     truth = load_truth(folder)
     for v in variants:
-        rows = accuracy.noise_study(base, truth, sigmas_px=args.sigmas, repeats=args.draws,
+        rows = accuracy.noise_study(base, truth, sigmas_px=args.sigmas, repeats=args.draws, seed=args.seed,
                                     params=accuracy.with_params(base, **v))
         for r in rows:
             if not r["draws"]:
@@ -163,11 +164,13 @@ def _harmonic_shares(e, t, f0, K=4):
     return {k: round(100 * float(v)) for k, v in out.items()}
 
 
-def diagnose(sigmas, draws):
-    """Per draw of the default (same noise as ``accuracy.noise_study`` with seed 0 and these sigmas): the
+def diagnose(sigmas, draws, seed=0):
+    """Per draw of the default (same noise as ``accuracy.noise_study`` with ``seed`` and these sigmas): the
     saddle A_y error, each pose component's part (that component estimated, the others the truth), the
     error's share per stride harmonic, the pitch's harmonics and cutoff, the per-frame noise against its
-    prediction (chi-square per frame of each component about its mean), and two oracle bounds."""
+    prediction (chi-square per frame of each component about its mean), and two oracle bounds. The pitch line
+    says which fit was kept (weights, both log-likelihoods), the stride frequency, the harmonics kept and the
+    noise they were tested against."""
     from dataclasses import replace
     from horsemocap import accuracy
     from horsemocap.data import default_session_dir
@@ -179,7 +182,7 @@ def diagnose(sigmas, draws):
     truth = load_truth(folder)
     res = base.results
     params = replace(base.params, period_frames=res["motion_frame"]["period_frames"])
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     summary = []
     for sigma in sigmas:
         for d in range(draws):
@@ -207,7 +210,8 @@ def diagnose(sigmas, draws):
             summary.append(row)
             print(f"sigma {sigma} draw {d}: default {row['default']:.1f} %; part of each component {parts}")
             print(f"   error's share per stride harmonic (%) {_harmonic_shares(ctx['error_signal'](est), ctx['tk'], f0)}")
-            print(f"   pitch: harmonics kept {sm.get('harmonic_indices')}, cutoff {sm.get('cutoff_hz', np.nan):.2f} Hz "
+            print(f"   pitch: {sm.get('weights', 'equal')} weights (log-lik. weighted {sm.get('log_likelihood_weighted', np.nan):.1f}, "
+                  f"equal {sm.get('log_likelihood_equal', np.nan):.1f}), f0 {f0:.3f} Hz, edf {sm.get('edf', np.nan):.1f}, harmonics kept {sm.get('harmonic_indices')}, tested against {1000 * sm.get('harmonic_noise', np.nan):.1f} mrad, cutoff {sm.get('cutoff_hz', np.nan):.2f} Hz "
                   f"(2nd harmonic {2 * f0:.2f} Hz), amplitudes {np.round(sm.get('harmonic_amplitudes', []), 4).tolist()}; "
                   f"predicted per-frame sd min / median / max {np.round(np.percentile(sd_z, [0, 50, 100]), 1).tolist()} mrad")
             print(f"   chi-square per frame (observed / predicted variance) {dict(zip(COMPONENTS, np.round(chi2, 2).tolist()))}")

@@ -916,7 +916,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         measurement repeats with the stride, does not average out, and is as likely as motion
         below that size (measured: Horse 1 canter, thin triangle, phiz's 3rd harmonic 0.22 deg
         against a predicted noise of 0.41 deg and a true 0.001 deg; saddle error 15.6 % with it,
-        2.7 % without). ``"none"``: plain smoothing splines. The fundamental is
+        2.7 % without). The weighted rotation fit (``rotation_weights``) replaces the cutoff by that
+        test at its own calibrated noise level. ``"none"``: plain smoothing splines. The fundamental is
         ``fundamental_hz`` or, if None, estimated from the six pose components together
         (:func:`horsemocap.splines.estimate_fundamental`); a record shorter than 2 cycles of
         any frequency tried gets no harmonics. With ``smoothing`` "gcv" or "noise" (quintic)
@@ -941,7 +942,9 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         component is fitted twice: with every frame weighted by its predicted variance (the diagonal
         of the inverse information matrix, :func:`frame_variances`), robustly
         (:func:`horsemocap.splines.robust_weighted_spline`, the harmonics' noise test at the noise
-        of a unit-weight frame), and with equal weights as before; the fit whose noise model explains
+        of a unit-weight frame times the robust scale of the fit's standardised residuals, every
+        harmonic below 0.4 of the sampling rate a candidate: ``harmonic_noise="calibrated"``), and
+        with equal weights as before; the fit whose noise model explains
         its residuals better (:func:`horsemocap.splines.residual_log_likelihood`) is kept. The
         predicted rotation noise varies 10-fold between frames (4.5 to 62 mrad of pitch at 0.25 px of
         detection noise on the bundled session), and where the prediction holds (the pitch) the
@@ -1067,13 +1070,15 @@ def _rotation_component(t, y, variance, *, harmonic_noise=None, **kwargs):
     """One rotation component's spline: with ``variance`` (predicted per frame) the robust weighted fit
     and the equal-weight fit, the one whose noise model explains its residuals better kept
     (:func:`horsemocap.splines.residual_log_likelihood`); without, the equal-weight fit. The weighted
-    fit's harmonic test uses the noise of a unit-weight frame when ``harmonic_noise`` is given."""
+    fit's harmonic test uses the noise of a unit-weight frame, calibrated by the fit's standardised residuals
+    (``harmonic_noise="calibrated"`` of :func:`horsemocap.splines.robust_weighted_spline`, which also lifts the
+    plain spline's cutoff), when ``harmonic_noise`` is given."""
     from .splines import residual_log_likelihood, robust_weighted_spline, smoothing_spline
 
     equal = smoothing_spline(t, y, harmonic_noise=harmonic_noise, **kwargs)
     if variance is None or not np.all(np.isfinite(variance) & (variance > 0)):
         return equal
-    weighted = robust_weighted_spline(t, y, variance, harmonic_noise=None if harmonic_noise is None else "unit weight",
+    weighted = robust_weighted_spline(t, y, variance, harmonic_noise=None if harmonic_noise is None else "calibrated",
                                       **kwargs)
     lw = residual_log_likelihood(weighted, t, y, variance)
     le = residual_log_likelihood(equal, t, y)
