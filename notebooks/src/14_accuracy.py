@@ -127,15 +127,21 @@ plt.show()
 # %% [markdown]
 # The pose is registered with each marker weighted by its triangulation covariance
 # (`pose.register_pose(covariance=...)`), so depth, measured about ten times worse than across the
-# viewing rays, counts less: a tenth of a pixel costs the saddle's acceleration a few percent (the
-# equal-weight registration of the thesis' eq. 5.14-5.21 gave about 31 %), but a quarter of a pixel
-# still costs about 30 % (issue 13's target, 20 %, is missed). The depth formula explains what remains:
+# viewing rays, counts less; and each rotation component is smoothed with every frame weighted by its
+# predicted variance where that noise model explains the residuals better than equal weights
+# (`pose_rotation_weights`): a few frames' poses are ten times noisier than the rest (the thin marker
+# triangle seen almost edge-on), and the weights take them out. A tenth of a pixel then costs the
+# saddle's acceleration a few percent (the equal-weight registration of the thesis' eq. 5.14-5.21
+# gave about 31 %), a quarter of a pixel about 12 % in this draw (issue 13's target is 20 %; 5.9-9.2 %
+# on five seeds of the benchmark, medians of three draws each, `benchmarks/README.md`). The depth formula explains what remains:
 # with $Z = 7.5$ m, $f \approx 725$ px and $B = 0.45$ m, one pixel of error is
 # $\delta Z \approx 7.5^2 / (725 \cdot 0.45) \approx 0.17$ m of depth. The markers' depth noise becomes
 # a pitch error of the rigid body (rotation about the lateral axis), and the saddle, about 0.5 m along
-# the back from the markers (notebook 11), swings with it; from a quarter of a pixel on, the smoothing
+# the back from the markers (notebook 11), swings with it; from half a pixel on, the smoothing
 # usually cannot tell the pitch's 2nd stride harmonic from the noise, and differentiating twice
-# multiplies what is left by $(2\pi f)^2$.
+# multiplies what is left by $(2\pi f)^2$: about 30 % and more. Beyond a pixel the per-frame pose
+# is so far off that its linearised noise (the weights) no longer means much; the numbers there only
+# say that such a rig cannot measure the saddle.
 
 # %%
 dz = 7.5 ** 2 / (np.mean(thesis_rig()["right"].focal) * np.linalg.norm(thesis_rig()["right"].translation))
