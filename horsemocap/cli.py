@@ -441,8 +441,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pose smoothing: gcv (default), adaptive, none")
     p.add_argument("--events", type=float, nargs="+", metavar="SECONDS",
                    help="known times (s, the file's time axis) where the acceleration may jump, e.g. an impact's "
-                        "onset from a force plate: the smoothing leaves a jump free there (gcv or adaptive; "
-                        "issue 13's ringing fixture: hidden-point acceleration 18.4 -> 14.9 %% with adaptive)")
+                        "onset from a force plate: the smoothing leaves a jump free there (gcv or adaptive, "
+                        "without stride harmonics; issue 13's ringing fixture, adaptive, median of three draws: "
+                        "hidden-point acceleration 18.4 -> 14.9 %%)")
     p.set_defaults(func=cmd_kinematics)
 
     p = sub.add_parser("export", help="export trajectories.csv as TRC (OpenSim) or C3D (Mokka, Visual3D)", parents=[common],

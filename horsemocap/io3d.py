@@ -210,7 +210,9 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     ``events``: known times (s, the file's time axis) where the acceleration
     may jump, e.g. an impact's onset from a force plate
     (:func:`horsemocap.pose.fit_pose_trajectory`, ``events``; smoothing
-    "gcv" or "adaptive", a record without stride harmonics).
+    "gcv" or "adaptive"). With events the record is smoothed without stride
+    harmonics (the change points are for a non-periodic record; the two are
+    not fitted together).
 
     Returns
     -------
@@ -234,7 +236,8 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     reg = pose.register_pose(traj.subset(markers), model)
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, smoothing=smoothing, events=events)
+    harmonics = "none" if events is not None and len(events) else "auto"
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, smoothing=smoothing, events=events, harmonics=harmonics)
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,

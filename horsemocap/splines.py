@@ -819,6 +819,8 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz)
         info["cutoff_hz"] = cutoff
         info["harmonic_amplitudes"] = amplitude.tolist()
+        if harmonic_noise is not None:
+            info["harmonic_noise"] = float(harmonic_noise)     # the level the harmonics were tested at
         return SmoothingSpline(s, info, harm)
     if events is not None and len(events):
         ev = sorted(float(e) for e in events)
@@ -901,7 +903,7 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
     for it in range(int(iterations) + 1):
         w = w0 * factor
         fit_kwargs = kwargs
-        if calibrated and it > 0 and np.isfinite(scale):
+        if calibrated and it > 0:
             # the harmonics tested against the weighted fit's own noise: the unit-weight frame's predicted
             # noise times the robust scale of the standardised residuals, with no plain spline's cutoff
             fit_kwargs = {**kwargs, "harmonic_noise": scale * unit_noise, "harmonic_cutoff": False}
@@ -915,8 +917,6 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
         factor = np.minimum(1.0, huber_k * scale / np.maximum(np.abs(z), 1e-300))
     spline.info.update(weights="inverse variance, Huber", downweighted=int(np.sum(factor < 1)),
                        robust_scale=scale)
-    if kwargs.get("harmonic_noise") is not None and kwargs.get("fundamental_hz") is not None:
-        spline.info["harmonic_noise"] = float(fit_kwargs["harmonic_noise"])
     return spline
 
 
