@@ -844,8 +844,12 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
     The weights start at ``1 / variance`` (the smoothing spline's weighted least squares with
     inverse variances, Wahba 1990, ch. 1; only their ratios matter: the criterion, GCV or the
     harmonics' choice, is invariant to their scale). After each fit the standardised residuals
-    ``z_i = r_i / sqrt(variance_i)`` are compared with their robust scale ``s = 1.4826 median |z|``
-    (the normal-consistent MAD) and a sample with ``|z_i| > huber_k s`` has its weight multiplied by
+    ``z_i = r_i / sqrt(variance_i)`` are compared with their robust scale ``s = 1.4826 median |z| /
+    sqrt(1 - edf / n)`` (the normal-consistent MAD, corrected for the residuals of a smoother being
+    smaller than the noise by about that factor; without it the calibrated test below sat 12 % low
+    and at 3 px took a harmonic the noise made: 140 % against 71 %; on 42 samples with edf 16 the
+    corrected scale of noise given right is 1.03, uncorrected 0.80; the factor over-corrects where the
+    smoother takes more than half the samples, 1.39 at edf 34 of 60), and a sample with ``|z_i| > huber_k s`` has its weight multiplied by
     ``huber_k s / |z_i|`` (Huber's weights; Huber 1981, sec. 7.8; for smoothing splines Cox 1983,
     Ann. Statist. 11, 530-551): a sample whose error the linearised prediction underestimates (a
     registration far from its linear regime) no longer pulls the spline. ``iterations`` reweighted
@@ -911,7 +915,8 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
         if it == int(iterations):
             break
         z = (y - spline(t)) * np.sqrt(w0)
-        scale = 1.4826 * float(np.median(np.abs(z)))
+        # the residuals of a smoother are smaller than the noise by about sqrt(1 - edf / n)
+        scale = 1.4826 * float(np.median(np.abs(z))) / np.sqrt(max(1.0 - spline.info["edf"] / y.size, 0.1))
         if not scale > 0:
             break
         factor = np.minimum(1.0, huber_k * scale / np.maximum(np.abs(z), 1e-300))

@@ -215,3 +215,20 @@ def test_calibrated_harmonics_are_not_limited_by_the_plain_splines_cutoff():
     assert 2 not in unit.info["harmonic_indices"]
     assert cal.info["harmonic_indices"][:2] == [1, 2]
     assert _rms(cal(T, 2) - acc) < 0.5 * _rms(unit(T, 2) - acc)
+
+
+def test_robust_scale_is_corrected_for_the_smoothers_degrees_of_freedom():
+    """A stride-like record as the rotation components (42 samples at 30 Hz, 1.67 Hz and its 2nd
+    harmonic) with noise of known sd, the variances given right: the robust scale of the standardised
+    residuals, corrected by sqrt(1 - edf / n), is about 1 (measured 1.03 over 40 draws; uncorrected
+    0.80: the smoother's residuals are smaller than the noise)."""
+    from horsemocap.splines import robust_weighted_spline
+
+    rng = np.random.default_rng(3)
+    t = np.arange(42) / 30.0
+    scales = []
+    for _ in range(40):
+        y = np.sin(2 * np.pi * 1.67 * t) + 0.3 * np.sin(2 * np.pi * 3.33 * t) + rng.normal(0, 0.05, t.size)
+        s = robust_weighted_spline(t, y, np.full(t.size, 0.05 ** 2), iterations=1)
+        scales.append(s.info["robust_scale"])
+    assert abs(np.median(scales) - 1.0) < 0.1
