@@ -224,7 +224,14 @@ class Regions:
 
     @property
     def touches_border(self) -> np.ndarray:
-        """Boolean (C,): region touches the full image border (cut by it)."""
+        """Boolean (C,): region touches the full image border (cut by it); for a few regions in Python
+        floats, :func:`boxes_touch_border`."""
         w, h = self.image_size
         b = self.bbox
         return (b[:, 0] <= 0) | (b[:, 1] <= 0) | (b[:, 0] + b[:, 2] >= w) | (b[:, 1] + b[:, 3] >= h)
+
+
+def boxes_touch_border(boxes: list, W: int, H: int) -> list:
+    """:attr:`Regions.touches_border` of a few boxes ``[[x, y, w, h], ...]`` (a list), in Python: one
+    comparison per box instead of NumPy's per-call cost (the per-frame detection's few regions)."""
+    return [x <= 0 or y <= 0 or x + w >= W or y + h >= H for x, y, w, h in boxes]

@@ -24,7 +24,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from .base import DetectionParams, Regions
+from .base import DetectionParams, Regions, boxes_touch_border
 from .thresholds import binarize, connected_components, to_gray
 
 __all__ = [
@@ -329,14 +329,14 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
     -------
     list of :class:`RegionWeight`
     """
-    u0, v0 = regions.origin
     W, H = regions.image_size
+    boxes = regions.bbox.tolist()
     out = []
     for i, x0, y0, own_b, near, sub8, b in _near_and_background(gray, regions, index, margin):
         above = np.subtract(sub8, b, dtype=np.float32)   # halves within +-256: exact in float32
         wgt = np.maximum(above, np.float32(0))
         wgt *= near
-        bx, by, bw, bh = regions.bbox[i].tolist()
+        bx, by, bw, bh = boxes[i]
         cut = (bx <= 0, bx + bw >= W, by <= 0, by + bh >= H)
         out.append(RegionWeight(i, wgt, above, own_b.view(np.uint8), x0, y0, cut, cv2.moments(wgt)))
     return out
@@ -436,38 +436,30 @@ def weighted_centroids(gray: np.ndarray, regions: Regions, index=None, margin: i
     (K, 2) centres ``(u, v)`` in full-image pixels.
     """
     u0, v0 = regions.origin
+    wts = None                                         # the weight arrays, when the border needs them
     if patches is None and not (symmetric_border and _any_cut(regions, index)):
-        sums = _weight_sums(gray, regions, index, margin)
-        out = np.empty((len(sums), 2))
-        for k, (i, x0, y0, s, m10, m01) in enumerate(sums):
-            if s <= 0:
-                out[k] = regions.centroid[i]
-            else:
-                ou, ov = x0 + u0, y0 + v0              # the sums in full-image pixels, exact
-                out[k] = ((m10 + ou * s) / s, (m01 + ov * s) / s)
-        return out
-    wts = patches if patches is not None else region_weights(gray, regions, index, margin)
-    out = np.full((len(wts), 2), np.nan)
-    for k, r in enumerate(wts):
-        m = r.moments
-        s = m["m00"]
+        rows = _weight_sums(gray, regions, index, margin)
+    else:
+        wts = patches if patches is not None else region_weights(gray, regions, index, margin)
+        rows = [(r.i, r.x0, r.y0, r.moments["m00"], r.moments["m10"], r.moments["m01"]) for r in wts]
+    out = np.empty((len(rows), 2))
+    for k, (i, x0, y0, s, m10, m01) in enumerate(rows):
         if s <= 0:
-            out[k] = regions.centroid[r.i]
+            out[k] = regions.centroid[i]
             continue
-        ou, ov = r.x0 + u0, r.y0 + v0                  # the sums in full-image pixels, exact
-        out[k] = ((m["m10"] + ou * s) / s, (m["m01"] + ov * s) / s)
-        if symmetric_border and any(r.cut):
-            hh, ww = r.weight.shape
-            out[k] = _symmetric_in_image(r.weight, np.arange(ou, ou + ww), np.arange(ov, ov + hh), out[k],
-                                           r.cut, regions.image_size)
+        ou, ov = x0 + u0, y0 + v0                      # the sums in full-image pixels, exact
+        out[k] = ((m10 + ou * s) / s, (m01 + ov * s) / s)
+        if wts is not None and symmetric_border and any(wts[k].cut):
+            hh, ww = wts[k].weight.shape
+            out[k] = _symmetric_in_image(wts[k].weight, np.arange(ou, ou + ww), np.arange(ov, ov + hh), out[k],
+                                           wts[k].cut, regions.image_size)
     return out
 
 
 def _any_cut(regions: Regions, index) -> bool:
     """Whether any region of ``index`` (default all) touches the image border."""
-    W, H = regions.image_size
     bbox = regions.bbox if index is None else regions.bbox[np.atleast_1d(np.asarray(index, dtype=np.intp))]
-    return any(x <= 0 or y <= 0 or x + w >= W or y + h >= H for x, y, w, h in bbox.tolist())
+    return any(boxes_touch_border(bbox.tolist(), *regions.image_size))
 
 
 def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2, min_inner: int = 5,

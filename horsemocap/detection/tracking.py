@@ -19,9 +19,9 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
-from .base import DetectionError, DetectionParams, MarkerTrack
+from .base import DetectionError, DetectionParams, MarkerTrack, boxes_touch_border
 from .filters import (_candidates_in, _clip_crop, _norm, cross_product_signs, filter_area, filter_cross_product,
-                      filter_distance, filter_window, find_candidates, marker_distances,
+                      filter_distance, find_candidates, marker_distances,
                       region_circularity, weighted_centroids, window_center)
 from .thresholds import auto_threshold
 
@@ -451,7 +451,7 @@ def _thesis_choices(cent: np.ndarray, dref: np.ndarray, tol: float, signs: np.nd
 
 def _touches_border(bbox: np.ndarray, W: int, H: int) -> np.ndarray:
     """:attr:`Regions.touches_border` of the boxes ``bbox`` (a few rows: in Python, one array at the end)."""
-    return np.array([x <= 0 or y <= 0 or x + w >= W or y + h >= H for x, y, w, h in bbox.tolist()], bool)
+    return np.array(boxes_touch_border(bbox.tolist(), W, H), bool)
 
 
 def _missing_reason(pred_m, radius, regions, keep, size):
