@@ -38,6 +38,14 @@ def pct(est, true):
     return 100 * np.sqrt(np.nanmean(np.sum((est - true) ** 2, -1))) / np.sqrt(np.mean(np.sum(true ** 2, -1)))
 
 
+def score(d, tr):
+    """The hidden point's velocity and acceleration and the body's omega and alpha of a pose trajectory
+    ``tr`` against the fixture ``d``'s truth (:func:`pct` each)."""
+    k = tr.point(d["t"], d["hidden_body"])
+    return (pct(k.velocity, d["hidden_vel"]), pct(k.acceleration, d["hidden_acc"]),
+            pct(tr.omega(d["t"]), d["omega"]), pct(tr.alpha(d["t"]), d["alpha"]))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=3)
@@ -59,9 +67,7 @@ def main():
             reg = pose.register_pose(d["markers"], d["model"])
             tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing=method, order=order,
                                           harmonics=harmonics, events=events)
-            k = tr.point(d["t"], d["hidden_body"])
-            row = (pct(k.velocity, d["hidden_vel"]), pct(k.acceleration, d["hidden_acc"]),
-                   pct(tr.omega(d["t"]), d["omega"]), pct(tr.alpha(d["t"]), d["alpha"]))
+            row = score(d, tr)
             res.append(row)
             name = (method + ("" if order == 5 else "_cubic") + ("" if harmonics == "none" else "+harm")
                     + ("" if events is None else "+event"))
