@@ -171,26 +171,20 @@ def diagnose(sigmas, draws, seed=0):
     prediction (chi-square per frame of each component about its mean), and two oracle bounds. The pitch line
     says which fit was kept (weights, both log-likelihoods), the stride frequency, the harmonics kept and the
     noise they were tested against."""
-    from dataclasses import replace
     from horsemocap import accuracy
     from horsemocap.data import default_session_dir
-    from horsemocap.pipeline import analyze, run_steps
+    from horsemocap.pipeline import analyze
     from horsemocap.virtuallab import load_truth
 
     folder = default_session_dir()
     base = analyze(folder, None, {}, until="motion_frame", progress=lambda *a: None)
     truth = load_truth(folder)
-    res = base.results
-    params = replace(base.params, period_frames=res["motion_frame"]["period_frames"])
-    rng = np.random.default_rng(seed)
     summary = []
-    for sigma in sigmas:
-        for d in range(draws):
-            px = accuracy.noisy_projections(truth, res["sync"]["offsets"], res["sync"]["n_frames"],
-                                            base.session.marker_count, sigma, rng)
-            b = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
-            b["detect"] = {**res["detect"], "marker_px": px}
-            ctx = _draw_context(run_steps(base.session, params, b, accuracy.LATER_STEPS), truth)
+    for sigma, reruns in accuracy.noisy_reruns(base, truth, sigmas, seed, draws):
+        for d, rerun in enumerate(reruns):
+            if isinstance(rerun, Exception):
+                raise rerun
+            ctx = _draw_context(rerun, truth)
             traj = ctx["traj"]
             est = list(traj.centre_splines) + list(traj.rotvec_splines)
             parts = {}

@@ -285,6 +285,33 @@ def noisy_projections(truth, offsets: dict, n_frames: int, n_markers: int, sigma
 LATER_STEPS = ("triangulate", "smooth", "motion_frame", "rigid_body", "comfort")
 
 
+def noisy_reruns(analysis, truth, sigmas_px, seed: int = 0, repeats: int = 3, params=None):
+    """The steps after detection run again on noisy true projections: for each sigma, ``(sigma, reruns)``
+    with ``repeats`` draws (one at sigma 0), each an :class:`~horsemocap.pipeline.Analysis` or the
+    :class:`~horsemocap.pipeline.AnalysisError` that stopped it. One random stream (``seed``) over
+    the sigmas in order, so the same ``seed`` and sigmas give the same draws (:func:`noise_study`).
+    The period is the one found on the real detections."""
+    from .pipeline import AnalysisError, run_steps
+
+    res = analysis.results
+    rng = np.random.default_rng(seed)
+    n = res["sync"]["n_frames"]
+    # the period is the one found on the real detections: the study isolates what the noise
+    # does to the later steps (the thesis user typed the period anyway)
+    params = replace(params or analysis.params, period_frames=res["motion_frame"]["period_frames"])
+    for sigma in sigmas_px:
+        reruns = []
+        for _ in range(repeats if sigma > 0 else 1):
+            px = noisy_projections(truth, res["sync"]["offsets"], n, analysis.session.marker_count, sigma, rng)
+            base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
+            base["detect"] = {**res["detect"], "marker_px": px}
+            try:
+                reruns.append(run_steps(analysis.session, params, base, LATER_STEPS))
+            except AnalysisError as exc:
+                reruns.append(exc)
+        yield float(sigma), reruns
+
+
 def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed: int = 0,
                 keys=("acc_y_Wk_rms", "VDV_y_Wk", "acc_y_max"), params=None, repeats: int = 3) -> list[dict]:
     """Follow detection noise through the pipeline (seed 000, section 6.3).
@@ -307,25 +334,12 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
     triangulated consistently), median 3D RMSE per axis (m), saddle vertical
     acceleration error (% of rms), indicator errors (%).
     """
-    from .pipeline import AnalysisError, run_steps
-
-    res = analysis.results
-    rng = np.random.default_rng(seed)
-    n = res["sync"]["n_frames"]
-    # the period is the one found on the real detections: the study isolates what the noise
-    # does to the later steps (the thesis user typed the period anyway)
-    params = replace(params or analysis.params, period_frames=res["motion_frame"]["period_frames"])
     rows = []
-    for sigma in sigmas_px:
+    for sigma, reruns in noisy_reruns(analysis, truth, sigmas_px, seed, repeats, params):
         draws, failed = [], []
-        for _ in range(repeats if sigma > 0 else 1):
-            px = noisy_projections(truth, res["sync"]["offsets"], n, analysis.session.marker_count, sigma, rng)
-            base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
-            base["detect"] = {**res["detect"], "marker_px": px}
-            try:
-                rerun = run_steps(analysis.session, params, base, LATER_STEPS)
-            except AnalysisError as exc:
-                failed.append(str(exc))
+        for rerun in reruns:
+            if isinstance(rerun, Exception):
+                failed.append(str(rerun))
                 continue
             st = stage_errors(rerun, truth)
             draws.append((st, comfort_errors(rerun.results["comfort"]["indicators"], truth.comfort, list(keys))))
