@@ -142,18 +142,18 @@ def board_poses(n_views: int, motion, seed: int, depth_m: float | None = None, s
 
 
 def detect_board(gray: np.ndarray, inner=(15, 29)):
-    """OpenCV corners ``(rows*cols, 2)`` or ``None`` (patternSize = (cols, rows))."""
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    ok, corners = cv2.findChessboardCorners(gray, (inner[1], inner[0]), flags=flags)
-    if ok:
-        corners = cv2.cornerSubPix(gray, corners, (3, 3), (-1, -1),
-                                   (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3))
-        return corners.reshape(-1, 2)
-    try:
-        ok, corners = cv2.findChessboardCornersSB(gray, (inner[1], inner[0]), flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
-    except cv2.error:
-        ok = False
-    return corners.reshape(-1, 2) if ok else None
+    """The package's board detector on a rendered view: corners ``(rows*cols, 2)`` or ``None``.
+
+    The virtual laboratory names a board by its inner corners as ``(rows, cols)``; this is
+    :func:`horsemocap.calibration.board.detect_board` (the detector every calibration uses: classic,
+    then sector-based, refined with the shrinking sub-pixel window) with ``(cols, rows)``, so what
+    :func:`board_detection_study` measures is what the pipeline finds. The corners come in its
+    canonical order (row-major, or its reverse).
+    """
+    from ..calibration.board import detect_board as find_board
+
+    corners, _, _ = find_board(gray, (int(inner[1]), int(inner[0])))
+    return corners
 
 
 def render_calibration_views(folder, scene, bgs, n_views: int, *, noise: bool = True, compress: bool = True,

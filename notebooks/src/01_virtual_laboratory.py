@@ -252,8 +252,10 @@ plt.show()
 # through the 6.45 m long volume at the path, about 8 m away. There a square is about 4.5 px wide,
 # and OpenCV's detectors (`findChessboardCorners`, `findChessboardCornersSB`) do not find it (the
 # thesis clicked the corners by hand in Bouguet's toolbox). Measured with
-# `calibration.board_detection_study` (6 poses per distance, left camera): 50 mm squares are found
-# in 4/6 to 5/6 of the views at 4-7 m and in 0/6 at 8 m; 100 mm squares in 6/6 at 7 and 8 m. So, as a
+# `calibration.board_detection_study` (6 poses per distance, left camera, the package's own detector
+# `calibration.board.detect_board`, which refuses a board whose refined corners are not a regular
+# grid): 50 mm squares are found in 4/6 to 5/6 of the views at 4-6 m and in 0/6 at 7 and 8 m; 100 mm
+# squares in 5/6 at 4-6 m and 6/6 at 7 and 8 m. So, as a
 # lab would, the virtual lab keeps the carrier and the volume and prints 100 mm squares
 # (7 x 14 inner corners); `session.json` says so in `calibration.board`. One view of each:
 
