@@ -79,9 +79,18 @@ def render_pngs(makers) -> list[str]:
     slower figure does not leave one of them waiting. The copy draws with the
     same code and data, so the PNGs are the same bytes either way; the
     figures the copy did not deliver are drawn here.
+
+    The copy is made only while this process runs no other Python thread (a
+    Jupyter kernel's, an application's): a lock another thread holds at the fork
+    would stay held in the copy forever. The native threads left idle by OpenCV
+    and the BLAS (the command's case) hold none while they wait, and glibc and
+    OpenBLAS reset their own locks at a fork.
     """
+    import threading
+
     makers = list(makers)
-    if len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2:
+    if (len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
+            or threading.active_count() > 1):
         return [_png(make()) for make in makers]
     claims_r, claims_w = os.pipe()
     os.write(claims_w, bytes(range(len(makers))))    # the figure numbers; read empty once all are taken

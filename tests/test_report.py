@@ -185,6 +185,46 @@ def test_render_pngs_draws_here_what_the_forked_copy_failed_to_draw():
     assert report.render_pngs(makers) == expected
 
 
+def _pid_recording_figure(log):
+    def make():
+        import os
+
+        with open(log, "a") as f:
+            f.write(f"{os.getpid()}\n")
+        return _line_figure(3)()
+    return make
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork") or (__import__("os").cpu_count() or 1) < 2,
+                    reason="the forked copy is made only where fork exists and two cores do")
+def test_render_pngs_forks_only_without_other_python_threads(tmp_path):
+    """Alone, the process shares the figures with a forked copy; while another Python thread runs
+    (a Jupyter kernel's, an application's), it draws them all itself: a lock that thread holds at the
+    fork would stay held in the copy."""
+    import os
+    import threading
+
+    def pids(log):
+        return {int(line) for line in log.read_text().split()}
+
+    log = tmp_path / "alone.txt"
+    slow = [_pid_recording_figure(log)] * 6
+    assert threading.active_count() == 1, "the test needs a process without other Python threads"
+    report.render_pngs(slow)
+    assert len(pids(log)) == 2 and os.getpid() in pids(log)
+
+    stop = threading.Event()
+    worker = threading.Thread(target=stop.wait)
+    worker.start()
+    try:
+        log = tmp_path / "threaded.txt"
+        report.render_pngs([_pid_recording_figure(log)] * 6)
+        assert pids(log) == {os.getpid()}
+    finally:
+        stop.set()
+        worker.join()
+
+
 def test_render_pngs_error_here_neither_hangs_nor_is_swallowed():
     """A figure failing in this process ends the call with its error, even while the forked copy is
     sending more than a pipe holds (before, both waited for each other: the copy blocked in sending,
