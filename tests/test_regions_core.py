@@ -240,3 +240,16 @@ def test_path_is_exposed_and_can_be_forced():
     out = subprocess.run([sys.executable, "-c", "import horsemocap.detection as d; print(d.ACTIVE_PATH)"],
                          env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "python"
+
+
+@needs_core
+def test_bright_boxes_match_bright_crops():
+    from horsemocap.detection.thresholds import bright_crops
+    rng = np.random.default_rng(7)
+    for it in range(300):
+        H, W = (int(x) for x in rng.integers(1, 300, 2))
+        g = scene(rng, H, W, int(rng.integers(0, 30)), radius=(0.5, 12), noise=2.0)
+        if it % 10 == 0:
+            g = rng.integers(0, 256, (H, W), dtype=np.uint8)        # bright everywhere: the whole image
+        for thr in (-1, 0, 60, 100, 254, 255):
+            assert regions_core.core_bright_boxes(g, thr) == bright_crops(g, thr)[1], (it, thr)

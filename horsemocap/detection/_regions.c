@@ -1008,7 +1008,199 @@ out:
     return result;
 }
 
+/* ------------------------------------------------------------------------ */
+/* bright_boxes(): thresholds.bright_crops' crops, without the binary image  */
+/* ------------------------------------------------------------------------ */
+typedef struct { int u0, v0, u1, v1; } Box;
+
+static int boxes_overlap(const Box *a, const Box *b)
+{
+    return a->u0 < b->u1 && b->u0 < a->u1 && a->v0 < b->v1 && b->v0 < a->v1;
+}
+
+static void column_max(const uint8_t *restrict g, Py_ssize_t stride, int W, int y0, int y1, uint8_t *restrict acc)
+{
+    if (W <= 0)
+        return;
+    memset(acc, 0, (size_t)W);
+    for (int y = y0; y < y1; y++) {
+        const uint8_t *restrict row = g + (Py_ssize_t)y * stride;
+        for (int x = 0; x < W; x++)
+            acc[x] = row[x] > acc[x] ? row[x] : acc[x];
+    }
+}
+
+static void white_columns(uint8_t *restrict acc, int W, uint8_t t, int all)
+{   /* acc: 1 where the column's brightest pixel is white (> t; every pixel when all) */
+    if (W <= 0)
+        return;
+    if (all) {
+        memset(acc, 1, (size_t)W);
+        return;
+    }
+    for (int x = 0; x < W; x++)
+        acc[x] = acc[x] > t;
+}
+
+/* the blocks holding a white pixel, labelled; their groups' padded boxes, overlapping ones merged */
+static int bright_boxes_of(const uint8_t *g, Py_ssize_t stride, int W, int H, int thr, int block, int pad,
+                           double max_fraction, Box **out, int *nout)
+{
+    const int Hb = (H + block - 1) / block, Wb = (W + block - 1) / block;
+    uint8_t *small = calloc((size_t)Hb * Wb + 1, 1), *acc = malloc((size_t)W + 1);
+    LabelJob j;
+    memset(&j, 0, sizeof(j));
+    Box *boxes = NULL, *merged = NULL;
+    int status = NO_MEMORY, n = 0;
+    *out = NULL;
+    *nout = 0;
+    if (!small || !acc) goto fail;
+    if (thr < 255) {
+        const int all = thr < 0;
+        for (int by = 0; by < Hb; by++) {
+            /* the brightest pixel of each column over the block's rows, then of each block */
+            column_max(g, stride, W, by * block, by * block + block < H ? by * block + block : H, acc);
+            white_columns(acc, W, all ? 0 : (uint8_t)thr, all);
+            int bx = 0;
+            if (block == 8)             /* a block's 8 columns as one 64-bit word */
+                for (; bx < W / 8; bx++) {
+                    uint64_t word;
+                    memcpy(&word, acc + 8 * bx, 8);
+                    small[(size_t)by * Wb + bx] = word != 0;
+                }
+            for (; bx < Wb; bx++) {
+                uint8_t any = 0;
+                for (int x = bx * block; x < bx * block + block && x < W; x++)
+                    any |= acc[x];
+                small[(size_t)by * Wb + bx] = any;
+            }
+        }
+    }
+    j.img = small;
+    j.stride = Wb;
+    j.w = Wb;
+    j.h = Hb;
+    j.thr = 0;
+    j.lab = malloc(sizeof(int32_t) * ((size_t)Hb * Wb + 1));
+    if (!j.lab || label_fast(&j) != OK) goto fail;
+    n = j.n - 1;
+    boxes = malloc(sizeof(Box) * (n ? n : 1));
+    merged = malloc(sizeof(Box) * (n ? n : 1));
+    if (!boxes || !merged) goto fail;
+    for (int q = 0; q < n; q++) {
+        const int32_t *st = j.stats + 5 * (q + 1);
+        int64_t u0 = (int64_t)st[0] * block - pad, v0 = (int64_t)st[1] * block - pad;
+        int64_t u1 = (int64_t)(st[0] + st[2]) * block + pad, v1 = (int64_t)(st[1] + st[3]) * block + pad;
+        boxes[q].u0 = (int)(u0 > 0 ? u0 : 0);
+        boxes[q].v0 = (int)(v0 > 0 ? v0 : 0);
+        boxes[q].u1 = (int)(u1 < W ? u1 : W);
+        boxes[q].v1 = (int)(v1 < H ? v1 : H);
+    }
+    int again = 1;
+    while (again && n > 1) {           /* overlapping crops become one (thresholds._bright_boxes' loop) */
+        again = 0;
+        int m = 0;
+        for (int q = 0; q < n; q++) {
+            int into = -1;
+            for (int o = 0; o < m; o++)
+                if (boxes_overlap(&boxes[q], &merged[o])) {
+                    into = o;
+                    break;
+                }
+            if (into < 0) {
+                merged[m++] = boxes[q];
+                continue;
+            }
+            Box *o = &merged[into];
+            if (boxes[q].u0 < o->u0) o->u0 = boxes[q].u0;
+            if (boxes[q].v0 < o->v0) o->v0 = boxes[q].v0;
+            if (boxes[q].u1 > o->u1) o->u1 = boxes[q].u1;
+            if (boxes[q].v1 > o->v1) o->v1 = boxes[q].v1;
+            again = 1;
+        }
+        Box *t = boxes;
+        boxes = merged;
+        merged = t;
+        n = m;
+    }
+    int64_t covered = 0;
+    for (int q = 0; q < n; q++)
+        covered += (int64_t)(boxes[q].u1 - boxes[q].u0) * (boxes[q].v1 - boxes[q].v0);
+    if ((double)covered > max_fraction * H * W) {
+        n = 1;
+        boxes[0].u0 = boxes[0].v0 = 0;
+        boxes[0].u1 = W;
+        boxes[0].v1 = H;
+    }
+    *out = boxes;
+    *nout = n;
+    boxes = NULL;
+    status = OK;
+fail:
+    free(small);
+    free(acc);
+    free(j.lab);
+    free(j.stats);
+    free(j.cents);
+    free(boxes);
+    free(merged);
+    return status;
+}
+
+PyDoc_STRVAR(bright_boxes_doc,
+"bright_boxes(gray, threshold, block, pad, max_fraction) -> [[u0, v0, u1, v1], ...]\n"
+"\n"
+"thresholds.bright_crops(gray, threshold, block, pad)[1] (max_fraction: BRIGHT_MAX_FRACTION) without the\n"
+"binary image: the same crops in the same order. gray: 2-D uint8, C-contiguous.");
+
+static PyObject *bright_boxes(PyObject *self, PyObject *args)
+{
+    PyObject *gray_obj, *result = NULL;
+    int thr, block, pad;
+    double max_fraction;
+    if (!PyArg_ParseTuple(args, "Oiiid", &gray_obj, &thr, &block, &pad, &max_fraction))
+        return NULL;
+    if (block < 1 || block > 4096 || pad < 0 || pad > 1 << 20 || isnan(max_fraction)) {
+        PyErr_SetString(PyExc_ValueError, "_regions.bright_boxes: expected 1 <= block <= 4096, 0 <= pad, "
+                        "max_fraction a number");
+        return NULL;
+    }
+    Py_buffer view;
+    if (PyObject_GetBuffer(gray_obj, &view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        PyErr_SetString(PyExc_ValueError, "_regions.bright_boxes: gray must be a C-contiguous buffer");
+        return NULL;
+    }
+    if (view.ndim != 2 || view.itemsize != 1 || !view.format || strcmp(view.format, "B") != 0
+            || view.shape[0] > INT32_MAX / 2 || view.shape[1] > INT32_MAX / 2) {
+        PyErr_SetString(PyExc_ValueError, "_regions.bright_boxes: gray must be a 2-D uint8 array");
+        PyBuffer_Release(&view);
+        return NULL;
+    }
+    Box *boxes;
+    int n, status;
+    const int H = (int)view.shape[0], W = (int)view.shape[1];
+    Py_BEGIN_ALLOW_THREADS
+    status = bright_boxes_of(view.buf, view.shape[1], W, H, thr, block, pad, max_fraction, &boxes, &n);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    if (status != OK)
+        return PyErr_NoMemory();
+    result = PyList_New(n);
+    for (int q = 0; result && q < n; q++) {
+        PyObject *b = Py_BuildValue("[iiii]", boxes[q].u0, boxes[q].v0, boxes[q].u1, boxes[q].v1);
+        if (!b) {
+            Py_CLEAR(result);
+            break;
+        }
+        PyList_SET_ITEM(result, q, b);
+    }
+    free(boxes);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"bright_boxes", bright_boxes, METH_VARARGS, bright_boxes_doc},
     {"candidates", candidates, METH_VARARGS, candidates_doc},
     {"label", label, METH_VARARGS, label_doc},
     {NULL, NULL, 0, NULL},

@@ -713,10 +713,10 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
     labelling crops instead of the whole image, then no whole-frame label
     image.
     """
-    if regions_core.CORE is not None:
-        out = regions_core.core_candidates(gray, threshold, bright_crops(gray, threshold)[1],
-                                           (area_range[0], _max_area(area_range, gray)), min_circularity, True,
-                                           max_count, centroid, False)
+    boxes = regions_core.core_bright_boxes(gray, threshold)
+    if boxes is not None:
+        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], _max_area(area_range, gray)),
+                                           min_circularity, True, max_count, centroid, False)
         if out is not None:
             return Candidates(*out[:3])
     return _whole_frame_search_python(gray, threshold, area_range, min_circularity, centroid, max_count)

@@ -23,7 +23,8 @@ import os
 
 import numpy as np
 
-__all__ = ["PURE_PYTHON_ENV", "ACTIVE_PATH", "ACTIVE_REASON", "CORE", "core_candidates", "core_label"]
+__all__ = ["PURE_PYTHON_ENV", "ACTIVE_PATH", "ACTIVE_REASON", "CORE", "core_candidates", "core_label",
+           "core_bright_boxes"]
 
 #: Environment variable that forces the pure-Python path.
 PURE_PYTHON_ENV = "HORSEMOCAP_PURE_PYTHON"
@@ -85,6 +86,16 @@ def core_label(gray, threshold):
     n, labels, stats, cents = CORE.label(gray, int(threshold))
     return (n, np.frombuffer(labels, np.int32).reshape(gray.shape), np.frombuffer(stats, np.int32).reshape(n, 5),
             np.frombuffer(cents, float).reshape(n, 2))
+
+
+def core_bright_boxes(gray, threshold):
+    """:func:`~horsemocap.detection.thresholds.bright_crops`' crops (the same, in the same order) by the
+    compiled core without the binary image, or None (core not active, or not a C-contiguous 2-D uint8 image)."""
+    if CORE is None or not (isinstance(gray, np.ndarray) and gray.dtype == np.uint8 and gray.ndim == 2
+                            and gray.flags.c_contiguous):
+        return None
+    from .thresholds import BRIGHT_BLOCK, BRIGHT_MAX_FRACTION, BRIGHT_PAD
+    return CORE.bright_boxes(gray, int(threshold), BRIGHT_BLOCK, BRIGHT_PAD, BRIGHT_MAX_FRACTION)
 
 
 def _takes(gray, max_count, area_range, min_circularity) -> bool:
