@@ -27,6 +27,11 @@ before and after:
   tracking included: its time per frame, and the 2D floor over it).
   ``--compare-with CHECKOUT`` times that checkout's detectors (thesis chain,
   2D stage replayed) in the same rounds, against the same floor.
+  Which path finds the candidates (``horsemocap.detection.ACTIVE_PATH``: the
+  compiled core ``_regions.c`` or pure Python) is printed; with the core
+  active, the thesis chain, the 2D stage, the whole identification and the
+  whole-frame search are also timed by the pure-Python path (the core set
+  aside) in the same rounds, against the same floors.
 * **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
   + labelling`` of every whole frame the detector was given (what a
   detector without the thesis' sliding window must do).
@@ -305,6 +310,7 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
     pure = _core_active()
     if pure:                    # the same work by the pure-Python path, in the same rounds
         fns["thesis_python"] = pure_path(thesis)
+        fns["ident_python"] = pure_path(ident)
         fns["ident_2d_python"] = rec_i.replay(pure_python=True)
     if compare_with:            # the same work by another checkout's detectors, in the same rounds
         other = _other_detection(compare_with)
@@ -340,6 +346,7 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
     if pure:
         rows["thesis_python_ms_per_frame"] = 1e3 * t["thesis_python"] / per
         rows["thesis_python_equal_work_ratio"] = t["thesis_floor_crops"] / t["thesis_python"]
+        rows["ident_python_ms_per_frame"] = 1e3 * t["ident_python"] / per
         rows["ident_2d_python_ms_per_frame"] = 1e3 * t["ident_2d_python"] / per
         rows["ident_2d_python_equal_work_ratio"] = t["ident_floor_crops"] / t["ident_2d_python"]
     if compare_with:
@@ -363,7 +370,8 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
         print(f"  identification, 2D, pure-Python path {rows['ident_2d_python_ms_per_frame']:7.2f} ms/frame  "
               f"equal work {rows['ident_2d_python_equal_work_ratio']:.2f} (same rounds)")
     print(f"  identification, all  {rows['ident_ms_per_frame']:7.2f} ms/frame  equal work (2D floor / all) "
-          f"{rows['ident_equal_work_ratio']:.2f}  whole frame {rows['ident_whole_frame_ratio']:.2f}", flush=True)
+          f"{rows['ident_equal_work_ratio']:.2f}  whole frame {rows['ident_whole_frame_ratio']:.2f}"
+          + (f"; pure-Python path {rows['ident_python_ms_per_frame']:.2f} ms/frame" if pure else ""), flush=True)
     if compare_with:
         cmp = rows["compared"]
         print(f"  the code of {compare_with}: thesis chain {cmp['thesis_ms_per_frame']:.2f} ms/frame, equal work "
@@ -407,13 +415,22 @@ def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
         for c in s.cameras:
             for g in gray[c]:
                 connected_components(cv2.threshold(g, thr[c], 255, cv2.THRESH_BINARY)[1])
-    t = rounds({"crops": crops, "whole": whole, "floor": floor}, repeat)
+    fns = {"crops": crops, "whole": whole, "floor": floor}
+    if _core_active():          # the search in crops by the pure-Python path, in the same rounds
+        fns["crops_python"] = pure_path(crops)
+    t = rounds(fns, repeat)
     count = sum(len(g) for g in gray.values())
-    row = {"session": name, "frames": count, **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},
+    row = {"session": name, "frames": count, "path": _active_path(),
+           **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},
            "crops_ratio": t["floor"] / t["crops"], "whole_ratio": t["floor"] / t["whole"]}
+    pure = ""
+    if "crops_python" in t:
+        row["crops_python_ratio"] = t["floor"] / t["crops_python"]
+        pure = f"; pure-Python path in crops {row['crops_python_ms_per_frame']:.2f} ({row['crops_python_ratio']:.2f})"
     print(f"whole-frame search, {name} ({count} frames from the start): in crops {row['crops_ms_per_frame']:.2f} "
           f"ms/frame (floor/step {row['crops_ratio']:.2f}), labelling whole frames {row['whole_ms_per_frame']:.2f} "
-          f"({row['whole_ratio']:.2f}), bare threshold + labels {row['floor_ms_per_frame']:.2f}", flush=True)
+          f"({row['whole_ratio']:.2f}), bare threshold + labels {row['floor_ms_per_frame']:.2f}{pure} "
+          f"(path: {row['path']})", flush=True)
     out.setdefault("whole_frame_search", []).append(row)
 
 

@@ -78,54 +78,87 @@ static void unite(int32_t *parent, int32_t a, int32_t b)
         parent[a] = b;
 }
 
+static int chunk_has_white(const uint8_t *p, int thr)
+{
+    unsigned any = 0;
+    for (int i = 0; i < 16; i++)
+        any |= (unsigned)((int)p[i] > thr);
+    return any != 0;
+}
+
+/* First pass of the labelling of (img > thr), img: the area's top-left pixel, rows stride apart: provisional
+ * labels (lab, 0 = black) and their union-find forest (*parent, nl labels); row_lo/row_hi: each row's first
+ * and last white column (lo > hi: none). Runs of 16 black pixels are skipped at once. */
+static int first_pass(const uint8_t *img, Py_ssize_t stride, int w, int h, int thr, int32_t *lab, int *row_lo,
+                      int *row_hi, int32_t **parent_out, int32_t *nl_out)
+{
+    int32_t cap = 256, nl = 0;
+    int32_t *parent = malloc(sizeof(int32_t) * cap);
+    *parent_out = NULL;
+    if (!parent)
+        return NO_MEMORY;
+    for (int y = 0; y < h; y++) {
+        const uint8_t *row = img + (Py_ssize_t)y * stride;
+        int32_t *L = lab + (size_t)y * w;
+        const int32_t *P = y > 0 ? L - w : NULL;
+        memset(L, 0, sizeof(int32_t) * (size_t)w);
+        row_lo[y] = w;
+        row_hi[y] = -1;
+        for (int x = 0; x < w;) {
+            if (x + 16 <= w && !chunk_has_white(row + x, thr)) {
+                x += 16;
+                continue;
+            }
+            int end = x + 16 <= w ? x + 16 : w;
+            for (; x < end; x++) {
+                if ((int)row[x] <= thr) continue;
+                if (x < row_lo[y]) row_lo[y] = x;
+                row_hi[y] = x;
+                int32_t nb[4] = {x > 0 ? L[x - 1] : 0, (P && x > 0) ? P[x - 1] : 0, P ? P[x] : 0,
+                                 (P && x + 1 < w) ? P[x + 1] : 0};
+                int32_t l = 0;
+                for (int k = 0; k < 4; k++) {
+                    if (!nb[k]) continue;
+                    if (!l) l = nb[k];
+                    else if (nb[k] != l) unite(parent, l, nb[k]);
+                }
+                if (!l) {
+                    if (nl + 1 >= cap) {
+                        int32_t *np2 = realloc(parent, sizeof(int32_t) * (size_t)cap * 2);
+                        if (!np2) {
+                            free(parent);
+                            return NO_MEMORY;
+                        }
+                        parent = np2;
+                        cap *= 2;
+                    }
+                    l = ++nl;
+                    parent[l] = l;
+                }
+                L[x] = l;
+            }
+        }
+    }
+    *parent_out = parent;
+    *nl_out = nl;
+    return OK;
+}
+
 /* 8-connected labels of (g > thr) in the crop; keys on the block grid shifted by (ox, oy). */
 static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, int oy, Crop *c)
 {
     const int w = c->w, h = c->h;
-    int32_t cap = 256, nl = 0;
-    int32_t *parent = malloc(sizeof(int32_t) * cap);
+    int32_t nl = 0, *parent = NULL;
+    int *row_lo = malloc(sizeof(int) * (size_t)h), *row_hi = malloc(sizeof(int) * (size_t)h);
     c->lab = malloc(sizeof(int32_t) * (size_t)w * (size_t)h);
     c->comp = NULL;
     c->n = 0;
-    if (!parent || !c->lab) {
-        free(parent);
+    if (!row_lo || !row_hi || !c->lab
+            || first_pass(img + (Py_ssize_t)c->v0 * stride + c->u0, stride, w, h, thr, c->lab, row_lo, row_hi,
+                          &parent, &nl) != OK) {
+        free(row_lo);
+        free(row_hi);
         return NO_MEMORY;
-    }
-    for (int y = 0; y < h; y++) {
-        const uint8_t *row = img + (Py_ssize_t)(c->v0 + y) * stride + c->u0;
-        int32_t *L = c->lab + (size_t)y * w;
-        const int32_t *P = y > 0 ? L - w : NULL;
-        for (int x = 0; x < w; x++) {
-            if ((int)row[x] <= thr) {
-                L[x] = 0;
-                continue;
-            }
-            int32_t nb[4] = {x > 0 ? L[x - 1] : 0, (P && x > 0) ? P[x - 1] : 0, P ? P[x] : 0,
-                             (P && x + 1 < w) ? P[x + 1] : 0};
-            int32_t l = 0;
-            for (int k = 0; k < 4; k++) {
-                if (!nb[k])
-                    continue;
-                if (!l)
-                    l = nb[k];
-                else if (nb[k] != l)
-                    unite(parent, l, nb[k]);
-            }
-            if (!l) {
-                if (nl + 1 >= cap) {
-                    int32_t *np2 = realloc(parent, sizeof(int32_t) * (size_t)cap * 2);
-                    if (!np2) {
-                        free(parent);
-                        return NO_MEMORY;
-                    }
-                    parent = np2;
-                    cap *= 2;
-                }
-                l = ++nl;
-                parent[l] = l;
-            }
-            L[x] = l;
-        }
     }
     /* second pass: components (numbered by their first pixel), their sums, boxes and keys */
     int32_t *index = calloc((size_t)nl + 1, sizeof(int32_t));
@@ -134,12 +167,14 @@ static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, in
     if (!index || !c->comp) {
         free(parent);
         free(index);
+        free(row_lo);
+        free(row_hi);
         return NO_MEMORY;
     }
     for (int y = 0; y < h; y++) {
         int32_t *L = c->lab + (size_t)y * w;
         const int64_t by = (int64_t)((y + oy) >> 1) << 32;
-        for (int x = 0; x < w; x++) {
+        for (int x = row_lo[y]; x <= row_hi[y]; x++) {
             if (!L[x])
                 continue;
             int32_t r = find_root(parent, L[x]);
@@ -149,6 +184,8 @@ static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, in
                     if (!nc) {
                         free(parent);
                         free(index);
+                        free(row_lo);
+                        free(row_hi);
                         return NO_MEMORY;
                     }
                     c->comp = nc;
@@ -178,6 +215,8 @@ static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, in
     }
     free(parent);
     free(index);
+    free(row_lo);
+    free(row_hi);
     return OK;
 }
 
@@ -221,6 +260,24 @@ typedef struct {
     double slope[2], mom[4];          /* light terms (NaN when not measured) */
 } Centre;
 
+static void min_of_rows(const uint8_t *restrict row_d, int pw, int ph, int y, int cap, uint8_t *restrict out)
+{
+    memcpy(out, row_d + (size_t)y * pw, (size_t)pw);
+    for (int dy = 1; dy <= cap; dy++) {
+        for (int side = -1; side <= 1; side += 2) {
+            const int yy = y + side * dy;
+            if (yy < 0 || yy >= ph)
+                continue;
+            const uint8_t *restrict src = row_d + (size_t)yy * pw;
+            const uint8_t ady = (uint8_t)dy;
+            for (int x = 0; x < pw; x++) {
+                uint8_t v = src[x] > ady ? src[x] : ady;
+                out[x] = v < out[x] ? v : out[x];
+            }
+        }
+    }
+}
+
 /* Chebyshev distance (capped at cap) of each patch pixel to the nearest set pixel of mask, inside the patch. */
 static void cheb_distance(const uint8_t *mask, int pw, int ph, int cap, uint8_t *row_d, uint8_t *d)
 {
@@ -240,20 +297,8 @@ static void cheb_distance(const uint8_t *mask, int pw, int ph, int cap, uint8_t 
             if (dd < r[x]) r[x] = (uint8_t)dd;
         }
     }
-    for (int y = 0; y < ph; y++) {
-        for (int x = 0; x < pw; x++) {
-            int best = cap + 1;
-            for (int dy = -cap; dy <= cap; dy++) {
-                int yy = y + dy;
-                if (yy < 0 || yy >= ph) continue;
-                int ady = dy < 0 ? -dy : dy;
-                int v = row_d[(size_t)yy * pw + x];
-                int dd = v > ady ? v : ady;
-                if (dd < best) best = dd;
-            }
-            d[(size_t)y * pw + x] = (uint8_t)best;
-        }
-    }
+    for (int y = 0; y < ph; y++)        /* d = min over |dy| <= cap of max(|dy|, row distance at y + dy) */
+        min_of_rows(row_d, pw, ph, y, cap, d + (size_t)y * pw);
 }
 
 static double clip_half(double t)
@@ -795,14 +840,6 @@ typedef struct {
     int n;
 } LabelJob;
 
-static int chunk_has_white(const uint8_t *p, int thr)
-{
-    unsigned any = 0;
-    for (int i = 0; i < 16; i++)
-        any |= (unsigned)((int)p[i] > thr);
-    return any != 0;
-}
-
 static int by_comp_key(const void *a, const void *b)
 {
     const int64_t *p = a, *q = b;     /* (key, temporary index) pairs */
@@ -812,54 +849,15 @@ static int by_comp_key(const void *a, const void *b)
 
 static int label_fast(LabelJob *j)
 {
-    const int w = j->w, h = j->h, thr = j->thr;
-    int32_t cap = 256, nl = 0;
-    int32_t *parent = malloc(sizeof(int32_t) * cap);
+    const int w = j->w, h = j->h;
+    int32_t nl = 0, *parent = NULL;
     int *row_lo = malloc(sizeof(int) * (size_t)(h ? h : 1)), *row_hi = malloc(sizeof(int) * (size_t)(h ? h : 1));
     int32_t *index = NULL, *final = NULL;
     Comp *comp = NULL;
     int64_t *order = NULL;
     int status = NO_MEMORY;
-    if (!parent || !row_lo || !row_hi) goto out;
-    for (int y = 0; y < h; y++) {
-        const uint8_t *row = j->img + (Py_ssize_t)y * j->stride;
-        int32_t *L = j->lab + (size_t)y * w;
-        const int32_t *P = y > 0 ? L - w : NULL;
-        memset(L, 0, sizeof(int32_t) * (size_t)w);
-        row_lo[y] = w;
-        row_hi[y] = -1;
-        for (int x = 0; x < w;) {
-            if (x + 16 <= w && !chunk_has_white(row + x, thr)) {
-                x += 16;
-                continue;
-            }
-            int end = x + 16 <= w ? x + 16 : w;
-            for (; x < end; x++) {
-                if ((int)row[x] <= thr) continue;
-                if (x < row_lo[y]) row_lo[y] = x;
-                row_hi[y] = x;
-                int32_t nb[4] = {x > 0 ? L[x - 1] : 0, (P && x > 0) ? P[x - 1] : 0, P ? P[x] : 0,
-                                 (P && x + 1 < w) ? P[x + 1] : 0};
-                int32_t l = 0;
-                for (int k = 0; k < 4; k++) {
-                    if (!nb[k]) continue;
-                    if (!l) l = nb[k];
-                    else if (nb[k] != l) unite(parent, l, nb[k]);
-                }
-                if (!l) {
-                    if (nl + 1 >= cap) {
-                        int32_t *np2 = realloc(parent, sizeof(int32_t) * (size_t)cap * 2);
-                        if (!np2) goto out;
-                        parent = np2;
-                        cap *= 2;
-                    }
-                    l = ++nl;
-                    parent[l] = l;
-                }
-                L[x] = l;
-            }
-        }
-    }
+    if (!row_lo || !row_hi || first_pass(j->img, j->stride, w, h, j->thr, j->lab, row_lo, row_hi, &parent, &nl) != OK)
+        goto out;
     index = calloc((size_t)nl + 1, sizeof(int32_t));
     comp = malloc(sizeof(Comp) * ((size_t)nl + 1));
     if (!index || !comp) goto out;

@@ -19,6 +19,8 @@ says why.
 """
 from __future__ import annotations
 
+import importlib
+import math
 import os
 
 import numpy as np
@@ -35,7 +37,7 @@ def _load_core():
     if os.environ.get(PURE_PYTHON_ENV, "").strip() not in ("", "0"):
         return None, f"pure Python ({PURE_PYTHON_ENV} is set)"
     try:
-        from . import _regions
+        _regions = importlib.import_module(f"{__package__}._regions")
     except ImportError as exc:
         return None, f"pure Python (the compiled core is not built: {exc})"
     return _regions, "compiled core (horsemocap.detection._regions)"
@@ -58,11 +60,13 @@ def core_candidates(gray, threshold, crops: list, area_range, min_circularity, w
     whole-frame search's crops (labelling order of the whole image), else
     one crop of :func:`~horsemocap.detection.frame_candidates`.
     """
-    if CORE is None or not _takes(gray, max_count, area_range, min_circularity):
+    if CORE is None:
         return None
-    out = CORE.candidates(gray, int(threshold), crops, float(area_range[0]), float(area_range[1]),
-                          None if min_circularity is None else float(min_circularity), bool(whole),
-                          int(max_count), centroid != "binary", bool(light))
+    args = _arguments(gray, area_range, min_circularity, max_count)
+    if args is None:
+        return None
+    out = CORE.candidates(gray, int(threshold), crops, *args[:3], bool(whole), args[3], centroid != "binary",
+                          bool(light))
     if out is None:
         return None
     n, centre, area, cut, slope, moments = out
@@ -98,15 +102,17 @@ def core_bright_boxes(gray, threshold):
     return CORE.bright_boxes(gray, int(threshold), BRIGHT_BLOCK, BRIGHT_PAD, BRIGHT_MAX_FRACTION)
 
 
-def _takes(gray, max_count, area_range, min_circularity) -> bool:
-    """Whether the core takes these arguments (else the Python path runs, and raises where it raises)."""
+def _arguments(gray, area_range, min_circularity, max_count):
+    """``(area_min, area_max, min_circularity, max_count)`` as the core takes them, or None where it does
+    not take these arguments (the Python path then runs, and raises where it raises)."""
     if not (isinstance(gray, np.ndarray) and gray.dtype == np.uint8 and gray.ndim == 2
             and gray.flags.c_contiguous):
-        return False
+        return None
     try:
-        ok = int(max_count) >= 0 and not np.isnan(float(area_range[0])) and not np.isnan(float(area_range[1]))
-        if min_circularity is not None:
-            float(min_circularity)
+        lo, hi, count = float(area_range[0]), float(area_range[1]), int(max_count)
+        circ = None if min_circularity is None else float(min_circularity)
     except (TypeError, ValueError):
-        return False
-    return ok
+        return None
+    if count < 0 or math.isnan(lo) or math.isnan(hi):
+        return None
+    return lo, hi, circ, count
