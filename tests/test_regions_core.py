@@ -253,3 +253,18 @@ def test_bright_boxes_match_bright_crops():
             g = rng.integers(0, 256, (H, W), dtype=np.uint8)        # bright everywhere: the whole image
         for thr in (-1, 0, 60, 100, 254, 255):
             assert regions_core.core_bright_boxes(g, thr) == bright_crops(g, thr)[1], (it, thr)
+
+
+@needs_core
+def test_whole_count_and_its_search(python_path):
+    """The reacquisition's count of whole regions and its search: the same by both paths."""
+    rng = np.random.default_rng(8)
+    for it in range(100):
+        H, W = (int(x) for x in rng.integers(20, 200, 2))
+        g = scene(rng, H, W, int(rng.integers(0, 25)), radius=(0.5, 6))
+        for thr in (0, 90, 255):
+            n_fast, search_fast = idn._whole_count(g, thr, (3.0, None))
+            n_ref, search_ref = python_path(idn._whole_count, g, thr, (3.0, None))
+            assert n_fast == n_ref
+            for mc, count in ((0.5, 24), (None, 2)):
+                assert_same(search_fast(mc, "weighted", count), python_path(search_ref, mc, "weighted", count))

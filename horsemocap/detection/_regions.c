@@ -306,9 +306,37 @@ static double clip_half(double t)
     return t < -0.5 ? -0.5 : (t > 0.5 ? 0.5 : t);
 }
 
+/* NumPy's pairwise summation of a[0..n) (ndarray.sum of a contiguous array): sums in filters.py's NumPy code
+ * and here rounded alike. */
+static double pairwise_sum(const double *a, Py_ssize_t n)
+{
+    if (n < 8) {
+        double res = 0.;
+        for (Py_ssize_t i = 0; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    if (n <= 128) {
+        double r[8], res;
+        Py_ssize_t i;
+        for (int k = 0; k < 8; k++)
+            r[k] = a[k];
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int k = 0; k < 8; k++)
+                r[k] += a[i + k];
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    Py_ssize_t n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_sum(a, n2) + pairwise_sum(a + n2, n - n2);
+}
+
 /* filters._symmetric_1d */
 static double symmetric_1d(const double *p, int n, double x0, double c, int cut_low, int cut_high, double N,
-                           double *slope)
+                           double *slope, double *mass, double *moment)
 {
     if (!(cut_low || cut_high))
         return c;
@@ -323,19 +351,18 @@ static double symmetric_1d(const double *p, int n, double x0, double c, int cut_
     for (int it = 0; it < SYM_ITERATIONS; it++) {
         double lo = cut_high ? 2 * c - (N - 0.5) : -INFINITY;
         double hi = cut_low ? 2 * c + 0.5 : INFINITY;
-        double s = 0.0, mom = 0.0;
         for (int i = 0; i < n; i++) {
             double x = x0 + i;
             double t0 = clip_half(lo - x), t1 = clip_half(hi - x);
             if (t1 < t0) t1 = t0;
-            double d2 = t1 * t1 - t0 * t0, d3 = t1 * t1 * t1 - t0 * t0 * t0;
-            double mass = p[i] * (t1 - t0) + slope[i] * d2 / 2;
-            s += mass;
-            mom += x * mass + p[i] * d2 / 2 + slope[i] * d3 / 3;
+            double d2 = t1 * t1 - t0 * t0, d3 = pow(t1, 3.0) - pow(t0, 3.0);   /* NumPy: square, and pow */
+            mass[i] = p[i] * (t1 - t0) + slope[i] * d2 / 2;
+            moment[i] = x * mass[i] + p[i] * d2 / 2 + slope[i] * d3 / 3;
         }
+        double s = pairwise_sum(mass, n);
         if (!(s > 0))
             break;
-        c = mom / s;
+        c = pairwise_sum(moment, n) / s;
     }
     return c;
 }
@@ -379,7 +406,7 @@ static int region_centre(const uint8_t *g, Py_ssize_t stride, const Crop *c, int
     for (int i = 0; i < 2; i++) out->slope[i] = NAN;
     for (int i = 0; i < 4; i++) out->mom[i] = NAN;
     uint8_t *buf = malloc(np * 6);
-    double *wgt = malloc(sizeof(double) * (np + 2 * (size_t)(pw + ph)));
+    double *wgt = malloc(sizeof(double) * (np + 4 * (size_t)(pw > ph ? pw : ph)));
     if (!buf || !wgt) {
         free(buf);
         free(wgt);
@@ -458,12 +485,13 @@ static int region_centre(const uint8_t *g, Py_ssize_t stride, const Crop *c, int
     const int bxi = k->x0 + c->u0, byi = k->y0 + c->v0;
     const int cut[4] = {bxi <= 0, bxi + bw >= W, byi <= 0, byi + bh >= H};
     if (cut[0] || cut[1] || cut[2] || cut[3]) {
-        double *prof = wgt + np, *slope = prof + (pw > ph ? pw : ph);
+        const size_t side = (size_t)(pw > ph ? pw : ph);
+        double *prof = wgt + np, *slope = prof + side, *mass = slope + side, *moment = mass + side;
         if (cut[0] || cut[1]) {
             for (int x = 0; x < pw; x++) prof[x] = 0.0;
             for (int y = 0; y < ph; y++)
                 for (int x = 0; x < pw; x++) prof[x] += wgt[(size_t)y * pw + x];
-            out->cu = symmetric_1d(prof, pw, (double)ou, out->cu, cut[0], cut[1], (double)W, slope);
+            out->cu = symmetric_1d(prof, pw, (double)ou, out->cu, cut[0], cut[1], (double)W, slope, mass, moment);
         }
         if (cut[2] || cut[3]) {
             for (int y = 0; y < ph; y++) {
@@ -471,7 +499,7 @@ static int region_centre(const uint8_t *g, Py_ssize_t stride, const Crop *c, int
                 for (int x = 0; x < pw; x++) s += wgt[(size_t)y * pw + x];
                 prof[y] = s;
             }
-            out->cv = symmetric_1d(prof, ph, (double)ov, out->cv, cut[2], cut[3], (double)H, slope);
+            out->cv = symmetric_1d(prof, ph, (double)ov, out->cv, cut[2], cut[3], (double)H, slope, mass, moment);
         }
     }
     if (!light)

@@ -516,8 +516,9 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
         s = m["m00"]
         if s <= 0:
             continue
-        suv = m["mu11"] / s
-        moments[k] = ((m["mu20"] / s, suv), (suv, m["mu02"] / s))
+        mu20, mu11, mu02 = _central_moments(m)
+        suv = mu11 / s
+        moments[k] = ((mu20 / s, suv), (suv, mu02 / s))
         if any(r.cut):
             continue
         inner = cv2.erode(r.own, _K3, borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -535,6 +536,15 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
         if a > 0:
             slope[k] = (gu / a, gv / a)
     return slope, moments
+
+
+def _central_moments(m: dict):
+    """``(mu20, mu11, mu02)`` from the raw moments of ``cv2.moments`` (exact sums), by ``cv::Moments``'
+    formula: the same numbers whether OpenCV computed its central moments itself or by IPP (which rounds
+    differently), and the compiled core's (issue 16)."""
+    inv = 1.0 / m["m00"]
+    cx, cy = m["m10"] * inv, m["m01"] * inv
+    return m["m20"] - m["m10"] * cx, m["m11"] - m["m10"] * cy, m["m02"] - m["m01"] * cy
 
 
 def _plane(mi: dict, mz: dict, cu: float, cv: float):

@@ -729,6 +729,29 @@ def _whole_frame_search_python(gray: np.ndarray, threshold: int, area_range, min
     return _crop_candidates(gray, crops, min_circularity, centroid, max_count)
 
 
+def _whole_count(gray: np.ndarray, threshold: int, area_range):
+    """The number of regions in the area range not touching the image border (the shape rule not applied),
+    and ``search(min_circularity, centroid, max_count)``: :func:`_whole_frame_search`'s candidates of the
+    same regions (the labels made once on the Python path; by the compiled core when active)."""
+    boxes = regions_core.core_bright_boxes(gray, threshold)
+    if boxes is not None:
+        amax = _max_area(area_range, gray)
+        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], amax), None, True, 2 ** 31 - 1,
+                                           "binary", False)
+        if out is not None:
+            def search(min_circularity, centroid, max_count):
+                found = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], amax), min_circularity,
+                                                     True, max_count, centroid, False)
+                return Candidates(*found[:3]) if found is not None else \
+                    _whole_frame_search_python(gray, threshold, area_range, min_circularity, centroid, max_count)
+            return int(np.count_nonzero(~out[2])), search
+    regions = _bright_regions(gray, threshold, area_range)
+
+    def search_python(min_circularity, centroid, max_count):
+        return _crop_candidates(gray, regions, min_circularity, centroid, max_count)
+    return sum(int(np.count_nonzero(~r.touches_border)) for r in regions), search_python
+
+
 def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
     """The regions in the area range of each crop around the bright pixels (:class:`Regions` per crop)."""
     H, W = gray.shape[:2]
@@ -1451,12 +1474,10 @@ class _Tracker:
         have, cands = 0, {}
         for i, c in enumerate(self.cams):
             left = self.M * (self.C - 1 - i)                # the most the cameras after this one can add
-            regions = _bright_regions(gray[c], self.thr[c], _area_range(self.cparams[c]))
-            whole = sum(int(np.count_nonzero(~r.touches_border)) for r in regions)   # before the shape rule
+            whole, search = _whole_count(gray[c], self.thr[c], _area_range(self.cparams[c]))  # before the shape rule
             if have + min(whole, self.M) + left < need:
                 return None
-            cands[c] = _crop_candidates(gray[c], regions, _min_circ(self.cparams[c]), self.cparams[c].centroid,
-                                        MAX_CANDIDATES_PER_CAMERA)
+            cands[c] = search(_min_circ(self.cparams[c]), self.cparams[c].centroid, MAX_CANDIDATES_PER_CAMERA)
             have += min(int(np.count_nonzero(~cands[c].cut)), self.M)
             if have + left < need:
                 return None
