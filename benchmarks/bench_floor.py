@@ -27,6 +27,11 @@ before and after:
   tracking included: its time per frame, and the 2D floor over it).
   ``--compare-with CHECKOUT`` times that checkout's detectors (thesis chain,
   2D stage replayed) in the same rounds, against the same floor.
+  Which path finds the candidates (``horsemocap.detection.ACTIVE_PATH``: the
+  compiled core ``_regions.c`` or pure Python) is printed; with the core
+  active, the thesis chain, the 2D stage, the whole identification and the
+  whole-frame search are also timed by the pure-Python path (the core set
+  aside) in the same rounds, against the same floors.
 * **detection, whole frame**: the floor is ``cvtColor(RGB2GRAY) + threshold
   + labelling`` of every whole frame the detector was given (what a
   detector without the thesis' sliding window must do).
@@ -118,9 +123,20 @@ class Recorder:
             self.calls.append(("_whole_frame_search", (gray, threshold, *a), k))
             return orig_search(gray, threshold, *a, **k)
 
+        inside = []                 # frame_candidates records its crop itself, whichever path labels it
+
         def frame_cands(*a, **k):
             self.calls.append(("frame_candidates", a, k))
-            return orig_fc(*a, **k)
+            gray, threshold = a[0], a[1]
+            crop = k.get("crop", a[4] if len(a) > 4 else None)
+            u0, v0, u1, v1 = filters._clip_crop(crop, gray.shape[1], gray.shape[0])
+            if u1 > u0 and v1 > v0:
+                self.labelled.append((np.array(gray[v0:v1, u0:u1]), int(threshold)))
+            inside.append(1)
+            try:
+                return orig_fc(*a, **k)
+            finally:
+                inside.pop()
 
         def cvt(src, code, *a, **k):
             if code == cv2.COLOR_RGB2GRAY:
@@ -128,7 +144,7 @@ class Recorder:
             return orig_cvt(src, code, *a, **k)
 
         def cand(sub, origin, size, threshold, *a, **k):
-            if sub.size:
+            if sub.size and not inside:
                 self.labelled.append((np.array(sub), int(threshold)))
             return orig_cand(sub, origin, size, threshold, *a, **k)
 
@@ -172,9 +188,10 @@ class Recorder:
                     label(b[v0:v1, u0:u1])
         return run
 
-    def replay(self, identification=None):
+    def replay(self, identification=None, pure_python: bool = False):
         """A function making the recorded calls of identification's 2D stage again (of ``identification``:
-        another checkout's module, default this one's)."""
+        another checkout's module, default this one's; ``pure_python``: by its Python path, the compiled
+        core left out, where the module has both)."""
         if identification is None:
             from horsemocap.detection import identification
 
@@ -183,7 +200,7 @@ class Recorder:
         def run():
             for fn, a, k in calls:
                 fn(*a, **k)
-        return run
+        return pure_path(run) if pure_python else run
 
     def summary(self):
         px_conv = sum(s[0] * s[1] for s in self.convert_shapes)
@@ -204,6 +221,29 @@ def whole_frame_floor(rgb_frames: list, thresholds: list):
             for f in frames:
                 g = cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)
                 connected_components(cv2.threshold(g, t, 255, cv2.THRESH_BINARY)[1])
+    return run
+
+
+def _active_path() -> str:
+    """Which path finds the candidates (``horsemocap.detection.ACTIVE_PATH``; "python" before it existed)."""
+    import horsemocap.detection as d
+    return getattr(d, "ACTIVE_PATH", "python")
+
+
+def _core_active() -> bool:
+    return _active_path() == "compiled"
+
+
+def pure_path(fn):
+    """``fn`` run by the pure-Python path (the compiled core set aside while it runs)."""
+    from horsemocap.detection import regions_core
+
+    def run():
+        core, regions_core.CORE = regions_core.CORE, None
+        try:
+            return fn()
+        finally:
+            regions_core.CORE = core
     return run
 
 
@@ -267,6 +307,11 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
         ident()
 
     fns = {}
+    pure = _core_active()
+    if pure:                    # the same work by the pure-Python path, in the same rounds
+        fns["thesis_python"] = pure_path(thesis)
+        fns["ident_python"] = pure_path(ident)
+        fns["ident_2d_python"] = rec_i.replay(pure_python=True)
     if compare_with:            # the same work by another checkout's detectors, in the same rounds
         other = _other_detection(compare_with)
         given_o = {c: other.DetectionParams.from_dict(given[c].to_dict()) for c in cams}
@@ -297,6 +342,13 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
         "bare_whole_ms_per_frame": 1e3 * t["floor_whole_thesis"] / per,
         "seconds": t,
     }
+    rows["path"] = _active_path()
+    if pure:
+        rows["thesis_python_ms_per_frame"] = 1e3 * t["thesis_python"] / per
+        rows["thesis_python_equal_work_ratio"] = t["thesis_floor_crops"] / t["thesis_python"]
+        rows["ident_python_ms_per_frame"] = 1e3 * t["ident_python"] / per
+        rows["ident_2d_python_ms_per_frame"] = 1e3 * t["ident_2d_python"] / per
+        rows["ident_2d_python_equal_work_ratio"] = t["ident_floor_crops"] / t["ident_2d_python"]
     if compare_with:
         rows["compared"] = {"code": str(compare_with),
                             "thesis_ms_per_frame": 1e3 * t["thesis_compared"] / per,
@@ -308,12 +360,18 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
     print(f"  thesis chain         {rows['thesis_ms_per_frame']:7.2f} ms/frame  equal work "
           f"{rows['thesis_equal_work_ratio']:.2f} (default labelling call as floor: "
           f"{rows['thesis_equal_work_ratio_default_cc']:.2f})  whole frame {rows['thesis_whole_frame_ratio']:.2f}"
-          f"   ({rec_t.summary()})")
+          f"   ({rec_t.summary()}; path: {rows['path']})")
     print(f"  identification, 2D   {rows['ident_2d_ms_per_frame']:7.2f} ms/frame  equal work "
           f"{rows['ident_2d_equal_work_ratio']:.2f} (default labelling call as floor: "
-          f"{rows['ident_2d_equal_work_ratio_default_cc']:.2f})   ({rec_i.summary()})")
+          f"{rows['ident_2d_equal_work_ratio_default_cc']:.2f})   ({rec_i.summary()}; path: {rows['path']})")
+    if pure:
+        print(f"  thesis chain, pure-Python path       {rows['thesis_python_ms_per_frame']:7.2f} ms/frame  "
+              f"equal work {rows['thesis_python_equal_work_ratio']:.2f} (same rounds)")
+        print(f"  identification, 2D, pure-Python path {rows['ident_2d_python_ms_per_frame']:7.2f} ms/frame  "
+              f"equal work {rows['ident_2d_python_equal_work_ratio']:.2f} (same rounds)")
     print(f"  identification, all  {rows['ident_ms_per_frame']:7.2f} ms/frame  equal work (2D floor / all) "
-          f"{rows['ident_equal_work_ratio']:.2f}  whole frame {rows['ident_whole_frame_ratio']:.2f}", flush=True)
+          f"{rows['ident_equal_work_ratio']:.2f}  whole frame {rows['ident_whole_frame_ratio']:.2f}"
+          + (f"; pure-Python path {rows['ident_python_ms_per_frame']:.2f} ms/frame" if pure else ""), flush=True)
     if compare_with:
         cmp = rows["compared"]
         print(f"  the code of {compare_with}: thesis chain {cmp['thesis_ms_per_frame']:.2f} ms/frame, equal work "
@@ -357,13 +415,22 @@ def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
         for c in s.cameras:
             for g in gray[c]:
                 connected_components(cv2.threshold(g, thr[c], 255, cv2.THRESH_BINARY)[1])
-    t = rounds({"crops": crops, "whole": whole, "floor": floor}, repeat)
+    fns = {"crops": crops, "whole": whole, "floor": floor}
+    if _core_active():          # the search in crops by the pure-Python path, in the same rounds
+        fns["crops_python"] = pure_path(crops)
+    t = rounds(fns, repeat)
     count = sum(len(g) for g in gray.values())
-    row = {"session": name, "frames": count, **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},
+    row = {"session": name, "frames": count, "path": _active_path(),
+           **{f"{k}_ms_per_frame": 1e3 * v / count for k, v in t.items()},
            "crops_ratio": t["floor"] / t["crops"], "whole_ratio": t["floor"] / t["whole"]}
+    pure = ""
+    if "crops_python" in t:
+        row["crops_python_ratio"] = t["floor"] / t["crops_python"]
+        pure = f"; pure-Python path in crops {row['crops_python_ms_per_frame']:.2f} ({row['crops_python_ratio']:.2f})"
     print(f"whole-frame search, {name} ({count} frames from the start): in crops {row['crops_ms_per_frame']:.2f} "
           f"ms/frame (floor/step {row['crops_ratio']:.2f}), labelling whole frames {row['whole_ms_per_frame']:.2f} "
-          f"({row['whole_ratio']:.2f}), bare threshold + labels {row['floor_ms_per_frame']:.2f}", flush=True)
+          f"({row['whole_ratio']:.2f}), bare threshold + labels {row['floor_ms_per_frame']:.2f}{pure} "
+          f"(path: {row['path']})", flush=True)
     out.setdefault("whole_frame_search", []).append(row)
 
 
@@ -563,8 +630,11 @@ def main(argv=None):
     out = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "machine": platform.machine(),
            "cpus": os.cpu_count(), "opencv": cv2.__version__, "numpy": np.__version__,
            "repeat": args.repeat, "load_before": load()}
+    import horsemocap.detection as det
+    out["detection_path"] = _active_path()
     print(f"OpenCV {cv2.__version__} (1 thread), numpy {np.__version__}, {os.cpu_count()} cpus; "
-          f"load average {out['load_before']}; medians of {args.repeat}", flush=True)
+          f"load average {out['load_before']}; medians of {args.repeat}; candidate search: "
+          f"{getattr(det, 'ACTIVE_REASON', 'pure Python')}", flush=True)
     bundled = default_session_dir()
     from horsemocap.session import load_session
     sb = load_session(bundled)

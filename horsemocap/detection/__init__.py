@@ -59,6 +59,12 @@ is 1-based). Centres are, by default, intensity-weighted centroids of the gray
 image above the local background (``centroid="weighted"``); the thesis'
 geometric centre of the binary region is ``centroid="binary"``.
 
+The candidate search (threshold, labels, area, circularity, centres) runs in a
+compiled core when it is built (:mod:`~horsemocap.detection.regions_core`,
+issue 16); :data:`ACTIVE_PATH` says which path runs (``"compiled"`` or
+``"python"``; ``HORSEMOCAP_PURE_PYTHON=1`` forces Python). The two give the
+same candidates.
+
 Every name below is importable from ``horsemocap.detection`` as before the
 module became a package.
 """
@@ -70,6 +76,7 @@ from .filters import (cross_product_signs, filter_area, filter_circularity, filt
                       light_terms, marker_distances, region_circularity, weighted_centroids, window_center)
 from .identification import (IDENTIFICATION_REASONS, Identification, bridge_gaps, correct_light, default_max_gap,
                              fit_marker_model, frame_candidates, identify_markers, label_frame, match_views)
+from .regions_core import ACTIVE_PATH, ACTIVE_REASON
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
 from .stills import (StillCandidates, StillViews, detect_still, detect_still_views, match_still_views,
                      still_candidates)
@@ -78,6 +85,7 @@ from .tracking import (CandidateCache, choose_markers, cluster_persistence, dete
                        usable_frames, valid_frames)
 
 __all__ = [
+    "ACTIVE_PATH", "ACTIVE_REASON",
     "REASONS", "DetectionError", "DetectionParams", "MarkerTrack", "Regions",
     "to_gray", "binarize", "otsu_threshold", "otsu3_thresholds", "auto_threshold",
     "label_regions", "region_circularity", "filter_area", "filter_circularity",

@@ -24,6 +24,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from . import regions_core
 from .base import DetectionParams, Regions, boxes_touch_border
 from .thresholds import binarize, connected_components, to_gray
 
@@ -63,9 +64,15 @@ def label_regions(binary: np.ndarray, connectivity: int = 8, origin=(0, 0),
     b = np.asarray(binary)
     if b.dtype != np.uint8:
         b = (b > 0).astype(np.uint8)
-    n, labels, stats, cents = connected_components(b, connectivity)
+    return _regions_of(connected_components(b, connectivity), b.shape, origin, image_size)
+
+
+def _regions_of(labelled, shape, origin, image_size) -> Regions:
+    """:class:`Regions` of ``(n, labels, stats, centroids)`` (``cv2.connectedComponentsWithStats``' output)
+    of an area of ``shape`` at ``origin`` in the full image."""
+    n, labels, stats, cents = labelled
     u0, v0 = int(origin[0]), int(origin[1])
-    size = tuple(image_size) if image_size is not None else (b.shape[1] + u0, b.shape[0] + v0)
+    size = tuple(image_size) if image_size is not None else (shape[1] + u0, shape[0] + v0)
     if u0 == 0 and v0 == 0:
         bbox, centroid = stats[1:, :4].astype(np.int64), cents[1:]
     else:
@@ -338,8 +345,16 @@ def region_weights(gray: np.ndarray, regions: Regions, index=None, margin: int =
         wgt *= near
         bx, by, bw, bh = boxes[i]
         cut = (bx <= 0, bx + bw >= W, by <= 0, by + bh >= H)
-        out.append(RegionWeight(i, wgt, above, own_b.view(np.uint8), x0, y0, cut, cv2.moments(wgt)))
+        out.append(RegionWeight(i, wgt, above, own_b.view(np.uint8), x0, y0, cut, _image_moments(wgt)))
     return out
+
+
+def _image_moments(img: np.ndarray) -> dict:
+    """``cv2.moments`` of an image (weights); a float image two columns wide, which ``cv2.moments`` would
+    take for a contour of points, gets a zero column (the same moments)."""
+    if img.ndim == 2 and img.shape[1] == 2 and img.dtype != np.uint8:
+        img = np.pad(img, ((0, 0), (0, 1)))
+    return cv2.moments(img)
 
 
 def _near_and_background(gray: np.ndarray, regions: Regions, index, margin: int):
@@ -393,7 +408,7 @@ def _weight_sums(gray: np.ndarray, regions: Regions, index, margin: int) -> list
         else:
             wgt = np.maximum(np.subtract(sub8, b, dtype=np.float32), np.float32(0))
             wgt *= near
-        m = cv2.moments(wgt)
+        m = _image_moments(wgt)
         out.append((i, x0, y0, m["m00"], m["m10"], m["m01"]))
     return out
 
@@ -501,8 +516,9 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
         s = m["m00"]
         if s <= 0:
             continue
-        suv = m["mu11"] / s
-        moments[k] = ((m["mu20"] / s, suv), (suv, m["mu02"] / s))
+        mu20, mu11, mu02 = _central_moments(m)
+        suv = mu11 / s
+        moments[k] = ((mu20 / s, suv), (suv, mu02 / s))
         if any(r.cut):
             continue
         inner = cv2.erode(r.own, _K3, borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -511,7 +527,7 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
         if n < min_inner:
             continue
         cu, cv = m["m10"] / s, m["m01"] / s
-        sol = _plane(mi, cv2.moments(r.above * inner), cu, cv)
+        sol = _plane(mi, _image_moments(r.above * inner), cu, cv)
         if sol is None:                                 # interior on one line: least squares (minimum norm)
             iy, ix = np.nonzero(inner)
             A = np.column_stack([np.ones(n), ix - cu, iy - cv])
@@ -520,6 +536,15 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
         if a > 0:
             slope[k] = (gu / a, gv / a)
     return slope, moments
+
+
+def _central_moments(m: dict):
+    """``(mu20, mu11, mu02)`` from the raw moments of ``cv2.moments`` (exact sums), by ``cv::Moments``'
+    formula: the same numbers whether OpenCV computed its central moments itself or by IPP (which rounds
+    differently), and the compiled core's (issue 16)."""
+    inv = 1.0 / m["m00"]
+    cx, cy = m["m10"] * inv, m["m01"] * inv
+    return m["m20"] - m["m10"] * cx, m["m11"] - m["m10"] * cy, m["m02"] - m["m01"] * cy
 
 
 def _plane(mi: dict, mz: dict, cu: float, cv: float):
@@ -656,8 +681,12 @@ def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, co
                         np.zeros((0, 2)), (u0, v0), (W, H))
         return empty, np.zeros(0, np.intp)
     u1, v1 = u0 + sub.shape[1], v0 + sub.shape[0]
-    bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
-    regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
+    labelled = regions_core.core_label(sub, threshold) if connectivity == 8 else None
+    if labelled is not None:          # the compiled core: threshold and labels in one pass, the same result
+        regions = _regions_of(labelled, sub.shape, (u0, v0), (W, H))
+    else:
+        bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
+        regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
     if len(regions) <= KEEP_IN_PYTHON:
         keep = np.array(_kept(regions, area_range, (u0, v0, u1, v1), (W, H)), np.intp)
     else:

@@ -40,8 +40,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
+from . import regions_core
 from .base import DetectionError, DetectionParams, Regions
-from .filters import find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
+from .filters import _clip_crop, find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
 from .thresholds import auto_threshold, bright_crops, connected_components, region_order_key
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -157,7 +158,28 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
     Returns
     -------
     Candidates
+
+    Notes
+    -----
+    Run by the compiled core when it is active
+    (:mod:`~horsemocap.detection.regions_core`), else by
+    :func:`_frame_candidates_python` (the reference; the same result).
     """
+    amax = _max_area(area_range, gray)
+    if regions_core.CORE is not None and isinstance(gray, np.ndarray) and gray.ndim == 2:
+        H, W = gray.shape
+        out = regions_core.core_candidates(gray, threshold, [_clip_crop(crop, W, H)], (area_range[0], amax),
+                                           min_circularity, False, max_count, centroid, light)
+        if out is not None:
+            return Candidates(*out)
+    return _frame_candidates_python(gray, threshold, area_range, min_circularity, crop, centroid, max_count, light)
+
+
+def _frame_candidates_python(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[0], None),
+                             min_circularity: float | None = AUTO_MIN_CIRCULARITY, crop=None,
+                             centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA,
+                             light: bool = False) -> Candidates:
+    """:func:`frame_candidates` in Python and OpenCV (the reference of the compiled core)."""
     regions, keep = find_candidates(gray, threshold, (area_range[0], _max_area(area_range, gray)), None, crop=crop)
     return _candidates_of(gray, regions, keep, min_circularity, centroid, max_count, light)
 
@@ -691,8 +713,43 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
     labelling crops instead of the whole image, then no whole-frame label
     image.
     """
+    boxes = regions_core.core_bright_boxes(gray, threshold)
+    if boxes is not None:
+        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], _max_area(area_range, gray)),
+                                           min_circularity, True, max_count, centroid, False)
+        if out is not None:
+            return Candidates(*out[:3])
+    return _whole_frame_search_python(gray, threshold, area_range, min_circularity, centroid, max_count)
+
+
+def _whole_frame_search_python(gray: np.ndarray, threshold: int, area_range, min_circularity,
+                               centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
+    """:func:`_whole_frame_search` in Python and OpenCV (the reference of the compiled core)."""
     crops = _bright_regions(gray, threshold, area_range)
     return _crop_candidates(gray, crops, min_circularity, centroid, max_count)
+
+
+def _whole_count(gray: np.ndarray, threshold: int, area_range):
+    """The number of regions in the area range not touching the image border (the shape rule not applied),
+    and ``search(min_circularity, centroid, max_count)``: :func:`_whole_frame_search`'s candidates of the
+    same regions (the labels made once on the Python path; by the compiled core when active)."""
+    boxes = regions_core.core_bright_boxes(gray, threshold)
+    if boxes is not None:
+        amax = _max_area(area_range, gray)
+        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], amax), None, True, 2 ** 31 - 1,
+                                           "binary", False)
+        if out is not None:
+            def search(min_circularity, centroid, max_count):
+                found = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], amax), min_circularity,
+                                                     True, max_count, centroid, False)
+                return Candidates(*found[:3]) if found is not None else \
+                    _whole_frame_search_python(gray, threshold, area_range, min_circularity, centroid, max_count)
+            return int(np.count_nonzero(~out[2])), search
+    regions = _bright_regions(gray, threshold, area_range)
+
+    def search_python(min_circularity, centroid, max_count):
+        return _crop_candidates(gray, regions, min_circularity, centroid, max_count)
+    return sum(int(np.count_nonzero(~r.touches_border)) for r in regions), search_python
 
 
 def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
@@ -1417,12 +1474,10 @@ class _Tracker:
         have, cands = 0, {}
         for i, c in enumerate(self.cams):
             left = self.M * (self.C - 1 - i)                # the most the cameras after this one can add
-            regions = _bright_regions(gray[c], self.thr[c], _area_range(self.cparams[c]))
-            whole = sum(int(np.count_nonzero(~r.touches_border)) for r in regions)   # before the shape rule
+            whole, search = _whole_count(gray[c], self.thr[c], _area_range(self.cparams[c]))  # before the shape rule
             if have + min(whole, self.M) + left < need:
                 return None
-            cands[c] = _crop_candidates(gray[c], regions, _min_circ(self.cparams[c]), self.cparams[c].centroid,
-                                        MAX_CANDIDATES_PER_CAMERA)
+            cands[c] = search(_min_circ(self.cparams[c]), self.cparams[c].centroid, MAX_CANDIDATES_PER_CAMERA)
             have += min(int(np.count_nonzero(~cands[c].cut)), self.M)
             if have + left < need:
                 return None
