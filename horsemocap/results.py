@@ -133,6 +133,22 @@ def angular_text(analysis) -> str:
     return _csv_text(header, rows)
 
 
+def software_record() -> dict:
+    """What computed the results: the versions of horsemocap, Python, NumPy, SciPy and OpenCV, and the
+    detection path (``"compiled"``: the optional compiled core, ``"python"``: the pure-Python path;
+    the two give the same results, ``tests/test_regions_core.py``)."""
+    import platform
+
+    import cv2
+    import scipy
+
+    from . import __version__
+    from .detection import ACTIVE_PATH
+
+    return {"horsemocap": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "opencv": cv2.__version__, "detection_core": ACTIVE_PATH}
+
+
 def analysis_record(analysis) -> dict:
     """Everything needed to repeat the run: parameters given and chosen."""
     res = analysis.results
@@ -145,6 +161,7 @@ def analysis_record(analysis) -> dict:
         "parameters": analysis.params.to_dict(),
         "chosen": {},
         "timings_s": {k: round(v, 3) for k, v in analysis.timings.items()},
+        "software": software_record(),
     }
     p, chosen = record["parameters"], record["chosen"]
     if "sync" in res:

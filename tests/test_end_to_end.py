@@ -42,6 +42,9 @@ def test_analyze_writes_every_spec_file(demo_run):
     assert points == {"marker1", "marker2", "marker3", "saddle"}
     record = json.loads((demo_run / "analysis.json").read_text())
     assert set(record["parameters"]["sync_offsets"]) == {"left", "middle", "right"}
+    from horsemocap.detection import ACTIVE_PATH
+    assert record["software"]["detection_core"] == ACTIVE_PATH in ("compiled", "python")
+    assert record["software"]["horsemocap"] and record["software"]["opencv"]
 
 
 def _comfort_errors(folder):
