@@ -268,3 +268,54 @@ def test_whole_count_and_its_search(python_path):
             assert n_fast == n_ref
             for mc, count in ((0.5, 24), (None, 2)):
                 assert_same(search_fast(mc, "weighted", count), python_path(search_ref, mc, "weighted", count))
+
+
+@needs_core
+def test_inputs_the_core_does_not_take_go_to_the_python_path(python_path):
+    """Views with rows that are not contiguous, reversed or broadcast, and counts or thresholds beyond a C
+    int, give what the Python path gives (before: a ValueError or an OverflowError of the core)."""
+    from horsemocap.detection.filters import find_candidates
+
+    rng = np.random.default_rng(11)
+    g = scene(rng, 60, 80, 6)
+    for view in (g[::-1], g[:, ::2], np.broadcast_to(g[7], (5, 80))):
+        fast, ref = find_candidates(view, 100, (1, 1e9)), python_path(find_candidates, view, 100, (1, 1e9))
+        np.testing.assert_array_equal(fast[1], ref[1])
+        np.testing.assert_array_equal(fast[0].area, ref[0].area)
+    for count in (2 ** 31, 2 ** 70):
+        a = dict(area_range=(1.0, None), min_circularity=None, max_count=count)
+        assert_same(idn.frame_candidates(g, 100, **a), python_path(idn.frame_candidates, g, 100, **a), str(count))
+    for thr in (-2 ** 40, 2 ** 31, 256):
+        assert_same(idn.frame_candidates(g, thr), python_path(idn.frame_candidates, g, thr), str(thr))
+        assert_same(idn._whole_frame_search(g, thr, (1.0, None), None),
+                    python_path(idn._whole_frame_search, g, thr, (1.0, None), None), str(thr))
+
+
+@needs_core
+def test_light_terms_of_regions_on_one_line_and_of_large_regions(python_path):
+    """The exact test of a region's interior on one line (the light terms' plane cannot be solved):
+    bars and a thin diagonal go to the Python path's least squares, a wide disc is solved in C; both
+    paths give the same terms."""
+    g = np.full((120, 160), 20, np.uint8)
+    g[10:13, 10:60] = 200                               # a 3-px bar: its interior is one row
+    for k in range(40):                                 # a 3-px-wide diagonal line
+        g[40 + k, 20 + k:23 + k] = 210
+    yy, xx = np.mgrid[:120, :160]
+    g[(yy - 80) ** 2 + (xx - 120) ** 2 < 30 ** 2] = 180  # a disc of ~2800 pixels
+    a = dict(area_range=(1.0, 1e9), min_circularity=None, light=True)
+    fast, ref = idn.frame_candidates(g, 100, **a), python_path(idn.frame_candidates, g, 100, **a)
+    assert len(ref) == 3
+    assert_same(fast, ref)
+
+
+def test_a_core_built_from_another_source_is_not_used(monkeypatch):
+    """An editable install leaves the built module in the source tree: one built from an earlier
+    ``_regions.c`` (another ``CORE_VERSION``) is refused, with the reason, and the Python path runs."""
+    import importlib
+    import types
+
+    stale = types.SimpleNamespace(CORE_VERSION=regions_core.CORE_VERSION - 1)
+    monkeypatch.delenv(regions_core.PURE_PYTHON_ENV, raising=False)
+    monkeypatch.setattr(importlib, "import_module", lambda name: stale)
+    core, reason = regions_core._load_core()
+    assert core is None and "rebuild" in reason and "another _regions.c" in reason

@@ -26,6 +26,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#if defined(_MSC_VER) && !defined(restrict)
+#define restrict __restrict
+#endif
+
+/* Changed whenever the core's results or arguments change; regions_core.py refuses a core built from
+   another version of this file (a stale build left in the source tree by an editable install). */
+#define CORE_VERSION 2
+
 #define MARGIN 2          /* filters.region_weights' margin (the identification's default) */
 #define MIN_INNER 5       /* filters.light_terms' min_inner */
 #define SYM_ITERATIONS 5  /* filters._symmetric_in_image's iterations */
@@ -238,7 +246,7 @@ static double circ_by_moments(const Comp *k)
     }
     double mu20 = m20 - m10 * cx, mu02 = m02 - m01 * cy;
     double var = (mu20 + mu02) / m00 + 1.0 / 6.0;
-    return m00 / (2 * M_PI * var);
+    return m00 / (2 * Py_MATH_PI * var);
 }
 
 static double circ_by_sums(const Comp *k, int64_t du, int64_t dv)
@@ -249,7 +257,7 @@ static double circ_by_sums(const Comp *k, int64_t du, int64_t dv)
     const double suu = (double)(k->sxx + 2 * du * k->sx + du * du * a);
     const double svv = (double)(k->syy + 2 * dv * k->sy + dv * dv * a);
     double var = (suu - su * su / A + svv - sv * sv / A) / A + 1.0 / 6.0;
-    return A / (2 * M_PI * var);
+    return A / (2 * Py_MATH_PI * var);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -367,13 +375,43 @@ static double symmetric_1d(const double *p, int n, double x0, double c, int cut_
     return c;
 }
 
+/* The unsigned 128-bit product of a and b as (hi, lo), in portable C. */
+static void mul_u64(uint64_t a, uint64_t b, uint64_t *hi, uint64_t *lo)
+{
+    uint64_t a0 = a & 0xffffffffu, a1 = a >> 32, b0 = b & 0xffffffffu, b1 = b >> 32;
+    uint64_t p00 = a0 * b0, p01 = a0 * b1, p10 = a1 * b0, p11 = a1 * b1;
+    uint64_t mid = (p00 >> 32) + (p01 & 0xffffffffu) + (p10 & 0xffffffffu);
+    *lo = (mid << 32) | (p00 & 0xffffffffu);
+    *hi = p11 + (p01 >> 32) + (p10 >> 32) + (mid >> 32);
+}
+
+/* 1 when the pixels of these sums are certainly not on one line: dx dy != dxy^2 exactly (Python's
+   filters._plane decides it with unbounded integers), with dx = n sxx - sx^2, dy = n syy - sy^2,
+   dxy = n sxy - sx sy (n^2 times the covariances, so 0 <= dxy^2 <= dx dy). Each is taken modulo 2^64,
+   which is exact while it lies below 2^62 (checked in double precision, whose error here is far below
+   2^61); larger sums (over a million pixels spread over thousands of columns) give 0: the caller then
+   leaves the region to the Python path. */
+static int exactly_not_collinear(int64_t n, int64_t sx, int64_t sy, int64_t sxx, int64_t sxy, int64_t syy)
+{
+    const double N = (double)n, lim = 4611686018427387904.0;   /* 2^62 */
+    double ddx = N * (double)sxx - (double)sx * (double)sx, ddy = N * (double)syy - (double)sy * (double)sy;
+    if (!(ddx < lim / 2 && ddy < lim / 2))
+        return 0;
+    uint64_t dx = (uint64_t)n * (uint64_t)sxx - (uint64_t)sx * (uint64_t)sx;
+    uint64_t dy = (uint64_t)n * (uint64_t)syy - (uint64_t)sy * (uint64_t)sy;
+    int64_t dxy = (int64_t)((uint64_t)n * (uint64_t)sxy - (uint64_t)sx * (uint64_t)sy);
+    uint64_t adxy = dxy < 0 ? (uint64_t)0 - (uint64_t)dxy : (uint64_t)dxy;
+    uint64_t h1, l1, h2, l2;
+    mul_u64(dx, dy, &h1, &l1);
+    mul_u64(adxy, adxy, &h2, &l2);
+    return h1 != h2 || l1 != l2;
+}
+
 /* filters._plane: (a, gu, gv), or FALLBACK when the interior pixels lie on one line */
 static int plane(int64_t n, int64_t sx, int64_t sy, int64_t sxx, int64_t sxy, int64_t syy, double z, double zx,
                  double zy, double cu, double cv, double *out)
 {
-    __int128 dx = (__int128)n * sxx - (__int128)sx * sx, dy = (__int128)n * syy - (__int128)sy * sy;
-    __int128 dxy = (__int128)n * sxy - (__int128)sx * sy;
-    if (dx * dy - dxy * dxy == 0)
+    if (!exactly_not_collinear(n, sx, sy, sxx, sxy, syy))
         return FALLBACK;
     const double N = (double)n;
     double ex = (double)sx - N * cu, ey = (double)sy - N * cv;
@@ -648,7 +686,7 @@ static int run_job(Job *j)
     }
     j->sel = cands;
     j->nsel = nc;
-    j->centres = malloc(sizeof(Centre) * (nc ? nc : 1));
+    j->centres = calloc(nc ? (size_t)nc : 1, sizeof(Centre));
     j->binary = malloc(sizeof(double) * 2 * (nc ? nc : 1));
     if (!j->centres || !j->binary) return NO_MEMORY;
     for (Py_ssize_t q = 0; q < nc; q++) {
@@ -752,8 +790,9 @@ static PyObject *candidates(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "_regions.candidates: gray must be a 2-D uint8 array");
         goto out;
     }
-    if (view.shape[0] > INT32_MAX / 2 || view.shape[1] > INT32_MAX / 2) {
-        PyErr_SetString(PyExc_ValueError, "_regions.candidates: gray too large");
+    if (view.shape[0] > INT32_MAX / 2 || view.shape[1] > INT32_MAX / 2
+            || view.shape[0] * view.shape[1] > INT32_MAX / 8) {
+        PyErr_SetString(PyExc_ValueError, "_regions.candidates: gray too large (at most 2^28 pixels)");
         goto out;
     }
     j.g = view.buf;
@@ -1240,5 +1279,10 @@ static struct PyModuleDef module = {
 
 PyMODINIT_FUNC PyInit__regions(void)
 {
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m && PyModule_AddIntConstant(m, "CORE_VERSION", CORE_VERSION) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
 }

@@ -30,6 +30,11 @@ __all__ = ["PURE_PYTHON_ENV", "ACTIVE_PATH", "ACTIVE_REASON", "CORE", "core_cand
 
 #: Environment variable that forces the pure-Python path.
 PURE_PYTHON_ENV = "HORSEMOCAP_PURE_PYTHON"
+#: ``CORE_VERSION`` of ``_regions.c`` this code was written for: an editable install leaves the
+#: built module in the source tree, and a module built from an earlier ``_regions.c`` is not used.
+CORE_VERSION = 2
+#: The most pixels the core labels in one image (its labels and sums are 32-bit).
+MAX_PIXELS = 2 ** 28
 
 
 def _load_core():
@@ -40,6 +45,10 @@ def _load_core():
         _regions = importlib.import_module(f"{__package__}._regions")
     except ImportError as exc:
         return None, f"pure Python (the compiled core is not built: {exc})"
+    built = getattr(_regions, "CORE_VERSION", None)
+    if built != CORE_VERSION:
+        return None, (f"pure Python (the compiled core was built from another _regions.c, version {built}, "
+                      f"this code needs {CORE_VERSION}: rebuild it with pip install -e .)")
     return _regions, "compiled core (horsemocap.detection._regions)"
 
 
@@ -65,7 +74,7 @@ def core_candidates(gray, threshold, crops: list, area_range, min_circularity, w
     args = _arguments(gray, area_range, min_circularity, max_count)
     if args is None:
         return None
-    out = CORE.candidates(gray, int(threshold), crops, *args[:3], bool(whole), args[3], centroid != "binary",
+    out = CORE.candidates(gray, _level(threshold), crops, *args[:3], bool(whole), args[3], centroid != "binary",
                           bool(light))
     if out is None:
         return None
@@ -85,9 +94,10 @@ def core_label(gray, threshold):
     contiguous rows (a crop of a C-contiguous image is fine).
     """
     if CORE is None or not (isinstance(gray, np.ndarray) and gray.dtype == np.uint8 and gray.ndim == 2
-                            and gray.strides[1] == 1 and gray.size):
+                            and gray.strides[1] == 1 and gray.strides[0] >= gray.shape[1]
+                            and 0 < gray.size < MAX_PIXELS):
         return None
-    n, labels, stats, cents = CORE.label(gray, int(threshold))
+    n, labels, stats, cents = CORE.label(gray, _level(threshold))
     return (n, np.frombuffer(labels, np.int32).reshape(gray.shape), np.frombuffer(stats, np.int32).reshape(n, 5),
             np.frombuffer(cents, float).reshape(n, 2))
 
@@ -96,23 +106,28 @@ def core_bright_boxes(gray, threshold):
     """:func:`~horsemocap.detection.thresholds.bright_crops`' crops (the same, in the same order) by the
     compiled core without the binary image, or None (core not active, or not a C-contiguous 2-D uint8 image)."""
     if CORE is None or not (isinstance(gray, np.ndarray) and gray.dtype == np.uint8 and gray.ndim == 2
-                            and gray.flags.c_contiguous):
+                            and gray.flags.c_contiguous and gray.size < MAX_PIXELS):
         return None
     from .thresholds import BRIGHT_BLOCK, BRIGHT_MAX_FRACTION, BRIGHT_PAD
-    return CORE.bright_boxes(gray, int(threshold), BRIGHT_BLOCK, BRIGHT_PAD, BRIGHT_MAX_FRACTION)
+    return CORE.bright_boxes(gray, _level(threshold), BRIGHT_BLOCK, BRIGHT_PAD, BRIGHT_MAX_FRACTION)
+
+
+def _level(threshold) -> int:
+    """``int(threshold)`` kept within -1..255: the same white pixels in a uint8 image, in the core's int."""
+    return min(max(int(threshold), -1), 255)
 
 
 def _arguments(gray, area_range, min_circularity, max_count):
     """``(area_min, area_max, min_circularity, max_count)`` as the core takes them, or None where it does
     not take these arguments (the Python path then runs, and raises where it raises)."""
     if not (isinstance(gray, np.ndarray) and gray.dtype == np.uint8 and gray.ndim == 2
-            and gray.flags.c_contiguous):
+            and gray.flags.c_contiguous and gray.size < MAX_PIXELS):
         return None
     try:
         lo, hi, count = float(area_range[0]), float(area_range[1]), int(max_count)
         circ = None if min_circularity is None else float(min_circularity)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
     if count < 0 or math.isnan(lo) or math.isnan(hi):
         return None
-    return lo, hi, circ, count
+    return lo, hi, circ, min(count, 2 ** 31 - 1)     # more than the core's int holds: every region anyway
