@@ -309,12 +309,17 @@ def test_light_terms_of_regions_on_one_line_and_of_large_regions(python_path):
 
 
 def test_a_core_built_from_another_source_is_not_used(monkeypatch):
-    """An editable install leaves the built module in the source tree: one built from an earlier
-    ``_regions.c`` (another ``CORE_VERSION``) is refused, with the reason, and the Python path runs."""
+    """An editable install leaves the built module beside its source: one built from another
+    ``_regions.c`` (its ``CORE_SOURCE_HASH`` differs from the file's) is refused, with the reason, and the
+    Python path runs; the module in use was built from the file beside it."""
     import importlib
     import types
+    from pathlib import Path
 
-    stale = types.SimpleNamespace(CORE_VERSION=regions_core.CORE_VERSION - 1)
+    source = Path(regions_core.__file__).with_name("_regions.c")
+    if regions_core.CORE is not None:
+        assert regions_core.CORE.CORE_SOURCE_HASH == regions_core.source_hash(source)
+    stale = types.SimpleNamespace(CORE_SOURCE_HASH="0123456789abcdef")
     monkeypatch.delenv(regions_core.PURE_PYTHON_ENV, raising=False)
     monkeypatch.setattr(importlib, "import_module", lambda name: stale)
     core, reason = regions_core._load_core()

@@ -30,9 +30,11 @@
 #define restrict __restrict
 #endif
 
-/* Changed whenever the core's results or arguments change; regions_core.py refuses a core built from
-   another version of this file (a stale build left in the source tree by an editable install). */
-#define CORE_VERSION 2
+/* The hash of this file, given by setup.py: regions_core.py refuses a core built from another version
+   of it (a stale build left beside the source by an editable install). */
+#ifndef CORE_SOURCE_HASH
+#define CORE_SOURCE_HASH ""
+#endif
 
 #define MARGIN 2          /* filters.region_weights' margin (the identification's default) */
 #define MIN_INNER 5       /* filters.light_terms' min_inner */
@@ -1280,7 +1282,7 @@ static struct PyModuleDef module = {
 PyMODINIT_FUNC PyInit__regions(void)
 {
     PyObject *m = PyModule_Create(&module);
-    if (m && PyModule_AddIntConstant(m, "CORE_VERSION", CORE_VERSION) < 0) {
+    if (m && PyModule_AddStringConstant(m, "CORE_SOURCE_HASH", CORE_SOURCE_HASH) < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -19,9 +19,11 @@ says why.
 """
 from __future__ import annotations
 
+import hashlib
 import importlib
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -30,9 +32,6 @@ __all__ = ["PURE_PYTHON_ENV", "ACTIVE_PATH", "ACTIVE_REASON", "CORE", "core_cand
 
 #: Environment variable that forces the pure-Python path.
 PURE_PYTHON_ENV = "HORSEMOCAP_PURE_PYTHON"
-#: ``CORE_VERSION`` of ``_regions.c`` this code was written for: an editable install leaves the
-#: built module in the source tree, and a module built from an earlier ``_regions.c`` is not used.
-CORE_VERSION = 2
 #: The most pixels the core labels in one image (its labels and sums are 32-bit).
 MAX_PIXELS = 2 ** 28
 
@@ -45,11 +44,18 @@ def _load_core():
         _regions = importlib.import_module(f"{__package__}._regions")
     except ImportError as exc:
         return None, f"pure Python (the compiled core is not built: {exc})"
-    built = getattr(_regions, "CORE_VERSION", None)
-    if built != CORE_VERSION:
-        return None, (f"pure Python (the compiled core was built from another _regions.c, version {built}, "
-                      f"this code needs {CORE_VERSION}: rebuild it with pip install -e .)")
+    source = Path(__file__).with_name("_regions.c")
+    if source.is_file():                      # an editable install: the module sits beside its source
+        built, now = getattr(_regions, "CORE_SOURCE_HASH", ""), source_hash(source)
+        if built != now:
+            return None, (f"pure Python (the compiled core was built from another _regions.c, {built or 'unknown'}"
+                          f", not {now}: rebuild it with pip install -e .)")
     return _regions, "compiled core (horsemocap.detection._regions)"
+
+
+def source_hash(path) -> str:
+    """The first 16 hex digits of the SHA-256 of the core's C source (as ``setup.py`` gives it to the build)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
 #: The compiled module, or None (chosen once, at import; read at each call, so that a test or a
