@@ -16,17 +16,16 @@ jump of the acceleration; as from a force plate). The onset is the fixture's, no
 6 Hz and 14 Hz modes, 0.5 s decay, 30 ms onset from 2.9 s), to check that a smoother is not
 tuned to the first.
 
-Rows ``modal``: ``smoothing="modal"`` (damped modes searched in the data, an L-spline with a notch at
-each; the plain gcv spline when none is found; ``horsemocap.splines.estimate_modes``). Fixtures
-``noring`` (no ringing), ``ring4hz`` (4 Hz, 0.6 s decay, 100 Hz), ``ring25hz200`` (25 Hz, 0.15 s
-decay, 200 Hz) and ``ringmoving`` (the ring from 2.4 s, during the set-down, 40 ms onset) were not
-used to develop it.
+Fixtures ``noring`` (no ringing), ``ring4hz`` (4 Hz, 0.6 s decay, 100 Hz), ``ring25hz200`` (25 Hz,
+0.15 s decay, 200 Hz) and ``ringmoving`` (the ring from 2.4 s, during the set-down, 40 ms onset): other
+non-periodic motions, not used to develop the L-spline (notch) smoothing of the ringing, a negative
+result moved out of the package: ``bench_kinematics_modal.py`` (its row ``modal``, the modes it finds).
 
 Row ``oracle_lti`` (uses the truth): the best a time-invariant linear smoother can do
 (:func:`oracle_time_invariant`): a bound for a notch / L-spline or a stochastic cycle with constant
 parameters.
 
-Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture NAME] [--rows gcv,modal,...]``
+Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture NAME] [--rows gcv,oracle_lti,...]``
 
 Smoothers tried without the onset given (a one-sided roughness envelope, heavy-tailed jerk, L1 trend
 filtering, a scan for the onset), none meeting the targets: ``bench_kinematics_tries.py``.
@@ -42,7 +41,7 @@ import numpy as np
 FIXTURES = {"issue13": {},
             "second": {"fps": 200.0, "ring_hz": 6.0, "second_ring_hz": 14.0, "ring_decay_s": 0.5,
                        "ring_rise_s": 0.03, "ring_start_s": 2.9},
-            # fixtures the modal smoothing was not developed on
+            # fixtures the modal smoothing (bench_kinematics_modal.py) was not developed on
             "noring": {"ring_scale": 0.0},
             "ring4hz": {"ring_hz": 4.0, "ring_decay_s": 0.6},
             "ring25hz200": {"fps": 200.0, "ring_hz": 25.0, "ring_decay_s": 0.15},
@@ -51,7 +50,7 @@ FIXTURES = {"issue13": {},
 ROWS = {"gcv+harm": ("gcv", 5, "auto", False), "gcv": ("gcv", 5, "none", False),
         "adaptive": ("adaptive", 5, "none", False), "gcv_cubic": ("gcv", 3, "none", False),
         "gcv+event": ("gcv", 5, "none", True), "adaptive+event": ("adaptive", 5, "none", True),
-        "modal": ("modal", 5, "auto", False), "oracle_lti": ("gcv", 5, "none", False)}
+        "oracle_lti": ("gcv", 5, "none", False)}
 
 
 def pct(est, true):
@@ -71,7 +70,8 @@ def oracle_time_invariant(d, reg, tr):
     constant parameters, a Wiener filter): each pose component's cosine transform (DCT-II, the mirror
     extension at the ends) multiplied by the oracle gain ``X_k^2 / (X_k^2 + N_k^2)`` of the truth's
     coefficient ``X_k`` (the noise-free markers registered) and this draw's noise ``N_k``, the
-    derivatives from the quintic interpolant of the result (as ``smoothing="modal"``). Uses the truth."""
+    derivatives from the quintic interpolant of the result (as the modal smoothing of
+    ``bench_kinematics_modal.py``). Uses the truth."""
     from dataclasses import replace
 
     from scipy.fft import dct, idct
@@ -96,6 +96,9 @@ def main():
     ap.add_argument("--fixture", default="issue13", choices=sorted(FIXTURES))
     ap.add_argument("--rows", default=",".join(ROWS), help="comma-separated rows: " + ", ".join(ROWS))
     args = ap.parse_args()
+    unknown = sorted(set(args.rows.split(",")) - set(ROWS))
+    if unknown:
+        ap.error(f"--rows: unknown {unknown} (rows: {', '.join(ROWS)}; the modal row: bench_kinematics_modal.py)")
     print(f"fixture {args.fixture}: {FIXTURES[args.fixture]}")
     from horsemocap import pose, synthetic
 
@@ -116,11 +119,8 @@ def main():
                 tr = oracle_time_invariant(d, reg, tr)
             row = score(d, tr)
             res.append(row)
-            modes = tr.centre_splines[0].info.get("modes")
             print(f"{name:13s} {seed:4d} {1000 * reg.noise_m:8.3f} " + " ".join(f"{v:6.1f}" for v in row)
-                  + f" {time.perf_counter() - t0:6.1f}"
-                  + ("" if method != "modal" else "  modes (Hz, decay s): "
-                     + (", ".join(f"{f:.2f} {d:.3f}" for f, d in modes) if modes else "none")))
+                  + f" {time.perf_counter() - t0:6.1f}")
         print(f"{'median':13s} {'':4s} {'':8s} " + " ".join(f"{v:6.1f}" for v in np.median(res, axis=0)))
     print("targets (issue 13): hidden-point acceleration < 15 %, omega < 10 % of their rms")
 

@@ -873,15 +873,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         the registration residuals, :func:`pose_noise`; needs ``points``;
         with 3 markers the residuals cannot see the noise normal to their
         plane, so it undersmooths: measured 1718 % saddle error on the
-        bundled session against 15.6 % with GCV; only for 4 or more markers),
-        ``"modal"`` (a non-periodic record's ringing: damped modes searched jointly in the six
-        components, :func:`horsemocap.splines.estimate_modes`, and, when one is found, each component
-        smoothed by the L-spline whose penalty has a notch at each mode,
-        :func:`horsemocap.splines.modal_smoothing`, equal weights; a periodic record (a fundamental
-        found) or no mode found: exactly ``"gcv"``, with ``info["mode_search"]`` telling which. Not the
-        default: hidden-point acceleration on issue 13's fixture 27.8 % against 25.0 % (gcv) and 18.4 %
-        (adaptive); better than gcv only on one of six fixtures, ``benchmarks/README.md``) or ``"none"``
-        (interpolation).
+        bundled session against 15.6 % with GCV; only for 4 or more markers)
+        or ``"none"`` (interpolation).
     points : (n, m, 3), optional
         The measured markers that were registered (for ``"noise"``).
     order : 5 or 3
@@ -959,17 +952,10 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         triangle: observed variances 2-60 times the predicted) the equal weights are kept.
         ``"equal"``: equal weights (the rule before 2026-11-24).
     """
-    from .splines import estimate_fundamental, estimate_modes, modal_smoothing, smoothing_spline
+    from .splines import estimate_fundamental, smoothing_spline
 
     t = np.asarray(t, float)
     reg = registration
-    modal = smoothing == "modal"
-    if modal:
-        if order != 5:
-            raise ValueError("smoothing 'modal' is of order 5")
-        if (events is not None and len(events)) or (lam is not None and any(v is not None for v in lam)):
-            raise ValueError("smoothing 'modal': events and lam are not taken (the modes' search chooses the smoothing)")
-        smoothing = "gcv"      # its fallback (a periodic record, or no mode found) and its harmonics' search
     n = t.size
     if reg.rotation.shape != (n, 3, 3):
         raise ValueError(f"registration: expected {n} frames to match t, got {reg.rotation.shape[0]}")
@@ -1026,23 +1012,13 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     var = None
     if rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None:
         var = frame_variances(reg)[:, 3:]
-    modes, mode_info = None, {"skipped": "periodic record (a fundamental found): gcv with its harmonics"}
-    if modal and f0 is None:
-        modes, mode_info = estimate_modes(t[ok], np.column_stack([reg.centre[ok], phi[ok]]))
     for it in range(iterations + 1 if two.any() else 1):
-        if modes:
-            fits = modal_smoothing(t[use], np.column_stack([centre[use], phi[use]]), modes)
-            cs, ps = tuple(fits[:3]), tuple(fits[3:])
-        else:
-            cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
-                                        noise=sig[i], fundamental_hz=f0, events=found) for i in range(3))
-            ps = tuple(_rotation_component(t[use], phi[use, i], None if var is None else var[use, i],
-                                           method=smoothing, order=order, lam=lam[3 + i], noise=sig[3 + i],
-                                           fundamental_hz=f0, harmonic_cutoff=harmonics != "all",
-                                           harmonic_noise=rot_noise[i], events=found) for i in range(3))
-        if modal:
-            for s in cs + ps:
-                s.info["mode_search"] = mode_info
+        cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
+                                    noise=sig[i], fundamental_hz=f0, events=found) for i in range(3))
+        ps = tuple(_rotation_component(t[use], phi[use, i], None if var is None else var[use, i],
+                                       method=smoothing, order=order, lam=lam[3 + i], noise=sig[3 + i],
+                                       fundamental_hz=f0, harmonic_cutoff=harmonics != "all",
+                                       harmonic_noise=rot_noise[i], events=found) for i in range(3))
         if it == iterations or not two.any():
             break
         tk = t[two]

@@ -42,8 +42,7 @@ from scipy.optimize import minimize_scalar
 
 __all__ = ["SmoothingSpline", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
-           "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "MAX_BASIS",
-           "DampedMode", "damped_mode_filter", "modal_difference_kernel", "estimate_modes", "modal_smoothing"]
+           "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "MAX_BASIS"]
 
 HUBER_K = 1.345
 """Huber's tuning constant (in robust standard deviations) of :func:`robust_weighted_spline`: 95 %
@@ -168,13 +167,9 @@ class HarmonicTerms:
         return (cols @ np.r_[self.cos, self.sin]).reshape(t.shape)
 
 
-def _penalty(knots, k, m, weight=None, operator=None):
-    """``P_ij = integral v(t) (L B_i) (L B_j)`` for B-splines of degree k (Gauss-Legendre;
-    exact for ``v = 1``); ``weight`` is ``v`` as a function of t (default 1). ``L = D^m`` or, with
-    ``operator`` = ``(c_0, c_1, ...)``, ``L = sum_j c_j D^(m + j)`` (orders up to k)."""
-    ops = (1.0,) if operator is None else tuple(float(c) for c in operator)
-    if m + len(ops) - 1 > k:
-        raise ValueError(f"operator: derivatives up to order {m + len(ops) - 1} exceed the degree {k}")
+def _penalty(knots, k, m, weight=None):
+    """``P_ij = integral v(t) B_i^(m) B_j^(m)`` for B-splines of degree k (Gauss-Legendre;
+    exact for ``v = 1``); ``weight`` is ``v`` as a function of t (default 1)."""
     nb = len(knots) - k - 1
     xs = np.unique(knots)
     g, gw = np.polynomial.legendre.leggauss(k - m + 1)
@@ -185,8 +180,7 @@ def _penalty(knots, k, m, weight=None, operator=None):
     for j in range(nb):
         c = np.zeros(nb)
         c[j] = 1.0
-        b = BSpline(knots, c, k, extrapolate=False)
-        D[:, j] = sum(cj * np.nan_to_num(b.derivative(m + i)(pts)) for i, cj in enumerate(ops) if cj != 0)
+        D[:, j] = BSpline(knots, c, k, extrapolate=False).derivative(m)(pts)
     D = np.nan_to_num(D)
     if weight is not None:
         wts = wts * weight(pts)
@@ -254,18 +248,18 @@ def _demmler_reinsch(B, P, w):
     return T, d, Bw @ T
 
 
-def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, operator=None):
+def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
     x = np.ascontiguousarray(x, float)
     w = np.ascontiguousarray(w, float)
-    if weight is None and operator is None:
+    if weight is None:
         knots = _basis(x.tobytes(), m)[0]
         T, d, Z = _gcv_basis(x.tobytes(), w.tobytes(), m)
     else:
         knots, B = _basis(x.tobytes(), m)[:2]
-        T, d, Z = _demmler_reinsch(B, _penalty(knots, k, m, weight, operator), w)
+        T, d, Z = _demmler_reinsch(B, _penalty(knots, k, m, weight), w)
     sw = np.sqrt(w)
     z = Z.T @ (sw * y)
     yw = sw * y
@@ -943,239 +937,3 @@ def residual_log_likelihood(spline, t, y, variance=None) -> float:
     n = y.size
     s2 = max(float(np.sum(r * r / v)) / n, 1e-300)
     return float(-0.5 * (np.sum(np.log(v)) + n * np.log(s2)) - spline.info["edf"])
-
-
-# --------------------------------------------------------------------------------------------------
-# L-spline (notch) smoothing of ringing: a discrete penalty whose null space holds a damped mode
-
-
-@dataclass(frozen=True)
-class DampedMode:
-    """A damped oscillation ``exp(-t / decay_s) sin(2 pi frequency_hz t + phase)`` (``decay_s`` inf:
-    undamped), the null space of the notch of :func:`modal_smoothing`."""
-
-    frequency_hz: float
-    decay_s: float
-
-
-def damped_mode_filter(mode: DampedMode, dt: float) -> np.ndarray:
-    """``(1, -2 r cos theta, r^2)``, ``r = exp(-dt / decay_s)``, ``theta = 2 pi f dt``: the AR(2)
-    operator (as a convolution kernel: ``y_i - 2 r cos theta y_(i-1) + r^2 y_(i-2)``) that annihilates the samples (step ``dt``) of ``exp(-t / decay_s) sin(2 pi f t + phase)``
-    for every phase and amplitude (its roots ``r exp(+-i theta)``)."""
-    r = float(np.exp(-dt / mode.decay_s)) if np.isfinite(mode.decay_s) else 1.0
-    theta = 2 * np.pi * mode.frequency_hz * dt
-    return np.array([1.0, -2.0 * r * np.cos(theta), r * r])
-
-
-def modal_difference_kernel(modes, dt: float) -> np.ndarray:
-    """The discrete L-operator's kernel: third differences convolved with :func:`damped_mode_filter` of
-    each mode (the discrete form of ``L = D^3 prod_j (D^2 + 2 D / decay_j + w_j^2 + 1 / decay_j^2)``).
-    Its null space: the sampled quadratics and damped modes (a convolution of annihilators)."""
-    k = np.array([-1.0, 3.0, -3.0, 1.0])
-    for mode in modes:
-        k = np.convolve(k, damped_mode_filter(mode, dt))
-    return k
-
-
-def _difference_penalty(n: int, kernel: np.ndarray) -> np.ndarray:
-    """``D^T D`` (n, n) with ``D f`` the valid part of the convolution ``kernel * f``, ``(D f)_i =
-    sum_j kernel_j f_{i + p - j}`` (``p`` = the kernel's length - 1; a Whittaker smoother's penalty)."""
-    m = n - kernel.size + 1
-    D = np.zeros((m, n))
-    rows = np.arange(m)
-    for j, c in enumerate(kernel[::-1]):
-        D[rows, rows + j] = c
-    return D.T @ D
-
-
-def _uniform_grid(t):
-    """The uniform grid (step = the median step) the times lie on, and each time's index; a clear error
-    when they are not on one (a missing frame is a missing grid point, not a shifted time)."""
-    t = np.asarray(t, float)
-    dt = float(np.median(np.diff(t)))
-    idx = np.rint((t - t[0]) / dt).astype(int)
-    if np.max(np.abs(t - t[0] - idx * dt)) > 1e-3 * dt or np.any(np.diff(idx) <= 0):
-        raise ValueError("t: smoothing 'modal' needs times on a uniform grid (frames of one rate; gaps allowed)")
-    return t[0] + np.arange(idx[-1] + 1) * dt, idx, dt
-
-
-class _ModalFit:
-    """The Whittaker smoother ``min sum_i w_i (y_i - f_i)^2 + lam |D f|^2`` on a uniform grid, for every
-    ``lam`` from one eigen-decomposition of ``W^-1/2 D^T D W^-1/2``; frames off the data (gaps) have a
-    negligible weight (1e-9): the smoother interpolates them."""
-
-    def __init__(self, n: int, idx: np.ndarray, kernel: np.ndarray, gamma: float):
-        w = np.full(n, 1e-9)
-        w[idx] = 1.0
-        self.sw = np.sqrt(w)
-        self.idx, self.n_obs, self.gamma = idx, idx.size, gamma
-        self.P = P = _difference_penalty(n, kernel)
-        self.d, self.U = np.linalg.eigh(P / self.sw[:, None] / self.sw[None])
-        self.d = np.clip(self.d, 0, None)
-
-    def _z(self, y):
-        yg = np.zeros(self.sw.size)
-        yg[self.idx] = y
-        return self.U.T @ (self.sw * yg)
-
-    def score(self, z, loglam: float) -> float:
-        """GCV ``n RSS / (n - gamma tr H)^2`` at ``lam = 10^loglam``."""
-        s = 1 / (1 + 10.0 ** loglam * self.d)
-        r = z * (1 - s)
-        tr = float(s.sum()) - (self.sw.size - self.n_obs)       # the gap frames' weights are ~0
-        return self.n_obs * float(r @ r) / max(self.n_obs - self.gamma * tr, 1e-9) ** 2
-
-    def best(self, y):
-        """``(log10 lam, GCV, edf)`` of ``y`` with ``lam`` minimising GCV."""
-        z = self._z(y)
-        pos = self.d[self.d > 1e-12 * self.d.max()]
-        lam, sc = _choose_lam(lambda ll: self.score(z, ll), -np.log10(pos.max()) - 2, -np.log10(pos.min()) + 2)
-        edf = float(np.sum(1 / (1 + lam * self.d))) - (self.sw.size - self.n_obs)
-        return float(np.log10(lam)), sc, edf
-
-    def fitted(self, y, loglam: float) -> np.ndarray:
-        """The smoothed values on the whole grid: ``(W + lam D^T D)^-1 W y`` solved directly (the
-        eigenvectors' rounding, amplified by the gap frames' small weights, left 1e-5 of a mode that
-        the penalty annihilates; the solve reproduces it to rounding)."""
-        from scipy.linalg import solve
-
-        w = self.sw ** 2
-        yg = np.zeros(w.size)
-        yg[self.idx] = y
-        return solve(np.diag(w) + 10.0 ** loglam * self.P, w * yg, assume_a="pos")
-
-
-def _modal_criterion(t, Y, modes, gamma=None):
-    """The joint criterion of the components ``Y`` (n, c) smoothed with the notches ``modes``:
-    ``sum_c n log GCV_c`` (each component's ``lam`` by GCV), and the fits' ``(log10 lam, GCV, edf)``."""
-    grid, idx, dt = _uniform_grid(t)
-    fit = _ModalFit(grid.size, idx, modal_difference_kernel(modes, dt), GCV_GAMMA if gamma is None else gamma)
-    best = [fit.best(Y[:, j]) for j in range(Y.shape[1])]
-    return idx.size * float(sum(np.log(max(b[1], 1e-300)) for b in best)), best, fit
-
-
-def estimate_modes(t, Y, *, max_modes: int = 3, penalty: float | None = None, gamma: float | None = None):
-    """Damped modes (ringing) of the components ``Y`` (n, c) sampled at ``t`` (uniform grid, gaps
-    allowed), one mode set for all components, added one at a time while the criterion improves.
-
-    Each step's null model is the better of the current model (first: third differences, the plain
-    Whittaker smoother) and the same smoother with the new notch at 0 Hz (second differences in place
-    of the mode's AR(2) filter; first: fifth differences). A notch raises the penalty's order at high
-    frequencies and lowers it below the notch, and both change the criterion without any mode: against
-    the third differences alone every notch "improved" issue 13's fixture by about 280 (at 2 Hz as at
-    10 Hz), against the fifth differences alone every notch improved white noise by 70-120; the
-    better of the two nulls leaves the notch's place as what is tested. Each new mode
-    starts at the best of a scan of the notch's frequency (8 % steps from half the lowest half-gain
-    frequency of the fifth-difference fit's components, or 2 cycles of the record, to 0.25 of the
-    sampling rate; decay 0.3 s; 10 % away from the modes found) and (frequency, log decay) are refined
-    by Nelder-Mead on the joint criterion ``sum_c n log GCV_c`` (:func:`_modal_criterion`); the mode is kept when the criterion drops by more than ``penalty``
-    (default ``2 log n``: BIC's price of two parameters, the frequency and the decay).
-
-    Returns
-    -------
-    modes : list of DampedMode
-        Empty when no notch improves the criterion (no ringing found).
-    info : dict
-        ``criterion`` per step (the plain smoother's first), ``penalty``, ``cutoff_hz`` (the null model's
-        half-gain frequency per component), ``tried`` (each step's refined
-        candidate and its gain, kept or not).
-    """
-    from scipy.optimize import minimize
-
-    t = np.asarray(t, float)
-    Y = np.asarray(Y, float)
-    if Y.ndim == 1:
-        Y = Y[:, None]
-    if Y.shape[0] != t.size or not np.all(np.isfinite(Y)):
-        raise ValueError(f"Y: expected {t.size} finite rows, got shape {Y.shape}")
-    grid, idx, dt = _uniform_grid(t)
-    n = idx.size
-    penalty = 2.0 * np.log(n) if penalty is None else float(penalty)
-    zero = DampedMode(0.0, float("inf"))        # a notch at 0 Hz: second differences
-    current = _modal_criterion(t, Y, [], gamma)[0]
-    best = _modal_criterion(t, Y, [zero], gamma)[1]
-    info = {"criterion": [current], "penalty": penalty, "tried": []}
-    modes: list = []
-    span = grid[-1] - grid[0]
-    # candidates: from half the lowest cutoff of the null model's components (below it the plain fit
-    # passes a mode anyway; a notch there only reshapes the penalty: 0.5-0.9 Hz "modes" of the lift
-    # were kept on the second fixture) to 0.25 of the sampling rate (notches near Nyquist reshape the
-    # penalty of the noise: an 80 Hz "mode" at 200 fps gained 300)
-    # half gain of the fifth-difference smoother: lam (2 sin(w dt / 2))^10 = 1
-    cut = [2 * np.arcsin(min((10.0 ** b[0]) ** -0.1 / 2, 1.0)) / (2 * np.pi * dt) for b in best]
-    lo_hz, hi_hz = max(2.0 / span, 0.5 * min(cut)), 0.25 / dt
-    info["cutoff_hz"] = cut
-    if lo_hz >= hi_hz:
-        return modes, info
-    freqs = np.geomspace(lo_hz, hi_hz, int(np.ceil(np.log(hi_hz / lo_hz) / np.log(1.08))) + 1)
-    for _ in range(int(max_modes)):
-        def objective(p):
-            f, ld = p
-            if not lo_hz <= f <= hi_hz or not np.log10(2 * dt) <= ld <= np.log10(20 * span):
-                return np.inf
-            return _modal_criterion(t, Y, modes + [DampedMode(float(f), 10.0 ** ld)], gamma)[0]
-
-        # a scan of the notch's frequency (8 % steps, decay 0.3 s), then (frequency, decay) refined
-        far = [f for f in freqs if all(abs(f / m.frequency_hz - 1) > 0.1 for m in modes)]
-        if not far:
-            break
-        vals = [objective((f, np.log10(0.3))) for f in far]
-        f0 = far[int(np.argmin(vals))]
-        starts = [(f0, ld) for ld in (np.log10(0.1), np.log10(0.3), np.log10(1.0))]
-        vals = [objective(st) for st in starts]
-        p0 = np.array(starts[int(np.argmin(vals))])
-        res = minimize(objective, p0, method="Nelder-Mead",
-                       options={"xatol": 1e-3, "fatol": 0.05, "maxfev": 30,
-                                "initial_simplex": [p0, p0 * [1.04, 1], p0 + [0, 0.3]]})
-        cand = DampedMode(float(res.x[0]), float(10.0 ** res.x[1]))
-        new = _modal_criterion(t, Y, modes + [cand], gamma)[0]
-        # against the better of the current model and the same penalty order with the new notch at 0 Hz
-        prev = min(current, _modal_criterion(t, Y, modes + [zero], gamma)[0])
-        gain = prev - new
-        info["tried"].append({"frequency_hz": cand.frequency_hz, "decay_s": cand.decay_s, "gain": float(gain),
-                              "kept": bool(gain > penalty)})
-        if not gain > penalty:
-            break
-        modes.append(cand)
-        info["criterion"].append(new)
-        current = new
-    return modes, info
-
-
-def modal_smoothing(t, Y, modes, *, gamma: float | None = None) -> list:
-    """Smooth each component of ``Y`` (n, c) with the discrete L-spline of ``modes``: the Whittaker
-    smoother ``min |y - f|^2 + lam |D_L f|^2`` with ``D_L`` = :func:`modal_difference_kernel` (third
-    differences times each mode's AR(2) annihilator), ``lam`` per component by GCV (cost ``gamma`` per
-    degree of freedom, default :data:`GCV_GAMMA`). In the frequency domain a notch at each mode: the
-    mode passes unshrunk while broadband noise is smoothed; sampled quadratics and damped modes are
-    reproduced exactly. Gaps (frames missing from a uniform grid) are interpolated by the smoother.
-
-    The derivatives are those of the quintic interpolating spline through the smoothed samples (SciPy's
-    :func:`scipy.interpolate.make_interp_spline`, not-a-knot ends): on a noise-free 10 Hz damped
-    sinusoid at 100 Hz its acceleration is within 1e-4 of the rms inside the record (measured in
-    ``tests/test_modal.py``; 0.7 % at 25 Hz, and a few % in the last samples at each end).
-
-    Returns
-    -------
-    list of SmoothingSpline
-        One per component; ``info`` holds ``lam``, ``edf``, ``rms_residual``, ``n``, ``order`` 5,
-        ``method`` "modal" and ``modes`` (``(frequency_hz, decay_s)`` pairs).
-    """
-    t = np.asarray(t, float)
-    Y = np.asarray(Y, float)
-    if Y.ndim != 2 or Y.shape[0] != t.size or not np.all(np.isfinite(Y)):
-        raise ValueError(f"Y: expected ({t.size}, c) finite samples, got shape {Y.shape}")
-    grid, idx, dt = _uniform_grid(t)
-    if idx.size < 8:
-        raise ValueError(f"t: modal smoothing needs at least 8 samples, got {idx.size}")
-    fit = _ModalFit(grid.size, idx, modal_difference_kernel(modes, dt), GCV_GAMMA if gamma is None else gamma)
-    out = []
-    for j in range(Y.shape[1]):
-        loglam, _, edf = fit.best(Y[:, j])
-        f = fit.fitted(Y[:, j], loglam)
-        r = Y[:, j] - f[idx]
-        out.append(SmoothingSpline(make_interp_spline(grid, f, k=5), {
-            "lam": float(10.0 ** loglam), "edf": edf, "rms_residual": float(np.sqrt(np.mean(r * r))),
-            "n": int(idx.size), "order": 5, "method": "modal",
-            "modes": [(m.frequency_hz, m.decay_s) for m in modes]}))
-    return out
