@@ -16,7 +16,16 @@ jump of the acceleration; as from a force plate). The onset is the fixture's, no
 6 Hz and 14 Hz modes, 0.5 s decay, 30 ms onset from 2.9 s), to check that a smoother is not
 tuned to the first.
 
-Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture issue13|second]``
+Fixtures ``noring`` (no ringing), ``ring4hz`` (4 Hz, 0.6 s decay, 100 Hz), ``ring25hz200`` (25 Hz,
+0.15 s decay, 200 Hz) and ``ringmoving`` (the ring from 2.4 s, during the set-down, 40 ms onset): other
+non-periodic motions, not used to develop the L-spline (notch) smoothing of the ringing, a negative
+result moved out of the package: ``bench_kinematics_modal.py`` (its row ``modal``, the modes it finds).
+
+Row ``oracle_lti`` (uses the truth): the best a time-invariant linear smoother can do
+(:func:`oracle_time_invariant`): a bound for a notch / L-spline or a stochastic cycle with constant
+parameters.
+
+Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture NAME] [--rows gcv,oracle_lti,...]``
 
 Smoothers tried without the onset given (a one-sided roughness envelope, heavy-tailed jerk, L1 trend
 filtering, a scan for the onset), none meeting the targets: ``bench_kinematics_tries.py``.
@@ -31,7 +40,17 @@ import numpy as np
 
 FIXTURES = {"issue13": {},
             "second": {"fps": 200.0, "ring_hz": 6.0, "second_ring_hz": 14.0, "ring_decay_s": 0.5,
-                       "ring_rise_s": 0.03, "ring_start_s": 2.9}}
+                       "ring_rise_s": 0.03, "ring_start_s": 2.9},
+            # fixtures the modal smoothing (bench_kinematics_modal.py) was not developed on
+            "noring": {"ring_scale": 0.0},
+            "ring4hz": {"ring_hz": 4.0, "ring_decay_s": 0.6},
+            "ring25hz200": {"fps": 200.0, "ring_hz": 25.0, "ring_decay_s": 0.15},
+            "ringmoving": {"ring_start_s": 2.4, "ring_rise_s": 0.04}}
+
+ROWS = {"gcv+harm": ("gcv", 5, "auto", False), "gcv": ("gcv", 5, "none", False),
+        "adaptive": ("adaptive", 5, "none", False), "gcv_cubic": ("gcv", 3, "none", False),
+        "gcv+event": ("gcv", 5, "none", True), "adaptive+event": ("adaptive", 5, "none", True),
+        "oracle_lti": ("gcv", 5, "none", False)}
 
 
 def pct(est, true):
@@ -46,20 +65,49 @@ def score(d, tr):
             pct(tr.omega(d["t"]), d["omega"]), pct(tr.alpha(d["t"]), d["alpha"]))
 
 
+def oracle_time_invariant(d, reg, tr):
+    """A bound for time-invariant linear smoothers (any notch or L-spline, a stochastic cycle with
+    constant parameters, a Wiener filter): each pose component's cosine transform (DCT-II, the mirror
+    extension at the ends) multiplied by the oracle gain ``X_k^2 / (X_k^2 + N_k^2)`` of the truth's
+    coefficient ``X_k`` (the noise-free markers registered) and this draw's noise ``N_k``, the
+    derivatives from the quintic interpolant of the result (as the modal smoothing of
+    ``bench_kinematics_modal.py``). Uses the truth."""
+    from dataclasses import replace
+
+    from scipy.fft import dct, idct
+    from scipy.interpolate import make_interp_spline
+    from scipy.spatial.transform import Rotation
+
+    from horsemocap import pose, splines
+
+    true = pose.register_pose(d["markers_true"], d["model"])
+    ref = Rotation.from_matrix(tr.reference)
+    X = np.column_stack([true.centre, pose.unwrap_rotvec((Rotation.from_matrix(true.rotation) * ref.inv()).as_rotvec())])
+    Y = np.column_stack([reg.centre, tr.rotvec_data])
+    xk, nk = dct(X, norm="ortho", axis=0), dct(Y - X, norm="ortho", axis=0)
+    F = idct(xk ** 2 / np.maximum(xk ** 2 + nk ** 2, 1e-300) * dct(Y, norm="ortho", axis=0), norm="ortho", axis=0)
+    ss = [splines.SmoothingSpline(make_interp_spline(d["t"], F[:, i], k=5), {}) for i in range(6)]
+    return replace(tr, centre_splines=tuple(ss[:3]), rotvec_splines=tuple(ss[3:]))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=3)
     ap.add_argument("--fixture", default="issue13", choices=sorted(FIXTURES))
+    ap.add_argument("--rows", default=",".join(ROWS), help="comma-separated rows: " + ", ".join(ROWS))
     args = ap.parse_args()
+    unknown = sorted(set(args.rows.split(",")) - set(ROWS))
+    if unknown:
+        ap.error(f"--rows: unknown {unknown} (rows: {', '.join(ROWS)}; the modal row: bench_kinematics_modal.py)")
     print(f"fixture {args.fixture}: {FIXTURES[args.fixture]}")
     from horsemocap import pose, synthetic
 
     print(f"{'smoothing':13s} {'draw':>4s} {'noise_mm':>8s} {'vel_%':>6s} {'acc_%':>6s} {'omega_%':>7s} "
           f"{'alpha_%':>7s} {'time_s':>6s}")
     onset = FIXTURES[args.fixture].get("ring_start_s", 2.8)
-    for method, order, harmonics, events in (("gcv", 5, "auto", None), ("gcv", 5, "none", None),
-                                             ("adaptive", 5, "none", None), ("gcv", 3, "none", None),
-                                             ("gcv", 5, "none", [onset]), ("adaptive", 5, "none", [onset])):
+    for name in args.rows.split(","):
+        method, order, harmonics, with_onset = ROWS[name]
+        events = [onset] if with_onset else None
         res = []
         for seed in range(args.draws):
             d = synthetic.lift_with_ringing(seed=seed, **FIXTURES[args.fixture])
@@ -67,10 +115,10 @@ def main():
             reg = pose.register_pose(d["markers"], d["model"])
             tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing=method, order=order,
                                           harmonics=harmonics, events=events)
+            if name == "oracle_lti":
+                tr = oracle_time_invariant(d, reg, tr)
             row = score(d, tr)
             res.append(row)
-            name = (method + ("" if order == 5 else "_cubic") + ("" if harmonics == "none" else "+harm")
-                    + ("" if events is None else "+event"))
             print(f"{name:13s} {seed:4d} {1000 * reg.noise_m:8.3f} " + " ".join(f"{v:6.1f}" for v in row)
                   + f" {time.perf_counter() - t0:6.1f}")
         print(f"{'median':13s} {'':4s} {'':8s} " + " ".join(f"{v:6.1f}" for v in np.median(res, axis=0)))

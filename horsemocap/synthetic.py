@@ -97,13 +97,14 @@ def _rotation_jets(a: Jet, b: Jet, c: Jet):
 
 def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: float = 3e-4, seed: int = 0,
                       ring_hz: float = 10.0, ring_decay_s: float = 0.3, ring_rise_s: float = 0.02,
-                      ring_start_s: float = 2.8, second_ring_hz: float | None = None) -> dict:
+                      ring_start_s: float = 2.8, second_ring_hz: float | None = None,
+                      ring_scale: float = 1.0) -> dict:
     """A marker box lifted, held, set down, ringing at ``ring_hz``; exact truth.
 
     The defaults are issue 13's fixture. ``ring_decay_s``, ``ring_rise_s`` (the onset's time
     constant), ``ring_start_s`` and ``second_ring_hz`` (a second mode, half the amplitude, in the
-    rotation about x and the vertical, from the same onset) build other non-periodic motions
-    with the same exact truth.
+    rotation about x and the vertical, from the same onset) and ``ring_scale`` (every ringing
+    amplitude times it; 0: no ringing) build other non-periodic motions with the same exact truth.
 
     The box (0.40 x 0.30 x 0.20 m) carries 4 markers on its top and sides;
     the hidden point is a bottom corner. Motion (y up): lift of 0.30 m over
@@ -125,7 +126,7 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
     lift, down, t_ring = 0.5, 2.2, ring_start_s
 
     def ring(amplitude, phase=0.0, hz=ring_hz):
-        return ringing(t, t_ring, amplitude, hz, ring_decay_s, ring_rise_s, phase)
+        return ringing(t, t_ring, amplitude * ring_scale, hz, ring_decay_s, ring_rise_s, phase)
 
     y = minimum_jerk_step(t, lift, 0.8, 0.30) + minimum_jerk_step(t, down, 0.6, -0.30) + ring(0.006)
     x = minimum_jerk_step(t, lift, 0.8, 0.15) + minimum_jerk_step(t, down, 0.6, -0.05)
