@@ -358,6 +358,10 @@ def cmd_kinematics(args) -> int:
         print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
     print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
           f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
+    ran = next(iter(tr.smoothing.values()))
+    if "smoothing_method" in ran:
+        print(f"[horsemocap] kinematics: {ran['smoothing_method']} smoothing ({args.smoothing}: "
+              f"{ran['smoothing_reason']})", file=sys.stderr)
     print(f"results: {out.resolve()}")
     return 0
 
@@ -437,8 +441,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("trajectories", metavar="TRAJECTORIES", help="trajectories.csv layout or .c3d")
     p.add_argument("--static", required=True, metavar="STATIC", help="static shot (.csv or .c3d)")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--smoothing", default="gcv", choices=["gcv", "adaptive", "none"],
-                   help="pose smoothing: gcv (default), adaptive, none")
+    p.add_argument("--smoothing", default="auto", choices=["auto", "gcv", "adaptive", "none"],
+                   help="pose smoothing: auto (default: gcv with the stride harmonics on a periodic record, "
+                        "adaptive on a non-periodic one), gcv, adaptive, none")
     p.add_argument("--events", type=float, nargs="+", metavar="SECONDS",
                    help="known times (s, the file's time axis) where the acceleration may jump, e.g. an impact's "
                         "onset from a force plate: the smoothing leaves a jump free there (gcv or adaptive, "

@@ -200,7 +200,7 @@ def write_c3d(path, traj: Trajectories) -> Path:
     return path
 
 
-def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "gcv",
+def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",
                                  events=None):
     """Pose-trajectory kinematics of a rigid body from 3D markers and a static shot.
 
@@ -210,7 +210,7 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     ``events``: known times (s, the file's time axis) where the acceleration
     may jump, e.g. an impact's onset from a force plate
     (:func:`horsemocap.pose.fit_pose_trajectory`, ``events``; smoothing
-    "gcv" or "adaptive"). With events the record is smoothed without stride
+    "auto" (default: gcv with harmonics on a periodic record, adaptive otherwise), "gcv" or "adaptive"). With events the record is smoothed without stride
     harmonics (the change points are for a non-periodic record; the two are
     not fitted together).
 

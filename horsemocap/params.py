@@ -156,8 +156,10 @@ class AnalysisParams:
         the fits and 10.1 % (-5.6 %) with plain splines.
     pose_smoothing : str
         Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`):
-        ``"gcv"`` (default; quintic, one generalised cross-validation
-        parameter per component), ``"adaptive"`` (a second GCV pass with a
+        ``"auto"`` (default: ``"gcv"`` with the stride harmonics on a periodic record, a
+        fundamental found, and ``"adaptive"`` on one without, :func:`horsemocap.pose.choose_smoothing`;
+        the choice and its reason in the progress output), ``"gcv"`` (quintic, one generalised
+        cross-validation parameter per component), ``"adaptive"`` (a second GCV pass with a
         penalty weighted by the local roughness: better on motions that are
         calm then ringing), ``"gcv_cubic"`` (SciPy's ``make_smoothing_spline``) or ``"none"``.
     pose_partial_frames : bool
@@ -237,7 +239,7 @@ class AnalysisParams:
     saddle_method: str = "pose"
     weighting_mode: str = "iso"
     kinematics: str = "pose_spline"
-    pose_smoothing: str = "gcv"
+    pose_smoothing: str = "auto"
     pose_partial_frames: bool = True
     pose_harmonics: str = "auto"
     pose_weights: str = "covariance"
@@ -395,7 +397,7 @@ class AnalysisParams:
         choice("saddle_method", ("pose", "direct", "thesis"))
         choice("weighting_mode", ("iso", "thesis"))
         choice("kinematics", ("pose_spline", "fits"))
-        choice("pose_smoothing", ("adaptive", "gcv", "gcv_cubic", "none"))
+        choice("pose_smoothing", ("auto", "adaptive", "gcv", "gcv_cubic", "none"))
         choice("pose_harmonics", ("auto", "all", "none"))
         choice("pose_weights", ("covariance", "equal"))
         choice("pose_rotation_weights", ("auto", "equal"))

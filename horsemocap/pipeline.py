@@ -605,7 +605,10 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     sing = float(np.nanmin(np.abs(90 - cond["singularity_deg"])))
     if params.kinematics == "pose_spline":
         sm = rb.pose.smoothing
-        progress("rigid_body", f"pose trajectory ({params.pose_smoothing} smoothing, effective degrees of "
+        ran = next(iter(sm.values()))
+        how = (f"{ran['smoothing_method']} smoothing ({params.pose_smoothing}: {ran['smoothing_reason']})"
+               if "smoothing_method" in ran else f"{params.pose_smoothing} smoothing")
+        progress("rigid_body", f"pose trajectory ({how}, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond['registration_rms_m']):.2f} mm")
         weighted = [k for k, v in sm.items() if v.get("weights", "equal") != "equal"]
