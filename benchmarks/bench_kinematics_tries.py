@@ -28,9 +28,19 @@ percentage of the truth's rms, median of the draws), as ``bench_kinematics.py`` 
   the best ``tau`` and its gain, and the best gain more than 50 ms from the true onset. A jump
   can be detected only if the second is well below the first on both fixtures.
 
+``--detect`` (2026-11-24): the onset scan recalibrated and used (:func:`_detect_onsets`): each
+component's score over its own residual variance, the best ``tau`` accepted beyond a bootstrap's (or
+Bonferroni's) 95 % of the scan's maximum, the adaptive spline refitted with the accepted events, repeated
+(at most 3); scored on all six fixtures (adaptive, adaptive + detected events, adaptive + the true onset).
+Negative: no statistic and threshold tried finds the onset on issue13 without false events elsewhere
+(``benchmarks/README.md``, ``results/kinematics_ringing_onset_detect.txt``).
+
 Targets (issue 13): acceleration < 15 %, omega < 10 %. Usage:
 ``python benchmarks/bench_kinematics_tries.py [--draws 3] [--fixture issue13|second]``
-(``results/kinematics_ringing_tries*.txt``).
+(``results/kinematics_ringing_tries*.txt``);
+``python benchmarks/bench_kinematics_tries.py --detect [--draws 3] [--fixtures a,b] [--statistic score|criterion]
+[--threshold bootstrap|fit_bootstrap|refit_bootstrap|bonferroni] [--replicates 200] [--max-events 3]``
+(run with ``OMP_NUM_THREADS=1``: the dense hat matrices are 60 times slower with threads on a loaded machine).
 """
 from __future__ import annotations
 
@@ -147,7 +157,152 @@ def _onset_scan(t, Y, sigma, onset):
     return taus[best], gain[best], gain[far].max(), taus[far][np.argmax(gain[far])]
 
 
+def _adaptive_hat(t, y, events):
+    """The adaptive spline of ``y`` (with unpenalised ``(t - tau)_+^2`` at ``events``) as a linear
+    smoother: its hat matrix ``H`` (n, n), rebuilt from the library's fit (its ``lam`` and roughness
+    weight: :func:`horsemocap.splines._adaptive` / ``_adaptive_events``), and the library's spline."""
+    from horsemocap.splines import (_basis, _event_quintic, _penalty, _quintic_gcv, _roughness_weight,
+                                    smoothing_spline, truncated_power_columns)
+    w = np.ones_like(t)
+    if events:
+        s1, e1, info1 = _event_quintic(t, y, w, None, events)
+
+        def first(u, dd):
+            return s1.derivative(dd)(u) + e1(u, dd)
+    else:
+        s1, info1 = _quintic_gcv(t, y, w, None)
+
+        def first(u, dd):
+            return s1.derivative(dd)(u)
+    wt = _roughness_weight(t, first, info1["edf"], events or ())
+    lib = smoothing_spline(t, y, method="adaptive", events=events or None)
+    knots, B = _basis(np.ascontiguousarray(t).tobytes(), 3)[:2]
+    P = _penalty(knots, 5, 3, wt)
+    X = np.hstack([B, truncated_power_columns(t, events, 2)]) if events else B
+    A = X.T @ X
+    A[:B.shape[1], :B.shape[1]] += lib.info["lam"] * P
+    A += 1e-12 * np.trace(A) / A.shape[0] * np.eye(A.shape[0])
+    H = X @ np.linalg.solve(A, X.T)
+    return H, lib
+
+
+def _detect_onsets(t, Y, *, threshold="bootstrap", replicates=200, max_events=3, level=0.95, rng=None,
+                   statistic="score"):
+    """Change points detected from the data: for every midpoint ``tau`` the score of one unpenalised
+    ``(t - tau)_+^2`` column against the adaptive spline (with the events accepted so far) per
+    component, ``z_i = (M x)' y_i / (s_i |M x|)`` (``M = I - H``, ``s_i^2 = RSS_i / (n - edf_i)`` the
+    component's own residual variance: ``z_i ~ N(0, 1)`` under white noise of that variance), summed
+    over the six components, ``G = sum z_i^2`` (chi2(6) at one ``tau``). The best ``tau`` is accepted
+    when its ``G`` exceeds ``threshold``: ``"bonferroni"`` chi2(6) at ``(1 - level) / #taus``;
+    ``"bootstrap"`` the ``level`` quantile of ``max G`` over ``replicates`` Gaussian residual vectors of
+    the same variances through the same ``M`` (the smoother held fixed); ``"fit_bootstrap"`` the same
+    with the data ``y* = H y + e*`` (a parametric bootstrap from the adaptive fit, the smoother held
+    fixed: ``M y* = M H y + M e*`` carries the smoother's bias on its own fit); ``"refit_bootstrap"``
+    the parametric bootstrap itself: ``y* = H y + e*`` smoothed again by the adaptive spline (its ``lam``
+    and weight chosen again) and scanned, ``replicates`` times. Repeated while accepted, at
+    most ``max_events``. ``statistic="criterion"``: ``z_i^2 = ((M x)' y_i)^2 / (s_i^2 x' M x)`` instead (the
+    penalised criterion's drop when the column is added, the smoother held fixed: the earlier scan's
+    gain, over the component's own residual variance instead of the registration's noise).
+    Returns ``(events, log)``, log rows ``(tau, G, threshold, accepted)``."""
+    from scipy.stats import chi2
+
+    from horsemocap.splines import truncated_power_columns
+    rng = np.random.default_rng(0) if rng is None else rng
+    n = t.size
+    taus = 0.5 * (t[5:-6] + t[6:-5])
+    X = truncated_power_columns(t, taus, 2)
+    events, log = [], []
+    for _ in range(max_events):
+        G = np.zeros(taus.size)
+        Gb = np.zeros((taus.size, replicates))
+        for i in range(Y.shape[1]):
+            H, _ = _adaptive_hat(t, Y[:, i], events)
+            M = np.eye(n) - H
+            MX = M @ X
+            r = M @ Y[:, i]
+            s2 = float(r @ r) / (n - np.trace(H))
+            q = np.einsum("ij,ij->j", MX, MX) if statistic == "score" else np.einsum("ij,ij->j", X, MX)
+            # a column the smoother reproduces (x' M x at rounding level, negative: tau at the record's
+            # start) carries no jump: left out
+            q = np.where(q > 1e-13 * np.einsum("ij,ij->j", X, X), q, np.inf)
+            norm = np.sqrt(s2 * q)
+            G += (MX.T @ Y[:, i] / norm) ** 2
+            if threshold == "refit_bootstrap":
+                fit = H @ Y[:, i]
+                for b in range(replicates):
+                    yb = fit + rng.normal(0, np.sqrt(s2), n)
+                    Hb, _ = _adaptive_hat(t, yb, events)
+                    MXb = (np.eye(n) - Hb) @ X
+                    rb = yb - Hb @ yb
+                    s2b = float(rb @ rb) / (n - np.trace(Hb))
+                    qb = (np.einsum("ij,ij->j", MXb, MXb) if statistic == "score"
+                          else np.einsum("ij,ij->j", X, MXb))
+                    qb = np.where(qb > 1e-13 * np.einsum("ij,ij->j", X, X), qb, np.inf)
+                    Gb[:, b] += (MXb.T @ yb) ** 2 / (s2b * qb)
+            elif threshold != "bonferroni":
+                e = rng.normal(0, np.sqrt(s2), (n, replicates))
+                if threshold == "fit_bootstrap":
+                    e += (M @ (H @ Y[:, i]))[:, None]       # y* = H y + e*: the smoother's own bias of its fit
+                Gb += (MX.T @ e / norm[:, None]) ** 2
+        near = np.zeros(taus.size, bool)
+        for e in events:
+            near |= np.abs(taus - e) < 3.5 * float(np.median(np.diff(t)))
+        G[near] = 0
+        Gb[near] = 0
+        best = int(np.argmax(G))
+        thr = (float(chi2.isf((1 - level) / taus.size, Y.shape[1])) if threshold == "bonferroni"
+               else float(np.quantile(Gb.max(0), level)))
+        ok = G[best] > thr
+        log.append((float(taus[best]), float(G[best]), thr, bool(ok)))
+        if not ok:
+            break
+        events = sorted(events + [float(taus[best])])
+    return events, log
+
+
+def detect_main(argv):
+    """``--detect``: the data-driven onset detection (:func:`_detect_onsets`) on every fixture."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--detect", action="store_true")
+    ap.add_argument("--draws", type=int, default=3)
+    ap.add_argument("--fixtures", default=",".join(FIXTURES))
+    ap.add_argument("--threshold", default="bootstrap", choices=["bootstrap", "fit_bootstrap", "refit_bootstrap", "bonferroni"])
+    ap.add_argument("--statistic", default="score", choices=["score", "criterion"])
+    ap.add_argument("--replicates", type=int, default=200)
+    ap.add_argument("--max-events", type=int, default=3)
+    args = ap.parse_args(argv)
+    from horsemocap import pose, synthetic
+    print(f"onset detection, statistic {args.statistic}, threshold {args.threshold}: per draw the scans (tau s, G, threshold, accepted), "
+          "then the errors (vel, acc, omega, alpha %) of adaptive, adaptive + detected events, adaptive + true onset")
+    for name in args.fixtures.split(","):
+        fx = FIXTURES[name]
+        onset = fx.get("ring_start_s", 2.8) if fx.get("ring_scale", 1.0) else None
+        rows = {"adaptive": [], "detected": [], "true onset": []}
+        t0 = time.perf_counter()
+        for seed in range(args.draws):
+            d = synthetic.lift_with_ringing(seed=seed, **fx)
+            reg, tr0, Y = _components(d)
+            ev, log = _detect_onsets(d["t"], Y, threshold=args.threshold, rng=np.random.default_rng(seed),
+                                     statistic=args.statistic, replicates=args.replicates,
+                                     max_events=args.max_events)
+            print(f"{name} draw {seed} (true onset {onset}): "
+                  + "; ".join(f"{a:.3f} {g:.1f}/{th:.1f}{'*' if ok else ''}" for a, g, th, ok in log)
+                  + f" -> events {[round(e, 3) for e in ev]}")
+            for row, e in (("adaptive", None), ("detected", ev or None),
+                           ("true onset", None if onset is None else [onset])):
+                tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="adaptive", harmonics="none",
+                                              events=e)
+                rows[row].append(score(d, tr))
+        for row, res in rows.items():
+            print(f"  {name:12s} {row:11s} " + " ".join(f"{v:6.1f}" for v in np.median(res, 0))
+                  + "  acc per draw " + " ".join(f"{r[1]:5.1f}" for r in res))
+        print(f"  ({(time.perf_counter() - t0) / args.draws:.1f} s per draw)", flush=True)
+
+
 def main():
+    import sys
+    if "--detect" in sys.argv:
+        return detect_main(sys.argv[1:])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=3)
     ap.add_argument("--fixture", default="issue13", choices=sorted(FIXTURES))

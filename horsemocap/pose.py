@@ -940,7 +940,9 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         each side apart). With ``smoothing`` "gcv" (and no harmonics: ``harmonics="none"``) or
         "adaptive", order 5. Not detected from the data: a scan of the onset by GCV, alone or with
         a test against the noise, placed it inside the ringing of ``bench_kinematics.py``'s fixture
-        and made the acceleration worse (``benchmarks/README.md``).
+        and made the acceleration worse; recalibrated (each component's own residual variance, a
+        bootstrap of the scan's maximum) it finds either false onsets in every record or none on the
+        issue's fixture (``bench_kinematics_tries.py --detect``, ``benchmarks/README.md``).
     rotation_weights : "auto" or "equal"
         ``"auto"`` (default): with a registration that carries the pose's information matrices
         (:func:`register_pose` with ``covariance``) and ``smoothing`` "gcv" (quintic), each rotation
