@@ -194,8 +194,8 @@ class AnalysisParams:
         ``"equal"``: Horn's registration with equal marker weights (the
         thesis' eq. 5.14-5.21; ``--pose-weights``).
     pose_rotation_weights : str
-        With ``"pose_spline"``, ``pose_weights`` ``"covariance"`` and ``pose_smoothing``
-        ``"gcv"``: ``"auto"`` (default) smooths each rotation component twice, with every
+        With ``"pose_spline"``, ``pose_weights`` ``"covariance"`` and GCV smoothing (``pose_smoothing``
+        ``"gcv"``, or ``"auto"`` on a periodic record): ``"auto"`` (default) smooths each rotation component twice, with every
         frame weighted by its predicted variance (robustly) and with equal weights, and
         keeps the fit whose noise model explains its residuals better
         (:func:`horsemocap.pose.fit_pose_trajectory`, ``rotation_weights``; issue 13: with

@@ -998,7 +998,9 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
             except ValueError:
                 found_f0 = None
     if smoothing == "auto":
-        smoothing, reason = choose_smoothing(found_f0, events, order)
+        smoothing, reason = choose_smoothing(found_f0, events, order, lam_given=all(v is not None for v in lam))
+        if smoothing == "adaptive" and reg.information is not None and rotation_weights == "auto":
+            reason += "; the rotation's per-frame variance weights are a GCV option and not applied"
         choice = {"smoothing_method": smoothing, "smoothing_reason": reason}
     if harmonics != "none" and smoothing in ("gcv", "noise") and order == 5:
         f0 = found_f0
@@ -1064,7 +1066,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
                           registration=reg, rotvec_data=phi)
 
 
-def choose_smoothing(fundamental_hz, events, order: int = 5) -> tuple[str, str]:
+def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False) -> tuple[str, str]:
     """The smoothing ``"auto"`` of :func:`fit_pose_trajectory` runs, and why.
 
     A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics
@@ -1074,7 +1076,9 @@ def choose_smoothing(fundamental_hz, events, order: int = 5) -> tuple[str, str]:
     weighted by the local roughness): on the six non-periodic ringing fixtures of
     ``benchmarks/bench_kinematics.py`` it is better than gcv on every one (issue 13; hidden-point
     acceleration, median of 3 draws, 12.2-26.0 % against 16.1-32.5 %, 4.1 against 5.4 % without ringing).
-    A cubic spline (``order`` 3) has no adaptive form and keeps ``"gcv"``.
+    A cubic spline (``order`` 3) has no adaptive form and keeps ``"gcv"``; so do given smoothing
+    parameters (``lam_given``: nothing is chosen from the data, and ``lam`` keeps the meaning of the
+    plain penalty it had before ``"auto"``).
 
     Parameters
     ----------
@@ -1084,6 +1088,8 @@ def choose_smoothing(fundamental_hz, events, order: int = 5) -> tuple[str, str]:
         Known change points.
     order : int
         The spline's order.
+    lam_given : bool
+        All six smoothing parameters are given.
 
     Returns
     -------
@@ -1093,8 +1099,11 @@ def choose_smoothing(fundamental_hz, events, order: int = 5) -> tuple[str, str]:
     """
     if order != 5:
         return "gcv", f"order {order}: the adaptive smoothing is quintic only"
+    if lam_given:
+        return "gcv", "smoothing parameters given: nothing chosen from the data"
     if events is not None and len(events):
-        return "adaptive", f"{len(events)} known change point(s): a non-periodic record"
+        found = "" if fundamental_hz is None else f"; fundamental {float(fundamental_hz):.4g} Hz found, not used"
+        return "adaptive", f"{len(events)} known change point(s), fitted without harmonics{found}"
     if fundamental_hz is not None:
         return "gcv", f"periodic record: fundamental {float(fundamental_hz):.4g} Hz"
     return "adaptive", "no fundamental found: a non-periodic record"

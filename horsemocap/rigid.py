@@ -1078,8 +1078,9 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         computed in both cases when the record allows it; with
         "pose_spline" a failure of the chain is recorded in
         :attr:`RigidBodyAnalysis.chain_error` instead of stopping.
-    pose_smoothing : "adaptive", "gcv", "gcv_cubic" or "none"
-        Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`).
+    pose_smoothing : "auto", "adaptive", "gcv", "gcv_cubic" or "none"
+        Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`; ``"auto"``:
+        :func:`horsemocap.pose.choose_smoothing`, the pipeline's default).
     rotation_orders : None, int or (3,) ints
         Fourier orders of :func:`fit_rotations`; default: ``orders`` if it is a
         single int, else the order rule.

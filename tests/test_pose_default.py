@@ -77,3 +77,12 @@ def test_params_default_is_auto_and_bad_choices_are_named():
     assert AnalysisParams().pose_smoothing == "auto"
     with pytest.raises(Exception, match="pose_smoothing"):
         AnalysisParams(pose_smoothing="best").validate("test")
+
+
+def test_auto_keeps_gcv_for_given_smoothing_parameters_and_says_why_with_events():
+    from horsemocap.pose import choose_smoothing
+
+    assert choose_smoothing(None, None, 5, lam_given=True)[0] == "gcv"
+    method, reason = choose_smoothing(1.5, [2.8], 5)
+    assert method == "adaptive" and "1.5 Hz found, not used" in reason
+    assert choose_smoothing(None, [2.8], 5)[1] == "1 known change point(s), fitted without harmonics"
