@@ -29,7 +29,19 @@ Row ``oracle_lti`` (uses the truth): the best a time-invariant linear smoother c
 (:func:`oracle_time_invariant`): a bound for a notch / L-spline or a stochastic cycle with constant
 parameters.
 
-Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture NAME] [--rows gcv,oracle_lti,...]``
+``--covariance``: the markers' noise as a triangulation gives it (:func:`triangulated_noise`): each
+marker's covariance ``R diag(s_depth^2, s^2, s^2) R^T``, the depth axis along the mean viewing
+direction of the cameras that see it, ``s_depth / s`` 3-10 per marker (at 0.25 px the herd rig's
+markers have 14.7 / 6.8 / 64.6 mm in x / y / z, benchmarks/README.md), ``s`` per marker and over time
+(stretches seen by two cameras instead of three: variance x 2-4, the depth axis from those two), scaled
+so that the mean marker variance is the fixture's (0.3 mm per axis); the noise drawn from these
+covariances and the covariances passed to :func:`horsemocap.pose.register_pose`, as the pipeline does.
+``--covariance strong``: a larger variation (:data:`NOISE_VARIATION`), a check beyond that model.
+Row ``gcv_equal``: gcv with ``rotation_weights="equal"`` (row ``gcv`` weights each rotation component's
+frames by their predicted variance when the registration has information matrices, ``"auto"``).
+
+Usage: ``python benchmarks/bench_kinematics.py [--draws 3] [--fixture NAME] [--rows gcv,oracle_lti,...]
+[--covariance [strong]]``
 
 Smoothers tried without the onset given (a one-sided roughness envelope, heavy-tailed jerk, L1 trend
 filtering, a scan for the onset), none meeting the targets: ``bench_kinematics_tries.py``.
@@ -55,7 +67,16 @@ ROWS = {"auto": ("auto", 5, "auto", False),
         "gcv+harm": ("gcv", 5, "auto", False), "gcv": ("gcv", 5, "none", False),
         "adaptive": ("adaptive", 5, "none", False), "gcv_cubic": ("gcv", 3, "none", False),
         "gcv+event": ("gcv", 5, "none", True), "adaptive+event": ("adaptive", 5, "none", True),
-        "oracle_lti": ("gcv", 5, "none", False)}
+        "oracle_lti": ("gcv", 5, "none", False), "gcv_equal": ("gcv", 5, "none", False)}
+ROTATION_WEIGHTS = {"gcv_equal": "equal"}     # rotation_weights of a row; "auto" otherwise
+# --covariance: the variation of the markers' noise (triangulated_noise's keywords); "strong" a check beyond the
+# two-of-three-cameras stretches (x 2-10, twice as many and longer, markers 0.5-2 times each other's sigma)
+NOISE_VARIATION = {"triangulation": {},
+                   "strong": {"lost_factor": (2.0, 10.0), "lost_stretches": 4, "lost_s": (0.5, 1.5),
+                              "marker_scale": (0.5, 2.0)}}
+
+# the rig of --covariance: three cameras 4 m in front of the box (y up), 1.5 m high, 35 deg apart
+CAMERAS = np.array([[4 * np.sin(a), 1.5, -4 * np.cos(a)] for a in np.radians([-35.0, 0.0, 35.0])])
 
 
 def pct(est, true):
@@ -68,6 +89,47 @@ def score(d, tr):
     k = tr.point(d["t"], d["hidden_body"])
     return (pct(k.velocity, d["hidden_vel"]), pct(k.acceleration, d["hidden_acc"]),
             pct(tr.omega(d["t"]), d["omega"]), pct(tr.alpha(d["t"]), d["alpha"]))
+
+
+def triangulated_noise(markers_true, t, noise_m, seed, cameras=CAMERAS, depth_ratio=(3.0, 10.0),
+                       lost_factor=(2.0, 4.0), lost_stretches=2, lost_s=(0.3, 1.0), marker_scale=(0.7, 1.4)):
+    """Per-frame anisotropic marker covariances as a triangulation gives them, and noise drawn from them.
+
+    Each marker ``m`` at frame ``k``: ``C = s^2 (d_m^2 u u^T + (I - u u^T))`` with ``u`` the mean of the
+    unit directions from the marker to the cameras that see it, ``d_m`` (depth / across) drawn in
+    ``depth_ratio``, ``s^2`` a per-marker scale (``marker_scale``, squared) times ``f`` in ``lost_factor``
+    for ``lost_stretches`` stretches of ``lost_s`` seconds in which one camera (random) does not see the
+    marker (1 elsewhere; where stretches overlap the first holds: a marker always has two cameras). The
+    whole is scaled so that the mean of ``trace(C) / 3`` is ``noise_m^2``.
+
+    Returns
+    -------
+    markers : (n, m, 3) ``markers_true`` plus the noise; cov : (n, m, 3, 3); info : dict (the fraction
+    of marker-frames seen by two cameras, the depth ratios).
+    """
+    rng = np.random.default_rng(10_000 + seed)
+    n, m, _ = markers_true.shape
+    seen = np.ones((n, m, len(cameras)), bool)
+    factor = np.ones((n, m))
+    for j in range(m):
+        for _ in range(lost_stretches):
+            length = int(round(rng.uniform(*lost_s) / (t[1] - t[0])))
+            start = rng.integers(0, n - length)
+            frames = start + np.flatnonzero(seen[start:start + length, j].all(-1))   # one camera lost at most
+            seen[frames, j, rng.integers(len(cameras))] = False
+            factor[frames, j] = rng.uniform(*lost_factor)
+    rays = cameras[None, None] - markers_true[:, :, None]
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    u = np.sum(rays * seen[..., None], axis=2)
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    ratio = rng.uniform(*depth_ratio, size=m)
+    s2 = rng.uniform(*marker_scale, size=m) ** 2 * factor
+    uu = u[..., :, None] * u[..., None, :]
+    cov = s2[..., None, None] * ((ratio[None, :, None, None] ** 2 - 1) * uu + np.eye(3))
+    cov *= noise_m ** 2 / np.mean(np.trace(cov, axis1=-2, axis2=-1) / 3)
+    noise = np.einsum("nmij,nmj->nmi", np.linalg.cholesky(cov), rng.standard_normal((n, m, 3)))
+    return markers_true + noise, cov, {"two_cameras": float(np.mean(seen.sum(-1) < len(cameras))),
+                                      "depth_ratio": ratio}
 
 
 def oracle_time_invariant(d, reg, tr):
@@ -100,11 +162,16 @@ def main():
     ap.add_argument("--draws", type=int, default=3)
     ap.add_argument("--fixture", default="issue13", choices=sorted(FIXTURES))
     ap.add_argument("--rows", default=",".join(ROWS), help="comma-separated rows: " + ", ".join(ROWS))
+    ap.add_argument("--covariance", nargs="?", const="triangulation", choices=sorted(NOISE_VARIATION),
+                    help="triangulation-like anisotropic per-frame marker noise, covariances to register_pose "
+                         "('strong': a larger variation over time and markers)")
     args = ap.parse_args()
     unknown = sorted(set(args.rows.split(",")) - set(ROWS))
     if unknown:
         ap.error(f"--rows: unknown {unknown} (rows: {', '.join(ROWS)}; the modal row: bench_kinematics_modal.py)")
-    print(f"fixture {args.fixture}: {FIXTURES[args.fixture]}")
+    print(f"fixture {args.fixture}: {FIXTURES[args.fixture]}"
+          + (f" (--covariance {args.covariance}: triangulation-like marker noise and covariances, "
+             f"{NOISE_VARIATION[args.covariance] or 'two of three cameras x 2-4'})" if args.covariance else ""))
     from horsemocap import pose, synthetic
 
     print(f"{'smoothing':13s} {'draw':>4s} {'noise_mm':>8s} {'vel_%':>6s} {'acc_%':>6s} {'omega_%':>7s} "
@@ -116,10 +183,18 @@ def main():
         res = []
         for seed in range(args.draws):
             d = synthetic.lift_with_ringing(seed=seed, **FIXTURES[args.fixture])
+            cov = None
+            if args.covariance:
+                d["markers"], cov, noise_info = triangulated_noise(d["markers_true"], d["t"], d["noise_m"], seed,
+                                                                   **NOISE_VARIATION[args.covariance])
+                if name == args.rows.split(",")[0]:
+                    print(f"{'':13s} draw {seed}: two cameras on {100 * noise_info['two_cameras']:.0f} % of "
+                          f"marker-frames, depth / across " + " ".join(f"{r:.1f}" for r in noise_info["depth_ratio"]))
             t0 = time.perf_counter()
-            reg = pose.register_pose(d["markers"], d["model"])
+            reg = pose.register_pose(d["markers"], d["model"], covariance=cov)
             tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing=method, order=order,
-                                          harmonics=harmonics, events=events)
+                                          harmonics=harmonics, events=events,
+                                          rotation_weights=ROTATION_WEIGHTS.get(name, "auto"))
             if name == "oracle_lti":
                 tr = oracle_time_invariant(d, reg, tr)
             row = score(d, tr)
@@ -127,6 +202,9 @@ def main():
             if method == "auto" and seed == 0:
                 ran = tr.smoothing["cx"]
                 print(f"{'':13s} auto ran {ran['smoothing_method']}: {ran['smoothing_reason']}")
+            if args.covariance and method == "gcv" and order == 5:
+                print(f"{'':13s} draw {seed} rotation weights: "
+                      + " ".join(str(tr.smoothing[c].get("weights", "equal")) for c in ("phix", "phiy", "phiz")))
             print(f"{name:13s} {seed:4d} {1000 * reg.noise_m:8.3f} " + " ".join(f"{v:6.1f}" for v in row)
                   + f" {time.perf_counter() - t0:6.1f}")
         print(f"{'median':13s} {'':4s} {'':8s} " + " ".join(f"{v:6.1f}" for v in np.median(res, axis=0)))
