@@ -358,10 +358,10 @@ def cmd_kinematics(args) -> int:
         print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
     print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
           f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
-    ran = next(iter(tr.smoothing.values()))
-    if "smoothing_method" in ran:
-        print(f"[horsemocap] kinematics: {ran['smoothing_method']} smoothing ({args.smoothing}: "
-              f"{ran['smoothing_reason']})", file=sys.stderr)
+    ran = tr.smoothing_choice
+    if ran:
+        print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
+              file=sys.stderr)
     print(f"results: {out.resolve()}")
     return 0
 

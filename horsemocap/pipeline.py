@@ -605,9 +605,9 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     sing = float(np.nanmin(np.abs(90 - cond["singularity_deg"])))
     if params.kinematics == "pose_spline":
         sm = rb.pose.smoothing
-        ran = next(iter(sm.values()))
-        how = (f"{ran['smoothing_method']} smoothing ({params.pose_smoothing}: {ran['smoothing_reason']})"
-               if "smoothing_method" in ran else f"{params.pose_smoothing} smoothing")
+        ran = rb.pose.smoothing_choice
+        how = (f"{ran['method']} smoothing ({params.pose_smoothing}: {ran['reason']})" if ran
+               else f"{params.pose_smoothing} smoothing")
         progress("rigid_body", f"pose trajectory ({how}, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond['registration_rms_m']):.2f} mm")

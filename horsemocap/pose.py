@@ -664,6 +664,15 @@ class PoseTrajectory:
         names = ("cx", "cy", "cz", "phix", "phiy", "phiz")
         return {nm: s.info for nm, s in zip(names, self.centre_splines + self.rotvec_splines)}
 
+    @property
+    def smoothing_choice(self) -> dict | None:
+        """What ``smoothing="auto"`` ran and why (:func:`choose_smoothing`): ``{"method", "reason"}``;
+        None when the smoothing was asked for by name."""
+        info = self.centre_splines[0].info
+        if "smoothing_method" not in info:
+            return None
+        return {"method": info["smoothing_method"], "reason": info["smoothing_reason"]}
+
     def _inside(self, t):
         t = np.asarray(t, float)
         if t is self.t or (t.shape == self.t.shape and np.array_equal(t, self.t)):

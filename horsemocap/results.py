@@ -149,15 +149,6 @@ def software_record() -> dict:
             "scipy": scipy.__version__, "opencv": cv2.__version__, "detection_core": ACTIVE_PATH}
 
 
-def _pose_smoothing_choice(rigid_body: dict) -> dict | None:
-    """What ``pose_smoothing: auto`` ran and why (:func:`horsemocap.pose.choose_smoothing`), or None."""
-    pose = getattr(rigid_body.get("analysis"), "pose", None)
-    info = next(iter(pose.smoothing.values()), {}) if pose is not None else {}
-    if "smoothing_method" not in info:
-        return None
-    return {"method": info["smoothing_method"], "reason": info["smoothing_reason"]}
-
-
 def analysis_record(analysis) -> dict:
     """Everything needed to repeat the run: parameters given and chosen."""
     res = analysis.results
@@ -209,9 +200,9 @@ def analysis_record(analysis) -> dict:
             p["fourier_orders"] = np.asarray(res["rigid_body"]["orders"]).astype(int).tolist()
         if res["rigid_body"].get("warnings"):
             chosen["rigid_body_warnings"] = list(res["rigid_body"]["warnings"])
-        smoothing = _pose_smoothing_choice(res["rigid_body"])
-        if smoothing:
-            chosen["pose_smoothing"] = smoothing
+        pose = getattr(res["rigid_body"].get("analysis"), "pose", None)
+        if pose is not None and pose.smoothing_choice:
+            chosen["pose_smoothing"] = pose.smoothing_choice
     if "comfort" in res and res["comfort"].get("indicators") is None:
         chosen["comfort_not_computed"] = res["comfort"].get("reason", "")
     return record
