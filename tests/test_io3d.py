@@ -108,7 +108,7 @@ def test_kinematics_command_takes_known_events(tmp_path, capsys):
     assert "events" in capsys.readouterr().err
 
 
-def test_kinematics_events_on_a_periodic_record_with_the_default_smoothing(tmp_path):
+def test_kinematics_events_on_a_periodic_record_with_the_default_smoothing(tmp_path, capsys):
     """--events with the default gcv smoothing on a record in which a stride period is found: the
     record is smoothed without stride harmonics (events and harmonics are not fitted together), not
     refused with a setting the command does not have."""
@@ -126,3 +126,5 @@ def test_kinematics_events_on_a_periodic_record_with_the_default_smoothing(tmp_p
     assert all(v.get("harmonics", 0) == 0 for v in res["trajectory"].smoothing.values())
     assert main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
                  "--out", str(tmp_path / "kin"), "--events", "2.8"]) == 0
+    err = capsys.readouterr().err        # what 'auto' ran, and why, is printed
+    assert "kinematics: adaptive smoothing (auto: 1 known change point(s), fitted without harmonics; fundamental" in err
