@@ -80,7 +80,9 @@ CAMERAS = np.array([[4 * np.sin(a), 1.5, -4 * np.cos(a)] for a in np.radians([-3
 
 
 def pct(est, true):
-    return 100 * np.sqrt(np.nanmean(np.sum((est - true) ** 2, -1))) / np.sqrt(np.mean(np.sum(true ** 2, -1)))
+    from horsemocap.accuracy import rmse_pct_of_rms
+
+    return rmse_pct_of_rms(est, true)
 
 
 def score(d, tr):

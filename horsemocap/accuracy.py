@@ -175,6 +175,26 @@ def rmse_axes(estimate: np.ndarray, true: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(d ** 2, axis=0))
 
 
+def rmse_pct_of_rms(estimate: np.ndarray, true: np.ndarray) -> float:
+    """RMSE of a vector signal as a percentage of the true signal's rms (issue 13's measure).
+
+    ``100 sqrt(mean |e_k - x_k|^2) / sqrt(mean |x_k|^2)`` over the samples ``k`` (rows; the last axis holds
+    the vector's components); samples where the estimate is NaN (no pose) are left out of the error.
+
+    Parameters
+    ----------
+    estimate, true : (n, d) arrays
+
+    Returns
+    -------
+    float
+    """
+    e, x = np.asarray(estimate, float), np.asarray(true, float)
+    if e.shape != x.shape:
+        raise ValueError(f"estimate and true: expected the same shape, got {e.shape} and {x.shape}")
+    return float(100 * np.sqrt(np.nanmean(np.sum((e - x) ** 2, -1))) / np.sqrt(np.mean(np.sum(x ** 2, -1))))
+
+
 def offset_and_motion(estimate: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split a per-axis position error into its constant part and the rest.
 

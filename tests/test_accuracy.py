@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from horsemocap.accuracy import match_points, offset_and_motion, rmse_axes, scaled_rig, wide_baseline_rig
+from horsemocap.accuracy import (match_points, offset_and_motion, rmse_axes, rmse_pct_of_rms, scaled_rig,
+                                 wide_baseline_rig)
 from horsemocap.camera import Camera, Rig
 
 
@@ -26,6 +27,17 @@ def test_match_points_ignores_missing():
     det = np.array([[5.0, 5.5], [np.nan, np.nan]])
     pairs, d = match_points(det, true)
     assert pairs.tolist() == [[0, 2]] and d.tolist() == [0.5]
+
+
+def test_rmse_pct_of_rms_known_answers():
+    true = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 5.0]])            # rms of |x|: 5
+    assert rmse_pct_of_rms(true, true) == 0.0
+    assert rmse_pct_of_rms(true + [0.0, 0.0, 1.0], true) == pytest.approx(20.0)
+    est = true.copy()
+    est[1] = np.nan                                                  # a frame without a pose: left out
+    assert rmse_pct_of_rms(est + [0.5, 0.0, 0.0], true) == pytest.approx(10.0)
+    with pytest.raises(ValueError, match="same shape"):
+        rmse_pct_of_rms(true[:1], true)
 
 
 def test_rmse_axes():
