@@ -997,10 +997,13 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         sig = pose_noise(reg, points, model)
     if harmonics not in ("none", "auto", "all"):
         raise ValueError(f"harmonics: expected 'none', 'auto' or 'all', got {harmonics!r}")
+    def with_harmonics(method):
+        return harmonics != "none" and method in ("gcv", "noise") and order == 5
+
     f0 = None
     found_f0 = fundamental_hz
     choice = None
-    if smoothing == "auto" or (harmonics != "none" and smoothing in ("gcv", "noise") and order == 5):
+    if smoothing == "auto" or with_harmonics(smoothing):
         if found_f0 is None:
             try:
                 found_f0, _ = estimate_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]))
@@ -1011,7 +1014,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         if smoothing == "adaptive" and reg.information is not None and rotation_weights == "auto":
             reason += "; the rotation's per-frame variance weights are a GCV option and not applied"
         choice = {"smoothing_method": smoothing, "smoothing_reason": reason}
-    if harmonics != "none" and smoothing in ("gcv", "noise") and order == 5:
+    if with_harmonics(smoothing):
         f0 = found_f0
     two = np.zeros(n, bool)
     if partial:
