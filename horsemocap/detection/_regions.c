@@ -154,62 +154,38 @@ static int first_pass(const uint8_t *img, Py_ssize_t stride, int w, int h, int t
     return OK;
 }
 
-/* 8-connected labels of (g > thr) in the crop; keys on the block grid shifted by (ox, oy). */
-static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, int oy, Crop *c)
+/* Second pass of the labelling: the components of the provisional labels lab (w x h, white pixels only
+   between row_lo and row_hi of each row), numbered by their first pixel in raster order, lab rewritten to
+   component index + 1; their pixel sums, boxes and keys (the first 2 x 2 block reached, on the block grid
+   shifted by (ox, oy)). *comp_out: n components (at most nl), freed by the caller. */
+static int second_pass(int32_t *lab, int w, int h, const int *row_lo, const int *row_hi, int32_t *parent,
+                       int32_t nl, int ox, int oy, Comp **comp_out, int *n_out)
 {
-    const int w = c->w, h = c->h;
-    int32_t nl = 0, *parent = NULL;
-    int *row_lo = malloc(sizeof(int) * (size_t)h), *row_hi = malloc(sizeof(int) * (size_t)h);
-    c->lab = malloc(sizeof(int32_t) * (size_t)w * (size_t)h);
-    c->comp = NULL;
-    c->n = 0;
-    if (!row_lo || !row_hi || !c->lab
-            || first_pass(img + (Py_ssize_t)c->v0 * stride + c->u0, stride, w, h, thr, c->lab, row_lo, row_hi,
-                          &parent, &nl) != OK) {
-        free(row_lo);
-        free(row_hi);
-        return NO_MEMORY;
-    }
-    /* second pass: components (numbered by their first pixel), their sums, boxes and keys */
     int32_t *index = calloc((size_t)nl + 1, sizeof(int32_t));
-    int ccap = 16;
-    c->comp = malloc(sizeof(Comp) * ccap);
-    if (!index || !c->comp) {
-        free(parent);
+    Comp *comp = malloc(sizeof(Comp) * ((size_t)nl + 1));
+    if (!index || !comp) {
         free(index);
-        free(row_lo);
-        free(row_hi);
+        free(comp);
         return NO_MEMORY;
     }
+    int n = 0;
     for (int y = 0; y < h; y++) {
-        int32_t *L = c->lab + (size_t)y * w;
+        int32_t *L = lab + (size_t)y * w;
         const int64_t by = (int64_t)((y + oy) >> 1) << 32;
         for (int x = row_lo[y]; x <= row_hi[y]; x++) {
             if (!L[x])
                 continue;
             int32_t r = find_root(parent, L[x]);
             if (!index[r]) {
-                if (c->n == ccap) {
-                    Comp *nc = realloc(c->comp, sizeof(Comp) * (size_t)ccap * 2);
-                    if (!nc) {
-                        free(parent);
-                        free(index);
-                        free(row_lo);
-                        free(row_hi);
-                        return NO_MEMORY;
-                    }
-                    c->comp = nc;
-                    ccap *= 2;
-                }
-                Comp *k = &c->comp[c->n];
+                Comp *k = &comp[n];
                 memset(k, 0, sizeof(Comp));
                 k->x0 = k->x1 = x;
                 k->y0 = k->y1 = y;
                 k->key = INT64_MAX;
-                index[r] = ++c->n;
+                index[r] = ++n;
             }
             int32_t id = index[r];
-            Comp *k = &c->comp[id - 1];
+            Comp *k = &comp[id - 1];
             L[x] = id;
             k->area++;
             k->sx += x;
@@ -223,11 +199,30 @@ static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, in
             if (key < k->key) k->key = key;
         }
     }
-    free(parent);
     free(index);
+    *comp_out = comp;
+    *n_out = n;
+    return OK;
+}
+
+/* 8-connected labels of (g > thr) in the crop; keys on the block grid shifted by (ox, oy). */
+static int label_crop(const uint8_t *img, Py_ssize_t stride, int thr, int ox, int oy, Crop *c)
+{
+    const int w = c->w, h = c->h;
+    int32_t nl = 0, *parent = NULL;
+    int *row_lo = malloc(sizeof(int) * (size_t)h), *row_hi = malloc(sizeof(int) * (size_t)h);
+    int status = NO_MEMORY;
+    c->lab = malloc(sizeof(int32_t) * (size_t)w * (size_t)h);
+    c->comp = NULL;
+    c->n = 0;
+    if (row_lo && row_hi && c->lab
+            && first_pass(img + (Py_ssize_t)c->v0 * stride + c->u0, stride, w, h, thr, c->lab, row_lo, row_hi,
+                          &parent, &nl) == OK)
+        status = second_pass(c->lab, w, h, row_lo, row_hi, parent, nl, ox, oy, &c->comp, &c->n);
+    free(parent);
     free(row_lo);
     free(row_hi);
-    return OK;
+    return status;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -748,6 +743,33 @@ static PyObject *new_bytes(const void *data, Py_ssize_t n)
     return PyByteArray_FromStringAndSize((const char *)data, n);
 }
 
+/* The gray image argument of every entry point: a 2-D uint8 buffer whose rows are contiguous (C-contiguous
+   when c_contiguous), at most 2^28 pixels (32-bit labels and sums). 0, or -1 with a ValueError naming fn
+   and the buffer released. */
+static int gray_buffer(PyObject *obj, Py_buffer *view, int c_contiguous, const char *fn)
+{
+    if (PyObject_GetBuffer(obj, view, (c_contiguous ? PyBUF_C_CONTIGUOUS : PyBUF_STRIDES) | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: gray must be a %s", fn,
+                     c_contiguous ? "C-contiguous buffer" : "buffer (a uint8 array)");
+        return -1;
+    }
+    const char *why = NULL;
+    if (view->ndim != 2 || view->itemsize != 1 || !view->format || strcmp(view->format, "B") != 0)
+        why = "gray must be a 2-D uint8 array";
+    else if (view->strides[1] != 1 || view->strides[0] < view->shape[1])
+        why = "gray's rows must be contiguous (column stride 1)";
+    else if (view->shape[0] > INT32_MAX / 2 || view->shape[1] > INT32_MAX / 2
+             || view->shape[0] * view->shape[1] > INT32_MAX / 8)
+        why = "gray too large (at most 2^28 pixels)";
+    if (why) {
+        PyErr_Format(PyExc_ValueError, "%s: %s", fn, why);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
 PyDoc_STRVAR(candidates_doc,
 "candidates(gray, threshold, crops, area_min, area_max, min_circularity, whole, max_count, weighted, light)\n"
 "\n"
@@ -782,21 +804,9 @@ static PyObject *candidates(PyObject *self, PyObject *args)
         j.has_circ = 1;
     }
     Py_buffer view;
-    if (PyObject_GetBuffer(gray_obj, &view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
-        PyErr_Clear();
-        PyErr_SetString(PyExc_ValueError, "_regions.candidates: gray must be a C-contiguous buffer");
+    if (gray_buffer(gray_obj, &view, 1, "_regions.candidates") < 0)
         return NULL;
-    }
     PyObject *result = NULL, *seq = NULL;
-    if (view.ndim != 2 || view.itemsize != 1 || !view.format || (strcmp(view.format, "B") != 0)) {
-        PyErr_SetString(PyExc_ValueError, "_regions.candidates: gray must be a 2-D uint8 array");
-        goto out;
-    }
-    if (view.shape[0] > INT32_MAX / 2 || view.shape[1] > INT32_MAX / 2
-            || view.shape[0] * view.shape[1] > INT32_MAX / 8) {
-        PyErr_SetString(PyExc_ValueError, "_regions.candidates: gray too large (at most 2^28 pixels)");
-        goto out;
-    }
     j.g = view.buf;
     j.H = (int)view.shape[0];
     j.W = (int)view.shape[1];
@@ -921,43 +931,13 @@ static int label_fast(LabelJob *j)
     const int w = j->w, h = j->h;
     int32_t nl = 0, *parent = NULL;
     int *row_lo = malloc(sizeof(int) * (size_t)(h ? h : 1)), *row_hi = malloc(sizeof(int) * (size_t)(h ? h : 1));
-    int32_t *index = NULL, *final = NULL;
+    int32_t *final = NULL;
     Comp *comp = NULL;
     int64_t *order = NULL;
-    int status = NO_MEMORY;
-    if (!row_lo || !row_hi || first_pass(j->img, j->stride, w, h, j->thr, j->lab, row_lo, row_hi, &parent, &nl) != OK)
+    int status = NO_MEMORY, n = 0;
+    if (!row_lo || !row_hi || first_pass(j->img, j->stride, w, h, j->thr, j->lab, row_lo, row_hi, &parent, &nl) != OK
+            || second_pass(j->lab, w, h, row_lo, row_hi, parent, nl, 0, 0, &comp, &n) != OK)
         goto out;
-    index = calloc((size_t)nl + 1, sizeof(int32_t));
-    comp = malloc(sizeof(Comp) * ((size_t)nl + 1));
-    if (!index || !comp) goto out;
-    int n = 0;
-    for (int y = 0; y < h; y++) {
-        int32_t *L = j->lab + (size_t)y * w;
-        const int64_t by = (int64_t)(y >> 1) << 32;
-        for (int x = row_lo[y]; x <= row_hi[y]; x++) {
-            if (!L[x]) continue;
-            int32_t r = find_root(parent, L[x]);
-            if (!index[r]) {
-                Comp *k = &comp[n];
-                memset(k, 0, sizeof(Comp));
-                k->x0 = k->x1 = x;
-                k->y0 = k->y1 = y;
-                k->key = INT64_MAX;
-                index[r] = ++n;
-            }
-            int32_t id = index[r];
-            Comp *k = &comp[id - 1];
-            L[x] = id;
-            k->area++;
-            k->sx += x;
-            k->sy += y;
-            if (x < k->x0) k->x0 = x;
-            if (x > k->x1) k->x1 = x;
-            k->y1 = y;
-            int64_t key = by | (int64_t)(x >> 1);
-            if (key < k->key) k->key = key;
-        }
-    }
     /* OpenCV's numbering: by the first 2 x 2 block a region reaches */
     order = malloc(sizeof(int64_t) * 2 * (size_t)(n ? n : 1));
     final = malloc(sizeof(int32_t) * ((size_t)n + 1));
@@ -1003,7 +983,6 @@ out:
     free(parent);
     free(row_lo);
     free(row_hi);
-    free(index);
     free(comp);
     free(order);
     free(final);
@@ -1025,24 +1004,11 @@ static PyObject *label(PyObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "Oi", &gray_obj, &thr))
         return NULL;
     Py_buffer view;
-    if (PyObject_GetBuffer(gray_obj, &view, PyBUF_STRIDES | PyBUF_FORMAT) < 0) {
-        PyErr_Clear();
-        PyErr_SetString(PyExc_ValueError, "_regions.label: gray must be a buffer (a uint8 array)");
+    if (gray_buffer(gray_obj, &view, 0, "_regions.label") < 0)
         return NULL;
-    }
     LabelJob j;
     memset(&j, 0, sizeof(j));
     PyObject *lab = NULL;
-    if (view.ndim != 2 || view.itemsize != 1 || !view.format || strcmp(view.format, "B") != 0) {
-        PyErr_SetString(PyExc_ValueError, "_regions.label: gray must be a 2-D uint8 array");
-        goto out;
-    }
-    if (view.strides[1] != 1 || view.strides[0] < view.shape[1] || view.shape[0] > INT32_MAX / 2
-            || view.shape[1] > INT32_MAX / 2 || view.shape[0] * view.shape[1] > INT32_MAX / 8) {
-        PyErr_SetString(PyExc_ValueError, "_regions.label: gray's rows must be contiguous (column stride 1) "
-                        "and the image below 2^28 pixels");
-        goto out;
-    }
     j.img = view.buf;
     j.stride = view.strides[0];
     j.h = (int)view.shape[0];
@@ -1233,17 +1199,8 @@ static PyObject *bright_boxes(PyObject *self, PyObject *args)
         return NULL;
     }
     Py_buffer view;
-    if (PyObject_GetBuffer(gray_obj, &view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
-        PyErr_Clear();
-        PyErr_SetString(PyExc_ValueError, "_regions.bright_boxes: gray must be a C-contiguous buffer");
+    if (gray_buffer(gray_obj, &view, 1, "_regions.bright_boxes") < 0)
         return NULL;
-    }
-    if (view.ndim != 2 || view.itemsize != 1 || !view.format || strcmp(view.format, "B") != 0
-            || view.shape[0] > INT32_MAX / 2 || view.shape[1] > INT32_MAX / 2) {
-        PyErr_SetString(PyExc_ValueError, "_regions.bright_boxes: gray must be a 2-D uint8 array");
-        PyBuffer_Release(&view);
-        return NULL;
-    }
     Box *boxes;
     int n, status;
     const int H = (int)view.shape[0], W = (int)view.shape[1];
