@@ -714,6 +714,13 @@ def _whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circul
     image.
     """
     boxes = regions_core.core_bright_boxes(gray, threshold)
+    return _core_whole_search(gray, threshold, boxes, area_range, min_circularity, centroid, max_count)
+
+
+def _core_whole_search(gray, threshold: int, boxes, area_range, min_circularity, centroid: str,
+                       max_count: int) -> Candidates:
+    """:func:`_whole_frame_search` in the crops ``boxes`` (the core's ``bright_boxes``) by the compiled core,
+    or by :func:`_whole_frame_search_python` where the core is not active or does not take the input."""
     if boxes is not None:
         out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], _max_area(area_range, gray)),
                                            min_circularity, True, max_count, centroid, False)
@@ -735,15 +742,11 @@ def _whole_count(gray: np.ndarray, threshold: int, area_range):
     same regions (the labels made once on the Python path; by the compiled core when active)."""
     boxes = regions_core.core_bright_boxes(gray, threshold)
     if boxes is not None:
-        amax = _max_area(area_range, gray)
-        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], amax), None, True, 2 ** 31 - 1,
-                                           "binary", False)
+        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], _max_area(area_range, gray)),
+                                           None, True, 2 ** 31 - 1, "binary", False)
         if out is not None:
             def search(min_circularity, centroid, max_count):
-                found = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], amax), min_circularity,
-                                                     True, max_count, centroid, False)
-                return Candidates(*found[:3]) if found is not None else \
-                    _whole_frame_search_python(gray, threshold, area_range, min_circularity, centroid, max_count)
+                return _core_whole_search(gray, threshold, boxes, area_range, min_circularity, centroid, max_count)
             return int(np.count_nonzero(~out[2])), search
     regions = _bright_regions(gray, threshold, area_range)
 
