@@ -91,6 +91,10 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="with pose_spline and covariance weights: the rotation smoothed with each frame weighted "
                         "by its predicted variance where that explains the residuals better (auto, default), "
                         "or every frame alike (equal)")
+    g.add_argument("--pose-events", dest="pose_events", metavar="SECONDS,...",
+                   help="with pose_spline: known instants (s, the time_s of trajectories.csv) where the "
+                        "acceleration may jump, e.g. impacts from a force plate, e.g. 2.8,3.35 (not found from the "
+                        "data)")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
@@ -155,6 +159,12 @@ def _params_from_args(args, base):
                 raise ParamsError(f"--{name.replace('_', '-')}: expected version numbers 1-6 separated by commas, "
                                   f"got {text!r}")
             changes[name] = [k in picked for k in range(1, 7)]
+    text = getattr(args, "pose_events", None)
+    if text:
+        try:
+            changes["pose_events"] = [float(v) for v in text.split(",")]
+        except ValueError:
+            raise ParamsError(f"--pose-events: expected times in seconds separated by commas, got {text!r}") from None
     params = base.updated(**changes)
     for item in getattr(args, "set", None) or []:
         params = _set_param(params, item)

@@ -585,6 +585,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         cov = axes @ cov[lo:hi] @ axes.T
     period = res["motion_frame"]["period_frames"]
     fo = params.fourier_orders
+    _check_pose_events(params.pose_events, t if pose_t is None else pose_t)
     try:
         rb = analyse_rigid_body(
             t, positions, static, x_degree=params.x_degree,
@@ -596,9 +597,14 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
             pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
             pose_harmonics=params.pose_harmonics, pose_covariance=cov,
-            pose_rotation_weights=params.pose_rotation_weights, saddle_index=params.saddle_marker)
+            pose_rotation_weights=params.pose_rotation_weights, saddle_index=params.saddle_marker,
+            pose_events=params.pose_events)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
+    except ValueError as exc:
+        if params.pose_events and str(exc).startswith("events:"):
+            raise AnalysisError("rigid_body", f"parameter 'pose_events': {exc}") from None
+        raise
     orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
     pos, vel, acc = rb.marker_kinematics
     cond = conditioning(rb)
@@ -619,6 +625,9 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         if f0:
             progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "
                      + ", ".join(f"{k} {_harmonics_text(v)}" for k, v in sm.items()))
+        if params.pose_events:
+            progress("rigid_body", "acceleration free to jump at the known change points (pose_events) "
+                     + ", ".join(f"{e:g}" for e in sorted(params.pose_events)) + " s")
         if rb.chain_error:
             progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
     else:
@@ -636,6 +645,18 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             "saddle_position": rb.saddle_position, "saddle_velocity": rb.saddle_velocity,
             "saddle_acceleration": rb.saddle_acceleration, "conditioning": cond, "warnings": warn,
             "saddle_angles_deg": saddle_angles(rb)}
+
+
+def _check_pose_events(events, times) -> None:
+    """Refuse ``pose_events`` outside the smoothed record (:class:`AnalysisError` naming the parameter)."""
+    if not events:
+        return
+    lo, hi = float(times[0]), float(times[-1])
+    outside = [e for e in events if not lo < e < hi]
+    if outside:
+        raise AnalysisError("rigid_body", f"parameter 'pose_events': {outside} s outside the smoothed record: expected "
+                                          f"times strictly inside ({lo:.6g}, {hi:.6g}) s, the time_s axis of "
+                                          "trajectories.csv (0 = the first analysed frame)")
 
 
 def pose_margin(points: np.ndarray, segment, min_markers: int = 2) -> tuple[int, int]:

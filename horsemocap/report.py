@@ -180,6 +180,7 @@ PARAMETER_NAMES = {
     "pose_harmonics": "stride harmonics kept unpenalised in the pose smoothing",
     "pose_weights": "marker weights in each frame's pose registration",
     "pose_rotation_weights": "frame weights in the rotation's smoothing",
+    "pose_events": "known change points of the pose smoothing (s)",
     "motion_frame": "direction of motion (x axis) from",
     "preset": "preset",
     "sync": "synchronisation",

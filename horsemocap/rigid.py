@@ -1022,7 +1022,7 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                        rotation_orders=None, saddle_orders=None, weights=None,
                        pose_points=None, pose_t=None, pose_partial: bool = False,
                        pose_harmonics: str = "auto", pose_covariance=None,
-                       pose_rotation_weights: str = "auto") -> RigidBodyAnalysis:
+                       pose_rotation_weights: str = "auto", pose_events=None) -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call.
 
     Parameters
@@ -1116,6 +1116,9 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         Weights of the rotation components' smoothing
         (:func:`horsemocap.pose.fit_pose_trajectory`, ``rotation_weights``;
         ``"auto"`` needs ``pose_covariance``).
+    pose_events : sequence of float, optional
+        Known instants (s, the time axis of ``t``) where the pose trajectory's acceleration may
+        jump (:func:`horsemocap.pose.fit_pose_trajectory`, ``events``); with ``"pose_spline"``.
     """
     from . import fitting
 
@@ -1151,12 +1154,14 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
                          f"got {np.shape(pose_covariance)}")
     preg_all = pose_mod.register_pose(ppts, model, weights, covariance=pose_covariance)
     preg = preg_all if pose_t is None else _registration_rows(preg_all, inside)
+    if pose_events is not None and len(pose_events) and kinematics != "pose_spline":
+        raise ValueError(f"pose_events: change points are a 'pose_spline' option, got kinematics={kinematics!r}")
     if kinematics == "pose_spline":
         order = 3 if pose_smoothing == "gcv_cubic" else 5
         sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
         traj = pose_mod.fit_pose_trajectory(pt, preg_all, model, smoothing=sm, order=order, points=ppts,
                                             partial=pose_partial, harmonics=pose_harmonics,
-                                            rotation_weights=pose_rotation_weights)
+                                            rotation_weights=pose_rotation_weights, events=pose_events)
         psaddle = traj.point(t, s_saddle)
         pmarkers = traj.points(t, model)
         try:

@@ -87,3 +87,42 @@ def test_pose_events_need_a_spline_without_harmonics():
     reg = pose.register_pose(d["markers"], d["model"])
     with pytest.raises(ValueError, match="events"):
         pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="gcv", order=3, events=[1.2])
+
+
+def test_pose_events_parameter_reaches_the_pipelines_pose_smoothing():
+    """``pose_events`` (analyze's ``--pose-events``): the known instants reach every pose component's
+    smoothing on the bundled session (the saddle's acceleration changes); times outside the smoothed
+    record, and the options that cannot fit change points, are refused naming the parameter."""
+    from dataclasses import replace
+
+    from horsemocap.data import default_session_dir
+    from horsemocap.params import AnalysisParams, ParamsError
+    from horsemocap.pipeline import AnalysisError, analyze, run_steps
+
+    assert AnalysisParams().pose_events is None
+    base = analyze(default_session_dir(), None, {}, until="motion_frame", progress=lambda *a: None)
+    n = len(base.results["motion_frame"]["positions"])
+    tau = round(0.5 * (n - 1) / base.session.fps, 4)
+    runs = {k: run_steps(base.session, replace(base.params, pose_events=ev), base.results, ["rigid_body"])
+            .results["rigid_body"] for k, ev in (("none", None), ("event", [tau]))}
+    smoothing = runs["event"]["analysis"].pose.smoothing
+    assert all(v["events"] == [tau] for v in smoothing.values())
+    assert all("events" not in v for v in runs["none"]["analysis"].pose.smoothing.values())
+    assert not np.allclose(runs["event"]["saddle_acceleration"], runs["none"]["saddle_acceleration"])
+    with pytest.raises(AnalysisError, match="pose_events.*outside"):
+        run_steps(base.session, replace(base.params, pose_events=[100.0]), base.results, ["rigid_body"])
+    for bad in ({"pose_events": [1.0], "kinematics": "fits"}, {"pose_events": [1.0], "pose_smoothing": "gcv"},
+                {"pose_events": ["1.0"]}, {"pose_events": [1.0, 1.0]}):
+        with pytest.raises(ParamsError, match="pose_events"):
+            AnalysisParams.from_dict(bad)
+    assert AnalysisParams.from_dict({"pose_events": [1.0], "pose_smoothing": "gcv",
+                                     "pose_harmonics": "none"}).pose_events == [1.0]
+
+
+def test_pose_events_option_is_parsed_or_refused(tmp_path, capsys):
+    from horsemocap.cli import main
+    from horsemocap.data import default_session_dir
+
+    assert main(["analyze", str(default_session_dir()), "--out", str(tmp_path / "o"), "--pose-events", "0.5,x"]) == 2
+    assert "--pose-events" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
