@@ -212,8 +212,9 @@ class AnalysisParams:
         tried holds on both the ringing fixtures and the lift
         (``benchmarks/bench_kinematics_tries.py --detect``). Issue 13's ringing
         fixture: hidden-point acceleration 18.4 % without, 14.9 % with the true
-        onset, 19.9 % with it one frame early (``--pose-events``). Default
-        ``None``: none.
+        onset (median of three draws), 19.9 % with it one frame early (draw 0,
+        notebook 11): an instant must be known to the frame. ``--pose-events``;
+        default ``None``: none.
     motion_frame : str
         x-motion axis: ``"auto"`` (default: the thesis' eq. 5.6/5.7 over one
         or two periods of ``x_marker`` when a period is given or found, else
