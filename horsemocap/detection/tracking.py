@@ -612,6 +612,9 @@ def _track_frame(gc, k, state, p):
 
 
 def _update_state(state, k, px, ar, p):
+    """Fold frame ``k``'s found markers (``px``, ``ar``; NaN = not found) into the tracking state: position,
+    velocity (known when the marker was seen at most ``max_gap`` frames before), smoothed area; with every
+    marker found, the configuration (and with ``distance_reference="previous"`` the distances and signs)."""
     seen = np.isfinite(px).all(axis=1)
     seen_l = seen.tolist()
     if any(seen_l):
@@ -621,14 +624,9 @@ def _update_state(state, k, px, ar, p):
         vel = np.where(near[:, None], (px - state["last_p"]) / dt[:, None], 0.0)   # (NaN quietly where unused)
         a0 = state["area"]
         area = np.where(np.isfinite(a0), 0.7 * a0 + 0.3 * ar, ar)
-        if all(seen_l):
-            state["vel"], state["vel_known"], state["area"] = vel, near, area
-            state["last_p"] = px.copy()
-            state["last_k"] = [k] * len(seen_l)
-        else:
-            state["vel"][seen], state["vel_known"][seen], state["area"][seen] = vel[seen], near[seen], area[seen]
-            state["last_p"][seen] = px[seen]
-            state["last_k"] = [k if s else lk for s, lk in zip(seen_l, last_k)]
+        state["vel"][seen], state["vel_known"][seen], state["area"][seen] = vel[seen], near[seen], area[seen]
+        state["last_p"][seen] = px[seen]
+        state["last_k"] = [k if s else lk for s, lk in zip(seen_l, last_k)]
     if all(seen_l):
         state["config"] = px.copy()
         if p.distance_reference == "previous":
