@@ -1095,16 +1095,22 @@ def safe_store_name(name: str) -> str:
 def notebook_results_dir(session: Session | Path) -> Path:
     """Where notebooks keep a session's results (``$HORSEMOCAP_RESULTS``).
 
-    ``<root>/<name>`` with the session's name made safe by
-    :func:`safe_store_name` (a name like ``../../x`` stays inside the root).
+    ``<root>/<name>-<folder>`` with the session's name made safe by
+    :func:`safe_store_name` (a name like ``../../x`` stays inside the root)
+    and 8 hex digits of the SHA-256 of the session folder's resolved path:
+    two sessions with one name (the bundled Horse 2 canter and the herd's
+    render of it) never share their results or the choices made for them.
     """
     from .data import cache_dir
 
-    name = session.name if isinstance(session, Session) else load_session(session, open_sources=False).name
+    if not isinstance(session, Session):
+        session = load_session(session, open_sources=False)
+    folder = str(Path(session.root).resolve())
+    digest = hashlib.sha256(folder.encode("utf-8", "surrogateescape")).hexdigest()[:8]
     root = Path(os.environ.get("HORSEMOCAP_RESULTS") or (cache_dir() / "results")).resolve()
-    path = root / safe_store_name(name)
+    path = root / f"{safe_store_name(session.name)}-{digest}"
     if path.parent != root:  # cannot happen with a safe name; never write outside the store
-        raise ValueError(f"session name {name!r} leaves the results store {root}")
+        raise ValueError(f"session name {session.name!r} leaves the results store {root}")
     return path
 
 

@@ -379,3 +379,18 @@ def test_the_period_widget_keeps_the_exact_period_and_shows_it_rounded(store):
     assert ws.choices == {}
     w.value = 18.0
     assert ws.choices == {"period_frames": 18.0}
+
+
+def test_two_sessions_with_one_name_keep_apart(store, tmp_path):
+    """The store is keyed by the session's folder, not only its name: a copy of the bundled session (the same
+    ``name`` in session.json, as the herd's render of Horse 2 canter has) gets its own results folder, and a
+    choice made for one is not applied to the other."""
+    copy = tmp_path / "elsewhere" / default_session_dir().name
+    shutil.copytree(default_session_dir(), copy)
+    assert load_session(copy, open_sources=False).name == load_session(default_session_dir(), open_sources=False).name
+    a, b = notebook_results_dir(default_session_dir()), notebook_results_dir(copy)
+    assert a != b and a.parent == b.parent == store.resolve()
+    assert notebook_results_dir(default_session_dir()) == a               # stable
+    wsm.set_choice(default_session_dir(), "detection.left.threshold", 140)
+    assert wsm.read_choices(default_session_dir()) == {"detection": {"left": {"threshold": 140}}}
+    assert wsm.read_choices(copy) == {}
