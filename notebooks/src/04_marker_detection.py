@@ -155,7 +155,7 @@ for lab, i in zip(picked, idx):
 
 # %% tags=["nbval-ignore-output"]
 ui_all = widgets.ui_detection(frames, p)
-ws.bind(ui_all, "detection.left", automatic={}, convert=lambda chosen: workspace.detection_changes(chosen, p))
+ws.bind(ui_all, "detection.left", automatic={}, convert=lambda chosen, q=p: workspace.detection_changes(chosen, q))
 display(ui_all)
 
 # %%
@@ -319,8 +319,10 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 # buckle, a reflector that crosses the markers. The three cameras together can (Guchin et al.,
 # section 5.2.3). The pipeline's default, `detection_method="multiview"`, therefore
 #
-# 1. takes the candidate regions of every camera (the same threshold, labels, area and
-#    circularity rules as above);
+# 1. takes the candidate regions of every camera (area and circularity rules as above; the
+#    threshold is chosen for the candidate search from each camera's own images, so it can
+#    differ by a few gray levels from the one-camera choice of the tabs above: the cell below
+#    prints it);
 # 2. matches them across the cameras: two regions that triangulate with a reprojection error
 #    below 2 px satisfy the epipolar constraint, and a third camera validates the point when it
 #    has a region at its projection;
@@ -368,11 +370,11 @@ sides = [np.linalg.norm(static[i] - static[j]) for i, j in ((0, 1), (1, 2), (0, 
 print("static shot: marker1-marker2 {:.0f} mm, marker2-marker3 {:.0f} mm, marker1-marker3 {:.0f} mm".format(
     *(1000 * np.array(sides))))
 marker_points = views.points[fit.assignment]
-for p in range(len(views)):
-    d = 1000 * np.linalg.norm(marker_points - views.points[p], axis=1)
-    role = f"marker{list(fit.assignment).index(p) + 1}" if p in fit.assignment else "pseudo marker"
-    seen = "+".join(c for c, j in zip(views.cameras, views.index[p]) if j >= 0)
-    print(f"point {p:2d} ({seen:17s}): distances to the markers {d[0]:6.0f} {d[1]:6.0f} {d[2]:6.0f} mm -> {role}")
+for point in range(len(views)):
+    d = 1000 * np.linalg.norm(marker_points - views.points[point], axis=1)
+    role = f"marker{list(fit.assignment).index(point) + 1}" if point in fit.assignment else "pseudo marker"
+    seen = "+".join(c for c, j in zip(views.cameras, views.index[point]) if j >= 0)
+    print(f"point {point:2d} ({seen:17s}): distances to the markers {d[0]:6.0f} {d[1]:6.0f} {d[2]:6.0f} mm -> {role}")
 
 # %% [markdown]
 # **Through the sequence.** Every 2D centre that was not used keeps its reason (the

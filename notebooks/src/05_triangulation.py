@@ -59,7 +59,7 @@ from horsemocap.virtuallab import load_truth
 # markers' rigid model), the marker centres identified by all cameras together in every
 # synchronised frame (notebook 04, section 9), and the analysed frames — the longest run in which
 # every marker has a 3D position (seen by two or more cameras, or bridged over a short gap). A
-# camera may miss a marker inside that run: below, the middle camera misses two centres.
+# camera may miss a marker inside that run (the cell below prints how many centres each camera found).
 # `results_for` loads what an earlier notebook computed, or computes it (the calibration takes
 # about 20 s).
 
