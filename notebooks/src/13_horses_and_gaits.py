@@ -212,11 +212,13 @@ for g in list(herd.GAITS) + ["pooled"]:
           f"  {rho_truth[(g, 'acc_y_Wb_rms')]:6.2f}")
 
 # %% [markdown]
-# The narrow-baseline rig measures each session's indicators only to within some ten percent, up to
-# about twenty (the bundled Horse 2 canter is one of the easiest sessions), yet within every gait the
+# With the pipeline's defaults the rig measures each session's indicators to within the errors
+# printed above (a few tenths of a percent in the median, about one percent at worst, on these
+# rendered sessions; real video is noisier: notebook 14's noise study), and within every gait the
 # horses are ranked as the truth ranks them (the rank correlations above agree; where two horses are
-# within the measurement error of each other they could swap places): the comparison of section 8.5 survives the measurement error, the absolute
-# riding times do not — read them as relative comfort (section 5). `benchmarks/bench_herd.py` prints
+# within the measurement error of each other they could swap places): the comparison of section 8.5
+# survives the measurement error. The absolute riding times rest on the thesis' own reading of the
+# standards as well as on the measurement — read them as relative comfort (section 5). `benchmarks/bench_herd.py` prints
 # the same comparison with every stage's error, and shows how the default smoothing (loess) was
 # chosen over the thesis' rloess on these 16 sessions.
 #

@@ -87,10 +87,12 @@ fig = plots.plot_stage_rmse(st)
 plt.show()
 
 # %% [markdown]
-# The x-motion acceleration error is large by construction: the thesis fits x-motion with a straight
-# line (degree 1, section 5.5.2.1), so the surge of the canter (the horse speeding up and slowing down
-# within a stride) is not in the model. The vertical (y) axis, the one that matters for comfort, is
-# fitted by a Fourier series and is much better.
+# These are the pipeline's default kinematics: the pose trajectory smoothed from all markers
+# (notebooks 08-11), with no model imposed on any axis. The thesis' chain of fits
+# (`kinematics="fits"`) fits x-motion with a straight line (degree 1, section 5.5.2.1), so there the
+# surge of the canter (the horse speeding up and slowing down within a stride) is not in the model
+# and the x-motion acceleration error is large by construction; the section "The thesis' own chain
+# beside the default" below runs it whole.
 #
 # ## 4. The comfort indicators
 #
