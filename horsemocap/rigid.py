@@ -625,8 +625,9 @@ def singularity_report(angle_deg, tolerance_deg: float = 15.0, warn: bool = True
         warnings.warn(f"angular velocity: omega within {tolerance_deg:g} deg of the markers' plane "
                       f"in {flagged.sum()} of {fin.sum()} frames (closest {rep['min_margin_deg']:.1f} deg "
                       "from perpendicular to the normal): the thesis versions (eq. 6.3/6.4, "
-                      "6.38/6.39) are unreliable there (eq. 6.35); prefer the least-squares "
-                      "solution", RuntimeWarning, stacklevel=2)
+                      "6.38/6.39) are unreliable there (eq. 6.35); use the pose trajectory (kinematics "
+                      "'pose_spline', the default) or the orientation fit (angular_method 'rotation'), "
+                      "which use all markers and the motion's smoothness", RuntimeWarning, stacklevel=2)
     return rep
 
 
