@@ -8,6 +8,12 @@
 # - how the widgets of these notebooks stand in for the questions the thesis' MATLAB code asked;
 # - how to run the whole analysis with one function call, or one command.
 #
+# **Before you start.** Use the kernel of the Python environment where `horsemocap` is installed
+# (`pip install -r environment.txt`, README). The notebooks are stored with their outputs; their
+# controls (sliders, pickers, check boxes) draw as controls once the notebook is trusted
+# (`jupyter trust notebooks/*.ipynb`, once after cloning) or once their cells have run:
+# **Run > Run All Cells** first, then move a control and re-run the cells below it.
+#
 # A horse's back moves the rider up and down a few centimetres several times a second. The thesis
 # filmed four horses in four gaits with three cameras, followed reflective markers stuck near the
 # saddle, and reconstructed the motion of the saddle point under the rider — which no camera can
@@ -117,7 +123,7 @@ print("motion sources:", {cam: p.name for cam, p in session.motion.items()})
 # | plumb still: threshold and labels, every camera (7a) | still picker | 07 | `--plumb-threshold`, `--set stills.plumb....` |
 # | static shot: threshold and labels, every camera (8a) | still picker | 08 | `--static-threshold`, `--set stills.static....` |
 # | fit type for x (9.i) | polynomial degree | 09 | `--x-degree` |
-# | number of extremes, Fourier order (9.ii-iii) | order chooser with fits and residuals | 09 | `--fourier-orders` |
+# | number of extremes, Fourier order (9.ii-iii) | per marker and axis: the number of extremes and the order's buttons | 09 | `--fourier-orders` |
 # | omega / alfa versions (11) | six checkboxes each | 10 | `--angular thesis`, `--omega-versions`, `--alpha-versions` |
 # | saddle marker in the static shot (12a; the static shot's threshold and labels as in 8a) | dropdown of the static shot's points | 11 | `--saddle-marker` |
 # | weighting of the comfort indicators (10, 13) | iso / thesis toggle | 12 | `--weighting` |
@@ -151,7 +157,7 @@ print(" -> ".join(STEPS))
 #
 # 1. `motion` and `calibration.images`; `sync` becomes `{"offsets": {"left": ..., "middle": ..., "right": ...}}`.
 # 2. The last column of the table above: `--threshold` (threshold slider), `--period` and `--x-marker`
-#    (motion frame), `--x-degree` and `--fourier-orders` (order chooser), `--angular` (how omega/alfa are computed: `thesis` averages the versions ticked in
+#    (motion frame), `--x-degree` and `--fourier-orders` (the order buttons), `--angular` (how omega/alfa are computed: `thesis` averages the versions ticked in
 #    the six checkboxes), `--omega-versions` and `--alpha-versions` (those checkboxes, e.g. `1,2,4`),
 #    `--weighting` (iso/thesis toggle), `--offsets`, `--preset thesis` (every
 #    thesis choice at once).
