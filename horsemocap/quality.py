@@ -411,6 +411,27 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)") -
     return Check("sync_by_markers", float(worst), "frames", level, (0, 0), (None, None), threshold, input_, msg)
 
 
+def check_marker_geometry(warnings, input_="the markers' layout (static shot) and the frames without a pose") -> Check:
+    """Does the marker geometry support the pose the kinematics rest on?
+
+    ``warnings``: the rigid-body step's conditioning messages
+    (:func:`horsemocap.pipeline.conditioning`: a thin marker triangle whose
+    predicted rotation noise exceeds 1 deg per frame, frames without a pose,
+    the thesis versions near the eq. 6.35 singularity). The figure is their
+    number: none is ``ok``, any is a ``warning`` (the results are written and
+    the messages say which of them to distrust: angular results, far points).
+    """
+    threshold = "no conditioning warning: ok; any: warning"
+    if warnings is None:
+        return Check("marker_geometry", None, "warnings", SKIPPED, (0, 0), (None, None), threshold, input_,
+                     "the rigid-body step's conditioning: not available")
+    warnings = list(warnings)
+    level = "ok" if not warnings else "warning"
+    msg = "; ".join(warnings) if warnings else "the marker geometry supports the pose in every frame"
+    return Check("marker_geometry", float(len(warnings)), "warnings", level, (0, 0), (None, None), threshold,
+                 input_, msg)
+
+
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
     res, s = analysis.results, analysis.session
@@ -428,6 +449,8 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_sync_by_markers(res["detect"]["sync_check"]))
     if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
         checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"]))
+    if "rigid_body" in res:
+        checks.append(check_marker_geometry(res["rigid_body"].get("warnings")))
     if "comfort" in res and res["comfort"].get("indicators") is not None:
         ind = res["comfort"]["indicators"]
         checks.append(check_horse_speed(ind.get("vel_x_avg")))

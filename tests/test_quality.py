@@ -104,3 +104,13 @@ def test_sync_by_markers():
     c = check_sync_by_markers(moved)
     assert c.level == "warning" and c.figure == 2 and "'right' by -2" in c.message
     assert check_sync_by_markers({}).level == "skipped"
+
+
+def test_marker_geometry_check_carries_the_conditioning_warnings():
+    """The rigid-body step's conditioning messages reach quality.json: none is ok, any is a warning
+    (never unreliable: the results are written and the message says what to distrust)."""
+    assert quality.check_marker_geometry([]).level == "ok"
+    c = quality.check_marker_geometry(["thin marker triangle: ...", "3 of 40 frames have no pose"])
+    assert c.level == "warning" and c.figure == 2.0 and "3 of 40 frames" in c.message
+    assert quality.check_marker_geometry(None).level == "skipped"
+    assert quality.verdict([c]) == "warning"
