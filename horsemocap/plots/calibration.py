@@ -98,7 +98,7 @@ def plot_rig_top(rigs: dict, ax=None, axis_len: float = 0.3):
     ax.set_xlabel("x (m), reference camera frame")
     ax.set_ylabel("z (m)")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))    # beside the axes, not on a camera
     ax.set_title("Camera centres and optical axes (top view)")
     return ax
 

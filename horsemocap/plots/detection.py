@@ -166,8 +166,9 @@ def plot_identification(images: dict, candidates: dict, views, fit, zoom=None, f
                 if j >= 0:
                     ax.plot(*cand.centre[j], "+", color="lime", ms=12, mew=2,
                             label="marker (rigid model)" if m == 0 else None)
-                    ax.annotate(f"marker{m + 1}", cand.centre[j], xytext=(4, -8), textcoords="offset points",
-                                color="lime", fontsize=8)
+                    ax.annotate(f"marker{m + 1}", cand.centre[j], xytext=(9, 9), textcoords="offset points",
+                                color="lime", fontsize=8, bbox=dict(boxstyle="round,pad=0.15", fc="black",
+                                                                    ec="none", alpha=0.6))   # beside the cross
         box = zoom.get(cam) if isinstance(zoom, dict) else zoom
         _zoom(ax, box, img.shape)
         ax.set_title(cam)

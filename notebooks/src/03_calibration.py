@@ -283,8 +283,9 @@ for n_views in (15, 45):
 
 # %%
 print(cal.format_comparison(virtual))
-fig, ax = plt.subplots(figsize=(6, 4))
+fig, ax = plt.subplots(figsize=(8.5, 4))
 plots.plot_rig_top({"truth": truth_rig, "joint": virtual.rig, "pairwise": pairwise_rig}, ax=ax)
+fig.tight_layout()
 plt.show()
 
 # %% [markdown]
