@@ -274,7 +274,7 @@ for squares, square in ((vcal.BOARD_SQUARES, 0.05), (vcal.LAB_BOARD_SQUARES, 0.1
     inner = (squares[0] - 1, squares[1] - 1)
     found = vcal.detect_board(gray, inner) is not None
     print(f"{square * 1000:.0f} mm squares, {inner[0]} x {inner[1]} inner corners at "
-          f"{(R_wb @ [0.75, 0.4, 0] + t_wb)[2]:.1f} m: found by OpenCV = {found}")
+          f"{(R_wb @ [0.75, 0.4, 0] + t_wb)[2]:.1f} m: found by the board detector = {found}")
 
 # %% [markdown]
 # ## 6. The free-falling ball (section 8.3)

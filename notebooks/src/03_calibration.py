@@ -180,7 +180,7 @@ print(chk_real.table())
 # ## Part 2 · The virtual three-camera rig (exact truth)
 #
 # The virtual laboratory renders the board through the thesis' rig (Tables 8.1-8.4) at the horse's
-# path. Its board is adapted to what OpenCV can detect at 7.5 m (see notebook 01); the true rig is
+# path. Its board is adapted to what OpenCV can detect at 7.5-8 m (see notebook 01); the true rig is
 # saved beside the session.
 
 # %%
