@@ -488,8 +488,16 @@ def _one_line(exc: BaseException) -> str:
                 errno.EPERM: "not permitted: choose a folder you can write to",
                 errno.EROFS: "read-only file system: choose a folder you can write to",
                 errno.ENAMETOOLONG: "the path is too long: choose a shorter --out"}.get(exc.errno, "")
-        where = f"{exc.filename}: " if exc.filename else ""
-        text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")
+        from .store import WriteError
+
+        if isinstance(exc, WriteError):   # "cannot write FILE: text (hint)[; DIR is as it was before the run]"
+            head = f"cannot write {exc.filename}" if exc.filename else "a file could not be written"
+            out = getattr(exc, "out", None)
+            text = f"{head}: {exc.strerror}" + (f" ({hint})" if hint else "") + \
+                (f"; {out} is as it was before the run" if out else "")
+        else:
+            where = f"{exc.filename}: " if exc.filename else ""
+            text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")
     else:
         from .camera import RigError
         from .params import ParamsError
