@@ -246,6 +246,10 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
     outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False),
                            board_views=board_views)
     if outcome.error is not None:
+        if getattr(args, "debug", False):   # the step's own exception, with the error it was raised from
+            import traceback
+
+            traceback.print_exception(outcome.error)
         print(f"horsemocap: error: {_one_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
               f"quality: {outcome.verdict})", file=sys.stderr)
@@ -514,6 +518,8 @@ def _one_line(exc: BaseException) -> str:
             pass
         text = str(exc) if isinstance(exc, known) else \
             f"{type(exc).__name__}: {exc} (an unexpected error; --debug shows where, please report it)"
+        if isinstance(exc, AnalysisError) and exc.__cause__ is not None:   # a step's unexpected error
+            text += " (--debug shows where)"
     return " ".join(text.split())
 
 

@@ -95,3 +95,24 @@ class _Full:
 
     def write(self, data):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+# ---------------------------------------------------------------------------
+# 2. --debug shows the traceback of a step's error
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_debug_shows_the_traceback_of_a_step_error(where, tmp_path, template, capsys, monkeypatch):
+    session = make_session(tmp_path, template)
+
+    def broken_sync(*a, **k):
+        return {"offsets": 1 / 0}
+
+    monkeypatch.setitem(pipeline.STEP_FUNCTIONS, "sync", broken_sync)
+    code, _, err = run_cli(["analyze", session, "--out", tmp_path / "plain"], capsys)
+    line = assert_clear_error(code, err, "step 'sync'", "ZeroDivisionError", "--debug")
+    argv = ["analyze", session, "--out", tmp_path / "debug"]
+    argv = ["--debug", *argv] if where == "before" else [*argv, "--debug"]
+    code, _, err = run_cli(argv, capsys)
+    assert code == 2 and "Traceback" in err and "broken_sync" in err and "1 / 0" in err
+    assert line.replace("plain", "debug") in err.splitlines()
