@@ -327,12 +327,21 @@ exit status:
 
 
 def cmd_kinematics(args) -> int:
-    """3D markers from another system + a static shot -> trajectories/kinematics/angular CSV."""
-    from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories, write_c3d, write_trc
-    from .pose import CollinearMarkersError, conditioning_warnings
-    from .store import atomic_write_text
+    """3D markers from another system + a static shot -> trajectories/kinematics/angular CSV.
 
-    out = Path(args.out)
+    ``--out DIR`` follows analyze's rule (:mod:`horsemocap.runfolder`): DIR
+    new, empty or an earlier ``kinematics`` run's output (it holds
+    ``kinematics-run.json``), checked before the computation and replaced
+    whole when the files are written.
+    """
+    from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories
+    from .pose import CollinearMarkersError, conditioning_warnings
+    from .runfolder import RunFolder, check_results_target
+    from .store import atomic_write_json, atomic_write_text
+
+    _no_nul(("TRAJECTORIES", args.trajectories), ("--static", args.static), ("--out", args.out))
+    target = check_results_target(args.out, "kinematics")
+    _check_inputs_outside(target, args)
     try:
         traj = read_trajectories(args.trajectories)
         static = read_trajectories(args.static)
@@ -340,7 +349,57 @@ def cmd_kinematics(args) -> int:
     except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
+    tables = _kinematics_tables(traj, res)
+    tr, reg = res["trajectory"], res["registration"]
+    folder = RunFolder(args.out, "kinematics")
+    with folder as tmp:
+        for name, text in tables.items():
+            atomic_write_text(tmp / name, text)
+        atomic_write_json(tmp / "kinematics-run.json", _kinematics_record(args, res, list(tables)))
+        folder.commit()
+    for msg in conditioning_warnings(reg):
+        print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
+    print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
+          f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
+    ran = tr.smoothing_choice
+    if ran:
+        print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
+              file=sys.stderr)
+    print(f"results: {target}")
+    return 0
+
+
+def _check_inputs_outside(target: Path, args) -> None:
+    """``kinematics --out`` replaces its folder whole: refuse one that holds an input file."""
+    from .store import StoreError
+
+    for what, given in (("TRAJECTORIES", args.trajectories), ("--static", args.static)):
+        path = Path(given).expanduser().resolve()
+        if path == target or target in path.parents:
+            raise StoreError(f"--out {args.out}: holds the input {what} {given}, and horsemocap replaces the whole "
+                             "folder; choose another --out")
+
+
+def _kinematics_record(args, res, files) -> dict:
+    """``kinematics-run.json``: what made the folder (it marks an earlier kinematics run's output)."""
+    import hashlib
+
+    from . import __version__
+    from .runfolder import KINEMATICS_FORMAT
+
+    def source(given):
+        path = Path(given).expanduser().resolve()
+        return {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+
+    return {"format": KINEMATICS_FORMAT, "command": "kinematics", "horsemocap_version": __version__,
+            "inputs": {"trajectories": source(args.trajectories), "static": source(args.static)},
+            "options": {"smoothing": args.smoothing, "events": list(args.events) if args.events else None},
+            "smoothing_ran": res["trajectory"].smoothing_choice or None,
+            "markers": list(res["markers"]), "hidden": list(res["hidden"]), "files": files}
+
+
+def _kinematics_tables(traj, res) -> dict:
+    """File name -> text of trajectories.csv, kinematics.csv and angular.csv of a kinematics run."""
     tr, t = res["trajectory"], traj.time_s
     names = res["markers"] + res["hidden"]
     mk, hk = res["marker_kinematics"], res["hidden_kinematics"]
@@ -365,19 +424,8 @@ def cmd_kinematics(args) -> int:
         alines.append(f"{traj.frame[k]},{num(t[k])}," + ",".join(num(v) for v in (*w[k], *al[k]))
                       + f",{num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan)},{num(reg.rms[k])},"
                       + tr.reason[k].replace(",", ";"))
-    atomic_write_text(out / "trajectories.csv", "\n".join(lines) + "\n")
-    atomic_write_text(out / "kinematics.csv", "\n".join(klines) + "\n")
-    atomic_write_text(out / "angular.csv", "\n".join(alines) + "\n")
-    for msg in conditioning_warnings(reg):
-        print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
-    print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
-          f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
-    ran = tr.smoothing_choice
-    if ran:
-        print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
-              file=sys.stderr)
-    print(f"results: {out.resolve()}")
-    return 0
+    return {"trajectories.csv": "\n".join(lines) + "\n", "kinematics.csv": "\n".join(klines) + "\n",
+            "angular.csv": "\n".join(alines) + "\n"}
 
 
 def cmd_export(args) -> int:

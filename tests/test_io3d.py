@@ -128,3 +128,105 @@ def test_kinematics_events_on_a_periodic_record_with_the_default_smoothing(tmp_p
                  "--out", str(tmp_path / "kin"), "--events", "2.8"]) == 0
     err = capsys.readouterr().err        # what 'auto' ran, and why, is printed
     assert "kinematics: adaptive smoothing (auto: 1 known change point(s), fitted without harmonics; fundamental" in err
+
+
+# ---------------------------------------------------------------------------
+# kinematics --out: analyze's rule (new, empty or an earlier kinematics run), written whole
+# ---------------------------------------------------------------------------
+
+def _small_record(folder, first_frame=0, n=60):
+    """A rigid triangle + one hidden point moving smoothly: trajectories and static shot CSVs."""
+    tri = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.1, 0.25, 0.02]])
+    t = np.arange(n) / 100
+    move = np.stack([0.5 * t, 0.02 * np.sin(2 * np.pi * 2 * t), 0.01 * np.cos(2 * np.pi * 2 * t)], 1)
+    pts = tri[None] + move[:, None, :]
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "traj.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "time_s", "point", "x_m", "y_m", "z_m"])
+        for k in range(n):
+            for j, nm in enumerate(["a", "b", "c"]):
+                w.writerow([first_frame + k, repr(float(t[k] + first_frame / 100)), nm, *map(float, pts[k, j])])
+    _write_csv(folder / "static.csv", [0.0], ["a", "b", "c", "s"], np.vstack([tri, [[0.1, 0.1, -0.2]]])[None])
+    return folder / "traj.csv", folder / "static.csv"
+
+
+def _snapshot(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())} if folder.exists() else None
+
+
+def _kin(traj, static, out, *extra):
+    return main(["kinematics", str(traj), "--static", str(static), "--out", str(out), *map(str, extra)])
+
+
+@pytest.mark.parametrize("files", [
+    {"analysis.json": '{"format": "horsemocap-results/1"}', "trajectories.csv": "frame\n", "report.html": "<p>"},
+    {"kinematics.csv": "my own numbers\n"},
+    {"kinematics-run.json": '{"format": "another-program/2"}', "angular.csv": "x\n"}],
+    ids=["analyze_results", "users_own_csv", "foreign_record"])
+def test_kinematics_refuses_a_folder_it_did_not_write(files, tmp_path, capsys):
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    out.mkdir()
+    for name, text in files.items():
+        (out / name).write_text(text)
+    before = _snapshot(out)
+    assert _kin(traj, static, out) == 2
+    err = capsys.readouterr().err
+    assert f"--out {out}: the folder holds files that are not an earlier 'horsemocap kinematics' output" in err
+    assert _snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]
+
+
+def test_kinematics_replaces_its_own_earlier_output_whole(tmp_path, capsys):
+    import json
+
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    assert _kin(traj, static, out) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["angular.csv", "kinematics-run.json", "kinematics.csv",
+                                                    "trajectories.csv"]
+    record = json.loads((out / "kinematics-run.json").read_text())
+    assert record["format"] == "horsemocap-kinematics/1" and record["command"] == "kinematics"
+    assert record["inputs"]["trajectories"]["path"] == str(traj.resolve()) and record["horsemocap_version"]
+    (out / "stale.txt").write_text("left by hand")     # in an earlier kinematics output: replaced with it
+    assert _kin(traj, static, out, "--smoothing", "gcv") == 0
+    assert not (out / "stale.txt").exists()
+    assert json.loads((out / "kinematics-run.json").read_text())["options"]["smoothing"] == "gcv"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]     # no temporary folder, no lock
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _kin(traj, static, empty) == 0 and (empty / "kinematics.csv").is_file()
+
+
+def test_kinematics_refuses_an_out_holding_its_input(tmp_path, capsys):
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    assert _kin(traj, static, out) == 0
+    before = _snapshot(out)
+    assert _kin(out / "trajectories.csv", static, out) == 2
+    assert "holds the input TRAJECTORIES" in capsys.readouterr().err
+    assert _snapshot(out) == before
+
+
+def test_kinematics_full_disk_leaves_the_folder_as_before(tmp_path, capsys, monkeypatch):
+    import errno
+    import os
+
+    from horsemocap import store
+
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    assert _kin(traj, static, out) == 0
+    before = _snapshot(out)
+    real = store._write_whole
+
+    def full(path, write):
+        if path.name == "angular.csv":
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        return real(path, write)
+
+    monkeypatch.setattr(store, "_write_whole", full)
+    assert _kin(traj, static, out, "--smoothing", "adaptive") == 2   # other numbers than auto (gcv here)
+    err = capsys.readouterr().err
+    assert f"cannot write {out / 'angular.csv'}: No space left on device" in err and "Traceback" not in err
+    assert _snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]
