@@ -116,3 +116,81 @@ def test_debug_shows_the_traceback_of_a_step_error(where, tmp_path, template, ca
     code, _, err = run_cli(argv, capsys)
     assert code == 2 and "Traceback" in err and "broken_sync" in err and "1 / 0" in err
     assert line.replace("plain", "debug") in err.splitlines()
+
+
+# ---------------------------------------------------------------------------
+# 4. option syntax and help
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("words", [["0.5,0.8"], ["0.5", "0.8"], ["0.5,", "0.8"], ["0.5, 0.8"]])
+def test_times_take_commas_and_spaces(words):
+    from horsemocap.cli import build_parser, parse_seconds
+
+    assert parse_seconds(words, "--events") == [0.5, 0.8]
+    parser = build_parser()
+    kin = parser.parse_args(["kinematics", "t.csv", "--static", "s.csv", "--out", "o", "--events", *words])
+    ana = parser.parse_args(["analyze", "S", "--out", "o", "--pose-events", *words])
+    assert parse_seconds(kin.events, "--events") == parse_seconds(ana.pose_events, "--pose-events") == [0.5, 0.8]
+
+
+@pytest.mark.parametrize("words, bad", [(["0.5;0.8"], "'0.5;0.8'"), (["x"], "'x'"), (["nan"], "'nan'"),
+                                        ([","], "expected times")])
+def test_bad_times_name_the_option_and_the_word(words, bad):
+    from horsemocap.cli import parse_seconds
+    from horsemocap.params import ParamsError
+
+    with pytest.raises(ParamsError) as info:
+        parse_seconds(words, "--pose-events")
+    assert str(info.value).startswith("--pose-events: ") and bad in str(info.value)
+
+
+def test_analyze_pose_events_reach_the_parameters(tmp_path, template):
+    """Both spellings give the same parameters (and the same analysis.json)."""
+    from horsemocap.cli import _params_from_args, build_parser
+    from horsemocap.pipeline import resolve_params
+    from horsemocap.session import load_session
+
+    base = resolve_params(load_session(template))
+    got = [_params_from_args(build_parser().parse_args(["analyze", "S", "--out", "o", "--pose-events", *w]), base)
+           for w in (["1.5,2.25"], ["1.5", "2.25"])]
+    assert got[0].pose_events == got[1].pose_events == [1.5, 2.25]
+
+
+def test_kinematics_events_with_commas(tmp_path, capsys):
+    """``kinematics --events 0.2,0.4`` (as analyze's --pose-events) runs like ``--events 0.2 0.4``."""
+    from test_io3d import _small_record
+
+    traj, static = _small_record(tmp_path / "in")
+    outs = []
+    for i, words in enumerate((["0.2,0.4"], ["0.2", "0.4"])):
+        out = tmp_path / f"o{i}"
+        assert main(["kinematics", str(traj), "--static", str(static), "--out", str(out), "--events", *words]) == 0
+        outs.append(out)
+    assert (outs[0] / "kinematics.csv").read_bytes() == (outs[1] / "kinematics.csv").read_bytes()
+    assert json.loads((outs[0] / "kinematics-run.json").read_text())["options"]["events"] == [0.2, 0.4]
+    assert main(["kinematics", str(traj), "--static", str(static), "--out", str(tmp_path / "bad"),
+                 "--events", "0.2;0.4"]) == 2
+    assert "--events: '0.2;0.4' is not a time in seconds" in capsys.readouterr().err
+
+
+def _help(*command):
+    from horsemocap.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command[0]] if command else parser
+    return {a.dest: (a.help or "") for a in sub._actions}, sub.format_help()
+
+
+def test_help_says_what_each_option_does():
+    helps, text = _help("kinematics")
+    assert "benchmarks/README.md" in helps["events"] and "issue 13" not in text and "18.4" not in text
+    assert "2.8,3.35 or 2.8 3.35" in helps["events"]
+    for command in ("kinematics", "calibrate", "export", "analyze", "demo"):
+        assert _help(command)[0]["out"], f"{command} --out has no help"
+    helps, _ = _help("analyze")
+    assert helps["pose_events"].count("e.g.") <= 1 and "2.8,3.35 or 2.8 3.35" in helps["pose_events"]
+    assert "default 0.1" in helps["smoothing_span"] and "default 0" in helps["x_marker"]
+    from horsemocap.params import AnalysisParams
+
+    assert AnalysisParams().smoothing_span == 0.1 and AnalysisParams().x_marker == 0
+    assert "auto (default)" in helps["pose_harmonics"] and "above the noise" in helps["pose_harmonics"]
