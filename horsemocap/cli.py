@@ -456,21 +456,20 @@ def _kinematics_tables(traj, res) -> dict:
 
 
 def cmd_export(args) -> int:
-    """trajectories.csv -> TRC or C3D."""
+    """trajectories.csv -> TRC or C3D (first frame number kept; ``--rate`` for a one-frame file)."""
     from .io3d import TrajectoryFileError, read_trajectories_csv, write_c3d, write_trc
 
+    _no_nul(("trajectories.csv", args.trajectories), ("--out", args.out))
+    out = Path(args.out)
+    writers = {".trc": write_trc, ".c3d": write_c3d}
+    if out.suffix.lower() not in writers:
+        print(f"horsemocap: error: --out {out}: expected a .trc or .c3d file name", file=sys.stderr)
+        return 2
     try:
         traj = read_trajectories_csv(args.trajectories)
+        writers[out.suffix.lower()](out, traj, rate=args.rate)
     except TrajectoryFileError as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out)
-    if out.suffix.lower() == ".trc":
-        write_trc(out, traj)
-    elif out.suffix.lower() == ".c3d":
-        write_c3d(out, traj)
-    else:
-        print(f"horsemocap: error: {out}: expected a .trc or .c3d file name", file=sys.stderr)
         return 2
     print(f"written: {out.resolve()}")
     return 0
@@ -550,6 +549,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("trajectories", metavar="trajectories.csv")
     p.add_argument("--out", required=True, metavar="OUT.trc|OUT.c3d",
                    help="the file to write; its extension chooses the format (.trc or .c3d)")
+    p.add_argument("--rate", type=float, metavar="HZ",
+                   help="frame rate written into the file (default: from the time_s column; needed for a "
+                        "one-frame file)")
     p.set_defaults(func=cmd_export)
     return parser
 

@@ -230,3 +230,62 @@ def test_kinematics_full_disk_leaves_the_folder_as_before(tmp_path, capsys, monk
     err = capsys.readouterr().err
     assert f"cannot write {out / 'angular.csv'}: No space left on device" in err and "Traceback" not in err
     assert _snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]
+
+
+# ---------------------------------------------------------------------------
+# export: the first frame number and the frame rate
+# ---------------------------------------------------------------------------
+
+def test_export_keeps_the_first_frame_number(tmp_path, capsys):
+    """Frames 29..67 stay 29..67 in the C3D (header first frame, read back by ezc3d and by
+    ``horsemocap kinematics`` on the C3D) and in the TRC (OrigDataStartFrame)."""
+    import ezc3d
+
+    traj, static = _small_record(tmp_path / "in", first_frame=29, n=39)
+    c3d, trc = tmp_path / "x.c3d", tmp_path / "x.trc"
+    assert main(["export", str(traj), "--out", str(c3d)]) == 0
+    assert main(["export", str(traj), "--out", str(trc)]) == 0
+    header = ezc3d.c3d(str(c3d))["header"]["points"]
+    assert (header["first_frame"], header["last_frame"], header["frame_rate"]) == (29, 67, 100.0)
+    assert trc.read_text().splitlines()[2].split("\t")[6] == "29"
+    back = io3d.read_trajectories(c3d)
+    np.testing.assert_array_equal(back.frame, np.arange(29, 68))
+    assert main(["kinematics", str(c3d), "--static", str(static), "--out", str(tmp_path / "kin")]) == 0
+    frames = lambda f: sorted({int(r["frame"]) for r in csv.DictReader(open(f))})     # noqa: E731
+    assert frames(tmp_path / "kin" / "trajectories.csv") == frames(traj) == list(range(29, 68))
+    assert [int(r["frame"]) for r in csv.DictReader(open(tmp_path / "kin" / "angular.csv"))] == list(range(29, 68))
+
+
+def test_export_fills_missing_frame_numbers_with_gaps(tmp_path):
+    """A CSV without frame 35 (29..40): the C3D has 12 frames, frame 35 a gap of every point."""
+    traj, _ = _small_record(tmp_path / "in", first_frame=29, n=12)
+    rows = [ln for ln in traj.read_text().splitlines() if not ln.startswith("35,")]
+    traj.write_text("\n".join(rows) + "\n")
+    tr = io3d.read_trajectories(traj)
+    io3d.write_c3d(tmp_path / "g.c3d", tr)
+    back = io3d.read_trajectories(tmp_path / "g.c3d")
+    np.testing.assert_array_equal(back.frame, np.arange(29, 41))
+    assert np.isnan(back.points[35 - 29]).all() and np.isfinite(back.points[[0, 5, 7, 11]]).all()
+    np.testing.assert_allclose(back.points[7], tr.points[6], atol=1e-6)   # frame 36
+    assert io3d.frame_rate(tr) == pytest.approx(100.0)
+
+
+def test_one_frame_export_needs_a_rate(tmp_path, capsys):
+    traj, _ = _small_record(tmp_path / "in", first_frame=7, n=1)
+    for ext in ("c3d", "trc"):
+        out = tmp_path / f"one.{ext}"
+        assert main(["export", str(traj), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "a single frame: its frame rate is unknown" in err and "--rate" in err and str(traj) in err
+        assert not out.exists()
+        assert main(["export", str(traj), "--out", str(out), "--rate", "120"]) == 0
+    import ezc3d
+
+    assert ezc3d.c3d(str(tmp_path / "one.c3d"))["header"]["points"]["frame_rate"] == 120.0
+    assert (tmp_path / "one.trc").read_text().splitlines()[2].split("\t")[:1] == ["120"]
+    assert main(["export", str(traj), "--out", str(tmp_path / "bad.trc"), "--rate", "0"]) == 2
+    assert "frame rate 0.0: expected a positive number" in capsys.readouterr().err
+    many, _ = _small_record(tmp_path / "many")       # 100 Hz in its times; --rate overrides
+    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 0
+    assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 50.0
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []   # no temporary file
