@@ -53,11 +53,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--triangulation", choices=["joint", "thesis"],
                    help="joint: all cameras at once (default); thesis: three pairs averaged (eq. 5.5)")
     g.add_argument("--span", type=float, dest="smoothing_span", metavar="FRACTION",
-                   help="smoothing span as a fraction of the points (thesis 0.1)")
+                   help="smoothing span of the 3D positions as a fraction of the points (default 0.1, the "
+                        "thesis' value)")
     g.add_argument("--period", type=float, dest="period_frames", metavar="FRAMES",
                    help="motion period in frames (thesis typed 18; default estimated)")
     g.add_argument("--x-marker", type=int, dest="x_marker", metavar="INDEX",
-                   help="marker (0-based) whose net displacement defines x-motion")
+                   help="marker (0-based) whose net displacement defines x-motion (default 0)")
     g.add_argument("--x-degree", type=int, dest="x_degree", metavar="N",
                    help="degree of the polynomial fitted to the x-motion (Appendix A 9.i, fit_type_x; thesis "
                         "poly1: 1)")
@@ -81,9 +82,12 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="pose_spline: the smoothed pose trajectory of all markers (default; no period, "
                         "no eq. 6.35 singularity); fits: the thesis' chain of fits")
     g.add_argument("--pose-harmonics", choices=["auto", "all", "none"], dest="pose_harmonics",
-                   help="with pose_spline: unpenalised harmonics of the stride (fundamental from the record) "
-                        "in the pose smoothing, chosen with the smoothing; auto (default): the rotation's only "
-                        "below the plain spline's cutoff; none: plain smoothing splines")
+                   help="with pose_spline: unpenalised harmonics of the stride (frequency found in the record) "
+                        "in the pose smoothing, their number chosen with the smoothing (none on a record that is "
+                        "not periodic); auto (default): the rotation keeps a harmonic only below the plain "
+                        "spline's cutoff and when it stands above the noise the registration residual and the "
+                        "marker triangle predict; all: every harmonic up to 0.4 of the frame rate, rotation "
+                        "too; none: plain smoothing splines")
     g.add_argument("--pose-weights", choices=["covariance", "equal"], dest="pose_weights",
                    help="with pose_spline: each marker weighted by its triangulation covariance in the pose "
                         "registration (default), or all alike (Horn, the thesis' eq. 5.14-5.21)")
@@ -91,10 +95,10 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="with pose_spline and covariance weights: the rotation smoothed with each frame weighted "
                         "by its predicted variance where that explains the residuals better (auto, default), "
                         "or every frame alike (equal)")
-    g.add_argument("--pose-events", dest="pose_events", metavar="SECONDS,...",
+    g.add_argument("--pose-events", dest="pose_events", nargs="+", metavar="SECONDS",
                    help="with pose_spline: known instants (s, the time_s of trajectories.csv) where the "
-                        "acceleration may jump, e.g. impacts from a force plate, e.g. 2.8,3.35 (not found from the "
-                        "data)")
+                        "acceleration may jump, such as impacts timed by a force plate; 2.8,3.35 or 2.8 3.35 "
+                        "(not found from the data)")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
@@ -159,16 +163,38 @@ def _params_from_args(args, base):
                 raise ParamsError(f"--{name.replace('_', '-')}: expected version numbers 1-6 separated by commas, "
                                   f"got {text!r}")
             changes[name] = [k in picked for k in range(1, 7)]
-    text = getattr(args, "pose_events", None)
-    if text:
-        try:
-            changes["pose_events"] = [float(v) for v in text.split(",")]
-        except ValueError:
-            raise ParamsError(f"--pose-events: expected times in seconds separated by commas, got {text!r}") from None
+    if getattr(args, "pose_events", None):
+        changes["pose_events"] = parse_seconds(args.pose_events, "--pose-events")
     params = base.updated(**changes)
     for item in getattr(args, "set", None) or []:
         params = _set_param(params, item)
     return params
+
+
+def parse_seconds(values, option: str) -> list[float]:
+    """Times in seconds given as ``0.5,0.8``, ``0.5 0.8`` or both (``--pose-events``, ``--events``).
+
+    ``values`` is the option's words (argparse ``nargs="+"``) or one string;
+    raises :class:`horsemocap.params.ParamsError` naming ``option`` and the
+    word that is not a finite number.
+    """
+    from .params import ParamsError
+
+    words = [values] if isinstance(values, str) else list(values)
+    parts = [p for w in words for p in w.replace(",", " ").split()]
+    if not parts:
+        raise ParamsError(f"{option}: expected times in seconds, e.g. 0.5,0.8 or 0.5 0.8; got {' '.join(words)!r}")
+    times = []
+    for p in parts:
+        try:
+            v = float(p)
+        except ValueError:
+            v = float("nan")
+        if not np.isfinite(v):
+            raise ParamsError(f"{option}: {p!r} is not a time in seconds (expected numbers separated by commas "
+                              f"or spaces, e.g. 0.5,0.8 or 0.5 0.8)")
+        times.append(v)
+    return times
 
 
 def _set_param(params, item: str):
@@ -246,6 +272,10 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
     outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False),
                            board_views=board_views)
     if outcome.error is not None:
+        if getattr(args, "debug", False):   # the step's own exception, with the error it was raised from
+            import traceback
+
+            traceback.print_exception(outcome.error)
         print(f"horsemocap: error: {_one_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
               f"quality: {outcome.verdict})", file=sys.stderr)
@@ -323,20 +353,80 @@ exit status:
 
 
 def cmd_kinematics(args) -> int:
-    """3D markers from another system + a static shot -> trajectories/kinematics/angular CSV."""
-    from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories, write_c3d, write_trc
-    from .pose import CollinearMarkersError, conditioning_warnings
-    from .store import atomic_write_text
+    """3D markers from another system + a static shot -> trajectories/kinematics/angular CSV.
 
-    out = Path(args.out)
+    ``--out DIR`` follows analyze's rule (:mod:`horsemocap.runfolder`): DIR
+    new, empty or an earlier ``kinematics`` run's output (it holds
+    ``kinematics-run.json``), checked before the computation and replaced
+    whole when the files are written.
+    """
+    from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories
+    from .pose import CollinearMarkersError, conditioning_warnings
+    from .runfolder import RunFolder, check_results_target
+    from .store import atomic_write_json, atomic_write_text
+
+    _no_nul(("TRAJECTORIES", args.trajectories), ("--static", args.static), ("--out", args.out))
+    target = check_results_target(args.out, "kinematics")
+    _check_inputs_outside(target, args)
     try:
         traj = read_trajectories(args.trajectories)
         static = read_trajectories(args.static)
-        res = kinematics_from_trajectories(traj, static, smoothing=args.smoothing, events=args.events)
+        events = parse_seconds(args.events, "--events") if args.events else None
+        res = kinematics_from_trajectories(traj, static, smoothing=args.smoothing, events=events)
     except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
+    tables = _kinematics_tables(traj, res)
+    tr, reg = res["trajectory"], res["registration"]
+    folder = RunFolder(args.out, "kinematics")
+    with folder as tmp:
+        for name, text in tables.items():
+            atomic_write_text(tmp / name, text)
+        atomic_write_json(tmp / "kinematics-run.json", _kinematics_record(args, events, res, list(tables)))
+        folder.commit()
+    for msg in conditioning_warnings(reg):
+        print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
+    print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
+          f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
+    ran = tr.smoothing_choice
+    if ran:
+        print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
+              file=sys.stderr)
+    print(f"results: {target}")
+    return 0
+
+
+def _check_inputs_outside(target: Path, args) -> None:
+    """``kinematics --out`` replaces its folder whole: refuse one that holds an input file."""
+    from .store import StoreError
+
+    for what, given in (("TRAJECTORIES", args.trajectories), ("--static", args.static)):
+        path = Path(given).expanduser().resolve()
+        if path == target or target in path.parents:
+            raise StoreError(f"--out {args.out}: holds the input {what} {given}, and horsemocap replaces the whole "
+                             "folder; choose another --out")
+
+
+def _kinematics_record(args, events, res, files) -> dict:
+    """``kinematics-run.json``: what made the folder (it marks an earlier kinematics run's output)."""
+    import hashlib
+
+    from . import __version__
+    from .runfolder import KINEMATICS_FORMAT
+
+    def source(given):
+        path = Path(given).expanduser().resolve()
+        return {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+
+    return {"format": KINEMATICS_FORMAT, "command": "kinematics", "horsemocap_version": __version__,
+            "inputs": {"trajectories": source(args.trajectories), "static": source(args.static)},
+            "options": {"smoothing": args.smoothing, "events": events},
+            "smoothing_ran": res["trajectory"].smoothing_choice or None,
+            "markers": list(res["markers"]), "hidden": list(res["hidden"]), "files": files}
+
+
+def _kinematics_tables(traj, res) -> dict:
+    """File name -> text of trajectories.csv, kinematics.csv and angular.csv of a kinematics run."""
     tr, t = res["trajectory"], traj.time_s
     names = res["markers"] + res["hidden"]
     mk, hk = res["marker_kinematics"], res["hidden_kinematics"]
@@ -361,37 +451,25 @@ def cmd_kinematics(args) -> int:
         alines.append(f"{traj.frame[k]},{num(t[k])}," + ",".join(num(v) for v in (*w[k], *al[k]))
                       + f",{num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan)},{num(reg.rms[k])},"
                       + tr.reason[k].replace(",", ";"))
-    atomic_write_text(out / "trajectories.csv", "\n".join(lines) + "\n")
-    atomic_write_text(out / "kinematics.csv", "\n".join(klines) + "\n")
-    atomic_write_text(out / "angular.csv", "\n".join(alines) + "\n")
-    for msg in conditioning_warnings(reg):
-        print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
-    print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
-          f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
-    ran = tr.smoothing_choice
-    if ran:
-        print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
-              file=sys.stderr)
-    print(f"results: {out.resolve()}")
-    return 0
+    return {"trajectories.csv": "\n".join(lines) + "\n", "kinematics.csv": "\n".join(klines) + "\n",
+            "angular.csv": "\n".join(alines) + "\n"}
 
 
 def cmd_export(args) -> int:
-    """trajectories.csv -> TRC or C3D."""
+    """trajectories.csv -> TRC or C3D (first frame number kept; ``--rate`` for a one-frame file)."""
     from .io3d import TrajectoryFileError, read_trajectories_csv, write_c3d, write_trc
 
+    _no_nul(("trajectories.csv", args.trajectories), ("--out", args.out))
+    out = Path(args.out)
+    writers = {".trc": write_trc, ".c3d": write_c3d}
+    if out.suffix.lower() not in writers:
+        print(f"horsemocap: error: --out {out}: expected a .trc or .c3d file name", file=sys.stderr)
+        return 2
     try:
         traj = read_trajectories_csv(args.trajectories)
+        writers[out.suffix.lower()](out, traj, rate=args.rate)
     except TrajectoryFileError as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out)
-    if out.suffix.lower() == ".trc":
-        write_trc(out, traj)
-    elif out.suffix.lower() == ".c3d":
-        write_c3d(out, traj)
-    else:
-        print(f"horsemocap: error: {out}: expected a .trc or .c3d file name", file=sys.stderr)
         return 2
     print(f"written: {out.resolve()}")
     return 0
@@ -440,7 +518,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("camera_dirs", nargs="+", metavar="CAMERA_DIR")
     p.add_argument("--board", required=True, metavar="COLSxROWS", help="inner corners, e.g. 9x6")
     p.add_argument("--square", required=True, type=float, metavar="METRES", help="square size, e.g. 0.03")
-    p.add_argument("--out", required=True, metavar="rig.toml")
+    p.add_argument("--out", required=True, metavar="rig.toml",
+                   help="the rig file to write (a session's calibration 'rig'); not a folder")
     p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("kinematics", help="rigid-body kinematics from 3D markers of any system (CSV or C3D)", parents=[common],
@@ -450,21 +529,29 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Writes trajectories.csv, kinematics.csv and angular.csv in the file's frame.")
     p.add_argument("trajectories", metavar="TRAJECTORIES", help="trajectories.csv layout or .c3d")
     p.add_argument("--static", required=True, metavar="STATIC", help="static shot (.csv or .c3d)")
-    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="folder of the results (trajectories.csv, kinematics.csv, angular.csv, kinematics-run.json); "
+                        "it must be new, empty or an earlier kinematics run's output, and is replaced whole")
     p.add_argument("--smoothing", default="auto", choices=["auto", "gcv", "adaptive", "none"],
                    help="pose smoothing: auto (default: gcv with the stride harmonics on a periodic record, "
                         "adaptive on a non-periodic one), gcv, adaptive, none")
-    p.add_argument("--events", type=float, nargs="+", metavar="SECONDS",
-                   help="known times (s, the file's time axis) where the acceleration may jump, e.g. an impact's "
-                        "onset from a force plate: the smoothing leaves a jump free there (gcv or adaptive, "
-                        "without stride harmonics; issue 13's ringing fixture, adaptive, median of three draws: "
-                        "hidden-point acceleration 18.4 -> 14.9 %%)")
+    p.add_argument("--events", nargs="+", metavar="SECONDS",
+                   help="known times (s, the file's time axis) where the acceleration may jump, such as an "
+                        "impact's onset timed by a force plate; 2.8,3.35 or 2.8 3.35. The smoothing lets the "
+                        "acceleration jump there instead of rounding the jump off and ringing around it (gcv or "
+                        "adaptive smoothing; the record is then smoothed without stride harmonics). The times "
+                        "are not found from the data: give them to the frame. Measured effect: "
+                        "benchmarks/README.md (change points)")
     p.set_defaults(func=cmd_kinematics)
 
     p = sub.add_parser("export", help="export trajectories.csv as TRC (OpenSim) or C3D (Mokka, Visual3D)", parents=[common],
                        description="Convert a trajectories.csv to OUT.trc or OUT.c3d (millimetres).")
     p.add_argument("trajectories", metavar="trajectories.csv")
-    p.add_argument("--out", required=True, metavar="OUT.trc|OUT.c3d")
+    p.add_argument("--out", required=True, metavar="OUT.trc|OUT.c3d",
+                   help="the file to write; its extension chooses the format (.trc or .c3d)")
+    p.add_argument("--rate", type=float, metavar="HZ",
+                   help="frame rate written into the file (default: from the time_s column; needed for a "
+                        "one-frame file)")
     p.set_defaults(func=cmd_export)
     return parser
 
@@ -488,8 +575,16 @@ def _one_line(exc: BaseException) -> str:
                 errno.EPERM: "not permitted: choose a folder you can write to",
                 errno.EROFS: "read-only file system: choose a folder you can write to",
                 errno.ENAMETOOLONG: "the path is too long: choose a shorter --out"}.get(exc.errno, "")
-        where = f"{exc.filename}: " if exc.filename else ""
-        text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")
+        from .store import WriteError
+
+        if isinstance(exc, WriteError):   # "cannot write FILE: text (hint)[; DIR is as it was before the run]"
+            head = f"cannot write {exc.filename}" if exc.filename else "a file could not be written"
+            out = getattr(exc, "out", None)
+            text = f"{head}: {exc.strerror}" + (f" ({hint})" if hint else "") + \
+                (f"; {out} is as it was before the run" if out else "")
+        else:
+            where = f"{exc.filename}: " if exc.filename else ""
+            text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")
     else:
         from .camera import RigError
         from .params import ParamsError
@@ -506,6 +601,8 @@ def _one_line(exc: BaseException) -> str:
             pass
         text = str(exc) if isinstance(exc, known) else \
             f"{type(exc).__name__}: {exc} (an unexpected error; --debug shows where, please report it)"
+        if isinstance(exc, AnalysisError) and exc.__cause__ is not None:   # a step's unexpected error
+            text += " (--debug shows where)"
     return " ".join(text.split())
 
 

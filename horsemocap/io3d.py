@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
-           "write_trc", "write_c3d", "kinematics_from_trajectories"]
+           "write_trc", "write_c3d", "frame_rate", "kinematics_from_trajectories"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "dm": 0.1}
 
@@ -161,11 +161,34 @@ def read_trajectories(path) -> Trajectories:
     return read_c3d(path) if str(path).lower().endswith(".c3d") else read_trajectories_csv(path)
 
 
-def write_trc(path, traj: Trajectories) -> Path:
-    """Write an OpenSim TRC file (``PathFileType 4``, millimetres)."""
+def frame_rate(traj: Trajectories, rate: float | None = None) -> float:
+    """The frame rate (Hz) of ``traj``: ``rate`` if given, else from its times and frame numbers.
+
+    Raises :class:`TrajectoryFileError` naming the file when ``rate`` is not a
+    positive number, or when it is not given and the file has one frame (its
+    rate is unknown).
+    """
+    if rate is not None:
+        if not (np.isfinite(rate) and rate > 0):
+            raise TrajectoryFileError(f"{traj.source}: frame rate {rate}: expected a positive number of Hz")
+        return float(rate)
+    if traj.frame.size < 2:
+        raise TrajectoryFileError(f"{traj.source}: a single frame: its frame rate is unknown; give it "
+                                  "(horsemocap export --rate HZ)")
+    return float(1.0 / np.median(np.diff(traj.time_s) / np.diff(traj.frame)))
+
+
+def write_trc(path, traj: Trajectories, rate: float | None = None) -> Path:
+    """Write an OpenSim TRC file (``PathFileType 4``, millimetres).
+
+    ``rate``: the frame rate (Hz); default from the times (:func:`frame_rate`).
+    ``OrigDataStartFrame`` is the first frame number of ``traj``.
+    """
+    from .store import atomic_write_text
+
     path = Path(path)
     n, k, _ = traj.points.shape
-    rate = 1.0 / float(np.median(np.diff(traj.time_s))) if n > 1 else 1.0
+    rate = frame_rate(traj, rate)
     lines = [f"PathFileType\t4\t(X/Y/Z)\t{path.name}",
              "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames",
              f"{rate:.6g}\t{rate:.6g}\t{n}\t{k}\tmm\t{rate:.6g}\t{int(traj.frame[0]) if n else 1}\t{n}",
@@ -174,30 +197,66 @@ def write_trc(path, traj: Trajectories) -> Path:
     for i in range(n):
         vals = ["" if not np.isfinite(v) else f"{1000 * v:.6f}" for v in traj.points[i].ravel()]
         lines.append(f"{i + 1}\t{traj.time_s[i]:.6f}\t" + "\t".join(vals))
-    path.write_text("\n".join(lines) + "\n")
+    atomic_write_text(path, "\n".join(lines) + "\n")
     return path
 
 
-def write_c3d(path, traj: Trajectories) -> Path:
-    """Write a C3D file with ezc3d (``POINT:UNITS`` mm, gaps as residual -1)."""
+def _every_frame(traj: Trajectories) -> np.ndarray:
+    """Points (n, k, 3) on every frame number from the first to the last (NaN in a frame the file lacks)."""
+    full = np.full((int(traj.frame[-1] - traj.frame[0]) + 1, len(traj.names), 3), np.nan)
+    full[traj.frame - traj.frame[0]] = traj.points
+    return full
+
+
+def write_c3d(path, traj: Trajectories, rate: float | None = None) -> Path:
+    """Write a C3D file with ezc3d (``POINT:UNITS`` mm, gaps as residual -1).
+
+    The header's first frame is the first frame number of ``traj`` (read back
+    by :func:`read_c3d`); frame numbers the file lacks between the first and
+    the last are gaps of every point. ``rate``: the frame rate (Hz); default
+    from the times (:func:`frame_rate`). Written whole (a temporary file
+    beside ``path``, renamed).
+    """
     import ezc3d
 
     path = Path(path)
-    n, k, _ = traj.points.shape
-    rate = 1.0 / float(np.median(np.diff(traj.time_s))) if n > 1 else 1.0
+    rate = frame_rate(traj, rate)
+    if traj.frame.size and traj.frame[0] < 0:
+        raise TrajectoryFileError(f"{traj.source}: field 'frame': the first frame is {traj.frame[0]}; a C3D file's "
+                                  "frame numbers start at 0 or later")
+    points = _every_frame(traj) if traj.frame.size else traj.points
+    n, k, _ = points.shape
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [rate]
     c["parameters"]["POINT"]["LABELS"]["value"] = list(traj.names)
     c.add_parameter("POINT", "UNITS", ["mm"])
+    c["header"]["points"]["first_frame"] = int(traj.frame[0]) if traj.frame.size else 0
     data = np.ones((4, k, n))
-    p = np.moveaxis(traj.points, [0, 1, 2], [2, 1, 0]) * 1000.0
+    p = np.moveaxis(points, [0, 1, 2], [2, 1, 0]) * 1000.0
     gap = ~np.isfinite(p).all(axis=0)
     data[:3] = np.where(np.isfinite(p), p, 0.0)
     c["data"]["points"] = data
     resid = np.where(gap, -1.0, 0.0)[None]
     c["data"]["meta_points"] = {"residuals": resid, "camera_masks": np.zeros((7, k, n), bool)}
-    c.write(str(path))
+    _write_whole_file(path, lambda tmp: c.write(str(tmp)))
     return path
+
+
+def _write_whole_file(path: Path, write) -> None:
+    """``write(tmp)`` into a temporary file beside ``path``, then renamed onto it (removed on failure)."""
+    import os
+    import secrets
+
+    tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp{path.suffix}"
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
 
 
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",

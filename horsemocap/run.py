@@ -101,6 +101,9 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
     SessionError, ParamsError, StoreError, RigError
         Before anything is written. KeyboardInterrupt and any other error
         leave ``out`` as it was.
+    horsemocap.runfolder.RunWriteError
+        A file that could not be written (disk full, quota, read-only,
+        permission, I/O error), in any step or after: ``out`` is as it was.
     """
     from .pipeline import AnalysisError, _progress_printer, analyze, resolve_params
     from .runfolder import RunFolder, check_results_target
@@ -128,6 +131,8 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
             analysis = analyze(session_dir, tmp, params, progress=progress, previous_results=target,
                                board_views=board_views)
         except (AnalysisError, SessionError) as exc:
+            if folder.write_failure(exc) is not None:
+                raise   # the disk, not the step: DIR stays as it was (RunFolder names the file)
             analysis = getattr(exc, "partial", None)
             outcome.error = exc
         outcome.analysis = analysis

@@ -15,7 +15,16 @@ whole, never a mix:
   earlier run's files are gone: they belonged to another analysis);
 - Ctrl-C, SIGTERM, a full disk or any other error: the temporary folder is
   deleted and ``DIR`` is as before the run (SIGKILL leaves the temporary
-  folder behind; the next run into ``DIR`` deletes it).
+  folder behind; the next run into ``DIR`` deletes it). A file that could not
+  be written (disk full, quota, read-only, permission, I/O error), also inside
+  a step, ends the run with :class:`RunWriteError` naming the file in ``DIR``
+  and the system's error text: a step's result cut short by the disk is not a
+  partial result.
+
+``horsemocap kinematics TRAJECTORIES --out DIR`` uses the same folder
+(``kind="kinematics"``): ``DIR`` may be new, empty or an earlier
+``kinematics`` run's output, which holds ``kinematics-run.json``
+(:data:`KINEMATICS_FORMAT`).
 
 A second run into the same ``DIR`` while one holds the lock stops at once
 with :class:`RunLockedError` (it does not wait). The lock is an ``flock``
@@ -31,7 +40,7 @@ import secrets
 import shutil
 from pathlib import Path
 
-from .store import StoreError
+from .store import StoreError, WriteError
 
 try:  # POSIX
     import fcntl
@@ -39,10 +48,26 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 RESULTS_MARKERS = ("analysis.json", "PARTIAL.txt")
+KINEMATICS_RECORD = "kinematics-run.json"
+KINEMATICS_FORMAT = "horsemocap-kinematics/1"
+# errors of the operating system that only writing gives (any other errno counts when the file is ours)
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EROFS, getattr(errno, "EDQUOT", -1), errno.EFBIG}
 
 
 class RunLockedError(StoreError):
     """Another run is writing into the same results folder."""
+
+
+class RunWriteError(WriteError):
+    """A run's file that could not be written; the results folder ``out`` was left as it was."""
+
+    def __init__(self, errno_, strerror, filename, out):
+        super().__init__(errno_, strerror, filename)
+        self.out = out
+
+    def __str__(self) -> str:
+        what = f"cannot write {self.filename}" if self.filename else "a file could not be written"
+        return f"{what}: {self.strerror}; {self.out} is as it was before the run"
 
 
 def _exchange(a: Path, b: Path) -> bool:
@@ -61,30 +86,49 @@ def _exchange(a: Path, b: Path) -> bool:
     raise OSError(err, os.strerror(err), str(b))
 
 
-def _is_results_folder(path: Path, entries) -> bool:
-    """An earlier horsemocap run's folder: its analysis.json says so, or it is marked partial."""
+def _json_record(path: Path) -> dict:
     import json
 
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return record if isinstance(record, dict) else {}
+
+
+def _is_results_folder(path: Path, entries) -> bool:
+    """An earlier horsemocap run's folder: its analysis.json says so, or it is marked partial."""
     if "PARTIAL.txt" in entries:
         return True
     if "analysis.json" not in entries:
         return False
-    try:
-        record = json.loads((path / "analysis.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    return str(_json_record(path / "analysis.json").get("format", "")).startswith("horsemocap-results/")
+
+
+def _is_kinematics_folder(path: Path, entries) -> bool:
+    """An earlier ``horsemocap kinematics`` run's output: its kinematics-run.json says so."""
+    if KINEMATICS_RECORD not in entries:
         return False
-    return isinstance(record, dict) and str(record.get("format", "")).startswith("horsemocap-results/")
+    return _json_record(path / KINEMATICS_RECORD).get("format") == KINEMATICS_FORMAT
 
 
-def check_results_target(out) -> Path:
+# kind of run -> (test of an earlier run's folder, what the refusal calls it)
+_KINDS = {"analyze": (_is_results_folder, "horsemocap results"),
+          "kinematics": (_is_kinematics_folder, "an earlier 'horsemocap kinematics' output")}
+
+
+def check_results_target(out, kind: str = "analyze") -> Path:
     """``out`` resolved, if it may be replaced by a run's results.
 
-    It may be absent, an empty folder or an earlier run's results (its
-    ``analysis.json`` has ``"format": "horsemocap-results/..."``, or it
-    holds ``PARTIAL.txt``); anything else is refused with a
+    It may be absent, an empty folder or an earlier run's results of the
+    same ``kind``: for ``"analyze"`` its ``analysis.json`` has ``"format":
+    "horsemocap-results/..."``, or it holds ``PARTIAL.txt``; for
+    ``"kinematics"`` its ``kinematics-run.json`` has ``"format":
+    "horsemocap-kinematics/1"``. Anything else is refused with a
     :class:`StoreError` naming it, so that ``--out ~`` never deletes a home
     folder.
     """
+    is_earlier_run, what = _KINDS[kind]
     if "\0" in str(out):
         raise StoreError(f"--out {str(out)!r}: a path cannot hold a NUL byte")
     path = Path(out).expanduser().resolve()
@@ -94,11 +138,20 @@ def check_results_target(out) -> Path:
         if not path.is_dir():
             raise StoreError(f"--out {out}: is a file, not a folder; choose a folder for the results")
         entries = [p.name for p in path.iterdir()]
-        if entries and not _is_results_folder(path, entries):
-            raise StoreError(f"--out {out}: the folder holds files that are not horsemocap results "
+        if entries and not is_earlier_run(path, entries):
+            raise StoreError(f"--out {out}: the folder holds files that are not {what} "
                              f"({', '.join(sorted(entries)[:3])}{', ...' if len(entries) > 3 else ''}); "
                              "horsemocap replaces the whole folder, so choose a new or empty folder")
     return path
+
+
+def _chain(exc: BaseException):
+    """``exc`` and the exceptions it was raised from or while handling, once each."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        yield exc
+        exc = exc.__cause__ if exc.__cause__ is not None else exc.__context__
 
 
 class RunFolder:
@@ -110,8 +163,9 @@ class RunFolder:
     Ctrl-C) deletes the temporary folder, so ``out`` stays as it was.
     """
 
-    def __init__(self, out):
-        self.out = check_results_target(out)
+    def __init__(self, out, kind: str = "analyze"):
+        self.kind = kind
+        self.out = check_results_target(out, kind)
         self.given = str(out)
         self.lock_path = self.out.parent / f".{self.out.name}.lock"
         self.tmp: Path | None = None
@@ -184,18 +238,48 @@ class RunFolder:
         """Put the temporary folder in the place of ``out``; the earlier one is deleted."""
         tmp, out = self.tmp, self.out
         if out.is_symlink() or out.exists():
-            check_results_target(out)  # still ours to replace
+            check_results_target(out, self.kind)  # still ours to replace
             if _exchange(tmp, out):
                 shutil.rmtree(tmp, ignore_errors=True)  # now the earlier run's files
             else:
                 old = out.parent / f".{out.name}.run-old-{secrets.token_hex(4)}"
                 os.rename(out, old)
-                os.rename(tmp, out)
+                try:
+                    os.rename(tmp, out)
+                except BaseException:
+                    os.rename(old, out)   # the earlier run's folder back in place
+                    raise
                 shutil.rmtree(old, ignore_errors=True)
         else:
             os.rename(tmp, out)
         self.committed = True
         return out
+
+    def write_failure(self, exc: BaseException) -> OSError | None:
+        """The error of writing a file of this run in ``exc``'s chain, or None.
+
+        A :class:`~horsemocap.store.WriteError`, an error only writing gives
+        (ENOSPC, EDQUOT, EROFS, EFBIG), or any OSError on a file inside the
+        temporary folder; an error reading an input is not one.
+        """
+        for e in _chain(exc):
+            if not isinstance(e, OSError):
+                continue
+            if isinstance(e, WriteError) or e.errno in _WRITE_ERRNOS or self._inside_tmp(e.filename):
+                return e
+        return None
+
+    def _inside_tmp(self, filename) -> bool:
+        if self.tmp is None or not isinstance(filename, (str, os.PathLike)):
+            return False
+        path = Path(os.fsdecode(filename))
+        return path == self.tmp or self.tmp in path.parents
+
+    def final_path(self, filename) -> str:
+        """``filename`` as it would have been in ``out`` (the temporary folder's name replaced)."""
+        if not self._inside_tmp(filename):
+            return str(filename)
+        return str(self.out / Path(os.fsdecode(filename)).relative_to(self.tmp))
 
     def __exit__(self, exc_type, exc, tb):
         try:
@@ -203,4 +287,8 @@ class RunFolder:
                 shutil.rmtree(self.tmp, ignore_errors=True)
         finally:
             self._release()
+        failed = self.write_failure(exc) if isinstance(exc, Exception) and not self.committed else None
+        if failed is not None and not isinstance(failed, RunWriteError):
+            raise RunWriteError(failed.errno, failed.strerror or str(failed), self.final_path(failed.filename),
+                                self.given) from exc
         return False

@@ -24,6 +24,17 @@ class StoreError(RuntimeError):
     """A results folder that cannot be used (e.g. inside the input session)."""
 
 
+class WriteError(OSError):
+    """A file that could not be written (disk full, quota, read-only, permission, I/O error).
+
+    ``filename`` is the file that was being written (not its temporary
+    name), ``errno`` and ``strerror`` those of the operating system's error.
+    """
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
 def read_text_utf8(path, error=ValueError) -> str:
     """The text of a UTF-8 file; ``error(message)`` naming the file and byte if it is not UTF-8."""
     data = Path(path).read_bytes()
@@ -35,7 +46,17 @@ def read_text_utf8(path, error=ValueError) -> str:
 
 
 def _atomic_write(path: Path, write) -> Path:
+    """Write ``path`` through a temporary file beside it; any OSError becomes a :class:`WriteError` naming ``path``."""
     path = Path(path)
+    try:
+        return _write_whole(path, write)
+    except WriteError:
+        raise
+    except OSError as exc:
+        raise WriteError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+
+
+def _write_whole(path: Path, write) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     # os.open with mode 0o666 lets the user's umask decide who may read the file
     # (tempfile.mkstemp would make it 0600: colleagues could not read the results)

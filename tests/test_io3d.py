@@ -128,3 +128,164 @@ def test_kinematics_events_on_a_periodic_record_with_the_default_smoothing(tmp_p
                  "--out", str(tmp_path / "kin"), "--events", "2.8"]) == 0
     err = capsys.readouterr().err        # what 'auto' ran, and why, is printed
     assert "kinematics: adaptive smoothing (auto: 1 known change point(s), fitted without harmonics; fundamental" in err
+
+
+# ---------------------------------------------------------------------------
+# kinematics --out: analyze's rule (new, empty or an earlier kinematics run), written whole
+# ---------------------------------------------------------------------------
+
+def _small_record(folder, first_frame=0, n=60):
+    """A rigid triangle + one hidden point moving smoothly: trajectories and static shot CSVs."""
+    tri = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.1, 0.25, 0.02]])
+    t = np.arange(n) / 100
+    move = np.stack([0.5 * t, 0.02 * np.sin(2 * np.pi * 2 * t), 0.01 * np.cos(2 * np.pi * 2 * t)], 1)
+    pts = tri[None] + move[:, None, :]
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "traj.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "time_s", "point", "x_m", "y_m", "z_m"])
+        for k in range(n):
+            for j, nm in enumerate(["a", "b", "c"]):
+                w.writerow([first_frame + k, repr(float(t[k] + first_frame / 100)), nm, *map(float, pts[k, j])])
+    _write_csv(folder / "static.csv", [0.0], ["a", "b", "c", "s"], np.vstack([tri, [[0.1, 0.1, -0.2]]])[None])
+    return folder / "traj.csv", folder / "static.csv"
+
+
+def _snapshot(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())} if folder.exists() else None
+
+
+def _kin(traj, static, out, *extra):
+    return main(["kinematics", str(traj), "--static", str(static), "--out", str(out), *map(str, extra)])
+
+
+@pytest.mark.parametrize("files", [
+    {"analysis.json": '{"format": "horsemocap-results/1"}', "trajectories.csv": "frame\n", "report.html": "<p>"},
+    {"kinematics.csv": "my own numbers\n"},
+    {"kinematics-run.json": '{"format": "another-program/2"}', "angular.csv": "x\n"}],
+    ids=["analyze_results", "users_own_csv", "foreign_record"])
+def test_kinematics_refuses_a_folder_it_did_not_write(files, tmp_path, capsys):
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    out.mkdir()
+    for name, text in files.items():
+        (out / name).write_text(text)
+    before = _snapshot(out)
+    assert _kin(traj, static, out) == 2
+    err = capsys.readouterr().err
+    assert f"--out {out}: the folder holds files that are not an earlier 'horsemocap kinematics' output" in err
+    assert _snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]
+
+
+def test_kinematics_replaces_its_own_earlier_output_whole(tmp_path, capsys):
+    import json
+
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    assert _kin(traj, static, out) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["angular.csv", "kinematics-run.json", "kinematics.csv",
+                                                    "trajectories.csv"]
+    record = json.loads((out / "kinematics-run.json").read_text())
+    assert record["format"] == "horsemocap-kinematics/1" and record["command"] == "kinematics"
+    assert record["inputs"]["trajectories"]["path"] == str(traj.resolve()) and record["horsemocap_version"]
+    (out / "stale.txt").write_text("left by hand")     # in an earlier kinematics output: replaced with it
+    assert _kin(traj, static, out, "--smoothing", "gcv") == 0
+    assert not (out / "stale.txt").exists()
+    assert json.loads((out / "kinematics-run.json").read_text())["options"]["smoothing"] == "gcv"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]     # no temporary folder, no lock
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _kin(traj, static, empty) == 0 and (empty / "kinematics.csv").is_file()
+
+
+def test_kinematics_refuses_an_out_holding_its_input(tmp_path, capsys):
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    assert _kin(traj, static, out) == 0
+    before = _snapshot(out)
+    assert _kin(out / "trajectories.csv", static, out) == 2
+    assert "holds the input TRAJECTORIES" in capsys.readouterr().err
+    assert _snapshot(out) == before
+
+
+def test_kinematics_full_disk_leaves_the_folder_as_before(tmp_path, capsys, monkeypatch):
+    import errno
+    import os
+
+    from horsemocap import store
+
+    traj, static = _small_record(tmp_path / "in")
+    out = tmp_path / "out"
+    assert _kin(traj, static, out) == 0
+    before = _snapshot(out)
+    real = store._write_whole
+
+    def full(path, write):
+        if path.name == "angular.csv":
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        return real(path, write)
+
+    monkeypatch.setattr(store, "_write_whole", full)
+    assert _kin(traj, static, out, "--smoothing", "adaptive") == 2   # other numbers than auto (gcv here)
+    err = capsys.readouterr().err
+    assert f"cannot write {out / 'angular.csv'}: No space left on device" in err and "Traceback" not in err
+    assert _snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]
+
+
+# ---------------------------------------------------------------------------
+# export: the first frame number and the frame rate
+# ---------------------------------------------------------------------------
+
+def test_export_keeps_the_first_frame_number(tmp_path, capsys):
+    """Frames 29..67 stay 29..67 in the C3D (header first frame, read back by ezc3d and by
+    ``horsemocap kinematics`` on the C3D) and in the TRC (OrigDataStartFrame)."""
+    import ezc3d
+
+    traj, static = _small_record(tmp_path / "in", first_frame=29, n=39)
+    c3d, trc = tmp_path / "x.c3d", tmp_path / "x.trc"
+    assert main(["export", str(traj), "--out", str(c3d)]) == 0
+    assert main(["export", str(traj), "--out", str(trc)]) == 0
+    header = ezc3d.c3d(str(c3d))["header"]["points"]
+    assert (header["first_frame"], header["last_frame"], header["frame_rate"]) == (29, 67, 100.0)
+    assert trc.read_text().splitlines()[2].split("\t")[6] == "29"
+    back = io3d.read_trajectories(c3d)
+    np.testing.assert_array_equal(back.frame, np.arange(29, 68))
+    assert main(["kinematics", str(c3d), "--static", str(static), "--out", str(tmp_path / "kin")]) == 0
+    frames = lambda f: sorted({int(r["frame"]) for r in csv.DictReader(open(f))})     # noqa: E731
+    assert frames(tmp_path / "kin" / "trajectories.csv") == frames(traj) == list(range(29, 68))
+    assert [int(r["frame"]) for r in csv.DictReader(open(tmp_path / "kin" / "angular.csv"))] == list(range(29, 68))
+
+
+def test_export_fills_missing_frame_numbers_with_gaps(tmp_path):
+    """A CSV without frame 35 (29..40): the C3D has 12 frames, frame 35 a gap of every point."""
+    traj, _ = _small_record(tmp_path / "in", first_frame=29, n=12)
+    rows = [ln for ln in traj.read_text().splitlines() if not ln.startswith("35,")]
+    traj.write_text("\n".join(rows) + "\n")
+    tr = io3d.read_trajectories(traj)
+    io3d.write_c3d(tmp_path / "g.c3d", tr)
+    back = io3d.read_trajectories(tmp_path / "g.c3d")
+    np.testing.assert_array_equal(back.frame, np.arange(29, 41))
+    assert np.isnan(back.points[35 - 29]).all() and np.isfinite(back.points[[0, 5, 7, 11]]).all()
+    np.testing.assert_allclose(back.points[7], tr.points[6], atol=1e-6)   # frame 36
+    assert io3d.frame_rate(tr) == pytest.approx(100.0)
+
+
+def test_one_frame_export_needs_a_rate(tmp_path, capsys):
+    traj, _ = _small_record(tmp_path / "in", first_frame=7, n=1)
+    for ext in ("c3d", "trc"):
+        out = tmp_path / f"one.{ext}"
+        assert main(["export", str(traj), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "a single frame: its frame rate is unknown" in err and "--rate" in err and str(traj) in err
+        assert not out.exists()
+        assert main(["export", str(traj), "--out", str(out), "--rate", "120"]) == 0
+    import ezc3d
+
+    assert ezc3d.c3d(str(tmp_path / "one.c3d"))["header"]["points"]["frame_rate"] == 120.0
+    assert (tmp_path / "one.trc").read_text().splitlines()[2].split("\t")[:1] == ["120"]
+    assert main(["export", str(traj), "--out", str(tmp_path / "bad.trc"), "--rate", "0"]) == 2
+    assert "frame rate 0.0: expected a positive number" in capsys.readouterr().err
+    many, _ = _small_record(tmp_path / "many")       # 100 Hz in its times; --rate overrides
+    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 0
+    assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 50.0
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []   # no temporary file
