@@ -284,7 +284,7 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
     if outcome.report:
         print(f"report:  {outcome.report}")
     bad = [c for c in outcome.checks if c.level in ("warning", "unreliable")]
-    print(f"quality: {outcome.verdict.upper()}" + (f" ({len(bad)} check(s) outside the plausible range; "
+    print(f"quality: {outcome.verdict.upper()}" + (f" ({len(bad)} check(s) with a warning or worse; "
                                                    "see quality.json)" if bad else " (every plausibility check passed)"))
     for c in bad:
         print(f"  {c.level}: {c.name}: {c.message}")
@@ -295,7 +295,8 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
               f"at {ind['vel_x_avg']:.1f} km/h")
     if outcome.exit_code == 3:
         print(f"horsemocap: the quality verdict is UNRELIABLE (exit status {outcome.exit_code}): do not use these "
-              "numbers before the input named above is fixed", file=sys.stderr)
+              "numbers before what the check above names is fixed (the input, or a method that fails on it: "
+              "README, --preset thesis)", file=sys.stderr)
     return outcome.exit_code
 
 
