@@ -95,10 +95,10 @@ def _add_choice_options(p: argparse.ArgumentParser) -> None:
                    help="with pose_spline and covariance weights: the rotation smoothed with each frame weighted "
                         "by its predicted variance where that explains the residuals better (auto, default), "
                         "or every frame alike (equal)")
-    g.add_argument("--pose-events", dest="pose_events", nargs="+", metavar="SECONDS",
+    g.add_argument("--pose-events", dest="pose_events", action="append", metavar="SECONDS",
                    help="with pose_spline: known instants (s, the time_s of trajectories.csv) where the "
-                        "acceleration may jump, such as impacts timed by a force plate; 2.8,3.35 or 2.8 3.35 "
-                        "(not found from the data)")
+                        "acceleration may jump, such as impacts timed by a force plate; 2.8,3.35 (or the option "
+                        "repeated; not found from the data)")
     g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
                    help="x-motion from one or two periods (thesis), from the whole record's net "
                         "displacement (no period needed), or auto (default: period if one is found)")
@@ -172,9 +172,10 @@ def _params_from_args(args, base):
 
 
 def parse_seconds(values, option: str) -> list[float]:
-    """Times in seconds given as ``0.5,0.8``, ``0.5 0.8`` or both (``--pose-events``, ``--events``).
+    """Times in seconds given as ``0.5,0.8`` (or ``"0.5 0.8"``) to ``--pose-events`` and ``--events``.
 
-    ``values`` is the option's words (argparse ``nargs="+"``) or one string;
+    ``values`` is the option's values (argparse ``action="append"``: one word per
+    occurrence of the option, so a time never swallows the SESSION that follows) or one string;
     raises :class:`horsemocap.params.ParamsError` naming ``option`` and the
     word that is not a finite number.
     """
@@ -363,11 +364,12 @@ def cmd_kinematics(args) -> int:
     """
     from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories
     from .pose import CollinearMarkersError, conditioning_warnings
-    from .runfolder import RunFolder, check_results_target
+    from .runfolder import RunFolder
     from .store import atomic_write_json, atomic_write_text
 
-    _no_nul(("TRAJECTORIES", args.trajectories), ("--static", args.static), ("--out", args.out))
-    target = check_results_target(args.out, "kinematics")
+    _no_nul(("TRAJECTORIES", args.trajectories), ("--static", args.static))
+    folder = RunFolder(args.out, "kinematics")        # the target checked here, before the computation
+    target = folder.out
     _check_inputs_outside(target, args)
     try:
         traj = read_trajectories(args.trajectories)
@@ -379,7 +381,6 @@ def cmd_kinematics(args) -> int:
         return 2
     tables = _kinematics_tables(traj, res)
     tr, reg = res["trajectory"], res["registration"]
-    folder = RunFolder(args.out, "kinematics")
     with folder as tmp:
         for name, text in tables.items():
             atomic_write_text(tmp / name, text)
@@ -536,9 +537,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--smoothing", default="auto", choices=["auto", "gcv", "adaptive", "none"],
                    help="pose smoothing: auto (default: gcv with the stride harmonics on a periodic record, "
                         "adaptive on a non-periodic one), gcv, adaptive, none")
-    p.add_argument("--events", nargs="+", metavar="SECONDS",
+    p.add_argument("--events", action="append", metavar="SECONDS",
                    help="known times (s, the file's time axis) where the acceleration may jump, such as an "
-                        "impact's onset timed by a force plate; 2.8,3.35 or 2.8 3.35. The smoothing lets the "
+                        "impact's onset timed by a force plate; 2.8,3.35 (or the option repeated). The smoothing lets the "
                         "acceleration jump there instead of rounding the jump off and ringing around it (gcv or "
                         "adaptive smoothing; the record is then smoothed without stride harmonics). The times "
                         "are not found from the data: give them to the frame. Measured effect: "
@@ -579,10 +580,7 @@ def _one_line(exc: BaseException) -> str:
         from .store import WriteError
 
         if isinstance(exc, WriteError):   # "cannot write FILE: text (hint)[; DIR is as it was before the run]"
-            head = f"cannot write {exc.filename}" if exc.filename else "a file could not be written"
-            out = getattr(exc, "out", None)
-            text = f"{head}: {exc.strerror}" + (f" ({hint})" if hint else "") + \
-                (f"; {out} is as it was before the run" if out else "")
+            text = exc.describe(hint)
         else:
             where = f"{exc.filename}: " if exc.filename else ""
             text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")

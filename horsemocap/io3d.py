@@ -238,25 +238,10 @@ def write_c3d(path, traj: Trajectories, rate: float | None = None) -> Path:
     c["data"]["points"] = data
     resid = np.where(gap, -1.0, 0.0)[None]
     c["data"]["meta_points"] = {"residuals": resid, "camera_masks": np.zeros((7, k, n), bool)}
-    _write_whole_file(path, lambda tmp: c.write(str(tmp)))
+    from .store import atomic_write_by_name
+
+    atomic_write_by_name(path, lambda tmp: c.write(str(tmp)), suffix=".c3d")   # ezc3d appends ".c3d" to any other
     return path
-
-
-def _write_whole_file(path: Path, write) -> None:
-    """``write(tmp)`` into a temporary file beside ``path``, then renamed onto it (removed on failure)."""
-    import os
-    import secrets
-
-    tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp{path.suffix}"
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",

@@ -564,6 +564,7 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     from .frames import time_axis, to_motion_frame
     from .pose import CollinearMarkersError
     from .rigid import analyse_rigid_body
+    from .splines import ChangePointError
 
     positions, static = res["motion_frame"]["positions"], res["motion_frame"]["static"]
     # the pose trajectory is smoothed from the unsmoothed positions (its own smoothing is chosen
@@ -601,10 +602,8 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
             pose_events=params.pose_events)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
-    except ValueError as exc:
-        if params.pose_events and str(exc).startswith("events:"):
-            raise AnalysisError("rigid_body", f"parameter 'pose_events': {exc}") from None
-        raise
+    except ChangePointError as exc:
+        raise AnalysisError("rigid_body", f"parameter 'pose_events': {exc}") from None
     orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
     pos, vel, acc = rb.marker_kinematics
     cond = conditioning(rb)

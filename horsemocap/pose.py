@@ -1163,10 +1163,12 @@ def _rotation_component(t, y, variance, *, harmonic_noise=None, **kwargs):
 
 def _pose_events(events, smoothing: str, order: int, f0):
     """The change points :func:`fit_pose_trajectory` fits (``events`` checked), or None."""
+    from .splines import ChangePointError
+
     if events is None or len(events) == 0:
         return None
     if order != 5 or smoothing not in ("gcv", "adaptive") or (smoothing == "gcv" and f0 is not None):
-        raise ValueError("events: change points need smoothing 'gcv' (with harmonics='none') or 'adaptive', "
+        raise ChangePointError("events: change points need smoothing 'gcv' (with harmonics='none') or 'adaptive', "
                          f"order 5; got smoothing={smoothing!r}, order={order}"
                          + (", harmonics fitted" if f0 is not None else ""))
     return sorted(float(e) for e in events)

@@ -65,9 +65,8 @@ class RunWriteError(WriteError):
         super().__init__(errno_, strerror, filename)
         self.out = out
 
-    def __str__(self) -> str:
-        what = f"cannot write {self.filename}" if self.filename else "a file could not be written"
-        return f"{what}: {self.strerror}; {self.out} is as it was before the run"
+    def _tail(self) -> str:
+        return f"; {self.out} is as it was before the run"
 
 
 def _exchange(a: Path, b: Path) -> bool:

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
 from scipy.optimize import minimize_scalar
 
-__all__ = ["SmoothingSpline", "HarmonicTerms", "EventTerms", "truncated_power_columns",
+__all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
            "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "MAX_BASIS"]
 
@@ -66,6 +66,11 @@ GCV_GAMMA = 1.4
 value Kim and Gu (2004, J. R. Statist. Soc. B 66, 337-356) recommend against GCV's known
 tendency to undersmooth; with plain GCV (1.0) the roll of the Horse 1 canter record (41 frames)
 was left almost unsmoothed (saddle vertical acceleration 63 % off, 12.9 % with 1.4)."""
+
+
+class ChangePointError(ValueError):
+    """Change points (``events``) a spline cannot fit: outside the record, unresolved by the samples, or
+    with a smoothing that has no change points."""
 
 
 @dataclass(frozen=True)
@@ -630,7 +635,7 @@ def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None)
         raise ValueError(f"y: {n} samples are too few for a spline with {len(events)} event(s)")
     Q1, Rx = np.linalg.qr(X)
     if np.min(np.abs(np.diag(Rx))) < 1e-9 * np.max(np.abs(np.diag(Rx))):
-        raise ValueError(f"events: {list(events)} are not resolved by the samples (too close to each other "
+        raise ChangePointError(f"events: {list(events)} are not resolved by the samples (too close to each other "
                          "or to the record's ends)")
     yq = Q1.T @ yw
     sv, Wt, z = _projected_svd(Zw, Q1, yw)
@@ -775,9 +780,9 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
     if events is not None and len(events):
         ev = np.asarray(events, float)
         if ev.ndim != 1 or not np.all(np.isfinite(ev)) or np.any((ev <= x[0]) | (ev >= x[-1])):
-            raise ValueError(f"events: expected finite times inside the record ({x[0]:.6g}, {x[-1]:.6g}), got {events!r}")
+            raise ChangePointError(f"events: expected finite times inside the record ({x[0]:.6g}, {x[-1]:.6g}), got {events!r}")
         if order != 5 or method not in ("gcv", "adaptive") or fundamental_hz is not None:
-            raise ValueError("events: change points are fitted by the quintic 'gcv' or 'adaptive' spline "
+            raise ChangePointError("events: change points are fitted by the quintic 'gcv' or 'adaptive' spline "
                              "without harmonics only")
     n = x.size
     w = np.ones(n) if weights is None else np.asarray(weights, float)

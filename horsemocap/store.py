@@ -31,8 +31,16 @@ class WriteError(OSError):
     name), ``errno`` and ``strerror`` those of the operating system's error.
     """
 
+    def describe(self, hint: str = "") -> str:
+        """``cannot write FILE: text[ (hint)]`` and what became of the results folder (:meth:`_tail`)."""
+        head = f"cannot write {self.filename}" if self.filename else "a file could not be written"
+        return f"{head}: {self.strerror}" + (f" ({hint})" if hint else "") + self._tail()
+
+    def _tail(self) -> str:
+        return ""
+
     def __str__(self) -> str:
-        return f"cannot write {self.filename}: {self.strerror}"
+        return self.describe()
 
 
 def read_text_utf8(path, error=ValueError) -> str:
@@ -45,31 +53,37 @@ def read_text_utf8(path, error=ValueError) -> str:
                     "save the file as UTF-8") from None
 
 
-def _atomic_write(path: Path, write) -> Path:
+def _atomic_write(path: Path, write, by_name: bool = False, suffix: str = "") -> Path:
     """Write ``path`` through a temporary file beside it; any OSError becomes a :class:`WriteError` naming ``path``."""
     path = Path(path)
     try:
-        return _write_whole(path, write)
+        return _write_whole(path, write, by_name, suffix)
     except WriteError:
         raise
     except OSError as exc:
         raise WriteError(exc.errno, exc.strerror or str(exc), str(path)) from exc
 
 
-def _write_whole(path: Path, write) -> Path:
+def _write_whole(path: Path, write, by_name: bool = False, suffix: str = "") -> Path:
+    """``write(fh)`` (or ``write(tmp_path)`` with ``by_name``) into a new temporary file beside ``path``
+    whose name ends with ``suffix``, then renamed onto ``path``; removed on failure."""
     path.parent.mkdir(parents=True, exist_ok=True)
     # os.open with mode 0o666 lets the user's umask decide who may read the file
     # (tempfile.mkstemp would make it 0600: colleagues could not read the results)
     while True:
-        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp{suffix}"
         try:
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
             break
         except FileExistsError:
             continue
     try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
+        if by_name:
+            os.close(fd)
+            write(tmp)
+        else:
+            with os.fdopen(fd, "wb") as fh:
+                write(fh)
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -93,6 +107,13 @@ def atomic_write_bytes(path, data: bytes) -> Path:
 def atomic_write_json(path, obj) -> Path:
     """Write ``obj`` as indented JSON atomically (NumPy scalars/arrays allowed)."""
     return atomic_write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
+
+
+def atomic_write_by_name(path, write, suffix: str = "") -> Path:
+    """Write ``path`` atomically with a writer that takes a file *name* (``write(tmp_path)``, e.g. ezc3d's
+    ``c3d.write``), the temporary name ending with ``suffix`` (a library that appends its extension to
+    other names finds it there); errors as :func:`atomic_write_text`'s."""
+    return _atomic_write(Path(path), write, by_name=True, suffix=suffix)
 
 
 def atomic_write_npz(path, **arrays) -> Path:

@@ -220,10 +220,10 @@ def test_kinematics_full_disk_leaves_the_folder_as_before(tmp_path, capsys, monk
     before = _snapshot(out)
     real = store._write_whole
 
-    def full(path, write):
+    def full(path, write, *how):
         if path.name == "angular.csv":
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
-        return real(path, write)
+        return real(path, write, *how)
 
     monkeypatch.setattr(store, "_write_whole", full)
     assert _kin(traj, static, out, "--smoothing", "adaptive") == 2   # other numbers than auto (gcv here)
@@ -289,3 +289,20 @@ def test_one_frame_export_needs_a_rate(tmp_path, capsys):
     assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 0
     assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 50.0
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []   # no temporary file
+
+
+def test_c3d_export_takes_any_case_and_a_new_folder_like_trc(tmp_path):
+    """``X.C3D`` (ezc3d appends ".c3d" to any other name) is written whole with nothing left beside it, and a
+    missing folder is created as for TRC; a C3D that cannot be written names the file, not its temporary."""
+    from horsemocap.store import WriteError
+
+    traj, _ = _small_record(tmp_path / "in", n=12)
+    tr = io3d.read_trajectories(traj)
+    out = tmp_path / "new" / "X.C3D"
+    io3d.write_c3d(out, tr)
+    assert sorted(p.name for p in out.parent.iterdir()) == ["X.C3D"]
+    np.testing.assert_allclose(io3d.read_trajectories(out).points, tr.points, atol=1e-6)
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    with pytest.raises(WriteError, match=r"cannot write .*file/a\.c3d"):
+        io3d.write_c3d(blocker / "a.c3d", tr)

@@ -59,10 +59,10 @@ def test_results_file_not_written_leaves_results_as_before(name, err_no, tmp_pat
     before = earlier_results(out)
     real = store._write_whole
 
-    def failing(path, write):
+    def failing(path, write, *how):
         if path.name == name:
             raise OSError(err_no, os.strerror(err_no), str(path.parent / f".{path.name}.0123.tmp"))
-        return real(path, write)
+        return real(path, write, *how)
 
     monkeypatch.setattr(store, "_write_whole", failing)
     code, _, err = run_cli(["analyze", session, "--out", out], capsys)
@@ -124,12 +124,17 @@ def test_debug_shows_the_traceback_of_a_step_error(where, tmp_path, template, ca
 
 @pytest.mark.parametrize("words", [["0.5,0.8"], ["0.5", "0.8"], ["0.5,", "0.8"], ["0.5, 0.8"]])
 def test_times_take_commas_and_spaces(words):
+    """One word per occurrence of the option (commas inside a word; the option repeated), in any position:
+    a time never swallows the positional argument that follows it."""
     from horsemocap.cli import build_parser, parse_seconds
 
     assert parse_seconds(words, "--events") == [0.5, 0.8]
     parser = build_parser()
-    kin = parser.parse_args(["kinematics", "t.csv", "--static", "s.csv", "--out", "o", "--events", *words])
-    ana = parser.parse_args(["analyze", "S", "--out", "o", "--pose-events", *words])
+    kin_opts = [x for w in words for x in ("--events", w)]
+    ana_opts = [x for w in words for x in ("--pose-events", w)]
+    kin = parser.parse_args(["kinematics", *kin_opts, "t.csv", "--static", "s.csv", "--out", "o"])
+    ana = parser.parse_args(["analyze", *ana_opts, "S", "--out", "o"])
+    assert kin.trajectories == "t.csv" and ana.session == "S"
     assert parse_seconds(kin.events, "--events") == parse_seconds(ana.pose_events, "--pose-events") == [0.5, 0.8]
 
 
@@ -151,7 +156,8 @@ def test_analyze_pose_events_reach_the_parameters(tmp_path, template):
     from horsemocap.session import load_session
 
     base = resolve_params(load_session(template))
-    got = [_params_from_args(build_parser().parse_args(["analyze", "S", "--out", "o", "--pose-events", *w]), base)
+    got = [_params_from_args(build_parser().parse_args(["analyze", "S", "--out", "o",
+                                                         *[x for word in w for x in ("--pose-events", word)]]), base)
            for w in (["1.5,2.25"], ["1.5", "2.25"])]
     assert got[0].pose_events == got[1].pose_events == [1.5, 2.25]
 
@@ -164,7 +170,8 @@ def test_kinematics_events_with_commas(tmp_path, capsys):
     outs = []
     for i, words in enumerate((["0.2,0.4"], ["0.2", "0.4"])):
         out = tmp_path / f"o{i}"
-        assert main(["kinematics", str(traj), "--static", str(static), "--out", str(out), "--events", *words]) == 0
+        assert main(["kinematics", str(traj), "--static", str(static), "--out", str(out),
+                     *[x for word in words for x in ("--events", word)]]) == 0
         outs.append(out)
     assert (outs[0] / "kinematics.csv").read_bytes() == (outs[1] / "kinematics.csv").read_bytes()
     assert json.loads((outs[0] / "kinematics-run.json").read_text())["options"]["events"] == [0.2, 0.4]
@@ -184,11 +191,11 @@ def _help(*command):
 def test_help_says_what_each_option_does():
     helps, text = _help("kinematics")
     assert "benchmarks/README.md" in helps["events"] and "issue 13" not in text and "18.4" not in text
-    assert "2.8,3.35 or 2.8 3.35" in helps["events"]
+    assert "2.8,3.35 (or the option repeated" in helps["events"]
     for command in ("kinematics", "calibrate", "export", "analyze", "demo"):
         assert _help(command)[0]["out"], f"{command} --out has no help"
     helps, _ = _help("analyze")
-    assert helps["pose_events"].count("e.g.") <= 1 and "2.8,3.35 or 2.8 3.35" in helps["pose_events"]
+    assert helps["pose_events"].count("e.g.") <= 1 and "2.8,3.35 (or the option repeated" in helps["pose_events"]
     assert "default 0.1" in helps["smoothing_span"] and "default 0" in helps["x_marker"]
     from horsemocap.params import AnalysisParams
 
