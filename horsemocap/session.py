@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sources import FrameSource, SourceError
+from .sources import FrameSource, SourceError, image_file_problem
 
 FORMAT = "horsemocap-session/1"
 KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion", "sync",
@@ -121,6 +121,15 @@ def _number(path, name, value, *, positive=True):
     return float(value)
 
 
+def _check_still(path, field_name, image) -> None:
+    """A still image file that is whole (:func:`horsemocap.sources.image_file_problem`), else SessionError."""
+    if image.is_dir():
+        _fail(path, field_name, f"an image file ({image} is a folder)")
+    problem = image_file_problem(image)
+    if problem is not None:
+        raise SessionError(f"{path}: field '{field_name}': {image}: {problem}")
+
+
 def load_session(folder, *, open_sources: bool = True) -> Session:
     """Read and validate ``<folder>/session.json``.
 
@@ -130,7 +139,9 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         The session folder (or the ``session.json`` file itself).
     open_sources : bool
         Also open every motion source (a video must yield a frame; a folder
-        must hold images). Frame counts against sync offsets are checked by
+        must hold images) and check that every plumb and static still is a
+        whole image file (a truncated JPEG or PNG is refused naming its
+        field). Frame counts against sync offsets are checked by
         :func:`check_frame_counts` once the offsets are known.
 
     Returns
@@ -231,6 +242,10 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
 
     plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
     static = _camera_paths(path, root, "static", data["static"], cameras, kind="image") if "static" in data else None
+    if open_sources:
+        for name, stills in (("plumb", plumb), ("static", static)):
+            for cam, p in (stills or {}).items():
+                _check_still(path, f"{name}.{cam}", p)
 
     markers = _require_dict(path, "markers", data["markers"])
     _check_unknown(path, markers, ("count", "diameter_m"), "markers.")

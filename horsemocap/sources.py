@@ -75,9 +75,59 @@ def list_images(folder) -> list[Path]:
                           if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
 
 
-def read_image(path, color: bool = True) -> np.ndarray:
-    """Read one image as RGB ``(h, w, 3)`` uint8 (or gray ``(h, w)``)."""
+#: Bytes read at the end of an image file to find its end marker (JPEG end-of-image, PNG ``IEND``).
+_TAIL_BYTES = 64
+
+
+def image_file_problem(path) -> str | None:
+    """Why an image file is truncated or corrupt, or None when its ends look whole.
+
+    The decoders of OpenCV read a truncated JPEG as an image filled with gray
+    after the cut (printing only "Premature end of JPEG file") and a PNG
+    without its last chunks as far as it goes, so the file's own structure is
+    checked: a JPEG starts with the start-of-image marker ``FF D8`` and ends
+    with the end-of-image marker ``FF D9`` (trailing zero or blank padding
+    allowed); a PNG starts with its signature and ends with the ``IEND``
+    chunk; a BMP is at least as long as its header says. Only the first and
+    the last :data:`_TAIL_BYTES` bytes are read. Other formats: None (their
+    decoder decides).
+    """
     path = Path(path)
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(16)
+        f.seek(max(0, size - _TAIL_BYTES))
+        tail = f.read().rstrip(b"\x00\r\n\t ")
+    if size == 0:
+        return "the file is empty"
+    if head.startswith(b"\xff\xd8"):
+        if not tail.endswith(b"\xff\xd9"):
+            return f"JPEG without its end-of-image marker (FF D9): truncated or corrupt ({size} bytes)"
+    elif head.startswith(b"\x89PNG\r\n\x1a\n"):
+        if b"IEND" not in tail[-12:]:
+            return f"PNG without its IEND chunk: truncated or corrupt ({size} bytes)"
+    elif head.startswith(b"BM") and len(head) >= 6:
+        declared = int.from_bytes(head[2:6], "little")
+        if size < declared:
+            return f"BMP of {size} bytes, but its header says {declared}: truncated"
+    return None
+
+
+def check_image_file(path) -> None:
+    """Raise :class:`SourceError` naming the file when :func:`image_file_problem` finds one."""
+    problem = image_file_problem(path)
+    if problem is not None:
+        raise SourceError(f"{path}: {problem}")
+
+
+def read_image(path, color: bool = True) -> np.ndarray:
+    """Read one image as RGB ``(h, w, 3)`` uint8 (or gray ``(h, w)``).
+
+    A truncated or corrupt file (:func:`image_file_problem`) is refused with
+    :class:`SourceError` naming it, as is one OpenCV cannot decode.
+    """
+    path = Path(path)
+    check_image_file(path)
     img = cv2.imread(str(path), cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise SourceError(f"{path}: cannot be read as an image")

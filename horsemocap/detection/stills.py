@@ -280,8 +280,8 @@ def _matched_in(rig, cams, cand, max_residual_px):
     for j in range(1, len(cams)):
         nc = len(cand[cams[j]])
         new = np.column_stack([np.repeat(hyp, nc, axis=0), np.tile(np.arange(nc), len(hyp))])
-        if len(new) == 0:
-            return new, np.zeros((0, 3)), np.zeros(0)
+        if len(new) == 0:       # a camera without candidates: no correspondence, one column per camera
+            return np.zeros((0, len(cams)), np.intp), np.zeros((0, 3)), np.zeros(0)
         px = {cams[i]: cand[cams[i]].centre[new[:, i]][None] for i in range(j + 1)}
         tri = triangulate(rig, px, mode="joint", max_residual_px=None)
         r = np.max(np.stack([tri.residual_px[c][0] for c in cams[:j + 1]]), axis=0)

@@ -1,0 +1,135 @@
+"""Broken inputs a new user hands in: each is refused (or reported) naming the file and the field.
+
+Copies of the bundled session (never the bundled one) with one input damaged:
+a truncated still, a truncated video, a gap in a numbered frames folder, a
+wrong board size, a wrong marker count, an unreadable calibration view.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from horsemocap import detection as det
+from horsemocap.cli import main
+from horsemocap.data import default_session_dir
+from horsemocap.session import SessionError, load_session
+from horsemocap.sources import SourceError, image_file_problem, read_image
+
+BUNDLED = default_session_dir()
+CAMS = ("left", "middle", "right")
+
+
+def run_cli(argv, capsys):
+    code = main([str(a) for a in argv])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def error_line(code, err):
+    """The one error line of a run that ended with exit status 2 (no traceback)."""
+    assert code == 2, err
+    assert "Traceback" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("horsemocap: error:")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def copy_session(tmp_path: Path, *, rig: bool = True, offsets: bool = True) -> Path:
+    """A copy of the bundled session; with ``rig`` its rig file instead of the views, with ``offsets``
+    the flashlight's offsets written in (the flash search and the calibration take seconds)."""
+    root = tmp_path / "session"
+    shutil.copytree(BUNDLED, root, ignore=shutil.ignore_patterns("calibration") if rig else None)
+    doc = json.loads((root / "session.json").read_text())
+    if rig:
+        (root / "calibration").mkdir()
+        shutil.copy(BUNDLED / "truth" / "rig.toml", root / "calibration" / "rig.toml")
+        doc["calibration"] = {"rig": "calibration/rig.toml"}
+    if offsets:
+        doc["sync"] = {"offsets": {"left": 8, "middle": 61, "right": 134}}
+    (root / "session.json").write_text(json.dumps(doc, indent=1))
+    return root
+
+
+def truncate(path: Path, size: int) -> None:
+    with open(path, "r+b") as f:
+        f.truncate(size)
+
+
+# ---------------------------------------------------------------------------
+# 1. a truncated still; a static point seen by two cameras of three
+# ---------------------------------------------------------------------------
+
+def test_truncated_jpeg_and_png_are_refused_naming_the_file(tmp_path):
+    import cv2
+
+    img = (np.random.default_rng(0).random((60, 80, 3)) * 255).astype(np.uint8)
+    for suffix in (".jpg", ".png"):
+        path = tmp_path / f"still{suffix}"
+        cv2.imwrite(str(path), img)
+        assert image_file_problem(path) is None
+        assert read_image(path).shape == (60, 80, 3)
+        truncate(path, path.stat().st_size // 2)
+        with pytest.raises(SourceError, match=rf"still\{suffix}: {'JPEG' if suffix == '.jpg' else 'PNG'} without"):
+            read_image(path)
+    empty = tmp_path / "empty.jpg"
+    empty.write_bytes(b"")
+    with pytest.raises(SourceError, match="empty.jpg: the file is empty"):
+        read_image(empty)
+    padded = tmp_path / "padded.jpg"                      # zero padding after the end marker is whole
+    cv2.imwrite(str(padded), img)
+    padded.write_bytes(padded.read_bytes() + b"\0" * 16)
+    assert image_file_problem(padded) is None
+
+
+def test_truncated_static_still_names_the_session_field(tmp_path, capsys):
+    root = copy_session(tmp_path)
+    truncate(root / "static" / "left.jpg", 2000)
+    with pytest.raises(SessionError, match=r"field 'static\.left': .*left\.jpg: JPEG without its end-of-image"):
+        load_session(root)
+    code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
+    line = error_line(code, err)
+    assert "static.left" in line and "left.jpg" in line and "truncated" in line
+
+
+def _small_rig_views(blank=None, saddle_outside_left=False):
+    from tests.test_detection import STATIC_3D, add_disc, render_views, small_rig
+
+    rig = small_rig()
+    images, truth = render_views(rig, STATIC_3D[:3], pseudo=2, seed=21)
+    if saddle_outside_left:
+        saddle = np.array([1.0, 0.0, 3.0])
+        for cam in ("middle", "right"):
+            u, v = rig[cam].project(saddle[None])[0]
+            img = images[cam].astype(float)
+            add_disc(img, u, v, 3.2, 200.0)
+            images[cam] = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if blank is not None:
+        images[blank] = np.full_like(images[blank], 28)
+    return rig, images, truth
+
+
+@pytest.mark.parametrize("blank", ["left", "middle", "right"])
+def test_still_views_with_a_camera_without_candidates_refused_clearly(blank):
+    """One camera's still holds no candidate (a gray, decoded-truncated image): the points the
+    other two see fall inside its view, so they are refused with the candidate counts, not a
+    NumPy shape error (the rows of two and of three cameras were joined)."""
+    rig, images, _ = _small_rig_views(blank=blank)
+    with pytest.raises(det.DetectionError, match=rf"only 0 point\(s\).*expected 3.*{blank}: 0 at threshold"):
+        det.match_still_views(images, rig, 3)
+
+
+def test_still_point_seen_by_two_cameras_of_three_is_kept():
+    """A marker outside the reference camera's image, seen by the other two: found (rows of
+    two-camera points joined with the three-camera ones)."""
+    rig, images, truth = _small_rig_views(saddle_outside_left=True)
+    sv = det.match_still_views(images, rig, 4)
+    np.testing.assert_allclose(sv.points[-1], [1.0, 0.0, 3.0], atol=0.02)
+    assert sv.index["left"][-1] == -1 and sv.consistent.shape[1] == 3
+    # the same with the reference camera's still blank: the three markers inside its view are refused
+    rig, images, _ = _small_rig_views(blank="left", saddle_outside_left=True)
+    with pytest.raises(det.DetectionError, match=r"only 1 point\(s\)"):
+        det.match_still_views(images, rig, 4)
