@@ -195,7 +195,7 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     if open_sources:
         for cam, p in motion.items():
             try:
-                FrameSource(p)
+                FrameSource(p).check_whole()
             except SourceError as exc:
                 raise SessionError(f"{path}: field 'motion.{cam}': {exc}") from None
 
@@ -272,8 +272,32 @@ def synced_frame_count(frame_counts: dict, offsets: dict) -> int:
     return min(frame_counts[c] - offsets[c] for c in offsets)
 
 
-def check_frame_counts(session: Session, frame_counts: dict, offsets: dict) -> int:
+def _offsets_origin(session: Session, offsets: dict, offsets_from: str | None) -> str:
+    """Where the sync offsets came from, for an error message."""
+    if offsets_from is None:
+        if session.sync_offsets is not None and dict(offsets) == dict(session.sync_offsets):
+            offsets_from = "given in session.json"
+        elif session.sync_method == "flash":
+            return ("the offsets given by --offsets (the sync_offsets parameter) or found by the flashlight; "
+                    "not session.json's")
+        else:
+            offsets_from = "given in parameters"
+    if offsets_from == "given in session.json":
+        return f"'sync.offsets' in {session.json_path}"
+    if offsets_from == "given in parameters":
+        return "the offsets given by --offsets (the analysis parameter sync_offsets), not session.json"
+    if offsets_from.startswith("flashlight"):
+        return f"the offsets found by the flashlight ({offsets_from}); give them with --offsets if it is wrong"
+    return f"the offsets {offsets_from}"
+
+
+def check_frame_counts(session: Session, frame_counts: dict, offsets: dict, offsets_from: str | None = None) -> int:
     """Check that every camera has frames at and after its sync offset.
+
+    ``offsets_from`` says where the offsets came from (the sync step's
+    ``"given in parameters"``, ``"given in session.json"``, ``"flashlight"``),
+    named in the message; None: told from the session (``sync.offsets`` of
+    session.json when they are those, else --offsets or the flashlight).
 
     Returns the synchronised frame count; raises :class:`SessionError` naming
     the camera's file when a source is too short (e.g. a truncated video).
@@ -281,8 +305,8 @@ def check_frame_counts(session: Session, frame_counts: dict, offsets: dict) -> i
     for cam in session.cameras:
         if frame_counts[cam] <= offsets[cam]:
             raise SessionError(
-                f"{session.motion[cam]}: camera '{cam}' has {frame_counts[cam]} frames, but its sync "
-                f"offset is frame {offsets[cam]}: the source is truncated or the offset is wrong "
-                f"(see 'sync' in {session.json_path})")
+                f"{session.motion[cam]} ('motion.{cam}'): camera '{cam}' has {frame_counts[cam]} frames, but "
+                f"its sync offset is frame {offsets[cam]}: the source is truncated or the offset is wrong "
+                f"(see {_offsets_origin(session, offsets, offsets_from)})")
     n = synced_frame_count(frame_counts, offsets)
     return n

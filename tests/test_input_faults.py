@@ -133,3 +133,95 @@ def test_still_point_seen_by_two_cameras_of_three_is_kept():
     rig, images, _ = _small_rig_views(blank="left", saddle_outside_left=True)
     with pytest.raises(det.DetectionError, match=r"only 1 point\(s\)"):
         det.match_still_views(images, rig, 4)
+
+
+# ---------------------------------------------------------------------------
+# 2. a truncated video; offsets from the command line
+# ---------------------------------------------------------------------------
+
+def test_truncated_video_is_refused_with_both_counts(tmp_path, capsys):
+    """middle.avi cut to a quarter: its header says 129 frames, 32 decode. Said so naming
+    motion.middle and both counts, not 'no flash found in frames 0..31'."""
+    from horsemocap import sync
+    from horsemocap.sources import FrameSource
+
+    root = copy_session(tmp_path, offsets=False)
+    video = root / "motion" / "middle.avi"
+    truncate(video, video.stat().st_size // 4)
+    source = FrameSource(video)
+    declared, decodable = source.truncation()
+    assert declared == 129 and 0 < decodable < 129
+    assert FrameSource(root / "motion" / "left.avi").truncation() is None
+    with pytest.raises(SessionError, match=rf"field 'motion.middle': .*middle.avi: truncated video: its container "
+                                           rf"declares 129 frames, but only {decodable} decode"):
+        load_session(root)
+    with pytest.raises(sync.SyncError, match=rf"middle.avi: truncated video: .*129 frames, but only {decodable}"):
+        sync.flash_offsets({"middle": source})
+    for extra in ([], ["--offsets", "left=8,middle=61,right=134"]):
+        code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out", *extra], capsys)
+        line = error_line(code, err)
+        assert "motion.middle" in line and "129" in line and str(decodable) in line and "flash" not in line
+
+
+def test_offsets_beyond_a_source_name_where_they_came_from(tmp_path, capsys):
+    from horsemocap.session import check_frame_counts
+
+    root = copy_session(tmp_path)                     # session.json holds offsets 8, 61, 134
+    s = load_session(root)
+    counts = {"left": 129, "middle": 129, "right": 200}
+    with pytest.raises(SessionError, match=r"'sync.offsets' in .*session.json"):
+        check_frame_counts(s, {**counts, "middle": 50}, s.sync_offsets)
+    with pytest.raises(SessionError, match=r"--offsets .*not session.json") as exc:
+        check_frame_counts(s, counts, {"left": 8, "middle": 161, "right": 134}, "given in parameters")
+    assert "'sync" not in str(exc.value)
+    with pytest.raises(SessionError, match=r"found by the flashlight"):
+        check_frame_counts(s, counts, {"left": 8, "middle": 161, "right": 134}, "flashlight")
+    code, _, err = run_cli(["analyze", root, "--offsets", "left=8,middle=200,right=134", "--out", tmp_path / "o"],
+                           capsys)
+    line = error_line(code, err)
+    assert "--offsets" in line and "motion.middle" in line and "'sync.offsets'" not in line
+
+
+# ---------------------------------------------------------------------------
+# 3. a gap in a numbered frames folder
+# ---------------------------------------------------------------------------
+
+def test_numbering_gaps():
+    from horsemocap.sources import numbering_gaps
+
+    assert numbering_gaps(["a0.png", "a1.png", "a3.png"]) == ["a2.png"]
+    assert numbering_gaps(["f007.png", "f010.png", "f008.png"]) == ["f009.png"]
+    assert numbering_gaps(["a9.png", "a10.png", "a12.png"]) == ["a11.png"]
+    assert numbering_gaps(["left1.png", "left2.png"]) == []
+    assert numbering_gaps(["x1.png", "y3.png"]) == []             # not one series: nothing said
+    assert numbering_gaps(["cam1_0.png", "cam1_2.png"]) == ["cam1_1.png"]
+
+
+def test_missing_image_in_frames_folder_is_an_error_naming_it(tmp_path, capsys):
+    import cv2
+
+    from horsemocap.sources import FrameSource
+
+    root = copy_session(tmp_path)
+    frames = root / "motion" / "middle"
+    frames.mkdir()
+    cap = cv2.VideoCapture(str(root / "motion" / "middle.avi"))
+    k = 0
+    while True:
+        ok, bgr = cap.read()
+        if not ok:
+            break
+        cv2.imwrite(str(frames / f"middle{k}.png"), bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        k += 1
+    cap.release()
+    assert k == 129
+    doc = json.loads((root / "session.json").read_text())
+    doc["motion"]["middle"] = "motion/middle"
+    (root / "session.json").write_text(json.dumps(doc))
+    assert FrameSource(frames).missing_images() == []
+    (frames / "middle80.png").unlink()
+    assert FrameSource(frames).missing_images() == ["middle80.png"]
+    with pytest.raises(SessionError, match=r"field 'motion.middle': .*1 image\(s\) missing .*: middle80.png"):
+        load_session(root)
+    code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
+    assert "middle80.png" in error_line(code, err)
