@@ -225,3 +225,36 @@ def test_missing_image_in_frames_folder_is_an_error_naming_it(tmp_path, capsys):
         load_session(root)
     code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
     assert "middle80.png" in error_line(code, err)
+
+
+# ---------------------------------------------------------------------------
+# 4. a wrong board size
+# ---------------------------------------------------------------------------
+
+def test_wrong_board_size_stops_after_the_first_views_naming_the_field(tmp_path):
+    """inner_corners 9x6 for the bundled 7x14 board: stopped once the first views of every camera
+    miss it while a 7x14 board is in them (was: every view searched, 155 s, 45 lines per camera)."""
+    import time
+
+    from horsemocap.calibration.board import PROBE_VIEWS, BoardSizeError, detect_cameras
+    from horsemocap.sources import list_images
+
+    dirs = {}
+    for cam in ("left", "right"):
+        dirs[cam] = tmp_path / cam
+        dirs[cam].mkdir()
+        for f in list_images(BUNDLED / "calibration" / cam)[:PROBE_VIEWS + 3]:
+            shutil.copy(f, dirs[cam] / f.name)
+    t = time.perf_counter()
+    with pytest.raises(BoardSizeError, match=r"no board of 9x6 inner corners in the first 6 checkerboard views "
+                                             r"\(left: left1.jpg, left2.jpg, left3.jpg; right: .*\), but a board "
+                                             r"of 7x14 inner corners in \d of them.*'calibration.board.inner_"
+                                             r"corners' to \[7, 14\].*--board 7x14"):
+        detect_cameras(dirs, (9, 6))
+    seconds = time.perf_counter() - t
+    with pytest.raises(BoardSizeError):
+        detect_cameras(dirs, (9, 6), workers=1)
+    # the right size: every view detected, nothing stopped
+    views = detect_cameras(dirs, (7, 14))
+    assert all(v.found.sum() >= PROBE_VIEWS for v in views.values())
+    print(f"wrong board size refused after {seconds:.1f} s")
