@@ -258,3 +258,46 @@ def test_wrong_board_size_stops_after_the_first_views_naming_the_field(tmp_path)
     views = detect_cameras(dirs, (7, 14))
     assert all(v.found.sum() >= PROBE_VIEWS for v in views.values())
     print(f"wrong board size refused after {seconds:.1f} s")
+
+
+# ---------------------------------------------------------------------------
+# 5. a wrong marker count
+# ---------------------------------------------------------------------------
+
+def _bundled_static():
+    from horsemocap.camera import read_rig
+
+    rig = read_rig(BUNDLED / "truth" / "rig.toml")
+    return rig, {c: read_image(BUNDLED / "static" / f"{c}.jpg") for c in rig.names}
+
+
+def test_static_shot_with_one_point_too_many_names_markers_count():
+    """3 markers + the saddle marker: 4 points look like markers (costs 0.05-0.06), the pseudo
+    points 0.19 and more. Asked for 5 (markers.count 4), the 5th would be a pseudo marker."""
+    rig, images = _bundled_static()
+    sv = det.match_still_views(images, rig, 4)
+    assert sv.score.max() < 0.1
+    with pytest.raises(det.DetectionError, match=r"5 markers expected, but only 4 of the 8 consistent points look "
+                                                 r"like markers .*'markers.count'"):
+        det.match_still_views(images, rig, 5)
+    with pytest.raises(det.DetectionError, match=r"ambiguous.*4 of the 8 consistent points look like markers "
+                                                 r".*not 3: .*'markers.count'"):
+        det.match_still_views(images, rig, 3)
+
+
+def test_wrong_marker_count_fails_at_the_static_step_naming_the_field(tmp_path, capsys):
+    root = copy_session(tmp_path)
+    doc = json.loads((root / "session.json").read_text())
+    doc["markers"]["count"] = 4
+    (root / "session.json").write_text(json.dumps(doc))
+    code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
+    line = error_line(code, err)
+    assert "step 'static'" in line and "markers.count" in line and "only 4" in line
+
+
+def test_reason_counts():
+    from horsemocap.detection.identification import reason_counts
+
+    reason = {"left": np.array([["", "lost"], ["occluded", "lost"]], dtype=object),
+              "right": np.full((2, 2), "", dtype=object)}
+    assert reason_counts(reason) == "left: used 1 of 4, lost 2, occluded 1; right: used 4 of 4"
