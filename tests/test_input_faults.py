@@ -301,3 +301,45 @@ def test_reason_counts():
     reason = {"left": np.array([["", "lost"], ["occluded", "lost"]], dtype=object),
               "right": np.full((2, 2), "", dtype=object)}
     assert reason_counts(reason) == "left: used 1 of 4, lost 2, occluded 1; right: used 4 of 4"
+
+
+# ---------------------------------------------------------------------------
+# 6. an unreadable calibration view
+# ---------------------------------------------------------------------------
+
+def test_unreadable_calibration_view_is_skipped_with_its_reason(tmp_path):
+    from horsemocap.calibration.board import UNREADABLE, CalibrationError, detect_cameras
+    from horsemocap.calibration.rig import unreadable_views
+    from horsemocap.sources import list_images
+
+    dirs = {}
+    for cam in ("left", "right"):
+        dirs[cam] = tmp_path / cam
+        dirs[cam].mkdir()
+        for f in list_images(BUNDLED / "calibration" / cam)[:4]:
+            shutil.copy(f, dirs[cam] / f.name)
+    truncate(dirs["right"] / "right2.jpg", 3000)                   # truncated
+    (dirs["left"] / "left3.jpg").write_bytes(b"not an image at all")   # undecodable
+    for workers in (None, 1):
+        views = detect_cameras(dirs, (7, 14), workers=workers)
+        assert views["right"].reasons[1].startswith(f"{UNREADABLE}: JPEG without its end-of-image marker")
+        assert views["left"].reasons[2].startswith(f"{UNREADABLE}: cannot be read as an image")
+        assert views["left"].found.sum() == 3 and views["right"].found.sum() == 3
+        assert views["left"].size == views["right"].size == (640, 480)
+    lines = unreadable_views(views)
+    assert len(lines) == 2 and "camera 'right': 1 of 4 checkerboard views skipped" in lines[1]
+    assert "right2.jpg (JPEG without its end-of-image marker" in lines[1]
+    for f in list_images(dirs["left"]):
+        f.write_bytes(b"")
+    with pytest.raises(CalibrationError, match=r"camera 'left': none of its 4 checkerboard views can be read"):
+        detect_cameras(dirs, (7, 14))
+
+
+def test_analysis_goes_on_without_an_unreadable_calibration_view(tmp_path, capsys):
+    root = copy_session(tmp_path, rig=False)
+    truncate(root / "calibration" / "middle" / "middle7.jpg", 3000)
+    code, out, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
+    assert code == 0, err
+    assert "camera 'middle': 1 of 45 checkerboard views skipped" in out + err and "middle7.jpg" in out + err
+    cal = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert "cannot be read" in json.dumps(cal)

@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..sources import list_images, read_image
+from ..sources import SourceError, list_images, read_image
 from ..threads import opencv_single_threaded
 
 
@@ -338,6 +338,11 @@ class DetectionStopped(CalibrationError):
     """Board detection stopped on request (:func:`detect_cameras`' ``stop``)."""
 
 
+#: The start of the reason of a view whose file cannot be read (truncated, corrupt): skipped like a view without
+#: a board, and reported (:func:`horsemocap.calibration.rig.unreadable_views`).
+UNREADABLE = "cannot be read"
+
+
 class BoardSizeError(CalibrationError):
     """The board of the size given is in none of the first views, but a board of another size is."""
 
@@ -403,7 +408,12 @@ def _detect_file(path: Path, inner_corners: tuple[int, int], window: int | None,
     """One view: ``((width, height), corners or None, window, reason)``."""
     if stop is not None and stop.is_set():
         raise DetectionStopped("board detection stopped")
-    img = read_image(path, color=False)
+    try:
+        img = read_image(path, color=False)
+    except SourceError as exc:      # a truncated or corrupt view is skipped with its reason, as a view without a board
+        problem = str(exc)
+        problem = problem[len(str(path)) + 2:] if problem.startswith(f"{path}: ") else problem
+        return None, None, 0, f"{UNREADABLE}: {problem}"
     try:
         corners, w, why = detect_board(img, inner_corners, window)
     except Exception as exc:         # raised in file order, after the view's size is checked
@@ -417,7 +427,9 @@ def _camera_views(camera: str, files: list, detected, inner_corners, tick=None) 
     corners = np.full((len(files), n, 2), np.nan)
     reasons, windows, size = [], np.zeros(len(files), int), None
     for k, (f, (view_size, c, w, why)) in enumerate(zip(files, detected)):
-        if size is None:
+        if view_size is None:       # unreadable: no size to compare
+            pass
+        elif size is None:
             size = view_size
         elif view_size != size:
             raise CalibrationError(f"{f}: image size {view_size[0]}x{view_size[1]} differs from "
@@ -430,6 +442,9 @@ def _camera_views(camera: str, files: list, detected, inner_corners, tick=None) 
         windows[k] = w
         if tick is not None:
             tick(k + 1, len(files))
+    if size is None:
+        raise CalibrationError(f"camera {camera!r}: none of its {len(files)} checkerboard views can be read "
+                               f"({files[0]}: {reasons[0]})")
     return BoardViews(camera, tuple(view_keys(files, camera)), tuple(files), corners,
                       tuple(reasons), windows, size, (int(inner_corners[0]), int(inner_corners[1])))
 
