@@ -96,7 +96,7 @@ def test_truncated_static_still_names_the_session_field(tmp_path, capsys):
 
 
 def _small_rig_views(blank=None, saddle_outside_left=False):
-    from tests.test_detection import STATIC_3D, add_disc, render_views, small_rig
+    from test_detection import STATIC_3D, add_disc, render_views, small_rig   # tests/ is on sys.path (pytest)
 
     rig = small_rig()
     images, truth = render_views(rig, STATIC_3D[:3], pseudo=2, seed=21)

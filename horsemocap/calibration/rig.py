@@ -12,8 +12,8 @@ the reference (left) camera's frame: one consistent rig.
 from __future__ import annotations
 
 import itertools
-from pathlib import Path
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
