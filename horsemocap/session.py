@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sources import FrameSource, SourceError
+from .sources import FrameSource, SourceError, image_file_problem
 
 FORMAT = "horsemocap-session/1"
 KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion", "sync",
@@ -121,6 +121,15 @@ def _number(path, name, value, *, positive=True):
     return float(value)
 
 
+def _check_still(path, field_name, image) -> None:
+    """A still image file that is whole (:func:`horsemocap.sources.image_file_problem`), else SessionError."""
+    if image.is_dir():
+        _fail(path, field_name, f"an image file ({image} is a folder)")
+    problem = image_file_problem(image)
+    if problem is not None:
+        raise SessionError(f"{path}: field '{field_name}': {image}: {problem}")
+
+
 def load_session(folder, *, open_sources: bool = True) -> Session:
     """Read and validate ``<folder>/session.json``.
 
@@ -130,7 +139,9 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         The session folder (or the ``session.json`` file itself).
     open_sources : bool
         Also open every motion source (a video must yield a frame; a folder
-        must hold images). Frame counts against sync offsets are checked by
+        must hold images) and check that every plumb and static still is a
+        whole image file (a truncated JPEG or PNG is refused naming its
+        field). Frame counts against sync offsets are checked by
         :func:`check_frame_counts` once the offsets are known.
 
     Returns
@@ -184,7 +195,7 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     if open_sources:
         for cam, p in motion.items():
             try:
-                FrameSource(p)
+                FrameSource(p).check_whole()
             except SourceError as exc:
                 raise SessionError(f"{path}: field 'motion.{cam}': {exc}") from None
 
@@ -231,6 +242,10 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
 
     plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
     static = _camera_paths(path, root, "static", data["static"], cameras, kind="image") if "static" in data else None
+    if open_sources:
+        for name, stills in (("plumb", plumb), ("static", static)):
+            for cam, p in (stills or {}).items():
+                _check_still(path, f"{name}.{cam}", p)
 
     markers = _require_dict(path, "markers", data["markers"])
     _check_unknown(path, markers, ("count", "diameter_m"), "markers.")
@@ -257,8 +272,32 @@ def synced_frame_count(frame_counts: dict, offsets: dict) -> int:
     return min(frame_counts[c] - offsets[c] for c in offsets)
 
 
-def check_frame_counts(session: Session, frame_counts: dict, offsets: dict) -> int:
+def _offsets_origin(session: Session, offsets: dict, offsets_from: str | None) -> str:
+    """Where the sync offsets came from, for an error message."""
+    if offsets_from is None:
+        if session.sync_offsets is not None and dict(offsets) == dict(session.sync_offsets):
+            offsets_from = "given in session.json"
+        elif session.sync_method == "flash":
+            return ("the offsets given by --offsets (the sync_offsets parameter) or found by the flashlight; "
+                    "not session.json's")
+        else:
+            offsets_from = "given in parameters"
+    if offsets_from == "given in session.json":
+        return f"'sync.offsets' in {session.json_path}"
+    if offsets_from == "given in parameters":
+        return "the offsets given by --offsets (the analysis parameter sync_offsets), not session.json"
+    if offsets_from.startswith("flashlight"):
+        return f"the offsets found by the flashlight ({offsets_from}); give them with --offsets if it is wrong"
+    return f"the offsets {offsets_from}"
+
+
+def check_frame_counts(session: Session, frame_counts: dict, offsets: dict, offsets_from: str | None = None) -> int:
     """Check that every camera has frames at and after its sync offset.
+
+    ``offsets_from`` says where the offsets came from (the sync step's
+    ``"given in parameters"``, ``"given in session.json"``, ``"flashlight"``),
+    named in the message; None: told from the session (``sync.offsets`` of
+    session.json when they are those, else --offsets or the flashlight).
 
     Returns the synchronised frame count; raises :class:`SessionError` naming
     the camera's file when a source is too short (e.g. a truncated video).
@@ -266,8 +305,8 @@ def check_frame_counts(session: Session, frame_counts: dict, offsets: dict) -> i
     for cam in session.cameras:
         if frame_counts[cam] <= offsets[cam]:
             raise SessionError(
-                f"{session.motion[cam]}: camera '{cam}' has {frame_counts[cam]} frames, but its sync "
-                f"offset is frame {offsets[cam]}: the source is truncated or the offset is wrong "
-                f"(see 'sync' in {session.json_path})")
+                f"{session.motion[cam]} ('motion.{cam}'): camera '{cam}' has {frame_counts[cam]} frames, but "
+                f"its sync offset is frame {offsets[cam]}: the source is truncated or the offset is wrong "
+                f"(see {_offsets_origin(session, offsets, offsets_from)})")
     n = synced_frame_count(frame_counts, offsets)
     return n

@@ -75,9 +75,84 @@ def list_images(folder) -> list[Path]:
                           if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
 
 
-def read_image(path, color: bool = True) -> np.ndarray:
-    """Read one image as RGB ``(h, w, 3)`` uint8 (or gray ``(h, w)``)."""
+#: Bytes read at the end of an image file to find its end marker (JPEG end-of-image, PNG ``IEND``).
+_TAIL_BYTES = 64
+
+
+def image_file_problem(path) -> str | None:
+    """Why an image file is truncated or corrupt, or None when its ends look whole.
+
+    The decoders of OpenCV read a truncated JPEG as an image filled with gray
+    after the cut (printing only "Premature end of JPEG file") and a PNG
+    without its last chunks as far as it goes, so the file's own structure is
+    checked: a JPEG starts with the start-of-image marker ``FF D8`` and ends
+    with the end-of-image marker ``FF D9`` (trailing zero or blank padding
+    allowed); a PNG starts with its signature and ends with the ``IEND``
+    chunk; a BMP is at least as long as its header says. Only the first and
+    the last :data:`_TAIL_BYTES` bytes are read. Other formats: None (their
+    decoder decides).
+    """
     path = Path(path)
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(16)
+        f.seek(max(0, size - _TAIL_BYTES))
+        tail = f.read().rstrip(b"\x00\r\n\t ")
+    if size == 0:
+        return "the file is empty"
+    if head.startswith(b"\xff\xd8"):
+        if not tail.endswith(b"\xff\xd9"):
+            return f"JPEG without its end-of-image marker (FF D9): truncated or corrupt ({size} bytes)"
+    elif head.startswith(b"\x89PNG\r\n\x1a\n"):
+        if b"IEND" not in tail[-12:]:
+            return f"PNG without its IEND chunk: truncated or corrupt ({size} bytes)"
+    elif head.startswith(b"BM") and len(head) >= 6:
+        declared = int.from_bytes(head[2:6], "little")
+        if size < declared:
+            return f"BMP of {size} bytes, but its header says {declared}: truncated"
+    return None
+
+
+def check_image_file(path) -> None:
+    """Raise :class:`SourceError` naming the file when :func:`image_file_problem` finds one."""
+    problem = image_file_problem(path)
+    if problem is not None:
+        raise SourceError(f"{path}: {problem}")
+
+
+def numbering_gaps(names) -> list[str]:
+    """File names missing from a numbered series (``a0.png, a1.png, a3.png`` -> ``["a2.png"]``).
+
+    The last number in each name is its place in the series; the names must
+    all share the text before and after it (otherwise nothing is reported:
+    the folder is not one numbered series). Zero padding (``a007.png``) is
+    kept in the names returned.
+    """
+    parsed = []
+    for name in names:
+        m = re.match(r"^(.*?)(\d+)(\D*)$", name)
+        if m is None:
+            return []
+        parsed.append((m.group(1), m.group(3), m.group(2)))
+    if len({(pre, post) for pre, post, _ in parsed}) != 1 or len(parsed) < 2:
+        return []
+    pre, post = parsed[0][0], parsed[0][1]
+    digits = [d for _, _, d in parsed]
+    numbers = sorted(int(d) for d in digits)
+    width = len(digits[0]) if len({len(d) for d in digits}) == 1 and any(d.startswith("0") and len(d) > 1
+                                                                           for d in digits) else 0
+    have = set(numbers)
+    return [f"{pre}{k:0{width}d}{post}" for k in range(numbers[0], numbers[-1] + 1) if k not in have]
+
+
+def read_image(path, color: bool = True) -> np.ndarray:
+    """Read one image as RGB ``(h, w, 3)`` uint8 (or gray ``(h, w)``).
+
+    A truncated or corrupt file (:func:`image_file_problem`) is refused with
+    :class:`SourceError` naming it, as is one OpenCV cannot decode.
+    """
+    path = Path(path)
+    check_image_file(path)
     img = cv2.imread(str(path), cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise SourceError(f"{path}: cannot be read as an image")
@@ -129,6 +204,10 @@ class FrameSource:
         """Number of frames actually readable (videos are decoded to count)."""
         if not self.is_video:
             return len(list_images(self.path))
+        return self._video_counts()[1]
+
+    def _video_counts(self) -> tuple[int | None, int]:
+        """The frame count the video container declares (None: none) and the count that decodes."""
         cap = cv2.VideoCapture(str(self.path))
         try:
             # the count the container declares, if its last frame is read and nothing after it
@@ -137,16 +216,52 @@ class FrameSource:
             if n > 0:
                 cap.set(cv2.CAP_PROP_POS_FRAMES, n - 1)
                 if int(cap.get(cv2.CAP_PROP_POS_FRAMES)) == n - 1 and cap.grab() and not cap.grab():
-                    return n
+                    return n, n
             # otherwise (no count, a truncated or an inexact one): count every frame
             cap.release()
             cap = cv2.VideoCapture(str(self.path))
             count = 0
             while cap.grab():
                 count += 1
-            return count
+            return (n if n > 0 else None), count
         finally:
             cap.release()
+
+    def truncation(self) -> tuple[int, int] | None:
+        """``(declared, decodable)`` frame counts of a video of which fewer frames decode than its
+        container declares (a file cut short while copying or recording); None otherwise (also for
+        an image folder: its gaps are :meth:`missing_images`)."""
+        if not self.is_video:
+            return None
+        declared, count = self._video_counts()
+        return (declared, count) if declared is not None and count < declared else None
+
+    def missing_images(self) -> list[str]:
+        """Names of the images missing from a numbered frames folder (``left0.png .. left128.png``
+        without ``left80.png``: ``["left80.png"]``); empty for a video.
+
+        The number in the names (the last one, zero padding kept) is the frame's
+        place in time: a gap would shift every later frame by one. Only gaps
+        between the first and the last number are seen, and only when every
+        image shares one pattern (same text around the number, same suffix).
+        """
+        if self.is_video:
+            return []
+        return numbering_gaps([p.name for p in list_images(self.path)])
+
+    def check_whole(self) -> None:
+        """Raise :class:`SourceError` naming the file when a video is truncated (:meth:`truncation`)
+        or a numbered frames folder has a gap (:meth:`missing_images`)."""
+        gaps = self.missing_images()
+        if gaps:
+            shown = ", ".join(gaps[:10]) + (f" and {len(gaps) - 10} more" if len(gaps) > 10 else "")
+            raise SourceError(f"{self.path}: {len(gaps)} image(s) missing from the frame numbering: {shown} "
+                              "(each image is one frame in time; restore them, or renumber the folder "
+                              "if the gap is not in the recording)")
+        cut = self.truncation()
+        if cut is not None:
+            raise SourceError(f"{self.path}: truncated video: its container declares {cut[0]} frames, "
+                              f"but only {cut[1]} decode (frames {cut[1]}..{cut[0] - 1} are missing)")
 
     def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True, share: bool = False):
         """Yield ``(index, frame)`` for frames ``start <= index < stop``.

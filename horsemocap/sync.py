@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .sources import FrameSource
+from .sources import FrameSource, SourceError
 
 #: Frames searched from the start of each source when none are given (20 s at 30 fps).
 DEFAULT_SEARCH_FRAMES = 600
@@ -91,6 +91,11 @@ def _read(source, search_frames, start):
     if isinstance(source, FrameSource):
         stop = None if search_frames is None else start + int(search_frames)
         frames = [f for _, f in source.iter_frames(start, stop, color=False, share=True)]
+        if stop is None or len(frames) < stop - start:
+            try:        # the source ended before the search did: a truncated video is said so, not searched
+                source.check_whole()
+            except SourceError as exc:
+                raise SyncError(f"{exc}; the flash cannot be searched in the frames that decode") from None
         if not frames:
             raise SyncError(f"{source.path}: no frames from index {start} to search for the flash")
         return frames, str(source.path)

@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..sources import list_images, read_image
+from ..sources import SourceError, list_images, read_image
 from ..threads import opencv_single_threaded
 
 
@@ -338,11 +338,82 @@ class DetectionStopped(CalibrationError):
     """Board detection stopped on request (:func:`detect_cameras`' ``stop``)."""
 
 
+#: The start of the reason of a view whose file cannot be read (truncated, corrupt): skipped like a view without
+#: a board, and reported (:func:`horsemocap.calibration.rig.unreadable_views`).
+UNREADABLE = "cannot be read"
+
+
+class BoardSizeError(CalibrationError):
+    """The board of the size given is in none of the first views, but a board of another size is."""
+
+
+#: Views of each camera detected first; when the board is found in none of them, they are searched for a
+#: board of any size (:func:`probe_board_size`) before the other views are waited for.
+PROBE_VIEWS = 3
+#: The pattern size handed to ``findChessboardCornersSB`` with ``CALIB_CB_LARGER``: any board at least this
+#: big is found, with the size it has (measured on the bundled views: (4, 4) with ``CALIB_CB_EXHAUSTIVE``
+#: finds the whole 7x14 board in 8 of the first 9 views, 0.02-0.05 s each; without it, 5x14 parts).
+_PROBE_PATTERN = (4, 4)
+
+
+def probe_board_size(gray: np.ndarray) -> tuple[int, int] | None:
+    """The inner corners ``(a, b)`` of the checkerboard in a view, whatever its size; None if none is found.
+
+    ``findChessboardCornersSB`` with ``CALIB_CB_LARGER`` grows a board from
+    :data:`_PROBE_PATTERN` to the whole grid it sees; the size is kept only
+    when the classic or the sector detector then finds a board of exactly
+    that size (in either order: OpenCV finds a ``(a, b)`` board as ``(b, a)``
+    too), so a board cut by the image edge does not give a size.
+    """
+    found = cv2.findChessboardCornersSBWithMeta(gray, _PROBE_PATTERN, cv2.CALIB_CB_LARGER | SECTOR_FLAGS)
+    ok, meta = found[0], found[2]
+    if not ok or meta is None or meta.ndim != 2:
+        return None
+    size = (int(meta.shape[0]), int(meta.shape[1]))
+    if cv2.findChessboardCorners(gray, size, flags=CLASSIC_FLAGS)[0] or \
+            cv2.findChessboardCornersSB(gray, size, flags=SECTOR_FLAGS)[0]:
+        return size
+    return None
+
+
+def _check_board_size(probes: dict, inner_corners: tuple[int, int]) -> None:
+    """Raise :class:`BoardSizeError` when the first views (``probes``: camera -> [(file, result)]) all miss
+    the board of ``inner_corners`` and most of them show a board of one other size."""
+    results = [(f, r) for views in probes.values() for f, r in views]
+    if not results or any(r[1] is not None or isinstance(r[3], Exception) or not r[3].startswith("board of")
+                          for _, r in results):
+        return
+    sizes, seen = {}, []
+    for f, _ in results:
+        size = probe_board_size(read_image(f, color=False))
+        if size is not None:                # (a, b) and (b, a) are one board (OpenCV finds it either way)
+            sizes[tuple(sorted(size))] = sizes.get(tuple(sorted(size)), 0) + 1
+            seen.append(size)
+    if not sizes:
+        return                              # no board of any size either: the views' own reasons will say
+    key, count = max(sizes.items(), key=lambda kv: kv[1])
+    if key == tuple(sorted(inner_corners)) or 2 * count < len(results):
+        return
+    size = max(set(s for s in seen if tuple(sorted(s)) == key), key=seen.count)
+    tried = f"{inner_corners[0]}x{inner_corners[1]}"
+    firsts = "; ".join(f"{cam}: {', '.join(Path(f).name for f, _ in views)}" for cam, views in probes.items())
+    raise BoardSizeError(
+        f"no board of {tried} inner corners in the first {len(results)} checkerboard views ({firsts}), but "
+        f"a board of {size[0]}x{size[1]} inner corners in {count} of them: the board size is wrong; set "
+        f"'calibration.board.inner_corners' to [{size[0]}, {size[1]}] in session.json (or --board "
+        f"{size[0]}x{size[1]} for horsemocap calibrate)")
+
+
 def _detect_file(path: Path, inner_corners: tuple[int, int], window: int | None, stop=None):
     """One view: ``((width, height), corners or None, window, reason)``."""
     if stop is not None and stop.is_set():
         raise DetectionStopped("board detection stopped")
-    img = read_image(path, color=False)
+    try:
+        img = read_image(path, color=False)
+    except SourceError as exc:      # a truncated or corrupt view is skipped with its reason, as a view without a board
+        problem = str(exc)
+        problem = problem[len(str(path)) + 2:] if problem.startswith(f"{path}: ") else problem
+        return None, None, 0, f"{UNREADABLE}: {problem}"
     try:
         corners, w, why = detect_board(img, inner_corners, window)
     except Exception as exc:         # raised in file order, after the view's size is checked
@@ -356,7 +427,9 @@ def _camera_views(camera: str, files: list, detected, inner_corners, tick=None) 
     corners = np.full((len(files), n, 2), np.nan)
     reasons, windows, size = [], np.zeros(len(files), int), None
     for k, (f, (view_size, c, w, why)) in enumerate(zip(files, detected)):
-        if size is None:
+        if view_size is None:       # unreadable: no size to compare
+            pass
+        elif size is None:
             size = view_size
         elif view_size != size:
             raise CalibrationError(f"{f}: image size {view_size[0]}x{view_size[1]} differs from "
@@ -369,6 +442,9 @@ def _camera_views(camera: str, files: list, detected, inner_corners, tick=None) 
         windows[k] = w
         if tick is not None:
             tick(k + 1, len(files))
+    if size is None:
+        raise CalibrationError(f"camera {camera!r}: none of its {len(files)} checkerboard views can be read "
+                               f"({files[0]}: {reasons[0]})")
     return BoardViews(camera, tuple(view_keys(files, camera)), tuple(files), corners,
                       tuple(reasons), windows, size, (int(inner_corners[0]), int(inner_corners[1])))
 
@@ -400,27 +476,51 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
     Returns
     -------
     dict camera -> BoardViews
+
+    Raises
+    ------
+    BoardSizeError
+        The first :data:`PROBE_VIEWS` views of every camera (detected before
+        the others) all miss the board of ``inner_corners`` while at least
+        half of them show a board of one other size
+        (:func:`probe_board_size`): raised at once, naming the size that
+        fits, instead of after every view was searched in vain.
     """
     inner_corners = (int(inner_corners[0]), int(inner_corners[1]))
     listed = [_camera_files(folder, cam) for cam, folder in image_dirs.items()]
     jobs = [f for _, _, files in listed for f in files]
+    # the first PROBE_VIEWS views of every camera are detected first: a wrong board size shows in them
+    starts = np.cumsum([0] + [len(files) for _, _, files in listed])
+    first = [int(a) + k for a, (_, _, files) in zip(starts, listed) for k in range(min(PROBE_VIEWS, len(files)))]
+    order = first + sorted(set(range(len(jobs))) - set(first))
     workers = min(detection_workers(workers), max(len(jobs), 1))
     ticks = ticks or {}
 
-    def gather(results):
-        return {cam: _camera_views(camera, files, itertools.islice(results, len(files)), inner_corners, ticks.get(cam))
-                for cam, (_, camera, files) in zip(image_dirs, listed)}
+    def gather(result_of):
+        _check_board_size({cam: [(jobs[j], result_of(j)) for j in first if a <= j < a + len(files)]
+                           for cam, a, (_, _, files) in zip(image_dirs, starts, listed)}, inner_corners)
+        return {cam: _camera_views(camera, files, (result_of(int(a) + k) for k in range(len(files))), inner_corners,
+                                   ticks.get(cam))
+                for cam, a, (_, camera, files) in zip(image_dirs, starts, listed)}
 
     if workers == 1:
-        return gather(_detect_file(f, inner_corners, window, stop) for f in jobs)
+        done = {}
+
+        def result_of(j):
+            if j not in done:
+                for i in order[:order.index(j) + 1]:
+                    if i not in done:
+                        done[i] = _detect_file(jobs[i], inner_corners, window, stop)
+            return done[j]
+        return gather(result_of)
     # the views are the parallel work: OpenCV's own threads inside each call would only compete with them
     # (measured on the bundled session's 135 views, 2 cores: 2.85 s with them, 2.6 s without)
     with opencv_single_threaded(), ThreadPoolExecutor(max_workers=workers, thread_name_prefix="board") as pool:
-        futures = [pool.submit(_detect_file, f, inner_corners, window, stop) for f in jobs]
+        futures = {j: pool.submit(_detect_file, jobs[j], inner_corners, window, stop) for j in order}
         try:
-            return gather(fut.result() for fut in futures)
+            return gather(lambda j: futures[j].result())
         finally:
-            for fut in futures:          # an error (or an interrupt): start no further view
+            for fut in futures.values():          # an error (or an interrupt): start no further view
                 fut.cancel()
 
 

@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
 from ..camera import Rig, rotation_matrix
 from ..sources import natural_key
-from .board import BoardViews, CalibrationError, board_points, detect_cameras
+from .board import UNREADABLE, BoardViews, CalibrationError, board_points, detect_cameras
 from .bundle import BundleResult, bundle_adjust, calibrate_camera, harmonize_views
 
 
@@ -149,6 +150,23 @@ def board_view_counter(progress, cam: str):
     return tick
 
 
+def unreadable_views(views: dict) -> list[str]:
+    """One line per camera with views skipped because their files cannot be read (truncated, corrupt).
+
+    Such a view is left out like a view without a board (its reason starts
+    with :data:`~.board.UNREADABLE`, kept in :attr:`BoardViews.reasons`);
+    the line names the files and what is wrong with them.
+    """
+    lines = []
+    for cam, v in views.items():
+        bad = [(n, f, r) for n, f, r in zip(v.names, v.files, v.reasons) if r.startswith(UNREADABLE)]
+        if bad:
+            shown = "; ".join(f"{Path(f).name if f is not None else n} ({r[len(UNREADABLE) + 2:]})" for n, f, r in bad)
+            lines.append(f"camera '{cam}': {len(bad)} of {len(v.names)} checkerboard views skipped (as views "
+                         f"without a board), their files cannot be read: {shown}")
+    return lines
+
+
 def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.05, *, mode: str = "joint",
                   reference: str = "left", exclude=None, fix_k3: bool = True, views: dict | None = None,
                   pairs: bool = True, progress=None) -> RigCalibration:
@@ -197,6 +215,8 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
     cameras = tuple(views)
     if reference not in cameras:
         raise CalibrationError(f"reference camera {reference!r} is not among the cameras {list(cameras)}")
+    for line in unreadable_views(views):
+        report("rig", line)
     views = align_views(views)
     bp = board_points(inner_corners, square_m)
     excl = _exclusions(exclude, cameras)

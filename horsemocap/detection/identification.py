@@ -49,7 +49,7 @@ from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACT
 __all__ = [
     "IDENTIFICATION_REASONS", "Candidates", "ViewPoints", "ModelFit", "Identification",
     "frame_candidates", "match_views", "in_working_volume", "label_frame", "point_uncertainty", "distance_tolerance", "fit_marker_model",
-    "identify_markers", "bridge_gaps", "default_max_gap",
+    "identify_markers", "bridge_gaps", "default_max_gap", "reason_counts",
 ]
 
 #: Reasons of a missing or rejected 2D value (``""`` = used for the 3D point).
@@ -69,6 +69,23 @@ IDENTIFICATION_REASONS = {
     "not_tracked": "the marker set is not followed in this frame (not in view, or lost)",
 }
 REASONS = IDENTIFICATION_REASONS
+
+
+def reason_counts(reason: dict) -> str:
+    """How often each reason of :data:`IDENTIFICATION_REASONS` was given, per camera, for an error message.
+
+    ``reason``: camera -> array of reasons (:attr:`Identification.reason`);
+    counted over frames x markers, used values (``""``) left out, most
+    frequent first: ``"left: not_tracked 120, occluded 12; middle: ..."``.
+    """
+    parts = []
+    for cam, r in reason.items():
+        names, counts = np.unique(np.asarray(r, dtype=object).ravel().astype(str), return_counts=True)
+        found = sorted(((int(n), str(k)) for k, n in zip(names, counts) if k), key=lambda t: (-t[0], t[1]))
+        total = int(np.size(r))
+        used = total - sum(n for n, _ in found)
+        parts.append(f"{cam}: used {used} of {total}" + "".join(f", {k} {n}" for n, k in found))
+    return "; ".join(parts)
 
 #: Static-shot and skin-marker tolerance added to the measured uncertainty of a
 #: 3D distance (m): markers on skin move by millimetres against each other.
