@@ -92,7 +92,7 @@ def step_sync(session: Session, params: AnalysisParams, res: dict, progress) -> 
         offsets, how = sync.flash_offsets(sources), "flashlight"
         offsets = {c: int(v) for c, v in offsets.items()}
     counts = {c: len(s) for c, s in sources.items()}
-    n = check_frame_counts(session, counts, offsets)
+    n = check_frame_counts(session, counts, offsets, offsets_from=how)
     progress("sync", f"offsets {offsets} ({how}); {n} synchronised frames")
     return {"offsets": offsets, "frame_counts": counts, "n_frames": n, "offsets_from": how}
 
@@ -204,11 +204,11 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
     tracked = np.all(np.isfinite(have), axis=(1, 2))
     segment = _longest_run(tracked)
     if segment is None or segment[1] - segment[0] < 8:
-        seen = {c: int(np.sum(idn.reason[c] == "")) for c in session.cameras}
-        reasons = sorted({f"{c}: {r}" for c in session.cameras for r in set(idn.reason[c].ravel()) if r})
+        from .detection.identification import reason_counts
+
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
-                            f"more cameras (validated 2D centres per camera: {seen}; reasons: "
-                            f"{'; '.join(reasons)}); check the motion videos, the threshold and the rig")
+                            f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
+                            "motion videos, the threshold, the rig and 'markers.count' in session.json")
     progress("detect", f"frames {segment[0]}..{segment[1] - 1}: every marker seen by two or more cameras "
                        f"(or bridged); labelled in frame {idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
@@ -275,8 +275,9 @@ def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, 
         what = ", ".join(f"{c} {d:+d} frame(s) (residual {out[c]['current_px']:.1f} -> {out[c]['best_px']:.2f} px)"
                          for c, d in moved.items())
         progress("detect", f"the flash offsets disagree with the markers: {what}; offsets {new}, identifying again")
-        res["sync"] = {**sync, "offsets": new, "n_frames": check_frame_counts(session, sync["frame_counts"], new),
-                       "offsets_from": f"flashlight, corrected by the markers ({what})",
+        how = f"flashlight, corrected by the markers ({what})"
+        res["sync"] = {**sync, "offsets": new, "offsets_from": how,
+                       "n_frames": check_frame_counts(session, sync["frame_counts"], new, offsets_from=how),
                        "flash_offsets": dict(offsets)}
     return out
 
