@@ -366,3 +366,19 @@ def test_blas_single_threaded_blocks_overlapping_in_threads_restore_the_setting(
         assert set(blas_threads().values()) == {1}      # B still inside: not restored under it
         b.__exit__(None, None, None)
         assert blas_threads() == before
+
+
+def test_calibration_tables_wrap_by_columns():
+    """``max_width``: a table too wide is split into blocks of whole columns, each line within the width and
+    every row label repeated; without it one line per row, columns as wide as their longest entry."""
+    from horsemocap.calibration.report import _table_lines
+
+    cols = [["alone", "[1.000 2.000]", "± [0.1 0.2]"], ["pair", "[1.500 2.500]", "± [0.3 0.4]"],
+            ["joint (all cameras)", "[1.250 2.250]", "± [0.05 0.06]"]]
+    labels = ["", "Focal length", "Focal length uncertainty"]
+    one = _table_lines(labels, cols, 26)
+    assert len(one) == 3 and one[1].split() == ["Focal", "length", "[1.000", "2.000]", "[1.500", "2.500]", "[1.250", "2.250]"]
+    wrapped = _table_lines(labels, cols, 26, max_width=60)
+    assert all(len(line) <= 60 for line in wrapped)
+    assert sum(line.startswith("Focal length uncertainty") for line in wrapped) == 2   # the labels in each block
+    assert "" in wrapped and "joint (all cameras)" in "\n".join(wrapped)

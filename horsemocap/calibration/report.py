@@ -23,7 +23,35 @@ def _intrinsic_rows(res, with_k3: bool, d: int) -> list[str]:
             _vec(res.kc[:nk], 5), "± " + _vec(res.kc_error[:nk], 5), f"{res.rms:.4f}"]
 
 
-def format_calibration_tables(result: RigCalibration, width: int = 40, decimals: int = 5) -> str:
+def _column_widths(columns, width):
+    """Each column's width: ``width`` if given, else its longest entry plus two spaces."""
+    return [width if width else 2 + max(len(str(x)) for x in col) for col in columns]
+
+
+def _table_lines(labels, columns, lw, width=None, max_width=None) -> list:
+    """Rows ``labels`` (first column, ``lw`` wide) against ``columns`` (each: header, then one entry per
+    label after the first); with ``max_width`` the columns are split into blocks of lines no longer than
+    that, each block repeating the labels (a table too wide for the page wraps by columns, not mid-number)."""
+    ws = _column_widths(columns, width)
+    blocks, block, used = [], [], lw
+    for j, w in enumerate(ws):
+        if block and max_width and used + w > max_width:
+            blocks.append(block)
+            block, used = [], lw
+        block.append(j)
+        used += w
+    blocks.append(block)
+    out = []
+    for b, block in enumerate(blocks):
+        if b:
+            out.append("")
+        for i, lab in enumerate(labels):
+            out.append((f"{lab:<{lw}s}" + "".join(f"{columns[j][i]:<{ws[j]}s}" for j in block)).rstrip())
+    return out
+
+
+def format_calibration_tables(result: RigCalibration, width: int | None = None, decimals: int = 5,
+                              max_width: int | None = None) -> str:
     """The calibration in the layout of thesis Tables 8.1-8.4.
 
     One table per camera (Tables 8.1-8.3: focal length, principal point and
@@ -32,7 +60,9 @@ def format_calibration_tables(result: RigCalibration, width: int = 40, decimals:
     thesis reports), and the joint calibration; then Table 8.4 (translation
     in mm with uncertainty, rotation matrix, per pair), and the joint rig's
     poses. ``decimals`` of pixel and mm values: 5 as in the thesis (distortion
-    coefficients always 5).
+    coefficients always 5). ``width``: every column's width (characters); default: each column as
+    wide as its longest entry. ``max_width``: wrap a wider table by columns into blocks of lines no
+    longer than that (a notebook's output is about 120 characters wide).
     """
     d = int(decimals)
     with_k3 = any(r.kc_error[4] > 0 for r in result.singles.values())
@@ -51,27 +81,19 @@ def format_calibration_tables(result: RigCalibration, width: int = 40, decimals:
         title = _TITLES.get(cam, f"Table 8.{n + 1}") if len(result.cameras) == 3 else f"Table 8.{n + 1}"
         used = int(result.singles[cam].used.sum())
         out.append(f"{title} Intrinsic parameters of the {cam} camera (pixels; ± = 3 sigma; {used} views)")
-        out.append(" " * lw + "".join(f"{c[0]:<{width}s}" for c in cols))
         rows = [_intrinsic_rows(c[1], with_k3, d) for c in cols]
-        for i, lab in enumerate(labels):
-            out.append(f"{lab:<{lw}s}" + "".join(f"{r[i]:<{width}s}" for r in rows))
+        out += _table_lines(["", *labels], [[c[0], *r] for c, r in zip(cols, rows)], lw, width, max_width)
         out.append("")
     if result.pairs:
         keys = list(result.pairs)
         out.append("Table 8.4 Extrinsic parameters of each camera pair (x_b = R x_a + t; mm; ± = 3 sigma)")
-        out.append(" " * lw + "".join(f"{f'{a} and {b}':<{width}s}" for a, b in keys))
         ps = [result.pairs[k] for k in keys]
-        out.append(f"{'Translation vector t':<{lw}s}" + "".join(f"{_vec(1000 * p.T, d):<{width}s}" for p in ps))
-        out.append(f"{'Translation uncertainty':<{lw}s}"
-                   + "".join(f"{'± ' + _vec(1000 * p.translation_sigma3[1], d):<{width}s}" for p in ps))
-        for i in range(3):
-            lab = "Rotation matrix R" if i == 0 else ""
-            out.append(f"{lab:<{lw}s}" + "".join(
-                f"{_vec(rotation_matrix(p.om)[i], fmt='{:.4f}'):<{width}s}" for p in ps))
-        out.append(f"{'Rotation vector om (rad)':<{lw}s}" + "".join(f"{_vec(p.om, d):<{width}s}" for p in ps))
-        out.append(f"{'Rotation uncertainty':<{lw}s}"
-                   + "".join(f"{'± ' + _vec(p.rotation_sigma3[1], d):<{width}s}" for p in ps))
-        out.append(f"{'RMS reprojection error (px)':<{lw}s}" + "".join(f"{p.rms:<{width}.4f}" for p in ps))
+        cells = [[f"{a} and {b}", _vec(1000 * p.T, d), "± " + _vec(1000 * p.translation_sigma3[1], d),
+                  *[_vec(rotation_matrix(p.om)[i], fmt="{:.4f}") for i in range(3)], _vec(p.om, d),
+                  "± " + _vec(p.rotation_sigma3[1], d), f"{p.rms:.4f}"] for (a, b), p in zip(keys, ps)]
+        pair_labels = ["", "Translation vector t", "Translation uncertainty", "Rotation matrix R", "", "",
+                       "Rotation vector om (rad)", "Rotation uncertainty", "RMS reprojection error (px)"]
+        out += _table_lines(pair_labels, cells, lw, width, max_width)
         out.append("")
     if result.joint is not None:
         j = result.joint

@@ -77,7 +77,7 @@ for cam, v in views.items():
 
 # %%
 real = cal.calibrate_rig({"left": BS / "left", "right": BS / "right"}, (9, 6), 0.030, mode="pairwise")
-print(cal.format_calibration_tables(real, decimals=3))
+print(cal.format_calibration_tables(real, decimals=3, max_width=120))
 
 # %% [markdown]
 # ### Against the toolbox's own numbers
@@ -204,7 +204,7 @@ virtual = cal.calibrate_rig(image_dirs, inner, square, mode="joint", reference="
 for cam in virtual.cameras:
     print(f"{cam:7s} boards found {int(virtual.views[cam].found.sum())}/{len(virtual.view_names)}",
           f"missing: {virtual.views[cam].missing() or 'none'}")
-print(cal.format_calibration_tables(virtual, decimals=3))
+print(cal.format_calibration_tables(virtual, decimals=3, max_width=120))
 
 # %% [markdown]
 # The same checkboxes for the session's own views: a view ticked here is left out when the pipeline
