@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sources import FrameSource, SourceError, image_file_problem
+from .sources import FrameSource, SourceError, check_image_file
 
 FORMAT = "horsemocap-session/1"
 KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion", "sync",
@@ -122,12 +122,13 @@ def _number(path, name, value, *, positive=True):
 
 
 def _check_still(path, field_name, image) -> None:
-    """A still image file that is whole (:func:`horsemocap.sources.image_file_problem`), else SessionError."""
+    """A still image file that is whole (:func:`horsemocap.sources.check_image_file`), else SessionError."""
     if image.is_dir():
         _fail(path, field_name, f"an image file ({image} is a folder)")
-    problem = image_file_problem(image)
-    if problem is not None:
-        raise SessionError(f"{path}: field '{field_name}': {image}: {problem}")
+    try:
+        check_image_file(image)
+    except SourceError as exc:
+        raise SessionError(f"{path}: field '{field_name}': {exc}") from None
 
 
 def load_session(folder, *, open_sources: bool = True) -> Session:

@@ -75,41 +75,67 @@ def list_images(folder) -> list[Path]:
                           if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
 
 
-#: Bytes read at the end of an image file to find its end marker (JPEG end-of-image, PNG ``IEND``).
-_TAIL_BYTES = 64
+def _jpeg_complete(data: bytes) -> bool:
+    """Whether a JPEG's marker segments lead to a scan that ends with the end-of-image marker.
+
+    The segments before the first start-of-scan (``FF DA``) are stepped over by their lengths (an
+    EXIF thumbnail inside APP1 is not mistaken for the image), then the entropy-coded data, in which
+    ``FF`` is always followed by ``00`` or a restart marker, must reach ``FF D9``. Data after it
+    (phone cameras append trailers) is allowed.
+    """
+    i = 2
+    while i + 4 <= len(data):
+        if data[i] != 0xFF:
+            return False
+        marker = data[i + 1]
+        if marker == 0xFF:                          # fill byte
+            i += 1
+        elif marker == 0xDA:                        # start of scan: the image data follows
+            return data.find(b"\xff\xd9", i) >= 0
+        elif 0xD0 <= marker <= 0xD7 or marker == 0x01:
+            i += 2
+        else:
+            i += 2 + int.from_bytes(data[i + 2:i + 4], "big")
+    return False
+
+
+def _png_complete(data: bytes) -> bool:
+    """Whether a PNG's chunks, stepped over by their lengths, reach ``IEND`` inside the file."""
+    i = 8
+    while i + 8 <= len(data):
+        length = int.from_bytes(data[i:i + 4], "big")
+        if data[i + 4:i + 8] == b"IEND":
+            return True
+        i += 12 + length
+    return False
 
 
 def image_file_problem(path) -> str | None:
-    """Why an image file is truncated or corrupt, or None when its ends look whole.
+    """Why an image file is truncated or corrupt, or None when it is whole.
 
     The decoders of OpenCV read a truncated JPEG as an image filled with gray
     after the cut (printing only "Premature end of JPEG file") and a PNG
     without its last chunks as far as it goes, so the file's own structure is
-    checked: a JPEG starts with the start-of-image marker ``FF D8`` and ends
-    with the end-of-image marker ``FF D9`` (trailing zero or blank padding
-    allowed); a PNG starts with its signature and ends with the ``IEND``
-    chunk; a BMP is at least as long as its header says. Only the first and
-    the last :data:`_TAIL_BYTES` bytes are read. Other formats: None (their
-    decoder decides).
+    checked: a JPEG's segments must lead to a scan that reaches the end-of-image
+    marker ``FF D9`` (:func:`_jpeg_complete`; data after it allowed); a PNG's
+    chunks must reach ``IEND`` (:func:`_png_complete`); a BMP is at least as
+    long as its header says. Other formats: None (their decoder decides).
     """
     path = Path(path)
-    size = path.stat().st_size
-    with open(path, "rb") as f:
-        head = f.read(16)
-        f.seek(max(0, size - _TAIL_BYTES))
-        tail = f.read().rstrip(b"\x00\r\n\t ")
-    if size == 0:
+    data = path.read_bytes()
+    if not data:
         return "the file is empty"
-    if head.startswith(b"\xff\xd8"):
-        if not tail.endswith(b"\xff\xd9"):
-            return f"JPEG without its end-of-image marker (FF D9): truncated or corrupt ({size} bytes)"
-    elif head.startswith(b"\x89PNG\r\n\x1a\n"):
-        if b"IEND" not in tail[-12:]:
-            return f"PNG without its IEND chunk: truncated or corrupt ({size} bytes)"
-    elif head.startswith(b"BM") and len(head) >= 6:
-        declared = int.from_bytes(head[2:6], "little")
-        if size < declared:
-            return f"BMP of {size} bytes, but its header says {declared}: truncated"
+    if data.startswith(b"\xff\xd8"):
+        if not _jpeg_complete(data):
+            return f"JPEG whose image data does not reach its end-of-image marker (FF D9): truncated or corrupt " \
+                   f"({len(data)} bytes)"
+    elif data.startswith(b"\x89PNG\r\n\x1a\n"):
+        if not _png_complete(data):
+            return f"PNG whose chunks do not reach IEND: truncated or corrupt ({len(data)} bytes)"
+    elif data.startswith(b"BM") and len(data) >= 6:
+        declared = int.from_bytes(data[2:6], "little")
+        if len(data) < declared:
+            return f"BMP of {len(data)} bytes, but its header says {declared}: truncated"
     return None
 
 
@@ -120,29 +146,46 @@ def check_image_file(path) -> None:
         raise SourceError(f"{path}: {problem}")
 
 
-def numbering_gaps(names) -> list[str]:
-    """File names missing from a numbered series (``a0.png, a1.png, a3.png`` -> ``["a2.png"]``).
+#: Share of a numbered series' steps that must equal its smallest step for gaps to be reported.
+REGULAR_SHARE = 0.9
 
-    The last number in each name is its place in the series; the names must
-    all share the text before and after it (otherwise nothing is reported:
-    the folder is not one numbered series). Zero padding (``a007.png``) is
-    kept in the names returned.
+
+def numbering_gaps(names, shown: int = 10) -> tuple[int, list[str]]:
+    """Images missing from a regularly numbered series: their count and the first ``shown`` names
+    (``a0.png .. a9.png`` without ``a3.png``: ``(1, ["a3.png"])``).
+
+    The last number in each name is its place in the series; the names must all share the text
+    before and after it. The series' step is its smallest difference (1 for ``a0, a1, ..``, 2 for
+    frames kept every second one); gaps are reported only when every difference is a multiple of the
+    step and at least :data:`REGULAR_SHARE` of them equal it (a series numbered by timestamps, whose
+    differences vary, is not checked). Zero padding (``a007.png``) is kept in the names returned;
+    the count is computed, not listed, so large numbers cost nothing.
     """
     parsed = []
     for name in names:
         m = re.match(r"^(.*?)(\d+)(\D*)$", name)
         if m is None:
-            return []
+            return 0, []
         parsed.append((m.group(1), m.group(3), m.group(2)))
-    if len({(pre, post) for pre, post, _ in parsed}) != 1 or len(parsed) < 2:
-        return []
+    if len({(pre, post) for pre, post, _ in parsed}) != 1 or len(parsed) < 3:
+        return 0, []
     pre, post = parsed[0][0], parsed[0][1]
     digits = [d for _, _, d in parsed]
     numbers = sorted(int(d) for d in digits)
+    diffs = [b - a for a, b in zip(numbers, numbers[1:])]
+    step = min(diffs)
+    if step <= 0 or any(d % step for d in diffs) or sum(d == step for d in diffs) < REGULAR_SHARE * len(diffs):
+        return 0, []
     width = len(digits[0]) if len({len(d) for d in digits}) == 1 and any(d.startswith("0") and len(d) > 1
                                                                            for d in digits) else 0
-    have = set(numbers)
-    return [f"{pre}{k:0{width}d}{post}" for k in range(numbers[0], numbers[-1] + 1) if k not in have]
+    count = sum(d // step - 1 for d in diffs)
+    names_out = []
+    for a, d in zip(numbers, diffs):
+        for k in range(a + step, a + d, step):
+            if len(names_out) == shown:
+                return count, names_out
+            names_out.append(f"{pre}{k:0{width}d}{post}")
+    return count, names_out
 
 
 def read_image(path, color: bool = True) -> np.ndarray:
@@ -230,13 +273,15 @@ class FrameSource:
     def truncation(self) -> tuple[int, int] | None:
         """``(declared, decodable)`` frame counts of a video of which fewer frames decode than its
         container declares (a file cut short while copying or recording); None otherwise (also for
-        an image folder: its gaps are :meth:`missing_images`)."""
+        an image folder: its gaps are :meth:`missing_images`). Containers often declare a frame or
+        two more than they hold, so a shortfall counts beyond 2 frames and 2 % of the declared."""
         if not self.is_video:
             return None
         declared, count = self._video_counts()
-        return (declared, count) if declared is not None and count < declared else None
+        short = None if declared is None else declared - count
+        return (declared, count) if short is not None and short > max(2, 0.02 * declared) else None
 
-    def missing_images(self) -> list[str]:
+    def missing_images(self) -> tuple[int, list[str]]:
         """Names of the images missing from a numbered frames folder (``left0.png .. left128.png``
         without ``left80.png``: ``["left80.png"]``); empty for a video.
 
@@ -246,16 +291,16 @@ class FrameSource:
         image shares one pattern (same text around the number, same suffix).
         """
         if self.is_video:
-            return []
+            return 0, []
         return numbering_gaps([p.name for p in list_images(self.path)])
 
     def check_whole(self) -> None:
         """Raise :class:`SourceError` naming the file when a video is truncated (:meth:`truncation`)
         or a numbered frames folder has a gap (:meth:`missing_images`)."""
-        gaps = self.missing_images()
-        if gaps:
-            shown = ", ".join(gaps[:10]) + (f" and {len(gaps) - 10} more" if len(gaps) > 10 else "")
-            raise SourceError(f"{self.path}: {len(gaps)} image(s) missing from the frame numbering: {shown} "
+        n_missing, gaps = self.missing_images()
+        if n_missing:
+            shown = ", ".join(gaps) + (f" and {n_missing - len(gaps)} more" if n_missing > len(gaps) else "")
+            raise SourceError(f"{self.path}: {n_missing} image(s) missing from the frame numbering: {shown} "
                               "(each image is one frame in time; restore them, or renumber the folder "
                               "if the gap is not in the recording)")
         cut = self.truncation()

@@ -73,7 +73,7 @@ def test_truncated_jpeg_and_png_are_refused_naming_the_file(tmp_path):
         assert image_file_problem(path) is None
         assert read_image(path).shape == (60, 80, 3)
         truncate(path, path.stat().st_size // 2)
-        with pytest.raises(SourceError, match=rf"still\{suffix}: {'JPEG' if suffix == '.jpg' else 'PNG'} without"):
+        with pytest.raises(SourceError, match=rf"still\{suffix}: {'JPEG' if suffix == '.jpg' else 'PNG'} whose"):
             read_image(path)
     empty = tmp_path / "empty.jpg"
     empty.write_bytes(b"")
@@ -85,10 +85,35 @@ def test_truncated_jpeg_and_png_are_refused_naming_the_file(tmp_path):
     assert image_file_problem(padded) is None
 
 
+def test_whole_images_with_trailers_and_thumbnails_are_accepted(tmp_path):
+    """Phone cameras append data after a JPEG's end (Samsung trailers, a Motion Photo's MP4) and carry an
+    EXIF thumbnail, a whole JPEG of its own, before the image: a whole file is accepted; the same file cut
+    inside its image data is refused although the thumbnail's end marker is still in it. A PNG may carry
+    data after IEND."""
+    import cv2
+
+    img = (np.random.default_rng(1).random((60, 80, 3)) * 255).astype(np.uint8)
+    thumb = cv2.imencode(".jpg", img[::4, ::4])[1].tobytes()
+    main = cv2.imencode(".jpg", img)[1].tobytes()
+    exif = b"Exif\0\0" + thumb                                  # an APP1 segment holding the thumbnail
+    app1 = b"\xff\xe1" + (len(exif) + 2).to_bytes(2, "big") + exif
+    phone = main[:2] + app1 + main[2:] + b"MotionPhoto_Data" + b"\xff\xda\x00\x01junk" * 50
+    path = tmp_path / "phone.jpg"
+    path.write_bytes(phone)
+    assert image_file_problem(path) is None and read_image(path).shape == (60, 80, 3)
+    cut = len(main[:2] + app1) + (len(main) - 2) // 2                # inside the main image's scan data
+    path.write_bytes(phone[:cut])
+    assert "JPEG whose image data does not reach" in image_file_problem(path)
+    png = cv2.imencode(".png", img)[1].tobytes()
+    tail = tmp_path / "tail.png"
+    tail.write_bytes(png + b"trailing bytes of another program")
+    assert image_file_problem(tail) is None
+
+
 def test_truncated_static_still_names_the_session_field(tmp_path, capsys):
     root = copy_session(tmp_path)
     truncate(root / "static" / "left.jpg", 2000)
-    with pytest.raises(SessionError, match=r"field 'static\.left': .*left\.jpg: JPEG without its end-of-image"):
+    with pytest.raises(SessionError, match=r"field 'static\.left': .*left\.jpg: JPEG whose image data does not reach its end-of-image"):
         load_session(root)
     code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
     line = error_line(code, err)
@@ -189,12 +214,27 @@ def test_offsets_beyond_a_source_name_where_they_came_from(tmp_path, capsys):
 def test_numbering_gaps():
     from horsemocap.sources import numbering_gaps
 
-    assert numbering_gaps(["a0.png", "a1.png", "a3.png"]) == ["a2.png"]
-    assert numbering_gaps(["f007.png", "f010.png", "f008.png"]) == ["f009.png"]
-    assert numbering_gaps(["a9.png", "a10.png", "a12.png"]) == ["a11.png"]
-    assert numbering_gaps(["left1.png", "left2.png"]) == []
-    assert numbering_gaps(["x1.png", "y3.png"]) == []             # not one series: nothing said
-    assert numbering_gaps(["cam1_0.png", "cam1_2.png"]) == ["cam1_1.png"]
+    def series(numbers, pre="a", post=".png", width=0):
+        return [f"{pre}{k:0{width}d}{post}" for k in numbers]
+
+    assert numbering_gaps(series([k for k in range(20) if k != 3])) == (1, ["a3.png"])
+    assert numbering_gaps(series([k for k in range(7, 30) if k != 9], "f", width=3)) == (1, ["f009.png"])
+    assert numbering_gaps(series([k for k in range(1, 30) if k != 11])) == (1, ["a11.png"])    # from 1
+    assert numbering_gaps(series(range(1, 30))) == (0, [])
+    assert numbering_gaps(["x1.png", "y3.png", "z4.png"]) == (0, [])     # not one series: nothing said
+    assert numbering_gaps(series([k for k in range(0, 40) if k != 5], "cam1_")) == (1, ["cam1_5.png"])
+    # frames kept every second one are a whole series; one missing among them is a gap
+    assert numbering_gaps(series(range(0, 60, 2), "f", width=4)) == (0, [])
+    assert numbering_gaps(series([k for k in range(0, 60, 2) if k != 20], "f", width=4)) == (1, ["f0020.png"])
+    # timestamps (ms at 30 fps: steps of 33 and 34) are not a regular series: not checked
+    stamps = [1242131000000 + int(round(1000 * k / 30)) for k in range(90)]
+    assert numbering_gaps(series(stamps, "img_")) == (0, [])
+    # many missing: counted, not listed, with the first names shown
+    count, shown = numbering_gaps(series([*range(50), 10 ** 9]))     # counted, not listed: no hang
+    assert count == 10 ** 9 - 50 and shown == [f"a{k}.png" for k in range(50, 60)]
+    many = series([k for k in range(200) if k % 25 != 7])
+    count, shown = numbering_gaps(many)
+    assert count == 8 and shown == [f"a{k}.png" for k in range(7, 200, 25)]
 
 
 def test_missing_image_in_frames_folder_is_an_error_naming_it(tmp_path, capsys):
@@ -218,9 +258,9 @@ def test_missing_image_in_frames_folder_is_an_error_naming_it(tmp_path, capsys):
     doc = json.loads((root / "session.json").read_text())
     doc["motion"]["middle"] = "motion/middle"
     (root / "session.json").write_text(json.dumps(doc))
-    assert FrameSource(frames).missing_images() == []
+    assert FrameSource(frames).missing_images() == (0, [])
     (frames / "middle80.png").unlink()
-    assert FrameSource(frames).missing_images() == ["middle80.png"]
+    assert FrameSource(frames).missing_images() == (1, ["middle80.png"])
     with pytest.raises(SessionError, match=r"field 'motion.middle': .*1 image\(s\) missing .*: middle80.png"):
         load_session(root)
     code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
@@ -322,13 +362,13 @@ def test_unreadable_calibration_view_is_skipped_with_its_reason(tmp_path):
     (dirs["left"] / "left3.jpg").write_bytes(b"not an image at all")   # undecodable
     for workers in (None, 1):
         views = detect_cameras(dirs, (7, 14), workers=workers)
-        assert views["right"].reasons[1].startswith(f"{UNREADABLE}: JPEG without its end-of-image marker")
+        assert views["right"].reasons[1].startswith(f"{UNREADABLE}: JPEG whose image data does not reach its end-of-image marker")
         assert views["left"].reasons[2].startswith(f"{UNREADABLE}: cannot be read as an image")
         assert views["left"].found.sum() == 3 and views["right"].found.sum() == 3
         assert views["left"].size == views["right"].size == (640, 480)
     lines = unreadable_views(views)
     assert len(lines) == 2 and "camera 'right': 1 of 4 checkerboard views skipped" in lines[1]
-    assert "right2.jpg (JPEG without its end-of-image marker" in lines[1]
+    assert "right2.jpg (JPEG whose image data does not reach its end-of-image marker" in lines[1]
     for f in list_images(dirs["left"]):
         f.write_bytes(b"")
     with pytest.raises(CalibrationError, match=r"camera 'left': none of its 4 checkerboard views can be read"):
@@ -343,3 +383,15 @@ def test_analysis_goes_on_without_an_unreadable_calibration_view(tmp_path, capsy
     assert "camera 'middle': 1 of 45 checkerboard views skipped" in out + err and "middle7.jpg" in out + err
     cal = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert "cannot be read" in json.dumps(cal)
+
+
+def test_a_container_that_overstates_by_a_frame_or_two_is_not_truncated(monkeypatch):
+    """Containers often declare a frame or two more than they hold (OpenCV's CAP_PROP_FRAME_COUNT): a
+    shortfall of at most 2 frames and 2 % is not called truncation; more is."""
+    from horsemocap.sources import FrameSource
+
+    source = FrameSource(BUNDLED / "motion" / "left.avi")
+    for declared, decodable, cut in ((129, 128, False), (129, 127, False), (1000, 981, False),
+                                     (129, 126, True), (1000, 979, True), (129, 32, True)):
+        monkeypatch.setattr(FrameSource, "_video_counts", lambda self, d=declared, c=decodable: (d, c))
+        assert (source.truncation() is not None) is cut, (declared, decodable)

@@ -506,11 +506,9 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
     if workers == 1:
         done = {}
 
-        def result_of(j):
+        def result_of(j):          # gather asks for the first views first, then every view in file order
             if j not in done:
-                for i in order[:order.index(j) + 1]:
-                    if i not in done:
-                        done[i] = _detect_file(jobs[i], inner_corners, window, stop)
+                done[j] = _detect_file(jobs[j], inner_corners, window, stop)
             return done[j]
         return gather(result_of)
     # the views are the parallel work: OpenCV's own threads inside each call would only compete with them

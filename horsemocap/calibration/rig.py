@@ -159,9 +159,9 @@ def unreadable_views(views: dict) -> list[str]:
     """
     lines = []
     for cam, v in views.items():
-        bad = [(n, f, r) for n, f, r in zip(v.names, v.files, v.reasons) if r.startswith(UNREADABLE)]
+        bad = [(f, r) for f, r in zip(v.files, v.reasons) if r.startswith(UNREADABLE)]
         if bad:
-            shown = "; ".join(f"{Path(f).name if f is not None else n} ({r[len(UNREADABLE) + 2:]})" for n, f, r in bad)
+            shown = "; ".join(f"{Path(f).name} ({r[len(UNREADABLE) + 2:]})" for f, r in bad)
             lines.append(f"camera '{cam}': {len(bad)} of {len(v.names)} checkerboard views skipped (as views "
                          f"without a board), their files cannot be read: {shown}")
     return lines

@@ -81,9 +81,9 @@ def reason_counts(reason: dict) -> str:
     parts = []
     for cam, r in reason.items():
         names, counts = np.unique(np.asarray(r, dtype=object).ravel().astype(str), return_counts=True)
-        found = sorted(((int(n), str(k)) for k, n in zip(names, counts) if k), key=lambda t: (-t[0], t[1]))
-        total = int(np.size(r))
-        used = total - sum(n for n, _ in found)
+        tally = {str(k): int(n) for k, n in zip(names, counts)}
+        used, total = tally.pop("", 0), int(np.size(r))
+        found = sorted(((n, k) for k, n in tally.items()), key=lambda t: (-t[0], t[1]))
         parts.append(f"{cam}: used {used} of {total}" + "".join(f", {k} {n}" for n, k in found))
     return "; ".join(parts)
 

@@ -34,6 +34,13 @@ __all__ = [
 # --------------------------------------------------------------------------
 # stills
 # --------------------------------------------------------------------------
+
+def _clearly(cost):
+    """A cost "clearly more" than ``cost`` starts here (twice it plus 0.02): the margin by which the
+    still matching tells a marker from a point left out."""
+    return 2 * cost + 0.02
+
+
 def detect_still(image, n_markers: int, params: DetectionParams | None = None, order: str | None = None):
     """Marker centres in one still image (Appendix A steps 7a, 8a, 12a).
 
@@ -103,7 +110,7 @@ def detect_still(image, n_markers: int, params: DetectionParams | None = None, o
             score = (1 - circv) + (1 - peak / 255.0)
             only_best = sorted(set(combos[o[0]]) - set(combos[o[1]]))
             only_second = sorted(set(combos[o[1]]) - set(combos[o[0]]))
-            if np.isfinite(cost[o[1]]) and score[only_second].sum() < 2 * score[only_best].sum() + 0.02:
+            if np.isfinite(cost[o[1]]) and score[only_second].sum() < _clearly(score[only_best].sum()):
                 raise DetectionError(
                     f"still: {len(keep)} candidate regions at threshold {thr}; the {M} markers are "
                     f"ambiguous (costs {cost[o[0]]:.3f} vs {cost[o[1]]:.3f}); give labels or an area range")
@@ -386,8 +393,8 @@ def _check_count(score, best, M, cams) -> None:
     chosen = np.sort(score[best])
     rest = np.sort(np.delete(score, best))
     worst, typical = chosen[-1], float(np.median(chosen[:-1]))
-    if worst > 2 * typical + 0.02 and rest[0] < 2 * worst + 0.02:
-        alike = int(np.sum(score <= 2 * typical + 0.02))
+    if worst > _clearly(typical) and rest[0] < _clearly(worst):
+        alike = int(np.sum(score <= _clearly(typical)))
         raise DetectionError(
             f"still views: cameras {list(cams)}: {M} markers expected, but only {alike} of the {len(score)} "
             f"consistent points look like markers (costs {', '.join(f'{v:.3f}' for v in chosen[:-1])}); "
@@ -505,7 +512,7 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
                    for i in range(len(cams))]
         margin = max(mean_margin, float(min(per_cam)))
         if margin < 0:
-            alike = int(np.sum(score <= 2 * np.median(score[combos[0]]) + 0.02))   # as the markers chosen
+            alike = int(np.sum(score <= _clearly(np.median(score[combos[0]]))))   # as the markers chosen
             hint = (f"; {alike} of the {len(hyp)} consistent points look like markers (costs "
                     f"{', '.join(f'{v:.3f}' for v in np.sort(score)[:alike])}), not {M}: {_COUNT_HINT}"
                     ) if alike != M else ""
