@@ -121,8 +121,12 @@ def image_file_problem(path) -> str | None:
     chunks must reach ``IEND`` (:func:`_png_complete`); a BMP is at least as
     long as its header says. Other formats: None (their decoder decides).
     """
-    path = Path(path)
-    data = path.read_bytes()
+    return image_bytes_problem(Path(path).read_bytes())
+
+
+def image_bytes_problem(data: bytes) -> str | None:
+    """:func:`image_file_problem` of a file's bytes (read once by :func:`read_image` for the check and
+    the decoder)."""
     if not data:
         return "the file is empty"
     if data.startswith(b"\xff\xd8"):
@@ -195,8 +199,11 @@ def read_image(path, color: bool = True) -> np.ndarray:
     :class:`SourceError` naming it, as is one OpenCV cannot decode.
     """
     path = Path(path)
-    check_image_file(path)
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE)
+    data = path.read_bytes()              # read once: checked, then decoded from memory
+    problem = image_bytes_problem(data)
+    if problem is not None:
+        raise SourceError(f"{path}: {problem}")
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise SourceError(f"{path}: cannot be read as an image")
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB) if color else img
