@@ -184,7 +184,7 @@ def parse_seconds(values, option: str) -> list[float]:
     words = [values] if isinstance(values, str) else list(values)
     parts = [p for w in words for p in w.replace(",", " ").split()]
     if not parts:
-        raise ParamsError(f"{option}: expected times in seconds, e.g. 0.5,0.8 or 0.5 0.8; got {' '.join(words)!r}")
+        raise ParamsError(f"{option}: expected times in seconds, e.g. 0.5,0.8; got {' '.join(words)!r}")
     times = []
     for p in parts:
         try:
@@ -192,8 +192,8 @@ def parse_seconds(values, option: str) -> list[float]:
         except ValueError:
             v = float("nan")
         if not np.isfinite(v):
-            raise ParamsError(f"{option}: {p!r} is not a time in seconds (expected numbers separated by commas "
-                              f"or spaces, e.g. 0.5,0.8 or 0.5 0.8)")
+            raise ParamsError(f"{option}: {p!r} is not a time in seconds (expected numbers separated by commas, "
+                              f"e.g. 0.5,0.8, or the option repeated)")
         times.append(v)
     return times
 
