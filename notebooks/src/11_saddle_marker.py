@@ -283,7 +283,8 @@ plt.show()
 # meets the second and misses the first: 18.4 % and 9.6 % (plain GCV 25.0 % and 13.9 %); over ten draws
 # 18.0 % and 9.1 %, every draw's omega below 10 %. Most of the error sits in the dozen
 # samples where the ringing starts: the acceleration jumps there, and any smoother spreads a jump. Told the
-# onset, the spline may jump at it, and the error drops to 14.9 % (median of three draws; this draw
+# onset (`events` here; `pose_events` or `--pose-events` for a session, `--events` for 3D markers from
+# another system), the spline may jump at it, and the error drops to 14.9 % (median of three draws; this draw
 # 15.5 %: at the target, not safely below it). Found from the data, it is not: a scan
 # for the onset mistakes the lift's own starts for onsets, or, calibrated against them, finds nothing
 # (`benchmarks/bench_kinematics_tries.py --detect`); and no smoother with constant settings can do better than
