@@ -4,6 +4,8 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ._layout import legend_below
+
 __all__ = ["plot_errors_2d", "plot_stage_rmse", "plot_noise_study"]
 
 
@@ -54,7 +56,7 @@ def plot_noise_study(rows: list, fig=None):
         ax.plot(s, [abs(r["comfort_pct"][key]) for r in rows], "o-", label=key)
     ax.set_xlabel("detection noise sigma (px)")
     ax.set_ylabel("|indicator error| (%)")
-    ax.legend(fontsize=8, loc="upper left")         # the errors grow with the noise: the right end stays clear
+    legend_below(ax, ncol=2)
     fig.suptitle("How detection noise propagates to the saddle and the comfort indicators")
     fig.tight_layout()
     return fig

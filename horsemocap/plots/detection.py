@@ -5,6 +5,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
+from ._layout import label_away_from_centre
+
 __all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors", "plot_identification",
            "plot_filtered_images"]
 
@@ -161,14 +163,13 @@ def plot_identification(images: dict, candidates: dict, views, fit, zoom=None, f
             ax.scatter(*cand.centre[other].T, s=60, marker="s", facecolors="none", edgecolors="tab:orange",
                        lw=1.5, label="consistent in 3D, not the marker shape")
         if fit is not None:
-            for m, p in enumerate(fit.assignment):
-                j = views.index[p, i]
-                if j >= 0:
-                    ax.plot(*cand.centre[j], "+", color="lime", ms=12, mew=2,
-                            label="marker (rigid model)" if m == 0 else None)
-                    ax.annotate(f"marker{m + 1}", cand.centre[j], xytext=(9, 9), textcoords="offset points",
-                                color="lime", fontsize=8, bbox=dict(boxstyle="round,pad=0.15", fc="black",
-                                                                    ec="none", alpha=0.6))   # beside the cross
+            seen = [(m, views.index[p, i]) for m, p in enumerate(fit.assignment) if views.index[p, i] >= 0]
+            for m, j in seen:
+                ax.plot(*cand.centre[j], "+", color="lime", ms=12, mew=2,
+                        label="marker (rigid model)" if m == 0 else None)
+            label_away_from_centre(ax, [cand.centre[j] for _, j in seen], [f"marker{m + 1}" for m, _ in seen],
+                                   "lime", fontsize=8, bbox=dict(boxstyle="round,pad=0.15", fc="black", ec="none",
+                                                                 alpha=0.6))
         box = zoom.get(cam) if isinstance(zoom, dict) else zoom
         _zoom(ax, box, img.shape)
         ax.set_title(cam)

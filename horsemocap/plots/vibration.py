@@ -5,6 +5,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .. import vibration as vib
+from ._layout import legend_below
 
 __all__ = ["plot_weightings", "plot_weighted_acceleration", "plot_mode_comparison", "plot_marker_comfort"]
 
@@ -35,7 +36,7 @@ def plot_weightings(names=("Wb", "Wk"), f_range=(0.1, 100.0), zoom=(0.8, 1.8), t
     ax1.set_ylabel("|W(f)|")
     ax1.set_title("(a) weighting factors")
     ax1.grid(True, which="both", alpha=0.3)
-    ax1.legend(fontsize=8, loc="lower center")      # under the curves' middle (W < 0.3 below 1-3 Hz)
+    legend_below(ax1)
     ax2.set_xlabel("f (Hz)")
     ax2.set_title(f"(b) {zoom[0]:g}-{zoom[1]:g} Hz")
     ax2.grid(True, alpha=0.3)
