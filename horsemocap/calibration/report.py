@@ -60,7 +60,7 @@ def format_calibration_tables(result: RigCalibration, width: int | None = None, 
     thesis reports), and the joint calibration; then Table 8.4 (translation
     in mm with uncertainty, rotation matrix, per pair), and the joint rig's
     poses. ``decimals`` of pixel and mm values: 5 as in the thesis (distortion
-    coefficients always 5). ``width``: every column's width (characters); default: each column as
+    coefficients and rotations in radians always 5). ``width``: every column's width (characters); default: each column as
     wide as its longest entry. ``max_width``: wrap a wider table by columns into blocks of lines no
     longer than that (a notebook's output is about 120 characters wide).
     """
@@ -89,8 +89,8 @@ def format_calibration_tables(result: RigCalibration, width: int | None = None, 
         out.append("Table 8.4 Extrinsic parameters of each camera pair (x_b = R x_a + t; mm; ± = 3 sigma)")
         ps = [result.pairs[k] for k in keys]
         cells = [[f"{a} and {b}", _vec(1000 * p.T, d), "± " + _vec(1000 * p.translation_sigma3[1], d),
-                  *[_vec(rotation_matrix(p.om)[i], fmt="{:.4f}") for i in range(3)], _vec(p.om, d),
-                  "± " + _vec(p.rotation_sigma3[1], d), f"{p.rms:.4f}"] for (a, b), p in zip(keys, ps)]
+                  *[_vec(rotation_matrix(p.om)[i], fmt="{:.4f}") for i in range(3)], _vec(p.om, 5),
+                  "± " + _vec(p.rotation_sigma3[1], 5), f"{p.rms:.4f}"] for (a, b), p in zip(keys, ps)]
         pair_labels = ["", "Translation vector t", "Translation uncertainty", "Rotation matrix R", "", "",
                        "Rotation vector om (rad)", "Rotation uncertainty", "RMS reprojection error (px)"]
         out += _table_lines(pair_labels, cells, lw, width, max_width)
@@ -103,7 +103,7 @@ def format_calibration_tables(result: RigCalibration, width: int | None = None, 
             if i == 0:
                 continue
             out.append(f"  {cam:<8s} t = {_vec(1000 * j.translations[i], d)} ± {_vec(1000 * j.translation_sigma3[i], d)}"
-                       f"  om = {_vec(j.rotations[i], d)} ± {_vec(j.rotation_sigma3[i], d)}")
+                       f"  om = {_vec(j.rotations[i], 5)} ± {_vec(j.rotation_sigma3[i], 5)}")
         out.append(f"  RMS reprojection error {j.rms:.4f} px over all cameras and views")
         out.append("")
     missing = [f"  {c}: {m}" for c in result.cameras for m in result.views[c].missing()]
