@@ -346,9 +346,11 @@ def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_com
     picker = ws.ui()
     switch = ui_preset(ws)
     assert switch.value == "default" and ws.choices == {} and "every choice automatic" in picker.message.value
+    assert "automatic run" not in picker.message.value
     switch.value = "thesis"
     assert ws.choices == {"preset": "thesis"}
     assert "choices made in the notebooks: preset" in picker.message.value   # the first cell says it at once
+    assert "quoted in the notebooks' text are those of the automatic run" in picker.message.value
     p = ws.params                                    # what the notebooks' widgets start from
     assert p.preset == "thesis"
     assert all(getattr(p, k) == v for k, v in PRESETS["thesis"].items())

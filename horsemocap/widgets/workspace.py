@@ -54,7 +54,9 @@ class SessionPicker(ControlText, W.VBox):
             return
         ch = self.workspace.choices
         what = ", ".join(sorted(ch)) if ch else "none: every choice automatic"
-        self.message.value = (f"analysing <b>{self.workspace.name}</b>; choices made in the notebooks: {what}. "
+        caveat = (" <b>Every notebook's numbers follow these choices; the numbers quoted in the notebooks' text "
+                  "are those of the automatic run</b> (the button below takes the choices back)." if ch else "")
+        self.message.value = (f"analysing <b>{self.workspace.name}</b>; choices made in the notebooks: {what}.{caveat} "
                               "After changing the session, run the cells below again.")
 
     def _on_dropdown(self, change):
