@@ -1,6 +1,8 @@
 """Layout helpers shared by the figure modules (no figures of their own)."""
 from __future__ import annotations
 
+import numpy as np
+
 __all__: list[str] = []
 
 
@@ -14,8 +16,6 @@ def legend_below(ax, fontsize: int = 8, ncol: int = 3):
 def label_away_from_centre(ax, points, labels, color, distance_pt: float = 14.0, **text):
     """Write ``labels`` beside image ``points`` (u, v), each pushed away from the points' centre so that
     labels of nearby points do not fall on each other (image v grows downwards)."""
-    import numpy as np
-
     pts = np.asarray(points, float)
     centre = pts.mean(axis=0)
     for (u, v), label in zip(pts, labels):
