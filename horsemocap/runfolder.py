@@ -200,9 +200,12 @@ class RunFolder:
             except FileNotFoundError:
                 same = False
             if same:
-                os.ftruncate(fd, 0)
-                os.write(fd, f"pid {os.getpid()}".encode())
                 self._lock_fd = fd
+                try:   # who holds the lock, for a second run's message: a courtesy, the flock is the lock
+                    os.ftruncate(fd, 0)
+                    os.write(fd, f"pid {os.getpid()}".encode())
+                except OSError:   # a full disk: the run's own writes meet it and say so with the file's name
+                    pass
                 return
             os.close(fd)
 

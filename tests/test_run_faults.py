@@ -73,6 +73,29 @@ def test_results_file_not_written_leaves_results_as_before(name, err_no, tmp_pat
     assert _leftovers(tmp_path) == []
 
 
+def test_lock_note_on_a_full_disk_does_not_stop_the_run(tmp_path, monkeypatch):
+    """The lock file's "pid N" note is a courtesy: a full disk there leaves the lock held and the run going
+    (its own files then meet the full disk and name themselves)."""
+    from horsemocap import runfolder
+
+    real_write = os.write
+
+    def full(fd, data):
+        if os.path.basename(os.readlink(f"/proc/self/fd/{fd}")).endswith(".lock"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real_write(fd, data)
+
+    monkeypatch.setattr(runfolder.os, "write", full)
+    folder = runfolder.RunFolder(tmp_path / "out")
+    with folder as tmp:
+        (tmp / "a.txt").write_text("x")
+        with pytest.raises(runfolder.RunLockedError):      # the lock is held all the same
+            runfolder.RunFolder(tmp_path / "out").__enter__()
+        folder.commit()
+    assert (tmp_path / "out" / "a.txt").read_text() == "x"
+    assert _leftovers(tmp_path, keep=("out",)) == []
+
+
 def test_atomic_write_names_the_file(tmp_path, monkeypatch):
     """store's writers turn any OSError into a WriteError naming the file, not its temporary name."""
     def full(fd, data):
