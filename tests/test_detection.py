@@ -99,6 +99,16 @@ def test_otsu_and_three_class_otsu_separate_the_modes():
     assert det.auto_threshold([three], "otsu") == det.otsu_threshold(three)
 
 
+def test_clip_crop_keeps_the_crop_inside_the_image():
+    from horsemocap.detection.filters import clip_crop
+
+    assert clip_crop(None, 10, 8) == (0, 0, 10, 8)
+    assert clip_crop((-3, 2, 20, 5), 10, 8) == (0, 2, 10, 5)
+    assert clip_crop((2.7, 1.2, 6.9, 7.0), 10, 8) == (2, 1, 6, 7)       # truncated to whole pixels
+    assert clip_crop((12, 0, 20, 5), 10, 8) == (0, 0, 0, 0)           # misses the image
+    assert clip_crop((4, 4, 4, 6), 10, 8) == (0, 0, 0, 0)             # empty
+
+
 def test_eight_connectivity_joins_diagonal_pixels():
     b = np.zeros((5, 5), np.uint8)
     b[1, 1] = b[2, 2] = 255

@@ -30,6 +30,7 @@ from .thresholds import binarize, connected_components, to_gray
 
 __all__ = [
     "label_regions",
+    "clip_crop",
     "region_circularity",
     "filter_area",
     "filter_circularity",
@@ -642,12 +643,26 @@ def find_candidates(gray: np.ndarray, threshold: int, area_range=(1, np.inf), mi
         incomplete; it is dropped).
     """
     H, W = gray.shape[:2]
-    u0, v0, u1, v1 = _clip_crop(crop, W, H)
+    u0, v0, u1, v1 = clip_crop(crop, W, H)
     return _candidates_in(gray[v0:v1, u0:u1], (u0, v0), (W, H), threshold, area_range,
                           min_circularity, connectivity)
 
 
-def _clip_crop(crop, W, H):
+def clip_crop(crop, W, H):
+    """A crop rectangle clipped to a ``W`` x ``H`` image.
+
+    Parameters
+    ----------
+    crop : sequence of 4 numbers or None
+        ``(u0, v0, u1, v1)`` in pixels, ``u1``/``v1`` exclusive; None for the whole image.
+    W, H : int
+        The image's width and height.
+
+    Returns
+    -------
+    tuple of int
+        ``(u0, v0, u1, v1)`` inside the image; ``(0, 0, 0, 0)`` when the crop misses it.
+    """
     if crop is None:
         return 0, 0, W, H
     u0, v0 = max(int(crop[0]), 0), max(int(crop[1]), 0)

@@ -42,7 +42,7 @@ import numpy as np
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from . import regions_core
 from .base import DetectionError, DetectionParams, Regions
-from .filters import _clip_crop, find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
+from .filters import clip_crop, find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
 from .thresholds import auto_threshold, bright_crops, connected_components, region_order_key
 from .tracking import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION
 
@@ -185,7 +185,7 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
     amax = _max_area(area_range, gray)
     if regions_core.CORE is not None and isinstance(gray, np.ndarray) and gray.ndim == 2:
         H, W = gray.shape
-        out = regions_core.core_candidates(gray, threshold, [_clip_crop(crop, W, H)], (area_range[0], amax),
+        out = regions_core.core_candidates(gray, threshold, [clip_crop(crop, W, H)], (area_range[0], amax),
                                            min_circularity, False, max_count, centroid, light)
         if out is not None:
             return Candidates(*out)

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from .base import DetectionError, DetectionParams, MarkerTrack, boxes_touch_border
-from .filters import (_candidates_in, _clip_crop, _norm, cross_product_signs, filter_area, filter_cross_product,
+from .filters import (_candidates_in, clip_crop, _norm, cross_product_signs, filter_area, filter_cross_product,
                       filter_distance, find_candidates, marker_distances,
                       region_circularity, weighted_centroids, window_center)
 from .thresholds import auto_threshold
@@ -259,7 +259,7 @@ def cluster_persistence(cache: CandidateCache, frame: int, px, tolerance: float 
         cur, k = np.asarray(px, float), frame
         while 0 <= k + step < len(cache):
             lo, hi = cur.min(axis=0) - pad, cur.max(axis=0) + pad
-            box = _clip_crop((int(lo[0]), int(lo[1]), int(hi[0]) + 2, int(hi[1]) + 2), W, H)
+            box = clip_crop((int(lo[0]), int(lo[1]), int(hi[0]) + 2, int(hi[1]) + 2), W, H)
             if hasattr(cache.frames, "crop"):
                 sub = cache.frames.crop(k + step, *box)
             else:
@@ -338,7 +338,7 @@ def _centres(gray_sub, regions, idx, method):
 def _frame_regions(gc, i, thr, area_range, min_circ, crop):
     """Candidates of frame i (full image if crop None) with the gray of that crop."""
     H, W = gc.frames.shape[1:3]
-    u0, v0, u1, v1 = _clip_crop(crop, W, H)
+    u0, v0, u1, v1 = clip_crop(crop, W, H)
     sub = gc.crop(i, u0, v0, u1, v1)
     regions, keep = _candidates_in(sub, (u0, v0), (W, H), thr, area_range, min_circ)
     return sub, regions, keep
