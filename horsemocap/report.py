@@ -438,7 +438,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
     elif "comfort" in res:
         rows = [(html.escape(n), html.escape(m), v, u) for n, m, v, u in comfort_rows(res["comfort"]["indicators"])]
         verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
-        weighting = ("one weight per record at the stride frequency (the thesis)"
+        weighting = ("one weight per record, at the dominant harmonic of the vertical acceleration (the thesis)"
                      if analysis.params.weighting_mode == "thesis" else "each harmonic weighted at its own frequency")
         parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
                   f'<p class="note">Frequency weighting (Wb of BS 6841, Wk of ISO 2631-1): {html.escape(weighting)}. '

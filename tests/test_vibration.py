@@ -58,10 +58,34 @@ def test_wb_asymptotes_follow_from_its_definition():
     assert hi == pytest.approx(1.024 * 16.0 / 1e4, rel=1e-3)
 
 
-def test_wk_over_wb_at_3p5_hz_is_table_8_7_ratio():
-    # Table 8.7: 3.7007/3.1906 = 1.159876 and 4.3997/3.7932 = 1.159891
-    r = abs(vib.weighting("Wk", 3.5)) / abs(vib.weighting("Wb", 3.5))
-    assert r == pytest.approx(1.15988, abs=2e-5)
+def test_wk_over_wb_values_notebook_12_quotes():
+    # Table 8.7's ratio (3.7007/3.1906 = 1.159876, 4.3997/3.7932 = 1.159891) falls at 3.5 Hz with the
+    # standards' weightings, and not at a harmonic of its 1.667 Hz canter (notebook 12: the table does
+    # not identify the thesis' weights)
+    def r(f):
+        return abs(vib.weighting("Wk", f)) / abs(vib.weighting("Wb", f))
+
+    assert r(3.5) == pytest.approx(1.15988, abs=2e-5)
+    f0 = 2 / 1.2                                        # tau = 1.2 s, two periods
+    assert [round(r(k * f0), 3) for k in (1, 2, 3)] == [1.262, 1.187, 1.013]
+
+
+def test_nyquist_bin_is_not_doubled():
+    x = np.cos(np.pi * np.arange(8))                     # amplitude 1 at fs/2
+    h = vib.harmonics_from_periodic_samples(x, 8.0)
+    assert np.allclose(np.abs(h.amplitude), [0, 0, 0, 1.0], atol=1e-12)
+    y = np.cos(2 * np.pi * 3 * np.arange(8) / 8)         # below Nyquist: twice the bin
+    assert np.abs(vib.harmonics_from_periodic_samples(y, 8.0).amplitude)[2] == pytest.approx(1.0)
+
+
+def test_digital_filter_warns_below_nyquist_between_the_band_centres():
+    # Wk at 30 fps: within 5 % up to the 12.5 Hz centre, -30 % at 13.5 Hz, -78 % at 14.55 Hz
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        vib.weighting_filter("Wk", 200.0)
+    with pytest.warns(vib.DigitalWeightingWarning, match="Wk filter at fs = 30 Hz"):
+        vib.weighting_filter("Wk", 30.0)
 
 
 def test_weighting_rejects_bad_input():

@@ -189,8 +189,9 @@ for w in ("Wb", "Wk"):
 # %% [markdown]
 # **One weight, or one per frequency?** In Table 8.7, $W_k$/$W_b$ is the same for rms and VDV, and
 # the crest factor is the same for both weightings (as eq. 7.7 states). That only happens when one
-# real number multiplies the whole signal — eq. 7.1-7.2 read literally. The ratio pins the
-# frequency: $|W_k|/|W_b| = 1.15988$ at 3.50 Hz, close to the second harmonic of the canter.
+# real number multiplies the whole signal — eq. 7.1-7.2 read literally. Does the ratio tell which
+# frequency the thesis weighted at? With the standards' $W_k$ and $W_b$, $|W_k|/|W_b| = 1.15988$ only
+# at 3.50 Hz, which is not a harmonic of the 1.667 Hz canter of Table 8.7.
 
 # %%
 print(f"Table 8.7: Wk/Wb from rms {T['acc_y_Wk_rms'] / T['acc_y_Wb_rms']:.5f}, "
@@ -202,13 +203,23 @@ print("frequencies where |Wk|/|Wb| = 1.15988: " + ", ".join(f"{x:.2f} Hz" for x 
 unweighted_rms = T["acc_y_max"] / T["crest_factor_y"]
 print(f"acc_y_max / CF = {unweighted_rms:.3f} m/s², but rms_Wb / |Wb(3.5 Hz)| = "
       f"{T['acc_y_Wb_rms'] / abs(vibration.weighting('Wb', 3.5)):.3f} m/s²")
+f_canter = 2 / tau                     # Table 8.7: tau = 1.2 s, two canter periods
+for k in (1, 2, 3):
+    print(f"canter harmonic {k} ({k * f_canter:.3f} Hz): |Wk|/|Wb| = {ratio[np.argmin(abs(ff - k * f_canter))]:.4f}")
+wb_implied = T["acc_y_Wb_rms"] / unweighted_rms          # the |Wb| the table's own rms values imply
+f_wb = ff[np.argmin(abs(np.abs(vibration.weighting("Wb", ff[ff < 3.5])) - wb_implied))]
+print(f"|Wb| implied by rms_Wb / (acc_y_max / CF): {wb_implied:.4f}, reached at {f_wb:.3f} Hz, "
+      f"where |Wk|/|Wb| = {ratio[np.argmin(abs(ff - f_wb))]:.4f}")
 
 # %% [markdown]
-# Our $W_b$ and $W_k$ reproduce the thesis' ratio, a check that they are the weightings it used.
-# The last line shows something the table does not explain: its `acc_y_max` and crest factor imply
-# an unweighted rms of 7.20 m/s², while its weighted rms and a weight of $|W_b(3.5)|$ imply
-# 4.18 m/s². `acc_y_max` was probably taken from another signal (e.g. the unsmoothed data);
-# we report the peak of the analysed signal.
+# So Table 8.7 does **not** identify the weights the thesis used: its ratio falls at 3.50 Hz, between
+# the canter's harmonics (1.262, 1.187 and 1.013 at 1.67, 3.33 and 5 Hz), and its `acc_y_max` and
+# crest factor imply an unweighted rms of 7.20 m/s², hence $|W_b| = 0.443$, which the standard's
+# $W_b$ has at 2.21 Hz, where the ratio is 1.279, not 1.160. No single frequency of the standard
+# weightings fits the table. Either the thesis' closed-form weights differ from the standards', or
+# `acc_y_max` was taken from another signal (e.g. the unsmoothed data); we cannot tell which. What
+# `mode="thesis"` reproduces is the table's *structure* (one ratio for rms and VDV, one crest
+# factor), not its numbers; we report the peak of the analysed signal.
 #
 # `comfort_indicators` offers both readings:
 #
