@@ -130,7 +130,10 @@ def analytic_indicators(horse: str = "Horse 2", gait: str = "canter", *, mode: s
     (``virtuallab.saddle_motion``) is sampled over one stride in the motion
     frame (x along the path, y down); the vertical acceleration's harmonics
     (:func:`vibration.harmonics_from_periodic_samples`) go into
-    :func:`vibration.comfort_indicators` with tau = ``n_periods`` strides.
+    :func:`vibration.comfort_indicators` with tau = ``n_periods`` strides;
+    the three axes' harmonics into :func:`vibration.directive_indicators`
+    (the keys :data:`vibration.DIRECTIVE_KEYS` after the thesis' ones, as
+    the pipeline's :func:`vibration.saddle_comfort` gives them).
     """
     from .virtuallab.horse import saddle_motion
 
@@ -139,12 +142,14 @@ def analytic_indicators(horse: str = "Horse 2", gait: str = "canter", *, mode: s
     t = np.arange(samples_per_period) * (period / samples_per_period)
     p, v, a = m.saddle(t)
     axes = m.motion_axes
-    acc_y, pos_y, vel_x = a @ axes[1], p @ axes[1], v @ axes[0]
-    h = vib.harmonics_from_periodic_samples(acc_y, period, 1, max_harmonic=max_harmonic)
+    pos_y, vel_x = p @ axes[1], v @ axes[0]
+    hx, h, hz = (vib.harmonics_from_periodic_samples(a @ axes[i], period, 1, max_harmonic=max_harmonic)
+                 for i in range(3))
     h = vib.Harmonics(h.freq_hz, h.amplitude, 0.0)
     amp = 0.5 * float(pos_y.max() - pos_y.min())
-    return vib.comfort_indicators(h, n_periods * period, float(vel_x.mean()), amp, mode=mode,
-                                  f0_hz=1.0 / period)
+    out = vib.comfort_indicators(h, n_periods * period, float(vel_x.mean()), amp, mode=mode, f0_hz=1.0 / period)
+    out.update(vib.directive_indicators(hx, h, hz, n_periods * period, float(vel_x.mean())))
+    return out
 
 
 def pipeline_analysis(horse: str, gait: str, params=None, *, until: str = "comfort"):

@@ -246,6 +246,25 @@ INDICATORS = {
     "Distance_TVDV_action_Wk": ("distance to the action value by VDV, Wk", "distance ridden in that time at the measured speed"),
     "Distance_TVDV_limit_Wb": ("distance to the limit value by VDV, Wb", "distance ridden in that time at the measured speed"),
     "Distance_TVDV_limit_Wk": ("distance to the limit value by VDV, Wk", "distance ridden in that time at the measured speed"),
+    "acc_x_Wd_rms": ("fore-aft acceleration, Wd-weighted rms", "the saddle's surge along the motion (ISO 2631-1 Wd, "
+                     "horizontal); the Directive counts it 1.4 times"),
+    "acc_z_Wd_rms": ("lateral acceleration, Wd-weighted rms", "the saddle's sway across the motion (Wd); counted 1.4 times"),
+    "VDV_x_Wd": ("vibration dose value, fore-aft, Wd", "fourth-power dose of the surge"),
+    "VDV_z_Wd": ("vibration dose value, lateral, Wd", "fourth-power dose of the sway"),
+    "A_w_directive": ("the Directive's weighted acceleration", "the highest of 1.4 fore-aft (Wd), vertical (Wk) and "
+                      "1.4 lateral (Wd) rms: what A(8) is computed from (2002/44/EC, Annex B)"),
+    "VDV_directive": ("the Directive's vibration dose value", "the highest of 1.4 fore-aft, vertical (Wk) and 1.4 "
+                      "lateral VDV"),
+    "TA_8_action_directive": ("time to the daily action value by A(8), Directive", "riding time until the EU action "
+                              "value is reached, judged on all three axes"),
+    "TA_8_limit_directive": ("time to the daily limit value by A(8), Directive", "riding time until the EU limit "
+                             "value is reached, judged on all three axes"),
+    "TVDV_action_directive": ("time to the action value by VDV, Directive", "the same by the dose, all three axes"),
+    "TVDV_limit_directive": ("time to the limit value by VDV, Directive", "the same by the dose, all three axes"),
+    "Distance_TA_8_action_directive": ("distance to the action value by A(8), Directive", "distance ridden in that time at the measured speed"),
+    "Distance_TA_8_limit_directive": ("distance to the limit value by A(8), Directive", "distance ridden in that time at the measured speed"),
+    "Distance_TVDV_action_directive": ("distance to the action value by VDV, Directive", "distance ridden in that time at the measured speed"),
+    "Distance_TVDV_limit_directive": ("distance to the limit value by VDV, Directive", "distance ridden in that time at the measured speed"),
     "vel_x_avg": ("average forward speed", "net distance over time along the direction of motion"),
     "amplitude_y": ("vertical amplitude of the saddle", "half the peak-to-peak of its fitted vertical position "
                     "(the thesis does not define it)"),
@@ -445,7 +464,15 @@ def report_html(analysis, quality: dict | None = None) -> str:
                   "The times are how long a rider can ride this way before reaching the exposure action value "
                   "(EAV) and the exposure limit value (ELV) of the EU directive 2002/44/EC, by the daily "
                   "exposure A(8) and by the vibration dose value (VDV); the distances are those ridden in "
-                  "those times at the measured speed.</p>",
+                  "those times at the measured speed. The thesis' times (Wb, Wk) judge the vertical axis "
+                  "alone; the Directive judges the highest of 1.4 times the fore-aft and lateral (Wd) and the "
+                  "vertical (Wk) values: its times are the rows marked Directive (computed with each "
+                  "harmonic weighted at its own frequency whatever the weighting above), and they are the "
+                  "shorter when the horse's surge or sway outweighs its vertical motion."
+                  + (" Here the forward motion is fitted by a straight line (the thesis' x fit), so the fore-aft "
+                     "acceleration and its share of the Directive's values are zero by construction."
+                     if analysis.params.kinematics == "fits" and analysis.params.x_degree <= 1 else "")
+                  + "</p>",
                   _html_table(rows, ["indicator", "meaning", "value", "unit"])]
 
     record = analysis_record(analysis)

@@ -83,14 +83,14 @@ from .store import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "WeightingParameters", "WEIGHTINGS", "WB_BS6841", "EU_2002_44_EC", "ExposureValues",
-    "THIRD_OCTAVE_HZ", "COMFORT_KEYS", "COMFORT_UNITS", "THESIS_TABLE_8_7",
+    "THIRD_OCTAVE_HZ", "COMFORT_KEYS", "DIRECTIVE_KEYS", "COMFORT_UNITS", "THESIS_TABLE_8_7",
     "DigitalWeightingWarning", "Harmonics",
     "weighting", "weighting_bs6841_wb", "analog_sections", "weighting_filter",
     "digital_weighting_error", "apply_weighting",
     "harmonics_from_fourier", "harmonics_from_periodic_samples", "synthesize", "dominant_frequency",
     "rms", "vdv", "crest_factor", "time_to_a8", "time_to_vdv", "exposure_times",
     "allowable_distances", "indicators_from_values",
-    "comfort_indicators", "comfort_from_samples", "saddle_comfort",
+    "comfort_indicators", "directive_indicators", "comfort_from_samples", "saddle_comfort",
     "fit_harmonics", "estimate_fundamental", "weighted_histories",
     "comfort_table_rows", "write_comfort_csv", "read_comfort_csv",
     "write_comfort_spreadsheet",
@@ -584,8 +584,29 @@ def _unit(k: str) -> str:
             "duration_s": "s", "f0_hz": "Hz", "period_s": "s"}[k]
 
 
-COMFORT_UNITS = {k: _unit(k) for k in COMFORT_KEYS}
-"""Unit of each indicator, as in thesis Table 8.7."""
+DIRECTIVE_KEYS = (
+    "acc_x_Wd_rms", "acc_z_Wd_rms", "VDV_x_Wd", "VDV_z_Wd", "A_w_directive", "VDV_directive",
+    "TA_8_action_directive", "TA_8_limit_directive", "TVDV_action_directive", "TVDV_limit_directive",
+    "Distance_TA_8_action_directive", "Distance_TA_8_limit_directive",
+    "Distance_TVDV_action_directive", "Distance_TVDV_limit_directive",
+)
+"""The three-axis indicators of the EU Directive 2002/44/EC (:func:`directive_indicators`): optional
+rows of ``comfort.csv`` after :data:`COMFORT_KEYS` (the thesis' indicators are the vertical axis's only)."""
+
+#: The Directive's axis factors (Annex B, as ISO 2631-1 for health): 1.4 on the horizontal axes (Wd), 1 vertical (Wk)
+DIRECTIVE_HORIZONTAL_FACTOR = 1.4
+
+
+def _directive_unit(k: str) -> str:
+    if k.startswith("Distance_"):
+        return "km"
+    if k.startswith("T"):
+        return "h"
+    return "m/s^1.75" if k.startswith("VDV") else "m/s^2"
+
+
+COMFORT_UNITS = {**{k: _unit(k) for k in COMFORT_KEYS}, **{k: _directive_unit(k) for k in DIRECTIVE_KEYS}}
+"""Unit of each indicator, as in thesis Table 8.7 (and of the Directive's three-axis rows)."""
 
 THESIS_TABLE_8_7 = {
     "acc_y_Wb_rms": 3.1906, "acc_y_Wk_rms": 3.7007, "VDV_y_Wb": 3.7932, "VDV_y_Wk": 4.3997,
@@ -740,6 +761,65 @@ def comfort_indicators(acc_y, duration_s: float | None = None, vel_x_avg_mps: fl
                                   vel_x_avg_mps * 3.6, amplitude_y_m, f0_hz=f0, limits=limits)
 
 
+def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: float = float("nan"), *,
+                         limits: ExposureValues = EU_2002_44_EC, n_samples: int | None = None) -> dict:
+    """The EU Directive 2002/44/EC's daily exposure of the saddle, from all three axes.
+
+    The thesis (and Table 8.7) judges the vertical axis alone, weighted with Wb or Wk. The Directive
+    (Annex B, whole-body vibration, after ISO 2631-1 for health) takes the *highest* of
+    ``1.4 a_wx``, ``1.4 a_wy`` (horizontal, Wd) and ``a_wz`` (vertical, Wk), and the same for the VDV.
+    In the motion frame the horizontal axes are x (fore-aft) and z (lateral), the vertical is y. A
+    canter's fore-aft surge can decide it: on the virtual Horse 2 canter ``1.4 a_wx`` = 5.10 against
+    ``a_wk`` = 4.32 m/s^2, and the time to the limit value is 0.41 h instead of the vertical's 0.57 h.
+
+    Every harmonic is weighted at its own frequency (the ``"iso"`` mode of :func:`comfort_indicators`,
+    whatever mode the thesis' indicators use: this is the standard's computation, which the thesis
+    does not make).
+
+    Parameters
+    ----------
+    acc_x, acc_y, acc_z : Harmonics or (freq_hz, complex amplitudes)
+        The saddle's acceleration along x (fore-aft), y (vertical) and z (lateral) in the motion frame,
+        as harmonic series (a constant term is ignored: it is not vibration).
+    duration_s : float
+        tau, the analysed time (the VDV is measured over it and scaled by eq. 7.14-7.17, corrected).
+    vel_x_avg_mps : float
+        Mean speed, m/s (the distances).
+    limits : ExposureValues
+        Table 7.2 (EU Directive 2002/44/EC).
+    n_samples : int, optional
+        Time samples over tau (as :func:`weighted_histories`).
+
+    Returns
+    -------
+    dict
+        Exactly :data:`DIRECTIVE_KEYS`: the Wd-weighted rms and VDV of x and z (unscaled), ``A_w_directive`` and
+        ``VDV_directive`` (the highest of the scaled axes, m/s^2 and m/s^1.75), the times (h) to the action and
+        limit values by A(8) and by VDV, and the distances (km) at the mean speed.
+    """
+    tau = float(duration_s)
+    axes = {"x": (_as_harmonics(acc_x), "Wd"), "y": (_as_harmonics(acc_y), "Wk"), "z": (_as_harmonics(acc_z), "Wd")}
+    if n_samples is None:
+        n_samples = max(4096, int(math.ceil(64 * tau * max(h.freq_hz.max() for h, _ in axes.values()))))
+    t = np.arange(n_samples) * (tau / n_samples)
+    fs = n_samples / tau
+    a_w, v_w = {}, {}
+    for axis, (h, w) in axes.items():
+        hist = synthesize(Harmonics(h.freq_hz, h.amplitude * weighting(w, h.freq_hz), 0.0), t)
+        a_w[axis], v_w[axis] = float(rms(hist)), float(vdv(hist, fs))
+    k = DIRECTIVE_HORIZONTAL_FACTOR
+    a_dir = max(k * a_w["x"], a_w["y"], k * a_w["z"])
+    v_dir = max(k * v_w["x"], v_w["y"], k * v_w["z"])
+    times = exposure_times(a_dir, v_dir, tau, limits)
+    speed_kmh = float(vel_x_avg_mps) * 3.6
+    out = {"acc_x_Wd_rms": a_w["x"], "acc_z_Wd_rms": a_w["z"], "VDV_x_Wd": v_w["x"], "VDV_z_Wd": v_w["z"],
+           "A_w_directive": a_dir, "VDV_directive": v_dir}
+    for name, hours in times.items():
+        out[f"{name}_directive"] = float(hours)
+        out[f"Distance_{name}_directive"] = speed_kmh * float(hours)
+    return {key: out[key] for key in DIRECTIVE_KEYS}
+
+
 def fit_harmonics(t, y, f0_hz: float, n_harmonics: int) -> Harmonics:
     """Linear least-squares fit ``y ~ offset + sum_k a_k cos + b_k sin(2 pi k f0 t)``.
 
@@ -837,9 +917,10 @@ def saddle_comfort(t, position, acceleration, velocity, *, mode: str = "iso",
 
     Returns
     -------
-    dict of :data:`COMFORT_KEYS`. ``vel_x_avg`` is the mean x-velocity (the
-    constant of its harmonic fit, i.e. the mean over whole periods); ``amplitude_y`` half the peak-to-peak of the fitted vertical
-    position over tau.
+    dict of :data:`COMFORT_KEYS` then :data:`DIRECTIVE_KEYS` (the Directive's three axes,
+    :func:`directive_indicators`, from the harmonics of x and z fitted as y's). ``vel_x_avg`` is the mean
+    x-velocity (the constant of its harmonic fit, i.e. the mean over whole periods); ``amplitude_y`` half
+    the peak-to-peak of the fitted vertical position over tau.
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(position, dtype=float)
@@ -861,8 +942,10 @@ def saddle_comfort(t, position, acceleration, velocity, *, mode: str = "iso",
     y = synthesize(h_pos, tt)
     amp = 0.5 * float(y.max() - y.min())
     v_x = fit_harmonics(t, vel[:, 0], f0_hz, n_h).offset   # mean over whole periods
-    return comfort_indicators(h_acc, tau, v_x, amp, mode=mode, peak=peak, f0_hz=f0_hz,
-                              limits=limits)
+    out = comfort_indicators(h_acc, tau, v_x, amp, mode=mode, peak=peak, f0_hz=f0_hz, limits=limits)
+    h_x, h_z = (fit_harmonics(t, acc[:, i], f0_hz, n_h) for i in (0, 2))
+    out.update(directive_indicators(h_x, h_acc, h_z, tau, v_x, limits=limits))
+    return out
 
 
 def comfort_from_samples(acc_y, fs: float, vel_x_avg_mps: float = float("nan"),
@@ -920,14 +1003,19 @@ def comfort_from_samples(acc_y, fs: float, vel_x_avg_mps: float = float("nan"),
 
 
 def comfort_table_rows(indicators: dict) -> list[tuple[str, float, str]]:
-    """``[(indicator, value, unit), ...]`` in :data:`COMFORT_KEYS` order.
+    """``[(indicator, value, unit), ...]`` in :data:`COMFORT_KEYS` order, then the
+    :data:`DIRECTIVE_KEYS` when the indicators have them (all or none).
 
     Raises ``KeyError`` naming the first missing indicator.
     """
     missing = [k for k in COMFORT_KEYS if k not in indicators]
     if missing:
         raise KeyError(f"comfort indicators lack {missing[0]!r} (and {len(missing) - 1} more)")
-    return [(k, float(indicators[k]), COMFORT_UNITS[k]) for k in COMFORT_KEYS]
+    optional = [k for k in DIRECTIVE_KEYS if k in indicators]
+    if optional and len(optional) != len(DIRECTIVE_KEYS):
+        lack = [k for k in DIRECTIVE_KEYS if k not in indicators]
+        raise KeyError(f"comfort indicators have some of the Directive's rows but lack {lack[0]!r}")
+    return [(k, float(indicators[k]), COMFORT_UNITS[k]) for k in COMFORT_KEYS + tuple(optional)]
 
 
 def write_comfort_csv(path, indicators: dict) -> Path:

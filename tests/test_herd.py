@@ -59,7 +59,7 @@ def test_compare_handles_ties_and_constant_indicator():
 
 def test_analytic_indicators_of_the_default_session():
     ind = herd.analytic_indicators("Horse 2", "canter")
-    assert tuple(ind) == vib.COMFORT_KEYS
+    assert tuple(ind) == vib.COMFORT_KEYS + vib.DIRECTIVE_KEYS
     assert ind["f0_hz"] == pytest.approx(30 / 18)          # 18 frames at 30 fps
     assert ind["duration_s"] == pytest.approx(1.2)
     assert ind["vel_x_avg"] == pytest.approx(17.6, rel=1e-6)

@@ -355,3 +355,52 @@ def test_weightings_at_the_iso8041_reference_frequency():
     for name, value in (("Wb", 0.8126), ("Wd", 0.1261)):
         got = abs(weighting(name, np.array([f_ref])))[0]
         assert abs(got - value) / value < 5e-4, (name, got)
+
+
+def test_directive_takes_the_highest_scaled_axis_with_exact_single_harmonics():
+    """One harmonic per axis: rms = A |W| / sqrt 2 and VDV = A |W| (3 tau / 8)^(1/4) exactly; the
+    Directive's values are the highest of 1.4 x (Wd), y (Wk), 1.4 z (Wd) (2002/44/EC Annex B)."""
+    f, tau = 2.0, 2.0
+    ax, ay, az = 3.0, 2.0, 0.5
+    d = vib.directive_indicators(vib.Harmonics([f], [ax]), vib.Harmonics([f], [1j * ay]), vib.Harmonics([f], [az]),
+                                 tau, vel_x_avg_mps=5.0)
+    assert tuple(d) == vib.DIRECTIVE_KEYS
+    wd, wk = abs(vib.weighting("Wd", f)), abs(vib.weighting("Wk", f))
+    assert d["acc_x_Wd_rms"] == pytest.approx(ax * wd / math.sqrt(2), rel=1e-9)
+    assert d["acc_z_Wd_rms"] == pytest.approx(az * wd / math.sqrt(2), rel=1e-9)
+    assert d["VDV_x_Wd"] == pytest.approx(ax * wd * (3 * tau / 8) ** 0.25, rel=1e-9)
+    scaled = {"x": 1.4 * ax * wd, "y": ay * wk, "z": 1.4 * az * wd}
+    top = max(scaled.values())
+    assert scaled["x"] == top                                  # the surge decides here
+    assert d["A_w_directive"] == pytest.approx(top / math.sqrt(2), rel=1e-9)
+    assert d["VDV_directive"] == pytest.approx(top * (3 * tau / 8) ** 0.25, rel=1e-9)
+    assert d["TA_8_limit_directive"] == pytest.approx(8 * (1.15 / d["A_w_directive"]) ** 2)
+    assert d["TVDV_action_directive"] == pytest.approx(tau * (9.1 / d["VDV_directive"]) ** 4 / 3600)
+    assert d["Distance_TA_8_action_directive"] == pytest.approx(18.0 * d["TA_8_action_directive"])
+    # a vertical motion alone: the Directive's time is the thesis' Wk time
+    zero = vib.Harmonics([f], [0.0])
+    v = vib.directive_indicators(zero, vib.Harmonics([f], [ay]), zero, tau)
+    c = vib.comfort_indicators(vib.Harmonics([f], [ay]), tau, mode="iso")
+    assert v["TA_8_limit_directive"] == pytest.approx(c["TA_8_limit_Wk"], rel=1e-9)
+    assert v["TVDV_limit_directive"] == pytest.approx(c["TVDV_limit_Wk"], rel=1e-9)
+
+
+def test_saddle_comfort_adds_the_directive_rows_to_comfort_csv(tmp_path):
+    t = np.arange(300) / 100.0
+    f0 = 1.5
+    w = 2 * np.pi * f0
+    pos = np.column_stack([5 * t + 0.02 * np.sin(w * t), 0.05 * np.sin(w * t), 0.01 * np.cos(w * t)])
+    vel = np.column_stack([5 + 0.02 * w * np.cos(w * t), 0.05 * w * np.cos(w * t), -0.01 * w * np.sin(w * t)])
+    acc = np.column_stack([-0.02 * w * w * np.sin(w * t), -0.05 * w * w * np.sin(w * t), -0.01 * w * w * np.cos(w * t)])
+    c = vib.saddle_comfort(t, pos, acc, vel, f0_hz=f0)
+    assert tuple(c) == vib.COMFORT_KEYS + vib.DIRECTIVE_KEYS
+    wd = abs(vib.weighting("Wd", f0))
+    assert c["acc_x_Wd_rms"] == pytest.approx(0.02 * w * w * wd / math.sqrt(2), rel=1e-6)
+    assert c["acc_z_Wd_rms"] == pytest.approx(0.01 * w * w * wd / math.sqrt(2), rel=1e-6)
+    back = vib.read_comfort_csv(vib.write_comfort_csv(tmp_path / "comfort.csv", c))
+    assert list(back) == list(vib.COMFORT_KEYS + vib.DIRECTIVE_KEYS)
+    assert back == pytest.approx(c)
+    part = dict(c)
+    del part["VDV_directive"]
+    with pytest.raises(KeyError, match="VDV_directive"):
+        vib.comfort_table_rows(part)
