@@ -382,3 +382,15 @@ def test_calibration_tables_wrap_by_columns():
     assert all(len(line) <= 60 for line in wrapped)
     assert sum(line.startswith("Focal length uncertainty") for line in wrapped) == 2   # the labels in each block
     assert "" in wrapped and "joint (all cameras)" in "\n".join(wrapped)
+
+
+def test_grid_may_continue_beyond_the_image_edge():
+    from horsemocap.calibration.board import grid_may_continue
+
+    u, v = np.meshgrid(np.arange(7) * 10.0, np.arange(4) * 10.0, indexing="ij")
+    grid = np.stack([u, v], -1)                           # 7 x 4 corners, 10 px apart
+    assert not grid_may_continue(grid + [100, 100], (300, 300))
+    assert grid_may_continue(grid + [5, 100], (300, 300))          # the next column would be at -5
+    assert grid_may_continue(grid + [12, 100], (300, 300))         # at 2 px: within a square of the edge
+    assert not grid_may_continue(grid + [21, 100], (300, 300))     # at 11 px: a square clear
+    assert grid_may_continue(grid + [100, 255], (300, 300))        # the next row at 295 px, of 300

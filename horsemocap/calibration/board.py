@@ -363,17 +363,62 @@ def probe_board_size(gray: np.ndarray) -> tuple[int, int] | None:
     :data:`_PROBE_PATTERN` to the whole grid it sees; the size is kept only
     when the classic or the sector detector then finds a board of exactly
     that size (in either order: OpenCV finds a ``(a, b)`` board as ``(b, a)``
-    too), so a board cut by the image edge does not give a size.
+    too), the grid could not continue beyond the image edge
+    (:func:`grid_may_continue`) and no board one row or column larger is found
+    (the growth can stop short of a cut edge): a board cut by the image edge
+    gives no size (cut views of the bundled 7x14 board gave 7x7, 9x7 or 4x8
+    parts before).
     """
     found = cv2.findChessboardCornersSBWithMeta(gray, _PROBE_PATTERN, cv2.CALIB_CB_LARGER | SECTOR_FLAGS)
-    ok, meta = found[0], found[2]
+    ok, corners, meta = found
     if not ok or meta is None or meta.ndim != 2:
         return None
     size = (int(meta.shape[0]), int(meta.shape[1]))
-    if cv2.findChessboardCorners(gray, size, flags=CLASSIC_FLAGS)[0] or \
-            cv2.findChessboardCornersSB(gray, size, flags=SECTOR_FLAGS)[0]:
-        return size
-    return None
+    if grid_may_continue(np.asarray(corners, float).reshape(size + (2,)), gray.shape[:2]):
+        return None                         # cut by the image edge: a part of a board, not its size
+    if not _board_of_size(gray, size):
+        return None
+    if _board_of_size(gray, (size[0] + 1, size[1])) or _board_of_size(gray, (size[0], size[1] + 1)):
+        return None                         # the grid grew short of the board: a part of it, not its size
+    return size
+
+
+def _board_of_size(gray: np.ndarray, size: tuple[int, int]) -> bool:
+    """Whether the classic or the sector detector finds a board of exactly ``size`` inner corners."""
+    return bool(cv2.findChessboardCorners(gray, size, flags=CLASSIC_FLAGS)[0]
+                or cv2.findChessboardCornersSB(gray, size, flags=SECTOR_FLAGS)[0])
+
+
+def grid_may_continue(grid: np.ndarray, image_hw, margin: float = 1.0) -> bool:
+    """Whether a grid of checkerboard corners may be part of a larger board cut by the image edge.
+
+    Each side of the grid is extended by one square (``2 c_edge - c_next``: the line of corners a
+    larger board would have there); if any such corner lies outside the image or within ``margin``
+    squares of its edge, a row or column of the board could be hidden there, and the grid's size
+    is not the board's.
+
+    Parameters
+    ----------
+    grid : (a, b, 2) ndarray
+        Corner pixel positions ``(u, v)`` in grid order, ``a, b >= 2``.
+    image_hw : (int, int)
+        The image's height and width.
+    margin : float
+        The clearance required, in squares (the local corner spacing).
+
+    Returns
+    -------
+    bool
+    """
+    h, w = int(image_hw[0]), int(image_hw[1])
+    sides = [(grid[0], grid[1]), (grid[-1], grid[-2]), (grid[:, 0], grid[:, 1]), (grid[:, -1], grid[:, -2])]
+    for edge, inner in sides:
+        out = 2 * edge - inner
+        clear = margin * np.linalg.norm(edge - inner, axis=-1)
+        u, v = out[:, 0], out[:, 1]
+        if np.any((u < clear) | (v < clear) | (u > w - 1 - clear) | (v > h - 1 - clear)):
+            return True
+    return False
 
 
 def _check_board_size(probes: dict, inner_corners: tuple[int, int]) -> None:
