@@ -209,8 +209,8 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
                             "motion videos, the threshold, the rig and 'markers.count' in session.json")
-    progress("detect", f"frames {segment[0]}..{segment[1] - 1}: every marker seen by two or more cameras "
-                       f"(or bridged); labelled in frame {idn.anchor_frame}")
+    progress("detect", f"{_frames_text(session, res, segment[0], segment[1] - 1)}: every marker seen by two or more "
+                       f"cameras (or bridged); labelled in synchronised frame {idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
     return {"marker_px": idn.marker_px, "reason": idn.reason, "segment": segment, "detection": chosen,
             "all_seen": tracked, "sync_check": sync_check,
@@ -579,8 +579,9 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
         if (lo, hi) != (a, b):
             pose_points = to_motion_frame(res["triangulate"]["points"][lo:hi], res["motion_frame"]["frame"])
             pose_t = np.arange(lo - a, hi - a) / float(session.fps)
-            progress("rigid_body", f"pose trajectory smoothed over frames {lo}..{hi - 1}: {a - lo} before and "
-                                   f"{hi - b} after the analysed frames have two markers (reported: {a}..{b - 1})")
+            progress("rigid_body", f"pose trajectory smoothed over {_frames_text(session, res, lo, hi - 1)}: {a - lo} "
+                                   f"before and {hi - b} after the analysed frames have two markers (reported: "
+                                   f"{_frames_text(session, res, a, b - 1)})")
     cov = res["triangulate"].get("covariance") if params.pose_weights == "covariance" else None
     if cov is not None:   # the markers' covariances in the motion frame (x_M = A (x - o): A C A^T)
         axes = res["motion_frame"]["frame"].axes
@@ -723,6 +724,14 @@ def saddle_angles(rb) -> np.ndarray:
     axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
     R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
     return saddle_angles_deg(R, axes0)
+
+
+def _frames_text(session: Session, res: dict, first: int, last: int) -> str:
+    """Synchronised frames ``first..last`` as the results files number them: the reference camera's own
+    frames (``frame`` of trajectories.csv), with the synchronised index beside them."""
+    off = int(res["sync"]["offsets"][session.reference_camera])
+    return (f"{session.reference_camera} camera's frames {first + off}..{last + off} "
+            f"(synchronised frames {first}..{last})")
 
 
 def step_comfort(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
