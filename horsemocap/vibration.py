@@ -90,7 +90,7 @@ __all__ = [
     "harmonics_from_fourier", "harmonics_from_periodic_samples", "synthesize", "dominant_frequency",
     "rms", "vdv", "crest_factor", "time_to_a8", "time_to_vdv", "exposure_times",
     "allowable_distances", "indicators_from_values",
-    "comfort_indicators", "directive_indicators", "comfort_from_samples", "saddle_comfort",
+    "comfort_indicators", "directive_indicators", "directive_axis", "comfort_from_samples", "saddle_comfort",
     "fit_harmonics", "estimate_fundamental", "weighted_histories",
     "comfort_table_rows", "write_comfort_csv", "read_comfort_csv",
     "write_comfort_spreadsheet",
@@ -818,6 +818,24 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
         out[f"{name}_directive"] = float(hours)
         out[f"Distance_{name}_directive"] = speed_kmh * float(hours)
     return {key: out[key] for key in DIRECTIVE_KEYS}
+
+
+def directive_axis(indicators: dict, by: str = "rms") -> str:
+    """Which axis decides the Directive's exposure: ``"fore-aft"`` (x), ``"vertical"`` (y) or ``"lateral"`` (z).
+
+    ``by="rms"``: the axis of ``A_w_directive`` (the highest of ``1.4 acc_x_Wd_rms``, ``acc_y_Wk_rms``,
+    ``1.4 acc_z_Wd_rms``); ``by="vdv"``: the axis of ``VDV_directive``. ``indicators`` holds the keys of
+    :data:`COMFORT_KEYS` and :data:`DIRECTIVE_KEYS` (:func:`saddle_comfort`)."""
+    k = DIRECTIVE_HORIZONTAL_FACTOR
+    if by == "rms":
+        scaled = {"fore-aft": k * indicators["acc_x_Wd_rms"], "vertical": indicators["acc_y_Wk_rms"],
+                  "lateral": k * indicators["acc_z_Wd_rms"]}
+    elif by == "vdv":
+        scaled = {"fore-aft": k * indicators["VDV_x_Wd"], "vertical": indicators["VDV_y_Wk"],
+                  "lateral": k * indicators["VDV_z_Wd"]}
+    else:
+        raise ValueError(f"directive_axis: by must be 'rms' or 'vdv', got {by!r}")
+    return max(scaled, key=scaled.get)
 
 
 def fit_harmonics(t, y, f0_hz: float, n_harmonics: int) -> Harmonics:

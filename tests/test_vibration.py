@@ -404,3 +404,13 @@ def test_saddle_comfort_adds_the_directive_rows_to_comfort_csv(tmp_path):
     del part["VDV_directive"]
     with pytest.raises(KeyError, match="VDV_directive"):
         vib.comfort_table_rows(part)
+
+
+def test_directive_axis_names_the_deciding_axis():
+    ind = {"acc_x_Wd_rms": 3.0, "acc_y_Wk_rms": 4.0, "acc_z_Wd_rms": 1.0,
+           "VDV_x_Wd": 2.0, "VDV_y_Wk": 2.9, "VDV_z_Wd": 2.1}
+    assert vib.directive_axis(ind) == "fore-aft"              # 1.4 * 3.0 = 4.2 > 4.0
+    assert vib.directive_axis(ind, by="vdv") == "lateral"     # 1.4 * 2.1 = 2.94 > 2.9 > 2.8
+    assert vib.directive_axis({**ind, "acc_x_Wd_rms": 2.8}) == "vertical"
+    with pytest.raises(ValueError, match="by must be"):
+        vib.directive_axis(ind, by="peak")

@@ -16,7 +16,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from horsemocap import herd, plots
+from horsemocap import herd, plots, vibration
 
 # %% [markdown]
 # ## 1 · The riders' grades (Table 8.8)
@@ -163,6 +163,23 @@ for g in ("sitting_trot", "canter"):
     best, worst = int(np.argmax(m)), int(np.argmin(m))
     print(f"{herd.GAIT_LABELS[g]}: {herd.HORSES[best]} allows {m[best]:.3f} h, "
           f"{herd.HORSES[worst]} {m[worst]:.3f} h: {m[best] / m[worst]:.1f} times as comfortable")
+
+# %% [markdown]
+# ### The Directive's three axes
+#
+# `TA_8_limit_Wb` judges the vertical axis alone, as the thesis does. The EU Directive takes the
+# highest of $1.4\,a_{wx}$, $a_{wy}$ ($W_k$) and $1.4\,a_{wz}$ (notebook 12): per session, the axis that
+# decides, the Directive's time to the limit value, and how the two times rank the horses against the
+# riders' grades (Spearman's $\rho$, pooled as above):
+
+# %%
+print(f"{'session':24s}{'decides':>10s}{'T_lim Wb h':>12s}{'T_lim Wk h':>12s}{'Directive h':>13s}")
+for (h, g), ind in sorted(table.items(), key=lambda kv: (herd.GAITS.index(kv[0][1]), kv[0][0])):
+    print(f"{h + ', ' + herd.GAIT_LABELS[g]:24s}{vibration.directive_axis(ind):>10s}"
+          f"{ind['TA_8_limit_Wb']:12.3f}{ind['TA_8_limit_Wk']:12.3f}{ind['TA_8_limit_directive']:13.3f}")
+for c in herd.compare(table, grades, indicators=("TA_8_limit_Wb", "TA_8_limit_directive")):
+    if c.gait == "pooled":
+        print(f"pooled rho with the grades: {c.indicator} {c.rho:+.2f} (n = {c.n})")
 
 # %% [markdown]
 # ### Does the weighting mode change the ranking?
