@@ -244,9 +244,9 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
     static = _camera_paths(path, root, "static", data["static"], cameras, kind="image") if "static" in data else None
     if open_sources:
-        for name, stills in (("plumb", plumb), ("static", static)):
+        for field, stills in (("plumb", plumb), ("static", static)):    # not `name`: the session's name
             for cam, p in (stills or {}).items():
-                _check_still(path, f"{name}.{cam}", p)
+                _check_still(path, f"{field}.{cam}", p)
 
     markers = _require_dict(path, "markers", data["markers"])
     _check_unknown(path, markers, ("count", "diameter_m"), "markers.")

@@ -203,3 +203,13 @@ def test_video_length_without_decoding_and_when_truncated(tmp_path):
     (tmp_path / "cut.avi").write_bytes(data[: len(data) * 2 // 3])   # no index, frames missing
     cut = FrameSource(tmp_path / "cut.avi")
     assert len(cut) == sum(1 for _ in cut.iter_frames(color=False)) < 40
+
+
+def test_the_session_keeps_its_name_after_the_stills_are_checked():
+    """The loop over the plumb and static stills once reused ``name`` and every session was called "static"
+    (analysis.json's session_name, the report's title, the results store's folder)."""
+    from horsemocap.data import default_session_dir
+    from horsemocap.session import load_session
+
+    assert load_session(default_session_dir()).name == "horse2_canter"
+    assert load_session(default_session_dir(), open_sources=False).name == "horse2_canter"
