@@ -578,7 +578,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Writes trajectories.csv, kinematics.csv and angular.csv in the file's frame. "
                                    "Give UNFILTERED markers: the smoothing chosen from the data assumes white "
                                    "noise (a Butterworth 8 Hz pre-filter took the demo's saddle acceleration "
-                                   "error from 2.4 %% to 36 %%). Names: exact first, then, where unambiguous, "
+                                   "error from 2.4 % to 36 % in a QA measurement). Names: exact first, then, where unambiguous, "
                                    "without a subject prefix (Horse:m1) and case. C3D times: (1-based frame - 1) "
                                    "/ POINT:RATE, or HORSEMOCAP:FIRST_TIME when the file has it (horsemocap export "
                                    "writes it).")
@@ -606,7 +606,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "frame number from the first to the last is written (missing ones empty / "
                                    "gaps); horsemocap frame k is the file's 1-based frame k+1 (C3D header, TRC "
                                    "Frame# and OrigDataStartFrame); the C3D keeps the exact time of the first "
-                                   "frame in the parameter HORSEMOCAP:FIRST_TIME (s).")
+                                   "frame and the rate in the parameters HORSEMOCAP:FIRST_TIME (s) and "
+                                   "HORSEMOCAP:RATE (Hz), read back by horsemocap kinematics.")
     p.add_argument("trajectories", metavar="trajectories.csv")
     p.add_argument("--out", required=True, metavar="OUT.trc|OUT.c3d",
                    help="the file to write; its extension chooses the format (.trc or .c3d)")

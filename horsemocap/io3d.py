@@ -186,7 +186,7 @@ def c3d_header(path) -> dict:
     path = Path(path)
     with open(path, "rb") as fh:
         head = fh.read(512)
-        if len(head) < 512 or head[1] != 0x50:
+        if len(head) < 512 or head[1] != 0x50 or head[0] < 2:
             raise TrajectoryFileError(f"{path}: not a C3D file (its first 512-byte block is not a C3D header)")
         fh.seek(512 * (head[0] - 1))
         par = fh.read(4)
