@@ -2,14 +2,24 @@
 
 Every notebook run starts from a clean results folder: ``HORSEMOCAP_RESULTS``
 points at a fresh temporary folder for the whole test session (the kernels
-nbval starts inherit it).
+nbval starts inherit it), removed when the session ends; when
+``HORSEMOCAP_RESULTS`` is already set, that folder is used and no other is made.
 """
 import os
+import shutil
 import tempfile
 
-_RESULTS = tempfile.mkdtemp(prefix="horsemocap-results-")
-os.environ.setdefault("HORSEMOCAP_RESULTS", _RESULTS)
+# The folder is made only when HORSEMOCAP_RESULTS is not given, and removed when the session ends.
+_RESULTS = None if os.environ.get("HORSEMOCAP_RESULTS") else tempfile.mkdtemp(prefix="horsemocap-results-")
+if _RESULTS:
+    os.environ["HORSEMOCAP_RESULTS"] = _RESULTS
 os.environ.setdefault("MPLBACKEND", "module://matplotlib_inline.backend_inline")
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Remove the session's own results folder (and only it)."""
+    if _RESULTS:
+        shutil.rmtree(_RESULTS, ignore_errors=True)
 
 
 def pytest_collectstart(collector):

@@ -13,15 +13,23 @@ the field.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+import math
+import struct
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
-           "write_trc", "write_c3d", "frame_rate", "kinematics_from_trajectories"]
+           "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
+           "FIRST_TIME_PARAMETER", "RATE_PARAMETER"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "dm": 0.1}
+_UNITS_TEXT = ", ".join(_UNITS)
+FIRST_TIME_PARAMETER = ("HORSEMOCAP", "FIRST_TIME")
+"""C3D parameter (group, name) holding the exact time (s) of the first frame, as text (a C3D real is 4 bytes)."""
+RATE_PARAMETER = ("HORSEMOCAP", "RATE")
+"""C3D parameter (group, name) holding the exact frame rate (Hz) as text; used when POINT:RATE is its 4-byte copy."""
 
 
 class TrajectoryFileError(ValueError):
@@ -39,6 +47,11 @@ class Trajectories:
     names : tuple of str
     points : (n, k, 3) metres, NaN where a point is missing.
     source : str
+    info : dict
+        How the file was read: ``format`` ("csv" or "c3d"), ``units`` and
+        ``scale_to_m`` (the file's length unit), ``rate_hz`` (the C3D's
+        ``POINT:RATE``; None for a CSV) and ``time_origin`` (where ``time_s``
+        comes from).
     """
 
     time_s: np.ndarray
@@ -46,6 +59,7 @@ class Trajectories:
     names: tuple
     points: np.ndarray
     source: str
+    info: dict = field(default_factory=dict)
 
     def subset(self, names) -> np.ndarray:
         """Points (n, len(names), 3) in the given order."""
@@ -54,7 +68,15 @@ class Trajectories:
 
 
 def read_trajectories_csv(path) -> Trajectories:
-    """Read a CSV in the trajectories.csv layout (``frame,time_s,point,x_m,y_m,z_m``)."""
+    """Read a CSV in the trajectories.csv layout (``frame,time_s,point,x_m,y_m,z_m``).
+
+    An empty coordinate (or ``nan``) is a missing point. Refused with a
+    :class:`TrajectoryFileError` naming the file and line: a row with more
+    fields than the header (an unquoted comma in a name), a non-finite
+    ``time_s``, an infinite coordinate, two rows of one (frame, point) with
+    different values, two times of one frame, times that do not increase
+    with the frame number.
+    """
     path = Path(path)
     if not path.is_file():
         raise TrajectoryFileError(f"{path}: file not found")
@@ -70,38 +92,25 @@ def read_trajectories_csv(path) -> Trajectories:
             raise TrajectoryFileError(f"{path}: header lacks the column(s) {missing} (expected {','.join(want)}, "
                                       f"got {','.join(header)})")
         col = {c: header.index(c) for c in want}
-        rows = {}
-        names = []
-        times = {}
+        rows, row_line, times, time_line, names = {}, {}, {}, {}, []
         for ln, row in enumerate(reader, start=2):
             if not row or all(not c.strip() for c in row):
                 continue
-            try:
-                fr = int(row[col["frame"]])
-            except (ValueError, IndexError):
-                raise TrajectoryFileError(f"{path}: line {ln}: field 'frame': expected an integer, got "
-                                          f"{row[col['frame']] if len(row) > col['frame'] else ''!r}") from None
-            try:
-                tm = float(row[col["time_s"]])
-            except (ValueError, IndexError):
-                raise TrajectoryFileError(f"{path}: line {ln}: field 'time_s': expected a number") from None
-            name = row[col["point"]].strip() if len(row) > col["point"] else ""
-            if not name:
-                raise TrajectoryFileError(f"{path}: line {ln}: field 'point': empty point name")
-            xyz = []
-            for c in ("x_m", "y_m", "z_m"):
-                v = row[col[c]].strip() if len(row) > col[c] else ""
-                try:
-                    xyz.append(float(v) if v else np.nan)
-                except ValueError:
-                    raise TrajectoryFileError(f"{path}: line {ln}: field '{c}': expected a number or empty, "
-                                              f"got {v!r}") from None
+            fr, tm, name, xyz = _csv_row(path, ln, row, col, len(header))
             if name not in names:
                 names.append(name)
             if fr in times and abs(times[fr] - tm) > 1e-9:
-                raise TrajectoryFileError(f"{path}: line {ln}: frame {fr} has two times ({times[fr]} and {tm})")
-            times[fr] = tm
-            rows[(fr, name)] = xyz
+                raise TrajectoryFileError(f"{path}: line {ln}: frame {fr} has two times ({times[fr]} on line "
+                                          f"{time_line[fr]} and {tm})")
+            times.setdefault(fr, tm)
+            time_line.setdefault(fr, ln)
+            key = (fr, name)
+            if key in rows and not np.array_equal(rows[key], xyz, equal_nan=True):
+                raise TrajectoryFileError(f"{path}: lines {row_line[key]} and {ln}: point {name!r} of frame {fr} "
+                                          f"twice with different values ({_xyz_text(rows[key])} and "
+                                          f"{_xyz_text(xyz)})")
+            rows[key] = xyz
+            row_line.setdefault(key, ln)
     if not times:
         raise TrajectoryFileError(f"{path}: no data rows")
     frames = np.array(sorted(times))
@@ -110,13 +119,100 @@ def read_trajectories_csv(path) -> Trajectories:
     for (fr, name), xyz in rows.items():
         pts[fi[fr], names.index(name)] = xyz
     t = np.array([times[f] for f in frames])
-    if frames.size > 1 and np.any(np.diff(t) <= 0):
-        raise TrajectoryFileError(f"{path}: field 'time_s' must increase with 'frame'")
-    return Trajectories(t, frames, tuple(names), pts, str(path))
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        f0, f1 = int(frames[back[0]]), int(frames[back[0] + 1])
+        raise TrajectoryFileError(f"{path}: field 'time_s' must increase with 'frame': frame {f1} (line "
+                                  f"{time_line[f1]}) has time {times[f1]}, not after frame {f0}'s {times[f0]} "
+                                  f"(line {time_line[f0]})")
+    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
+            "time_origin": "the file's time_s column"}
+    return Trajectories(t, frames, tuple(names), pts, str(path), info)
+
+
+def _xyz_text(xyz) -> str:
+    return "(" + ", ".join("" if not np.isfinite(v) else repr(float(v)) for v in xyz) + ")"
+
+
+def _csv_row(path, ln, row, col, n_fields):
+    """(frame, time, point, [x, y, z]) of one data row; a bad field ends with the file, line and field."""
+    if len(row) > n_fields:
+        raise TrajectoryFileError(f"{path}: line {ln}: {len(row)} fields, the header has {n_fields} (a point "
+                                  "name with a comma must be quoted, as the csv module writes it)")
+
+    def field_text(name):
+        return row[col[name]].strip() if len(row) > col[name] else ""
+
+    try:
+        fr = int(field_text("frame"))
+    except ValueError:
+        raise TrajectoryFileError(f"{path}: line {ln}: field 'frame': expected an integer, got "
+                                  f"{field_text('frame')!r}") from None
+    try:
+        tm = float(field_text("time_s"))
+    except ValueError:
+        tm = math.nan
+    if not math.isfinite(tm):
+        raise TrajectoryFileError(f"{path}: line {ln}: field 'time_s': expected a finite number, got "
+                                  f"{field_text('time_s')!r}")
+    name = field_text("point")
+    if not name:
+        raise TrajectoryFileError(f"{path}: line {ln}: field 'point': empty point name")
+    xyz = []
+    for c in ("x_m", "y_m", "z_m"):
+        v = field_text(c)
+        try:
+            num = float(v) if v else math.nan
+        except ValueError:
+            num = math.inf
+        if math.isinf(num):
+            raise TrajectoryFileError(f"{path}: line {ln}: field '{c}': expected a number or empty, got {v!r}")
+        xyz.append(num)
+    return fr, tm, name, np.array(xyz)
+
+
+def c3d_header(path) -> dict:
+    """The raw header words of a C3D file that say which frames it holds.
+
+    Returns ``{"first_frame": int, "last_frame": int, "frame_rate": float or
+    None, "processor": str}``: words 4 and 5 (bytes 6-9: the first and last
+    frame, 1-based, unsigned 16-bit) and words 11-12 (bytes 20-23: the
+    points' rate, a 4-byte real; None for a DEC file, whose reals this does
+    not decode), in the byte order of the processor type named in the
+    parameter section's header (84 Intel, 85 DEC: little-endian; 86 MIPS:
+    big-endian). Raises :class:`TrajectoryFileError` naming the file when
+    the header is too short or not a C3D header.
+    """
+    path = Path(path)
+    with open(path, "rb") as fh:
+        head = fh.read(512)
+        if len(head) < 512 or head[1] != 0x50 or head[0] < 2:
+            raise TrajectoryFileError(f"{path}: not a C3D file (its first 512-byte block is not a C3D header)")
+        fh.seek(512 * (head[0] - 1))
+        par = fh.read(4)
+    processor = {84: "intel", 85: "dec", 86: "mips"}.get(par[3] if len(par) == 4 else None)
+    if processor is None:
+        raise TrajectoryFileError(f"{path}: not a readable C3D file (no processor type in the parameter section)")
+    order = ">" if processor == "mips" else "<"
+    first, last = struct.unpack(order + "HH", head[6:10])
+    rate = None if processor == "dec" else float(struct.unpack(order + "f", head[20:24])[0])
+    return {"first_frame": int(first), "last_frame": int(last), "frame_rate": rate, "processor": processor}
 
 
 def read_c3d(path) -> Trajectories:
-    """Read the 3D points of a C3D file with ezc3d (units from ``POINT:UNITS``, rate ``POINT:RATE``)."""
+    """Read the 3D points of a C3D file with ezc3d (units from ``POINT:UNITS``, rate ``POINT:RATE``).
+
+    Frame numbers: horsemocap frame = the file's 1-based frame - 1 (the
+    header's first frame word 4, 1-based, is frame ``first - 1``). Times:
+    ``frame / rate`` (the file's 1-based frame - 1 over the rate, as Vicon
+    Nexus counts), unless the file holds the parameter
+    ``HORSEMOCAP:FIRST_TIME`` (written by :func:`write_c3d`: the exact time
+    of the first frame, s, as text), then ``FIRST_TIME + (frame - first) /
+    rate``; the rate is ``HORSEMOCAP:RATE`` (exact, as text) when the file
+    has it and ``POINT:RATE`` is its 4-byte copy. Refused, naming the file: fewer frames of data than the header's
+    first..last (a truncated file), a label used twice, an infinite
+    coordinate, no positive rate, a unit not in m, mm, cm, dm.
+    """
     path = Path(path)
     if not path.is_file():
         raise TrajectoryFileError(f"{path}: file not found")
@@ -124,36 +220,126 @@ def read_c3d(path) -> Trajectories:
         import ezc3d
     except ImportError:  # pragma: no cover - ezc3d is a dependency
         raise TrajectoryFileError(f"{path}: reading C3D needs the ezc3d package (pip install ezc3d)") from None
+    header = c3d_header(path)
     try:
         c = ezc3d.c3d(str(path))
     except Exception as exc:
         raise TrajectoryFileError(f"{path}: not a readable C3D file ({exc})") from None
     par = c["parameters"]["POINT"]
-    try:
-        units = str(par["UNITS"]["value"][0]).strip().lower()
-    except (KeyError, IndexError):
-        raise TrajectoryFileError(f"{path}: parameter POINT:UNITS is missing (expected mm or m)") from None
-    if units not in _UNITS:
-        raise TrajectoryFileError(f"{path}: parameter POINT:UNITS is {units!r} (expected one of {sorted(_UNITS)})")
-    try:
-        rate = float(np.ravel(par["RATE"]["value"])[0])
-    except (KeyError, IndexError):
-        raise TrajectoryFileError(f"{path}: parameter POINT:RATE is missing") from None
-    if not (rate > 0):
-        raise TrajectoryFileError(f"{path}: parameter POINT:RATE is {rate} (expected a positive rate in Hz)")
-    names = tuple(str(s).strip() for s in par["LABELS"]["value"])
+    units = _c3d_units(path, par)
+    rate = _c3d_rate(path, par, header)
+    names = _c3d_labels(path, par)
     data = np.asarray(c["data"]["points"], float)[:3]            # (3, k, n)
     if data.shape[1] != len(names):
         raise TrajectoryFileError(f"{path}: POINT:LABELS names {len(names)} points, the data hold {data.shape[1]}")
+    n = data.shape[2]
+    expected = _c3d_frame_count(header, par)
+    if expected is not None and n != expected:
+        raise TrajectoryFileError(f"{path}: the header says frames {header['first_frame']}..{header['last_frame']} "
+                                  f"({expected} frames), the file holds data of {n}: a truncated or damaged C3D")
     pts = np.moveaxis(data, [0, 1, 2], [2, 1, 0]) * _UNITS[units]
     try:
         resid = np.asarray(c["data"]["meta_points"]["residuals"], float)[0].T
         pts[resid < 0] = np.nan                                     # C3D: a negative residual marks a gap
     except (KeyError, IndexError, ValueError):
         pass
-    first = int(c["header"]["points"]["first_frame"])
-    n = pts.shape[0]
-    return Trajectories(np.arange(n) / rate, first + np.arange(n), names, pts, str(path))
+    _refuse_infinite(path, pts, names, header["first_frame"])
+    frame = header["first_frame"] - 1 + np.arange(n)
+    rate = _c3d_exact_rate(path, c["parameters"], rate)
+    first_time = _c3d_text_number(path, c["parameters"], FIRST_TIME_PARAMETER, "a time in seconds")
+    if first_time is None:
+        time_s, origin = frame / rate, (f"the file's 1-based frame - 1 over POINT:RATE (first frame "
+                                        f"{header['first_frame']}, {frame[0] / rate:.9g} s)")
+    else:
+        time_s, origin = first_time + (frame - frame[0]) / rate, f"parameter HORSEMOCAP:FIRST_TIME {first_time!r} s"
+    info = {"format": "c3d", "units": units, "scale_to_m": _UNITS[units], "rate_hz": rate, "time_origin": origin,
+            "first_frame_1based": header["first_frame"]}
+    return Trajectories(time_s, frame, names, pts, str(path), info)
+
+
+def _c3d_units(path, par) -> str:
+    accepted = f"one of {_UNITS_TEXT}"
+    try:
+        units = str(par["UNITS"]["value"][0]).strip().lower()
+    except (KeyError, IndexError):
+        raise TrajectoryFileError(f"{path}: parameter POINT:UNITS is missing (expected {accepted})") from None
+    if units not in _UNITS:
+        raise TrajectoryFileError(f"{path}: parameter POINT:UNITS is {units!r} (expected {accepted})")
+    return units
+
+
+def _c3d_rate(path, par, header) -> float:
+    """POINT:RATE, or the header's rate when the parameter is missing; refused when not positive."""
+    head = header["frame_rate"]
+    head_text = "not decoded (DEC reals)" if head is None else f"{head:g}"
+    try:
+        rate = float(np.ravel(par["RATE"]["value"])[0])
+    except (KeyError, IndexError):
+        rate = None
+    if rate is not None and rate > 0:
+        return rate
+    if rate is None and head is not None and head > 0:
+        return head
+    said = "is missing" if rate is None else f"is {rate:g}"
+    raise TrajectoryFileError(f"{path}: no frame rate: the parameter POINT:RATE {said} and the header's rate "
+                              f"(words 11-12) is {head_text}; expected a positive rate in Hz")
+
+
+def _c3d_labels(path, par) -> tuple:
+    try:
+        names = tuple(str(s).strip() for s in par["LABELS"]["value"])
+    except KeyError:
+        raise TrajectoryFileError(f"{path}: parameter POINT:LABELS is missing") from None
+    seen = set()
+    for i, nm in enumerate(names):
+        if nm in seen:
+            raise TrajectoryFileError(f"{path}: parameter POINT:LABELS names the point {nm!r} twice (points "
+                                      f"{names.index(nm) + 1} and {i + 1}); a label must name one point")
+        seen.add(nm)
+    return names
+
+
+def _c3d_frame_count(header, par):
+    """Frames the header announces (first..last); POINT:FRAMES when the 16-bit last frame is saturated."""
+    if header["last_frame"] < 0xFFFF:
+        return header["last_frame"] - header["first_frame"] + 1
+    try:
+        frames = int(np.ravel(par["FRAMES"]["value"])[0])
+    except (KeyError, IndexError, ValueError, TypeError):
+        return None
+    return frames % 0x10000 if frames < 0 else frames
+
+
+def _refuse_infinite(path, pts, names, first_1based) -> None:
+    bad = np.argwhere(np.isinf(pts))
+    if bad.size:
+        i, j, a = bad[0]
+        raise TrajectoryFileError(f"{path}: frame {first_1based + i} (1-based), point {names[j]!r}, "
+                                  f"{'xyz'[a]}: expected a number, got {pts[i, j, a]}")
+
+
+def _c3d_text_number(path, params, parameter, what):
+    """A number written as text in the parameter (group, name), or None when the file lacks it."""
+    group, name = parameter
+    try:
+        text = str(np.ravel(params[group][name]["value"])[0]).strip()
+    except (KeyError, IndexError):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise TrajectoryFileError(f"{path}: parameter {group}:{name} is {text!r}: expected {what}")
+    return value
+
+
+def _c3d_exact_rate(path, params, rate: float) -> float:
+    """HORSEMOCAP:RATE when the file has it and POINT:RATE is its 4-byte copy; else ``rate`` (POINT:RATE)."""
+    exact = _c3d_text_number(path, params, RATE_PARAMETER, "a rate in Hz")
+    if exact is not None and exact > 0 and float(np.float32(exact)) == float(np.float32(rate)):
+        return exact
+    return rate
 
 
 def read_trajectories(path) -> Trajectories:
@@ -163,6 +349,10 @@ def read_trajectories(path) -> Trajectories:
 
 def frame_rate(traj: Trajectories, rate: float | None = None) -> float:
     """The frame rate (Hz) of ``traj``: ``rate`` if given, else from its times and frame numbers.
+
+    The rate from the times is rounded to 9 significant digits when that
+    moves it by less than 1e-9 of itself (the float noise of times such as
+    ``k / 100``), so that a C3D written with it gives back the same times.
 
     Raises :class:`TrajectoryFileError` naming the file when ``rate`` is not a
     positive number, or when it is not given and the file has one frame (its
@@ -175,47 +365,72 @@ def frame_rate(traj: Trajectories, rate: float | None = None) -> float:
     if traj.frame.size < 2:
         raise TrajectoryFileError(f"{traj.source}: a single frame: its frame rate is unknown; give it "
                                   "(horsemocap export --rate HZ)")
-    return float(1.0 / np.median(np.diff(traj.time_s) / np.diff(traj.frame)))
+    estimate = float(1.0 / np.median(np.diff(traj.time_s) / np.diff(traj.frame)))
+    rounded = float(f"{estimate:.9g}")            # 99.99999999999991 (the times' float noise) -> 100
+    return rounded if abs(rounded - estimate) <= 1e-9 * estimate else estimate
 
 
 def write_trc(path, traj: Trajectories, rate: float | None = None) -> Path:
     """Write an OpenSim TRC file (``PathFileType 4``, millimetres).
 
     ``rate``: the frame rate (Hz); default from the times (:func:`frame_rate`).
-    ``OrigDataStartFrame`` is the first frame number of ``traj``.
+    Every frame number from the first to the last is a row (as in
+    :func:`write_c3d`): one the trajectories lack is a row of empty values,
+    its time ``time of the first frame + (frame - first) / rate``. Frame
+    numbers are the C3D's, 1-based: horsemocap frame k is ``Frame#`` k + 1,
+    and ``OrigDataStartFrame`` is the first frame + 1. Every data row ends
+    with a tab, as OpenSim's own writer does (its reader drops one trailing
+    empty field, so a row whose last marker is missing keeps its length).
     """
     from .store import atomic_write_text
 
     path = Path(path)
-    n, k, _ = traj.points.shape
     rate = frame_rate(traj, rate)
+    points, frames, times = _every_frame(traj, rate)
+    n, k, _ = points.shape
+    first = int(frames[0]) + 1 if n else 1
     lines = [f"PathFileType\t4\t(X/Y/Z)\t{path.name}",
              "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames",
-             f"{rate:.6g}\t{rate:.6g}\t{n}\t{k}\tmm\t{rate:.6g}\t{int(traj.frame[0]) if n else 1}\t{n}",
-             "Frame#\tTime\t" + "\t\t\t".join(traj.names) + "\t\t",
-             "\t\t" + "\t".join(f"X{i + 1}\tY{i + 1}\tZ{i + 1}" for i in range(k)), ""]
+             f"{rate:.6g}\t{rate:.6g}\t{n}\t{k}\tmm\t{rate:.6g}\t{first}\t{n}",
+             "Frame#\tTime\t" + "".join(f"{nm}\t\t\t" for nm in traj.names),
+             "\t\t" + "".join(f"X{i + 1}\tY{i + 1}\tZ{i + 1}\t" for i in range(k)), ""]
     for i in range(n):
-        vals = ["" if not np.isfinite(v) else f"{1000 * v:.6f}" for v in traj.points[i].ravel()]
-        lines.append(f"{i + 1}\t{traj.time_s[i]:.6f}\t" + "\t".join(vals))
+        vals = ["" if not np.isfinite(v) else f"{1000 * v:.6f}" for v in points[i].ravel()]
+        lines.append(f"{int(frames[i]) + 1}\t{times[i]:.9g}\t" + "".join(v + "\t" for v in vals))
     atomic_write_text(path, "\n".join(lines) + "\n")
     return path
 
 
-def _every_frame(traj: Trajectories) -> np.ndarray:
-    """Points (n, k, 3) on every frame number from the first to the last (NaN in a frame the file lacks)."""
-    full = np.full((int(traj.frame[-1] - traj.frame[0]) + 1, len(traj.names), 3), np.nan)
+def _every_frame(traj: Trajectories, rate: float):
+    """Points (n, k, 3), frame numbers and times on every frame number from the first to the last.
+
+    A frame number the file lacks is NaN, its time the first time plus
+    (frame - first) / ``rate``; the file's own times are kept.
+    """
+    if traj.frame.size == 0:
+        return traj.points, traj.frame, traj.time_s
+    frames = np.arange(int(traj.frame[0]), int(traj.frame[-1]) + 1)
+    full = np.full((frames.size, len(traj.names), 3), np.nan)
     full[traj.frame - traj.frame[0]] = traj.points
-    return full
+    times = traj.time_s[0] + (frames - frames[0]) / rate
+    times[traj.frame - traj.frame[0]] = traj.time_s
+    return full, frames, times
 
 
 def write_c3d(path, traj: Trajectories, rate: float | None = None) -> Path:
     """Write a C3D file with ezc3d (``POINT:UNITS`` mm, gaps as residual -1).
 
-    The header's first frame is the first frame number of ``traj`` (read back
-    by :func:`read_c3d`); frame numbers the file lacks between the first and
-    the last are gaps of every point. ``rate``: the frame rate (Hz); default
-    from the times (:func:`frame_rate`). Written whole (a temporary file
-    beside ``path``, renamed).
+    Frame numbers: horsemocap frame k is the C3D's 1-based frame k + 1 (the
+    header's first frame word is the first frame + 1, as Mokka shows it);
+    :func:`read_c3d` reads it back as k. Frame numbers the file lacks
+    between the first and the last are gaps of every point. The exact time
+    of the first frame is the parameter ``HORSEMOCAP:FIRST_TIME`` (seconds,
+    as text: a C3D real has 4 bytes), so that reading the file back gives
+    the same ``time_s`` (first time + (frame - first) / rate), and the exact
+    rate in ``HORSEMOCAP:RATE`` (Hz, as text; ``POINT:RATE`` is its 4-byte
+    copy). ``rate``: the frame rate (Hz); default from the times
+    (:func:`frame_rate`). Written
+    whole (a temporary file beside ``path``, renamed).
     """
     import ezc3d
 
@@ -224,13 +439,19 @@ def write_c3d(path, traj: Trajectories, rate: float | None = None) -> Path:
     if traj.frame.size and traj.frame[0] < 0:
         raise TrajectoryFileError(f"{traj.source}: field 'frame': the first frame is {traj.frame[0]}; a C3D file's "
                                   "frame numbers start at 0 or later")
-    points = _every_frame(traj) if traj.frame.size else traj.points
+    if traj.frame.size and traj.frame[-1] + 1 > 0xFFFF:
+        raise TrajectoryFileError(f"{traj.source}: field 'frame': the last frame is {traj.frame[-1]}; a C3D "
+                                  "header's frame numbers end at 65534")
+    points, _, _ = _every_frame(traj, rate)
     n, k, _ = points.shape
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [rate]
     c["parameters"]["POINT"]["LABELS"]["value"] = list(traj.names)
     c.add_parameter("POINT", "UNITS", ["mm"])
-    c["header"]["points"]["first_frame"] = int(traj.frame[0]) if traj.frame.size else 0
+    if traj.frame.size:
+        c.add_parameter(*FIRST_TIME_PARAMETER, [repr(float(traj.time_s[0]))])
+    c.add_parameter(*RATE_PARAMETER, [repr(float(rate))])
+    c["header"]["points"]["first_frame"] = int(traj.frame[0]) if traj.frame.size else 0   # ezc3d: 0-based
     data = np.ones((4, k, n))
     p = np.moveaxis(points, [0, 1, 2], [2, 1, 0]) * 1000.0
     gap = ~np.isfinite(p).all(axis=0)
@@ -244,12 +465,49 @@ def write_c3d(path, traj: Trajectories, rate: float | None = None) -> Path:
     return path
 
 
+def match_point_names(traj_names, static_names) -> dict:
+    """Which trajectory point is which static-shot point.
+
+    Names equal exactly are matched first; the rest are matched, only where
+    unambiguous (one name on each side), after dropping a subject prefix
+    (``Horse:marker1`` -> ``marker1``, the text up to the last ``:``) and
+    ignoring case.
+
+    Returns
+    -------
+    dict with ``pairs`` (list of (trajectory name, static name)),
+    ``loose`` (the pairs matched the second way), ``unmatched`` (trajectory
+    points not in the static shot) and ``hidden`` (static points not in the
+    trajectories).
+    """
+    pairs = [(nm, nm) for nm in traj_names if nm in static_names]
+    rest_t = [nm for nm in traj_names if nm not in static_names]
+    rest_s = [nm for nm in static_names if nm not in traj_names]
+
+    def key(name):
+        return name.rsplit(":", 1)[-1].strip().casefold()
+
+    loose = []
+    for nm in rest_t:
+        same_t = [o for o in rest_t if key(o) == key(nm)]
+        same_s = [o for o in rest_s if key(o) == key(nm)]
+        if len(same_t) == 1 and len(same_s) == 1:
+            loose.append((nm, same_s[0]))
+    pairs += loose
+    used_s = {s for _, s in pairs}
+    return {"pairs": pairs, "loose": loose, "unmatched": [nm for nm in rest_t if nm not in dict(loose)],
+            "hidden": [nm for nm in static_names if nm not in used_s]}
+
+
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",
                                  events=None):
     """Pose-trajectory kinematics of a rigid body from 3D markers and a static shot.
 
-    The markers are the points present in both files; the hidden points are
-    those of the static shot absent from the trajectories (e.g. the saddle).
+    The markers are the points present in both files (:func:`match_point_names`:
+    exact names first, then without a subject prefix and case where that is
+    unambiguous); the hidden points are those of the static shot absent from
+    the trajectories (e.g. the saddle); trajectory points absent from the
+    static shot are not used and listed as ``unmatched``.
     The static shot's first frame with every point finite is the model.
     ``events``: known times (s, the file's time axis) where the acceleration
     may jump, e.g. an impact's onset from a force plate
@@ -263,19 +521,26 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     dict with ``trajectory`` (:class:`horsemocap.pose.PoseTrajectory`),
     ``markers`` and ``hidden`` (names), ``marker_kinematics`` and
     ``hidden_kinematics`` (:class:`horsemocap.pose.PointKinematics`, (n, k, 3)),
-    ``registration``.
+    ``registration``, ``unmatched`` (trajectory points not used) and
+    ``matched_loosely`` ([trajectory name, static name] pairs matched
+    without prefix or case).
     """
     from . import pose
 
-    markers = [nm for nm in traj.names if nm in static.names]
-    hidden = [nm for nm in static.names if nm not in traj.names]
+    match = match_point_names(traj.names, static.names)
+    pairs = sorted(match["pairs"], key=lambda pr: traj.names.index(pr[0]))
+    markers, hidden = [t for t, _ in pairs], match["hidden"]
     if len(markers) < 3:
         raise TrajectoryFileError(f"{traj.source}: only {len(markers)} point name(s) {markers} also in the static "
-                                  f"shot {static.source}; a rigid body needs 3 non-collinear markers")
-    sp = static.subset(markers + hidden)
+                                  f"shot {static.source}; a rigid body needs 3 non-collinear markers (the "
+                                  f"trajectories name {list(traj.names)}, the static shot {list(static.names)})")
+    static_order = [s for _, s in pairs] + hidden
+    sp = static.subset(static_order)
     ok = np.flatnonzero(np.all(np.isfinite(sp), axis=(1, 2)))
     if ok.size == 0:
-        raise TrajectoryFileError(f"{static.source}: no frame has every point {markers + hidden} finite")
+        raise TrajectoryFileError(f"{static.source}: no frame has every point {static_order} finite")
+    if not np.isfinite(traj.subset(markers)).all(axis=2).any():
+        raise TrajectoryFileError(f"{traj.source}: the markers {markers} are missing in every frame (all gaps)")
     model_all = sp[ok[0]]
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
@@ -285,4 +550,5 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
-            "hidden_kinematics": hk, "registration": reg}
+            "hidden_kinematics": hk, "registration": reg, "unmatched": match["unmatched"],
+            "matched_loosely": [list(pr) for pr in match["loose"]]}

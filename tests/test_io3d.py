@@ -247,7 +247,7 @@ def test_export_keeps_the_first_frame_number(tmp_path, capsys):
     assert main(["export", str(traj), "--out", str(trc)]) == 0
     header = ezc3d.c3d(str(c3d))["header"]["points"]
     assert (header["first_frame"], header["last_frame"], header["frame_rate"]) == (29, 67, 100.0)
-    assert trc.read_text().splitlines()[2].split("\t")[6] == "29"
+    assert trc.read_text().splitlines()[2].split("\t")[6] == "30"     # 1-based, as the C3D header
     back = io3d.read_trajectories(c3d)
     np.testing.assert_array_equal(back.frame, np.arange(29, 68))
     assert main(["kinematics", str(c3d), "--static", str(static), "--out", str(tmp_path / "kin")]) == 0
@@ -306,3 +306,297 @@ def test_c3d_export_takes_any_case_and_a_new_folder_like_trc(tmp_path):
     blocker.write_text("not a folder")
     with pytest.raises(WriteError, match=r"cannot write .*file/a\.c3d"):
         io3d.write_c3d(blocker / "a.c3d", tr)
+
+
+# ---------------------------------------------------------------------------
+# QA pass on the 3D input/export path
+# ---------------------------------------------------------------------------
+
+def _header_words(path):
+    """Words 4 and 5 of a C3D header (bytes 6-9, little-endian for the Intel files written here)."""
+    import struct
+
+    raw = open(path, "rb").read(512)
+    return struct.unpack("<HH", raw[6:10])
+
+
+def _hidden_acc(out):
+    rows = [r for r in csv.DictReader(open(out / "kinematics.csv")) if r["point"] == "hidden"]
+    return np.array([[float(r[c]) for c in ("ax_mps2", "ay_mps2", "az_mps2")] for r in rows])
+
+
+def test_c3d_keeps_the_time_origin_of_the_csv(tmp_path, capsys):
+    """A CSV whose time_s starts at 1.00 s -> C3D -> kinematics --events 3.8: the same numbers as from the
+    CSV (before: the C3D's times started at 0 and the onset landed 1 s late, silently)."""
+    import json
+
+    d = synthetic.lift_with_ringing(seed=0)
+    names = ["m1", "m2", "m3", "m4"]
+    t = d["t"] + 1.0
+    _write_csv(tmp_path / "traj.csv", t, names, d["markers"])
+    _write_csv(tmp_path / "static.csv", [0.0], names + ["hidden"], np.vstack([d["model"], d["hidden_body"]])[None])
+    assert main(["export", str(tmp_path / "traj.csv"), "--out", str(tmp_path / "traj.c3d")]) == 0
+    back = io3d.read_trajectories(tmp_path / "traj.c3d")
+    np.testing.assert_array_equal(back.time_s, io3d.read_trajectories(tmp_path / "traj.csv").time_s)   # exactly
+    assert back.info["time_origin"].startswith("parameter HORSEMOCAP:FIRST_TIME 1.0")
+    capsys.readouterr()
+    for src in ("csv", "c3d"):
+        assert main(["kinematics", str(tmp_path / f"traj.{src}"), "--static", str(tmp_path / "static.csv"),
+                     "--out", str(tmp_path / src), "--smoothing", "adaptive", "--events", "3.8"]) == 0
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'traj.c3d'}: 400 frames 0..399, time 1 .. 4.99 s (origin: parameter HORSEMOCAP:FIRST_TIME" in err
+    np.testing.assert_allclose(_hidden_acc(tmp_path / "c3d"), _hidden_acc(tmp_path / "csv"), atol=1e-3)
+    # (an onset 4e-16 s before the sample at 3.8 s gives 23.1 % instead of 15.5 %: the times must be exact)
+    rec = json.loads((tmp_path / "c3d" / "kinematics-run.json").read_text())["input"]
+    assert rec["time_s"] == [1.0, pytest.approx(4.99)] and rec["units"] == "mm" and rec["scale_to_m"] == 1e-3
+    assert rec["rate_hz"] == 100.0 and "HORSEMOCAP:FIRST_TIME" in rec["time_origin"]
+    assert rec["axes"] == "the input file's axes; omega in those axes"
+    rec = json.loads((tmp_path / "csv" / "kinematics-run.json").read_text())["input"]
+    assert rec["units"] == "m" and rec["rate_hz"] == pytest.approx(100.0) and rec["time_s"][0] == 1.0
+
+
+def test_c3d_keeps_times_at_a_rate_a_4_byte_real_cannot_hold(tmp_path):
+    """29.97 Hz (POINT:RATE is stored as 29.9699993): HORSEMOCAP:RATE keeps the times (the 4-byte rate
+    alone drifted 1.5 us over 2000 frames); a POINT:RATE changed by another program wins over it."""
+    import ezc3d
+
+    n = 2000
+    t = 0.29 + np.arange(n) / 29.97
+    tr = io3d.Trajectories(t, 7 + np.arange(n), ("a",), np.zeros((n, 1, 3)), "x")
+    io3d.write_c3d(tmp_path / "r.c3d", tr)
+    back = io3d.read_c3d(tmp_path / "r.c3d")
+    np.testing.assert_allclose(back.time_s, t, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(back.frame, tr.frame)
+    c = ezc3d.c3d(str(tmp_path / "r.c3d"))
+    c["parameters"]["POINT"]["RATE"]["value"] = [60.0]
+    c.write(str(tmp_path / "edited.c3d"))
+    assert io3d.read_c3d(tmp_path / "edited.c3d").info["rate_hz"] == 60.0
+
+
+def test_c3d_without_our_parameter_counts_time_from_frame_one(tmp_path):
+    """Nexus' convention: time = (1-based frame - 1) / rate; frame = 1-based frame - 1."""
+    import ezc3d
+
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [50.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = ["a", "b"]
+    c.add_parameter("POINT", "UNITS", ["mm"])
+    c["header"]["points"]["first_frame"] = 100          # ezc3d: 0-based; the header word: 101
+    c["data"]["points"] = np.ones((4, 2, 5))
+    c.write(str(tmp_path / "n.c3d"))
+    assert _header_words(tmp_path / "n.c3d") == (101, 105)
+    tr = io3d.read_c3d(tmp_path / "n.c3d")
+    np.testing.assert_array_equal(tr.frame, np.arange(100, 105))
+    np.testing.assert_allclose(tr.time_s, np.arange(100, 105) / 50.0, rtol=0, atol=1e-15)
+    assert tr.time_s[0] == 2.0 and "1-based frame - 1" in tr.info["time_origin"]
+
+
+def test_frame_numbers_against_the_raw_header(tmp_path):
+    """horsemocap frame k = C3D/TRC 1-based frame k+1: frames 29..67 -> header words 30 and 68, TRC
+    OrigDataStartFrame 30 and Frame# 30..68; read back as 29..67."""
+    traj, _ = _small_record(tmp_path / "in", first_frame=29, n=39)
+    assert main(["export", str(traj), "--out", str(tmp_path / "x.c3d")]) == 0
+    assert main(["export", str(traj), "--out", str(tmp_path / "x.trc")]) == 0
+    assert _header_words(tmp_path / "x.c3d") == (30, 68)
+    lines = (tmp_path / "x.trc").read_text().splitlines()
+    assert lines[2].split("\t")[6] == "30"
+    assert [int(ln.split("\t")[0]) for ln in lines[6:]] == list(range(30, 69))
+    np.testing.assert_array_equal(io3d.read_trajectories(tmp_path / "x.c3d").frame, np.arange(29, 68))
+    assert io3d.c3d_header(tmp_path / "x.c3d")["first_frame"] == 30
+
+
+def test_a_truncated_c3d_is_refused(tmp_path):
+    traj, _ = _small_record(tmp_path / "in", n=400)
+    io3d.write_c3d(tmp_path / "full.c3d", io3d.read_trajectories(traj))
+    raw = (tmp_path / "full.c3d").read_bytes()
+    (tmp_path / "cut.c3d").write_bytes(raw[: len(raw) // 2])
+    with pytest.raises(io3d.TrajectoryFileError) as err:
+        io3d.read_c3d(tmp_path / "cut.c3d")
+    msg = str(err.value)
+    assert msg.startswith(f"{tmp_path / 'cut.c3d'}: the header says frames 1..400 (400 frames), the file holds data of ")
+    held = int(msg.split("data of ")[1].split(":")[0])
+    assert 0 < held < 400 and "truncated" in msg
+
+
+def test_duplicates_are_refused(tmp_path):
+    bad = tmp_path / "dup.csv"
+    bad.write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,1,2,3\n0,0.0,m2,1,2,3\n0,0.0,m1,1,2,4\n")
+    with pytest.raises(io3d.TrajectoryFileError, match=r"dup.csv: lines 2 and 4: point 'm1' of frame 0 twice "
+                                                         r"with different values \(\(1.0, 2.0, 3.0\) and \(1.0, 2.0, 4.0\)\)"):
+        io3d.read_trajectories_csv(bad)
+    same = tmp_path / "same.csv"
+    same.write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,1,2,3\n0,0.0,m1,1,2,3\n")
+    assert io3d.read_trajectories_csv(same).points.shape == (1, 1, 3)
+    tr = io3d.Trajectories(np.arange(3) / 10, np.arange(3), ("marker1", "marker2", "marker1"),
+                           np.zeros((3, 3, 3)), "x")
+    io3d.write_c3d(tmp_path / "d.c3d", tr)
+    with pytest.raises(io3d.TrajectoryFileError, match=r"d.c3d: parameter POINT:LABELS names the point "
+                                                         r"'marker1' twice \(points 1 and 3\)"):
+        io3d.read_c3d(tmp_path / "d.c3d")
+
+
+def _opensim_fields(line):
+    """OpenSim's FileAdapter::tokenize on a data row: tab-separated, a trailing empty field dropped."""
+    fields = line.split("\t")
+    return fields[:-1] if fields and fields[-1] == "" else fields
+
+
+def test_trc_rows_keep_their_length_and_every_frame(tmp_path):
+    """Every row ends with a tab (a row whose last marker is missing keeps 2 + 3k fields in OpenSim's
+    reader); a CSV without frame 50 gives a TRC row 50 with empty values at time 0.50 s."""
+    traj, _ = _small_record(tmp_path / "in", n=60)
+    rows = [ln for ln in traj.read_text().splitlines() if not ln.startswith("50,")]
+    rows = [ln if not ln.startswith("10,") or ",c," not in ln else "10," + ln.split(",")[1] + ",c,,," for ln in rows]
+    traj.write_text("\n".join(rows) + "\n")
+    assert main(["export", str(traj), "--out", str(tmp_path / "x.trc")]) == 0
+    lines = (tmp_path / "x.trc").read_text().splitlines()
+    data = lines[6:]
+    assert len(data) == 60 and lines[2].split("\t")[2] == "60"
+    assert all(ln.endswith("\t") for ln in data) and all(len(_opensim_fields(ln)) == 2 + 3 * 3 for ln in data)
+    assert _opensim_fields(data[10])[-3:] == ["", "", ""]
+    row50 = _opensim_fields(data[50])
+    assert row50[0] == "51" and float(row50[1]) == pytest.approx(0.50, abs=1e-12) and row50[2:] == [""] * 9
+    times = np.array([float(ln.split("\t")[1]) for ln in data])
+    np.testing.assert_allclose(np.diff(times), 0.01, atol=1e-9)
+    assert lines[3] == "Frame#\tTime\ta\t\t\tb\t\t\tc\t\t\t" and lines[4].endswith("Z3\t")
+
+
+def test_names_with_commas_survive_and_extra_fields_are_refused(tmp_path, capsys):
+    tri = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.1, 0.25, 0.02]])
+    t = np.arange(40) / 100
+    pts = tri[None] + np.stack([0.5 * t, 0.02 * np.sin(2 * np.pi * 2 * t), 0 * t], 1)[:, None, :]
+    names = ["mk,1", "b", "c"]
+    _write_csv(tmp_path / "tr.csv", t, names, pts)
+    _write_csv(tmp_path / "st.csv", [0.0], names + ["s"], np.vstack([tri, [[0.1, 0.1, -0.2]]])[None])
+    assert main(["kinematics", str(tmp_path / "tr.csv"), "--static", str(tmp_path / "st.csv"),
+                 "--out", str(tmp_path / "o")]) == 0
+    back = io3d.read_trajectories_csv(tmp_path / "o" / "trajectories.csv")
+    assert back.names == ("mk,1", "b", "c", "s")
+    assert {r["point"] for r in csv.DictReader(open(tmp_path / "o" / "kinematics.csv"))} == {"mk,1", "b", "c", "s"}
+    bad = tmp_path / "bad.csv"
+    bad.write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,a,1,2,3\n0,0.0,mk,1,1,2,3\n")
+    with pytest.raises(io3d.TrajectoryFileError, match=r"bad.csv: line 3: 7 fields, the header has 6"):
+        io3d.read_trajectories_csv(bad)
+
+
+def test_subject_prefix_and_case_are_matched_when_unambiguous(tmp_path, capsys):
+    import json
+
+    traj, static = _small_record(tmp_path / "in")
+    text = traj.read_text()
+    for nm, new in (("a", "Horse:a"), ("b", "Horse:B"), ("c", "Horse:c")):
+        text = text.replace(f",{nm},", f",{new},")
+    (tmp_path / "vicon.csv").write_text(text + "0,0.0,extra,1,2,3\n")
+    assert _kin(tmp_path / "vicon.csv", static, tmp_path / "o") == 0
+    err = capsys.readouterr().err
+    assert "point 'Horse:B' matched to the static shot's 'b' (subject prefix / case ignored)" in err
+    assert f"points not in the static shot {static}, not used: ['extra']" in err
+    rec = json.loads((tmp_path / "o" / "kinematics-run.json").read_text())
+    assert rec["markers"] == ["Horse:a", "Horse:B", "Horse:c"] and rec["hidden"] == ["s"]
+    assert rec["unmatched"] == ["extra"] and ["Horse:B", "b"] in rec["matched_loosely"]
+    # ambiguous: two subjects' 'a' -> neither is matched; the error lists both files' names
+    amb = io3d.match_point_names(["H1:a", "H2:a", "b"], ["a", "b"])
+    assert amb["pairs"] == [("b", "b")] and amb["unmatched"] == ["H1:a", "H2:a"] and amb["hidden"] == ["a"]
+    (tmp_path / "other.csv").write_text(text.replace("Horse:", "X_"))
+    assert _kin(tmp_path / "other.csv", static, tmp_path / "o2") == 2
+    err = capsys.readouterr().err
+    assert "the trajectories name ['X_a', 'X_B', 'X_c'], the static shot ['a', 'b', 'c', 's']" in err
+
+
+def test_infinite_values_and_bad_times_name_the_line(tmp_path):
+    head = "frame,time_s,point,x_m,y_m,z_m\n"
+    cases = {"inf.csv": (head + "0,0.0,a,1,2,3\n1,0.01,a,1,inf,3\n", r"inf.csv: line 3: field 'y_m': expected a "
+                                                                         r"number or empty, got 'inf'"),
+             "nan.csv": (head + "0,0.0,a,1,2,3\n1,nan,a,1,2,3\n", r"nan.csv: line 3: field 'time_s': expected a "
+                                                                    r"finite number, got 'nan'"),
+             "back.csv": (head + "0,0.0,a,1,2,3\n1,0.02,a,1,2,3\n2,0.01,a,1,2,3\n",
+                          r"back.csv: field 'time_s' must increase with 'frame': frame 2 \(line 4\) has time 0.01, "
+                          r"not after frame 1's 0.02 \(line 3\)")}
+    for name, (text, message) in cases.items():
+        (tmp_path / name).write_text(text)
+        with pytest.raises(io3d.TrajectoryFileError, match=message):
+            io3d.read_trajectories_csv(tmp_path / name)
+    tr = io3d.Trajectories(np.arange(3) / 10, np.arange(3), ("a",), np.zeros((3, 1, 3)), "x")
+    pts = tr.points.copy()
+    pts[1, 0, 2] = np.inf
+    io3d.write_c3d(tmp_path / "inf.c3d", io3d.Trajectories(tr.time_s, tr.frame, tr.names, pts, "x"))
+    # the writer stores inf as a gap (not finite); put one in the data by hand
+    import ezc3d
+
+    c = ezc3d.c3d(str(tmp_path / "inf.c3d"))
+    data = c["data"]["points"]
+    data[2, 0, 1] = np.inf
+    c["data"]["points"] = data
+    c["data"]["meta_points"]["residuals"] = np.zeros((1, 1, 3))
+    c.write(str(tmp_path / "inf2.c3d"))
+    with pytest.raises(io3d.TrajectoryFileError, match=r"inf2.c3d: frame 2 \(1-based\), point 'a', z: expected a "
+                                                         r"number, got inf"):
+        io3d.read_c3d(tmp_path / "inf2.c3d")
+
+
+def _patch_rates(src, dst, header_rate, parameter_rate):
+    """Copy a C3D (Intel) with the header's rate (bytes 20-23) and POINT:RATE's value replaced."""
+    import struct
+
+    raw = bytearray(open(src, "rb").read())
+    raw[20:24] = struct.pack("<f", header_rate)
+    at = raw.find(b"RATE", 512 * (raw[0] - 1))
+    assert raw[at + 6] == 4 and raw[at + 7] == 0           # offset (2 bytes), type float, scalar
+    raw[at + 8:at + 12] = struct.pack("<f", parameter_rate)
+    open(dst, "wb").write(bytes(raw))
+
+
+def test_c3d_messages(tmp_path, capsys):
+    traj, static = _small_record(tmp_path / "in", n=20)
+    tr = io3d.read_trajectories(traj)
+    io3d.write_c3d(tmp_path / "ok.c3d", tr)
+    _patch_rates(tmp_path / "ok.c3d", tmp_path / "zero.c3d", 0.0, 0.0)
+    with pytest.raises(io3d.TrajectoryFileError, match=r"zero.c3d: no frame rate: the parameter POINT:RATE is 0 and "
+                                                         r"the header's rate \(words 11-12\) is 0; expected a positive"):
+        io3d.read_c3d(tmp_path / "zero.c3d")
+    import ezc3d
+
+    c = ezc3d.c3d(str(tmp_path / "ok.c3d"))
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["in"]
+    c.write(str(tmp_path / "inch.c3d"))
+    with pytest.raises(io3d.TrajectoryFileError, match=r"POINT:UNITS is 'in' \(expected one of m, mm, cm, dm\)"):
+        io3d.read_c3d(tmp_path / "inch.c3d")
+    gaps = io3d.Trajectories(tr.time_s, tr.frame, tr.names, np.full_like(tr.points, np.nan), "x")
+    io3d.write_c3d(tmp_path / "gaps.c3d", gaps)
+    assert _kin(tmp_path / "gaps.c3d", static, tmp_path / "o") == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'gaps.c3d'}: the markers ['a', 'b', 'c'] are missing in every frame (all gaps)" in err
+    assert "np." not in err and "array(" not in err
+
+
+def test_pose_events_is_the_same_option_as_events(tmp_path):
+    import json
+
+    traj, static = _small_record(tmp_path / "in")
+    assert _kin(traj, static, tmp_path / "a", "--smoothing", "adaptive", "--events", "0.3") == 0
+    assert _kin(traj, static, tmp_path / "b", "--smoothing", "adaptive", "--pose-events", "0.3") == 0
+    rec = [json.loads((tmp_path / f / "kinematics-run.json").read_text()) for f in "ab"]
+    assert rec[0]["options"] == rec[1]["options"] and rec[1]["options"]["events"] == [0.3]
+    assert (tmp_path / "a" / "kinematics.csv").read_bytes() == (tmp_path / "b" / "kinematics.csv").read_bytes()
+
+
+@pytest.mark.parametrize("given", [False, True], ids=["no_HORSEMOCAP_RESULTS", "HORSEMOCAP_RESULTS_given"])
+def test_pytest_leaves_no_results_folder_behind(given, tmp_path):
+    """conftest.py: a pytest session removes the results folder it made, and makes none when
+    HORSEMOCAP_RESULTS is given."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    (tmp_path / "tmp").mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "HORSEMOCAP_RESULTS"}
+    env["TMPDIR"] = str(tmp_path / "tmp")
+    if given:
+        env["HORSEMOCAP_RESULTS"] = str(tmp_path / "mine")
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                          "tests/test_io3d.py::test_bad_files_name_file_and_field"],
+                         cwd=root, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout[-2000:]
+    assert [p.name for p in (tmp_path / "tmp").iterdir() if p.name.startswith("horsemocap-results-")] == []
