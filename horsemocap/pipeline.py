@@ -197,9 +197,13 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
     idn = _identify(session, rig, res, given, progress, frames)
     sync_check = {}
     if res["sync"].get("offsets_from") == "flashlight" and len(session.cameras) >= 3:
-        sync_check = _check_sync_by_markers(session, params, res, idn, progress)
-        if any(v["shift"] for v in sync_check.values()):
+        rounds = []
+        for _ in range(SYNC_CHECK_ROUNDS):      # again after a correction: the others' markers have moved too
+            rounds.append(_check_sync_by_markers(session, params, res, idn, progress))
+            if not any(v["shift"] for v in rounds[-1].values()):
+                break
             idn = _identify(session, rig, res, given, progress)
+        sync_check = _sync_check_summary(rounds, res["sync"])
     have, _ = bridge_gaps(idn.points, _max_gap(session, params))
     tracked = np.all(np.isfinite(have), axis=(1, 2))
     segment = _longest_run(tracked)
@@ -232,6 +236,24 @@ def _identify(session: Session, rig, res: dict, given: dict, progress, frames=No
     finally:
         for f in frames.values():
             f.close()
+
+
+#: Rounds of the markers' check of the flash offsets: a camera corrected in one round moves the markers the
+#: next round projects into the others (two cameras' flashes found in wrong frames need two rounds).
+SYNC_CHECK_ROUNDS = 3
+
+
+def _sync_check_summary(rounds: list, sync: dict) -> dict:
+    """Per camera over the rounds of :func:`_check_sync_by_markers`: the total ``shift`` from the flash's
+    offset, the first round's ``current_px``, the last round's ``best_px``, ``n_points`` and ``decided``
+    (the last round's: after the last correction), and ``rounds``."""
+    flash = sync.get("flash_offsets", sync["offsets"])
+    out = {}
+    for c, last in rounds[-1].items():
+        out[c] = {"shift": int(sync["offsets"][c] - flash[c]), "current_px": rounds[0][c]["current_px"],
+                  "best_px": last["best_px"], "n_points": last["n_points"], "decided": last["decided"],
+                  "rounds": len(rounds)}
+    return out
 
 
 def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, idn, progress) -> dict:
@@ -268,17 +290,20 @@ def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, 
         finally:
             seq.close()
         fs = best_frame_shift(shifts, med, npts)
-        out[c] = {"shift": fs.best, "current_px": fs.current_px, "best_px": fs.best_px, "n_points": fs.n_points}
+        out[c] = {"shift": fs.best, "current_px": fs.current_px, "best_px": fs.best_px, "n_points": fs.n_points,
+                  "decided": fs.decided}
     moved = {c: v["shift"] for c, v in out.items() if v["shift"]}
     if moved:
         new = {c: int(offsets[c] + moved.get(c, 0)) for c in session.cameras}
         what = ", ".join(f"{c} {d:+d} frame(s) (residual {out[c]['current_px']:.1f} -> {out[c]['best_px']:.2f} px)"
                          for c, d in moved.items())
         progress("detect", f"the flash offsets disagree with the markers: {what}; offsets {new}, identifying again")
-        how = f"flashlight, corrected by the markers ({what})"
+        flash = sync.get("flash_offsets", offsets)          # the flash's own, kept over the rounds
+        how = sync["offsets_from"] + f"; corrected by the markers ({what})" if "flash_offsets" in sync \
+            else f"flashlight, corrected by the markers ({what})"
         res["sync"] = {**sync, "offsets": new, "offsets_from": how,
                        "n_frames": check_frame_counts(session, sync["frame_counts"], new, offsets_from=how),
-                       "flash_offsets": dict(offsets)}
+                       "flash_offsets": dict(flash)}
     return out
 
 

@@ -173,7 +173,8 @@ def analysis_record(analysis) -> dict:
         if check:
             chosen["sync"]["checked_by_markers"] = {
                 c: {"shift_frames": int(v["shift"]), "residual_px": _rounded(v["current_px"]),
-                    "residual_after_px": _rounded(v["best_px"]), "marker_frames": int(v["n_points"])}
+                    "residual_after_px": _rounded(v["best_px"]), "marker_frames": int(v["n_points"]),
+                    "decided": bool(v.get("decided", True)), "rounds": int(v.get("rounds", 1))}
                 for c, v in check.items()}
     if "rig" in res:
         chosen["rig"] = res["rig"]["rig_from"]

@@ -104,6 +104,36 @@ def test_sync_by_markers():
     c = check_sync_by_markers(moved)
     assert c.level == "warning" and c.figure == 2 and "'right' by -2" in c.message
     assert check_sync_by_markers({}).level == "skipped"
+    # a camera the markers could not check is not confirmed (it was reported "ok" before)
+    unchecked = {c: {**v, "n_points": 0, "decided": False} for c, v in same.items()}
+    c = check_sync_by_markers(unchecked)
+    assert c.level == "warning" and "could not check" in c.message and "'left' (0 marker-frames" in c.message
+    c = check_sync_by_markers({**moved, "left": unchecked["left"]})
+    assert c.level == "warning" and "'right' by -2" in c.message and "'left' could not be checked" in c.message
+
+
+def test_residual_check_without_any_bound_does_not_crash():
+    """No calibration RMS and no marker motion (a camera that lost every marker): the check has no bound;
+    it said so with a TypeError before (the run ended with exit 2 and no results)."""
+    c = quality.check_reprojection_residuals({"left": np.full(5, np.nan)}, {"left": float("nan")}, None)
+    assert c.level == "unreliable" and "any value" in c.threshold
+
+
+def test_marker_rigidity_is_the_registration_residual_over_the_layout():
+    """Figure = median registration RMS over the markers' RMS radius, in %; ok <= 3, warning <= 10."""
+    from horsemocap.quality import check_marker_rigidity
+
+    model = np.array([[0.2, 0.0, 0.0], [-0.1, 0.1, 0.0], [-0.1, -0.1, 0.0]])
+    radius = np.sqrt(np.mean(np.sum((model - model.mean(0)) ** 2, axis=1)))
+    for res_m, level in ((0.001, "ok"), (0.02 * radius, "ok"), (0.05 * radius, "warning"), (0.3 * radius, "unreliable")):
+        r = np.full(50, res_m)
+        r[:5] = np.nan                                           # frames without a pose are left out
+        r[5] = 1.0                                               # one bad frame does not move the median
+        c = check_marker_rigidity(r, model)
+        assert c.level == level, (res_m, c)
+        assert c.figure == pytest.approx(100 * res_m / radius)
+    assert "wrong identities" in check_marker_rigidity(np.full(9, 0.3 * radius), model).message
+    assert check_marker_rigidity(np.full(9, np.nan), model).level == "skipped"
 
 
 def test_marker_geometry_check_carries_the_conditioning_warnings():
@@ -114,3 +144,20 @@ def test_marker_geometry_check_carries_the_conditioning_warnings():
     assert c.level == "warning" and c.figure == 2.0 and "3 of 40 frames" in c.message
     assert quality.check_marker_geometry(None).level == "skipped"
     assert quality.verdict([c]) == "warning"
+
+
+def test_post_checks_judge_the_markers_shape():
+    """A run whose tracked points are not the static shot's markers (held-out sessions with two flashes
+    found in wrong frames: 44 mm residual, exit 0 before) is unreliable by the marker_rigidity check."""
+    from types import SimpleNamespace
+
+    model = np.array([[0.3, 0.0, 0.0], [-0.15, 0.1, 0.0], [-0.15, -0.1, 0.05]])
+    good = {"rigid_body": {"warnings": [], "model": model,
+                           "conditioning": {"registration_rms_m": np.full(40, 0.0008)}}}
+    bad = {"rigid_body": {**good["rigid_body"], "conditioning": {"registration_rms_m": np.full(40, 0.044)}}}
+    session = SimpleNamespace(fps=30.0)
+    levels = {c.name: c.level for c in quality.post_checks(SimpleNamespace(results=good, session=session))}
+    assert levels["marker_rigidity"] == "ok"
+    checks = quality.post_checks(SimpleNamespace(results=bad, session=session))
+    assert {c.name: c.level for c in checks}["marker_rigidity"] == "unreliable"
+    assert quality.verdict(checks) == "unreliable"

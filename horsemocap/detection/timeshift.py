@@ -46,12 +46,16 @@ class FrameShift:
         Marker-frames compared.
     best : int
         The shift to apply (0 = keep the flash's offset).
+    decided : bool
+        Enough marker-frames were compared to test the shifts (``best`` 0 then
+        confirms the offset; without, it says nothing).
     """
 
     shifts: np.ndarray
     median_px: np.ndarray
     n_points: int
     best: int
+    decided: bool = True
 
     @property
     def current_px(self) -> float:
@@ -140,9 +144,10 @@ def best_frame_shift(shifts, median_px, n_points: int, min_points: int = 20) -> 
     """
     shifts, med = np.asarray(shifts, int), np.asarray(median_px, float)
     best = 0
-    if n_points >= min_points and np.isfinite(med).any() and 0 in shifts:
+    decided = bool(n_points >= min_points and np.isfinite(med).any() and 0 in shifts)
+    if decided:
         cur = med[int(np.flatnonzero(shifts == 0)[0])]
         i = int(np.nanargmin(med))
         if shifts[i] != 0 and (not np.isfinite(cur) or (cur >= MIN_CURRENT_PX and med[i] < SHIFT_RATIO * cur)):
             best = int(shifts[i])
-    return FrameShift(shifts, med, int(n_points), best)
+    return FrameShift(shifts, med, int(n_points), best, decided)
