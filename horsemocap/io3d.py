@@ -544,7 +544,7 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     model_all = sp[ok[0]]
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
-    reg = pose.register_pose(traj.subset(markers), model)
+    reg = pose.register_pose(traj.subset(markers), model, names=markers)
     harmonics = "none" if events is not None and len(events) else "auto"
     tr = pose.fit_pose_trajectory(traj.time_s, reg, model, smoothing=smoothing, events=events, harmonics=harmonics)
     mk = tr.points(traj.time_s, model)

@@ -382,7 +382,7 @@ def extra_marker_noise(residuals, covariance, dof: float) -> float:
 
 
 def register_pose(points, model, weights=None, min_height_m: float | None = None,
-                  covariance=None, extra_noise: str | float = "estimate") -> PoseRegistration:
+                  covariance=None, extra_noise: str | float = "estimate", names=None) -> PoseRegistration:
     """Register the static-shot model to every frame's visible markers.
 
     Weighted form of Horn's closed-form quaternion solution (eq. 5.14-5.21):
@@ -421,6 +421,9 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
         it changes by less than 1 %). With exact detections the residuals are
         such errors only and the weighting becomes Horn's; with detection
         noise well above them it is the covariances'.
+    names : sequence of str, optional
+        The markers' names, for the reasons of frames without a pose
+        (default ``marker1``, ``marker2``, ...).
 
     Returns
     -------
@@ -459,7 +462,8 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     for i in np.flatnonzero(~ok):
         miss = np.flatnonzero(~used[i])
         if k[i] < 3:
-            reason[i] = (f"only {k[i]} marker(s) visible (missing: " + ",".join(str(j + 1) for j in miss)
+            reason[i] = (f"only {k[i]} marker(s) visible (missing: "
+                         + ", ".join(str(names[j]) if names is not None else f"marker{j + 1}" for j in miss)
                          + "); a pose needs 3 non-collinear markers")
         else:
             reason[i] = f"visible markers nearly collinear (smallest height {1000 * height[i]:.2g} mm)"

@@ -247,3 +247,12 @@ def test_pose_margin_widens_the_segment_over_frames_with_two_markers():
     assert pose_margin(pts, (4, 8)) == (2, 9)
     assert pose_margin(pts, (4, 8), min_markers=1) == (1, 12)
     assert pose_margin(pts, (4, 8), min_markers=3) == (4, 8)
+
+
+def test_frames_without_a_pose_name_the_missing_markers():
+    model = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    pts = np.tile(model, (3, 1, 1))
+    pts[1, [1, 2]] = np.nan
+    assert "missing: marker2, marker3" in pose.register_pose(pts, model).reason[1]
+    reg = pose.register_pose(pts, model, names=["LASI", "RASI", "LPSI", "RPSI"])
+    assert "missing: RASI, LPSI" in reg.reason[1] and reg.reason[0] == ""
