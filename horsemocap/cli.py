@@ -424,7 +424,8 @@ def _kinematics_input(traj) -> dict:
     except TrajectoryFileError:
         rate = None
     return {"format": info.get("format"), "units": info.get("units"), "scale_to_m": info.get("scale_to_m"),
-            "rate_hz": rate, "rate_from": "POINT:RATE" if info.get("rate_hz") else "time_s (median step)",
+            "rate_hz": rate, "rate_from": info.get("rate_from") or ("the times (median step)" if rate is not None
+                                                                    else "unknown: a single frame"),
             "frames": [int(traj.frame[0]), int(traj.frame[-1])], "n_frames": int(traj.frame.size),
             "time_s": [float(traj.time_s[0]), float(traj.time_s[-1])], "time_origin": info.get("time_origin"),
             "axes": "the input file's axes; omega in those axes"}

@@ -136,7 +136,7 @@ def _xyz_text(xyz) -> str:
 
 def _csv_row(path, ln, row, col, n_fields):
     """(frame, time, point, [x, y, z]) of one data row; a bad field ends with the file, line and field."""
-    if len(row) > n_fields:
+    if len(row) > n_fields and any(field.strip() for field in row[n_fields:]):    # a trailing comma is no field
         raise TrajectoryFileError(f"{path}: line {ln}: {len(row)} fields, the header has {n_fields} (a point "
                                   "name with a comma must be quoted, as the csv module writes it)")
 
@@ -245,15 +245,18 @@ def read_c3d(path) -> Trajectories:
         pass
     _refuse_infinite(path, pts, names, header["first_frame"])
     frame = header["first_frame"] - 1 + np.arange(n)
+    point_rate = rate
     rate = _c3d_exact_rate(path, c["parameters"], rate)
+    rate_from = ("parameter HORSEMOCAP:RATE (POINT:RATE's exact value)" if rate != point_rate
+                 else "parameter POINT:RATE" if "RATE" in par else "the header's rate (words 11-12)")
     first_time = _c3d_text_number(path, c["parameters"], FIRST_TIME_PARAMETER, "a time in seconds")
     if first_time is None:
         time_s, origin = frame / rate, (f"the file's 1-based frame - 1 over POINT:RATE (first frame "
                                         f"{header['first_frame']}, {frame[0] / rate:.9g} s)")
     else:
         time_s, origin = first_time + (frame - frame[0]) / rate, f"parameter HORSEMOCAP:FIRST_TIME {first_time!r} s"
-    info = {"format": "c3d", "units": units, "scale_to_m": _UNITS[units], "rate_hz": rate, "time_origin": origin,
-            "first_frame_1based": header["first_frame"]}
+    info = {"format": "c3d", "units": units, "scale_to_m": _UNITS[units], "rate_hz": rate, "rate_from": rate_from,
+            "time_origin": origin, "first_frame_1based": header["first_frame"]}
     return Trajectories(time_s, frame, names, pts, str(path), info)
 
 

@@ -210,9 +210,14 @@ def _detect_multiview(session: Session, params: AnalysisParams, res: dict, progr
     if segment is None or segment[1] - segment[0] < 8:
         from .detection.identification import reason_counts
 
+        moved = [c for c, v in sync_check.items() if v["moved"] or not v["decided"]]
+        hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
+                f"{res['sync']['offsets']}, the flash's {res['sync'].get('flash_offsets', res['sync']['offsets'])}): "
+                "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
+                if moved else "")
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
-                            "motion videos, the threshold, the rig and 'markers.count' in session.json")
+                            "motion videos, the threshold, the rig and 'markers.count' in session.json" + hint)
     progress("detect", f"{_frames_text(session, res, segment[0], segment[1] - 1)}: every marker seen by two or more "
                        f"cameras (or bridged); labelled in synchronised frame {idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
@@ -245,14 +250,18 @@ SYNC_CHECK_ROUNDS = 3
 
 def _sync_check_summary(rounds: list, sync: dict) -> dict:
     """Per camera over the rounds of :func:`_check_sync_by_markers`: the total ``shift`` from the flash's
-    offset, the first round's ``current_px``, the last round's ``best_px``, ``n_points`` and ``decided``
-    (the last round's: after the last correction), and ``rounds``."""
+    offset, ``moved`` (a round moved the camera, even if the moves cancel), the first round's
+    ``current_px``, the last round's ``best_px``, ``n_points`` and ``decided``, ``rounds`` and ``settled``
+    (the last round moved no camera: the offsets the results use were checked; False when the rounds ran
+    out with a correction still to check)."""
     flash = sync.get("flash_offsets", sync["offsets"])
+    settled = not any(v["shift"] for v in rounds[-1].values())
     out = {}
     for c, last in rounds[-1].items():
-        out[c] = {"shift": int(sync["offsets"][c] - flash[c]), "current_px": rounds[0][c]["current_px"],
-                  "best_px": last["best_px"], "n_points": last["n_points"], "decided": last["decided"],
-                  "rounds": len(rounds)}
+        out[c] = {"shift": int(sync["offsets"][c] - flash[c]), "moved": any(r[c]["shift"] for r in rounds),
+                  "current_px": rounds[0][c]["current_px"], "best_px": last["best_px"],
+                  "n_points": last["n_points"], "decided": last["decided"], "rounds": len(rounds),
+                  "settled": settled}
     return out
 
 
@@ -297,10 +306,11 @@ def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, 
         new = {c: int(offsets[c] + moved.get(c, 0)) for c in session.cameras}
         what = ", ".join(f"{c} {d:+d} frame(s) (residual {out[c]['current_px']:.1f} -> {out[c]['best_px']:.2f} px)"
                          for c, d in moved.items())
-        progress("detect", f"the flash offsets disagree with the markers: {what}; offsets {new}, identifying again")
+        again = "flash_offsets" in sync                    # a round after a correction
+        progress("detect", f"the {'corrected offsets still disagree' if again else 'flash offsets disagree'} with "
+                           f"the markers: {what}; offsets {new}, identifying again")
         flash = sync.get("flash_offsets", offsets)          # the flash's own, kept over the rounds
-        how = sync["offsets_from"] + f"; corrected by the markers ({what})" if "flash_offsets" in sync \
-            else f"flashlight, corrected by the markers ({what})"
+        how = f"{sync['offsets_from']}{'; then' if again else ','} corrected by the markers ({what})"
         res["sync"] = {**sync, "offsets": new, "offsets_from": how,
                        "n_frames": check_frame_counts(session, sync["frame_counts"], new, offsets_from=how),
                        "flash_offsets": dict(flash)}

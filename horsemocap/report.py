@@ -248,7 +248,10 @@ INDICATORS = {
     "Distance_TVDV_limit_Wk": ("distance to the limit value by VDV, Wk", "distance ridden in that time at the measured speed"),
     "acc_x_Wd_rms": ("fore-aft acceleration, Wd-weighted rms", "the saddle's surge along the motion (ISO 2631-1 Wd, "
                      "horizontal); the Directive counts it 1.4 times"),
+    "acc_y_Wk_rms_iso": ("vertical acceleration, Wk-weighted rms, each harmonic weighted", "what the Directive "
+                         "compares: the same as acc_y_Wk_rms unless the thesis' one-weight mode is chosen"),
     "acc_z_Wd_rms": ("lateral acceleration, Wd-weighted rms", "the saddle's sway across the motion (Wd); counted 1.4 times"),
+    "VDV_y_Wk_iso": ("vibration dose value, vertical, Wk, each harmonic weighted", "the Directive's vertical dose"),
     "VDV_x_Wd": ("vibration dose value, fore-aft, Wd", "fourth-power dose of the surge"),
     "VDV_z_Wd": ("vibration dose value, lateral, Wd", "fourth-power dose of the sway"),
     "A_w_directive": ("the Directive's weighted acceleration", "the highest of 1.4 fore-aft (Wd), vertical (Wk) and "
@@ -469,9 +472,9 @@ def report_html(analysis, quality: dict | None = None) -> str:
                   "vertical (Wk) values: its times are the rows marked Directive (computed with each "
                   "harmonic weighted at its own frequency whatever the weighting above), and they are the "
                   "shorter when the horse's surge or sway outweighs its vertical motion."
-                  + (" Here the forward motion is fitted by a straight line (the thesis' x fit), so the fore-aft "
-                     "acceleration and its share of the Directive's values are zero by construction."
-                     if analysis.params.kinematics == "fits" and analysis.params.x_degree <= 1 else "")
+                  + (" Here the saddle's fore-aft acceleration is zero (the thesis' straight-line x fit), so "
+                     "the Directive's values see only the other two axes."
+                     if res["comfort"]["indicators"].get("acc_x_Wd_rms") == 0 else "")
                   + "</p>",
                   _html_table(rows, ["indicator", "meaning", "value", "unit"])]
 

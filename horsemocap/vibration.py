@@ -585,13 +585,17 @@ def _unit(k: str) -> str:
 
 
 DIRECTIVE_KEYS = (
-    "acc_x_Wd_rms", "acc_z_Wd_rms", "VDV_x_Wd", "VDV_z_Wd", "A_w_directive", "VDV_directive",
+    "acc_x_Wd_rms", "acc_y_Wk_rms_iso", "acc_z_Wd_rms", "VDV_x_Wd", "VDV_y_Wk_iso", "VDV_z_Wd",
+    "A_w_directive", "VDV_directive",
     "TA_8_action_directive", "TA_8_limit_directive", "TVDV_action_directive", "TVDV_limit_directive",
     "Distance_TA_8_action_directive", "Distance_TA_8_limit_directive",
     "Distance_TVDV_action_directive", "Distance_TVDV_limit_directive",
 )
 """The three-axis indicators of the EU Directive 2002/44/EC (:func:`directive_indicators`): optional
-rows of ``comfort.csv`` after :data:`COMFORT_KEYS` (the thesis' indicators are the vertical axis's only)."""
+rows of ``comfort.csv`` after :data:`COMFORT_KEYS` (the thesis' indicators are the vertical axis's only).
+``acc_y_Wk_rms_iso`` and ``VDV_y_Wk_iso`` are the vertical values the Directive compares, each harmonic
+weighted at its own frequency: ``acc_y_Wk_rms`` and ``VDV_y_Wk`` in the ``"iso"`` weighting mode, not in
+``"thesis"``."""
 
 #: The Directive's axis factors (Annex B, as ISO 2631-1 for health): 1.4 on the horizontal axes (Wd), 1 vertical (Wk)
 DIRECTIVE_HORIZONTAL_FACTOR = 1.4
@@ -793,7 +797,7 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
     Returns
     -------
     dict
-        Exactly :data:`DIRECTIVE_KEYS`: the Wd-weighted rms and VDV of x and z (unscaled), ``A_w_directive`` and
+        Exactly :data:`DIRECTIVE_KEYS`: the weighted rms and VDV of x and z (Wd) and y (Wk), unscaled, ``A_w_directive`` and
         ``VDV_directive`` (the highest of the scaled axes, m/s^2 and m/s^1.75), the times (h) to the action and
         limit values by A(8) and by VDV, and the distances (km) at the mean speed.
     """
@@ -812,7 +816,8 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
     v_dir = max(k * v_w["x"], v_w["y"], k * v_w["z"])
     times = exposure_times(a_dir, v_dir, tau, limits)
     speed_kmh = float(vel_x_avg_mps) * 3.6
-    out = {"acc_x_Wd_rms": a_w["x"], "acc_z_Wd_rms": a_w["z"], "VDV_x_Wd": v_w["x"], "VDV_z_Wd": v_w["z"],
+    out = {"acc_x_Wd_rms": a_w["x"], "acc_y_Wk_rms_iso": a_w["y"], "acc_z_Wd_rms": a_w["z"],
+           "VDV_x_Wd": v_w["x"], "VDV_y_Wk_iso": v_w["y"], "VDV_z_Wd": v_w["z"],
            "A_w_directive": a_dir, "VDV_directive": v_dir}
     for name, hours in times.items():
         out[f"{name}_directive"] = float(hours)
@@ -823,15 +828,16 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
 def directive_axis(indicators: dict, by: str = "rms") -> str:
     """Which axis decides the Directive's exposure: ``"fore-aft"`` (x), ``"vertical"`` (y) or ``"lateral"`` (z).
 
-    ``by="rms"``: the axis of ``A_w_directive`` (the highest of ``1.4 acc_x_Wd_rms``, ``acc_y_Wk_rms``,
+    ``by="rms"``: the axis of ``A_w_directive`` (the highest of ``1.4 acc_x_Wd_rms``, ``acc_y_Wk_rms_iso``,
     ``1.4 acc_z_Wd_rms``); ``by="vdv"``: the axis of ``VDV_directive``. ``indicators`` holds the keys of
-    :data:`COMFORT_KEYS` and :data:`DIRECTIVE_KEYS` (:func:`saddle_comfort`)."""
+    :data:`DIRECTIVE_KEYS` (:func:`saddle_comfort`, :func:`directive_indicators`). Ties go to the first of
+    fore-aft, vertical, lateral."""
     k = DIRECTIVE_HORIZONTAL_FACTOR
     if by == "rms":
-        scaled = {"fore-aft": k * indicators["acc_x_Wd_rms"], "vertical": indicators["acc_y_Wk_rms"],
+        scaled = {"fore-aft": k * indicators["acc_x_Wd_rms"], "vertical": indicators["acc_y_Wk_rms_iso"],
                   "lateral": k * indicators["acc_z_Wd_rms"]}
     elif by == "vdv":
-        scaled = {"fore-aft": k * indicators["VDV_x_Wd"], "vertical": indicators["VDV_y_Wk"],
+        scaled = {"fore-aft": k * indicators["VDV_x_Wd"], "vertical": indicators["VDV_y_Wk_iso"],
                   "lateral": k * indicators["VDV_z_Wd"]}
     else:
         raise ValueError(f"directive_axis: by must be 'rms' or 'vdv', got {by!r}")

@@ -600,3 +600,16 @@ def test_pytest_leaves_no_results_folder_behind(given, tmp_path):
                          cwd=root, env=env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout[-2000:]
     assert [p.name for p in (tmp_path / "tmp").iterdir() if p.name.startswith("horsemocap-results-")] == []
+
+
+def test_a_trailing_comma_is_not_an_extra_field(tmp_path):
+    """Spreadsheets often end rows with a comma: read as before; a non-empty extra field is still refused."""
+    from horsemocap import io3d
+
+    p = tmp_path / "t.csv"
+    p.write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,1,2,3,\n1,0.01,m1,1,2,4,\n")
+    tr = io3d.read_trajectories_csv(p)
+    assert tr.points.shape == (2, 1, 3) and tr.points[1, 0, 2] == 4.0
+    p.write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,1,2,3,7\n")
+    with pytest.raises(io3d.TrajectoryFileError, match="line 2: 7 fields"):
+        io3d.read_trajectories_csv(p)

@@ -109,7 +109,39 @@ def test_sync_by_markers():
     c = check_sync_by_markers(unchecked)
     assert c.level == "warning" and "could not check" in c.message and "'left' (0 marker-frames" in c.message
     c = check_sync_by_markers({**moved, "left": unchecked["left"]})
-    assert c.level == "warning" and "'right' by -2" in c.message and "'left' could not be checked" in c.message
+    assert c.level == "warning" and "'right' by -2" in c.message and "could not check the flash offset of camera 'left'" in c.message
+    # moved +1 then -1: back at the flash's offset, but the markers did move it
+    there_and_back = {**same, "middle": {"shift": 0, "moved": True, "current_px": 3.0, "best_px": 0.2}}
+    c = check_sync_by_markers(there_and_back)
+    assert c.level == "warning" and "'middle' by +0 frame(s) in all" in c.message
+    # the rounds ran out with a correction still to check
+    unsettled = {k: {**v, "settled": False, "rounds": 3} for k, v in moved.items()}
+    c = check_sync_by_markers(unsettled)
+    assert c.level == "unreliable" and "after 3 rounds" in c.message
+    # the residual cap is a marker not found, not a measurement
+    capped = {**same, "right": {"shift": -2, "current_px": 10.0, "best_px": 0.3}}
+    assert "markers not found (>= 10 px) at the flash's offset -> 0.3 px" in check_sync_by_markers(capped).message
+
+
+def test_sync_check_summary_over_rounds():
+    """Two rounds: the flash's own offsets kept, the total shift from them, settled when the last round
+    moved nothing; three rounds that all moved: not settled."""
+    from horsemocap.pipeline import _sync_check_summary
+
+    def rnd(**shifts):
+        return {c: {"shift": shifts.get(c, 0), "current_px": 10.0 if shifts.get(c) else 0.2, "best_px": 0.1,
+                    "n_points": 40, "decided": True} for c in ("left", "middle", "right")}
+
+    sync = {"offsets": {"left": 9, "middle": 64, "right": 134}, "flash_offsets": {"left": 8, "middle": 61, "right": 134}}
+    out = _sync_check_summary([rnd(middle=3), rnd(left=1), rnd()], sync)
+    assert {c: v["shift"] for c, v in out.items()} == {"left": 1, "middle": 3, "right": 0}
+    assert {c: v["moved"] for c, v in out.items()} == {"left": True, "middle": True, "right": False}
+    assert all(v["settled"] and v["rounds"] == 3 for v in out.values())
+    assert out["middle"]["current_px"] == 10.0                 # the first round's, at the flash's offset
+    out = _sync_check_summary([rnd(middle=3), rnd(middle=-1), rnd(middle=1)], sync)
+    assert not any(v["settled"] for v in out.values())
+    from horsemocap.quality import check_sync_by_markers
+    assert check_sync_by_markers(out).level == "unreliable"
 
 
 def test_residual_check_without_any_bound_does_not_crash():

@@ -407,10 +407,26 @@ def test_saddle_comfort_adds_the_directive_rows_to_comfort_csv(tmp_path):
 
 
 def test_directive_axis_names_the_deciding_axis():
-    ind = {"acc_x_Wd_rms": 3.0, "acc_y_Wk_rms": 4.0, "acc_z_Wd_rms": 1.0,
-           "VDV_x_Wd": 2.0, "VDV_y_Wk": 2.9, "VDV_z_Wd": 2.1}
+    ind = {"acc_x_Wd_rms": 3.0, "acc_y_Wk_rms_iso": 4.0, "acc_z_Wd_rms": 1.0,
+           "VDV_x_Wd": 2.0, "VDV_y_Wk_iso": 2.9, "VDV_z_Wd": 2.1,
+           "acc_y_Wk_rms": 5.0, "VDV_y_Wk": 5.0}                # the thesis mode's values are not compared
     assert vib.directive_axis(ind) == "fore-aft"              # 1.4 * 3.0 = 4.2 > 4.0
     assert vib.directive_axis(ind, by="vdv") == "lateral"     # 1.4 * 2.1 = 2.94 > 2.9 > 2.8
     assert vib.directive_axis({**ind, "acc_x_Wd_rms": 2.8}) == "vertical"
     with pytest.raises(ValueError, match="by must be"):
         vib.directive_axis(ind, by="peak")
+
+
+def test_directive_axis_in_thesis_mode_names_the_axis_of_a_w_directive():
+    """The thesis mode's vertical Wk rms is one weight at the dominant harmonic; the Directive compares the
+    per-harmonic one: the named axis must be the one whose scaled value is A_w_directive (16 of 16)."""
+    from horsemocap import herd
+
+    for h in herd.HORSES:
+        for g in herd.GAITS:
+            ind = herd.analytic_indicators(h, g, mode="thesis")
+            scaled = {"fore-aft": 1.4 * ind["acc_x_Wd_rms"], "vertical": ind["acc_y_Wk_rms_iso"],
+                      "lateral": 1.4 * ind["acc_z_Wd_rms"]}
+            assert scaled[vib.directive_axis(ind)] == pytest.approx(ind["A_w_directive"], rel=1e-12), (h, g)
+    iso = herd.analytic_indicators("Horse 2", "canter")
+    assert iso["acc_y_Wk_rms_iso"] == pytest.approx(iso["acc_y_Wk_rms"], rel=1e-9)
