@@ -468,14 +468,16 @@ def check_marker_geometry(warnings, input_="the markers' layout (static shot) an
                  input_, msg)
 
 
-#: The markers' shape error (median registration residual over the layout's RMS radius, %): ``ok`` up to 3 %,
+#: The markers' shape error (median registration residual over the layout's RMS radius, %): ``ok`` up to 5 %,
 #: ``warning`` up to 10 %, ``unreliable`` above. A shape error of x % turns the body by about x/100 rad, so a
 #: point a layout's radius away errs by about the residual itself and the saddle, further away, by more: at
-#: 10 % (about 6 deg) the saddle's path errs by tens of mm, the size of its motion. Skin sliding over the
-#: back of a real horse stays within a few percent of the markers' spread; wrong identities (a marker
-#: followed as another, a wrong sync) give more (held-out sessions: 18.5 and 21.4 % against 0.1-0.7 %
-#: for the correct runs).
-RIGIDITY_PCT = (3.0, 10.0)
+#: 10 % (about 6 deg) the saddle's path errs by tens of mm, the size of its motion. The residual holds the
+#: triangulation's noise as well as any deformation: the thesis' narrow-baseline rig measures depth poorly and
+#: its 16 herd sessions give 1.1-2.9 % (hard set 0.1-1.4 %, held-out sessions 0.1-0.7 %), so ``ok`` reaches
+#: 5 %; skin sliding over a real horse's back adds a few percent of the markers' spread (a ``warning`` then says
+#: the rigid-body assumption is strained). Wrong identities (a marker followed as another, a wrong sync) give
+#: more: 18.5 and 21.4 % on the held-out sessions whose flash was found in the wrong frame in two cameras.
+RIGIDITY_PCT = (5.0, 10.0)
 
 
 def check_marker_rigidity(registration_rms_m, model_points, input_="the markers' identities and sync "
