@@ -320,7 +320,8 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
         Frames the flash stays on, at least.
     max_surround_bright : float
         Largest fraction of the pixels around a newly bright region that may
-        already have been as bright a frame before. A moving bright object
+        already have been as bright a frame before (those as bright in every
+        earlier frame, static things, not counted). A moving bright object
         brightens a sliver at its leading edge, next to its own body; a flash
         lights up in the dark.
     ambiguity_ratio : float

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from horsemocap.sync import (SyncError, aligned_index, detect_flash, flash_frame, flash_offsets,
-                             frame_differences)
+from horsemocap.sync import (SyncError, aligned_index, detect_flash, flash_detections, flash_frame,
+                             flash_offsets, frame_differences)
 
 H, W = 96, 128
 
@@ -81,6 +81,8 @@ def test_offsets_and_eq_3_11_to_3_13():
             "right": make_frames(150, flash_at=136, seed=3)}
     off = flash_offsets(srcs)
     assert off == {"left": 10, "middle": 63, "right": 136}
+    dets = flash_detections(srcs)       # what the pipeline reads to warn about an ambiguous camera
+    assert {c: d.frame for c, d in dets.items()} == off and not any(d.ambiguous for d in dets.values())
     assert frame_differences(off) == {"LM": 53, "MR": 73, "LR": 126}
     assert aligned_index(off, 0) == {"left": 0, "middle": 53, "right": 126}
 
