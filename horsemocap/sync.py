@@ -62,16 +62,20 @@ class FlashDetection:
         Region area, full-resolution pixels.
     surround_bright : float
         Fraction of the region's surroundings already as bright a frame
-        before (0 for a flash in the dark; high at a moving object's edge).
+        before, static bright things aside (0 for a flash in the dark; high
+        at a moving object's edge).
     candidates : tuple of dict
         Every region that started to brighten in the frames searched:
-        ``frame, x, y, area_px, touches_edge, surround_bright, stays,
-        vacated, score, accepted, reason`` (see :func:`detect_flash`).
+        ``frame, x, y, area_px, touches_edge, lit_before, surround_bright,
+        stays, vacated, score, reason, accepted`` (see :func:`detect_flash`;
+        a measure not taken because an earlier test rejected the region is
+        NaN).
     start : int
         Index of the first frame searched in the source.
     score : float
-        The chosen region's flash score (1: a region that lit up in place,
-        nothing bright beside it before, nothing darkening beside it).
+        The chosen region's flash score (near 1: a large region that lit up
+        in place, nothing bright beside it before, nothing darkening beside
+        it).
     ambiguous : bool
         True when another accepted region, switching on at another frame,
         scored nearly as well (at least ``ambiguity_ratio`` of ``score``):
@@ -97,15 +101,20 @@ class FlashDetection:
 
 
 def _gray_stack(frames, scale: int) -> np.ndarray:
-    out = []
-    for f in frames:
+    """Gray uint8 frames reduced ``scale`` times (INTER_AREA), as one (n, h, w) array."""
+    out = None
+    for i, f in enumerate(frames):
         f = np.asarray(f)
-        g = f if f.ndim == 2 else cv2.cvtColor(f.astype(np.uint8), cv2.COLOR_RGB2GRAY)
+        g = f if f.ndim == 2 else cv2.cvtColor(f.astype(np.uint8, copy=False), cv2.COLOR_RGB2GRAY)
         g = np.ascontiguousarray(g, dtype=np.uint8)
+        if out is None:
+            size = (g.shape[0] // scale, g.shape[1] // scale)
+            out = np.empty((len(frames),) + size, np.uint8)
         if scale > 1:
-            g = cv2.resize(g, (g.shape[1] // scale, g.shape[0] // scale), interpolation=cv2.INTER_AREA)
-        out.append(g)
-    return np.stack(out)
+            cv2.resize(g, (size[1], size[0]), dst=out[i], interpolation=cv2.INTER_AREA)
+        else:
+            out[i] = g
+    return out
 
 
 def _read(source, search_frames, start):
@@ -140,13 +149,16 @@ def _min_max(stack) -> tuple:
 def _switch_ons(g, min_rise, min_area, m, k):
     """Regions whose pixels start, at frame ``t``, to be ``min_rise`` brighter for ``m`` frames.
 
-    Yields ``(t, labels, stats, rise, before, after, earlier, always)``:
-    ``rise`` is every pixel risen at ``t`` (also those that started
-    earlier), ``before`` the maximum of the (up to) ``k`` frames before ``t``,
-    ``after`` the minimum of the ``m`` after it (frame ``t`` itself, maybe lit
-    during part of its exposure, is skipped), ``earlier`` and ``always`` the
-    maximum and the minimum of all frames before those ``k`` (``always`` is 0
-    where there are none).
+    Yields ``(t, labels, origin, stats, rise, before, after, earlier,
+    always)``: ``labels`` of the regions inside the bounding box of the
+    starting pixels, whose corner is ``origin = (x0, y0)`` (``stats`` are in
+    whole-frame coordinates); ``rise`` is every pixel risen at ``t`` (also
+    those that started earlier), ``before`` the maximum of the (up to) ``k``
+    frames before ``t``, ``after`` the minimum of the ``m`` after it (frame
+    ``t`` itself, maybe lit during part of its exposure, is skipped),
+    ``earlier`` and ``always`` the maximum and the minimum of all frames
+    before those ``k`` (``always`` is 0 while there are none: no pixel is
+    known to be static yet).
     """
     shape = g.shape[1:]
     prev_rise = np.zeros(shape, bool)
@@ -164,9 +176,13 @@ def _switch_ons(g, min_rise, min_area, m, k):
         prev_rise = rise
         if np.count_nonzero(starts) < min_area:
             continue
-        nlab, labels, stats, _ = cv2.connectedComponentsWithStats(starts.view(np.uint8), connectivity=8)
+        x0, y0, w, h = cv2.boundingRect(starts.view(np.uint8))
+        crop = np.ascontiguousarray(starts[y0:y0 + h, x0:x0 + w]).view(np.uint8)
+        nlab, labels, stats, _ = cv2.connectedComponentsWithStats(crop, connectivity=8)
         if np.any(stats[1:, cv2.CC_STAT_AREA] >= min_area):
-            yield t, labels, stats, rise, before, after, earlier, always
+            stats[:, 0] += x0
+            stats[:, 1] += y0
+            yield t, labels, (x0, y0), stats, rise, before, after, earlier, always
 
 
 def _touching(mask, seed) -> np.ndarray:
@@ -261,6 +277,19 @@ def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright
     return ev
 
 
+def _region_signal(raw, region) -> np.ndarray:
+    """Mean gray level of ``region`` (full resolution) in every frame."""
+    x, y, w, h = cv2.boundingRect(region.view(np.uint8))
+    mask = np.ascontiguousarray(region[y:y + h, x:x + w]).view(np.uint8)
+    out = []
+    for f in raw:
+        crop = np.ascontiguousarray(np.asarray(f)[y:y + h, x:x + w], dtype=np.uint8)
+        if crop.ndim == 3:
+            crop = cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY)
+        out.append(cv2.mean(crop, mask)[0])
+    return np.array(out)
+
+
 def _window(stats_row, shape, pad) -> tuple:
     x, y, w, h = (int(v) for v in stats_row[:4])
     return (slice(max(0, y - pad), min(shape[0], y + h + pad)), slice(max(0, x - pad), min(shape[1], x + w + pad)))
@@ -271,7 +300,7 @@ def _candidates(g, scale, start, min_rise, min_area_small, m, k, max_surround_br
     ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
     shape = g.shape[1:]
     out = []
-    for t, labels, stats, *maps in _switch_ons(g, min_rise, min_area_small, m, k):
+    for t, labels, (x0, y0), stats, *maps in _switch_ons(g, min_rise, min_area_small, m, k):
         for i in np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= min_area_small):
             if i == 0:
                 continue
@@ -279,7 +308,9 @@ def _candidates(g, scale, start, min_rise, min_area_small, m, k, max_surround_br
             # the window reaches as far as a moving object of the region's size could have been a frame before
             pad = int(np.ceil(2 * np.sqrt(area))) + 3
             win = _window(stats[i], shape, pad)
-            comp = labels[win] == i
+            comp = np.zeros((win[0].stop - win[0].start, win[1].stop - win[1].start), bool)
+            comp[y - win[0].start:y - win[0].start + h, x - win[1].start:x - win[1].start + w] = \
+                labels[y - y0:y - y0 + h, x - x0:x - x0 + w] == i
             edge = x == 0 or y == 0 or x + w == shape[1] or y + h == shape[0]
             ev = _judge(g, t, comp, win, edge, maps, m, min_rise, max_surround_bright, ring_kernel)
             ev["score"] *= area / (area + min_area_small)     # a region of the smallest size counts half
@@ -380,7 +411,7 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     public = tuple({key: v for key, v in c.items() if not key.startswith("_")} for c in candidates)
     full = np.asarray(raw[0]).shape[:2]
     region = cv2.resize(region_small, (full[1], full[0]), interpolation=cv2.INTER_NEAREST) > 0
-    signal = np.array([float(np.mean(_gray_stack([f], 1)[0][region])) for f in raw])
+    signal = _region_signal(raw, region)
     lo = max(0, t_med - k - 3)
     off = float(np.median(signal[lo:t_med])) if t_med > lo else float(signal[t_med - 1])
     on = float(np.median(signal[t_med + 1:t_med + 1 + m]))

@@ -131,7 +131,7 @@ def _ellipse(img, cx, cy, ax, ay, value):
 
 def test_head_entering_from_the_image_edge_before_the_flash():
     # a bright-coated head (gray 110 on 27) enters at the left edge at 3 px/frame, long before the flash;
-    # the surroundings test cannot see its body (outside the image), so it came first before
+    # the surroundings test cannot see its body (outside the image): the old rule took it
     frames = _scene(flash_at=45)
     for t in range(70):
         _ellipse(frames[t], -30 + 3 * t, 60, 28, 12, 110)
@@ -148,7 +148,7 @@ def test_leading_edge_of_a_moving_object_is_not_the_flash():
     # already bright around it (an elongated shape); its bright area grows frame to frame
     frames = _scene(flash_at=50)
     for t in range(70):
-        _ellipse(frames[t], 10 + 4 * (t // 1) if t >= 20 else 10, 70, 8, 5, 120)
+        _ellipse(frames[t], 10 + 4 * max(0, t - 20), 70, 8, 5, 120)
     det = detect_flash(frames.astype(np.uint8))
     assert det.frame == 50
     moving = [c for c in det.candidates if 20 <= c["frame"] < 48]
@@ -159,10 +159,9 @@ def test_object_landing_and_staying_before_the_flash():
     # a hoof bandage (gray 200) jumps 16 px a frame (more than its size), lands at frame 16 and stays:
     # it brightens at once, in the dark, and stays still; but the place it came from went dark
     frames = _scene(flash_at=40)
-    for t in range(70):
-        x = 20 + 16 * min(t, 16) - 16 * 12 if t >= 12 else None
-        if x is not None:
-            frames[t, 62:76, x - 4:x + 4] = 200
+    for t in range(12, 70):
+        x = 20 + 16 * (min(t, 16) - 12)
+        frames[t, 62:76, x - 4:x + 4] = 200
     det = detect_flash(frames.astype(np.uint8))
     assert det.frame == 40
     landing = [c for c in det.candidates if 12 <= c["frame"] <= 17]
@@ -174,7 +173,7 @@ def test_object_that_appears_and_stays_is_taken_only_if_it_is_a_switch_on():
     # the same landing object without any flash: no flash (a clear message), not the object
     frames = _scene(flash_at=None)
     for t in range(12, 70):
-        x = 20 + 16 * min(t, 16) - 16 * 12
+        x = 20 + 16 * (min(t, 16) - 12)
         frames[t, 62:76, x - 4:x + 4] = 200
     with pytest.raises(SyncError, match=r"no flash found in frames 0\.\.69.*went dark beside it"):
         detect_flash(frames.astype(np.uint8), name="camera 'left'")
@@ -185,7 +184,7 @@ def test_object_that_appears_and_stays_is_taken_only_if_it_is_a_switch_on():
         _disc(frames[t], 30, 70, 6, 250)
     det = detect_flash(frames.astype(np.uint8))
     assert det.ambiguous and det.runner_up is not None
-    assert {det.frame, det.runner_up["frame"] + 1} == {20, 40} or {det.frame, det.runner_up["frame"]} == {20, 40}
+    assert det.frame in (20, 40) and abs(det.runner_up["frame"] - (60 - det.frame)) <= 1
     # only the flash: not ambiguous
     det = detect_flash(_scene(flash_at=40).astype(np.uint8))
     assert det.frame == 40 and not det.ambiguous and det.runner_up is None
