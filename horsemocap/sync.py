@@ -9,14 +9,19 @@ in each camera (Figure 3.9), giving ``Delta F_LM = 53`` and ``Delta F_MR = 73``
     F_M(k) <-> F_R(k + Delta F_MR)      (3.12)
     F_L(k) <-> F_R(k + Delta F_LR)      (3.13)
 
-Here the flash is found automatically (:func:`detect_flash`): a region of
-pixels that all start to brighten at the same frame and stay bright for a few
-frames, in surroundings that were dark. Moving bright things (reflective
-markers, bandages, a helmet) also brighten pixels, but only a sliver at their
-leading edge, next to their own body that was already bright a frame before;
-glints are small and last a frame. The flash frame is then the first frame where the region's
-mean brightness is above the middle of its off and on levels, which also
-settles a flash that switched on during an exposure.
+Here the flash is found automatically (:func:`detect_flash`): every region
+of pixels that all start to brighten at the same frame and stay bright for a
+few frames is a candidate, and the flash is the candidate that looks most
+like a light switched on in place, not the earliest one. Moving bright things
+(the horse's head and a bright coat, bandages, a helmet, markers) also
+brighten pixels at once; they are told apart by what a light cannot do: come
+in through the image edge, brighten next to their own body that was bright a
+frame before, grow or move over their on-frames, leave a place that goes
+dark, or be a bright thing that was there before and is only uncovered again.
+When another candidate at another frame scores nearly as well, the detection
+says so (``FlashDetection.ambiguous``). The flash frame is then the first
+frame where the region's mean brightness is above the middle of its off and
+on levels, which also settles a flash that switched on during an exposure.
 
 The result of :func:`flash_offsets` is the session's ``sync.offsets``: the
 frame index, in each camera's own source, of the same instant (the flash);
@@ -57,12 +62,28 @@ class FlashDetection:
         Region area, full-resolution pixels.
     surround_bright : float
         Fraction of the region's surroundings already as bright a frame
-        before (0 for a flash in the dark; high at a moving object's edge).
+        before, static bright things aside (0 for a flash in the dark; high
+        at a moving object's edge).
     candidates : tuple of dict
-        Every region examined up to the flash: ``frame, area_px,
-        surround_bright, accepted, reason``.
+        Every region that started to brighten in the frames searched:
+        ``frame, x, y, area_px, touches_edge, lit_before, surround_bright,
+        stays, vacated, score, reason, accepted`` (see :func:`detect_flash`;
+        a measure not taken because an earlier test rejected the region is
+        NaN).
     start : int
         Index of the first frame searched in the source.
+    score : float
+        The chosen region's flash score (near 1: a large region that lit up
+        in place, nothing bright beside it before, nothing darkening beside
+        it).
+    ambiguous : bool
+        True when another accepted region, switching on at another frame,
+        scored nearly as well (at least ``ambiguity_ratio`` of ``score``):
+        the frames cannot tell which one is the flash, and the offset
+        should be checked (by eye or by the markers).
+    runner_up : dict or None
+        The best accepted candidate at another frame (an entry of
+        ``candidates``), None if there is none.
     """
 
     frame: int
@@ -74,17 +95,26 @@ class FlashDetection:
     surround_bright: float
     candidates: tuple
     start: int = 0
+    score: float = 1.0
+    ambiguous: bool = False
+    runner_up: dict | None = None
 
 
 def _gray_stack(frames, scale: int) -> np.ndarray:
-    out = []
-    for f in frames:
+    """Gray uint8 frames reduced ``scale`` times (INTER_AREA), as one (n, h, w) array."""
+    out = None
+    for i, f in enumerate(frames):
         f = np.asarray(f)
-        g = f if f.ndim == 2 else cv2.cvtColor(f.astype(np.uint8), cv2.COLOR_RGB2GRAY)
+        g = f if f.ndim == 2 else cv2.cvtColor(f.astype(np.uint8, copy=False), cv2.COLOR_RGB2GRAY)
+        g = np.ascontiguousarray(g, dtype=np.uint8)
+        if out is None:
+            size = (g.shape[0] // scale, g.shape[1] // scale)
+            out = np.empty((len(frames),) + size, np.uint8)
         if scale > 1:
-            g = cv2.resize(g, (g.shape[1] // scale, g.shape[0] // scale), interpolation=cv2.INTER_AREA)
-        out.append(g.astype(np.int16))
-    return np.stack(out)
+            cv2.resize(g, (size[1], size[0]), dst=out[i], interpolation=cv2.INTER_AREA)
+        else:
+            out[i] = g
+    return out
 
 
 def _read(source, search_frames, start):
@@ -107,10 +137,203 @@ def _read(source, search_frames, start):
     return arr, "frames"
 
 
+def _min_max(stack) -> tuple:
+    """Pixel-wise minimum and maximum of a few uint8 frames."""
+    lo, hi = stack[0].copy(), stack[0].copy()
+    for f in stack[1:]:
+        cv2.min(lo, f, dst=lo)
+        cv2.max(hi, f, dst=hi)
+    return lo, hi
+
+
+def _switch_ons(g, min_rise, min_area, m, k):
+    """Regions whose pixels start, at frame ``t``, to be ``min_rise`` brighter for ``m`` frames.
+
+    Yields ``(t, labels, origin, stats, rise, before, after, earlier,
+    always)``: ``labels`` of the regions inside the bounding box of the
+    starting pixels, whose corner is ``origin = (x0, y0)`` (``stats`` are in
+    whole-frame coordinates); ``rise`` is every pixel risen at ``t`` (also
+    those that started earlier), ``before`` the maximum of the (up to) ``k``
+    frames before ``t``, ``after`` the minimum of the ``m`` after it (frame
+    ``t`` itself, maybe lit during part of its exposure, is skipped),
+    ``earlier`` and ``always`` the maximum and the minimum of all frames
+    before those ``k`` (``always`` is 0 while there are none: no pixel is
+    known to be static yet).
+    """
+    shape = g.shape[1:]
+    prev_rise = np.zeros(shape, bool)
+    earlier, always = np.zeros(shape, np.uint8), np.zeros(shape, np.uint8)
+    for t in range(1, g.shape[0] - m):
+        if t - k - 1 == 0:
+            always = g[0].copy()
+        if t - k - 1 >= 0:
+            cv2.max(earlier, g[t - k - 1], dst=earlier)
+            cv2.min(always, g[t - k - 1], dst=always)
+        after = _min_max(g[t + 1:t + 1 + m])[0]
+        before = _min_max(g[max(0, t - k):t])[1]
+        rise = cv2.subtract(after, before) >= min_rise
+        starts = rise & ~prev_rise
+        prev_rise = rise
+        if np.count_nonzero(starts) < min_area:
+            continue
+        x0, y0, w, h = cv2.boundingRect(starts.view(np.uint8))
+        crop = np.ascontiguousarray(starts[y0:y0 + h, x0:x0 + w]).view(np.uint8)
+        nlab, labels, stats, _ = cv2.connectedComponentsWithStats(crop, connectivity=8)
+        if np.any(stats[1:, cv2.CC_STAT_AREA] >= min_area):
+            stats[:, 0] += x0
+            stats[:, 1] += y0
+            yield t, labels, (x0, y0), stats, rise, before, after, earlier, always
+
+
+def _touching(mask, seed) -> np.ndarray:
+    """The parts of ``mask`` (8-connected) that overlap ``seed``."""
+    nlab, lab = cv2.connectedComponents(mask.view(np.uint8), connectivity=8)
+    keep = np.zeros(nlab, bool)
+    keep[lab[seed & mask]] = True
+    keep[0] = False
+    return keep[lab]
+
+
+def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright, ring_kernel) -> dict:
+    """The evidence that tells a light switched on from a moving bright object, for one region.
+
+    ``comp`` is the region (bool, inside the window ``win`` of the reduced
+    frames) whose rise starts at ``t``; ``maps`` holds the ``rise, before,
+    after, earlier, always`` images of :func:`_switch_ons`. The tests, in
+    this order (cheapest first; the first failed one rejects the region and
+    the later ones are not measured: NaN):
+
+    * ``touches_edge``: an object entering the view (its body, outside the
+      image, cannot be seen);
+    * ``lit_before``: fraction of its pixels already half-way as bright in an
+      earlier frame: a static bright thing uncovered again by a passing
+      occluder (0 for a light switched on for the first time; 0.5 or more
+      rejects);
+    * ``surround_bright``: fraction of the pixels around it already about as
+      bright a frame before, not counting those as bright in every earlier
+      frame (a static bright thing, such as a rail behind the flashlight): a
+      moving object's own body (``max_surround_bright`` or more rejects);
+    * ``stays``: the area newly bright (``min_rise`` above the frames before
+      ``t``) around it in its first fully lit on-frame, over the area newly
+      bright in any of its on-frames from that one on: 1 when the bright area
+      keeps still, ``2 / (m + 1)`` at the leading edge of an object moving at
+      any steady speed (the first fully lit frame shows the pixels first
+      covered in frames ``t`` and ``t + 1``, the on-frames those of ``t ..
+      t + m``); below half-way between the two rejects. A first on-frame lit
+      only during part of its exposure is passed over, so that a flash
+      switched on mid-exposure keeps 1;
+    * ``vacated``: pixels beside it that were as bright a frame before and are
+      dark in all its on-frames, over its area: a moving object leaving its
+      former place (0 for a light; about 1 for an object that moved by its
+      own size or more; 0.5 or more rejects).
+
+    ``score = (1 - surround_bright) * stays * (1 - vacated)`` for a region
+    that passed them all (1: a region lit up in place, with nothing bright
+    beside it before and nothing darkening beside it), 0 for a rejected one.
+    """
+    rise, before, after, earlier, always = (a[win] for a in maps)
+    ev = dict.fromkeys(("lit_before", "surround_bright", "stays", "vacated"), float("nan"))
+    ev.update(score=0.0, reason="")
+    if touches_edge:
+        ev["reason"] = "it touches the image edge (a moving bright object entering the view)"
+        return ev
+    off = float(np.median(before[comp]))
+    level = float(np.median(after[comp]))
+    half_way = (before[comp].astype(np.int16) + after[comp]) // 2
+    ev["lit_before"] = float(np.mean(earlier[comp] >= half_way))
+    if ev["lit_before"] >= 0.5:
+        ev["reason"] = (f"{100 * ev['lit_before']:.0f} % of it was as bright in an earlier frame "
+                        "(a bright thing uncovered again, not switched on)")
+        return ev
+    prev = g[t - 1][win]
+    ring = cv2.dilate(comp.view(np.uint8), ring_kernel).astype(bool) & ~comp & ~rise
+    as_bright = level - min_rise / 2
+    body = (prev[ring] >= as_bright) & (always[ring] < as_bright)
+    ev["surround_bright"] = float(np.mean(body)) if ring.any() else 0.0
+    if ev["surround_bright"] >= max_surround_bright:
+        ev["reason"] = (f"{100 * ev['surround_bright']:.0f} % of its surroundings were as bright a frame before "
+                        "(a moving bright object)")
+        return ev
+    on_frames = [g[j][win] for j in range(t + 1, t + 1 + m)]
+    on_levels = [float(np.median(f[comp])) for f in on_frames]
+    lit = 0.5 * (off + max(on_levels))
+    first = next(i for i, v in enumerate(on_levels) if v >= lit)
+    newly = [cv2.subtract(f, before) >= min_rise for f in on_frames[first:]]
+    region = _touching(newly[0] | comp, comp)
+    swept = _touching(np.logical_or.reduce(newly) | comp, comp)
+    area = float(np.count_nonzero(region))
+    ev["stays"] = area / float(np.count_nonzero(swept))
+    if ev["stays"] < 0.5 * (1.0 + 2.0 / (m + 1)):
+        ev["reason"] = f"its bright area grew {1 / ev['stays']:.1f}-fold in its on-frames (a moving bright object)"
+        return ev
+    on_max = _min_max(on_frames)[1]
+    vacated = (cv2.subtract(prev, on_max) >= max(min_rise, (level - off) / 2)) & ~swept
+    ev["vacated"] = float(np.count_nonzero(vacated)) / area
+    if ev["vacated"] >= 0.5:
+        ev["reason"] = (f"an area {ev['vacated']:.1f} times its own went dark beside it at the same frame "
+                        "(a moving bright object leaving its place)")
+        return ev
+    ev["score"] = (1.0 - ev["surround_bright"]) * ev["stays"] * (1.0 - ev["vacated"])
+    return ev
+
+
+def _region_signal(raw, region) -> np.ndarray:
+    """Mean gray level of ``region`` (full resolution) in every frame."""
+    x, y, w, h = cv2.boundingRect(region.view(np.uint8))
+    mask = np.ascontiguousarray(region[y:y + h, x:x + w]).view(np.uint8)
+    out = []
+    for f in raw:
+        crop = np.ascontiguousarray(np.asarray(f)[y:y + h, x:x + w], dtype=np.uint8)
+        if crop.ndim == 3:
+            crop = cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY)
+        out.append(cv2.mean(crop, mask)[0])
+    return np.array(out)
+
+
+def _window(stats_row, shape, pad) -> tuple:
+    x, y, w, h = (int(v) for v in stats_row[:4])
+    return (slice(max(0, y - pad), min(shape[0], y + h + pad)), slice(max(0, x - pad), min(shape[1], x + w + pad)))
+
+
+def _candidates(g, scale, start, min_rise, min_area_small, m, k, max_surround_bright) -> list:
+    """Every region that starts to brighten, with its evidence, score and verdict."""
+    ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    shape = g.shape[1:]
+    out = []
+    for t, labels, (x0, y0), stats, *maps in _switch_ons(g, min_rise, min_area_small, m, k):
+        for i in np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= min_area_small):
+            if i == 0:
+                continue
+            x, y, w, h, area = (int(v) for v in stats[i])
+            # the window reaches as far as a moving object of the region's size could have been a frame before
+            pad = int(np.ceil(2 * np.sqrt(area))) + 3
+            win = _window(stats[i], shape, pad)
+            comp = np.zeros((win[0].stop - win[0].start, win[1].stop - win[1].start), bool)
+            comp[y - win[0].start:y - win[0].start + h, x - win[1].start:x - win[1].start + w] = \
+                labels[y - y0:y - y0 + h, x - x0:x - x0 + w] == i
+            edge = x == 0 or y == 0 or x + w == shape[1] or y + h == shape[0]
+            ev = _judge(g, t, comp, win, edge, maps, m, min_rise, max_surround_bright, ring_kernel)
+            ev["score"] *= area / (area + min_area_small)     # a region of the smallest size counts half
+            out.append({"frame": t + start, "x": scale * (x + w / 2), "y": scale * (y + h / 2),
+                        "area_px": area * scale**2, "touches_edge": edge, **ev, "accepted": not ev["reason"],
+                        "_t": t, "_mask": (win, comp)})
+    return out
+
+
 def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, start: int = 0,
                  min_rise: float = 40.0, min_area_px: int = 20, min_on_frames: int = 3,
-                 max_surround_bright: float = 0.2, scale: int = 2, name: str | None = None) -> FlashDetection:
+                 max_surround_bright: float = 0.2, ambiguity_ratio: float = 0.8, scale: int = 2,
+                 name: str | None = None) -> FlashDetection:
     """Find the flashlight switching on in one camera's frames.
+
+    A light switched on is a compact region that brightens at once by a large
+    step and then stays where it is; a moving bright object (the horse's
+    head, a bandage, a helmet) also brightens pixels at once, but its bright
+    area moves and grows frame to frame, leaves a place that goes dark, is
+    next to its own body that was bright a frame before, or comes in through
+    the image edge. Every region that starts to brighten in the frames
+    searched is scored by these, and the best accepted one is the flash
+    (not the earliest).
 
     Parameters
     ----------
@@ -128,9 +351,13 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
         Frames the flash stays on, at least.
     max_surround_bright : float
         Largest fraction of the pixels around a newly bright region that may
-        already have been as bright a frame before. A moving bright object
+        already have been as bright a frame before (those as bright in every
+        earlier frame, static things, not counted). A moving bright object
         brightens a sliver at its leading edge, next to its own body; a flash
         lights up in the dark.
+    ambiguity_ratio : float
+        Another accepted region at another frame scoring at least this part
+        of the chosen one's score makes the detection ``ambiguous``.
     scale : int
         Frames are reduced by this factor for the search (the switch frame is
         then measured at full resolution on the region).
@@ -140,12 +367,21 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     Returns
     -------
     FlashDetection
+        ``candidates`` holds every region examined with its evidence and
+        verdict (see :func:`_judge`: ``touches_edge``, ``lit_before``,
+        ``surround_bright``, ``stays``, ``vacated``, ``score``, ``reason``);
+        the score of an accepted region is ``(1 - surround_bright) * stays *
+        (1 - vacated)`` weighted by ``area / (area + min_area_px)`` (a region
+        of the smallest size counts half: a few pixels are weak evidence).
+        The limits are half-way between what a light and a moving object
+        give (see :func:`_judge`), not fitted to sessions.
 
     Raises
     ------
     SyncError
-        No region brightens coherently and stays on; the message names the
-        camera/file and the best candidate seen.
+        No region brightens coherently, stays on and keeps still; the message
+        names the camera/file and the largest candidate seen and why it was
+        rejected.
     """
     raw, label = _read(frames, search_frames, start)
     label = name or label
@@ -155,48 +391,27 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     if n < m + k + 2:
         raise SyncError(f"{label}: only {n} frames searched; need at least {m + k + 2} to find a flash")
     min_area_small = max(1, int(round(min_area_px / scale**2)))
-    ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
-    candidates, accepted = [], []
-    prev_rise = np.zeros(g.shape[1:], bool)
-    for t in range(k, n - m):
-        # persistent rise, skipping the transition frame t: min(g[t+1..t+m]) - max(g[t-k..t-1])
-        after = g[t + 1:t + 1 + m].min(axis=0)
-        before = g[t - k:t].max(axis=0)
-        rise = (after - before) >= min_rise
-        starts = rise & ~prev_rise            # pixels whose rise starts at t
-        prev_rise = rise
-        if starts.sum() < min_area_small:
-            continue
-        nlab, lab, stats, _ = cv2.connectedComponentsWithStats(starts.astype(np.uint8), connectivity=8)
-        for i in range(1, nlab):
-            area = int(stats[i, cv2.CC_STAT_AREA])
-            if area < min_area_small:
-                continue
-            comp = lab == i
-            ring = cv2.dilate(comp.astype(np.uint8), ring_kernel).astype(bool) & ~comp & ~rise
-            level = float(np.median(after[comp]))
-            frac = float(np.mean(g[t - 1][ring] >= level - min_rise / 2)) if ring.any() else 0.0
-            ok = frac < max_surround_bright
-            reason = "" if ok else (f"{100 * frac:.0f} % of its surroundings were as bright a frame before "
-                                    "(a moving bright object)")
-            candidates.append({"frame": t + start, "area_px": area * scale**2, "surround_bright": frac,
-                               "accepted": ok, "reason": reason})
-            if ok:
-                accepted.append((t, area, frac, comp))
-        if accepted:
-            break
+    candidates = _candidates(g, scale, start, min_rise, min_area_small, m, k, max_surround_bright)
+    accepted = [c for c in candidates if c["accepted"]]
     if not accepted:
         seen = max(candidates, key=lambda c: c["area_px"], default=None)
         extra = (f"; largest brightening region: {seen['area_px']} px at frame {seen['frame']}, "
                  f"{seen['reason']}") if seen else ""
         raise SyncError(f"{label}: no flash found in frames {start}..{start + n - 1} (no region of at least "
-                        f"{min_area_px} px that brightens by {min_rise:g} gray levels at once and stays on "
-                        f"{m} frames){extra}")
-    # the flash: the earliest accepted region (ties: the largest)
-    t_med, area, coh, region_small = max(accepted, key=lambda a: a[1])
+                        f"{min_area_px} px that brightens by {min_rise:g} gray levels at once, stays on "
+                        f"{m} frames and keeps still){extra}")
+    # the flash: the best score (ties: the largest, then the earliest)
+    best = max(accepted, key=lambda c: (round(c["score"], 6), c["area_px"], -c["frame"]))
+    others = [c for c in accepted if abs(c["frame"] - best["frame"]) > 1]
+    runner = max(others, key=lambda c: c["score"], default=None)
+    ambiguous = runner is not None and runner["score"] >= ambiguity_ratio * best["score"]
+    t_med, (win, comp) = best["_t"], best["_mask"]
+    region_small = np.zeros(g.shape[1:], np.uint8)
+    region_small[win] = comp
+    public = tuple({key: v for key, v in c.items() if not key.startswith("_")} for c in candidates)
     full = np.asarray(raw[0]).shape[:2]
-    region = cv2.resize(region_small.astype(np.uint8), (full[1], full[0]), interpolation=cv2.INTER_NEAREST) > 0
-    signal = np.array([float(np.mean(_gray_stack([f], 1)[0][region])) for f in raw])
+    region = cv2.resize(region_small, (full[1], full[0]), interpolation=cv2.INTER_NEAREST) > 0
+    signal = _region_signal(raw, region)
     lo = max(0, t_med - k - 3)
     off = float(np.median(signal[lo:t_med])) if t_med > lo else float(signal[t_med - 1])
     on = float(np.median(signal[t_med + 1:t_med + 1 + m]))
@@ -204,13 +419,27 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     t = lo
     while t < n and signal[t] <= half:
         t += 1
-    return FlashDetection(int(t + start), region, signal, off, on, int(region.sum()), coh,
-                          tuple(candidates), int(start))
+    pub_runner = next((p for c, p in zip(candidates, public) if c is runner), None)
+    return FlashDetection(int(t + start), region, signal, off, on, int(region.sum()), best["surround_bright"],
+                          public, int(start), float(best["score"]), bool(ambiguous), pub_runner)
 
 
 def flash_frame(frames, **kwargs) -> int:
     """The first frame where the flash is on (see :func:`detect_flash` for the options)."""
     return detect_flash(frames, **kwargs).frame
+
+
+def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, **kwargs) -> dict:
+    """:func:`detect_flash` in every camera: ``{camera: FlashDetection}`` (errors name the camera).
+
+    A detection with ``ambiguous`` set is a camera whose flash offset should
+    be checked (two candidates of similar score at different frames).
+    """
+    out = {}
+    for cam, src in sources.items():
+        label = f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource) else f"camera {cam!r}"
+        out[cam] = detect_flash(src, search_frames=search_frames, name=label, **kwargs)
+    return out
 
 
 def flash_offsets(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, **kwargs) -> dict:
@@ -229,11 +458,7 @@ def flash_offsets(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAM
         Frame index, in each camera's own source, of the same instant; thesis
         eq. 3.11: ``F_L(k) <-> F_M(k + offsets["middle"] - offsets["left"])``.
     """
-    out = {}
-    for cam, src in sources.items():
-        label = f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource) else f"camera {cam!r}"
-        out[cam] = flash_frame(src, search_frames=search_frames, name=label, **kwargs)
-    return out
+    return {cam: det.frame for cam, det in flash_detections(sources, search_frames, **kwargs).items()}
 
 
 def frame_differences(offsets: dict, order=("left", "middle", "right")) -> dict:

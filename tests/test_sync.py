@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from horsemocap.sync import (SyncError, aligned_index, detect_flash, flash_frame, flash_offsets,
-                             frame_differences)
+from horsemocap.sync import (SyncError, aligned_index, detect_flash, flash_detections, flash_frame,
+                             flash_offsets, frame_differences)
 
 H, W = 96, 128
 
@@ -81,6 +81,8 @@ def test_offsets_and_eq_3_11_to_3_13():
             "right": make_frames(150, flash_at=136, seed=3)}
     off = flash_offsets(srcs)
     assert off == {"left": 10, "middle": 63, "right": 136}
+    dets = flash_detections(srcs)       # what the pipeline reads to warn about an ambiguous camera
+    assert {c: d.frame for c, d in dets.items()} == off and not any(d.ambiguous for d in dets.values())
     assert frame_differences(off) == {"LM": 53, "MR": 73, "LR": 126}
     assert aligned_index(off, 0) == {"left": 0, "middle": 53, "right": 126}
 
@@ -110,3 +112,93 @@ def test_default_session_offsets_are_found_exactly():
     truth = json.loads((d / "truth" / "truth.json").read_text())["offsets"]
     srcs = {c: FrameSource(d / "motion" / f"{c}.avi") for c in truth}
     assert flash_offsets(srcs) == truth
+
+
+def _scene(n=70, flash_at=None, seed=0):
+    """Dark noisy frames, a flash disc (r = 6) at (100, 20) on from ``flash_at`` for 4 frames."""
+    rng = np.random.default_rng(seed)
+    frames = np.clip(rng.normal(27, 3, (n, H, W)), 0, 255)
+    if flash_at is not None:
+        for t in range(flash_at, min(n, flash_at + 4)):
+            _disc(frames[t], 100, 20, 6, 250)
+    return frames
+
+
+def _ellipse(img, cx, cy, ax, ay, value):
+    yy, xx = np.mgrid[:img.shape[0], :img.shape[1]]
+    img[((xx - cx) / ax) ** 2 + ((yy - cy) / ay) ** 2 <= 1] = value
+
+
+def test_head_entering_from_the_image_edge_before_the_flash():
+    # a bright-coated head (gray 110 on 27) enters at the left edge at 3 px/frame, long before the flash;
+    # the surroundings test cannot see its body (outside the image): the old rule took it
+    frames = _scene(flash_at=45)
+    for t in range(70):
+        _ellipse(frames[t], -30 + 3 * t, 60, 28, 12, 110)
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.frame == 45
+    early = [c for c in det.candidates if c["frame"] < 40]
+    assert early and not any(c["accepted"] for c in early)
+    assert any("image edge" in c["reason"] for c in early)
+    assert not det.ambiguous
+
+
+def test_leading_edge_of_a_moving_object_is_not_the_flash():
+    # a bright object fully in view, moving 4 px/frame: its leading edge brightens at once with little
+    # already bright around it (an elongated shape); its bright area grows frame to frame
+    frames = _scene(flash_at=50)
+    for t in range(70):
+        _ellipse(frames[t], 10 + 4 * max(0, t - 20), 70, 8, 5, 120)
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.frame == 50
+    moving = [c for c in det.candidates if 20 <= c["frame"] < 48]
+    assert moving and not any(c["accepted"] for c in moving)
+
+
+def test_object_landing_and_staying_before_the_flash():
+    # a hoof bandage (gray 200) jumps 16 px a frame (more than its size), lands at frame 16 and stays:
+    # it brightens at once, in the dark, and stays still; but the place it came from went dark
+    frames = _scene(flash_at=40)
+    for t in range(12, 70):
+        x = 20 + 16 * (min(t, 16) - 12)
+        frames[t, 62:76, x - 4:x + 4] = 200
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.frame == 40
+    landing = [c for c in det.candidates if 12 <= c["frame"] <= 17]
+    assert landing and not any(c["accepted"] for c in landing)
+    assert any("went dark beside it" in c["reason"] for c in landing)
+
+
+def test_object_that_appears_and_stays_is_taken_only_if_it_is_a_switch_on():
+    # the same landing object without any flash: no flash (a clear message), not the object
+    frames = _scene(flash_at=None)
+    for t in range(12, 70):
+        x = 20 + 16 * (min(t, 16) - 12)
+        frames[t, 62:76, x - 4:x + 4] = 200
+    with pytest.raises(SyncError, match=r"no flash found in frames 0\.\.69.*went dark beside it"):
+        detect_flash(frames.astype(np.uint8), name="camera 'left'")
+    # a second light switching on in place, as large as the flash: the frames cannot tell which
+    # one is the flash, and the detection says so
+    frames = _scene(flash_at=40)
+    for t in range(20, 70):
+        _disc(frames[t], 30, 70, 6, 250)
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.ambiguous and det.runner_up is not None
+    assert det.frame in (20, 40) and abs(det.runner_up["frame"] - (60 - det.frame)) <= 1
+    # only the flash: not ambiguous
+    det = detect_flash(_scene(flash_at=40).astype(np.uint8))
+    assert det.frame == 40 and not det.ambiguous and det.runner_up is None
+
+
+def test_bright_bar_uncovered_by_a_passing_occluder_is_not_the_flash():
+    # a white rail (gray 200) behind a dark leg that passes in front of it: the rail's pixels
+    # brighten at once when the leg leaves them, and stay; they were as bright before the leg came
+    frames = _scene(flash_at=45)
+    frames[:, 76:86, :] = 200
+    for t in range(70):
+        x = 6 * t - 20
+        frames[t, 66:96, max(0, x):max(0, x + 14)] = 40
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.frame == 45
+    uncovered = [c for c in det.candidates if c["frame"] < 43]
+    assert uncovered and not any(c["accepted"] for c in uncovered)
