@@ -84,17 +84,25 @@ def step_sync(session: Session, params: AnalysisParams, res: dict, progress) -> 
     from . import sync
 
     sources = {c: FrameSource(session.motion[c]) for c in session.cameras}
+    ambiguous = {}
     if params.sync_offsets:
         offsets, how = dict(params.sync_offsets), "given in parameters"
     elif session.sync_offsets:
         offsets, how = dict(session.sync_offsets), "given in session.json"
     else:
-        offsets, how = sync.flash_offsets(sources), "flashlight"
-        offsets = {c: int(v) for c, v in offsets.items()}
+        found, how = sync.flash_detections(sources), "flashlight"
+        offsets = {c: int(d.frame) for c, d in found.items()}
+        ambiguous = {c: int(d.runner_up["frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}
     counts = {c: len(s) for c, s in sources.items()}
     n = check_frame_counts(session, counts, offsets, offsets_from=how)
     progress("sync", f"offsets {offsets} ({how}); {n} synchronised frames")
-    return {"offsets": offsets, "frame_counts": counts, "n_frames": n, "offsets_from": how}
+    out = {"offsets": offsets, "frame_counts": counts, "n_frames": n, "offsets_from": how}
+    if ambiguous:
+        progress("sync", "two flash candidates of similar score in " + ", ".join(
+            f"camera '{c}' (frame {offsets[c]} taken, frame {f} nearly as likely)" for c, f in ambiguous.items())
+            + "; the markers will check it")
+        out["flash_ambiguous"] = ambiguous
+    return out
 
 
 def step_rig(session: Session, params: AnalysisParams, res: dict, progress, cache_dirs=(), board_views=None) -> dict:

@@ -398,7 +398,7 @@ def _shift_residuals(v: dict) -> str:
     return f"median residual {px(v['current_px'])} at the flash's offset -> {px(v['best_px'])}"
 
 
-def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)") -> Check:
+def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", ambiguous=None) -> Check:
     """Did the markers confirm every camera's flash offset?
 
     ``sync_check``: camera -> ``{"shift": frames, "current_px": .., "best_px": ..}``
@@ -411,11 +411,20 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)") -
     check, is a ``warning`` (the results use the corrected offsets; the flash
     was found in another frame, so check it); corrections still moving when
     the rounds ran out are ``unreliable`` (the offsets used were never
-    confirmed).
+    confirmed). ``ambiguous``: camera -> the frame of a second flash
+    candidate nearly as likely (``flash_ambiguous`` of the sync step); such a
+    camera the markers did not check is a ``warning``.
     """
     threshold = "no correction and every camera checked: ok; a correction or a camera unchecked: warning; " \
         "corrections still moving when the rounds ran out: unreliable"
+    ambiguous = dict(ambiguous or {})
+    unsure = {c: f for c, f in ambiguous.items() if not sync_check.get(c, {}).get("decided", False)}
+    unsure_text = ("two flash candidates of similar score and no check by the markers in " + ", ".join(
+        f"camera '{c}' (frame {f} nearly as likely as the one taken)" for c, f in unsure.items()))
     if not sync_check:
+        if unsure:
+            return Check("sync_by_markers", None, "frames", "warning", (0, 0), (None, None), threshold, input_,
+                         unsure_text + "; check the flash in those videos, or give the offsets (--offsets)")
         return Check("sync_by_markers", None, "frames", SKIPPED, (0, 0), (None, None), threshold, input_,
                      "the flash offsets checked by the markers: not available (offsets given, or fewer "
                      "than three cameras)")
@@ -424,8 +433,8 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)") -
     moved = [c for c, v in sync_check.items() if v.get("moved", v["shift"] != 0)]
     undecided = [c for c, v in sync_check.items() if not v.get("decided", True)]
     settled = all(v.get("settled", True) for v in sync_check.values())
-    level = "unreliable" if not settled else "warning" if moved or undecided else "ok"
-    parts = []
+    level = "unreliable" if not settled else "warning" if moved or undecided or unsure else "ok"
+    parts = [unsure_text] if unsure else []
     if moved:
         parts.append("the markers moved the flash offset of " + ", ".join(
             f"camera '{c}' by {shifts[c]:+d} frame(s) in all ({_shift_residuals(sync_check[c])})" for c in moved)
@@ -440,7 +449,7 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)") -
                      "confirmed (the flash may be wrong in two cameras); give the offsets (--offsets) after "
                      "finding the flash in each video")
     if parts:
-        cams = sorted(set(moved) | set(undecided))
+        cams = sorted(set(moved) | set(undecided) | set(unsure))
         msg = "; ".join(parts) + (f"; check the flash in the video of {', '.join(repr(c) for c in cams)}" if cams else "")
     else:
         msg = "the markers confirm every camera's flash offset"
@@ -532,8 +541,9 @@ def post_checks(analysis) -> list[Check]:
         except (TypeError, ValueError):
             rms = None
         checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
-    if "detect" in res and res["detect"].get("sync_check"):
-        checks.append(check_sync_by_markers(res["detect"]["sync_check"]))
+    ambiguous = res.get("sync", {}).get("flash_ambiguous")
+    if "detect" in res and (res["detect"].get("sync_check") or ambiguous):
+        checks.append(check_sync_by_markers(res["detect"].get("sync_check") or {}, ambiguous=ambiguous))
     if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
         checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"]))
     if "rigid_body" in res:

@@ -193,3 +193,17 @@ def test_post_checks_judge_the_markers_shape():
     checks = quality.post_checks(SimpleNamespace(results=bad, session=session))
     assert {c.name: c.level for c in checks}["marker_rigidity"] == "unreliable"
     assert quality.verdict(checks) == "unreliable"
+
+
+def test_an_ambiguous_flash_the_markers_did_not_check_is_a_warning():
+    from horsemocap.quality import check_sync_by_markers
+
+    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2, "n_points": 40, "decided": True}
+            for c in ("left", "middle", "right")}
+    assert check_sync_by_markers(same, ambiguous={"middle": 57}).level == "ok"        # the markers decided
+    unchecked = {**same, "middle": {**same["middle"], "decided": False, "n_points": 3}}
+    c = check_sync_by_markers(unchecked, ambiguous={"middle": 57})
+    assert c.level == "warning" and "frame 57 nearly as likely" in c.message
+    c = check_sync_by_markers({}, ambiguous={"left": 12})                            # two cameras: no check
+    assert c.level == "warning" and "'left'" in c.message and "--offsets" in c.message
+    assert check_sync_by_markers({}).level == "skipped"
