@@ -1,4 +1,6 @@
 """The synchronisation checked by the markers (horsemocap.detection.timeshift)."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -45,8 +47,13 @@ def test_the_pipeline_corrects_a_flash_found_two_frames_early(monkeypatch):
     session = load_session(default_session_dir())
     params = resolve_params(session)
     true = run_steps(session, params, {}, ["sync"]).results["sync"]["offsets"]
-    real = sync.flash_offsets
-    monkeypatch.setattr(sync, "flash_offsets", lambda sources, **kw: {**real(sources, **kw), "right": true["right"] - 2})
+    real = sync.flash_detections
+
+    def early(sources, **kw):
+        found = real(sources, **kw)
+        return {**found, "right": dataclasses.replace(found["right"], frame=true["right"] - 2)}
+
+    monkeypatch.setattr(sync, "flash_detections", early)
     an = run_steps(session, params, {}, ["sync", "rig", "plumb", "static", "detect"])
     got = an.results["sync"]
     assert got["offsets"] == true
