@@ -101,7 +101,8 @@ plt.show()
 # %% [markdown]
 # ## The offsets and eq. 3.11-3.13
 #
-# `flash_offsets` is what the pipeline calls. The virtual laboratory started its cameras with the
+# `flash_offsets` gives the frames the pipeline uses (it calls `flash_detections`, which also says when a camera
+# had two candidates of similar score). The virtual laboratory started its cameras with the
 # thesis' offsets (53 and 73 frames), so the differences must come out as in section 8.2; the truth
 # saved beside the session says which frame the flash really switched on in.
 
