@@ -169,6 +169,8 @@ def analysis_record(analysis) -> dict:
         chosen["sync"] = {"offsets_from": res["sync"]["offsets_from"], "n_frames": res["sync"]["n_frames"]}
         if "flash_offsets" in res["sync"]:
             chosen["sync"]["flash_offsets"] = dict(res["sync"]["flash_offsets"])
+        if res["sync"].get("flash_ambiguous"):        # camera -> the frame of a second candidate nearly as likely
+            chosen["sync"]["flash_ambiguous"] = {c: int(f) for c, f in res["sync"]["flash_ambiguous"].items()}
         check = res.get("detect", {}).get("sync_check")
         if check:
             chosen["sync"]["checked_by_markers"] = {

@@ -60,3 +60,27 @@ def test_the_pipeline_corrects_a_flash_found_two_frames_early(monkeypatch):
     assert got["flash_offsets"]["right"] == true["right"] - 2 and "corrected by the markers" in got["offsets_from"]
     check = an.results["detect"]["sync_check"]
     assert check["right"]["shift"] == 2 and check["left"]["shift"] == 0 and check["middle"]["shift"] == 0
+
+
+def test_an_ambiguous_flash_is_recorded_and_settled_by_the_markers(monkeypatch):
+    """A camera with two flash candidates of similar score: the sync step records it, the markers check
+    it (the right frame was taken here, so they confirm it) and the verdict's check is ok."""
+    from horsemocap import quality, sync
+    from horsemocap.data import default_session_dir
+    from horsemocap.pipeline import resolve_params, run_steps
+    from horsemocap.session import load_session
+
+    real = sync.flash_detections
+
+    def ambiguous(sources, **kw):
+        found = real(sources, **kw)
+        return {**found, "middle": dataclasses.replace(found["middle"], ambiguous=True,
+                                                       runner_up={"frame": 40, "score": 0.8})}
+
+    monkeypatch.setattr(sync, "flash_detections", ambiguous)
+    session = load_session(default_session_dir())
+    an = run_steps(session, resolve_params(session), {}, ["sync", "rig", "plumb", "static", "detect"])
+    assert an.results["sync"]["flash_ambiguous"] == {"middle": 40}
+    check = quality.check_sync_by_markers(an.results["detect"]["sync_check"],
+                                          ambiguous=an.results["sync"]["flash_ambiguous"])
+    assert check.level == "ok" and an.results["detect"]["sync_check"]["middle"]["decided"]
