@@ -33,6 +33,7 @@ __all__ = [
     "MotionFrame",
     "STANDARD_GRAVITY",
     "estimate_period",
+    "HORSE_STRIDE_HZ",
     "autocorrelation",
     "gravity_from_plumb",
     "motion_frame",
@@ -154,9 +155,14 @@ def autocorrelation(signal, max_lag: int | None = None) -> np.ndarray:
     return r
 
 
+#: A horse's stride rate (Hz): the slowest walk to a racing gallop (also the ok range of
+#: :func:`horsemocap.quality.check_stride_frequency`).
+HORSE_STRIDE_HZ = (0.7, 2.7)
+
+
 def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
                     min_period: float = 3.0, min_overlap: float = 0.4, refine: bool = True,
-                    harmonics: int = 2) -> float:
+                    harmonics: int = 2, max_rate_hz: float | None = None) -> float:
     """Period of the gait in frames, from the data (thesis: typed by the user).
 
     The vertical motion of the markers is periodic (thesis 5.3, 5.5.2.2). The
@@ -189,6 +195,15 @@ def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
         times the lag (the autocorrelation of a short record is biased).
     harmonics : int
         Harmonics in the refinement model.
+    max_rate_hz : float, optional
+        The fastest the motion can repeat (with ``fps``; a horse's stride:
+        ``HORSE_STRIDE_HZ[1]``). A period found shorter than ``1 / max_rate_hz``
+        is a part of the real one (a trot's two alike bounces per stride: its
+        vertical motion repeats at twice the stride rate): the period is then
+        searched again among lags of at least ``fps / max_rate_hz`` frames, and
+        the shorter one kept only when the record is too short to show a longer
+        one. A rising trot at 25 fps over 2.1 strides gave 8.81 frames (2.84 Hz)
+        for a stride of 17.8 frames.
 
     Returns
     -------
@@ -236,9 +251,14 @@ def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
         den = y0 - 2 * y1 + y2
         shift = 0.5 * (y0 - y2) / den if den < 0 else 0.0
         lag = float(L + np.clip(shift, -0.5, 0.5))
-    if not refine:
-        return lag
-    return _refine_period(sig, lag, harmonics)
+    period = lag if not refine else _refine_period(sig, lag, harmonics)
+    if max_rate_hz is not None and fps is not None and fps / period > max_rate_hz:
+        try:
+            return estimate_period(sig, fps, min_period=max(min_period, fps / max_rate_hz), min_overlap=min_overlap,
+                                   refine=refine, harmonics=harmonics)
+        except ValueError:
+            pass                # the record cannot show a longer period: the faster one stays (and is flagged)
+    return period
 
 
 def _fourier_sse(sig: np.ndarray, period: float, harmonics: int) -> float:
@@ -312,7 +332,8 @@ def _position_at(track: np.ndarray, frame: float) -> np.ndarray:
 
 
 def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
-                 n_periods: int | None = None, fps: float | None = None) -> MotionFrame:
+                 n_periods: int | None = None, fps: float | None = None,
+                 max_rate_hz: float | None = None) -> MotionFrame:
     """The motion reference frame (thesis eq. 5.6-5.12).
 
     Parameters
@@ -330,8 +351,9 @@ def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
     n_periods : {1, 2}, optional
         Eq. 5.6 (one period) or 5.7 (two). Default: 2 if the record holds
         two periods (frame ``2T`` exists), else 1.
-    fps : float, optional
-        Passed to :func:`estimate_period` (checks only).
+    fps, max_rate_hz : float, optional
+        Passed to :func:`estimate_period` (with both, a period faster than
+        ``max_rate_hz`` is searched again among longer ones).
 
     Returns
     -------
@@ -346,7 +368,7 @@ def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
     marker = int(marker)
     u2e = _unit(gravity, "gravity")
     if period is None:
-        period = estimate_period(p, fps, gravity=u2e)
+        period = estimate_period(p, fps, gravity=u2e, max_rate_hz=max_rate_hz)
     period = float(period)
     if not (period > 0):
         raise ValueError(f"period must be positive (frames), got {period}")

@@ -521,7 +521,9 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     then only estimated for the comfort step and possibly absent; ``"auto"``
     (default): ``"period"`` when a period is given or found, else ``"record"``.
     """
-    from .frames import estimate_period, motion_frame, motion_frame_from_record, to_motion_frame
+    from .frames import HORSE_STRIDE_HZ, estimate_period, motion_frame, motion_frame_from_record, to_motion_frame
+
+    stride = {"fps": session.fps, "max_rate_hz": HORSE_STRIDE_HZ[1]}     # a horse's stride repeats at most so fast
 
     smoothed = res["smooth"]["smoothed"]
     if res["static"]["static_points"] is None:
@@ -531,7 +533,7 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     if mode == "auto":
         try:
             motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
-                         period=params.period_frames, n_periods=params.n_periods)
+                         period=params.period_frames, n_periods=params.n_periods, **stride)
             mode = "period"
         except ValueError as exc:
             progress("motion_frame", f"the thesis' motion frame needs a period: {exc}; using the net "
@@ -541,7 +543,7 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
         period, why = params.period_frames, "given"
         if period is None:
             try:
-                period, why = estimate_period(smoothed, session.fps, gravity=res["plumb"]["gravity"]), "estimated"
+                period, why = estimate_period(smoothed, gravity=res["plumb"]["gravity"], **stride), "estimated"
             except ValueError as exc:
                 period, why = None, f"not found ({exc})"
         try:
@@ -556,7 +558,7 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
                 "static": to_motion_frame(res["static"]["static_points"], mf)}
     try:
         mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
-                          period=params.period_frames, n_periods=params.n_periods)
+                          period=params.period_frames, n_periods=params.n_periods, **stride)
     except ValueError as exc:
         raise AnalysisError("motion_frame", f"{exc}. The analysed frames {a}..{b - 1} ({b - a} frames, the "
                             "longest run in which every camera sees every marker; see markers_2d.csv) "

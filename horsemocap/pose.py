@@ -867,7 +867,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
                         points=None, partial: bool = False, iterations: int = 3,
                         harmonics: str = "auto", fundamental_hz: float | None = None,
                         rotation_noise_test: bool = True, events=None,
-                        rotation_weights: str = "auto") -> PoseTrajectory:
+                        rotation_weights: str = "auto",
+                        expected_fundamental_hz: float | None = None) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     Parameters
@@ -942,6 +943,13 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         only; other smoothings ignore it.
     fundamental_hz : float, optional
         The stride frequency (Hz) for ``harmonics="auto"``; estimated from the data if None.
+    expected_fundamental_hz : float, optional
+        A stride frequency found by another estimator (the pipeline: the motion frame's period).
+        When the record's own search (at least 2 cycles) finds none, it is searched again down to
+        :data:`SHORT_RECORD_CYCLES` cycles and taken only if it agrees with this one within
+        :data:`FUNDAMENTAL_AGREEMENT` (two estimators, autocorrelation and least squares, on a
+        record of about 2 strides: a rising trot of 1.4 s at 25 fps, 1.97 strides, was smoothed as
+        non-periodic, saddle acceleration 35 % off).
     rotation_noise_test : bool
         With ``harmonics="auto"``: the rotation harmonics' test against the predicted rotation
         noise (default on; off gives the rule before it, for comparison).
@@ -972,7 +980,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         triangle: observed variances 2-60 times the predicted) the equal weights are kept.
         ``"equal"``: equal weights (the rule before 2026-11-24).
     """
-    from .splines import estimate_fundamental, smoothing_spline
+    from .splines import smoothing_spline
 
     t = np.asarray(t, float)
     reg = registration
@@ -1007,14 +1015,14 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     f0 = None
     found_f0 = fundamental_hz
     choice = None
+    confirmed = ""
     if smoothing == "auto" or with_harmonics(smoothing):
         if found_f0 is None:
-            try:
-                found_f0, _ = estimate_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]))
-            except ValueError:
-                found_f0 = None
+            found_f0, confirmed = _record_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]),
+                                                      expected_fundamental_hz)
     if smoothing == "auto":
         smoothing, reason = choose_smoothing(found_f0, events, order, lam_given=all(v is not None for v in lam))
+        reason += confirmed
         if smoothing == "adaptive" and reg.information is not None and rotation_weights == "auto":
             reason += "; the rotation's per-frame variance weights are a GCV option and not applied"
         choice = {"smoothing_method": smoothing, "smoothing_reason": reason}
@@ -1080,6 +1088,34 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     return PoseTrajectory(t=t, reference=ref.as_matrix(), model_centroid=np.asarray(model, float).mean(0),
                           centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason.astype(str),
                           registration=reg, rotvec_data=phi)
+
+
+#: The fewest cycles a record's own fundamental search goes down to when another estimator's
+#: fundamental is there to confirm it (:func:`fit_pose_trajectory`'s ``expected_fundamental_hz``).
+SHORT_RECORD_CYCLES = 1.5
+#: How near (relative) the two estimates must be for the shorter search's result to be kept.
+FUNDAMENTAL_AGREEMENT = 0.05
+
+
+def _record_fundamental(t, Y, expected_hz=None) -> tuple:
+    """``(fundamental or None, note)``: :func:`horsemocap.splines.estimate_fundamental` over at least 2
+    cycles; if it finds none and ``expected_hz`` is given, over :data:`SHORT_RECORD_CYCLES`, kept only
+    when within :data:`FUNDAMENTAL_AGREEMENT` of ``expected_hz`` (the note says so)."""
+    from .splines import estimate_fundamental
+
+    try:
+        return estimate_fundamental(t, Y)[0], ""
+    except ValueError:
+        if expected_hz is None or not np.isfinite(expected_hz) or expected_hz <= 0:
+            return None, ""
+    try:
+        f, _ = estimate_fundamental(t, Y, min_cycles=SHORT_RECORD_CYCLES)
+    except ValueError:
+        return None, ""
+    if abs(f / expected_hz - 1) > FUNDAMENTAL_AGREEMENT:
+        return None, ""
+    return f, (f" (a record of under 2 cycles: found searching down to {SHORT_RECORD_CYCLES:g} cycles, "
+               f"confirmed by the motion frame's {expected_hz:.4g} Hz)")
 
 
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False) -> tuple[str, str]:

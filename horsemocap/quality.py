@@ -272,7 +272,9 @@ def check_horse_speed(speed_kmh, input_="comfort.csv 'vel_x_avg'") -> Check:
 
 def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period_frames") -> Check:
     """Stride frequency: ``ok`` 0.7-2.7 Hz (walk to racing gallop), ``warning`` 0.4-3.5 Hz."""
-    return range_check("stride_frequency", frequency_hz, "Hz", (0.7, 2.7), (0.4, 3.5), input_,
+    from .frames import HORSE_STRIDE_HZ
+
+    return range_check("stride_frequency", frequency_hz, "Hz", HORSE_STRIDE_HZ, (0.4, 3.5), input_,
                        "stride frequency")
 
 

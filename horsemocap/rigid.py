@@ -1162,7 +1162,8 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
         sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
         traj = pose_mod.fit_pose_trajectory(pt, preg_all, model, smoothing=sm, order=order, points=ppts,
                                             partial=pose_partial, harmonics=pose_harmonics,
-                                            rotation_weights=pose_rotation_weights, events=pose_events)
+                                            rotation_weights=pose_rotation_weights, events=pose_events,
+                                            expected_fundamental_hz=None if not period_s else 1.0 / period_s)
         psaddle = traj.point(t, s_saddle)
         pmarkers = traj.points(t, model)
         try:

@@ -246,3 +246,23 @@ def test_widgets_default_to_the_automatic_choice():
     assert w.value == {"method": AnalysisParams().smoothing_method, "span": AnalysisParams().smoothing_span}
     w.method.value = "lowess"
     assert w.value["method"] == "lowess"
+
+
+def test_a_period_faster_than_a_horse_can_stride_is_searched_again():
+    """A trot's vertical motion: two alike bounces per stride (period 18 frames at 25 fps, 1.39 Hz), a
+    slight difference between them; 38 frames (2.1 strides). The autocorrelation's first prominent
+    peak is the half stride (2.78 Hz: faster than a horse strides); with the stride's upper rate the
+    period is searched again among longer lags and found whole."""
+    from horsemocap.frames import HORSE_STRIDE_HZ, estimate_period
+
+    k = np.arange(38.0)
+    w = 2 * np.pi / 18.0
+    y = 0.03 * np.sin(2 * w * k) + 0.006 * np.sin(w * k + 0.4) + 0.004 * np.sin(3 * w * k)
+    half = estimate_period(y, 25.0)
+    assert half == pytest.approx(9.0, abs=0.5)
+    assert estimate_period(y, 25.0, max_rate_hz=HORSE_STRIDE_HZ[1]) == pytest.approx(18.0, abs=0.3)
+    # a record too short to show the whole stride keeps the faster period (the quality check flags it)
+    assert estimate_period(y[:26], 25.0, max_rate_hz=HORSE_STRIDE_HZ[1]) == pytest.approx(9.0, abs=0.5)
+    # a period within a horse's range is left alone
+    slow = 0.03 * np.sin(w * k)
+    assert estimate_period(slow, 25.0, max_rate_hz=HORSE_STRIDE_HZ[1]) == pytest.approx(18.0, abs=0.3)

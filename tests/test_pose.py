@@ -256,3 +256,20 @@ def test_frames_without_a_pose_name_the_missing_markers():
     assert "missing: marker2, marker3" in pose.register_pose(pts, model).reason[1]
     reg = pose.register_pose(pts, model, names=["LASI", "RASI", "LPSI", "RPSI"])
     assert "missing: RASI, LPSI" in reg.reason[1] and reg.reason[0] == ""
+
+
+def test_a_fundamental_under_two_cycles_is_taken_when_another_estimator_agrees():
+    """1.97 cycles of a 1.41 Hz motion: the record's own search (2 cycles at least) finds none; searched
+    down to 1.5 cycles it finds 1.41 Hz, kept only when another estimate (the motion frame's) agrees."""
+    t = np.arange(36) / 25.0
+    w = 2 * np.pi * 1.4065
+    Y = np.column_stack([0.02 * np.sin(w * t) + 0.03 * np.sin(2 * w * t + 1), 0.01 * np.cos(w * t),
+                         0.004 * np.sin(3 * w * t)]) + 1e-5 * np.random.default_rng(0).normal(size=(36, 3))
+    with pytest.raises(ValueError, match="no period resolved"):
+        splines.estimate_fundamental(t, Y)
+    f, note = pose._record_fundamental(t, Y, None)
+    assert f is None and note == ""
+    f, note = pose._record_fundamental(t, Y, 1.405)
+    assert f == pytest.approx(1.4065, rel=1e-3) and "confirmed by the motion frame" in note
+    f, _ = pose._record_fundamental(t, Y, 2.81)                 # the other estimate disagrees: none
+    assert f is None
