@@ -59,7 +59,12 @@ def measure(name, folder, method, params):
     st = accuracy.stage_errors(a, truth)
     keys = ("acc_y_Wb_rms", "acc_y_Wk_rms")
     ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, keys)
-    med = max(c["median_px"] for c in ide["cameras"].values())
+    meds = [c["median_px"] for c in ide["cameras"].values()]
+    # the worst camera's; a camera without any correct centre has none (NaN) and is named, not maxed over
+    med = max((m for m in meds if np.isfinite(m)), default=float("nan"))
+    empty = [cam for cam, c in ide["cameras"].items() if not np.isfinite(c["median_px"])]
+    if empty:
+        print(f"{name:34s} no correct 2D centre in camera(s) {', '.join(empty)}", flush=True)
     cover = 100.0 * ide["with_3d"] / max(ide["seen_by_two"], 1)
     row = {"wrong": ide["wrong_total"], "median_px": med, "cover_pct": cover,
            "saddle": st["saddle_acc_y_rmse_pct_of_rms"], "Wb": ce["acc_y_Wb_rms"], "Wk": ce["acc_y_Wk_rms"],
