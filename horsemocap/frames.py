@@ -244,7 +244,10 @@ def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
                              "give the period explicitly")
         peaks = [L]
     best = max(r[L] for L in peaks)
-    L = next(L for L in peaks if r[L] >= 0.8 * best)  # first prominent peak (not a harmonic of it)
+    L = next((L for L in peaks if r[L] >= 0.8 * best), None)  # first prominent peak (not a harmonic of it)
+    if L is None or best <= 0:          # every peak negative: nothing repeats
+        raise ValueError("estimate_period: no periodic component found (no positive autocorrelation peak); "
+                         "give the period explicitly")
     lag = float(L)
     if 0 < L < r.size - 1:
         y0, y1, y2 = r[L - 1], r[L], r[L + 1]

@@ -92,7 +92,7 @@ def step_sync(session: Session, params: AnalysisParams, res: dict, progress) -> 
     else:
         found, how = sync.flash_detections(sources), "flashlight"
         offsets = {c: int(d.frame) for c, d in found.items()}
-        ambiguous = {c: int(d.runner_up["frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}
+        ambiguous = {c: int(d.runner_up["on_frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}
     counts = {c: len(s) for c, s in sources.items()}
     n = check_frame_counts(session, counts, offsets, offsets_from=how)
     progress("sync", f"offsets {offsets} ({how}); {n} synchronised frames")
@@ -269,7 +269,7 @@ def _sync_check_summary(rounds: list, sync: dict) -> dict:
         out[c] = {"shift": int(sync["offsets"][c] - flash[c]), "moved": any(r[c]["shift"] for r in rounds),
                   "current_px": rounds[0][c]["current_px"], "best_px": last["best_px"],
                   "n_points": last["n_points"], "decided": last["decided"], "rounds": len(rounds),
-                  "settled": settled}
+                  "settled": settled, "reach": last.get("reach")}
     return out
 
 
@@ -308,7 +308,7 @@ def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, 
             seq.close()
         fs = best_frame_shift(shifts, med, npts)
         out[c] = {"shift": fs.best, "current_px": fs.current_px, "best_px": fs.best_px, "n_points": fs.n_points,
-                  "decided": fs.decided}
+                  "decided": fs.decided, "reach": reach}
     moved = {c: v["shift"] for c, v in out.items() if v["shift"]}
     if moved:
         new = {c: int(offsets[c] + moved.get(c, 0)) for c in session.cameras}
@@ -555,7 +555,8 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
                     f"period {why}: only the comfort step needs it"))
         return {"frame": mf, "axes": mf.axes, "period_frames": None if period is None else float(period),
                 "positions": to_motion_frame(smoothed, mf),
-                "static": to_motion_frame(res["static"]["static_points"], mf)}
+                "static": to_motion_frame(res["static"]["static_points"], mf),
+                **_faster_period(smoothed, res["plumb"]["gravity"], session.fps, period, params, progress)}
     try:
         mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
                           period=params.period_frames, n_periods=params.n_periods, **stride)
@@ -568,7 +569,27 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     progress("motion_frame", f"period {mf.period_frames:.2f} frames")
     return {"frame": mf, "axes": mf.axes, "period_frames": float(mf.period_frames),
             "positions": to_motion_frame(smoothed, mf),
-            "static": to_motion_frame(res["static"]["static_points"], mf)}
+            "static": to_motion_frame(res["static"]["static_points"], mf),
+            **_faster_period(smoothed, res["plumb"]["gravity"], session.fps, mf.period_frames, params, progress)}
+
+
+def _faster_period(smoothed, gravity, fps, period, params, progress) -> dict:
+    """``{"faster_period_frames": P}`` when the period was estimated and the record also repeats faster than a
+    horse strides (:data:`horsemocap.frames.HORSE_STRIDE_HZ`), at ``P`` frames, so the period taken was searched
+    again among longer lags (said, and judged by :func:`horsemocap.quality.check_stride_frequency`); else {}."""
+    from .frames import estimate_period
+
+    if period is None or params.period_frames is not None:
+        return {}
+    try:
+        fast = estimate_period(smoothed, fps, gravity=gravity)       # without the stride's bound
+    except ValueError:
+        return {}
+    if abs(fast - float(period)) <= 0.5:
+        return {}
+    progress("motion_frame", f"the record also repeats every {fast:.2f} frames ({fps / fast:.3g} Hz), faster than a "
+                             f"horse strides: the period was searched among longer lags and taken as {float(period):.2f}")
+    return {"faster_period_frames": float(fast)}
 
 
 def _fourier_orders(given, n_markers):

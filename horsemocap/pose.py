@@ -1115,7 +1115,7 @@ def _record_fundamental(t, Y, expected_hz=None) -> tuple:
     if abs(f / expected_hz - 1) > FUNDAMENTAL_AGREEMENT:
         return None, ""
     return f, (f" (a record of under 2 cycles: found searching down to {SHORT_RECORD_CYCLES:g} cycles, "
-               f"confirmed by the motion frame's {expected_hz:.4g} Hz)")
+               f"confirmed by the stride period of the motion-frame step, {expected_hz:.4g} Hz)")
 
 
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False) -> tuple[str, str]:

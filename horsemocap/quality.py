@@ -270,12 +270,20 @@ def check_horse_speed(speed_kmh, input_="comfort.csv 'vel_x_avg'") -> Check:
                        "average speed of the horse")
 
 
-def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period_frames") -> Check:
-    """Stride frequency: ``ok`` 0.7-2.7 Hz (walk to racing gallop), ``warning`` 0.4-3.5 Hz."""
+def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period_frames",
+                           faster_hz: float | None = None) -> Check:
+    """Stride frequency: ``ok`` inside :data:`horsemocap.frames.HORSE_STRIDE_HZ` (0.7-2.7 Hz, walk to racing
+    gallop), ``warning`` 0.4-3.5 Hz."""
     from .frames import HORSE_STRIDE_HZ
 
-    return range_check("stride_frequency", frequency_hz, "Hz", HORSE_STRIDE_HZ, (0.4, 3.5), input_,
-                       "stride frequency")
+    check = range_check("stride_frequency", frequency_hz, "Hz", HORSE_STRIDE_HZ, (0.4, 3.5), input_,
+                        "stride frequency")
+    if faster_hz is not None and check.level == "ok":   # ``faster_hz``: the record also repeats that fast
+        check = replace(check, level="warning", message=(
+            f"{check.message}; the record also repeats at {faster_hz:.3g} Hz, faster than a horse strides, and "
+            "the period was taken twice as long or more: a gait with two alike beats per stride (a trot) "
+            "does this; check the period (notebook 06) or give it (--period)"))
+    return check
 
 
 def check_saddle_acceleration(peak_mps2, input_="comfort.csv 'acc_y_max'") -> Check:
@@ -400,7 +408,25 @@ def _shift_residuals(v: dict) -> str:
     return f"median residual {px(v['current_px'])} at the flash's offset -> {px(v['best_px'])}"
 
 
-def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", ambiguous=None) -> Check:
+def _markers_settle(check, other_frame, taken_frame) -> bool:
+    """Did the markers' check of a camera also judge its second flash candidate? Only if it was decided, the
+    markers fell on the camera's regions at the offset it kept (median residual below
+    :data:`horsemocap.detection.timeshift.MIN_CURRENT_PX`), and the candidate lay within the shifts it tried
+    (``reach``; unknown distances count as not tried)."""
+    from .detection.timeshift import MIN_CURRENT_PX
+
+    if not check or not check.get("decided", True):
+        return False
+    if not (math.isfinite(check.get("best_px", float("nan"))) and check["best_px"] < MIN_CURRENT_PX):
+        return False
+    reach = check.get("reach")
+    if reach is None or taken_frame is None:
+        return False
+    return abs(int(other_frame) - int(taken_frame)) <= int(reach)
+
+
+def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", ambiguous=None,
+                          flash=None) -> Check:
     """Did the markers confirm every camera's flash offset?
 
     ``sync_check``: camera -> ``{"shift": frames, "current_px": .., "best_px": ..}``
@@ -415,12 +441,14 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", a
     the rounds ran out are ``unreliable`` (the offsets used were never
     confirmed). ``ambiguous``: camera -> the frame of a second flash
     candidate nearly as likely (``flash_ambiguous`` of the sync step); such a
-    camera the markers did not check is a ``warning``.
+    camera the markers did not check is a ``warning``: one whose check found
+    no markers, or whose second candidate lies beyond the shifts the check
+    tried (``flash``: camera -> the flash's own offset, to measure that).
     """
     threshold = "no correction and every camera checked: ok; a correction or a camera unchecked: warning; " \
         "corrections still moving when the rounds ran out: unreliable"
     ambiguous = dict(ambiguous or {})
-    unsure = {c: f for c, f in ambiguous.items() if not sync_check.get(c, {}).get("decided", False)}
+    unsure = {c: f for c, f in ambiguous.items() if not _markers_settle(sync_check.get(c), f, (flash or {}).get(c))}
     unsure_text = ("two flash candidates of similar score and no check by the markers in " + ", ".join(
         f"camera '{c}' (frame {f} nearly as likely as the one taken)" for c, f in unsure.items()))
     if not sync_check:
@@ -545,9 +573,12 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
     ambiguous = res.get("sync", {}).get("flash_ambiguous")
     if "detect" in res and (res["detect"].get("sync_check") or ambiguous):
-        checks.append(check_sync_by_markers(res["detect"].get("sync_check") or {}, ambiguous=ambiguous))
+        checks.append(check_sync_by_markers(res["detect"].get("sync_check") or {}, ambiguous=ambiguous,
+                                            flash=res["sync"].get("flash_offsets", res["sync"]["offsets"])))
     if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
-        checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"]))
+        fast = res["motion_frame"].get("faster_period_frames")
+        checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"],
+                                             faster_hz=None if fast is None else s.fps / fast))
     if "rigid_body" in res:
         rb = res["rigid_body"]
         checks.append(check_marker_geometry(rb.get("warnings")))

@@ -83,7 +83,8 @@ class FlashDetection:
         should be checked (by eye or by the markers).
     runner_up : dict or None
         The best accepted candidate at another frame (an entry of
-        ``candidates``), None if there is none.
+        ``candidates``, with ``on_frame``: its first frame on, measured as
+        ``frame`` is), None if there is none.
     """
 
     frame: int
@@ -385,6 +386,8 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     """
     raw, label = _read(frames, search_frames, start)
     label = name or label
+    if len(raw) == 0:
+        raise SyncError(f"{label}: no frames to search for the flash (from frame {start})")
     g = _gray_stack(raw, scale)
     n = g.shape[0]
     m, k = int(min_on_frames), 2
@@ -405,10 +408,22 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     others = [c for c in accepted if abs(c["frame"] - best["frame"]) > 1]
     runner = max(others, key=lambda c: c["score"], default=None)
     ambiguous = runner is not None and runner["score"] >= ambiguity_ratio * best["score"]
-    t_med, (win, comp) = best["_t"], best["_mask"]
-    region_small = np.zeros(g.shape[1:], np.uint8)
-    region_small[win] = comp
+    t, region, signal, off, on = _on_frame(raw, best, g.shape[1:], k, m, n)
     public = tuple({key: v for key, v in c.items() if not key.startswith("_")} for c in candidates)
+    pub_runner = None
+    if runner is not None:      # its own first frame on, measured as the flash's (not the onset of its rise)
+        pub_runner = {key: v for key, v in runner.items() if not key.startswith("_")}
+        pub_runner["on_frame"] = int(_on_frame(raw, runner, g.shape[1:], k, m, n)[0] + start)
+    return FlashDetection(int(t + start), region, signal, off, on, int(region.sum()), best["surround_bright"],
+                          public, int(start), float(best["score"]), bool(ambiguous), pub_runner)
+
+
+def _on_frame(raw, cand: dict, small_shape, k: int, m: int, n: int):
+    """``(t, region, signal, off, on)`` of a candidate: its region at full size, its mean brightness per
+    frame, the levels before and after its rise, and ``t`` the first frame (in the window) above half-way."""
+    t_med, (win, comp) = cand["_t"], cand["_mask"]
+    region_small = np.zeros(small_shape, np.uint8)
+    region_small[win] = comp
     full = np.asarray(raw[0]).shape[:2]
     region = cv2.resize(region_small, (full[1], full[0]), interpolation=cv2.INTER_NEAREST) > 0
     signal = _region_signal(raw, region)
@@ -419,9 +434,7 @@ def detect_flash(frames, *, search_frames: int | None = DEFAULT_SEARCH_FRAMES, s
     t = lo
     while t < n and signal[t] <= half:
         t += 1
-    pub_runner = next((p for c, p in zip(candidates, public) if c is runner), None)
-    return FlashDetection(int(t + start), region, signal, off, on, int(region.sum()), best["surround_bright"],
-                          public, int(start), float(best["score"]), bool(ambiguous), pub_runner)
+    return t, region, signal, off, on
 
 
 def flash_frame(frames, **kwargs) -> int:

@@ -266,3 +266,18 @@ def test_a_period_faster_than_a_horse_can_stride_is_searched_again():
     # a period within a horse's range is left alone
     slow = 0.03 * np.sin(w * k)
     assert estimate_period(slow, 25.0, max_rate_hz=HORSE_STRIDE_HZ[1]) == pytest.approx(18.0, abs=0.3)
+
+
+def test_estimate_period_on_drifts_returns_or_raises_value_error():
+    """Every autocorrelation peak of a drift may be negative: a clear ValueError, never StopIteration
+    (which escaped the pipeline's handling before)."""
+    from horsemocap.frames import HORSE_STRIDE_HZ, estimate_period
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        y = np.cumsum(rng.normal(size=36))
+        for rate in (None, HORSE_STRIDE_HZ[1]):
+            try:
+                estimate_period(y, 25.0, max_rate_hz=rate)
+            except ValueError:
+                pass

@@ -270,6 +270,6 @@ def test_a_fundamental_under_two_cycles_is_taken_when_another_estimator_agrees()
     f, note = pose._record_fundamental(t, Y, None)
     assert f is None and note == ""
     f, note = pose._record_fundamental(t, Y, 1.405)
-    assert f == pytest.approx(1.4065, rel=1e-3) and "confirmed by the motion frame" in note
+    assert f == pytest.approx(1.4065, rel=1e-3) and "confirmed by the stride period" in note
     f, _ = pose._record_fundamental(t, Y, 2.81)                 # the other estimate disagrees: none
     assert f is None

@@ -198,12 +198,27 @@ def test_post_checks_judge_the_markers_shape():
 def test_an_ambiguous_flash_the_markers_did_not_check_is_a_warning():
     from horsemocap.quality import check_sync_by_markers
 
-    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2, "n_points": 40, "decided": True}
+    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2, "n_points": 40, "decided": True, "reach": 30}
             for c in ("left", "middle", "right")}
-    assert check_sync_by_markers(same, ambiguous={"middle": 57}).level == "ok"        # the markers decided
+    flash = {"left": 8, "middle": 61, "right": 134}
+    assert check_sync_by_markers(same, ambiguous={"middle": 57}, flash=flash).level == "ok"   # the markers decided
+    # the second candidate beyond the shifts the markers tried, or no markers where the offset was kept
+    far = check_sync_by_markers(same, ambiguous={"middle": 400}, flash=flash)
+    assert far.level == "warning" and "frame 400" in far.message
+    lost = {**same, "middle": {**same["middle"], "current_px": 10.0, "best_px": 10.0}}
+    assert check_sync_by_markers(lost, ambiguous={"middle": 57}, flash=flash).level == "warning"
     unchecked = {**same, "middle": {**same["middle"], "decided": False, "n_points": 3}}
-    c = check_sync_by_markers(unchecked, ambiguous={"middle": 57})
+    c = check_sync_by_markers(unchecked, ambiguous={"middle": 57}, flash=flash)
     assert c.level == "warning" and "frame 57 nearly as likely" in c.message
     c = check_sync_by_markers({}, ambiguous={"left": 12})                            # two cameras: no check
     assert c.level == "warning" and "'left'" in c.message and "--offsets" in c.message
     assert check_sync_by_markers({}).level == "skipped"
+
+
+def test_a_period_searched_again_is_said_by_the_stride_check():
+    from horsemocap.quality import check_stride_frequency
+
+    assert check_stride_frequency(1.41).level == "ok"
+    c = check_stride_frequency(1.41, faster_hz=2.84)
+    assert c.level == "warning" and "also repeats at 2.84 Hz" in c.message
+    assert check_stride_frequency(3.0, faster_hz=6.0).level == "warning"      # already outside: as before

@@ -185,6 +185,7 @@ def test_object_that_appears_and_stays_is_taken_only_if_it_is_a_switch_on():
     det = detect_flash(frames.astype(np.uint8))
     assert det.ambiguous and det.runner_up is not None
     assert det.frame in (20, 40) and abs(det.runner_up["frame"] - (60 - det.frame)) <= 1
+    assert det.runner_up["on_frame"] == 60 - det.frame       # measured as the flash's frame: usable as an offset
     # only the flash: not ambiguous
     det = detect_flash(_scene(flash_at=40).astype(np.uint8))
     assert det.frame == 40 and not det.ambiguous and det.runner_up is None
@@ -202,3 +203,8 @@ def test_bright_bar_uncovered_by_a_passing_occluder_is_not_the_flash():
     assert det.frame == 45
     uncovered = [c for c in det.candidates if c["frame"] < 43]
     assert uncovered and not any(c["accepted"] for c in uncovered)
+
+
+def test_no_frames_is_a_sync_error():
+    with pytest.raises(SyncError, match="no frames to search"):
+        detect_flash(np.zeros((0, 10, 10), np.uint8), name="camera 'left'")

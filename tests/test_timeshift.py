@@ -75,12 +75,13 @@ def test_an_ambiguous_flash_is_recorded_and_settled_by_the_markers(monkeypatch):
     def ambiguous(sources, **kw):
         found = real(sources, **kw)
         return {**found, "middle": dataclasses.replace(found["middle"], ambiguous=True,
-                                                       runner_up={"frame": 40, "score": 0.8})}
+                                                       runner_up={"frame": 39, "on_frame": 40, "score": 0.8})}
 
     monkeypatch.setattr(sync, "flash_detections", ambiguous)
     session = load_session(default_session_dir())
     an = run_steps(session, resolve_params(session), {}, ["sync", "rig", "plumb", "static", "detect"])
     assert an.results["sync"]["flash_ambiguous"] == {"middle": 40}
-    check = quality.check_sync_by_markers(an.results["detect"]["sync_check"],
-                                          ambiguous=an.results["sync"]["flash_ambiguous"])
+    check = {c.name: c for c in quality.post_checks(an)}["sync_by_markers"]     # as the verdict sees it
     assert check.level == "ok" and an.results["detect"]["sync_check"]["middle"]["decided"]
+    from horsemocap.results import analysis_record
+    assert analysis_record(an)["chosen"]["sync"]["flash_ambiguous"] == {"middle": 40}
