@@ -33,6 +33,7 @@ __all__ = [
     "MotionFrame",
     "STANDARD_GRAVITY",
     "estimate_period",
+    "stride_period",
     "HORSE_STRIDE_HZ",
     "autocorrelation",
     "gravity_from_plumb",
@@ -210,6 +211,13 @@ def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
     float
         Period in frames (divide by ``fps`` for seconds).
     """
+    return _estimate_period(signal_or_points, fps, gravity, min_period, min_overlap, refine, harmonics,
+                            max_rate_hz)[0]
+
+
+def _estimate_period(signal_or_points, fps=None, gravity=None, min_period: float = 3.0, min_overlap: float = 0.4,
+                     refine: bool = True, harmonics: int = 2, max_rate_hz: float | None = None) -> tuple:
+    """:func:`estimate_period` and the faster period it searched past (or None): see :func:`stride_period`."""
     if fps is not None and not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a positive number, got {fps!r}")
     a = np.asarray(signal_or_points, float)
@@ -257,11 +265,27 @@ def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
     period = lag if not refine else _refine_period(sig, lag, harmonics)
     if max_rate_hz is not None and fps is not None and fps / period > max_rate_hz:
         try:
-            return estimate_period(sig, fps, min_period=max(min_period, fps / max_rate_hz), min_overlap=min_overlap,
-                                   refine=refine, harmonics=harmonics)
-        except ValueError:
-            pass                # the record cannot show a longer period: the faster one stays (and is flagged)
-    return period
+            longer = estimate_period(sig, fps, min_period=max(min_period, fps / max_rate_hz), min_overlap=min_overlap,
+                                     refine=refine, harmonics=harmonics)
+        except ValueError:      # the record cannot show a longer period: the faster one stays (and is flagged)
+            return period, None
+        return longer, (period if abs(longer - period) > 0.5 else None)
+    return period, None
+
+
+def stride_period(points, fps: float, gravity=None, max_rate_hz: float = HORSE_STRIDE_HZ[1]) -> tuple:
+    """The gait's period (frames) of :func:`estimate_period` with a horse's stride as the bound, and the
+    faster period the record also showed.
+
+    Returns
+    -------
+    period : float
+        ``estimate_period(points, fps, gravity=gravity, max_rate_hz=max_rate_hz)``.
+    faster : float or None
+        The period first found when it was faster than ``max_rate_hz`` and a longer one was taken (more
+        than half a frame apart), else None: the record also repeats that fast (a trot's two alike beats).
+    """
+    return _estimate_period(points, fps, gravity, max_rate_hz=max_rate_hz)
 
 
 def _fourier_sse(sig: np.ndarray, period: float, harmonics: int) -> float:
@@ -335,8 +359,7 @@ def _position_at(track: np.ndarray, frame: float) -> np.ndarray:
 
 
 def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
-                 n_periods: int | None = None, fps: float | None = None,
-                 max_rate_hz: float | None = None) -> MotionFrame:
+                 n_periods: int | None = None, fps: float | None = None) -> MotionFrame:
     """The motion reference frame (thesis eq. 5.6-5.12).
 
     Parameters
@@ -354,9 +377,8 @@ def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
     n_periods : {1, 2}, optional
         Eq. 5.6 (one period) or 5.7 (two). Default: 2 if the record holds
         two periods (frame ``2T`` exists), else 1.
-    fps, max_rate_hz : float, optional
-        Passed to :func:`estimate_period` (with both, a period faster than
-        ``max_rate_hz`` is searched again among longer ones).
+    fps : float, optional
+        Passed to :func:`estimate_period` (checks only).
 
     Returns
     -------
@@ -371,7 +393,7 @@ def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
     marker = int(marker)
     u2e = _unit(gravity, "gravity")
     if period is None:
-        period = estimate_period(p, fps, gravity=u2e, max_rate_hz=max_rate_hz)
+        period = estimate_period(p, fps, gravity=u2e)
     period = float(period)
     if not (period > 0):
         raise ValueError(f"period must be positive (frames), got {period}")

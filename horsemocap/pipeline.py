@@ -521,31 +521,31 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     then only estimated for the comfort step and possibly absent; ``"auto"``
     (default): ``"period"`` when a period is given or found, else ``"record"``.
     """
-    from .frames import HORSE_STRIDE_HZ, estimate_period, motion_frame, motion_frame_from_record, to_motion_frame
-
-    stride = {"fps": session.fps, "max_rate_hz": HORSE_STRIDE_HZ[1]}     # a horse's stride repeats at most so fast
+    from .frames import motion_frame, motion_frame_from_record, stride_period, to_motion_frame
 
     smoothed = res["smooth"]["smoothed"]
     if res["static"]["static_points"] is None:
         raise AnalysisError("motion_frame", res["static"]["missing"])
     a, b = res["triangulate"]["segment"]
+    period, faster, not_found = params.period_frames, None, None
+    if period is None:       # estimated once, a horse's stride the bound (frames.HORSE_STRIDE_HZ)
+        try:
+            period, faster = stride_period(smoothed, session.fps, gravity=res["plumb"]["gravity"])
+        except ValueError as exc:
+            not_found = exc
     mode = params.motion_frame
     if mode == "auto":
         try:
             motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
-                         period=params.period_frames, n_periods=params.n_periods, **stride)
+                         period=period, n_periods=params.n_periods)
             mode = "period"
         except ValueError as exc:
             progress("motion_frame", f"the thesis' motion frame needs a period: {exc}; using the net "
                                      "displacement over the whole record instead")
             mode = "record"
     if mode == "record":
-        period, why = params.period_frames, "given"
-        if period is None:
-            try:
-                period, why = estimate_period(smoothed, gravity=res["plumb"]["gravity"], **stride), "estimated"
-            except ValueError as exc:
-                period, why = None, f"not found ({exc})"
+        why = "given" if params.period_frames is not None else \
+            "estimated" if not_found is None else f"not found ({not_found})"
         try:
             mf = motion_frame_from_record(smoothed, res["plumb"]["gravity"], period)
         except ValueError as exc:
@@ -556,10 +556,10 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
         return {"frame": mf, "axes": mf.axes, "period_frames": None if period is None else float(period),
                 "positions": to_motion_frame(smoothed, mf),
                 "static": to_motion_frame(res["static"]["static_points"], mf),
-                **_faster_period(smoothed, res["plumb"]["gravity"], session.fps, period, params, progress)}
+                **_faster_period(session.fps, period, faster, progress)}
     try:
         mf = motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
-                          period=params.period_frames, n_periods=params.n_periods, **stride)
+                          period=period, n_periods=params.n_periods)
     except ValueError as exc:
         raise AnalysisError("motion_frame", f"{exc}. The analysed frames {a}..{b - 1} ({b - a} frames, the "
                             "longest run in which every camera sees every marker; see markers_2d.csv) "
@@ -570,26 +570,18 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
     return {"frame": mf, "axes": mf.axes, "period_frames": float(mf.period_frames),
             "positions": to_motion_frame(smoothed, mf),
             "static": to_motion_frame(res["static"]["static_points"], mf),
-            **_faster_period(smoothed, res["plumb"]["gravity"], session.fps, mf.period_frames, params, progress)}
+            **_faster_period(session.fps, mf.period_frames, faster, progress)}
 
 
-def _faster_period(smoothed, gravity, fps, period, params, progress) -> dict:
-    """``{"faster_period_frames": P}`` when the period was estimated and the record also repeats faster than a
-    horse strides (:data:`horsemocap.frames.HORSE_STRIDE_HZ`), at ``P`` frames, so the period taken was searched
-    again among longer lags (said, and judged by :func:`horsemocap.quality.check_stride_frequency`); else {}."""
-    from .frames import estimate_period
-
-    if period is None or params.period_frames is not None:
+def _faster_period(fps, period, faster, progress) -> dict:
+    """``{"faster_period_frames": faster}`` when the record also repeats faster than a horse strides
+    (:func:`horsemocap.frames.stride_period`), so the period taken was searched again among longer lags
+    (said, and judged by :func:`horsemocap.quality.check_stride_frequency`); else {}."""
+    if faster is None:
         return {}
-    try:
-        fast = estimate_period(smoothed, fps, gravity=gravity)       # without the stride's bound
-    except ValueError:
-        return {}
-    if abs(fast - float(period)) <= 0.5:
-        return {}
-    progress("motion_frame", f"the record also repeats every {fast:.2f} frames ({fps / fast:.3g} Hz), faster than a "
-                             f"horse strides: the period was searched among longer lags and taken as {float(period):.2f}")
-    return {"faster_period_frames": float(fast)}
+    progress("motion_frame", f"the record also repeats every {faster:.2f} frames ({fps / faster:.3g} Hz), faster than "
+                             f"a horse strides: the period was searched among longer lags and taken as {float(period):.2f}")
+    return {"faster_period_frames": float(faster)}
 
 
 def _fourier_orders(given, n_markers):

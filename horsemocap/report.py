@@ -238,14 +238,6 @@ INDICATORS = {
     "TVDV_action_Wk": ("time to the action value by VDV, Wk", "riding time until the dose reaches the action value"),
     "TVDV_limit_Wb": ("time to the limit value by VDV, Wb", "riding time until the dose reaches the limit value"),
     "TVDV_limit_Wk": ("time to the limit value by VDV, Wk", "riding time until the dose reaches the limit value"),
-    "Distance_TA_8_action_Wb": ("distance to the action value by A(8), Wb", "distance ridden in that time at the measured speed"),
-    "Distance_TA_8_action_Wk": ("distance to the action value by A(8), Wk", "distance ridden in that time at the measured speed"),
-    "Distance_TA_8_limit_Wb": ("distance to the limit value by A(8), Wb", "distance ridden in that time at the measured speed"),
-    "Distance_TA_8_limit_Wk": ("distance to the limit value by A(8), Wk", "distance ridden in that time at the measured speed"),
-    "Distance_TVDV_action_Wb": ("distance to the action value by VDV, Wb", "distance ridden in that time at the measured speed"),
-    "Distance_TVDV_action_Wk": ("distance to the action value by VDV, Wk", "distance ridden in that time at the measured speed"),
-    "Distance_TVDV_limit_Wb": ("distance to the limit value by VDV, Wb", "distance ridden in that time at the measured speed"),
-    "Distance_TVDV_limit_Wk": ("distance to the limit value by VDV, Wk", "distance ridden in that time at the measured speed"),
     "acc_x_Wd_rms": ("fore-aft acceleration, Wd-weighted rms", "the saddle's surge along the motion (ISO 2631-1 Wd, "
                      "horizontal); the Directive counts it 1.4 times"),
     "acc_y_Wk_rms_iso": ("vertical acceleration, Wk-weighted rms, each harmonic weighted", "what the Directive "
@@ -264,10 +256,6 @@ INDICATORS = {
                              "value is reached, judged on all three axes"),
     "TVDV_action_directive": ("time to the action value by VDV, Directive", "the same by the dose, all three axes"),
     "TVDV_limit_directive": ("time to the limit value by VDV, Directive", "the same by the dose, all three axes"),
-    "Distance_TA_8_action_directive": ("distance to the action value by A(8), Directive", "distance ridden in that time at the measured speed"),
-    "Distance_TA_8_limit_directive": ("distance to the limit value by A(8), Directive", "distance ridden in that time at the measured speed"),
-    "Distance_TVDV_action_directive": ("distance to the action value by VDV, Directive", "distance ridden in that time at the measured speed"),
-    "Distance_TVDV_limit_directive": ("distance to the limit value by VDV, Directive", "distance ridden in that time at the measured speed"),
     "vel_x_avg": ("average forward speed", "net distance over time along the direction of motion"),
     "amplitude_y": ("vertical amplitude of the saddle", "half the peak-to-peak of its fitted vertical position "
                     "(the thesis does not define it)"),
@@ -275,8 +263,12 @@ INDICATORS = {
     "f0_hz": ("stride frequency", "strides per second, the base of the harmonic series"),
     "period_s": ("stride period", "the time of one stride"),
 }
-"""For each comfort indicator (:data:`horsemocap.vibration.COMFORT_KEYS`): a
-name and a one-line meaning (chapter 7, EU directive 2002/44/EC)."""
+INDICATORS.update({f"Distance_{key}": (name.replace("time to the daily", "distance to the").replace("time to the",
+                                                                                                 "distance to the"),
+                                        "distance ridden in that time at the measured speed")
+                   for key, (name, _) in list(INDICATORS.items()) if key.startswith(("TA_8_", "TVDV_"))})
+"""For each comfort indicator (:data:`horsemocap.vibration.COMFORT_KEYS`, ``DIRECTIVE_KEYS``): a
+name and a one-line meaning (chapter 7, EU directive 2002/44/EC); the distances' from their times'."""
 
 
 def unit_html(unit: str) -> str:

@@ -573,15 +573,15 @@ COMFORT_KEYS = (
 
 
 def _unit(k: str) -> str:
+    """The unit of an indicator of :data:`COMFORT_KEYS` or :data:`DIRECTIVE_KEYS`."""
     if k.startswith("Distance_"):
         return "km"
     if k.startswith("T"):
         return "h"
     if k.startswith("VDV"):
         return "m/s^1.75"
-    return {"acc_y_Wb_rms": "m/s^2", "acc_y_Wk_rms": "m/s^2", "acc_y_max": "m/s^2",
-            "crest_factor_y": "1", "vel_x_avg": "km/h", "amplitude_y": "m",
-            "duration_s": "s", "f0_hz": "Hz", "period_s": "s"}[k]
+    return {"crest_factor_y": "1", "vel_x_avg": "km/h", "amplitude_y": "m",
+            "duration_s": "s", "f0_hz": "Hz", "period_s": "s"}.get(k, "m/s^2")   # the rest: accelerations
 
 
 DIRECTIVE_KEYS = (
@@ -601,15 +601,13 @@ weighted at its own frequency: ``acc_y_Wk_rms`` and ``VDV_y_Wk`` in the ``"iso"`
 DIRECTIVE_HORIZONTAL_FACTOR = 1.4
 
 
-def _directive_unit(k: str) -> str:
-    if k.startswith("Distance_"):
-        return "km"
-    if k.startswith("T"):
-        return "h"
-    return "m/s^1.75" if k.startswith("VDV") else "m/s^2"
+def _directive_axes(x: float, y: float, z: float) -> dict:
+    """The three axes' values as the Directive compares them: ``{"fore-aft": 1.4 x, "vertical": y, "lateral": 1.4 z}``."""
+    k = DIRECTIVE_HORIZONTAL_FACTOR
+    return {"fore-aft": k * x, "vertical": y, "lateral": k * z}
 
 
-COMFORT_UNITS = {**{k: _unit(k) for k in COMFORT_KEYS}, **{k: _directive_unit(k) for k in DIRECTIVE_KEYS}}
+COMFORT_UNITS = {k: _unit(k) for k in COMFORT_KEYS + DIRECTIVE_KEYS}
 """Unit of each indicator, as in thesis Table 8.7 (and of the Directive's three-axis rows)."""
 
 THESIS_TABLE_8_7 = {
@@ -811,9 +809,8 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
     for axis, (h, w) in axes.items():
         hist = synthesize(Harmonics(h.freq_hz, h.amplitude * weighting(w, h.freq_hz), 0.0), t)
         a_w[axis], v_w[axis] = float(rms(hist)), float(vdv(hist, fs))
-    k = DIRECTIVE_HORIZONTAL_FACTOR
-    a_dir = max(k * a_w["x"], a_w["y"], k * a_w["z"])
-    v_dir = max(k * v_w["x"], v_w["y"], k * v_w["z"])
+    a_dir = max(_directive_axes(a_w["x"], a_w["y"], a_w["z"]).values())
+    v_dir = max(_directive_axes(v_w["x"], v_w["y"], v_w["z"]).values())
     times = exposure_times(a_dir, v_dir, tau, limits)
     speed_kmh = float(vel_x_avg_mps) * 3.6
     out = {"acc_x_Wd_rms": a_w["x"], "acc_y_Wk_rms_iso": a_w["y"], "acc_z_Wd_rms": a_w["z"],
@@ -832,15 +829,11 @@ def directive_axis(indicators: dict, by: str = "rms") -> str:
     ``1.4 acc_z_Wd_rms``); ``by="vdv"``: the axis of ``VDV_directive``. ``indicators`` holds the keys of
     :data:`DIRECTIVE_KEYS` (:func:`saddle_comfort`, :func:`directive_indicators`). Ties go to the first of
     fore-aft, vertical, lateral."""
-    k = DIRECTIVE_HORIZONTAL_FACTOR
-    if by == "rms":
-        scaled = {"fore-aft": k * indicators["acc_x_Wd_rms"], "vertical": indicators["acc_y_Wk_rms_iso"],
-                  "lateral": k * indicators["acc_z_Wd_rms"]}
-    elif by == "vdv":
-        scaled = {"fore-aft": k * indicators["VDV_x_Wd"], "vertical": indicators["VDV_y_Wk_iso"],
-                  "lateral": k * indicators["VDV_z_Wd"]}
-    else:
+    keys = {"rms": ("acc_x_Wd_rms", "acc_y_Wk_rms_iso", "acc_z_Wd_rms"),
+            "vdv": ("VDV_x_Wd", "VDV_y_Wk_iso", "VDV_z_Wd")}.get(by)
+    if keys is None:
         raise ValueError(f"directive_axis: by must be 'rms' or 'vdv', got {by!r}")
+    scaled = _directive_axes(*(indicators[key] for key in keys))
     return max(scaled, key=scaled.get)
 
 
