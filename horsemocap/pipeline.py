@@ -269,7 +269,7 @@ def _sync_check_summary(rounds: list, sync: dict) -> dict:
         out[c] = {"shift": int(sync["offsets"][c] - flash[c]), "moved": any(r[c]["shift"] for r in rounds),
                   "current_px": rounds[0][c]["current_px"], "best_px": last["best_px"],
                   "n_points": last["n_points"], "decided": last["decided"], "rounds": len(rounds),
-                  "settled": settled, "reach": last.get("reach")}
+                  "settled": settled}
     return out
 
 
@@ -308,7 +308,7 @@ def _check_sync_by_markers(session: Session, params: AnalysisParams, res: dict, 
             seq.close()
         fs = best_frame_shift(shifts, med, npts)
         out[c] = {"shift": fs.best, "current_px": fs.current_px, "best_px": fs.best_px, "n_points": fs.n_points,
-                  "decided": fs.decided, "reach": reach}
+                  "decided": fs.decided}
     moved = {c: v["shift"] for c, v in out.items() if v["shift"]}
     if moved:
         new = {c: int(offsets[c] + moved.get(c, 0)) for c in session.cameras}

@@ -198,7 +198,7 @@ def test_post_checks_judge_the_markers_shape():
 def test_an_ambiguous_flash_the_markers_did_not_check_is_a_warning():
     from horsemocap.quality import check_sync_by_markers
 
-    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2, "n_points": 40, "decided": True, "reach": 30}
+    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2, "n_points": 40, "decided": True}
             for c in ("left", "middle", "right")}
     assert check_sync_by_markers(same, ambiguous={"middle": 57}).level == "ok"     # the markers confirm it
     # far beyond the shifts tried: the kept offset is still confirmed by the markers landing on the regions
