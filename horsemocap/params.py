@@ -18,6 +18,162 @@ class ParamsError(ValueError):
     """An analysis parameter file or value that cannot be used."""
 
 
+# ---------------------------------------------------------------------------
+# parameter sections: one per step (Pose2Sim's Config.toml has a section per step)
+# ---------------------------------------------------------------------------
+
+def _p(default=None, *, help: str, choices=None, range=None, kind=None, cli=None, legacy=None,
+       nullable=False, factory=None):
+    """A parameter field with what the one validation path and the generated command line need.
+
+    ``help`` explains it; ``choices`` (allowed strings), ``range`` ((lo, hi) of a number, ``None``
+    for an open end) or ``kind`` (``"bool"``, ``"int"``, ``"number"``, ``"dict"``, ``"list"``, ...) say
+    what is valid; ``cli`` is its command-line flag; ``legacy`` the flat name of parameter files
+    written before the sections (still read); ``nullable``: ``None`` is allowed (automatic).
+    """
+    meta = {"help": help, "choices": choices, "range": range, "kind": kind, "cli": cli,
+            "legacy": legacy, "nullable": nullable}
+    if factory is not None:
+        return field(default_factory=factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class SyncParams:
+    """Section ``sync``: the frame offsets between the cameras (eq. 3.11-3.14)."""
+
+    offsets: dict | None = _p(None, nullable=True, kind="offsets", cli="--offsets", legacy="sync_offsets",
+                              help="frame index of the same instant in every camera; null = found from the flashlight")
+
+
+@dataclass(frozen=True)
+class RigParams:
+    """Section ``rig``: the calibrated rig (sections 3.3-3.6)."""
+
+    recalibrate: bool = _p(False, kind="bool", cli="--recalibrate", legacy="recalibrate",
+                           help="calibrate from the session's checkerboard views even if it has a rig")
+    exclude: dict = _p(factory=dict, kind="exclude", cli="--exclude-views", legacy="calibration_exclude",
+                       help="{camera: [view file names]} left out of the calibration")
+    mode: str = _p("joint", choices=("joint", "pairwise"), cli="--calibration", legacy="calibration_mode",
+                   help="joint: one bundle adjustment of every camera; pairwise: the thesis' stereo pairs")
+
+
+@dataclass(frozen=True)
+class StillsParams:
+    """Section ``stills``: the plumb line's and the static shot's stills (Appendix A 7a, 8a, 12a)."""
+
+    plumb: dict = _p(factory=dict, kind="stills", cli="--plumb-threshold",
+                     help='{camera or "all": {"threshold": l, "labels": [...]}} of the plumb stills')
+    static: dict = _p(factory=dict, kind="stills", cli="--static-threshold",
+                      help='{camera or "all": {"threshold": l, "labels": [...]}} of the static-shot stills')
+
+
+@dataclass(frozen=True)
+class DetectParams:
+    """Section ``detect``: the markers in the motion frames (chapter 4)."""
+
+    method: str = _p("multiview", choices=("multiview", "thesis"), cli="--detection", legacy="detection_method",
+                     help="multiview: identified by all cameras together; thesis: each camera alone (chapter 4)")
+    cameras: dict = _p(factory=dict, kind="detection", cli="--threshold", legacy="detection",
+                       help='{camera or "all": {detector parameter: value}} (threshold, labels, window, ...)')
+    max_gap_frames: int | None = _p(None, nullable=True, kind="int", range=(0, None), cli="--max-gap",
+                                    legacy="max_gap_frames",
+                                    help="longest 3D gap bridged by interpolation; null = 0.1 s of frames")
+
+
+@dataclass(frozen=True)
+class TriangulateParams:
+    """Section ``triangulate``: 3D positions from the cameras (section 5.1)."""
+
+    mode: str = _p("joint", choices=("joint", "thesis"), cli="--triangulation", legacy="triangulation",
+                   help="joint: all cameras at once; thesis: the three pairs averaged (eq. 5.5)")
+
+
+@dataclass(frozen=True)
+class SmoothParams:
+    """Section ``smooth``: smoothing of the 3D positions (section 5.2)."""
+
+    method: str = _p("loess", choices=("none", "rloess", "loess", "lowess", "rlowess", "moving"),
+                     cli="--smoothing", legacy="smoothing_method", help="the smoother (thesis: rloess)")
+    span: float = _p(0.1, kind="number", range=(0, 1), cli="--span", legacy="smoothing_span",
+                     help="span as a fraction of the points, in (0, 1]")
+
+
+@dataclass(frozen=True)
+class MotionFrameParams:
+    """Section ``motion_frame``: the motion reference frame (section 5.3)."""
+
+    mode: str = _p("auto", choices=("auto", "record", "period"), cli="--motion-frame", legacy="motion_frame",
+                   help="period: eq. 5.6/5.7; record: net displacement of the whole record; auto: period if found")
+    x_marker: int = _p(0, kind="int", range=(0, None), cli="--x-marker", legacy="x_marker",
+                       help="marker (0-based) whose net displacement defines x-motion (eq. 5.6)")
+    period_frames: float | None = _p(None, nullable=True, kind="number", range=(2, None), cli="--period",
+                                     legacy="period_frames", help="motion period in frames; null = estimated")
+    n_periods: int | None = _p(None, nullable=True, kind="int", range=(1, None), legacy="n_periods",
+                               help="periods used for the net displacement; null = two if the record holds them")
+
+
+@dataclass(frozen=True)
+class FitsParams:
+    """Sub-section ``rigid_body.fits``: the thesis' chain of fits (section 5.5, chapter 6)."""
+
+    x_degree: int = _p(1, kind="int", range=(0, 10), cli="--x-degree", legacy="x_degree",
+                       help="polynomial degree of the x-motion fit (5.5.2.1)")
+    fourier_orders: dict | list | None = _p(None, nullable=True, kind="fourier_orders", cli="--fourier-orders",
+                                            legacy="fourier_orders",
+                                            help='{"y": N, "z": N} or [[Ny, Nz], ...]; null = the order rule')
+    order_rule: str = _p("significant", choices=("significant", "every_significant", "adjrsquare", "thesis"),
+                         legacy="order_rule", help="the Fourier order rule (5.5.2.2)")
+    trend: bool = _p(True, kind="bool", legacy="fourier_trend", help="a linear drift term in the y/z fits")
+    angular_method: str = _p("rotation", choices=("rotation", "lstsq", "thesis"), cli="--angular",
+                             legacy="angular_method", help="omega/alpha: fitted orientation, least squares, "
+                                                           "or the thesis versions averaged")
+    omega_versions: list = _p(factory=lambda: [True] * 6, kind="versions", cli="--omega-versions",
+                              legacy="omega_versions", help="which of the six omega versions are averaged")
+    alpha_versions: list = _p(factory=lambda: [True] * 6, kind="versions", cli="--alpha-versions",
+                              legacy="alpha_versions", help="which of the six alpha versions are averaged")
+    saddle_method: str = _p("pose", choices=("pose", "direct", "thesis"), cli="--saddle", legacy="saddle_method",
+                            help="saddle kinematics: fitted pose, fitted eq. 6.48 path, or eq. 6.54/6.55")
+
+
+@dataclass(frozen=True)
+class PoseParams:
+    """Sub-section ``rigid_body.pose``: the smoothed pose trajectory (not in the thesis)."""
+
+    smoothing: str = _p("auto", choices=("auto", "adaptive", "gcv", "gcv_cubic", "none"), legacy="pose_smoothing",
+                        help="the pose splines' smoothing choice")
+    partial_frames: bool = _p(True, kind="bool", legacy="pose_partial_frames",
+                              help="also smooth over the neighbouring frames where two markers are seen")
+    harmonics: str = _p("auto", choices=("auto", "all", "none"), cli="--pose-harmonics", legacy="pose_harmonics",
+                        help="unpenalised stride harmonics in the pose smoothing")
+    weights: str = _p("covariance", choices=("covariance", "equal"), cli="--pose-weights", legacy="pose_weights",
+                      help="markers weighted by their triangulation covariance, or alike (eq. 5.14-5.21)")
+    rotation_weights: str = _p("auto", choices=("auto", "equal"), cli="--pose-rotation-weights",
+                               legacy="pose_rotation_weights", help="frames weighted by predicted variance")
+    events: list | None = _p(None, nullable=True, kind="events", cli="--pose-events", legacy="pose_events",
+                             help="known instants (s) where the acceleration may jump")
+
+
+@dataclass(frozen=True)
+class RigidBodyParams:
+    """Section ``rigid_body``: registration, kinematics and the hidden saddle marker (5.4-5.5, 6)."""
+
+    kinematics: str = _p("pose_spline", choices=("pose_spline", "fits"), cli="--kinematics", legacy="kinematics",
+                         help="pose_spline: the smoothed pose trajectory; fits: the thesis' chain of fits")
+    saddle_marker: int | None = _p(None, nullable=True, kind="int", range=(0, None), cli="--saddle-marker",
+                                   legacy="saddle_marker", help="which static-shot point is the saddle marker")
+    fits: FitsParams = field(default_factory=FitsParams, metadata={"section": True})
+    pose: PoseParams = field(default_factory=PoseParams, metadata={"section": True})
+
+
+@dataclass(frozen=True)
+class ComfortParams:
+    """Section ``comfort``: the whole-body vibration indicators (chapter 7)."""
+
+    weighting_mode: str = _p("iso", choices=("iso", "thesis"), cli="--weighting", legacy="weighting_mode",
+                             help="iso: each harmonic weighted at its frequency; thesis: one scalar W")
+
+
 @dataclass(frozen=True)
 class AnalysisParams:
     """Every choice of the analysis (thesis Appendix A prompts).
