@@ -55,6 +55,13 @@ def herd_description() -> dict:
 
 
 def write_herd_description(path=None) -> Path:
+    """Write :func:`herd_description` as JSON (atomically) and return the file's path.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        Where to write; default ``data_samples/herd.json`` in the repository.
+    """
     path = Path(path) if path else data_samples_dir() / "herd.json"
     return atomic_write_json(path, herd_description())
 
