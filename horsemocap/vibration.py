@@ -173,6 +173,13 @@ def analog_sections(name, *, band_limiting: bool = True) -> list[tuple[np.ndarra
     band_limiting : bool
         Include the 0.4 Hz high-pass and 100 Hz low-pass (ISO 2631-1 Table 3
         values include them).
+
+    Examples
+    --------
+    >>> len(analog_sections("Wk"))          # high-pass, low-pass, transition, upward step
+    4
+    >>> len(analog_sections("Wd", band_limiting=False))   # Wd has no upward step
+    1
     """
     p = _params(name)
     tp = 2.0 * math.pi
@@ -219,6 +226,14 @@ def weighting(name, freq_hz, *, band_limiting: bool = True) -> np.ndarray:
     Returns
     -------
     complex ndarray, shape of ``freq_hz``
+
+    Examples
+    --------
+    The weighting factors of ISO 2631-1 Table 3 (Wk, 1 to 16 Hz):
+
+    >>> import numpy as np
+    >>> np.abs(weighting("Wk", [1.0, 4.0, 8.0, 16.0])).round(3)
+    array([0.482, 0.967, 1.036, 0.769])
     """
     f = np.asarray(freq_hz, dtype=float)
     if np.any(f < 0) or not np.all(np.isfinite(f)):
@@ -234,6 +249,13 @@ def weighting_bs6841_wb(freq_hz, *, band_limiting: bool = True) -> np.ndarray:
     """``W_b`` written as BS 6841 does (K = 0.4, other upward-step normalisation).
 
     Identical to ``weighting("Wb", f)`` (K = 1.024); kept to show it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f = [0.5, 5.0, 50.0]
+    >>> bool(np.allclose(weighting_bs6841_wb(f), weighting("Wb", f)))
+    True
     """
     return weighting(WB_BS6841, freq_hz, band_limiting=band_limiting)
 
@@ -271,7 +293,16 @@ def _design_sos(name, fs, band_limiting=True):
 
 
 def digital_weighting_error(name, fs: float, freq_hz) -> np.ndarray:
-    """Relative error ``|H(f)|/|W(f)| - 1`` of :func:`weighting_filter` at ``freq_hz``."""
+    """Relative error ``|H(f)|/|W(f)| - 1`` of :func:`weighting_filter` at ``freq_hz``.
+
+    Examples
+    --------
+    At 200 Hz the digital Wb follows the analogue one closely up to 20 Hz:
+
+    >>> import numpy as np
+    >>> bool(np.all(np.abs(digital_weighting_error("Wb", 200.0, [1.0, 5.0, 20.0])) < 0.01))
+    True
+    """
     sos, _ = _design_sos(name, fs)
     f = np.asarray(freq_hz, dtype=float)
     _, h = _signal.sosfreqz(sos, worN=f, fs=fs)
@@ -293,16 +324,15 @@ def weighting_filter(name, fs: float, *, tol: float = 0.05, f_max_hz: float = 20
     fs : float
         Sampling rate in Hz.
     tol : float
-        Largest accepted relative error of ``|H|`` against ``|W|`` (5%).
+        Largest accepted relative error of ``|H|`` against ``|W|`` (0.05: 5 %).
     f_max_hz : float
         Top of the band checked: 0.5 Hz to ``min(f_max_hz, 0.49 fs)`` (the
         one-third-octave centres and 200 frequencies between; the band's top
         is where a bilinear design errs most). Default 20 Hz: people are most sensitive
         to whole-body vibration from 1 to 20 Hz (thesis 7.1) and a horse's
-        saddle motion lies below it. Measured errors (prewarped bilinear):
-        fs = 100 Hz: Wb -3.9%, Wk -8.2%, Wd -13% at 20 Hz (warns for Wk, Wd);
-        fs = 200 Hz: below 3.2% for all three; fs = 30 Hz (video): Wb +13% at
-        12.5 Hz, Wd -65%.
+        saddle motion lies below it. The error at any rate and frequency is
+        :func:`digital_weighting_error`'s: small at 200 Hz, large near a
+        video's Nyquist frequency (see the examples).
     warn : bool
         Issue :class:`DigitalWeightingWarning` when the error exceeds ``tol``
         somewhere in the band.
@@ -311,14 +341,27 @@ def weighting_filter(name, fs: float, *, tol: float = 0.05, f_max_hz: float = 20
     -------
     sos : ndarray (n_sections, 6)
         For :func:`scipy.signal.sosfilt`.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from scipy.signal import sosfilt
+    >>> sos = weighting_filter("Wk", 200.0)
+    >>> sos.shape                                 # four second-order sections
+    (4, 6)
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = weighting_filter("Wk", 30.0)      # a video's rate: too slow for a digital Wk
+    >>> caught[0].category.__name__
+    'DigitalWeightingWarning'
     """
     if not fs > 0:
         raise ValueError(f"weighting_filter: fs must be > 0, got {fs}")
     sos, dropped = _design_sos(name, fs)
     if warn:
         # every frequency of the band, not only the third-octave centres: the bilinear transform puts a
-        # zero at fs/2 for sections of lower numerator degree, and Wk at 30 fps errs -30 % at 13.5 Hz and
-        # -78 % at 14.55 Hz while the last centre below 0.45 fs (12.5 Hz) errs less than 5 %
+        # zero at fs/2 for sections of lower numerator degree, so at a video's rate the error grows fast
+        # between the last centre below 0.45 fs and 0.49 fs, where no centre checks it
         top = min(float(f_max_hz), 0.49 * fs)
         f = np.unique(np.concatenate([THIRD_OCTAVE_HZ[(THIRD_OCTAVE_HZ >= 0.5) & (THIRD_OCTAVE_HZ <= top)],
                                       np.geomspace(0.5, top, 200) if top > 0.5 else []]))
@@ -353,6 +396,18 @@ def apply_weighting(signal, fs: float, name, *, method: str = "iir", axis: int =
         a vibration meter; warns when fs is too low). ``"fft"``: multiply the
         DFT by the analogue ``W(f)`` at each bin (exact for a periodic record,
         e.g. whole gait cycles; no warping at any fs).
+
+    Examples
+    --------
+    A 4 Hz sine of amplitude 1 m/s^2 over whole periods: its weighted rms is
+    ``|Wk(4 Hz)| / sqrt(2)``.
+
+    >>> import numpy as np
+    >>> fs = 100.0
+    >>> t = np.arange(1000) / fs
+    >>> weighted = apply_weighting(np.sin(2 * np.pi * 4 * t), fs, "Wk", method="fft")
+    >>> round(float(rms(weighted)), 4), round(float(abs(weighting("Wk", 4.0)) / np.sqrt(2)), 4)
+    (0.6839, 0.6839)
     """
     x = np.asarray(signal, dtype=float)
     if method == "iir":
@@ -383,6 +438,12 @@ class Harmonics:
     amplitude : complex ndarray (n,)
         ``c_k``; ``|c_k|`` is the harmonic's amplitude.
     offset : float
+
+    Examples
+    --------
+    >>> h = Harmonics(freq_hz=[1.0], amplitude=[2.0], offset=0.5)
+    >>> h.evaluate([0.0, 0.25, 0.5]).round(6)
+    array([ 2.5,  0.5, -1.5])
     """
 
     freq_hz: np.ndarray
@@ -417,6 +478,19 @@ def harmonics_from_fourier(coefficients, derivative: int = 2) -> Harmonics:
     coefficients : array_like, length 2N + 2
     derivative : int
         0 position, 1 velocity, 2 acceleration.
+
+    Examples
+    --------
+    The position ``y = 0.02 cos(w t) + 0.01 sin(2 w t)`` at 2 Hz: its
+    acceleration's harmonics at 2 and 4 Hz, ``(2 pi 2)^2 0.02`` and
+    ``(2 pi 4)^2 0.01`` m/s^2 in amplitude.
+
+    >>> import numpy as np
+    >>> h = harmonics_from_fourier([0.1, 0.02, 0.0, 0.0, 0.01, 2 * np.pi * 2.0], derivative=2)
+    >>> h.freq_hz
+    array([2., 4.])
+    >>> np.abs(h.amplitude).round(4)
+    array([3.1583, 6.3165])
     """
     c = np.asarray(coefficients, dtype=float).ravel()
     if c.size < 4 or c.size % 2:
@@ -440,6 +514,14 @@ def harmonics_from_periodic_samples(samples, duration_s: float, n_periods: int =
     harmonics of the fundamental ``n_periods / duration_s`` (exact for a
     band-limited signal with enough samples). Used for analytic motions
     (the virtual laboratory's truth) and for whole-cycle accelerometer data.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> samples = 1 + np.cos(2 * np.pi * np.arange(8) / 8)     # one period in 8 samples
+    >>> h = harmonics_from_periodic_samples(samples, duration_s=1.0)
+    >>> h.offset, float(h.freq_hz[0]), round(float(abs(h.amplitude[0])), 6)
+    (1.0, 1.0, 1.0)
     """
     x = np.asarray(samples, dtype=float)
     if x.ndim != 1 or x.size < 4:
@@ -470,14 +552,26 @@ def _as_harmonics(x) -> Harmonics:
 
 
 def synthesize(harmonics: Harmonics, t) -> np.ndarray:
-    """Evaluate ``offset + Re(sum c_k exp(2j pi f_k t))`` at times ``t`` (s)."""
+    """Evaluate ``offset + Re(sum c_k exp(2j pi f_k t))`` at times ``t`` (s).
+
+    Examples
+    --------
+    >>> synthesize(Harmonics([1.0], [2.0], 0.5), [0.0, 0.25, 0.5]).round(6)
+    array([ 2.5,  0.5, -1.5])
+    """
     t = np.asarray(t, dtype=float)
     ph = np.exp(2j * math.pi * np.multiply.outer(t, harmonics.freq_hz))
     return harmonics.offset + (ph @ harmonics.amplitude).real
 
 
 def dominant_frequency(harmonics: Harmonics) -> float:
-    """Frequency (Hz) of the harmonic with the largest amplitude."""
+    """Frequency (Hz) of the harmonic with the largest amplitude.
+
+    Examples
+    --------
+    >>> dominant_frequency(Harmonics([2.0, 4.0], [1.0, 3.0]))
+    4.0
+    """
     return float(harmonics.freq_hz[int(np.argmax(np.abs(harmonics.amplitude)))])
 
 
@@ -501,25 +595,53 @@ EU_2002_44_EC = ExposureValues()
 
 
 def rms(samples, axis: int = 0) -> np.ndarray:
-    """Root mean square (eq. 7.3-7.4) of uniformly sampled values over the record."""
+    """Root mean square (eq. 7.3-7.4) of uniformly sampled values over the record.
+
+    Examples
+    --------
+    >>> float(rms([3.0, -3.0, 3.0, -3.0]))
+    3.0
+    """
     x = np.asarray(samples, dtype=float)
     return np.sqrt(np.mean(x * x, axis=axis))
 
 
 def vdv(samples, fs: float, axis: int = 0) -> np.ndarray:
-    """Vibration dose value ``(int a^4 dt)^(1/4)`` (eq. 7.8-7.9), m/s^1.75."""
+    """Vibration dose value ``(int a^4 dt)^(1/4)`` (eq. 7.8-7.9), m/s^1.75.
+
+    Examples
+    --------
+    A steady 2 m/s^2 for one second (100 samples at 100 Hz):
+
+    >>> float(vdv([2.0] * 100, fs=100.0))
+    2.0
+    """
     x = np.asarray(samples, dtype=float)
     return (np.sum(x ** 4, axis=axis) / fs) ** 0.25
 
 
 def crest_factor(samples, axis: int = 0) -> np.ndarray:
-    """Peak over rms (eq. 7.5-7.7)."""
+    """Peak over rms (eq. 7.5-7.7).
+
+    Examples
+    --------
+    >>> round(float(crest_factor([1.0, -1.0, 1.0, -3.0])), 4)     # 3 / sqrt(3)
+    1.7321
+    """
     x = np.asarray(samples, dtype=float)
     return np.max(np.abs(x), axis=axis) / rms(x, axis=axis)
 
 
 def time_to_a8(a_rms, threshold: float) -> np.ndarray:
-    """Hours to reach an A(8) threshold: ``8 (threshold / a_rms)^2`` (eq. 7.10-7.13)."""
+    """Hours to reach an A(8) threshold: ``8 (threshold / a_rms)^2`` (eq. 7.10-7.13).
+
+    Examples
+    --------
+    A weighted rms of 1 m/s^2 reaches the action value 0.5 m/s^2 in 2 h:
+
+    >>> float(time_to_a8(1.0, 0.5))
+    2.0
+    """
     a = np.asarray(a_rms, dtype=float)
     return 8.0 * (threshold / a) ** 2
 
@@ -530,6 +652,13 @@ def time_to_vdv(vdv_value, duration_s: float, threshold: float) -> np.ndarray:
     The corrected eq. 7.14-7.17 (the thesis prints the ratio without the
     fourth power; its Table 8.7 was computed with it). ``VDV`` was measured
     over ``duration_s`` = tau seconds.
+
+    Examples
+    --------
+    A VDV of 10.5 m/s^1.75 over one hour reaches 21 m/s^1.75 in ``2^4`` hours:
+
+    >>> float(time_to_vdv(10.5, 3600.0, 21.0))
+    16.0
     """
     v = np.asarray(vdv_value, dtype=float)
     return duration_s * (threshold / v) ** 4 / 3600.0
@@ -542,6 +671,12 @@ def exposure_times(a_rms=None, vdv_value=None, duration_s=None,
     Returns a dict with ``TA_8_action``, ``TA_8_limit`` (when ``a_rms`` is
     given) and ``TVDV_action``, ``TVDV_limit`` (when ``vdv_value`` and
     ``duration_s`` are given).
+
+    Examples
+    --------
+    >>> times = exposure_times(a_rms=1.0)
+    >>> float(times["TA_8_action"]), round(float(times["TA_8_limit"]), 2)
+    (2.0, 10.58)
     """
     out = {}
     if a_rms is not None:
@@ -556,7 +691,13 @@ def exposure_times(a_rms=None, vdv_value=None, duration_s=None,
 
 
 def allowable_distances(speed_kmh, times_h: dict) -> dict:
-    """``Distance_<T> = V_x,avg T`` in km (eq. 7.18-7.25) for each time in ``times_h``."""
+    """``Distance_<T> = V_x,avg T`` in km (eq. 7.18-7.25) for each time in ``times_h``.
+
+    Examples
+    --------
+    >>> allowable_distances(18.0, {"TA_8_action": 2.0})
+    {'Distance_TA_8_action': 36.0}
+    """
     return {f"Distance_{k}": speed_kmh * v for k, v in times_h.items()}
 
 
@@ -635,6 +776,16 @@ def indicators_from_values(acc_y_Wb_rms, acc_y_Wk_rms, VDV_y_Wb, VDV_y_Wk, acc_y
     The building block of :func:`comfort_indicators`; also what reproduces
     Table 8.7 from its own printed rms, VDV and ``vel_x_avg`` (km/h).
     Returns the dict of :data:`COMFORT_KEYS`.
+
+    Examples
+    --------
+    Table 8.7's times from its own rms, VDV and speed (tau = 1.2 s):
+
+    >>> T = THESIS_TABLE_8_7
+    >>> ind = indicators_from_values(T["acc_y_Wb_rms"], T["acc_y_Wk_rms"], T["VDV_y_Wb"], T["VDV_y_Wk"],
+    ...                              T["acc_y_max"], T["crest_factor_y"], 1.2, T["vel_x_avg"], T["amplitude_y"])
+    >>> round(ind["TA_8_limit_Wb"], 4), round(ind["TVDV_limit_Wb"], 4)     # Table 8.7: 1.0393, 0.3131
+    (1.0393, 0.3131)
     """
     out = {"acc_y_Wb_rms": float(acc_y_Wb_rms), "acc_y_Wk_rms": float(acc_y_Wk_rms),
            "VDV_y_Wb": float(VDV_y_Wb), "VDV_y_Wk": float(VDV_y_Wk),
@@ -679,6 +830,14 @@ def weighted_histories(harmonics, duration_s: float, *, mode: str = "iso",
     dict with ``t``, ``A_y``, ``A_wb``, ``A_wk`` (arrays), ``W_b``, ``W_k``
     (complex weights per harmonic, or the scalar of thesis mode broadcast)
     and ``f_dominant_hz``.
+
+    Examples
+    --------
+    >>> hist = weighted_histories(Harmonics([2.0], [3.0]), duration_s=1.0)
+    >>> sorted(hist)
+    ['A_wb', 'A_wk', 'A_y', 'W_b', 'W_k', 'f_dominant_hz', 't']
+    >>> hist["f_dominant_hz"], hist["t"].size
+    (2.0, 4096)
     """
     h = _as_harmonics(harmonics)
     if not duration_s > 0:
@@ -744,6 +903,21 @@ def comfort_indicators(acc_y, duration_s: float | None = None, vel_x_avg_mps: fl
     -------
     dict
         Exactly :data:`COMFORT_KEYS` (m/s^2, m/s^1.75, h, km, km/h, m, s, Hz).
+
+    Examples
+    --------
+    A pure 2 Hz vertical acceleration of amplitude 3 m/s^2 at 5 m/s: tau is two
+    periods (1 s), the Wk rms is ``3 |Wk(2 Hz)| / sqrt(2)`` and the crest factor
+    of a sine ``sqrt(2)``.
+
+    >>> import numpy as np
+    >>> ind = comfort_indicators(Harmonics([2.0], [3.0]), vel_x_avg_mps=5.0)
+    >>> ind["duration_s"], ind["period_s"], ind["vel_x_avg"]
+    (1.0, 0.5, 18.0)
+    >>> round(ind["acc_y_Wk_rms"], 4), round(float(3 * abs(weighting("Wk", 2.0)) / np.sqrt(2)), 4)
+    (1.1273, 1.1273)
+    >>> round(ind["crest_factor_y"], 4)
+    1.4142
     """
     h = _as_harmonics(acc_y)
     f0 = float(h.freq_hz.min()) if f0_hz is None else float(f0_hz)
@@ -771,8 +945,7 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
     (Annex B, whole-body vibration, after ISO 2631-1 for health) takes the *highest* of
     ``1.4 a_wx``, ``1.4 a_wy`` (horizontal, Wd) and ``a_wz`` (vertical, Wk), and the same for the VDV.
     In the motion frame the horizontal axes are x (fore-aft) and z (lateral), the vertical is y. A
-    canter's fore-aft surge can decide it: on the virtual Horse 2 canter ``1.4 a_wx`` = 5.10 against
-    ``a_wk`` = 4.32 m/s^2, and the time to the limit value is 0.41 h instead of the vertical's 0.57 h.
+    canter's fore-aft surge can decide it (:func:`directive_axis` names the deciding axis).
 
     Every harmonic is weighted at its own frequency (the ``"iso"`` mode of :func:`comfort_indicators`,
     whatever mode the thesis' indicators use: this is the standard's computation, which the thesis
@@ -798,6 +971,18 @@ def directive_indicators(acc_x, acc_y, acc_z, duration_s: float, vel_x_avg_mps: 
         Exactly :data:`DIRECTIVE_KEYS`: the weighted rms and VDV of x and z (Wd) and y (Wk), unscaled, ``A_w_directive`` and
         ``VDV_directive`` (the highest of the scaled axes, m/s^2 and m/s^1.75), the times (h) to the action and
         limit values by A(8) and by VDV, and the distances (km) at the mean speed.
+
+    Examples
+    --------
+    The same 2 Hz, 3 m/s^2 oscillation fore-aft and vertically: the fore-aft one
+    decides (1.4 times its Wd-weighted rms beats the vertical's Wk-weighted one).
+
+    >>> same = Harmonics([2.0], [3.0])
+    >>> ind = directive_indicators(same, same, Harmonics([2.0], [0.1]), duration_s=1.0)
+    >>> round(ind["acc_x_Wd_rms"], 4), round(ind["acc_y_Wk_rms_iso"], 4)
+    (1.8885, 1.1273)
+    >>> round(ind["A_w_directive"], 4)                # 1.4 * 1.8885
+    2.6439
     """
     tau = float(duration_s)
     axes = {"x": (_as_harmonics(acc_x), "Wd"), "y": (_as_harmonics(acc_y), "Wk"), "z": (_as_harmonics(acc_z), "Wd")}
@@ -828,7 +1013,15 @@ def directive_axis(indicators: dict, by: str = "rms") -> str:
     ``by="rms"``: the axis of ``A_w_directive`` (the highest of ``1.4 acc_x_Wd_rms``, ``acc_y_Wk_rms_iso``,
     ``1.4 acc_z_Wd_rms``); ``by="vdv"``: the axis of ``VDV_directive``. ``indicators`` holds the keys of
     :data:`DIRECTIVE_KEYS` (:func:`saddle_comfort`, :func:`directive_indicators`). Ties go to the first of
-    fore-aft, vertical, lateral."""
+    fore-aft, vertical, lateral.
+
+    Examples
+    --------
+    >>> directive_axis({"acc_x_Wd_rms": 2.0, "acc_y_Wk_rms_iso": 2.5, "acc_z_Wd_rms": 0.5})
+    'fore-aft'
+    >>> directive_axis({"acc_x_Wd_rms": 1.0, "acc_y_Wk_rms_iso": 2.5, "acc_z_Wd_rms": 0.5})
+    'vertical'
+    """
     keys = {"rms": ("acc_x_Wd_rms", "acc_y_Wk_rms_iso", "acc_z_Wd_rms"),
             "vdv": ("VDV_x_Wd", "VDV_y_Wk_iso", "VDV_z_Wd")}.get(by)
     if keys is None:
@@ -842,6 +1035,15 @@ def fit_harmonics(t, y, f0_hz: float, n_harmonics: int) -> Harmonics:
 
     Non-finite samples are left out of the fit (their count is the caller's
     to report). Returns the :class:`Harmonics` of the fit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(300) / 100.0
+    >>> y = 0.5 + 0.2 * np.cos(2 * np.pi * 1.5 * t) + 0.1 * np.sin(2 * np.pi * 3.0 * t)
+    >>> h = fit_harmonics(t, y, f0_hz=1.5, n_harmonics=2)
+    >>> round(h.offset, 6), np.abs(h.amplitude).round(6)
+    (0.5, array([0.2, 0.1]))
     """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -872,6 +1074,14 @@ def estimate_fundamental(t, y, *, f_min_hz: float = 0.5, f_max_hz: float = 15.0)
     repeats twice per stride, but the stride's own terms are there too); the
     choice is refined by minimising the residual of :func:`fit_harmonics`
     (harmonics up to ``f_max_hz``), as MATLAB's ``fourierN`` fits ``w``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(300) / 100.0
+    >>> y = 0.2 * np.cos(2 * np.pi * 1.5 * t) + 0.1 * np.sin(2 * np.pi * 3.0 * t)
+    >>> round(estimate_fundamental(t, y), 4)
+    1.5
     """
     from scipy import optimize
 
@@ -938,6 +1148,23 @@ def saddle_comfort(t, position, acceleration, velocity, *, mode: str = "iso",
     :func:`directive_indicators`, from the harmonics of x and z fitted as y's). ``vel_x_avg`` is the mean
     x-velocity (the constant of its harmonic fit, i.e. the mean over whole periods); ``amplitude_y`` half
     the peak-to-peak of the fitted vertical position over tau.
+
+    Examples
+    --------
+    A saddle bouncing 2 cm at 2 Hz while moving at 5 m/s, filmed at 30 fps for 4 s:
+
+    >>> import numpy as np
+    >>> t = np.arange(120) / 30.0
+    >>> w = 2 * np.pi * 2.0
+    >>> position, acceleration, velocity = np.zeros((3, 120, 3))
+    >>> position[:, 1] = 0.02 * np.cos(w * t)
+    >>> acceleration[:, 1] = -0.02 * w ** 2 * np.cos(w * t)
+    >>> velocity[:, 0] = 5.0
+    >>> ind = saddle_comfort(t, position, acceleration, velocity)
+    >>> round(ind["f0_hz"], 4), round(ind["amplitude_y"], 4), round(ind["vel_x_avg"], 4)
+    (2.0, 0.02, 18.0)
+    >>> round(ind["acc_y_Wk_rms"], 4), round(float(0.02 * w ** 2 * abs(weighting("Wk", 2.0)) / np.sqrt(2)), 4)
+    (1.1868, 1.1868)
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(position, dtype=float)
@@ -987,6 +1214,16 @@ def comfort_from_samples(acc_y, fs: float, vel_x_avg_mps: float = float("nan"),
     mode : {"iso", "thesis"}
         ``"thesis"`` multiplies by ``|W(f_dominant_hz)|`` (default: the
         largest peak of the spectrum).
+
+    Examples
+    --------
+    Two seconds of a 2 Hz, 3 m/s^2 accelerometer signal at 100 Hz:
+
+    >>> import numpy as np
+    >>> acc = 3 * np.cos(2 * np.pi * 2.0 * np.arange(200) / 100.0)
+    >>> ind = comfort_from_samples(acc, fs=100.0)
+    >>> ind["duration_s"], round(ind["acc_y_Wk_rms"], 4)
+    (2.0, 1.1273)
     """
     x = np.asarray(acc_y, dtype=float)
     if x.ndim != 1 or x.size < 4:
@@ -1024,6 +1261,12 @@ def comfort_table_rows(indicators: dict) -> list[tuple[str, float, str]]:
     :data:`DIRECTIVE_KEYS` when the indicators have them (all or none).
 
     Raises ``KeyError`` naming the first missing indicator.
+
+    Examples
+    --------
+    >>> rows = comfort_table_rows(comfort_indicators(Harmonics([2.0], [3.0])))
+    >>> rows[0][0], rows[0][2], len(rows)
+    ('acc_y_Wb_rms', 'm/s^2', 27)
     """
     missing = [k for k in COMFORT_KEYS if k not in indicators]
     if missing:
@@ -1036,7 +1279,18 @@ def comfort_table_rows(indicators: dict) -> list[tuple[str, float, str]]:
 
 
 def write_comfort_csv(path, indicators: dict) -> Path:
-    """Write ``comfort.csv`` (columns ``indicator,value,unit``; docs/sessions.md)."""
+    """Write ``comfort.csv`` (columns ``indicator,value,unit``; docs/sessions.md).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = write_comfort_csv(folder / "comfort.csv", comfort_indicators(Harmonics([2.0], [3.0])))
+    >>> path.read_text().splitlines()[0]
+    'indicator,value,unit'
+    >>> round(read_comfort_csv(path)["acc_y_Wk_rms"], 4)
+    1.1273
+    """
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["indicator", "value", "unit"])
@@ -1046,7 +1300,12 @@ def write_comfort_csv(path, indicators: dict) -> Path:
 
 
 def read_comfort_csv(path) -> dict:
-    """Read a ``comfort.csv``; errors name the file, line and what was expected."""
+    """Read a ``comfort.csv``; errors name the file, line and what was expected.
+
+    Examples
+    --------
+    See :func:`write_comfort_csv`.
+    """
     path = Path(path)
     with path.open(newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
@@ -1095,6 +1354,14 @@ def write_comfort_spreadsheet(path, indicators: dict, *, title: str = "comfort")
     (a CSV is re-parsed by Excel with the locale's decimal separator, so in
     Turkish or German settings ``3.19`` would be misread), and no dependency
     is added. One sheet, columns indicator / value / unit.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, zipfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = write_comfort_spreadsheet(folder / "comfort.xlsx", comfort_indicators(Harmonics([2.0], [3.0])))
+    >>> "xl/worksheets/sheet1.xml" in zipfile.ZipFile(path).namelist()
+    True
     """
     rows = [("indicator", "value", "unit")] + comfort_table_rows(indicators)
     sheet = title[:31] or "comfort"
@@ -1154,6 +1421,20 @@ def marker_comfort(t, positions, accelerations, velocities, *, mode: str = "iso"
     -------
     list of M dicts of :data:`COMFORT_KEYS`; a marker whose frames are all
     missing gets ``None``, never a silent zero.
+
+    Examples
+    --------
+    One marker bouncing 2 cm at 2 Hz (as in :func:`saddle_comfort`):
+
+    >>> import numpy as np
+    >>> t = np.arange(120) / 30.0
+    >>> w = 2 * np.pi * 2.0
+    >>> positions, accelerations, velocities = np.zeros((3, 120, 1, 3))
+    >>> positions[:, 0, 1] = 0.02 * np.cos(w * t)
+    >>> accelerations[:, 0, 1] = -0.02 * w ** 2 * np.cos(w * t)
+    >>> velocities[:, 0, 0] = 5.0
+    >>> [round(m["acc_y_Wk_rms"], 4) for m in marker_comfort(t, positions, accelerations, velocities, f0_hz=2.0)]
+    [1.1868]
     """
     pos = np.asarray(positions, float)
     acc = np.asarray(accelerations, float)
@@ -1186,6 +1467,14 @@ def half_peak_to_peak(positions) -> np.ndarray:
     ----------
     positions : (n, M, 3)
         Positions in the motion frame (x, y, z).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y = np.array([1.0, 3.0, 2.0])
+    >>> positions = np.stack([np.zeros(3), y, np.zeros(3)], axis=-1)[:, None, :]   # (3 frames, 1 marker, 3)
+    >>> half_peak_to_peak(positions)
+    array([[1., 0.]])
     """
     p = np.asarray(positions, float)
     if p.ndim != 3 or p.shape[2] != 3:
