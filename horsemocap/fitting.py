@@ -46,6 +46,13 @@ class GoodnessOfFit:
 
     ``sse = sum r^2`` (eq. 5.22), ``rsquare = 1 - sse/sst``, ``dfe = n - m``,
     ``adjrsquare = 1 - sse (n - 1) / (sst dfe)``, ``rmse = sqrt(sse / dfe)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fit = fit_polynomial([0.0, 1.0, 2.0, 3.0], [1.0, 3.0, 5.0, 8.0])
+    >>> fit.gof.dfe, round(fit.gof.sse, 4), round(fit.gof.rsquare, 4)
+    (2, 0.3, 0.9888)
     """
 
     sse: float
@@ -78,6 +85,18 @@ class Fit:
         95 % confidence bounds (rows lower, upper), MATLAB ``confint``.
     t, y, residuals : (n,)
         The data used (finite points only) and ``y - g_F(t)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(40) / 30.0                 # two periods of a 1.5 Hz stride at 30 fps
+    >>> w = 2 * np.pi * 1.5
+    >>> y = 0.3 + 0.05 * np.cos(w * t) + 0.02 * np.sin(2 * w * t)
+    >>> fit = fit_fourier(t, y, order=2)
+    >>> fit.label, fit.names
+    ('fourier2', ('a0', 'a1', 'b1', 'a2', 'b2', 'w'))
+    >>> round(fit.frequency, 4), round(float(fit.evaluate(0.0, derivative=2)), 4)   # w; -0.05 w^2
+    (9.4248, -4.4413)
     """
 
     kind: str
@@ -186,6 +205,16 @@ def fit_polynomial(t, y, degree: int = 1) -> Fit:
 
     The x-motion fit of section 5.5.2.1 (degree 1: constant speed, the slope
     ``p1`` is ``V_x,avg``). NaN samples are ignored.
+
+    Examples
+    --------
+    A horse at a constant 2 m/s: the slope ``p1`` is the speed.
+
+    >>> import numpy as np
+    >>> t = np.arange(10) * 0.1
+    >>> fit = fit_polynomial(t, 2.0 * t + 1.0, degree=1)
+    >>> fit.label, fit.coefficients.round(6).tolist()
+    ('poly1', [2.0, 1.0])
     """
     t, y = _clean(t, y)
     if degree < 0:
@@ -226,6 +255,15 @@ def fourier_start_point(t, y, order: int, trend: bool = False) -> float:
     try ``w = wpeak / j``, ``j = 1..N``, keep the one whose linear
     least-squares fit leaves the smallest residual. With ``trend`` the FFT
     is taken of ``y`` minus its least-squares line (not MATLAB).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(40) / 30.0                 # two periods of a 1.5 Hz stride at 30 fps
+    >>> w = 2 * np.pi * 1.5
+    >>> y = 0.3 + 0.05 * np.cos(w * t) + 0.02 * np.sin(2 * w * t)
+    >>> round(float(fourier_start_point(t, y, order=2)), 4)      # near w = 9.4248
+    9.6664
     """
     t, y = _clean(t, y)
     n = y.size
@@ -277,6 +315,16 @@ def fit_fourier(t, y, order: int, w0: float | None = None, start: str = "matlab"
         y and z coordinates a drift proportional to the forward speed
         (0.1 deg at 4.9 m/s: 8.5 mm/s), which a Fourier series cannot follow.
         The slope ``c`` is the last coefficient.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(40) / 30.0                 # two periods of a 1.5 Hz stride at 30 fps
+    >>> w = 2 * np.pi * 1.5
+    >>> y = 0.3 + 0.05 * np.cos(w * t) + 0.02 * np.sin(2 * w * t)
+    >>> fit = fit_fourier(t, y, order=2)
+    >>> round(fit.frequency, 6), round(float(fit.coefficients[0]), 6), round(float(fit.coefficients[4]), 6)
+    (9.424778, 0.3, 0.02)
     """
     t, y = _clean(t, y)
     if order < 1:
@@ -345,6 +393,12 @@ def count_extremes(y, min_prominence: float = 0.1) -> int:
         Smoothed data (NaN ignored).
     min_prominence : float
         Fraction of ``ptp(y)``; 0 counts every sign change of the slope.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> count_extremes(np.cos(2 * np.pi * np.arange(100) / 50))   # two periods, ends excluded
+    3
     """
     y = np.asarray(y, float)
     y = y[np.isfinite(y)]
@@ -383,6 +437,11 @@ def proposed_orders(n_extremes: int) -> tuple[int, int]:
     under-fitting. For odd E, ``E/2`` is rounded *up* (``ceil(E/2)``; an order
     of ``floor(E/2)`` could not show E extremes); the order is at least 1.
     Returns ``(N1, N1 + 1)``; the thesis' suggested default is ``N1``.
+
+    Examples
+    --------
+    >>> proposed_orders(4), proposed_orders(5)
+    ((2, 3), (3, 4))
     """
     e = int(n_extremes)
     if e < 0:
@@ -412,11 +471,9 @@ def choose_order(t, y, n_extremes: int | None = None, rule: str = "significant",
         As ``"significant"``, but first the order is lowered from ``N1`` while
         its highest harmonic is not significant
         (:func:`top_harmonic_significant`), for when E counts extremes of
-        noise; a lowered order is final (``N + 1`` is not tried again). Measured on the 16 herd sessions (``benchmarks/bench_herd.py
-        --params '{"order_rule": "every_significant"}'``): median saddle
-        vertical-acceleration error 19.4 % against 24.6 %, but the
-        Wb-weighted rms is then underestimated (median abs error 11.2 %
-        against 7.9 %): real high harmonics are dropped too. Not the default.
+        noise; a lowered order is final (``N + 1`` is not tried again). It
+        drops real high harmonics too, which lowers the weighted rms: not the
+        default (``benchmarks/README.md`` has its errors on the herd).
 
     Parameters
     ----------
@@ -425,6 +482,15 @@ def choose_order(t, y, n_extremes: int | None = None, rule: str = "significant",
         E; counted with :func:`count_extremes` if omitted.
     w0, start, trend
         Passed to :func:`fit_fourier` (default: MATLAB's start rule, no trend).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(40) / 30.0                 # two periods of a 1.5 Hz stride at 30 fps
+    >>> w = 2 * np.pi * 1.5
+    >>> y = 0.3 + 0.05 * np.cos(w * t) + 0.02 * np.sin(2 * w * t)
+    >>> choose_order(t, y), choose_order(t, y, rule="thesis")
+    (2, 2)
     """
     if n_extremes is None:
         yy = np.asarray(y, float)
@@ -453,7 +519,17 @@ def choose_order(t, y, n_extremes: int | None = None, rule: str = "significant",
 
 def top_harmonic_significant(fit) -> bool:
     """Whether a Fourier fit's highest harmonic is there: ``a_N`` or ``b_N`` has a
-    95 % confidence interval (MATLAB's ``confint``) that excludes zero."""
+    95 % confidence interval (MATLAB's ``confint``) that excludes zero.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(40) / 30.0                 # two periods of a 1.5 Hz stride at 30 fps
+    >>> w = 2 * np.pi * 1.5
+    >>> y = 0.3 + 0.05 * np.cos(w * t) + 0.02 * np.sin(2 * w * t)
+    >>> top_harmonic_significant(fit_fourier(t, y, order=2))
+    True
+    """
     lo, hi = fit.confint[:, fit.harmonic_slice]
     return bool(np.any((lo > 0) | (hi < 0)))
 
@@ -470,6 +546,10 @@ class MotionFit:
         Degree of the x fit, Fourier orders of y and z.
     n_extremes : (m, 3) int
         E counted for y and z (-1 for x, and where the orders were given).
+
+    Examples
+    --------
+    See :func:`fit_motion`.
     """
 
     fits: tuple
@@ -521,6 +601,23 @@ def fit_motion(t, positions, x_degree: int = 1, orders=None, rule: str = "signif
         series holds only N/2 stride harmonics).
     start, trend
         See :func:`fit_fourier`.
+
+    Examples
+    --------
+    One marker moving forward at 5 m/s, bouncing and swaying at 1.5 Hz:
+
+    >>> import numpy as np
+    >>> t = np.arange(90) / 30.0
+    >>> w = 2 * np.pi * 1.5
+    >>> positions = np.zeros((90, 1, 3))
+    >>> positions[:, 0, 0] = 5.0 * t
+    >>> positions[:, 0, 1] = 0.3 + 0.05 * np.cos(w * t) + 0.02 * np.sin(2 * w * t)
+    >>> positions[:, 0, 2] = 0.1 * np.sin(w * t)
+    >>> motion = fit_motion(t, positions, orders=[2, 1], w0=w)
+    >>> motion.orders.tolist()
+    [[1, 2, 1]]
+    >>> motion.velocity([0.0])[0, 0].round(4).tolist()            # vx, vy, vz at t = 0 (vz = 0.1 w)
+    [5.0, 0.377, 0.9425]
     """
     p = np.asarray(positions, float)
     if p.ndim != 3 or p.shape[2] != 3:
