@@ -71,6 +71,10 @@ class MotionFrame:
         ``u2e`` from the plumb.
     gravity_correction_deg : float
         Angle between ``u2e`` and the corrected ``u2``.
+
+    Examples
+    --------
+    See :func:`motion_frame`.
     """
 
     axes: np.ndarray
@@ -97,7 +101,13 @@ class MotionFrame:
 
 
 def angle_deg(a, b) -> float:
-    """Angle in degrees between two vectors."""
+    """Angle in degrees between two vectors.
+
+    Examples
+    --------
+    >>> angle_deg([1, 0, 0], [0, 1, 0]), round(angle_deg([1, 0, 0], [1, 1, 0]), 6)
+    (90.0, 45.0)
+    """
     a = np.asarray(a, float)
     b = np.asarray(b, float)
     c = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
@@ -133,6 +143,13 @@ def autocorrelation(signal, max_lag: int | None = None) -> np.ndarray:
         the overlap-length correction ``n / (n - L)`` (unbiased estimate), so
         a periodic signal scores close to 1 at its period even when the
         record holds only one or two periods.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = autocorrelation(np.sin(2 * np.pi * np.arange(90) / 18))
+    >>> round(float(r[18]), 3), round(float(r[9]), 3)       # one period, half a period
+    (0.988, -1.0)
     """
     s = np.asarray(signal, float)
     if s.ndim == 1:
@@ -203,13 +220,19 @@ def estimate_period(signal_or_points, fps: float | None = None, gravity=None,
         vertical motion repeats at twice the stride rate): the period is then
         searched again among lags of at least ``fps / max_rate_hz`` frames, and
         the shorter one kept only when the record is too short to show a longer
-        one. A rising trot at 25 fps over 2.1 strides gave 8.81 frames (2.84 Hz)
-        for a stride of 17.8 frames.
+        one.
 
     Returns
     -------
     float
         Period in frames (divide by ``fps`` for seconds).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bounce = np.sin(2 * np.pi * np.arange(90) / 18)      # period 18 frames
+    >>> round(estimate_period(bounce, fps=30.0), 3)
+    18.0
     """
     return _estimate_period(signal_or_points, fps, gravity, min_period, min_overlap, refine, harmonics,
                             max_rate_hz)[0]
@@ -284,6 +307,16 @@ def stride_period(points, fps: float, gravity=None, max_rate_hz: float = HORSE_S
     faster : float or None
         The period first found when it was faster than ``max_rate_hz`` and a longer one was taken (more
         than half a frame apart), else None: the record also repeats that fast (a trot's two alike beats).
+
+    Examples
+    --------
+    A record that repeats every 9 frames at 30 fps (3.3 Hz, faster than a horse
+    strides) is taken at 18 frames, and the 9 frames reported:
+
+    >>> import numpy as np
+    >>> period, faster = stride_period(np.sin(2 * np.pi * np.arange(90) / 9), fps=30.0)
+    >>> round(period, 3), round(faster, 3)
+    (18.0, 9.0)
     """
     return _estimate_period(points, fps, gravity, max_rate_hz=max_rate_hz)
 
@@ -337,6 +370,11 @@ def gravity_from_plumb(tip_world, tail_world) -> np.ndarray:
     -------
     ndarray, shape (3,)
         Unit vector from tail to tip: pointing DOWN (y-motion direction).
+
+    Examples
+    --------
+    >>> gravity_from_plumb(tip_world=[0.0, 2.0, 0.0], tail_world=[0.0, 0.0, 0.0])
+    array([0., 1., 0.])
     """
     tip = np.asarray(tip_world, float).reshape(-1, 3)
     tail = np.asarray(tail_world, float).reshape(-1, 3)
@@ -383,6 +421,21 @@ def motion_frame(points, gravity, marker: int = 0, period: float | None = None,
     Returns
     -------
     MotionFrame
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> frames = np.arange(90)                     # 3 s at 30 fps
+    >>> points = np.zeros((90, 3, 3))              # three markers moving along x at 5 m/s, bouncing with 18 frames' period
+    >>> for m in range(3):
+    ...     points[:, m, 0] = 5.0 * frames / 30.0 + 0.3 * m
+    ...     points[:, m, 1] = 0.05 * np.sin(2 * np.pi * frames / 18)
+    ...     points[:, m, 2] = 4.0
+    >>> frame = motion_frame(points, gravity=[0.0, 1.0, 0.0])
+    >>> round(frame.period_frames, 3), frame.n_periods
+    (18.0, 2)
+    >>> bool(np.allclose(frame.axes, np.eye(3), atol=1e-6))     # x along the travel, y down, z across
+    True
     """
     p = np.asarray(points, float)
     if p.ndim != 3 or p.shape[-1] != 3:
@@ -446,6 +499,19 @@ def motion_frame_from_record(points, gravity, period: float | None = None) -> Mo
     -------
     MotionFrame
         ``marker = -1`` (the centroid), ``n_periods = 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> frames = np.arange(90)                     # 3 s at 30 fps
+    >>> points = np.zeros((90, 3, 3))              # three markers moving along x at 5 m/s, bouncing with 18 frames' period
+    >>> for m in range(3):
+    ...     points[:, m, 0] = 5.0 * frames / 30.0 + 0.3 * m
+    ...     points[:, m, 1] = 0.05 * np.sin(2 * np.pi * frames / 18)
+    ...     points[:, m, 2] = 4.0
+    >>> frame = motion_frame_from_record(points, gravity=[0.0, 1.0, 0.0])
+    >>> bool(np.allclose(frame.axes, np.eye(3))), frame.marker, frame.n_periods
+    (True, -1, 0)
     """
     p = np.asarray(points, float)
     if p.ndim != 3 or p.shape[-1] != 3:
@@ -472,6 +538,19 @@ def to_motion_frame(points, frame: MotionFrame) -> np.ndarray:
 
     ``points`` is any array of shape ``(..., 3)`` in world coordinates
     (thesis ``CM_L`` -> ``MM``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> frames = np.arange(90)                     # 3 s at 30 fps
+    >>> points = np.zeros((90, 3, 3))              # three markers moving along x at 5 m/s, bouncing with 18 frames' period
+    >>> for m in range(3):
+    ...     points[:, m, 0] = 5.0 * frames / 30.0 + 0.3 * m
+    ...     points[:, m, 1] = 0.05 * np.sin(2 * np.pi * frames / 18)
+    ...     points[:, m, 2] = 4.0
+    >>> frame = motion_frame_from_record(points, gravity=[0.0, 1.0, 0.0])
+    >>> to_motion_frame(np.array([1.0, 2.0, 3.0]), frame).round(6)
+    array([1., 2., 3.])
     """
     p = np.asarray(points, float)
     if p.shape[-1] != 3:
@@ -480,14 +559,27 @@ def to_motion_frame(points, frame: MotionFrame) -> np.ndarray:
 
 
 def time_axis(n: int, fps: float) -> np.ndarray:
-    """Time of each frame, eq. 5.13 ``t = (k - 1)/fps`` with 1-based ``k``: ``t = k/fps`` 0-based."""
+    """Time of each frame, eq. 5.13 ``t = (k - 1)/fps`` with 1-based ``k``: ``t = k/fps`` 0-based.
+
+    Examples
+    --------
+    >>> time_axis(4, fps=30.0).round(4)
+    array([0.    , 0.0333, 0.0667, 0.1   ])
+    """
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a positive number, got {fps!r}")
     return np.arange(int(n)) / float(fps)
 
 
 def rmse_per_axis(estimate, truth) -> np.ndarray:
-    """Root-mean-square error per coordinate (last axis) over the finite entries."""
+    """Root-mean-square error per coordinate (last axis) over the finite entries.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rmse_per_axis(np.array([[1.0, 0.0, 0.0], [1.0, 0.0, np.nan]]), np.zeros((2, 3)))
+    array([1., 0., 0.])
+    """
     e = np.asarray(estimate, float) - np.asarray(truth, float)
     e = e.reshape(-1, e.shape[-1])
     ok = np.all(np.isfinite(e), axis=1)
@@ -528,6 +620,17 @@ def free_fall_g(points_world, gravity, fps: float, g_reference: float = STANDARD
         ``t`` (s), ``position`` (m, along gravity), ``fitted``, ``velocity``,
         ``acceleration`` (of the fit, on ``t``), ``rmse`` (m), ``n_used``,
         ``n_missing``.
+
+    Examples
+    --------
+    A ball dropped in front of the cameras, half a second at 30 fps:
+
+    >>> import numpy as np
+    >>> t = np.arange(15) / 30.0
+    >>> fall = np.stack([np.zeros(15), 0.5 * 9.81 * t ** 2, np.full(15, 3.0)], axis=1)
+    >>> result = free_fall_g(fall, gravity=[0.0, 1.0, 0.0], fps=30.0)
+    >>> round(result["g"], 6), round(result["error_pct"], 6), result["n_used"]
+    (9.81, 0.0, 15)
     """
     p = np.asarray(points_world, float)
     if p.ndim != 2 or p.shape[1] != 3:
