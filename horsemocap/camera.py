@@ -53,6 +53,18 @@ class Camera:
         Rodrigues vector of ``R`` with ``x_cam = R x_world + t``.
     translation : ndarray, shape (3,)
         ``t`` in metres.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> left.project([0.1, 0.0, 2.0])                  # 10 cm right of the axis, 2 m away
+    array([360., 240.])
+    >>> left.pixels_to_normalized(np.array([360.0, 240.0]))
+    array([0.05, 0.  ])
+    >>> left.focal, left.principal_point
+    (array([800., 800.]), array([320., 240.]))
     """
 
     name: str
@@ -94,7 +106,13 @@ class Camera:
 
     @property
     def center(self) -> np.ndarray:
-        """Optical centre in world coordinates, ``-R^T t``."""
+        """Optical centre in world coordinates, ``-R^T t``.
+
+        Examples
+        --------
+        >>> Camera("right", (640, 480), np.eye(3), translation=[-0.5, 0.0, 0.0]).center
+        array([0.5, 0. , 0. ])
+        """
         return -self.rotation_matrix.T @ self.translation
 
     @property
@@ -117,6 +135,15 @@ class Camera:
 
         Thesis eq. 3.1-3.10 (pinhole, distortion, pixel mapping). Points at or
         behind the camera plane give NaN.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+        >>> left = Camera("left", (640, 480), K)
+        >>> left.project([[0.1, 0.0, 2.0], [0.0, 0.0, -1.0]])     # the second is behind the camera
+        array([[360., 240.],
+               [ nan,  nan]])
         """
         pc = self.world_to_camera(points_world)
         z = pc[..., 2:3]
@@ -139,6 +166,15 @@ class Camera:
         by fixed-point iteration (as OpenCV's ``undistortPoints``) finished
         with Gauss-Newton steps, to about 1e-12 in normalised units. NaN stays
         NaN.
+
+        Examples
+        --------
+        With radial distortion the inverse still recovers the ideal coordinates:
+
+        >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+        >>> lens = Camera("c", (640, 480), K, distortions=[-0.2, 0.0, 0.0, 0.0, 0.0])
+        >>> lens.pixels_to_normalized(lens.project([0.3, 0.2, 2.0])).round(9)
+        array([0.15, 0.1 ])
         """
         px = np.asarray(pixels, float)
         K = self.matrix
@@ -166,7 +202,16 @@ class Camera:
         return x
 
     def undistort_pixels(self, pixels: np.ndarray) -> np.ndarray:
-        """Ideal (distortion-free) pixel coordinates of distorted pixels."""
+        """Ideal (distortion-free) pixel coordinates of distorted pixels.
+
+        Examples
+        --------
+        >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+        >>> lens = Camera("c", (640, 480), K, distortions=[-0.2, 0.0, 0.0, 0.0, 0.0])
+        >>> distorted = lens.project([0.3, 0.2, 2.0])
+        >>> distorted.round(2), lens.undistort_pixels(distorted).round(6)
+        (array([439.22, 319.48]), array([440., 320.]))
+        """
         xn = self.pixels_to_normalized(pixels)
         K = self.matrix
         u = K[0, 0] * xn[..., 0] + K[0, 1] * xn[..., 1] + K[0, 2]
@@ -174,7 +219,17 @@ class Camera:
         return np.stack([u, v], axis=-1)
 
     def rays(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World-frame ray origins and unit directions through pixels ``(..., 2)``."""
+        """World-frame ray origins and unit directions through pixels ``(..., 2)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+        >>> left = Camera("left", (640, 480), K)
+        >>> origin, direction = left.rays(np.array([320.0, 240.0]))   # the principal point
+        >>> origin, direction
+        (array([0., 0., 0.]), array([0., 0., 1.]))
+        """
         xn = self.pixels_to_normalized(pixels)
         d_cam = np.concatenate([xn, np.ones(xn.shape[:-1] + (1,))], axis=-1)
         d = d_cam @ self.rotation_matrix  # R^T d for row vectors
@@ -182,7 +237,16 @@ class Camera:
         return np.broadcast_to(self.center, d.shape).copy(), d
 
     def in_image(self, pixels: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        """Boolean mask: pixel lies inside the image by at least ``margin``."""
+        """Boolean mask: pixel lies inside the image by at least ``margin``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+        >>> left = Camera("left", (640, 480), K)
+        >>> left.in_image(np.array([[10.0, 10.0], [700.0, 10.0]]))
+        array([ True, False])
+        """
         px = np.asarray(pixels, float)
         w, h = self.size
         with np.errstate(invalid="ignore"):
@@ -191,7 +255,16 @@ class Camera:
 
 
 def rotation_matrix(rvec) -> np.ndarray:
-    """Rotation matrix of a Rodrigues vector (angle = norm, axis = direction)."""
+    """Rotation matrix of a Rodrigues vector (angle = norm, axis = direction).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rotation_matrix([0.0, 0.0, np.pi / 2]).round(6)     # 90 degrees about z
+    array([[ 0., -1.,  0.],
+           [ 1.,  0.,  0.],
+           [ 0.,  0.,  1.]])
+    """
     r = np.asarray(rvec, float).reshape(3)
     theta = np.linalg.norm(r)
     if theta < 1e-15:
@@ -209,6 +282,13 @@ def axis_rotations(axis: str, angles) -> np.ndarray:
     axis : {"x", "y", "z"}
     angles : array_like
         Angles in radians (any shape; right-handed, as :func:`rotation_matrix`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> R = axis_rotations("z", [0.0, np.pi / 2])
+    >>> R.shape, bool(np.allclose(R[1], rotation_matrix([0.0, 0.0, np.pi / 2])))
+    ((2, 3, 3), True)
     """
     if axis not in ("x", "y", "z"):
         raise ValueError(f"axis: expected 'x', 'y' or 'z', got {axis!r}")
@@ -222,7 +302,14 @@ def axis_rotations(axis: str, angles) -> np.ndarray:
 
 
 def rotation_vector(R) -> np.ndarray:
-    """Rodrigues vector of a rotation matrix (projected onto SO(3) first)."""
+    """Rodrigues vector of a rotation matrix (projected onto SO(3) first).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rotation_vector(rotation_matrix([0.0, 0.0, np.pi / 2])).round(6)
+    array([0.      , 0.      , 1.570796])
+    """
     R = np.asarray(R, float)
     U, _, Vt = np.linalg.svd(R)
     Rp = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
@@ -236,6 +323,12 @@ def distort_normalized(xn: np.ndarray, kc: np.ndarray) -> np.ndarray:
     ``x_d = (1 + k1 r^2 + k2 r^4 + k3 r^6) x_n + dx`` with the tangential
     term ``dx = [2 p1 x y + p2 (r^2 + 2 x^2), p1 (r^2 + 2 y^2) + 2 p2 x y]``
     (thesis eq. 3.7-3.9).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> distort_normalized(np.array([0.1, 0.0]), np.array([-0.2, 0.0, 0.0, 0.0, 0.0]))   # (1 - 0.2 r^2) x
+    array([0.0998, 0.    ])
     """
     k1, k2, p1, p2, k3 = np.asarray(kc, float)
     x, y = xn[..., 0], xn[..., 1]
@@ -256,6 +349,18 @@ class Rig:
         In session order; ``cameras[i].name`` are unique.
     metadata : dict
         The ``[metadata]`` table of ``rig.toml`` (e.g. ``adjusted``, ``error``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> rig.names, len(rig), rig.subset(["right"]).names
+    (['left', 'right'], 2, ['right'])
+    >>> rig.project(np.array([0.1, 0.0, 2.0]))
+    {'left': array([360., 240.]), 'right': array([160., 240.])}
     """
 
     cameras: tuple[Camera, ...]
@@ -313,7 +418,18 @@ def _toml_value(v) -> str:
 
 
 def rig_to_toml(rig: Rig) -> str:
-    """The text of ``rig.toml`` for a rig (aniposelib format)."""
+    """The text of ``rig.toml`` for a rig (aniposelib format).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> print(rig_to_toml(rig).splitlines()[1])
+    name = "left"
+    """
     lines = []
     for i, cam in enumerate(rig.cameras):
         lines += [
@@ -333,7 +449,20 @@ def rig_to_toml(rig: Rig) -> str:
 
 
 def write_rig(rig: Rig, path) -> Path:
-    """Write ``rig.toml`` atomically (a temporary file renamed into place)."""
+    """Write ``rig.toml`` atomically (a temporary file renamed into place).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> import tempfile, pathlib
+    >>> path = write_rig(rig, pathlib.Path(tempfile.mkdtemp()) / "rig.toml")
+    >>> read_rig(path).names
+    ['left', 'right']
+    """
     from .store import atomic_write_text
 
     return atomic_write_text(Path(path), rig_to_toml(rig))
@@ -357,7 +486,12 @@ def _field(table, key, path, section, shape=None):
 
 
 def read_rig(path) -> Rig:
-    """Read a ``rig.toml`` (aniposelib format); errors name the file and field."""
+    """Read a ``rig.toml`` (aniposelib format); errors name the file and field.
+
+    Examples
+    --------
+    See :func:`write_rig`.
+    """
     path = Path(path)
     if not path.is_file():
         raise RigError(f"{path}: rig file not found")

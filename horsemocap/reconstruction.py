@@ -70,6 +70,10 @@ class PairTriangulation:
         In camera ``a``'s frame (e.g. ``CM_MR,M`` for the middle-right pair).
     points : ndarray, shape (n, m, 3)
         In the world (reference camera) frame, eq. 5.3-5.4 (e.g. ``CM_MR,L``).
+
+    Examples
+    --------
+    See :func:`triangulate` (``mode="thesis"``).
     """
 
     cameras: tuple[str, str]
@@ -116,6 +120,10 @@ class Triangulation:
     noise_px : float or None
         The detection noise (pixels) estimated from the reprojection
         residuals (:func:`pixel_noise`), with ``covariance``.
+
+    Examples
+    --------
+    See :func:`triangulate`.
     """
 
     points: np.ndarray
@@ -152,6 +160,20 @@ def relative_pose(cam_a: Camera, cam_b: Camera) -> tuple[np.ndarray, np.ndarray]
 
     From the rig's extrinsics ``x_c = R_c x_w + t_c``:
     ``R = R_b R_a^T``, ``T = t_b - R t_a``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> R, T = relative_pose(left, right)
+    >>> R, T
+    (array([[1., 0., 0.],
+           [0., 1., 0.],
+           [0., 0., 1.]]), array([-0.5,  0. ,  0. ]))
     """
     Ra, Rb = cam_a.rotation_matrix, cam_b.rotation_matrix
     R = Rb @ Ra.T
@@ -163,6 +185,17 @@ def camera_to_world(points_cam: np.ndarray, cam: Camera) -> np.ndarray:
 
     ``x_w = R_c^T (x_c - t_c)``; for the middle camera of the thesis rig
     (world = left camera) this is eq. 5.3, ``x_L = R_ML^-1 (x_M - t_ML)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> camera_to_world(np.array([0.6, 0.0, 2.0]), right)      # 0.6 m right of the right camera's axis
+    array([1.1, 0. , 2. ])
     """
     p = np.asarray(points_cam, float)
     return (p - cam.translation) @ cam.rotation_matrix
@@ -184,6 +217,23 @@ def stereo_triangulation(xn_left: np.ndarray, xn_right: np.ndarray, R: np.ndarra
         The point in the left and right camera frames: the midpoint of the
         shortest segment joining the two viewing rays. NaN where an input is
         NaN or the rays are parallel.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> points = np.array([[[0.1, 0.0, 2.0], [-0.2, 0.1, 3.0]]])     # 1 frame, 2 markers (m)
+    >>> px = rig.project(points)
+    >>> R, T = relative_pose(left, right)
+    >>> XL, XR = stereo_triangulation(left.pixels_to_normalized(px["left"]),
+    ...                               right.pixels_to_normalized(px["right"]), R, T)
+    >>> XL.round(6)
+    array([[[ 0.1,  0. ,  2. ],
+            [-0.2,  0.1,  3. ]]])
     """
     xl = np.asarray(xn_left, float)
     xr = np.asarray(xn_right, float)
@@ -212,7 +262,20 @@ def stereo_triangulation(xn_left: np.ndarray, xn_right: np.ndarray, R: np.ndarra
 
 
 def reprojection_residuals(rig: Rig, points: np.ndarray, marker_px: dict) -> dict:
-    """Pixel distance between ``rig`` projections of ``points`` and ``marker_px`` per camera."""
+    """Pixel distance between ``rig`` projections of ``points`` and ``marker_px`` per camera.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> points = np.array([[[0.1, 0.0, 2.0], [-0.2, 0.1, 3.0]]])     # 1 frame, 2 markers (m)
+    >>> reprojection_residuals(rig, points, rig.project(points))
+    {'left': array([[0., 0.]]), 'right': array([[0., 0.]])}
+    """
     out = {}
     for cam, px in marker_px.items():
         proj = rig[cam].project(points)
@@ -627,6 +690,23 @@ def pixel_noise(residual_px: dict, used: dict) -> float:
     -------
     float
         NaN when no point has two cameras.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> rig3 = Rig((left, Camera("middle", (640, 480), K, translation=[-0.25, 0.0, 0.0]), right))
+    >>> points = np.array([[[0.1, 0.0, 2.0], [-0.2, 0.1, 3.0]]])     # 1 frame, 2 markers (m)
+    >>> px = rig3.project(points)
+    >>> px["left"] = px["left"] + [0.5, 0.0]             # the left camera's detections half a pixel off
+    >>> result = triangulate(rig3, px)
+    >>> used = {name: np.ones((1, 2), bool) for name in rig3.names}
+    >>> round(pixel_noise(result.residual_px, used), 4)
+    0.1179
     """
     cams = list(residual_px)
     r = np.stack([np.asarray(residual_px[c], float) for c in cams])
@@ -665,6 +745,21 @@ def point_covariance(rig: Rig, points: np.ndarray, used: dict, noise_px: float =
     -------
     (n, m, 3, 3)
         NaN where the point is missing or seen by fewer than two of the cameras.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> rig3 = Rig((left, Camera("middle", (640, 480), K, translation=[-0.25, 0.0, 0.0]), right))
+    >>> points = np.array([[[0.1, 0.0, 2.0], [-0.2, 0.1, 3.0]]])     # 1 frame, 2 markers (m)
+    >>> used = {name: np.ones((1, 2), bool) for name in rig3.names}
+    >>> cov = point_covariance(rig3, points, used, noise_px=1.0)
+    >>> np.sqrt(np.diag(cov[0, 0])).round(5)           # standard deviations (m): depth (z) the largest
+    array([0.00179, 0.00144, 0.01414])
     """
     p = np.asarray(points, float)
     shape = p.shape[:-1]
@@ -697,6 +792,15 @@ def nearest_covariance(covariance: np.ndarray, fill: np.ndarray) -> np.ndarray:
     measurements' covariance stands for (an approximation; the frames just
     before and after the gap are measured with the same geometry). An entry
     whose marker has no covariance in any frame stays NaN.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cov = np.full((3, 1, 3, 3), np.nan)
+    >>> cov[0, 0] = np.eye(3)                            # frame 0 measured; frames 1-2 interpolated
+    >>> filled = nearest_covariance(cov, fill=np.array([[False], [True], [True]]))
+    >>> float(filled[2, 0, 0, 0])
+    1.0
     """
     cov = np.array(covariance, float, copy=True)
     fill = np.asarray(fill, bool)
@@ -800,6 +904,40 @@ def triangulate(rig: Rig, marker_px: dict, mode: str = "joint", pairs=None,
     ``"seen_by_fewer_than_two_cameras"``. In thesis mode a point seen by
     exactly two cameras is the result of the one pair that saw it (the thesis
     averages three pairs, eq. 5.5; ``n_views`` tells how many cameras were used).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> left = Camera("left", (640, 480), K)
+    >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])   # 0.5 m to the right
+    >>> rig = Rig((left, right))
+    >>> rig3 = Rig((left, Camera("middle", (640, 480), K, translation=[-0.25, 0.0, 0.0]), right))
+    >>> points = np.array([[[0.1, 0.0, 2.0], [-0.2, 0.1, 3.0]]])     # 1 frame, 2 markers (m)
+    >>> result = triangulate(rig3, rig3.project(points))            # joint: all cameras at once
+    >>> result.points.round(6)
+    array([[[ 0.1,  0. ,  2. ],
+            [-0.2,  0.1,  3. ]]])
+    >>> result.n_views, result.valid
+    (array([[3, 3]]), array([[ True,  True]]))
+
+    The thesis' chain: each pair triangulated, the three averaged (eq. 5.5):
+
+    >>> thesis = triangulate(rig3, rig3.project(points), mode="thesis",
+    ...                      pairs=[("left", "middle"), ("left", "right"), ("middle", "right")])
+    >>> sorted(thesis.pairs), bool(np.allclose(thesis.points, points))
+    (['left-middle', 'left-right', 'middle-right'], True)
+
+    A marker one camera did not see is triangulated from the other two; one
+    seen by a single camera has no position, and says why:
+
+    >>> px = rig3.project(points)
+    >>> px["left"][0, 0] = np.nan
+    >>> px["middle"][0, 1] = px["right"][0, 1] = np.nan
+    >>> result = triangulate(rig3, px)
+    >>> result.n_views.tolist(), result.reason.tolist()
+    ([[2, 1]], [['', 'seen_by_fewer_than_two_cameras']])
     """
     if mode not in ("joint", "thesis"):
         raise ValueError(f"mode must be 'joint' or 'thesis', got {mode!r}")
