@@ -33,12 +33,24 @@ RATE_PARAMETER = ("HORSEMOCAP", "RATE")
 
 
 class TrajectoryFileError(ValueError):
-    """A trajectory file that cannot be read; the message names the file and field."""
+    r"""A trajectory file that cannot be read; the message names the file and field.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "bad.csv"
+    >>> _ = path.write_text("frame,time,point\n")
+    >>> try:
+    ...     read_trajectories_csv(path)
+    ... except TrajectoryFileError as error:
+    ...     print(str(error).split(": ", 1)[1])
+    header lacks the column(s) ['time_s', 'x_m', 'y_m', 'z_m'] (expected frame,time_s,point,x_m,y_m,z_m, got frame,time,point)
+    """
 
 
 @dataclass(frozen=True)
 class Trajectories:
-    """Named 3D points over time.
+    r"""Named 3D points over time.
 
     Attributes
     ----------
@@ -52,6 +64,21 @@ class Trajectories:
         ``scale_to_m`` (the file's length unit), ``rate_hz`` (the C3D's
         ``POINT:RATE``; None for a CSV) and ``time_origin`` (where ``time_s``
         comes from).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> walk.names, walk.frame.tolist(), walk.points.shape
+    (('marker1', 'marker2'), [0, 1], (2, 2, 3))
+    >>> walk.subset(["marker2"])[:, 0]
+    array([[0.3, 1. , 4. ],
+           [nan, nan, nan]])
     """
 
     time_s: np.ndarray
@@ -68,7 +95,7 @@ class Trajectories:
 
 
 def read_trajectories_csv(path) -> Trajectories:
-    """Read a CSV in the trajectories.csv layout (``frame,time_s,point,x_m,y_m,z_m``).
+    r"""Read a CSV in the trajectories.csv layout (``frame,time_s,point,x_m,y_m,z_m``).
 
     An empty coordinate (or ``nan``) is a missing point. Refused with a
     :class:`TrajectoryFileError` naming the file and line: a row with more
@@ -76,6 +103,18 @@ def read_trajectories_csv(path) -> Trajectories:
     ``time_s``, an infinite coordinate, two rows of one (frame, point) with
     different values, two times of one frame, times that do not increase
     with the frame number.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> walk.time_s.tolist(), walk.info["units"]
+    ([0.0, 0.01], 'm')
     """
     path = Path(path)
     if not path.is_file():
@@ -172,7 +211,7 @@ def _csv_row(path, ln, row, col, n_fields):
 
 
 def c3d_header(path) -> dict:
-    """The raw header words of a C3D file that say which frames it holds.
+    r"""The raw header words of a C3D file that say which frames it holds.
 
     Returns ``{"first_frame": int, "last_frame": int, "frame_rate": float or
     None, "processor": str}``: words 4 and 5 (bytes 6-9: the first and last
@@ -182,6 +221,18 @@ def c3d_header(path) -> dict:
     parameter section's header (84 Intel, 85 DEC: little-endian; 86 MIPS:
     big-endian). Raises :class:`TrajectoryFileError` naming the file when
     the header is too short or not a C3D header.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> c3d_header(write_c3d(folder / "walk.c3d", walk))       # frame 0 is the C3D's 1-based frame 1
+    {'first_frame': 1, 'last_frame': 2, 'frame_rate': 100.0, 'processor': 'intel'}
     """
     path = Path(path)
     with open(path, "rb") as fh:
@@ -200,7 +251,7 @@ def c3d_header(path) -> dict:
 
 
 def read_c3d(path) -> Trajectories:
-    """Read the 3D points of a C3D file with ezc3d (units from ``POINT:UNITS``, rate ``POINT:RATE``).
+    r"""Read the 3D points of a C3D file with ezc3d (units from ``POINT:UNITS``, rate ``POINT:RATE``).
 
     Frame numbers: horsemocap frame = the file's 1-based frame - 1 (the
     header's first frame word 4, 1-based, is frame ``first - 1``). Times:
@@ -212,6 +263,21 @@ def read_c3d(path) -> Trajectories:
     has it and ``POINT:RATE`` is its 4-byte copy. Refused, naming the file: fewer frames of data than the header's
     first..last (a truncated file), a label used twice, an infinite
     coordinate, no positive rate, a unit not in m, mm, cm, dm.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> back = read_c3d(write_c3d(folder / "walk.c3d", walk))
+    >>> back.names, back.frame.tolist(), back.time_s.tolist(), back.info["units"]
+    (('marker1', 'marker2'), [0, 1], [0.0, 0.01], 'mm')
+    >>> back.points[1].round(6).tolist()
+    [[0.05, 1.0, 4.0], [nan, nan, nan]]
     """
     path = Path(path)
     if not path.is_file():
@@ -346,12 +412,25 @@ def _c3d_exact_rate(path, params, rate: float) -> float:
 
 
 def read_trajectories(path) -> Trajectories:
-    """:func:`read_c3d` for ``.c3d`` files, :func:`read_trajectories_csv` otherwise."""
+    r""":func:`read_c3d` for ``.c3d`` files, :func:`read_trajectories_csv` otherwise.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> walk.names
+    ('marker1', 'marker2')
+    """
     return read_c3d(path) if str(path).lower().endswith(".c3d") else read_trajectories_csv(path)
 
 
 def frame_rate(traj: Trajectories, rate: float | None = None) -> float:
-    """The frame rate (Hz) of ``traj``: ``rate`` if given, else from its times and frame numbers.
+    r"""The frame rate (Hz) of ``traj``: ``rate`` if given, else from its times and frame numbers.
 
     The rate from the times is rounded to 9 significant digits when that
     moves it by less than 1e-9 of itself (the float noise of times such as
@@ -360,6 +439,18 @@ def frame_rate(traj: Trajectories, rate: float | None = None) -> float:
     Raises :class:`TrajectoryFileError` naming the file when ``rate`` is not a
     positive number, or when it is not given and the file has one frame (its
     rate is unknown).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> frame_rate(walk), frame_rate(walk, rate=120.0)
+    (100.0, 120.0)
     """
     if rate is not None:
         if not (np.isfinite(rate) and rate > 0):
@@ -374,7 +465,7 @@ def frame_rate(traj: Trajectories, rate: float | None = None) -> float:
 
 
 def write_trc(path, traj: Trajectories, rate: float | None = None) -> Path:
-    """Write an OpenSim TRC file (``PathFileType 4``, millimetres).
+    r"""Write an OpenSim TRC file (``PathFileType 4``, millimetres).
 
     ``rate``: the frame rate (Hz); default from the times (:func:`frame_rate`).
     Every frame number from the first to the last is a row (as in
@@ -384,6 +475,19 @@ def write_trc(path, traj: Trajectories, rate: float | None = None) -> Path:
     and ``OrigDataStartFrame`` is the first frame + 1. Every data row ends
     with a tab, as OpenSim's own writer does (its reader drops one trailing
     empty field, so a row whose last marker is missing keeps its length).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")      # marker2 missing in frame 1
+    >>> walk = read_trajectories(path)
+    >>> trc = write_trc(folder / "walk.trc", walk)
+    >>> trc.read_text().splitlines()[2].split("\t")     # rate, frames, markers, units, first frame
+    ['100', '100', '2', '2', 'mm', '100', '1', '2']
     """
     from .store import atomic_write_text
 
@@ -434,6 +538,10 @@ def write_c3d(path, traj: Trajectories, rate: float | None = None) -> Path:
     copy). ``rate``: the frame rate (Hz); default from the times
     (:func:`frame_rate`). Written
     whole (a temporary file beside ``path``, renamed).
+
+    Examples
+    --------
+    See :func:`read_c3d`.
     """
     import ezc3d
 
@@ -482,6 +590,14 @@ def match_point_names(traj_names, static_names) -> dict:
     ``loose`` (the pairs matched the second way), ``unmatched`` (trajectory
     points not in the static shot) and ``hidden`` (static points not in the
     trajectories).
+
+    Examples
+    --------
+    >>> match = match_point_names(["Horse:marker1", "Horse:marker2", "hoof"], ["marker1", "marker2", "saddle"])
+    >>> match["pairs"]
+    [('Horse:marker1', 'marker1'), ('Horse:marker2', 'marker2')]
+    >>> match["unmatched"], match["hidden"]
+    (['hoof'], ['saddle'])
     """
     pairs = [(nm, nm) for nm in traj_names if nm in static_names]
     rest_t = [nm for nm in traj_names if nm not in static_names]
