@@ -1,6 +1,6 @@
 """Non-periodic rigid motions with exact kinematics, for tests and benchmarks.
 
-:func:`lift_with_ringing` is the motion issue 13 asks the kinematics to hold
+:func:`lift_with_ringing` is a non-periodic motion the kinematics must hold
 on (what a rigid box of optical markers does in a lab): a lift, a hold, a
 set-down and a decaying 10 Hz ringing after the set-down, sampled at 100 Hz
 with marker noise. Every angle and translation is built from smooth
@@ -101,7 +101,7 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
                       ring_scale: float = 1.0) -> dict:
     """A marker box lifted, held, set down, ringing at ``ring_hz``; exact truth.
 
-    The defaults are issue 13's fixture. ``ring_decay_s``, ``ring_rise_s`` (the onset's time
+    The defaults are the ringing fixture of the kinematics benchmarks. ``ring_decay_s``, ``ring_rise_s`` (the onset's time
     constant), ``ring_start_s`` and ``second_ring_hz`` (a second mode, half the amplitude, in the
     rotation about x and the vertical, from the same onset) and ``ring_scale`` (every ringing
     amplitude times it; 0: no ringing) build other non-periodic motions with the same exact truth.

@@ -6,9 +6,7 @@ figures drawn by a forked process). The libraries underneath have thread
 pools of their own: OpenCV's ``parallel_for`` and the BLAS behind NumPy,
 SciPy and OpenCV (OpenBLAS). The calibration's matrices are small (a bundle
 adjustment's 306 x 306 normal equations), where a second BLAS thread only
-waits for work: measured on the bundled calibration (2 processors, three
-other processes busy), 3.8 s wall and 1.3 s CPU with one BLAS thread against
-13.6 s and 5.3 s with two.
+waits for work and slows the calibration down (``benchmarks/README.md``).
 
 Both settings are process-wide: two blocks overlapping in threads would
 restore each other's setting. :class:`SingleThreaded` counts the blocks

@@ -57,21 +57,15 @@ def board_points(inner_corners: tuple[int, int], square_m: float) -> np.ndarray:
 
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH
 """Flags of the classic ``findChessboardCorners``: adaptive thresholding, not
-``CALIB_CB_NORMALIZE_IMAGE``. Measured (``benchmarks/bench_board_detection.py``):
-the histogram equalisation made a failing view cost twice as long (78 against
-33 ms on the bundled views, where 27 of 135 views fail and go to the fallback)
-and found 1 view more, which the fallback then finds; the refined corners and
-the rigs are compared there."""
+``CALIB_CB_NORMALIZE_IMAGE``: the histogram equalisation makes a failing view
+slower and finds no view the fallback does not find
+(``benchmarks/bench_board_detection.py`` compares the two)."""
 
 SECTOR_FLAGS = cv2.CALIB_CB_EXHAUSTIVE
 """Flags of the fallback ``findChessboardCornersSB``. Not ``CALIB_CB_ACCURACY``:
 its own sub-pixel step is redone by ``cornerSubPix`` (every corner is refined
-again, :func:`_refine`). Measured (``benchmarks/bench_board_detection.py``,
-the bundled views and five rendered calibration sets, 17-29 fallback views
-each): the flag made the fallback 1.6-2.9 times slower, the refined corners
-differ by at most 3.1e-4 px, the rigs' focal lengths, principal points and
-baselines against the truth agree to 0.001 px / 0.001 %; on one set the flag
-lost a view (found without it, 0.08 px rms against a median of 0.10)."""
+again, :func:`_refine`): the flag makes the fallback slower for the same refined
+corners (``benchmarks/bench_board_detection.py`` compares the two)."""
 
 
 def subpix_window(square_px: float) -> int:
@@ -79,20 +73,17 @@ def subpix_window(square_px: float) -> int:
 
     ``cornerSubPix`` (and the toolbox's corner finder) solves for the point
     where every image gradient in the window is orthogonal to the vector to
-    the corner. Two limits, both measured:
+    the corner. Two limits (``benchmarks/README.md`` has the measurements):
 
     * large squares: the edges far from the corner are curved by the lens and
       foreshortened, so the full window ``2 w + 1`` is kept to about half of
-      the smallest square side seen in the view, ``w = round(square_px / 4)``.
-      On the toolbox's stereo example (smallest sides 21-37 px) this gives
-      5-9, around the toolbox's own ``wintx = winty = 7``, and the toolbox's
-      ``fc`` within 0.01 %; a fixed ``(11, 11)``, as in many tutorials, moves
-      ``fc`` by 0.7 % and doubles the reprojection error.
+      the smallest square side seen in the view, ``w = round(square_px / 4)``,
+      around the toolbox's own ``wintx = winty = 7`` on its stereo example; a
+      fixed ``(11, 11)``, as in many tutorials, is too large there.
     * small squares (the virtual laboratory's board at 7.5 m: 5-9 px): the
       detector's first estimate can be 3 px off and the edges are blurred, so
-      the window must still reach: ``w >= 4``. There ``w = 4`` gives a corner
-      RMS error of 0.10 px against the truth, ``w = 2`` 0.27 px with 3-px
-      outliers, ``w = 5`` outliers again (the window reaches the neighbours).
+      the window must still reach: ``w >= 4`` (smaller windows leave outliers,
+      larger ones reach the neighbouring corners).
 
     Hence ``w = clip(round(square_px / 4), 4, 15)``.
     """
@@ -198,12 +189,9 @@ def detect_board(image: np.ndarray, inner_corners: tuple[int, int], window: int 
     pixel until they are (down to 2); a board that stays irregular is not
     used, with the reason.
 
-    Measured on four rendered calibration sets of the virtual laboratory
-    (45 views per camera, seeds 0-3): a ``w = 4`` window without the check
-    put 11-60 corners of a view 2.6 px off (Horse 2's seed-1 set: ``fc``
-    1.2 % off); the sector detector's corners left unrefined bias ``fc`` by
-    -2.2 to -3.4 px (-0.3 to -0.46 %) on three sets; refined with the
-    shrinking window, ``|fc|`` errors stay within 1.0 px.
+    Without the check a window can put whole rows of corners pixels off, and
+    the sector detector's corners left unrefined bias the focal length; both
+    are measured in ``benchmarks/README.md``.
 
     Parameters
     ----------
@@ -351,8 +339,7 @@ class BoardSizeError(CalibrationError):
 #: board of any size (:func:`probe_board_size`) before the other views are waited for.
 PROBE_VIEWS = 3
 #: The pattern size handed to ``findChessboardCornersSB`` with ``CALIB_CB_LARGER``: any board at least this
-#: big is found, with the size it has (measured on the bundled views: (4, 4) with ``CALIB_CB_EXHAUSTIVE``
-#: finds the whole 7x14 board in 8 of the first 9 views, 0.02-0.05 s each; without it, 5x14 parts).
+#: big is found, with the size it has (with ``CALIB_CB_EXHAUSTIVE`` the whole board, without it only parts).
 _PROBE_PATTERN = (4, 4)
 
 
@@ -557,7 +544,6 @@ def detect_cameras(image_dirs: dict, inner_corners: tuple[int, int], window: int
             return done[j]
         return gather(result_of)
     # the views are the parallel work: OpenCV's own threads inside each call would only compete with them
-    # (measured on the bundled session's 135 views, 2 cores: 2.85 s with them, 2.6 s without)
     with opencv_single_threaded(), ThreadPoolExecutor(max_workers=workers, thread_name_prefix="board") as pool:
         futures = {j: pool.submit(_detect_file, jobs[j], inner_corners, window, stop) for j in order}
         try:

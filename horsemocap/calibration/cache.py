@@ -1,4 +1,4 @@
-"""The session's calibration kept in its results folder (issue 16).
+"""The session's calibration kept in its results folder.
 
 Calibrating the rig from its checkerboard views is most of the time of a
 bundled analysis (board detection in every view, then each camera, the pairs
@@ -149,7 +149,7 @@ def _read(folder) -> dict | None:
 
 
 class BoardDetectionJob:
-    """The board detection of a session's views, started in a thread before the analysis needs it (issue 16).
+    """The board detection of a session's views, started in a thread before the analysis needs it.
 
     ``horsemocap analyze`` starts it as soon as the session is read, so the
     views are detected while the interpreter imports the analysis' modules

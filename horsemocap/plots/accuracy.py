@@ -10,7 +10,7 @@ __all__ = ["plot_errors_2d", "plot_stage_rmse", "plot_noise_study"]
 
 
 def plot_errors_2d(errors: dict, ax=None):
-    """Histogram of matched 2D centroid errors per camera (seed 000, 6.1)."""
+    """Histogram of matched 2D centroid errors per camera (Guchin et al., 6.1)."""
     ax = ax or plt.figure(figsize=(6, 3)).add_subplot(1, 1, 1)
     top = max(float(np.max(e["errors"])) for e in errors.values() if len(e["errors"]))
     bins = np.linspace(0, top * 1.05, 30)

@@ -125,7 +125,7 @@ def plot_centroid_errors(errors: dict, ax=None, bins=None):
 
 
 def plot_identification(images: dict, candidates: dict, views, fit, zoom=None, fig=None):
-    """One frame identified by all cameras together (issue 17), one panel per camera.
+    """One frame identified by all cameras together, one panel per camera.
 
     Every candidate region is drawn: a grey ring when no other camera sees a
     point there (a glint, a reflection), an orange square when it is part of a

@@ -1,11 +1,11 @@
 """The virtual laboratory: synthetic riding sessions with exact ground truth.
 
-As seed 000 (section 3) built a motion-capture laboratory in Blender, this
+As Guchin et al. (section 3) built a motion-capture laboratory in Blender, this
 package builds the thesis' laboratory in NumPy/OpenCV: the 3-camera rig of
 Tables 8.1-8.4, four horses in four gaits with analytic saddle motion,
 rendered videos with the difficulties of real recordings, stills (plumb,
 static shot, checkerboards), a free-fall ball (section 8.3), and the exact
-truth beside every session; and a harder laboratory (:mod:`.hard`, issue 17)
+truth beside every session; and a harder laboratory (:mod:`.hard`)
 of other rigs, sizes, frame rates, scene extras and speed changes.
 """
 from .horse import (GAITS, HERD, HORSES, Gait, Harmonics, Horse, Pose, SaddleMotion,

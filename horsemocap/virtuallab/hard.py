@@ -1,4 +1,4 @@
-"""The harder virtual laboratory (issue 17): sessions the thesis' lab never had.
+"""The harder virtual laboratory: sessions the thesis' lab never had.
 
 The herd (:mod:`.herd`) is the thesis' laboratory: 640 x 480 at 30 fps, three
 nearly parallel cameras 0.45 m apart, a steady speed. A marker detector that
@@ -697,7 +697,7 @@ def _r(size="720p", kind="toed_in", baseline=0.6, focal=THESIS_FOCAL_PER_WIDTH, 
     return RigSpec(SIZES[size] if isinstance(size, str) else tuple(size), kind, baseline, focal_per_width=focal, **kw)
 
 
-#: The hard set (issue 17). Every session: 3 cameras, truth beside it, rig in calibration/rig.toml.
+#: The hard set. Every session: 3 cameras, truth beside it, rig in calibration/rig.toml.
 HARD_SESSIONS = {sc.name: sc for sc in (
     HardScenario("canter720_toedin_60", "Horse 2", "canter", 2001, 60.0, _r("720p", "toed_in", 0.6, 1.0),
                  speed_factor=0.85, speed_change=(-1.0, 3.2), reflector=True,

@@ -1,4 +1,4 @@
-"""A long session (issue 16): ten minutes of three cameras, composed fast.
+"""A long session: ten minutes of three cameras, composed fast.
 
 The renderer draws a few hundred frames in about a minute: 3 cameras x
 18,000 frames (ten minutes at 30 fps) would take over an hour. A long

@@ -81,7 +81,7 @@ def star_inside(points: np.ndarray, centre: np.ndarray, rim: np.ndarray) -> np.n
     The rim ``(n, 2)`` is described in polar coordinates about the centre;
     a point is inside when its radius is below the rim radius interpolated
     at its angle. With 128 rim points this equals the polygon test except
-    within ~1e-4 px of the edge, and it is ~20x faster than a generic
+    within a tiny distance of the edge, and it is much faster than a generic
     point-in-polygon test.
     """
     d = rim - centre
