@@ -19,7 +19,13 @@ def data_samples_dir() -> Path:
 
 
 def default_session_dir() -> Path:
-    """The bundled default session (Horse 2, canter; thesis section 8.4.1)."""
+    """The bundled default session (Horse 2, canter; thesis section 8.4.1).
+
+    Examples
+    --------
+    >>> default_session_dir().name
+    'horse2_canter'
+    """
     return data_samples_dir() / "horse2_canter"
 
 

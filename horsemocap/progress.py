@@ -26,6 +26,13 @@ def progress_bar(done: int, total: int, width: int = BAR_WIDTH) -> str:
     """``[#####-----]  done/total`` with ``round(width * done / total)`` filled cells.
 
     ``done`` is clipped to ``0..total``; a ``total`` below 1 gives an empty bar.
+
+    Examples
+    --------
+    >>> progress_bar(3, 10)
+    '[#######-----------------]  3/10'
+    >>> progress_bar(10, 10, width=5)
+    '[#####] 10/10'
     """
     total = int(total)
     done = min(max(int(done), 0), max(total, 0))
@@ -36,7 +43,13 @@ def progress_bar(done: int, total: int, width: int = BAR_WIDTH) -> str:
 
 def plain_count_due(done: int, total: int) -> bool:
     """Whether a plain (non-terminal) line is printed for count ``done`` of ``total``:
-    the first, the last, and the first count at or past each quarter."""
+    the first, the last, and the first count at or past each quarter.
+
+    Examples
+    --------
+    >>> [done for done in range(1, 9) if plain_count_due(done, 8)]
+    [1, 2, 4, 6, 8]
+    """
     if total <= 0:
         return False
     if done in (1, total):

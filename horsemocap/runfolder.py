@@ -126,6 +126,20 @@ def check_results_target(out, kind: str = "analyze") -> Path:
     "horsemocap-kinematics/1"``. Anything else is refused with a
     :class:`StoreError` naming it, so that ``--out ~`` never deletes a home
     folder.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> check_results_target(folder / "results") == (folder / "results").resolve()     # a new folder: fine
+    True
+    >>> (folder / "thesis").mkdir()
+    >>> _ = (folder / "thesis" / "chapter1.docx").write_text("not results")
+    >>> try:
+    ...     check_results_target(folder / "thesis")
+    ... except StoreError as error:
+    ...     print(type(error).__name__)
+    StoreError
     """
     is_earlier_run, what = _KINDS[kind]
     if "\0" in str(out):

@@ -153,6 +153,13 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     ------
     SessionError
         Naming the file, the field and what was expected.
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> session = load_session(default_session_dir(), open_sources=False)
+    >>> session.name, session.fps, session.cameras, session.reference_camera
+    ('horse2_canter', 30.0, ('left', 'middle', 'right'), 'left')
     """
     if "\0" in str(folder):
         raise SessionError(f"{str(folder)!r}: a session folder path cannot hold a NUL byte")
@@ -269,6 +276,13 @@ def synced_frame_count(frame_counts: dict, offsets: dict) -> int:
 
     Frame ``k`` of the synchronised sequence is frame ``offsets[c] + k`` of
     camera ``c``; the shared length is ``min_c(count_c - offsets_c)``.
+
+    Examples
+    --------
+    The thesis' offsets: the right camera started 126 frames after the left one.
+
+    >>> synced_frame_count({"left": 300, "middle": 350, "right": 420}, {"left": 12, "middle": 65, "right": 138})
+    282
     """
     return min(frame_counts[c] - offsets[c] for c in offsets)
 

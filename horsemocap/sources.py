@@ -59,12 +59,24 @@ class SourceError(ValueError):
 
 
 def natural_key(name: str):
-    """Sort key that orders embedded numbers by value (``a2`` < ``a10``)."""
+    """Sort key that orders embedded numbers by value (``a2`` < ``a10``).
+
+    Examples
+    --------
+    >>> sorted(["f10.png", "f2.png", "F1.png"], key=natural_key)
+    ['F1.png', 'f2.png', 'f10.png']
+    """
     return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", str(name))]
 
 
 def natural_sorted(paths) -> list[Path]:
-    """Paths sorted by :func:`natural_key` of their file names."""
+    """Paths sorted by :func:`natural_key` of their file names.
+
+    Examples
+    --------
+    >>> [p.name for p in natural_sorted(["left/f10.png", "left/f2.png", "left/f1.png"])]
+    ['f1.png', 'f2.png', 'f10.png']
+    """
     return sorted((Path(p) for p in paths), key=lambda p: natural_key(p.name))
 
 
@@ -156,7 +168,7 @@ REGULAR_SHARE = 0.9
 
 def numbering_gaps(names, shown: int = 10) -> tuple[int, list[str]]:
     """Images missing from a regularly numbered series: their count and the first ``shown`` names
-    (``a0.png .. a9.png`` without ``a3.png``: ``(1, ["a3.png"])``).
+    (``a0.png .. a19.png`` without ``a3.png``: ``(1, ["a3.png"])``).
 
     The last number in each name is its place in the series; the names must all share the text
     before and after it. The series' step is its smallest difference (1 for ``a0, a1, ..``, 2 for
@@ -164,6 +176,13 @@ def numbering_gaps(names, shown: int = 10) -> tuple[int, list[str]]:
     step and at least :data:`REGULAR_SHARE` of them equal it (a series numbered by timestamps, whose
     differences vary, is not checked). Zero padding (``a007.png``) is kept in the names returned;
     the count is computed, not listed, so large numbers cost nothing.
+
+    Examples
+    --------
+    >>> numbering_gaps([f"a{i}.png" for i in range(20) if i != 3])
+    (1, ['a3.png'])
+    >>> numbering_gaps(["a0.png", "a10.png", "a25.png"])     # not a regular series: not checked
+    (0, [])
     """
     parsed = []
     for name in names:

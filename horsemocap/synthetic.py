@@ -21,7 +21,18 @@ __all__ = ["Jet", "minimum_jerk_step", "ringing", "lift_with_ringing"]
 
 @dataclass(frozen=True)
 class Jet:
-    """A function of time with its first two derivatives: ``(f, f', f'')``."""
+    """A function of time with its first two derivatives: ``(f, f', f'')``.
+
+    Examples
+    --------
+    The product rule carried along: ``t^2`` from ``t``.
+
+    >>> import numpy as np
+    >>> t = Jet(np.array([0.0, 0.5, 1.0]), np.ones(3), np.zeros(3))
+    >>> square = t * t
+    >>> square.f, square.d1, square.d2
+    (array([0.  , 0.25, 1.  ]), array([0., 1., 2.]), array([2., 2., 2.]))
+    """
 
     f: np.ndarray
     d1: np.ndarray
@@ -50,7 +61,15 @@ class Jet:
 
 
 def minimum_jerk_step(t, t0: float, duration: float, height: float) -> Jet:
-    """``height * (10 s^3 - 15 s^4 + 6 s^5)``, ``s = (t - t0)/duration`` clipped to [0, 1]."""
+    """``height * (10 s^3 - 15 s^4 + 6 s^5)``, ``s = (t - t0)/duration`` clipped to [0, 1].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> step = minimum_jerk_step(np.array([0.0, 0.5, 1.0]), t0=0.0, duration=1.0, height=2.0)
+    >>> step.f, step.d1                         # halfway up at the middle, at its fastest there
+    (array([0., 1., 2.]), array([0.  , 3.75, 0.  ]))
+    """
     t = np.asarray(t, float)
     s = np.clip((t - t0) / duration, 0, 1)
     inside = (t > t0) & (t < t0 + duration)
@@ -64,7 +83,15 @@ def ringing(t, t0: float, amplitude: float, freq_hz: float = 10.0, decay_s: floa
             rise_s: float = 0.02, phase: float = 0.0) -> Jet:
     """A decaying oscillation starting smoothly at ``t0``:
     ``A (1 - exp(-u/rise))^3 exp(-u/decay) sin(2 pi f u + phase)``, ``u = t - t0 >= 0``
-    (position, velocity and acceleration continuous at ``t0``)."""
+    (position, velocity and acceleration continuous at ``t0``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ring = ringing(np.array([0.0, 0.5]), t0=0.5, amplitude=0.01)    # nothing before or at its onset
+    >>> ring.f.tolist(), ring.d1.tolist(), ring.d2.tolist()
+    ([0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
+    """
     t = np.asarray(t, float)
     u = np.clip(t - t0, 0, None)
     on = t > t0
@@ -120,6 +147,12 @@ def lift_with_ringing(fps: float = 100.0, duration_s: float = 4.0, noise_m: floa
     ``hidden_body`` (3,) (the hidden point in the same frame),
     ``hidden_pos``/``hidden_vel``/``hidden_acc`` (n, 3), ``omega``,
     ``alpha`` (n, 3), ``R`` (n, 3, 3), ``noise_m``.
+
+    Examples
+    --------
+    >>> motion = lift_with_ringing()
+    >>> motion["t"].size, motion["markers"].shape, motion["hidden_acc"].shape
+    (400, (400, 4, 3), (400, 3))
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(round(duration_s * fps))) / fps

@@ -33,7 +33,13 @@ class CalibrationError(ValueError):
 
 
 def parse_board(board: str) -> tuple[int, int]:
-    """``"COLSxROWS"`` (inner corners) -> ``(cols, rows)``; clear error otherwise."""
+    """``"COLSxROWS"`` (inner corners) -> ``(cols, rows)``; clear error otherwise.
+
+    Examples
+    --------
+    >>> parse_board("15x29")
+    (15, 29)
+    """
     m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", str(board))
     if not m:
         raise CalibrationError(f"--board {board!r}: expected COLSxROWS inner corners, e.g. 9x6")
@@ -49,6 +55,11 @@ def board_points(inner_corners: tuple[int, int], square_m: float) -> np.ndarray:
     Row-major, as OpenCV returns the corners: index ``j * cols + i`` is column
     ``i`` and row ``j`` at ``(i * square_m, j * square_m, 0)`` (the toolbox's
     ``X_i`` grid with ``dX = dY = square_m``).
+
+    Examples
+    --------
+    >>> board_points((3, 2), square_m=0.05).round(3).tolist()
+    [[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.05, 0.0], [0.05, 0.05, 0.0], [0.1, 0.05, 0.0]]
     """
     cols, rows = inner_corners
     i, j = np.meshgrid(np.arange(cols), np.arange(rows))
@@ -86,6 +97,11 @@ def subpix_window(square_px: float) -> int:
       larger ones reach the neighbouring corners).
 
     Hence ``w = clip(round(square_px / 4), 4, 15)``.
+
+    Examples
+    --------
+    >>> subpix_window(30.0), subpix_window(8.0)          # a quarter of the square, at least 4
+    (8, 4)
     """
     if not np.isfinite(square_px) or square_px <= 0:
         raise CalibrationError(f"square size in pixels must be positive, got {square_px}")
@@ -93,7 +109,15 @@ def subpix_window(square_px: float) -> int:
 
 
 def square_size_px(corners: np.ndarray, inner_corners: tuple[int, int]) -> float:
-    """Smallest spacing (pixels) between neighbouring corners of a view: its smallest square side."""
+    """Smallest spacing (pixels) between neighbouring corners of a view: its smallest square side.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> corners = (board_points((3, 2), 0.05)[:, :2] * 400 + 100).astype(np.float32)   # 20 px squares
+    >>> square_size_px(corners, (3, 2))
+    20.0
+    """
     cols, rows = inner_corners
     g = np.asarray(corners, float).reshape(rows, cols, 2)
     along = np.linalg.norm(np.diff(g, axis=1), axis=-1)
@@ -283,6 +307,11 @@ def view_keys(files, camera: str | None = None) -> list[str]:
     The file stem (``0007.png`` -> ``"0007"``). When a camera's files carry its
     name (``left07.jpg``), the name is stripped so ``left07`` and ``right07``
     meet on ``"07"``.
+
+    Examples
+    --------
+    >>> view_keys(["calib/left/view10.png", "calib/left/view2.png"])
+    ['view10', 'view2']
     """
     keys = []
     for f in files:

@@ -99,6 +99,12 @@ def thesis_rig() -> Rig:
     World frame = left camera frame (metres, OpenCV axes: x right, y down,
     z forward). Middle from the left-middle pair (``R_ML, t_ML``), right from
     the left-right pair (``R_RL, t_RL``) of Table 8.4.
+
+    Examples
+    --------
+    >>> rig = thesis_rig()
+    >>> rig.names, rig["left"].size
+    (['left', 'middle', 'right'], (640, 480))
     """
     cams = [thesis_camera("left")]
     for name, pair in (("middle", "left-middle"), ("right", "left-right")):
