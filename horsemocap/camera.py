@@ -32,7 +32,17 @@ except ModuleNotFoundError:  # pragma: no cover
 
 
 class RigError(ValueError):
-    """A rig file or a rig description that breaks the contract."""
+    """A rig file or a rig description that breaks the contract.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> try:
+    ...     Camera("left", (640, 480), np.eye(3), distortions=np.zeros(6))
+    ... except RigError as error:
+    ...     print(error)
+    camera 'left': distortions has 6 values, expected at most 5 [k1, k2, p1, p2, k3]
+    """
 
 
 @dataclass(frozen=True)

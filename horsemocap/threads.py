@@ -30,6 +30,21 @@ class SingleThreaded:
     limit : callable() -> callable()
         Limits the library to one thread and returns the function that
         restores the setting it found.
+
+    Examples
+    --------
+    A library limited while two blocks overlap, restored once when the last ends:
+
+    >>> calls = []
+    >>> def limit():
+    ...     calls.append("limit")
+    ...     return lambda: calls.append("restore")
+    >>> single = SingleThreaded(limit)
+    >>> with single():
+    ...     with single():
+    ...         pass
+    >>> calls
+    ['limit', 'restore']
     """
 
     def __init__(self, limit):

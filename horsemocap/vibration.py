@@ -108,6 +108,12 @@ class WeightingParameters:
     Frequencies in Hz; ``inf`` removes a section (e.g. no upward step).
     ``step_form`` is ``"iso"`` (upward step -> (f5/f6)^2 at low frequency)
     or ``"bs6841"`` (upward step -> 1 at low frequency).
+
+    Examples
+    --------
+    >>> wk = WEIGHTINGS["Wk"]
+    >>> wk.f5, wk.f6, wk.K
+    (2.37, 3.35, 1.0)
     """
 
     name: str
@@ -266,7 +272,12 @@ def weighting_bs6841_wb(freq_hz, *, band_limiting: bool = True) -> np.ndarray:
 
 
 class DigitalWeightingWarning(UserWarning):
-    """The sampling rate makes the digital weighting filter inaccurate."""
+    """The sampling rate makes the digital weighting filter inaccurate.
+
+    Examples
+    --------
+    See :func:`weighting_filter`.
+    """
 
 
 def _design_sos(name, fs, band_limiting=True):
@@ -582,7 +593,13 @@ def dominant_frequency(harmonics: Harmonics) -> float:
 
 @dataclass(frozen=True)
 class ExposureValues:
-    """Daily exposure action (EAV) and limit (ELV) values, thesis Table 7.2."""
+    """Daily exposure action (EAV) and limit (ELV) values, thesis Table 7.2.
+
+    Examples
+    --------
+    >>> EU_2002_44_EC.a8_action, EU_2002_44_EC.a8_limit, EU_2002_44_EC.vdv_limit
+    (0.5, 1.15, 21.0)
+    """
 
     a8_action: float = 0.5      # m/s^2, A(8)
     a8_limit: float = 1.15      # m/s^2

@@ -36,6 +36,7 @@ DOCTEST_MODULES = [
     "horsemocap.runfolder",
     "horsemocap.calibration.board",
     "horsemocap.virtuallab.rig",
+    "horsemocap.threads",
 ]
 
 
