@@ -68,6 +68,7 @@ def build(out_dir: Path | str = DEFAULT_OUT, modules: list[str] | None = None,
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         documented = {name: pdoc.doc.Module.from_name(name) for name in modules}
+        _list_every_submodule(documented)
         for name, module in documented.items():
             page = module_page(out_dir, name)
             page.parent.mkdir(parents=True, exist_ok=True)
@@ -79,6 +80,20 @@ def build(out_dir: Path | str = DEFAULT_OUT, modules: list[str] | None = None,
         if search_index:
             (out_dir / "search.js").write_text(search_index, encoding="utf-8")
     return [f"{w.category.__name__}: {w.message}" for w in caught if not _namedtuple_annotation(w.message)]
+
+
+def _list_every_submodule(documented: dict) -> None:
+    """Let each package's page list all its documented submodules.
+
+    pdoc lists only the submodules a package's ``__all__`` names; ours name the
+    functions they re-export, so ``horsemocap.detection``'s page would link to
+    none of its modules. ``Module.submodules`` is a cached property: it is
+    filled here with the documented modules one level below.
+    """
+    for name, module in documented.items():
+        children = [child for child_name, child in documented.items()
+                    if child_name.rpartition(".")[0] == name]
+        module.__dict__["submodules"] = children
 
 
 def _namedtuple_annotation(message) -> bool:
