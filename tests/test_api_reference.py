@@ -64,6 +64,11 @@ def test_every_public_module_has_a_page(built):
         page = apidoc.module_page(out_dir, name)
         assert page.is_file(), f"no page for {name}"
         assert name in page.read_text(encoding="utf-8"), f"{page} does not name {name}"
+    for name in modules:                 # a package's page links to each of its modules
+        parent, _, leaf = name.rpartition(".")
+        if parent:
+            parent_page = apidoc.module_page(out_dir, parent).read_text(encoding="utf-8")
+            assert f'href="{parent.rpartition(".")[2]}/{leaf}.html"' in parent_page, f"{parent}'s page lacks {name}"
 
 
 def _exported(package: str) -> list[tuple[str, object]]:
