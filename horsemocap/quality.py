@@ -405,7 +405,7 @@ def _shift_residuals(v: dict) -> str:
             return "not measurable"
         return f"markers not found (>= {MISS_PX:g} px)" if x >= MISS_PX else f"{x:.2g} px"
 
-    return f"median residual {px(v['current_px'])} at the flash's offset -> {px(v['best_px'])}"
+    return f"median residual {px(v.current_px)} at the flash's offset -> {px(v.best_px)}"
 
 
 def _markers_settle(check) -> bool:
@@ -417,19 +417,19 @@ def _markers_settle(check) -> bool:
     away); a check that found no markers there settles nothing."""
     from .detection.timeshift import MIN_CURRENT_PX
 
-    if not check or not check.get("decided", True):
+    if check is None or not check.decided:
         return False
-    return bool(math.isfinite(check.get("best_px", float("nan"))) and check["best_px"] < MIN_CURRENT_PX)
+    return bool(math.isfinite(check.best_px) and check.best_px < MIN_CURRENT_PX)
 
 
 def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", ambiguous=None) -> Check:
     """Did the markers confirm every camera's flash offset?
 
-    ``sync_check``: camera -> ``{"shift": frames, "current_px": .., "best_px": ..}``
-    (the detect step's ``sync_check``; ``"decided": False`` where too few
+    ``sync_check``: camera -> :class:`horsemocap.steps.CameraSyncCheck` (the
+    detect step's ``sync_check``; ``decided`` False where too few
     marker-frames of the other cameras fell into the camera to test a shift:
-    not a confirmation; ``"moved"``: a round moved the camera; ``"settled"``:
-    the last round moved none, :func:`horsemocap.pipeline._sync_check_summary`).
+    not a confirmation; ``moved``: a round moved the camera; ``settled``:
+    the last round moved none).
     The figure is the largest total shift in whole frames. No camera moved and
     every camera checked is ``ok``; a camera the markers moved, or could not
     check, is a ``warning`` (the results use the corrected offsets; the flash
@@ -453,11 +453,11 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", a
         return Check("sync_by_markers", None, "frames", SKIPPED, (0, 0), (None, None), threshold, input_,
                      "the flash offsets checked by the markers: not available (offsets given, or fewer "
                      "than three cameras)")
-    shifts = {c: int(v["shift"]) for c, v in sync_check.items()}
+    shifts = {c: int(v.shift) for c, v in sync_check.items()}
     worst = max(abs(v) for v in shifts.values())
-    moved = [c for c, v in sync_check.items() if v.get("moved", v["shift"] != 0)]
-    undecided = [c for c, v in sync_check.items() if not v.get("decided", True)]
-    settled = all(v.get("settled", True) for v in sync_check.values())
+    moved = [c for c, v in sync_check.items() if v.moved]
+    undecided = [c for c, v in sync_check.items() if not v.decided]
+    settled = all(v.settled for v in sync_check.values())
     level = "unreliable" if not settled else "warning" if moved or undecided or unsure else "ok"
     parts = [unsure_text] if unsure else []
     if moved:
@@ -466,10 +466,10 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", a
             + "; the results use the corrected offsets")
     if undecided:
         parts.append("the markers could not check the flash offset of " + ", ".join(
-            f"camera '{c}' ({sync_check[c].get('n_points', 0)} marker-frames of the other cameras projected into it)"
+            f"camera '{c}' ({sync_check[c].n_points} marker-frames of the other cameras projected into it)"
             for c in undecided))
     if not settled:
-        n = max(int(v.get("rounds", 1)) for v in sync_check.values())
+        n = max(int(v.rounds) for v in sync_check.values())
         parts.append(f"after {n} rounds the markers still moved an offset: the offsets the results use were not "
                      "confirmed (the flash may be wrong in two cameras); give the offsets (--offsets) after "
                      "finding the flash in each video")
@@ -555,31 +555,30 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
 
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
-    res, s = analysis.results, analysis.session
+    a_, s = analysis, analysis.session
     checks = []
-    if "triangulate" in res and "detect" in res:
-        a, b = res["triangulate"]["segment"]
-        resid = {c: np.asarray(r)[a:b] for c, r in res["triangulate"]["residual_px"].items()}
-        rms = res["rig"]["rig"].metadata.get("error") if "rig" in res else None
+    if a_.triangulate is not None and a_.detect is not None:
+        a, b = a_.triangulate.segment
+        resid = {c: np.asarray(r)[a:b] for c, r in a_.triangulate.residual_px.items()}
+        rms = a_.rig.rig.metadata.get("error") if a_.rig is not None else None
         try:
             rms = float(rms) if rms is not None else None
         except (TypeError, ValueError):
             rms = None
-        checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
-    ambiguous = res.get("sync", {}).get("flash_ambiguous")
-    if "detect" in res and (res["detect"].get("sync_check") or ambiguous):
-        checks.append(check_sync_by_markers(res["detect"].get("sync_check") or {}, ambiguous=ambiguous))
-    if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
-        fast = res["motion_frame"].get("faster_period_frames")
-        checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"],
+        checks.append(check_reprojection_residuals(resid, marker_motion_px(a_.detect.marker_px, (a, b)), rms))
+    ambiguous = a_.sync.flash_ambiguous if a_.sync is not None else {}
+    if a_.detect is not None and (a_.detect.sync_check or ambiguous):
+        checks.append(check_sync_by_markers(a_.detect.sync_check, ambiguous=ambiguous))
+    if a_.motion_frame is not None and a_.motion_frame.period_frames is not None:
+        fast = a_.motion_frame.faster_period_frames
+        checks.append(check_stride_frequency(s.fps / a_.motion_frame.period_frames,
                                              faster_hz=None if fast is None else s.fps / fast))
-    if "rigid_body" in res:
-        rb = res["rigid_body"]
-        checks.append(check_marker_geometry(rb.get("warnings")))
-        if rb.get("conditioning") is not None and rb.get("model") is not None:
-            checks.append(check_marker_rigidity(rb["conditioning"]["registration_rms_m"], rb["model"]))
-    if "comfort" in res and res["comfort"].get("indicators") is not None:
-        ind = res["comfort"]["indicators"]
+    if a_.rigid_body is not None:
+        rb = a_.rigid_body
+        checks.append(check_marker_geometry(rb.warnings))
+        checks.append(check_marker_rigidity(rb.conditioning.registration_rms_m, rb.model))
+    if a_.comfort is not None and a_.comfort.indicators is not None:
+        ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
         checks.append(check_saddle_acceleration(ind.get("acc_y_max")))
     return checks

@@ -137,8 +137,8 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
             outcome.error = exc
         outcome.analysis = analysis
         if analysis is not None:
-            if rig is None and "rig" in analysis.results:
-                checks += quality.rig_checks(session, analysis.results["rig"]["rig"])
+            if rig is None and analysis.rig is not None:
+                checks += quality.rig_checks(session, analysis.rig.rig)
             checks += quality.post_checks(analysis)
         if outcome.error is not None:
             checks.append(quality.Check("run_complete", None, "", "unreliable", (None, None), (None, None),

@@ -7,7 +7,7 @@ in ``calibration.json`` in the results folder, so a repeated ``analyze`` of
 the same views does not calibrate again:
 
 - ``key``: SHA-256 of everything that changes the result: every view
-  (:func:`horsemocap.pipeline.file_fingerprint`: path, size, mtime and the
+  (:func:`horsemocap.fingerprint.file_fingerprint`: path, size, mtime and the
   bytes at both ends), the board (inner corners, square size), the cameras
   and the reference camera, and the source code of :mod:`horsemocap.calibration`
   and :mod:`horsemocap.camera`. The rig is reused only when the key matches.
@@ -33,6 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera, Rig
+from ..fingerprint import file_fingerprint
+from ..sources import list_images
 from .board import BoardViews, detect_cameras
 
 CACHE_FILE = "calibration.json"
@@ -52,9 +54,6 @@ def _code_hash(names) -> bytes:
 
 def views_key(folder, inner_corners) -> str:
     """Key of one camera's board detection: its view files, the inner corners and the detector's code."""
-    from ..pipeline import file_fingerprint
-    from ..sources import list_images
-
     h = hashlib.sha256()
     for f in list_images(Path(folder)):
         h.update(file_fingerprint(f).encode("utf-8", "surrogateescape"))
