@@ -25,6 +25,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .store import atomic_write_text, read_text_utf8
+
 try:  # Python >= 3.11
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover
@@ -334,8 +336,6 @@ def rig_to_toml(rig: Rig) -> str:
 
 def write_rig(rig: Rig, path) -> Path:
     """Write ``rig.toml`` atomically (a temporary file renamed into place)."""
-    from .store import atomic_write_text
-
     return atomic_write_text(Path(path), rig_to_toml(rig))
 
 
@@ -361,7 +361,6 @@ def read_rig(path) -> Rig:
     path = Path(path)
     if not path.is_file():
         raise RigError(f"{path}: rig file not found")
-    from .store import read_text_utf8
 
     try:
         data = tomllib.loads(read_text_utf8(path, RigError))

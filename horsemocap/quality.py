@@ -39,6 +39,10 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from .detection.timeshift import MIN_CURRENT_PX, MISS_PX
+from .frames import HORSE_STRIDE_HZ
+from .sources import FrameSource, read_image
+
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
 FORMAT = "horsemocap-quality/1"
@@ -274,8 +278,6 @@ def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period
                            faster_hz: float | None = None) -> Check:
     """Stride frequency: ``ok`` inside :data:`horsemocap.frames.HORSE_STRIDE_HZ` (0.7-2.7 Hz, walk to racing
     gallop), ``warning`` 0.4-3.5 Hz."""
-    from .frames import HORSE_STRIDE_HZ
-
     check = range_check("stride_frequency", frequency_hz, "Hz", HORSE_STRIDE_HZ, (0.4, 3.5), input_,
                         "stride frequency")
     if faster_hz is not None and check.level == "ok":   # ``faster_hz``: the record also repeats that fast
@@ -349,8 +351,6 @@ def check_reprojection_residuals(residual_px: dict, motion_px_per_frame: dict, c
 # ---------------------------------------------------------------------------
 
 def _image_sizes(session, rig_cams) -> dict:
-    from .sources import FrameSource, read_image
-
     sizes = {}
     for cam in session.cameras:
         if cam not in rig_cams:
@@ -372,8 +372,6 @@ def rig_checks(session, rig) -> list[Check]:
 
 def pre_checks(session, rig=None) -> list[Check]:
     """Checks of a session before the analysis (``rig``: the rig it will use, if known)."""
-    from .sources import FrameSource
-
     fps = {c: FrameSource(session.motion[c]).container_fps for c in session.cameras}
     checks = [check_fps_against_container(session.fps, fps, session.motion),
               check_board_square(session.board.square_size_m if session.board is not None else None),
@@ -398,8 +396,6 @@ def marker_motion_px(marker_px: dict, segment=None) -> dict:
 def _shift_residuals(v: dict) -> str:
     """``median residual A -> B px`` of a camera's sync check; a residual at the cap of
     :data:`horsemocap.detection.timeshift.MISS_PX` means the markers were not found there."""
-    from .detection.timeshift import MISS_PX
-
     def px(x):
         if not math.isfinite(x):
             return "not measurable"
@@ -415,8 +411,6 @@ def _markers_settle(check) -> bool:
     tried: were it the flash, the kept offset would be off by its distance, and a moving horse's markers
     would not fall on the regions (held-out and fresh sessions: 0.07-0.13 px with runner-ups 50-128 frames
     away); a check that found no markers there settles nothing."""
-    from .detection.timeshift import MIN_CURRENT_PX
-
     if check is None or not check.decided:
         return False
     return bool(math.isfinite(check.best_px) and check.best_px < MIN_CURRENT_PX)

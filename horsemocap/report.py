@@ -10,11 +10,15 @@ import html
 import io
 import os
 import pickle
+import re
+import threading
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 
+from .results import analysis_record
 from .store import atomic_write_text
+from .vibration import comfort_table_rows
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;color:#222;padding:0 1em}
@@ -86,8 +90,6 @@ def render_pngs(makers) -> list[str]:
     and the BLAS (the command's case) hold none while they wait, and glibc and
     OpenBLAS reset their own locks at a fork.
     """
-    import threading
-
     makers = list(makers)
     if (len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
             or threading.active_count() > 1):
@@ -276,7 +278,6 @@ def unit_html(unit: str) -> str:
     ``"1"`` (a ratio) -> ``""``; other text escaped."""
     if unit == "1":
         return ""
-    import re
 
     parts = re.split(r"\^([0-9.+-]+)", unit)
     out = html.escape(parts[0])
@@ -291,7 +292,6 @@ def unit_text(unit: str) -> str:
     if unit == "1":
         return ""
     sup = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
-    import re
 
     return re.sub(r"\^(-?[0-9]+)(?![0-9.])", lambda m: m.group(1).translate(sup), unit)
 
@@ -355,8 +355,6 @@ def comfort_rows(indicators: dict) -> list[tuple[str, str, str, str]]:
     Values to 4 significant digits; the identifier of ``comfort.csv`` is
     kept in the name, in brackets.
     """
-    from .vibration import comfort_table_rows
-
     out = []
     for key, value, unit in comfort_table_rows(indicators):
         name, meaning = INDICATORS.get(key, (key, ""))
@@ -376,8 +374,6 @@ def x_acceleration_note(params) -> str | None:
 
 def text_html(text: str) -> str:
     """Escaped text with the powers of its units as superscripts (``m/s^2`` -> ``m/s<sup>2</sup>``)."""
-    import re
-
     return re.sub(r"\^([0-9]+(?:\.[0-9]+)?)", r"<sup>\1</sup>", html.escape(str(text)))
 
 
@@ -389,8 +385,6 @@ def threshold_text(text: str) -> str:
     ``unreliable outside <= 7.7`` as ``unreliable above 7.7``, and an
     unreliable band that is the ok band itself as ``unreliable otherwise``.
     """
-    import re
-
     t = re.sub(r"\d+\.\d{5,}", lambda m: format_value(float(m.group(0))), str(text))
     t = re.sub(r"(?<![\d.])(-?\d+(?:\.\d+)?)\.\.\1(?![\d.])", r"\1", t)
     t = re.sub(r"(\d)\.\.(-?\d)", "\\1\u00a0–\u00a0\\2", t)   # no line break inside a range
@@ -434,8 +428,6 @@ def report_html(analysis, quality: dict | None = None) -> str:
     ``quality``: the record of :func:`horsemocap.quality.quality_record`,
     shown first.
     """
-    from .results import analysis_record
-
     s, res = analysis.session, analysis.results
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
              '<p class="note">horsemocap, after G. Dogan, METU 2009. Session folder: '

@@ -28,14 +28,18 @@ from __future__ import annotations
 
 import hashlib
 import json
+import threading
 from pathlib import Path
 
 import numpy as np
 
+from .. import camera
 from ..camera import Camera, Rig
 from ..fingerprint import file_fingerprint
 from ..sources import list_images
+from ..store import atomic_write_text
 from .board import BoardViews, detect_cameras
+from .rig import board_view_counter, calibrate_rig
 
 CACHE_FILE = "calibration.json"
 CACHE_FORMAT = "horsemocap-calibration-cache/1"
@@ -68,8 +72,6 @@ def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference:
 
     ``view_keys``: each camera's :func:`views_key`, when the caller has them (else computed here).
     """
-    from .. import camera
-
     view_keys = view_keys or {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
     h = hashlib.sha256()
     for cam in image_dirs:
@@ -131,8 +133,6 @@ def _views_from_json(camera: str, d: dict) -> BoardViews:
 
 def _write(folder: Path, record: dict) -> None:
     """``calibration.json`` written whole or not at all (compact: the corners are most of it)."""
-    from ..store import atomic_write_text
-
     atomic_write_text(folder / CACHE_FILE, json.dumps(record, separators=(",", ":")) + "\n")
 
 
@@ -165,8 +165,6 @@ class BoardDetectionJob:
     """
 
     def __init__(self, image_dirs: dict, inner_corners, workers: int | None = None):
-        import threading
-
         self.keys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
         self.done = {cam: 0 for cam in image_dirs}
         self.totals = {cam: 0 for cam in image_dirs}
@@ -195,8 +193,6 @@ class BoardDetectionJob:
         counted while it waits. The job's error (a view of another size...)
         is raised here.
         """
-        from .rig import board_view_counter
-
         if self.keys.get(cam) != key:
             return None
         told = {}
@@ -267,8 +263,6 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     how : str
         ``"calibrated from checkerboard views"`` or ``"... (cached in calibration.json)"``.
     """
-    from .rig import board_view_counter, calibrate_rig
-
     say = (lambda msg: progress("rig", msg)) if progress else (lambda msg: None)
     vkeys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}   # (hashes every view)
     key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode, vkeys)
