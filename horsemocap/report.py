@@ -428,7 +428,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
     ``quality``: the record of :func:`horsemocap.quality.quality_record`,
     shown first.
     """
-    s, res = analysis.session, analysis.results
+    s = analysis.session
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
              '<p class="note">horsemocap, after G. Dogan, METU 2009. Session folder: '
              f"{html.escape(str(s.root))}</p>"]
