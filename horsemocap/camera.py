@@ -25,6 +25,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .store import atomic_write_text, read_text_utf8
+
 try:  # Python >= 3.11
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover
@@ -473,8 +475,6 @@ def write_rig(rig: Rig, path) -> Path:
     >>> read_rig(path).names
     ['left', 'right']
     """
-    from .store import atomic_write_text
-
     return atomic_write_text(Path(path), rig_to_toml(rig))
 
 
@@ -505,7 +505,6 @@ def read_rig(path) -> Rig:
     path = Path(path)
     if not path.is_file():
         raise RigError(f"{path}: rig file not found")
-    from .store import read_text_utf8
 
     try:
         data = tomllib.loads(read_text_utf8(path, RigError))

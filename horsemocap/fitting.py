@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
+from scipy import optimize, stats
 
 __all__ = [
     "GoodnessOfFit",
@@ -194,7 +194,6 @@ def _confint(J, coef, gof, level=0.95):
         var = np.sum(Rinv ** 2, axis=1) * gof.sse / gof.dfe
     except np.linalg.LinAlgError:
         var = np.full(coef.size, np.inf)
-    from scipy import stats   # here: importing scipy.stats costs 0.2 s of every command's start
 
     half = stats.t.ppf((1 + level) / 2, gof.dfe) * np.sqrt(var)
     return np.vstack([coef - half, coef + half])

@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 __all__ = [
     "MotionFrame",
@@ -342,8 +343,6 @@ def _refine_period(sig: np.ndarray, lag: float, harmonics: int) -> float:
     (all columns together). The autocorrelation of a record holding one or
     two periods is biased by a fraction of a frame; this fit is not.
     """
-    from scipy.optimize import minimize_scalar
-
     sig = sig[:, np.all(np.isfinite(sig), axis=0)]
     if sig.shape[0] < 2 * harmonics + 4:
         return lag

@@ -39,6 +39,10 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from .detection.timeshift import MIN_CURRENT_PX, MISS_PX
+from .frames import HORSE_STRIDE_HZ
+from .sources import FrameSource, read_image
+
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
 FORMAT = "horsemocap-quality/1"
@@ -274,8 +278,6 @@ def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period
                            faster_hz: float | None = None) -> Check:
     """Stride frequency: ``ok`` inside :data:`horsemocap.frames.HORSE_STRIDE_HZ` (0.7-2.7 Hz, walk to racing
     gallop), ``warning`` 0.4-3.5 Hz."""
-    from .frames import HORSE_STRIDE_HZ
-
     check = range_check("stride_frequency", frequency_hz, "Hz", HORSE_STRIDE_HZ, (0.4, 3.5), input_,
                         "stride frequency")
     if faster_hz is not None and check.level == "ok":   # ``faster_hz``: the record also repeats that fast
@@ -349,8 +351,6 @@ def check_reprojection_residuals(residual_px: dict, motion_px_per_frame: dict, c
 # ---------------------------------------------------------------------------
 
 def _image_sizes(session, rig_cams) -> dict:
-    from .sources import FrameSource, read_image
-
     sizes = {}
     for cam in session.cameras:
         if cam not in rig_cams:
@@ -372,8 +372,6 @@ def rig_checks(session, rig) -> list[Check]:
 
 def pre_checks(session, rig=None) -> list[Check]:
     """Checks of a session before the analysis (``rig``: the rig it will use, if known)."""
-    from .sources import FrameSource
-
     fps = {c: FrameSource(session.motion[c]).container_fps for c in session.cameras}
     checks = [check_fps_against_container(session.fps, fps, session.motion),
               check_board_square(session.board.square_size_m if session.board is not None else None),
@@ -398,14 +396,12 @@ def marker_motion_px(marker_px: dict, segment=None) -> dict:
 def _shift_residuals(v: dict) -> str:
     """``median residual A -> B px`` of a camera's sync check; a residual at the cap of
     :data:`horsemocap.detection.timeshift.MISS_PX` means the markers were not found there."""
-    from .detection.timeshift import MISS_PX
-
     def px(x):
         if not math.isfinite(x):
             return "not measurable"
         return f"markers not found (>= {MISS_PX:g} px)" if x >= MISS_PX else f"{x:.2g} px"
 
-    return f"median residual {px(v['current_px'])} at the flash's offset -> {px(v['best_px'])}"
+    return f"median residual {px(v.current_px)} at the flash's offset -> {px(v.best_px)}"
 
 
 def _markers_settle(check) -> bool:
@@ -415,21 +411,19 @@ def _markers_settle(check) -> bool:
     tried: were it the flash, the kept offset would be off by its distance, and a moving horse's markers
     would not fall on the regions (held-out and fresh sessions: 0.07-0.13 px with runner-ups 50-128 frames
     away); a check that found no markers there settles nothing."""
-    from .detection.timeshift import MIN_CURRENT_PX
-
-    if not check or not check.get("decided", True):
+    if check is None or not check.decided:
         return False
-    return bool(math.isfinite(check.get("best_px", float("nan"))) and check["best_px"] < MIN_CURRENT_PX)
+    return bool(math.isfinite(check.best_px) and check.best_px < MIN_CURRENT_PX)
 
 
 def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", ambiguous=None) -> Check:
     """Did the markers confirm every camera's flash offset?
 
-    ``sync_check``: camera -> ``{"shift": frames, "current_px": .., "best_px": ..}``
-    (the detect step's ``sync_check``; ``"decided": False`` where too few
+    ``sync_check``: camera -> :class:`horsemocap.steps.CameraSyncCheck` (the
+    detect step's ``sync_check``; ``decided`` False where too few
     marker-frames of the other cameras fell into the camera to test a shift:
-    not a confirmation; ``"moved"``: a round moved the camera; ``"settled"``:
-    the last round moved none, :func:`horsemocap.pipeline._sync_check_summary`).
+    not a confirmation; ``moved``: a round moved the camera; ``settled``:
+    the last round moved none).
     The figure is the largest total shift in whole frames. No camera moved and
     every camera checked is ``ok``; a camera the markers moved, or could not
     check, is a ``warning`` (the results use the corrected offsets; the flash
@@ -453,11 +447,11 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", a
         return Check("sync_by_markers", None, "frames", SKIPPED, (0, 0), (None, None), threshold, input_,
                      "the flash offsets checked by the markers: not available (offsets given, or fewer "
                      "than three cameras)")
-    shifts = {c: int(v["shift"]) for c, v in sync_check.items()}
+    shifts = {c: int(v.shift) for c, v in sync_check.items()}
     worst = max(abs(v) for v in shifts.values())
-    moved = [c for c, v in sync_check.items() if v.get("moved", v["shift"] != 0)]
-    undecided = [c for c, v in sync_check.items() if not v.get("decided", True)]
-    settled = all(v.get("settled", True) for v in sync_check.values())
+    moved = [c for c, v in sync_check.items() if v.moved]
+    undecided = [c for c, v in sync_check.items() if not v.decided]
+    settled = all(v.settled for v in sync_check.values())
     level = "unreliable" if not settled else "warning" if moved or undecided or unsure else "ok"
     parts = [unsure_text] if unsure else []
     if moved:
@@ -466,10 +460,10 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", a
             + "; the results use the corrected offsets")
     if undecided:
         parts.append("the markers could not check the flash offset of " + ", ".join(
-            f"camera '{c}' ({sync_check[c].get('n_points', 0)} marker-frames of the other cameras projected into it)"
+            f"camera '{c}' ({sync_check[c].n_points} marker-frames of the other cameras projected into it)"
             for c in undecided))
     if not settled:
-        n = max(int(v.get("rounds", 1)) for v in sync_check.values())
+        n = max(int(v.rounds) for v in sync_check.values())
         parts.append(f"after {n} rounds the markers still moved an offset: the offsets the results use were not "
                      "confirmed (the flash may be wrong in two cameras); give the offsets (--offsets) after "
                      "finding the flash in each video")
@@ -555,31 +549,30 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
 
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
-    res, s = analysis.results, analysis.session
+    a_, s = analysis, analysis.session
     checks = []
-    if "triangulate" in res and "detect" in res:
-        a, b = res["triangulate"]["segment"]
-        resid = {c: np.asarray(r)[a:b] for c, r in res["triangulate"]["residual_px"].items()}
-        rms = res["rig"]["rig"].metadata.get("error") if "rig" in res else None
+    if a_.triangulate is not None and a_.detect is not None:
+        a, b = a_.triangulate.segment
+        resid = {c: np.asarray(r)[a:b] for c, r in a_.triangulate.residual_px.items()}
+        rms = a_.rig.rig.metadata.get("error") if a_.rig is not None else None
         try:
             rms = float(rms) if rms is not None else None
         except (TypeError, ValueError):
             rms = None
-        checks.append(check_reprojection_residuals(resid, marker_motion_px(res["detect"]["marker_px"], (a, b)), rms))
-    ambiguous = res.get("sync", {}).get("flash_ambiguous")
-    if "detect" in res and (res["detect"].get("sync_check") or ambiguous):
-        checks.append(check_sync_by_markers(res["detect"].get("sync_check") or {}, ambiguous=ambiguous))
-    if "motion_frame" in res and res["motion_frame"]["period_frames"] is not None:
-        fast = res["motion_frame"].get("faster_period_frames")
-        checks.append(check_stride_frequency(s.fps / res["motion_frame"]["period_frames"],
+        checks.append(check_reprojection_residuals(resid, marker_motion_px(a_.detect.marker_px, (a, b)), rms))
+    ambiguous = a_.sync.flash_ambiguous if a_.sync is not None else {}
+    if a_.detect is not None and (a_.detect.sync_check or ambiguous):
+        checks.append(check_sync_by_markers(a_.detect.sync_check, ambiguous=ambiguous))
+    if a_.motion_frame is not None and a_.motion_frame.period_frames is not None:
+        fast = a_.motion_frame.faster_period_frames
+        checks.append(check_stride_frequency(s.fps / a_.motion_frame.period_frames,
                                              faster_hz=None if fast is None else s.fps / fast))
-    if "rigid_body" in res:
-        rb = res["rigid_body"]
-        checks.append(check_marker_geometry(rb.get("warnings")))
-        if rb.get("conditioning") is not None and rb.get("model") is not None:
-            checks.append(check_marker_rigidity(rb["conditioning"]["registration_rms_m"], rb["model"]))
-    if "comfort" in res and res["comfort"].get("indicators") is not None:
-        ind = res["comfort"]["indicators"]
+    if a_.rigid_body is not None:
+        rb = a_.rigid_body
+        checks.append(check_marker_geometry(rb.warnings))
+        checks.append(check_marker_rigidity(rb.conditioning.registration_rms_m, rb.model))
+    if a_.comfort is not None and a_.comfort.indicators is not None:
+        ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
         checks.append(check_saddle_acceleration(ind.get("acc_y_max")))
     return checks

@@ -10,11 +10,15 @@ import html
 import io
 import os
 import pickle
+import re
+import threading
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 
+from .results import analysis_record
 from .store import atomic_write_text
+from .vibration import comfort_table_rows
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;color:#222;padding:0 1em}
@@ -42,26 +46,26 @@ def report_figures(analysis) -> list:
     """The report's figures as ``(make, caption)``: ``make()`` draws one and returns it."""
     from . import plots
 
-    res, figures = analysis.results, []
-    if "detect" in res:
-        size = res["rig"]["rig"].cameras[0].size
-        figures.append((lambda: plots.plot_marker_tracks(res["detect"]["marker_px"], size),
+    figures = []
+    if analysis.detect is not None:
+        size = analysis.rig.rig.cameras[0].size
+        figures.append((lambda: plots.plot_marker_tracks(analysis.detect.marker_px, size),
                         "Detected marker centroids in each camera, in pixels (chapter 4)."))
-    if "triangulate" in res:
-        figures.append((lambda: plots.plot_reprojection_residuals(res["triangulate"]["residual_px"]),
+    if analysis.triangulate is not None:
+        figures.append((lambda: plots.plot_reprojection_residuals(analysis.triangulate.residual_px),
                         "Reprojection residuals of the triangulated markers, in pixels (section 5.1)."))
-    if "rigid_body" in res:
-        rb = res["rigid_body"]
-        t, pos = rb["t"], rb["registered"]
+    if analysis.rigid_body is not None:
+        rb = analysis.rigid_body
+        t, pos = rb.t, rb.registered
         series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
-        series["saddle"] = rb["saddle_position"]
+        series["saddle"] = rb.saddle_position
         for data, unit, title, caption in (
                 (series, "m", "Positions in the motion frame",
                  "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."),
-                ({"omega": rb["omega"]}, "rad/s", "Angular velocity", "Angular velocity of the body, in rad/s (chapter 6)."),
-                ({"alpha": rb["alpha"]}, "rad/s²", "Angular acceleration",
+                ({"omega": rb.omega}, "rad/s", "Angular velocity", "Angular velocity of the body, in rad/s (chapter 6)."),
+                ({"alpha": rb.alpha}, "rad/s²", "Angular acceleration",
                  "Angular acceleration of the body, in rad/s² (chapter 6)."),
-                ({"saddle": rb["saddle_acceleration"]}, "m/s²", "Saddle acceleration",
+                ({"saddle": rb.saddle_acceleration}, "m/s²", "Saddle acceleration",
                  "Acceleration of the hidden saddle marker, in m/s² (section 6.4).")):
             figures.append((lambda data=data, unit=unit, title=title: plots.plot_axes_timeseries(t, data, unit, title),
                             caption))
@@ -86,8 +90,6 @@ def render_pngs(makers) -> list[str]:
     and the BLAS (the command's case) hold none while they wait, and glibc and
     OpenBLAS reset their own locks at a fork.
     """
-    import threading
-
     makers = list(makers)
     if (len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
             or threading.active_count() > 1):
@@ -276,7 +278,6 @@ def unit_html(unit: str) -> str:
     ``"1"`` (a ratio) -> ``""``; other text escaped."""
     if unit == "1":
         return ""
-    import re
 
     parts = re.split(r"\^([0-9.+-]+)", unit)
     out = html.escape(parts[0])
@@ -291,7 +292,6 @@ def unit_text(unit: str) -> str:
     if unit == "1":
         return ""
     sup = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
-    import re
 
     return re.sub(r"\^(-?[0-9]+)(?![0-9.])", lambda m: m.group(1).translate(sup), unit)
 
@@ -355,8 +355,6 @@ def comfort_rows(indicators: dict) -> list[tuple[str, str, str, str]]:
     Values to 4 significant digits; the identifier of ``comfort.csv`` is
     kept in the name, in brackets.
     """
-    from .vibration import comfort_table_rows
-
     out = []
     for key, value, unit in comfort_table_rows(indicators):
         name, meaning = INDICATORS.get(key, (key, ""))
@@ -376,8 +374,6 @@ def x_acceleration_note(params) -> str | None:
 
 def text_html(text: str) -> str:
     """Escaped text with the powers of its units as superscripts (``m/s^2`` -> ``m/s<sup>2</sup>``)."""
-    import re
-
     return re.sub(r"\^([0-9]+(?:\.[0-9]+)?)", r"<sup>\1</sup>", html.escape(str(text)))
 
 
@@ -389,8 +385,6 @@ def threshold_text(text: str) -> str:
     ``unreliable outside <= 7.7`` as ``unreliable above 7.7``, and an
     unreliable band that is the ok band itself as ``unreliable otherwise``.
     """
-    import re
-
     t = re.sub(r"\d+\.\d{5,}", lambda m: format_value(float(m.group(0))), str(text))
     t = re.sub(r"(?<![\d.])(-?\d+(?:\.\d+)?)\.\.\1(?![\d.])", r"\1", t)
     t = re.sub(r"(\d)\.\.(-?\d)", "\\1\u00a0–\u00a0\\2", t)   # no line break inside a range
@@ -434,9 +428,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
     ``quality``: the record of :func:`horsemocap.quality.quality_record`,
     shown first.
     """
-    from .results import analysis_record
-
-    s, res = analysis.session, analysis.results
+    s = analysis.session
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
              '<p class="note">horsemocap, after G. Dogan, METU 2009. Session folder: '
              f"{html.escape(str(s.root))}</p>"]
@@ -446,11 +438,11 @@ def report_html(analysis, quality: dict | None = None) -> str:
         ("frames per second", f"{s.fps:g}"), ("cameras", ", ".join(s.cameras))]
     parts += ["<h2>Session</h2>", _table(meta, ["field", "value"])]
 
-    if "comfort" in res and res["comfort"].get("indicators") is None:
-        parts += ["<h2>Comfort indicators</h2>",
-                  f"<p>Not computed: {html.escape(str(res['comfort'].get('reason', '')))}</p>"]
-    elif "comfort" in res:
-        rows = [(html.escape(n), html.escape(m), v, u) for n, m, v, u in comfort_rows(res["comfort"]["indicators"])]
+    comfort = analysis.comfort
+    if comfort is not None and comfort.indicators is None:
+        parts += ["<h2>Comfort indicators</h2>", f"<p>Not computed: {html.escape(comfort.reason)}</p>"]
+    elif comfort is not None:
+        rows = [(html.escape(n), html.escape(m), v, u) for n, m, v, u in comfort_rows(comfort.indicators)]
         verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
         weighting = ("one weight per record, at the dominant harmonic of the vertical acceleration (the thesis)"
                      if analysis.params.weighting_mode == "thesis" else "each harmonic weighted at its own frequency")
@@ -466,7 +458,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
                   "shorter when the horse's surge or sway outweighs its vertical motion."
                   + (" Here the saddle's fore-aft acceleration is zero (the thesis' straight-line x fit), so "
                      "the Directive's values see only the other two axes."
-                     if res["comfort"]["indicators"].get("acc_x_Wd_rms") == 0 else "")
+                     if comfort.indicators.get("acc_x_Wd_rms") == 0 else "")
                   + "</p>",
                   _html_table(rows, ["indicator", "meaning", "value", "unit"])]
 
@@ -476,7 +468,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
               "exactly).</p>", _html_table([(html.escape(a), html.escape(b)) for a, b in choice_rows(record)],
                                             ["choice", "value"], align_numbers=False)]
 
-    warn = res.get("rigid_body", {}).get("warnings") or []
+    warn = analysis.rigid_body.warnings if analysis.rigid_body is not None else []
     if warn:
         parts += ["<h2>Warnings</h2>", "<p class=\"note\">The rigid-body step's conditioning (angular.csv: "
                   "singularity_deg, triangle_height_m, registration_rms_m) makes these results unreliable:</p>",
@@ -486,7 +478,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
     figures = report_figures(analysis)
     pngs = render_pngs([make for make, _ in figures])
     parts += [_figure_html(png, caption) for png, (_, caption) in zip(pngs, figures)]
-    note = x_acceleration_note(analysis.params) if "rigid_body" in res else None
+    note = x_acceleration_note(analysis.params) if analysis.rigid_body is not None else None
     if note:
         parts.append(f'<p class="note">{html.escape(note)}</p>')
     timing = [(PARAMETER_NAMES.get(k, k) if k in ("sync", "rig") else k.replace("_", " "), f"{v:.2f}")

@@ -15,6 +15,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import quality
+from .camera import read_rig
+from .pipeline import _progress_printer, AnalysisError, analyze, resolve_params
+from .report import write_report
+from .runfolder import check_results_target, RunFolder
+from .session import load_session, SessionError
 from .store import atomic_write_json, atomic_write_text, check_outside
 
 EXIT_OK = 0
@@ -55,8 +60,6 @@ class RunOutcome:
 
 def _session_rig(session, params):
     """The rig the run will read from ``rig.toml`` (None if it calibrates)."""
-    from .camera import read_rig
-
     if session.rig_path is None or params.recalibrate:
         return None
     rig = read_rig(session.rig_path)
@@ -105,10 +108,6 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
         A file that could not be written (disk full, quota, read-only,
         permission, I/O error), in any step or after: ``out`` is as it was.
     """
-    from .pipeline import AnalysisError, _progress_printer, analyze, resolve_params
-    from .runfolder import RunFolder, check_results_target
-    from .session import SessionError, load_session
-
     progress = progress or _progress_printer()
     session = load_session(session_dir)
     params = resolve_params(session, params)
@@ -120,9 +119,6 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
     for c in checks:
         if c.level in ("warning", "unreliable"):
             progress("quality", f"{c.level}: {c.message} [{c.input}]")
-
-    if report:   # matplotlib's import (0.3 s) here, beside the board detection's threads, not after the analysis
-        from . import report as _report_module  # noqa: F401
 
     folder = RunFolder(out)
     with folder as tmp:
@@ -137,8 +133,8 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
             outcome.error = exc
         outcome.analysis = analysis
         if analysis is not None:
-            if rig is None and "rig" in analysis.results:
-                checks += quality.rig_checks(session, analysis.results["rig"]["rig"])
+            if rig is None and analysis.rig is not None:
+                checks += quality.rig_checks(session, analysis.rig.rig)
             checks += quality.post_checks(analysis)
         if outcome.error is not None:
             checks.append(quality.Check("run_complete", None, "", "unreliable", (None, None), (None, None),
@@ -156,8 +152,6 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
         else:
             _mark_record(tmp, complete=True, quality_verdict=outcome.verdict)
             if report:
-                from .report import write_report
-
                 write_report(tmp / "report.html", analysis, quality=record)
                 outcome.report = outcome.out / "report.html"
         folder.commit()

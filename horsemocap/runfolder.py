@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import ctypes
 import errno
+import json
 import os
 import secrets
 import shutil
@@ -86,8 +87,6 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 def _json_record(path: Path) -> dict:
-    import json
-
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):

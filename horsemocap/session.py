@@ -14,7 +14,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sources import FrameSource, SourceError, check_image_file
+from .sources import check_image_file, FrameSource, SourceError
+from .store import read_text_utf8
 
 FORMAT = "horsemocap-session/1"
 KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion", "sync",
@@ -168,7 +169,6 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     root = path.parent.resolve()
     if not path.is_file():
         raise SessionError(f"{path}: session file not found (a session folder holds session.json)")
-    from .store import read_text_utf8
 
     try:
         data = json.loads(read_text_utf8(path, SessionError))

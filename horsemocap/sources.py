@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -483,8 +484,6 @@ class FrameSequence:
     def _submit(self, fn, *args, **attrs) -> None:
         """``fn(*args)`` decoded by the reading thread (started on first use) as ``self._job``, with ``attrs`` set on it."""
         if self._pool is None:
-            from concurrent.futures import ThreadPoolExecutor
-
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="horsemocap-read-ahead")
         self._job = self._pool.submit(fn, *args)
         for name, value in attrs.items():

@@ -11,13 +11,19 @@ computed and compute it with the default parameters when absent.
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import importlib
+import io
 import json
 import os
 import secrets
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import BSpline
 
 
 class StoreError(RuntimeError):
@@ -159,8 +165,6 @@ def encode_result(obj, arrays: dict):
     callable, another package's class) raises ``TypeError`` naming it: the
     store never falls back to pickle.
     """
-    import dataclasses
-
     if obj is None or isinstance(obj, (bool, int, float, str)):
         return obj
     if isinstance(obj, np.ndarray) or isinstance(obj, np.generic):
@@ -182,7 +186,6 @@ def encode_result(obj, arrays: dict):
             raise TypeError(f"cannot store a {cls.__module__}.{cls.__qualname__} (only horsemocap's dataclasses)")
         return {"$": "dataclass", "class": f"{cls.__module__}:{cls.__qualname__}",
                 "fields": {f.name: encode_result(getattr(obj, f.name), arrays) for f in dataclasses.fields(obj)}}
-    from scipy.interpolate import BSpline
 
     if type(obj) is BSpline:           # the pose trajectory's smoothing splines: knots, coefficients, degree
         return {"$": "bspline", "t": encode_result(np.asarray(obj.t), arrays),
@@ -193,9 +196,6 @@ def encode_result(obj, arrays: dict):
 
 
 def _dataclass_type(spec: str):
-    import dataclasses
-    import importlib
-
     module, _, qualname = spec.partition(":")
     if not (module == "horsemocap" or module.startswith("horsemocap.")) or not qualname.isidentifier():
         raise ValueError(f"refusing to build {spec!r}: only horsemocap's dataclasses are stored")
@@ -207,8 +207,6 @@ def _dataclass_type(spec: str):
 
 def decode_result(tree, arrays):
     """Inverse of :func:`encode_result` (``arrays`` from ``np.load(..., allow_pickle=False)``)."""
-    import dataclasses
-
     if tree is None or isinstance(tree, (bool, int, float, str)):
         return tree
     tag = tree["$"]
@@ -225,8 +223,6 @@ def decode_result(tree, arrays):
     if tag == "dict":
         return {_hashable(decode_result(k, arrays)): decode_result(v, arrays) for k, v in tree["items"]}
     if tag == "bspline":
-        from scipy.interpolate import BSpline
-
         return BSpline(decode_result(tree["t"], arrays), decode_result(tree["c"], arrays), int(tree["k"]),
                        extrapolate=tree["extrapolate"], axis=int(tree["axis"]))
     if tag == "dataclass":
@@ -278,10 +274,6 @@ class ResultsStore:
 
     def save(self, step: str, result, key: str) -> Path | None:
         """Store ``result`` of ``step`` under ``key``; None (and a warning) if it holds an unstorable value."""
-        import hashlib
-        import io
-        import warnings
-
         arrays: dict = {}
         try:
             tree = encode_result(result, arrays)
@@ -299,9 +291,6 @@ class ResultsStore:
 
     def load(self, step: str, key: str):
         """The stored result of ``step`` for ``key``, or None (absent, other key, unreadable, tampered)."""
-        import hashlib
-        import io
-
         p = self.path(step)
         try:
             payload = json.loads(p.read_text(encoding="utf-8"))

@@ -21,6 +21,9 @@ from __future__ import annotations
 import threading
 from contextlib import contextmanager
 
+import cv2
+from threadpoolctl import threadpool_limits
+
 
 class SingleThreaded:
     """A context manager limiting one library to one thread, counted across threads.
@@ -70,16 +73,12 @@ class SingleThreaded:
 
 
 def _limit_opencv():
-    import cv2
-
     before = cv2.getNumThreads()
     cv2.setNumThreads(1)
     return lambda: cv2.setNumThreads(before)
 
 
 def _limit_blas():
-    from threadpoolctl import threadpool_limits
-
     return threadpool_limits(limits=1, user_api="blas").restore_original_limits
 
 

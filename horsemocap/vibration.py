@@ -77,7 +77,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import signal as _signal
+from scipy import optimize, signal as _signal
 
 from .store import atomic_write_bytes, atomic_write_text
 
@@ -1100,8 +1100,6 @@ def estimate_fundamental(t, y, *, f_min_hz: float = 0.5, f_max_hz: float = 15.0)
     >>> round(estimate_fundamental(t, y), 4)
     1.5
     """
-    from scipy import optimize
-
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
     ok = np.isfinite(t) & np.isfinite(y)

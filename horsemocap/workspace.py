@@ -3,7 +3,7 @@
 The thesis' user answered the prompts of Appendix A one program after another,
 and every later program read the files the earlier ones wrote. The notebooks
 do the same through two small files in the notebooks' results store
-(:func:`horsemocap.pipeline.notebook_results_dir`, ``$HORSEMOCAP_RESULTS``):
+(:func:`notebook_results_dir`, ``$HORSEMOCAP_RESULTS``):
 
 ``workspace.json`` (in the store's root)
     ``{"session": "/path/to/session"}``: the session every notebook analyses,
@@ -12,7 +12,7 @@ do the same through two small files in the notebooks' results store
     ``{"parameters": {...}}``: the analysis parameters chosen with the
     notebooks' widgets, only those that differ from the automatic choice
     (optional file of the results contract, ``docs/sessions.md``).
-    :func:`horsemocap.pipeline.results_for` applies them on top of the
+    :func:`results_for` applies them on top of the
     session's own ``analysis`` object, and ``horsemocap analyze SESSION --out
     DIR --params choices.json`` runs the same analysis from the command line.
 
@@ -26,11 +26,19 @@ binding of a widget to a parameter (:meth:`Workspace.bind`).
 from __future__ import annotations
 
 import copy
+import hashlib
 import json
 import os
+import re
 from pathlib import Path
 
+import numpy as np
+
+from .data import cache_dir, data_samples_dir, default_session_dir
 from .params import AnalysisParams, ParamsError
+from .pipeline import Analysis, analyze, resolve_params
+from .session import Session, load_session
+from .store import atomic_write_json, read_text_utf8
 
 CHOICES_FILE = "choices.json"
 WORKSPACE_FILE = "workspace.json"
@@ -42,16 +50,12 @@ WORKSPACE_FILE = "workspace.json"
 
 def results_root() -> Path:
     """The notebooks' results store: ``$HORSEMOCAP_RESULTS`` or ``<cache>/results``."""
-    from .data import cache_dir
-
     root = os.environ.get("HORSEMOCAP_RESULTS")
     return Path(root).resolve() if root else (cache_dir() / "results").resolve()
 
 
 def sample_sessions() -> dict:
     """Sessions bundled in ``data_samples/`` (folders holding ``session.json``): name -> folder."""
-    from .data import data_samples_dir
-
     root = data_samples_dir()
     if not root.is_dir():
         return {}
@@ -72,8 +76,6 @@ def current_session() -> Path:
     A ``workspace.json`` that names a folder which no longer holds a session
     raises :class:`ParamsError` naming both (it is not silently replaced).
     """
-    from .data import default_session_dir
-
     path = results_root() / WORKSPACE_FILE
     if not path.is_file():
         return default_session_dir().resolve()
@@ -89,8 +91,6 @@ def current_session() -> Path:
 
 def set_current_session(session_dir) -> Path:
     """Make ``session_dir`` the session of every notebook (writes ``workspace.json``)."""
-    from .store import atomic_write_json
-
     p = check_session_dir(session_dir)
     root = results_root()
     root.mkdir(parents=True, exist_ok=True)
@@ -100,8 +100,6 @@ def set_current_session(session_dir) -> Path:
 
 def choices_path(session_dir=None) -> Path:
     """``choices.json`` of a session's results folder (the session of the workspace by default)."""
-    from .pipeline import notebook_results_dir
-
     return notebook_results_dir(Path(session_dir or current_session()).resolve()) / CHOICES_FILE
 
 
@@ -110,8 +108,6 @@ def choices_path(session_dir=None) -> Path:
 # ---------------------------------------------------------------------------
 
 def _read_json(path: Path):
-    from .store import read_text_utf8
-
     try:
         return json.loads(read_text_utf8(path, ParamsError))
     except json.JSONDecodeError as exc:
@@ -135,9 +131,6 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
     Raises :class:`ParamsError` naming ``choices.json`` and the parameter
     when a choice is not valid for the session (a camera it does not have).
     """
-    from .pipeline import resolve_params
-    from .session import load_session
-
     session_dir = Path(session_dir or current_session())
     session = load_session(session_dir, open_sources=False)
     choices = read_choices(session_dir) if choices is None else choices
@@ -153,8 +146,6 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
 
 def write_choices(session_dir, choices: dict) -> Path:
     """Replace a session's choices (validated first: a bad one writes nothing)."""
-    from .store import atomic_write_json
-
     session_params(session_dir, choices)
     path = choices_path(session_dir)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -219,8 +210,6 @@ def clear_choices(session_dir=None) -> None:
 
 def to_json_value(value):
     """A widget's value as a JSON value (NumPy scalars and arrays, tuples -> Python)."""
-    import numpy as np
-
     if isinstance(value, np.ndarray):
         return [to_json_value(v) for v in value.tolist()]
     if isinstance(value, np.generic):
@@ -358,13 +347,6 @@ class Workspace:
         self.bound = {}
         return self.session_dir
 
-    def ui(self):
-        """The session picker: a dropdown of ``data_samples/`` sessions and a folder path."""
-        from .widgets.workspace import SessionPicker
-
-        self.picker = SessionPicker(self)
-        return self.picker
-
     def bind(self, widget, name: str, *, automatic=_UNSET, convert=None, read=None):
         """Let a widget that stands in for a prompt write its choice into ``choices.json``.
 
@@ -451,3 +433,71 @@ class Workspace:
 def open_workspace(session_dir=None) -> Workspace:
     """The workspace of the current session (or of ``session_dir``)."""
     return Workspace(session_dir)
+
+
+# ---------------------------------------------------------------------------
+# the notebooks' results
+# ---------------------------------------------------------------------------
+
+def safe_store_name(name: str) -> str:
+    """A session name as one folder name that stays inside the store.
+
+    Letters, digits, ``.``, ``-`` and ``_`` are kept, anything else (``/``,
+    ``..``, NUL, spaces) becomes ``_``; leading dots are dropped. A changed
+    name gets 8 hex digits of its SHA-256, so two names never share a folder.
+    """
+    safe = re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".")[:80] or "session"
+    if safe != name:
+        safe += "-" + hashlib.sha256(name.encode("utf-8", "surrogateescape")).hexdigest()[:8]
+    return safe
+
+
+def notebook_results_dir(session: Session | Path) -> Path:
+    """Where notebooks keep a session's results (``$HORSEMOCAP_RESULTS``).
+
+    ``<root>/<name>-<folder>`` with the session's name made safe by
+    :func:`safe_store_name` (a name like ``../../x`` stays inside the root)
+    and 8 hex digits of the SHA-256 of the session folder's resolved path:
+    two sessions with one name (the bundled Horse 2 canter and the herd's
+    render of it) never share their results or the choices made for them.
+    """
+    if not isinstance(session, Session):
+        session = load_session(session, open_sources=False)
+    folder = str(Path(session.root).resolve())
+    digest = hashlib.sha256(folder.encode("utf-8", "surrogateescape")).hexdigest()[:8]
+    root = Path(os.environ.get("HORSEMOCAP_RESULTS") or (cache_dir() / "results")).resolve()
+    path = root / f"{safe_store_name(session.name)}-{digest}"
+    if path.parent != root:  # cannot happen with a safe name; never write outside the store
+        raise ValueError(f"session name {session.name!r} leaves the results store {root}")
+    return path
+
+
+def results_for(session_dir=None, until: str = "comfort", params=None) -> Analysis:
+    """The analysis of a session up to a step, for notebooks.
+
+    Runs the steps quietly and writes the spec's files to
+    :func:`notebook_results_dir` (a clean folder per test run under nbval).
+    Steps an earlier notebook computed for the same session, parameters and
+    code are loaded from the results store, so each notebook runs alone and
+    none repeats another's work.
+
+    Parameters
+    ----------
+    session_dir : path, optional
+        Default: the session of the workspace (:mod:`horsemocap.workspace`:
+        the one chosen in a notebook's first cell, else the bundled session).
+    until : str
+        The last step to run.
+    params : dict or AnalysisParams, optional
+        The choices made with the notebooks' widgets (the session's
+        ``choices.json``) are applied first, then a dict's overrides; an
+        :class:`AnalysisParams` is used as it is. With no choices made, every
+        choice is the automatic one.
+    """
+    session_dir = Path(session_dir or current_session()).resolve()
+    if not isinstance(params, AnalysisParams):
+        chosen = read_choices(session_dir)
+        if chosen or params:
+            params = {**chosen, **(params or {})}
+    return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
+                   progress=lambda *a: None, reuse=True)

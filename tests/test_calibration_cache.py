@@ -50,7 +50,7 @@ def calls(monkeypatch):
         return SimpleNamespace(rig=Rig(cams, {"error": 0.1 + rng.random(), "method": "fake"}))
 
     monkeypatch.setattr(cache, "detect_cameras", detect)
-    monkeypatch.setattr(rig_module, "calibrate_rig", calibrate)
+    monkeypatch.setattr(cache, "calibrate_rig", calibrate)
     return seen
 
 

@@ -13,6 +13,13 @@ notebooks/*.ipynb`` once (README).
 
 Usage: ``python tools/nb.py notebooks/src/04_marker_detection.py [...]``
 (no argument: every source).
+
+``--sources-only`` rewrites each stored notebook's cell sources (and tags)
+from its source file and keeps the stored outputs and widget state, without
+executing anything: for a change that alters no output (a rename, a comment).
+It needs the same cells, one to one in kind (code or markdown); otherwise it
+says so and builds and executes that notebook as without the option. Check the
+result with nbval (``python -m pytest notebooks/NN_name.ipynb``).
 """
 from __future__ import annotations
 
@@ -23,6 +30,7 @@ from pathlib import Path
 
 import nbformat
 from nbclient import NotebookClient
+from nbformat.sign import NotebookNotary
 
 ROOT = Path(__file__).resolve().parents[1]
 NB_DIR = ROOT / "notebooks"
@@ -71,13 +79,55 @@ def build(src: Path, execute: bool = True) -> Path:
     if execute:
         # Run by us: trusted for this user, so JupyterLab draws the saved widgets before the
         # notebook is run again (trust is kept per user; others run `jupyter trust`, see README)
-        from nbformat.sign import NotebookNotary
-
         NotebookNotary().sign(nb)
     return out
 
 
+def sources_mismatch(new_cells, stored_cells) -> str:
+    """Why ``new_cells`` cannot replace the sources of ``stored_cells`` one to one ("" when they can)."""
+    if len(new_cells) != len(stored_cells):
+        return f"{len(new_cells)} cells in the source, {len(stored_cells)} stored"
+    for i, (new, old) in enumerate(zip(new_cells, stored_cells)):
+        if new.cell_type != old.cell_type:
+            return f"cell {i + 1} is {new.cell_type} in the source, {old.cell_type} stored"
+    return ""
+
+
+def rewrite_sources(src: Path) -> tuple[Path, str]:
+    """Put the cell sources of ``src`` into its stored notebook, keeping outputs and widget state.
+
+    Returns the notebook's path and "" when done, or why the cells do not
+    match (then nothing is written).
+    """
+    out = NB_DIR / (src.stem + ".ipynb")
+    if not out.exists():
+        return out, f"{out.name} is not stored yet"
+    nb = nbformat.read(out, as_version=4)
+    new_cells = parse(src.read_text())
+    why = sources_mismatch(new_cells, nb.cells)
+    if why:
+        return out, why
+    for new, old in zip(new_cells, nb.cells):
+        old.source = new.source
+        if new.metadata.get("tags"):
+            old.metadata["tags"] = new.metadata["tags"]
+        else:
+            old.metadata.pop("tags", None)
+    nbformat.write(nb, out)
+    NotebookNotary().sign(nb)  # its outputs are ours, as after build()
+    return out, ""
+
+
 if __name__ == "__main__":
-    srcs = [Path(a) for a in sys.argv[1:]] or sorted((NB_DIR / "src").glob("*.py"))
+    args = sys.argv[1:]
+    sources_only = "--sources-only" in args
+    args = [a for a in args if a != "--sources-only"]
+    srcs = [Path(a) for a in args] or sorted((NB_DIR / "src").glob("*.py"))
     for s in srcs:
+        if sources_only:
+            out, why = rewrite_sources(s.resolve())
+            if not why:
+                print("sources rewritten, outputs kept:", out)
+                continue
+            print(f"{out.name}: cannot keep the outputs ({why}); executing it")
         print("built", build(s.resolve()))

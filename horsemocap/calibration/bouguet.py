@@ -20,14 +20,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.io as sio
 
 from ..camera import Camera, Rig
 from .board import CalibrationError
 
 
 def _load(path) -> dict:
-    import scipy.io as sio
-
     path = Path(path)
     if not path.is_file():
         raise CalibrationError(f"{path}: Bouguet result file not found")

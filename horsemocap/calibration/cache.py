@@ -7,7 +7,7 @@ in ``calibration.json`` in the results folder, so a repeated ``analyze`` of
 the same views does not calibrate again:
 
 - ``key``: SHA-256 of everything that changes the result: every view
-  (:func:`horsemocap.pipeline.file_fingerprint`: path, size, mtime and the
+  (:func:`horsemocap.fingerprint.file_fingerprint`: path, size, mtime and the
   bytes at both ends), the board (inner corners, square size), the cameras
   and the reference camera, and the source code of :mod:`horsemocap.calibration`
   and :mod:`horsemocap.camera`. The rig is reused only when the key matches.
@@ -28,12 +28,18 @@ from __future__ import annotations
 
 import hashlib
 import json
+import threading
 from pathlib import Path
 
 import numpy as np
 
+from .. import camera
 from ..camera import Camera, Rig
+from ..fingerprint import file_fingerprint
+from ..sources import list_images
+from ..store import atomic_write_text
 from .board import BoardViews, detect_cameras
+from .rig import board_view_counter, calibrate_rig
 
 CACHE_FILE = "calibration.json"
 CACHE_FORMAT = "horsemocap-calibration-cache/1"
@@ -52,9 +58,6 @@ def _code_hash(names) -> bytes:
 
 def views_key(folder, inner_corners) -> str:
     """Key of one camera's board detection: its view files, the inner corners and the detector's code."""
-    from ..pipeline import file_fingerprint
-    from ..sources import list_images
-
     h = hashlib.sha256()
     for f in list_images(Path(folder)):
         h.update(file_fingerprint(f).encode("utf-8", "surrogateescape"))
@@ -69,8 +72,6 @@ def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference:
 
     ``view_keys``: each camera's :func:`views_key`, when the caller has them (else computed here).
     """
-    from .. import camera
-
     view_keys = view_keys or {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
     h = hashlib.sha256()
     for cam in image_dirs:
@@ -132,8 +133,6 @@ def _views_from_json(camera: str, d: dict) -> BoardViews:
 
 def _write(folder: Path, record: dict) -> None:
     """``calibration.json`` written whole or not at all (compact: the corners are most of it)."""
-    from ..store import atomic_write_text
-
     atomic_write_text(folder / CACHE_FILE, json.dumps(record, separators=(",", ":")) + "\n")
 
 
@@ -166,8 +165,6 @@ class BoardDetectionJob:
     """
 
     def __init__(self, image_dirs: dict, inner_corners, workers: int | None = None):
-        import threading
-
         self.keys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
         self.done = {cam: 0 for cam in image_dirs}
         self.totals = {cam: 0 for cam in image_dirs}
@@ -196,8 +193,6 @@ class BoardDetectionJob:
         counted while it waits. The job's error (a view of another size...)
         is raised here.
         """
-        from .rig import board_view_counter
-
         if self.keys.get(cam) != key:
             return None
         told = {}
@@ -268,8 +263,6 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     how : str
         ``"calibrated from checkerboard views"`` or ``"... (cached in calibration.json)"``.
     """
-    from .rig import board_view_counter, calibrate_rig
-
     say = (lambda msg: progress("rig", msg)) if progress else (lambda msg: None)
     vkeys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}   # (hashes every view)
     key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode, vkeys)

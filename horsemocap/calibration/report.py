@@ -5,9 +5,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import rotation_matrix, write_rig
-from .board import CalibrationError, parse_board
-from .rig import RigCalibration, calibrate_rig, compare_rigs, pair_closure, pairwise_rig
+from ..camera import Rig, rotation_matrix, write_rig
+from .board import board_points, CalibrationError, detect_views, parse_board
+from .bundle import calibrate_camera
+from .rig import calibrate_rig, compare_rigs, pair_closure, pairwise_rig, RigCalibration
 
 _TITLES = {"left": "Table 8.1", "middle": "Table 8.2", "right": "Table 8.3"}
 
@@ -184,10 +185,6 @@ def calibrate_command(camera_dirs: list, board: str, square_m: float, out, *, mo
     inner = parse_board(board)
     image_dirs = dict(zip(names, dirs))
     if len(dirs) == 1:
-        from ..camera import Rig
-        from .board import board_points, detect_views
-        from .bundle import calibrate_camera
-
         views = detect_views(dirs[0], inner, camera=names[0])
         single = calibrate_camera(views, board_points(inner, square_m))
         rig = Rig((single.as_camera(),), {"adjusted": False, "error": round(single.rms, 6)})

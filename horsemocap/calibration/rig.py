@@ -17,10 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Rig, rotation_matrix
+from ..camera import Rig, rotation_matrix, rotation_vector
+from ..progress import counter
 from ..sources import natural_key
-from .board import UNREADABLE, BoardViews, CalibrationError, board_points, detect_cameras
-from .bundle import BundleResult, bundle_adjust, calibrate_camera, harmonize_views
+from .board import UNREADABLE, board_points, BoardViews, CalibrationError, detect_cameras
+from .bundle import bundle_adjust, BundleResult, calibrate_camera, harmonize_views
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,6 @@ def board_view_counter(progress, cam: str):
     """``tick(done, total)`` counting the board views of ``cam`` on ``progress`` (None: no counting)."""
     if progress is None:
         return None
-    from ..progress import counter
 
     def tick(done, total):
         counter(progress, "rig", f"board corners in camera '{cam}' views", total)(done)
@@ -297,7 +297,6 @@ def _pair(pairs: dict, a: str, b: str):
         return p.rotations[1], p.translations[1], p.intrinsics[a], p.intrinsics[b]
     p = pairs[(b, a)]
     R = rotation_matrix(p.rotations[1])
-    from ..camera import rotation_vector
     return rotation_vector(R.T), -R.T @ p.translations[1], p.intrinsics[a], p.intrinsics[b]
 
 
@@ -381,8 +380,6 @@ def pair_closure(result: RigCalibration) -> dict:
     ``R_RL R_ML^T`` and ``t_RL - R_RM t_ML``. Returns, for each pair without the
     reference camera, ``{"pair": (a, b), "angle_deg": .., "translation_mm": ..}``.
     """
-    from ..camera import rotation_vector
-
     ref = result.reference
     out = []
     for (a, b), p in result.pairs.items():

@@ -13,12 +13,14 @@ distance (see the notebook and the report).
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
 
+from ..calibration.board import detect_board as find_board
 from ..camera import Camera, rotation_matrix
-from .render import finish, pixel_rays
+from .render import finish, pixel_rays, render_arena
 
 BOARD_SQUARES = (16, 30)          # rows x columns of squares
 SQUARE_M = 0.05
@@ -150,8 +152,6 @@ def detect_board(gray: np.ndarray, inner=(15, 29)):
     :func:`board_detection_study` measures is what the pipeline finds. The corners come in its
     canonical order (row-major, or its reverse).
     """
-    from ..calibration.board import detect_board as find_board
-
     corners, _, _ = find_board(gray, (int(inner[1]), int(inner[0])))
     return corners
 
@@ -162,8 +162,6 @@ def render_calibration_views(folder, scene, bgs, n_views: int, *, noise: bool = 
 
     Returns a dict with the board description and truth extras (board poses).
     """
-    from pathlib import Path
-
     folder = Path(folder)
     poses = board_poses(n_views, scene.motion, scene.seed, squares=squares, square=square, protocol=protocol)
     inner = (squares[0] - 1, squares[1] - 1)
@@ -188,8 +186,6 @@ def render_calibration_views(folder, scene, bgs, n_views: int, *, noise: bool = 
 def board_detection_study(cam: Camera, motion, distances=(4.0, 5.0, 6.0, 7.0, 8.0), n: int = 6,
                           seed: int = 0, squares=BOARD_SQUARES, square=SQUARE_M):
     """Fraction of boards OpenCV detects at each distance (fronto-parallel-ish poses)."""
-    from .render import render_arena
-
     bg = render_arena(cam, motion.R_wg, motion.c_g, seed=seed)
     res = {}
     inner = (squares[0] - 1, squares[1] - 1)

@@ -49,11 +49,12 @@ import numpy as np
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..data import cache_dir
-from .herd import render_into_cache
-from .horse import HERD, Harmonics, SaddleMotion, marker_height
+from .herd import RENDER_VERSION, render_into_cache
+from .horse import HERD, Harmonics, marker_height, SaddleMotion
 from .render import disc_boundary, draw_disc_blurred, fill_polygon
 from .session import (CAMERA_NAMES, EXPOSURE_S, FLASH_POSITION_G, MARKER_DIAMETER, PLUMB_TAIL_G, PLUMB_TIP_G,
-                      Scene, build_truth, plan_timeline, render_session)
+                      build_truth, plan_timeline, render_session, Scene)
+from .truth import load_truth, save_truth
 
 #: Bumped whenever the hard set's rendering changes (part of the cache key).
 HARD_VERSION = 2
@@ -741,8 +742,6 @@ HARD_SESSIONS = {sc.name: sc for sc in (
 
 def hard_key(sc: HardScenario) -> str:
     """Cache key of a hard session: the scenario, the horse and the renderer versions."""
-    from .herd import RENDER_VERSION
-
     blob = json.dumps({"v": HARD_VERSION, "render": RENDER_VERSION, "scenario": sc.to_dict(),
                        "horse": HERD[sc.horse].to_dict()}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:12]
@@ -758,7 +757,6 @@ def render_hard(out_dir, sc: HardScenario, *, noise: bool = True, compress: bool
                          fps=sc.fps, sync_deltas_s=sc.sync_deltas_s,
                          metadata={"hard_scenario": sc.to_dict(), "exercises": sc.exercises})
     # the plan's extras (where flash and plumb went, the border approach) beside the truth
-    from .truth import load_truth, save_truth
 
     truth = load_truth(out)
     extras = dict(truth.extras)

@@ -16,6 +16,7 @@ from pathlib import Path
 from ..data import cache_dir, data_samples_dir
 from ..store import atomic_write_json
 from .horse import GAITS, HERD, HORSES
+from .session import render_session
 
 #: Bumped whenever the renderer changes its output (invalidates the cache).
 RENDER_VERSION = 3
@@ -90,7 +91,6 @@ def herd_session(horse: str, gait: str, *, cache=None, force: bool = False) -> P
         raise ValueError(f"unknown horse {horse!r}; expected one of {HORSES}")
     if gait not in GAITS:
         raise ValueError(f"unknown gait {gait!r}; expected one of {GAITS}")
-    from .session import render_session
 
     root = Path(cache) if cache else cache_dir()
     folder = root / "virtuallab" / f"{session_slug(horse, gait)}-{_key(horse, gait)}"

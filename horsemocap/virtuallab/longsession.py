@@ -32,7 +32,9 @@ import cv2
 import numpy as np
 
 from ..camera import write_rig
+from ..data import cache_dir
 from ..store import atomic_write_json
+from .herd import RENDER_VERSION, render_into_cache
 from .render import add_glints
 from .rig import FPS
 from .session import (_scene_and_backgrounds, _write_video, build_truth, flash_frames, plan_timeline,
@@ -139,8 +141,6 @@ def render_long(out_dir, n_frames: int = 18000, *, horse: str = "Horse 2", gait:
 
 def long_key(n_frames: int, horse: str, gait: str, seed: int, pass_period_s: float) -> str:
     """Cache key: the composition's parameters and the renderer versions."""
-    from .herd import RENDER_VERSION
-
     blob = json.dumps({"v": LONG_VERSION, "render": RENDER_VERSION, "n": int(n_frames), "horse": horse,
                        "gait": gait, "seed": int(seed), "period": float(pass_period_s)}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:12]
@@ -155,9 +155,6 @@ def long_session(n_frames: int = 18000, *, horse: str = "Horse 2", gait: str = "
     sessions). Ten minutes (the default) take a few minutes to compose and
     about 0.5 GB.
     """
-    from ..data import cache_dir
-    from .herd import render_into_cache
-
     root = Path(cache) if cache else cache_dir()
     folder = root / "virtuallab" / f"long_{int(n_frames)}-{long_key(n_frames, horse, gait, seed, pass_period_s)}"
     render_into_cache(folder, lambda tmp: render_long(tmp, n_frames, horse=horse, gait=gait, seed=seed,

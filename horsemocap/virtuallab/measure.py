@@ -7,8 +7,14 @@ thesis 4.5.1-4.5.3 without window and distance filters, keeps).
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import cv2
 import numpy as np
+
+from ..sources import FrameSource
+from .truth import load_truth
 
 
 def oracle_centroids(gray: np.ndarray, px_true: np.ndarray, half: int = 6, rel_floor: float = 0.25) -> np.ndarray:
@@ -56,11 +62,6 @@ def naive_regions(gray: np.ndarray, threshold: float = 115, area_range=(15, 240)
 
 def session_centroid_errors(session_dir, truth=None, half: int = 6) -> dict:
     """Oracle centroid errors (px) of every visible skin marker, per camera."""
-    from ..sources import FrameSource
-    from .truth import load_truth
-    import json
-    from pathlib import Path
-
     session_dir = Path(session_dir)
     truth = truth or load_truth(session_dir)
     meta = json.loads((session_dir / "session.json").read_text())

@@ -19,6 +19,7 @@ rendered; the defaults render the thesis' laboratory byte for byte as before.
 from __future__ import annotations
 
 import math
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,11 +29,12 @@ import numpy as np
 
 from ..camera import Camera, Rig, write_rig
 from ..store import atomic_write_json
-from .horse import SaddleMotion, saddle_motion
-from .render import (Arena, add_glints, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish,
-                     horse_parts, project_parts, render_arena, rider_parts, sphere_silhouette)
+from .calibration import render_calibration_views
+from .horse import saddle_motion, SaddleMotion
+from .render import (add_glints, Arena, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish, horse_parts,
+                     perspective_centroid_bias, project_parts, render_arena, rider_parts, sphere_silhouette)
 from .rig import FPS, thesis_rig
-from .truth import Truth, save_truth
+from .truth import save_truth, Truth
 
 DELTA_F_LM = 53
 DELTA_F_MR = 73
@@ -422,8 +424,6 @@ def true_comfort(motion: SaddleMotion, t0: float, t1: float, fps: float = FPS):
 
 def _clear_generated(out: Path) -> None:
     """Remove what an earlier render wrote into ``out`` (only the session's own sub-folders)."""
-    import shutil
-
     for sub in ("motion", "plumb", "static", "calibration", "truth"):
         if (out / sub).is_dir():
             shutil.rmtree(out / sub)
@@ -542,7 +542,6 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         write_rig(rig, stale)
     board_info = None
     if calibration_views:
-        from .calibration import render_calibration_views
         board_info = render_calibration_views(out / "calibration", scene, bgs, calibration_views,
                                               noise=noise, compress=compress)
     # truth
@@ -585,8 +584,6 @@ def render_calibration_set(out_dir, seed: int, n_views: int = 45, horse: str = "
         ``square_size_m``), ``rig`` (the true rig) and ``truth_extras``
         (board poses).
     """
-    from .calibration import render_calibration_views
-
     out = Path(out_dir)
     scene, bgs = _scene_and_backgrounds(horse, gait, seed)
     rig = scene.rig
@@ -635,7 +632,6 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
     else:
         comfort, source, dense = {}, "no analysed frames", {}
     # perspective bias of the disc centroid, for the record (px)
-    from .render import perspective_centroid_bias
     centres, normals = scene.marker_geometry(pose)
     bias = [np.linalg.norm(perspective_centroid_bias(rig["left"], centres[i, j], normals[i, j], MARKER_DIAMETER / 2))
             for i in range(0, len(t_m), max(1, len(t_m) // 8)) for j in range(3)] if len(t_m) else [0.0]

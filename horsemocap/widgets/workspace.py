@@ -5,6 +5,8 @@ from pathlib import Path
 
 import ipywidgets as W
 
+from ..params import ParamsError
+from ..workspace import Workspace, clear_choices, sample_sessions
 from ._text import ControlText
 
 WIDE = {"description_width": "initial"}
@@ -21,8 +23,6 @@ class SessionPicker(ControlText, W.VBox):
     """
 
     def __init__(self, workspace):
-        from ..workspace import sample_sessions
-
         self.workspace = workspace
         samples = sample_sessions()
         current = workspace.session_dir
@@ -66,8 +66,6 @@ class SessionPicker(ControlText, W.VBox):
             self._choose(change.new)
 
     def _on_reset(self, *_):
-        from ..workspace import clear_choices
-
         clear_choices(self.workspace.session_dir)
         self._say()
 
@@ -75,8 +73,6 @@ class SessionPicker(ControlText, W.VBox):
         self._choose(self.path.value.strip())
 
     def _choose(self, folder: str):
-        from ..params import ParamsError
-
         try:
             self.workspace.use(folder)
         except ParamsError as exc:
@@ -87,9 +83,9 @@ class SessionPicker(ControlText, W.VBox):
 
 def ui_session(workspace=None) -> SessionPicker:
     """The session picker of a :class:`~horsemocap.workspace.Workspace` (default: the current one)."""
-    from ..workspace import Workspace
-
-    return SessionPicker(workspace or Workspace())
+    ws = workspace or Workspace()
+    ws.picker = SessionPicker(ws)
+    return ws.picker
 
 
 PRESET_OPTIONS = (("the automatic choices", "default"), ("the thesis' own chain (--preset thesis)", "thesis"))
@@ -110,8 +106,6 @@ class PresetSwitch(ControlText, W.ToggleButtons):
 
 def ui_preset(workspace=None) -> PresetSwitch:
     """The preset switch (:class:`PresetSwitch`), bound to the session's choices."""
-    from ..workspace import Workspace
-
     ws = workspace or Workspace()
     switch = PresetSwitch(options=PRESET_OPTIONS, value="default", description="analysis",
                           style={"description_width": "initial", "button_width": "auto"},

@@ -32,10 +32,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import tempfile
@@ -340,16 +341,15 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 # %%
 from horsemocap import accuracy
 from horsemocap.detection import identification
-from horsemocap.pipeline import results_for
+from horsemocap.workspace import results_for
 
 analysis = results_for(session, until="triangulate")
-res = analysis.results
-k = res["detect"]["identification"]["anchor_frame"]
-offsets = res["sync"]["offsets"]
-thresholds = {c: res["detect"]["detection"][c]["threshold"] for c in truth.cameras}
+k = analysis.detect.identification.anchor_frame
+offsets = analysis.synchronisation.offsets
+thresholds = {c: analysis.detect.detection[c]["threshold"] for c in truth.cameras}
 images = {c: FrameSource(session / "motion" / f"{c}.avi").frame(offsets[c] + k, color=False) for c in truth.cameras}
 candidates = {c: identification.frame_candidates(images[c], thresholds[c]) for c in truth.cameras}
-views, fit, why = identification.label_frame(res["rig"]["rig"], candidates, res["static"]["static_points"], 3, 2.0)
+views, fit, why = identification.label_frame(analysis.rig.rig, candidates, analysis.static.static_points, 3, 2.0)
 print(f"synchronised frame {k}; thresholds {thresholds}")
 print("candidate regions per camera: " + ", ".join(f"{c} {len(candidates[c])}" for c in truth.cameras))
 print(f"3D points consistent in two or more cameras: {len(views)}; the markers: points {fit.assignment.tolist()}, "
@@ -365,7 +365,7 @@ plt.show()
 # printed first.
 
 # %%
-static = res["static"]["static_points"][fit.model_index]
+static = analysis.static.static_points[fit.model_index]
 sides = [np.linalg.norm(static[i] - static[j]) for i, j in ((0, 1), (1, 2), (0, 2))]
 print("static shot: marker1-marker2 {:.0f} mm, marker2-marker3 {:.0f} mm, marker1-marker3 {:.0f} mm".format(
     *(1000 * np.array(sides))))

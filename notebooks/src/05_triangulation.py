@@ -33,10 +33,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import matplotlib.pyplot as plt
@@ -45,8 +46,8 @@ from IPython.display import display
 
 from horsemocap import accuracy, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
-from horsemocap.pipeline import results_for
 from horsemocap.virtuallab import load_truth
+from horsemocap.workspace import results_for
 
 # %% [markdown]
 # ## The data: what the pipeline gives triangulation
@@ -66,21 +67,21 @@ from horsemocap.virtuallab import load_truth
 # %%
 session_dir = ws.session_dir
 analysis = results_for(session_dir, until="triangulate")
-res = analysis.results
-rig = res["rig"]["rig"]                                   # calibrated by the pipeline
-offsets = res["sync"]["offsets"]                          # from the flashlight
-a, b = res["detect"]["segment"]                           # analysed frames a..b-1 (synchronised numbering)
-marker_px = {cam: px[a:b] for cam, px in res["detect"]["marker_px"].items()}   # PM per camera, (n, 3, 2)
+sync = analysis.synchronisation                           # the frame offsets the results are in
+rig = analysis.rig.rig                                    # calibrated by the pipeline
+offsets = sync.offsets                                    # from the flashlight
+a, b = analysis.detect.segment                            # analysed frames a..b-1 (synchronised numbering)
+marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}   # PM per camera, (n, 3, 2)
 fps = analysis.session.fps
 # where the rig comes from ("(cached ...)" when an earlier run calibrated it: the same rig)
-rig_from = res["rig"]["rig_from"].replace(" (cached in calibration.json)", f" ({analysis.params.calibration_mode})")
+rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({analysis.params.calibration_mode})")
 print(f"rig: {rig_from}; cameras {list(rig.names)}")
-print("sync offsets (" + res["sync"]["offsets_from"] + "): "
+print("sync offsets (" + sync.offsets_from + "): "
       + ", ".join(f"{c} {v:d}" for c, v in offsets.items()))
-print(f"{res['sync']['n_frames']:d} synchronised frames; analysed {a:d}..{b - 1:d} ({b - a:d} frames, "
+print(f"{sync.n_frames:d} synchronised frames; analysed {a:d}..{b - 1:d} ({b - a:d} frames, "
       f"{b - a:d} / {fps:.0f} = {(b - a) / fps:.2f} s), {analysis.session.marker_count:d} markers")
 print(f"pipeline's triangulation: {analysis.params.triangulation} mode, median reprojection residual "
-      + ", ".join(f"{c} {np.nanmedian(r[a:b]):.3f} px" for c, r in res["triangulate"]["residual_px"].items()))
+      + ", ".join(f"{c} {np.nanmedian(r[a:b]):.3f} px" for c, r in analysis.triangulate.residual_px.items()))
 
 # %% [markdown]
 # The ground truth saved beside the session (`truth/`) is used **only to measure errors**: the
@@ -94,7 +95,7 @@ known = np.isin(frames_ref, truth.ref_frames)             # the truth covers the
 print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames (errors below are measured on those); "
       "true offsets " + ", ".join(f"{c} {v:d}" for c, v in truth.offsets.items()))
 a, b = a + int(np.argmax(known)), a + len(known) - int(np.argmax(known[::-1]))
-marker_px = {cam: px[a:b] for cam, px in res["detect"]["marker_px"].items()}
+marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}
 frames_ref = offsets[analysis.session.reference_camera] + np.arange(a, b)
 true_pos = truth.marker_pos[np.searchsorted(truth.ref_frames, frames_ref)]   # (n, 3, 3), world = left camera frame
 for cam in rig.names:
@@ -168,8 +169,8 @@ print(f"mode: {tri.mode}; valid points: {int(tri.valid.sum()):d} of {tri.valid.s
 for cam, rms in tri.rms_residual_px().items():
     print(f"  RMS reprojection residual {cam:6s}: {rms:.3f} px")
 if tri.mode == analysis.params.triangulation:
-    diff = np.nanmax(np.abs(tri.points - res["triangulate"]["points"][a:b]))
-    print(f"largest difference from the pipeline's points (results['triangulate']['points'], frames "
+    diff = np.nanmax(np.abs(tri.points - analysis.triangulate.points[a:b]))
+    print(f"largest difference from the pipeline's points (analysis.triangulate.points, frames "
           f"{a:d}..{b - 1:d}): {1e6 * diff:.3f} micrometres")
 
 # %% [markdown]
@@ -316,7 +317,7 @@ for cam_a, cam_b in (("left", "middle"), ("left", "right"), ("middle", "right"))
 
 # %%
 rng = np.random.default_rng(2009)
-noisy_all = accuracy.noisy_projections(truth, offsets, res["sync"]["n_frames"], 3, 0.1, rng)
+noisy_all = accuracy.noisy_projections(truth, offsets, sync.n_frames, 3, 0.1, rng)
 noisy_px = {cam: px[a:b] for cam, px in noisy_all.items()}
 for mode in ("thesis", "joint"):
     p = reconstruction.triangulate(rig, noisy_px, mode=mode).points
@@ -384,7 +385,7 @@ for mode in ("thesis", "joint"):
 #    random pixel noise the depth error scales like $1/B$, so the 0.24 m pair is about 1.9 times
 #    worse than the 0.45 m one. With the detector's pixels the ratio is smaller (section 2): part of
 #    their error is the same in neighbouring cameras and cancels in the disparity.
-# 2. `accuracy.noisy_projections(truth, offsets, res["sync"]["n_frames"], 3, 0.3, rng)`, sliced
+# 2. `accuracy.noisy_projections(truth, offsets, sync.n_frames, 3, 0.3, rng)`, sliced
 #    `[a:b]`: the bias-removed errors grow linearly with the noise (three times the noise, three
 #    times the RMSE); the calibration's bias does not change.
 # 3. With `c = rig["middle"]`, `moved = c.with_pose(c.rotation, c.translation + c.rotation_matrix @ [-1, 0, 0])`

@@ -33,10 +33,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import matplotlib.pyplot as plt
@@ -45,8 +46,9 @@ from IPython.display import display
 
 from horsemocap import accuracy, frames, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
-from horsemocap.pipeline import results_for, run_steps
+from horsemocap.pipeline import run_steps
 from horsemocap.virtuallab import load_truth
+from horsemocap.workspace import results_for
 
 # %% [markdown]
 # ## The data
@@ -61,16 +63,15 @@ from horsemocap.virtuallab import load_truth
 # %%
 session_dir = ws.session_dir
 analysis = results_for(session_dir, until="motion_frame")
-res = analysis.results
-rig = res["rig"]["rig"]                                     # calibrated by the pipeline
-a, b = res["detect"]["segment"]                             # analysed frames a..b-1
-points = res["smooth"]["raw"]                               # CM_L, triangulated, (n, markers, 3)
-gravity = res["plumb"]["gravity"]                           # u2e, from the plumb (section 3)
-mf_pipeline = res["motion_frame"]["frame"]
+rig = analysis.rig.rig                                      # calibrated by the pipeline
+a, b = analysis.detect.segment                              # analysed frames a..b-1
+points = analysis.smooth.raw                                # CM_L, triangulated, (n, markers, 3)
+gravity = analysis.plumb.gravity                            # u2e, from the plumb (section 3)
+mf_pipeline = analysis.motion_frame.frame
 fps = analysis.session.fps
 n = points.shape[0]
 par = analysis.params
-rig_from = res["rig"]["rig_from"].replace(" (cached in calibration.json)", f" ({par.calibration_mode})")
+rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({par.calibration_mode})")
 print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
       f"{analysis.params.triangulation} triangulation")
 print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.smoothing_span:.2f} if used), "
@@ -85,7 +86,7 @@ print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.s
 
 # %%
 truth = load_truth(session_dir)
-frames_ref = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
+frames_ref = analysis.synchronisation.offsets[analysis.session.reference_camera] + np.arange(a, b)
 rows = np.searchsorted(truth.ref_frames, frames_ref).clip(0, len(truth.ref_frames) - 1)
 known = truth.ref_frames[rows] == frames_ref                # the truth covers the frames all cameras see whole
 print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames; errors are measured on those")
@@ -218,7 +219,7 @@ downstream = {}
 for kin in ("fits", "pose_spline"):
     for method in ("none", "loess", "rloess"):
         run = run_steps(analysis.session, accuracy.with_params(analysis, smoothing_method=method, kinematics=kin),
-                        res, ("smooth", "motion_frame", "rigid_body"))
+                        analysis, ("smooth", "motion_frame", "rigid_body"))
         st = accuracy.stage_errors(run, truth)
         downstream[kin, method] = st
         print(f"{kin:11s} smoothing {method:7s}: marker RMSE y-motion {1000 * st['smoothed'][1]:5.2f} mm, "
@@ -273,8 +274,8 @@ display(ui_smooth)
 # %%
 choice = ui_smooth.value
 run = run_steps(analysis.session, accuracy.with_params(analysis, smoothing_method=choice["method"],
-                                                       smoothing_span=choice["span"]), res, ("smooth",))
-smoothed = run.results["smooth"]["smoothed"]                 # what the pipeline's smoothing step returns
+                                                       smoothing_span=choice["span"]), analysis, ("smooth",))
+smoothed = run.smooth.smoothed                               # what the pipeline's smoothing step returns
 if choice["method"] == "none":
     print("no smoothing: the positions stay as triangulated")
 else:
@@ -318,10 +319,9 @@ print(f"loess {par.smoothing_span:.1f} (pipeline): largest vertical change {chan
 # millimetre of depth error at one end tilts the vector by 0.04°.
 
 # %%
-tail_w, tip_w = res["plumb"]["plumb_points"]
+tail_w, tip_w = analysis.plumb.plumb_points
 u2e = frames.gravity_from_plumb(tip_w, tail_w)
-plumb_res = reconstruction.reprojection_residuals(rig, res["plumb"]["plumb_points"],
-                                                  res["plumb"]["plumb_px"])
+plumb_res = reconstruction.reprojection_residuals(rig, analysis.plumb.plumb_points, analysis.plumb.plumb_px)
 print("u2e (estimated gravity, down) =", np.array2string(u2e, precision=5))
 print("pipeline's gravity            =", np.array2string(gravity, precision=5))
 print("true gravity                  =", np.array2string(truth.gravity, precision=5))
@@ -342,7 +342,7 @@ acf = frames.autocorrelation(vertical, max_lag=int(0.6 * n))
 period = frames.estimate_period(smoothed, fps, gravity=gravity)
 stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
 print(f"estimated period: {period:.2f} frames = {period / fps:.3f} s (the pipeline's: "
-      f"{res['motion_frame']['period_frames']:.2f} frames)")
+      f"{analysis.motion_frame.period_frames:.2f} frames)")
 print(f"true stride period: {fps / stride_hz:.2f} frames (the thesis user typed 18 for this horse and gait)")
 
 # %%
@@ -400,11 +400,11 @@ runs = {}
 for mode in ("thesis", "joint"):
     for method in ("none", "loess", "rloess"):
         run = run_steps(analysis.session, accuracy.with_params(analysis, triangulation=mode, smoothing_method=method),
-                        {k: res[k] for k in ("sync", "rig", "detect")},
+                        {"sync": analysis.sync, "rig": analysis.rig, "detect": analysis.detect},
                         ("triangulate", "plumb", "static", "smooth", "motion_frame"))
         runs[mode, method] = run
         st = accuracy.stage_errors(run, truth)
-        r, rc = errors_mm(run.results["smooth"]["smoothed"])
+        r, rc = errors_mm(run.smooth.smoothed)
         print(f"{mode:6s} + {method:6s}: RMSE x {r[0]:5.2f}, y {r[1]:5.2f}, z {r[2]:6.2f} mm | bias removed "
               f"x {rc[0]:5.2f}, y {rc[1]:5.2f}, z {rc[2]:5.2f} mm | gravity {st['gravity_deg']:.3f} deg, "
               f"x-motion axis {st['x_axis_deg']:.3f} deg")
@@ -425,17 +425,17 @@ def verdict(ok):
 
 for method in (par.smoothing_method, "none", "rloess"):
     tag = " (pipeline default)" if method == par.smoothing_method else ""
-    r, rc = errors_mm(runs["joint", method].results["smooth"]["smoothed"])
+    r, rc = errors_mm(runs["joint", method].smooth.smoothed)
     print(f"joint + {method:6s}{tag}: x {r[0]:.2f} mm {verdict(r[0] < TARGET_MM)}, y {r[1]:.2f} mm "
           f"{verdict(r[1] < TARGET_MM)} (absolute) | x {rc[0]:.2f} mm {verdict(rc[0] < TARGET_MM)}, "
           f"y {rc[1]:.2f} mm {verdict(rc[1] < TARGET_MM)} (bias removed)")
-    rt, rct = errors_mm(runs["thesis", method].results["smooth"]["smoothed"])
+    rt, rct = errors_mm(runs["thesis", method].smooth.smoothed)
     no_worse = bool(np.all(r[:2] - rt[:2] < TIE_MM) and np.all(rc[:2] - rct[:2] < TIE_MM))
     print(f"   joint minus thesis (x, y): absolute " + ", ".join(f"{d:+.2f}" for d in r[:2] - rt[:2])
           + " mm, bias removed " + ", ".join(f"{d:+.2f}" for d in rc[:2] - rct[:2])
           + f" mm -> joint no worse than thesis: {verdict(no_worse)}")
 for mode in ("joint", "thesis"):
-    g_err = frames.angle_deg(runs[mode, par.smoothing_method].results["plumb"]["gravity"], truth.gravity)
+    g_err = frames.angle_deg(runs[mode, par.smoothing_method].plumb.gravity, truth.gravity)
     print(f"plumb gravity, {mode:6s} triangulation: {g_err:.3f} deg {verdict(g_err < TARGET_DEG)}")
 
 # %% [markdown]

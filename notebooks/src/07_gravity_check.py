@@ -18,10 +18,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import matplotlib.pyplot as plt
@@ -29,8 +30,8 @@ import numpy as np
 
 from horsemocap import frames, plots, reconstruction
 from horsemocap.data import data_samples_dir, default_session_dir
-from horsemocap.pipeline import results_for
 from horsemocap.virtuallab import load_truth
+from horsemocap.workspace import results_for
 
 
 def same_rig(rig_a, rig_b):
@@ -58,14 +59,14 @@ def same_rig(rig_a, rig_b):
 # %%
 ball_dir = data_samples_dir() / "ball_drop"
 analysis = results_for(ball_dir, until="triangulate")
-res = analysis.results
-rig = res["rig"]["rig"]
+sync = analysis.synchronisation
+rig = analysis.rig.rig
 fps = analysis.session.fps
-ball_px = res["detect"]["marker_px"]                                 # (21, 1, 2) per camera
-a, b = res["detect"]["segment"]
-print(f"rig: {res['rig']['rig_from']}; offsets ({res['sync']['offsets_from']}): "
-      + ", ".join(f"{c} {v:d}" for c, v in res["sync"]["offsets"].items()))
-print(f"ball seen by every camera in frames {a:d}..{b - 1:d} of {res['sync']['n_frames']:d}; "
+ball_px = analysis.detect.marker_px                                 # (21, 1, 2) per camera
+a, b = analysis.detect.segment
+print(f"rig: {analysis.rig.rig_from}; offsets ({sync.offsets_from}): "
+      + ", ".join(f"{c} {v:d}" for c, v in sync.offsets.items()))
+print(f"ball seen by every camera in frames {a:d}..{b - 1:d} of {sync.n_frames:d}; "
       f"{analysis.params.triangulation} triangulation")
 truth = load_truth(ball_dir)
 for cam in rig.names:
@@ -84,8 +85,8 @@ print(f"the session's rig.toml is the virtual laboratory's exact rig: {same_rig(
 # The pipeline's triangulated ball and its plumb gravity $\mathbf{u}_2^e$:
 
 # %%
-ball = res["triangulate"]["points"]                                 # (21, 1, 3), CM_L
-gravity = res["plumb"]["gravity"]
+ball = analysis.triangulate.points                                  # (21, 1, 3), CM_L
+gravity = analysis.plumb.gravity
 err = 1000 * np.linalg.norm(ball[:, 0] - truth.marker_pos[:, 0], axis=-1)
 print(f"ball position error: median {np.median(err):.1f} mm, max {err.max():.1f} mm")
 g_dir_err = frames.angle_deg(gravity, truth.gravity)
@@ -118,9 +119,9 @@ plt.show()
 
 # %%
 canter_dir = default_session_dir()
-calibrated = results_for(canter_dir, until="rig").results["rig"]["rig"]
+calibrated = results_for(canter_dir, until="rig").rig.rig
 print(f"canter session's true rig = ball drop's true rig: {same_rig(load_truth(canter_dir).rig, truth.rig)}")
-plumb_px = {c: v[None] for c, v in res["plumb"]["plumb_px"].items()}   # (1, 2, 2): tail (upper), tip (lower)
+plumb_px = {c: v[None] for c, v in analysis.plumb.plumb_px.items()}   # (1, 2, 2): tail (upper), tip (lower)
 cases = {}
 for rig_label, r_ in (("exact", rig), ("CALIBRATED", calibrated)):
     for mode in ("joint", "thesis"):
@@ -165,13 +166,13 @@ from horsemocap.sources import read_image
 
 plumb_run = results_for(ws.session_dir, until="plumb")
 ui_plumb = widgets.ui_still({c: read_image(p) for c, p in plumb_run.session.plumb.items()}, 2,
-                            plumb_run.results["plumb"]["plumb_px"])
+                            plumb_run.plumb.plumb_px)
 ws.bind(ui_plumb, "stills.plumb")
 display(ui_plumb)
 
 # %%
 print("plumb prompts:", ui_plumb.value or "automatic")
-print("gravity in the reference camera's frame:", np.round(plumb_run.results["plumb"]["gravity"], 4).tolist())
+print("gravity in the reference camera's frame:", np.round(plumb_run.plumb.gravity, 4).tolist())
 
 # %% [markdown]
 # ## Exercises

@@ -30,10 +30,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import warnings
@@ -65,17 +66,18 @@ from horsemocap import plots, rigid
 # the robust iterations then reject good samples near the ends of the record.
 
 # %%
-from horsemocap import accuracy, data, frames, pipeline, virtuallab
+from horsemocap import accuracy, data, frames, virtuallab
+from horsemocap.workspace import results_for
 
-an = pipeline.results_for(until="rigid_body")
-mf = an["motion_frame"]
-markers, static = mf["positions"], mf["static"]
-rb = an["rigid_body"]["analysis"]                 # horsemocap.rigid.RigidBodyAnalysis of the pipeline
-t = an["rigid_body"]["t"]
-a, b = an["triangulate"]["segment"]
+an = results_for(until="rigid_body")
+mf = an.motion_frame
+markers, static = mf.positions, mf.static
+rb = an.rigid_body.body                           # horsemocap.rigid.RigidBodyAnalysis of the pipeline
+t = an.rigid_body.t
+a, b = an.triangulate.segment
 print(f"{len(t)} frames ({a}..{b - 1} of the synchronised record) at {an.session.fps:.0f} fps; "
       f"markers {markers.shape}; static shot {static.shape}")
-moved = 1000 * np.linalg.norm(an["smooth"]["smoothed"] - an["smooth"]["raw"], axis=-1)
+moved = 1000 * np.linalg.norm(an.smooth.smoothed - an.smooth.raw, axis=-1)
 print(f"smoothing: {an.params.smoothing_method}, span {an.params.smoothing_span}; it moved the triangulated "
       f"markers by median {np.median(moved):.2f} mm, max {moved.max():.2f} mm")
 
@@ -174,7 +176,7 @@ from horsemocap import widgets
 from horsemocap.sources import read_image
 
 ui_static = widgets.ui_still({c: read_image(p) for c, p in an.session.static.items()},
-                             an.session.marker_count + 1, an.results["static"]["static_px"])
+                             an.session.marker_count + 1, an.static.static_px)
 ws.bind(ui_static, "stills.static")
 display(ui_static)
 
@@ -188,7 +190,7 @@ print("static-shot prompts:", ui_static.value or "automatic")
 #    `match_static_markers`: does the assignment change? Then swap markers 1 and 3 of the static shot: why
 #    are the distances alone not enough here?
 # 2. Register the *true* markers (`true_pos`) to the true static shot
-#    (`frames.to_motion_frame(truth.static_pos, mf["frame"])[:3]`): how large is the residual, and why?
+#    (`frames.to_motion_frame(truth.static_pos, mf.frame)[:3]`): how large is the residual, and why?
 # 3. Add a 2 cm outlier to marker 2 in frame 10 (`m2 = markers.copy(); m2[9, 1, 1] += 0.02`) before
 #    registration. How does the residual of that frame change, and how far does the error spread to
 #    markers 1 and 3?
@@ -236,7 +238,7 @@ def still_figure(image, marker_px, labels, title):
 
 
 plumb = sources.read_image(session.plumb[cam])
-fig = still_figure(plumb, an["plumb"]["plumb_px"][cam], ["top", "tip"],
+fig = still_figure(plumb, an.plumb.plumb_px[cam], ["top", "tip"],
                    f"Figure 8.4: plumb line, {cam} camera")
 plt.show()
 
@@ -246,10 +248,10 @@ plt.show()
 # detection labelled in that frame.
 
 # %%
-offset, det = an["sync"]["offsets"][cam], an["detect"]
+offset, det = an.synchronisation.offsets[cam], an.detect
 first = sources.FrameSource(session.motion[cam]).sequence(offset + a, offset + a + 1, color=True)[0]
-fig = plots.plot_filtered_images([first], det["detection"][cam]["threshold"], None,
-                                 marker_px=[det["marker_px"][cam][a]],
+fig = plots.plot_filtered_images([first], det.detection[cam]["threshold"], None,
+                                 marker_px=[det.marker_px[cam][a]],
                                  titles=[f"Figure 8.7: frame {a}, {cam} camera"], zoom="markers")
 plt.show()
 
@@ -260,10 +262,10 @@ plt.show()
 
 # %%
 static_img = sources.read_image(session.static[cam])
-order, saddle = an["rigid_body"]["static_order"], an["rigid_body"]["saddle_index"]
+order, saddle = an.rigid_body.static_order, an.rigid_body.saddle_index
 labels = ["saddle" if s == saddle else f"marker {order.index(s) + 1}" if s in order else "?"
-          for s in range(len(an["static"]["static_px"][cam]))]
-fig = still_figure(static_img, an["static"]["static_px"][cam], labels,
+          for s in range(len(an.static.static_px[cam]))]
+fig = still_figure(static_img, an.static.static_px[cam], labels,
                    f"Figures 8.11 and 8.21: static shot, {cam} camera")
 plt.show()
 
@@ -273,13 +275,13 @@ plt.show()
 # pixels and a window; the pipeline chose its own range for this ball).
 
 # %%
-ball = pipeline.results_for(data.data_samples_dir() / "ball_drop", until="detect")
+ball = results_for(data.data_samples_dir() / "ball_drop", until="detect")
 bcam = ball.session.cameras[0]
-bdet = ball["detect"]["detection"][bcam]
-boff, bn = ball["sync"]["offsets"][bcam], ball["sync"]["n_frames"]
+bdet = ball.detect.detection[bcam]
+boff, bn = ball.synchronisation.offsets[bcam], ball.synchronisation.n_frames
 pick = np.linspace(0, bn - 1, 10).round().astype(int)
 bframes = sources.FrameSource(ball.session.motion[bcam]).sequence(boff, boff + bn, color=True)
-bpx = ball["detect"]["marker_px"][bcam][pick, 0]                    # (10, 2), NaN where not found
+bpx = ball.detect.marker_px[bcam][pick, 0]                    # (10, 2), NaN where not found
 lo, hi = np.nanmin(bpx, axis=0) - 40, np.nanmax(bpx, axis=0) + 40    # the thesis crops its figure too
 fig = plots.plot_filtered_images([bframes[k] for k in pick], bdet["threshold"], (bdet["area_min"], bdet["area_max"]),
                                  marker_px=[bpx[i:i + 1] for i in range(len(pick))], labels=["ball"],

@@ -31,10 +31,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import warnings
@@ -58,19 +59,20 @@ from horsemocap import fitting, plots, rigid, widgets
 # frame) only measures the errors.
 
 # %%
-from horsemocap import accuracy, data, frames, pipeline, virtuallab
+from horsemocap import accuracy, data, frames, virtuallab
+from horsemocap.workspace import results_for
 
-an = pipeline.results_for(until="rigid_body")
-rb = an["rigid_body"]["analysis"]
+an = results_for(until="rigid_body")
+rb = an.rigid_body.body
 t, registered, auto = rb.t, rb.pos, rb.motion_fit        # the pipeline's registration and fits
 prm = an.params
-period_s = an["motion_frame"]["period_frames"] / an.session.fps
+period_s = an.motion_frame.period_frames / an.session.fps
 w0 = 2 * np.pi / period_s                                 # start point of every w (the thesis typed period = 18)
 print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smoothing_method}'; order rule '{prm.order_rule}', "
-      f"trend {prm.fourier_trend}, x degree {prm.x_degree}; period {an['motion_frame']['period_frames']:.2f} frames = {period_s:.3f} s")
+      f"trend {prm.fourier_trend}, x degree {prm.x_degree}; period {an.motion_frame.period_frames:.2f} frames = {period_s:.3f} s")
 
 truth = virtuallab.load_truth(ws.session_dir)
-a, b = an["triangulate"]["segment"]
+a, b = an.triangulate.segment
 tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
 true_kin = {"pos": tt["marker_pos"], "vel": tt["marker_vel"], "acc": tt["marker_acc"]}
 stride_hz = truth.extras["motion"]["gait"]["stride_hz"]

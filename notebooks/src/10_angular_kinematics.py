@@ -34,10 +34,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import warnings
@@ -61,16 +62,17 @@ from horsemocap import fitting, plots, rigid, widgets
 
 # %%
 from horsemocap import accuracy, data, frames, pipeline, virtuallab
+from horsemocap.workspace import results_for
 
-an = pipeline.results_for(until="rigid_body")
-rb = an["rigid_body"]["analysis"]
+an = results_for(until="rigid_body")
+rb = an.rigid_body.body
 prm = an.params
 t, pos, vel, acc = rb.t, rb.pos, rb.vel, rb.acc
 print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
       f"angular method '{prm.angular_method}'; versions used: omega {sum(prm.omega_versions)}, alfa {sum(prm.alpha_versions)}")
 
 truth = virtuallab.load_truth(ws.session_dir)
-a, b = an["triangulate"]["segment"]
+a, b = an.triangulate.segment
 tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
 omega_true, alpha_true = tt["omega"], tt["alpha"]
 
@@ -130,7 +132,7 @@ chosen = accuracy.with_params(an, omega_versions=[bool(v) for v in use_w],
                               alpha_versions=[bool(v) for v in use_a], angular_method=method)
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
-    rb2 = pipeline.run_steps(an.session, chosen, an.results, ["rigid_body"])["rigid_body"]["analysis"]
+    rb2 = pipeline.run_steps(an.session, chosen, an, ["rigid_body"]).rigid_body.body
 omega_avg = rigid.average_versions(rb2.omega_versions, use_w)
 rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - tr) ** 2)))
 per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, tr))

@@ -29,10 +29,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import warnings
@@ -42,6 +43,7 @@ import numpy as np
 from IPython.display import display
 
 from horsemocap import accuracy, data, frames, pipeline, plots, rigid, virtuallab, widgets
+from horsemocap.workspace import results_for
 
 # %% [markdown]
 # ## The data: the pipeline's own
@@ -53,17 +55,17 @@ from horsemocap import accuracy, data, frames, pipeline, plots, rigid, virtualla
 # velocity and acceleration, in the pipeline's motion frame) only measures errors.
 
 # %%
-an = pipeline.results_for(until="rigid_body")
-rb = an["rigid_body"]["analysis"]
+an = results_for(until="rigid_body")
+rb = an.rigid_body.body
 prm = an.params
-t, static = rb.t, an["motion_frame"]["static"]
+t, static = rb.t, an.motion_frame.static
 print(f"{len(t)} frames; static shot {static.shape}: markers 1-3 are static points {rb.static_index.tolist()}, "
       f"the saddle marker is point {rb.saddle_index}")
 print(f"the pipeline's choices: smoothing '{prm.smoothing_method}', omega/alfa by '{prm.angular_method}', "
       f"saddle v/a by '{prm.saddle_method}'")
 
 truth = virtuallab.load_truth(ws.session_dir)
-a, b = an["triangulate"]["segment"]
+a, b = an.triangulate.segment
 tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
 S_true = {"pos": tt["saddle_pos"], "vel": tt["saddle_vel"], "acc": tt["saddle_acc"]}
 
@@ -106,8 +108,8 @@ chosen = accuracy.with_params(an, omega_versions=[bool(v) for v in ui_w.value],
                               angular_method=ui_method.value, saddle_method=ui_saddle.value)
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
-    run = pipeline.run_steps(an.session, chosen, an.results, ["rigid_body"])
-res = run["rigid_body"]["analysis"]
+    run = pipeline.run_steps(an.session, chosen, an, ["rigid_body"])
+res = run.rigid_body.body
 st = accuracy.stage_errors(run, truth)
 print("saddle position (eq. 6.48) RMSE x/y/z (mm): "
       + "  ".join(f"{1000 * e:.1f}" for e in frames.rmse_per_axis(res.saddle.position, S_true["pos"])))
@@ -163,7 +165,7 @@ for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
         dict(kinematics="pose_spline")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        r = pipeline.run_steps(an.session, accuracy.with_params(an, **change), an.results, ["rigid_body"])
+        r = pipeline.run_steps(an.session, accuracy.with_params(an, **change), an, ["rigid_body"])
     e = accuracy.stage_errors(r, truth)
     pct = e["saddle_acc_y_rmse_pct_of_rms"]
     default = (am == "-" and not fits_default) or \
@@ -206,7 +208,7 @@ for sm in ("none", "loess", "rloess"):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         r = pipeline.run_steps(an.session, accuracy.with_params(an, smoothing_method=sm, kinematics="fits"),
-                               an.results, ["smooth", "motion_frame", "rigid_body"])
+                               an, ["smooth", "motion_frame", "rigid_body"])
     e = accuracy.stage_errors(r, truth)
     pct = e["saddle_acc_y_rmse_pct_of_rms"]
     print(f"{sm:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
@@ -298,8 +300,8 @@ plt.show()
 # to right in the reference camera) with that choice selected.
 
 # %% tags=["nbval-ignore-output"]
-auto_saddle = an.results["rigid_body"]["saddle_index"]
-ui_saddle_marker = widgets.ui_saddle_marker(an.results["static"]["static_px"], auto_saddle)
+auto_saddle = an.rigid_body.saddle_index
+ui_saddle_marker = widgets.ui_saddle_marker(an.static.static_px, auto_saddle)
 ws.bind(ui_saddle_marker, "saddle_marker")
 display(ui_saddle_marker)
 

@@ -31,10 +31,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import tempfile
@@ -398,17 +399,17 @@ print(f"read back acc_y_Wk_rms = {back['acc_y_Wk_rms']:.4f} m/s²")
 # weighted on the same stride harmonics as the saddle):
 
 # %%
-from horsemocap import pipeline
 from horsemocap.report import unit_text
+from horsemocap.workspace import results_for
 
-an = pipeline.results_for()
-rb = an["rigid_body"]
-period = an["motion_frame"]["period_frames"]
+an = results_for()
+rb = an.rigid_body
+period = an.motion_frame.period_frames
 f0 = None if period is None else an.session.fps / period
-per_marker = vibration.marker_comfort(rb["t"], rb["registered"], rb["acceleration"], rb["velocity"], f0_hz=f0)
+per_marker = vibration.marker_comfort(rb.t, rb.registered, rb.acceleration, rb.velocity, f0_hz=f0)
 rows = {f"marker {m + 1}": ind for m, ind in enumerate(per_marker)}
-rows["saddle"] = an["comfort"]["indicators"]
-amp = vibration.half_peak_to_peak(np.concatenate([rb["registered"], rb["saddle_position"][:, None]], axis=1))
+rows["saddle"] = an.comfort.indicators
+amp = vibration.half_peak_to_peak(np.concatenate([rb.registered, rb.saddle_position[:, None]], axis=1))
 shown = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk", "TA_8_limit_Wb")
 print(f"{'point':9s}" + "".join(f"{k:>15s}" for k in shown) + f"{'y amplitude':>13s}{'z amplitude':>13s}")
 print(f"{'':9s}" + "".join(f"{unit_text(vibration.COMFORT_UNITS[k]):>15s}" for k in shown) + f"{'mm':>13s}{'mm':>13s}")

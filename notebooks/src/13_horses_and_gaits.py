@@ -291,8 +291,8 @@ for g in herd.GAITS:
     series = {}
     for h in herd.HORSES:
         try:
-            rb = herd.pipeline_analysis(h, g, {"weighting_mode": "iso"})["rigid_body"]
-            series[h] = (rb["t"], rb["saddle_position"], rb["saddle_acceleration"])
+            rb = herd.pipeline_analysis(h, g, {"weighting_mode": "iso"}).rigid_body
+            series[h] = (rb.t, rb.saddle_position, rb.saddle_acceleration)
         except AnalysisError as exc:
             print(f"{h} {herd.GAIT_LABELS[g]}: not analysed ({exc})")
             series[h] = None

@@ -19,10 +19,11 @@
 # folder (default: the bundled Horse 2 canter). After choosing another, run the cells below again. The
 # choices made with this notebook's widgets are kept for the session and used by every later notebook.
 from IPython.display import display
+from horsemocap.widgets import ui_session
 from horsemocap.workspace import open_workspace
 
 ws = open_workspace()
-display(ws.ui())
+display(ui_session(ws))
 
 # %%
 import numpy as np
@@ -30,12 +31,11 @@ import matplotlib.pyplot as plt
 
 from horsemocap import accuracy, plots
 from horsemocap.data import default_session_dir
-from horsemocap.pipeline import results_for
 from horsemocap.virtuallab import load_truth, thesis_rig
+from horsemocap.workspace import results_for
 
 analysis = results_for(ws.session_dir)
 truth = load_truth(ws.session_dir)
-res = analysis.results
 
 # %% [markdown]
 # ## 1. Synchronisation
@@ -44,7 +44,7 @@ res = analysis.results
 
 # %%
 for cam in analysis.session.cameras:
-    print(f"{cam:6s} found {res['sync']['offsets'][cam]:4d}   true {truth.offsets[cam]:4d}")
+    print(f"{cam:6s} found {analysis.synchronisation.offsets[cam]:4d}   true {truth.offsets[cam]:4d}")
 
 # %% [markdown]
 # ## 2. Marker detection (2D)
@@ -99,7 +99,7 @@ plt.show()
 # The truth's indicators come from the exact harmonic series of the true saddle acceleration.
 
 # %%
-ind = res["comfort"]["indicators"]
+ind = analysis.comfort.indicators
 cerr = accuracy.comfort_errors(ind, truth.comfort)
 print("indicator                     measured      truth   error %")
 for key, e in cerr.items():
@@ -187,8 +187,8 @@ for r in study:
 # %%
 for fps in (30.0, 60.0):
     sim, sim_truth = accuracy.simulate_rig(analysis, rig, fps, 0.25, seed=2)
-    fit = sim.results["rigid_body"]["analysis"]
-    first, end = sim.results["triangulate"]["segment"]
+    fit = sim.rigid_body.body
+    first, end = sim.triangulate.segment
     print(f"{fps:.0f} fps, {end - first} analysed frames: rotation orders "
           f"{fit.rotation_fit.orders.tolist()}, saddle path orders {fit.saddle_fit.orders.tolist()}, "
           f"saddle A_y error {accuracy.stage_errors(sim, sim_truth)['saddle_acc_y_rmse_pct_of_rms']:.0f} %")
@@ -279,11 +279,12 @@ keys = ("acc_y_Wb_rms", "VDV_y_Wb")
 
 def errors(a):
     st = accuracy.stage_errors(a, truth)
-    ce = accuracy.comfort_errors(a["comfort"]["indicators"], truth.comfort, keys)
+    ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, keys)
     return st["saddle_acc_y_rmse_pct_of_rms"], ce["acc_y_Wb_rms"], ce["VDV_y_Wb"]
 
 
-before = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
+# the synchronisation the default's detection checked, the rig, the plumb line and the static shot
+before = {"sync": analysis.synchronisation, "rig": analysis.rig, "plumb": analysis.plumb, "static": analysis.static}
 thesis = pipeline.run_steps(analysis.session, thesis_params, before,
                             ["detect", "triangulate", "smooth", "motion_frame", "rigid_body", "comfort"])
 rows = [("default (every automatic choice)", errors(analysis)), ("thesis preset", errors(thesis))]
@@ -293,16 +294,16 @@ for label, change in [("thesis, omega by the fitted orientation", dict(angular_m
                        dict(order_rule="significant", fourier_trend=True)),
                       ("thesis, weighting per harmonic (iso)", dict(weighting_mode="iso")),
                       ("thesis, kinematics from the smoothed pose", dict(kinematics="pose_spline"))]:
-    a = pipeline.run_steps(analysis.session, dataclasses.replace(thesis_params, **change), thesis.results,
+    a = pipeline.run_steps(analysis.session, dataclasses.replace(thesis_params, **change), thesis,
                            ["rigid_body", "comfort"])
     rows.append((label, errors(a)))
-a = pipeline.run_steps(analysis.session, default_params, thesis.results,
+a = pipeline.run_steps(analysis.session, default_params, thesis,
                        ["triangulate", "smooth", "motion_frame", "rigid_body", "comfort"])
 rows.append(("default after the thesis' detection", errors(a)))
 print(f"{'chain':48s} {'saddle A_y RMSE':>16s} {'Wb rms error':>13s} {'VDV Wb error':>13s}")
 for label, (ay, wb, vdv) in rows:
     print(f"{label:48s} {ay:14.1f} % {wb:+12.1f} % {vdv:+12.1f} %")
-print("warnings of the thesis chain:", *thesis["rigid_body"]["warnings"], sep="\n  ")
+print("warnings of the thesis chain:", *thesis.rigid_body.warnings, sep="\n  ")
 
 # %% [markdown]
 # What the table says, choice by choice:

@@ -1,0 +1,353 @@
+"""Step ``detect``: the markers' centroids in every camera's synchronised frames (thesis chapter 4).
+
+By default the markers are identified by all cameras together and followed
+in 3D (:func:`horsemocap.detection.identify_markers`); the thesis' chain
+detects them in each camera alone (:func:`horsemocap.detection.detect_markers`).
+With a flashlight and three cameras, each camera's flash offset is then
+checked against the instants of the other cameras' markers; a correction is
+part of this step's result (:attr:`DetectResult.sync`), the sync step's own
+result stays as it was.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..camera import Rig
+from ..detection import (DetectionError, DetectionParams, bridge_gaps, default_max_gap, detect_markers,
+                         identify_markers)
+from ..detection.identification import _area_range, _min_circ, reason_counts
+from ..detection.timeshift import best_frame_shift, frame_shift_residuals
+from ..params import DetectParams
+from ..progress import CountingFrames, counter
+from ..reconstruction import triangulate
+from ..session import Session, check_frame_counts
+from ..sources import FrameSource
+from .base import AnalysisError, StepResult, frames_text, longest_run
+from .sync import SyncResult
+
+#: Rounds of the markers' check of the flash offsets: a camera corrected in one round moves the markers the
+#: next round projects into the others (two cameras' flashes found in wrong frames need two rounds).
+SYNC_CHECK_ROUNDS = 3
+
+MIN_SEGMENT_FRAMES = 8
+"""The fewest consecutive frames an analysis needs."""
+
+
+@dataclass(frozen=True)
+class CameraSyncCheck(StepResult):
+    """One camera's flash offset checked by the other cameras' markers.
+
+    Attributes
+    ----------
+    shift : int
+        Whole frames by which the markers moved the flash's offset (0 = confirmed).
+    moved : bool
+        A round moved the camera (even if the moves cancel).
+    current_px, best_px : float
+        Median distance of the others' projected markers from this camera's
+        marker regions at the flash's offset (first round) and at the best shift (last round).
+    n_points : int
+        Marker-frames compared.
+    decided : bool
+        The residuals single out one shift.
+    rounds : int
+        Rounds run.
+    settled : bool
+        The last round moved no camera: the offsets the results use were checked.
+    """
+
+    shift: int
+    moved: bool
+    current_px: float
+    best_px: float
+    n_points: int
+    decided: bool
+    rounds: int
+    settled: bool
+
+
+@dataclass(frozen=True)
+class IdentificationSummary(StepResult):
+    """What the multi-view identification chose: the anchor frame and the static shot's markers.
+
+    Attributes
+    ----------
+    anchor_frame : int
+        Synchronised frame in which the markers were labelled.
+    anchor_margin : float
+        How clearly that labelling won over the next one.
+    model_index : list of int
+        Static-shot point of each marker.
+    rigid_rms_m : float
+        RMS distance of the identified markers from the static shot's rigid shape.
+    """
+
+    anchor_frame: int
+    anchor_margin: float
+    model_index: list
+    rigid_rms_m: float
+
+
+@dataclass(frozen=True)
+class DetectResult(StepResult):
+    """Marker centroids per camera, in the synchronised numbering.
+
+    Attributes
+    ----------
+    marker_px : dict
+        Camera -> (n, m, 2) centroids (px), NaN where not found (thesis ``PM_L``, ``PM_M``, ``PM_R``).
+    reason : dict
+        Camera -> (n, m) why a centroid is missing ("" where found).
+    segment : (int, int)
+        The analysed frames ``[start, stop)``: the longest run in which every marker is seen.
+    detection : dict
+        Camera -> the detector parameters used (automatic choices filled in).
+    all_seen : (n,) bool
+        Frames in which every marker is seen (by two or more cameras, or bridged).
+    method : str
+        ``"multiview"`` or ``"thesis"``.
+    method_note : str
+        Why the thesis' chain ran although multiview was asked ("" otherwise).
+    max_gap_frames : int
+        Longest gap of a marker's 3D position bridged by interpolation.
+    sync : SyncResult
+        The synchronisation these frames are in: the sync step's, or its
+        correction by the markers (then ``sync.flash_offsets`` holds the flash's).
+    sync_check : dict
+        Camera -> :class:`CameraSyncCheck` (empty when not checked).
+    identification : IdentificationSummary or None
+        The multi-view identification's choices.
+    """
+
+    marker_px: dict
+    reason: dict
+    segment: tuple
+    detection: dict
+    all_seen: np.ndarray
+    method: str
+    method_note: str
+    max_gap_frames: int
+    sync: SyncResult
+    sync_check: dict = field(default_factory=dict)
+    identification: IdentificationSummary | None = None
+
+    @property
+    def sync_corrected(self) -> bool:
+        """True when the markers corrected the flash offsets."""
+        return self.sync.flash_offsets is not None
+
+
+def max_gap_frames(session: Session, section: DetectParams) -> int:
+    """The longest 3D gap bridged: ``section.max_gap_frames`` or 0.1 s of frames (at least 2)."""
+    return default_max_gap(session.fps) if section.max_gap_frames is None else int(section.max_gap_frames)
+
+
+def camera_detection_params(section: DetectParams, camera: str) -> DetectionParams | None:
+    """The detector parameters given for ``camera`` ("all" first, then the camera's own), or None."""
+    given = dict(section.cameras.get("all", {}))
+    given.update(section.cameras.get(camera, {}))
+    return DetectionParams.from_dict(given) if given else None
+
+
+def synchronised_frames(session: Session, sync: SyncResult, cam: str, progress=None, message: str = ""):
+    """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted."""
+    offsets, n = sync.offsets, sync.n_frames
+    seq = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+    if progress is None or not getattr(progress, "counts", False):
+        return seq
+    return CountingFrames(seq, counter(progress, "detect", message or f"camera '{cam}' frames", n))
+
+
+def step_detect(session: Session, section: DetectParams, sync: SyncResult, rig: Rig,
+                static_points: np.ndarray | None, progress) -> DetectResult:
+    """Marker centroids per camera in the synchronised numbering (chapter 4).
+
+    ``section.method="multiview"`` (default): the markers are identified by
+    all cameras together and followed in 3D, which needs the static shot's
+    markers (``static_points``) as the rigid model; ``"thesis"``: each camera
+    alone with the filters of chapter 4, and the analysed segment is the
+    longest run in which every camera sees every marker.
+    """
+    method, why = section.method, ""
+    if method == "multiview":
+        if static_points is None:
+            method, why = "thesis", "no static shot to take the markers' rigid shape from"
+        elif session.marker_count < 3:
+            method, why = "thesis", f"{session.marker_count} marker(s): a rigid shape needs 3"
+        if why:
+            progress("detect", f"multi-view identification not possible ({why}); the thesis' per-camera chain")
+    if method == "multiview":
+        return _detect_multiview(session, section, sync, rig, static_points, progress)
+    return _detect_per_camera(session, section, sync, progress, why)
+
+
+def _detect_multiview(session, section, sync, rig, static_points, progress) -> DetectResult:
+    first = session.cameras[0]
+    frames = {c: synchronised_frames(session, sync, c, progress if c == first else None, "frames identified")
+              for c in session.cameras}
+    given = {c: camera_detection_params(section, c) or DetectionParams() for c in session.cameras}
+    progress("detect", f"{sync.n_frames} frames of cameras {', '.join(session.cameras)}: "
+                       "markers identified by all cameras together ...")
+    idn = _identify(session, sync, rig, static_points, given, progress, frames)
+    check = {}
+    if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
+        idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress)
+    gap = max_gap_frames(session, section)
+    have, _ = bridge_gaps(idn.points, gap)
+    tracked = np.all(np.isfinite(have), axis=(1, 2))
+    segment = longest_run(tracked)
+    if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
+        moved = [c for c, v in check.items() if v.moved or not v.decided]
+        hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
+                f"{sync.offsets}, the flash's {sync.flash_offsets or sync.offsets}): "
+                "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
+                if moved else "")
+        raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
+                            f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
+                            "motion videos, the threshold, the rig and 'markers.count' in session.json" + hint)
+    progress("detect", f"{frames_text(session.reference_camera, sync.offsets, segment[0], segment[1] - 1)}: every "
+                       f"marker seen by two or more cameras (or bridged); labelled in synchronised frame "
+                       f"{idn.anchor_frame}")
+    chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
+    summary = IdentificationSummary(anchor_frame=idn.anchor_frame, anchor_margin=idn.anchor_margin,
+                                    model_index=[int(i) for i in idn.model_index], rigid_rms_m=idn.rigid_rms_m)
+    return DetectResult(marker_px=idn.marker_px, reason=idn.reason, segment=segment, detection=chosen,
+                        all_seen=tracked, method="multiview", method_note="", max_gap_frames=gap, sync=sync,
+                        sync_check=check, identification=summary)
+
+
+def _identify(session, sync, rig, static_points, given, progress, frames=None):
+    frames = frames or {c: synchronised_frames(session, sync, c) for c in session.cameras}
+    try:
+        return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress)
+    except DetectionError as exc:
+        raise AnalysisError("detect", f"{exc}") from None
+    finally:
+        for f in frames.values():
+            f.close()
+
+
+def _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress):
+    """Rounds of :func:`_check_round` until no camera moves (at most :data:`SYNC_CHECK_ROUNDS`).
+
+    Returns the last identification, the synchronisation it is in and the per-camera check.
+    """
+    rounds, flash = [], sync
+    for _ in range(SYNC_CHECK_ROUNDS):      # again after a correction: the others' markers have moved too
+        shifts, sync = _check_round(session, section, sync, rig, idn, progress)
+        rounds.append(shifts)
+        if not any(v["shift"] for v in shifts.values()):
+            break
+        idn = _identify(session, sync, rig, static_points, given, progress)
+    return idn, sync, _check_summary(rounds, sync, flash)
+
+
+def _check_summary(rounds: list, sync: SyncResult, flash: SyncResult) -> dict:
+    """Per camera over the rounds: the total shift from the flash's offset, whether a round moved it, the
+    first round's residual, the last round's best residual, marker-frames and decision, and whether the
+    rounds settled (the last round moved no camera)."""
+    flash_offsets = flash.offsets
+    settled = not any(v["shift"] for v in rounds[-1].values())
+    return {c: CameraSyncCheck(shift=int(sync.offsets[c] - flash_offsets[c]),
+                               moved=any(r[c]["shift"] for r in rounds), current_px=rounds[0][c]["current_px"],
+                               best_px=last["best_px"], n_points=last["n_points"], decided=last["decided"],
+                               rounds=len(rounds), settled=settled)
+            for c, last in rounds[-1].items()}
+
+
+def _check_round(session, section, sync, rig, idn, progress):
+    """Each camera's flash offset checked against the instants of the others' markers.
+
+    For every camera, the markers triangulated from the OTHER cameras are
+    projected into its frames shifted by up to one second
+    (:func:`horsemocap.detection.timeshift.frame_shift_residuals`); when a
+    shift clearly puts them on its marker regions
+    (:func:`~horsemocap.detection.timeshift.best_frame_shift`), the camera's
+    offset is corrected. Returns per camera the shift and the residuals, and
+    the synchronisation after the round (a new :class:`SyncResult` when a
+    camera moved, saying so in ``offsets_from`` and ``flash_offsets``).
+    """
+    offsets, n = sync.offsets, sync.n_frames
+    reach = max(5, int(round(session.fps)))
+    out = {}
+    for c in session.cameras:
+        others = {o: idn.marker_px[o] for o in session.cameras if o != c}
+        points = triangulate(rig, others, mode="joint").points
+        first = max(-reach, -offsets[c])
+        stop = min(sync.frame_counts[c], offsets[c] + n + reach)
+        seq = FrameSource(session.motion[c]).sequence(offsets[c] + first, stop, color=False)
+        p = camera_detection_params(section, c) or DetectionParams()
+        try:
+            shifts, med, npts = frame_shift_residuals(rig[c], points, seq, first, range(-reach, reach + 1),
+                                                      idn.thresholds[c], _area_range(p), _min_circ(p),
+                                                      centroid=p.centroid)
+        finally:
+            seq.close()
+        fs = best_frame_shift(shifts, med, npts)
+        out[c] = {"shift": fs.best, "current_px": fs.current_px, "best_px": fs.best_px, "n_points": fs.n_points,
+                  "decided": fs.decided}
+    moved = {c: v["shift"] for c, v in out.items() if v["shift"]}
+    if not moved:
+        return out, sync
+    new = {c: int(offsets[c] + moved.get(c, 0)) for c in session.cameras}
+    what = ", ".join(f"{c} {d:+d} frame(s) (residual {out[c]['current_px']:.1f} -> {out[c]['best_px']:.2f} px)"
+                     for c, d in moved.items())
+    again = sync.flash_offsets is not None              # a round after a correction
+    progress("detect", f"the {'corrected offsets still disagree' if again else 'flash offsets disagree'} with "
+                       f"the markers: {what}; offsets {new}, identifying again")
+    how = f"{sync.offsets_from}{'; then' if again else ','} corrected by the markers ({what})"
+    corrected = sync.replace(offsets=new, offsets_from=how,
+                             n_frames=check_frame_counts(session, sync.frame_counts, new, offsets_from=how),
+                             flash_offsets=dict(sync.flash_offsets or offsets))
+    return out, corrected
+
+
+def _detect_per_camera(session, section, sync, progress, why: str) -> DetectResult:
+    """The thesis' chain: every camera on its own (chapter 4)."""
+    n = sync.n_frames
+    marker_px, reasons, chosen = {}, {}, {}
+    for cam in session.cameras:
+        progress("detect", f"camera '{cam}': {n} frames ...")
+        frames = synchronised_frames(session, sync, cam, progress, f"camera '{cam}' frames")
+        track = detect_markers(frames, session.marker_count, params=camera_detection_params(section, cam))
+        marker_px[cam], reasons[cam] = track.marker_px, track.reason
+        chosen[cam] = track.params.to_dict()
+        frames.close()
+    seen = np.all([np.all(np.isfinite(marker_px[c][..., 0]), axis=1) for c in session.cameras], axis=0)
+    segment = longest_run(seen)
+    if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
+        counts = {c: int(np.all(np.isfinite(marker_px[c][..., 0]), axis=1).sum()) for c in session.cameras}
+        raise AnalysisError("detect", "fewer than 8 consecutive frames in which every camera sees every "
+                            f"marker (frames with all markers, per camera: {counts}); check the motion "
+                            "videos, the threshold and the marker count in session.json")
+    progress("detect", f"frames {segment[0]}..{segment[1] - 1} seen by every camera")
+    gaps = gaps_inside(seen, reasons)
+    if gaps:
+        progress("detect", "not every marker seen in frames " + "; ".join(gaps)
+                 + f"; analysing the longest run {segment[0]}..{segment[1] - 1}")
+    return DetectResult(marker_px=marker_px, reason=reasons, segment=segment, detection=chosen, all_seen=seen,
+                        method="thesis", method_note=why, max_gap_frames=max_gap_frames(session, section),
+                        sync=sync)
+
+
+def gaps_inside(seen: np.ndarray, reasons: dict) -> list[str]:
+    """Frames between the first and last all-seen frame where a marker is missing, and why.
+
+    Examples
+    --------
+    >>> gaps_inside(np.array([True, False, True]), {"left": np.array([[""], ["dark"], [""]])})
+    ['1 (left marker1 dark)']
+    """
+    idx = np.flatnonzero(seen)
+    if idx.size == 0:
+        return []
+    out = []
+    for k in range(idx[0], idx[-1] + 1):
+        if seen[k]:
+            continue
+        why = sorted({f"{cam} marker{m + 1} {r[k, m]}" for cam, r in reasons.items()
+                      for m in range(r.shape[1]) if r[k, m]})
+        out.append(f"{k} ({', '.join(why)})")
+    return out

@@ -1,0 +1,301 @@
+"""Step ``rigid_body``: registration, kinematics and the hidden saddle marker (thesis 5.4-5.5, chapter 6)."""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..frames import time_axis, to_motion_frame
+from ..params import RigidBodyParams
+from ..pose import CollinearMarkersError, conditioning_warnings, saddle_angles_deg, static_body_axes
+from ..rigid import RigidBodyAnalysis, analyse_rigid_body, singularity_angle, singularity_report
+from ..session import Session
+from ..splines import ChangePointError
+from .base import AnalysisError, StepResult, frames_text
+from .motion_frame import MotionFrameResult
+from .triangulate import TriangulateResult
+
+
+@dataclass(frozen=True)
+class Conditioning(StepResult):
+    """Per-frame conditioning of the rigid-body step.
+
+    Attributes
+    ----------
+    singularity_deg : (n,) array
+        Angle between omega and the markers' plane normal (eq. 6.35; the thesis versions fail near 90).
+    triangle_height_m : (n,) array
+        Smallest height of the marker triangle (NaN with fewer than 3 markers).
+    registration_rms_m : (n,) array
+        RMS distance of the markers from the registered model.
+    registration_n_markers : (n,) array
+        Markers registered per frame.
+    noise_m : float
+        The markers' noise the registration residuals give.
+    warnings : list of str
+        Messages when these make the result unreliable.
+    """
+
+    singularity_deg: np.ndarray
+    triangle_height_m: np.ndarray
+    registration_rms_m: np.ndarray
+    registration_n_markers: np.ndarray
+    noise_m: float
+    warnings: list
+
+
+@dataclass(frozen=True)
+class RigidBodyResult(StepResult):
+    """The markers' and the saddle's kinematics in the motion frame.
+
+    Attributes
+    ----------
+    body : RigidBodyAnalysis
+        Everything the rigid-body analysis computed (both chains where the record allows).
+    t : (n,) array
+        Time (s) from the first analysed frame (eq. 5.13).
+    registered : (n, m, 3) array
+        The markers' registered positions (section 5.4).
+    model : (m, 3) array
+        The static shot's markers (the rigid model).
+    saddle_static : (3,) array
+        The saddle marker in the static shot.
+    static_order : list of int
+        Static-shot point of each marker; ``saddle_index`` the saddle's.
+    velocity, acceleration : (n, m, 3) arrays
+        The markers' velocity and acceleration passed on.
+    orders : (m, 2) array or None
+        The Fourier orders (y, z) per marker of the thesis' chain.
+    omega, alpha : (n, 3) arrays
+        Angular velocity and acceleration (chapter 6).
+    singularity_deg : (n,) array
+        :attr:`Conditioning.singularity_deg`.
+    saddle_position, saddle_velocity, saddle_acceleration : (n, 3) arrays
+        The hidden saddle marker (eq. 6.48-6.55 or the pose trajectory).
+    conditioning : Conditioning
+    warnings : list of str
+    saddle_angles_deg : (n, 3) array
+        Roll, pitch, yaw of the saddle.
+    """
+
+    body: RigidBodyAnalysis
+    t: np.ndarray
+    registered: np.ndarray
+    model: np.ndarray
+    saddle_static: np.ndarray
+    static_order: list
+    saddle_index: int
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    orders: np.ndarray | None
+    omega: np.ndarray
+    alpha: np.ndarray
+    singularity_deg: np.ndarray
+    saddle_position: np.ndarray
+    saddle_velocity: np.ndarray
+    saddle_acceleration: np.ndarray
+    conditioning: Conditioning
+    warnings: list
+    saddle_angles_deg: np.ndarray
+
+
+def _fourier_orders(given, n_markers):
+    """``{"y": N, "z": N}`` or per-marker ``[[Ny, Nz], ...]`` -> array (m, 2) or None."""
+    if given is None:
+        return None
+    if isinstance(given, dict):
+        if "y" not in given or "z" not in given:
+            return None
+        return np.tile([int(given["y"]), int(given["z"])], (n_markers, 1))
+    arr = np.asarray(given, int)
+    if arr.shape != (n_markers, 2):
+        raise AnalysisError("rigid_body", f"parameter 'fourier_orders': expected {{'y': N, 'z': N}} or "
+                                          f"{n_markers} pairs [Ny, Nz], got {given!r}")
+    return arr
+
+
+def _extra_orders(given, key, k):
+    """``fourier_orders[key]`` ("rotation": 3 ints or one, "saddle": [Ny, Nz] or one) or None."""
+    if not isinstance(given, dict) or given.get(key) is None:
+        return None
+    return np.broadcast_to(np.asarray(given[key], int), (k,)).copy()
+
+
+def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: TriangulateResult,
+                    raw: np.ndarray, motion: MotionFrameResult, offsets: dict, progress) -> RigidBodyResult:
+    """Registration, pose trajectory, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
+
+    One call of :func:`horsemocap.rigid.analyse_rigid_body`. With
+    ``kinematics="pose_spline"`` the markers' poses are registered frame by
+    frame to the static shot and smoothed (:mod:`horsemocap.pose`), and
+    omega, alpha, the markers' and the saddle's kinematics come from that
+    pose trajectory; the thesis' chain (poly x, Fourier y/z with the order
+    rule of 5.5.2.2, the six versions, eq. 6.48-6.55) is computed too and is
+    what ``kinematics="fits"`` passes on. ``raw``: the analysed frames'
+    unsmoothed positions (world frame), from which the pose trajectory is
+    smoothed; ``offsets``: the synchronisation, to name frames in messages.
+    Per-frame conditioning (the eq. 6.35 angle, the marker triangle's
+    smallest height, the registration residual) is kept, and a warning is
+    printed when it makes the result unreliable.
+    """
+    fits, pose = section.fits, section.pose
+    positions, static, mframe = motion.positions, motion.static, motion.frame
+    t = time_axis(len(positions), session.fps)
+    pose_t, pose_points = None, to_motion_frame(raw, mframe)
+    lo, hi = a, b = triangulated.segment
+    name = lambda first, last: frames_text(session.reference_camera, offsets, first, last)  # noqa: E731
+    if section.kinematics == "pose_spline" and pose.partial_frames:
+        lo, hi = pose_margin(triangulated.points, triangulated.segment)
+        if (lo, hi) != (a, b):
+            pose_points = to_motion_frame(triangulated.points[lo:hi], mframe)
+            pose_t = np.arange(lo - a, hi - a) / float(session.fps)
+            progress("rigid_body", f"pose trajectory smoothed over {name(lo, hi - 1)}: {a - lo} before and "
+                                   f"{hi - b} after the analysed frames have two markers (reported: {name(a, b - 1)})")
+    cov = triangulated.covariance if pose.weights == "covariance" else None
+    if cov is not None:   # the markers' covariances in the motion frame (x_M = A (x - o): A C A^T)
+        cov = motion.axes @ cov[lo:hi] @ motion.axes.T
+    period = motion.period_frames
+    fo = fits.fourier_orders
+    _check_pose_events(pose.events, t if pose_t is None else pose_t)
+    try:
+        rb = analyse_rigid_body(
+            t, positions, static, x_degree=fits.x_degree,
+            orders=_fourier_orders(fo, positions.shape[1]), order_rule=fits.order_rule,
+            omega_use=fits.omega_versions, alpha_use=fits.alpha_versions,
+            method=fits.angular_method, saddle_method=fits.saddle_method,
+            period_s=None if period is None else period / session.fps, fourier_trend=fits.trend,
+            kinematics=section.kinematics, pose_smoothing=pose.smoothing,
+            rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
+            pose_points=pose_points, pose_t=pose_t, pose_partial=pose.partial_frames,
+            pose_harmonics=pose.harmonics, pose_covariance=cov,
+            pose_rotation_weights=pose.rotation_weights, saddle_index=section.saddle_marker,
+            pose_events=pose.events)
+    except CollinearMarkersError as exc:
+        raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
+    except ChangePointError as exc:
+        raise AnalysisError("rigid_body", f"parameter 'pose_events': {exc}") from None
+    orders = np.asarray(rb.motion_fit.orders)[:, 1:] if rb.motion_fit is not None else None
+    pos, vel, acc = rb.marker_kinematics
+    cond = conditioning(rb)
+    _report(section, rb, cond, orders, progress)
+    return RigidBodyResult(
+        body=rb, t=t, registered=pos, model=rb.model, saddle_static=rb.static_saddle,
+        static_order=[int(i) for i in rb.static_index], saddle_index=int(rb.saddle_index),
+        velocity=vel, acceleration=acc, orders=orders, omega=rb.omega, alpha=rb.alpha,
+        singularity_deg=cond.singularity_deg, saddle_position=rb.saddle_position,
+        saddle_velocity=rb.saddle_velocity, saddle_acceleration=rb.saddle_acceleration, conditioning=cond,
+        warnings=list(cond.warnings), saddle_angles_deg=saddle_angles(rb))
+
+
+def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning, orders, progress) -> None:
+    """The step's progress lines: the smoothing chosen (pose) or the orders (fits), the conditioning, warnings."""
+    fits, pose = section.fits, section.pose
+    if section.kinematics == "pose_spline":
+        sm = rb.pose.smoothing
+        ran = rb.pose.smoothing_choice
+        how = (f"{ran['method']} smoothing ({pose.smoothing}: {ran['reason']})" if ran
+               else f"{pose.smoothing} smoothing")
+        progress("rigid_body", f"pose trajectory ({how}, effective degrees of "
+                 f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
+                 + f"); registration residual median {1000 * np.nanmedian(cond.registration_rms_m):.2f} mm")
+        weighted = [k for k, v in sm.items() if v.get("weights", "equal") != "equal"]
+        if weighted:
+            progress("rigid_body", "rotation smoothed with each frame weighted by its predicted variance (its noise "
+                                   f"model explains the residuals better) in {', '.join(weighted)}")
+        f0 = [v["fundamental_hz"] for v in sm.values() if v.get("fundamental_hz")]
+        if f0:
+            progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "
+                     + ", ".join(f"{k} {_harmonics_text(v)}" for k, v in sm.items()))
+        if pose.events:
+            progress("rigid_body", "acceleration free to jump at the known change points (pose_events) "
+                     + ", ".join(f"{e:g}" for e in sorted(pose.events)) + " s")
+        if rb.chain_error:
+            progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
+    else:
+        progress("rigid_body", f"Fourier orders (y, z) per marker {orders.tolist()}; omega by {fits.angular_method}, "
+                               f"saddle by {fits.saddle_method}")
+    sing = float(np.nanmin(np.abs(90 - cond.singularity_deg)))
+    progress("rigid_body", f"closest approach to the eq. 6.35 singularity {sing:.1f} deg; smallest marker "
+                           f"triangle height {1000 * np.nanmin(cond.triangle_height_m):.1f} mm")
+    for w in cond.warnings:
+        progress("rigid_body", "WARNING: " + w)
+
+
+def _harmonics_text(info: dict) -> str:
+    """How many stride harmonics a pose component kept, with their orders when they are not 1..K."""
+    n = int(info.get("harmonics", 0))
+    orders = [int(k) for k in info.get("harmonic_indices", range(1, n + 1))]
+    return str(n) if orders == list(range(1, n + 1)) else f"{n} (order {', '.join(map(str, orders))})"
+
+
+def _check_pose_events(events, times) -> None:
+    """Refuse ``pose_events`` outside the smoothed record (:class:`AnalysisError` naming the parameter)."""
+    if not events:
+        return
+    lo, hi = float(times[0]), float(times[-1])
+    outside = [e for e in events if not lo < e < hi]
+    if outside:
+        raise AnalysisError("rigid_body", f"parameter 'pose_events': {outside} s outside the smoothed record: expected "
+                                          f"times strictly inside ({lo:.6g}, {hi:.6g}) s, the time_s axis of "
+                                          "trajectories.csv (0 = the first analysed frame)")
+
+
+def pose_margin(points: np.ndarray, segment, min_markers: int = 2) -> tuple[int, int]:
+    """Frames next to the analysed segment in which at least ``min_markers`` markers have a 3D position.
+
+    The analysed segment ends where a marker is lost; the frames just beyond
+    it in which two markers are still triangulated carry five of the pose's
+    six degrees of freedom (:func:`horsemocap.pose.partial_pose`). Returns
+    ``(lo, hi)``: the segment ``(a, b)`` widened over the contiguous runs of
+    such frames on both sides.
+
+    Examples
+    --------
+    >>> pts = np.zeros((5, 3, 3)); pts[0, :2] = np.nan; pts[4, :] = np.nan
+    >>> pose_margin(pts, (1, 4))
+    (1, 4)
+    >>> pts[0, 1] = 0.0
+    >>> pose_margin(pts, (1, 4))
+    (0, 4)
+    """
+    count = np.all(np.isfinite(np.asarray(points, float)), axis=2).sum(1)
+    lo, hi = segment
+    while lo > 0 and count[lo - 1] >= min_markers:
+        lo -= 1
+    while hi < count.size and count[hi] >= min_markers:
+        hi += 1
+    return int(lo), int(hi)
+
+
+def conditioning(rb: RigidBodyAnalysis) -> Conditioning:
+    """Per-frame conditioning of a :class:`~horsemocap.rigid.RigidBodyAnalysis` (see :class:`Conditioning`)."""
+    preg = rb.pose_registration
+    k = rb.pose_markers.position if rb.pose_markers is not None else rb.registration.registered
+    sing = singularity_angle(k[:, :3], rb.omega)
+    height = preg.height.copy()
+    height[preg.n_markers < 3] = np.nan
+    lever = float(np.linalg.norm(rb.static_saddle - rb.model.mean(0)))
+    warn = conditioning_warnings(preg, lever)
+    if rb.kinematics == "fits" and rb.method == "thesis":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rep = singularity_report(sing, warn=False)
+        if rep["fraction"] > 0:
+            warn.append(f"omega within 15 deg of the markers' plane in {100 * rep['fraction']:.0f} % of the frames "
+                        f"(closest {rep['min_margin_deg']:.1f} deg): the thesis versions (eq. 6.3/6.4, 6.38/6.39) "
+                        "are unreliable there (eq. 6.35); use kinematics 'pose_spline'")
+    return Conditioning(singularity_deg=sing, triangle_height_m=height, registration_rms_m=preg.rms,
+                        registration_n_markers=preg.n_markers, noise_m=preg.noise_m, warnings=warn)
+
+
+def saddle_angles(rb: RigidBodyAnalysis) -> np.ndarray:
+    """Roll, pitch, yaw (deg) of the saddle in the motion frame, per frame (n, 3).
+
+    Body axes from the static shot, as seed 004 takes body planes from a
+    default pose (:func:`horsemocap.pose.static_body_axes`); then rotated by
+    the body's pose in each frame.
+    """
+    axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
+    R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
+    return saddle_angles_deg(R, axes0)

@@ -1,0 +1,84 @@
+"""Step ``triangulate``: 3D marker positions in the reference camera's frame (thesis section 5.1)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import Rig
+from ..detection import bridge_gaps
+from ..params import TriangulateParams
+from ..reconstruction import nearest_covariance, triangulate
+from .base import AnalysisError, StepResult, longest_run
+from .detect import MIN_SEGMENT_FRAMES, DetectResult
+
+
+@dataclass(frozen=True)
+class TriangulateResult(StepResult):
+    """The markers' 3D positions, every synchronised frame.
+
+    Attributes
+    ----------
+    points : (n, m, 3) array
+        Positions in the reference camera's frame (thesis ``CM_L``), NaN where
+        fewer than two cameras agree; short gaps bridged.
+    residual_px : dict
+        Camera -> (n, m) reprojection residual (px).
+    reason : (n, m) str array
+        "" where measured, ``interpolated`` in a bridged gap, else why there is no position.
+    n_views : (n, m) int array
+        Cameras used per point.
+    segment : (int, int)
+        The analysed frames: the longest run inside the detection's in which every marker has a position.
+    covariance : (n, m, 3, 3) array or None
+        Each point's covariance for the detection noise (world frame).
+    noise_px : float or None
+        The detection noise estimated from the residuals.
+    """
+
+    points: np.ndarray
+    residual_px: dict
+    reason: np.ndarray
+    n_views: np.ndarray
+    segment: tuple
+    covariance: np.ndarray | None
+    noise_px: float | None
+
+
+def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult, progress) -> TriangulateResult:
+    """3D marker positions in the reference camera frame (section 5.1).
+
+    The analysed segment is the longest run, inside the detection's, in
+    which every marker was triangulated (a point whose views disagree beyond
+    the residual limit is NaN with reason ``inconsistent_views``). Each
+    point's covariance for the detection noise estimated from the residuals
+    (``covariance``, world frame; an interpolated point takes its nearest
+    measured frame's) weights the markers in the rigid-body step's pose
+    registration.
+    """
+    tri = triangulate(rig, detect.marker_px, mode=section.mode, covariance=True)
+    points, bridged = bridge_gaps(tri.points, detect.max_gap_frames)
+    cov = None if tri.covariance is None else nearest_covariance(tri.covariance, bridged)
+    reason = np.where(bridged, "interpolated", tri.reason)
+    if bridged.any():
+        progress("triangulate", f"{int(bridged.sum())} marker position(s) in gaps of at most "
+                                f"{detect.max_gap_frames} frames interpolated")
+    med = {c: float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan") for c, r in tri.residual_px.items()}
+    progress("triangulate", f"{section.mode} mode; median reprojection residual (px) "
+                            + ", ".join(f"{c} {v:.3f}" for c, v in med.items()))
+    a, b = detect.segment
+    ok = np.zeros(len(tri.points), bool)
+    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=(1, 2))
+    segment = longest_run(ok)
+    if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
+        why = sorted({str(r) for r in reason[a:b].ravel() if r})
+        raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker triangulated "
+                            f"(reasons: {', '.join(why) or 'none'}); check the rig (calibration) and the "
+                            "detections in markers_2d.csv")
+    if segment != (a, b):
+        progress("triangulate", f"analysing frames {segment[0]}..{segment[1] - 1}: some markers of frames "
+                                f"{a}..{b - 1} could not be triangulated ("
+                                + ", ".join(sorted({str(r) for r in reason[a:b].ravel() if r and r != "interpolated"}))
+                                + ")")
+    return TriangulateResult(points=points, residual_px=tri.residual_px, reason=reason, n_views=tri.n_views,
+                             segment=segment, covariance=cov, noise_px=tri.noise_px)
