@@ -425,13 +425,13 @@ def step_triangulate(session: Session, params: AnalysisParams, res: dict, progre
 
 
 def still_params(params: AnalysisParams, kind: str, cameras) -> dict:
-    """The detector parameters of one still per camera (``params.stills[kind]``, "all" then the camera).
+    """The detector parameters of one still per camera (``params.stills.<kind>``, "all" then the camera).
 
     Returns ``{camera: DetectionParams}`` (empty when every choice is automatic).
     """
     from .detection import DetectionParams
 
-    given = params.stills.get(kind, {})
+    given = getattr(params.stills, kind)
     if not given:
         return {}
     out = {}
@@ -515,7 +515,7 @@ def step_smooth(session: Session, params: AnalysisParams, res: dict, progress) -
 def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progress) -> dict:
     """Motion reference frame: x along net displacement, y along gravity (5.3).
 
-    ``params.motion_frame = "period"``: the thesis' eq. 5.6/5.7 over one or
+    ``params.motion_frame.mode = "period"``: the thesis' eq. 5.6/5.7 over one or
     two periods; ``"record"``: x from the net displacement over the whole
     record (:func:`horsemocap.frames.motion_frame_from_record`), the period
     then only estimated for the comfort step and possibly absent; ``"auto"``
@@ -533,7 +533,7 @@ def step_motion_frame(session: Session, params: AnalysisParams, res: dict, progr
             period, faster = stride_period(smoothed, session.fps, gravity=res["plumb"]["gravity"])
         except ValueError as exc:
             not_found = exc
-    mode = params.motion_frame
+    mode = params.motion_frame.mode
     if mode == "auto":
         try:
             motion_frame(smoothed, res["plumb"]["gravity"], marker=params.x_marker,
@@ -1040,7 +1040,7 @@ def resolve_params(session: Session, params=None) -> AnalysisParams:
     if isinstance(params, AnalysisParams):
         return params
     # the given values only (not the defaults filled in), so a preset named in either is not undone
-    return AnalysisParams.from_dict({**session.analysis, **params})
+    return AnalysisParams.from_layers(session.analysis, params)
 
 
 def session_files(session: Session) -> list[Path]:
@@ -1109,14 +1109,14 @@ def run_key(session: Session, params: AnalysisParams | None) -> str:
 # Parameters no step before the rigid-body step names are the rigid-body step's (and so the comfort
 # step's), so a parameter added later is never left out of a key.
 STEP_PARAMS = {
-    "sync": ("sync_offsets",),
-    "rig": ("recalibrate", "calibration_exclude"),
-    "plumb": ("stills", "triangulation"),
-    "static": ("stills", "triangulation"),
-    "detect": ("detection_method", "detection", "max_gap_frames"),
-    "triangulate": ("triangulation", "max_gap_frames"),
-    "smooth": ("smoothing_method", "smoothing_span"),
-    "motion_frame": ("motion_frame", "x_marker", "period_frames", "n_periods"),
+    "sync": ("sync",),
+    "rig": ("rig",),
+    "plumb": ("stills", "triangulate"),
+    "static": ("stills", "triangulate"),
+    "detect": ("detect",),
+    "triangulate": ("triangulate", "detect"),
+    "smooth": ("smooth",),
+    "motion_frame": ("motion_frame",),
 }
 
 

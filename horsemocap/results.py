@@ -165,7 +165,7 @@ def analysis_record(analysis) -> dict:
     }
     p, chosen = record["parameters"], record["chosen"]
     if "sync" in res:
-        p["sync_offsets"] = dict(res["sync"]["offsets"])
+        p["sync"]["offsets"] = dict(res["sync"]["offsets"])
         chosen["sync"] = {"offsets_from": res["sync"]["offsets_from"], "n_frames": res["sync"]["n_frames"]}
         if "flash_offsets" in res["sync"]:
             chosen["sync"]["flash_offsets"] = dict(res["sync"]["flash_offsets"])
@@ -181,8 +181,8 @@ def analysis_record(analysis) -> dict:
     if "rig" in res:
         chosen["rig"] = res["rig"]["rig_from"]
     if "detect" in res:
-        p["detection"] = res["detect"]["detection"]
-        chosen["detection_method"] = res["detect"].get("method", p.get("detection_method"))
+        p["detect"]["cameras"] = res["detect"]["detection"]
+        chosen["detection_method"] = res["detect"].get("method", p["detect"]["method"])
         if res["detect"].get("method_note"):
             chosen["detection_method_note"] = res["detect"]["method_note"]
         if "identification" in res["detect"]:
@@ -193,14 +193,14 @@ def analysis_record(analysis) -> dict:
     if "triangulate" in res:
         chosen["analysed_frames"] = list(res["triangulate"]["segment"])
     if "motion_frame" in res:
-        p["period_frames"] = res["motion_frame"]["period_frames"]
+        p["motion_frame"]["period_frames"] = res["motion_frame"]["period_frames"]
         if res["motion_frame"]["frame"].n_periods > 0:
-            p["n_periods"] = int(res["motion_frame"]["frame"].n_periods)
+            p["motion_frame"]["n_periods"] = int(res["motion_frame"]["frame"].n_periods)
     if "rigid_body" in res:
         chosen["static_order"] = res["rigid_body"]["static_order"]
         chosen["saddle_index_in_static"] = res["rigid_body"]["saddle_index"]
         if res["rigid_body"]["orders"] is not None:
-            p["fourier_orders"] = np.asarray(res["rigid_body"]["orders"]).astype(int).tolist()
+            p["rigid_body"]["fits"]["fourier_orders"] = np.asarray(res["rigid_body"]["orders"]).astype(int).tolist()
         if res["rigid_body"].get("warnings"):
             chosen["rigid_body_warnings"] = list(res["rigid_body"]["warnings"])
         pose = getattr(res["rigid_body"].get("analysis"), "pose", None)

@@ -145,8 +145,7 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
     resolve_params(session)   # the session's own analysis object, checked (its errors name session.json)
     # the given values only, not the defaults filled in: a preset chosen in a notebook is not undone
     # by the defaults it replaces (as in pipeline.resolve_params, which results_for and the CLI use)
-    merged = {**copy.deepcopy(session.analysis or {}), **copy.deepcopy(choices)}
-    params = AnalysisParams.from_dict(merged, source)
+    params = AnalysisParams.from_layers(session.analysis or {}, choices, source=source)
     params.check_session(session, source)
     return params
 
@@ -399,11 +398,7 @@ class Workspace:
         convert = convert or to_json_value
         read = read or (lambda: widget.value)
         if automatic is _UNSET:
-            automatic = None
-            node = self.automatic.to_dict()
-            for k in _split(name):
-                node = node.get(k) if isinstance(node, dict) else None
-            automatic = to_json_value(node)
+            automatic = to_json_value(self.automatic.value(name))
             if automatic is None or automatic == {}:
                 automatic = _UNSET_AUTO
         else:
