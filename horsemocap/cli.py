@@ -9,9 +9,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .params import ParamField, ParamsError, params_fields, read_params, section_title
 
 DESCRIPTION = """\
 horsemocap: saddle motion analysis of horses with a 3-camera vision system
@@ -19,153 +22,170 @@ horsemocap: saddle motion analysis of horses with a 3-camera vision system
 automatically; any choice can be given in a parameter file or on the line."""
 
 
+@dataclass(frozen=True)
+class AnalysisOption:
+    """One analysis option of the command line and the one parameter it sets.
+
+    Attributes
+    ----------
+    flag : str
+        The option, e.g. ``"--span"``.
+    dest : str
+        Its attribute in argparse's namespace (the names of the options before
+        the sections were generated are kept, e.g. ``"smoothing_span"``).
+    target : str
+        The dotted parameter it sets: a field (``"smooth.span"``) or one value
+        inside a dict field (``"detect.cameras.all.threshold"``).
+    name : str
+        The name it is applied by, the flat one where the field has one
+        (``"smoothing_span"``), so a bad value is reported by the names of
+        ``analysis.json`` files.
+    field : horsemocap.params.ParamField
+        The parameter field (its help, choices, kind, default).
+    metavar, help : str or None
+        As shown by ``--help``.
+    """
+
+    flag: str
+    dest: str
+    target: str
+    name: str
+    field: ParamField
+    metavar: str | None = None
+    help: str | None = None
+
+
+def analysis_options() -> list[AnalysisOption]:
+    """Every analysis option of ``analyze`` and ``demo``, generated from the parameter fields' metadata.
+
+    A field with a ``cli`` flag gets one option setting it whole; its
+    ``cli_values`` (e.g. ``--threshold``: ``detect.cameras.all.threshold``)
+    one option each setting one value inside it.
+
+    Examples
+    --------
+    >>> next(o for o in analysis_options() if o.flag == "--span").target
+    'smooth.span'
+    """
+    options = []
+    for f in params_fields():
+        if f.cli:
+            dest = f.legacy if f.legacy and f.kind not in ("offsets", "exclude") else _flag_dest(f.cli)
+            options.append(AnalysisOption(f.cli, dest, f.path, f.legacy or f.path, f, f.metavar, f.help))
+        for flag, inside, metavar, text in f.cli_values:
+            name = f"{f.legacy}.{inside}" if f.legacy else f"{f.path}.{inside}"
+            options.append(AnalysisOption(flag, _flag_dest(flag), f"{f.path}.{inside}", name, f, metavar, text))
+    return options
+
+
+def _flag_dest(flag: str) -> str:
+    return flag.lstrip("-").replace("-", "_")
+
+
 def _add_choice_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("analysis choices (default: automatic, as recorded in analysis.json)")
-    g.add_argument("--preset", choices=["default", "thesis"],
-                   help="a named set of choices; thesis: the thesis' own chain end to end (pairwise "
-                        "calibration, per-camera detection, pairs triangulation, rloess 0.1, the E/2 order, "
-                        "the averaged versions, one scalar weight); the options below still override it")
-    g.add_argument("--offsets", metavar="CAM=FRAME,...",
-                   help="sync offsets instead of the flashlight, e.g. left=0,middle=53,right=126")
-    g.add_argument("--recalibrate", action="store_true", default=None,
-                   help="calibrate from the session's checkerboard views even if it has a rig")
-    g.add_argument("--threshold", type=int, metavar="LEVEL",
-                   help="gray-level threshold for every camera (thesis eq. 4.5; default Otsu-based)")
-    g.add_argument("--first-frame", type=int, dest="first_frame", metavar="FRAME",
-                   help="frame (0-based, synchronised) in which the markers are picked for every camera "
-                        "(Appendix A step 4; default found automatically)")
-    g.add_argument("--exclude-views", dest="exclude_views", metavar="CAM=VIEW[+VIEW],...",
-                   help="checkerboard views left out of the calibration, e.g. left=view03.png+view07.png,"
-                        "right=view03.png")
-    g.add_argument("--plumb-threshold", type=int, dest="plumb_threshold", metavar="LEVEL",
-                   help="gray-level threshold of the plumb stills, every camera (Appendix A 7a)")
-    g.add_argument("--static-threshold", type=int, dest="static_threshold", metavar="LEVEL",
-                   help="gray-level threshold of the static-shot stills, every camera (Appendix A 8a, 12a)")
-    g.add_argument("--saddle-marker", type=int, dest="saddle_marker", metavar="INDEX",
-                   help="which static-shot point (0-based, left to right in the reference camera) is the "
-                        "saddle marker (Appendix A 12a; default: the one the ride's markers leave over)")
-    g.add_argument("--detection", choices=["multiview", "thesis"], dest="detection_method",
-                   help="multiview: markers identified by all cameras together and followed in 3D "
-                        "(default); thesis: each camera alone with the filters of chapter 4")
-    g.add_argument("--max-gap", type=int, dest="max_gap_frames", metavar="FRAMES",
-                   help="longest gap of a marker's 3D position bridged by interpolation "
-                        "(default 0.1 s of frames, at least 2; 0: none)")
-    g.add_argument("--triangulation", choices=["joint", "thesis"],
-                   help="joint: all cameras at once (default); thesis: three pairs averaged (eq. 5.5)")
-    g.add_argument("--span", type=float, dest="smoothing_span", metavar="FRACTION",
-                   help="smoothing span of the 3D positions as a fraction of the points (default 0.1, the "
-                        "thesis' value)")
-    g.add_argument("--period", type=float, dest="period_frames", metavar="FRAMES",
-                   help="motion period in frames (thesis typed 18; default estimated)")
-    g.add_argument("--x-marker", type=int, dest="x_marker", metavar="INDEX",
-                   help="marker (0-based) whose net displacement defines x-motion (default 0)")
-    g.add_argument("--x-degree", type=int, dest="x_degree", metavar="N",
-                   help="degree of the polynomial fitted to the x-motion (Appendix A 9.i, fit_type_x; thesis "
-                        "poly1: 1)")
-    g.add_argument("--fourier-orders", metavar="Y,Z",
-                   help="Fourier orders of the y and z fits (default: order rule of 5.5.2.2)")
-    g.add_argument("--smoothing", choices=["none", "rloess", "loess", "lowess", "rlowess", "moving"],
-                   dest="smoothing_method", help="smoothing of the 3D positions (default loess; thesis: rloess)")
-    g.add_argument("--angular", choices=["rotation", "lstsq", "thesis"], dest="angular_method",
-                   help="omega/alpha from the fitted orientation (default), least squares over all "
-                        "markers, or the average of the thesis versions")
-    g.add_argument("--omega-versions", dest="omega_versions", metavar="N,N,...",
-                   help="with --angular thesis: which of the six thesis versions of omega (1-6, eq. 6.3/6.4) "
-                        "are averaged, e.g. 1,2,4 (default all)")
-    g.add_argument("--alpha-versions", dest="alpha_versions", metavar="N,N,...",
-                   help="with --angular thesis: which of the six versions of alpha (1-6, eq. 6.38/6.39) are "
-                        "averaged (default all)")
-    g.add_argument("--saddle", choices=["pose", "direct", "thesis"], dest="saddle_method",
-                   help="saddle velocity/acceleration from the fitted pose (default), the fitted eq. 6.48 "
-                        "path, or the thesis' eq. 6.54/6.55")
-    g.add_argument("--kinematics", choices=["fits", "pose_spline"],
-                   help="pose_spline: the smoothed pose trajectory of all markers (default; no period, "
-                        "no eq. 6.35 singularity); fits: the thesis' chain of fits")
-    g.add_argument("--pose-harmonics", choices=["auto", "all", "none"], dest="pose_harmonics",
-                   help="with pose_spline: unpenalised harmonics of the stride (frequency found in the record) "
-                        "in the pose smoothing, their number chosen with the smoothing (none on a record that is "
-                        "not periodic); auto (default): the rotation keeps a harmonic only below the plain "
-                        "spline's cutoff and when it stands above the noise the registration residual and the "
-                        "marker triangle predict; all: every harmonic up to 0.4 of the frame rate, rotation "
-                        "too; none: plain smoothing splines")
-    g.add_argument("--pose-weights", choices=["covariance", "equal"], dest="pose_weights",
-                   help="with pose_spline: each marker weighted by its triangulation covariance in the pose "
-                        "registration (default), or all alike (Horn, the thesis' eq. 5.14-5.21)")
-    g.add_argument("--pose-rotation-weights", choices=["auto", "equal"], dest="pose_rotation_weights",
-                   help="with pose_spline and covariance weights: the rotation smoothed with each frame weighted "
-                        "by its predicted variance where that explains the residuals better (auto, default), "
-                        "or every frame alike (equal)")
-    g.add_argument("--pose-events", dest="pose_events", action="append", metavar="SECONDS",
-                   help="with pose_spline: known instants (s, the time_s of trajectories.csv) where the "
-                        "acceleration may jump, such as impacts timed by a force plate; 2.8,3.35 (or the option "
-                        "repeated; not found from the data)")
-    g.add_argument("--motion-frame", choices=["auto", "period", "record"], dest="motion_frame",
-                   help="x-motion from one or two periods (thesis), from the whole record's net "
-                        "displacement (no period needed), or auto (default: period if one is found)")
-    g.add_argument("--weighting", choices=["iso", "thesis"], dest="weighting_mode",
-                   help="iso: each harmonic weighted at its frequency (default); thesis: one scalar W")
+    """The analysis options (:func:`analysis_options`), one argument group per section, plus ``--set``."""
+    g = p.add_argument_group("analysis choices (default: automatic, as recorded in analysis.json)",
+                             "Every option below sets one parameter of analysis.json (its section and name "
+                             "are the group's); --set sets any of them by name.")
+    groups = {}
+    for opt in analysis_options():
+        section = opt.field.section
+        if opt.target == "preset":
+            group = g
+        else:
+            if section not in groups:
+                groups[section] = p.add_argument_group(section, section_title(section))
+            group = groups[section]
+        group.add_argument(opt.flag, dest=opt.dest, help=_option_help(opt), **_option_kind(opt))
     g.add_argument("--set", action="append", dest="set", metavar="NAME=VALUE",
-                   help="any parameter by its (dotted) name, the value in JSON, applied after the options "
-                        "above; repeatable. Every prompt of one camera, e.g. --set detection.left.labels=[3,4,5] "
-                        "--set detection.left.first_frame=36 --set detection.all.area_min=5 "
-                        "--set detection.right.window=[180,140] --set detection.middle.distance_tolerance=0.2 "
-                        "--set stills.static.left.threshold=150 (names as in analysis.json and choices.json)")
+                   help="any parameter by its dotted name, the value in JSON, applied after the options; "
+                        "repeatable. Every prompt of one camera, e.g. --set detect.cameras.left.labels=[3,4,5] "
+                        "--set detect.cameras.left.first_frame=36 --set detect.cameras.all.area_min=5 "
+                        "--set detect.cameras.right.window=[180,140] --set smooth.span=0.2 "
+                        "--set stills.static.left.threshold=150 (names as in analysis.json; the flat names of "
+                        "earlier files too, e.g. detection.left.threshold or smoothing_span)")
+
+
+def _option_kind(opt: AnalysisOption) -> dict:
+    """argparse's arguments for an option's value (type, choices, action, metavar)."""
+    f = opt.field
+    if opt.target != f.path:                  # one value inside a dict field: a gray level or a frame
+        return {"type": int, "metavar": opt.metavar}
+    if f.choices is not None:
+        return {"choices": list(f.choices)}
+    if f.kind == "bool":
+        return {"action": "store_true", "default": None}
+    if f.kind == "events":
+        return {"action": "append", "metavar": opt.metavar}
+    if f.kind in ("int", "number"):
+        return {"type": int if f.kind == "int" else float, "metavar": opt.metavar}
+    return {"metavar": opt.metavar}           # text with a syntax of its own (_OPTION_PARSERS)
+
+
+def _option_help(opt: AnalysisOption) -> str:
+    """The option's help with its default, unless the help says it (a flag, the preset, an automatic choice)."""
+    f = opt.field
+    if opt.target != f.path or f.kind == "bool" or f.path == "preset" or "automatic" in opt.help:
+        return opt.help
+    if f.kind == "versions":
+        shown = "all"
+    elif f.default == {} or (f.default is None and f.kind == "events"):
+        shown = "none"
+    else:
+        shown = "automatic" if f.default is None else f.default
+    return f"{opt.help} (default {shown})"
+
+
+def _parse_offsets(text: str, flag: str) -> dict:
+    try:
+        return {k: int(v) for k, v in (kv.split("=") for kv in text.split(","))}
+    except ValueError:
+        raise ParamsError(f"{flag}: expected CAM=FRAME,... (frame indices), got {text!r}") from None
+
+
+def _parse_exclude(text: str, flag: str) -> dict:
+    try:
+        pairs = [kv.split("=", 1) for kv in text.split(",")]
+        return {c.strip(): [v for v in views.split("+") if v] for c, views in pairs}
+    except ValueError:
+        raise ParamsError(f"{flag}: expected CAM=VIEW[+VIEW],..., got {text!r}") from None
+
+
+def _parse_fourier_orders(text: str, flag: str) -> dict:
+    try:
+        y, z = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ParamsError(f"{flag}: expected Y,Z (two integers), got {text!r}") from None
+    return {"y": y, "z": z}
+
+
+def _parse_versions(text: str, flag: str) -> list[bool]:
+    try:
+        picked = {int(v) for v in text.split(",")}
+    except ValueError:
+        picked = set()
+    if not picked or not picked <= set(range(1, 7)):
+        raise ParamsError(f"{flag}: expected version numbers 1-6 separated by commas, got {text!r}")
+    return [k in picked for k in range(1, 7)]
+
+
+_OPTION_PARSERS = {"offsets": _parse_offsets, "exclude": _parse_exclude, "fourier_orders": _parse_fourier_orders,
+                   "versions": _parse_versions, "events": lambda words, flag: parse_seconds(words, flag)}
+"""Field kind -> the parser of its option's text (errors name the option)."""
 
 
 def _params_from_args(args, base):
-    from .params import ParamsError
-
+    """The parameters ``base`` with the preset, the analysis options and ``--set`` of the command line applied."""
     if getattr(args, "preset", None):
         base = base.with_preset(args.preset)
-    changes = {k: getattr(args, k, None) for k in
-               ("recalibrate", "detection_method", "max_gap_frames", "triangulation", "smoothing_span",
-                "smoothing_method", "period_frames", "x_marker", "angular_method", "saddle_method", "weighting_mode",
-                "kinematics", "pose_harmonics", "pose_weights", "pose_rotation_weights", "motion_frame",
-                "x_degree")}
-    if args.offsets:
-        try:
-            changes["sync_offsets"] = {k: int(v) for k, v in (kv.split("=") for kv in args.offsets.split(","))}
-        except ValueError:
-            raise ParamsError(f"--offsets: expected CAM=FRAME,... (frame indices), got {args.offsets!r}") from None
-    if args.fourier_orders:
-        try:
-            y, z = (int(v) for v in args.fourier_orders.split(","))
-        except ValueError:
-            raise ParamsError(f"--fourier-orders: expected Y,Z (two integers), got {args.fourier_orders!r}") from None
-        changes["fourier_orders"] = {"y": y, "z": z}
-    det = dict(base.detection)
-    for name, key in (("threshold", "threshold"), ("first_frame", "first_frame")):
-        if getattr(args, name, None) is not None:
-            det["all"] = {**det.get("all", {}), key: getattr(args, name)}
-            changes["detection"] = det
-    if getattr(args, "exclude_views", None):
-        try:
-            pairs = [kv.split("=", 1) for kv in args.exclude_views.split(",")]
-            changes["calibration_exclude"] = {c.strip(): [v for v in views.split("+") if v]
-                                              for c, views in pairs}
-        except ValueError:
-            raise ParamsError(f"--exclude-views: expected CAM=VIEW[+VIEW],..., got {args.exclude_views!r}") from None
-    stills = {k: dict(v) for k, v in base.stills.items()}
-    for kind in ("plumb", "static"):
-        level = getattr(args, f"{kind}_threshold", None)
-        if level is not None:
-            stills[kind] = {**stills.get(kind, {}), "all": {**stills.get(kind, {}).get("all", {}), "threshold": level}}
-            changes["stills"] = stills
-    changes["saddle_marker"] = getattr(args, "saddle_marker", None)
-    for name in ("omega_versions", "alpha_versions"):
-        text = getattr(args, name, None)
-        if text:
-            try:
-                picked = {int(v) for v in text.split(",")}
-            except ValueError:
-                picked = set()
-            if not picked or not picked <= set(range(1, 7)):
-                raise ParamsError(f"--{name.replace('_', '-')}: expected version numbers 1-6 separated by commas, "
-                                  f"got {text!r}")
-            changes[name] = [k in picked for k in range(1, 7)]
-    if getattr(args, "pose_events", None):
-        changes["pose_events"] = parse_seconds(args.pose_events, "--pose-events")
-    params = base.updated(**changes)
+    changes = {}
+    for opt in analysis_options():
+        given = getattr(args, opt.dest, None)
+        if given is None or opt.target == "preset":
+            continue
+        parse = _OPTION_PARSERS.get(opt.field.kind) if opt.target == opt.field.path else None
+        changes[opt.name] = parse(given, opt.flag) if parse else given
+    params = base.updated(changes, source="command line") if changes else base
     for item in getattr(args, "set", None) or []:
         params = _set_param(params, item)
     return params
@@ -179,8 +199,6 @@ def parse_seconds(values, option: str) -> list[float]:
     raises :class:`horsemocap.params.ParamsError` naming ``option`` and the
     word that is not a finite number.
     """
-    from .params import ParamsError
-
     words = [values] if isinstance(values, str) else list(values)
     parts = [p for w in words for p in w.replace(",", " ").split()]
     if not parts:
@@ -199,29 +217,16 @@ def parse_seconds(values, option: str) -> list[float]:
 
 
 def _set_param(params, item: str):
-    """``--set NAME=VALUE``: one parameter by its dotted name (JSON value, else the text as a string)."""
-    from .params import AnalysisParams, ParamsError
-
+    """``--set NAME=VALUE``: one parameter by its dotted name, new or flat (JSON value, else the text as a string)."""
     name, sep, text = item.partition("=")
-    keys = name.strip().split(".")
-    if not sep or not all(keys):
-        raise ParamsError(f"--set: expected NAME=VALUE such as detection.left.threshold=140, got {item!r}")
+    name = name.strip()
+    if not sep or not name or not all(name.split(".")):
+        raise ParamsError(f"--set: expected NAME=VALUE such as detect.cameras.left.threshold=140, got {item!r}")
     try:
         value = json.loads(text)
     except json.JSONDecodeError:
         value = text
-    data = params.to_dict()
-    if keys[0] not in data:
-        AnalysisParams.from_dict({keys[0]: value}, f"--set {item}")   # names the unknown parameter
-    node = data
-    for k in keys[:-1]:
-        if not isinstance(node.get(k), dict):
-            if k in node and node[k] is not None:
-                raise ParamsError(f"--set {item}: parameter '{k}' is not an object of named values")
-            node[k] = {}
-        node = node[k]
-    node[keys[-1]] = value
-    return AnalysisParams.from_dict(data, f"--set {item}")
+    return params.with_path(name, value, source=f"--set {item}")
 
 
 def _early_board_detection(session, out_dir: Path, args):
@@ -261,7 +266,6 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
 
 
 def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views) -> int:
-    from .params import read_params
     from .pipeline import resolve_params
     from .run import run_analysis
 

@@ -11,7 +11,6 @@ earlier steps computed (computing it with the defaults when absent).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import json
 import threading
@@ -21,14 +20,13 @@ from pathlib import Path
 
 from . import results as result_files
 from .fingerprint import run_key
-from .params import AnalysisParams
+from .params import STEP_SECTIONS, AnalysisParams
 from .progress import ProgressPrinter
 from .session import Session, SessionError, load_session
 from .steps import (STEPS, AnalysisError, ComfortResult, DetectResult, MotionFrameResult, PlumbResult, RigidBodyResult,
                     RigResult, SmoothResult, StaticResult, SyncResult, TriangulateResult, step_comfort, step_detect,
                     step_motion_frame, step_plumb, step_rig, step_rigid_body, step_smooth, step_static, step_sync,
                     step_triangulate)
-from .steps.sections import SECTION_OF_STEP, section
 from .store import ResultsStore, check_outside
 from .threads import blas_single_threaded
 
@@ -125,22 +123,22 @@ def _comfort_f0(a: Analysis):
 
 # How each step is called: its section and the typed results it needs (the arrows of DESIGN.md).
 STEP_CALLS = {
-    "sync": lambda a, pr: step_sync(a.session, section(a.params, "sync"), pr),
-    "rig": lambda a, pr: step_rig(a.session, section(a.params, "rig"), pr),
-    "plumb": lambda a, pr: step_plumb(a.session, section(a.params, "stills"), a.rig.rig,
-                                      section(a.params, "triangulate").mode, pr),
-    "static": lambda a, pr: step_static(a.session, section(a.params, "stills"), a.rig.rig,
-                                        section(a.params, "triangulate").mode, pr),
-    "detect": lambda a, pr: step_detect(a.session, section(a.params, "detect"), a.sync, a.rig.rig,
+    "sync": lambda a, pr: step_sync(a.session, a.params.sync, pr),
+    "rig": lambda a, pr: step_rig(a.session, a.params.rig, pr),
+    "plumb": lambda a, pr: step_plumb(a.session, a.params.stills, a.rig.rig,
+                                      a.params.triangulate.mode, pr),
+    "static": lambda a, pr: step_static(a.session, a.params.stills, a.rig.rig,
+                                        a.params.triangulate.mode, pr),
+    "detect": lambda a, pr: step_detect(a.session, a.params.detect, a.sync, a.rig.rig,
                                         a.static.static_points, pr),
-    "triangulate": lambda a, pr: step_triangulate(section(a.params, "triangulate"), a.rig.rig, a.detect, pr),
-    "smooth": lambda a, pr: step_smooth(section(a.params, "smooth"), a.triangulate, pr),
-    "motion_frame": lambda a, pr: step_motion_frame(a.session, section(a.params, "motion_frame"), a.smooth.smoothed,
+    "triangulate": lambda a, pr: step_triangulate(a.params.triangulate, a.rig.rig, a.detect, pr),
+    "smooth": lambda a, pr: step_smooth(a.params.smooth, a.triangulate, pr),
+    "motion_frame": lambda a, pr: step_motion_frame(a.session, a.params.motion_frame, a.smooth.smoothed,
                                                     a.plumb.gravity, a.static.static_points, a.triangulate.segment,
                                                     pr, static_missing=a.static.missing),
-    "rigid_body": lambda a, pr: step_rigid_body(a.session, section(a.params, "rigid_body"), a.triangulate,
+    "rigid_body": lambda a, pr: step_rigid_body(a.session, a.params.rigid_body, a.triangulate,
                                                 a.smooth.raw, a.motion_frame, a.detect.sync.offsets, pr),
-    "comfort": lambda a, pr: step_comfort(section(a.params, "comfort"), a.rigid_body, _comfort_f0(a), pr),
+    "comfort": lambda a, pr: step_comfort(a.params.comfort, a.rigid_body, _comfort_f0(a), pr),
 }
 
 
@@ -216,7 +214,7 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         early_rig = None
         if early:
             progress = _serialised(progress)
-            early_rig = _BackgroundStep(step_rig, session, section(params, "rig"), progress,
+            early_rig = _BackgroundStep(step_rig, session, params.rig, progress,
                                         cache_dirs=(out_dir, previous_results), board_views=board_views)
         try:
             _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
@@ -295,7 +293,7 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
                 t0 = time.perf_counter() - early_rig.seconds      # the step's own time, not the wait
             else:
                 if name == "rig":
-                    value = step_rig(session, section(params, "rig"), progress,
+                    value = step_rig(session, params.rig, progress,
                                      cache_dirs=(out_dir, previous_results), board_views=board_views)
                 else:
                     value = STEP_CALLS[name](analysis, progress)
@@ -348,27 +346,26 @@ def resolve_params(session: Session, params=None) -> AnalysisParams:
     if isinstance(params, AnalysisParams):
         return params
     # the given values only (not the defaults filled in), so a preset named in either is not undone
-    return AnalysisParams.from_dict({**session.analysis, **params})
+    return AnalysisParams.from_layers(session.analysis, params)
 
 
-def step_keys(session: Session, params) -> dict:
+def step_keys(session: Session, params: AnalysisParams) -> dict:
     """The results-store key of every step: :func:`run_key` with the parameter sections it depends on.
 
-    A step's key covers the session's files, the package's code, its own
-    parameter section and those of every earlier step (the preset too). So a
-    threshold chosen in notebook 04 recomputes the steps from detection on
-    and keeps the calibration, the plumb line and the static shot; a change
-    of the calibration mode recomputes the rig and everything after it.
+    A step's key covers the session's files, the package's code, the preset,
+    its own parameter section and those of every earlier step (the stills are
+    triangulated as the triangulate section says). So a threshold chosen in
+    notebook 04 recomputes the steps from detection on and keeps the
+    calibration, the plumb line and the static shot; a change of the
+    calibration mode recomputes the rig and everything after it.
     """
     base = run_key(session, None)
-    keys, used = {}, []
+    values = params.to_dict()
+    keys, used = {}, ["preset"]
     for name in STEPS:
-        for sec in (SECTION_OF_STEP[name], "triangulate") if name in ("plumb", "static") else (SECTION_OF_STEP[name],):
-            if sec not in used:
-                used.append(sec)
-        part = {s: dataclasses.asdict(section(params, s)) for s in used}
-        part["preset"] = getattr(params, "preset", None)
+        needs = (STEP_SECTIONS[name], "triangulate") if name in ("plumb", "static") else (STEP_SECTIONS[name],)
+        used += [sec for sec in needs if sec not in used]
         h = hashlib.sha256(base.encode())
-        h.update(json.dumps(part, sort_keys=True, default=str).encode())
+        h.update(json.dumps({sec: values.get(sec) for sec in used}, sort_keys=True, default=str).encode())
         keys[name] = h.hexdigest()
     return keys

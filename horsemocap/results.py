@@ -160,9 +160,9 @@ def analysis_record(analysis) -> dict:
     if analysis.triangulate is not None:
         chosen["analysed_frames"] = list(analysis.triangulate.segment)
     if analysis.motion_frame is not None:
-        _set(p, "period_frames", analysis.motion_frame.period_frames)
+        _set(p, "motion_frame.period_frames", analysis.motion_frame.period_frames)
         if analysis.motion_frame.frame.n_periods > 0:
-            _set(p, "n_periods", int(analysis.motion_frame.frame.n_periods))
+            _set(p, "motion_frame.n_periods", int(analysis.motion_frame.frame.n_periods))
     if analysis.rigid_body is not None:
         _record_rigid_body(analysis.rigid_body, p, chosen)
     if analysis.comfort is not None and analysis.comfort.indicators is None:
@@ -170,15 +170,19 @@ def analysis_record(analysis) -> dict:
     return record
 
 
-def _set(parameters: dict, legacy_name: str, value) -> None:
-    """Record a chosen value in the parameters object (flat or by section, as :meth:`AnalysisParams.to_dict`
-    writes it)."""
-    parameters[legacy_name] = value
+def _set(parameters: dict, path: str, value) -> None:
+    """Record a chosen value in the parameters object (``path``: a dotted field, as
+    :meth:`~horsemocap.params.AnalysisParams.to_dict` nests it)."""
+    *sections, name = path.split(".")
+    node = parameters
+    for key in sections:
+        node = node.setdefault(key, {})
+    node[name] = value
 
 
 def _record_sync(analysis, p: dict, chosen: dict) -> None:
     sync = analysis.synchronisation
-    _set(p, "sync_offsets", dict(sync.offsets))
+    _set(p, "sync.offsets", dict(sync.offsets))
     chosen["sync"] = {"offsets_from": sync.offsets_from, "n_frames": sync.n_frames}
     if sync.flash_offsets is not None:
         chosen["sync"]["flash_offsets"] = dict(sync.flash_offsets)
@@ -194,7 +198,7 @@ def _record_sync(analysis, p: dict, chosen: dict) -> None:
 
 
 def _record_detect(detect, p: dict, chosen: dict) -> None:
-    _set(p, "detection", detect.detection)
+    _set(p, "detect.cameras", detect.detection)
     chosen["detection_method"] = detect.method
     if detect.method_note:
         chosen["detection_method_note"] = detect.method_note
@@ -208,7 +212,7 @@ def _record_rigid_body(rb, p: dict, chosen: dict) -> None:
     chosen["static_order"] = rb.static_order
     chosen["saddle_index_in_static"] = rb.saddle_index
     if rb.orders is not None:
-        _set(p, "fourier_orders", np.asarray(rb.orders).astype(int).tolist())
+        _set(p, "rigid_body.fits.fourier_orders", np.asarray(rb.orders).astype(int).tolist())
     if rb.warnings:
         chosen["rigid_body_warnings"] = list(rb.warnings)
     pose = rb.body.pose

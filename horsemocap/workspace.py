@@ -138,8 +138,7 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
     resolve_params(session)   # the session's own analysis object, checked (its errors name session.json)
     # the given values only, not the defaults filled in: a preset chosen in a notebook is not undone
     # by the defaults it replaces (as in pipeline.resolve_params, which results_for and the CLI use)
-    merged = {**copy.deepcopy(session.analysis or {}), **copy.deepcopy(choices)}
-    params = AnalysisParams.from_dict(merged, source)
+    params = AnalysisParams.from_layers(session.analysis or {}, choices, source=source)
     params.check_session(session, source)
     return params
 
@@ -381,11 +380,7 @@ class Workspace:
         convert = convert or to_json_value
         read = read or (lambda: widget.value)
         if automatic is _UNSET:
-            automatic = None
-            node = self.automatic.to_dict()
-            for k in _split(name):
-                node = node.get(k) if isinstance(node, dict) else None
-            automatic = to_json_value(node)
+            automatic = to_json_value(self.automatic.value(name))
             if automatic is None or automatic == {}:
                 automatic = _UNSET_AUTO
         else:
@@ -497,7 +492,9 @@ def results_for(session_dir=None, until: str = "comfort", params=None) -> Analys
     session_dir = Path(session_dir or current_session()).resolve()
     if not isinstance(params, AnalysisParams):
         chosen = read_choices(session_dir)
-        if chosen or params:
-            params = {**chosen, **(params or {})}
+        if chosen or params:   # field by field: a section given in both keeps the choices' other fields
+            session = load_session(session_dir, open_sources=False)
+            params = AnalysisParams.from_layers(session.analysis or {}, chosen, params or {},
+                                                source=str(choices_path(session_dir)))
     return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
                    progress=lambda *a: None, reuse=True)

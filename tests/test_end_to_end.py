@@ -41,7 +41,7 @@ def test_analyze_writes_every_spec_file(demo_run):
     points = {r["point"] for r in csv.DictReader(open(demo_run / "trajectories.csv"))}
     assert points == {"marker1", "marker2", "marker3", "saddle"}
     record = json.loads((demo_run / "analysis.json").read_text())
-    assert set(record["parameters"]["sync_offsets"]) == {"left", "middle", "right"}
+    assert set(record["parameters"]["sync"]["offsets"]) == {"left", "middle", "right"}
     from horsemocap.detection import ACTIVE_PATH
     assert record["software"]["detection_core"] == ACTIVE_PATH in ("compiled", "python")
     assert record["software"]["horsemocap"] and record["software"]["opencv"]
@@ -321,7 +321,8 @@ def test_pose_spline_kinematics_with_the_period_free_motion_frame(tmp_path):
     assert np.all(np.isfinite(rb["saddle_acceleration"])) and np.all(np.isfinite(rb["omega"]))
     assert an["motion_frame"]["frame"].n_periods == 0 and an["motion_frame"]["period_frames"] > 0
     record = json.loads((out / "analysis.json").read_text())
-    assert record["parameters"]["kinematics"] == "pose_spline" and "n_periods" in record["parameters"]
+    assert record["parameters"]["rigid_body"]["kinematics"] == "pose_spline"
+    assert "n_periods" in record["parameters"]["motion_frame"]
     truth = load_truth(default_session_dir())
     got = _comfort(out / "comfort.csv")
     assert abs(got["acc_y_Wk_rms"] - truth.comfort["acc_y_Wk_rms"]) / truth.comfort["acc_y_Wk_rms"] < 0.15

@@ -285,7 +285,7 @@ PARAM_CASES = {
     "detection_threshold_word": ({"detection": {"left": {"threshold": "high"}}}, ["'detection.left'"]),
     "detection_threshold_range": ({"detection": {"all": {"threshold": 300}}}, ["'detection.all'", "threshold"]),
     "detection_unknown_field": ({"detection": {"all": {"treshold": 100}}}, ["'detection.all'", "treshold"]),
-    "detection_not_object": ({"detection": {"left": 5}}, ["'detection'", "left"]),
+    "detection_not_object": ({"detection": {"left": 5}}, ["'detection.left'", "'detect.cameras.left'"]),
     "unknown_parameter": ({"perid_frames": 18}, ["unknown parameter 'perid_frames'", "period_frames"]),
 }
 

@@ -223,4 +223,4 @@ def test_help_says_what_each_option_does():
     from horsemocap.params import AnalysisParams
 
     assert AnalysisParams().smoothing_span == 0.1 and AnalysisParams().x_marker == 0
-    assert "auto (default)" in helps["pose_harmonics"] and "above the noise" in helps["pose_harmonics"]
+    assert "(default auto)" in helps["pose_harmonics"] and "above the noise" in helps["pose_harmonics"]

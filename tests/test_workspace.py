@@ -45,7 +45,8 @@ def test_nested_choices_are_set_validated_and_taken_back(store):
     assert wsm.read_choices(s) == {"detection": {"left": {"threshold": 150}}, "smoothing_method": "rloess"}
     assert wsm.session_params(s).detection == {"left": {"threshold": 150}}
     # a bad choice names the file and the parameter and writes nothing
-    with pytest.raises(ParamsError, match=r"choices.json: parameter 'detection'.*'top'"):
+    with pytest.raises(ParamsError, match=r"choices.json: parameter 'detect.cameras' \(given as 'detection'\)"
+                                          r".*'top'"):
         wsm.set_choice(s, "detection.top.threshold", 3)
     with pytest.raises(ParamsError, match="smoothing_span"):
         wsm.set_choice(s, "smoothing_span", 3)
@@ -90,7 +91,7 @@ def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store,
     assert p.omega_versions == [True, True, False, True, False, False]
     assert p.alpha_versions == [False] * 5 + [True]
     assert (p.angular_method, p.saddle_marker) == ("thesis", 1)
-    assert p.stills == {"static": {"all": {"threshold": 200}}}
+    assert (p.stills.plumb, p.stills.static) == ({}, {"all": {"threshold": 200}})
     assert p.calibration_exclude == {"left": ["a.png", "b.png"]}
     # the other prompts of Appendix A: fit_type_x (9.i), and every value of one camera (4.ii, 7a, 8a, 12a)
     args = build_parser().parse_args(["analyze", str(s), "--out", "o", "--x-degree", "2",
@@ -102,7 +103,7 @@ def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store,
     assert p.x_degree == 2
     assert p.detection == {"middle": {"threshold": 140, "distance_tolerance": 0.2},
                            "left": {"labels": [3, 4, 5], "first_frame": 36}, "right": {"window": [180, 140]}}
-    assert p.stills == {"plumb": {"left": {"threshold": 150}}}
+    assert (p.stills.plumb, p.stills.static) == ({"left": {"threshold": 150}}, {})
     for wrong, said in (("nope=3", "unknown parameter 'nope'"), ("smoothing_span", "expected NAME=VALUE"),
                         ("smoothing_span=2", "smoothing_span")):
         with pytest.raises(ParamsError, match=said):
@@ -171,7 +172,7 @@ def test_a_threshold_moved_in_notebook_04_reaches_the_numbers_of_notebooks_12_an
     e_chosen = accuracy.errors_2d(chosen, truth)["left"]["median"]
     assert e_auto != e_chosen                          # and notebook 14's
     record = json.loads((notebook_results_dir(session) / "analysis.json").read_text())
-    assert record["parameters"]["detection"]["left"]["threshold"] == level + 30
+    assert record["parameters"]["detect"]["cameras"]["left"]["threshold"] == level + 30
 
     ui.slider.value = level                            # back to the automatic threshold
     assert ws.choices == {}
@@ -338,7 +339,6 @@ def test_drawing_the_detection_controls_in_a_browser_writes_no_choice(store):
 
 
 def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_command_line(store):
-    from horsemocap.params import PRESETS
     from horsemocap.widgets import ui_preset
 
     s = default_session_dir()
@@ -353,7 +353,7 @@ def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_com
     assert "quoted in the notebooks' text are those of the automatic run" in picker.message.value
     p = ws.params                                    # what the notebooks' widgets start from
     assert p.preset == "thesis"
-    assert all(getattr(p, k) == v for k, v in PRESETS["thesis"].items())
+    assert p == AnalysisParams.from_dict({"preset": "thesis"})
     # results_for and `horsemocap analyze --params choices.json` resolve the choices the same way
     session = load_session(s, open_sources=False)
     for q in (resolve_params(session, wsm.read_choices(s)), resolve_params(session, read_params(wsm.choices_path(s)))):
