@@ -622,7 +622,8 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     """
     from .frames import time_axis, to_motion_frame
     from .pose import CollinearMarkersError
-    from .rigid import analyse_rigid_body
+    from .params import FitsParams, PoseParams, RigidBodyParams
+    from .rigid import FourierOrders, PoseInput, analyse_rigid_body
     from .splines import ChangePointError
 
     positions, static = res["motion_frame"]["positions"], res["motion_frame"]["static"]
@@ -649,17 +650,21 @@ def step_rigid_body(session: Session, params: AnalysisParams, res: dict, progres
     _check_pose_events(params.pose_events, t if pose_t is None else pose_t)
     try:
         rb = analyse_rigid_body(
-            t, positions, static, x_degree=params.x_degree,
-            orders=_fourier_orders(fo, positions.shape[1]), order_rule=params.order_rule,
-            omega_use=params.omega_versions, alpha_use=params.alpha_versions,
-            method=params.angular_method, saddle_method=params.saddle_method,
-            period_s=None if period is None else period / session.fps, fourier_trend=params.fourier_trend,
-            kinematics=params.kinematics, pose_smoothing=params.pose_smoothing,
-            rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
-            pose_points=pose_points, pose_t=pose_t, pose_partial=params.pose_partial_frames,
-            pose_harmonics=params.pose_harmonics, pose_covariance=cov,
-            pose_rotation_weights=params.pose_rotation_weights, saddle_index=params.saddle_marker,
-            pose_events=params.pose_events)
+            t, positions, static,
+            RigidBodyParams(kinematics=params.kinematics, saddle_marker=params.saddle_marker,
+                            fits=FitsParams(x_degree=params.x_degree, fourier_orders=fo, order_rule=params.order_rule,
+                                            trend=params.fourier_trend, angular_method=params.angular_method,
+                                            omega_versions=params.omega_versions,
+                                            alpha_versions=params.alpha_versions,
+                                            saddle_method=params.saddle_method),
+                            pose=PoseParams(smoothing=params.pose_smoothing, partial_frames=params.pose_partial_frames,
+                                            harmonics=params.pose_harmonics, weights=params.pose_weights,
+                                            rotation_weights=params.pose_rotation_weights,
+                                            events=params.pose_events)),
+            period_s=None if period is None else period / session.fps,
+            fourier_orders=FourierOrders(_fourier_orders(fo, positions.shape[1]), _extra_orders(fo, "rotation", 3),
+                                         _extra_orders(fo, "saddle", 2)),
+            pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov))
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
     except ChangePointError as exc:
