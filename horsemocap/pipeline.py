@@ -742,51 +742,19 @@ def pose_margin(points: np.ndarray, segment, min_markers: int = 2) -> tuple[int,
 
 
 def conditioning(rb) -> dict:
-    """Per-frame conditioning of a :class:`~horsemocap.rigid.RigidBodyAnalysis`.
+    """Per-frame conditioning of a :class:`~horsemocap.rigid.RigidBodyAnalysis`, as a dict
+    (:func:`horsemocap.rigid.conditioning`: ``singularity_deg``, ``triangle_height_m``,
+    ``registration_rms_m``, ``registration_n_markers``, ``noise_m``, ``warnings``)."""
+    from .rigid import conditioning as rigid_conditioning
 
-    Returns ``singularity_deg`` (eq. 6.35: angle between omega passed on and
-    the markers' plane normal; the thesis versions fail near 90), 
-    ``triangle_height_m`` (smallest height of the marker triangle,
-    :func:`horsemocap.pose.smallest_height`), ``registration_rms_m`` (RMS
-    distance of the markers from the registered model), and ``warnings``
-    (messages when these make the result unreliable).
-    """
-    from .pose import conditioning_warnings
-    from .rigid import singularity_angle, singularity_report
-
-    pos = rb.registration.registered
-    preg = rb.pose_registration
-    k = rb.pose_markers.position if rb.pose_markers is not None else pos
-    sing = singularity_angle(k[:, :3], rb.omega)
-    height = preg.height.copy()
-    height[preg.n_markers < 3] = np.nan
-    lever = float(np.linalg.norm(rb.static_saddle - rb.model.mean(0)))
-    warn = conditioning_warnings(preg, lever)
-    if rb.kinematics == "fits" and rb.method == "thesis":
-        import warnings as _w
-        with _w.catch_warnings():
-            _w.simplefilter("ignore")
-            rep = singularity_report(sing, warn=False)
-        if rep["fraction"] > 0:
-            warn.append(f"omega within 15 deg of the markers' plane in {100 * rep['fraction']:.0f} % of the frames "
-                        f"(closest {rep['min_margin_deg']:.1f} deg): the thesis versions (eq. 6.3/6.4, 6.38/6.39) "
-                        "are unreliable there (eq. 6.35); use kinematics 'pose_spline'")
-    return {"singularity_deg": sing, "triangle_height_m": height, "registration_rms_m": preg.rms,
-            "registration_n_markers": preg.n_markers, "noise_m": preg.noise_m, "warnings": warn}
+    return dict(vars(rigid_conditioning(rb)))
 
 
 def saddle_angles(rb) -> np.ndarray:
-    """Roll, pitch, yaw (deg) of the saddle in the motion frame, per frame (n, 3).
+    """Roll, pitch, yaw (deg) of the saddle per frame (n, 3): :func:`horsemocap.rigid.saddle_angles`."""
+    from .rigid import saddle_angles as rigid_saddle_angles
 
-    Body axes from the static shot, as seed 004 takes body planes from a
-    default pose (:func:`horsemocap.pose.static_body_axes`); then rotated by
-    the body's pose in each frame.
-    """
-    from .pose import saddle_angles_deg, static_body_axes
-
-    axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
-    R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
-    return saddle_angles_deg(R, axes0)
+    return rigid_saddle_angles(rb)
 
 
 def _frames_text(session: Session, res: dict, first: int, last: int) -> str:

@@ -180,6 +180,11 @@ def smallest_height(points, mask=None) -> np.ndarray:
     Returns
     -------
     float or (n,) array
+
+    Examples
+    --------
+    >>> round(smallest_height([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), 4)     # 1 / sqrt(2)
+    0.7071
     """
     p = np.asarray(points, float)
     single = p.ndim == 2
@@ -205,6 +210,16 @@ def check_model_conditioning(model, noise_m: float | None = None, name: str = "s
     smallest height below 1e-3 of its size (collinear to numerical
     precision) or, if ``noise_m`` (marker-position noise) is given, below 3
     times that noise (the triangle cannot be told from a line).
+
+    Examples
+    --------
+    >>> round(check_model_conditioning([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), 4)
+    0.7071
+    >>> try:
+    ...     check_model_conditioning([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    ... except CollinearMarkersError:
+    ...     print("refused: collinear")
+    refused: collinear
     """
     x = np.asarray(model, float)
     if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 3:
@@ -340,8 +355,7 @@ def refine_pose_covariance(points, model, information, rotation, centre, iterati
     and updates ``c += delta[:3]``, ``R = Exp(delta[3:]) R``; a step that
     raises the cost is halved (up to ``halvings`` times, else the frame keeps
     its pose), so the result is never worse than the start (Horn's) in the
-    weighted cost, also where the errors are too large for the linearisation
-    (measured: 3 px of detection noise, rotation errors of a radian). A frame
+    weighted cost, also where the errors are too large for the linearisation. A frame
     stops when its largest step is below ``tolerance`` (m or rad).
 
     Parameters
@@ -356,6 +370,19 @@ def refine_pose_covariance(points, model, information, rotation, centre, iterati
     -------
     rotation : (k, 3, 3), centre : (k, 3), normal : (k, 6, 6)
         The pose and ``sum A^T W A`` at it (the pose's information matrix).
+
+    Examples
+    --------
+    Exact markers, started 0.1 rad off: the refined pose is the true one (the identity).
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> start = Rotation.from_rotvec([0, 0, 0.1]).as_matrix()[None]
+    >>> R, c, _ = refine_pose_covariance(model[None], model, np.broadcast_to(np.eye(3), (1, 3, 3, 3)), start,
+    ...                                  model.mean(0)[None])
+    >>> bool(np.allclose(R[0], np.eye(3))), bool(np.allclose(c[0], model.mean(0)))
+    (True, True)
     """
     p = np.asarray(points, float)
     x = np.asarray(model, float)
@@ -416,6 +443,15 @@ def extra_marker_noise(residuals, covariance, dof: float) -> float:
     Returns
     -------
     float
+
+    Examples
+    --------
+    Residuals of 1 mm that covariances of 1 um do not explain (4 residual degrees of freedom):
+
+    >>> import numpy as np
+    >>> e = np.tile([0.001, 0.0, 0.0], (4, 1))
+    >>> round(1000 * extra_marker_noise(e, np.tile(1e-12 * np.eye(3), (4, 1, 1)), 4.0), 4)
+    1.0
     """
     e = np.asarray(residuals, float)
     lam, U = np.linalg.eigh(np.asarray(covariance, float))
@@ -479,6 +515,20 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     Returns
     -------
     PoseRegistration
+
+    Examples
+    --------
+    Four markers, the model turned by 90 degrees about z; in the second frame one
+    marker is missing and the other three still give the pose:
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0], [0.3, 0.1, 0.2]])
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> points = np.repeat((model @ turn.T)[None], 2, axis=0)
+    >>> points[1, 3] = np.nan
+    >>> reg = register_pose(points, model)
+    >>> reg.n_markers.tolist(), bool(np.allclose(reg.rotation, turn))
+    ([4, 3], True)
     """
     p = np.asarray(points, float)
     if p.ndim != 3 or p.shape[2] != 3:
@@ -596,6 +646,13 @@ def unwrap_rotvec(phi) -> np.ndarray:
     ``phi`` and ``phi - 2 pi phi/|phi|`` are the same rotation; for each
     frame the representative closest to the previous finite frame is kept,
     so a rotation passing through 180 degrees from the reference does not jump.
+
+    Examples
+    --------
+    A rotation passing through 180 degrees about z:
+
+    >>> unwrap_rotvec([[0.0, 0, 3.1], [0.0, 0, -3.1]])[:, 2].round(4)
+    array([3.1   , 3.1832])
     """
     phi = np.array(phi, float)
     prev = None
@@ -630,6 +687,14 @@ def left_jacobian(phi) -> np.ndarray:
 
     For ``R = Exp(phi) R_ref``: ``R' R^T = [J_l(phi) phi']x`` (the spatial
     angular velocity).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bool(np.allclose(left_jacobian(np.zeros(3)), np.eye(3)))
+    True
+    >>> left_jacobian([0, 0, 1.0]) @ [0, 0, 1.0]      # along the axis: the identity
+    array([0., 0., 1.])
     """
     phi = np.asarray(phi, float)
     th = np.linalg.norm(phi, axis=-1)
@@ -639,7 +704,15 @@ def left_jacobian(phi) -> np.ndarray:
 
 
 def angular_velocity_from_rotvec(phi, dphi) -> np.ndarray:
-    """``omega = J_l(phi) phi'`` (..., 3) for ``R(t) = Exp(phi(t)) R_ref``."""
+    """``omega = J_l(phi) phi'`` (..., 3) for ``R(t) = Exp(phi(t)) R_ref``.
+
+    Examples
+    --------
+    About a fixed axis, omega is the rotation vector's rate:
+
+    >>> angular_velocity_from_rotvec([0, 0, 1.0], [0, 0, 0.5])
+    array([0. , 0. , 0.5])
+    """
     phi, dphi = np.asarray(phi, float), np.asarray(dphi, float)
     th = np.linalg.norm(phi, axis=-1)
     b, c, _, _ = _jac_coeffs(th)
@@ -653,6 +726,11 @@ def angular_acceleration_from_rotvec(phi, dphi, ddphi) -> np.ndarray:
     With ``th' = phi . phi' / th``:
     ``J_l' phi' = (b'/th)(phi . phi') (phi x phi') + (c'/th)(phi . phi')
     phi x (phi x phi') + c phi' x (phi x phi')``.
+
+    Examples
+    --------
+    >>> angular_acceleration_from_rotvec([0, 0, 1.0], [0, 0, 0.5], [0, 0, 0.2])
+    array([0. , 0. , 0.2])
     """
     phi, dphi, ddphi = (np.asarray(a, float) for a in (phi, dphi, ddphi))
     th = np.linalg.norm(phi, axis=-1)
@@ -830,6 +908,17 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     -------
     (6,)
         ``cx, cy, cz`` (m) and ``phix, phiy, phiz`` (rad).
+
+    Examples
+    --------
+    With isotropic marker noise the centroid's noise is the markers' over the square root of their number:
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0], [0.3, 0.1, 0.2]])
+    >>> reg = register_pose(model + rng.normal(0, 1e-3, (50, 4, 3)), model)
+    >>> bool(np.allclose(pose_noise(reg, None, model)[:3], reg.noise_m / 2))
+    True
     """
     reg = registration
     ok = np.isfinite(reg.rotation[:, 0, 0])
@@ -886,6 +975,18 @@ def partial_pose(points, model, rotation, centre):
     Returns
     -------
     rotation : (n, 3, 3), centre : (n, 3)
+
+    Examples
+    --------
+    Two markers seen and a prediction that is right: the pose is kept.
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> points = model.copy()[None]
+    >>> points[0, 2] = np.nan
+    >>> R, c = partial_pose(points, model, np.eye(3)[None], model.mean(0)[None])
+    >>> bool(np.allclose(R[0], np.eye(3))), bool(np.allclose(c[0], model.mean(0)))
+    (True, True)
     """
     p = np.asarray(points, float)
     x = np.asarray(model, float)
@@ -1152,16 +1253,13 @@ def _record_fundamental(t, Y, expected_hz=None) -> tuple:
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False) -> tuple[str, str]:
     """The smoothing ``"auto"`` of :func:`fit_pose_trajectory` runs, and why.
 
-    A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics
-    (the rule before ``"auto"``, unchanged: measured on the 16 herd sessions,
-    ``benchmarks/results/herd_kinematics.txt``); a record without a fundamental, or with known change
-    points (``events``, which are fitted without harmonics), gets ``"adaptive"`` (GCV, then a penalty
-    weighted by the local roughness): on the six non-periodic ringing fixtures of
-    ``benchmarks/bench_kinematics.py`` it is better than gcv on every one (issue 13; hidden-point
-    acceleration, median of 3 draws, 12.2-26.0 % against 16.1-32.5 %, 4.1 against 5.4 % without ringing).
-    A cubic spline (``order`` 3) has no adaptive form and keeps ``"gcv"``; so do given smoothing
-    parameters (``lam_given``: nothing is chosen from the data, and ``lam`` keeps the meaning of the
-    plain penalty it had before ``"auto"``).
+    A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics;
+    a record without a fundamental, or with known change points (``events``, which are fitted without
+    harmonics), gets ``"adaptive"`` (GCV, then a penalty weighted by the local roughness), which
+    follows an acceleration that is calm in one part of a record and rings in another better than one
+    penalty can (``benchmarks/README.md`` has the comparison). A cubic spline (``order`` 3) has no
+    adaptive form and keeps ``"gcv"``; so do given smoothing parameters (``lam_given``: nothing is
+    chosen from the data, and ``lam`` keeps the meaning of the plain penalty).
 
     Parameters
     ----------
@@ -1179,6 +1277,13 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     method : str
         ``"gcv"`` or ``"adaptive"``.
     reason : str
+
+    Examples
+    --------
+    >>> choose_smoothing(1.4, None)
+    ('gcv', 'periodic record: fundamental 1.4 Hz')
+    >>> choose_smoothing(None, None)[0]
+    'adaptive'
     """
     if order != 5:
         return "gcv", f"order {order}: the adaptive smoothing is quintic only"
@@ -1197,7 +1302,19 @@ def frame_variances(registration: PoseRegistration) -> np.ndarray:
     phiy, phiz`` (rad^2), the diagonal of the inverse of the pose's information matrix
     (:func:`register_pose` with ``covariance``; the linearised registration, as :func:`pose_noise`
     uses it). A frame without its own information (no pose, or a partial pose of two markers) gets
-    the largest variance of the record (the least weight); all NaN without information matrices."""
+    the largest variance of the record (the least weight); all NaN without information matrices.
+
+    Examples
+    --------
+    Exact markers, each with a covariance of (1 mm)^2 I: the centroid's variance is (1 mm)^2 / 3.
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> cov = np.broadcast_to(1e-6 * np.eye(3), (5, 3, 3, 3))
+    >>> reg = register_pose(np.repeat(model[None], 5, axis=0), model, covariance=cov)
+    >>> bool(np.allclose(frame_variances(reg)[:, :3], 1e-6 / 3))
+    True
+    """
     reg = registration
     n = reg.rotation.shape[0]
     if reg.information is None:
@@ -1250,6 +1367,13 @@ def conditioning_warnings(registration: PoseRegistration, lever_m: float | None 
     ``lever_m`` away moves by that times the lever. A message is returned
     when that rotation noise exceeds ``rotation_noise_limit_deg`` or frames
     were left without a pose.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> conditioning_warnings(register_pose(np.repeat(model[None], 5, axis=0), model))
+    []
     """
     reg = registration
     out = []
@@ -1302,6 +1426,14 @@ def static_body_axes(static_points, down=(0.0, 1.0, 0.0), forward=(1.0, 0.0, 0.0
     -------
     (3, 3)
         Columns: longitudinal, vertical (down), lateral axis in the motion frame.
+
+    Examples
+    --------
+    Markers along x, the motion frame's direction of travel: the body's axes are the motion frame's.
+
+    >>> import numpy as np
+    >>> bool(np.allclose(static_body_axes([[-1.0, 0, 0], [1, 0, 0], [0, 0.1, 0]]), np.eye(3)))
+    True
     """
     p = np.asarray(static_points, float)
     p = p[np.all(np.isfinite(p), axis=1)]
@@ -1329,6 +1461,16 @@ def saddle_angles_deg(rotation, body_axes) -> np.ndarray:
     longitudinal axis, pitch about the lateral one, yaw about the vertical.
     At the static shot's pose all three are the static axes' own angles
     (zero when the back's markers line up with x-motion). NaN where no pose.
+
+    Examples
+    --------
+    A yaw of 10 degrees about the vertical (y):
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> R = Rotation.from_euler("y", [[10.0]], degrees=True).as_matrix()
+    >>> saddle_angles_deg(R, np.eye(3)).round(9) + 0.0
+    array([[ 0.,  0., 10.]])
     """
     R = np.asarray(rotation, float)
     A = R @ np.asarray(body_axes, float)

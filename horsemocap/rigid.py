@@ -111,8 +111,8 @@ from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
 from .params import FitsParams, RigidBodyParams
-from .pose import (PoseRegistration, PoseTrajectory, check_model_conditioning, fit_pose_trajectory,
-                   register_pose)
+from .pose import (PoseRegistration, PoseTrajectory, check_model_conditioning, conditioning_warnings,
+                   fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
 from .registration import check_model, rotation_from_cross_covariance, skew
 
 __all__ = [
@@ -144,6 +144,9 @@ __all__ = [
     "FourierOrders",
     "PoseInput",
     "analyse_rigid_body",
+    "Conditioning",
+    "conditioning",
+    "saddle_angles",
 ]
 
 VERSION_LABELS = ("omega1_ver1", "omega2_ver1", "omega1_ver2",
@@ -170,7 +173,14 @@ def _dot(a, b):
 
 
 def pairwise_distances(points) -> np.ndarray:
-    """Inter-marker distances ``|r_i - r_j|`` of (..., m, 3) points -> (..., m, m)."""
+    """Inter-marker distances ``|r_i - r_j|`` of (..., m, 3) points -> (..., m, m).
+
+    Examples
+    --------
+    >>> pairwise_distances([[0.0, 0, 0], [3, 4, 0]])
+    array([[0., 5.],
+           [5., 0.]])
+    """
     p = np.asarray(points, float)
     return np.linalg.norm(p[..., :, None, :] - p[..., None, :, :], axis=-1)
 
@@ -214,6 +224,17 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004,
     saddle_index : int
         The static marker left over (if several are left over, the one
         nearest to the centroid of the matched markers).
+
+    Examples
+    --------
+    The ride sees the static shot's markers 2, 0, 1 (moved forward); point 3 is never seen:
+
+    >>> import numpy as np
+    >>> static = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0], [0.25, -0.4, 0.1]])
+    >>> motion = np.repeat(static[[2, 0, 1]][None] + [1.0, 0, 0], 5, axis=0)
+    >>> index, saddle = match_static_markers(static, motion)
+    >>> index.tolist(), saddle
+    ([2, 0, 1], 3)
     """
     static = np.asarray(static_points, float)
     motion = _as_positions("motion_points", motion_points)
@@ -314,6 +335,17 @@ def register(points, model) -> Registration:
     -------
     Registration
         Frames where any marker is NaN stay NaN, with the reason.
+
+    Examples
+    --------
+    Markers that are the model turned by 90 degrees about z and moved:
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> reg = register((model @ turn.T + [2.0, 1, 0])[None], model)
+    >>> bool(np.allclose(reg.rotation[0], turn)), bool(np.allclose(reg.translation[0], [2, 1, 0]))
+    (True, True)
     """
     p = _as_positions("points", points)
     n, m, _ = p.shape
@@ -377,6 +409,16 @@ def angular_velocity_versions(pos, vel) -> np.ndarray:
         ``omega^{1,ver1}, omega^{2,ver1}, ..., omega^{2,ver3}`` (see the module
         docstring for the indexing). Frames at the singularity
         (``omega . n = 0``, eq. 6.35) give inf/NaN.
+
+    Examples
+    --------
+    Three markers turning at 2 rad/s about z (``v = omega x r``): every version is omega.
+
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> vel = np.cross([0, 0, 2.0], pos)
+    >>> bool(np.allclose(angular_velocity_versions(pos, vel), [0, 0, 2]))
+    True
     """
     pos = _check_three("pos", pos)
     vel = _check_three("vel", vel, pos.shape[0])
@@ -408,6 +450,18 @@ def angular_acceleration_versions(pos, vel, acc, omega) -> np.ndarray:
         ``K1 = r_ji``, ``K2 = a_j - a_i + omega x (omega x r_ji)``,
         ``K3 = r_ki``, ``K4 = a_k - a_i + omega x (omega x r_ki)`` (the
         ``- a_i`` is missing in the printed eq. 6.38/6.39; see module notes).
+
+    Examples
+    --------
+    Markers with omega = 2 rad/s and alpha = 3 rad/s^2 about z
+    (``a = alpha x r + omega x (omega x r)``):
+
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> w, al = np.array([[0, 0, 2.0]]), np.array([0, 0, 3.0])
+    >>> acc = np.cross(al, pos) + np.cross(w[:, None], np.cross(w[:, None], pos))
+    >>> bool(np.allclose(angular_acceleration_versions(pos, None, acc, w), al))
+    True
     """
     pos = _check_three("pos", pos)
     acc = _check_three("acc", acc, pos.shape[0])
@@ -430,6 +484,14 @@ def compatibility_residual(pos, vel) -> np.ndarray:
     ``r_21 . (v_3 - v_1) + (v_2 - v_1) . r_31`` for each version's base
     marker, shape (3, n). Zero for rigid motion (eq. 6.28): the two
     denominators of eq. 6.3 and 6.4 are equal.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> vel = np.cross([0.3, -1.0, 2.0], pos) + [1.0, 0, 0]       # a rigid motion
+    >>> bool(np.allclose(compatibility_residual(pos, vel), 0))
+    True
     """
     pos = _check_three("pos", pos)
     vel = _check_three("vel", vel, pos.shape[0])
@@ -458,6 +520,14 @@ def angular_velocity_lstsq(pos, vel) -> np.ndarray:
     Returns
     -------
     (n, 3) ; NaN where a marker is missing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0], [0, 0, 0.5]]])
+    >>> vel = np.cross([0.3, -1.0, 2.0], pos) + [1.0, 0, 0]
+    >>> angular_velocity_lstsq(pos, vel).round(12) + 0.0
+    array([[ 0.3, -1. ,  2. ]])
     """
     pos = _as_positions("pos", pos)
     vel = _as_positions("vel", vel, pos.shape[1])
@@ -493,6 +563,15 @@ def angular_acceleration_lstsq(pos, acc, omega) -> np.ndarray:
     Returns
     -------
     (n, 3)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0], [0, 0, 0.5]]])
+    >>> w, al = np.array([[0.3, -1.0, 2.0]]), np.array([0.0, 1.0, 3.0])
+    >>> acc = np.cross(al, pos) + np.cross(w[:, None], np.cross(w[:, None], pos))
+    >>> angular_acceleration_lstsq(pos, acc, w).round(12) + 0.0
+    array([[0., 1., 3.]])
     """
     pos = _as_positions("pos", pos)
     acc = _as_positions("acc", acc, pos.shape[1])
@@ -513,6 +592,13 @@ def average_versions(versions, use=None) -> np.ndarray:
         Which versions enter the mean (the thesis' y/n prompts); all by
         default. NaN/inf entries of a chosen version are skipped frame by
         frame.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> versions = np.arange(6.0)[:, None, None] * np.ones((6, 1, 3))
+    >>> average_versions(versions, [True, True, False, False, False, False])
+    array([[0.5, 0.5, 0.5]])
     """
     v = np.asarray(versions, float)
     use = np.ones(v.shape[0], bool) if use is None else np.asarray(use, bool)
@@ -540,6 +626,12 @@ def smooth_versions(versions, smoother: Callable | None = None, span: float = 0.
         (MATLAB ``smooth(y, span, 'rloess')``). Non-finite values (a version
         at its singularity) are left out and stay NaN (the finite samples are
         smoothed with rloess as a function of the frame index).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bool(np.allclose(smooth_versions(np.ones((6, 20, 3))), 1.0))      # a constant stays
+    True
     """
     v = np.asarray(versions, float)
     if smoother is None:
@@ -560,7 +652,13 @@ def smooth_versions(versions, smoother: Callable | None = None, span: float = 0.
 
 
 def marker_plane_normal(pos) -> np.ndarray:
-    """Unit normal ``n`` of the plane of markers 1, 2, 3 (eq. 6.33), (n, 3)."""
+    """Unit normal ``n`` of the plane of markers 1, 2, 3 (eq. 6.33), (n, 3).
+
+    Examples
+    --------
+    >>> marker_plane_normal([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]]) + 0.0
+    array([[0., 0., 1.]])
+    """
     pos = _check_three("pos", pos)
     c = np.cross(pos[:, 0] - pos[:, 1], pos[:, 0] - pos[:, 2])  # r_21 x r_31
     return c / np.linalg.norm(c, axis=1, keepdims=True)
@@ -572,6 +670,12 @@ def singularity_angle(pos, omega) -> np.ndarray:
     Eq. 6.31-6.35: the thesis solutions (6.3, 6.4, 6.38, 6.39) are 0/0 when
     ``omega . n = 0``, i.e. at 90 degrees; they are reliable near 0 or 180
     degrees. NaN where omega is zero or missing.
+
+    Examples
+    --------
+    >>> pos = [[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]]
+    >>> singularity_angle(pos, [[0, 0, 2.0]]), singularity_angle(pos, [[2.0, 0, 0]])
+    (array([0.]), array([90.]))
     """
     nrm = marker_plane_normal(pos)
     w = np.asarray(omega, float)
@@ -599,6 +703,12 @@ def singularity_report(angle_deg, tolerance_deg: float = 15.0, warn: bool = True
     -------
     dict with ``flagged`` (n,) bool, ``fraction`` flagged, ``min_margin_deg``
     (smallest ``|angle - 90|``), ``median_angle_deg``.
+
+    Examples
+    --------
+    >>> rep = singularity_report([10.0, 85.0, 170.0], warn=False)
+    >>> round(rep["fraction"], 3), rep["min_margin_deg"]
+    (0.333, 5.0)
     """
     a = np.asarray(angle_deg, float)
     margin = np.abs(a - 90.0)
@@ -674,6 +784,18 @@ def fit_rotations(t, rotation, orders=None, rule: str = "significant", w0=None,
     orders : None, int or (3,) ints
     rule, w0, start
         As in :func:`horsemocap.fitting.fit_motion`.
+
+    Examples
+    --------
+    A rotation about z by ``0.3 sin(w t)``: the fit's omega is ``0.3 w cos(w t)``.
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> t, w = np.arange(40) / 25.0, 2 * np.pi
+    >>> R = Rotation.from_rotvec(np.outer(0.3 * np.sin(w * t), [0, 0, 1])).as_matrix()
+    >>> fit = fit_rotations(t, R, orders=1, w0=w)
+    >>> bool(np.allclose(fit.omega(t)[:, 2], 0.3 * w * np.cos(w * t), atol=1e-6))
+    True
     """
     t = np.asarray(t, float)
     R = np.asarray(rotation, float)
@@ -715,6 +837,14 @@ def body_frames(pos, base: int = 0):
     -------
     R_MB : (n, 3, 3)  columns ``u1 | u2 | u3`` (eq. 6.45, 6.49)
     origin : (n, 3)   ``r_MB^(M)`` = the base marker.
+
+    Examples
+    --------
+    >>> R, origin = body_frames([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    >>> R[0], origin[0]
+    (array([[1., 0., 0.],
+           [0., 1., 0.],
+           [0., 0., 1.]]), array([0., 0., 0.]))
     """
     pos = _check_three("pos", pos)
     i, j, k = _CYCLIC[base]
@@ -739,6 +869,12 @@ def body_frame(static_points, base: int = 0):
     Returns
     -------
     R_MB : (3, 3), origin : (3,)
+
+    Examples
+    --------
+    >>> R, origin = body_frame([[1.0, 1, 0], [1, 3, 0], [0, 1, 0]])     # marker 2 along +y
+    >>> R[:, 0], origin
+    (array([0., 1., 0.]), array([1., 1., 0.]))
     """
     s = np.asarray(static_points, float)
     if s.shape != (3, 3):
@@ -756,6 +892,11 @@ def saddle_in_body(static_markers, static_saddle, base: int = 0) -> np.ndarray:
         The three skin markers in the static shot (motion frame).
     static_saddle : (3,)
         The saddle marker in the static shot (motion frame), ``r_MS^(M)``.
+
+    Examples
+    --------
+    >>> saddle_in_body([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [0.2, 0.3, 0.5])
+    array([0.2, 0.3, 0.5])
     """
     R, o = body_frame(static_markers, base)
     s = np.asarray(static_saddle, float)
@@ -765,7 +906,13 @@ def saddle_in_body(static_markers, static_saddle, base: int = 0) -> np.ndarray:
 
 
 def saddle_in_body_versions(static_markers, static_saddle) -> np.ndarray:
-    """``r_BS^(B)`` for the body frames based on markers 1, 2, 3, (3, 3)."""
+    """``r_BS^(B)`` for the body frames based on markers 1, 2, 3, (3, 3).
+
+    Examples
+    --------
+    >>> saddle_in_body_versions([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [0.2, 0.3, 0.5])[0]
+    array([0.2, 0.3, 0.5])
+    """
     return np.stack([saddle_in_body(static_markers, static_saddle, b) for b in range(3)])
 
 
@@ -774,6 +921,16 @@ def saddle_position(pos, saddle_body, base: int = 0) -> np.ndarray:
 
     ``r_MS^(M)(t) = R_MB(t) r_BS^(B) + r_MB^(M)(t)``; ``saddle_body`` must have
     been computed with the same ``base``.
+
+    Examples
+    --------
+    The markers moved 1 m along x carry the saddle with them:
+
+    >>> import numpy as np
+    >>> static = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> sb = saddle_in_body(static, [0.2, 0.3, 0.5])
+    >>> saddle_position((static + [1.0, 0, 0])[None], sb)
+    array([[1.2, 0.3, 0.5]])
     """
     R, o = body_frames(pos, base)
     return np.einsum("kij,j->ki", R, np.asarray(saddle_body, float)) + o
@@ -822,6 +979,20 @@ def saddle_kinematics(pos, vel, acc, omega, alpha, saddle_body, base_versions: b
     ``v_S = v_i + omega x r_iS`` (eq. 6.54), ``a_S = a_i + omega x (omega x
     r_iS) + alpha x r_iS`` (eq. 6.55), ``r_iS = r_S - r_i`` for i = 1, 2, 3,
     then the mean.
+
+    Examples
+    --------
+    A body turning at 2 rad/s about z: the saddle at ``r = (0.5, 0.5, 0.3)`` has
+    ``v = omega x r = (-1, 1, 0)`` and ``a = omega x v = (-2, -2, 0)``.
+
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> w = np.array([[0, 0, 2.0]])
+    >>> vel = np.cross(w[:, None], pos)
+    >>> acc = np.cross(w[:, None], vel)
+    >>> sk = saddle_kinematics(pos, vel, acc, w, np.zeros((1, 3)), saddle_in_body(pos[0], [0.5, 0.5, 0.3]))
+    >>> sk.velocity.round(12) + 0.0, sk.acceleration.round(12) + 0.0
+    (array([[-1.,  1.,  0.]]), array([[-2., -2.,  0.]]))
     """
     pos = _check_three("pos", pos)
     n = pos.shape[0]
@@ -1295,3 +1466,128 @@ def _angular_chain(t, pos, vel, acc, rotation, fits: FitsParams, rotation_orders
     return dict(omega_raw=w_raw, omega_versions=w_s, alpha_raw=a_raw, alpha_versions=a_s, omega_lstsq=w_ls_s,
                 alpha_lstsq=a_ls_s, omega=omega, alpha=alpha, rotation_fit=rfit, omega_rotation=w_rot,
                 alpha_rotation=a_rot, omega_use=w_use, alpha_use=a_use)
+
+
+# --------------------------------------------------------------------------
+# how far the step's results can be trusted
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Conditioning:
+    """Per-frame conditioning of a :class:`RigidBodyAnalysis` (:func:`conditioning`).
+
+    Attributes
+    ----------
+    singularity_deg : (n,)
+        Eq. 6.35: the angle between the omega passed on and the markers'
+        plane normal (the thesis versions fail near 90 degrees).
+    triangle_height_m : (n,)
+        Smallest height of the marker triangle used by each frame's pose
+        (:func:`horsemocap.pose.smallest_height`); NaN where fewer than 3 markers.
+    registration_rms_m : (n,)
+        RMS distance of the markers from the registered model.
+    registration_n_markers : (n,) int
+        Markers registered in each frame.
+    noise_m : float
+        Marker noise estimated from the registration residuals.
+    warnings : list of str
+        Messages when these make the result unreliable.
+    """
+
+    singularity_deg: np.ndarray
+    triangle_height_m: np.ndarray
+    registration_rms_m: np.ndarray
+    registration_n_markers: np.ndarray
+    noise_m: float
+    warnings: list
+
+
+def conditioning(analysis: RigidBodyAnalysis) -> Conditioning:
+    """How well the marker geometry and the motion condition the step's results, frame by frame.
+
+    The eq. 6.35 angle of the omega passed on (of the pose trajectory's
+    markers with ``kinematics="pose_spline"``), the marker triangle's
+    smallest height, the registration residual, and the warnings of
+    :func:`horsemocap.pose.conditioning_warnings` (a thin triangle: the
+    rotation about its long side is noisy, and the saddle far from the
+    markers moves with it); with the thesis' own chain
+    (``kinematics="fits"``, ``angular_method="thesis"``) also a warning when
+    omega comes within 15 degrees of the markers' plane
+    (:func:`singularity_report`).
+
+    Parameters
+    ----------
+    analysis : RigidBodyAnalysis
+
+    Returns
+    -------
+    Conditioning
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.params import PoseParams, RigidBodyParams
+    >>> from scipy.spatial.transform import Rotation
+    >>> t = np.arange(50) / 25.0
+    >>> body = np.array([[-0.3, 0.0, 0.0], [0.0, 0.05, 0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.0]])
+    >>> R = Rotation.from_rotvec(np.outer(0.1 * np.sin(2 * np.pi * t), [0, 1, 0])).as_matrix()
+    >>> moved = np.einsum("kij,mj->kmi", R, body) + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> res = analyse_rigid_body(t, moved[:, :3], body, RigidBodyParams(pose=PoseParams(smoothing="none")))
+    >>> cond = conditioning(res)
+    >>> cond.registration_n_markers[:3].tolist(), cond.warnings
+    ([3, 3, 3], [])
+    """
+    rb = analysis
+    preg = rb.pose_registration
+    k = rb.pose_markers.position if rb.pose_markers is not None else rb.registration.registered
+    sing = singularity_angle(k[:, :3], rb.omega)
+    height = preg.height.copy()
+    height[preg.n_markers < 3] = np.nan
+    lever = float(np.linalg.norm(rb.static_saddle - rb.model.mean(0)))
+    warn = conditioning_warnings(preg, lever)
+    if rb.kinematics == "fits" and rb.method == "thesis":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rep = singularity_report(sing, warn=False)
+        if rep["fraction"] > 0:
+            warn.append(f"omega within 15 deg of the markers' plane in {100 * rep['fraction']:.0f} % of the frames "
+                        f"(closest {rep['min_margin_deg']:.1f} deg): the thesis versions (eq. 6.3/6.4, 6.38/6.39) "
+                        "are unreliable there (eq. 6.35); use kinematics 'pose_spline'")
+    return Conditioning(singularity_deg=sing, triangle_height_m=height, registration_rms_m=preg.rms,
+                        registration_n_markers=preg.n_markers, noise_m=preg.noise_m, warnings=warn)
+
+
+def saddle_angles(analysis: RigidBodyAnalysis) -> np.ndarray:
+    """Roll, pitch, yaw (deg) of the saddle in the motion frame, per frame (n, 3).
+
+    Body axes from the static shot (:func:`horsemocap.pose.static_body_axes`:
+    as seed 004 takes body planes from a default pose), then rotated by the
+    body's pose in each frame: the smoothed pose trajectory's when there is
+    one, else the per-frame registration's
+    (:func:`horsemocap.pose.saddle_angles_deg`).
+
+    Parameters
+    ----------
+    analysis : RigidBodyAnalysis
+
+    Returns
+    -------
+    (n, 3) ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.params import PoseParams, RigidBodyParams
+    >>> from scipy.spatial.transform import Rotation
+    >>> t = np.arange(50) / 25.0
+    >>> body = np.array([[-0.3, 0.0, 0.0], [0.0, 0.05, 0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.0]])
+    >>> yaw = 0.1 * np.sin(2 * np.pi * t)
+    >>> R = Rotation.from_rotvec(np.outer(yaw, [0, 1, 0])).as_matrix()
+    >>> moved = np.einsum("kij,mj->kmi", R, body) + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> res = analyse_rigid_body(t, moved[:, :3], body, RigidBodyParams(pose=PoseParams(smoothing="none")))
+    >>> bool(np.allclose(saddle_angles(res)[:, 2], np.degrees(yaw), atol=1e-6))
+    True
+    """
+    rb = analysis
+    axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
+    R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
+    return saddle_angles_deg(R, axes0)

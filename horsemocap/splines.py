@@ -35,9 +35,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from math import factorial
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
+from scipy.linalg import solve_triangular
 from scipy.optimize import minimize_scalar
 
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
@@ -131,8 +133,6 @@ def truncated_power_columns(t, times, degree: int = 2, derivative: int = 0) -> n
     """``(t - tau_j)_+^degree`` for each ``tau_j`` in ``times`` (n, J), or their ``derivative``-th
     derivatives (``degree! / (degree - d)! (t - tau)_+^(degree - d)``; the ``degree``-th is a step,
     higher ones zero away from ``tau``)."""
-    from math import factorial
-
     t = np.asarray(t, float)
     times = np.atleast_1d(np.asarray(times, float))
     if derivative > degree:
@@ -356,8 +356,6 @@ def _mixed_model_coefficients(s, Wt, z, lam, Q1, Rx, yw, Zw, penalty_basis):
     """The fit at ``lam`` of the mixed-model form: the spline's coefficients ``c`` and the
     unpenalised columns' ``beta`` (``penalty_basis`` = ``(U0, Up, dp)``, the penalty's null and
     positive eigenvectors and eigenvalues; the first ``U0.shape[1]`` entries of ``beta`` are U0's)."""
-    from scipy.linalg import solve_triangular
-
     U0, Up, dp = penalty_basis
     u = Wt.T @ (s / (s * s + lam) * z)
     beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
