@@ -645,6 +645,7 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     without prefix or case).
     """
     from . import pose
+    from .params import PoseParams
 
     match = match_point_names(traj.names, static.names)
     pairs = sorted(match["pairs"], key=lambda pr: traj.names.index(pr[0]))
@@ -665,7 +666,7 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     reg = pose.register_pose(traj.subset(markers), model, names=markers)
     harmonics = "none" if events is not None and len(events) else "auto"
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, smoothing=smoothing, events=events, harmonics=harmonics)
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, PoseParams(smoothing=smoothing, harmonics=harmonics, events=events))
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,

@@ -38,7 +38,7 @@ object throughout:
    Frames without a pose are bridged by the spline when the gap is short
    (``max_gap_s``) and NaN with the reason otherwise. Frames with only two
    markers (beyond the ends of a record, where a marker leaves the view)
-   can join the smoothing (``partial=True``, :func:`partial_pose`): two
+   can join the smoothing (``partial_frames``, :func:`partial_pose`): two
    markers fix five of the six degrees of freedom, the rotation about
    their line comes from the smoothed trajectory, and the spline's natural
    boundary conditions, which bias the acceleration in a record's last
@@ -50,11 +50,59 @@ object throughout:
    ``v = v_c + omega x r``, ``a = a_c + alpha x r + omega x (omega x r)``
    (eq. 6.54/6.55 with the body's own omega and alpha).
 
+The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
+:func:`fit_pose_trajectory`):
+
+- ``smoothing``: ``"auto"`` (:func:`choose_smoothing`: ``"gcv"`` with the
+  stride harmonics on a periodic record, ``"adaptive"`` on a record without a
+  fundamental or with known change points); ``"gcv"`` (generalised
+  cross-validation); ``"gcv_cubic"`` (the same with a cubic spline; the
+  quintic leaves the acceleration free at the record's ends); ``"adaptive"``
+  (GCV, then a penalty weighted by the local roughness); ``"noise"``
+  (unbiased risk with each component's noise from the registration
+  residuals, :func:`pose_noise`: with 3 markers the residuals cannot see the
+  noise normal to their plane, so it undersmooths; for 4 or more markers);
+  ``"none"`` (interpolation).
+- ``harmonics``: ``"auto"`` and ``"all"`` make each component a partial
+  spline (unpenalised stride harmonics plus a smoothing spline of the
+  remainder, their number chosen with the smoothing). ``"auto"`` tries, for
+  the rotation vector, only the harmonics below the plain spline's cutoff
+  frequency and keeps one only when its amplitude exceeds the rotation noise
+  predicted from the registration residual and the marker geometry
+  (:func:`pose_noise`): the rotation is seen through the markers' small
+  differences, and a periodic error of the measurement (a detection bias,
+  skin movement repeating with the stride) does not average out; the
+  centroid keeps every harmonic below 0.4 of the sampling rate (the trots'
+  higher harmonics of the vertical motion, which a plain spline flattens).
+  ``"none"``: plain smoothing splines. Harmonics go with ``"gcv"`` or
+  ``"noise"`` (quintic) only.
+- ``partial_frames``: also smooth over the frames with exactly two markers.
+- ``rotation_weights``: ``"auto"``: with a registration that carries the
+  pose's information matrices (:func:`register_pose` with ``covariance``) and
+  ``"gcv"`` (quintic), each rotation component is fitted twice, with every
+  frame weighted by its predicted variance (:func:`frame_variances`,
+  robustly: :func:`horsemocap.splines.robust_weighted_spline`, the
+  harmonics' noise test at its calibrated noise level) and with equal
+  weights, and the fit whose noise model explains its residuals better
+  (:func:`horsemocap.splines.residual_log_likelihood`) is kept: the
+  predicted rotation noise varies several-fold between frames, and where
+  the prediction holds the weights take the few bad frames out; where it
+  does not (roll and yaw under a thin marker triangle) the equal weights
+  are kept. ``"equal"``: equal weights.
+- ``events``: known change points (s; an impact's onset from a force plate
+  or an accelerometer): an unpenalised ``(t - tau)_+^2`` at each, so that the
+  acceleration may jump there (``events`` of
+  :func:`horsemocap.splines.smoothing_spline`); with ``"gcv"`` without
+  harmonics or ``"adaptive"``, quintic. Not detected from the data.
+
 Conditioning (:func:`smallest_height`, :func:`check_model_conditioning`): a
 rotation about the line through two markers is seen only through the third
 marker's distance from that line; with a marker-position noise ``sigma`` the
 rotation's noise is about ``sigma / h`` (``h`` the triangle's smallest
 height). Collinear markers (``h`` zero, or below the noise) are refused.
+
+Rotations are SciPy's :class:`scipy.spatial.transform.Rotation`; Horn's
+quaternion comes from :mod:`horsemocap.registration`.
 
 Symbols: ``R``, ``t`` pose (thesis ``RR^-1``, ``-RR^-1 Q_t``), ``phi``
 rotation vector, ``omega``/``alpha`` (thesis ``omega``, ``alfa``) in the
@@ -66,8 +114,13 @@ import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
-from .rigid import _skew, check_model, quaternion_from_cross_covariance
+
+from .params import PoseParams
+from .registration import check_model, rotation_from_cross_covariance, skew
+from .splines import (ChangePointError, estimate_fundamental, residual_log_likelihood, robust_weighted_spline,
+                      smoothing_spline)
 
 __all__ = [
     "CollinearMarkersError",
@@ -127,6 +180,11 @@ def smallest_height(points, mask=None) -> np.ndarray:
     Returns
     -------
     float or (n,) array
+
+    Examples
+    --------
+    >>> round(smallest_height([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), 4)     # 1 / sqrt(2)
+    0.7071
     """
     p = np.asarray(points, float)
     single = p.ndim == 2
@@ -152,6 +210,16 @@ def check_model_conditioning(model, noise_m: float | None = None, name: str = "s
     smallest height below 1e-3 of its size (collinear to numerical
     precision) or, if ``noise_m`` (marker-position noise) is given, below 3
     times that noise (the triangle cannot be told from a line).
+
+    Examples
+    --------
+    >>> round(check_model_conditioning([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), 4)
+    0.7071
+    >>> try:
+    ...     check_model_conditioning([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    ... except CollinearMarkersError:
+    ...     print("refused: collinear")
+    refused: collinear
     """
     x = np.asarray(model, float)
     if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 3:
@@ -257,7 +325,7 @@ def _pose_normal_equations(p, d, W, R, c):
     """``sum A^T W A`` (k, 6, 6) and ``sum A^T W e`` (k, 6) of ``e_m = p_m - c - R d_m``, ``A_m = [I, -[R d_m]x]``."""
     r = np.einsum("kij,mj->kmi", R, d)
     e = _pose_residual(p, c, r)
-    A = np.concatenate([np.broadcast_to(np.eye(3), r.shape + (3,)), -_skew(r)], axis=-1)   # (k, m, 3, 6)
+    A = np.concatenate([np.broadcast_to(np.eye(3), r.shape + (3,)), -skew(r)], axis=-1)   # (k, m, 3, 6)
     WA = W @ A
     N = np.einsum("kmia,kmib->kab", A, WA)
     b = np.einsum("kmia,kmi->ka", WA, e)
@@ -287,8 +355,7 @@ def refine_pose_covariance(points, model, information, rotation, centre, iterati
     and updates ``c += delta[:3]``, ``R = Exp(delta[3:]) R``; a step that
     raises the cost is halved (up to ``halvings`` times, else the frame keeps
     its pose), so the result is never worse than the start (Horn's) in the
-    weighted cost, also where the errors are too large for the linearisation
-    (measured: 3 px of detection noise, rotation errors of a radian). A frame
+    weighted cost, also where the errors are too large for the linearisation. A frame
     stops when its largest step is below ``tolerance`` (m or rad).
 
     Parameters
@@ -303,6 +370,19 @@ def refine_pose_covariance(points, model, information, rotation, centre, iterati
     -------
     rotation : (k, 3, 3), centre : (k, 3), normal : (k, 6, 6)
         The pose and ``sum A^T W A`` at it (the pose's information matrix).
+
+    Examples
+    --------
+    Exact markers, started 0.1 rad off: the refined pose is the true one (the identity).
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> start = Rotation.from_rotvec([0, 0, 0.1]).as_matrix()[None]
+    >>> R, c, _ = refine_pose_covariance(model[None], model, np.broadcast_to(np.eye(3), (1, 3, 3, 3)), start,
+    ...                                  model.mean(0)[None])
+    >>> bool(np.allclose(R[0], np.eye(3))), bool(np.allclose(c[0], model.mean(0)))
+    (True, True)
     """
     p = np.asarray(points, float)
     x = np.asarray(model, float)
@@ -363,9 +443,16 @@ def extra_marker_noise(residuals, covariance, dof: float) -> float:
     Returns
     -------
     float
-    """
-    from scipy.optimize import brentq
 
+    Examples
+    --------
+    Residuals of 1 mm that covariances of 1 um do not explain (4 residual degrees of freedom):
+
+    >>> import numpy as np
+    >>> e = np.tile([0.001, 0.0, 0.0], (4, 1))
+    >>> round(1000 * extra_marker_noise(e, np.tile(1e-12 * np.eye(3), (4, 1, 1)), 4.0), 4)
+    1.0
+    """
     e = np.asarray(residuals, float)
     lam, U = np.linalg.eigh(np.asarray(covariance, float))
     z2 = np.einsum("kij,ki->kj", U, e) ** 2
@@ -428,6 +515,20 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     Returns
     -------
     PoseRegistration
+
+    Examples
+    --------
+    Four markers, the model turned by 90 degrees about z; in the second frame one
+    marker is missing and the other three still give the pose:
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0], [0.3, 0.1, 0.2]])
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> points = np.repeat((model @ turn.T)[None], 2, axis=0)
+    >>> points[1, 3] = np.nan
+    >>> reg = register_pose(points, model)
+    >>> reg.n_markers.tolist(), bool(np.allclose(reg.rotation, turn))
+    ([4, 3], True)
     """
     p = np.asarray(points, float)
     if p.ndim != 3 or p.shape[2] != 3:
@@ -475,8 +576,7 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     xc = x[None] - mu_x[:, None]
     pc = pp - mu_p[:, None]
     S = np.einsum("km,kmi,kmj->kij", wn, xc, pc)
-    q = quaternion_from_cross_covariance(S)      # scalar first (q0, q1, q2, q3), Horn's method
-    R = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, 0]])).as_matrix()
+    R = rotation_from_cross_covariance(S).as_matrix()      # Horn's method
     t = mu_p - np.einsum("kij,kj->ki", R, mu_x)
     normal = None
     s0 = float("nan")
@@ -546,6 +646,13 @@ def unwrap_rotvec(phi) -> np.ndarray:
     ``phi`` and ``phi - 2 pi phi/|phi|`` are the same rotation; for each
     frame the representative closest to the previous finite frame is kept,
     so a rotation passing through 180 degrees from the reference does not jump.
+
+    Examples
+    --------
+    A rotation passing through 180 degrees about z:
+
+    >>> unwrap_rotvec([[0.0, 0, 3.1], [0.0, 0, -3.1]])[:, 2].round(4)
+    array([3.1   , 3.1832])
     """
     phi = np.array(phi, float)
     prev = None
@@ -580,19 +687,32 @@ def left_jacobian(phi) -> np.ndarray:
 
     For ``R = Exp(phi) R_ref``: ``R' R^T = [J_l(phi) phi']x`` (the spatial
     angular velocity).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bool(np.allclose(left_jacobian(np.zeros(3)), np.eye(3)))
+    True
+    >>> left_jacobian([0, 0, 1.0]) @ [0, 0, 1.0]      # along the axis: the identity
+    array([0., 0., 1.])
     """
     phi = np.asarray(phi, float)
     th = np.linalg.norm(phi, axis=-1)
     b, c, _, _ = _jac_coeffs(th)
-    z = np.zeros(phi.shape[:-1])
-    K = np.stack([np.stack([z, -phi[..., 2], phi[..., 1]], -1),
-                  np.stack([phi[..., 2], z, -phi[..., 0]], -1),
-                  np.stack([-phi[..., 1], phi[..., 0], z], -1)], -2)
+    K = skew(phi)
     return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
 
 
 def angular_velocity_from_rotvec(phi, dphi) -> np.ndarray:
-    """``omega = J_l(phi) phi'`` (..., 3) for ``R(t) = Exp(phi(t)) R_ref``."""
+    """``omega = J_l(phi) phi'`` (..., 3) for ``R(t) = Exp(phi(t)) R_ref``.
+
+    Examples
+    --------
+    About a fixed axis, omega is the rotation vector's rate:
+
+    >>> angular_velocity_from_rotvec([0, 0, 1.0], [0, 0, 0.5])
+    array([0. , 0. , 0.5])
+    """
     phi, dphi = np.asarray(phi, float), np.asarray(dphi, float)
     th = np.linalg.norm(phi, axis=-1)
     b, c, _, _ = _jac_coeffs(th)
@@ -606,6 +726,11 @@ def angular_acceleration_from_rotvec(phi, dphi, ddphi) -> np.ndarray:
     With ``th' = phi . phi' / th``:
     ``J_l' phi' = (b'/th)(phi . phi') (phi x phi') + (c'/th)(phi . phi')
     phi x (phi x phi') + c phi' x (phi x phi')``.
+
+    Examples
+    --------
+    >>> angular_acceleration_from_rotvec([0, 0, 1.0], [0, 0, 0.5], [0, 0, 0.2])
+    array([0. , 0. , 0.2])
     """
     phi, dphi, ddphi = (np.asarray(a, float) for a in (phi, dphi, ddphi))
     th = np.linalg.norm(phi, axis=-1)
@@ -783,6 +908,17 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     -------
     (6,)
         ``cx, cy, cz`` (m) and ``phix, phiy, phiz`` (rad).
+
+    Examples
+    --------
+    With isotropic marker noise the centroid's noise is the markers' over the square root of their number:
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0], [0.3, 0.1, 0.2]])
+    >>> reg = register_pose(model + rng.normal(0, 1e-3, (50, 4, 3)), model)
+    >>> bool(np.allclose(pose_noise(reg, None, model)[:3], reg.noise_m / 2))
+    True
     """
     reg = registration
     ok = np.isfinite(reg.rotation[:, 0, 0])
@@ -807,7 +943,7 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
     R0 = Rotation.from_matrix(reg.rotation[ok]).mean().as_matrix()
     d = (x - x.mean(0)) @ R0.T
     k = x.shape[0]
-    D = _skew(d)                                                       # [d_m]x
+    D = skew(d)                                                       # [d_m]x
     H = np.einsum("mji,mjk->ik", D, D)
     M = np.einsum("mji,jl,mlk->ik", D, Sig, D)
     Hi = np.linalg.inv(H)
@@ -839,6 +975,18 @@ def partial_pose(points, model, rotation, centre):
     Returns
     -------
     rotation : (n, 3, 3), centre : (n, 3)
+
+    Examples
+    --------
+    Two markers seen and a prediction that is right: the pose is kept.
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> points = model.copy()[None]
+    >>> points[0, 2] = np.nan
+    >>> R, c = partial_pose(points, model, np.eye(3)[None], model.mean(0)[None])
+    >>> bool(np.allclose(R[0], np.eye(3))), bool(np.allclose(c[0], model.mean(0)))
+    (True, True)
     """
     p = np.asarray(points, float)
     x = np.asarray(model, float)
@@ -862,14 +1010,14 @@ def partial_pose(points, model, rotation, centre):
     return R_out, c_out
 
 
-def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: str = "auto",
-                        order: int = 5, max_gap_s: float | None = None, lam=None,
-                        points=None, partial: bool = False, iterations: int = 3,
-                        harmonics: str = "auto", fundamental_hz: float | None = None,
-                        rotation_noise_test: bool = True, events=None,
-                        rotation_weights: str = "auto",
-                        expected_fundamental_hz: float | None = None) -> PoseTrajectory:
+def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PoseParams = PoseParams(), *,
+                        points=None, fundamental_hz: float | None = None,
+                        expected_fundamental_hz: float | None = None, max_gap_s: float | None = None,
+                        lam=None, iterations: int = 3, rotation_noise_test: bool = True) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
+
+    The centroid ``c(t)`` and the rotation vector ``phi(t)`` of ``R(t) = Exp(phi(t)) R_ref`` are
+    smoothed component by component (:func:`horsemocap.splines.smoothing_spline`; the module's step 2).
 
     Parameters
     ----------
@@ -879,111 +1027,116 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
         From :func:`register_pose`.
     model : (m, 3)
         The static-shot model (for its centroid).
-    smoothing : str
-        How each component's smoothing parameter is chosen
-        (:func:`horsemocap.splines.smoothing_spline`): ``"auto"`` (default; :func:`choose_smoothing`:
-        ``"gcv"`` with the stride harmonics on a periodic record, a fundamental found (or given as
-        ``fundamental_hz``), ``"adaptive"`` on a record without one or with ``events``; what ran and why
-        is in each component's ``info`` (``smoothing_method``, ``smoothing_reason``): measured on the six
-        non-periodic ringing fixtures of ``benchmarks/bench_kinematics.py``, adaptive is better than
-        gcv on each), ``"gcv"`` (generalised
-        cross-validation), ``"adaptive"`` (GCV, then a locally weighted
-        penalty), ``"noise"`` (unbiased risk with each component's noise from
-        the registration residuals, :func:`pose_noise`; needs ``points``;
-        with 3 markers the residuals cannot see the noise normal to their
-        plane, so it undersmooths: measured 1718 % saddle error on the
-        bundled session against 15.6 % with GCV; only for 4 or more markers)
-        or ``"none"`` (interpolation).
+    params : horsemocap.params.PoseParams
+        ``smoothing``, ``harmonics``, ``partial_frames``, ``rotation_weights``
+        and ``events`` (the module docstring says what each choice does);
+        what ``smoothing="auto"`` ran and why is in each component's ``info``
+        (``smoothing_method``, ``smoothing_reason``). ``weights`` is not read
+        here (it says whether :func:`register_pose` was given covariances).
     points : (n, m, 3), optional
-        The measured markers that were registered (for ``"noise"``).
-    order : 5 or 3
-        Quintic (default: the acceleration is free at the record's ends) or
-        cubic smoothing spline.
+        The measured markers that were registered: needed by ``"noise"``; with ``partial_frames``
+        its frames with exactly two visible markers join the smoothing (:func:`partial_pose`, the
+        module's step 2), ``iterations`` times.
+    fundamental_hz : float, optional
+        The stride frequency (Hz) of the harmonics; None: estimated from the six pose components
+        (:func:`horsemocap.splines.estimate_fundamental`; under 2 cycles: no harmonics).
+    expected_fundamental_hz : float, optional
+        A stride frequency found by another estimator (the pipeline: the motion frame's period):
+        when the record's own search finds none, it searches down to :data:`SHORT_RECORD_CYCLES`
+        cycles and keeps a result within :data:`FUNDAMENTAL_AGREEMENT` of this one.
     max_gap_s : float, optional
         Longest run of frames without a pose that the spline bridges; longer
         gaps stay NaN with the reason. Default: 5 frame intervals.
     lam : None or (6,) floats
         Smoothing parameters given instead of chosen (``cx, cy, cz, phix, phiy, phiz``).
-    partial : bool
-        Also use the frames in which exactly two markers are visible (needs
-        ``points``): their pose is completed by :func:`partial_pose` with the
-        rotation about the two markers' line taken from the smoothed
-        trajectory, and the trajectory is smoothed again with them
-        (``iterations`` times). A short record ends where a marker leaves
-        the view, and the smoothing spline's natural boundary conditions
-        bias the acceleration in its last frames; a few frames with two
-        markers beyond the ends move those boundaries out of the frames
-        that are reported (``benchmarks/bench_herd_kinematics.py``).
     iterations : int
         Re-smoothings with the partial frames' poses updated.
-    harmonics : "auto", "all" or "none"
-        ``"auto"`` (default) and ``"all"``: each component is a partial spline
-        (:func:`horsemocap.splines.smoothing_spline` with ``fundamental_hz``): unpenalised
-        harmonics of the stride plus a smoothing spline of the remainder, the number of harmonics
-        (0 = none: a record that is not periodic) chosen with the smoothing by the same
-        criterion. ``"auto"`` tries, for the rotation vector, only the harmonics below the plain
-        spline's cutoff frequency (``harmonic_cutoff``): the rotation is seen through the markers'
-        small differences, and a periodic error of the measurement (a detection bias, skin
-        movement repeating with the stride) is as large there as the higher harmonics of the
-        motion (measured: Horse 1 canter 20.2 % saddle error with every harmonic against 3.6 %,
-        the occluded hard session 17.9 % against 2.2 %); the centroid keeps every harmonic below
-        0.4 of the sampling rate (the trots' 4th and 6th harmonics of the vertical motion, which
-        the plain spline flattens). ``"auto"`` also keeps a rotation harmonic only when its
-        amplitude exceeds that rotation component's noise predicted from the registration residual
-        and the marker geometry (:func:`pose_noise` with isotropic marker noise ``noise_m``;
-        ``harmonic_noise`` of :func:`horsemocap.splines.smoothing_spline`): a periodic error of the
-        measurement repeats with the stride, does not average out, and is as likely as motion
-        below that size (measured: Horse 1 canter, thin triangle, phiz's 3rd harmonic 0.22 deg
-        against a predicted noise of 0.41 deg and a true 0.001 deg; saddle error 15.6 % with it,
-        2.7 % without). The weighted rotation fit (``rotation_weights``) replaces the cutoff by that
-        test at its own calibrated noise level. ``"none"``: plain smoothing splines. The fundamental is
-        ``fundamental_hz`` or, if None, estimated from the six pose components together
-        (:func:`horsemocap.splines.estimate_fundamental`); a record shorter than 2 cycles of
-        any frequency tried gets no harmonics. With ``smoothing`` "gcv" or "noise" (quintic)
-        only; other smoothings ignore it.
-    fundamental_hz : float, optional
-        The stride frequency (Hz) for ``harmonics="auto"``; estimated from the data if None.
-    expected_fundamental_hz : float, optional
-        A stride frequency found by another estimator (the pipeline: the motion frame's period).
-        When the record's own search (at least 2 cycles) finds none, it is searched again down to
-        :data:`SHORT_RECORD_CYCLES` cycles and taken only if it agrees with this one within
-        :data:`FUNDAMENTAL_AGREEMENT` (two estimators, autocorrelation and least squares, on a
-        record of about 2 strides: a rising trot of 1.4 s at 25 fps, 1.97 strides, was smoothed as
-        non-periodic, saddle acceleration 35 % off).
     rotation_noise_test : bool
-        With ``harmonics="auto"``: the rotation harmonics' test against the predicted rotation
-        noise (default on; off gives the rule before it, for comparison).
-    events : sequence of float, optional
-        Known change points (s; e.g. the instant of an impact from a force plate or an
-        accelerometer): each component becomes a partial spline with an unpenalised truncated
-        power ``(t - tau)_+^2`` at each, so that the acceleration may jump there (``events`` of
-        :func:`horsemocap.splines.smoothing_spline`; ``"adaptive"`` also smooths the roughness of
-        each side apart). With ``smoothing`` "gcv" (and no harmonics: ``harmonics="none"``) or
-        "adaptive", order 5. Not detected from the data: a scan of the onset by GCV, alone or with
-        a test against the noise, placed it inside the ringing of ``bench_kinematics.py``'s fixture
-        and made the acceleration worse; recalibrated (each component's own residual variance, a
-        bootstrap of the scan's maximum) it finds either false onsets in every record or none on the
-        issue's fixture (``bench_kinematics_tries.py --detect``, ``benchmarks/README.md``).
-    rotation_weights : "auto" or "equal"
-        ``"auto"`` (default): with a registration that carries the pose's information matrices
-        (:func:`register_pose` with ``covariance``) and ``smoothing`` "gcv" (quintic), each rotation
-        component is fitted twice: with every frame weighted by its predicted variance (the diagonal
-        of the inverse information matrix, :func:`frame_variances`), robustly
-        (:func:`horsemocap.splines.robust_weighted_spline`, the harmonics' noise test at the noise
-        of a unit-weight frame times the robust scale of the fit's standardised residuals, every
-        harmonic below 0.4 of the sampling rate a candidate: ``harmonic_noise="calibrated"``), and
-        with equal weights as before; the fit whose noise model explains
-        its residuals better (:func:`horsemocap.splines.residual_log_likelihood`) is kept. The
-        predicted rotation noise varies 10-fold between frames (4.5 to 62 mrad of pitch at 0.25 px of
-        detection noise on the bundled session), and where the prediction holds (the pitch) the
-        weights take the few bad frames out; where it does not (roll and yaw under a thin marker
-        triangle: observed variances 2-60 times the predicted) the equal weights are kept.
-        ``"equal"``: equal weights (the rule before 2026-11-24).
-    """
-    from .splines import smoothing_spline
+        With ``harmonics="auto"``: the rotation harmonics' test against the
+        predicted rotation noise (default on; off for comparison).
 
+    Returns
+    -------
+    PoseTrajectory
+
+    Raises
+    ------
+    ValueError
+        Naming the input or the choice that cannot be used.
+    horsemocap.splines.ChangePointError
+        ``events`` with a smoothing that cannot fit them.
+
+    Examples
+    --------
+    A body turning at a constant 0.5 rad/s about z: interpolated
+    (``smoothing="none"``), the analytic angular velocity is that rate.
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> from horsemocap.params import PoseParams
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> t = np.arange(30) / 25.0
+    >>> R = Rotation.from_rotvec(np.outer(0.5 * t, [0, 0, 1])).as_matrix()
+    >>> reg = register_pose(np.einsum("kij,mj->kmi", R, model), model)
+    >>> tr = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="none"))
+    >>> np.round(tr.omega(t)[10], 9)
+    array([0. , 0. , 0.5])
+    """
     t = np.asarray(t, float)
     reg = registration
+    ok = _check_pose_frames(t, reg)
+    n = t.size
+    lam = _check_smoothing_choices(params, lam)
+    smoothing, order = ("gcv", 3) if params.smoothing == "gcv_cubic" else (params.smoothing, 5)
+    rots = Rotation.from_matrix(reg.rotation[ok])
+    ref = rots.mean()
+    phi = np.full((n, 3), np.nan)
+    phi[ok] = unwrap_rotvec((rots * ref.inv()).as_rotvec())
+    sig = np.full(6, None)
+    if smoothing == "noise":
+        if points is None:
+            raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
+        sig = pose_noise(reg, points, model)
+    smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
+                                              params, fundamental_hz, expected_fundamental_hz,
+                                              lam_given=all(v is not None for v in lam),
+                                              weighted=reg.information is not None)
+    two = _two_marker_frames(points, ok, n) if params.partial_frames else np.zeros(n, bool)
+    # the rotation components' noise, against which their harmonics are tested: predicted from the
+    # registration residual and the marker geometry (isotropic marker noise; pose_noise without the points)
+    rot_noise = [None] * 3
+    if f0 is not None and params.harmonics == "auto" and rotation_noise_test:
+        rot_noise = [float(v) if np.isfinite(v) else None for v in pose_noise(reg, None, model)[3:]]
+    var = None
+    if params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None:
+        var = frame_variances(reg)[:, 3:]
+    spline_options = dict(method=smoothing, order=order, fundamental_hz=f0,
+                          events=_pose_events(params.events, smoothing, order, f0))
+    centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
+                                       sig, var, rot_noise, params.harmonics != "all", iterations)
+    if choice is not None:
+        for s in cs + ps:
+            s.info.update(choice)
+    valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
+    return PoseTrajectory(t=t, reference=ref.as_matrix(), model_centroid=np.asarray(model, float).mean(0),
+                          centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
+                          registration=reg, rotvec_data=phi)
+
+
+def _check_smoothing_choices(params: PoseParams, lam) -> list:
+    """The six smoothing parameters (None: chosen) as a list; a clear error for a choice not known."""
+    lam = [None] * 6 if lam is None else list(lam)
+    if len(lam) != 6:
+        raise ValueError(f"lam: expected 6 smoothing parameters (cx, cy, cz, phix, phiy, phiz), got {len(lam)}")
+    if params.harmonics not in ("none", "auto", "all"):
+        raise ValueError(f"harmonics: expected 'none', 'auto' or 'all', got {params.harmonics!r}")
+    if params.rotation_weights not in ("auto", "equal"):
+        raise ValueError(f"rotation_weights: expected 'auto' or 'equal', got {params.rotation_weights!r}")
+    return lam
+
+
+def _check_pose_frames(t, reg: PoseRegistration) -> np.ndarray:
+    """The frames with a pose (n,) bool; a clear error if the times or the poses cannot be smoothed."""
     n = t.size
     if reg.rotation.shape != (n, 3, 3):
         raise ValueError(f"registration: expected {n} frames to match t, got {reg.rotation.shape[0]}")
@@ -993,101 +1146,82 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, *, smoothing: 
     if ok.sum() < 4:
         raise ValueError(f"registration: a pose trajectory needs at least 4 frames with a pose, got {int(ok.sum())} "
                          f"(reasons: {sorted(set(reg.reason[~ok]))})")
-    dt = float(np.median(np.diff(t)))
-    max_gap = 5 * dt if max_gap_s is None else float(max_gap_s)
-    rots = Rotation.from_matrix(reg.rotation[ok])
-    ref = rots.mean()
-    phi = np.full((n, 3), np.nan)
-    phi[ok] = unwrap_rotvec((rots * ref.inv()).as_rotvec())
-    lam = [None] * 6 if lam is None else list(lam)
-    if len(lam) != 6:
-        raise ValueError(f"lam: expected 6 smoothing parameters (cx, cy, cz, phix, phiy, phiz), got {len(lam)}")
-    sig = np.full(6, None)
-    if smoothing == "noise":
-        if points is None:
-            raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
-        sig = pose_noise(reg, points, model)
-    if harmonics not in ("none", "auto", "all"):
-        raise ValueError(f"harmonics: expected 'none', 'auto' or 'all', got {harmonics!r}")
-    def with_harmonics(method):
-        return harmonics != "none" and method in ("gcv", "noise") and order == 5
+    return ok
 
-    f0 = None
-    found_f0 = fundamental_hz
-    choice = None
-    confirmed = ""
-    if smoothing == "auto" or with_harmonics(smoothing):
-        if found_f0 is None:
-            found_f0, confirmed = _record_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]),
-                                                      expected_fundamental_hz)
+
+def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fundamental_hz, expected_hz, *,
+                      lam_given: bool, weighted: bool):
+    """``(smoothing, fundamental or None, choice)``: ``"auto"`` settled (:func:`choose_smoothing`; ``choice``
+    says what ran and why, else None) and the stride frequency whose harmonics are fitted, if any."""
+    def with_harmonics(method):
+        return params.harmonics != "none" and method in ("gcv", "noise") and order == 5
+
+    found_f0, confirmed, choice = fundamental_hz, "", None
+    if (smoothing == "auto" or with_harmonics(smoothing)) and found_f0 is None:
+        found_f0, confirmed = _record_fundamental(t, Y, expected_hz)
     if smoothing == "auto":
-        smoothing, reason = choose_smoothing(found_f0, events, order, lam_given=all(v is not None for v in lam))
+        smoothing, reason = choose_smoothing(found_f0, params.events, order, lam_given=lam_given)
         reason += confirmed
-        if smoothing == "adaptive" and reg.information is not None and rotation_weights == "auto":
+        if smoothing == "adaptive" and weighted and params.rotation_weights == "auto":
             reason += "; the rotation's per-frame variance weights are a GCV option and not applied"
         choice = {"smoothing_method": smoothing, "smoothing_reason": reason}
-    if with_harmonics(smoothing):
-        f0 = found_f0
-    two = np.zeros(n, bool)
-    if partial:
-        if points is None:
-            raise ValueError("points: partial frames need the measured markers")
-        pts = np.asarray(points, float)
-        if pts.shape[:1] != (n,):
-            raise ValueError(f"points: expected {n} frames to match t, got shape {pts.shape}")
-        two = ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
-    centre = reg.centre.copy()
+    return smoothing, (found_f0 if with_harmonics(smoothing) else None), choice
+
+
+def _two_marker_frames(points, ok, n) -> np.ndarray:
+    """Frames without a pose in which exactly two markers of ``points`` are seen (none without ``points``)."""
+    if points is None:
+        return np.zeros(n, bool)
+    pts = np.asarray(points, float)
+    if pts.shape[:1] != (n,):
+        raise ValueError(f"points: expected {n} frames to match t, got shape {pts.shape}")
+    return ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
+
+
+def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam, sig, var, rot_noise,
+                 harmonic_cutoff: bool, iterations: int):
+    """The six components' splines; with partial frames (``two``) smoothed again with their completed poses.
+
+    Returns the centroid and rotation vectors the splines were fitted to and the splines (3 + 3).
+    """
     use = ok
     x_model = np.asarray(model, float)
-    rot_noise = [None] * 3      # the rotation components' noise, against which their harmonics are tested
-    if f0 is not None and harmonics == "auto" and rotation_noise_test:
-        # each rotation component's noise predicted from the registration residual and the marker
-        # geometry (isotropic marker noise; pose_noise without the points)
-        pn = pose_noise(reg, None, model)[3:]
-        rot_noise = [float(v) if np.isfinite(v) else None for v in pn]
-    found = _pose_events(events, smoothing, order, f0)
-    if rotation_weights not in ("auto", "equal"):
-        raise ValueError(f"rotation_weights: expected 'auto' or 'equal', got {rotation_weights!r}")
-    var = None
-    if rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None:
-        var = frame_variances(reg)[:, 3:]
     for it in range(iterations + 1 if two.any() else 1):
-        cs = tuple(smoothing_spline(t[use], centre[use, i], method=smoothing, order=order, lam=lam[i],
-                                    noise=sig[i], fundamental_hz=f0, events=found) for i in range(3))
+        cs = tuple(smoothing_spline(t[use], centre[use, i], lam=lam[i], noise=sig[i], **options) for i in range(3))
         ps = tuple(_rotation_component(t[use], phi[use, i], None if var is None else var[use, i],
-                                       method=smoothing, order=order, lam=lam[3 + i], noise=sig[3 + i],
-                                       fundamental_hz=f0, harmonic_cutoff=harmonics != "all",
-                                       harmonic_noise=rot_noise[i], events=found) for i in range(3))
+                                       lam=lam[3 + i], noise=sig[3 + i], harmonic_cutoff=harmonic_cutoff,
+                                       harmonic_noise=rot_noise[i], **options) for i in range(3))
         if it == iterations or not two.any():
             break
         tk = t[two]
         Rp = (Rotation.from_rotvec(np.stack([s(tk) for s in ps], -1)) * ref).as_matrix()
         cp = np.stack([s(tk) for s in cs], -1)
-        R2, c2 = partial_pose(pts[two], x_model, Rp, cp)
+        R2, c2 = partial_pose(np.asarray(points, float)[two], x_model, Rp, cp)
         centre[two] = c2
         phi[two] = (Rotation.from_matrix(R2) * ref.inv()).as_rotvec()
         phi = unwrap_rotvec(phi)
         use = ok | two
-    if choice is not None:
-        for s in cs + ps:
-            s.info.update(choice)
-    have = ok | two
+    return centre, phi, cs, ps
+
+
+def _frame_validity(t, reg_reason, have, two, max_gap_s):
+    """``(valid, reason)`` per frame: a pose, a partial pose, a bridged short gap, or NaN and why."""
+    dt = float(np.median(np.diff(t)))
+    max_gap = 5 * dt if max_gap_s is None else float(max_gap_s)
     gaps = _gap_lengths(have)
     first, last = np.flatnonzero(have)[[0, -1]]
     valid = have.copy()
-    reason = np.array(reg.reason, dtype=object)
+    reason = np.array(reg_reason, dtype=object)
     reason[two] = "partial pose: 2 markers; the rotation about their line from the smoothed trajectory"
     for i in np.flatnonzero(~have):
         if i < first or i > last:
-            reason[i] = f"no pose ({reg.reason[i]}); outside the frames with a pose"
+            reason[i] = f"no pose ({reg_reason[i]}); outside the frames with a pose"
         elif gaps[i] * dt <= max_gap + 1e-9:
             valid[i] = True
-            reason[i] = f"bridged gap of {gaps[i]} frame(s) ({reg.reason[i]})"
+            reason[i] = f"bridged gap of {gaps[i]} frame(s) ({reg_reason[i]})"
         else:
-            reason[i] = f"gap of {gaps[i]} frames longer than {max_gap:.3g} s ({reg.reason[i]})"
-    return PoseTrajectory(t=t, reference=ref.as_matrix(), model_centroid=np.asarray(model, float).mean(0),
-                          centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason.astype(str),
-                          registration=reg, rotvec_data=phi)
+            reason[i] = f"gap of {gaps[i]} frames longer than {max_gap:.3g} s ({reg_reason[i]})"
+    return valid, reason.astype(str)
 
 
 #: The fewest cycles a record's own fundamental search goes down to when another estimator's
@@ -1101,8 +1235,6 @@ def _record_fundamental(t, Y, expected_hz=None) -> tuple:
     """``(fundamental or None, note)``: :func:`horsemocap.splines.estimate_fundamental` over at least 2
     cycles; if it finds none and ``expected_hz`` is given, over :data:`SHORT_RECORD_CYCLES`, kept only
     when within :data:`FUNDAMENTAL_AGREEMENT` of ``expected_hz`` (the note says so)."""
-    from .splines import estimate_fundamental
-
     try:
         return estimate_fundamental(t, Y)[0], ""
     except ValueError:
@@ -1121,16 +1253,13 @@ def _record_fundamental(t, Y, expected_hz=None) -> tuple:
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False) -> tuple[str, str]:
     """The smoothing ``"auto"`` of :func:`fit_pose_trajectory` runs, and why.
 
-    A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics
-    (the rule before ``"auto"``, unchanged: measured on the 16 herd sessions,
-    ``benchmarks/results/herd_kinematics.txt``); a record without a fundamental, or with known change
-    points (``events``, which are fitted without harmonics), gets ``"adaptive"`` (GCV, then a penalty
-    weighted by the local roughness): on the six non-periodic ringing fixtures of
-    ``benchmarks/bench_kinematics.py`` it is better than gcv on every one (issue 13; hidden-point
-    acceleration, median of 3 draws, 12.2-26.0 % against 16.1-32.5 %, 4.1 against 5.4 % without ringing).
-    A cubic spline (``order`` 3) has no adaptive form and keeps ``"gcv"``; so do given smoothing
-    parameters (``lam_given``: nothing is chosen from the data, and ``lam`` keeps the meaning of the
-    plain penalty it had before ``"auto"``).
+    A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics;
+    a record without a fundamental, or with known change points (``events``, which are fitted without
+    harmonics), gets ``"adaptive"`` (GCV, then a penalty weighted by the local roughness), which
+    follows an acceleration that is calm in one part of a record and rings in another better than one
+    penalty can (``benchmarks/README.md`` has the comparison). A cubic spline (``order`` 3) has no
+    adaptive form and keeps ``"gcv"``; so do given smoothing parameters (``lam_given``: nothing is
+    chosen from the data, and ``lam`` keeps the meaning of the plain penalty).
 
     Parameters
     ----------
@@ -1148,6 +1277,13 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     method : str
         ``"gcv"`` or ``"adaptive"``.
     reason : str
+
+    Examples
+    --------
+    >>> choose_smoothing(1.4, None)
+    ('gcv', 'periodic record: fundamental 1.4 Hz')
+    >>> choose_smoothing(None, None)[0]
+    'adaptive'
     """
     if order != 5:
         return "gcv", f"order {order}: the adaptive smoothing is quintic only"
@@ -1166,7 +1302,19 @@ def frame_variances(registration: PoseRegistration) -> np.ndarray:
     phiy, phiz`` (rad^2), the diagonal of the inverse of the pose's information matrix
     (:func:`register_pose` with ``covariance``; the linearised registration, as :func:`pose_noise`
     uses it). A frame without its own information (no pose, or a partial pose of two markers) gets
-    the largest variance of the record (the least weight); all NaN without information matrices."""
+    the largest variance of the record (the least weight); all NaN without information matrices.
+
+    Examples
+    --------
+    Exact markers, each with a covariance of (1 mm)^2 I: the centroid's variance is (1 mm)^2 / 3.
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> cov = np.broadcast_to(1e-6 * np.eye(3), (5, 3, 3, 3))
+    >>> reg = register_pose(np.repeat(model[None], 5, axis=0), model, covariance=cov)
+    >>> bool(np.allclose(frame_variances(reg)[:, :3], 1e-6 / 3))
+    True
+    """
     reg = registration
     n = reg.rotation.shape[0]
     if reg.information is None:
@@ -1186,8 +1334,6 @@ def _rotation_component(t, y, variance, *, harmonic_noise=None, **kwargs):
     fit's harmonic test uses the noise of a unit-weight frame, calibrated by the fit's standardised residuals
     (``harmonic_noise="calibrated"`` of :func:`horsemocap.splines.robust_weighted_spline`, which also lifts the
     plain spline's cutoff), when ``harmonic_noise`` is given."""
-    from .splines import residual_log_likelihood, robust_weighted_spline, smoothing_spline
-
     equal = smoothing_spline(t, y, harmonic_noise=harmonic_noise, **kwargs)
     if variance is None or not np.all(np.isfinite(variance) & (variance > 0)):
         return equal
@@ -1203,8 +1349,6 @@ def _rotation_component(t, y, variance, *, harmonic_noise=None, **kwargs):
 
 def _pose_events(events, smoothing: str, order: int, f0):
     """The change points :func:`fit_pose_trajectory` fits (``events`` checked), or None."""
-    from .splines import ChangePointError
-
     if events is None or len(events) == 0:
         return None
     if order != 5 or smoothing not in ("gcv", "adaptive") or (smoothing == "gcv" and f0 is not None):
@@ -1223,6 +1367,13 @@ def conditioning_warnings(registration: PoseRegistration, lever_m: float | None 
     ``lever_m`` away moves by that times the lever. A message is returned
     when that rotation noise exceeds ``rotation_noise_limit_deg`` or frames
     were left without a pose.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> conditioning_warnings(register_pose(np.repeat(model[None], 5, axis=0), model))
+    []
     """
     reg = registration
     out = []
@@ -1275,6 +1426,14 @@ def static_body_axes(static_points, down=(0.0, 1.0, 0.0), forward=(1.0, 0.0, 0.0
     -------
     (3, 3)
         Columns: longitudinal, vertical (down), lateral axis in the motion frame.
+
+    Examples
+    --------
+    Markers along x, the motion frame's direction of travel: the body's axes are the motion frame's.
+
+    >>> import numpy as np
+    >>> bool(np.allclose(static_body_axes([[-1.0, 0, 0], [1, 0, 0], [0, 0.1, 0]]), np.eye(3)))
+    True
     """
     p = np.asarray(static_points, float)
     p = p[np.all(np.isfinite(p), axis=1)]
@@ -1302,6 +1461,16 @@ def saddle_angles_deg(rotation, body_axes) -> np.ndarray:
     longitudinal axis, pitch about the lateral one, yaw about the vertical.
     At the static shot's pose all three are the static axes' own angles
     (zero when the back's markers line up with x-motion). NaN where no pose.
+
+    Examples
+    --------
+    A yaw of 10 degrees about the vertical (y):
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> R = Rotation.from_euler("y", [[10.0]], degrees=True).as_matrix()
+    >>> saddle_angles_deg(R, np.eye(3)).round(9) + 0.0
+    array([[ 0.,  0., 10.]])
     """
     R = np.asarray(rotation, float)
     A = R @ np.asarray(body_axes, float)

@@ -54,27 +54,72 @@ Beyond the thesis
 - :func:`singularity_angle`, :func:`singularity_report`: eq. 6.35 measured
   frame by frame, with a warning.
 - :func:`analyse_rigid_body`: the whole step (App. A steps 8, 9, 11, 12),
-  keeping every estimate; its saddle velocity/acceleration default to the
-  fit of the saddle path built with the fitted orientation
-  (``saddle_method="pose"``), because on the default canter session the
-  thesis estimate (eq. 6.55 with the six-version omega/alpha) sits at the
-  singularity of section 6.1, as in the thesis' own canter example.
+  keeping every estimate; with the thesis' chain its saddle
+  velocity/acceleration default to the fit of the saddle path built with the
+  fitted orientation (``saddle_method="pose"``), because on the default
+  canter session the thesis estimate (eq. 6.55 with the six-version
+  omega/alpha) sits at the singularity of section 6.1, as in the thesis' own
+  canter example.
+
+The step's choices (:class:`horsemocap.params.RigidBodyParams`)
+---------------------------------------------------------------
+- ``kinematics``: what is passed on (:attr:`RigidBodyAnalysis.omega`,
+  ``alpha``, ``saddle_*``, :attr:`RigidBodyAnalysis.marker_kinematics`):
+  ``"pose_spline"``, the smoothed pose trajectory of :mod:`horsemocap.pose`
+  (all markers registered per frame, position and rotation vector smoothed
+  by splines chosen from the data, analytic derivatives; no period, no
+  singularity), or ``"fits"``, the thesis' chain. The chain is computed in
+  both cases when the record allows it; with ``"pose_spline"`` its failure
+  is recorded in :attr:`RigidBodyAnalysis.chain_error` instead of stopping.
+- ``saddle_marker``: the static-shot point that is the saddle marker
+  (Appendix A step 12a); None: the one left over by :func:`match_static_markers`.
+- ``fits.x_degree``, ``fits.order_rule``, ``fits.trend``: the fits of
+  :func:`horsemocap.fitting.fit_motion` (``trend``, not in the thesis: a
+  linear drift in y and z, since an estimated motion frame is always a little
+  off).
+- ``fits.omega_versions``, ``fits.alpha_versions``: the versions averaged
+  (the thesis' prompts, section 8.4.1).
+- ``fits.angular_method``: ``"thesis"``, the mean of the chosen smoothed
+  versions (alpha's versions use that omega); ``"lstsq"``, the
+  least-squares solutions from all markers, smoothed the same way;
+  ``"rotation"``, the Fourier fit of the registered orientation
+  (:func:`fit_rotations`). All three are always computed.
+- ``fits.saddle_method``: the saddle velocity and acceleration passed on
+  with ``"fits"``: the mean of eq. 6.54/6.55 over the three markers
+  (``"thesis"``), or the derivatives of the fit
+  (:attr:`RigidBodyAnalysis.saddle_fit`) of the saddle path, eq. 6.48 frame
+  by frame (``"direct"``) or eq. 6.48 with the *fitted* orientation about the
+  markers' centroid (``"pose"``: the roll about the markers' row, poorly
+  observed by a thin marker triangle, is smoothed before it moves the
+  saddle).
+- ``pose``: the pose trajectory's smoothing
+  (:func:`horsemocap.pose.fit_pose_trajectory`); ``pose.events`` only with
+  ``"pose_spline"``.
+
+Rotations are SciPy's :class:`scipy.spatial.transform.Rotation`; Horn's
+quaternion (eq. 5.14-5.21) comes from :mod:`horsemocap.registration`.
 """
 from __future__ import annotations
 
 import itertools
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from typing import Callable
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import fitting, smoothing
+from .params import FitsParams, RigidBodyParams
+from .pose import (PoseRegistration, PoseTrajectory, check_model_conditioning, conditioning_warnings,
+                   fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
+from .registration import check_model, rotation_from_cross_covariance, skew
 
 __all__ = [
     "VERSION_LABELS",
     "Registration",
     "SaddleKinematics",
     "match_static_markers",
-    "quaternion_to_matrix",
     "register",
     "pairwise_distances",
     "angular_velocity_versions",
@@ -96,7 +141,12 @@ __all__ = [
     "RotationFit",
     "fit_rotations",
     "RigidBodyAnalysis",
+    "FourierOrders",
+    "PoseInput",
     "analyse_rigid_body",
+    "Conditioning",
+    "conditioning",
+    "saddle_angles",
 ]
 
 VERSION_LABELS = ("omega1_ver1", "omega2_ver1", "omega1_ver2",
@@ -118,23 +168,19 @@ def _as_positions(name: str, a, markers: int | None = None) -> np.ndarray:
     return a
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
-    v = np.asarray(v, float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack([
-        np.stack([z, -v[..., 2], v[..., 1]], -1),
-        np.stack([v[..., 2], z, -v[..., 0]], -1),
-        np.stack([-v[..., 1], v[..., 0], z], -1),
-    ], -2)
-
-
 def _dot(a, b):
     return np.einsum("...i,...i->...", a, b)
 
 
 def pairwise_distances(points) -> np.ndarray:
-    """Inter-marker distances ``|r_i - r_j|`` of (..., m, 3) points -> (..., m, m)."""
+    """Inter-marker distances ``|r_i - r_j|`` of (..., m, 3) points -> (..., m, m).
+
+    Examples
+    --------
+    >>> pairwise_distances([[0.0, 0, 0], [3, 4, 0]])
+    array([[0., 5.],
+           [5., 0.]])
+    """
     p = np.asarray(points, float)
     return np.linalg.norm(p[..., :, None, :] - p[..., None, :, :], axis=-1)
 
@@ -178,6 +224,17 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004,
     saddle_index : int
         The static marker left over (if several are left over, the one
         nearest to the centroid of the matched markers).
+
+    Examples
+    --------
+    The ride sees the static shot's markers 2, 0, 1 (moved forward); point 3 is never seen:
+
+    >>> import numpy as np
+    >>> static = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0], [0.25, -0.4, 0.1]])
+    >>> motion = np.repeat(static[[2, 0, 1]][None] + [1.0, 0, 0], 5, axis=0)
+    >>> index, saddle = match_static_markers(static, motion)
+    >>> index.tolist(), saddle
+    ([2, 0, 1], 3)
     """
     static = np.asarray(static_points, float)
     motion = _as_positions("motion_points", motion_points)
@@ -211,9 +268,7 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004,
     sample = motion[ok][:: max(1, ok.sum() // 20)]
     if len(close) > 1:
         def angle(perm):
-            R = register(sample, static[perm]).rotation
-            c = (np.trace(R, axis1=1, axis2=2) - 1) / 2
-            return float(np.median(np.arccos(np.clip(c, -1, 1))))
+            return float(np.median(Rotation.from_matrix(register(sample, static[perm]).rotation).magnitude()))
         best = min(close, key=lambda c: angle(c[1]))[1]
     else:
         best = close[0][1]
@@ -228,48 +283,6 @@ def match_static_markers(static_points, motion_points, tolerance: float = 0.004,
 # --------------------------------------------------------------------------
 # registration (section 5.4)
 # --------------------------------------------------------------------------
-def check_model(model, n_markers: int) -> np.ndarray:
-    """The static-shot model as a finite ``(n_markers, 3)`` array, or a clear error."""
-    x = np.asarray(model, float)
-    if x.shape != (n_markers, 3):
-        raise ValueError(f"model: expected shape ({n_markers}, 3) to match points, got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("model: static-shot markers contain NaN")
-    return x
-
-
-def quaternion_from_cross_covariance(S: np.ndarray) -> np.ndarray:
-    """Horn's unit quaternion (scalar first) of the rotation that best maps the model onto the points.
-
-    ``S`` (n, 3, 3) is the cross-covariance ``sum_m w_m xc_m pc_m^T`` of the
-    centred model ``xc`` and points ``pc`` (eq. 5.14-5.21): the quaternion is
-    the eigenvector of the largest eigenvalue of Horn's symmetric 4 x 4 matrix.
-    """
-    n = len(S)
-    tr = np.trace(S, axis1=1, axis2=2)
-    A = S - np.swapaxes(S, 1, 2)
-    delta = np.stack([A[:, 1, 2], A[:, 2, 0], A[:, 0, 1]], -1)
-    Q = np.zeros((n, 4, 4))
-    Q[:, 0, 0] = tr
-    Q[:, 0, 1:] = delta
-    Q[:, 1:, 0] = delta
-    Q[:, 1:, 1:] = S + np.swapaxes(S, 1, 2) - tr[:, None, None] * np.eye(3)
-    _, vecs = np.linalg.eigh(Q)
-    return vecs[:, :, -1]
-
-
-def quaternion_to_matrix(q) -> np.ndarray:
-    """Rotation matrix of unit quaternions ``q_R = [q0 q1 q2 q3]`` (eq. 5.15, 5.16)."""
-    q = np.asarray(q, float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    q0, q1, q2, q3 = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([q0*q0 + q1*q1 - q2*q2 - q3*q3, 2*(q1*q2 - q0*q3), 2*(q1*q3 + q0*q2)], -1),
-        np.stack([2*(q1*q2 + q0*q3), q0*q0 + q2*q2 - q1*q1 - q3*q3, 2*(q2*q3 - q0*q1)], -1),
-        np.stack([2*(q1*q3 - q0*q2), 2*(q2*q3 + q0*q1), q0*q0 + q3*q3 - q1*q1 - q2*q2], -1),
-    ], -2)
-
-
 @dataclass(frozen=True)
 class Registration:
     """Result of :func:`register` (thesis section 5.4).
@@ -322,6 +335,17 @@ def register(points, model) -> Registration:
     -------
     Registration
         Frames where any marker is NaN stay NaN, with the reason.
+
+    Examples
+    --------
+    Markers that are the model turned by 90 degrees about z and moved:
+
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> reg = register((model @ turn.T + [2.0, 1, 0])[None], model)
+    >>> bool(np.allclose(reg.rotation[0], turn)), bool(np.allclose(reg.translation[0], [2, 1, 0]))
+    (True, True)
     """
     p = _as_positions("points", points)
     n, m, _ = p.shape
@@ -339,7 +363,7 @@ def register(points, model) -> Registration:
     mu_p = pp.mean(1)
     pc = pp - mu_p[:, None]
     S = np.einsum("mi,kmj->kij", xc, pc)  # (n, 3, 3): sum_m xc_m pc_m^T
-    R = quaternion_to_matrix(quaternion_from_cross_covariance(S))
+    R = rotation_from_cross_covariance(S).as_matrix()
     t = mu_p - np.einsum("kij,j->ki", R, mu_x)
     reg = np.einsum("kij,mj->kmi", R, x) + t[:, None]
     R[~ok] = np.nan
@@ -385,6 +409,16 @@ def angular_velocity_versions(pos, vel) -> np.ndarray:
         ``omega^{1,ver1}, omega^{2,ver1}, ..., omega^{2,ver3}`` (see the module
         docstring for the indexing). Frames at the singularity
         (``omega . n = 0``, eq. 6.35) give inf/NaN.
+
+    Examples
+    --------
+    Three markers turning at 2 rad/s about z (``v = omega x r``): every version is omega.
+
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> vel = np.cross([0, 0, 2.0], pos)
+    >>> bool(np.allclose(angular_velocity_versions(pos, vel), [0, 0, 2]))
+    True
     """
     pos = _check_three("pos", pos)
     vel = _check_three("vel", vel, pos.shape[0])
@@ -416,6 +450,18 @@ def angular_acceleration_versions(pos, vel, acc, omega) -> np.ndarray:
         ``K1 = r_ji``, ``K2 = a_j - a_i + omega x (omega x r_ji)``,
         ``K3 = r_ki``, ``K4 = a_k - a_i + omega x (omega x r_ki)`` (the
         ``- a_i`` is missing in the printed eq. 6.38/6.39; see module notes).
+
+    Examples
+    --------
+    Markers with omega = 2 rad/s and alpha = 3 rad/s^2 about z
+    (``a = alpha x r + omega x (omega x r)``):
+
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> w, al = np.array([[0, 0, 2.0]]), np.array([0, 0, 3.0])
+    >>> acc = np.cross(al, pos) + np.cross(w[:, None], np.cross(w[:, None], pos))
+    >>> bool(np.allclose(angular_acceleration_versions(pos, None, acc, w), al))
+    True
     """
     pos = _check_three("pos", pos)
     acc = _check_three("acc", acc, pos.shape[0])
@@ -438,6 +484,14 @@ def compatibility_residual(pos, vel) -> np.ndarray:
     ``r_21 . (v_3 - v_1) + (v_2 - v_1) . r_31`` for each version's base
     marker, shape (3, n). Zero for rigid motion (eq. 6.28): the two
     denominators of eq. 6.3 and 6.4 are equal.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> vel = np.cross([0.3, -1.0, 2.0], pos) + [1.0, 0, 0]       # a rigid motion
+    >>> bool(np.allclose(compatibility_residual(pos, vel), 0))
+    True
     """
     pos = _check_three("pos", pos)
     vel = _check_three("vel", vel, pos.shape[0])
@@ -466,6 +520,14 @@ def angular_velocity_lstsq(pos, vel) -> np.ndarray:
     Returns
     -------
     (n, 3) ; NaN where a marker is missing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0], [0, 0, 0.5]]])
+    >>> vel = np.cross([0.3, -1.0, 2.0], pos) + [1.0, 0, 0]
+    >>> angular_velocity_lstsq(pos, vel).round(12) + 0.0
+    array([[ 0.3, -1. ,  2. ]])
     """
     pos = _as_positions("pos", pos)
     vel = _as_positions("vel", vel, pos.shape[1])
@@ -477,7 +539,7 @@ def angular_velocity_lstsq(pos, vel) -> np.ndarray:
 def _lstsq_cross(d, rhs):
     """Solve ``u x d_m = rhs_m`` (all m) for u, per frame."""
     n, m, _ = d.shape
-    A = -_skew(d).reshape(n, 3 * m, 3)       # u x d = -[d]x u
+    A = -skew(d).reshape(n, 3 * m, 3)       # u x d = -[d]x u
     b = rhs.reshape(n, 3 * m)
     out = np.full((n, 3), np.nan)
     ok = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
@@ -501,6 +563,15 @@ def angular_acceleration_lstsq(pos, acc, omega) -> np.ndarray:
     Returns
     -------
     (n, 3)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0], [0, 0, 0.5]]])
+    >>> w, al = np.array([[0.3, -1.0, 2.0]]), np.array([0.0, 1.0, 3.0])
+    >>> acc = np.cross(al, pos) + np.cross(w[:, None], np.cross(w[:, None], pos))
+    >>> angular_acceleration_lstsq(pos, acc, w).round(12) + 0.0
+    array([[0., 1., 3.]])
     """
     pos = _as_positions("pos", pos)
     acc = _as_positions("acc", acc, pos.shape[1])
@@ -521,6 +592,13 @@ def average_versions(versions, use=None) -> np.ndarray:
         Which versions enter the mean (the thesis' y/n prompts); all by
         default. NaN/inf entries of a chosen version are skipped frame by
         frame.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> versions = np.arange(6.0)[:, None, None] * np.ones((6, 1, 3))
+    >>> average_versions(versions, [True, True, False, False, False, False])
+    array([[0.5, 0.5, 0.5]])
     """
     v = np.asarray(versions, float)
     use = np.ones(v.shape[0], bool) if use is None else np.asarray(use, bool)
@@ -548,11 +626,15 @@ def smooth_versions(versions, smoother: Callable | None = None, span: float = 0.
         (MATLAB ``smooth(y, span, 'rloess')``). Non-finite values (a version
         at its singularity) are left out and stay NaN (the finite samples are
         smoothed with rloess as a function of the frame index).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> bool(np.allclose(smooth_versions(np.ones((6, 20, 3))), 1.0))      # a constant stays
+    True
     """
     v = np.asarray(versions, float)
     if smoother is None:
-        from . import smoothing  # the smoothing step's rloess (MATLAB smooth)
-
         def smoother(y, span):  # type: ignore[no-redef]
             return smoothing.smooth(y, span, method="rloess")
     out = np.full_like(v, np.nan)
@@ -565,13 +647,18 @@ def smooth_versions(versions, smoother: Callable | None = None, span: float = 0.
                 out[i, :, c] = smoother(y, span)
             elif ok.sum() >= 3:
                 # missing/singular frames: smooth the finite samples only
-                from . import smoothing
                 out[i, ok, c] = smoothing.smooth(y[ok], span, method="rloess", x=idx[ok])
     return out
 
 
 def marker_plane_normal(pos) -> np.ndarray:
-    """Unit normal ``n`` of the plane of markers 1, 2, 3 (eq. 6.33), (n, 3)."""
+    """Unit normal ``n`` of the plane of markers 1, 2, 3 (eq. 6.33), (n, 3).
+
+    Examples
+    --------
+    >>> marker_plane_normal([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]]) + 0.0
+    array([[0., 0., 1.]])
+    """
     pos = _check_three("pos", pos)
     c = np.cross(pos[:, 0] - pos[:, 1], pos[:, 0] - pos[:, 2])  # r_21 x r_31
     return c / np.linalg.norm(c, axis=1, keepdims=True)
@@ -583,6 +670,12 @@ def singularity_angle(pos, omega) -> np.ndarray:
     Eq. 6.31-6.35: the thesis solutions (6.3, 6.4, 6.38, 6.39) are 0/0 when
     ``omega . n = 0``, i.e. at 90 degrees; they are reliable near 0 or 180
     degrees. NaN where omega is zero or missing.
+
+    Examples
+    --------
+    >>> pos = [[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]]
+    >>> singularity_angle(pos, [[0, 0, 2.0]]), singularity_angle(pos, [[2.0, 0, 0]])
+    (array([0.]), array([90.]))
     """
     nrm = marker_plane_normal(pos)
     w = np.asarray(omega, float)
@@ -610,6 +703,12 @@ def singularity_report(angle_deg, tolerance_deg: float = 15.0, warn: bool = True
     -------
     dict with ``flagged`` (n,) bool, ``fraction`` flagged, ``min_margin_deg``
     (smallest ``|angle - 90|``), ``median_angle_deg``.
+
+    Examples
+    --------
+    >>> rep = singularity_report([10.0, 85.0, 170.0], warn=False)
+    >>> round(rep["fraction"], 3), rep["min_margin_deg"]
+    (0.333, 5.0)
     """
     a = np.asarray(angle_deg, float)
     margin = np.abs(a - 90.0)
@@ -631,27 +730,6 @@ def singularity_report(angle_deg, tolerance_deg: float = 15.0, warn: bool = True
     return rep
 
 
-def _log_rotation(R):
-    """Rotation vectors of rotation matrices (..., 3, 3) (angles < pi)."""
-    c = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1, 1)
-    th = np.arccos(c)
-    v = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.where(th > 1e-8, th / (2 * np.sin(th)), 0.5 + th ** 2 / 12)
-    return v * k[..., None]
-
-
-def _exp_rotation(phi):
-    """Rotation matrices of rotation vectors (..., 3) (Rodrigues)."""
-    phi = np.asarray(phi, float)
-    th = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = _skew(phi)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a = np.where(th > 1e-8, np.sin(th) / th, 1 - th ** 2 / 6)
-        b = np.where(th > 1e-8, (1 - np.cos(th)) / th ** 2, 0.5 - th ** 2 / 24)
-    return np.eye(3) + a * K + b * (K @ K)
-
-
 @dataclass(frozen=True)
 class RotationFit:
     """Fourier fits of the registered orientation (not in the thesis).
@@ -670,7 +748,7 @@ class RotationFit:
     def rotation(self, t) -> np.ndarray:
         t = np.asarray(t, float)
         phi = np.stack([f.evaluate(t) for f in self.fits], -1)
-        return self.reference @ _exp_rotation(phi)
+        return self.reference @ Rotation.from_rotvec(phi.reshape(-1, 3)).as_matrix().reshape(phi.shape + (3,))
 
     def omega(self, t, h: float = 1e-5) -> np.ndarray:
         t = np.asarray(t, float)
@@ -706,23 +784,32 @@ def fit_rotations(t, rotation, orders=None, rule: str = "significant", w0=None,
     orders : None, int or (3,) ints
     rule, w0, start
         As in :func:`horsemocap.fitting.fit_motion`.
-    """
-    from . import fitting
 
+    Examples
+    --------
+    A rotation about z by ``0.3 sin(w t)``: the fit's omega is ``0.3 w cos(w t)``.
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> t, w = np.arange(40) / 25.0, 2 * np.pi
+    >>> R = Rotation.from_rotvec(np.outer(0.3 * np.sin(w * t), [0, 0, 1])).as_matrix()
+    >>> fit = fit_rotations(t, R, orders=1, w0=w)
+    >>> bool(np.allclose(fit.omega(t)[:, 2], 0.3 * w * np.cos(w * t), atol=1e-6))
+    True
+    """
     t = np.asarray(t, float)
     R = np.asarray(rotation, float)
     ok = np.all(np.isfinite(R), axis=(1, 2))
     if ok.sum() < 8:
         raise ValueError(f"rotation: need at least 8 registered frames, got {ok.sum()}")
     ref = R[np.flatnonzero(ok)[0]]
-    phi = _log_rotation(ref.T @ R[ok])
+    phi = Rotation.from_matrix(ref.T @ R[ok]).as_rotvec()
     o = None if orders is None else np.broadcast_to(np.asarray(orders, int), (3,))
     fits, used = [], []
     for c in range(3):
         if o is None:
             # E counted on the rloess-smoothed angle (section 5.5.2.2 counts on
             # smoothed data): the poorly observed roll angle is noisy.
-            from . import smoothing
             e = fitting.count_extremes(smoothing.smooth(phi[:, c], 0.1, method="rloess"))
             n = fitting.choose_order(t[ok], phi[:, c], e, rule=rule, w0=w0, start=start)
         else:
@@ -750,6 +837,14 @@ def body_frames(pos, base: int = 0):
     -------
     R_MB : (n, 3, 3)  columns ``u1 | u2 | u3`` (eq. 6.45, 6.49)
     origin : (n, 3)   ``r_MB^(M)`` = the base marker.
+
+    Examples
+    --------
+    >>> R, origin = body_frames([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    >>> R[0], origin[0]
+    (array([[1., 0., 0.],
+           [0., 1., 0.],
+           [0., 0., 1.]]), array([0., 0., 0.]))
     """
     pos = _check_three("pos", pos)
     i, j, k = _CYCLIC[base]
@@ -774,6 +869,12 @@ def body_frame(static_points, base: int = 0):
     Returns
     -------
     R_MB : (3, 3), origin : (3,)
+
+    Examples
+    --------
+    >>> R, origin = body_frame([[1.0, 1, 0], [1, 3, 0], [0, 1, 0]])     # marker 2 along +y
+    >>> R[:, 0], origin
+    (array([0., 1., 0.]), array([1., 1., 0.]))
     """
     s = np.asarray(static_points, float)
     if s.shape != (3, 3):
@@ -791,6 +892,11 @@ def saddle_in_body(static_markers, static_saddle, base: int = 0) -> np.ndarray:
         The three skin markers in the static shot (motion frame).
     static_saddle : (3,)
         The saddle marker in the static shot (motion frame), ``r_MS^(M)``.
+
+    Examples
+    --------
+    >>> saddle_in_body([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [0.2, 0.3, 0.5])
+    array([0.2, 0.3, 0.5])
     """
     R, o = body_frame(static_markers, base)
     s = np.asarray(static_saddle, float)
@@ -800,7 +906,13 @@ def saddle_in_body(static_markers, static_saddle, base: int = 0) -> np.ndarray:
 
 
 def saddle_in_body_versions(static_markers, static_saddle) -> np.ndarray:
-    """``r_BS^(B)`` for the body frames based on markers 1, 2, 3, (3, 3)."""
+    """``r_BS^(B)`` for the body frames based on markers 1, 2, 3, (3, 3).
+
+    Examples
+    --------
+    >>> saddle_in_body_versions([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [0.2, 0.3, 0.5])[0]
+    array([0.2, 0.3, 0.5])
+    """
     return np.stack([saddle_in_body(static_markers, static_saddle, b) for b in range(3)])
 
 
@@ -809,6 +921,16 @@ def saddle_position(pos, saddle_body, base: int = 0) -> np.ndarray:
 
     ``r_MS^(M)(t) = R_MB(t) r_BS^(B) + r_MB^(M)(t)``; ``saddle_body`` must have
     been computed with the same ``base``.
+
+    Examples
+    --------
+    The markers moved 1 m along x carry the saddle with them:
+
+    >>> import numpy as np
+    >>> static = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> sb = saddle_in_body(static, [0.2, 0.3, 0.5])
+    >>> saddle_position((static + [1.0, 0, 0])[None], sb)
+    array([[1.2, 0.3, 0.5]])
     """
     R, o = body_frames(pos, base)
     return np.einsum("kij,j->ki", R, np.asarray(saddle_body, float)) + o
@@ -857,6 +979,20 @@ def saddle_kinematics(pos, vel, acc, omega, alpha, saddle_body, base_versions: b
     ``v_S = v_i + omega x r_iS`` (eq. 6.54), ``a_S = a_i + omega x (omega x
     r_iS) + alpha x r_iS`` (eq. 6.55), ``r_iS = r_S - r_i`` for i = 1, 2, 3,
     then the mean.
+
+    Examples
+    --------
+    A body turning at 2 rad/s about z: the saddle at ``r = (0.5, 0.5, 0.3)`` has
+    ``v = omega x r = (-1, 1, 0)`` and ``a = omega x v = (-2, -2, 0)``.
+
+    >>> import numpy as np
+    >>> pos = np.array([[[1.0, 0, 0], [0, 1, 0], [-1, -1, 0]]])
+    >>> w = np.array([[0, 0, 2.0]])
+    >>> vel = np.cross(w[:, None], pos)
+    >>> acc = np.cross(w[:, None], vel)
+    >>> sk = saddle_kinematics(pos, vel, acc, w, np.zeros((1, 3)), saddle_in_body(pos[0], [0.5, 0.5, 0.3]))
+    >>> sk.velocity.round(12) + 0.0, sk.acceleration.round(12) + 0.0
+    (array([[-1.,  1.,  0.]]), array([[-2., -2.,  0.]]))
     """
     pos = _check_three("pos", pos)
     n = pos.shape[0]
@@ -1013,18 +1149,96 @@ class RigidBodyAnalysis:
         return self.saddle_fit.acceleration(self.t)[:, 0]
 
 
-def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=None,
-                       order_rule: str = "significant", omega_use=None, alpha_use=None,
-                       method: str = "thesis", smooth_span: float = 0.1,
-                       static_index=None, saddle_index=None,
-                       period_s: float | None = None, saddle_method: str = "pose",
-                       fourier_start: str = "matlab", fourier_trend: bool = True,
-                       kinematics: str = "fits", pose_smoothing: str = "adaptive",
-                       rotation_orders=None, saddle_orders=None, weights=None,
-                       pose_points=None, pose_t=None, pose_partial: bool = False,
-                       pose_harmonics: str = "auto", pose_covariance=None,
-                       pose_rotation_weights: str = "auto", pose_events=None) -> RigidBodyAnalysis:
-    """Registration, fits, angular kinematics and the saddle in one call.
+@dataclass(frozen=True)
+class FourierOrders:
+    """Fourier orders of the thesis' chain given instead of chosen by the order rule (5.5.2.2).
+
+    Attributes
+    ----------
+    markers : None, int or (m, 2) ints
+        Orders (y, z) of each marker's fit (``orders`` of
+        :func:`horsemocap.fitting.fit_motion`). A single int is one order for
+        every fit of the chain: the markers', the orientation's and the saddle
+        path's (unless ``rotation`` or ``saddle`` are given).
+    rotation : None, int or (3,) ints
+        Orders of the orientation's fit (:func:`fit_rotations`).
+    saddle : None, int or (2,) ints
+        Orders (y, z) of the saddle path's fit.
+
+    Examples
+    --------
+    >>> FourierOrders(markers=3).rotation_orders().tolist()
+    [3, 3, 3]
+    >>> FourierOrders(markers=[[3, 2], [3, 2], [4, 2]]).rotation_orders() is None   # the order rule
+    True
+    """
+
+    markers: object = None
+    rotation: object = None
+    saddle: object = None
+
+    def rotation_orders(self):
+        """Orders of :func:`fit_rotations`: ``rotation``, else ``markers`` if it is one int, else None (the rule)."""
+        return self.rotation if self.rotation is not None else _uniform_orders(self.markers, 3)
+
+    def saddle_orders(self):
+        """Orders (y, z) of the saddle path's fit: ``saddle``, else ``markers`` if it is one int, else None."""
+        return self.saddle if self.saddle is not None else _uniform_orders(self.markers, 2)
+
+
+@dataclass(frozen=True)
+class PoseInput:
+    """The markers the pose trajectory is registered to, when they are not the analysed points.
+
+    Attributes
+    ----------
+    points : (N, m, 3), optional
+        The markers the pose trajectory is registered to (default: the
+        analysed ``points``). Give the *unsmoothed* positions: the pose
+        smoothing chooses its own smoothing from the data and the residuals,
+        which an earlier smoothing would make correlated in time
+        (cross-validation then undersmooths).
+    t : (N,), optional
+        Times of ``points`` when they cover more frames than the analysed
+        ``t`` (a superset of it: frames beyond the analysed ones in which
+        fewer markers are seen). The pose trajectory is smoothed over these
+        times and evaluated at the analysed ones; everything else uses the
+        analysed frames.
+    covariance : (N, m, 3, 3), optional
+        Each marker's covariance (m^2, motion frame) in the frames of
+        ``points`` (e.g. the triangulation's, rotated into the motion frame):
+        the pose is then registered with each marker weighted by its inverse
+        covariance (:func:`horsemocap.pose.register_pose`), and the pose noise
+        that the smoothing tests harmonics against comes from it. Not with
+        ``weights``.
+    weights : (m,) or (N, m), optional
+        Marker weights (inverse variances) of the pose registration.
+
+    Examples
+    --------
+    >>> PoseInput().points is None          # the analysed points, equal weights
+    True
+    """
+
+    points: np.ndarray | None = None
+    t: np.ndarray | None = None
+    covariance: np.ndarray | None = None
+    weights: np.ndarray | None = None
+
+
+def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = RigidBodyParams(), *,
+                       period_s: float | None = None, fourier_orders: FourierOrders | None = None,
+                       pose_input: PoseInput | None = None, static_index=None, smooth_span: float = 0.1,
+                       fourier_start: str = "matlab") -> RigidBodyAnalysis:
+    """Registration, fits, angular kinematics and the saddle in one call (the rigid-body step).
+
+    The static shot is matched to the ride (:func:`match_static_markers`),
+    every frame's pose is registered (:func:`horsemocap.pose.register_pose`),
+    and then, as ``params.kinematics`` asks, the smoothed pose trajectory
+    (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
+    (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
+    give the markers', the body's and the saddle's kinematics. Every estimate
+    is kept in the result.
 
     Parameters
     ----------
@@ -1035,181 +1249,143 @@ def analyse_rigid_body(t, points, static_points, *, x_degree: int = 1, orders=No
     static_points : (k, 3)
         Static-shot markers in the motion frame (the 3 skin markers and the
         saddle marker, any order).
-    x_degree, orders, order_rule
-        Passed to :func:`horsemocap.fitting.fit_motion`.
-    omega_use, alpha_use : (6,) bool
-        Versions averaged (thesis prompts, section 8.4.1); all by default.
-    method : "thesis", "lstsq" or "rotation"
-        ``"thesis"``: omega, alpha = mean of the chosen smoothed versions;
-        alpha's versions use that omega. ``"lstsq"``: the least-squares
-        solutions (smoothed the same way). ``"rotation"``: from the Fourier
-        fit of the registered orientation (:func:`fit_rotations`). All three
-        are always computed and stored.
-    smooth_span : float
-        rloess span for the versions (Appendix A step 11).
-    static_index, saddle_index
-        Give the static-shot correspondence instead of matching distances.
+    params : horsemocap.params.RigidBodyParams
+        The step's choices (the module docstring, "The step's choices", says
+        what each does); ``fits.fourier_orders`` is not read here (the
+        parameter file's form: give the parsed orders as ``fourier_orders``),
+        nor ``pose.weights`` (the caller's choice of ``pose_input.covariance``).
     period_s : float, optional
         Stride period (thesis ``period``); if given, every Fourier fit starts
-        from ``w = 2 pi / period_s`` instead of MATLAB's spectral start point.
-    saddle_method : "thesis", "direct" or "pose"
-        Which estimate :attr:`RigidBodyAnalysis.saddle_velocity` and
-        ``saddle_acceleration`` return: the mean of eq. 6.54/6.55 over the
-        three markers (thesis), or the derivatives of the fit
-        (:attr:`RigidBodyAnalysis.saddle_fit`) of the saddle path, which is
-        eq. 6.48 frame by frame ("direct") or eq. 6.48 with the *fitted*
-        orientation (:func:`fit_rotations`) about the markers' centroid
-        ("pose": the roll about the markers' row, poorly observed by a thin
-        marker triangle, is smoothed before it moves the saddle 0.45 m away).
-        The thesis estimate is always computed too.
+        from ``w = 2 pi / period_s`` instead of MATLAB's spectral start point,
+        and the pose smoothing takes it as the stride frequency another
+        estimator found (``expected_fundamental_hz``).
+    fourier_orders : FourierOrders, optional
+        Orders of the chain's Fourier fits; default: the order rule for every fit.
+    pose_input : PoseInput, optional
+        The markers (times, covariances, weights) the pose trajectory is
+        registered to; default: ``points``, equal weights.
+    static_index : (3,) int, optional
+        The static-shot correspondence (``static_points[static_index[j]]`` is
+        marker j) instead of matching distances; needs ``params.saddle_marker``.
+    smooth_span : float
+        rloess span for the versions (Appendix A step 11).
     fourier_start : "matlab" or "all"
         ``start`` of every Fourier fit (:func:`horsemocap.fitting.fit_fourier`).
-    fourier_trend : bool
-        ``trend`` of the marker and saddle fits: a linear drift in y and z, not
-        in the thesis (default on: an estimated motion frame is always a
-        little off, and 0.1 deg at canter speed is 8.5 mm/s of drift).
-    kinematics : "fits" or "pose_spline"
-        What is passed on (:attr:`RigidBodyAnalysis.omega`, ``alpha``,
-        ``saddle_*``, :attr:`RigidBodyAnalysis.marker_kinematics`): the
-        thesis' chain of fits chosen by ``method``/``saddle_method``
-        ("fits"), or the smoothed pose trajectory of :mod:`horsemocap.pose`
-        ("pose_spline": all markers registered per frame, position and
-        rotation vector smoothed by splines chosen by cross-validation,
-        analytic derivatives; no period, no singularity). The thesis chain is
-        computed in both cases when the record allows it; with
-        "pose_spline" a failure of the chain is recorded in
-        :attr:`RigidBodyAnalysis.chain_error` instead of stopping.
-    pose_smoothing : "auto", "adaptive", "gcv", "gcv_cubic" or "none"
-        Smoothing of the pose trajectory (:func:`horsemocap.splines.smoothing_spline`; ``"auto"``:
-        :func:`horsemocap.pose.choose_smoothing`, the pipeline's default).
-    rotation_orders : None, int or (3,) ints
-        Fourier orders of :func:`fit_rotations`; default: ``orders`` if it is a
-        single int, else the order rule.
-    saddle_orders : None, int or (2,) ints
-        Fourier orders (y, z) of the saddle-path fit; default: ``orders`` if it
-        is a single int, else the order rule.
-    weights : (m,) or (n, m), optional
-        Marker weights (inverse variances) of the pose registration.
-    pose_points : (n, m, 3), optional
-        The markers the pose trajectory is registered to (default ``points``).
-        Give the *unsmoothed* positions: the pose smoothing chooses its own
-        smoothing from the data and the residuals, which an earlier smoothing
-        would make correlated in time (cross-validation then undersmooths).
-    pose_t : (N,), optional
-        Times of ``pose_points`` when they cover more frames than ``t`` (a
-        superset of ``t``: frames beyond the analysed ones in which fewer
-        markers are seen). The pose trajectory is smoothed over ``pose_t``
-        and evaluated at ``t``; everything else uses the frames of ``t``.
-    pose_partial : bool
-        Use frames with exactly two visible markers in the pose smoothing
-        (:func:`horsemocap.pose.fit_pose_trajectory`, ``partial``).
-    pose_harmonics : "auto", "all" or "none"
-        Unpenalised harmonics of the stride in the pose smoothing
-        (:func:`horsemocap.pose.fit_pose_trajectory`, ``harmonics``).
-    pose_covariance : (N, m, 3, 3), optional
-        Each marker's covariance (m^2, motion frame) for the frames of
-        ``pose_points`` (e.g. the triangulation's, rotated into the motion
-        frame): the pose is then registered with each marker weighted by its
-        inverse covariance (:func:`horsemocap.pose.register_pose`), and the
-        pose noise that the smoothing tests harmonics against comes from it.
-        Not with ``weights``.
-    pose_rotation_weights : "auto" or "equal"
-        Weights of the rotation components' smoothing
-        (:func:`horsemocap.pose.fit_pose_trajectory`, ``rotation_weights``;
-        ``"auto"`` needs ``pose_covariance``).
-    pose_events : sequence of float, optional
-        Known instants (s, the time axis of ``t``) where the pose trajectory's acceleration may
-        jump (:func:`horsemocap.pose.fit_pose_trajectory`, ``events``); with ``"pose_spline"``.
+
+    Returns
+    -------
+    RigidBodyAnalysis
+
+    Raises
+    ------
+    ValueError
+        A choice of ``params`` or an input array that cannot be used, named.
+    horsemocap.pose.CollinearMarkersError
+        The static shot's markers are collinear.
+
+    Examples
+    --------
+    A body turning about the vertical (y) while it moves forward: the saddle,
+    never seen during the ride, is found where the body carries it.
+
+    >>> import numpy as np
+    >>> from horsemocap.params import PoseParams, RigidBodyParams
+    >>> from scipy.spatial.transform import Rotation
+    >>> t = np.arange(50) / 25.0
+    >>> body = np.array([[-0.3, 0.0, 0.0], [0.0, 0.05, 0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.0]])
+    >>> R = Rotation.from_rotvec(np.outer(0.1 * np.sin(2 * np.pi * t), [0, 1, 0])).as_matrix()
+    >>> moved = np.einsum("kij,mj->kmi", R, body) + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> params = RigidBodyParams(pose=PoseParams(smoothing="none"))
+    >>> res = analyse_rigid_body(t, moved[:, :3], body, params, period_s=1.0)
+    >>> res.saddle_index, bool(np.allclose(res.saddle_position, moved[:, 3], atol=1e-9))
+    (3, True)
     """
-    from . import fitting
-
-    if method not in ("thesis", "lstsq", "rotation"):
-        raise ValueError(f"method: expected 'thesis', 'lstsq' or 'rotation', got {method!r}")
-    if saddle_method not in ("thesis", "direct", "pose"):
-        raise ValueError(f"saddle_method: expected 'thesis', 'direct' or 'pose', got {saddle_method!r}")
-    if kinematics not in ("fits", "pose_spline"):
-        raise ValueError(f"kinematics: expected 'fits' or 'pose_spline', got {kinematics!r}")
-    from . import pose as pose_mod
-
+    _check_choices(params)
     t = np.asarray(t, float)
     pts = _check_three("points", points, t.size)
     static = np.asarray(static_points, float)
-    if static_index is None:
-        static_index, saddle_index = match_static_markers(static, pts, saddle=saddle_index)
-    elif saddle_index is None:
-        raise ValueError("static_index given without saddle_index: name the saddle marker too")
-    static_index = np.asarray(static_index, int)
+    static_index, saddle_index = _static_correspondence(static, pts, static_index, params.saddle_marker)
     model = static[static_index]
-    s_saddle = static[int(saddle_index)]
-    pose_mod.check_model_conditioning(model, name="static shot (the markers matched to the ride)")
-    traj = psaddle = pmarkers = None
-    ppts = pts if pose_points is None else _as_positions("pose_points", pose_points, pts.shape[1])
-    pt = t if pose_t is None else np.asarray(pose_t, float)
+    s_saddle = static[saddle_index]
+    check_model_conditioning(model, name="static shot (the markers matched to the ride)")
+    pose_input = PoseInput() if pose_input is None else pose_input
+    ppts, pt, inside = _pose_frames(t, pts, pose_input)
+    preg_all = register_pose(ppts, model, pose_input.weights, covariance=pose_input.covariance)
+    preg = preg_all if pose_input.t is None else _registration_rows(preg_all, inside)
+    common = dict(t=t, static_index=static_index, saddle_index=saddle_index, model=model, static_saddle=s_saddle,
+                  method=params.fits.angular_method, saddle_method=params.fits.saddle_method,
+                  kinematics=params.kinematics, pose_registration=preg)
+    chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders or FourierOrders(), period_s, smooth_span,
+                    fourier_start)
+    if params.kinematics == "fits":
+        chain = _thesis_chain(*chain_inputs)
+        return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
+    traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts,
+                               expected_fundamental_hz=None if not period_s else 1.0 / period_s)
+    psaddle = traj.point(t, s_saddle)
+    pmarkers = traj.points(t, model)
+    pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
+    try:
+        chain = _thesis_chain(*chain_inputs)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        return _pose_only(common, pose, pts, f"{type(exc).__name__}: {exc}")
+    omega, alpha = traj.omega(t), traj.alpha(t)
+    chain.update(omega=omega, alpha=alpha)
+    return RigidBodyAnalysis(**common, **chain, **pose, singularity_deg=singularity_angle(chain["pos"], omega))
+
+
+def _check_choices(params: RigidBodyParams) -> None:
+    """Refuse a choice of the section that :func:`analyse_rigid_body` does not know, naming the field."""
+    fits = params.fits
+    if fits.angular_method not in ("thesis", "lstsq", "rotation"):
+        raise ValueError(f"fits.angular_method: expected 'thesis', 'lstsq' or 'rotation', got {fits.angular_method!r}")
+    if fits.saddle_method not in ("thesis", "direct", "pose"):
+        raise ValueError(f"fits.saddle_method: expected 'thesis', 'direct' or 'pose', got {fits.saddle_method!r}")
+    if params.kinematics not in ("fits", "pose_spline"):
+        raise ValueError(f"kinematics: expected 'fits' or 'pose_spline', got {params.kinematics!r}")
+    events = params.pose.events
+    if events is not None and len(events) and params.kinematics != "pose_spline":
+        raise ValueError(f"pose.events: change points are a 'pose_spline' option, got kinematics={params.kinematics!r}")
+
+
+def _static_correspondence(static, pts, static_index, saddle_marker) -> tuple[np.ndarray, int]:
+    """``(static_index, saddle_index)``: given, or matched by :func:`match_static_markers`."""
+    if static_index is None:
+        static_index, saddle_marker = match_static_markers(static, pts, saddle=saddle_marker)
+    elif saddle_marker is None:
+        raise ValueError("static_index given without saddle_marker: name the saddle marker too")
+    return np.asarray(static_index, int), int(saddle_marker)
+
+
+def _pose_frames(t, pts, pose_input: PoseInput):
+    """The pose's markers and times (checked), and where the analysed times sit among them."""
+    ppts = pts if pose_input.points is None else _as_positions("pose_input.points", pose_input.points,
+                                                               pts.shape[1])
+    pt = t if pose_input.t is None else np.asarray(pose_input.t, float)
     if ppts.shape[0] != pt.size:
-        raise ValueError(f"pose_points: expected {pt.size} frames, got {ppts.shape[0]}")
+        raise ValueError(f"pose_input.points: expected {pt.size} frames, got {ppts.shape[0]}")
     inside = np.searchsorted(pt, t - 1e-9)
-    if pose_t is not None and (np.any(inside >= pt.size) or not np.allclose(pt[np.minimum(inside, pt.size - 1)], t)):
-        raise ValueError("pose_t: expected every time of t among the pose frames' times")
-    if pose_covariance is not None and np.shape(pose_covariance) != ppts.shape + (3,):
-        raise ValueError(f"pose_covariance: expected {ppts.shape + (3,)} (the pose frames' markers, 3, 3), "
-                         f"got {np.shape(pose_covariance)}")
-    preg_all = pose_mod.register_pose(ppts, model, weights, covariance=pose_covariance)
-    preg = preg_all if pose_t is None else _registration_rows(preg_all, inside)
-    if pose_events is not None and len(pose_events) and kinematics != "pose_spline":
-        raise ValueError(f"pose_events: change points are a 'pose_spline' option, got kinematics={kinematics!r}")
-    if kinematics == "pose_spline":
-        order = 3 if pose_smoothing == "gcv_cubic" else 5
-        sm = "gcv" if pose_smoothing == "gcv_cubic" else pose_smoothing
-        traj = pose_mod.fit_pose_trajectory(pt, preg_all, model, smoothing=sm, order=order, points=ppts,
-                                            partial=pose_partial, harmonics=pose_harmonics,
-                                            rotation_weights=pose_rotation_weights, events=pose_events,
-                                            expected_fundamental_hz=None if not period_s else 1.0 / period_s)
-        psaddle = traj.point(t, s_saddle)
-        pmarkers = traj.points(t, model)
-        try:
-            chain = _thesis_chain(t, pts, model, s_saddle, x_degree, orders, order_rule, omega_use, alpha_use,
-                                  method, smooth_span, period_s, saddle_method, fourier_start, fourier_trend,
-                                  rotation_orders, saddle_orders)
-            chain_error = ""
-        except (ValueError, np.linalg.LinAlgError) as exc:
-            chain, chain_error = None, f"{type(exc).__name__}: {exc}"
-        if chain is None:
-            return _pose_only(t, static_index, saddle_index, model, s_saddle, traj, psaddle, pmarkers, pts,
-                              method, saddle_method, chain_error, preg)
-        res = chain
-    else:
-        res = _thesis_chain(t, pts, model, s_saddle, x_degree, orders, order_rule, omega_use, alpha_use,
-                            method, smooth_span, period_s, saddle_method, fourier_start, fourier_trend,
-                            rotation_orders, saddle_orders)
-        chain_error = ""
-    (reg, pos, vel, acc, mf, w_raw, w_s, a_raw, a_s, w_ls_s, a_ls_s, omega, alpha, rfit, w_rot, a_rot,
-     w_use, a_use, sb, sk, sfit, path) = res
-    if kinematics == "pose_spline":
-        omega, alpha = traj.omega(t), traj.alpha(t)
-    return RigidBodyAnalysis(t=t, static_index=static_index, saddle_index=int(saddle_index), model=model,
-                             static_saddle=s_saddle, registration=reg, motion_fit=mf, pos=pos, vel=vel,
-                             acc=acc, omega_raw=w_raw, omega_versions=w_s, alpha_raw=a_raw,
-                             alpha_versions=a_s, omega_lstsq=w_ls_s, alpha_lstsq=a_ls_s, omega=omega,
-                             alpha=alpha, rotation_fit=rfit, omega_rotation=w_rot, alpha_rotation=a_rot,
-                             omega_use=w_use, alpha_use=a_use, method=method,
-                             singularity_deg=singularity_angle(pos, omega), saddle_body=sb, saddle=sk,
-                             saddle_fit=sfit, saddle_path=path, saddle_method=saddle_method,
-                             kinematics=kinematics, pose=traj, pose_saddle=psaddle, pose_markers=pmarkers,
-                             chain_error=chain_error, pose_registration=preg)
+    if pose_input.t is not None and (np.any(inside >= pt.size)
+                                     or not np.allclose(pt[np.minimum(inside, pt.size - 1)], t)):
+        raise ValueError("pose_input.t: expected every time of t among the pose frames' times")
+    cov = pose_input.covariance
+    if cov is not None and np.shape(cov) != ppts.shape + (3,):
+        raise ValueError(f"pose_input.covariance: expected {ppts.shape + (3,)} (the pose frames' markers, 3, 3), "
+                         f"got {np.shape(cov)}")
+    return ppts, pt, inside
 
 
-def _registration_rows(reg, rows):
+def _registration_rows(reg: PoseRegistration, rows) -> PoseRegistration:
     """A :class:`~horsemocap.pose.PoseRegistration` of some frames only (same noise estimate)."""
-    from dataclasses import fields, replace
-
     per_frame = {f.name: getattr(reg, f.name)[rows] for f in fields(reg)
                  if isinstance(getattr(reg, f.name), np.ndarray)}
     return replace(reg, **per_frame)
 
 
-def _pose_only(t, static_index, saddle_index, model, s_saddle, traj, psaddle, pmarkers, pts, method,
-               saddle_method, chain_error, preg):
+def _pose_only(common: dict, pose: dict, pts, chain_error: str) -> RigidBodyAnalysis:
     """A :class:`RigidBodyAnalysis` holding only the pose trajectory (the thesis chain failed)."""
+    t, model, s_saddle = common["t"], common["model"], common["static_saddle"]
+    traj: PoseTrajectory = pose["pose"]
     n = t.size
     nan3 = np.full((n, 3), np.nan)
     nan6 = np.full((6, n, 3), np.nan)
@@ -1217,17 +1393,15 @@ def _pose_only(t, static_index, saddle_index, model, s_saddle, traj, psaddle, pm
     omega, alpha = traj.omega(t), traj.alpha(t)
     sk = SaddleKinematics(nan3, np.full((3, n, 3), np.nan), np.full((3, n, 3), np.nan),
                           np.full((3, n, 3), np.nan), nan3, nan3)
-    return RigidBodyAnalysis(t=t, static_index=static_index, saddle_index=int(saddle_index), model=model,
-                             static_saddle=s_saddle, registration=reg, motion_fit=None, pos=reg.registered,
-                             vel=np.full(pts.shape, np.nan), acc=np.full(pts.shape, np.nan), omega_raw=nan6,
-                             omega_versions=nan6, alpha_raw=nan6, alpha_versions=nan6, omega_lstsq=nan3,
-                             alpha_lstsq=nan3, omega=omega, alpha=alpha, rotation_fit=None, omega_rotation=nan3,
-                             alpha_rotation=nan3, omega_use=np.ones(6, bool), alpha_use=np.ones(6, bool),
-                             method=method, singularity_deg=singularity_angle(pmarkers.position[:, :3], omega),
+    return RigidBodyAnalysis(**{**common, "kinematics": "pose_spline"}, **pose, registration=reg, motion_fit=None,
+                             pos=reg.registered, vel=np.full(pts.shape, np.nan), acc=np.full(pts.shape, np.nan),
+                             omega_raw=nan6, omega_versions=nan6, alpha_raw=nan6, alpha_versions=nan6,
+                             omega_lstsq=nan3, alpha_lstsq=nan3, omega=omega, alpha=alpha, rotation_fit=None,
+                             omega_rotation=nan3, alpha_rotation=nan3, omega_use=np.ones(6, bool),
+                             alpha_use=np.ones(6, bool),
+                             singularity_deg=singularity_angle(pose["pose_markers"].position[:, :3], omega),
                              saddle_body=saddle_in_body_versions(model, s_saddle), saddle=sk, saddle_fit=None,
-                             saddle_path=psaddle.position, saddle_method=saddle_method, kinematics="pose_spline",
-                             pose=traj, pose_saddle=psaddle, pose_markers=pmarkers, chain_error=chain_error,
-                             pose_registration=preg)
+                             saddle_path=pose["pose_saddle"].position, chain_error=chain_error)
 
 
 def _uniform_orders(orders, k):
@@ -1237,52 +1411,183 @@ def _uniform_orders(orders, k):
     return np.full(k, int(orders))
 
 
-def _thesis_chain(t, pts, model, s_saddle, x_degree, orders, order_rule, omega_use, alpha_use, method,
-                  smooth_span, period_s, saddle_method, fourier_start, fourier_trend, rotation_orders,
-                  saddle_orders):
-    """The thesis' chain (sections 5.4-5.5, 6): registration, fits, versions, eq. 6.48-6.55."""
-    from . import fitting
+def _thesis_chain(t, pts, model, s_saddle, fits: FitsParams, orders: FourierOrders, period_s, smooth_span,
+                  start) -> dict:
+    """The thesis' chain (sections 5.4-5.5, 6): registration, fits, versions, eq. 6.48-6.55.
+
+    Returns the fields of :class:`RigidBodyAnalysis` it fills, by name.
+    """
     reg = register(pts, model)
     pos = reg.registered
     ok = np.all(np.isfinite(pos), axis=(1, 2))
-    mf = fitting.fit_motion(t, np.where(ok[:, None, None], pos, np.nan), x_degree=x_degree,
-                            orders=orders, rule=order_rule,
-                            w0=None if period_s is None else 2 * np.pi / period_s, start=fourier_start,
-                            trend=fourier_trend)
+    w0 = None if period_s is None else 2 * np.pi / period_s
+    mf = fitting.fit_motion(t, np.where(ok[:, None, None], pos, np.nan), x_degree=fits.x_degree,
+                            orders=orders.markers, rule=fits.order_rule, w0=w0, start=start, trend=fits.trend)
     vel, acc = mf.velocity(t), mf.acceleration(t)
     vel[~ok] = np.nan
     acc[~ok] = np.nan
-    w_use = np.ones(6, bool) if omega_use is None else np.asarray(omega_use, bool)
-    a_use = np.ones(6, bool) if alpha_use is None else np.asarray(alpha_use, bool)
+    angular = _angular_chain(t, pos, vel, acc, reg.rotation, fits, orders.rotation_orders(), w0, smooth_span, start)
+    sb = saddle_in_body_versions(model, s_saddle)
+    sk = saddle_kinematics(pos, vel, acc, angular["omega"], angular["alpha"], sb)
+    # the saddle path for the direct fits: eq. 6.48 with the per-frame pose
+    # ("direct"), or with the fitted orientation and the markers' centroid
+    # ("pose"): p_S = R_fit(t) (s - mean(model)) + mean_m r_m(t)
+    path = sk.position
+    if fits.saddle_method == "pose":
+        path = (np.einsum("kij,j->ki", angular["rotation_fit"].rotation(t), s_saddle - model.mean(0))
+                + np.where(ok[:, None], pos.mean(1), np.nan))
+    s_orders = orders.saddle_orders()
+    sfit = fitting.fit_motion(t, np.where(ok[:, None], path, np.nan)[:, None, :], x_degree=fits.x_degree,
+                              orders=None if s_orders is None else np.asarray(s_orders, int)[None],
+                              rule=fits.order_rule, w0=w0, start=start, trend=fits.trend)
+    return dict(registration=reg, motion_fit=mf, pos=pos, vel=vel, acc=acc, **angular, saddle_body=sb, saddle=sk,
+                saddle_fit=sfit, saddle_path=path)
+
+
+def _angular_chain(t, pos, vel, acc, rotation, fits: FitsParams, rotation_orders, w0, smooth_span, start) -> dict:
+    """Omega and alpha of the chain: the six versions, least squares, the orientation's fit, and the chosen ones."""
+    w_use = np.ones(6, bool) if fits.omega_versions is None else np.asarray(fits.omega_versions, bool)
+    a_use = np.ones(6, bool) if fits.alpha_versions is None else np.asarray(fits.alpha_versions, bool)
     with np.errstate(all="ignore"):
         w_raw = angular_velocity_versions(pos, vel)
     w_s = smooth_versions(w_raw, span=smooth_span)
     w_ls = angular_velocity_lstsq(pos, vel)
     w_ls_s = smooth_versions(w_ls[None], span=smooth_span)[0]
-    w0 = None if period_s is None else 2 * np.pi / period_s
-    r_orders = rotation_orders if rotation_orders is not None else _uniform_orders(orders, 3)
-    s_orders = saddle_orders if saddle_orders is not None else _uniform_orders(orders, 2)
-    rfit = fit_rotations(t, reg.rotation, orders=r_orders, rule=order_rule, w0=w0, start=fourier_start)
+    rfit = fit_rotations(t, rotation, orders=rotation_orders, rule=fits.order_rule, w0=w0, start=start)
     w_rot, a_rot = rfit.omega(t), rfit.alpha(t)
     omega = {"thesis": average_versions(w_s, w_use) if w_use.any() else w_ls_s,
-             "lstsq": w_ls_s, "rotation": w_rot}[method]
+             "lstsq": w_ls_s, "rotation": w_rot}[fits.angular_method]
     with np.errstate(all="ignore"):
         a_raw = angular_acceleration_versions(pos, vel, acc, omega)
     a_s = smooth_versions(a_raw, span=smooth_span)
     a_ls = angular_acceleration_lstsq(pos, acc, omega)
     a_ls_s = smooth_versions(a_ls[None], span=smooth_span)[0]
-    alpha = {"thesis": average_versions(a_s, a_use), "lstsq": a_ls_s, "rotation": a_rot}[method]
-    sb = saddle_in_body_versions(model, s_saddle)
-    sk = saddle_kinematics(pos, vel, acc, omega, alpha, sb)
-    # the saddle path for the direct fits: eq. 6.48 with the per-frame pose
-    # ("direct"), or with the fitted orientation and the markers' centroid
-    # ("pose"): p_S = R_fit(t) (s - mean(model)) + mean_m r_m(t)
-    path = sk.position
-    if saddle_method == "pose":
-        path = (np.einsum("kij,j->ki", rfit.rotation(t), s_saddle - model.mean(0))
-                + np.where(ok[:, None], pos.mean(1), np.nan))
-    sfit = fitting.fit_motion(t, np.where(ok[:, None], path, np.nan)[:, None, :], x_degree=x_degree,
-                              orders=None if s_orders is None else np.asarray(s_orders, int)[None],
-                              rule=order_rule, w0=w0, start=fourier_start, trend=fourier_trend)
-    return (reg, pos, vel, acc, mf, w_raw, w_s, a_raw, a_s, w_ls_s, a_ls_s, omega, alpha, rfit, w_rot, a_rot,
-            w_use, a_use, sb, sk, sfit, path)
+    alpha = {"thesis": average_versions(a_s, a_use), "lstsq": a_ls_s, "rotation": a_rot}[fits.angular_method]
+    return dict(omega_raw=w_raw, omega_versions=w_s, alpha_raw=a_raw, alpha_versions=a_s, omega_lstsq=w_ls_s,
+                alpha_lstsq=a_ls_s, omega=omega, alpha=alpha, rotation_fit=rfit, omega_rotation=w_rot,
+                alpha_rotation=a_rot, omega_use=w_use, alpha_use=a_use)
+
+
+# --------------------------------------------------------------------------
+# how far the step's results can be trusted
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Conditioning:
+    """Per-frame conditioning of a :class:`RigidBodyAnalysis` (:func:`conditioning`).
+
+    Attributes
+    ----------
+    singularity_deg : (n,)
+        Eq. 6.35: the angle between the omega passed on and the markers'
+        plane normal (the thesis versions fail near 90 degrees).
+    triangle_height_m : (n,)
+        Smallest height of the marker triangle used by each frame's pose
+        (:func:`horsemocap.pose.smallest_height`); NaN where fewer than 3 markers.
+    registration_rms_m : (n,)
+        RMS distance of the markers from the registered model.
+    registration_n_markers : (n,) int
+        Markers registered in each frame.
+    noise_m : float
+        Marker noise estimated from the registration residuals.
+    warnings : list of str
+        Messages when these make the result unreliable.
+    """
+
+    singularity_deg: np.ndarray
+    triangle_height_m: np.ndarray
+    registration_rms_m: np.ndarray
+    registration_n_markers: np.ndarray
+    noise_m: float
+    warnings: list
+
+
+def conditioning(analysis: RigidBodyAnalysis) -> Conditioning:
+    """How well the marker geometry and the motion condition the step's results, frame by frame.
+
+    The eq. 6.35 angle of the omega passed on (of the pose trajectory's
+    markers with ``kinematics="pose_spline"``), the marker triangle's
+    smallest height, the registration residual, and the warnings of
+    :func:`horsemocap.pose.conditioning_warnings` (a thin triangle: the
+    rotation about its long side is noisy, and the saddle far from the
+    markers moves with it); with the thesis' own chain
+    (``kinematics="fits"``, ``angular_method="thesis"``) also a warning when
+    omega comes within 15 degrees of the markers' plane
+    (:func:`singularity_report`).
+
+    Parameters
+    ----------
+    analysis : RigidBodyAnalysis
+
+    Returns
+    -------
+    Conditioning
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.params import PoseParams, RigidBodyParams
+    >>> from scipy.spatial.transform import Rotation
+    >>> t = np.arange(50) / 25.0
+    >>> body = np.array([[-0.3, 0.0, 0.0], [0.0, 0.05, 0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.0]])
+    >>> R = Rotation.from_rotvec(np.outer(0.1 * np.sin(2 * np.pi * t), [0, 1, 0])).as_matrix()
+    >>> moved = np.einsum("kij,mj->kmi", R, body) + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> res = analyse_rigid_body(t, moved[:, :3], body, RigidBodyParams(pose=PoseParams(smoothing="none")))
+    >>> cond = conditioning(res)
+    >>> cond.registration_n_markers[:3].tolist(), cond.warnings
+    ([3, 3, 3], [])
+    """
+    rb = analysis
+    preg = rb.pose_registration
+    k = rb.pose_markers.position if rb.pose_markers is not None else rb.registration.registered
+    sing = singularity_angle(k[:, :3], rb.omega)
+    height = preg.height.copy()
+    height[preg.n_markers < 3] = np.nan
+    lever = float(np.linalg.norm(rb.static_saddle - rb.model.mean(0)))
+    warn = conditioning_warnings(preg, lever)
+    if rb.kinematics == "fits" and rb.method == "thesis":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rep = singularity_report(sing, warn=False)
+        if rep["fraction"] > 0:
+            warn.append(f"omega within 15 deg of the markers' plane in {100 * rep['fraction']:.0f} % of the frames "
+                        f"(closest {rep['min_margin_deg']:.1f} deg): the thesis versions (eq. 6.3/6.4, 6.38/6.39) "
+                        "are unreliable there (eq. 6.35); use kinematics 'pose_spline'")
+    return Conditioning(singularity_deg=sing, triangle_height_m=height, registration_rms_m=preg.rms,
+                        registration_n_markers=preg.n_markers, noise_m=preg.noise_m, warnings=warn)
+
+
+def saddle_angles(analysis: RigidBodyAnalysis) -> np.ndarray:
+    """Roll, pitch, yaw (deg) of the saddle in the motion frame, per frame (n, 3).
+
+    Body axes from the static shot (:func:`horsemocap.pose.static_body_axes`:
+    as seed 004 takes body planes from a default pose), then rotated by the
+    body's pose in each frame: the smoothed pose trajectory's when there is
+    one, else the per-frame registration's
+    (:func:`horsemocap.pose.saddle_angles_deg`).
+
+    Parameters
+    ----------
+    analysis : RigidBodyAnalysis
+
+    Returns
+    -------
+    (n, 3) ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.params import PoseParams, RigidBodyParams
+    >>> from scipy.spatial.transform import Rotation
+    >>> t = np.arange(50) / 25.0
+    >>> body = np.array([[-0.3, 0.0, 0.0], [0.0, 0.05, 0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.0]])
+    >>> yaw = 0.1 * np.sin(2 * np.pi * t)
+    >>> R = Rotation.from_rotvec(np.outer(yaw, [0, 1, 0])).as_matrix()
+    >>> moved = np.einsum("kij,mj->kmi", R, body) + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> res = analyse_rigid_body(t, moved[:, :3], body, RigidBodyParams(pose=PoseParams(smoothing="none")))
+    >>> bool(np.allclose(saddle_angles(res)[:, 2], np.degrees(yaw), atol=1e-6))
+    True
+    """
+    rb = analysis
+    axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
+    R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
+    return saddle_angles_deg(R, axes0)

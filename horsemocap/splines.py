@@ -35,9 +35,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from math import factorial
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
+from scipy.linalg import solve_triangular
 from scipy.optimize import minimize_scalar
 
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
@@ -64,8 +66,8 @@ periodogram's peaks."""
 GCV_GAMMA = 1.4
 """Cost of a degree of freedom in the GCV score ``n RSS / (n - gamma tr H)^2``: 1.4, the
 value Kim and Gu (2004, J. R. Statist. Soc. B 66, 337-356) recommend against GCV's known
-tendency to undersmooth; with plain GCV (1.0) the roll of the Horse 1 canter record (41 frames)
-was left almost unsmoothed (saddle vertical acceleration 63 % off, 12.9 % with 1.4)."""
+tendency to undersmooth (with plain GCV, 1.0, the roll of a short record can be left almost
+unsmoothed)."""
 
 
 class ChangePointError(ValueError):
@@ -131,8 +133,6 @@ def truncated_power_columns(t, times, degree: int = 2, derivative: int = 0) -> n
     """``(t - tau_j)_+^degree`` for each ``tau_j`` in ``times`` (n, J), or their ``derivative``-th
     derivatives (``degree! / (degree - d)! (t - tau)_+^(degree - d)``; the ``degree``-th is a step,
     higher ones zero away from ``tau``)."""
-    from math import factorial
-
     t = np.asarray(t, float)
     times = np.atleast_1d(np.asarray(times, float))
     if derivative > degree:
@@ -356,8 +356,6 @@ def _mixed_model_coefficients(s, Wt, z, lam, Q1, Rx, yw, Zw, penalty_basis):
     """The fit at ``lam`` of the mixed-model form: the spline's coefficients ``c`` and the
     unpenalised columns' ``beta`` (``penalty_basis`` = ``(U0, Up, dp)``, the penalty's null and
     positive eigenvectors and eigenvalues; the first ``U0.shape[1]`` entries of ``beta`` are U0's)."""
-    from scipy.linalg import solve_triangular
-
     U0, Up, dp = penalty_basis
     u = Wt.T @ (s / (s * s + lam) * z)
     beta = solve_triangular(Rx, Q1.T @ (yw - Zw @ u))
@@ -475,10 +473,8 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 2.0, max_hz: float | None 
     min_cycles : float
         The lowest frequency tried has this many cycles in the record. Default 2: the record
         must show its motion repeat once whole. With 1.5 a frequency near the lowest tried,
-        with many harmonics, fitted a short record's non-periodic part: the virtual hard session
-        sitting640_stirrup_30 (75 frames at 30 fps, 3.5 strides of 1.4 Hz) took 0.700 Hz, and
-        its saddle acceleration was 11.8 % off (2.1 % with 1.4 Hz); the 16 herd sessions and the
-        other hard sessions found the same frequency either way.
+        with many harmonics, can fit a short record's non-periodic part (half the stride
+        frequency taken on a record of a few strides).
     max_hz : float, optional
         Highest frequency tried (default a fifth of the sampling rate).
     max_order : int
@@ -495,9 +491,8 @@ def estimate_fundamental(t, Y, *, min_cycles: float = 2.0, max_hz: float | None 
     ------
     ValueError
         A record too short for ``min_cycles`` cycles, or no period resolved: the best frequency
-        is the lowest tried (the bound of the search; a non-periodic record: issue 13's lift with
-        ringing cut to 2 s took 1.005 Hz with 2 cycles, 0.754 Hz with 1.5, and two harmonics of
-        1.005 Hz in the rotation about z made its omega error 20 % larger than plain splines').
+        is the lowest tried (the bound of the search: a non-periodic record, whose "harmonics"
+        would only fit its trend).
     """
     t = np.asarray(t, float)
     Y = np.asarray(Y, float).reshape(t.size, -1)
@@ -586,12 +581,10 @@ def _significant_harmonics(x, y, w, fundamental_hz, candidates, noise):
     A partial spline takes an unpenalised harmonic whole, and a periodic error of the measurement
     (a detection bias repeating with the stride) with it: repeating with the stride, it does not
     average out over strides, so no number of cycles tells it from motion, and a test against the
-    residual variance (an F test per harmonic) keeps it (measured: Horse 1 canter, F = 9.2 for a
-    3rd harmonic of phiz that is 0.22 deg of error on 0.001 deg of motion). Its size is at most
-    that of the per-sample noise (``noise``, measured elsewhere: the registration residual
-    propagated to the component), so a harmonic smaller than that noise's standard deviation is
-    left to the penalised spline (one standard deviation; on the 16 herd sessions any factor
-    from 0.6 to 1.25 gives the same choices)."""
+    residual variance (an F test per harmonic) keeps it. Its size is at most that of the
+    per-sample noise (``noise``, known from elsewhere: the registration residual propagated to the
+    component), so a harmonic smaller than that noise's standard deviation (one standard
+    deviation) is left to the penalised spline."""
     K = max(candidates)
     if 3 + 2 * K >= x.size - 2:
         return [], np.zeros(0)       # too few samples to measure the amplitudes: no harmonic
@@ -756,7 +749,7 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         value from before the jump (``(t - tau)_+^0 = 0`` there): an event placed exactly on a sample
         leaves that sample on the calm side, one placed a hair before it moves the sample to the other
         side, and on a sharp onset that one sample can change the record's acceleration error by several
-        points (issue 13's fixture: 15.5 % with the event at the sample, 23.1 % 4e-16 s before it).
+        points.
     """
     x = np.asarray(t, float)
     y = np.asarray(y, float)
@@ -855,10 +848,9 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
     harmonics' choice, is invariant to their scale). After each fit the standardised residuals
     ``z_i = r_i / sqrt(variance_i)`` are compared with their robust scale ``s = 1.4826 median |z| /
     sqrt(1 - edf / n)`` (the normal-consistent MAD, corrected for the residuals of a smoother being
-    smaller than the noise by about that factor; without it the calibrated test below sat 12 % low
-    and at 3 px took a harmonic the noise made: 140 % against 71 %; on 42 samples with edf 16 the
-    corrected scale of noise given right is 1.03, uncorrected 0.80; the factor over-corrects where the
-    smoother takes more than half the samples, 1.39 at edf 34 of 60), and a sample with ``|z_i| > huber_k s`` has its weight multiplied by
+    smaller than the noise by about that factor; without it the calibrated test below sits low and
+    can take a harmonic the noise made; the factor over-corrects where the smoother takes more than
+    half the samples), and a sample with ``|z_i| > huber_k s`` has its weight multiplied by
     ``huber_k s / |z_i|`` (Huber's weights; Huber 1981, sec. 7.8; for smoothing splines Cox 1983,
     Ann. Statist. 11, 530-551): a sample whose error the linearised prediction underestimates (a
     registration far from its linear regime) no longer pulls the spline. ``iterations`` reweighted
@@ -872,8 +864,8 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
     scale ``s`` of the previous fit's standardised residuals (the prediction corrected by what the
     residuals show: ``s`` is 1 when the predicted variances are right) and tries every harmonic that
     passes, below 0.4 of the sampling rate, without ``harmonic_cutoff``: the plain spline's cutoff
-    is set by the noise of the worst frames (which the weights discount) and fell below a stride
-    harmonic carrying 29 % of the saddle acceleration (Horse 2 canter at 0.25 px, seed 2). With
+    is set by the noise of the worst frames (which the weights discount) and can fall below a stride
+    harmonic that carries much of the saddle acceleration. With
     ``iterations=0`` it is "unit weight".
 
     Parameters

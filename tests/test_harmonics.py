@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from horsemocap import pose, splines, synthetic
-from horsemocap.params import AnalysisParams, ParamsError
+from horsemocap.params import AnalysisParams, ParamsError, PoseParams
 
 
 def _motion(t, f0):
@@ -142,8 +142,8 @@ def test_exact_periodic_rigid_motion_gives_exact_derivatives_at_the_ends(harmoni
     vector is about it: compare omega and the centroid's acceleration)."""
     t, pts, model, phi, c = _periodic_rigid_motion()
     reg = pose.register_pose(pts, model)
-    tr = pose.fit_pose_trajectory(t, reg, model, harmonics=harmonics, fundamental_hz=1.4)
-    est = pose.fit_pose_trajectory(t, reg, model, harmonics=harmonics)
+    tr = pose.fit_pose_trajectory(t, reg, model, PoseParams(harmonics=harmonics), fundamental_hz=1.4)
+    est = pose.fit_pose_trajectory(t, reg, model, PoseParams(harmonics=harmonics))
     w = 2 * np.pi * 1.4
     c2 = np.column_stack([-0.04 * w ** 2 * np.sin(w * t), -0.02 * (2 * w) ** 2 * np.sin(2 * w * t)
                           - 0.002 * (4 * w) ** 2 * np.sin(4 * w * t + 1), -0.015 * w ** 2 * np.sin(w * t + 0.5)])
@@ -163,12 +163,12 @@ def test_exact_periodic_rigid_motion_gives_exact_derivatives_at_the_ends(harmoni
 def test_non_periodic_ringing_record_keeps_plain_splines_where_harmonics_do_not_help():
     d = synthetic.lift_with_ringing(seed=0, duration_s=2.0)
     reg = pose.register_pose(d["markers"], d["model"])
-    plain = pose.fit_pose_trajectory(d["t"], reg, d["model"], harmonics="none")
-    auto = pose.fit_pose_trajectory(d["t"], reg, d["model"], harmonics="auto")
+    plain = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(harmonics="none"))
+    auto = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(harmonics="auto"))
     err = lambda tr: np.sqrt(np.mean(np.sum((tr.omega(d["t"]) - d["omega"]) ** 2, -1)))  # noqa: E731
     assert err(auto) < 1.2 * err(plain)
     with pytest.raises(ValueError, match="harmonics"):
-        pose.fit_pose_trajectory(d["t"], reg, d["model"], harmonics="yes")
+        pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(harmonics="yes"))
 
 
 def test_pose_harmonics_parameter_is_validated():

@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from horsemocap import frames, pose, splines, synthetic
 from horsemocap.camera import axis_rotations
+from horsemocap.params import PoseParams
 
 from test_rigid import random_rigid_motion
 
@@ -23,7 +24,7 @@ def test_exact_rigid_motion_gives_exact_derivatives(seed):
     model = m["body"]
     reg = pose.register_pose(m["pos"], model)
     assert np.nanmax(reg.residual) < 1e-12
-    tr = pose.fit_pose_trajectory(m["t"], reg, model, smoothing="none")
+    tr = pose.fit_pose_trajectory(m["t"], reg, model, PoseParams(smoothing="none"))
     t = m["t"]
     assert _rel(tr.omega(t), m["omega"]) < 1e-4
     assert _rel(tr.alpha(t)[5:-5], m["alpha"][5:-5]) < 1e-3
@@ -37,7 +38,7 @@ def test_gcv_on_exact_motion_stays_exact():
     """With no noise, cross-validation chooses (almost) no smoothing."""
     m = random_rigid_motion(np.random.default_rng(7), n=200, markers=3, duration=1.0)
     reg = pose.register_pose(m["pos"], m["body"])
-    tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], smoothing="gcv")
+    tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="gcv"))
     assert _rel(tr.omega(m["t"]), m["omega"]) < 1e-3
 
 
@@ -74,7 +75,7 @@ def test_missing_marker_still_gives_a_pose_and_gaps_are_reasoned():
     np.testing.assert_allclose(reg.registered[10:20], m["pos"][10:20], atol=1e-9)
     assert np.all(reg.n_markers[10:20] == 3)
     assert reg.reason[40].startswith("only 2 marker(s) visible")
-    tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], smoothing="none")
+    tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="none"))
     assert tr.valid[40] and "bridged gap of 2" in tr.reason[40]
     assert not tr.valid[75] and "gap of 20 frames" in tr.reason[75]
     assert np.all(np.isnan(tr.omega(m["t"])[75]))
@@ -227,7 +228,8 @@ def test_frames_with_two_markers_beyond_the_ends_reduce_the_end_error():
         reg = pose.register_pose(pts, m["body"])
         inner = slice(4, -4)
         for partial in (True, False):
-            tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], smoothing="gcv", points=pts, partial=partial)
+            tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="gcv", partial_frames=partial),
+                                          points=pts)
             k = tr.points(m["t"], m["body"])
             errs[partial].append(_rel(k.acceleration[inner], m["acc"][inner]))
             if partial:

@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from horsemocap import pose, synthetic
-from horsemocap.params import AnalysisParams
+from horsemocap.params import AnalysisParams, PoseParams
 
 MODEL = np.array([[0.20, 0.10, 0.15], [-0.20, 0.10, 0.15], [0.05, 0.10, -0.15], [-0.20, -0.02, -0.15]])
 
@@ -39,7 +39,7 @@ def test_periodic_record_gets_gcv_with_harmonics_bit_identical():
     t, mk = _periodic_record()
     reg = pose.register_pose(mk, MODEL)
     auto = pose.fit_pose_trajectory(t, reg, MODEL)
-    gcv = pose.fit_pose_trajectory(t, reg, MODEL, smoothing="gcv")
+    gcv = pose.fit_pose_trajectory(t, reg, MODEL, PoseParams(smoothing="gcv"))
     for a, b in zip(_coefficients(auto), _coefficients(gcv)):
         assert np.array_equal(a, b)
     info = auto.smoothing["cy"]
@@ -53,8 +53,8 @@ def test_non_periodic_record_gets_adaptive_and_explicit_gcv_stays_gcv():
     d = synthetic.lift_with_ringing(seed=0)
     reg = pose.register_pose(d["markers"], d["model"])
     auto = pose.fit_pose_trajectory(d["t"], reg, d["model"])
-    adaptive = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="adaptive")
-    gcv = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="gcv")
+    adaptive = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(smoothing="adaptive"))
+    gcv = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(smoothing="gcv"))
     for a, b in zip(_coefficients(auto), _coefficients(adaptive)):
         assert np.array_equal(a, b)
     assert {v["smoothing_method"] for v in auto.smoothing.values()} == {"adaptive"}
@@ -66,8 +66,8 @@ def test_non_periodic_record_gets_adaptive_and_explicit_gcv_stays_gcv():
 def test_auto_with_events_is_the_adaptive_spline_with_them():
     d = synthetic.lift_with_ringing(duration_s=2.0, ring_start_s=1.2, seed=0)
     reg = pose.register_pose(d["markers"], d["model"])
-    auto = pose.fit_pose_trajectory(d["t"], reg, d["model"], events=[1.2])
-    adaptive = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="adaptive", events=[1.2])
+    auto = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(events=[1.2]))
+    adaptive = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(smoothing="adaptive", events=[1.2]))
     for a, b in zip(_coefficients(auto), _coefficients(adaptive)):
         assert np.array_equal(a, b)
     assert auto.smoothing["cy"]["events"] == [1.2]

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from horsemocap import pose, splines, synthetic
+from horsemocap.params import PoseParams
 
 
 def _jump_signal(t, tau):
@@ -73,7 +74,7 @@ def test_pose_trajectory_with_event_gives_exact_derivatives(method):
     tau = 1.004
     t, markers, model, acc = _rigid_with_jump(tau)
     reg = pose.register_pose(markers, model)
-    tr = pose.fit_pose_trajectory(t, reg, model, smoothing=method, harmonics="none", events=[tau])
+    tr = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing=method, harmonics="none", events=[tau]))
     away = (np.abs(t - tau) > 0.02) & (t > 0.05) & (t < t[-1] - 0.05)
     assert np.max(np.abs(tr.centre(t, 2)[:, 1] - acc)[away]) < 0.05
     assert np.max(np.abs(tr.centre(t, 2)[:, 0])[away]) < 0.05
@@ -86,7 +87,7 @@ def test_pose_events_need_a_spline_without_harmonics():
     d = synthetic.lift_with_ringing(duration_s=2.0, ring_start_s=1.2, seed=0)
     reg = pose.register_pose(d["markers"], d["model"])
     with pytest.raises(ValueError, match="events"):
-        pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="gcv", order=3, events=[1.2])
+        pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(smoothing="gcv_cubic", events=[1.2]))
 
 
 def test_pose_events_parameter_reaches_the_pipelines_pose_smoothing():

@@ -15,6 +15,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from horsemocap import pose, splines
+from horsemocap.params import PoseParams
 
 F0 = 1.67
 T = np.arange(42) / 30.0     # the bundled session's length: 42 frames at 30 Hz, 2.3 strides
@@ -168,14 +169,14 @@ def test_fit_pose_trajectory_weights_the_rotation_by_the_predicted_variance():
     t = np.arange(n) / 30.0
     _, acc = _signal(t)
     auto = pose.fit_pose_trajectory(t, reg, MODEL, fundamental_hz=F0)
-    equal = pose.fit_pose_trajectory(t, reg, MODEL, fundamental_hz=F0, rotation_weights="equal")
+    equal = pose.fit_pose_trajectory(t, reg, MODEL, PoseParams(rotation_weights="equal"), fundamental_hz=F0)
     e_auto = _rms(auto.rotvec(t, 2)[:, 2] - acc)
     e_equal = _rms(equal.rotvec(t, 2)[:, 2] - acc)
     assert e_auto < 0.6 * e_equal
     assert auto.smoothing["phiz"]["weights"] == "inverse variance, Huber"
     assert "weights" not in equal.smoothing["phiz"]
     with pytest.raises(ValueError, match="rotation_weights"):
-        pose.fit_pose_trajectory(t, reg, MODEL, rotation_weights="variance")
+        pose.fit_pose_trajectory(t, reg, MODEL, PoseParams(rotation_weights="variance"))
 
 
 def test_calibrated_harmonic_noise_is_the_noise_the_residuals_show():

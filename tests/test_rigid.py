@@ -7,8 +7,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from scipy.spatial.transform import Rotation
+
 from horsemocap import rigid
 from horsemocap.camera import axis_rotations
+from horsemocap.params import FitsParams, PoseParams, RigidBodyParams
+
+
+def _rotation_of_quaternion(q):
+    """Rotation matrix of a quaternion written scalar first, as the thesis does (eq. 5.15, 5.16)."""
+    return Rotation.from_quat(np.roll(q, -1)).as_matrix()
+
+
+def _params(kinematics="fits", angular_method="thesis", x_degree=1, pose_smoothing="adaptive"):
+    """The section with the choices that were ``analyse_rigid_body``'s defaults before it took a section
+    (the thesis' chain, its six versions averaged, adaptive pose smoothing without partial frames)."""
+    return RigidBodyParams(kinematics=kinematics, fits=FitsParams(x_degree=x_degree, angular_method=angular_method),
+                           pose=PoseParams(smoothing=pose_smoothing, partial_frames=False))
 
 
 # --------------------------------------------------------------------------
@@ -97,7 +112,7 @@ def test_register_noisy_is_rigid_and_reduces_error():
     k = 3
     f0 = np.mean(np.sum((noisy[k] - reg.registered[k]) ** 2, 1))
     for _ in range(20):
-        dR = rigid.quaternion_to_matrix(np.r_[1, rng.normal(0, 1e-3, 3)])
+        dR = _rotation_of_quaternion(np.r_[1, rng.normal(0, 1e-3, 3)])
         x = reg.registered[k] @ dR.T + rng.normal(0, 1e-4, 3)
         assert np.mean(np.sum((noisy[k] - x) ** 2, 1)) > f0
 
@@ -207,7 +222,7 @@ def test_saddle_kinematics_exact(seed):
     saddle during the motion (eq. 6.48-6.55) equals the truth for every base."""
     rng = np.random.default_rng(seed)
     m = random_rigid_motion(rng, markers=4)
-    Rs = rigid.quaternion_to_matrix(rng.normal(size=4))
+    Rs = _rotation_of_quaternion(rng.normal(size=4))
     static = m["body"] @ Rs.T + rng.normal(0, 1, 3)
     sb = rigid.saddle_in_body(static[:3], static[3])
     pos, vel, acc = m["pos"][:, :3], m["vel"][:, :3], m["acc"][:, :3]
@@ -239,7 +254,7 @@ def _periodic_fixed_axis_motion(n=38, fps=30.0, seed=0):
     w = 2 * np.pi * 30 / 18 / 1.0                  # 18-frame period as in the thesis
     axis = rng.normal(size=3)
     axis /= np.linalg.norm(axis)
-    R0 = rigid.quaternion_to_matrix(rng.normal(size=4))
+    R0 = _rotation_of_quaternion(rng.normal(size=4))
     th_ab = rng.normal(0, 0.05, (2, 2))
     def series(ab, d):
         out = np.zeros_like(t)
@@ -249,7 +264,7 @@ def _periodic_fixed_axis_motion(n=38, fps=30.0, seed=0):
             out += [a * c + b * s_, k * (-a * s_ + b * c), -k * k * (a * c + b * s_)][d]
         return out
     th, thd, thdd = (series(th_ab, d) for d in range(3))
-    R = R0 @ rigid._exp_rotation(axis[None] * th[:, None])
+    R = R0 @ Rotation.from_rotvec(axis[None] * th[:, None]).as_matrix()
     omega = (R0 @ axis)[None] * thd[:, None]
     alpha = (R0 @ axis)[None] * thdd[:, None]
     c_ab = rng.normal(0, 0.03, (3, 2, 2))
@@ -275,8 +290,8 @@ def test_analyse_rigid_body_noise_free():
     static = body[[3, 1, 0, 2]] + [0.3, 1.2, 7.0]              # arbitrary order, another place
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, method="rotation", orders=2,
-                                       period_s=2 * np.pi / m["w"])
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, _params(angular_method="rotation"),
+                                       fourier_orders=rigid.FourierOrders(markers=2), period_s=2 * np.pi / m["w"])
     assert res.static_index.tolist() == [2, 1, 3] and res.saddle_index == 0
     np.testing.assert_allclose(res.registration.registered, pos[:, :3], atol=1e-12)
     np.testing.assert_allclose(res.saddle.position, pos[:, 3], atol=1e-12)
@@ -340,7 +355,7 @@ def _saddle_errors(truth, pts, static, conv):
     t = np.arange(len(pts)) / float(truth.fps)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        res = rigid.analyse_rigid_body(t, pts, static)
+        res = rigid.analyse_rigid_body(t, pts, static, _params())
     ay = conv(truth.saddle_acc)[:, 1]
     rmse = np.sqrt(np.mean((res.saddle_acceleration[:, 1] - ay) ** 2))
     rms = np.sqrt(np.mean(ay ** 2))
@@ -409,7 +424,7 @@ def test_ui_versions_and_methods():
     from horsemocap.params import AnalysisParams
 
     assert widgets.ui_angular_method().value == AnalysisParams().angular_method
-    assert widgets.ui_saddle_method().value == "pose"        # = analyse_rigid_body's default
+    assert widgets.ui_saddle_method().value == FitsParams().saddle_method
 
 
 def test_rigid_plots_return_figures():
@@ -441,12 +456,14 @@ def test_fit_options_reach_every_fit_and_the_pose_path():
     static = body[[3, 1, 0, 2]] + [0.3, 1.2, 7.0]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, orders=3, x_degree=2)
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, _params(x_degree=2),
+                                       fourier_orders=rigid.FourierOrders(markers=3))
         assert res.rotation_fit.orders.tolist() == [3, 3, 3]
         assert res.saddle_fit.orders.tolist() == [[2, 3, 3]] and res.motion_fit.orders[:, 0].tolist() == [2, 2, 2]
-        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, rotation_orders=[1, 2, 4], saddle_orders=[2, 5])
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, _params(),
+                                       fourier_orders=rigid.FourierOrders(rotation=[1, 2, 4], saddle=[2, 5]))
         assert res.rotation_fit.orders.tolist() == [1, 2, 4] and res.saddle_fit.orders[0, 1:].tolist() == [2, 5]
-        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, kinematics="pose_spline", pose_smoothing="none")
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, _params("pose_spline", pose_smoothing="none"))
     assert res.kinematics == "pose_spline" and res.pose is not None
     np.testing.assert_allclose(res.saddle_position, pos[:, 3], atol=1e-9)
     # interpolating quintic splines of 38 samples (about 2 periods): spline precision, not exact

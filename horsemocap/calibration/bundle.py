@@ -411,90 +411,135 @@ def bundle_adjust(views: list[BoardViews], singles: list[IntrinsicResult], board
     -----
     Runs with one BLAS thread (:data:`horsemocap.threads.blas_single_threaded`): its normal
     equations have a few hundred columns, where a second BLAS thread costs more processor time
-    than it saves (measured in :mod:`horsemocap.threads`).
+    than it saves (:mod:`horsemocap.threads`).
     """
-    nc = len(views)
     nv = len(views[0].names)
     if any(len(v.names) != nv for v in views):
         raise CalibrationError("bundle_adjust: every camera needs the same list of views")
     used = np.array([s.used for s in singles])
     cam_r, cam_t, view_r, view_t = initial_poses(singles, used)
-    active = np.flatnonzero(used.any(axis=0))
     free_int = np.ones(9, bool)
     if fix_k3:
         free_int[8] = False
     if fix_intrinsics:
         free_int[:] = False
-    nfi = int(free_int.sum())
-    # parameter vector: [intrinsics of each camera (free ones)] [pose of cameras 1..] [pose of active views]
-    intr0 = np.array([[s.matrix[0, 0], s.matrix[1, 1], s.matrix[0, 2], s.matrix[1, 2], *s.distortions]
-                      for s in singles])
-    off_cam = nc * nfi
-    off_view = off_cam + 6 * (nc - 1)
-    vpos = {v: off_view + 6 * j for j, v in enumerate(active)}
-    npar = off_view + 6 * len(active)
+    layout = _BundleLayout(len(views), nv, free_int, np.flatnonzero(used.any(axis=0)),
+                           np.array([[s.matrix[0, 0], s.matrix[1, 1], s.matrix[0, 2], s.matrix[1, 2], *s.distortions]
+                                     for s in singles]))
+    obs = [(c, v) for c in range(layout.nc) for v in layout.active if used[c, v]]
 
-    def pack(intr, cr, ct, vr, vt):
-        x = np.empty(npar)
+    def residuals_normal(x, want_normal=True):
+        return _normal_equations(layout, x, views, obs, board_pts, want_normal)
+
+    x0 = layout.pack(layout.intr0, cam_r, cam_t, view_r, view_t)
+    x, r, A, cost, it = _levenberg_marquardt(residuals_normal, x0, max_iter, tol)
+    return _bundle_result(layout, x, r, A, cost, it, views, singles, used, obs)
+
+
+@dataclass(frozen=True)
+class _BundleLayout:
+    """Where the unknowns of :func:`bundle_adjust` sit in its parameter vector:
+    ``[free intrinsics of each camera] [pose of cameras 1..] [pose of each active view]``."""
+
+    nc: int
+    nv: int
+    free_int: np.ndarray
+    active: np.ndarray
+    intr0: np.ndarray
+
+    @property
+    def nfi(self) -> int:
+        """Free intrinsics per camera."""
+        return int(self.free_int.sum())
+
+    @property
+    def off_cam(self) -> int:
+        """Index of the first camera pose."""
+        return self.nc * self.nfi
+
+    @property
+    def off_view(self) -> int:
+        """Index of the first view pose."""
+        return self.off_cam + 6 * (self.nc - 1)
+
+    @property
+    def vpos(self) -> dict:
+        """Index of each active view's pose."""
+        return {v: self.off_view + 6 * j for j, v in enumerate(self.active)}
+
+    @property
+    def npar(self) -> int:
+        return self.off_view + 6 * len(self.active)
+
+    def pack(self, intr, cr, ct, vr, vt) -> np.ndarray:
+        nc, nfi, off_cam = self.nc, self.nfi, self.off_cam
+        x = np.empty(self.npar)
         for c in range(nc):
-            x[c * nfi:(c + 1) * nfi] = intr[c][free_int]
+            x[c * nfi:(c + 1) * nfi] = intr[c][self.free_int]
         for c in range(1, nc):
             x[off_cam + 6 * (c - 1): off_cam + 6 * c] = np.r_[cr[c], ct[c]]
-        for v, p in vpos.items():
+        for v, p in self.vpos.items():
             x[p:p + 6] = np.r_[vr[v], vt[v]]
         return x
 
-    def unpack(x):
-        intr = intr0.copy()
+    def unpack(self, x):
+        nc, nfi, off_cam = self.nc, self.nfi, self.off_cam
+        intr = self.intr0.copy()
         for c in range(nc):
-            intr[c][free_int] = x[c * nfi:(c + 1) * nfi]
+            intr[c][self.free_int] = x[c * nfi:(c + 1) * nfi]
         cr, ct = np.zeros((nc, 3)), np.zeros((nc, 3))
         for c in range(1, nc):
             seg = x[off_cam + 6 * (c - 1): off_cam + 6 * c]
             cr[c], ct[c] = seg[:3], seg[3:]
-        vr, vt = np.full((nv, 3), np.nan), np.full((nv, 3), np.nan)
-        for v, p in vpos.items():
+        vr, vt = np.full((self.nv, 3), np.nan), np.full((self.nv, 3), np.nan)
+        for v, p in self.vpos.items():
             vr[v], vt[v] = x[p:p + 6][:3], x[p:p + 6][3:]
         return intr, cr, ct, vr, vt
 
-    obs = [(c, v) for c in range(nc) for v in active if used[c, v]]
+
+def _camera_matrix(intr_c) -> np.ndarray:
+    """``KK`` of one camera's intrinsics ``fx, fy, cx, cy, ...``."""
+    return np.array([[intr_c[0], 0, intr_c[2]], [0, intr_c[1], intr_c[3]], [0, 0, 1.0]])
+
+
+def _normal_equations(layout: _BundleLayout, x, views, obs, board_pts, want_normal=True):
+    """Residuals, and the Gauss-Newton normal equations ``(J^T J, J^T r)``: each observation's
+    Jacobian is dense in its own columns (its camera's intrinsics and pose, its view's pose),
+    so its block ``J_k^T J_k`` is added where those columns meet (no sparse ``J`` is built)."""
+    intr, cr, ct, vr, vt = layout.unpack(x)
+    nfi, off_cam, vpos, npar = layout.nfi, layout.off_cam, layout.vpos, layout.npar
     npts = board_pts.shape[0]
+    res = np.empty(2 * npts * len(obs))
+    A, g = (np.zeros((npar, npar)), np.zeros(npar)) if want_normal else (None, None)
+    for k, (c, v) in enumerate(obs):
+        (r3, t3, dr3dr1, dr3dt1, dr3dr2, dr3dt2, dt3dr1, dt3dt1, dt3dr2, dt3dt2) = cv2.composeRT(
+            vr[v], vt[v], cr[c], ct[c])
+        proj, jac = cv2.projectPoints(board_pts, r3, t3, _camera_matrix(intr[c]), intr[c, 4:9])
+        rk = (proj.reshape(-1, 2) - views[c].corners[v]).ravel()
+        res[2 * npts * k:2 * npts * (k + 1)] = rk
+        if not want_normal:
+            continue
+        Jr, Jt = jac[:, 0:3], jac[:, 3:6]
+        Jint = jac[:, 6:15]  # fx fy cx cy k1 k2 p1 p2 k3
+        blocks, cols = [], []
+        if nfi:
+            blocks.append(Jint[:, layout.free_int])
+            cols.append(c * nfi + np.arange(nfi))
+        if c > 0:
+            blocks += [Jr @ dr3dr2 + Jt @ dt3dr2, Jr @ dr3dt2 + Jt @ dt3dt2]
+            cols.append(off_cam + 6 * (c - 1) + np.arange(6))
+        blocks += [Jr @ dr3dr1 + Jt @ dt3dr1, Jr @ dr3dt1 + Jt @ dt3dt1]
+        cols.append(vpos[v] + np.arange(6))
+        Jk, cols = np.hstack(blocks), np.concatenate(cols)
+        A[np.ix_(cols, cols)] += Jk.T @ Jk
+        g[cols] += Jk.T @ rk
+    return res, (A, g)
 
-    def residuals_normal(x, want_normal=True):
-        """Residuals, and the Gauss-Newton normal equations ``(J^T J, J^T r)``: each observation's
-        Jacobian is dense in its own columns (its camera's intrinsics and pose, its view's pose),
-        so its block ``J_k^T J_k`` is added where those columns meet (no sparse ``J`` is built)."""
-        intr, cr, ct, vr, vt = unpack(x)
-        res = np.empty(2 * npts * len(obs))
-        A, g = (np.zeros((npar, npar)), np.zeros(npar)) if want_normal else (None, None)
-        for k, (c, v) in enumerate(obs):
-            K = np.array([[intr[c, 0], 0, intr[c, 2]], [0, intr[c, 1], intr[c, 3]], [0, 0, 1.0]])
-            dist = intr[c, 4:9]
-            (r3, t3, dr3dr1, dr3dt1, dr3dr2, dr3dt2, dt3dr1, dt3dt1, dt3dr2, dt3dt2) = cv2.composeRT(
-                vr[v], vt[v], cr[c], ct[c])
-            proj, jac = cv2.projectPoints(board_pts, r3, t3, K, dist)
-            rk = (proj.reshape(-1, 2) - views[c].corners[v]).ravel()
-            res[2 * npts * k:2 * npts * (k + 1)] = rk
-            if not want_normal:
-                continue
-            Jr, Jt = jac[:, 0:3], jac[:, 3:6]
-            Jint = jac[:, 6:15]  # fx fy cx cy k1 k2 p1 p2 k3
-            blocks, cols = [], []
-            if nfi:
-                blocks.append(Jint[:, free_int])
-                cols.append(c * nfi + np.arange(nfi))
-            if c > 0:
-                blocks += [Jr @ dr3dr2 + Jt @ dt3dr2, Jr @ dr3dt2 + Jt @ dt3dt2]
-                cols.append(off_cam + 6 * (c - 1) + np.arange(6))
-            blocks += [Jr @ dr3dr1 + Jt @ dt3dr1, Jr @ dr3dt1 + Jt @ dt3dt1]
-            cols.append(vpos[v] + np.arange(6))
-            Jk, cols = np.hstack(blocks), np.concatenate(cols)
-            A[np.ix_(cols, cols)] += Jk.T @ Jk
-            g[cols] += Jk.T @ rk
-        return res, (A, g)
 
-    x = pack(intr0, cam_r, cam_t, view_r, view_t)
+def _levenberg_marquardt(residuals_normal, x, max_iter: int, tol: float):
+    """Levenberg-Marquardt on the scaled normal equations; returns ``x, r, A, cost, iterations``."""
     r, (A, g) = residuals_normal(x)
+    npar = x.size
     cost = float(r @ r)
     lam = 1e-3
     it = 0
@@ -524,21 +569,26 @@ def bundle_adjust(views: list[BoardViews], singles: list[IntrinsicResult], board
         cost = float(r @ r)
         if rel < tol:
             break
+    return x, r, A, cost, it
 
-    intr, cr, ct, vr, vt = unpack(x)
-    dof = max(r.size - npar, 1)
+
+def _bundle_result(layout: _BundleLayout, x, r, A, cost, it, views, singles, used, obs) -> BundleResult:
+    """The :class:`BundleResult` at the solution: intrinsics per camera with their 3-sigma, poses, RMS."""
+    nc, nv, nfi, off_cam = layout.nc, layout.nv, layout.nfi, layout.off_cam
+    intr, cr, ct, vr, vt = layout.unpack(x)
+    dof = max(r.size - layout.npar, 1)
     sigma = float(np.sqrt(cost / dof))
     try:
         cov = np.linalg.inv(A) * sigma**2
         sd3 = 3 * np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
-        sd3 = np.full(npar, np.nan)
+        sd3 = np.full(layout.npar, np.nan)
     intrinsics = {}
-    resid = r.reshape(-1, npts, 2)
+    resid = r.reshape(len(obs), -1, 2)
     for c in range(nc):
         s3 = np.zeros(9)
         if nfi:
-            s3[free_int] = sd3[c * nfi:(c + 1) * nfi]
+            s3[layout.free_int] = sd3[c * nfi:(c + 1) * nfi]
         per = np.full(nv, np.nan)
         rc = []
         rv_c, tv_c = np.full((nv, 3), np.nan), np.full((nv, 3), np.nan)
@@ -549,10 +599,9 @@ def bundle_adjust(views: list[BoardViews], singles: list[IntrinsicResult], board
             rc.append(resid[k])
             rv_c[v], tv_c[v] = _compose(vr[v], vt[v], cr[c], ct[c])
         rc = np.concatenate(rc)
-        K = np.array([[intr[c, 0], 0, intr[c, 2]], [0, intr[c, 1], intr[c, 3]], [0, 0, 1.0]])
         intrinsics[views[c].camera] = IntrinsicResult(
-            views[c].camera, tuple(views[c].size), K, intr[c, 4:9].copy(), s3, tuple(views[c].names),
-            used[c].copy(), singles[c].reasons, per,
+            views[c].camera, tuple(views[c].size), _camera_matrix(intr[c]), intr[c, 4:9].copy(), s3,
+            tuple(views[c].names), used[c].copy(), singles[c].reasons, per,
             float(np.sqrt(np.mean(np.sum(rc**2, axis=1)))), rc.std(axis=0), rv_c, tv_c)
     rs3, ts3 = np.zeros((nc, 3)), np.zeros((nc, 3))
     for c in range(1, nc):

@@ -24,7 +24,7 @@ from .detect import (CameraSyncCheck, DetectResult, IdentificationSummary, camer
                      max_gap_frames, step_detect, synchronised_frames)
 from .motion_frame import MotionFrameResult, step_motion_frame
 from .rig import RigResult, step_rig
-from .rigid_body import Conditioning, RigidBodyResult, conditioning, pose_margin, saddle_angles, step_rigid_body
+from .rigid_body import RigidBodyResult, pose_margin, step_rigid_body
 from .smooth import SmoothResult, step_smooth
 from .stills import PlumbResult, StaticResult, step_plumb, step_static, still_params, still_points
 from .sync import SyncResult, step_sync

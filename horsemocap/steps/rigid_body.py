@@ -1,48 +1,20 @@
 """Step ``rigid_body``: registration, kinematics and the hidden saddle marker (thesis 5.4-5.5, chapter 6)."""
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..frames import time_axis, to_motion_frame
 from ..params import RigidBodyParams
-from ..pose import CollinearMarkersError, conditioning_warnings, saddle_angles_deg, static_body_axes
-from ..rigid import RigidBodyAnalysis, analyse_rigid_body, singularity_angle, singularity_report
+from ..pose import CollinearMarkersError
+from ..rigid import (Conditioning, FourierOrders, PoseInput, RigidBodyAnalysis, analyse_rigid_body, conditioning,
+                     saddle_angles)
 from ..session import Session
 from ..splines import ChangePointError
 from .base import AnalysisError, StepResult, frames_text
 from .motion_frame import MotionFrameResult
 from .triangulate import TriangulateResult
-
-
-@dataclass(frozen=True)
-class Conditioning(StepResult):
-    """Per-frame conditioning of the rigid-body step.
-
-    Attributes
-    ----------
-    singularity_deg : (n,) array
-        Angle between omega and the markers' plane normal (eq. 6.35; the thesis versions fail near 90).
-    triangle_height_m : (n,) array
-        Smallest height of the marker triangle (NaN with fewer than 3 markers).
-    registration_rms_m : (n,) array
-        RMS distance of the markers from the registered model.
-    registration_n_markers : (n,) array
-        Markers registered per frame.
-    noise_m : float
-        The markers' noise the registration residuals give.
-    warnings : list of str
-        Messages when these make the result unreliable.
-    """
-
-    singularity_deg: np.ndarray
-    triangle_height_m: np.ndarray
-    registration_rms_m: np.ndarray
-    registration_n_markers: np.ndarray
-    noise_m: float
-    warnings: list
 
 
 @dataclass(frozen=True)
@@ -70,10 +42,11 @@ class RigidBodyResult(StepResult):
     omega, alpha : (n, 3) arrays
         Angular velocity and acceleration (chapter 6).
     singularity_deg : (n,) array
-        :attr:`Conditioning.singularity_deg`.
+        The eq. 6.35 angle per frame (``conditioning.singularity_deg``).
     saddle_position, saddle_velocity, saddle_acceleration : (n, 3) arrays
         The hidden saddle marker (eq. 6.48-6.55 or the pose trajectory).
-    conditioning : Conditioning
+    conditioning : horsemocap.rigid.Conditioning
+        The eq. 6.35 angle, the marker triangle's height and the registration residual per frame.
     warnings : list of str
     saddle_angles_deg : (n, 3) array
         Roll, pitch, yaw of the saddle.
@@ -160,17 +133,10 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     _check_pose_events(pose.events, t if pose_t is None else pose_t)
     try:
         rb = analyse_rigid_body(
-            t, positions, static, x_degree=fits.x_degree,
-            orders=_fourier_orders(fo, positions.shape[1]), order_rule=fits.order_rule,
-            omega_use=fits.omega_versions, alpha_use=fits.alpha_versions,
-            method=fits.angular_method, saddle_method=fits.saddle_method,
-            period_s=None if period is None else period / session.fps, fourier_trend=fits.trend,
-            kinematics=section.kinematics, pose_smoothing=pose.smoothing,
-            rotation_orders=_extra_orders(fo, "rotation", 3), saddle_orders=_extra_orders(fo, "saddle", 2),
-            pose_points=pose_points, pose_t=pose_t, pose_partial=pose.partial_frames,
-            pose_harmonics=pose.harmonics, pose_covariance=cov,
-            pose_rotation_weights=pose.rotation_weights, saddle_index=section.saddle_marker,
-            pose_events=pose.events)
+            t, positions, static, section, period_s=None if period is None else period / session.fps,
+            fourier_orders=FourierOrders(_fourier_orders(fo, positions.shape[1]), _extra_orders(fo, "rotation", 3),
+                                         _extra_orders(fo, "saddle", 2)),
+            pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov))
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
     except ChangePointError as exc:
@@ -266,36 +232,3 @@ def pose_margin(points: np.ndarray, segment, min_markers: int = 2) -> tuple[int,
     while hi < count.size and count[hi] >= min_markers:
         hi += 1
     return int(lo), int(hi)
-
-
-def conditioning(rb: RigidBodyAnalysis) -> Conditioning:
-    """Per-frame conditioning of a :class:`~horsemocap.rigid.RigidBodyAnalysis` (see :class:`Conditioning`)."""
-    preg = rb.pose_registration
-    k = rb.pose_markers.position if rb.pose_markers is not None else rb.registration.registered
-    sing = singularity_angle(k[:, :3], rb.omega)
-    height = preg.height.copy()
-    height[preg.n_markers < 3] = np.nan
-    lever = float(np.linalg.norm(rb.static_saddle - rb.model.mean(0)))
-    warn = conditioning_warnings(preg, lever)
-    if rb.kinematics == "fits" and rb.method == "thesis":
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            rep = singularity_report(sing, warn=False)
-        if rep["fraction"] > 0:
-            warn.append(f"omega within 15 deg of the markers' plane in {100 * rep['fraction']:.0f} % of the frames "
-                        f"(closest {rep['min_margin_deg']:.1f} deg): the thesis versions (eq. 6.3/6.4, 6.38/6.39) "
-                        "are unreliable there (eq. 6.35); use kinematics 'pose_spline'")
-    return Conditioning(singularity_deg=sing, triangle_height_m=height, registration_rms_m=preg.rms,
-                        registration_n_markers=preg.n_markers, noise_m=preg.noise_m, warnings=warn)
-
-
-def saddle_angles(rb: RigidBodyAnalysis) -> np.ndarray:
-    """Roll, pitch, yaw (deg) of the saddle in the motion frame, per frame (n, 3).
-
-    Body axes from the static shot, as seed 004 takes body planes from a
-    default pose (:func:`horsemocap.pose.static_body_axes`); then rotated by
-    the body's pose in each frame.
-    """
-    axes0 = static_body_axes(np.vstack([rb.model, rb.static_saddle]))
-    R = rb.pose.rotation(rb.t) if rb.pose is not None else rb.registration.rotation
-    return saddle_angles_deg(R, axes0)
