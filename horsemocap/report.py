@@ -152,39 +152,44 @@ def _is_num(s: str) -> bool:
 
 
 PARAMETER_NAMES = {
-    "sync_offsets": "synchronisation offsets (frame of the flash per camera)",
-    "recalibrate": "calibrate again from the checkerboard views",
-    "calibration_mode": "calibration of the rig",
-    "calibration_exclude": "checkerboard views left out of the calibration",
-    "detection_method": "marker detection",
-    "detection": "detector settings",
-    "max_gap_frames": "longest gap bridged (frames)",
-    "saddle_marker": "saddle marker in the static shot (given)",
-    "stills": "still images' threshold and labels",
-    "triangulation": "triangulation",
-    "smoothing_span": "smoothing span (fraction of the points)",
-    "smoothing_method": "smoothing of the 3D positions",
-    "x_marker": "marker defining the direction of motion",
-    "period_frames": "stride period (frames)",
-    "n_periods": "periods used for the direction of motion",
-    "x_degree": "polynomial degree of the forward (x) motion",
-    "fourier_orders": "Fourier orders (y, z) per marker",
-    "order_rule": "rule choosing the Fourier order",
-    "fourier_trend": "linear drift term in the Fourier fits",
-    "angular_method": "angular velocity and acceleration from",
-    "omega_versions": "thesis versions averaged for the angular velocity",
-    "alpha_versions": "thesis versions averaged for the angular acceleration",
-    "saddle_method": "saddle velocity and acceleration from",
-    "weighting_mode": "frequency weighting (ISO 2631)",
-    "kinematics": "kinematics passed on",
-    "pose_smoothing": "smoothing of the pose trajectory",
-    "pose_partial_frames": "pose also smoothed over the frames with two markers beyond the analysed ones",
-    "pose_harmonics": "stride harmonics kept unpenalised in the pose smoothing",
-    "pose_weights": "marker weights in each frame's pose registration",
-    "pose_rotation_weights": "frame weights in the rotation's smoothing",
-    "pose_events": "known change points of the pose smoothing (s)",
-    "motion_frame": "direction of motion (x axis) from",
     "preset": "preset",
+    "sync.offsets": "synchronisation offsets (frame of the flash per camera)",
+    "rig.recalibrate": "calibrate again from the checkerboard views",
+    "rig.mode": "calibration of the rig",
+    "rig.exclude": "checkerboard views left out of the calibration",
+    "detect.method": "marker detection",
+    "detect.cameras": "detector settings",
+    "detect.max_gap_frames": "longest gap bridged (frames)",
+    "rigid_body.saddle_marker": "saddle marker in the static shot (given)",
+    "stills.plumb": "plumb stills' threshold and labels",
+    "stills.static": "static-shot stills' threshold and labels",
+    "triangulate.mode": "triangulation",
+    "smooth.span": "smoothing span (fraction of the points)",
+    "smooth.method": "smoothing of the 3D positions",
+    "motion_frame.x_marker": "marker defining the direction of motion",
+    "motion_frame.period_frames": "stride period (frames)",
+    "motion_frame.n_periods": "periods used for the direction of motion",
+    "rigid_body.fits.x_degree": "polynomial degree of the forward (x) motion",
+    "rigid_body.fits.fourier_orders": "Fourier orders (y, z) per marker",
+    "rigid_body.fits.order_rule": "rule choosing the Fourier order",
+    "rigid_body.fits.trend": "linear drift term in the Fourier fits",
+    "rigid_body.fits.angular_method": "angular velocity and acceleration from",
+    "rigid_body.fits.omega_versions": "thesis versions averaged for the angular velocity",
+    "rigid_body.fits.alpha_versions": "thesis versions averaged for the angular acceleration",
+    "rigid_body.fits.saddle_method": "saddle velocity and acceleration from",
+    "comfort.weighting_mode": "frequency weighting (ISO 2631)",
+    "rigid_body.kinematics": "kinematics passed on",
+    "rigid_body.pose.smoothing": "smoothing of the pose trajectory",
+    "rigid_body.pose.partial_frames": "pose also smoothed over the frames with two markers beyond the analysed ones",
+    "rigid_body.pose.harmonics": "stride harmonics kept unpenalised in the pose smoothing",
+    "rigid_body.pose.weights": "marker weights in each frame's pose registration",
+    "rigid_body.pose.rotation_weights": "frame weights in the rotation's smoothing",
+    "rigid_body.pose.events": "known change points of the pose smoothing (s)",
+    "motion_frame.mode": "direction of motion (x axis) from",
+}
+"""A person's name for each parameter of ``analysis.json`` (its dotted field)."""
+
+CHOICE_NAMES = {
     "sync": "synchronisation",
     "rig": "rig",
     "detection_method_note": "why the detection method changed",
@@ -193,8 +198,11 @@ PARAMETER_NAMES = {
     "static_order": "markers in the static shot's order",
     "saddle_index_in_static": "saddle marker in the static shot",
     "rigid_body_warnings": "warnings of the rigid-body step",
+    "detection_method": "marker detection",
+    "pose_smoothing": "smoothing of the pose trajectory",
+    "comfort_not_computed": "comfort indicators not computed",
 }
-"""A person's name for each parameter and chosen value of ``analysis.json``."""
+
 
 VALUE_WORDS = {
     "joint": "joint (all cameras at once)",
@@ -332,21 +340,39 @@ def format_value(value, digits: int = 4) -> str:
 def choice_rows(record: dict) -> list[tuple[str, str]]:
     """``(name, value)`` rows of an ``analysis.json`` record's parameters and choices, rounded.
 
-    The detection settings get one row per camera.
+    One row per parameter (its dotted field, :data:`PARAMETER_NAMES`); the
+    detection settings get one row per camera.
+
+    Examples
+    --------
+    >>> choice_rows({"parameters": {"smooth": {"span": 0.1}}, "chosen": {"rig": "read rig.toml"}})
+    [('smoothing span (fraction of the points)', '0.1'), ('rig', 'read rig.toml')]
     """
-    def shown(k, v):
-        if k == "x_marker" and isinstance(v, int):
+    def shown(path, v):
+        if path == "motion_frame.x_marker" and isinstance(v, int):
             return f"marker {v + 1}"
-        if k == "preset" and v is None:
+        if path == "preset" and v is None:
             return "none (the automatic choices)"
         return format_value(v)
 
-    rows = [(PARAMETER_NAMES.get(k, k), shown(k, v)) for k, v in record["parameters"].items()
-            if k != "detection"]
-    rows += [(f"detector settings ({cam})", format_value(v))
-             for cam, v in record["parameters"].get("detection", {}).items()]
-    rows += [(PARAMETER_NAMES.get(k, k), format_value(v)) for k, v in record["chosen"].items()]
+    rows = []
+    for path, v in _leaves(record["parameters"]):
+        if path == "detect.cameras":
+            rows += [(f"detector settings ({cam})", format_value(d)) for cam, d in (v or {}).items()]
+        else:
+            rows.append((PARAMETER_NAMES.get(path, path), shown(path, v)))
+    rows += [(CHOICE_NAMES.get(k, k), format_value(v)) for k, v in record["chosen"].items()]
     return rows
+
+
+def _leaves(parameters: dict, prefix: str = ""):
+    """``(dotted path, value)`` of every parameter field in a nested parameters object."""
+    for k, v in parameters.items():
+        path = f"{prefix}{k}"
+        if isinstance(v, dict) and path not in PARAMETER_NAMES and path != "detect.cameras":
+            yield from _leaves(v, path + ".")
+        else:
+            yield path, v
 
 
 def comfort_rows(indicators: dict) -> list[tuple[str, str, str, str]]:
@@ -364,8 +390,9 @@ def comfort_rows(indicators: dict) -> list[tuple[str, str, str, str]]:
 
 def x_acceleration_note(params) -> str | None:
     """Why the x acceleration is flat zero, if it is by construction (section 5.5.2.1)."""
-    if params.kinematics == "fits" and params.x_degree <= 1:
-        return (f"The forward (x) motion is fitted by a polynomial of degree {params.x_degree} in time (section "
+    x_degree = params.rigid_body.fits.x_degree
+    if params.rigid_body.kinematics == "fits" and x_degree <= 1:
+        return (f"The forward (x) motion is fitted by a polynomial of degree {x_degree} in time (section "
                 "5.5.2.1: the horse moves at a steady speed), so its second derivative, the x acceleration, is zero "
                 "by construction: the flat line in the x panels is the model, not a measurement. A higher degree "
                 "(x_degree) or kinematics 'pose_spline' measures it.")
@@ -445,7 +472,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
         rows = [(html.escape(n), html.escape(m), v, u) for n, m, v, u in comfort_rows(comfort.indicators)]
         verdict = f" (quality verdict: {html.escape(quality['verdict'])})" if quality is not None else ""
         weighting = ("one weight per record, at the dominant harmonic of the vertical acceleration (the thesis)"
-                     if analysis.params.weighting_mode == "thesis" else "each harmonic weighted at its own frequency")
+                     if analysis.params.comfort.weighting_mode == "thesis" else "each harmonic weighted at its own frequency")
         parts += [f"<h2>Comfort indicators (thesis Table 8.7){verdict}</h2>",
                   f'<p class="note">Frequency weighting (Wb of BS 6841, Wk of ISO 2631-1): {html.escape(weighting)}. '
                   "The times are how long a rider can ride this way before reaching the exposure action value "
@@ -481,7 +508,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
     note = x_acceleration_note(analysis.params) if analysis.rigid_body is not None else None
     if note:
         parts.append(f'<p class="note">{html.escape(note)}</p>')
-    timing = [(PARAMETER_NAMES.get(k, k) if k in ("sync", "rig") else k.replace("_", " "), f"{v:.2f}")
+    timing = [(CHOICE_NAMES.get(k, k) if k in ("sync", "rig") else k.replace("_", " "), f"{v:.2f}")
               for k, v in analysis.timings.items()]
     parts += ["<h2>Steps</h2>", _table(timing, ["step", "seconds"])]
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"

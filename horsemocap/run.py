@@ -60,7 +60,7 @@ class RunOutcome:
 
 def _session_rig(session, params):
     """The rig the run will read from ``rig.toml`` (None if it calibrates)."""
-    if session.rig_path is None or params.recalibrate:
+    if session.rig_path is None or params.rig.recalibrate:
         return None
     rig = read_rig(session.rig_path)
     if not all(c in rig.names for c in session.cameras):
