@@ -459,13 +459,12 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
     session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names))
     sync = SyncResult(offsets=offsets, frame_counts={c: n for c in rig.names}, n_frames=n,
                       offsets_from="simulated")
+    hidden = {c: np.where(np.isfinite(p[..., 0]), "", "occluded") for c, p in px.items()}
     base = {
         "sync": sync,
         "rig": RigResult(rig=rig, rig_from="simulated"),
-        "detect": DetectResult(marker_px=px, reason={c: np.where(np.isfinite(p[..., 0]), "", "occluded")
-                                                     for c, p in px.items()},
-                               segment=longest_run(seen), detection={}, all_seen=seen, method="simulated",
-                               method_note="", sync=sync,
+        "detect": DetectResult(marker_px=px, reason=hidden, segment=longest_run(seen), detection={}, all_seen=seen,
+                               method="simulated", method_note="", sync=sync,
                                max_gap_frames=max_gap_frames(session, section(analysis.params, "detect"))),
         "plumb": PlumbResult(plumb_points=plumb, plumb_px={}, gravity=gravity_from_plumb(plumb[0], plumb[1])),
         "static": StaticResult(static_points=still(truth.static_pos), static_px=None),
