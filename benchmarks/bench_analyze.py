@@ -50,10 +50,10 @@ class Progress:
 
 a = analyze(sys.argv[1], sys.argv[2], progress=Progress())
 total = time.perf_counter() - t0
-seg = a.results["triangulate"]["segment"]
+seg = a.triangulate.segment
 import horsemocap.pipeline
 print(json.dumps({"code": horsemocap.pipeline.__file__, "timings": a.timings, "total_s": total,
-                  "synced_frames": a.results["sync"]["n_frames"],
+                  "synced_frames": a.synchronisation.n_frames,
                   "analysed_frames": seg[1] - seg[0], "segment": list(seg), "progress_lines": len(lines),
                   "cpu_s": sum(resource.getrusage(resource.RUSAGE_SELF)[:2]),
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))

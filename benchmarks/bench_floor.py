@@ -255,25 +255,25 @@ def prepare(folder, rig=None):
     """Sync, rig (given or from rig.toml), plumb, static and detect of a session."""
     from horsemocap.pipeline import resolve_params, run_steps
     from horsemocap.session import load_session
+    from horsemocap.steps import RigResult
 
     s = load_session(folder)
     p = resolve_params(s)
-    res = {}
     if rig is not None:
-        res = run_steps(s, p, {}, ["sync"]).results
-        res["rig"] = {"rig": rig, "rig_from": "given"}
-        a = run_steps(s, p, res, ["plumb", "static", "detect"])
+        synced = run_steps(s, p, {}, ["sync"])
+        given = {"sync": synced.sync, "rig": RigResult(rig=rig, rig_from="given")}
+        a = run_steps(s, p, given, ["plumb", "static", "detect"])
     else:
         a = run_steps(s, p, {}, ["sync", "rig", "plumb", "static", "detect"])
-    return s, a.results
+    return s, a
 
 
-def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
+def bench_detection(name, s, an, n_frames, repeat, out, compare_with=None):
     from horsemocap.detection import DetectionParams, detect_markers, identify_markers
     from horsemocap.sources import FrameSource
 
-    off, n = res["sync"]["offsets"], res["sync"]["n_frames"]
-    a, b = res["detect"]["segment"]
+    off, n = an.synchronisation.offsets, an.synchronisation.n_frames
+    a, b = an.detect.segment
     mid = (a + b) // 2
     k0 = int(np.clip(mid - n_frames // 2, 0, max(n - n_frames, 0)))
     k1 = min(n, k0 + n_frames)
@@ -296,7 +296,7 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
             detect_markers(rgb[c], s.marker_count, given[c])
 
     # multi-view identification
-    rig, static = res["rig"]["rig"], res["static"]["static_points"]
+    rig, static = an.rig.rig, an.static.static_points
     thr = {}
 
     def ident():
@@ -381,7 +381,7 @@ def bench_detection(name, s, res, n_frames, repeat, out, compare_with=None):
     del rgb, gray
 
 
-def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
+def bench_whole_frame(name, s, an, repeat, out, n_frames=150):
     """The whole-frame candidate search (identification's, in crops) against labelling whole frames.
 
     Frames: the synchronised gray frames of every camera from the start (the
@@ -396,8 +396,8 @@ def bench_whole_frame(name, s, res, repeat, out, n_frames=150):
     from horsemocap.detection.thresholds import connected_components
     from horsemocap.sources import FrameSource
 
-    off, n = res["sync"]["offsets"], res["sync"]["n_frames"]
-    thr = {c: int(res["detect"]["detection"][c]["threshold"]) for c in s.cameras}
+    off, n = an.synchronisation.offsets, an.synchronisation.n_frames
+    thr = {c: int(an.detect.detection[c]["threshold"]) for c in s.cameras}
     gray = {c: FrameSource(s.motion[c]).read(off[c], off[c] + min(n, n_frames), color=False) for c in s.cameras}
     area = (GENERIC_AREA[0], None)
 
@@ -504,11 +504,11 @@ def _other_detection(checkout):
     return importlib.import_module(name + ".detection")
 
 
-def bench_triangulation(name, s, res, n_points, repeat, out, compare_with=None):
+def bench_triangulation(name, s, an, n_points, repeat, out, compare_with=None):
     from horsemocap.reconstruction import triangulate
 
-    rig = res["rig"]["rig"]
-    px0 = res["detect"]["marker_px"]
+    rig = an.rig.rig
+    px0 = an.detect.marker_px
     cams = list(s.cameras)
     m = next(iter(px0.values())).shape[1]
     reps = max(1, int(np.ceil(n_points / (len(next(iter(px0.values()))) * m))))
@@ -639,18 +639,18 @@ def main(argv=None):
     from horsemocap.session import load_session
     sb = load_session(bundled)
     cal_row, rig = bench_calibration(sb, args.repeat, out) if "calibration" not in args.skip else (None, None)
-    s, res = prepare(bundled, rig)
+    s, an = prepare(bundled, rig)
     dec_b = bench_decode("bundled", s, args.repeat, out)
-    bench_detection("bundled", s, res, args.frames, args.repeat, out, args.compare_with)
-    bench_whole_frame("bundled", s, res, args.repeat, out)
-    bench_triangulation("bundled", s, res, args.points, args.repeat, out, args.compare_with)
+    bench_detection("bundled", s, an, args.frames, args.repeat, out, args.compare_with)
+    bench_whole_frame("bundled", s, an, args.repeat, out)
+    bench_triangulation("bundled", s, an, args.points, args.repeat, out, args.compare_with)
     if "hard" not in args.skip:
         from horsemocap.virtuallab.hard import hard_session
-        hs, hres = prepare(hard_session(HARD_1080))
+        hs, han = prepare(hard_session(HARD_1080))
         bench_decode(HARD_1080, hs, args.repeat, out)
-        bench_detection(HARD_1080, hs, hres, args.frames, args.repeat, out, args.compare_with)
-        bench_whole_frame(HARD_1080, hs, hres, args.repeat, out)
-        bench_triangulation(HARD_1080, hs, hres, args.points, args.repeat, out, args.compare_with)
+        bench_detection(HARD_1080, hs, han, args.frames, args.repeat, out, args.compare_with)
+        bench_whole_frame(HARD_1080, hs, han, args.repeat, out)
+        bench_triangulation(HARD_1080, hs, han, args.points, args.repeat, out, args.compare_with)
     if "analyze" not in args.skip and cal_row is not None:
         bench_analyze(bundled, args.repeat, out, cal_row["board_detection_s"] + cal_row["solve_s"],
                       dec_b["seconds"])

@@ -30,8 +30,8 @@ for d in sys.argv[1:]:
     truth = load_truth(d)
     ide = accuracy.identification_errors(a, truth)
     st = accuracy.stage_errors(a, truth)
-    ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
+    ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
     bad = [f"{c.name}" for c in checks if c.level in ("warning", "unreliable")]
     print(f"{name:44s} exit {3 if v == 'unreliable' else 0} {v:10s} wrong {ide['wrong_total']:4d} "
           f"A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % "
-          f"offsets {a.results['sync']['offsets']} truth {truth.offsets} {bad} {time.perf_counter() - t0:.0f}s", flush=True)
+          f"offsets {a.synchronisation.offsets} truth {truth.offsets} {bad} {time.perf_counter() - t0:.0f}s", flush=True)

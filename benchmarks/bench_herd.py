@@ -62,8 +62,8 @@ def main():
             t2 = time.perf_counter()
             truth = load_truth(folder)
             st = accuracy.stage_errors(a, truth)
-            ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, keys)
-            table[(horse, gait)] = a.results["comfort"]["indicators"]
+            ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, keys)
+            table[(horse, gait)] = a.comfort.indicators
             errors.append((st["saddle_acc_y_rmse_pct_of_rms"], *(abs(ce[k]) for k in keys)))
             done += 1
             print(f"{name:28s} {t1 - t0:8.1f} {t2 - t1:9.1f} {st['frames']:6d} {st['saddle_acc_y_rmse_pct_of_rms']:11.1f} "
@@ -112,7 +112,7 @@ def run_hard(args):
         swaps = sum(v["swaps"] for v in e2.values())
         med = max(v["median"] for v in e2.values())
         st = accuracy.stage_errors(a, truth)
-        ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, keys)
+        ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, keys)
         done += 1
         for k, v in (("saddle_Ay", st["saddle_acc_y_rmse_pct_of_rms"]), *ce.items()):
             worst[k] = max(worst.get(k, 0.0), abs(v))

@@ -57,9 +57,9 @@ def main(argv=None):
         truth = load_truth(folder)
         cells = []
         for i, v in enumerate(variants):
-            a = run_steps(base.session, replace(base.params, **v), base.results, ["rigid_body", "comfort"])
+            a = run_steps(base.session, replace(base.params, **v), base, ["rigid_body", "comfort"])
             st = accuracy.stage_errors(a, truth)
-            ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, KEYS)
+            ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, KEYS)
             row = [st["saddle_acc_y_rmse_pct_of_rms"], *(ce[k] for k in KEYS)]
             table[i].append(row)
             cells.append(" ".join(f"{x:5.1f}" for x in row))

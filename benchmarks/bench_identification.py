@@ -58,7 +58,7 @@ def measure(name, folder, method, params):
     ide = accuracy.identification_errors(a, truth)
     st = accuracy.stage_errors(a, truth)
     keys = ("acc_y_Wb_rms", "acc_y_Wk_rms")
-    ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, keys)
+    ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, keys)
     meds = [c["median_px"] for c in ide["cameras"].values()]
     # the worst camera's; a camera without any correct centre has none (NaN) and is named, not maxed over
     med = max((m for m in meds if np.isfinite(m)), default=float("nan"))
@@ -106,10 +106,10 @@ def speed(folder, n_frames, repeat):
     cv2.setNumThreads(1)
     s = load_session(folder)
     a = run_steps(s, resolve_params(s), {}, ["sync", "rig", "plumb", "static"])
-    off = a.results["sync"]["offsets"]
-    n = min(n_frames, a.results["sync"]["n_frames"])
+    off = a.synchronisation.offsets
+    n = min(n_frames, a.synchronisation.n_frames)
     rgb = {c: FrameSource(s.motion[c]).read(off[c], off[c] + n) for c in s.cameras}
-    rig, static = a.results["rig"]["rig"], a.results["static"]["static_points"]
+    rig, static = a.rig.rig, a.static.static_points
     thr = {}
 
     def ours():

@@ -83,15 +83,14 @@ def _draw_context(rerun, truth):
     from horsemocap.accuracy import _truth_rows
     from horsemocap.frames import to_motion_frame
 
-    res = rerun.results
-    rb = res["rigid_body"]["analysis"]
+    rb = rerun.rigid_body.body
     traj = rb.pose
-    a, b = res["triangulate"]["segment"]
-    rows, known = _truth_rows(truth, res["sync"]["offsets"][rerun.session.reference_camera] + np.arange(a, b))
-    to_true = truth.motion_axes @ res["motion_frame"]["axes"].T
+    a, b = rerun.triangulate.segment
+    rows, known = _truth_rows(truth, rerun.synchronisation.offsets[rerun.session.reference_camera] + np.arange(a, b))
+    to_true = truth.motion_axes @ rerun.motion_frame.axes.T
     acc_true = (truth.saddle_acc[rows][known] @ truth.motion_axes.T)[:, 1]
     rms = float(np.sqrt(np.mean(acc_true ** 2)))
-    reg_true = P.register_pose(to_motion_frame(truth.marker_pos[rows][known], res["motion_frame"]["frame"]), rb.model)
+    reg_true = P.register_pose(to_motion_frame(truth.marker_pos[rows][known], rerun.motion_frame.frame), rb.model)
     phi_true = P.unwrap_rotvec((Rotation.from_matrix(reg_true.rotation)
                                 * Rotation.from_matrix(traj.reference).inv()).as_rotvec())
     tk = rb.t[known]

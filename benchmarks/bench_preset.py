@@ -41,13 +41,13 @@ def one(folder, params):
         return {"completed": False, "error": str(exc)[:300], "seconds": time.perf_counter() - t0}
     truth = load_truth(folder)
     st = accuracy.stage_errors(a, truth)
-    ind = a.results["comfort"]["indicators"]
+    ind = a.comfort.indicators
     ce = accuracy.comfort_errors(ind, truth.comfort, KEYS) if ind else {}
     return {"completed": True, "seconds": time.perf_counter() - t0, "frames": int(st["frames"]),
             "saddle_acc_y_pct": float(st["saddle_acc_y_rmse_pct_of_rms"]),
             "comfort_error_pct": {k: float(v) for k, v in ce.items()},
             "indicators": {k: float(ind[k]) for k in KEYS} if ind else None,
-            "warnings": list(a.results["rigid_body"].get("warnings", []))}
+            "warnings": list(a.rigid_body.warnings)}
 
 
 def main():

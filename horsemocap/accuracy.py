@@ -54,8 +54,8 @@ def errors_2d(analysis, truth) -> dict:
     Returns ``{camera: {"errors": (p,), "median", "p99", "max", "swaps", "found", "true_visible"}}``
     over every synchronised frame in which the truth has the marker visible.
     """
-    det = analysis.results["detect"]["marker_px"]
-    offsets = analysis.results["sync"]["offsets"]
+    det = analysis.detect.marker_px
+    offsets = analysis.synchronisation.offsets
     out = {}
     for cam, px in det.items():
         m = px.shape[1]
@@ -97,10 +97,9 @@ def identification_errors(analysis, truth, wrong_px: float = 3.0) -> dict:
         truth), ``with_3d`` (those with a 3D position from the
         triangulation step, measured or interpolated), ``wrong_total``.
     """
-    res = analysis.results
-    det = res["detect"]["marker_px"]
-    reasons = res["detect"]["reason"]
-    offsets = res["sync"]["offsets"]
+    det = analysis.detect.marker_px
+    reasons = analysis.detect.reason
+    offsets = analysis.synchronisation.offsets
     n, m = next(iter(det.values())).shape[:2]
     out, visible_count = {}, np.zeros((n, m), int)
     for cam, px in det.items():
@@ -124,7 +123,7 @@ def identification_errors(analysis, truth, wrong_px: float = 3.0) -> dict:
                     "p99_px": float(np.percentile(e, 99)) if e.size else float("nan"),
                     "visible": int(vis.sum()), "missed": int(missed.sum()), "reasons": why}
     seen2 = visible_count >= 2
-    pts = res["triangulate"]["points"] if "triangulate" in res else np.full((n, m, 3), np.nan)
+    pts = analysis.triangulate.points if analysis.triangulate is not None else np.full((n, m, 3), np.nan)
     have = np.all(np.isfinite(pts), axis=-1)
     return {"cameras": out, "seen_by_two": int(seen2.sum()), "with_3d": int((seen2 & have).sum()),
             "wrong_total": int(sum(c["wrong"] for c in out.values()))}
@@ -147,12 +146,11 @@ def analysed_truth(analysis, truth) -> dict:
     """
     from .frames import to_motion_frame
 
-    res = analysis.results
-    a, b = res["triangulate"]["segment"]
-    frames = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
+    a, b = analysis.triangulate.segment
+    frames = analysis.synchronisation.offsets[analysis.session.reference_camera] + np.arange(a, b)
     rows, known = _truth_rows(truth, frames)
-    mf = res["motion_frame"]["frame"]
-    axes = res["motion_frame"]["axes"]
+    mf = analysis.motion_frame.frame
+    axes = analysis.motion_frame.axes
 
     def pick(arr, position=False):
         arr = np.asarray(arr, float)[rows]
@@ -237,12 +235,11 @@ def stage_errors(analysis, truth) -> dict:
     ``saddle_position`` (m), ``saddle_acceleration`` (m/s^2),
     ``saddle_acc_y_rmse_pct_of_rms``.
     """
-    res = analysis.results
-    a, b = res["triangulate"]["segment"]
-    frames = res["sync"]["offsets"][analysis.session.reference_camera] + np.arange(a, b)
+    a, b = analysis.triangulate.segment
+    frames = analysis.synchronisation.offsets[analysis.session.reference_camera] + np.arange(a, b)
     rows, known = _truth_rows(truth, frames)
     R_true = truth.motion_axes
-    R_est = res["motion_frame"]["axes"]
+    R_est = analysis.motion_frame.axes
 
     def true_motion(arr):
         return np.asarray(arr)[rows][known] @ R_true.T
@@ -250,32 +247,32 @@ def stage_errors(analysis, truth) -> dict:
     def est_world_to_true(arr):  # world-frame estimate seen in the true motion axes
         return np.asarray(arr)[known] @ R_true.T
 
-    smoothed_est, smoothed_true = est_world_to_true(res["smooth"]["smoothed"]), true_motion(truth.marker_pos)
+    smoothed_est, smoothed_true = est_world_to_true(analysis.smooth.smoothed), true_motion(truth.marker_pos)
     offset, motion = offset_and_motion(smoothed_est, smoothed_true)
     out = {
         "frames": int(known.sum()),
-        "triangulated": rmse_axes(est_world_to_true(res["triangulate"]["points"][a:b]), true_motion(truth.marker_pos)),
+        "triangulated": rmse_axes(est_world_to_true(analysis.triangulate.points[a:b]), true_motion(truth.marker_pos)),
         "smoothed": rmse_axes(smoothed_est, smoothed_true),
         "smoothed_offset": offset,
         "smoothed_motion": motion,
-        "gravity_deg": angle_deg(res["plumb"]["gravity"], truth.gravity),
+        "gravity_deg": angle_deg(analysis.plumb.gravity, truth.gravity),
         "x_axis_deg": angle_deg(R_est[0], R_true[0]),
     }
-    if "rigid_body" in res:
-        rb = res["rigid_body"]
+    rb = analysis.rigid_body
+    if rb is not None:
         to_true = R_true @ R_est.T  # estimated motion frame -> world -> true motion frame
 
         def est(arr):
             return np.asarray(arr)[known] @ to_true.T
 
-        out["registered"] = rmse_axes(est(rb["registered"]), true_motion(truth.marker_pos))
-        out["velocity"] = rmse_axes(est(rb["velocity"]), true_motion(truth.marker_vel))
-        out["acceleration"] = rmse_axes(est(rb["acceleration"]), true_motion(truth.marker_acc))
-        out["omega"] = rmse_axes(est(rb["omega"]), true_motion(truth.omega))
-        out["alpha"] = rmse_axes(est(rb["alpha"]), true_motion(truth.alpha))
-        out["saddle_position"] = rmse_axes(est(rb["saddle_position"]), true_motion(truth.saddle_pos))
+        out["registered"] = rmse_axes(est(rb.registered), true_motion(truth.marker_pos))
+        out["velocity"] = rmse_axes(est(rb.velocity), true_motion(truth.marker_vel))
+        out["acceleration"] = rmse_axes(est(rb.acceleration), true_motion(truth.marker_acc))
+        out["omega"] = rmse_axes(est(rb.omega), true_motion(truth.omega))
+        out["alpha"] = rmse_axes(est(rb.alpha), true_motion(truth.alpha))
+        out["saddle_position"] = rmse_axes(est(rb.saddle_position), true_motion(truth.saddle_pos))
         acc_true = true_motion(truth.saddle_acc)
-        out["saddle_acceleration"] = rmse_axes(est(rb["saddle_acceleration"]), acc_true)
+        out["saddle_acceleration"] = rmse_axes(est(rb.saddle_acceleration), acc_true)
         rms_y = float(np.sqrt(np.mean(acc_true[:, 1] ** 2)))
         out["saddle_acc_y_rmse_pct_of_rms"] = 100 * out["saddle_acceleration"][1] / rms_y
     return out
@@ -313,18 +310,18 @@ def noisy_reruns(analysis, truth, sigmas_px, seed: int = 0, repeats: int = 3, pa
     The period is the one found on the real detections."""
     from .pipeline import AnalysisError, run_steps
 
-    res = analysis.results
+    sync = analysis.synchronisation
     rng = np.random.default_rng(seed)
-    n = res["sync"]["n_frames"]
+    n = sync.n_frames
     # the period is the one found on the real detections: the study isolates what the noise
     # does to the later steps (the thesis user typed the period anyway)
-    params = replace(params or analysis.params, period_frames=res["motion_frame"]["period_frames"])
+    params = replace(params or analysis.params, period_frames=analysis.motion_frame.period_frames)
     for sigma in sigmas_px:
         reruns = []
         for _ in range(repeats if sigma > 0 else 1):
-            px = noisy_projections(truth, res["sync"]["offsets"], n, analysis.session.marker_count, sigma, rng)
-            base = {k: res[k] for k in ("sync", "rig", "plumb", "static")}
-            base["detect"] = {**res["detect"], "marker_px": px}
+            px = noisy_projections(truth, sync.offsets, n, analysis.session.marker_count, sigma, rng)
+            base = {k: getattr(analysis, k) for k in ("sync", "rig", "plumb", "static")}
+            base["detect"] = analysis.detect.replace(marker_px=px)
             try:
                 reruns.append(run_steps(analysis.session, params, base, LATER_STEPS))
             except AnalysisError as exc:
@@ -362,7 +359,7 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
                 failed.append(str(rerun))
                 continue
             st = stage_errors(rerun, truth)
-            draws.append((st, comfort_errors(rerun.results["comfort"]["indicators"], truth.comfort, list(keys))))
+            draws.append((st, comfort_errors(rerun.comfort.indicators, truth.comfort, list(keys))))
         if not draws:
             rows.append({"sigma_px": float(sigma), "draws": 0, "failed": failed})
             continue
@@ -436,9 +433,11 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
     """
     from dataclasses import replace as dc_replace
 
-    from .pipeline import _longest_run, run_steps
-    from .reconstruction import triangulate
     from .frames import gravity_from_plumb
+    from .pipeline import run_steps
+    from .reconstruction import triangulate
+    from .steps import (DetectResult, PlumbResult, RigResult, StaticResult, SyncResult, longest_run,
+                        max_gap_frames)
     from .virtuallab import Scene, build_truth, saddle_motion
     from .virtuallab.session import plan_timeline
 
@@ -456,14 +455,19 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
         return triangulate(rig, obs, mode=analysis.params.triangulation).points[0]
 
     plumb = still(truth.plumb_pos)
-    base = {
-        "sync": {"offsets": offsets, "n_frames": n},
-        "rig": {"rig": rig},
-        "detect": {"marker_px": px, "segment": _longest_run(seen)},
-        "plumb": {"gravity": gravity_from_plumb(plumb[0], plumb[1])},
-        "static": {"static_points": still(truth.static_pos)},
-    }
     session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names))
+    sync = SyncResult(offsets=offsets, frame_counts={c: n for c in rig.names}, n_frames=n,
+                      offsets_from="simulated")
+    hidden = {c: np.where(np.isfinite(p[..., 0]), "", "occluded") for c, p in px.items()}
+    base = {
+        "sync": sync,
+        "rig": RigResult(rig=rig, rig_from="simulated"),
+        "detect": DetectResult(marker_px=px, reason=hidden, segment=longest_run(seen), detection={}, all_seen=seen,
+                               method="simulated", method_note="", sync=sync,
+                               max_gap_frames=max_gap_frames(session, analysis.params.detect)),
+        "plumb": PlumbResult(plumb_points=plumb, plumb_px={}, gravity=gravity_from_plumb(plumb[0], plumb[1])),
+        "static": StaticResult(static_points=still(truth.static_pos), static_px=None),
+    }
     return run_steps(session, analysis.params, base, LATER_STEPS), truth
 
 
@@ -484,7 +488,7 @@ def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,
                      "frames": st["frames"], "smoothed_m": st["smoothed"],
                      "saddle_position_m": st["saddle_position"],
                      "saddle_acc_y_pct": st["saddle_acc_y_rmse_pct_of_rms"],
-                     "comfort_pct": comfort_errors(sim.results["comfort"]["indicators"], truth.comfort, list(keys))})
+                     "comfort_pct": comfort_errors(sim.comfort.indicators, truth.comfort, list(keys))})
     return rows
 
 

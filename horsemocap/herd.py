@@ -157,15 +157,15 @@ def pipeline_analysis(horse: str, gait: str, params=None, *, until: str = "comfo
 
     Renders the session into the cache on first use
     (``virtuallab.herd_session``) and analyses it through
-    :func:`horsemocap.pipeline.results_for`, so the steps are kept in the
+    :func:`horsemocap.workspace.results_for`, so the steps are kept in the
     notebooks' results store and a second call with the same parameters
     (e.g. another section of notebook 13) loads them instead of repeating
     minutes of work.
     """
-    from . import pipeline
     from .virtuallab import herd_session  # rendered on demand into the cache
+    from .workspace import results_for
 
-    return pipeline.results_for(herd_session(horse, gait), until=until, params=params)
+    return results_for(herd_session(horse, gait), until=until, params=params)
 
 
 def pipeline_indicators(horse: str, gait: str, *, mode: str = "iso", out_dir=None) -> dict:
@@ -183,7 +183,7 @@ def pipeline_indicators(horse: str, gait: str, *, mode: str = "iso", out_dir=Non
                                progress=lambda *a: None)
     else:
         res = pipeline_analysis(horse, gait, {"weighting_mode": mode})
-    return dict(res["comfort"]["indicators"])
+    return dict(res.comfort.indicators)
 
 
 def horse_table() -> list[dict]:

@@ -1,10 +1,14 @@
 """Accuracy metrics: matching, RMSE, and the rig variants of notebook 14."""
+from dataclasses import fields
+
 import numpy as np
 import pytest
 
 from horsemocap.accuracy import (match_points, offset_and_motion, rmse_axes, rmse_pct_of_rms, scaled_rig,
                                  wide_baseline_rig)
 from horsemocap.camera import Camera, Rig
+from horsemocap.pipeline import Analysis
+from horsemocap.steps import MotionFrameResult, SyncResult, TriangulateResult
 
 
 def _rig():
@@ -83,9 +87,10 @@ def test_analysed_truth_rows_and_frame():
                             **{k: rng.normal(size=(n, 3)) for k in
                                ("saddle_pos", "saddle_vel", "saddle_acc", "omega", "alpha")})
     session = SimpleNamespace(reference_camera="left")
-    analysis = SimpleNamespace(session=session, results={
-        "sync": {"offsets": {"left": 8}}, "triangulate": {"segment": (24, 34)},
-        "motion_frame": {"frame": mf, "axes": axes}})
+    unset = lambda cls, **given: cls(**{**{f.name: None for f in fields(cls)}, **given})  # noqa: E731
+    analysis = Analysis(session, None, sync=unset(SyncResult, offsets={"left": 8}),
+                        triangulate=unset(TriangulateResult, segment=(24, 34)),
+                        motion_frame=unset(MotionFrameResult, frame=mf, axes=axes))
     d = analysed_truth(analysis, truth)
     np.testing.assert_array_equal(d["frames"], np.arange(32, 42))
     assert d["known"].tolist() == [True] * 8 + [False] * 2

@@ -107,12 +107,12 @@ def test_a_repeated_analysis_reuses_the_calibration(demo_run, tmp_path):
     msgs = []
     a = analyze(default_session_dir(), tmp_path / "new", until="rig", previous_results=demo_run,
                 progress=lambda step, m: msgs.append(m))
-    assert "cached" in a["rig"]["rig_from"] and not any("calibrating" in m for m in msgs)
+    assert "cached" in a.rig.rig_from and not any("calibrating" in m for m in msgs)
     assert (tmp_path / "new" / "calibration.json").read_bytes() == (demo_run / "calibration.json").read_bytes()
     written = read_rig(demo_run / "rig.toml")
     for cam in written.cameras:
-        np.testing.assert_allclose(a["rig"]["rig"][cam.name].matrix, cam.matrix, rtol=1e-12)
-        np.testing.assert_allclose(a["rig"]["rig"][cam.name].translation, cam.translation, rtol=1e-12)
+        np.testing.assert_allclose(a.rig.rig[cam.name].matrix, cam.matrix, rtol=1e-12)
+        np.testing.assert_allclose(a.rig.rig[cam.name].translation, cam.translation, rtol=1e-12)
 
 
 def test_params_file_repeats_the_run(demo_run, tmp_path):
@@ -316,10 +316,10 @@ def test_pose_spline_kinematics_with_the_period_free_motion_frame(tmp_path):
     out = tmp_path / "pose"
     an = pipeline.analyze(default_session_dir(), out, {"kinematics": "pose_spline", "motion_frame": "record"},
                           progress=lambda *a: None)
-    rb = an["rigid_body"]
-    assert rb["analysis"].pose is not None and rb["analysis"].motion_fit is not None   # both chains
-    assert np.all(np.isfinite(rb["saddle_acceleration"])) and np.all(np.isfinite(rb["omega"]))
-    assert an["motion_frame"]["frame"].n_periods == 0 and an["motion_frame"]["period_frames"] > 0
+    rb = an.rigid_body
+    assert rb.body.pose is not None and rb.body.motion_fit is not None   # both chains
+    assert np.all(np.isfinite(rb.saddle_acceleration)) and np.all(np.isfinite(rb.omega))
+    assert an.motion_frame.frame.n_periods == 0 and an.motion_frame.period_frames > 0
     record = json.loads((out / "analysis.json").read_text())
     assert record["parameters"]["rigid_body"]["kinematics"] == "pose_spline"
     assert "n_periods" in record["parameters"]["motion_frame"]

@@ -26,7 +26,9 @@ import pytest
 from horsemocap import pipeline, quality
 from horsemocap.cli import main
 from horsemocap.data import default_session_dir
+from horsemocap.fingerprint import run_key
 from horsemocap.session import load_session
+from horsemocap.workspace import notebook_results_dir
 
 BUNDLED = default_session_dir()
 CAMS = ("left", "middle", "right")
@@ -582,13 +584,13 @@ def test_interrupt_leaves_results_as_before(step, signal_name, tmp_path, templat
     session = make_session(tmp_path, template)
     out = tmp_path / "out"
     before = earlier_results(out)
-    real = pipeline.STEP_FUNCTIONS[step]
+    real = pipeline.STEP_CALLS[step]
 
     def interrupted(*a, **k):
         os.kill(os.getpid(), getattr(signal, signal_name))
         return real(*a, **k)
 
-    monkeypatch.setitem(pipeline.STEP_FUNCTIONS, step, interrupted)
+    monkeypatch.setitem(pipeline.STEP_CALLS, step, interrupted)
     # Python turns SIGINT into KeyboardInterrupt unless the process started with SIGINT ignored
     # (a shell's background job): give it Python's own handler for this run, as a terminal does
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -826,7 +828,7 @@ def test_failed_step_leaves_only_its_partial_results(tmp_path, template, capsys,
 def test_store_names_stay_inside(name, tmp_path, monkeypatch):
     monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path / "store"))
     s = load_session(BUNDLED, open_sources=False)
-    path = pipeline.notebook_results_dir(replace(s, name=name))
+    path = notebook_results_dir(replace(s, name=name))
     assert path.parent == (tmp_path / "store").resolve() and path.name not in ("", ".", "..")
     record(f"store:name {name!r}", "contained")
 
@@ -874,16 +876,16 @@ def test_store_round_trips_every_step_and_reuses(tmp_path, template):
     assert not list((out / "steps").glob("*.pkl"))
     for step in pipeline.STEPS:
         a1, a2 = {}, {}
-        assert store.load(step, pipeline.run_key(first.session, first.params)) is None  # keyed per step
+        assert store.load(step, run_key(first.session, first.params)) is None  # keyed per step
         got = store.load(step, keys[step])
         assert got is not None, step
-        assert json.dumps(encode_result(got, a2)) == json.dumps(encode_result(first.results[step], a1)), step
+        assert json.dumps(encode_result(got, a2)) == json.dumps(encode_result(first.result(step), a1)), step
         for k in a1:
             np.testing.assert_array_equal(a1[k], a2[k])
     calls = []
     second = pipeline.analyze(session, out, reuse=True, progress=lambda *a: calls.append(a))
     assert calls == []  # every step loaded, none recomputed
-    assert second.results["comfort"]["indicators"] == first.results["comfort"]["indicators"]
+    assert second.comfort.indicators == first.comfort.indicators
     assert all((p.stat().st_mode & 0o044) == 0o044 for p in (out / "steps").iterdir())  # colleagues can read
     record("store:round_trip", "ok")
 
@@ -895,7 +897,7 @@ def test_reuse_key_covers_every_input_file(change, tmp_path, template):
 
     session = make_session(tmp_path, template, copy_media=True)
     s = load_session(session)
-    before = pipeline.run_key(s, AnalysisParams())
+    before = run_key(s, AnalysisParams())
     if change == "video_replaced":  # same size, other bytes at the end
         p = session / "motion" / "right.avi"
         data = bytearray(p.read_bytes())
@@ -913,7 +915,7 @@ def test_reuse_key_covers_every_input_file(change, tmp_path, template):
         p.write_text(p.read_text().replace("error = ", "error = 1"))
     else:
         edit_json(session, lambda d: d["metadata"].update(rider="B"))
-    assert pipeline.run_key(load_session(session), AnalysisParams()) != before
+    assert run_key(load_session(session), AnalysisParams()) != before
     record(f"store:key_{change}", "recomputed")
 
 

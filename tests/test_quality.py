@@ -1,4 +1,5 @@
 """Plausibility checks: known answers of the pure check functions."""
+import dataclasses
 import math
 
 import numpy as np
@@ -6,6 +7,14 @@ import pytest
 
 from horsemocap import quality
 from horsemocap.camera import Camera
+from horsemocap.steps import CameraSyncCheck
+
+
+def sync_check(shift=0, current_px=0.2, best_px=0.2, *, moved=None, n_points=0, decided=True, rounds=1,
+               settled=True) -> CameraSyncCheck:
+    """One camera's check by the markers; by default one round that settled, moved when shifted."""
+    return CameraSyncCheck(shift=shift, moved=shift != 0 if moved is None else moved, current_px=current_px,
+                           best_px=best_px, n_points=n_points, decided=decided, rounds=rounds, settled=settled)
 
 
 def test_range_levels_and_verdict():
@@ -97,49 +106,52 @@ def test_marker_motion():
 def test_sync_by_markers():
     from horsemocap.quality import check_sync_by_markers
 
-    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2} for c in ("left", "middle", "right")}
+    same = {c: sync_check(0, 0.2, 0.2) for c in ("left", "middle", "right")}
     c = check_sync_by_markers(same)
     assert c.level == "ok" and c.figure == 0
-    moved = {**same, "right": {"shift": -2, "current_px": 6.0, "best_px": 0.3}}
+    moved = {**same, "right": sync_check(-2, 6.0, 0.3)}
     c = check_sync_by_markers(moved)
     assert c.level == "warning" and c.figure == 2 and "'right' by -2" in c.message
     assert check_sync_by_markers({}).level == "skipped"
     # a camera the markers could not check is not confirmed (it was reported "ok" before)
-    unchecked = {c: {**v, "n_points": 0, "decided": False} for c, v in same.items()}
+    unchecked = {c: dataclasses.replace(v, n_points=0, decided=False) for c, v in same.items()}
     c = check_sync_by_markers(unchecked)
     assert c.level == "warning" and "could not check" in c.message and "'left' (0 marker-frames" in c.message
     c = check_sync_by_markers({**moved, "left": unchecked["left"]})
     assert c.level == "warning" and "'right' by -2" in c.message and "could not check the flash offset of camera 'left'" in c.message
     # moved +1 then -1: back at the flash's offset, but the markers did move it
-    there_and_back = {**same, "middle": {"shift": 0, "moved": True, "current_px": 3.0, "best_px": 0.2}}
+    there_and_back = {**same, "middle": sync_check(0, 3.0, 0.2, moved=True)}
     c = check_sync_by_markers(there_and_back)
     assert c.level == "warning" and "'middle' by +0 frame(s) in all" in c.message
     # the rounds ran out with a correction still to check
-    unsettled = {k: {**v, "settled": False, "rounds": 3} for k, v in moved.items()}
+    unsettled = {k: dataclasses.replace(v, settled=False, rounds=3) for k, v in moved.items()}
     c = check_sync_by_markers(unsettled)
     assert c.level == "unreliable" and "after 3 rounds" in c.message
     # the residual cap is a marker not found, not a measurement
-    capped = {**same, "right": {"shift": -2, "current_px": 10.0, "best_px": 0.3}}
+    capped = {**same, "right": sync_check(-2, 10.0, 0.3)}
     assert "markers not found (>= 10 px) at the flash's offset -> 0.3 px" in check_sync_by_markers(capped).message
 
 
 def test_sync_check_summary_over_rounds():
     """Two rounds: the flash's own offsets kept, the total shift from them, settled when the last round
     moved nothing; three rounds that all moved: not settled."""
-    from horsemocap.pipeline import _sync_check_summary
+    from horsemocap.steps import SyncResult
+    from horsemocap.steps.detect import _check_summary
 
     def rnd(**shifts):
         return {c: {"shift": shifts.get(c, 0), "current_px": 10.0 if shifts.get(c) else 0.2, "best_px": 0.1,
                     "n_points": 40, "decided": True} for c in ("left", "middle", "right")}
 
-    sync = {"offsets": {"left": 9, "middle": 64, "right": 134}, "flash_offsets": {"left": 8, "middle": 61, "right": 134}}
-    out = _sync_check_summary([rnd(middle=3), rnd(left=1), rnd()], sync)
-    assert {c: v["shift"] for c, v in out.items()} == {"left": 1, "middle": 3, "right": 0}
-    assert {c: v["moved"] for c, v in out.items()} == {"left": True, "middle": True, "right": False}
-    assert all(v["settled"] and v["rounds"] == 3 for v in out.values())
-    assert out["middle"]["current_px"] == 10.0                 # the first round's, at the flash's offset
-    out = _sync_check_summary([rnd(middle=3), rnd(middle=-1), rnd(middle=1)], sync)
-    assert not any(v["settled"] for v in out.values())
+    flash = SyncResult(offsets={"left": 8, "middle": 61, "right": 134}, frame_counts={}, n_frames=0,
+                       offsets_from="flashlight")
+    sync = flash.replace(offsets={"left": 9, "middle": 64, "right": 134}, flash_offsets=flash.offsets)
+    out = _check_summary([rnd(middle=3), rnd(left=1), rnd()], sync, flash)
+    assert {c: v.shift for c, v in out.items()} == {"left": 1, "middle": 3, "right": 0}
+    assert {c: v.moved for c, v in out.items()} == {"left": True, "middle": True, "right": False}
+    assert all(v.settled and v.rounds == 3 for v in out.values())
+    assert out["middle"].current_px == 10.0                 # the first round's, at the flash's offset
+    out = _check_summary([rnd(middle=3), rnd(middle=-1), rnd(middle=1)], sync, flash)
+    assert not any(v.settled for v in out.values())
     from horsemocap.quality import check_sync_by_markers
     assert check_sync_by_markers(out).level == "unreliable"
 
@@ -183,14 +195,20 @@ def test_post_checks_judge_the_markers_shape():
     found in wrong frames: 44 mm residual, exit 0 before) is unreliable by the marker_rigidity check."""
     from types import SimpleNamespace
 
+    from horsemocap.pipeline import Analysis
+    from horsemocap.steps import Conditioning, RigidBodyResult
+
+    def unset(cls, **given):      # a result with only the fields the checks read
+        return cls(**{**{f.name: None for f in dataclasses.fields(cls)}, **given})
+
     model = np.array([[0.3, 0.0, 0.0], [-0.15, 0.1, 0.0], [-0.15, -0.1, 0.05]])
-    good = {"rigid_body": {"warnings": [], "model": model,
-                           "conditioning": {"registration_rms_m": np.full(40, 0.0008)}}}
-    bad = {"rigid_body": {**good["rigid_body"], "conditioning": {"registration_rms_m": np.full(40, 0.044)}}}
+    good = unset(RigidBodyResult, warnings=[], model=model,
+                 conditioning=unset(Conditioning, registration_rms_m=np.full(40, 0.0008), warnings=[]))
+    bad = good.replace(conditioning=good.conditioning.replace(registration_rms_m=np.full(40, 0.044)))
     session = SimpleNamespace(fps=30.0)
-    levels = {c.name: c.level for c in quality.post_checks(SimpleNamespace(results=good, session=session))}
+    levels = {c.name: c.level for c in quality.post_checks(Analysis(session, None, rigid_body=good))}
     assert levels["marker_rigidity"] == "ok"
-    checks = quality.post_checks(SimpleNamespace(results=bad, session=session))
+    checks = quality.post_checks(Analysis(session, None, rigid_body=bad))
     assert {c.name: c.level for c in checks}["marker_rigidity"] == "unreliable"
     assert quality.verdict(checks) == "unreliable"
 
@@ -198,16 +216,15 @@ def test_post_checks_judge_the_markers_shape():
 def test_an_ambiguous_flash_the_markers_did_not_check_is_a_warning():
     from horsemocap.quality import check_sync_by_markers
 
-    same = {c: {"shift": 0, "current_px": 0.2, "best_px": 0.2, "n_points": 40, "decided": True}
-            for c in ("left", "middle", "right")}
+    same = {c: sync_check(0, 0.2, 0.2, n_points=40) for c in ("left", "middle", "right")}
     assert check_sync_by_markers(same, ambiguous={"middle": 57}).level == "ok"     # the markers confirm it
     # far beyond the shifts tried: the kept offset is still confirmed by the markers landing on the regions
     assert check_sync_by_markers(same, ambiguous={"middle": 400}).level == "ok"
     # no markers on the regions where the offset was kept: nothing confirmed
-    lost = {**same, "middle": {**same["middle"], "current_px": 10.0, "best_px": 10.0}}
+    lost = {**same, "middle": dataclasses.replace(same["middle"], current_px=10.0, best_px=10.0)}
     c = check_sync_by_markers(lost, ambiguous={"middle": 57})
     assert c.level == "warning" and "frame 57" in c.message
-    unchecked = {**same, "middle": {**same["middle"], "decided": False, "n_points": 3}}
+    unchecked = {**same, "middle": dataclasses.replace(same["middle"], decided=False, n_points=3)}
     c = check_sync_by_markers(unchecked, ambiguous={"middle": 57})
     assert c.level == "warning" and "frame 57 nearly as likely" in c.message
     c = check_sync_by_markers({}, ambiguous={"left": 12})                            # two cameras: no check

@@ -34,13 +34,13 @@ def test_os_error_inside_a_step_leaves_results_as_before(err_no, tmp_path, templ
     session = make_session(tmp_path, template)
     out = tmp_path / "out"
     before = earlier_results(out)
-    real = pipeline.STEP_FUNCTIONS["detect"]
+    real = pipeline.STEP_CALLS["detect"]
 
-    def detect_then_full(session_, params, results, progress):
-        result = real(session_, params, results, progress)
+    def detect_then_full(analysis, progress):
+        result = real(analysis, progress)
         raise OSError(err_no, os.strerror(err_no), str(tmp_path / "cache" / "corners.json"))
 
-    monkeypatch.setitem(pipeline.STEP_FUNCTIONS, "detect", detect_then_full)
+    monkeypatch.setitem(pipeline.STEP_CALLS, "detect", detect_then_full)
     code, _, err = run_cli(["analyze", session, "--out", out], capsys)
     line = assert_clear_error(code, err, "cannot write", str(tmp_path / "cache" / "corners.json"),
                               os.strerror(err_no), "as it was before the run")
@@ -131,7 +131,7 @@ def test_debug_shows_the_traceback_of_a_step_error(where, tmp_path, template, ca
     def broken_sync(*a, **k):
         return {"offsets": 1 / 0}
 
-    monkeypatch.setitem(pipeline.STEP_FUNCTIONS, "sync", broken_sync)
+    monkeypatch.setitem(pipeline.STEP_CALLS, "sync", broken_sync)
     code, _, err = run_cli(["analyze", session, "--out", tmp_path / "plain"], capsys)
     line = assert_clear_error(code, err, "step 'sync'", "ZeroDivisionError", "--debug")
     argv = ["analyze", session, "--out", tmp_path / "debug"]

@@ -46,7 +46,7 @@ def test_the_pipeline_corrects_a_flash_found_two_frames_early(monkeypatch):
 
     session = load_session(default_session_dir())
     params = resolve_params(session)
-    true = run_steps(session, params, {}, ["sync"]).results["sync"]["offsets"]
+    true = run_steps(session, params, {}, ["sync"]).sync.offsets
     real = sync.flash_detections
 
     def early(sources, **kw):
@@ -55,11 +55,12 @@ def test_the_pipeline_corrects_a_flash_found_two_frames_early(monkeypatch):
 
     monkeypatch.setattr(sync, "flash_detections", early)
     an = run_steps(session, params, {}, ["sync", "rig", "plumb", "static", "detect"])
-    got = an.results["sync"]
-    assert got["offsets"] == true
-    assert got["flash_offsets"]["right"] == true["right"] - 2 and "corrected by the markers" in got["offsets_from"]
-    check = an.results["detect"]["sync_check"]
-    assert check["right"]["shift"] == 2 and check["left"]["shift"] == 0 and check["middle"]["shift"] == 0
+    got = an.synchronisation
+    assert got.offsets == true and an.detect.sync_corrected
+    assert got.flash_offsets["right"] == true["right"] - 2 and "corrected by the markers" in got.offsets_from
+    assert an.sync.offsets["right"] == true["right"] - 2          # the sync step's own result stays as it was
+    check = an.detect.sync_check
+    assert check["right"].shift == 2 and check["left"].shift == 0 and check["middle"].shift == 0
 
 
 def test_an_ambiguous_flash_is_recorded_and_settled_by_the_markers(monkeypatch):
@@ -80,8 +81,8 @@ def test_an_ambiguous_flash_is_recorded_and_settled_by_the_markers(monkeypatch):
     monkeypatch.setattr(sync, "flash_detections", ambiguous)
     session = load_session(default_session_dir())
     an = run_steps(session, resolve_params(session), {}, ["sync", "rig", "plumb", "static", "detect"])
-    assert an.results["sync"]["flash_ambiguous"] == {"middle": 40}
+    assert an.synchronisation.flash_ambiguous == {"middle": 40}
     check = {c.name: c for c in quality.post_checks(an)}["sync_by_markers"]     # as the verdict sees it
-    assert check.level == "ok" and an.results["detect"]["sync_check"]["middle"]["decided"]
+    assert check.level == "ok" and an.detect.sync_check["middle"].decided
     from horsemocap.results import analysis_record
     assert analysis_record(an)["chosen"]["sync"]["flash_ambiguous"] == {"middle": 40}

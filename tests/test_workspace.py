@@ -10,8 +10,9 @@ from horsemocap import workspace as wsm
 from horsemocap.cli import build_parser, _params_from_args
 from horsemocap.data import data_samples_dir, default_session_dir
 from horsemocap.params import AnalysisParams, ParamsError, read_params
-from horsemocap.pipeline import notebook_results_dir, resolve_params, results_for, step_keys
+from horsemocap.pipeline import resolve_params, step_keys
 from horsemocap.session import load_session
+from horsemocap.workspace import notebook_results_dir, results_for
 
 
 @pytest.fixture
@@ -132,9 +133,11 @@ def test_step_keys_change_only_from_the_first_step_that_reads_a_parameter():
     a = step_keys(session, AnalysisParams())
     b = step_keys(session, AnalysisParams(detection={"left": {"threshold": 150}}))
     c = step_keys(session, AnalysisParams(weighting_mode="thesis"))
+    d = step_keys(session, AnalysisParams(kinematics="fits"))
     steps = list(a)
     assert [s for s in steps if a[s] != b[s]] == steps[steps.index("detect"):]
-    assert [s for s in steps if a[s] != c[s]] == ["rigid_body", "comfort"]
+    assert [s for s in steps if a[s] != c[s]] == ["comfort"]          # the comfort section's own
+    assert [s for s in steps if a[s] != d[s]] == ["rigid_body", "comfort"]
 
 
 def test_a_threshold_moved_in_notebook_04_reaches_the_numbers_of_notebooks_12_and_14(tmp_path, monkeypatch):
@@ -155,17 +158,17 @@ def test_a_threshold_moved_in_notebook_04_reaches_the_numbers_of_notebooks_12_an
     monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path))
     shutil.copytree(shared, notebook_results_dir(session))
     ws = wsm.open_workspace()
-    level = auto.results["detect"]["detection"]["left"]["threshold"]
+    level = auto.detect.detection["left"]["threshold"]
     frames = FrameSource(auto.session.motion["left"]).read()[:3]
     ui = ws.bind(widgets.ui_threshold(frames, DetectionParams(threshold=level)), "detection.left.threshold")
     ui.slider.value = level + 30                       # what a teacher does in notebook 04
     assert ws.choices == {"detection": {"left": {"threshold": level + 30}}}
 
     chosen = results_for()                             # what notebooks 05-14 call
-    det = chosen.results["detect"]["detection"]
+    det = chosen.detect.detection
     assert det["left"]["threshold"] == level + 30
-    assert det["middle"]["threshold"] == auto.results["detect"]["detection"]["middle"]["threshold"]
-    a, c = auto.results["comfort"]["indicators"], chosen.results["comfort"]["indicators"]
+    assert det["middle"]["threshold"] == auto.detect.detection["middle"]["threshold"]
+    a, c = auto.comfort.indicators, chosen.comfort.indicators
     assert a["acc_y_Wk_rms"] != c["acc_y_Wk_rms"]     # notebook 12's numbers follow
     truth = load_truth(session)
     e_auto = accuracy.errors_2d(auto, truth)["left"]["median"]
@@ -177,11 +180,11 @@ def test_a_threshold_moved_in_notebook_04_reaches_the_numbers_of_notebooks_12_an
     ui.slider.value = level                            # back to the automatic threshold
     assert ws.choices == {}
     again = results_for()
-    assert np.array_equal(again.results["comfort"]["indicators"]["acc_y_Wk_rms"], a["acc_y_Wk_rms"])
+    assert np.array_equal(again.comfort.indicators["acc_y_Wk_rms"], a["acc_y_Wk_rms"])
 
 
 def test_still_prompts_are_empty_at_the_automatic_choice_and_name_what_changed(store):
-    from horsemocap.pipeline import _still_points, still_params, step_rig  # noqa: F401
+    from horsemocap.steps import still_params, still_points, step_rig  # noqa: F401
     from horsemocap.sources import read_image
     from horsemocap.widgets import ui_still
 
@@ -229,7 +232,7 @@ def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
     """Appendix A 7a the thesis' way: the labels of the regions the automatic matching chose, at the
     automatic threshold, taken as they are, give the same plumb centres."""
     from horsemocap.detection import auto_threshold, detect_still_views, to_gray
-    from horsemocap.pipeline import _still_points, still_params
+    from horsemocap.steps import still_params, still_points
     from horsemocap.sources import read_image
     from horsemocap.virtuallab import load_truth
     from horsemocap.widgets.stills import automatic_labels
@@ -244,16 +247,16 @@ def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
         given[c] = {"threshold": thr, "labels": list(automatic_labels(im, thr, auto[c]))}
     params = AnalysisParams(stills={"plumb": given})
     params.check_session(session)
-    pts, px = _still_points(session, rig, session.plumb, 2, "plumb", "joint",
-                            still_params(params, "plumb", session.cameras))
+    pts, px = still_points(session, rig, session.plumb, 2, "plumb", "joint",
+                           still_params(params.stills, "plumb", session.cameras))
     for c in session.cameras:
         np.testing.assert_allclose(px[c], auto[c], atol=1e-9)
     # a threshold alone keeps the matching of the cameras; far too high a level finds nothing, and says so
     from horsemocap.pipeline import AnalysisError
     with pytest.raises(AnalysisError, match="step 'plumb'.*plumb"):
-        _still_points(session, rig, session.plumb, 2, "plumb", "joint",
-                      still_params(AnalysisParams(stills={"plumb": {"all": {"threshold": 254}}}), "plumb",
-                                   session.cameras))
+        still_points(session, rig, session.plumb, 2, "plumb", "joint",
+                     still_params(AnalysisParams(stills={"plumb": {"all": {"threshold": 254}}}).stills,
+                                  "plumb", session.cameras))
 
 
 def test_a_named_saddle_marker_is_never_matched_to_a_ride_marker():
@@ -275,8 +278,8 @@ def test_a_named_saddle_marker_is_never_matched_to_a_ride_marker():
 
 
 def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
-    import horsemocap.calibration.cache as calibration
-    from horsemocap.pipeline import step_rig
+    import horsemocap.steps.rig as rig_step
+    from horsemocap.steps import step_rig
 
     session = load_session(default_session_dir(), open_sources=False)
     assert session.calibration_images is not None
@@ -286,13 +289,13 @@ def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
         seen.update(kw)
         raise RuntimeError("stop after the call")
 
-    monkeypatch.setattr(calibration, "cached_calibration", fake_calibration)
+    monkeypatch.setattr(rig_step, "cached_calibration", fake_calibration)
     params = AnalysisParams(recalibrate=True, calibration_exclude={"left": ["view03.png"]})
     with pytest.raises(RuntimeError, match="stop after the call"):
-        step_rig(session, params, {}, lambda *a: None)
+        step_rig(session, params.rig, lambda *a: None)
     assert seen["exclude"] == {"left": ["view03.png"]}
     with pytest.raises(RuntimeError):
-        step_rig(session, AnalysisParams(recalibrate=True), {}, lambda *a: None)
+        step_rig(session, AnalysisParams(recalibrate=True).rig, lambda *a: None)
     assert seen["exclude"] is None
 
 
@@ -339,11 +342,11 @@ def test_drawing_the_detection_controls_in_a_browser_writes_no_choice(store):
 
 
 def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_command_line(store):
-    from horsemocap.widgets import ui_preset
+    from horsemocap.widgets import ui_preset, ui_session
 
     s = default_session_dir()
     ws = wsm.open_workspace()
-    picker = ws.ui()
+    picker = ui_session(ws)
     switch = ui_preset(ws)
     assert switch.value == "default" and ws.choices == {} and "every choice automatic" in picker.message.value
     assert "automatic run" not in picker.message.value
