@@ -293,7 +293,8 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
                                                    "see quality.json)" if bad else " (every plausibility check passed)"))
     for c in bad:
         print(f"  {c.level}: {c.name}: {c.message}")
-    ind = outcome.analysis.results.get("comfort", {}).get("indicators")
+    comfort = outcome.analysis.comfort if outcome.analysis is not None else None
+    ind = comfort.indicators if comfort is not None else None
     if ind:
         print(f"comfort [quality {outcome.verdict}]: Wk-weighted rms {ind['acc_y_Wk_rms']:.3f} m/s², "
               f"VDV {ind['VDV_y_Wk']:.3f} m/s^1.75, 8-h action value reached in {ind['TA_8_action_Wk']:.3f} h "

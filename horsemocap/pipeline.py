@@ -99,17 +99,6 @@ class Analysis:
             raise ValueError(f"step '{step}' already has a result")
         setattr(self, step, value)
 
-    # transitional: reading results by step name, until every reader uses attributes
-    @property
-    def results(self) -> dict:
-        out = {name: getattr(self, name) for name in self.steps_done}
-        if self.detect is not None:
-            out["sync"] = self.detect.sync
-        return out
-
-    def __getitem__(self, step: str):  # transitional
-        return self.results[step]
-
 
 def _progress_printer(stream=None):
     """``[horsemocap] step: message`` lines; counts inside long steps as a bar on a terminal."""

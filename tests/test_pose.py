@@ -240,7 +240,7 @@ def test_frames_with_two_markers_beyond_the_ends_reduce_the_end_error():
 
 
 def test_pose_margin_widens_the_segment_over_frames_with_two_markers():
-    from horsemocap.pipeline import pose_margin
+    from horsemocap.steps import pose_margin
 
     pts = np.full((12, 3, 3), np.nan)
     counts = [0, 1, 2, 2, 3, 3, 3, 3, 2, 1, 2, 3]

@@ -249,40 +249,36 @@ def test_weighted_cost_never_above_horns_with_huge_noise():
 def test_pose_weights_parameter_reaches_the_registration():
     """``pose_weights``: "covariance" (default) weights the markers by their triangulation covariance in
     the bundled session's rigid-body step; "equal" gives Horn's registration, as the thesis preset."""
-    from dataclasses import replace
-
     from horsemocap.data import default_session_dir
     from horsemocap.pipeline import analyze, run_steps
 
     base = analyze(default_session_dir(), None, {}, until="motion_frame", progress=lambda *a: None)
-    assert base.results["triangulate"].get("covariance") is not None
-    out = {w: run_steps(base.session, replace(base.params, pose_weights=w), base.results, ["rigid_body"])
+    assert base.triangulate.covariance is not None
+    out = {w: run_steps(base.session, base.params.updated({"rigid_body.pose.weights": w}), base, ["rigid_body"])
            for w in ("covariance", "equal")}
-    cov, equal = (out[w].results["rigid_body"] for w in ("covariance", "equal"))
+    cov, equal = (out[w].rigid_body for w in ("covariance", "equal"))
     # the residual of the weighted fit is larger (depth keeps its residual) and the saddle moves
-    rms = {w: np.nanmedian(r["conditioning"]["registration_rms_m"]) for w, r in (("covariance", cov), ("equal", equal))}
+    rms = {w: np.nanmedian(r.conditioning.registration_rms_m) for w, r in (("covariance", cov), ("equal", equal))}
     assert rms["covariance"] > rms["equal"]
-    assert not np.allclose(cov["saddle_acceleration"], equal["saddle_acceleration"])
+    assert not np.allclose(cov.saddle_acceleration, equal.saddle_acceleration)
 
 
 def test_pose_rotation_weights_parameter_reaches_the_rotation_smoothing():
     """``pose_rotation_weights``: "auto" (default) lets the rotation components be smoothed with each frame
     weighted by its predicted variance (on the bundled session at least one component takes it and the
     saddle moves); "equal" smooths every frame alike; an unknown value is refused."""
-    from dataclasses import replace
-
     from horsemocap.data import default_session_dir
     from horsemocap.params import AnalysisParams, ParamsError
     from horsemocap.pipeline import analyze, run_steps
 
-    assert AnalysisParams().pose_rotation_weights == "auto"
+    assert AnalysisParams().rigid_body.pose.rotation_weights == "auto"
     with pytest.raises(ParamsError, match="pose_rotation_weights"):
         AnalysisParams.from_dict({"pose_rotation_weights": "inverse"})
     base = analyze(default_session_dir(), None, {}, until="motion_frame", progress=lambda *a: None)
-    out = {w: run_steps(base.session, replace(base.params, pose_rotation_weights=w), base.results, ["rigid_body"])
-           .results["rigid_body"] for w in ("auto", "equal")}
-    chosen = {w: [out[w]["analysis"].pose.smoothing[c].get("weights", "equal") for c in ("phix", "phiy", "phiz")]
+    out = {w: run_steps(base.session, base.params.updated({"rigid_body.pose.rotation_weights": w}), base,
+                     ["rigid_body"]).rigid_body for w in ("auto", "equal")}
+    chosen = {w: [out[w].body.pose.smoothing[c].get("weights", "equal") for c in ("phix", "phiy", "phiz")]
               for w in out}
     assert "inverse variance, Huber" in chosen["auto"]
     assert chosen["equal"] == ["equal"] * 3
-    assert not np.allclose(out["auto"]["saddle_acceleration"], out["equal"]["saddle_acceleration"])
+    assert not np.allclose(out["auto"].saddle_acceleration, out["equal"].saddle_acceleration)

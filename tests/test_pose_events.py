@@ -94,24 +94,22 @@ def test_pose_events_parameter_reaches_the_pipelines_pose_smoothing():
     """``pose_events`` (analyze's ``--pose-events``): the known instants reach every pose component's
     smoothing on the bundled session (the saddle's acceleration changes); times outside the smoothed
     record, and the options that cannot fit change points, are refused naming the parameter."""
-    from dataclasses import replace
-
     from horsemocap.data import default_session_dir
     from horsemocap.params import AnalysisParams, ParamsError
     from horsemocap.pipeline import AnalysisError, analyze, run_steps
 
-    assert AnalysisParams().pose_events is None
+    assert AnalysisParams().rigid_body.pose.events is None
     base = analyze(default_session_dir(), None, {}, until="motion_frame", progress=lambda *a: None)
-    n = len(base.results["motion_frame"]["positions"])
+    n = len(base.motion_frame.positions)
     tau = round(0.5 * (n - 1) / base.session.fps, 4)
-    runs = {k: run_steps(base.session, replace(base.params, pose_events=ev), base.results, ["rigid_body"])
-            .results["rigid_body"] for k, ev in (("none", None), ("event", [tau]))}
-    smoothing = runs["event"]["analysis"].pose.smoothing
+    runs = {k: run_steps(base.session, base.params.updated({"rigid_body.pose.events": ev}), base, ["rigid_body"])
+            .rigid_body for k, ev in (("none", None), ("event", [tau]))}
+    smoothing = runs["event"].body.pose.smoothing
     assert all(v["events"] == [tau] for v in smoothing.values())
-    assert all("events" not in v for v in runs["none"]["analysis"].pose.smoothing.values())
-    assert not np.allclose(runs["event"]["saddle_acceleration"], runs["none"]["saddle_acceleration"])
+    assert all("events" not in v for v in runs["none"].body.pose.smoothing.values())
+    assert not np.allclose(runs["event"].saddle_acceleration, runs["none"].saddle_acceleration)
     with pytest.raises(AnalysisError, match="pose_events.*outside"):
-        run_steps(base.session, replace(base.params, pose_events=[100.0]), base.results, ["rigid_body"])
+        run_steps(base.session, base.params.updated({"rigid_body.pose.events": [100.0]}), base, ["rigid_body"])
     for bad in ({"pose_events": [1.0], "kinematics": "fits"}, {"pose_events": [1.0], "pose_smoothing": "gcv"},
                 {"pose_events": ["1.0"]}, {"pose_events": [1.0, 1.0]}):
         with pytest.raises(ParamsError, match="pose_events"):

@@ -335,22 +335,6 @@ def measured_markers(truth, seed=0, sigma_xyz=(0.0015, 0.0015, 0.005)):
     return smoothing.smooth_positions(_motion(truth, pos), 0.1), _motion(truth, static)
 
 
-def _pipeline_inputs(d, truth):
-    """Smoothed motion-frame markers, static shot and the truth in the same
-    frame from horsemocap.pipeline, or None if it cannot run yet."""
-    try:
-        from horsemocap import frames, pipeline
-        an = pipeline.results_for(d, until="motion_frame")
-        mf = an["motion_frame"]
-        pts, static = mf["positions"], mf["static"]
-        if len(pts) != len(truth.saddle_acc):
-            return None
-        conv = lambda x: frames.to_motion_frame(np.asarray(x)[:, None, :], mf["frame"])[:, 0]  # noqa: E731
-        return pts, static, conv
-    except Exception:
-        return None
-
-
 def _saddle_errors(truth, pts, static, conv):
     t = np.arange(len(pts)) / float(truth.fps)
     with warnings.catch_warnings():
@@ -384,18 +368,20 @@ def test_default_session_saddle_acc(kinematics, target):
     13.4 %; hard set 3.2 %, worst 9.6 %).
     """
     d, truth = _default_truth()
-    from horsemocap import accuracy, pipeline
-    an = pipeline.results_for(d, until="rigid_body", params={"kinematics": kinematics})
-    rb = an["rigid_body"]["analysis"]
-    assert (rb.method, rb.saddle_method) == (an.params.angular_method, an.params.saddle_method)
+    from horsemocap import accuracy
+    from horsemocap.workspace import results_for
+    an = results_for(d, until="rigid_body", params={"rigid_body": {"kinematics": kinematics}})
+    rb = an.rigid_body.body
+    fits = an.params.rigid_body.fits
+    assert (rb.method, rb.saddle_method) == (fits.angular_method, fits.saddle_method)
     st = accuracy.stage_errors(an, truth)
-    a, b = an["triangulate"]["segment"]
-    frames = an["sync"]["offsets"]["left"] + np.arange(a, b)
+    a, b = an.triangulate.segment
+    frames = an.synchronisation.offsets["left"] + np.arange(a, b)
     # compared on every analysed frame the truth covers (the truth lacks frames in which a marker is
     # not whole in every camera; the multi-view identification measures those with two cameras)
     assert st["frames"] == int(np.isin(frames, truth.ref_frames).sum()) >= len(frames) - 2
     pct = st["saddle_acc_y_rmse_pct_of_rms"]
-    msg = (f"[kinematics {kinematics}: smoothing {an.params.smoothing_method}, omega {rb.method}, saddle "
+    msg = (f"[kinematics {kinematics}: smoothing {an.params.smooth.method}, omega {rb.method}, saddle "
            f"{rb.saddle_method}] saddle position RMSE x/y/z mm {np.round(1000 * st['saddle_position'], 1)}; "
            f"vertical acc RMSE {st['saddle_acceleration'][1]:.3f} m/s^2 = {pct:.1f} % of rms")
     print(msg)

@@ -32,20 +32,6 @@ class StepResult:
         """A copy with ``changes`` (the result itself stays as it was)."""
         return dataclasses.replace(self, **changes)
 
-    # transitional: reading a result by key, until every reader uses attributes
-    def __getitem__(self, key):
-        try:
-            return getattr(self, key)
-        except AttributeError:
-            raise KeyError(key) from None
-
-    def get(self, key, default=None):  # transitional
-        value = getattr(self, key, default)
-        return default if value is None else value
-
-    def __contains__(self, key) -> bool:  # transitional
-        return getattr(self, key, None) is not None
-
 
 def longest_run(mask) -> tuple[int, int] | None:
     """``(start, stop)`` of the longest run of True in ``mask``, or None.
