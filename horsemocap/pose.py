@@ -540,34 +540,12 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     if min_height_m is None:
         min_height_m = 1e-3 * size
     vis = np.all(np.isfinite(p), axis=2)
-    cov = None
-    if covariance is not None:
-        if weights is not None:
-            raise ValueError("weights and covariance: give one (a covariance holds the marker's weight)")
-        if not (extra_noise == "estimate" or (np.isscalar(extra_noise) and float(extra_noise) >= 0)):
-            raise ValueError(f"extra_noise: expected 'estimate' or a noise >= 0 (m), got {extra_noise!r}")
-        cov = _check_covariance(covariance, vis, n, m)
-        weights = 1.0 / np.trace(cov, axis1=2, axis2=3)   # Horn's start: inverse mean variances
-    if weights is None:
-        w = vis.astype(float)
-    else:
-        w = np.broadcast_to(np.asarray(weights, float), (n, m)).copy()
-        if np.any(w[vis] < 0) or not np.all(np.isfinite(w[vis])):
-            raise ValueError("weights: expected finite non-negative marker weights")
-        w = np.where(vis, w, 0.0)
+    w, cov = _marker_weights(weights, covariance, extra_noise, vis)
     used = w > 0
     k = used.sum(1)
     height = smallest_height(np.broadcast_to(x, (n, m, 3)), used)
     ok = (k >= 3) & (height >= min_height_m)
-    reason = np.full(n, "", dtype=object)
-    for i in np.flatnonzero(~ok):
-        miss = np.flatnonzero(~used[i])
-        if k[i] < 3:
-            reason[i] = (f"only {k[i]} marker(s) visible (missing: "
-                         + ", ".join(str(names[j]) if names is not None else f"marker{j + 1}" for j in miss)
-                         + "); a pose needs 3 non-collinear markers")
-        else:
-            reason[i] = f"visible markers nearly collinear (smallest height {1000 * height[i]:.2g} mm)"
+    reason = _no_pose_reasons(ok, used, height, names)
     wn = np.where(ok[:, None], w, 1.0)
     wn = wn / wn.sum(1, keepdims=True)
     pp = np.where(used[:, :, None], p, 0.0)
@@ -610,6 +588,41 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
     return PoseRegistration(rotation=R, translation=t, centre=centre, registered=reg, residual=res,
                             rms=rms, n_markers=k.astype(int), height=height, reason=reason.astype(str),
                             noise_m=noise, information=normal, covariance_scale=scale, extra_noise_m=s0)
+
+
+def _marker_weights(weights, covariance, extra_noise, vis):
+    """Each visible marker's weight (n, m) (0 where missing) and the checked covariances (or None):
+    Horn's start with covariances weights each marker by its inverse mean variance."""
+    n, m = vis.shape
+    cov = None
+    if covariance is not None:
+        if weights is not None:
+            raise ValueError("weights and covariance: give one (a covariance holds the marker's weight)")
+        if not (extra_noise == "estimate" or (np.isscalar(extra_noise) and float(extra_noise) >= 0)):
+            raise ValueError(f"extra_noise: expected 'estimate' or a noise >= 0 (m), got {extra_noise!r}")
+        cov = _check_covariance(covariance, vis, n, m)
+        weights = 1.0 / np.trace(cov, axis1=2, axis2=3)   # Horn's start: inverse mean variances
+    if weights is None:
+        return vis.astype(float), cov
+    w = np.broadcast_to(np.asarray(weights, float), (n, m)).copy()
+    if np.any(w[vis] < 0) or not np.all(np.isfinite(w[vis])):
+        raise ValueError("weights: expected finite non-negative marker weights")
+    return np.where(vis, w, 0.0), cov
+
+
+def _no_pose_reasons(ok, used, height, names) -> np.ndarray:
+    """Why each frame without a pose has none (``""`` where it has one), (n,) object."""
+    k = used.sum(1)
+    reason = np.full(ok.size, "", dtype=object)
+    for i in np.flatnonzero(~ok):
+        miss = np.flatnonzero(~used[i])
+        if k[i] < 3:
+            reason[i] = (f"only {k[i]} marker(s) visible (missing: "
+                         + ", ".join(str(names[j]) if names is not None else f"marker{j + 1}" for j in miss)
+                         + "); a pose needs 3 non-collinear markers")
+        else:
+            reason[i] = f"visible markers nearly collinear (smallest height {1000 * height[i]:.2g} mm)"
+    return reason
 
 
 def _register_covariance(points, model, cov, used, rotation, translation, extra_noise, rounds: int = 6):

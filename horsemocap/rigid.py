@@ -1177,6 +1177,49 @@ class FourierOrders:
     rotation: object = None
     saddle: object = None
 
+    @classmethod
+    def from_param(cls, given, n_markers: int) -> FourierOrders:
+        """The orders a parameter file gives (``fits.fourier_orders`` of :class:`horsemocap.params.FitsParams`).
+
+        Parameters
+        ----------
+        given : None, dict or list
+            ``{"y": N, "z": N}`` (every marker; optionally ``"rotation"``: 3
+            ints or one, ``"saddle"``: ``[Ny, Nz]`` or one), or ``[[Ny, Nz], ...]``
+            one pair per marker; None (or a dict without ``"y"`` and ``"z"``
+            for the markers): the order rule.
+        n_markers : int
+
+        Returns
+        -------
+        FourierOrders
+
+        Raises
+        ------
+        ValueError
+            Naming ``fourier_orders`` and the forms expected.
+
+        Examples
+        --------
+        >>> o = FourierOrders.from_param({"y": 3, "z": 2, "rotation": 4}, 3)
+        >>> o.markers.tolist(), o.rotation.tolist(), o.saddle
+        ([[3, 2], [3, 2], [3, 2]], [4, 4, 4], None)
+        """
+        if given is None:
+            return cls()
+        if isinstance(given, dict):
+            def extra(key, k):
+                return None if given.get(key) is None else np.broadcast_to(np.asarray(given[key], int), (k,)).copy()
+
+            markers = (np.tile([int(given["y"]), int(given["z"])], (n_markers, 1))
+                       if "y" in given and "z" in given else None)
+            return cls(markers, extra("rotation", 3), extra("saddle", 2))
+        markers = np.asarray(given, int)
+        if markers.shape != (n_markers, 2):
+            raise ValueError(f"fourier_orders: expected {{'y': N, 'z': N}} or {n_markers} pairs [Ny, Nz], "
+                             f"got {given!r}")
+        return cls(markers)
+
     def rotation_orders(self):
         """Orders of :func:`fit_rotations`: ``rotation``, else ``markers`` if it is one int, else None (the rule)."""
         return self.rotation if self.rotation is not None else _uniform_orders(self.markers, 3)
@@ -1251,16 +1294,17 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         saddle marker, any order).
     params : horsemocap.params.RigidBodyParams
         The step's choices (the module docstring, "The step's choices", says
-        what each does); ``fits.fourier_orders`` is not read here (the
-        parameter file's form: give the parsed orders as ``fourier_orders``),
-        nor ``pose.weights`` (the caller's choice of ``pose_input.covariance``).
+        what each does); ``pose.weights`` is not read here (it is the
+        caller's choice of ``pose_input.covariance``).
     period_s : float, optional
         Stride period (thesis ``period``); if given, every Fourier fit starts
         from ``w = 2 pi / period_s`` instead of MATLAB's spectral start point,
         and the pose smoothing takes it as the stride frequency another
         estimator found (``expected_fundamental_hz``).
     fourier_orders : FourierOrders, optional
-        Orders of the chain's Fourier fits; default: the order rule for every fit.
+        Orders of the chain's Fourier fits; default: those of
+        ``params.fits.fourier_orders`` (:meth:`FourierOrders.from_param`;
+        None there: the order rule for every fit).
     pose_input : PoseInput, optional
         The markers (times, covariances, weights) the pose trajectory is
         registered to; default: ``points``, equal weights.
@@ -1303,6 +1347,8 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     _check_choices(params)
     t = np.asarray(t, float)
     pts = _check_three("points", points, t.size)
+    if fourier_orders is None:
+        fourier_orders = FourierOrders.from_param(params.fits.fourier_orders, pts.shape[1])
     static = np.asarray(static_points, float)
     static_index, saddle_index = _static_correspondence(static, pts, static_index, params.saddle_marker)
     model = static[static_index]
@@ -1315,8 +1361,7 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     common = dict(t=t, static_index=static_index, saddle_index=saddle_index, model=model, static_saddle=s_saddle,
                   method=params.fits.angular_method, saddle_method=params.fits.saddle_method,
                   kinematics=params.kinematics, pose_registration=preg)
-    chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders or FourierOrders(), period_s, smooth_span,
-                    fourier_start)
+    chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders, period_s, smooth_span, fourier_start)
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))

@@ -457,3 +457,22 @@ def test_fit_options_reach_every_fit_and_the_pose_path():
     for est, true in ((res.omega, m["omega"]), (res.alpha, m["alpha"])):
         rel = np.abs(est[inner] - true[inner]).max() / np.abs(true).max()
         assert rel < 0.02, rel
+
+
+def test_fourier_orders_of_the_parameter_file_reach_every_fit():
+    """``fits.fourier_orders`` in the section (the parameter file's form) is parsed by
+    :meth:`rigid.FourierOrders.from_param`; a wrong number of pairs names the parameter."""
+    m = _periodic_fixed_axis_motion(seed=2)
+    body = np.array([[-0.62, 0.02, -0.31], [-0.38, 0.09, -0.33], [-0.14, 0.03, -0.33], [0.06, -0.16, -0.30]])
+    pos = np.einsum("kij,mj->kmi", m["R"], body) + m["c"][:, None]
+    static = body[[3, 1, 0, 2]] + [0.3, 1.2, 7.0]
+    params = RigidBodyParams(kinematics="fits",
+                             fits=FitsParams(fourier_orders={"y": 3, "z": 2, "rotation": [1, 2, 4], "saddle": 2}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        res = rigid.analyse_rigid_body(m["t"], pos[:, :3], static, params)
+    assert res.motion_fit.orders[:, 1:].tolist() == [[3, 2]] * 3
+    assert res.rotation_fit.orders.tolist() == [1, 2, 4] and res.saddle_fit.orders[0, 1:].tolist() == [2, 2]
+    with pytest.raises(ValueError, match="fourier_orders: expected .* 3 pairs"):
+        rigid.analyse_rigid_body(m["t"], pos[:, :3], static,
+                                 RigidBodyParams(fits=FitsParams(fourier_orders=[[3, 2]])))
