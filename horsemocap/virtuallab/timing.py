@@ -236,8 +236,9 @@ def flash_fraction(timing: CameraTiming, frame_start, onset_s: float, offset_s: 
     if e <= 0:
         out = ((start >= onset_s) & (start < off)).astype(float)
     else:
-        lit = np.clip(np.minimum(start + e, off) - np.maximum(start, onset_s), 0.0, e)
-        out = lit / e
+        dark_before = np.clip(onset_s - start, 0.0, e)
+        dark_after = np.clip(start + e - off, 0.0, e) if np.isfinite(off) else 0.0
+        out = np.clip(e - dark_before - dark_after, 0.0, e) / e
     return out if out.ndim else float(out)
 
 
@@ -249,8 +250,9 @@ def draw_free_running(rng: np.random.Generator, fps: float, cameras=("left", "mi
     The reference camera has phase 0; every other camera's phase is uniform
     in ``[0, 1)``. Every camera's rate offset is uniform in
     ``+-max_ppm``; its rolling-shutter readout is uniform in
-    ``[0, max_readout_s]`` (``max_readout_s = 0``: global shutters; an
-    interlaced camera has none).
+    ``[0, min(max_readout_s, 0.9 / fps)]`` (a sensor reads its rows
+    within a frame; ``max_readout_s = 0``: global shutters; an interlaced
+    camera has none).
 
     Returns
     -------
@@ -271,7 +273,8 @@ def draw_free_running(rng: np.random.Generator, fps: float, cameras=("left", "mi
     for cam in cameras:
         phase = 0.0 if cam == reference else float(rng.uniform(0.0, 1.0))
         ppm = float(rng.uniform(-max_ppm, max_ppm))
-        readout = float(rng.uniform(0.0, max_readout_s)) if (max_readout_s > 0 and not interlaced) else 0.0
+        longest = min(max_readout_s, 0.9 / fps)
+        readout = float(rng.uniform(0.0, longest)) if (longest > 0 and not interlaced) else 0.0
         out[cam] = CameraTiming(phase_frames=phase, rate_offset_ppm=ppm, nominal_fps=float(fps),
                                 exposure_s=exposure_s, rolling_shutter_s=readout, interlaced=interlaced)
     return out
