@@ -821,7 +821,7 @@ FREE_RUNNING_HARD = {
 }
 
 
-def hard_free_running(seed: int = 0, *, names=None, cache=None, force: bool = False) -> dict:
+def hard_free_running(seed: int = 0, *, names=None, cache=None, force: bool = False, genlocked: bool = False) -> dict:
     """Free-running versions of hard sessions, rendered into the cache on demand.
 
     Each of :data:`FREE_RUNNING_HARD` (its scenario's rig, ride and extras)
@@ -829,7 +829,8 @@ def hard_free_running(seed: int = 0, *, names=None, cache=None, force: bool = Fa
     (:func:`horsemocap.virtuallab.herd.free_running_timings`, numbered after
     the herd's free-running sessions: phases uniform in [0, 1), rates within
     +-100 ppm, rolling-shutter readouts 0-30 ms, or interlaced fields without
-    rolling shutter; exposure half a frame). Parameters and result as
+    rolling shutter; exposure half a frame). Parameters (``genlocked``: the
+    control, the cameras locked together) and result as
     :func:`horsemocap.virtuallab.herd.herd_free_running`.
     """
     names = list(FREE_RUNNING_HARD) if names is None else list(names)
@@ -839,11 +840,13 @@ def hard_free_running(seed: int = 0, *, names=None, cache=None, force: bool = Fa
         if name not in FREE_RUNNING_HARD:
             raise ValueError(f"unknown free-running hard session {name!r}; expected one of {sorted(FREE_RUNNING_HARD)}")
         sc, interlaced = FREE_RUNNING_HARD[name]
-        timing = free_running_timings(seed, 100 + list(FREE_RUNNING_HARD).index(name), sc.fps, interlaced)
+        timing = free_running_timings(seed, 100 + list(FREE_RUNNING_HARD).index(name), sc.fps, interlaced,
+                                      genlocked=genlocked)
         blob = json.dumps({"v": HARD_VERSION, "render": RENDER_VERSION, "scenario": sc.to_dict(),
                            "horse": HERD[sc.horse].to_dict(), "timing": {c: t.to_dict() for c, t in timing.items()}},
                           sort_keys=True)
-        folder = root / "virtuallab" / f"{name}-s{int(seed)}-{hashlib.sha256(blob.encode()).hexdigest()[:12]}"
+        tag = "-genlocked" if genlocked else ""
+        folder = root / "virtuallab" / f"{name}{tag}-s{int(seed)}-{hashlib.sha256(blob.encode()).hexdigest()[:12]}"
         out[name] = render_into_cache(
             folder, lambda tmp, sc=sc, t=timing: render_hard(tmp, sc, timing=t, metadata={"free_running_set": int(seed)}),
             "horsemocap.virtuallab.hard.hard_free_running", force)

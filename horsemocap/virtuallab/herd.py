@@ -22,7 +22,7 @@ from ..store import atomic_write_json
 from .horse import GAITS, HERD, HORSES, saddle_motion
 from .rig import thesis_rig
 from .session import build_truth, plan_timeline, render_session, Scene
-from .timing import draw_free_running
+from .timing import CameraTiming, draw_free_running
 
 #: Bumped whenever the renderer changes its output (invalidates the cache).
 RENDER_VERSION = 3
@@ -135,11 +135,20 @@ FREE_RUNNING_SYNC_DELTAS_S = (0.45, 0.30)
 FREE_RUNNING_STRIDES = 3.0
 
 
-def free_running_timings(seed: int, index: int, fps: float, interlaced: str | None = None) -> dict:
+def free_running_timings(seed: int, index: int, fps: float, interlaced: str | None = None, *,
+                         genlocked: bool = False) -> dict:
     """The drawn camera timings of free-running session ``index`` of set ``seed``
-    (:func:`horsemocap.virtuallab.timing.draw_free_running`, the left camera the reference)."""
+    (:func:`horsemocap.virtuallab.timing.draw_free_running`, the left camera the reference).
+
+    ``genlocked``: the control, the same cameras locked together (phase 0, no
+    rate offset, no rolling shutter; exposure and interlacing kept).
+    """
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 29, int(index)]))
-    return draw_free_running(rng, fps, interlaced=interlaced)
+    timing = draw_free_running(rng, fps, interlaced=interlaced)
+    if genlocked:
+        timing = {c: CameraTiming(nominal_fps=t.nominal_fps, exposure_s=t.exposure_s, interlaced=t.interlaced)
+                  for c, t in timing.items()}
+    return timing
 
 
 def short_record(scene, fps: float, left_offset: int, sync_deltas_s, strides: float = FREE_RUNNING_STRIDES):
@@ -162,7 +171,7 @@ def _free_key(blob: dict) -> str:
     return hashlib.sha256(json.dumps({"v": RENDER_VERSION, **blob}, sort_keys=True).encode()).hexdigest()[:12]
 
 
-def herd_free_running(seed: int = 0, *, names=None, cache=None, force: bool = False) -> dict:
+def herd_free_running(seed: int = 0, *, names=None, cache=None, force: bool = False, genlocked: bool = False) -> dict:
     """Free-running versions of a few herd sessions, rendered into the cache on demand.
 
     Each of :data:`FREE_RUNNING_HERD` (thesis rig, 640 x 480, at its own
@@ -183,6 +192,9 @@ def herd_free_running(seed: int = 0, *, names=None, cache=None, force: bool = Fa
         Root folder (default :func:`horsemocap.data.cache_dir`).
     force : bool
         Render again even if a complete render exists.
+    genlocked : bool
+        Render the control instead: the same sessions with the cameras
+        locked together (:func:`free_running_timings`).
 
     Returns
     -------
@@ -196,11 +208,11 @@ def herd_free_running(seed: int = 0, *, names=None, cache=None, force: bool = Fa
         if name not in FREE_RUNNING_HERD:
             raise ValueError(f"unknown free-running herd session {name!r}; expected one of {sorted(FREE_RUNNING_HERD)}")
         horse, gait, fps = FREE_RUNNING_HERD[name]
-        timing = free_running_timings(seed, list(FREE_RUNNING_HERD).index(name), fps)
+        timing = free_running_timings(seed, list(FREE_RUNNING_HERD).index(name), fps, genlocked=genlocked)
         key = _free_key({"h": HERD[horse].to_dict(), "g": HERD[horse].gait(gait).to_dict(),
                          "seed": herd_seed(horse, gait), "fps": fps, "timing": {c: t.to_dict() for c, t in timing.items()},
                          "strides": FREE_RUNNING_STRIDES, "deltas": FREE_RUNNING_SYNC_DELTAS_S})
-        folder = root / "virtuallab" / f"{name}-s{int(seed)}-{key}"
+        folder = root / "virtuallab" / f"{name}{'-genlocked' if genlocked else ''}-s{int(seed)}-{key}"
         out[name] = render_into_cache(folder, lambda tmp, h=horse, g=gait, f=fps, t=timing, n=name:
                                       _render_free_herd(tmp, h, g, f, t, n, seed),
                                       "horsemocap.virtuallab.herd.herd_free_running", force)

@@ -15,6 +15,16 @@ to whole frames of that rate. Any rig (any cameras, any image size) and
 scene extras (:mod:`horsemocap.virtuallab.hard`: a swinging stirrup, a
 reflector crossing the markers, an occluder in front of one camera) can be
 rendered; the defaults render the thesis' laboratory byte for byte as before.
+
+Free-running cameras (:func:`render_session` ``timing=``, see
+:mod:`horsemocap.virtuallab.timing`): camera ``c``'s frame ``offsets[c]``
+has the middle of its row-0 exposure ``phase_frames`` of a frame after the
+flash's onset (``t = 0``) and its frames follow at its own rate; each image
+row is exposed at its own instant (rolling shutter), each field of an
+interlaced frame at its own, the horse and markers are smeared over each
+exposure, and the flash (on from ``t = 0`` for :func:`flash_frames` frames)
+lights each frame in proportion to the part of its exposure it is on. The
+truth then gives every camera's instants (:func:`build_truth`).
 """
 from __future__ import annotations
 

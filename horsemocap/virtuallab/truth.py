@@ -89,7 +89,7 @@ class Truth:
         start of row 0), ``frame_time_s__<cam>`` (middle of row 0's
         exposure), ``marker_time_s__<cam>`` (frames, 4: the instant of each
         ``marker_px`` entry) and ``flash_lit__<cam>`` (part of each frame's
-        exposure the flash is on). ``offsets`` then holds each camera's frame
+        exposure the flash is on; of the first field when interlaced). ``offsets`` then holds each camera's frame
         whose row-0 exposure is centred ``phase_frames`` of a frame after the
         flash's onset; ``motion_time_s`` and the kinematics are at the
         reference (left) camera's frame instants.
