@@ -54,7 +54,14 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
     try:
         a = analyze(folder, None, {}, progress=lambda *x: None)
     except AnalysisError as exc:
-        return f"{head}\n  exit 2, stopped: {exc}  ({time.perf_counter() - t0:.0f} s)"
+        try:
+            flash = analyze(folder, None, {}, until="sync", progress=lambda *x: None).synchronisation.offsets
+            found = ", ".join(f"{c} {flash[c] - flash['left']} (error {flash[c] - flash['left'] - true[c]:+.3f})"
+                              for c in truth.cameras[1:])
+        except AnalysisError as sync_exc:
+            found = f"none ({sync_exc})"
+        return (f"{head}\n  exit 2, stopped: {exc}\n  flash offsets found: {found}  "
+                f"({time.perf_counter() - t0:.0f} s)")
     verdict = quality.verdict(quality.post_checks(a))
     st = accuracy.stage_errors(a, truth)
     ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
