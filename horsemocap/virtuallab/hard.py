@@ -49,7 +49,7 @@ import numpy as np
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..data import cache_dir
-from .herd import RENDER_VERSION, render_into_cache
+from .herd import free_running_timings, RENDER_VERSION, render_into_cache
 from .horse import HERD, Harmonics, marker_height, SaddleMotion
 from .render import disc_boundary, draw_disc_blurred, fill_polygon
 from .session import (CAMERA_NAMES, EXPOSURE_S, FLASH_POSITION_G, MARKER_DIAMETER, PLUMB_TAIL_G, PLUMB_TIP_G,
@@ -747,15 +747,21 @@ def hard_key(sc: HardScenario) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:12]
 
 
-def render_hard(out_dir, sc: HardScenario, *, noise: bool = True, compress: bool = True, verbose: bool = False) -> Path:
-    """Render one hard scenario into ``out_dir`` (a session folder with its truth)."""
+def render_hard(out_dir, sc: HardScenario, *, noise: bool = True, compress: bool = True, verbose: bool = False,
+                timing: dict | None = None, metadata: dict | None = None) -> Path:
+    """Render one hard scenario into ``out_dir`` (a session folder with its truth).
+
+    ``timing``: free-running cameras (see :func:`horsemocap.virtuallab.render_session`);
+    ``metadata`` is merged into ``session.json``'s.
+    """
     t0 = time.perf_counter()
     p = plan(sc)
+    meta = {"hard_scenario": sc.to_dict(), "exercises": sc.exercises}
+    meta.update(metadata or {})
     out = render_session(out_dir, sc.horse, sc.gait, sc.seed, noise=noise, compress=compress,
                          n_motion_frames=p["n_after"], calibration_views=0, name=sc.name,
                          left_offset=p["offsets"]["left"], exposure_s=exposure_for(sc.fps), scene=p["scene"],
-                         fps=sc.fps, sync_deltas_s=sc.sync_deltas_s,
-                         metadata={"hard_scenario": sc.to_dict(), "exercises": sc.exercises})
+                         fps=sc.fps, sync_deltas_s=sc.sync_deltas_s, metadata=meta, timing=timing)
     # the plan's extras (where flash and plumb went, the border approach) beside the truth
 
     truth = load_truth(out)
@@ -792,3 +798,56 @@ def hard_session(name: str, cache=None, force: bool = False) -> Path:
     folder = root / "virtuallab" / f"hard-{name}-{hard_key(sc)}"
     render_into_cache(folder, lambda tmp: render_hard(tmp, sc), "horsemocap.virtuallab.hard.hard_session", force)
     return folder
+
+
+# ---------------------------------------------------------------------------
+# free-running versions
+# ---------------------------------------------------------------------------
+
+#: Hard sessions filmed by free-running cameras: name -> (scenario, interlacing order or None).
+#: Two of the hard set as they are, the thesis-like one at the NTSC rate 30000/1001 ("30 fps"), and a
+#: PAL DV camcorder (720 x 576, 25 frames of two fields, bottom field first) on the thesis-like ride.
+FREE_RUNNING_HARD = {
+    "free_canter720_toedin_60": (HARD_SESSIONS["canter720_toedin_60"], None),
+    "free_canter1080_toedin_50_speed": (HARD_SESSIONS["canter1080_toedin_50_speed"], None),
+    "free_sitting640_stirrup_2997": (replace(HARD_SESSIONS["sitting640_stirrup_30"], name="sitting640_stirrup_2997",
+                                             fps=30000 / 1001, strides=3.0, sync_deltas_s=(0.45, 0.30)), None),
+    "free_pal576_sitting_25_interlaced": (replace(HARD_SESSIONS["sitting640_stirrup_30"], name="pal576_sitting_25",
+                                                  fps=25.0, rig=_r((720, 576), "wide", 0.3), strides=3.0,
+                                                  sync_deltas_s=(0.45, 0.30),
+                                                  exercises="a PAL DV camcorder trio: 720x576, 25 frames of two "
+                                                            "interlaced fields (bottom first), sitting trot, stirrup"),
+                                          "bottom_first"),
+}
+
+
+def hard_free_running(seed: int = 0, *, names=None, cache=None, force: bool = False, genlocked: bool = False) -> dict:
+    """Free-running versions of hard sessions, rendered into the cache on demand.
+
+    Each of :data:`FREE_RUNNING_HARD` (its scenario's rig, ride and extras)
+    filmed by cameras whose timings are drawn for set ``seed``
+    (:func:`horsemocap.virtuallab.herd.free_running_timings`, numbered after
+    the herd's free-running sessions: phases uniform in [0, 1), rates within
+    +-100 ppm, rolling-shutter readouts 0-30 ms, or interlaced fields without
+    rolling shutter; exposure half a frame). Parameters (``genlocked``: the
+    control, the cameras locked together) and result as
+    :func:`horsemocap.virtuallab.herd.herd_free_running`.
+    """
+    names = list(FREE_RUNNING_HARD) if names is None else list(names)
+    root = Path(cache) if cache else cache_dir()
+    out = {}
+    for name in names:
+        if name not in FREE_RUNNING_HARD:
+            raise ValueError(f"unknown free-running hard session {name!r}; expected one of {sorted(FREE_RUNNING_HARD)}")
+        sc, interlaced = FREE_RUNNING_HARD[name]
+        timing = free_running_timings(seed, 100 + list(FREE_RUNNING_HARD).index(name), sc.fps, interlaced,
+                                      genlocked=genlocked)
+        blob = json.dumps({"v": HARD_VERSION, "render": RENDER_VERSION, "scenario": sc.to_dict(),
+                           "horse": HERD[sc.horse].to_dict(), "timing": {c: t.to_dict() for c, t in timing.items()}},
+                          sort_keys=True)
+        tag = "-genlocked" if genlocked else ""
+        folder = root / "virtuallab" / f"{name}{tag}-s{int(seed)}-{hashlib.sha256(blob.encode()).hexdigest()[:12]}"
+        out[name] = render_into_cache(
+            folder, lambda tmp, sc=sc, t=timing: render_hard(tmp, sc, timing=t, metadata={"free_running_set": int(seed)}),
+            "horsemocap.virtuallab.hard.hard_free_running", force)
+    return out

@@ -15,6 +15,16 @@ to whole frames of that rate. Any rig (any cameras, any image size) and
 scene extras (:mod:`horsemocap.virtuallab.hard`: a swinging stirrup, a
 reflector crossing the markers, an occluder in front of one camera) can be
 rendered; the defaults render the thesis' laboratory byte for byte as before.
+
+Free-running cameras (:func:`render_session` ``timing=``, see
+:mod:`horsemocap.virtuallab.timing`): camera ``c``'s frame ``offsets[c]``
+has the middle of its row-0 exposure ``phase_frames`` of a frame after the
+flash's onset (``t = 0``) and its frames follow at its own rate; each image
+row is exposed at its own instant (rolling shutter), each field of an
+interlaced frame at its own, the horse and markers are smeared over each
+exposure, and the flash (on from ``t = 0`` for :func:`flash_frames` frames)
+lights each frame in proportion to the part of its exposure it is on. The
+truth then gives every camera's instants (:func:`build_truth`).
 """
 from __future__ import annotations
 
@@ -31,9 +41,11 @@ from ..camera import Camera, Rig, write_rig
 from ..store import atomic_write_json
 from .calibration import render_calibration_views
 from .horse import saddle_motion, SaddleMotion
-from .render import (add_glints, Arena, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish, horse_parts,
-                     perspective_centroid_bias, project_parts, render_arena, rider_parts, sphere_silhouette)
+from .render import (add_glints, Arena, blend, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish,
+                     horse_parts, perspective_centroid_bias, polygon_coverage, project_parts, render_arena, rider_parts,
+                     sphere_silhouette)
 from .rig import FPS, thesis_rig
+from .timing import (CameraTiming, field_rows, field_start_times, flash_fraction, frame_start_times)
 from .truth import save_truth, Truth
 
 DELTA_F_LM = 53
@@ -289,6 +301,212 @@ def render_motion_frame(scene: Scene, cam: Camera, k: int, offset: int, bg: np.n
     return finish(img, rng, noise=noise)
 
 
+# ---------------------------------------------------------------------------
+# free-running cameras: every frame, row and field at its own instant
+# ---------------------------------------------------------------------------
+
+#: Sub-exposure samples of the horse's body and rider (motion blur of the large parts).
+BODY_SUBSAMPLES = 5
+#: Sub-exposure samples of each marker's disc (as the genlocked markers).
+MARKER_SUBSAMPLES = 7
+
+
+def free_running_frame_starts(timing: CameraTiming, offset: int, n: int) -> np.ndarray:
+    """Exposure start of row 0 of a free-running camera's frames ``0 .. n-1`` (s, flash onset = 0).
+
+    The camera's frame ``offset`` has the middle of its row-0 exposure at
+    ``phase_frames / fps`` (a genlocked camera with phase 0 shows ``t = 0``,
+    as :func:`render_motion_frame` does); the frames follow at the camera's
+    own rate (:func:`horsemocap.virtuallab.timing.frame_start_times`).
+    """
+    t0 = (timing.phase_frames - offset) / timing.fps - timing.exposure / 2
+    return frame_start_times(timing, n, t0)
+
+
+def marker_instants(scene: Scene, cam: Camera, timing: CameraTiming, exposure_starts, *,
+                    both_fields: bool = True, n_iter: int = 3) -> np.ndarray:
+    """Instant (s) each marker is seen at, per frame: (n, 4).
+
+    The middle of the exposure of the image row of the marker's own centre
+    (:func:`horsemocap.virtuallab.timing.row_time`), found by a fixed-point
+    iteration (the row depends on where the marker is at that instant). For
+    a marker of a few pixels this stands for the whole disc: its rows span a
+    few readout steps (microseconds), so evaluating the marker at the time
+    of its centre row misplaces it by far less than a pixel. In an
+    interlaced frame the disc spans both fields; with ``both_fields`` its
+    instant is the middle of the two fields' (the centroid of the combed
+    disc), otherwise that of the field starting at ``exposure_starts``.
+    """
+    base = np.asarray(exposure_starts, float) + timing.exposure / 2
+    if both_fields:
+        base = base + timing.field_delay_s / 2
+    n_markers = len(scene.motion.horse.marker_body) + 1
+    h = cam.size[1]
+    t = np.repeat(base[:, None], n_markers, axis=1)
+    if timing.rolling_shutter_s <= 0:
+        return t
+    t = t + 0.5 * timing.rolling_shutter_s
+    for _ in range(n_iter):
+        centres, _ = scene.marker_geometry(scene.motion.pose(t.ravel()))
+        own = centres.reshape(t.shape[0], n_markers, n_markers, 3)[:, np.arange(n_markers), np.arange(n_markers)]
+        v = cam.project(own)[..., 1]
+        v = np.clip(np.nan_to_num(v, nan=h / 2), 0.0, h - 1.0)
+        t = base[:, None] + v / h * timing.rolling_shutter_s
+    return t
+
+
+def draw_flash_fraction(img, scene: Scene, cam: Camera, fraction: float):
+    """The flashlight lit for ``fraction`` (0..1) of the exposure: :func:`draw_flash` scaled."""
+    c = scene.ground_to_world(np.asarray(scene.flash_g, float)[None])[0]
+    uv = cam.project(c)
+    w, h = cam.size
+    yy, xx = np.mgrid[0:h, 0:w]
+    r2 = (xx - uv[0]) ** 2 + (yy - uv[1]) ** 2
+    img += fraction * ((120.0 * np.exp(-r2 / (2 * 14.0 ** 2)))[..., None] + 6.0)
+    poly = cam.project(disc_boundary(c, cam.center - c, FLASH_RADIUS))
+    patch = polygon_coverage(poly, cam.size, ss=8, centre=uv)
+    if patch is not None:
+        x0, y0, cov = patch
+        blend(img, x0, y0, cov * fraction, (255.0, 255.0, 250.0))
+
+
+def _layers_bbox(projected_sets, size, pad: int = 3):
+    """Pixel box ``(x0, y0, x1, y1)`` holding every finite polygon point (clipped), or None."""
+    pts = np.concatenate([px for parts in projected_sets for px, _, _ in parts])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if not len(pts):
+        return None
+    w, h = size
+    x0, y0 = max(int(math.floor(pts[:, 0].min())) - pad, 0), max(int(math.floor(pts[:, 1].min())) - pad, 0)
+    x1, y1 = min(int(math.ceil(pts[:, 0].max())) + pad, w - 1), min(int(math.ceil(pts[:, 1].max())) + pad, h - 1)
+    return None if x1 < x0 or y1 < y0 else (x0, y0, x1, y1)
+
+
+def _draw_averaged(img, projected_sets, size):
+    """Draw each set of projected polygons on its own copy and average them in place (motion blur)."""
+    box = _layers_bbox(projected_sets, size)
+    if box is None:
+        return
+    x0, y0, x1, y1 = box
+    crop = img[y0:y1 + 1, x0:x1 + 1]
+    acc = np.zeros_like(crop)
+    for parts in projected_sets:
+        layer = crop.copy()
+        for px, rgb, _ in parts:
+            fill_polygon(layer, px - [x0, y0], rgb)
+        acc += layer
+    crop[...] = acc / len(projected_sets)
+
+
+def _rider_and_buckle(scene: Scene, cam: Camera, pose, t: float):
+    """Projected rider polygons and the girth buckle (its glint at time ``t``)."""
+    m = scene.motion
+    pos0, R0 = pose.position[0], pose.rotation[0]
+    parts = project_parts(cam, pos0, R0, rider_parts(t, m.gait))
+    buckle = np.array([[-0.04, 0.17, -0.35], [0.02, 0.17, -0.35], [0.02, 0.215, -0.35], [-0.04, 0.215, -0.35]])
+    pitch_now = m.gait.pitch.value(np.array([t]), m.gait.stride_hz)[0]
+    shine = 0.55 + 0.45 * math.cos(pitch_now * 25.0)
+    parts.append((project_parts(cam, pos0, R0, [(buckle, None, "buckle")])[0][0],
+                  (235.0 * shine, 230.0 * shine, 200.0 * shine), "buckle"))
+    return parts
+
+
+def draw_horse_exposure(img, scene: Scene, cam: Camera, body_time: float, marker_times, exposure_s: float, *,
+                        uneven: bool = False):
+    """Horse, markers and rider over one exposure, each part at its own instants.
+
+    The body, saddle and rider are averaged over :data:`BODY_SUBSAMPLES`
+    instants across ``[body_time - e/2, body_time + e/2]`` (motion blur of
+    the large parts; under a rolling shutter they are drawn at the instant
+    of the markers' rows, a shear of the body the markers do not see); each
+    marker ``j`` is smeared over :data:`MARKER_SUBSAMPLES` instants across
+    its own exposure centred on ``marker_times[j]``. Drawing order as
+    :func:`draw_horse_frame`: body, markers, rider (hiding the saddle marker).
+    """
+    m = scene.motion
+    e = float(exposure_s)
+    offsets = ((np.arange(BODY_SUBSAMPLES) + 0.5) / BODY_SUBSAMPLES - 0.5) * e if e > 0 else np.zeros(1)
+    times = body_time + offsets
+    poses = [m.pose(np.array([s])) for s in times]
+    body = [project_parts(cam, p.position[0], p.rotation[0], horse_parts(m.horse, m.gait, s, m.height, rider=True,
+                                                                         standing=False))
+            for s, p in zip(times, poses)]
+    w, h = cam.size
+    allpx = np.concatenate([px for parts in body for px, _, _ in parts])
+    if not np.any(np.isfinite(allpx)) or (np.nanmax(allpx[:, 0]) < -5 or np.nanmin(allpx[:, 0]) > w + 5
+                                          or np.nanmax(allpx[:, 1]) < -5 or np.nanmin(allpx[:, 1]) > h + 5):
+        return
+    _draw_averaged(img, body, cam.size)
+    marker_times = np.asarray(marker_times, float)
+    sub = ((np.arange(MARKER_SUBSAMPLES) + 0.5) / MARKER_SUBSAMPLES - 0.5) * e if e > 0 else np.zeros(1)
+    grads = marker_gradients(scene) if uneven else [None] * len(marker_times)
+    for j, tj in enumerate(marker_times):
+        centres, normals = scene.marker_geometry(m.pose(tj + sub))
+        draw_disc_blurred(img, cam, centres[:, j], normals[:, j], MARKER_DIAMETER / 2, gradient=grads[j])
+    _draw_averaged(img, [_rider_and_buckle(scene, cam, p, s) for s, p in zip(times, poses)], cam.size)
+
+
+def _flash_row(scene: Scene, cam: Camera) -> float:
+    c = scene.ground_to_world(np.asarray(scene.flash_g, float)[None])[0]
+    v = float(cam.project(c)[1])
+    return min(max(v, 0.0), cam.size[1] - 1.0) if np.isfinite(v) else cam.size[1] / 2
+
+
+def flash_interval(fps: float) -> tuple[float, float]:
+    """When the flashlight is on (s): from the onset at 0 for :func:`flash_frames` frames of ``fps``."""
+    return 0.0, flash_frames(fps) / fps
+
+
+def render_free_running_frame(scene: Scene, cam: Camera, k: int, frame_start: float, timing: CameraTiming,
+                              bg: np.ndarray, *, noise: bool) -> np.ndarray:
+    """Frame ``k`` of a free-running camera whose row 0 starts exposing at ``frame_start`` (s).
+
+    Each field (one, progressive) is drawn at its own instants
+    (:func:`draw_horse_exposure`; markers at the time of their own centre row,
+    :func:`marker_instants`); the flashlight is lit in proportion to the
+    part of its row's exposure it is on
+    (:func:`horsemocap.virtuallab.timing.flash_fraction`); an interlaced
+    frame takes each field's rows from that field's drawing. Glints, blur
+    and noise as :func:`render_motion_frame`.
+    """
+    ci = _cam_index(cam.name)
+    rng = _seed(scene.seed, 1, ci, k)
+    e = timing.exposure
+    h = cam.size[1]
+    on, off = flash_interval(timing.nominal_fps)
+    fields = field_start_times(timing, frame_start)
+    img = None
+    for f, start in enumerate(fields):
+        layer = bg.copy()
+        # the field's start already holds the field delay: only the readout to the flash's row is added
+        lit = flash_fraction(timing, start + _flash_row(scene, cam) / h * timing.rolling_shutter_s, on, off)
+        if lit > 0:
+            draw_flash_fraction(layer, scene, cam, lit)
+        tm = marker_instants(scene, cam, timing, np.array([start]), both_fields=False)[0]
+        seen = cam.project(scene.marker_geometry(scene.motion.pose(tm))[0][np.arange(len(tm)), np.arange(len(tm))])
+        rows = seen[np.isfinite(seen[:, 1]), 1]
+        band = float(np.clip(rows.mean(), 0, h - 1)) if len(rows) else h / 2
+        body_time = start + e / 2 + band / h * timing.rolling_shutter_s
+        draw_horse_exposure(layer, scene, cam, body_time, tm, e, uneven=noise)
+        for extra in scene.extras:
+            extra.draw(layer, scene, cam, body_time, e)
+        if img is None:
+            img = layer
+        else:
+            rows_f = field_rows(timing, f, h)
+            img[rows_f] = layer[rows_f]
+    if noise:
+        t_mid = float(frame_start + e / 2 + timing.field_delay_s / 2 + timing.rolling_shutter_s / 2)
+        centres, _ = scene.marker_geometry(scene.motion.pose(np.array([t_mid])))
+        avoid = [tuple(p) for p in cam.project(centres[0])]
+        add_glints(img, rng, 5.0, avoid)
+        mk = cam.project(centres[0, :3])
+        if np.all(np.isfinite(mk)):
+            region = (mk[:, 0].min() - 45, mk[:, 1].min() - 25, mk[:, 0].max() + 45, mk[:, 1].max() + 25)
+            add_glints(img, rng, 1.2, avoid, region=region)
+    return finish(img, rng, noise=noise)
+
+
 def render_static(scene: Scene, cam: Camera, bg, *, noise: bool) -> np.ndarray:
     """The static shot (thesis 6.3): the horse standing, no rider, all markers visible."""
     img = bg.copy()
@@ -467,7 +685,8 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
                    noise: bool = True, compress: bool = True, n_motion_frames: int | None = None,
                    calibration_views: int | None = 45, name: str | None = None, left_offset: int = 8,
                    exposure_s: float = EXPOSURE_S, verbose: bool = False, scene: Scene | None = None,
-                   fps: float = FPS, sync_deltas_s=None, metadata: dict | None = None) -> Path:
+                   fps: float = FPS, sync_deltas_s=None, metadata: dict | None = None,
+                   timing: dict | None = None) -> Path:
     """Render a complete session folder and its ground truth.
 
     Parameters
@@ -501,6 +720,16 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         Start delays left->middle and middle->right (s), see :func:`plan_timeline`.
     metadata : dict, optional
         Merged into ``session.json``'s ``metadata``.
+    timing : dict[str, CameraTiming], optional
+        Free-running cameras (:mod:`horsemocap.virtuallab.timing`), one per
+        camera, their ``nominal_fps`` equal to ``fps``: every frame, image
+        row and field is drawn at its own instants
+        (:func:`render_free_running_frame`; each camera's own exposure
+        replaces ``exposure_s``), the flash lights each frame in proportion
+        to the part of its exposure it is on, and the truth gives every
+        camera's instants (:func:`build_truth`). ``session.json`` records the
+        timings in ``metadata.camera_timing``. ``None``: the cameras are
+        genlocked (every frame at ``(k - offset) / fps``).
 
     Returns
     -------
@@ -519,11 +748,19 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     # motion videos
     motion_paths = {}
     n_frames = {}
+    if timing is not None:
+        _check_timing(timing, rig, fps)
     for cam in rig:
         o = offsets[cam.name]
         n_frames[cam.name] = o + n_after
-        frames = (render_motion_frame(scene, cam, k, o, bgs[cam.name], noise=noise, fps=fps, exposure_s=exposure_s)
-                  for k in range(n_frames[cam.name]))
+        if timing is None:
+            frames = (render_motion_frame(scene, cam, k, o, bgs[cam.name], noise=noise, fps=fps, exposure_s=exposure_s)
+                      for k in range(n_frames[cam.name]))
+        else:
+            tc = timing[cam.name]
+            starts = free_running_frame_starts(tc, o, n_frames[cam.name])
+            frames = (render_free_running_frame(scene, cam, k, float(starts[k]), tc, bgs[cam.name], noise=noise)
+                      for k in range(n_frames[cam.name]))
         if compress:
             _write_video(out / "motion" / f"{cam.name}.avi", frames, cam.size, fps, True)
             motion_paths[cam.name] = f"motion/{cam.name}.avi"
@@ -545,16 +782,18 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         board_info = render_calibration_views(out / "calibration", scene, bgs, calibration_views,
                                               noise=noise, compress=compress)
     # truth
-    truth = build_truth(scene, offsets, n_frames, fps)
+    truth = build_truth(scene, offsets, n_frames, fps, timing=timing)
     if board_info is not None:
         truth.extras.update(board_info.get("truth_extras", {}))
-    truth.extras["exposure_s"] = float(exposure_s)
+    truth.extras["exposure_s"] = float(exposure_s if timing is None else timing[rig.names[0]].exposure)
     truth.extras["noise"] = bool(noise)
     truth.extras["compress"] = bool(compress)
     save_truth(truth, out)
     meta = {"horse": horse, "gait": gait, "direction": "CCW", "rider": "A", "seed": int(seed),
             "generator": "horsemocap.virtuallab", "virtual": True}
     meta.update(metadata or {})
+    if timing is not None:
+        meta["camera_timing"] = {c: timing[c].to_dict() for c in rig.names}
     sname = name or f"{horse.lower().replace(' ', '')}_{gait}"
     board = board_info["board"] if board_info else {"inner_corners": [15, 29], "square_size_m": 0.05}
     sj = session_json(sname, meta, motion_paths, stills, bool(calibration_views),
@@ -593,14 +832,81 @@ def render_calibration_set(out_dir, seed: int, n_views: int = 45, horse: str = "
             "truth_extras": info["truth_extras"]}
 
 
-def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -> Truth:
-    """Exact truth of a session: analytic kinematics at the analysed frames."""
+def _check_timing(timing: dict, rig: Rig, fps: float) -> None:
+    """A clear error unless ``timing`` holds a CameraTiming at ``fps`` for every camera of the rig."""
+    for cam in rig.names:
+        tc = timing.get(cam)
+        if not isinstance(tc, CameraTiming):
+            raise ValueError(f"timing[{cam!r}]: expected a CameraTiming for every camera {list(rig.names)}, got {tc!r}")
+        if tc.nominal_fps != fps:
+            raise ValueError(f"timing[{cam!r}].nominal_fps: expected the session's fps {fps}, got {tc.nominal_fps}")
+
+
+def _free_running_projection_truth(scene: Scene, cam: Camera, timing: CameraTiming, offset: int, n: int):
+    """Truth of a free-running camera: each marker projected at its own instant.
+
+    Returns ``(px, visible, reason, marker_time, frame_start, frame_time, lit)``:
+    the (n, 4) marker arrays of :func:`marker_projection_truth`, the instants
+    (n, 4) they were taken at (:func:`marker_instants`), the exposure start of
+    row 0 (n,), the frame's own instant (n,: the middle of row 0's exposure,
+    of the first field) and the part of each frame's exposure the flash is on (n,).
+    """
+    starts = free_running_frame_starts(timing, offset, n)
+    t_marker = marker_instants(scene, cam, timing, starts)
+    m = t_marker.shape[1]
+    px = np.full((n, m, 2), np.nan)
+    visible = np.zeros((n, m), bool)
+    reason = np.full((n, m), "", dtype="U24")
+    for j in range(m):
+        pj, vj, rj = marker_projection_truth(scene, cam, t_marker[:, j], ride=True)
+        px[:, j], visible[:, j], reason[:, j] = pj[:, j], vj[:, j], rj[:, j]
+    on, off = flash_interval(timing.nominal_fps)
+    lit = flash_fraction(timing, starts + _flash_row(scene, cam) / cam.size[1] * timing.rolling_shutter_s, on, off)
+    return px, visible, reason, t_marker, starts, starts + timing.exposure / 2, np.asarray(lit, float)
+
+
+def free_running_offsets(timing: dict, offsets: dict, reference: str = "left") -> dict:
+    """True sub-frame offsets (frames) of free-running cameras at the flash's onset.
+
+    Camera ``c``'s frame ``k + offsets_true[c]`` shows the instant of the
+    reference camera's frame ``k`` (frame instants = middle of row 0's
+    exposure): ``offsets[c] - offsets[reference] - (phase_c - phase_ref)``,
+    the thesis' whole-frame ``Delta F`` (eq. 3.11-3.13) made fractional. The
+    rates differ by ppm, so it drifts by ``(fps_c / fps_ref - 1)`` frames per frame.
+
+    Examples
+    --------
+    >>> t = {"left": CameraTiming(), "middle": CameraTiming(phase_frames=0.25)}
+    >>> free_running_offsets(t, {"left": 3, "middle": 56})
+    {'left': 0.0, 'middle': 52.75}
+    """
+    ref = timing[reference]
+    return {c: float(offsets[c] - offsets[reference] - (tc.phase_frames - ref.phase_frames)) for c, tc in timing.items()}
+
+
+def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS, timing: dict | None = None) -> Truth:
+    """Exact truth of a session: analytic kinematics at the analysed frames.
+
+    With free-running cameras (``timing``, see :func:`render_session`) every
+    camera's marker projections are taken at each marker's own instant, the
+    kinematics at the reference (left) camera's frame instants, and
+    ``extras`` gains ``camera_timing``, ``true_offsets_frames``
+    (:func:`free_running_offsets`), ``true_rate_ratio`` (each camera's rate
+    over the reference's), ``flash_interval_s`` and per camera
+    ``frame_start_s__<cam>``, ``frame_time_s__<cam>``,
+    ``marker_time_s__<cam>`` and ``flash_lit__<cam>``. Without ``timing`` the
+    truth is that of genlocked cameras, as it always was.
+    """
     rig, motion = scene.rig, scene.motion
-    marker_px, marker_vis, marker_reason = {}, {}, {}
+    marker_px, marker_vis, marker_reason, free = {}, {}, {}, {}
     for cam in rig:
-        k = np.arange(n_frames[cam.name])
-        t = (k - offsets[cam.name]) / fps
-        px, vis, rs = marker_projection_truth(scene, cam, t, ride=True)
+        if timing is None:
+            k = np.arange(n_frames[cam.name])
+            t = (k - offsets[cam.name]) / fps
+            px, vis, rs = marker_projection_truth(scene, cam, t, ride=True)
+        else:
+            px, vis, rs, *free[cam.name] = _free_running_projection_truth(scene, cam, timing[cam.name],
+                                                                           offsets[cam.name], n_frames[cam.name])
         marker_px[cam.name], marker_vis[cam.name], marker_reason[cam.name] = px, vis, rs
     # analysed frames: every skin marker inside every image (a marker hidden by an
     # occluder in one camera only stays in: the other cameras still see it)
@@ -620,7 +926,7 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
         ref = max(splits, key=len)
     else:
         ref = idx
-    t_m = (ref - offsets["left"]) / fps
+    t_m = (ref - offsets["left"]) / fps if timing is None else free["left"][2][ref]
     pose = motion.pose(t_m)
     mp, mv, ma = pose.points(motion.horse.marker_body)
     sp, sv, sa = pose.points(motion.horse.saddle_body[None])
@@ -648,9 +954,13 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
     })
     for extra in scene.extras:
         extras.update(extra.truth(scene, offsets, n_frames, fps))
+    time_s = (ref - (ref[0] if len(ref) else 0)) / fps
+    if timing is not None:
+        time_s = t_m - (t_m[0] if len(t_m) else 0.0)
+        extras.update(_free_running_extras(timing, offsets, free, fps))
     return Truth(
         fps=fps, offsets=dict(offsets), rig=rig, ref_frames=ref.astype(int),
-        time_s=(ref - (ref[0] if len(ref) else 0)) / fps, motion_time_s=t_m,
+        time_s=time_s, motion_time_s=t_m,
         marker_pos=mp, marker_vel=mv, marker_acc=ma,
         saddle_pos=sp[:, 0], saddle_vel=sv[:, 0], saddle_acc=sa[:, 0],
         rotation=pose.rotation, omega=pose.omega, alpha=pose.alpha,
@@ -660,6 +970,21 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS) -
         comfort_source=source, marker_diameter_m=MARKER_DIAMETER,
         meta={"horse": motion.horse.name, "gait": motion.gait.name, "seed": scene.seed},
         extras=extras)
+
+
+def _free_running_extras(timing: dict, offsets: dict, free: dict, fps: float) -> dict:
+    """The truth's extras describing free-running cameras (see :func:`build_truth`)."""
+    ref = timing["left"]
+    out = {"camera_timing": {c: tc.to_dict() for c, tc in timing.items()},
+           "true_offsets_frames": free_running_offsets(timing, offsets),
+           "true_rate_ratio": {c: tc.fps / ref.fps for c, tc in timing.items()},
+           "flash_interval_s": list(flash_interval(fps))}
+    for cam, (t_marker, starts, t_frame, lit) in free.items():
+        out[f"marker_time_s__{cam}"] = t_marker
+        out[f"frame_start_s__{cam}"] = starts
+        out[f"frame_time_s__{cam}"] = t_frame
+        out[f"flash_lit__{cam}"] = lit
+    return out
 
 
 # ---------------------------------------------------------------------------

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..camera import Rig, read_rig, write_rig
 from ..store import atomic_write_json, atomic_write_npz
+from .timing import CameraTiming
 
 TRUTH_FORMAT = "horsemocap-truth/1"
 
@@ -79,7 +80,19 @@ class Truth:
         frame: ``stirrup_px__<cam>`` / ``reflector_px__<cam>`` (frames, 2),
         ``*_inside__<cam>`` (whole disc in the image), ``*_brightness__<cam>``,
         ``occluder_px__<cam>`` / ``occluder_radius_px__<cam>`` (NaN when away)
-        and ``occluder_description`` (camera, marker, frames)).
+        and ``occluder_description`` (camera, marker, frames)). Sessions of
+        free-running cameras (:mod:`horsemocap.virtuallab.timing`) add
+        ``camera_timing`` (camera -> :meth:`CameraTiming.to_dict`),
+        ``true_offsets_frames`` (camera -> fractional frames after the
+        reference camera's: :func:`true_offsets_frames`), ``true_rate_ratio``,
+        ``flash_interval_s`` and per camera ``frame_start_s__<cam>`` (exposure
+        start of row 0), ``frame_time_s__<cam>`` (middle of row 0's
+        exposure), ``marker_time_s__<cam>`` (frames, 4: the instant of each
+        ``marker_px`` entry) and ``flash_lit__<cam>`` (part of each frame's
+        exposure the flash is on; of the first field when interlaced). ``offsets`` then holds each camera's frame
+        whose row-0 exposure is centred ``phase_frames`` of a frame after the
+        flash's onset; ``motion_time_s`` and the kinematics are at the
+        reference (left) camera's frame instants.
     """
 
     fps: float
@@ -117,6 +130,38 @@ class Truth:
     @property
     def cameras(self) -> list[str]:
         return list(self.rig.names)
+
+    @property
+    def free_running(self) -> bool:
+        """True when the cameras ran free (the truth carries ``camera_timing``)."""
+        return "camera_timing" in self.extras
+
+
+def camera_timings(truth: Truth) -> dict:
+    """Each camera's :class:`~horsemocap.virtuallab.timing.CameraTiming`.
+
+    Genlocked sessions (no ``camera_timing`` in the truth): every camera at
+    phase 0, no rate offset, the session's exposure (``extras['exposure_s']``).
+    """
+    if truth.free_running:
+        return {c: CameraTiming.from_dict(d) for c, d in truth.extras["camera_timing"].items()}
+    exposure = truth.extras.get("exposure_s")
+    exposure = None if exposure is None else min(float(exposure), 1.0 / truth.fps)
+    return {c: CameraTiming(nominal_fps=float(truth.fps), exposure_s=exposure) for c in truth.cameras}
+
+
+def true_offsets_frames(truth: Truth) -> dict:
+    """The true offsets of every camera after the reference (frames, with a fraction).
+
+    Camera ``c``'s frame ``k + offset[c]`` shows the instant of the reference
+    camera's frame ``k`` (at the flash's onset; the offsets drift by
+    ``extras['true_rate_ratio'] - 1`` frames per frame). Genlocked sessions:
+    the whole-frame differences of ``offsets``.
+    """
+    if truth.free_running:
+        return {c: float(v) for c, v in truth.extras["true_offsets_frames"].items()}
+    ref = truth.offsets[truth.cameras[0]]
+    return {c: float(o - ref) for c, o in truth.offsets.items()}
 
 
 _ARRAYS = ("ref_frames", "time_s", "motion_time_s", "marker_pos", "marker_vel", "marker_acc",

@@ -1,0 +1,95 @@
+"""Free-running cameras through the default analysis: does it finish, the verdict, errors vs the truth.
+
+Renders (on demand, into the cache) free-running sessions of the virtual laboratory
+(:func:`horsemocap.virtuallab.herd.herd_free_running`, :func:`horsemocap.virtuallab.hard.hard_free_running`,
+timing set ``--seed``) and runs the default analysis on each (:func:`horsemocap.pipeline.analyze` with no
+parameters, what ``horsemocap analyze SESSION --out DIR`` runs). Per session it prints the frame rate, image
+size and drawn camera timings, then the exit status the command would give (3 when the verdict is unreliable,
+2 when a step stops), the verdict, the saddle's vertical acceleration error (% of rms), the Wb and Wk rms
+errors (%), and the offsets found (whole frames after the reference camera's, the flash's own in brackets
+when the markers corrected them) against the true fractional offsets.
+
+``--genlocked`` runs the control: the same sessions, cameras and exposures with the cameras locked together
+(phase 0, no rate offset, no rolling shutter), so what the timing alone costs shows.
+
+Usage: ``python benchmarks/bench_freerun.py [--seed 0] [--genlocked] [NAME ...]`` (default: the three
+sessions of ``results/freerun_before.txt``).
+"""
+import argparse
+import time
+
+from horsemocap import accuracy, quality
+from horsemocap.pipeline import AnalysisError, analyze
+from horsemocap.virtuallab.hard import FREE_RUNNING_HARD, hard_free_running
+from horsemocap.virtuallab.herd import FREE_RUNNING_HERD, herd_free_running
+from horsemocap.virtuallab.truth import camera_timings, load_truth, true_offsets_frames
+
+DEFAULT = ("free_horse2_sitting_trot_30", "free_canter720_toedin_60", "free_pal576_sitting_25_interlaced")
+
+
+def session_folder(name: str, seed: int, genlocked: bool = False):
+    if name in FREE_RUNNING_HERD:
+        return herd_free_running(seed, names=[name], genlocked=genlocked)[name]
+    if name in FREE_RUNNING_HARD:
+        return hard_free_running(seed, names=[name], genlocked=genlocked)[name]
+    raise SystemExit(f"unknown session {name!r}; expected one of {sorted(FREE_RUNNING_HERD) + sorted(FREE_RUNNING_HARD)}")
+
+
+def describe(truth) -> str:
+    size = truth.rig[truth.cameras[0]].size
+    parts = []
+    for cam, t in camera_timings(truth).items():
+        extra = f" interlaced {t.interlaced}" if t.interlaced else f" readout {t.rolling_shutter_s * 1e3:4.1f} ms"
+        parts.append(f"{cam} phase {t.phase_frames:.3f} {t.rate_offset_ppm:+6.1f} ppm{extra}")
+    return f"{truth.fps:.3f} fps {size[0]}x{size[1]}; " + "; ".join(parts)
+
+
+def run(name: str, seed: int, genlocked: bool = False) -> str:
+    folder = session_folder(name, seed, genlocked)
+    truth = load_truth(folder)
+    true = true_offsets_frames(truth)
+    head = f"{name}{' (genlocked control)' if genlocked else ''}\n  {describe(truth)}\n  true offsets (frames after left): " + \
+        ", ".join(f"{c} {v:.3f}" for c, v in true.items() if c != "left")
+    t0 = time.perf_counter()
+    try:
+        a = analyze(folder, None, {}, progress=lambda *x: None)
+    except AnalysisError as exc:
+        try:
+            flash = analyze(folder, None, {}, until="sync", progress=lambda *x: None).synchronisation.offsets
+            found = ", ".join(f"{c} {flash[c] - flash['left']} (error {flash[c] - flash['left'] - true[c]:+.3f})"
+                              for c in truth.cameras[1:])
+        except AnalysisError as sync_exc:
+            found = f"none ({sync_exc})"
+        return (f"{head}\n  exit 2, stopped: {exc}\n  flash offsets found: {found}  "
+                f"({time.perf_counter() - t0:.0f} s)")
+    verdict = quality.verdict(quality.post_checks(a))
+    st = accuracy.stage_errors(a, truth)
+    ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
+    sync = a.synchronisation
+    ref = sync.offsets["left"]
+    found = []
+    for c in truth.cameras[1:]:
+        got = sync.offsets[c] - ref
+        flash = "" if not sync.flash_offsets else f" [flash {sync.flash_offsets[c] - sync.flash_offsets['left']}]"
+        found.append(f"{c} {got}{flash} (error {got - true[c]:+.3f})")
+    first, last = a.results["triangulate"]["segment"]
+    frames = f"{last - first} of {sync.n_frames}"
+    return (f"{head}\n  exit {3 if verdict == 'unreliable' else 0}, verdict {verdict}; saddle A_y error "
+            f"{st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of rms; Wb rms {ce['acc_y_Wb_rms']:+.1f} %, Wk rms "
+            f"{ce['acc_y_Wk_rms']:+.1f} %; frames analysed {frames}\n  offsets found: " + ", ".join(found) +
+            f"  ({time.perf_counter() - t0:.0f} s)")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="*", default=list(DEFAULT))
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--genlocked", action="store_true",
+                        help="the control: the same sessions with the cameras locked together")
+    args = parser.parse_args()
+    for name in args.names:
+        print(run(name, args.seed, args.genlocked), flush=True)
+
+
+if __name__ == "__main__":
+    main()
