@@ -57,7 +57,7 @@ def main(argv=None):
         truth = load_truth(folder)
         cells = []
         for i, v in enumerate(variants):
-            a = run_steps(base.session, replace(base.params, **v), base, ["rigid_body", "comfort"])
+            a = run_steps(base.session, base.params.updated(v), base, ["rigid_body", "comfort"])
             st = accuracy.stage_errors(a, truth)
             ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, KEYS)
             row = [st["saddle_acc_y_rmse_pct_of_rms"], *(ce[k] for k in KEYS)]

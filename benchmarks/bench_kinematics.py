@@ -194,9 +194,9 @@ def main():
                           f"marker-frames, depth / across " + " ".join(f"{r:.1f}" for r in noise_info["depth_ratio"]))
             t0 = time.perf_counter()
             reg = pose.register_pose(d["markers"], d["model"], covariance=cov)
-            tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing=method, order=order,
-                                          harmonics=harmonics, events=events,
-                                          rotation_weights=ROTATION_WEIGHTS.get(name, "auto"))
+            tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(
+                smoothing="gcv_cubic" if order == 3 else method, harmonics=harmonics, events=events,
+                rotation_weights=ROTATION_WEIGHTS.get(name, "auto")))
             if name == "oracle_lti":
                 tr = oracle_time_invariant(d, reg, tr)
             row = score(d, tr)

@@ -46,6 +46,7 @@ from scipy.interpolate import make_interp_spline
 
 from bench_kinematics import FIXTURES, score
 from horsemocap.splines import GCV_GAMMA, SmoothingSpline, _choose_lam
+from horsemocap.params import PoseParams
 
 
 @dataclasses.dataclass(frozen=True)
@@ -292,7 +293,7 @@ def modal_trajectory(t, reg, model):
     from horsemocap.splines import estimate_fundamental
 
     t = np.asarray(t, float)
-    tr = pose.fit_pose_trajectory(t, reg, model, smoothing="gcv", harmonics="auto")
+    tr = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="auto"))
     ok = np.all(np.isfinite(reg.rotation), axis=(1, 2))
     Y = np.column_stack([reg.centre[ok], tr.rotvec_data[ok]])
     try:

@@ -130,7 +130,7 @@ def _trend_filter(y, lam, k, iterations=30):
 def _components(d):
     from horsemocap import pose
     reg = pose.register_pose(d["markers"], d["model"])
-    tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="gcv", harmonics="none")
+    tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(smoothing="gcv", harmonics="none"))
     return reg, tr, np.column_stack([reg.centre, tr.rotvec_data])
 
 
@@ -290,8 +290,8 @@ def detect_main(argv):
                   + f" -> events {[round(e, 3) for e in ev]}")
             for row, e in (("adaptive", None), ("detected", ev or None),
                            ("true onset", None if onset is None else [onset])):
-                tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="adaptive", harmonics="none",
-                                              events=e)
+                tr = pose.fit_pose_trajectory(d["t"], reg, d["model"],
+                                              PoseParams(smoothing="adaptive", harmonics="none", events=e))
                 rows[row].append(score(d, tr))
         for row, res in rows.items():
             print(f"  {name:12s} {row:11s} " + " ".join(f"{v:6.1f}" for v in np.median(res, 0))
@@ -318,7 +318,7 @@ def main():
     truth = []
     for d in draws:
         reg = pose.register_pose(d["markers_true"], d["model"])
-        tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], smoothing="none", harmonics="none")
+        tr = pose.fit_pose_trajectory(d["t"], reg, d["model"], PoseParams(smoothing="none", harmonics="none"))
         truth.append(list(tr.centre_splines) + list(tr.rotvec_splines))
     rows = {"adaptive": lambda k: (lambda t, y, i: splines.smoothing_spline(t, y, method="adaptive")),
             "one-sided x1": lambda k: _one_sided(1), "one-sided x2": lambda k: _one_sided(2),

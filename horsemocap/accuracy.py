@@ -375,7 +375,7 @@ def noise_study(analysis, truth, sigmas_px=(0.0, 0.25, 0.5, 1.0, 2.0, 3.0), seed
 
 def with_params(analysis, **changes):
     """The analysis' parameters with some changed (for what-if studies)."""
-    return replace(analysis.params, **changes)
+    return analysis.params.updated(changes)
 
 
 # ---------------------------------------------------------------------------
@@ -452,7 +452,7 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
 
     def still(points):
         obs = {c: rig[c].project(points)[None] + rng.normal(0, sigma_px, (1, len(points), 2)) for c in rig.names}
-        return triangulate(rig, obs, mode=analysis.params.triangulation).points[0]
+        return triangulate(rig, obs, mode=analysis.params.triangulate.mode).points[0]
 
     plumb = still(truth.plumb_pos)
     session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names))

@@ -581,7 +581,7 @@ STEP_SECTIONS = {"sync": "sync", "rig": "rig", "plumb": "stills", "static": "sti
 """The section of :class:`AnalysisParams` each step of the pipeline is given (:meth:`AnalysisParams.section`)."""
 
 
-@dataclass(frozen=True, init=False)    # init=False: the transitional __init__ below
+@dataclass(frozen=True)
 class AnalysisParams:
     """Every choice of the analysis (thesis Appendix A prompts), one section per step.
 
@@ -629,28 +629,6 @@ class AnalysisParams:
     motion_frame: MotionFrameParams = _section(MotionFrameParams)
     rigid_body: RigidBodyParams = _section(RigidBodyParams)
     comfort: ComfortParams = _section(ComfortParams)
-
-    # transitional: removed when every reader uses sections (and `init=False` above with it). The flat
-    # names of the parameters before the sections are read as attributes (params.smoothing_span is
-    # params.smooth.span) and taken by the constructor (dataclasses.replace(params, smoothing_span=0.2)).
-    def __init__(self, **values):
-        flat = {k: values.pop(k) for k in list(values) if not _is_own_value(k, values[k])}
-        for f in fields(self):
-            object.__setattr__(self, f.name, values.get(f.name, f.default_factory() if f.default is MISSING
-                                                          else f.default))
-        if flat:
-            flat, given_as = _normalize(flat, "AnalysisParams()")
-            built = _build({**_leaf_values(self), **flat})
-            for f in fields(self):
-                object.__setattr__(self, f.name, getattr(built, f.name))
-            object.__setattr__(self, "_given_as", given_as)
-
-    def __getattr__(self, name):
-        path = _legacy_paths().get(name)
-        if path is None:
-            raise AttributeError(f"'AnalysisParams' object has no attribute '{name}'")
-        return _value_at(self, path.split("."))
-    # end of transitional
 
     def to_dict(self) -> dict:
         """The nested form, JSON-able: what ``analysis.json`` records and the results store's keys use."""
@@ -935,12 +913,6 @@ def _section_paths() -> dict[str, type]:
                 yield from walk(f.default_factory, f"{prefix}{f.name}.")
 
     return dict(walk(AnalysisParams, ""))
-
-
-def _is_own_value(name: str, value) -> bool:
-    """A field of AnalysisParams given its own kind of value (a section instance, the preset)."""
-    sections = _section_paths()
-    return name == "preset" or (name in sections and isinstance(value, sections[name]))
 
 
 def _value_at(node, keys):

@@ -196,7 +196,7 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         Path(out_dir).mkdir(parents=True, exist_ok=True)
     store = ResultsStore(out_dir) if (reuse and out_dir is not None) else None
     keys = step_keys(session, params) if store else {}
-    early = store is None and session.calibrates_from_views(params.recalibrate) and until != "sync"
+    early = store is None and session.calibrates_from_views(params.rig.recalibrate) and until != "sync"
     # the calibration's one BLAS thread (horsemocap.threads) set here, in the main thread, before
     # the rig's thread starts: its own blocks inside then leave the setting alone
     with blas_single_threaded() if early else contextlib.nullcontext():

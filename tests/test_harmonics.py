@@ -172,10 +172,10 @@ def test_non_periodic_ringing_record_keeps_plain_splines_where_harmonics_do_not_
 
 
 def test_pose_harmonics_parameter_is_validated():
-    assert AnalysisParams().pose_harmonics == "auto"
-    AnalysisParams(pose_harmonics="none").validate("test")
+    assert AnalysisParams().rigid_body.pose.harmonics == "auto"
+    AnalysisParams.from_dict({"pose_harmonics": "none"}).validate("test")
     with pytest.raises(ParamsError, match="pose_harmonics"):
-        AnalysisParams(pose_harmonics="sometimes").validate("test")
+        AnalysisParams.from_dict({"pose_harmonics": "sometimes"}).validate("test")
 
 
 def test_spline_with_harmonics_is_stored_without_pickle():

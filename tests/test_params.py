@@ -232,24 +232,23 @@ def test_each_step_is_given_its_section():
         p.section("fit")
 
 
-def test_the_flat_names_are_still_read_as_attributes_and_taken_by_replace():
-    """Transitional, until every reader uses the sections."""
+def test_the_flat_names_are_read_from_files_and_map_to_one_field_each():
+    """Parameter files written before the sections (flat names) are read: each flat name is one field."""
     p = AnalysisParams.from_dict({"preset": "thesis", "detection": {"all": {"threshold": 90}}})
-    for flat, path in legacy_names().items():
-        if flat == "motion_frame":       # the section's name: pipeline reads params.motion_frame.mode
-            continue
+    assert p.detect.cameras == {"all": {"threshold": 90}} and p.triangulate.mode == "thesis"
+    paths = legacy_names()
+    assert len(set(paths.values())) == len(paths)
+    for flat, path in paths.items():
         node = p
         for key in path.split("."):
-            node = getattr(node, key)
-        assert getattr(p, flat) == node, flat
-    assert p.smoothing_span == p.smooth.span and p.detection == {"all": {"threshold": 90}}
-    q = replace(p, pose_events=[1.0], smoothing_span=0.2)
+            node = getattr(node, key)          # every flat name names a field that exists
+    q = p.updated(kinematics="pose_spline", pose_events=[1.0], smoothing_span=0.2)
     assert q.rigid_body.pose.events == [1.0] and q.smooth.span == 0.2 and q.triangulate.mode == "thesis"
-    assert AnalysisParams(stills={"plumb": {"all": {"threshold": 3}}}).stills.plumb == {"all": {"threshold": 3}}
+    assert AnalysisParams.from_dict({"stills": {"plumb": {"all": {"threshold": 3}}}}).stills.plumb == {"all": {"threshold": 3}}
     with pytest.raises(AttributeError):
-        p.no_such_parameter
+        p.smoothing_span                       # in code, the sections only
     with pytest.raises(ParamsError, match=r"test: parameter 'rigid_body.pose.smoothing' \(given as 'pose_smoothing'"):
-        AnalysisParams(pose_smoothing="best").validate("test")
+        AnalysisParams.from_dict({"pose_smoothing": "best"}, "test")
 
 
 def test_check_session_names_the_parameter():

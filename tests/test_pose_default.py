@@ -74,9 +74,9 @@ def test_auto_with_events_is_the_adaptive_spline_with_them():
 
 
 def test_params_default_is_auto_and_bad_choices_are_named():
-    assert AnalysisParams().pose_smoothing == "auto"
+    assert AnalysisParams().rigid_body.pose.smoothing == "auto"
     with pytest.raises(Exception, match="pose_smoothing"):
-        AnalysisParams(pose_smoothing="best").validate("test")
+        AnalysisParams.from_dict({"pose_smoothing": "best"}).validate("test")
 
 
 def test_auto_keeps_gcv_for_given_smoothing_parameters_and_says_why_with_events():

@@ -35,9 +35,10 @@ def test_format_value_rounds_and_spells_out(value, expected):
 
 
 def test_choice_rows_have_names_and_no_json():
-    record = {"parameters": {"triangulation": "joint", "period_frames": 17.98881515983109, "x_marker": 0,
+    record = {"parameters": {"triangulate": {"mode": "joint"},
+                             "motion_frame": {"period_frames": 17.98881515983109, "x_marker": 0},
                              "preset": None,
-                             "detection": {"left": {"threshold": 128, "centroid": "weighted"}}},
+                             "detect": {"cameras": {"left": {"threshold": 128, "centroid": "weighted"}}}},
               "chosen": {"rig": "calibrated from checkerboard views (joint)", "analysed_frames": [21, 60]}}
     rows = report.choice_rows(record)
     assert rows == [("triangulation", "joint (all cameras at once)"), ("stride period (frames)", "17.99"),
@@ -61,7 +62,9 @@ def test_thresholds_read_as_a_person_writes_them(text, expected):
 
 
 def test_every_parameter_and_indicator_has_a_name():
-    assert set(AnalysisParams().to_dict()) <= set(report.PARAMETER_NAMES)
+    from horsemocap.params import params_fields
+
+    assert {f.path for f in params_fields()} - {"stills.plumb", "stills.static"} <= set(report.PARAMETER_NAMES)
     assert set(COMFORT_KEYS) <= set(report.INDICATORS)
     assert all(meaning for _, meaning in report.INDICATORS.values())
     # two indicators of different keys that differ only by their weighting say how the weightings differ
@@ -82,9 +85,9 @@ def test_comfort_rows_name_meaning_value_unit():
 
 
 def test_x_acceleration_note_only_when_zero_by_construction():
-    assert "zero by construction" in report.x_acceleration_note(AnalysisParams(x_degree=1, kinematics="fits"))
-    assert report.x_acceleration_note(AnalysisParams(x_degree=2, kinematics="fits")) is None
-    assert report.x_acceleration_note(AnalysisParams(kinematics="pose_spline")) is None
+    assert "zero by construction" in report.x_acceleration_note(AnalysisParams.from_dict({"x_degree": 1, "kinematics": "fits"}))
+    assert report.x_acceleration_note(AnalysisParams.from_dict({"x_degree": 2, "kinematics": "fits"})) is None
+    assert report.x_acceleration_note(AnalysisParams.from_dict({"kinematics": "pose_spline"})) is None
 
 
 def test_quality_section_rounds_figures():

@@ -44,7 +44,7 @@ def test_nested_choices_are_set_validated_and_taken_back(store):
     wsm.set_choice(s, "detection.left.threshold", 150)
     wsm.set_choice(s, "smoothing_method", "rloess")
     assert wsm.read_choices(s) == {"detection": {"left": {"threshold": 150}}, "smoothing_method": "rloess"}
-    assert wsm.session_params(s).detection == {"left": {"threshold": 150}}
+    assert wsm.session_params(s).detect.cameras == {"left": {"threshold": 150}}
     # a bad choice names the file and the parameter and writes nothing
     with pytest.raises(ParamsError, match=r"choices.json: parameter 'detect.cameras' \(given as 'detection'\)"
                                           r".*'top'"):
@@ -65,7 +65,7 @@ def test_a_bound_widget_writes_only_what_differs_from_the_automatic_choice(store
     assert ws.choices == {}                      # built at the automatic choice: nothing written
     mode.value = "thesis"
     assert ws.choices == {"triangulation": "thesis"}
-    assert ws.params.triangulation == "thesis"
+    assert ws.params.triangulate.mode == "thesis"
     # a widget built later (the next notebook, or the same one run again) shows the choice
     again = ws.bind(W.ToggleButtons(options=["joint", "thesis"], value="joint"), "triangulation")
     assert again.value == "thesis"
@@ -74,7 +74,7 @@ def test_a_bound_widget_writes_only_what_differs_from_the_automatic_choice(store
     boxes = [W.Checkbox(value=True) for _ in range(6)]
     ws.bind(boxes, "omega_versions", read=lambda: [b.value for b in boxes])
     boxes[2].value = False
-    assert ws.params.omega_versions == [True, True, False, True, True, True]
+    assert ws.params.rigid_body.fits.omega_versions == [True, True, False, True, True, True]
 
 
 def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store, tmp_path):
@@ -88,12 +88,12 @@ def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store,
                                       "--static-threshold", "200", "--exclude-views", "left=a.png+b.png"])
     base = resolve_params(load_session(s), read_params(path))
     p = _params_from_args(args, base)
-    assert p.detection == {"middle": {"threshold": 140}, "all": {"first_frame": 3}}
-    assert p.omega_versions == [True, True, False, True, False, False]
-    assert p.alpha_versions == [False] * 5 + [True]
-    assert (p.angular_method, p.saddle_marker) == ("thesis", 1)
+    assert p.detect.cameras == {"middle": {"threshold": 140}, "all": {"first_frame": 3}}
+    assert p.rigid_body.fits.omega_versions == [True, True, False, True, False, False]
+    assert p.rigid_body.fits.alpha_versions == [False] * 5 + [True]
+    assert (p.rigid_body.fits.angular_method, p.rigid_body.saddle_marker) == ("thesis", 1)
     assert (p.stills.plumb, p.stills.static) == ({}, {"all": {"threshold": 200}})
-    assert p.calibration_exclude == {"left": ["a.png", "b.png"]}
+    assert p.rig.exclude == {"left": ["a.png", "b.png"]}
     # the other prompts of Appendix A: fit_type_x (9.i), and every value of one camera (4.ii, 7a, 8a, 12a)
     args = build_parser().parse_args(["analyze", str(s), "--out", "o", "--x-degree", "2",
                                       "--set", "detection.left.labels=[3,4,5]", "--set", "detection.left.first_frame=36",
@@ -101,8 +101,8 @@ def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store,
                                       "--set", "detection.middle.distance_tolerance=0.2",
                                       "--set", "stills.plumb.left.threshold=150"])
     p = _params_from_args(args, base)
-    assert p.x_degree == 2
-    assert p.detection == {"middle": {"threshold": 140, "distance_tolerance": 0.2},
+    assert p.rigid_body.fits.x_degree == 2
+    assert p.detect.cameras == {"middle": {"threshold": 140, "distance_tolerance": 0.2},
                            "left": {"labels": [3, 4, 5], "first_frame": 36}, "right": {"window": [180, 140]}}
     assert (p.stills.plumb, p.stills.static) == ({"left": {"threshold": 150}}, {})
     for wrong, said in (("nope=3", "unknown parameter 'nope'"), ("smoothing_span", "expected NAME=VALUE"),
@@ -117,23 +117,23 @@ def test_cli_reads_the_notebooks_choices_over_the_sessions_own_parameters(store,
 def test_still_and_saddle_choices_are_checked_against_the_session():
     session = load_session(default_session_dir(), open_sources=False)
     with pytest.raises(ParamsError, match="labels given for .*'left'.* but not for"):
-        AnalysisParams(stills={"static": {"left": {"threshold": 150, "labels": [1, 2, 3, 4]}}}).check_session(session)
+        AnalysisParams.from_dict({"stills": {"static": {"left": {"threshold": 150, "labels": [1, 2, 3, 4]}}}}).check_session(session)
     with pytest.raises(ParamsError, match="expected 2 labels for camera 'left'"):
-        AnalysisParams(stills={"plumb": {"all": {"threshold": 150, "labels": [1, 2, 3]}}}).check_session(session)
+        AnalysisParams.from_dict({"stills": {"plumb": {"all": {"threshold": 150, "labels": [1, 2, 3]}}}}).check_session(session)
     with pytest.raises(ParamsError, match="a threshold with the labels"):
-        AnalysisParams(stills={"plumb": {"all": {"labels": [1, 2]}}}).validate("x")
+        AnalysisParams.from_dict({"stills": {"plumb": {"all": {"labels": [1, 2]}}}}).validate("x")
     with pytest.raises(ParamsError, match="saddle_marker"):
-        AnalysisParams(saddle_marker=9).check_session(session)
+        AnalysisParams.from_dict({"saddle_marker": 9}).check_session(session)
     with pytest.raises(ParamsError, match="calibration_exclude"):
-        AnalysisParams(calibration_exclude={"top": ["v.png"]}).check_session(session)
+        AnalysisParams.from_dict({"calibration_exclude": {"top": ["v.png"]}}).check_session(session)
 
 
 def test_step_keys_change_only_from_the_first_step_that_reads_a_parameter():
     session = load_session(default_session_dir(), open_sources=False)
     a = step_keys(session, AnalysisParams())
-    b = step_keys(session, AnalysisParams(detection={"left": {"threshold": 150}}))
-    c = step_keys(session, AnalysisParams(weighting_mode="thesis"))
-    d = step_keys(session, AnalysisParams(kinematics="fits"))
+    b = step_keys(session, AnalysisParams.from_dict({"detection": {"left": {"threshold": 150}}}))
+    c = step_keys(session, AnalysisParams.from_dict({"weighting_mode": "thesis"}))
+    d = step_keys(session, AnalysisParams.from_dict({"kinematics": "fits"}))
     steps = list(a)
     assert [s for s in steps if a[s] != b[s]] == steps[steps.index("detect"):]
     assert [s for s in steps if a[s] != c[s]] == ["comfort"]          # the comfort section's own
@@ -225,7 +225,7 @@ def test_detection_controls_have_a_first_frame_and_report_only_changes():
     ui.first_frame.value = (p.first_frame or 0) + 1
     ch = wsm.detection_changes(ui.value, p)
     assert ch == {"first_frame": (p.first_frame or 0) + 1}   # labels of the old first frame are dropped
-    AnalysisParams(detection={"left": ch}).validate("test")
+    AnalysisParams.from_dict({"detection": {"left": ch}}).validate("test")
 
 
 def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
@@ -245,7 +245,7 @@ def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
     for c, im in images.items():
         thr = int(auto_threshold([to_gray(im)], "otsu3"))
         given[c] = {"threshold": thr, "labels": list(automatic_labels(im, thr, auto[c]))}
-    params = AnalysisParams(stills={"plumb": given})
+    params = AnalysisParams.from_dict({"stills": {"plumb": given}})
     params.check_session(session)
     pts, px = still_points(session, rig, session.plumb, 2, "plumb", "joint",
                            still_params(params.stills, "plumb", session.cameras))
@@ -255,7 +255,7 @@ def test_still_labels_given_for_every_camera_give_the_automatic_markers_back():
     from horsemocap.pipeline import AnalysisError
     with pytest.raises(AnalysisError, match="step 'plumb'.*plumb"):
         still_points(session, rig, session.plumb, 2, "plumb", "joint",
-                     still_params(AnalysisParams(stills={"plumb": {"all": {"threshold": 254}}}).stills,
+                     still_params(AnalysisParams.from_dict({"stills": {"plumb": {"all": {"threshold": 254}}}}).stills,
                                   "plumb", session.cameras))
 
 
@@ -290,12 +290,12 @@ def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
         raise RuntimeError("stop after the call")
 
     monkeypatch.setattr(rig_step, "cached_calibration", fake_calibration)
-    params = AnalysisParams(recalibrate=True, calibration_exclude={"left": ["view03.png"]})
+    params = AnalysisParams.from_dict({"recalibrate": True, "calibration_exclude": {"left": ["view03.png"]}})
     with pytest.raises(RuntimeError, match="stop after the call"):
         step_rig(session, params.rig, lambda *a: None)
     assert seen["exclude"] == {"left": ["view03.png"]}
     with pytest.raises(RuntimeError):
-        step_rig(session, AnalysisParams(recalibrate=True).rig, lambda *a: None)
+        step_rig(session, AnalysisParams.from_dict({"recalibrate": True}).rig, lambda *a: None)
     assert seen["exclude"] is None
 
 
@@ -363,14 +363,14 @@ def test_the_thesis_preset_chosen_in_a_notebook_holds_for_every_step_and_the_com
         assert q.to_dict() == p.to_dict()
     # a widget bound under the preset starts from the preset's value; a choice still overrides it,
     # and moving back to the preset's value takes the choice back (the preset holds)
-    smooth = ws.bind(W.Dropdown(options=["loess", "rloess"], value=p.smoothing_method), "smoothing_method")
+    smooth = ws.bind(W.Dropdown(options=["loess", "rloess"], value=p.smooth.method), "smoothing_method")
     smooth.value = "loess"
-    assert ws.choices == {"preset": "thesis", "smoothing_method": "loess"} and ws.params.smoothing_method == "loess"
+    assert ws.choices == {"preset": "thesis", "smoothing_method": "loess"} and ws.params.smooth.method == "loess"
     smooth.value = "rloess"
     assert ws.choices == {"preset": "thesis"}
     assert ui_preset(ws).value == "thesis"           # the next notebook's switch shows it
     switch.value = "default"
-    assert ws.choices == {} and ws.params.smoothing_method == "loess"
+    assert ws.choices == {} and ws.params.smooth.method == "loess"
 
 
 def test_the_period_widget_keeps_the_exact_period_and_shows_it_rounded(store):

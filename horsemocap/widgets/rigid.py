@@ -39,7 +39,7 @@ def ui_angular_method(value: str | None = None):
     """``method`` of :func:`horsemocap.rigid.analyse_rigid_body`: the average of
     the chosen thesis versions, the least-squares solution from all markers,
     or the Fourier fit of the registered orientation. Default: the pipeline's
-    ``AnalysisParams.angular_method`` (pass ``analysis.params.angular_method``
+    ``AnalysisParams.angular_method`` (pass ``analysis.params.rigid_body.fits.angular_method``
     to follow a run's choice)."""
     if value is None:
         from ..params import AnalysisParams

@@ -74,13 +74,13 @@ a, b = analysis.detect.segment                            # analysed frames a..b
 marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}   # PM per camera, (n, 3, 2)
 fps = analysis.session.fps
 # where the rig comes from ("(cached ...)" when an earlier run calibrated it: the same rig)
-rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({analysis.params.calibration_mode})")
+rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({analysis.params.rig.mode})")
 print(f"rig: {rig_from}; cameras {list(rig.names)}")
 print("sync offsets (" + sync.offsets_from + "): "
       + ", ".join(f"{c} {v:d}" for c, v in offsets.items()))
 print(f"{sync.n_frames:d} synchronised frames; analysed {a:d}..{b - 1:d} ({b - a:d} frames, "
       f"{b - a:d} / {fps:.0f} = {(b - a) / fps:.2f} s), {analysis.session.marker_count:d} markers")
-print(f"pipeline's triangulation: {analysis.params.triangulation} mode, median reprojection residual "
+print(f"pipeline's triangulation: {analysis.params.triangulate.mode} mode, median reprojection residual "
       + ", ".join(f"{c} {np.nanmedian(r[a:b]):.3f} px" for c, r in analysis.triangulate.residual_px.items()))
 
 # %% [markdown]
@@ -159,7 +159,7 @@ print(f"average (eq. 5.5)                                        error vs truth:
 # Choose the mode the rest of the notebook uses (default: the pipeline's, joint):
 
 # %% tags=["nbval-ignore-output"]
-ui_mode = widgets.ui_triangulation_mode(analysis.params.triangulation)
+ui_mode = widgets.ui_triangulation_mode(analysis.params.triangulate.mode)
 ws.bind(ui_mode, "triangulation")
 display(ui_mode)
 
@@ -168,7 +168,7 @@ tri = reconstruction.triangulate(rig, marker_px, mode=ui_mode.value)
 print(f"mode: {tri.mode}; valid points: {int(tri.valid.sum()):d} of {tri.valid.size:d}")
 for cam, rms in tri.rms_residual_px().items():
     print(f"  RMS reprojection residual {cam:6s}: {rms:.3f} px")
-if tri.mode == analysis.params.triangulation:
+if tri.mode == analysis.params.triangulate.mode:
     diff = np.nanmax(np.abs(tri.points - analysis.triangulate.points[a:b]))
     print(f"largest difference from the pipeline's points (analysis.triangulate.points, frames "
           f"{a:d}..{b - 1:d}): {1e6 * diff:.3f} micrometres")
@@ -224,8 +224,8 @@ def errors_mm(points):
     return 1000 * accuracy.rmse_axes(est, ref), 1000 * bias, 1000 * accuracy.rmse_axes(est - bias, ref)
 
 
-PIPE = analysis.params.smoothing_method                    # the pipeline's default: "loess"
-SPAN = analysis.params.smoothing_span
+PIPE = analysis.params.smooth.method                    # the pipeline's default: "loess"
+SPAN = analysis.params.smooth.span
 joint = reconstruction.triangulate(rig, marker_px, mode="joint")
 rows_table, errors = {}, {}
 for mode, t in (("thesis", thesis), ("joint", joint)):

@@ -73,7 +73,7 @@ n = points.shape[0]
 par = analysis.params
 rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({par.calibration_mode})")
 print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
-      f"{analysis.params.triangulation} triangulation")
+      f"{analysis.params.triangulate.mode} triangulation")
 print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.smoothing_span:.2f} if used), "
       f"x-motion marker {mf_pipeline.marker + 1:d}, period {mf_pipeline.period_frames:.2f} frames (estimated), "
       f"{mf_pipeline.n_periods:d} period(s) for u1")

@@ -67,7 +67,7 @@ a, b = analysis.detect.segment
 print(f"rig: {analysis.rig.rig_from}; offsets ({sync.offsets_from}): "
       + ", ".join(f"{c} {v:d}" for c, v in sync.offsets.items()))
 print(f"ball seen by every camera in frames {a:d}..{b - 1:d} of {sync.n_frames:d}; "
-      f"{analysis.params.triangulation} triangulation")
+      f"{analysis.params.triangulate.mode} triangulation")
 truth = load_truth(ball_dir)
 for cam in rig.names:
     e = np.linalg.norm(ball_px[cam] - truth.marker_px[cam], axis=-1)

@@ -78,7 +78,7 @@ a, b = an.triangulate.segment
 print(f"{len(t)} frames ({a}..{b - 1} of the synchronised record) at {an.session.fps:.0f} fps; "
       f"markers {markers.shape}; static shot {static.shape}")
 moved = 1000 * np.linalg.norm(an.smooth.smoothed - an.smooth.raw, axis=-1)
-print(f"smoothing: {an.params.smoothing_method}, span {an.params.smoothing_span}; it moved the triangulated "
+print(f"smoothing: {an.params.smooth.method}, span {an.params.smooth.span}; it moved the triangulated "
       f"markers by median {np.median(moved):.2f} mm, max {moved.max():.2f} mm")
 
 truth = virtuallab.load_truth(ws.session_dir)

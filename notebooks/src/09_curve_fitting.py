@@ -68,8 +68,8 @@ t, registered, auto = rb.t, rb.pos, rb.motion_fit        # the pipeline's regist
 prm = an.params
 period_s = an.motion_frame.period_frames / an.session.fps
 w0 = 2 * np.pi / period_s                                 # start point of every w (the thesis typed period = 18)
-print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smoothing_method}'; order rule '{prm.order_rule}', "
-      f"trend {prm.fourier_trend}, x degree {prm.x_degree}; period {an.motion_frame.period_frames:.2f} frames = {period_s:.3f} s")
+print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smooth.method}'; order rule '{prm.rigid_body.fits.order_rule}', "
+      f"trend {prm.rigid_body.fits.trend}, x degree {prm.rigid_body.fits.x_degree}; period {an.motion_frame.period_frames:.2f} frames = {period_s:.3f} s")
 
 truth = virtuallab.load_truth(ws.session_dir)
 a, b = an.triangulate.segment
@@ -123,7 +123,7 @@ for m in range(3):
 y = registered[:, 0, 1]
 E = int(auto.n_extremes[0, 1])
 N1, N2 = fitting.proposed_orders(E)
-f1, f2 = (fitting.fit_fourier(t, y, n, w0=w0, trend=prm.fourier_trend) for n in (N1, N2))
+f1, f2 = (fitting.fit_fourier(t, y, n, w0=w0, trend=prm.rigid_body.fits.trend) for n in (N1, N2))
 print(f"E = {E} extremes -> proposed fourier{N1} and fourier{N2}; the pipeline chose fourier{auto.orders[0, 1]}")
 for f in (f1, f2):
     print(f.summary())
@@ -140,8 +140,8 @@ plt.show()
 
 # %%
 for N in (1, 2, 3, 4):
-    fm = fitting.fit_fourier(t, y, N, trend=prm.fourier_trend)
-    fp = fitting.fit_fourier(t, y, N, w0=w0, trend=prm.fourier_trend)
+    fm = fitting.fit_fourier(t, y, N, trend=prm.rigid_body.fits.trend)
+    fp = fitting.fit_fourier(t, y, N, w0=w0, trend=prm.rigid_body.fits.trend)
     err = lambda f: np.sqrt(np.nanmean((f.evaluate(t, 2) - truth_y["acc"]) ** 2))
     print(f"fourier{N}: MATLAB start w = {fm.frequency:6.3f} rad/s, acc RMSE {err(fm):5.2f} m/s² | "
           f"start at the period, w = {fp.frequency:6.3f}, acc RMSE {err(fp):5.2f} m/s²")
@@ -155,7 +155,7 @@ for N in (1, 2, 3, 4):
 # %%
 z = registered[:, 0, 2]
 Ez = int(auto.n_extremes[0, 2])
-g1, g2 = (fitting.fit_fourier(t, z, n, w0=w0, trend=prm.fourier_trend) for n in fitting.proposed_orders(Ez))
+g1, g2 = (fitting.fit_fourier(t, z, n, w0=w0, trend=prm.rigid_body.fits.trend) for n in fitting.proposed_orders(Ez))
 print(f"E = {Ez} -> fourier{g1.order} (adj R2 {g1.gof.adjrsquare:.4f}) or fourier{g2.order} "
       f"(adj R2 {g2.gof.adjrsquare:.4f}); the pipeline chose fourier{auto.orders[0, 2]}")
 truth_z = {"t": t, "pos": true_kin["pos"][:, 0, 2], "vel": true_kin["vel"][:, 0, 2], "acc": true_kin["acc"][:, 0, 2]}
@@ -170,10 +170,10 @@ plt.show()
 
 # %% tags=["nbval-ignore-output"]
 ui_orders = {(m, ax): widgets.ui_fourier_order(t, registered[:, m, ax], f"marker {m + 1}, {'xyz'[ax]}",
-                                                 rule=prm.order_rule, w0=w0, trend=prm.fourier_trend,
+                                                 rule=prm.rigid_body.fits.order_rule, w0=w0, trend=prm.rigid_body.fits.trend,
                                                  value=auto.orders[m, ax], n_extremes=auto.n_extremes[m, ax])
              for m in range(3) for ax in (1, 2)}
-ui_x = widgets.ui_x_degree(prm.x_degree)
+ui_x = widgets.ui_x_degree(prm.rigid_body.fits.x_degree)
 ws.bind(list(ui_orders.values()), "fourier_orders",
         read=lambda: [[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(3)])
 ws.bind(ui_x, "x_degree")
@@ -183,7 +183,7 @@ display(ui_x)
 
 # %%
 orders = np.array([[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(3)])
-mfit = fitting.fit_motion(t, registered, x_degree=ui_x.value, orders=orders, w0=w0, trend=prm.fourier_trend)
+mfit = fitting.fit_motion(t, registered, x_degree=ui_x.value, orders=orders, w0=w0, trend=prm.rigid_body.fits.trend)
 print("orders (x degree, y, z) per marker:", mfit.orders.tolist(), "; the pipeline's:", auto.orders.tolist())
 vel, acc = mfit.velocity(t), mfit.acceleration(t)
 print(f"velocities equal the pipeline's (to 1e-9 m/s): {np.allclose(vel, rb.vel, rtol=0, atol=1e-9)}")

@@ -69,7 +69,7 @@ rb = an.rigid_body.body
 prm = an.params
 t, pos, vel, acc = rb.t, rb.pos, rb.vel, rb.acc
 print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
-      f"angular method '{prm.angular_method}'; versions used: omega {sum(prm.omega_versions)}, alfa {sum(prm.alpha_versions)}")
+      f"angular method '{prm.rigid_body.fits.angular_method}'; versions used: omega {sum(prm.rigid_body.fits.omega_versions)}, alfa {sum(prm.rigid_body.fits.alpha_versions)}")
 
 truth = virtuallab.load_truth(ws.session_dir)
 a, b = an.triangulate.segment
@@ -118,9 +118,9 @@ for c in range(3):
 # pipeline's rigid-body step again with your choices.
 
 # %% tags=["nbval-ignore-output"]
-ui_w = widgets.ui_versions("omega", value=prm.omega_versions)
-ui_a = widgets.ui_versions("alfa", value=prm.alpha_versions)
-ui_method = widgets.ui_angular_method(value=prm.angular_method)
+ui_w = widgets.ui_versions("omega", value=prm.rigid_body.fits.omega_versions)
+ui_a = widgets.ui_versions("alfa", value=prm.rigid_body.fits.alpha_versions)
+ui_method = widgets.ui_angular_method(value=prm.rigid_body.fits.angular_method)
 ws.bind(ui_w, "omega_versions")
 ws.bind(ui_a, "alpha_versions")
 ws.bind(ui_method, "angular_method")

@@ -61,8 +61,8 @@ prm = an.params
 t, static = rb.t, an.motion_frame.static
 print(f"{len(t)} frames; static shot {static.shape}: markers 1-3 are static points {rb.static_index.tolist()}, "
       f"the saddle marker is point {rb.saddle_index}")
-print(f"the pipeline's choices: smoothing '{prm.smoothing_method}', omega/alfa by '{prm.angular_method}', "
-      f"saddle v/a by '{prm.saddle_method}'")
+print(f"the pipeline's choices: smoothing '{prm.smooth.method}', omega/alfa by '{prm.rigid_body.fits.angular_method}', "
+      f"saddle v/a by '{prm.rigid_body.fits.saddle_method}'")
 
 truth = virtuallab.load_truth(ws.session_dir)
 a, b = an.triangulate.segment
@@ -93,10 +93,10 @@ print(f"the pipeline's r_BS^(B) (base marker 1) is the same (to 1e-12 m): {np.ab
 # step again with your choices and measures it with `accuracy.stage_errors` (in the true motion frame).
 
 # %% tags=["nbval-ignore-output"]
-ui_w = widgets.ui_versions("omega", value=prm.omega_versions)
-ui_a = widgets.ui_versions("alfa", value=prm.alpha_versions)
-ui_method = widgets.ui_angular_method(value=prm.angular_method)
-ui_saddle = widgets.ui_saddle_method(value=prm.saddle_method)
+ui_w = widgets.ui_versions("omega", value=prm.rigid_body.fits.omega_versions)
+ui_a = widgets.ui_versions("alfa", value=prm.rigid_body.fits.alpha_versions)
+ui_method = widgets.ui_angular_method(value=prm.rigid_body.fits.angular_method)
+ui_saddle = widgets.ui_saddle_method(value=prm.rigid_body.fits.saddle_method)
 for ui, name in ((ui_w, "omega_versions"), (ui_a, "alpha_versions"), (ui_method, "angular_method"),
                  (ui_saddle, "saddle_method")):
     ws.bind(ui, name)
@@ -151,15 +151,15 @@ plt.show()
 # measured by `accuracy.stage_errors`:
 
 # %%
-variants = [("eq. 6.55 mean", prm.angular_method, "thesis"),
+variants = [("eq. 6.55 mean", prm.rigid_body.fits.angular_method, "thesis"),
             ("eq. 6.55 mean", "thesis", "thesis"),
             ("eq. 6.55 mean", "lstsq", "thesis"),
-            ("fit of eq. 6.48 path", prm.angular_method, "direct"),
-            ("fit of pose path", prm.angular_method, "pose")]
+            ("fit of eq. 6.48 path", prm.rigid_body.fits.angular_method, "direct"),
+            ("fit of pose path", prm.rigid_body.fits.angular_method, "pose")]
 ay = S_true["acc"][:, 1]
 print(f"rms of the true vertical acceleration: {np.sqrt(np.nanmean(ay ** 2)):.2f} m/s²")
 print("saddle v/a from          omega/alfa  position RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
-fits_default = prm.kinematics == "fits"
+fits_default = prm.rigid_body.kinematics == "fits"
 for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
     change = dict(kinematics="fits", angular_method=am, saddle_method=sm) if am != "-" else \
         dict(kinematics="pose_spline")
@@ -169,7 +169,7 @@ for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
     e = accuracy.stage_errors(r, truth)
     pct = e["saddle_acc_y_rmse_pct_of_rms"]
     default = (am == "-" and not fits_default) or \
-        (fits_default and (am, sm) == (prm.angular_method, prm.saddle_method))
+        (fits_default and (am, sm) == (prm.rigid_body.fits.angular_method, prm.rigid_body.fits.saddle_method))
     print(f"{label:24s} {am:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
           + f"   {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
           + ("   <- pipeline default" if default else ""))
@@ -213,7 +213,7 @@ for sm in ("none", "loess", "rloess"):
     pct = e["saddle_acc_y_rmse_pct_of_rms"]
     print(f"{sm:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
           + f"          {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
-          + ("   <- pipeline default" if sm == prm.smoothing_method else ""))
+          + ("   <- pipeline default" if sm == prm.smooth.method else ""))
 
 # %% [markdown]
 # On this one session no smoothing happens to be the best, and the thesis' `rloess` is the worst: its robust
@@ -252,6 +252,7 @@ for sm in ("none", "loess", "rloess"):
 
 # %%
 from horsemocap import pose, synthetic
+from horsemocap.params import PoseParams
 
 box = synthetic.lift_with_ringing(seed=0)
 box_reg = pose.register_pose(box["markers"], box["model"])
@@ -259,7 +260,7 @@ box_acc = {}
 print("smoothing                       hidden-point acc   omega   (RMSE, % of rms)   what ran")
 for label, options in (("default (auto)", {}), ("gcv", dict(smoothing="gcv")),
                        ("default, onset given (2.8 s)", dict(events=[2.8]))):
-    tr = pose.fit_pose_trajectory(box["t"], box_reg, box["model"], **options)
+    tr = pose.fit_pose_trajectory(box["t"], box_reg, box["model"], PoseParams(**options))
     box_acc[label] = tr.point(box["t"], box["hidden_body"]).acceleration
     ran = tr.smoothing_choice
     print(f"{label:30s} {accuracy.rmse_pct_of_rms(box_acc[label], box['hidden_acc']):10.1f} %"

@@ -294,7 +294,7 @@ for label, change in [("thesis, omega by the fitted orientation", dict(angular_m
                        dict(order_rule="significant", fourier_trend=True)),
                       ("thesis, weighting per harmonic (iso)", dict(weighting_mode="iso")),
                       ("thesis, kinematics from the smoothed pose", dict(kinematics="pose_spline"))]:
-    a = pipeline.run_steps(analysis.session, dataclasses.replace(thesis_params, **change), thesis,
+    a = pipeline.run_steps(analysis.session, thesis_params.updated(change), thesis,
                            ["rigid_body", "comfort"])
     rows.append((label, errors(a)))
 a = pipeline.run_steps(analysis.session, default_params, thesis,
