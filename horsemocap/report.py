@@ -16,9 +16,10 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
+from . import plots
 from .results import analysis_record
 from .store import atomic_write_text
-from .vibration import comfort_table_rows
+from .vibration import comfort_table_rows, unit_text
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;color:#222;padding:0 1em}
@@ -44,8 +45,6 @@ def _figure_html(png: str, caption: str) -> str:
 
 def report_figures(analysis) -> list:
     """The report's figures as ``(make, caption)``: ``make()`` draws one and returns it."""
-    from . import plots
-
     figures = []
     if analysis.detect is not None:
         size = analysis.rig.rig.cameras[0].size
@@ -292,16 +291,6 @@ def unit_html(unit: str) -> str:
     for i in range(1, len(parts), 2):
         out += f"<sup>{html.escape(parts[i])}</sup>" + html.escape(parts[i + 1])
     return out
-
-
-def unit_text(unit: str) -> str:
-    """A unit for plain text and figure labels: ``m/s^2`` -> ``m/s²``, ``m/s^1.75`` -> ``m/s^1.75``
-    (no superscript decimal point in Unicode) and ``"1"`` -> ``""``."""
-    if unit == "1":
-        return ""
-    sup = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
-
-    return re.sub(r"\^(-?[0-9]+)(?![0-9.])", lambda m: m.group(1).translate(sup), unit)
 
 
 def format_value(value, digits: int = 4) -> str:

@@ -71,6 +71,7 @@ import csv
 import html
 import io
 import math
+import re
 import warnings
 import zipfile
 from dataclasses import dataclass
@@ -1502,3 +1503,19 @@ def half_peak_to_peak(positions) -> np.ndarray:
             if v.size:
                 out[m, j] = 0.5 * (v.max() - v.min())
     return out
+
+
+def unit_text(unit: str) -> str:
+    """A unit for plain text and figure labels: ``m/s^2`` -> ``m/s²``, ``m/s^1.75`` -> ``m/s^1.75``
+    (no superscript decimal point in Unicode) and ``"1"`` -> ``""``.
+
+    Examples
+    --------
+    >>> unit_text("m/s^2"), unit_text("m/s^1.75"), unit_text("1")
+    ('m/s²', 'm/s^1.75', '')
+    """
+    if unit == "1":
+        return ""
+    sup = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
+
+    return re.sub(r"\^(-?[0-9]+)(?![0-9.])", lambda m: m.group(1).translate(sup), unit)

@@ -85,8 +85,6 @@ def plot_marker_comfort(rows: dict, keys=("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y
         E.g. ``{"marker 1": ..., "marker 2": ..., "saddle": ...}``.
     keys : indicators shown, one panel each, with their units.
     """
-    from ..report import unit_text
-
     fig = fig or plt.figure(figsize=(3.2 * len(keys), 3.2))
     axs = np.atleast_1d(fig.subplots(1, len(keys)))
     labels = list(rows)
@@ -97,7 +95,7 @@ def plot_marker_comfort(rows: dict, keys=("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y
             ax.annotate("not computed" if not np.isfinite(v) else f"{v:.2f}", (b.get_x() + b.get_width() / 2,
                         0 if not np.isfinite(v) else v), ha="center", va="bottom", fontsize=7)
         ax.set_xticks(range(len(labels)), labels, fontsize=8, rotation=20)
-        ax.set_title(f"{key} ({unit_text(vib.COMFORT_UNITS[key])})", fontsize=9)
+        ax.set_title(f"{key} ({vib.unit_text(vib.COMFORT_UNITS[key])})", fontsize=9)
         ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     return fig
