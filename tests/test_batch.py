@@ -168,3 +168,23 @@ def test_a_batch_killed_with_sigkill_finishes_only_the_rest(tmp_path, monkeypatc
     for name in ("canter_1", "canter_2", "canter_3"):
         assert (out / name / "comfort.csv").read_bytes() == expected
     assert rows["canter_3"]["VDV_y_Wb"] == alone.analysis.comfort.indicators["VDV_y_Wb"]
+
+
+def test_the_herd_study_reads_a_batch_table(tmp_path):
+    from horsemocap import herd
+
+    rows = []
+    for k, h in enumerate(herd.HORSES):
+        task = batch.BatchTask(Path(f"s/{k}"), tmp_path / f"h{k}", f"h{k}")
+        rows.append({**batch._empty_row(task), "horse": h, "gait": "canter", "exit_status": 0,
+                     **{ind: float(k + 1) * (1 if ind != "TA_8_limit_Wb" else -1) for ind in herd.THESIS_INDICATORS}})
+    rows.append({**batch._empty_row(batch.BatchTask(Path("s/x"), tmp_path / "x", "x")), "horse": "Horse 1",
+                 "gait": "walk", "error": "failed"})
+    path, _ = batch.write_table(tmp_path, rows)
+    table = herd.table_indicators(path)
+    assert set(table) == {(h, "canter") for h in herd.HORSES}           # the failed session left out
+    assert table[("Horse 3", "canter")]["VDV_y_Wb"] == 3.0
+    direct = {(r["horse"], r["gait"]): {i: r[i] for i in herd.THESIS_INDICATORS} for r in rows[:4]}
+    assert [repr(c) for c in herd.compare(table)] == [repr(c) for c in herd.compare(direct)]   # (NaN: by repr)
+    with pytest.raises(ValueError, match="both Horse 1, canter"):
+        herd.table_indicators(rows[:4] + [{**rows[0], "name": "again"}])
