@@ -3,6 +3,7 @@
 ``horsemocap analyze SESSION --out DIR``  every step of the thesis, automatically
 ``horsemocap demo [--out DIR]``           the same on the bundled riding session
 ``horsemocap calibrate DIR [DIR ...]``    calibrate a rig once for many sessions
+``horsemocap batch SESSION... --out DIR`` many sessions side by side into one table
 """
 from __future__ import annotations
 
@@ -324,6 +325,29 @@ def cmd_demo(args) -> int:
     return _run_analysis(session, out, args)
 
 
+def cmd_batch(args) -> int:
+    """Every session of ``args.sessions`` analysed as ``analyze`` would, into ``--out``, with one table."""
+    from .batch import BatchError, run_batch
+
+    _no_nul(("--out", args.out), ("--params", args.params), *(("SESSION", s) for s in args.sessions))
+    if args.workers is not None and args.workers < 1:
+        print(f"horsemocap: error: --workers {args.workers}: expected 1 or more worker processes", file=sys.stderr)
+        return 2
+    try:
+        summary = run_batch(args.sessions, Path(args.out), workers=args.workers, scheduler=args.scheduler,
+                            params_file=args.params)
+    except BatchError as exc:
+        print(f"horsemocap: error: {exc}", file=sys.stderr)
+        return 2
+    for row in summary.rows:
+        if row["error"]:
+            print(f"  {row['name']}: {row['error']}", file=sys.stderr)
+    print(f"table:   {summary.table}" + (f"\n         {summary.parquet}" if summary.parquet else ""))
+    print(f"{len(summary.rows)} session(s) in {summary.seconds:.1f} s: "
+          f"{sum(r['reused'] for r in summary.rows)} reused, {summary.failed} failed")
+    return summary.exit_code
+
+
 def _check_rig_target(out: Path) -> None:
     """``calibrate --out`` must be a file we can write: checked before the calibration runs."""
     import os
@@ -578,6 +602,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="rig.toml",
                    help="the rig file to write (a session's calibration 'rig'); not a folder")
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("batch", help="analyse many sessions side by side into one table (resumable)",
+                       parents=[common], epilog=EXIT_STATUS, formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Analyse every SESSION exactly as 'analyze' would, into DIR/<name>/, on every "
+                                   "local core (worker processes) or on a Dask cluster (--scheduler), and write "
+                                   "DIR/sessions.csv (and sessions.parquet where pyarrow is installed): one row per "
+                                   "session with its metadata, verdict, exit status, comfort indicators, time and "
+                                   "error. A failing session is a row, not the end of the batch. Run again, a "
+                                   "batch analyses only the sessions whose results are missing, incomplete or made "
+                                   "from other inputs, parameters or code. Exit status: the worst session's.")
+    p.add_argument("sessions", nargs="+", metavar="SESSION",
+                   help="a session folder, a folder of session folders, or a text file listing session folders "
+                        "(one per line, relative to the file)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder of the results and the table")
+    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: every core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on the Dask cluster of this scheduler (e.g. tcp://127.0.0.1:8786); needs "
+                        "pip install horsemocap[cluster]")
+    p.add_argument("--params", metavar="analysis.json", help="parameters for every session (as analyze --params)")
+    p.set_defaults(func=cmd_batch)
 
     p = sub.add_parser("kinematics", help="rigid-body kinematics from 3D markers of any system (CSV or C3D)", parents=[common],
                        description="Pose-trajectory kinematics (horsemocap.pose) of 3D markers in the "

@@ -21,6 +21,13 @@ Data sources (``source=``): ``"analytic"`` computes the indicators from the
 virtual laboratory's analytic saddle motion (the ground truth of the
 virtual herd; fast, no rendering); ``"pipeline"`` renders each session (once,
 into the cache) and runs the full analysis on the videos.
+
+The herd study as a batch: :func:`herd_batch` renders the sessions and
+analyses them side by side with ``horsemocap batch``
+(:func:`horsemocap.batch.run_batch`: every core, resumable, one table
+``sessions.csv``); :func:`table_indicators` reads that table into the
+``{(horse, gait): indicators}`` form :func:`compare`, :func:`indicator_matrix`
+and :func:`herd_rows` take.
 """
 from __future__ import annotations
 
@@ -34,13 +41,14 @@ import numpy as np
 from scipy import stats
 
 from . import vibration as vib
+from .batch import BASE_COLUMNS, read_table, run_batch
 from .data import data_samples_dir
 from .store import atomic_write_text
 
 __all__ = ["HORSES", "GAITS", "GAIT_LABELS", "THESIS_INDICATORS", "EXPECTED_SIGN",
            "CAVEATS", "load_grades", "mean_grades", "analytic_indicators",
            "pipeline_indicators", "herd_indicators", "indicator_matrix", "compare",
-           "Correlation", "herd_rows", "write_herd_csv"]
+           "Correlation", "herd_rows", "write_herd_csv", "herd_batch", "table_indicators"]
 
 HORSES = ("Horse 1", "Horse 2", "Horse 3", "Horse 4")
 GAITS = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -216,6 +224,64 @@ def herd_indicators(source: str = "analytic", *, mode: str = "iso", horses=HORSE
             out[(h, g)] = fn(h, g, mode=mode)
             if timings is not None:
                 timings[(h, g)] = time.perf_counter() - t0
+    return out
+
+
+def herd_batch(out_dir, *, horses=HORSES, gaits=GAITS, workers: int | None = None, scheduler: str | None = None,
+               params_file=None, progress=None):
+    """The herd study as one batch: every (horse, gait) session analysed into ``out_dir``, one table.
+
+    The sessions are rendered into the cache first (once each,
+    ``virtuallab.herd_session``), then analysed as ``horsemocap batch``
+    analyses them (:func:`horsemocap.batch.run_batch`: ``workers`` local
+    processes, or the Dask cluster at ``scheduler``); run again, only the
+    sessions not finished are analysed.
+
+    Returns
+    -------
+    horsemocap.batch.BatchSummary
+        ``.table`` is ``out_dir/sessions.csv``; :func:`table_indicators` reads it.
+    """
+    from .virtuallab import herd_session  # rendered on demand into the cache
+
+    sessions = [herd_session(h, g) for h in horses for g in gaits]
+    return run_batch(sessions, out_dir, workers=workers, scheduler=scheduler, params_file=params_file,
+                     progress=progress)
+
+
+def table_indicators(table, indicators=None) -> dict:
+    """A batch's table read into ``{(horse, gait): {indicator: value}}`` (the form :func:`compare` takes).
+
+    Parameters
+    ----------
+    table : path or list of dict
+        ``sessions.csv`` of a batch (:func:`horsemocap.batch.read_table`) or its rows.
+    indicators : iterable of str, optional
+        The indicators kept (default: every column of ``comfort.csv`` the table has).
+
+    Only the sessions with results are kept (a failed one, exit status 2,
+    has no indicators); two sessions of the same horse and gait raise a
+    ``ValueError`` naming both, rather than one hiding the other.
+
+    Examples
+    --------
+    >>> rows = [{"name": "h2c", "horse": "Horse 2", "gait": "canter", "exit_status": 0, "VDV_y_Wb": 4.6},
+    ...         {"name": "h1w", "horse": "Horse 1", "gait": "walk", "exit_status": 2, "VDV_y_Wb": float("nan")}]
+    >>> table_indicators(rows)
+    {('Horse 2', 'canter'): {'VDV_y_Wb': 4.6}}
+    """
+    rows = read_table(table) if isinstance(table, (str, Path)) else list(table)
+    out, names = {}, {}
+    for row in rows:
+        if row["exit_status"] == 2:
+            continue
+        key = (row["horse"], row["gait"])
+        if key in out:
+            raise ValueError(f"sessions {names[key]!r} and {row['name']!r} are both {key[0]}, {key[1]}: "
+                             "give the table of one session per horse and gait")
+        keep = [k for k in row if k not in BASE_COLUMNS] if indicators is None else list(indicators)
+        out[key] = {k: float(row[k]) for k in keep}
+        names[key] = row["name"]
     return out
 
 

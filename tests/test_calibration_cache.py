@@ -11,6 +11,12 @@ from horsemocap.camera import Camera, Rig
 INNER = (3, 2)
 
 
+@pytest.fixture(autouse=True)
+def no_user_board_cache(monkeypatch):
+    """These tests count the detections of the results folder's cache alone (the user-level one: test_batch.py)."""
+    monkeypatch.setenv(cache.BOARD_CACHE_ENV, "off")
+
+
 @pytest.fixture
 def views_dirs(tmp_path):
     dirs = {}

@@ -17,8 +17,17 @@ the same views does not calibrate again:
   reference camera, another camera's views) board detection still runs once
   per view.
 
-``recalibrate`` (:class:`~horsemocap.params.AnalysisParams`) ignores the file
-and calibrates from scratch. The file is written whole or not at all
+A second, user-level cache (:func:`board_cache_dir`, by default
+``horsemocap.data.cache_dir() / "boards"``) keeps the same records under keys
+of the views' *contents* (:func:`content_views_key`: each view's file name,
+size and bytes; not its folder or modification time), so a rig calibrated
+once serves every results folder and every session whose calibration views
+are the same files, copied or not. Its files are written whole or not at
+all by any number of processes at once; a cache that cannot be written
+(a read-only home) is skipped, never an error of the analysis.
+
+``recalibrate`` (:class:`~horsemocap.params.AnalysisParams`) ignores both
+caches and calibrates from scratch. The file is written whole or not at all
 (:func:`horsemocap.store.atomic_write_text`), into the run's own folder (with
 ``horsemocap analyze`` the temporary folder that replaces the results folder
 whole, :mod:`horsemocap.runfolder`); it is read from there and from the
@@ -28,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import threading
 from pathlib import Path
 
@@ -35,7 +45,8 @@ import numpy as np
 
 from .. import camera
 from ..camera import Camera, Rig
-from ..fingerprint import file_fingerprint
+from ..data import cache_dir
+from ..fingerprint import FINGERPRINT_EDGE_BYTES, file_fingerprint
 from ..sources import list_images
 from ..store import atomic_write_text
 from .board import BoardViews, detect_cameras
@@ -44,8 +55,10 @@ from .rig import board_view_counter, calibrate_rig
 CACHE_FILE = "calibration.json"
 CACHE_FORMAT = "horsemocap-calibration-cache/1"
 
-__all__ = ["CACHE_FILE", "CACHE_FORMAT", "calibration_key", "views_key", "cached_calibration", "BoardDetectionJob",
-           "views_cached"]
+BOARD_CACHE_ENV = "HORSEMOCAP_BOARD_CACHE"
+
+__all__ = ["CACHE_FILE", "CACHE_FORMAT", "BOARD_CACHE_ENV", "calibration_key", "views_key", "content_views_key",
+           "board_cache_dir", "cached_calibration", "BoardDetectionJob", "views_cached"]
 
 
 def _code_hash(names) -> bytes:
@@ -64,6 +77,94 @@ def views_key(folder, inner_corners) -> str:
     h.update(json.dumps([int(inner_corners[0]), int(inner_corners[1])]).encode())
     h.update(_code_hash(["board.py"]))
     return h.hexdigest()
+
+
+def _content_fingerprint(path: Path, edge: int = FINGERPRINT_EDGE_BYTES) -> str:
+    """A view's file name, size and the SHA-256 of its bytes (its first and last ``edge`` bytes if larger)."""
+    size = path.stat().st_size
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        if size <= 2 * edge:
+            h.update(fh.read())
+        else:
+            h.update(fh.read(edge))
+            fh.seek(-edge, os.SEEK_END)
+            h.update(fh.read(edge))
+    return f"{path.name}|{size}|{h.hexdigest()}"
+
+
+def content_views_key(folder, inner_corners) -> str:
+    """Key of one camera's board detection by the views' contents: names, sizes, bytes, the board, the detector.
+
+    Unlike :func:`views_key` it leaves out the folder and the modification
+    times, so the same views copied elsewhere have the same key.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> a, b = Path(tempfile.mkdtemp()), Path(tempfile.mkdtemp())
+    >>> for d in (a, b):
+    ...     _ = (d / "1.png").write_bytes(b"view")
+    >>> content_views_key(a, (7, 14)) == content_views_key(b, (7, 14)) != content_views_key(a, (9, 6))
+    True
+    """
+    h = hashlib.sha256(b"content")
+    for f in list_images(Path(folder)):
+        h.update(_content_fingerprint(f).encode("utf-8", "surrogateescape"))
+    h.update(json.dumps([int(inner_corners[0]), int(inner_corners[1])]).encode())
+    h.update(_code_hash(["board.py"]))
+    return h.hexdigest()
+
+
+def board_cache_dir() -> Path | None:
+    """The user-level cache of board detections and calibrated rigs, or None when switched off.
+
+    ``$HORSEMOCAP_BOARD_CACHE``: a folder, or ``off`` for no user-level
+    cache; unset: ``horsemocap.data.cache_dir() / "boards"``.
+    """
+    given = os.environ.get(BOARD_CACHE_ENV, "").strip()
+    if given.lower() == "off":
+        return None
+    return Path(given) if given else cache_dir() / "boards"
+
+
+def _user_read(name: str) -> dict | None:
+    """A record of the user-level cache (None if absent, damaged, another format or the cache is off)."""
+    folder = board_cache_dir()
+    if folder is None:
+        return None
+    try:
+        d = json.loads((folder / name).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return d if isinstance(d, dict) and d.get("format") == CACHE_FORMAT else None
+
+
+def _user_write(name: str, record: dict) -> None:
+    """A record written whole into the user-level cache; skipped when it cannot be written."""
+    folder = board_cache_dir()
+    if folder is None:
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(folder / name, json.dumps(record, separators=(",", ":")) + "\n")
+    except OSError:
+        pass
+
+
+def _user_views(cam: str, folder, content_key: str) -> BoardViews | None:
+    """``cam``'s views from the user-level cache, their files those of ``folder`` (None if not there)."""
+    d = _user_read(f"views-{content_key}.json")
+    if d is None or not isinstance(d.get("views"), dict):
+        return None
+    try:
+        v = _views_from_json(cam, d["views"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    files = tuple(list_images(Path(folder)))
+    if len(files) != len(v.names):
+        return None
+    return BoardViews(cam, v.names, files, v.corners, v.reasons, v.windows, v.size, v.inner_corners)
 
 
 def calibration_key(image_dirs: dict, inner_corners, square_m: float, reference: str, exclude=None,
@@ -217,9 +318,10 @@ class BoardDetectionJob:
 
 
 def views_cached(image_dirs: dict, inner_corners, folders) -> bool:
-    """Whether ``calibration.json`` in one of ``folders`` holds every camera's corners for these views."""
+    """Whether ``calibration.json`` in one of ``folders`` or the user-level cache holds every camera's corners."""
     found = [d for d in (_read(f) for f in folders if f is not None) if d is not None]
     return all(_cached_views(found, cam, views_key(folder, inner_corners)) is not None
+               or _user_read(f"views-{content_views_key(folder, inner_corners)}.json") is not None
                for cam, folder in image_dirs.items())
 
 
@@ -261,11 +363,15 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     -------
     rig : Rig
     how : str
-        ``"calibrated from checkerboard views"`` or ``"... (cached in calibration.json)"``.
+        ``"calibrated from checkerboard views"``, ``"... (cached in calibration.json)"`` or ``"... (cached in
+        the user-level board cache)"`` (:func:`board_cache_dir`).
     """
     say = (lambda msg: progress("rig", msg)) if progress else (lambda msg: None)
     vkeys = {cam: views_key(folder, inner_corners) for cam, folder in image_dirs.items()}   # (hashes every view)
     key = calibration_key(image_dirs, inner_corners, square_m, reference, exclude, mode, vkeys)
+    ckeys = {} if recalibrate else {cam: content_views_key(folder, inner_corners) for cam, folder in image_dirs.items()}
+    user_key = None if recalibrate else calibration_key(image_dirs, inner_corners, square_m, reference, exclude,
+                                                        mode, ckeys)
     folders = [f for f in ([write_to] + list(read_from)) if f is not None]
     found = [] if recalibrate else [(f, d) for f, d in ((f, _read(f)) for f in folders) if d is not None]
     for folder, d in found:
@@ -280,6 +386,14 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         say(f"calibration reused from {CACHE_FILE} (same views, board, cameras and code)")
         return rig, "calibrated from checkerboard views (cached in calibration.json)"
     found = [d for _, d in found]
+    if user_key is not None:
+        rig, views = _user_calibration(user_key, image_dirs, inner_corners)
+        if rig is not None:
+            if write_to is not None:
+                _write(Path(write_to), _record(key, reference, inner_corners, square_m, rig, views, vkeys))
+            say(f"calibration reused from the user-level cache {board_cache_dir()} (same views, board, cameras "
+                "and code)")
+            return rig, "calibrated from checkerboard views (cached in the user-level board cache)"
     views, reused = {}, []
     for cam in image_dirs:
         hit = _cached_views(found, cam, vkeys[cam])
@@ -287,6 +401,8 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
             views[cam] = _views_from_json(cam, hit) if hit is not None else None
         except (KeyError, TypeError, ValueError):
             views[cam] = None                           # damaged: detect again
+        if views[cam] is None and ckeys:
+            views[cam] = _user_views(cam, image_dirs[cam], ckeys[cam])
         if views[cam] is not None:
             reused.append(cam)
     if detected is not None:
@@ -301,16 +417,45 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         views.update(detect_cameras(missing, inner_corners,
                                     ticks={cam: board_view_counter(progress, cam) for cam in missing}))
     if reused:
-        say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE}")
+        say(f"board corners of camera(s) {', '.join(reused)} reused from {CACHE_FILE} or the user-level cache")
+    for cam in ckeys:                                   # (the user-level cache: by the views' contents)
+        if cam not in reused:
+            _user_write(f"views-{ckeys[cam]}.json", {"format": CACHE_FORMAT, "views": _views_to_json(views[cam],
+                                                                                                   ckeys[cam])})
     say("calibrating from checkerboard views ...")
     # the pairs' stereo calibrations (Table 8.4) are not part of a joint rig: not computed here
     # (``horsemocap calibrate`` reports them); the pairwise rig computes the pairs it needs
     cal = calibrate_rig(image_dirs, inner_corners, square_m, reference=reference, views=dict(views), exclude=exclude,
                         mode=mode, progress=progress, pairs=False)
+    if user_key is not None:
+        _user_write(f"rig-{user_key}.json", _record(user_key, reference, inner_corners, square_m, cal.rig, None, {}))
     if write_to is not None:
-        record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
-                  "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},
-                  "rig": _rig_to_json(cal.rig),
-                  "views": {cam: _views_to_json(views[cam], vkeys[cam]) for cam in image_dirs}}
-        _write(Path(write_to), record)
+        _write(Path(write_to), _record(key, reference, inner_corners, square_m, cal.rig, views, vkeys))
     return cal.rig, f"calibrated from checkerboard views ({mode})"
+
+
+def _record(key: str, reference: str, inner_corners, square_m: float, rig: Rig, views, vkeys: dict) -> dict:
+    """A ``calibration.json`` record (``views`` None: the rig only, as the user-level cache keeps it)."""
+    record = {"format": CACHE_FORMAT, "key": key, "reference": reference,
+              "board": {"inner_corners": [int(x) for x in inner_corners], "square_size_m": float(square_m)},
+              "rig": _rig_to_json(rig)}
+    if views is not None:
+        record["views"] = {cam: _views_to_json(views[cam], vkeys[cam]) for cam in vkeys}
+    return record
+
+
+def _user_calibration(user_key: str, image_dirs: dict, inner_corners):
+    """The rig of the user-level cache under ``user_key`` and every camera's views, or (None, None)."""
+    d = _user_read(f"rig-{user_key}.json")
+    if d is None or d.get("key") != user_key or not isinstance(d.get("rig"), dict):
+        return None, None
+    try:
+        rig = _rig_from_json(d["rig"])
+    except (KeyError, TypeError, ValueError):
+        return None, None
+    views = {}
+    for cam, folder in image_dirs.items():
+        views[cam] = _user_views(cam, folder, content_views_key(folder, inner_corners))
+        if views[cam] is None:
+            return None, None                           # the rig without its corners: calibrate again
+    return rig, views
