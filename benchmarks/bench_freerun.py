@@ -6,7 +6,7 @@ timing set ``--seed``) and runs the default analysis on each (:func:`horsemocap.
 parameters, what ``horsemocap analyze SESSION --out DIR`` runs). Per session it prints the frame rate, image
 size and drawn camera timings, then the exit status the command would give (3 when the verdict is unreliable,
 2 when a step stops), the verdict, the saddle's vertical acceleration error (% of rms), the Wb and Wk rms
-errors (%), and the offsets found (whole frames after the reference camera's, the flash's own in brackets
+errors (%), and the offsets found (frames after the reference camera's, with the fraction and its uncertainty; the flash's own in brackets
 when the markers corrected them) against the true fractional offsets.
 
 ``--genlocked`` runs the control: the same sessions, cameras and exposures with the cameras locked together
@@ -55,24 +55,26 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
         a = analyze(folder, None, {}, progress=lambda *x: None)
     except AnalysisError as exc:
         try:
-            flash = analyze(folder, None, {}, until="sync", progress=lambda *x: None).synchronisation.offsets
-            found = ", ".join(f"{c} {flash[c] - flash['left']} (error {flash[c] - flash['left'] - true[c]:+.3f})"
-                              for c in truth.cameras[1:])
+            sy = analyze(folder, None, {}, until="sync", progress=lambda *x: None).synchronisation
+            frac = sy.offsets_with_fraction("left")
+            found = ", ".join(f"{c} {frac[c]:.3f} (error {frac[c] - true[c]:+.3f})" for c in truth.cameras[1:])
         except AnalysisError as sync_exc:
             found = f"none ({sync_exc})"
         return (f"{head}\n  exit 2, stopped: {exc}\n  flash offsets found: {found}  "
                 f"({time.perf_counter() - t0:.0f} s)")
     verdict = quality.verdict(quality.post_checks(a))
     st = accuracy.stage_errors(a, truth)
-    ce = accuracy.comfort_errors(a.results["comfort"]["indicators"], truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
+    ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
     sync = a.synchronisation
     ref = sync.offsets["left"]
     found = []
+    frac = sync.offsets_with_fraction("left")
     for c in truth.cameras[1:]:
-        got = sync.offsets[c] - ref
+        got = frac[c]
         flash = "" if not sync.flash_offsets else f" [flash {sync.flash_offsets[c] - sync.flash_offsets['left']}]"
-        found.append(f"{c} {got}{flash} (error {got - true[c]:+.3f})")
-    first, last = a.results["triangulate"]["segment"]
+        unc = sync.offset_uncertainty_frames.get(c)
+        found.append(f"{c} {got:.3f}{'' if unc is None else f' +- {unc:.3f}'}{flash} (error {got - true[c]:+.3f})")
+    first, last = a.triangulate.segment
     frames = f"{last - first} of {sync.n_frames}"
     return (f"{head}\n  exit {3 if verdict == 'unreliable' else 0}, verdict {verdict}; saddle A_y error "
             f"{st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of rms; Wb rms {ce['acc_y_Wb_rms']:+.1f} %, Wk rms "

@@ -139,9 +139,16 @@ def _option_help(opt: AnalysisOption) -> str:
 
 def _parse_offsets(text: str, flag: str) -> dict:
     try:
-        return {k: int(v) for k, v in (kv.split("=") for kv in text.split(","))}
+        return {k: _frame_number(v) for k, v in (kv.split("=") for kv in text.split(","))}
     except ValueError:
-        raise ParamsError(f"{flag}: expected CAM=FRAME,... (frame indices), got {text!r}") from None
+        raise ParamsError(f"{flag}: expected CAM=FRAME,... (frame indices, with a fraction for free-running "
+                          f"cameras: middle=53.4), got {text!r}") from None
+
+
+def _frame_number(text: str):
+    """A frame index: an int when whole (``53``), else a float (``53.4``)."""
+    value = float(text)
+    return int(value) if value.is_integer() and "." not in text else value
 
 
 def _parse_exclude(text: str, flag: str) -> dict:

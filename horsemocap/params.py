@@ -1188,8 +1188,8 @@ def _check_offsets(value, f):
     if not isinstance(value, dict) or not value:
         raise _Invalid(_expected(f), value)
     for cam, frame in value.items():
-        if not _is_int(frame) or frame < 0:
-            raise _Invalid(f"a frame index (integer >= 0) for camera '{cam}'", frame)
+        if not (_is_int(frame) or (isinstance(frame, float) and math.isfinite(frame))) or frame < 0:
+            raise _Invalid(f"a frame index (>= 0; a fraction for free-running cameras) for camera '{cam}'", frame)
 
 
 def _check_exclude(value, f):

@@ -188,6 +188,14 @@ def _record_sync(analysis, p: dict, chosen: dict) -> None:
         chosen["sync"]["flash_offsets"] = dict(sync.flash_offsets)
     if sync.flash_ambiguous:        # camera -> the frame of a second candidate nearly as likely
         chosen["sync"]["flash_ambiguous"] = {c: int(f) for c, f in sync.flash_ambiguous.items()}
+    if sync.subframe_method:        # free-running cameras: the offsets to a fraction of a frame
+        ref = analysis.session.reference_camera
+        chosen["sync"]["subframe"] = {
+            "method": sync.subframe_method,
+            "offsets_frames": {c: round(v, 4) for c, v in sync.offsets_with_fraction(ref).items()},
+            "phase_frames": {c: round(float(v), 4) for c, v in sync.phase_frames.items()},
+            "uncertainty_frames": {c: round(float(v), 4) for c, v in sync.offset_uncertainty_frames.items()},
+            "rate_ratio": {c: round(float(v), 7) for c, v in sync.rate_ratio.items()}}
     check = analysis.detect.sync_check if analysis.detect is not None else None
     if check:
         chosen["sync"]["checked_by_markers"] = {

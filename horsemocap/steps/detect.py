@@ -21,7 +21,8 @@ from ..detection.identification import _area_range, _min_circ, reason_counts
 from ..detection.timeshift import best_frame_shift, frame_shift_residuals
 from ..params import DetectParams
 from ..progress import CountingFrames, counter
-from ..reconstruction import triangulate
+from .. import subframe
+from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from ..session import Session, check_frame_counts
 from ..sources import FrameSource
 from .base import AnalysisError, StepResult, frames_text, longest_run
@@ -32,6 +33,11 @@ from .sync import SyncResult
 SYNC_CHECK_ROUNDS = 3
 
 MIN_SEGMENT_FRAMES = 8
+
+#: Free-running cameras: the identification accepts views this share of the image width apart on top of the
+#: genlocked tolerance (a horse crossing the view in 50 frames moves 2 % of the width a frame; the views of
+#: cameras half a frame apart then disagree by 1 % of the width).
+FREE_RUNNING_TOLERANCE_OF_WIDTH = 0.01
 """The fewest consecutive frames an analysis needs."""
 
 
@@ -119,6 +125,9 @@ class DetectResult(StepResult):
         Camera -> :class:`CameraSyncCheck` (empty when not checked).
     identification : IdentificationSummary or None
         The multi-view identification's choices.
+    observation_frames : dict
+        Camera -> (n, m) instant of each centroid in its synchronised frames (frame index plus the rolling
+        shutter's row time, when the readout is known); empty: the frame instants.
     """
 
     marker_px: dict
@@ -132,6 +141,7 @@ class DetectResult(StepResult):
     sync: SyncResult
     sync_check: dict = field(default_factory=dict)
     identification: IdentificationSummary | None = None
+    observation_frames: dict = field(default_factory=dict)
 
     @property
     def sync_corrected(self) -> bool:
@@ -190,10 +200,24 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     given = {c: camera_detection_params(section, c) or DetectionParams() for c in session.cameras}
     progress("detect", f"{sync.n_frames} frames of cameras {', '.join(session.cameras)}: "
                        "markers identified by all cameras together ...")
-    idn = _identify(session, sync, rig, static_points, given, progress, frames)
+    tolerance = free_running_tolerance(rig) if sync.free_running else DEFAULT_MAX_RESIDUAL_PX
+    try:
+        idn = _identify(session, sync, rig, static_points, given, progress, frames, tolerance)
+    except AnalysisError:
+        if sync.free_running or sync.offsets_from != "flashlight":
+            raise
+        progress("detect", "no consistent views at the genlocked tolerance: trying the cameras as free-running")
+        tolerance = free_running_tolerance(rig)
+        sync = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
+        idn = _identify(session, sync, rig, static_points, given, progress, None, tolerance)
     check = {}
     if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
-        idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress)
+        idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
+                                               tolerance)
+    times = {}
+    if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
+        times = observation_frames(session, rig, idn.marker_px)
+        sync = _subframe_by_markers(session, sync, rig, idn.marker_px, times, progress)
     gap = max_gap_frames(session, section)
     have, _ = bridge_gaps(idn.points, gap)
     tracked = np.all(np.isfinite(have), axis=(1, 2))
@@ -215,13 +239,58 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                                     model_index=[int(i) for i in idn.model_index], rigid_rms_m=idn.rigid_rms_m)
     return DetectResult(marker_px=idn.marker_px, reason=idn.reason, segment=segment, detection=chosen,
                         all_seen=tracked, method="multiview", method_note="", max_gap_frames=gap, sync=sync,
-                        sync_check=check, identification=summary)
+                        sync_check=check, identification=summary, observation_frames=times)
 
 
-def _identify(session, sync, rig, static_points, given, progress, frames=None):
+def free_running_tolerance(rig: Rig) -> float:
+    """The identification's residual limit (px) for free-running cameras (:data:`FREE_RUNNING_TOLERANCE_OF_WIDTH`)."""
+    width = max(rig[c].size[0] for c in rig.names)
+    return DEFAULT_MAX_RESIDUAL_PX + FREE_RUNNING_TOLERANCE_OF_WIDTH * width
+
+
+def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
+    """Camera -> (n, m) instants of its centroids in its frames, for the cameras whose rolling-shutter readout
+    ``metadata.camera_timing.<camera>.rolling_shutter_s`` (s) session.json gives; others are absent."""
+    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
+    out = {}
+    for c, px in marker_px.items():
+        readout = (timing.get(c) or {}).get("rolling_shutter_s") if isinstance(timing.get(c), dict) else None
+        if readout:
+            out[c] = subframe.rolling_shutter_frames(px, rig[c].size[1], float(readout) * session.fps)
+    return out
+
+
+def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
+    """The sync with every camera's phase (and rate ratio) refined by the markers (:func:`subframe.refine_phases`)."""
+    ref = session.reference_camera
+    start = dict(sync.phase_frames)
+    if sync.flash_offsets is not None:          # the markers moved whole frames after the flash's fractions
+        f = sync.flash_offsets
+        start = {c: start.get(c, 0.0) + (sync.offsets[c] - sync.offsets[ref]) - (f[c] - f[ref]) for c in sync.offsets}
+    fits = subframe.refine_phases(rig, marker_px, start, ref, times=times)
+    if not fits:
+        progress("detect", "the markers could not refine the fractions of a frame (too few marker-frames); "
+                           "the flash's are kept")
+        return sync
+    phase = {c: (fits[c].phase if c in fits else start.get(c, 0.0)) for c in session.cameras}
+    phase[ref] = 0.0
+    unc = {c: (fits[c].uncertainty if c in fits else sync.offset_uncertainty_frames.get(c, 0.0))
+           for c in session.cameras}
+    rate = {c: (fits[c].rate_ratio if c in fits else 1.0) for c in session.cameras}
+    progress("detect", "fractions of a frame refined by the markers: " + ", ".join(
+        f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" for c in fits) + f" (residual {min(f.residual_px for f in fits.values()):.2f} px"
+        + (f"; readout times of {', '.join(times)} used" if times else "; no rolling-shutter readout given") + ")")
+    how = "flash and markers" if sync.subframe_method == "flash" else "markers"
+    return sync.replace(phase_frames=phase, offset_uncertainty_frames=unc, rate_ratio=rate, subframe_method=how)
+
+
+def _identify(session, sync, rig, static_points, given, progress, frames=None,
+              tolerance: float = DEFAULT_MAX_RESIDUAL_PX):
     frames = frames or {c: synchronised_frames(session, sync, c) for c in session.cameras}
+    kwargs = {} if tolerance == DEFAULT_MAX_RESIDUAL_PX else {"max_residual_px": tolerance}
     try:
-        return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress)
+        return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
+                                **kwargs)
     except DetectionError as exc:
         raise AnalysisError("detect", f"{exc}") from None
     finally:
@@ -229,7 +298,8 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None):
             f.close()
 
 
-def _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress):
+def _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
+                        tolerance: float = DEFAULT_MAX_RESIDUAL_PX):
     """Rounds of :func:`_check_round` until no camera moves (at most :data:`SYNC_CHECK_ROUNDS`).
 
     Returns the last identification, the synchronisation it is in and the per-camera check.
@@ -240,7 +310,7 @@ def _checked_by_markers(session, section, sync, rig, static_points, given, idn, 
         rounds.append(shifts)
         if not any(v["shift"] for v in shifts.values()):
             break
-        idn = _identify(session, sync, rig, static_points, given, progress)
+        idn = _identify(session, sync, rig, static_points, given, progress, tolerance=tolerance)
     return idn, sync, _check_summary(rounds, sync, flash)
 
 

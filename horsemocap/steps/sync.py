@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .. import subframe
 from .. import sync as flash
 from ..params import SyncParams
 from ..session import Session, check_frame_counts
@@ -29,6 +30,16 @@ class SyncResult(StepResult):
         Camera -> the frame of a second flash candidate nearly as likely as the one taken.
     flash_offsets : dict or None
         The flash's own offsets, when the markers corrected them (then ``offsets`` are the corrected ones).
+    phase_frames : dict
+        Camera -> the fraction of a frame by which its synchronised frame ``k`` is exposed after the
+        reference camera's frame ``k`` (``k + phase`` in reference frames; see :mod:`horsemocap.subframe`).
+        Empty (every camera at 0) for genlocked cameras: the offsets alone synchronise them.
+    rate_ratio : dict
+        Camera -> its frame rate over the reference camera's (empty: all 1).
+    offset_uncertainty_frames : dict
+        Camera -> standard error of its offset with the fraction (frames).
+    subframe_method : str
+        How the fractions were found ("" none, "flash", "flash and markers", "given in parameters").
     """
 
     offsets: dict
@@ -37,6 +48,20 @@ class SyncResult(StepResult):
     offsets_from: str
     flash_ambiguous: dict = field(default_factory=dict)
     flash_offsets: dict | None = None
+    phase_frames: dict = field(default_factory=dict)
+    rate_ratio: dict = field(default_factory=dict)
+    offset_uncertainty_frames: dict = field(default_factory=dict)
+    subframe_method: str = ""
+
+    @property
+    def free_running(self) -> bool:
+        """True when a camera's frames fall a fraction of a frame (or a rate) apart from the reference's."""
+        return any(v != 0.0 for v in self.phase_frames.values()) or any(v != 1.0 for v in self.rate_ratio.values())
+
+    def offsets_with_fraction(self, reference: str) -> dict:
+        """Camera -> frames after the reference camera's, with the fraction: ``offsets[c] - offsets[ref] - phase[c]``."""
+        ref = self.offsets[reference]
+        return {c: float(o - ref - self.phase_frames.get(c, 0.0)) for c, o in self.offsets.items()}
 
 
 def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
@@ -51,15 +76,21 @@ def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
     'flashlight'
     """
     sources = {c: FrameSource(session.motion[c]) for c in session.cameras}
-    ambiguous = {}
+    ambiguous, sub = {}, {}
     if section.offsets:
-        offsets, how = dict(section.offsets), "given in parameters"
+        offsets, how = {c: int(round(float(v))) for c, v in section.offsets.items()}, "given in parameters"
+        ref = session.reference_camera
+        phase = {c: float((offsets[c] - offsets[ref]) - (float(v) - float(section.offsets[ref])))
+                 for c, v in section.offsets.items()}
+        if any(v != 0.0 for v in phase.values()):
+            sub = dict(phase_frames=phase, subframe_method="given in parameters")
     elif session.sync_offsets:
         offsets, how = dict(session.sync_offsets), "given in session.json"
     else:
         found, how = flash.flash_detections(sources), "flashlight"
         offsets = {c: int(d.frame) for c, d in found.items()}
         ambiguous = {c: int(d.runner_up["on_frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}
+        sub = _flash_fractions(session, found, offsets)
     counts = {c: len(s) for c, s in sources.items()}
     n = check_frame_counts(session, counts, offsets, offsets_from=how)
     progress("sync", f"offsets {offsets} ({how}); {n} synchronised frames")
@@ -67,4 +98,29 @@ def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
         progress("sync", "two flash candidates of similar score in " + ", ".join(
             f"camera '{c}' (frame {offsets[c]} taken, frame {f} nearly as likely)" for c, f in ambiguous.items())
             + "; the markers will check it")
-    return SyncResult(offsets=offsets, frame_counts=counts, n_frames=n, offsets_from=how, flash_ambiguous=ambiguous)
+    if sub:
+        progress("sync", "the flash lit a first frame partly: the cameras run free; fractions of a frame "
+                 + ", ".join(f"{c} {v:+.2f}" for c, v in sub["phase_frames"].items()) + " (the markers will refine them)")
+    return SyncResult(offsets=offsets, frame_counts=counts, n_frames=n, offsets_from=how, flash_ambiguous=ambiguous,
+                      **sub)
+
+
+def exposure_fractions(session: Session) -> dict:
+    """Camera -> exposure / frame period from the optional ``metadata.camera_timing.<camera>.exposure_s``."""
+    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
+    out = {}
+    for c in session.cameras:
+        e = (timing.get(c) or {}).get("exposure_s") if isinstance(timing.get(c), dict) else None
+        out[c] = min(1.0, float(e) * session.fps) if e else subframe.DEFAULT_EXPOSURE_FRACTION
+    return out
+
+
+def _flash_fractions(session: Session, found: dict, offsets: dict) -> dict:
+    """The flash's sub-frame phases as SyncResult fields, or {} when every first lit frame was fully lit."""
+    exposure = exposure_fractions(session)
+    onsets = {c: subframe.flash_onset(d.signal, d.off_level, d.on_level, d.frame - d.start, exposure[c])
+              for c, d in found.items()}
+    if not any(o.partial for o in onsets.values()):
+        return {}
+    phase, unc = subframe.flash_phases(onsets, offsets, session.reference_camera)
+    return dict(phase_frames=phase, offset_uncertainty_frames=unc, subframe_method="flash")

@@ -9,6 +9,7 @@ from ..camera import Rig
 from ..detection import bridge_gaps
 from ..params import TriangulateParams
 from ..reconstruction import nearest_covariance, triangulate
+from ..subframe import OUTSIDE_TRACK, tracks_at_reference_instants
 from .base import AnalysisError, StepResult, longest_run
 from .detect import MIN_SEGMENT_FRAMES, DetectResult
 
@@ -56,10 +57,13 @@ def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult,
     measured frame's) weights the markers in the rigid-body step's pose
     registration.
     """
-    tri = triangulate(rig, detect.marker_px, mode=section.mode, covariance=True)
+    marker_px, outside = common_instants(detect, progress)
+    tri = triangulate(rig, marker_px, mode=section.mode, covariance=True)
     points, bridged = bridge_gaps(tri.points, detect.max_gap_frames)
     cov = None if tri.covariance is None else nearest_covariance(tri.covariance, bridged)
     reason = np.where(bridged, "interpolated", tri.reason)
+    if outside is not None:
+        reason = np.where(outside & ~np.isfinite(points[..., 0]), OUTSIDE_TRACK, reason)
     if bridged.any():
         progress("triangulate", f"{int(bridged.sum())} marker position(s) in gaps of at most "
                                 f"{detect.max_gap_frames} frames interpolated")
@@ -82,3 +86,23 @@ def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult,
                                 + ")")
     return TriangulateResult(points=points, residual_px=tri.residual_px, reason=reason, n_views=tri.n_views,
                              segment=segment, covariance=cov, noise_px=tri.noise_px)
+
+
+def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | None]:
+    """The cameras' centroids at the reference camera's instants, and where a camera's could not be interpolated.
+
+    Genlocked cameras (no phase, no rate, no row times): the detections as they are and None. Free-running
+    cameras: each camera's tracks interpolated (cubic, on the frames where the marker is seen) to the reference
+    instants (:func:`horsemocap.subframe.tracks_at_reference_instants`); the returned (n, m) mask marks the
+    marker-frames that some camera saw but could not interpolate (reason ``outside_track``).
+    """
+    sync = detect.sync
+    if not sync.free_running and not detect.observation_frames:
+        return detect.marker_px, None
+    moved, outside = tracks_at_reference_instants(detect.marker_px, sync.phase_frames, sync.rate_ratio,
+                                                  detect.observation_frames)
+    lost = np.any(np.stack(list(outside.values())), axis=0)
+    progress("triangulate", "the cameras' tracks interpolated to the reference camera's instants (phases "
+                            + ", ".join(f"{c} {v:+.3f}" for c, v in sync.phase_frames.items())
+                            + f" frame); {int(lost.sum())} marker-frame(s) outside a camera's track")
+    return moved, lost

@@ -1,0 +1,460 @@
+"""Synchronisation to a fraction of a frame, and 2D tracks at common instants.
+
+Free-running cameras (camcorders, phones) expose their frames a fraction of
+a frame after one another; the flashlight of thesis eq. 3.11-3.14 only
+settles whole frames. Conventions used here: after the whole-frame offsets,
+camera ``c``'s synchronised frame ``k`` is exposed at the reference camera's
+instant ``k + phase[c]`` (in reference frames); ``phase`` is 0 for the
+reference camera and for genlocked cameras. Camera ``c``'s frame
+``k + offset_with_fraction[c]`` therefore shows the reference camera's frame
+``k``, with ``offset_with_fraction[c] = offsets[c] - offsets[ref] - phase[c]``.
+
+- :func:`flash_onset` -- the flash's onset inside a frame from the partial
+  first lit frame against a fully lit one (given the exposure as a fraction
+  of the frame).
+- :func:`flash_phases` -- every camera's phase from the flash onsets.
+- :class:`TrackInterpolant` -- a camera's 2D tracks as cubic functions of
+  time on the frames where each marker is seen (NaN outside).
+- :func:`refine_phases` -- each camera's phase (and, over a long record, rate
+  ratio) that puts its tracks on the other cameras' triangulated markers.
+- :func:`tracks_at_reference_instants` -- every camera's tracks interpolated
+  to the reference camera's instants.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from .reconstruction import triangulate
+
+__all__ = ["FlashOnset", "flash_onset", "flash_phases", "TrackInterpolant", "PhaseFit", "phase_residual",
+           "fit_phase", "joint_residual", "refine_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
+           "OUTSIDE_TRACK"]
+
+#: Exposure as a fraction of the frame when the session does not say (the "180 degree shutter").
+DEFAULT_EXPOSURE_FRACTION = 0.5
+#: A frame at least this share of the fully lit level counts as fully lit.
+FULLY_LIT = 0.98
+#: Reason of a 2D position that cannot be interpolated (the instant is outside a run of seen frames).
+OUTSIDE_TRACK = "outside_track"
+#: Phases searched around the flash's estimate (frames either side) and the grid step (frames).
+SEARCH_HALF_WIDTH = 1.0
+GRID_STEP = 0.05
+#: A run's cubic is extended this far (frames) beyond its first and last seen frame.
+EXTEND_FRAMES = 1.0
+#: Chunks of the record over which the phase is fitted separately (spread -> uncertainty, slope -> rate).
+CHUNKS = 5
+
+
+@dataclass(frozen=True)
+class FlashOnset:
+    """When, inside a camera's frames, the flash switched on.
+
+    Attributes
+    ----------
+    onset_frames : float
+        The onset in this camera's frame numbering (frame ``k`` exposes from ``k`` to ``k + exposure``).
+    uncertainty_frames : float
+        Standard deviation of ``onset_frames`` (the dark gap between exposures cannot be resolved).
+    partial : bool
+        The first lit frame was partly lit (the onset fell inside its exposure).
+    lit_fraction : float
+        Brightness of the first lit frame as a share of the fully lit level.
+    """
+
+    onset_frames: float
+    uncertainty_frames: float
+    partial: bool
+    lit_fraction: float
+
+
+def flash_onset(signal, off_level: float, on_level: float, first_on: int,
+                exposure_fraction: float = DEFAULT_EXPOSURE_FRACTION) -> FlashOnset:
+    """The flash's onset to a fraction of a frame, from the first lit frames' brightness.
+
+    A frame exposed over ``[k, k + e]`` (``e`` the exposure as a fraction of
+    the frame) is lit in proportion to the part of its exposure after the
+    onset ``T``: ``b = (k + e - T) / e``. The first frame with any light
+    (``b > 0``, found from ``first_on`` backwards) gives ``T = k + e (1 - b)``
+    when partly lit; a fully lit first frame only says that ``T`` fell in the
+    dark gap ``[k - 1 + e, k]`` (the middle is taken, uncertainty that of a
+    uniform spread over the gap).
+
+    Parameters
+    ----------
+    signal : (n,) array
+        Mean brightness of the flash's region in every frame (index = frame).
+    off_level, on_level : float
+        Brightness before and after the switch.
+    first_on : int
+        A frame where the flash is on (e.g. the detection's first frame above half).
+    exposure_fraction : float
+        Exposure / frame period in (0, 1].
+
+    Examples
+    --------
+    Half-frame exposures; frame 3 is lit 60 %: the onset is 0.2 frame into frame 3.
+
+    >>> o = flash_onset([0, 0, 0, 0.6, 1, 1], 0.0, 1.0, 3, 0.5)
+    >>> round(o.onset_frames, 3), o.partial
+    (3.2, True)
+    >>> o = flash_onset([0, 0, 0, 1, 1, 1], 0.0, 1.0, 3, 0.5)
+    >>> round(o.onset_frames, 3), round(o.uncertainty_frames, 3), o.partial
+    (2.75, 0.144, False)
+    """
+    if not 0.0 < exposure_fraction <= 1.0:
+        raise ValueError(f"flash_onset: exposure_fraction must be in (0, 1], got {exposure_fraction!r}")
+    s = np.asarray(signal, float)
+    span = float(on_level) - float(off_level)
+    if not np.isfinite(span) or span <= 0:
+        raise ValueError(f"flash_onset: the on level ({on_level}) must be above the off level ({off_level})")
+    b = np.clip((s - off_level) / span, 0.0, 1.0)
+    k = int(first_on)
+    while k > 0 and b[k - 1] > 1.0 - FULLY_LIT:      # an earlier frame already caught some light
+        k -= 1
+    e = float(exposure_fraction)
+    if b[k] < FULLY_LIT:
+        return FlashOnset(k + e * (1.0 - float(b[k])), 0.02 * e, True, float(b[k]))
+    gap = 1.0 - e
+    return FlashOnset(k - gap / 2.0, float(max(gap / np.sqrt(12.0), 0.02 * e)), False, float(b[k]))
+
+
+def flash_phases(onsets: dict, offsets: dict, reference: str) -> tuple[dict, dict]:
+    """Each camera's phase after the whole-frame offsets, from the flash onsets.
+
+    ``phase[c] = (offsets[c] - offsets[ref]) - (onset[c] - onset[ref])``:
+    camera ``c``'s synchronised frame ``k`` is at the reference camera's
+    instant ``k + phase[c]``.
+
+    Returns
+    -------
+    (phase, uncertainty) : dict, dict
+        Camera -> frames.
+
+    Examples
+    --------
+    >>> on = {"left": FlashOnset(3.03, 0.01, True, 0.94), "middle": FlashOnset(16.75, 0.14, False, 1.0)}
+    >>> ph, unc = flash_phases(on, {"left": 3, "middle": 17}, "left")
+    >>> round(ph["middle"], 2), round(unc["middle"], 2)
+    (0.28, 0.14)
+    """
+    ref = onsets[reference]
+    phase, unc = {}, {}
+    for c, o in onsets.items():
+        if c == reference:
+            phase[c], unc[c] = 0.0, 0.0
+            continue
+        phase[c] = float((offsets[c] - offsets[reference]) - (o.onset_frames - ref.onset_frames))
+        unc[c] = float(np.hypot(o.uncertainty_frames, ref.uncertainty_frames))
+    return phase, unc
+
+
+class TrackInterpolant:
+    """One camera's 2D marker tracks as cubic functions of time.
+
+    Each marker's track is split into runs of consecutive frames where it is
+    seen; each run of two or more frames is a cubic spline (a straight line
+    for two) over the frames' times, extended by :data:`EXTEND_FRAMES` beyond
+    its ends. An instant outside every (extended) run is NaN.
+
+    Parameters
+    ----------
+    marker_px : (n, m, 2) array
+        Centroids per frame (NaN where not seen).
+    times : (n,) or (n, m) array, optional
+        Each observation's instant (default: the frame index); e.g. the frame
+        time plus the row time of a rolling shutter.
+
+    Examples
+    --------
+    >>> px = np.zeros((5, 1, 2)); px[:, 0, 0] = np.arange(5) ** 2; px[2] = np.nan
+    >>> track = TrackInterpolant(px)
+    >>> track([0.5, 2.5, 3.5, 5.5])[:, 0, 0]
+    array([ 0.5,  5.5, 12.5,  nan])
+    """
+
+    def __init__(self, marker_px, times=None):
+        px = np.asarray(marker_px, float)
+        if px.ndim != 3 or px.shape[2] != 2:
+            raise ValueError(f"TrackInterpolant: marker_px must be (frames, markers, 2), got {px.shape}")
+        self.n, self.m = px.shape[:2]
+        t = np.arange(self.n, dtype=float) if times is None else np.asarray(times, float)
+        t = np.broadcast_to(t[:, None] if t.ndim == 1 else t, (self.n, self.m))
+        self.runs = [[] for _ in range(self.m)]      # per marker: (t_first, t_last, spline or line)
+        seen = np.all(np.isfinite(px), axis=2) & np.isfinite(t)
+        for j in range(self.m):
+            idx = np.flatnonzero(seen[:, j])
+            if idx.size == 0:
+                continue
+            breaks = np.flatnonzero(np.diff(idx) > 1) + 1
+            for run in np.split(idx, breaks):
+                if run.size >= 2:
+                    tt = t[run, j]
+                    order = np.argsort(tt)
+                    self.runs[j].append((tt[order][0], tt[order][-1], CubicSpline(tt[order], px[run[order], j])))
+
+    def __call__(self, instants) -> np.ndarray:
+        """Positions ``(len(instants), m, 2)`` at the given instants (frames), NaN outside the runs."""
+        q = np.asarray(instants, float)
+        out = np.full((q.size, self.m, 2), np.nan)
+        for j, runs in enumerate(self.runs):
+            for t0, t1, spline in runs:
+                inside = (q >= t0 - EXTEND_FRAMES) & (q <= t1 + EXTEND_FRAMES) & ~np.isfinite(out[:, j, 0])
+                if inside.any():
+                    out[inside, j] = spline(q[inside])
+        return out
+
+
+def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict | None = None,
+                                 times: dict | None = None) -> tuple[dict, dict]:
+    """Every camera's tracks interpolated to the reference camera's instants.
+
+    Camera ``c``'s synchronised frame ``k`` is at reference instant
+    ``k + phase[c]`` (times ``rate_ratio[c]`` per frame over the record, when
+    given); the reference instant ``k`` is then its frame
+    ``(k - phase[c]) / rate_ratio[c]``. A camera at phase 0 (and rate 1) is
+    returned as it is.
+
+    Returns
+    -------
+    (marker_px, outside) : dict, dict
+        Camera -> (n, m, 2) positions at the reference instants; camera ->
+        (n, m) bool: seen in the frames but not interpolable at the instant
+        (reason :data:`OUTSIDE_TRACK`).
+
+    Examples
+    --------
+    >>> px = {"a": np.arange(8.0).reshape(4, 1, 2), "b": np.arange(8.0).reshape(4, 1, 2)}
+    >>> out, outside = tracks_at_reference_instants(px, {"a": 0.0, "b": 0.5})
+    >>> out["b"][:, 0, 0]
+    array([-1.,  1.,  3.,  5.])
+    """
+    rate_ratio = rate_ratio or {}
+    times = times or {}
+    out, outside = {}, {}
+    for c, px in marker_px.items():
+        px = np.asarray(px, float)
+        ratio = float(rate_ratio.get(c, 1.0))
+        if float(phase.get(c, 0.0)) == 0.0 and ratio == 1.0 and c not in times:
+            out[c], outside[c] = px, np.zeros(px.shape[:2], bool)
+            continue
+        k = np.arange(len(px), dtype=float)
+        out[c] = TrackInterpolant(px, times.get(c))((k - float(phase.get(c, 0.0))) / ratio)
+        outside[c] = np.all(np.isfinite(px), axis=2) & ~np.all(np.isfinite(out[c]), axis=2)
+    return out, outside
+
+
+def rolling_shutter_frames(marker_px, height: int, readout_frames: float) -> np.ndarray:
+    """Each observation's instant in its camera's frames: frame index + row / height x readout.
+
+    Examples
+    --------
+    >>> px = np.array([[[10.0, 0.0]], [[10.0, 240.0]]])
+    >>> rolling_shutter_frames(px, 480, 0.5)[:, 0]
+    array([0.  , 1.25])
+    """
+    px = np.asarray(marker_px, float)
+    return np.arange(len(px), dtype=float)[:, None] + px[..., 1] / float(height) * float(readout_frames)
+
+
+def phase_residual(camera, points: np.ndarray, track: TrackInterpolant, phases, rate: float = 0.0,
+                   frames=None) -> np.ndarray:
+    """Median distance (px) of the projected points from the camera's tracks, for every trial phase.
+
+    ``points`` (n, m, 3) are the others' markers at the reference instants;
+    at phase ``p`` the camera's position at reference instant ``k`` is its
+    track at frame ``k - p - rate (k - k_mid)``. NaN where no marker-frame compares.
+    """
+    k = np.arange(len(points), dtype=float) if frames is None else np.asarray(frames, float)
+    proj = camera.project(points[k.astype(int)])
+    mid = 0.5 * (k[0] + k[-1]) if k.size else 0.0
+    out = np.full(len(phases), np.nan)
+    for i, p in enumerate(phases):
+        d = np.linalg.norm(track(k - p - rate * (k - mid)) - proj, axis=2)
+        if np.isfinite(d).any():
+            out[i] = float(np.nanmedian(d))
+    return out
+
+
+def _parabolic_minimum(grid, values) -> float:
+    """The minimum of a sampled curve refined by a parabola through the best sample and its neighbours."""
+    i = int(np.nanargmin(values))
+    if 0 < i < len(grid) - 1 and np.all(np.isfinite(values[i - 1:i + 2])):
+        y0, y1, y2 = values[i - 1:i + 2]
+        den = y0 - 2 * y1 + y2
+        if den > 0:
+            return float(grid[i] + 0.5 * (y0 - y2) / den * (grid[1] - grid[0]))
+    return float(grid[i])
+
+
+@dataclass(frozen=True)
+class PhaseFit:
+    """One camera's phase fitted to the other cameras' markers.
+
+    Attributes
+    ----------
+    phase : float
+        Frames (reference instants) after the whole-frame offset.
+    uncertainty : float
+        Standard error of ``phase`` from the spread of the chunks' phases.
+    rate_ratio : float
+        This camera's rate over the reference's (1 when the drift over the record is not significant).
+    residual_px : float
+        Median residual at the fitted phase.
+    n_points : int
+        Marker-frames compared.
+    """
+
+    phase: float
+    uncertainty: float
+    rate_ratio: float
+    residual_px: float
+    n_points: int
+
+
+def fit_phase(camera, points: np.ndarray, track: TrackInterpolant, center: float,
+              half_width: float = SEARCH_HALF_WIDTH, step: float = GRID_STEP) -> PhaseFit | None:
+    """The phase minimising :func:`phase_residual` (grid, then a parabola), with its uncertainty and rate.
+
+    The record's frames with a 3D point are cut into :data:`CHUNKS` chunks;
+    each chunk's phase is fitted alike. Their spread over ``sqrt(chunks)`` is
+    the uncertainty; a straight line through them over time gives the drift
+    (rate ratio), kept only when it is larger than twice its standard error.
+    None when fewer than 10 marker-frames compare.
+
+    Examples
+    --------
+    See ``tests/test_subframe_sync.py`` (a synthetic rig with a known phase).
+    """
+    have = np.flatnonzero(np.all(np.isfinite(points), axis=(1, 2)))
+    if have.size < 10:
+        return None
+    grid = np.arange(center - half_width, center + half_width + step / 2, step)
+    curve = phase_residual(camera, points, track, grid, frames=have)
+    if not np.isfinite(curve).any():
+        return None
+    best = _parabolic_minimum(grid, curve)
+    fine = np.arange(best - 3 * step, best + 3.5 * step, step)
+    chunk_phase, chunk_mid = [], []
+    for part in np.array_split(have, CHUNKS):
+        if part.size < 4:
+            continue
+        c = phase_residual(camera, points, track, fine, frames=part)
+        if np.isfinite(c).any():
+            chunk_phase.append(_parabolic_minimum(fine, c))
+            chunk_mid.append(float(part.mean()))
+    unc = float(np.std(chunk_phase, ddof=1) / np.sqrt(len(chunk_phase))) if len(chunk_phase) > 2 else step
+    ratio = 1.0
+    if len(chunk_phase) > 2:
+        slope = np.polyfit(chunk_mid, chunk_phase, 1)
+        resid = np.asarray(chunk_phase) - np.polyval(slope, chunk_mid)
+        sx = np.sqrt(np.sum((np.asarray(chunk_mid) - np.mean(chunk_mid)) ** 2))
+        se = np.sqrt(np.sum(resid ** 2) / max(len(resid) - 2, 1)) / sx if sx > 0 else np.inf
+        if abs(slope[0]) > 2 * se:
+            ratio = 1.0 + float(slope[0])
+    res = phase_residual(camera, points, track, [best], frames=have)[0]
+    return PhaseFit(phase=best, uncertainty=max(unc, 1e-3), rate_ratio=ratio, residual_px=float(res),
+                    n_points=int(have.size * points.shape[1]))
+
+
+def joint_residual(rig, tracks: dict, phase: dict, frames: np.ndarray) -> float:
+    """Median reprojection residual (px) of every camera's tracks at the reference instants ``frames``.
+
+    Each camera's track is read at its frame ``k - phase[c]``; the markers
+    are triangulated from all cameras together (joint) and the residual is
+    taken over every camera and marker-frame. NaN when nothing triangulates.
+    """
+    k = np.asarray(frames, float)
+    at_ref = {c: tr(k - float(phase.get(c, 0.0))) for c, tr in tracks.items()}
+    tri = triangulate(rig, at_ref, mode="joint", max_residual_px=None)
+    r = np.concatenate([np.ravel(v) for v in tri.residual_px.values()])
+    r = r[np.isfinite(r)]
+    return float(np.median(r)) if r.size else float("nan")
+
+
+def _axis_fit(rig, tracks, phase, cam, frames, grid):
+    """The best phase of ``cam`` on ``grid`` (others fixed), refined by a parabola; NaN when nothing compares."""
+    curve = np.array([joint_residual(rig, tracks, {**phase, cam: g}, frames) for g in grid])
+    return _parabolic_minimum(grid, curve) if np.isfinite(curve).any() else float("nan")
+
+
+def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict | None = None,
+                  half_width: float = SEARCH_HALF_WIDTH, step: float = 0.1) -> dict:
+    """The cameras' phases that make the markers of all cameras meet, searched jointly.
+
+    Every non-reference camera's phase is searched within ``half_width``
+    frames of ``phase`` (the flash's estimate) on a grid of ``step``: all
+    combinations for up to two cameras, coordinate by coordinate (three
+    passes) for more; the residual is :func:`joint_residual` (the tracks
+    interpolated in time, triangulated by all cameras together). Each phase
+    is then refined on a grid of :data:`GRID_STEP` by a parabola; the record
+    cut into :data:`CHUNKS` chunks, each chunk's phase gives the uncertainty
+    (spread over ``sqrt(chunks)``) and, when their drift is larger than twice
+    its standard error, the rate ratio.
+
+    Parameters
+    ----------
+    times : dict, optional
+        Camera -> (n, m) instant of each observation in its own frames
+        (frame index plus the rolling shutter's row time).
+
+    Returns
+    -------
+    dict
+        Camera -> :class:`PhaseFit` for every non-reference camera that could
+        be fitted.
+    """
+    times = times or {}
+    tracks = {c: TrackInterpolant(px, times.get(c)) for c, px in marker_px.items()}
+    n = len(next(iter(marker_px.values())))
+    frames = np.arange(n, dtype=float)
+    free = [c for c in marker_px if c != reference]
+    start = {c: float(phase.get(c, 0.0)) for c in marker_px}
+    start[reference] = 0.0
+    axes = {c: np.arange(start[c] - half_width, start[c] + half_width + step / 2, step) for c in free}
+    best, best_value = dict(start), joint_residual(rig, tracks, start, frames)
+    if len(free) <= 2:
+        for combo in np.array(np.meshgrid(*[axes[c] for c in free], indexing="ij")).reshape(len(free), -1).T:
+            trial = {**start, **dict(zip(free, combo))}
+            v = joint_residual(rig, tracks, trial, frames)
+            if np.isfinite(v) and not v >= best_value:
+                best, best_value = trial, v
+    else:
+        for _ in range(3):
+            for c in free:
+                g = _axis_fit(rig, tracks, best, c, frames, axes[c])
+                if np.isfinite(g):
+                    best[c] = g
+    fits = {}
+    for c in free:
+        fine = np.arange(best[c] - 2 * step, best[c] + 2 * step + GRID_STEP / 2, GRID_STEP)
+        g = _axis_fit(rig, tracks, best, c, frames, fine)
+        if np.isfinite(g):
+            best[c] = g
+    for c in free:
+        fine = np.arange(best[c] - 3 * GRID_STEP, best[c] + 3.5 * GRID_STEP, GRID_STEP)
+        chunk_phase, chunk_mid = [], []
+        for part in np.array_split(frames, CHUNKS):
+            g = _axis_fit(rig, tracks, best, c, part, fine)
+            if np.isfinite(g):
+                chunk_phase.append(g)
+                chunk_mid.append(float(part.mean()))
+        unc, ratio = _spread_and_rate(chunk_phase, chunk_mid)
+        fits[c] = PhaseFit(phase=float(best[c]), uncertainty=unc, rate_ratio=ratio,
+                           residual_px=joint_residual(rig, tracks, best, frames), n_points=int(n))
+    return fits
+
+
+def _spread_and_rate(chunk_phase: list, chunk_mid: list) -> tuple[float, float]:
+    """Standard error of the phase from the chunks' spread, and the rate ratio when their drift is significant."""
+    if len(chunk_phase) < 3:
+        return GRID_STEP, 1.0
+    ph, mid = np.asarray(chunk_phase), np.asarray(chunk_mid)
+    unc = float(np.std(ph, ddof=1) / np.sqrt(len(ph)))
+    slope = np.polyfit(mid, ph, 1)
+    resid = ph - np.polyval(slope, mid)
+    sx = float(np.sqrt(np.sum((mid - mid.mean()) ** 2)))
+    se = float(np.sqrt(np.sum(resid ** 2) / max(len(ph) - 2, 1)) / sx) if sx > 0 else np.inf
+    return max(unc, 1e-3), (1.0 + float(slope[0]) if abs(slope[0]) > 2 * se else 1.0)

@@ -1,0 +1,76 @@
+"""Sub-frame synchronisation: the flash's fraction, the markers' refinement, tracks at common instants."""
+import numpy as np
+import pytest
+
+from horsemocap import subframe
+from horsemocap.cli import _parse_offsets
+from horsemocap.data import default_session_dir
+from horsemocap.params import AnalysisParams, ParamsError
+from horsemocap.pipeline import analyze
+from horsemocap.steps.sync import SyncResult
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return analyze(default_session_dir(), None, {}, until="rig", progress=lambda *a: None).rig.rig
+
+
+def _trajectory(n, m=3):
+    """A trotting marker set 4 m in front of the rig: forward 3 m/s and a 2 Hz bounce, at 30 fps."""
+    t = np.arange(n, dtype=float)[:, None] / 30.0
+    base = np.array([[-0.2, 0.0, 4.0], [0.0, -0.1, 4.1], [0.2, 0.05, 3.9]])[:m]
+    return lambda k: (base[None] + np.stack([-1.2 + 3.0 * (np.asarray(k, float)[:, None] / 30.0),
+                                             0.06 * np.sin(2 * np.pi * 2.0 * np.asarray(k, float)[:, None] / 30.0),
+                                             0.0 * np.asarray(k, float)[:, None]], axis=-1))
+
+
+def test_flash_onset_partial_and_full_frames():
+    partial = subframe.flash_onset([0, 0, 0.25, 1, 1], 0.0, 1.0, 3, exposure_fraction=0.4)
+    assert partial.partial and partial.onset_frames == pytest.approx(2 + 0.4 * 0.75)
+    full = subframe.flash_onset([0, 0, 1, 1], 0.0, 1.0, 2, exposure_fraction=0.5)
+    assert not full.partial and full.onset_frames == pytest.approx(1.75)
+    with pytest.raises(ValueError, match="exposure_fraction"):
+        subframe.flash_onset([0, 1], 0.0, 1.0, 1, exposure_fraction=0.0)
+
+
+def test_tracks_at_reference_instants_cubic_and_outside():
+    k = np.arange(20, dtype=float)
+    px = np.stack([k ** 2, k], axis=-1)[:, None, :].copy()
+    px[10] = np.nan
+    out, outside = subframe.tracks_at_reference_instants({"a": px}, {"a": 0.3})
+    assert out["a"][5, 0, 0] == pytest.approx((5 - 0.3) ** 2, rel=1e-6)
+    same, none_out = subframe.tracks_at_reference_instants({"a": px}, {"a": 0.0})
+    assert same["a"] is px and not none_out["a"].any()
+
+
+def test_markers_recover_the_phases(rig):
+    n, true_phase = 90, {"middle": 0.37, "right": -0.22}
+    where = _trajectory(n)
+    names = list(rig.names)
+    ref = names[0]
+    px = {}
+    for c in names:
+        k = np.arange(n) + true_phase.get(c, 0.0)       # camera c's frame k is at reference instant k + phase
+        px[c] = rig[c].project(where(k))
+    start = {c: 0.0 for c in names}
+    fits = subframe.refine_phases(rig, px, start, ref)
+    for c, p in true_phase.items():
+        assert fits[c].phase == pytest.approx(p, abs=0.03)
+        assert fits[c].rate_ratio == 1.0 or abs(fits[c].rate_ratio - 1) < 1e-3
+
+
+def test_genlocked_sync_result_is_not_free_running():
+    r = SyncResult(offsets={"left": 3, "middle": 17}, frame_counts={"left": 50, "middle": 60}, n_frames=40,
+                   offsets_from="flashlight")
+    assert not r.free_running
+    assert r.offsets_with_fraction("left") == {"left": 0.0, "middle": 14.0}
+    f = r.replace(phase_frames={"left": 0.0, "middle": 0.25})
+    assert f.free_running and f.offsets_with_fraction("left")["middle"] == pytest.approx(13.75)
+
+
+def test_offsets_take_fractions():
+    assert _parse_offsets("left=0,middle=53.4,right=126", "--offsets") == {"left": 0, "middle": 53.4, "right": 126}
+    params = AnalysisParams().updated({"sync.offsets": {"left": 0, "middle": 53.4, "right": 126}})
+    assert params.sync.offsets["middle"] == 53.4
+    with pytest.raises(ParamsError):
+        AnalysisParams().updated({"sync.offsets": {"left": 0, "middle": -1.5, "right": 126}})
