@@ -34,23 +34,19 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
-from .cli import _one_line
+from .batch_table import BASE_COLUMNS, METADATA_COLUMNS, TABLE_CSV, TABLE_PARQUET, _json_row, read_table, write_table
+from .errors import one_line
 from .fingerprint import run_key
+from .herd import GAITS, HORSES
 from .params import read_params
 from .pipeline import resolve_params
 from .run import EXIT_ERROR, run_analysis
 from .session import load_session
 from .store import atomic_write_json, atomic_write_text
+from .virtuallab import herd_session
 
 BATCH_FILE = "batch.json"
 BATCH_FORMAT = "horsemocap-batch/1"
-TABLE_CSV = "sessions.csv"
-TABLE_PARQUET = "sessions.parquet"
-METADATA_COLUMNS = ("horse", "gait", "rider", "direction")
-BASE_COLUMNS = ("name", "folder", "results", "session_name", *METADATA_COLUMNS, "verdict", "exit_status",
-                "reused", "seconds", "error")
-"""The table's first columns; the indicators of ``comfort.csv`` follow, one column each."""
-
 CLUSTER_HINT = "pip install horsemocap[cluster]"
 
 __all__ = ["BATCH_FILE", "TABLE_CSV", "TABLE_PARQUET", "BASE_COLUMNS", "BatchError", "BatchTask", "BatchSummary",
@@ -317,89 +313,8 @@ def analyse_task(task: BatchTask, single_threaded: bool = True) -> dict:
 
 def _error_text(exc: BaseException) -> str:
     """The error in one line, worded as ``horsemocap analyze`` prints it."""
-    return _one_line(exc)
+    return one_line(exc)
 
-
-def _json_row(row: dict) -> dict:
-    """The row with NaN as None (JSON has no NaN)."""
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}
-
-
-# ---------------------------------------------------------------------------
-# The table
-# ---------------------------------------------------------------------------
-
-def _columns(rows) -> list[str]:
-    columns = list(BASE_COLUMNS)
-    for row in rows:
-        columns.extend(k for k in row if k not in columns)
-    return columns
-
-
-def _cell(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return "" if not math.isfinite(value) else repr(value)
-    return str(value)
-
-
-def write_table(out_dir, rows) -> tuple[Path, Path | None]:
-    """``sessions.csv`` (and ``sessions.parquet`` where pyarrow is importable), each written whole.
-
-    Returns
-    -------
-    csv_path, parquet_path (None without pyarrow)
-    """
-    out_dir = Path(out_dir)
-    columns = _columns(rows)
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(columns)
-    for row in rows:
-        writer.writerow([_cell(row.get(c)) for c in columns])
-    csv_path = atomic_write_text(out_dir / TABLE_CSV, buf.getvalue())
-    return csv_path, _write_parquet(out_dir / TABLE_PARQUET, rows, columns)
-
-
-def _write_parquet(path: Path, rows, columns) -> Path | None:
-    try:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-    except ImportError:      # optional: the CSV is the table
-        return None
-    table = pa.Table.from_pylist([{c: _json_row(r).get(c) for c in columns} for r in rows])
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
-    return path
-
-
-def read_table(path) -> list[dict]:
-    """The rows of a ``sessions.csv``: numbers as floats (NaN where empty), ``exit_status`` an int, ``reused`` a bool."""
-    text_columns = {"name", "folder", "results", "session_name", *METADATA_COLUMNS, "verdict", "error"}
-    rows = []
-    with open(path, newline="", encoding="utf-8") as fh:
-        for raw in csv.DictReader(fh):
-            row = {}
-            for k, v in raw.items():
-                if k in text_columns:
-                    row[k] = v
-                elif k == "exit_status":
-                    row[k] = int(v)
-                elif k == "reused":
-                    row[k] = v == "true"
-                else:
-                    row[k] = float(v) if v != "" else float("nan")
-            rows.append(row)
-    return rows
-
-
-# ---------------------------------------------------------------------------
-# Progress and the run
-# ---------------------------------------------------------------------------
 
 class BatchProgress:
     """One line: sessions done / running / failed of the total and the time left.
@@ -567,3 +482,23 @@ def _run_on_dask(tasks, address: str, finished, progress: BatchProgress) -> None
                 row = _empty_row(tasks_of[future])
                 row["error"] = f"the Dask worker failed ({type(exc).__name__}: {exc}); run the batch again to retry"
             finished(row)
+
+
+def herd_batch(out_dir, *, horses=HORSES, gaits=GAITS, workers: int | None = None, scheduler: str | None = None,
+               params_file=None, progress=None):
+    """The herd study as one batch: every (horse, gait) session analysed into ``out_dir``, one table.
+
+    The sessions are rendered into the cache first (once each,
+    ``virtuallab.herd_session``), then analysed as ``horsemocap batch``
+    analyses them (:func:`horsemocap.batch.run_batch`: ``workers`` local
+    processes, or the Dask cluster at ``scheduler``); run again, only the
+    sessions not finished are analysed.
+
+    Returns
+    -------
+    horsemocap.batch.BatchSummary
+        ``.table`` is ``out_dir/sessions.csv``; :func:`horsemocap.herd.table_indicators` reads it.
+    """
+    sessions = [herd_session(h, g) for h in horses for g in gaits]
+    return run_batch(sessions, out_dir, workers=workers, scheduler=scheduler, params_file=params_file,
+                     progress=progress)

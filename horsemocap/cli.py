@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import ParamField, ParamsError, params_fields, read_params, section_title
+from .errors import one_line
+from .params import ParamField, params_fields, ParamsError, read_params, section_title
 
 DESCRIPTION = """\
 horsemocap: saddle motion analysis of horses with a 3-camera vision system
@@ -289,7 +290,7 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
             import traceback
 
             traceback.print_exception(outcome.error)
-        print(f"horsemocap: error: {_one_line(outcome.error)}", file=sys.stderr)
+        print(f"horsemocap: error: {one_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
               f"quality: {outcome.verdict})", file=sys.stderr)
         return outcome.exit_code
@@ -685,45 +686,6 @@ def _no_nul(*named) -> None:
             raise StoreError(f"{what} {str(value)!r}: a path cannot hold a NUL byte")
 
 
-def _one_line(exc: BaseException) -> str:
-    """A one-line description of an error for a person."""
-    import errno
-
-    if isinstance(exc, OSError) and exc.strerror:
-        hint = {errno.ENOSPC: "the disk is full: free some space or choose another --out",
-                errno.EDQUOT: "the disk quota is used up: free some space or choose another --out",
-                errno.EACCES: "permission denied: choose a folder you can write to",
-                errno.EPERM: "not permitted: choose a folder you can write to",
-                errno.EROFS: "read-only file system: choose a folder you can write to",
-                errno.ENAMETOOLONG: "the path is too long: choose a shorter --out"}.get(exc.errno, "")
-        from .store import WriteError
-
-        if isinstance(exc, WriteError):   # "cannot write FILE: text (hint)[; DIR is as it was before the run]"
-            text = exc.describe(hint)
-        else:
-            where = f"{exc.filename}: " if exc.filename else ""
-            text = f"{where}{exc.strerror}" + (f" ({hint})" if hint else "")
-    else:
-        from .camera import RigError
-        from .params import ParamsError
-        from .pipeline import AnalysisError
-        from .session import SessionError
-        from .sources import SourceError
-        from .store import StoreError
-
-        known = (SessionError, ParamsError, AnalysisError, StoreError, RigError, SourceError)
-        try:
-            from .calibration import CalibrationError
-            known += (CalibrationError,)
-        except ImportError:  # pragma: no cover
-            pass
-        text = str(exc) if isinstance(exc, known) else \
-            f"{type(exc).__name__}: {exc} (an unexpected error; --debug shows where, please report it)"
-        if isinstance(exc, AnalysisError) and exc.__cause__ is not None:   # a step's unexpected error
-            text += " (--debug shows where)"
-    return " ".join(text.split())
-
-
 class _Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, handled like Ctrl-C."""
 
@@ -761,7 +723,7 @@ def main(argv=None) -> int:
     except Exception as exc:  # noqa: BLE001 - the one place that turns errors into messages
         if debug:
             traceback.print_exc()
-        print(f"horsemocap: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"horsemocap: error: {one_line(exc)}", file=sys.stderr)
         return 2
     finally:
         for sig, handler in previous.items():

@@ -22,7 +22,7 @@ virtual laboratory's analytic saddle motion (the ground truth of the
 virtual herd; fast, no rendering); ``"pipeline"`` renders each session (once,
 into the cache) and runs the full analysis on the videos.
 
-The herd study as a batch: :func:`herd_batch` renders the sessions and
+The herd study as a batch: :func:`horsemocap.batch.herd_batch` renders the sessions and
 analyses them side by side with ``horsemocap batch``
 (:func:`horsemocap.batch.run_batch`: every core, resumable, one table
 ``sessions.csv``); :func:`table_indicators` reads that table into the
@@ -41,14 +41,14 @@ import numpy as np
 from scipy import stats
 
 from . import vibration as vib
-from .batch import BASE_COLUMNS, read_table, run_batch
+from .batch_table import BASE_COLUMNS, read_table
 from .data import data_samples_dir
 from .store import atomic_write_text
 
 __all__ = ["HORSES", "GAITS", "GAIT_LABELS", "THESIS_INDICATORS", "EXPECTED_SIGN",
            "CAVEATS", "load_grades", "mean_grades", "analytic_indicators",
            "pipeline_indicators", "herd_indicators", "indicator_matrix", "compare",
-           "Correlation", "herd_rows", "write_herd_csv", "herd_batch", "table_indicators"]
+           "Correlation", "herd_rows", "write_herd_csv", "table_indicators"]
 
 HORSES = ("Horse 1", "Horse 2", "Horse 3", "Horse 4")
 GAITS = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -225,28 +225,6 @@ def herd_indicators(source: str = "analytic", *, mode: str = "iso", horses=HORSE
             if timings is not None:
                 timings[(h, g)] = time.perf_counter() - t0
     return out
-
-
-def herd_batch(out_dir, *, horses=HORSES, gaits=GAITS, workers: int | None = None, scheduler: str | None = None,
-               params_file=None, progress=None):
-    """The herd study as one batch: every (horse, gait) session analysed into ``out_dir``, one table.
-
-    The sessions are rendered into the cache first (once each,
-    ``virtuallab.herd_session``), then analysed as ``horsemocap batch``
-    analyses them (:func:`horsemocap.batch.run_batch`: ``workers`` local
-    processes, or the Dask cluster at ``scheduler``); run again, only the
-    sessions not finished are analysed.
-
-    Returns
-    -------
-    horsemocap.batch.BatchSummary
-        ``.table`` is ``out_dir/sessions.csv``; :func:`table_indicators` reads it.
-    """
-    from .virtuallab import herd_session  # rendered on demand into the cache
-
-    sessions = [herd_session(h, g) for h in horses for g in gaits]
-    return run_batch(sessions, out_dir, workers=workers, scheduler=scheduler, params_file=params_file,
-                     progress=progress)
 
 
 def table_indicators(table, indicators=None) -> dict:
