@@ -188,9 +188,10 @@ def test_kinematics_replaces_its_own_earlier_output_whole(tmp_path, capsys):
     record = json.loads((out / "kinematics-run.json").read_text())
     assert record["format"] == "horsemocap-kinematics/1" and record["command"] == "kinematics"
     assert record["inputs"]["trajectories"]["path"] == str(traj.resolve()) and record["horsemocap_version"]
-    (out / "stale.txt").write_text("left by hand")     # in an earlier kinematics output: replaced with it
+    (out / "stale.txt").write_text("left by hand")     # a file no run wrote: refused, nothing deleted
+    assert _kin(traj, static, out, "--smoothing", "gcv") == 2 and (out / "stale.txt").read_text() == "left by hand"
+    (out / "stale.txt").unlink()
     assert _kin(traj, static, out, "--smoothing", "gcv") == 0
-    assert not (out / "stale.txt").exists()
     assert json.loads((out / "kinematics-run.json").read_text())["options"]["smoothing"] == "gcv"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]     # no temporary folder, no lock
     empty = tmp_path / "empty"
