@@ -55,7 +55,7 @@ RESULTS_MARKERS = ("analysis.json", "PARTIAL.txt")
 ANALYZE_OUTPUTS = frozenset({
     "analysis.json", "PARTIAL.txt", "quality.json", "report.html", "rig.toml", "calibration.json",
     "markers_2d.csv", "markers_3d.csv", "trajectories.csv", "kinematics.csv", "angular.csv",
-    "comfort.csv", "comfort.xlsx", "steps", "choices.json"})
+    "comfort.csv", "comfort.xlsx", "steps", "choices.json", ".choices.json.lock"})
 KINEMATICS_OUTPUTS = frozenset({"kinematics-run.json", "trajectories.csv", "kinematics.csv", "angular.csv"})
 # a temporary folder of a run: .NAME.run-<pid>-<hex> (or .NAME.run-old-<hex> of the two-rename swap)
 _TMP_PATTERN = r"\.{name}\.run-(?:(?P<pid>\d+)|old)-[0-9A-Za-z]+"
