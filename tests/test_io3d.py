@@ -286,9 +286,11 @@ def test_one_frame_export_needs_a_rate(tmp_path, capsys):
     assert (tmp_path / "one.trc").read_text().splitlines()[2].split("\t")[:1] == ["120"]
     assert main(["export", str(traj), "--out", str(tmp_path / "bad.trc"), "--rate", "0"]) == 2
     assert "frame rate 0.0: expected a positive number" in capsys.readouterr().err
-    many, _ = _small_record(tmp_path / "many")       # 100 Hz in its times; --rate overrides
-    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 0
-    assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 50.0
+    many, _ = _small_record(tmp_path / "many")       # 100 Hz in its times: a rate they contradict is refused
+    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 2
+    assert "--rate 50 Hz contradicts the times" in capsys.readouterr().err and not (tmp_path / "r.c3d").exists()
+    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "100"]) == 0
+    assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 100.0
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []   # no temporary file
 
 
