@@ -1238,6 +1238,9 @@ def _check_detection(value, f):
     for cam, given in value.items():
         if not isinstance(given, dict):
             raise _Invalid(f"an object of detector parameters for '{cam}'", given, (cam,))
+        first = given.get("first_frame")
+        if first is not None and (not _is_int(first) or first < 0):
+            raise _Invalid("a frame index (integer >= 0) or null", first, (cam, "first_frame"))
         try:
             DetectionParams.from_dict(given)
         except (ValueError, TypeError, OverflowError) as exc:
