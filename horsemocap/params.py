@@ -1241,10 +1241,24 @@ def _check_detection(value, f):
         first = given.get("first_frame")
         if first is not None and (not _is_int(first) or first < 0):
             raise _Invalid("a frame index (integer >= 0) or null", first, (cam, "first_frame"))
+        for name, (expected, ok) in _DETECTOR_RANGES.items():
+            if given.get(name) is not None and not ok(given[name]):
+                raise _Invalid(expected, given[name], (cam, name))
         try:
             DetectionParams.from_dict(given)
         except (ValueError, TypeError, OverflowError) as exc:
             raise _Invalid("", where=(cam,), message=str(exc)) from None
+
+
+# detector parameters whose range DetectionParams leaves open: what they take, and the test
+_DETECTOR_RANGES = {
+    "threshold": ("a gray level (integer 0..254) or null", lambda v: not isinstance(v, bool)),
+    "area_min": ("an area in pixels (a number >= 0) or null", lambda v: _is_number(v) and v >= 0),
+    "area_max": ("an area in pixels (a number > 0) or null", lambda v: _is_number(v) and v > 0),
+    "distance_tolerance": ("a fraction (a number > 0) or null", lambda v: _is_number(v) and v > 0),
+    "min_circularity": ("a circularity (a number in [0, 1]) or null", lambda v: _is_number(v) and 0 <= v <= 1),
+    "window_predict": ("true or false", lambda v: isinstance(v, bool)),
+}
 
 
 def _check_stills(value, f):
