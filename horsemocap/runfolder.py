@@ -116,7 +116,8 @@ def _foreign_entries(path: Path, entries, own: frozenset) -> list:
         elif entry.is_dir() and name != "steps":
             foreign.append(f"{name}/ (a folder)")
     sessions = _sessions_inside(path)
-    return foreign + [f"{s} (a session)" for s in sessions if s.split("/")[0] not in foreign]
+    tops = {s.split("/")[0] for s in sessions}
+    return [f"{s} (a session)" for s in sessions] + [f for f in foreign if f.split(" ")[0].rstrip("/") not in tops]
 
 
 def _sessions_inside(path: Path, limit: int = 3) -> list:
