@@ -793,6 +793,7 @@ class AnalysisParams:
         for cam in self.detect.cameras:
             if cam != "all" and cam not in cams:
                 raise bad("detect.cameras", f"expected 'all' or a camera of {cams}, got '{cam}'")
+        _check_first_frames(self.detect.cameras, session, offsets, bad)
         for cam in self.rig.exclude:
             if cam not in cams:
                 raise bad("rig.exclude", f"expected a camera of {cams}, got '{cam}'")
@@ -810,6 +811,24 @@ class AnalysisParams:
         if isinstance(orders, (list, tuple)) and len(orders) != n:
             raise bad("rigid_body.fits.fourier_orders", f"expected {n} pairs [Ny, Nz] (one per marker), "
                                                         f"got {len(orders)}")
+
+
+def _check_first_frames(per_cam: dict, session, offsets, bad) -> None:
+    """``detect.cameras.<cam>.first_frame`` within the session's synchronised frames (counted only when given)."""
+    given = {cam: v["first_frame"] for cam, v in per_cam.items()
+             if isinstance(v, dict) and v.get("first_frame") is not None}
+    if not given:
+        return
+    try:
+        counts = {cam: len(session.source(cam)) for cam in session.cameras}
+    except Exception:  # noqa: BLE001 - a source that cannot be read: the step that reads it says so
+        return
+    n = min(counts[c] - (offsets or {}).get(c, 0) for c in counts)
+    for cam, first in given.items():
+        if first >= n:
+            raise bad("detect.cameras", f"expected a frame index 0..{n - 1} (the session's "
+                                        f"{'synchronised ' if offsets else ''}frames), got {first}",
+                      (cam, "first_frame"))
 
 
 def _check_still_cameras(per_cam: dict, kind: str, session, bad) -> None:

@@ -603,3 +603,29 @@ def test_a_frames_folder_image_of_another_size_names_the_file(tmp_path, odd):
         odd = 1
     with pytest.raises(SourceError, match=rf"f{odd:03d}.png: image of .* pixels, but f000.png of the same camera"):
         FrameSource(folder).read()
+
+
+@pytest.fixture(scope="module")
+def bundled_session():
+    return load_session(BUNDLED)
+
+
+@pytest.mark.parametrize("cam,first,accepted", [("all", 100_000, False), ("left", 100_000, False), ("all", 76, False),
+                                                ("right", 76, False), ("all", 75, True), ("middle", 0, True)],
+                         ids=["clear-first-frame-all-100000", "clear-first-frame-left-100000", "clear-first-frame-all-76",
+                              "clear-first-frame-right-76", "correct-first-frame-all-75", "correct-first-frame-middle-0"])
+def test_first_frame_within_the_sessions_frames(bundled_session, cam, first, accepted):
+    params = AnalysisParams().updated({"detect.cameras": {cam: {"first_frame": first}}})
+    if accepted:
+        params.check_session(bundled_session)
+    else:
+        with pytest.raises(ParamsError, match=rf"'detect.cameras.{cam}.first_frame': expected a frame index "
+                                              rf"0..75 .*got {first}"):
+            params.check_session(bundled_session)
+
+
+def test_clear_first_frame_beyond_the_frames_on_the_command_line(tmp_path, capsys):
+    code, _, err = run(["analyze", BUNDLED, "--out", tmp_path / "out", "--set",
+                        "detect.cameras.all.first_frame=100000"], capsys)
+    line = one_line_error(err)
+    assert code == 2 and "first_frame" in line and "0..75" in line and not (tmp_path / "out").exists()
