@@ -1398,6 +1398,8 @@ def _read_params_object(path) -> dict:
         data = json.loads(read_text_utf8(path, ParamsError))
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except RecursionError:
+        raise ParamsError(f"{path}: JSON nested too deeply to read (a parameter file is a few levels deep)") from None
     if isinstance(data, dict) and "parameters" in data:
         data = data["parameters"]
     if not isinstance(data, dict):

@@ -118,6 +118,8 @@ def _read_json(path: Path):
         return json.loads(read_text_utf8(path, ParamsError))
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except RecursionError:
+        raise ParamsError(f"{path}: JSON nested too deeply to read") from None
 
 
 def read_choices(session_dir=None) -> dict:

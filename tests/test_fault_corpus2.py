@@ -629,3 +629,12 @@ def test_clear_first_frame_beyond_the_frames_on_the_command_line(tmp_path, capsy
                         "detect.cameras.all.first_frame=100000"], capsys)
     line = one_line_error(err)
     assert code == 2 and "first_frame" in line and "0..75" in line and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("depth", [2000, 100_000], ids=lambda d: f"clear-params-file-nested-{d}")
+def test_a_deeply_nested_params_file_gives_a_clear_error(tmp_path, depth, capsys):
+    params = tmp_path / "choices.json"
+    params.write_text('{"parameters": {"smooth": ' + "[" * depth + "]" * depth + "}}")
+    code, _, err = run(["analyze", BUNDLED, "--out", tmp_path / "out", "--params", params], capsys)
+    line = one_line_error(err)
+    assert code == 2 and "choices.json: JSON nested too deeply" in line and not (tmp_path / "out").exists()
