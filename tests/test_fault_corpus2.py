@@ -7,8 +7,9 @@ nothing said) or ``flagged`` (results written with a warning or an
 UNRELIABLE verdict). No case may end in exit 0 with wrong numbers, delete a
 file the run did not write, or leave a results folder that mixes two runs.
 The cases use small synthetic records, copies of the bundled session's
-``session.json`` and the results store's own files: nothing is rendered and
-no analysis runs.
+``session.json`` and the results store's own files: nothing is rendered, and
+one case only runs the bundled analysis (the notebooks' folder after an
+earlier step changed).
 """
 from __future__ import annotations
 
@@ -638,3 +639,19 @@ def test_a_deeply_nested_params_file_gives_a_clear_error(tmp_path, depth, capsys
     code, _, err = run(["analyze", BUNDLED, "--out", tmp_path / "out", "--params", params], capsys)
     line = one_line_error(err)
     assert code == 2 and "choices.json: JSON nested too deeply" in line and not (tmp_path / "out").exists()
+
+
+def test_correct_notebooks_folder_after_an_earlier_step_changed_holds_no_later_file(tmp_path, monkeypatch):
+    """The one case that runs the analysis (the bundled session, about 15 s): the issue's mixed folder."""
+    from horsemocap.workspace import notebook_results_dir, results_for
+
+    monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path / "store"))
+    results_for(BUNDLED, until="comfort")
+    folder = notebook_results_dir(BUNDLED)
+    assert (folder / "comfort.csv").is_file() and (folder / "trajectories.csv").is_file()
+    results_for(BUNDLED, until="detect", params={"detect": {"cameras": {"all": {"min_circularity": 0.3}}}})
+    files = sorted(p.name for p in folder.iterdir())
+    assert files == ["analysis.json", "calibration.json", "markers_2d.csv", "rig.toml", "steps"]
+    assert json.loads((folder / "analysis.json").read_text())["steps_done"][-1] == "detect"
+    assert not any(p.name.startswith(("triangulate", "smooth", "rigid_body", "comfort"))
+                   for p in (folder / "steps").iterdir())
