@@ -751,15 +751,17 @@ def kinematics_checks(traj: Trajectories, res: dict) -> list:
     the worst level. The raw speed (differences of the record's positions)
     and the smoothed marker speed are held to :data:`SPEED_LIMIT_MPS`, the
     acceleration to :data:`ACCELERATION_LIMIT_MPS2` (99th percentiles: a
-    few spikes are the smoothing's business), and frames whose times do not
-    fall on the rate's grid are a warning.
+    few spikes are the smoothing's business). The raw speed above it is a
+    warning (the noise of a fast capture may reach it; the smoothing removes
+    it), the smoothed speed or acceleration above it unreliable; frames
+    whose times do not fall on the rate's grid are a warning.
     """
     checks = []
     pts, t = traj.subset(res["markers"]), traj.time_s
     if t.size >= 2:
         raw = np.linalg.norm(np.diff(pts, axis=0), axis=2) / np.diff(t)[:, None]
         checks.append(_limit_check("raw_marker_speed", _p99(raw), SPEED_LIMIT_MPS, "m/s",
-                                   "speed of the record's markers between frames"))
+                                   "speed of the record's markers between frames", "warning"))
     mk = res["marker_kinematics"]
     checks.append(_limit_check("marker_speed", _p99(np.linalg.norm(mk.velocity, axis=2)), SPEED_LIMIT_MPS, "m/s",
                                "smoothed speed of the markers"))
@@ -774,8 +776,8 @@ def kinematics_checks(traj: Trajectories, res: dict) -> list:
     return checks
 
 
-def _limit_check(name, value, limit, unit, what) -> dict:
-    level = "unreliable" if value > limit else "ok"
+def _limit_check(name, value, limit, unit, what, beyond: str = "unreliable") -> dict:
+    level = beyond if value > limit else "ok"
     text = f"99th percentile of the {what}: {value:.4g} {unit}"
     if level != "ok":
         text += f", above the {limit:g} {unit} any body reaches (wrong units or time column, or noise)"
