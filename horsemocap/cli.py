@@ -401,7 +401,8 @@ def cmd_kinematics(args) -> int:
     ``kinematics-run.json``), checked before the computation and replaced
     whole when the files are written.
     """
-    from .io3d import TrajectoryFileError, kinematics_from_trajectories, read_trajectories
+    from .io3d import (TrajectoryFileError, check_trajectory_input, kinematics_checks, kinematics_from_trajectories,
+                       kinematics_verdict, read_trajectories)
     from .pose import CollinearMarkersError, conditioning_warnings
     from .runfolder import RunFolder
     from .store import atomic_write_json, atomic_write_text
@@ -413,18 +414,23 @@ def cmd_kinematics(args) -> int:
     try:
         traj = read_trajectories(args.trajectories)
         static = read_trajectories(args.static)
+        check_trajectory_input(traj, static)
         events = parse_seconds(args.events, "--events") if args.events else None
         res = kinematics_from_trajectories(traj, static, smoothing=args.smoothing, events=events)
     except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)
         return 2
+    checks = kinematics_checks(traj, res)
+    verdict = kinematics_verdict(checks)
     tables = _kinematics_tables(traj, res)
     tr, reg = res["trajectory"], res["registration"]
     source = _kinematics_input(traj)
     with folder as tmp:
         for name, text in tables.items():
             atomic_write_text(tmp / name, text)
-        atomic_write_json(tmp / "kinematics-run.json", _kinematics_record(args, events, res, list(tables), source))
+        record = _kinematics_record(args, events, res, list(tables), source)
+        record["quality"] = {"verdict": verdict, "checks": checks}
+        atomic_write_json(tmp / "kinematics-run.json", record)
         folder.commit()
     for msg in _kinematics_notes(traj, static, res, source):
         print(f"[horsemocap] kinematics: {msg}", file=sys.stderr)
@@ -437,6 +443,20 @@ def cmd_kinematics(args) -> int:
         print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
               file=sys.stderr)
     print(f"results: {target}")
+    return _kinematics_verdict_lines(verdict, checks)
+
+
+def _kinematics_verdict_lines(verdict: str, checks) -> int:
+    """Print the kinematics' quality verdict and its checks with a warning or worse; the exit status."""
+    bad = [c for c in checks if c["level"] in ("warning", "unreliable")]
+    print(f"quality: {verdict.upper()}" + (f" ({len(bad)} check(s) with a warning or worse; see "
+                                           "kinematics-run.json)" if bad else " (every plausibility check passed)"))
+    for c in bad:
+        print(f"  {c['level']}: {c['name']}: {c['message']}")
+    if verdict == "unreliable":
+        print("horsemocap: the quality verdict is UNRELIABLE (exit status 3): do not use these numbers before "
+              "what the check above names is fixed", file=sys.stderr)
+        return 3
     return 0
 
 
@@ -546,7 +566,7 @@ def _csv_text(rows) -> str:
 
 def cmd_export(args) -> int:
     """trajectories.csv -> TRC or C3D (first frame number kept; ``--rate`` for a one-frame file)."""
-    from .io3d import TrajectoryFileError, read_trajectories_csv, write_c3d, write_trc
+    from .io3d import TrajectoryFileError, check_stated_rate, read_trajectories_csv, write_c3d, write_trc
 
     _no_nul(("trajectories.csv", args.trajectories), ("--out", args.out))
     out = Path(args.out)
@@ -556,6 +576,8 @@ def cmd_export(args) -> int:
         return 2
     try:
         traj = read_trajectories_csv(args.trajectories)
+        if args.rate is not None:
+            check_stated_rate(traj, args.rate)
         writers[out.suffix.lower()](out, traj, rate=args.rate)
     except TrajectoryFileError as exc:
         print(f"horsemocap: error: {exc}", file=sys.stderr)

@@ -22,7 +22,8 @@ import numpy as np
 
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
-           "FIRST_TIME_PARAMETER", "RATE_PARAMETER"]
+           "FIRST_TIME_PARAMETER", "RATE_PARAMETER", "check_trajectory_input", "check_stated_rate",
+           "kinematics_checks", "kinematics_verdict"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "dm": 0.1}
 _UNITS_TEXT = ", ".join(_UNITS)
@@ -30,6 +31,16 @@ FIRST_TIME_PARAMETER = ("HORSEMOCAP", "FIRST_TIME")
 """C3D parameter (group, name) holding the exact time (s) of the first frame, as text (a C3D real is 4 bytes)."""
 RATE_PARAMETER = ("HORSEMOCAP", "RATE")
 """C3D parameter (group, name) holding the exact frame rate (Hz) as text; used when POINT:RATE is its 4-byte copy."""
+MAX_COORDINATE_M = 1e6
+"""A coordinate beyond this (metres) is no position of a body (an overflow, a sentinel value): refused on reading."""
+MARKER_SPACING_M = (0.005, 5.0)
+"""The median distance between the points of the static shot (m) of markers on a body; outside: wrong units."""
+FRAME_RATE_HZ = (5.0, 50000.0)
+"""Frame rates (Hz) of a motion capture; a rate from the times outside says the time column is not in seconds."""
+SPEED_LIMIT_MPS = 30.0
+"""The 99th percentile of a point's speed (m/s) above which it is no body's motion (a galloping horse: about 20)."""
+ACCELERATION_LIMIT_MPS2 = 1000.0
+"""The 99th percentile of a point's acceleration (m/s²) above which it is no body's motion (about 100 g)."""
 
 
 class TrajectoryFileError(ValueError):
@@ -206,6 +217,9 @@ def _csv_row(path, ln, row, col, n_fields):
             num = math.inf
         if math.isinf(num):
             raise TrajectoryFileError(f"{path}: line {ln}: field '{c}': expected a number or empty, got {v!r}")
+        if abs(num) > MAX_COORDINATE_M:
+            raise TrajectoryFileError(f"{path}: line {ln}: field '{c}' of point {name!r}, frame {fr}: {v} is beyond "
+                                      f"any position of a body (|{c}| <= {MAX_COORDINATE_M:g} m)")
         xyz.append(num)
     return fr, tm, name, np.array(xyz)
 
@@ -385,6 +399,13 @@ def _refuse_infinite(path, pts, names, first_1based) -> None:
         i, j, a = bad[0]
         raise TrajectoryFileError(f"{path}: frame {first_1based + i} (1-based), point {names[j]!r}, "
                                   f"{'xyz'[a]}: expected a number, got {pts[i, j, a]}")
+    with np.errstate(invalid="ignore"):
+        far = np.argwhere(np.abs(pts) > MAX_COORDINATE_M)
+    if far.size:
+        i, j, a = far[0]
+        raise TrajectoryFileError(f"{path}: frame {first_1based + i} (1-based), point {names[j]!r}, "
+                                  f"{'xyz'[a]}: {pts[i, j, a]:g} m is beyond any position of a body "
+                                  f"(|{'xyz'[a]}| <= {MAX_COORDINATE_M:g} m)")
 
 
 def _c3d_text_number(path, params, parameter, what):
@@ -616,6 +637,157 @@ def match_point_names(traj_names, static_names) -> dict:
     used_s = {s for _, s in pairs}
     return {"pairs": pairs, "loose": loose, "unmatched": [nm for nm in rest_t if nm not in dict(loose)],
             "hidden": [nm for nm in static_names if nm not in used_s]}
+
+
+def _median_spacing(points) -> float:
+    """The median distance (m) between two points of one frame over the frames of (n, k, 3) ``points``."""
+    k = points.shape[1]
+    if k < 2:
+        return math.nan
+    i, j = np.triu_indices(k, 1)
+    d = np.linalg.norm(points[:, i] - points[:, j], axis=2)
+    d = d[np.isfinite(d)]
+    return float(np.median(d)) if d.size else math.nan
+
+
+def check_trajectory_input(traj: Trajectories, static: Trajectories) -> None:
+    r"""Refuse a record whose units or time axis are not those the file claims.
+
+    Raises :class:`TrajectoryFileError` naming the file when the median
+    distance between the static shot's points (or the record's) lies outside
+    :data:`MARKER_SPACING_M` (a file in millimetres or centimetres read as
+    metres), when the two files' spacings differ by more than a factor 2 (one
+    file in other units), or when the frame rate the times give lies outside
+    :data:`FRAME_RATE_HZ` (a time column in milliseconds), or contradicts a
+    rate the file states (a C3D's ``POINT:RATE``).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> rows = "".join(f"{k},{k * 10},{n},{x + k},0,0\n" for k in range(3) for n, x in (("a", 0), ("b", 300)))
+    >>> _ = (folder / "mm.csv").write_text("frame,time_s,point,x_m,y_m,z_m\n" + rows)   # mm and ms
+    >>> record = read_trajectories(folder / "mm.csv")
+    >>> try:
+    ...     check_trajectory_input(record, record)
+    ... except TrajectoryFileError as error:
+    ...     print(str(error).split(";")[0].split(": ")[1])
+    the static shot's points lie 300 'm' apart (median)
+    """
+    spacing = {}
+    for what, rec in (("the static shot's points", static), ("the record's points", traj)):
+        gap = _median_spacing(rec.points)
+        spacing[what] = gap
+        lo, hi = MARKER_SPACING_M
+        if np.isfinite(gap) and not lo <= gap <= hi:
+            likely = ("millimetres" if gap <= 1000 * hi else "other units") if gap > hi else "kilometres or other units"
+            raise TrajectoryFileError(
+                f"{rec.source}: {what} lie {gap:.6g} 'm' apart (median); markers on a body lie {lo:g} to {hi:g} m "
+                f"apart, so the file's coordinates look like {likely}, not metres: write them in metres "
+                f"({'x_m = x_mm / 1000' if gap > hi else 'x_m in metres'}) or give a C3D with POINT:UNITS")
+    a, b = spacing.values()
+    if np.isfinite(a) and np.isfinite(b) and max(a, b) > 2 * min(a, b):
+        raise TrajectoryFileError(f"{traj.source}: its points lie {b:.4g} m apart (median), the static shot "
+                                  f"{static.source}'s {a:.4g} m: the two files are in different units or of "
+                                  "different bodies")
+    _check_time_axis(traj)
+
+
+def _check_time_axis(traj: Trajectories) -> None:
+    """The rate from the times within :data:`FRAME_RATE_HZ` and equal to a rate the file states."""
+    if traj.frame.size < 2:
+        return
+    estimate = frame_rate(traj)
+    lo, hi = FRAME_RATE_HZ
+    if not lo <= estimate <= hi:
+        step = 1.0 / estimate
+        hint = " (a time column in milliseconds?)" if estimate < lo else " (a time column in other units?)"
+        raise TrajectoryFileError(f"{traj.source}: field 'time_s' steps by {step:.6g} per frame, a frame rate of "
+                                  f"{estimate:.6g} Hz{hint}; expected seconds, {lo:g} to {hi:g} Hz")
+    stated = traj.info.get("rate_hz")
+    if stated:
+        check_stated_rate(traj, stated, f"the file's stated rate ({traj.info.get('rate_from') or 'POINT:RATE'})")
+
+
+def check_stated_rate(traj: Trajectories, rate: float, what: str = "--rate") -> None:
+    r"""Refuse ``rate`` (Hz) when the record's times give another one (more than 0.1 % apart).
+
+    A one-frame record has no rate of its own: any positive rate is taken.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> rows = "".join(f"{k},{k / 30!r},a,0,0,0\n" for k in range(4))
+    >>> _ = (folder / "r30.csv").write_text("frame,time_s,point,x_m,y_m,z_m\n" + rows)
+    >>> record = read_trajectories(folder / "r30.csv")
+    >>> check_stated_rate(record, 30.0)     # agrees: nothing said
+    >>> try:
+    ...     check_stated_rate(record, 100.0)
+    ... except TrajectoryFileError as error:
+    ...     print("refused")
+    refused
+    """
+    frame_rate(traj, rate)     # a positive finite number
+    if traj.frame.size < 2:
+        return
+    estimate = frame_rate(traj)
+    if abs(rate - estimate) > 1e-3 * estimate:
+        raise TrajectoryFileError(f"{traj.source}: {what} {rate:g} Hz contradicts the times, which step by "
+                                  f"{1 / estimate:.6g} s per frame ({estimate:.6g} Hz); leave the rate out or "
+                                  "give the one the times say")
+
+
+def _p99(values) -> float:
+    finite = values[np.isfinite(values)]
+    return float(np.percentile(finite, 99)) if finite.size else math.nan
+
+
+def kinematics_checks(traj: Trajectories, res: dict) -> list:
+    """Plausibility checks of a kinematics result: speeds and accelerations within what bodies do.
+
+    Each check is a dict ``name``, ``level`` ("ok", "warning", "unreliable"),
+    ``value``, ``limit`` and ``message``; :func:`kinematics_verdict` gives
+    the worst level. The raw speed (differences of the record's positions)
+    and the smoothed marker speed are held to :data:`SPEED_LIMIT_MPS`, the
+    acceleration to :data:`ACCELERATION_LIMIT_MPS2` (99th percentiles: a
+    few spikes are the smoothing's business). The raw speed above it is a
+    warning (the noise of a fast capture may reach it; the smoothing removes
+    it), the smoothed speed or acceleration above it unreliable; frames
+    whose times do not fall on the rate's grid are a warning.
+    """
+    checks = []
+    pts, t = traj.subset(res["markers"]), traj.time_s
+    if t.size >= 2:
+        raw = np.linalg.norm(np.diff(pts, axis=0), axis=2) / np.diff(t)[:, None]
+        checks.append(_limit_check("raw_marker_speed", _p99(raw), SPEED_LIMIT_MPS, "m/s",
+                                   "speed of the record's markers between frames", "warning"))
+    mk = res["marker_kinematics"]
+    checks.append(_limit_check("marker_speed", _p99(np.linalg.norm(mk.velocity, axis=2)), SPEED_LIMIT_MPS, "m/s",
+                               "smoothed speed of the markers"))
+    checks.append(_limit_check("marker_acceleration", _p99(np.linalg.norm(mk.acceleration, axis=2)),
+                               ACCELERATION_LIMIT_MPS2, "m/s²", "smoothed acceleration of the markers"))
+    if t.size >= 3:
+        rate = frame_rate(traj)
+        off = float(np.max(np.abs(t - (t[0] + (traj.frame - traj.frame[0]) / rate)))) * rate
+        level = "warning" if off > 0.25 else "ok"
+        checks.append({"name": "time_grid", "level": level, "value": off, "limit": 0.25,
+                       "message": f"times off the {rate:.6g} Hz grid by up to {off:.3g} frame(s)"})
+    return checks
+
+
+def _limit_check(name, value, limit, unit, what, beyond: str = "unreliable") -> dict:
+    level = beyond if value > limit else "ok"
+    text = f"99th percentile of the {what}: {value:.4g} {unit}"
+    if level != "ok":
+        text += f", above the {limit:g} {unit} any body reaches (wrong units or time column, or noise)"
+    return {"name": name, "level": level, "value": value, "limit": limit, "message": text}
+
+
+def kinematics_verdict(checks) -> str:
+    """The worst level of ``checks``: "ok", "warning" or "unreliable"."""
+    order = ("ok", "warning", "unreliable")
+    return max((c["level"] for c in checks), key=order.index, default="ok")
 
 
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",

@@ -771,6 +771,7 @@ class AnalysisParams:
         for cam in self.detect.cameras:
             if cam != "all" and cam not in cams:
                 raise bad("detect.cameras", f"expected 'all' or a camera of {cams}, got '{cam}'")
+        _check_first_frames(self.detect.cameras, session, offsets, bad)
         for cam in self.rig.exclude:
             if cam not in cams:
                 raise bad("rig.exclude", f"expected a camera of {cams}, got '{cam}'")
@@ -788,6 +789,24 @@ class AnalysisParams:
         if isinstance(orders, (list, tuple)) and len(orders) != n:
             raise bad("rigid_body.fits.fourier_orders", f"expected {n} pairs [Ny, Nz] (one per marker), "
                                                         f"got {len(orders)}")
+
+
+def _check_first_frames(per_cam: dict, session, offsets, bad) -> None:
+    """``detect.cameras.<cam>.first_frame`` within the session's synchronised frames (counted only when given)."""
+    given = {cam: v["first_frame"] for cam, v in per_cam.items()
+             if isinstance(v, dict) and v.get("first_frame") is not None}
+    if not given:
+        return
+    try:
+        counts = {cam: len(session.source(cam)) for cam in session.cameras}
+    except Exception:  # noqa: BLE001 - a source that cannot be read: the step that reads it says so
+        return
+    n = min(counts[c] - (offsets or {}).get(c, 0) for c in counts)
+    for cam, first in given.items():
+        if first >= n:
+            raise bad("detect.cameras", f"expected a frame index 0..{n - 1} (the session's "
+                                        f"{'synchronised ' if offsets else ''}frames), got {first}",
+                      (cam, "first_frame"))
 
 
 def _check_still_cameras(per_cam: dict, kind: str, session, bad) -> None:
@@ -1210,10 +1229,27 @@ def _check_detection(value, f):
     for cam, given in value.items():
         if not isinstance(given, dict):
             raise _Invalid(f"an object of detector parameters for '{cam}'", given, (cam,))
+        first = given.get("first_frame")
+        if first is not None and (not _is_int(first) or first < 0):
+            raise _Invalid("a frame index (integer >= 0) or null", first, (cam, "first_frame"))
+        for name, (expected, ok) in _DETECTOR_RANGES.items():
+            if given.get(name) is not None and not ok(given[name]):
+                raise _Invalid(expected, given[name], (cam, name))
         try:
             DetectionParams.from_dict(given)
         except (ValueError, TypeError, OverflowError) as exc:
             raise _Invalid("", where=(cam,), message=str(exc)) from None
+
+
+# detector parameters whose range DetectionParams leaves open: what they take, and the test
+_DETECTOR_RANGES = {
+    "threshold": ("a gray level (integer 0..254) or null", lambda v: not isinstance(v, bool)),
+    "area_min": ("an area in pixels (a number >= 0) or null", lambda v: _is_number(v) and v >= 0),
+    "area_max": ("an area in pixels (a number > 0) or null", lambda v: _is_number(v) and v > 0),
+    "distance_tolerance": ("a fraction (a number > 0) or null", lambda v: _is_number(v) and v > 0),
+    "min_circularity": ("a circularity (a number in [0, 1]) or null", lambda v: _is_number(v) and 0 <= v <= 1),
+    "window_predict": ("true or false", lambda v: isinstance(v, bool)),
+}
 
 
 def _check_stills(value, f):
@@ -1334,6 +1370,8 @@ def _read_params_object(path) -> dict:
         data = json.loads(read_text_utf8(path, ParamsError))
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except RecursionError:
+        raise ParamsError(f"{path}: JSON nested too deeply to read (a parameter file is a few levels deep)") from None
     if isinstance(data, dict) and "parameters" in data:
         data = data["parameters"]
     if not isinstance(data, dict):

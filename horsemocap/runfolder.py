@@ -35,8 +35,10 @@ from __future__ import annotations
 
 import ctypes
 import errno
+import glob
 import json
 import os
+import re
 import secrets
 import shutil
 from pathlib import Path
@@ -49,6 +51,14 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 RESULTS_MARKERS = ("analysis.json", "PARTIAL.txt")
+# every file and folder an ``analyze`` run writes into its results folder (the notebooks' store adds ``steps``)
+ANALYZE_OUTPUTS = frozenset({
+    "analysis.json", "PARTIAL.txt", "quality.json", "report.html", "rig.toml", "calibration.json",
+    "markers_2d.csv", "markers_3d.csv", "trajectories.csv", "kinematics.csv", "angular.csv",
+    "comfort.csv", "comfort.xlsx", "steps", "choices.json", ".choices.json.lock"})
+KINEMATICS_OUTPUTS = frozenset({"kinematics-run.json", "trajectories.csv", "kinematics.csv", "angular.csv"})
+# a temporary folder of a run: .NAME.run-<pid>-<hex> (or .NAME.run-old-<hex> of the two-rename swap)
+_TMP_PATTERN = r"\.{name}\.run-(?:(?P<pid>\d+)|old)-[0-9A-Za-z]+"
 KINEMATICS_RECORD = "kinematics-run.json"
 KINEMATICS_FORMAT = "horsemocap-kinematics/1"
 # errors of the operating system that only writing gives (any other errno counts when the file is ours)
@@ -94,6 +104,33 @@ def _json_record(path: Path) -> dict:
     return record if isinstance(record, dict) else {}
 
 
+def _foreign_entries(path: Path, entries, own: frozenset) -> list:
+    """What in ``path`` a run of this kind did not write: unknown names, a session, a link, a nested folder."""
+    foreign = []
+    for name in sorted(entries):
+        entry = path / name
+        if name not in own:
+            foreign.append(name)
+        elif entry.is_symlink():
+            foreign.append(f"{name} (a symbolic link)")
+        elif entry.is_dir() and name != "steps":
+            foreign.append(f"{name}/ (a folder)")
+    sessions = _sessions_inside(path)
+    tops = {s.split("/")[0] for s in sessions}
+    return [f"{s} (a session)" for s in sessions] + [f for f in foreign if f.split(" ")[0].rstrip("/") not in tops]
+
+
+def _sessions_inside(path: Path, limit: int = 3) -> list:
+    """Relative paths of up to ``limit`` ``session.json`` files anywhere under ``path`` (links not followed)."""
+    found = []
+    for root, dirs, files in os.walk(path, followlinks=False):
+        if "session.json" in files:
+            found.append(str(Path(root, "session.json").relative_to(path)))
+            if len(found) >= limit:
+                break
+    return found
+
+
 def _is_results_folder(path: Path, entries) -> bool:
     """An earlier horsemocap run's folder: its analysis.json says so, or it is marked partial."""
     if "PARTIAL.txt" in entries:
@@ -111,8 +148,8 @@ def _is_kinematics_folder(path: Path, entries) -> bool:
 
 
 # kind of run -> (test of an earlier run's folder, what the refusal calls it)
-_KINDS = {"analyze": (_is_results_folder, "horsemocap results"),
-          "kinematics": (_is_kinematics_folder, "an earlier 'horsemocap kinematics' output")}
+_KINDS = {"analyze": (_is_results_folder, "horsemocap results", ANALYZE_OUTPUTS),
+          "kinematics": (_is_kinematics_folder, "an earlier 'horsemocap kinematics' output", KINEMATICS_OUTPUTS)}
 
 
 def check_results_target(out, kind: str = "analyze") -> Path:
@@ -122,8 +159,12 @@ def check_results_target(out, kind: str = "analyze") -> Path:
     same ``kind``: for ``"analyze"`` its ``analysis.json`` has ``"format":
     "horsemocap-results/..."``, or it holds ``PARTIAL.txt``; for
     ``"kinematics"`` its ``kinematics-run.json`` has ``"format":
-    "horsemocap-kinematics/1"``. Anything else is refused with a
-    :class:`StoreError` naming it, so that ``--out ~`` never deletes a home
+    "horsemocap-kinematics/1"``. Such a folder must hold nothing else than
+    the files a run of that kind writes (:data:`ANALYZE_OUTPUTS`,
+    :data:`KINEMATICS_OUTPUTS`): a file a user left there, a link, a
+    folder or a ``session.json`` anywhere inside (a session kept in an
+    earlier results folder) is named in the refusal, so the swap never
+    deletes what a run did not write, and ``--out ~`` never deletes a home
     folder.
 
     Examples
@@ -140,7 +181,7 @@ def check_results_target(out, kind: str = "analyze") -> Path:
     ...     print(type(error).__name__)
     StoreError
     """
-    is_earlier_run, what = _KINDS[kind]
+    is_earlier_run, what, own = _KINDS[kind]
     if "\0" in str(out):
         raise StoreError(f"--out {str(out)!r}: a path cannot hold a NUL byte")
     path = Path(out).expanduser().resolve()
@@ -154,7 +195,40 @@ def check_results_target(out, kind: str = "analyze") -> Path:
             raise StoreError(f"--out {out}: the folder holds files that are not {what} "
                              f"({', '.join(sorted(entries)[:3])}{', ...' if len(entries) > 3 else ''}); "
                              "horsemocap replaces the whole folder, so choose a new or empty folder")
+        foreign = _foreign_entries(path, entries, own) if entries else []
+        if foreign:
+            raise StoreError(f"--out {out}: the earlier results folder also holds what no horsemocap run wrote "
+                             f"({', '.join(foreign[:4])}{', ...' if len(foreign) > 4 else ''}); horsemocap "
+                             "replaces the whole folder and would delete it: move it out or choose another --out")
     return path
+
+
+def _stale_run_folders(parent: Path, name: str) -> list:
+    """Temporary folders of runs into ``parent/name`` whose process has ended (never a live run's)."""
+    pattern = re.compile(_TMP_PATTERN.format(name=re.escape(name)))
+    stale = []
+    for entry in parent.glob(f".{glob.escape(name)}.run-*"):
+        match = pattern.fullmatch(entry.name)
+        if match is None or entry.is_symlink() or not entry.is_dir():
+            continue   # another folder's temporary folder (".x.run-1" of --out x.run-1), or not ours
+        pid = match.group("pid")
+        if pid is not None and _alive(int(pid)):
+            continue
+        stale.append(entry)
+    return stale
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` runs (ours, or another user's)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return pid < 2 ** 31
+    return True
 
 
 def _chain(exc: BaseException):
@@ -235,7 +309,7 @@ class RunFolder:
     def __enter__(self) -> Path:
         self._acquire()
         try:
-            for stale in self.out.parent.glob(f".{self.out.name}.run-*"):  # left by a killed run
+            for stale in _stale_run_folders(self.out.parent, self.out.name):  # left by a killed run
                 shutil.rmtree(stale, ignore_errors=True)
             name = f".{self.out.name}.run-{os.getpid()}-{secrets.token_hex(4)}"
             self.tmp = self.out.parent / name

@@ -11,6 +11,7 @@ from __future__ import annotations
 import difflib
 import json
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -107,6 +108,28 @@ def _camera_paths(path, root, name, value, cameras, *, must_exist=True, kind="fi
     return out
 
 
+class SessionWarning(UserWarning):
+    """A session.json field this version does not know (a newer optional field): read, not used."""
+
+
+def _check_unknown_top(path, data) -> None:
+    """Top-level fields: a misspelling of a known one is refused, any other new field warned about.
+
+    The contract grows by optional top-level fields, so a session written
+    for a newer version is read; a name close to a known field (``"fsp"``)
+    is a typo and is refused naming the field it resembles.
+    """
+    for key in data:
+        if key in KNOWN_FIELDS:
+            continue
+        close = difflib.get_close_matches(key, KNOWN_FIELDS, n=1)
+        if close:
+            raise SessionError(f"{path}: unknown field '{key}'; did you mean '{close[0]}'? "
+                               f"(known fields: {', '.join(KNOWN_FIELDS)})")
+        warnings.warn(f"{path}: field '{key}' is not one this version of horsemocap knows "
+                      f"(known: {', '.join(KNOWN_FIELDS)}); it is ignored", SessionWarning, stacklevel=3)
+
+
 def _check_unknown(path, data, known, where=""):
     for key in data:
         if key not in known:
@@ -174,9 +197,12 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         data = json.loads(read_text_utf8(path, SessionError))
     except json.JSONDecodeError as exc:
         raise SessionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+    except RecursionError:
+        raise SessionError(f"{path}: JSON nested too deeply to read (a session.json is a few levels deep: "
+                           "objects of fields, cameras and values)") from None
     if not isinstance(data, dict):
         raise SessionError(f"{path}: expected a JSON object at the top level")
-    _check_unknown(path, data, KNOWN_FIELDS)
+    _check_unknown_top(path, data)
     for key in REQUIRED_FIELDS:
         if key not in data:
             raise SessionError(f"{path}: required field '{key}' is missing")

@@ -344,8 +344,16 @@ class FrameSource:
         """
         if not self.is_video:
             files = list_images(self.path)[start:stop]
+            size = None
             for i, f in enumerate(files, start):
-                yield i, read_image(f, color)
+                image = read_image(f, color)
+                if size is None:
+                    size = (image.shape[:2], f)
+                elif image.shape[:2] != size[0]:
+                    (h, w), (h0, w0) = image.shape[:2], size[0]
+                    raise SourceError(f"{f}: image of {w}x{h} pixels, but {size[1].name} of the same camera "
+                                      f"folder is {w0}x{h0}; every frame of a camera must have one size")
+                yield i, image
             return
         video = _SharedGray.video_key(self.path) if share and not color else None
         cap = cv2.VideoCapture(str(self.path))

@@ -241,6 +241,23 @@ def _hashable(k):
     return tuple(_hashable(v) for v in k) if isinstance(k, list) else k
 
 
+# the pipeline's steps in order (horsemocap.steps.STEPS) with the result files written from each
+# (horsemocap.results.write_available): a step computed anew makes the later steps' stored results and files stale
+STEP_RESULT_FILES = (("sync", ()), ("rig", ("rig.toml",)), ("plumb", ()), ("static", ()),
+                     ("detect", ("markers_2d.csv",)), ("triangulate", ("markers_3d.csv",)), ("smooth", ()),
+                     ("motion_frame", ()), ("rigid_body", ("trajectories.csv", "kinematics.csv", "angular.csv")),
+                     ("comfort", ("comfort.csv", "comfort.xlsx")))
+# records of a whole analysis: stale as soon as any step is computed anew
+WHOLE_ANALYSIS_FILES = ("quality.json", "report.html", "PARTIAL.txt")
+
+
+def refuse_link(path: Path, what: str) -> None:
+    """:class:`StoreError` if ``path`` is a symbolic link (the store never writes through one)."""
+    if Path(path).is_symlink():
+        raise StoreError(f"{path}: {what} is a symbolic link (to {os.readlink(path)}); the results store does not "
+                         "follow links out of itself: delete the link and run again")
+
+
 @dataclass(frozen=True)
 class ResultsStore:
     """Step results of one session's analysis, so a notebook reuses what an
@@ -254,6 +271,13 @@ class ResultsStore:
     parameters and the package's code, :func:`horsemocap.pipeline.run_key`),
     so a change of any of them recomputes it. Files are written atomically
     with the user's umask.
+
+    Saving a step that was computed anew removes the stored results of the
+    steps after it and their result files in ``root`` (:data:`STEP_RESULT_FILES`,
+    and the records of the whole analysis, :data:`WHOLE_ANALYSIS_FILES`): the
+    folder never holds a later step's file of another analysis beside the new
+    one. The store never follows a symbolic link: ``root``, ``root/steps`` or
+    a step's file planted as a link raises :class:`StoreError`.
 
     Parameters
     ----------
@@ -272,8 +296,39 @@ class ResultsStore:
             raise ValueError(f"step name {step!r}: expected an identifier")
         return self.root / "steps" / f"{step}.json"
 
+    def _check_links(self, step: str) -> None:
+        refuse_link(self.root, "the session's results folder")
+        refuse_link(self.root / "steps", "the store's 'steps' folder")
+        json_path = self.path(step)
+        refuse_link(json_path, f"the stored result of step '{step}'")
+        refuse_link(json_path.with_suffix(".npz"), f"the stored arrays of step '{step}'")
+
+    def forget_after(self, step: str) -> list:
+        """Remove the stored results and result files of the steps after ``step``; the paths removed."""
+        names = [name for name, _ in STEP_RESULT_FILES]
+        if step not in names:
+            return []
+        removed = []
+        for later, files in STEP_RESULT_FILES[names.index(step) + 1:]:
+            json_path = self.path(later)
+            for path in (json_path, json_path.with_suffix(".npz"), *(self.root / f for f in files)):
+                if path.is_symlink() or path.is_file():
+                    path.unlink()
+                    removed.append(path)
+        for name in WHOLE_ANALYSIS_FILES:
+            path = self.root / name
+            if path.is_symlink() or path.is_file():
+                path.unlink()
+                removed.append(path)
+        return removed
+
     def save(self, step: str, result, key: str) -> Path | None:
-        """Store ``result`` of ``step`` under ``key``; None (and a warning) if it holds an unstorable value."""
+        """Store ``result`` of ``step`` under ``key``; None (and a warning) if it holds an unstorable value.
+
+        The later steps' stored results and files are removed first (:meth:`forget_after`).
+        """
+        self._check_links(step)
+        self.forget_after(step)
         arrays: dict = {}
         try:
             tree = encode_result(result, arrays)
@@ -291,6 +346,7 @@ class ResultsStore:
 
     def load(self, step: str, key: str):
         """The stored result of ``step`` for ``key``, or None (absent, other key, unreadable, tampered)."""
+        self._check_links(step)
         p = self.path(step)
         try:
             payload = json.loads(p.read_text(encoding="utf-8"))

@@ -25,6 +25,7 @@ binding of a widget to a parameter (:meth:`Workspace.bind`).
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import json
@@ -32,13 +33,18 @@ import os
 import re
 from pathlib import Path
 
+try:  # POSIX
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
+
 import numpy as np
 
 from .data import cache_dir, data_samples_dir, default_session_dir
 from .params import AnalysisParams, ParamsError
 from .pipeline import Analysis, analyze, resolve_params
 from .session import Session, load_session
-from .store import atomic_write_json, read_text_utf8
+from .store import atomic_write_json, read_text_utf8, refuse_link
 
 CHOICES_FILE = "choices.json"
 WORKSPACE_FILE = "workspace.json"
@@ -112,6 +118,8 @@ def _read_json(path: Path):
         return json.loads(read_text_utf8(path, ParamsError))
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except RecursionError:
+        raise ParamsError(f"{path}: JSON nested too deeply to read") from None
 
 
 def read_choices(session_dir=None) -> dict:
@@ -143,12 +151,29 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
     return params
 
 
+@contextlib.contextmanager
+def choices_lock(session_dir=None):
+    """Hold the lock of a session's ``choices.json`` (an ``flock`` on ``.choices.json.lock`` beside it).
+
+    Two kernels choosing at once take turns: each reads the choices the
+    other wrote before adding its own, so none is lost.
+    """
+    path = choices_path(session_dir)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path.parent / f".{CHOICES_FILE}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield path
+    finally:
+        os.close(fd)   # closing the file releases the flock
+
+
 def write_choices(session_dir, choices: dict) -> Path:
     """Replace a session's choices (validated first: a bad one writes nothing)."""
     session_params(session_dir, choices)
-    path = choices_path(session_dir)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(path, {"parameters": choices})
+    with choices_lock(session_dir) as path:
+        atomic_write_json(path, {"parameters": choices})
     return path
 
 
@@ -176,8 +201,18 @@ def set_choice(session_dir, name: str, value) -> dict:
     Taking a nested choice back removes the objects it leaves empty, so an
     untouched widget leaves no trace. Returns the new choices.
     """
-    choices = copy.deepcopy(read_choices(session_dir))
     keys = _split(name)
+    with choices_lock(session_dir) as path:   # read, change and write as one: a second kernel waits
+        before = read_choices(session_dir)
+        choices = _changed_choices(copy.deepcopy(before), keys, value)
+        if choices != before or (value is not None and not path.is_file()):
+            session_params(session_dir, choices)
+            atomic_write_json(path, {"parameters": choices})
+    return choices
+
+
+def _changed_choices(choices: dict, keys: list, value) -> dict:
+    """``choices`` with the value at the path ``keys`` set (``None``: taken back, empty objects removed)."""
     if value is None:
         trail, node = [], choices
         for k in keys[:-1]:
@@ -196,15 +231,14 @@ def set_choice(session_dir, name: str, value) -> dict:
                 node[k] = {}
             node = node[k]
         node[keys[-1]] = value
-    write_choices(session_dir, choices)
     return choices
 
 
 def clear_choices(session_dir=None) -> None:
     """Forget every choice of a session (back to the automatic analysis)."""
-    path = choices_path(session_dir)
-    if path.is_file():
-        path.unlink()
+    with choices_lock(session_dir) as path:
+        if path.is_file():
+            path.unlink()
 
 
 def to_json_value(value):
@@ -464,6 +498,7 @@ def notebook_results_dir(session: Session | Path) -> Path:
     path = root / f"{safe_store_name(session.name)}-{digest}"
     if path.parent != root:  # cannot happen with a safe name; never write outside the store
         raise ValueError(f"session name {session.name!r} leaves the results store {root}")
+    refuse_link(path, "the session's results folder in the store")
     return path
 
 

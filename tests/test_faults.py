@@ -701,7 +701,7 @@ def test_healthy_run_is_ok_and_replaces_a_stale_run(tmp_path, template, capsys):
     session = make_session(tmp_path, template)
     out = tmp_path / "out"
     earlier_results(out)
-    (out / "stray.csv").write_text("from an earlier run")
+    (out / "PARTIAL.txt").write_text("from an earlier run")  # an earlier run's own file: replaced
     (tmp_path / ".out.run-99999-dead").mkdir()           # left by a killed run
     (tmp_path / ".out.lock").write_text("pid 99999")     # a lock file nobody holds
     old_umask = os.umask(0o022)
@@ -716,7 +716,7 @@ def test_healthy_run_is_ok_and_replaces_a_stale_run(tmp_path, template, capsys):
     assert [n for n, c in checks.items() if c["level"] not in ("ok", "skipped")] == ["marker_geometry"]
     assert "thin marker triangle" in checks["marker_geometry"]["message"]
     assert "quality: WARNING" in stdout and "comfort [quality warning]" in stdout
-    assert not (out / "stray.csv").exists() and not (out / "PARTIAL.txt").exists()
+    assert not (out / "PARTIAL.txt").exists()
     assert json.loads((out / "analysis.json").read_text())["complete"] is True
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "session"]
     assert all((p.stat().st_mode & 0o777) == 0o644 for p in out.iterdir())

@@ -188,9 +188,10 @@ def test_kinematics_replaces_its_own_earlier_output_whole(tmp_path, capsys):
     record = json.loads((out / "kinematics-run.json").read_text())
     assert record["format"] == "horsemocap-kinematics/1" and record["command"] == "kinematics"
     assert record["inputs"]["trajectories"]["path"] == str(traj.resolve()) and record["horsemocap_version"]
-    (out / "stale.txt").write_text("left by hand")     # in an earlier kinematics output: replaced with it
+    (out / "stale.txt").write_text("left by hand")     # a file no run wrote: refused, nothing deleted
+    assert _kin(traj, static, out, "--smoothing", "gcv") == 2 and (out / "stale.txt").read_text() == "left by hand"
+    (out / "stale.txt").unlink()
     assert _kin(traj, static, out, "--smoothing", "gcv") == 0
-    assert not (out / "stale.txt").exists()
     assert json.loads((out / "kinematics-run.json").read_text())["options"]["smoothing"] == "gcv"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "out"]     # no temporary folder, no lock
     empty = tmp_path / "empty"
@@ -285,9 +286,11 @@ def test_one_frame_export_needs_a_rate(tmp_path, capsys):
     assert (tmp_path / "one.trc").read_text().splitlines()[2].split("\t")[:1] == ["120"]
     assert main(["export", str(traj), "--out", str(tmp_path / "bad.trc"), "--rate", "0"]) == 2
     assert "frame rate 0.0: expected a positive number" in capsys.readouterr().err
-    many, _ = _small_record(tmp_path / "many")       # 100 Hz in its times; --rate overrides
-    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 0
-    assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 50.0
+    many, _ = _small_record(tmp_path / "many")       # 100 Hz in its times: a rate they contradict is refused
+    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "50"]) == 2
+    assert "--rate 50 Hz contradicts the times" in capsys.readouterr().err and not (tmp_path / "r.c3d").exists()
+    assert main(["export", str(many), "--out", str(tmp_path / "r.c3d"), "--rate", "100"]) == 0
+    assert ezc3d.c3d(str(tmp_path / "r.c3d"))["header"]["points"]["frame_rate"] == 100.0
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []   # no temporary file
 
 
