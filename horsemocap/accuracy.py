@@ -9,7 +9,6 @@ noise through every later step of the pipeline.
 """
 from __future__ import annotations
 
-from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -315,7 +314,7 @@ def noisy_reruns(analysis, truth, sigmas_px, seed: int = 0, repeats: int = 3, pa
     n = sync.n_frames
     # the period is the one found on the real detections: the study isolates what the noise
     # does to the later steps (the thesis user typed the period anyway)
-    params = replace(params or analysis.params, period_frames=analysis.motion_frame.period_frames)
+    params = (params or analysis.params).updated({"motion_frame.period_frames": analysis.motion_frame.period_frames})
     for sigma in sigmas_px:
         reruns = []
         for _ in range(repeats if sigma > 0 else 1):

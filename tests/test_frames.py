@@ -243,7 +243,7 @@ def test_widgets_default_to_the_automatic_choice():
     from horsemocap.params import AnalysisParams
 
     w = widgets.ui_smoothing()
-    assert w.value == {"method": AnalysisParams().smoothing_method, "span": AnalysisParams().smoothing_span}
+    assert w.value == {"method": AnalysisParams().smooth.method, "span": AnalysisParams().smooth.span}
     w.method.value = "lowess"
     assert w.value["method"] == "lowess"
 

@@ -115,7 +115,7 @@ def test_pose_events_parameter_reaches_the_pipelines_pose_smoothing():
         with pytest.raises(ParamsError, match="pose_events"):
             AnalysisParams.from_dict(bad)
     assert AnalysisParams.from_dict({"pose_events": [1.0], "pose_smoothing": "gcv",
-                                     "pose_harmonics": "none"}).pose_events == [1.0]
+                                     "pose_harmonics": "none"}).rigid_body.pose.events == [1.0]
 
 
 def test_pose_events_option_is_parsed_or_refused(tmp_path, capsys):

@@ -196,7 +196,8 @@ def test_post_checks_judge_the_markers_shape():
     from types import SimpleNamespace
 
     from horsemocap.pipeline import Analysis
-    from horsemocap.steps import Conditioning, RigidBodyResult
+    from horsemocap.rigid import Conditioning
+    from horsemocap.steps import RigidBodyResult
 
     def unset(cls, **given):      # a result with only the fields the checks read
         return cls(**{**{f.name: None for f in dataclasses.fields(cls)}, **given})
@@ -204,7 +205,7 @@ def test_post_checks_judge_the_markers_shape():
     model = np.array([[0.3, 0.0, 0.0], [-0.15, 0.1, 0.0], [-0.15, -0.1, 0.05]])
     good = unset(RigidBodyResult, warnings=[], model=model,
                  conditioning=unset(Conditioning, registration_rms_m=np.full(40, 0.0008), warnings=[]))
-    bad = good.replace(conditioning=good.conditioning.replace(registration_rms_m=np.full(40, 0.044)))
+    bad = good.replace(conditioning=dataclasses.replace(good.conditioning, registration_rms_m=np.full(40, 0.044)))
     session = SimpleNamespace(fps=30.0)
     levels = {c.name: c.level for c in quality.post_checks(Analysis(session, None, rigid_body=good))}
     assert levels["marker_rigidity"] == "ok"

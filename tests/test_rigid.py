@@ -409,7 +409,7 @@ def test_ui_versions_and_methods():
     assert ui.value.tolist() == [True, True, False, True, False, True]
     from horsemocap.params import AnalysisParams
 
-    assert widgets.ui_angular_method().value == AnalysisParams().angular_method
+    assert widgets.ui_angular_method().value == AnalysisParams().rigid_body.fits.angular_method
     assert widgets.ui_saddle_method().value == FitsParams().saddle_method
 
 

@@ -182,7 +182,7 @@ def test_analyze_pose_events_reach_the_parameters(tmp_path, template):
     got = [_params_from_args(build_parser().parse_args(["analyze", "S", "--out", "o",
                                                          *[x for word in w for x in ("--pose-events", word)]]), base)
            for w in (["1.5,2.25"], ["1.5", "2.25"])]
-    assert got[0].pose_events == got[1].pose_events == [1.5, 2.25]
+    assert got[0].rigid_body.pose.events == got[1].rigid_body.pose.events == [1.5, 2.25]
 
 
 def test_kinematics_events_with_commas(tmp_path, capsys):
@@ -222,5 +222,5 @@ def test_help_says_what_each_option_does():
     assert "default 0.1" in helps["smoothing_span"] and "default 0" in helps["x_marker"]
     from horsemocap.params import AnalysisParams
 
-    assert AnalysisParams().smoothing_span == 0.1 and AnalysisParams().x_marker == 0
+    assert AnalysisParams().smooth.span == 0.1 and AnalysisParams().motion_frame.x_marker == 0
     assert "(default auto)" in helps["pose_harmonics"] and "above the noise" in helps["pose_harmonics"]

@@ -46,7 +46,7 @@ import numpy as np
 from .. import camera
 from ..camera import Camera, Rig
 from ..data import cache_dir
-from ..fingerprint import FINGERPRINT_EDGE_BYTES, file_fingerprint
+from ..fingerprint import file_digest, file_fingerprint
 from ..sources import list_images
 from ..store import atomic_write_text
 from .board import BoardViews, detect_cameras
@@ -79,18 +79,9 @@ def views_key(folder, inner_corners) -> str:
     return h.hexdigest()
 
 
-def _content_fingerprint(path: Path, edge: int = FINGERPRINT_EDGE_BYTES) -> str:
-    """A view's file name, size and the SHA-256 of its bytes (its first and last ``edge`` bytes if larger)."""
-    size = path.stat().st_size
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        if size <= 2 * edge:
-            h.update(fh.read())
-        else:
-            h.update(fh.read(edge))
-            fh.seek(-edge, os.SEEK_END)
-            h.update(fh.read(edge))
-    return f"{path.name}|{size}|{h.hexdigest()}"
+def _content_fingerprint(path: Path) -> str:
+    """A view's file name, size and the SHA-256 of all its bytes (:func:`horsemocap.fingerprint.file_digest`)."""
+    return f"{path.name}|{path.stat().st_size}|{file_digest(path)}"
 
 
 def content_views_key(folder, inner_corners) -> str:

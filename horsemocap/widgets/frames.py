@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import ipywidgets as W
 
+from ..params import SmoothParams
+
 from ._text import ControlText
 
 __all__ = ["ui_triangulation_mode", "ui_smoothing", "ui_motion_marker", "ui_period", "ui_n_periods"]
@@ -44,17 +46,13 @@ def ui_smoothing(method: str | None = None, span: float | None = None):
     """Method and span of the pipeline's smoothing step (thesis: rloess, 0.1).
 
     Defaults are the pipeline's automatic choice,
-    ``AnalysisParams().smoothing_method`` (``"loess"``, a measured deviation
-    from the thesis documented there and in notebook 06) and
-    ``AnalysisParams().smoothing_span`` (0.1). ``.value`` is
-    ``{"method": ..., "span": ...}``, the ``smoothing_method`` and
-    ``smoothing_span`` parameters.
+    ``SmoothParams().method`` (``"loess"``, a deviation from the thesis
+    explained in notebook 06) and ``SmoothParams().span`` (0.1). ``.value``
+    is ``{"method": ..., "span": ...}``, the ``smooth`` section's fields.
     """
-    from ..params import AnalysisParams
-
-    defaults = AnalysisParams()
-    return SmoothingControls(defaults.smoothing_method if method is None else method,
-                             defaults.smoothing_span if span is None else float(span))
+    defaults = SmoothParams()
+    return SmoothingControls(defaults.method if method is None else method,
+                             defaults.span if span is None else float(span))
 
 
 def ui_motion_marker(n_markers: int, value: int = 0):

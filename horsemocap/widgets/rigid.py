@@ -5,11 +5,11 @@ and the method."""
 from __future__ import annotations
 
 import ipywidgets as W
-
-from ._text import ControlText
 import numpy as np
 
+from ..params import FitsParams
 from ..rigid import VERSION_LABELS
+from ._text import ControlText
 
 __all__ = ["ui_versions", "ui_angular_method", "ui_saddle_method"]
 
@@ -39,12 +39,10 @@ def ui_angular_method(value: str | None = None):
     """``method`` of :func:`horsemocap.rigid.analyse_rigid_body`: the average of
     the chosen thesis versions, the least-squares solution from all markers,
     or the Fourier fit of the registered orientation. Default: the pipeline's
-    ``AnalysisParams.angular_method`` (pass ``analysis.params.rigid_body.fits.angular_method``
+    ``rigid_body.fits.angular_method`` (pass ``analysis.params.rigid_body.fits.angular_method``
     to follow a run's choice)."""
     if value is None:
-        from ..params import AnalysisParams
-
-        value = AnalysisParams().angular_method
+        value = FitsParams().angular_method
     return W.ToggleButtons(options=[("thesis versions (6.3/6.4)", "thesis"), ("least squares", "lstsq"),
                                     ("fit of the orientation", "rotation")],
                            value=value, description="omega, alfa", style={"button_width": "auto", "description_width": "initial"})
@@ -52,11 +50,9 @@ def ui_angular_method(value: str | None = None):
 
 def ui_saddle_method(value: str | None = None):
     """``saddle_method`` of :func:`horsemocap.rigid.analyse_rigid_body` (default: the
-    pipeline's ``AnalysisParams.saddle_method``)."""
+    pipeline's ``rigid_body.fits.saddle_method``)."""
     if value is None:
-        from ..params import AnalysisParams
-
-        value = AnalysisParams().saddle_method
+        value = FitsParams().saddle_method
     return W.ToggleButtons(options=[("eq. 6.54/6.55 mean", "thesis"), ("fit of eq. 6.48 path", "direct"),
                                     ("fit of the smoothed-pose path", "pose")],
                            value=value, description="saddle v, a", style={"button_width": "auto", "description_width": "initial"})

@@ -71,10 +71,10 @@ mf_pipeline = analysis.motion_frame.frame
 fps = analysis.session.fps
 n = points.shape[0]
 par = analysis.params
-rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({par.calibration_mode})")
+rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({par.rig.mode})")
 print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
       f"{analysis.params.triangulate.mode} triangulation")
-print(f"pipeline choices: smoothing_method '{par.smoothing_method}' (span {par.smoothing_span:.2f} if used), "
+print(f"pipeline choices: smoothing_method '{par.smooth.method}' (span {par.smooth.span:.2f} if used), "
       f"x-motion marker {mf_pipeline.marker + 1:d}, period {mf_pipeline.period_frames:.2f} frames (estimated), "
       f"{mf_pipeline.n_periods:d} period(s) for u1")
 
@@ -227,11 +227,11 @@ for kin in ("fits", "pose_spline"):
               f"saddle vertical acceleration error {st['saddle_acc_y_rmse_pct_of_rms']:5.1f} % of its RMS")
 pct = {m: downstream["fits", m]["saddle_acc_y_rmse_pct_of_rms"] for m in ("none", "loess", "rloess")}
 best = min(pct, key=pct.get)
-print(f"chain of fits: best on this session {best} ({pct[best]:.1f} %); rloess / {par.smoothing_method} = "
-      f"{pct['rloess'] / pct[par.smoothing_method]:.1f} times the error")
+print(f"chain of fits: best on this session {best} ({pct[best]:.1f} %); rloess / {par.smooth.method} = "
+      f"{pct['rloess'] / pct[par.smooth.method]:.1f} times the error")
 pose_pct = [downstream["pose_spline", m]["saddle_acc_y_rmse_pct_of_rms"] for m in ("none", "loess", "rloess")]
 print(f"pose trajectory (the default): {min(pose_pct):.1f}-{max(pose_pct):.1f} % whatever the smoothing here")
-k_win = smoothing.effective_span(n, par.smoothing_span, "loess", "auto")
+k_win = smoothing.effective_span(n, par.smooth.span, "loess", "auto")
 print(f"window: {k_win:d} frames = {k_win / fps:.2f} s, {k_win / mf_pipeline.period_frames:.2f} of the "
       f"estimated stride ({mf_pipeline.period_frames / fps:.2f} s)")
 
@@ -266,7 +266,7 @@ print(f"window: {k_win:d} frames = {k_win / fps:.2f} s, {k_win / mf_pipeline.per
 # or the widget below. Choose the smoother (default: the pipeline's, `loess`):
 
 # %% tags=["nbval-ignore-output"]
-ui_smooth = widgets.ui_smoothing(par.smoothing_method, par.smoothing_span)
+ui_smooth = widgets.ui_smoothing(par.smooth.method, par.smooth.span)
 ws.bind(ui_smooth.method, "smoothing_method")
 ws.bind(ui_smooth.span, "smoothing_span")
 display(ui_smooth)
@@ -304,9 +304,9 @@ worst = np.sort(np.argsort(change_mm)[-4:])
 rest = np.setdiff1d(np.arange(n), worst)
 print("largest vertical changes made by rloess 0.1: " + ", ".join(f"frame {k:d} {change_mm[k]:.1f} mm" for k in worst))
 print(f"every other frame: at most {change_mm[rest].max():.1f} mm, median {np.median(change_mm[rest]):.2f} mm")
-loess_smoothed = smoothing.smooth_positions(points, par.smoothing_span, "loess", nan="omit")
+loess_smoothed = smoothing.smooth_positions(points, par.smooth.span, "loess", nan="omit")
 change_loess = 1000 * np.max(np.abs((loess_smoothed - points) @ gravity), axis=1)
-print(f"loess {par.smoothing_span:.1f} (pipeline): largest vertical change {change_loess.max():.1f} mm "
+print(f"loess {par.smooth.span:.1f} (pipeline): largest vertical change {change_loess.max():.1f} mm "
       f"(frame {int(np.argmax(change_loess)):d}), median {np.median(change_loess):.2f} mm")
 
 # %% [markdown]
@@ -423,8 +423,8 @@ def verdict(ok):
     return "meets" if ok else "MISSES"
 
 
-for method in (par.smoothing_method, "none", "rloess"):
-    tag = " (pipeline default)" if method == par.smoothing_method else ""
+for method in (par.smooth.method, "none", "rloess"):
+    tag = " (pipeline default)" if method == par.smooth.method else ""
     r, rc = errors_mm(runs["joint", method].smooth.smoothed)
     print(f"joint + {method:6s}{tag}: x {r[0]:.2f} mm {verdict(r[0] < TARGET_MM)}, y {r[1]:.2f} mm "
           f"{verdict(r[1] < TARGET_MM)} (absolute) | x {rc[0]:.2f} mm {verdict(rc[0] < TARGET_MM)}, "
@@ -435,7 +435,7 @@ for method in (par.smoothing_method, "none", "rloess"):
           + " mm, bias removed " + ", ".join(f"{d:+.2f}" for d in rc[:2] - rct[:2])
           + f" mm -> joint no worse than thesis: {verdict(no_worse)}")
 for mode in ("joint", "thesis"):
-    g_err = frames.angle_deg(runs[mode, par.smoothing_method].plumb.gravity, truth.gravity)
+    g_err = frames.angle_deg(runs[mode, par.smooth.method].plumb.gravity, truth.gravity)
     print(f"plumb gravity, {mode:6s} triangulation: {g_err:.3f} deg {verdict(g_err < TARGET_DEG)}")
 
 # %% [markdown]

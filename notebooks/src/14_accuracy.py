@@ -253,16 +253,16 @@ import json
 
 from horsemocap import pipeline
 from horsemocap.data import repository_file
-from horsemocap.params import PRESETS, AnalysisParams
+from horsemocap.params import AnalysisParams, params_fields
 from horsemocap.report import format_value
 
 default_params = analysis.params
 thesis_params = AnalysisParams.from_dict({"preset": "thesis"})
-print(f"{'choice':20s} {'default':48s} thesis")
-for name in PRESETS["thesis"]:
-    d, th = getattr(default_params, name), getattr(thesis_params, name)
-    if d != th:
-        print(f"{name:20s} {format_value(d)[:48]:48s} {format_value(th)}")
+print(f"{'choice':32s} {'default':40s} thesis")
+for field in params_fields():
+    d, th = default_params.value(field.path), thesis_params.value(field.path)
+    if d != th and field.path != "preset":
+        print(f"{field.path:32s} {format_value(d)[:40]:40s} {format_value(th)}")
 
 # %% [markdown]
 # ### On this session, step by step
