@@ -40,6 +40,8 @@ ws = open_workspace()
 display(ui_session(ws))
 
 # %%
+import re
+
 import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
@@ -71,7 +73,7 @@ mf_pipeline = analysis.motion_frame.frame
 fps = analysis.session.fps
 n = points.shape[0]
 par = analysis.params
-rig_from = analysis.rig.rig_from.replace(" (cached in calibration.json)", f" ({par.rig.mode})")
+rig_from = re.sub(r" \(cached in [^)]*\)", f" ({par.rig.mode})", analysis.rig.rig_from)  # cached or not
 print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
       f"{analysis.params.triangulate.mode} triangulation")
 print(f"pipeline choices: smoothing_method '{par.smooth.method}' (span {par.smooth.span:.2f} if used), "
