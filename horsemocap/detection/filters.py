@@ -491,7 +491,7 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     plane ``a + g . (p - p0)`` fitted to their heights above the background
     gives ``s = g / a``. One frame's slope is noisy (a few pixels, the
     sensor's noise); pooled over a marker's track it is precise
-    (:func:`~horsemocap.detection.identification.correct_light`).
+    (:func:`~horsemocap.detection.candidates.correct_light`).
 
     The moments and the plane's normal equations come from ``cv2.moments``
     (of the weights, of the interior pixels and of their heights); the plane
