@@ -401,7 +401,7 @@ def _tracker(frames, static):
 def test_reacquiring_stops_searching_once_the_cameras_cannot_see_every_marker(monkeypatch):
     """A frame where a camera sees fewer than every marker cannot be reacquired: its search ends there (issue 16)."""
     calls = []
-    search = tracker3d.whole_frame_count         # each camera's search (by the compiled core or in Python)
+    search = tracker3d.whole_frame_count         # each camera's search
     monkeypatch.setattr(tracker3d, "whole_frame_count", lambda *a, **k: calls.append(1) or search(*a, **k))
     frames, _, static = render(n=2, hide=(RIG.names[0], 0, 0, 2), blob=False, stirrup=False)
     tr = _tracker(frames, static)

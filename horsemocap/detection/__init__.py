@@ -72,11 +72,8 @@ is 1-based). Centres are, by default, intensity-weighted centroids of the gray
 image above the local background (``centroid="weighted"``); the thesis'
 geometric centre of the binary region is ``centroid="binary"``.
 
-The candidate search (threshold, labels, area, circularity, centres) runs in a
-compiled core when it is built (:mod:`~horsemocap.detection.regions_core`);
-:data:`ACTIVE_PATH` says which path runs (``"compiled"`` or ``"python"``;
-``HORSEMOCAP_PURE_PYTHON=1`` forces Python). The two give the same
-candidates.
+Everything runs in Python with NumPy and OpenCV; :data:`ACTIVE_PATH` (always
+``"python"``) is what ``analysis.json`` records as ``software.detection_core``.
 
 Every name below is importable from ``horsemocap.detection``.
 """
@@ -93,7 +90,6 @@ from .gaps import bridge_gaps, default_max_gap
 from .marker_model import fit_marker_model, label_frame
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
 from .matching import match_views
-from .regions_core import ACTIVE_PATH, ACTIVE_REASON
 from .stills import (StillCandidates, StillViews, detect_still, detect_still_views, match_still_views,
                      still_candidates)
 from .thesis_chain import (CandidateCache, choose_markers, cluster_persistence, detect_markers, follow_cluster,
@@ -101,6 +97,10 @@ from .thesis_chain import (CandidateCache, choose_markers, cluster_persistence, 
 from .thresholds import auto_threshold, binarize, otsu3_thresholds, otsu_threshold, to_gray
 from .timeshift import FrameShift, best_frame_shift, frame_shift_residuals
 from .tracker3d import IDENTIFICATION_REASONS, Identification, identify_markers, reason_counts
+
+#: The path that finds the candidate regions, as ``analysis.json`` records it (``software.detection_core``).
+ACTIVE_PATH = "python"
+ACTIVE_REASON = "pure Python"  # transitional (benchmarks/bench_identification.py, benchmarks/bench_detection.py)
 
 __all__ = [
     "ACTIVE_PATH", "ACTIVE_REASON",

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import regions_core
 from .base import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION, DetectionParams, Regions)
 from .filters import clip_crop, find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
 from .thresholds import bright_crops, connected_components, region_order_key
@@ -101,31 +100,24 @@ def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[
     crop : (u0, v0, u1, v1) or None
     centroid : {"weighted", "binary"}
 
+    light : bool
+        Also measure the light across each region (``slope``, ``moments``;
+        :func:`correct_light`).
+
     Returns
     -------
     Candidates
 
-    Notes
-    -----
-    Run by the compiled core when it is active
-    (:mod:`~horsemocap.detection.regions_core`), else by
-    :func:`_frame_candidates_python` (the reference; the same result).
+    Example
+    -------
+    >>> import numpy as np
+    >>> gray = np.zeros((60, 80), np.uint8)
+    >>> gray[20:25, 30:35] = 200
+    >>> gray[40:43, 0:3] = 200                        # cut by the image border
+    >>> cands = frame_candidates(gray, 100)
+    >>> cands.area.tolist(), cands.cut.tolist()
+    ([25.0, 9.0], [False, True])
     """
-    amax = _max_area(area_range, gray)
-    if regions_core.CORE is not None and isinstance(gray, np.ndarray) and gray.ndim == 2:
-        H, W = gray.shape
-        out = regions_core.core_candidates(gray, threshold, [clip_crop(crop, W, H)], (area_range[0], amax),
-                                           min_circularity, False, max_count, centroid, light)
-        if out is not None:
-            return Candidates(*out)
-    return _frame_candidates_python(gray, threshold, area_range, min_circularity, crop, centroid, max_count, light)
-
-
-def _frame_candidates_python(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[0], None),
-                             min_circularity: float | None = AUTO_MIN_CIRCULARITY, crop=None,
-                             centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA,
-                             light: bool = False) -> Candidates:
-    """:func:`frame_candidates` in Python and OpenCV (the reference of the compiled core)."""
     regions, keep = find_candidates(gray, threshold, (area_range[0], _max_area(area_range, gray)), None, crop=crop)
     return _candidates_of(gray, regions, keep, min_circularity, centroid, max_count, light)
 
@@ -233,47 +225,55 @@ def whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circula
     order OpenCV's labelling of the whole image gives them
     (:func:`~horsemocap.detection.thresholds.region_order_key`) before the
     ``max_count`` largest are kept (:func:`_crop_candidates`).
+
+    Parameters
+    ----------
+    gray : (h, w) uint8 image
+    threshold : int
+    area_range : (min, max) pixels (``max=None``: 0.5 % of the image)
+    min_circularity : float or None
+    centroid : {"weighted", "binary"}
+    max_count : int
+
+    Returns
+    -------
+    Candidates
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> gray = np.zeros((120, 160), np.uint8)
+    >>> gray[20:25, 30:35] = gray[90:96, 120:126] = 200
+    >>> whole = whole_frame_search(gray, 100, (3, None), 0.5)
+    >>> same = frame_candidates(gray, 100, (3, None), 0.5)
+    >>> bool(np.array_equal(whole.centre, same.centre)), len(whole)
+    (True, 2)
     """
-    boxes = regions_core.core_bright_boxes(gray, threshold)
-    return _core_whole_search(gray, threshold, boxes, area_range, min_circularity, centroid, max_count)
-
-
-def _core_whole_search(gray, threshold: int, boxes, area_range, min_circularity, centroid: str,
-                       max_count: int) -> Candidates:
-    """:func:`whole_frame_search` in the crops ``boxes`` (the core's ``bright_boxes``) by the compiled core,
-    or by :func:`_whole_frame_search_python` where the core is not active or does not take the input."""
-    if boxes is not None:
-        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], _max_area(area_range, gray)),
-                                           min_circularity, True, max_count, centroid, False)
-        if out is not None:
-            return Candidates(*out[:3])
-    return _whole_frame_search_python(gray, threshold, area_range, min_circularity, centroid, max_count)
-
-
-def _whole_frame_search_python(gray: np.ndarray, threshold: int, area_range, min_circularity,
-                               centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
-    """:func:`whole_frame_search` in Python and OpenCV (the reference of the compiled core)."""
-    crops = _bright_regions(gray, threshold, area_range)
-    return _crop_candidates(gray, crops, min_circularity, centroid, max_count)
+    return _crop_candidates(gray, _bright_regions(gray, threshold, area_range), min_circularity, centroid, max_count)
 
 
 def whole_frame_count(gray: np.ndarray, threshold: int, area_range):
-    """The number of regions in the area range not touching the image border (the shape rule not applied),
-    and ``search(min_circularity, centroid, max_count)``: :func:`whole_frame_search`'s candidates of the
-    same regions (the labels made once on the Python path; by the compiled core when active)."""
-    boxes = regions_core.core_bright_boxes(gray, threshold)
-    if boxes is not None:
-        out = regions_core.core_candidates(gray, threshold, boxes, (area_range[0], _max_area(area_range, gray)),
-                                           None, True, 2 ** 31 - 1, "binary", False)
-        if out is not None:
-            def search(min_circularity, centroid, max_count):
-                return _core_whole_search(gray, threshold, boxes, area_range, min_circularity, centroid, max_count)
-            return int(np.count_nonzero(~out[2])), search
+    """The regions of a whole image that can be markers, counted before the shape rule, and their search.
+
+    Parameters
+    ----------
+    gray : (h, w) uint8 image
+    threshold : int
+    area_range : (min, max) pixels (``max=None``: 0.5 % of the image)
+
+    Returns
+    -------
+    count : int
+        Regions in the area range not touching the image border.
+    search : callable ``search(min_circularity, centroid, max_count) -> Candidates``
+        :func:`whole_frame_search`'s candidates of the same image, from the
+        same labels (made once).
+    """
     regions = _bright_regions(gray, threshold, area_range)
 
-    def search_python(min_circularity, centroid, max_count):
+    def search(min_circularity, centroid, max_count):
         return _crop_candidates(gray, regions, min_circularity, centroid, max_count)
-    return sum(int(np.count_nonzero(~r.touches_border)) for r in regions), search_python
+    return sum(int(np.count_nonzero(~r.touches_border)) for r in regions), search
 
 
 def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
