@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from horsemocap import detection as det
-from horsemocap.detection import filters
+from horsemocap.detection import filters, thesis_chain
 from horsemocap.virtuallab.render import add_image_disc
 
 
@@ -132,8 +132,6 @@ def _random_cluster(rng, M, C):
 
 
 def test_thesis_choices_equal_the_distance_and_cross_product_filters():
-    from horsemocap.detection import tracking
-
     rng = np.random.default_rng(7)
     kept = 0
     for t in range(1500):
@@ -142,22 +140,20 @@ def test_thesis_choices_equal_the_distance_and_cross_product_filters():
         tol = float(rng.choice([0.05, 0.1, 0.3, 1.0]))
         d, s = det.marker_distances(base), det.cross_product_signs(base, 0.1)
         want = det.filter_cross_product(cent, det.filter_distance(cent, d, tol), s)
-        got = tracking._thesis_choices(cent, d, tol, s)
+        got = thesis_chain._thesis_choices(cent, d, tol, s)
         assert got.dtype == want.dtype and got.shape == want.shape and (got == want).all()
         kept += len(got)
     assert kept > 500
 
 
 def test_signs_in_python_floats_equal_cross_product_signs():
-    from horsemocap.detection import tracking
-
     rng = np.random.default_rng(8)
     for t in range(500):
         p = rng.normal(0, 50, (int(rng.integers(1, 7)), 2))
         if t % 5 == 0 and len(p) >= 3:
             p[2] = p[0] + (p[1] - p[0]) * 2.0            # a straight triple: sign 0
         want = det.cross_product_signs(p, 0.1)
-        got = tracking._signs_of(p.tolist(), 0.1)
+        got = thesis_chain._signs_of(p.tolist(), 0.1)
         assert got.dtype == want.dtype and np.array_equal(got, want)
 
 

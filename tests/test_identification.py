@@ -1,4 +1,5 @@
-"""Multi-view identification and 3D tracking (horsemocap.detection.identification, issue 17).
+"""Multi-view identification and 3D tracking (horsemocap.detection: candidates, matching, marker_model,
+tracker3d, gaps).
 
 Synthetic scenes with exact truth: markers on a rigid body moving in front of
 the thesis rig, drawn as anti-aliased discs; a pseudo marker rigidly attached
@@ -10,9 +11,11 @@ import numpy as np
 import pytest
 
 from horsemocap.camera import axis_rotations
-from horsemocap.detection import identification as ident
-from horsemocap.detection.identification import (Candidates, bridge_gaps, fit_marker_model, identify_markers,
-                                                 match_views, point_uncertainty)
+from horsemocap.detection import (DetectionError, auto_threshold, bridge_gaps, candidates, fit_marker_model,
+                                  identify_markers, marker_model, match_views, tracker3d)
+from horsemocap.detection.candidates import Candidates
+from horsemocap.detection.marker_model import RIGID_SLACK_M, point_uncertainty
+from horsemocap.reconstruction import DEFAULT_MAX_RESIDUAL_PX
 from horsemocap.virtuallab.render import add_image_disc
 from horsemocap.virtuallab.rig import thesis_rig
 
@@ -143,7 +146,7 @@ def test_identification_never_labels_the_stirrup_or_the_blob(scene):
         err = np.linalg.norm(idn.marker_px[c] - truth[c], axis=-1)
         assert used.sum() > 0.8 * used.size
         assert np.nanmax(err[used]) < 0.5, c             # no wrong identity in any frame
-        assert set(np.unique(idn.reason[c][~used])) <= set(ident.IDENTIFICATION_REASONS)
+        assert set(np.unique(idn.reason[c][~used])) <= set(tracker3d.IDENTIFICATION_REASONS)
         assert np.all(idn.reason[c][used] == "")
 
 
@@ -175,7 +178,7 @@ def test_bridge_gaps_fills_short_gaps_exactly_and_leaves_long_ones():
 def test_a_session_without_the_markers_ends_with_an_error_naming_the_cameras():
     frames, truth, static = render(n=12)
     empty = {c: [np.full_like(f[0], 40) for f in [frames[c]] for _ in range(12)] for c in frames}
-    with pytest.raises(ident.DetectionError, match="left.*middle.*right"):
+    with pytest.raises(DetectionError, match="left.*middle.*right"):
         identify_markers(empty, RIG, static, 3)
 
 
@@ -200,8 +203,8 @@ def test_handedness_is_not_used_for_a_triangle_seen_edge_on():
     eye = np.zeros(3)
     facing = np.array([[-0.2, 0.0, 7.7], [0.0, -0.1, 7.7], [0.2, 0.0, 7.7]])
     edge_on = np.array([[-0.2, 0.0, 7.7], [0.0, 0.0, 7.8], [0.2, 0.0, 7.7]])   # its plane holds the line of sight
-    assert ident._facing(facing, eye) == -ident._facing(facing[::-1], eye) != 0
-    assert ident._facing(edge_on, eye) == 0 and ident._facing(edge_on[::-1], eye) == 0
+    assert marker_model._facing(facing, eye) == -marker_model._facing(facing[::-1], eye) != 0
+    assert marker_model._facing(edge_on, eye) == 0 and marker_model._facing(edge_on[::-1], eye) == 0
 
 
 def test_the_skin_markers_are_chosen_by_several_frames_not_the_first(monkeypatch):
@@ -215,15 +218,15 @@ def test_the_skin_markers_are_chosen_by_several_frames_not_the_first(monkeypatch
         def __init__(self, sub):
             self.model_index, self.rms_m = np.array(sub), 0.001
 
-    monkeypatch.setattr(ident, "_whole_frame_candidates", lambda frames, k, *a: k)
-    monkeypatch.setattr(ident, "label_frame", lambda rig, k, *a, **kw: ("vp", Fit(scripted[k]), ""))
+    monkeypatch.setattr(tracker3d, "whole_frame_candidates", lambda frames, k, *a: k)
+    monkeypatch.setattr(tracker3d, "label_frame", lambda rig, k, *a, **kw: ("vp", Fit(scripted[k]), ""))
     frames = {"left": [None] * n, "right": [None] * n}
     model = np.zeros((4, 3))
-    found, tried, votes = ident._find_anchor(frames, None, ("left", "right"), {}, {}, model, 3, None, 2.0, 8)
+    found, tried, votes = tracker3d._find_anchor(frames, None, ("left", "right"), {}, {}, model, 3, None, 2.0, 8)
     assert found[0] == 58 and found[3].model_index.tolist() == [0, 1, 2]
     assert votes == {(1, 2, 3): [50], (0, 1, 2): [58, 42, 66, 34]}
     # with the skin markers known (or a static shot of the skin markers only) the first clear frame is the anchor
-    found, _, votes = ident._find_anchor(frames, None, ("left", "right"), {}, {}, model[:3], 3, None, 2.0, 8)
+    found, _, votes = tracker3d._find_anchor(frames, None, ("left", "right"), {}, {}, model[:3], 3, None, 2.0, 8)
     assert found[0] == 50 and len(votes) == 1
 
 
@@ -305,7 +308,7 @@ def _bare_tracker(n=3):
     from horsemocap.detection import DetectionParams
 
     frames = {c: [np.zeros((480, 640), np.uint8)] * n for c in RIG.names}
-    return ident._Tracker(frames, RIG, RIG.names, {c: 100 for c in RIG.names},
+    return tracker3d._Tracker(frames, RIG, RIG.names, {c: 100 for c in RIG.names},
                           {c: DetectionParams() for c in RIG.names}, BODY, 3, 2.0, 0.005, n)
 
 
@@ -320,7 +323,7 @@ def test_a_missed_marker_takes_the_reason_of_its_nearest_region():
     left = Candidates(proj["left"][0] + [[1.0, 0.0], [6.0, 0.0]], np.array([100.0, 5.0]), np.zeros(2, bool))
     cands = {"left": left, "middle": empty, "right": empty}
     tr._cand_index = {}
-    tr._solve_marker(1, 0, RIG.names, proj, radius, ref_area, cands, X[0], 0)
+    tr._solve_marker(1, 0, RIG.names, proj, radius, ref_area, cands, X[0])
     assert tr.reason["left"][1, 0] == "merged"          # the near region: two markers merged (not the far one's)
     assert tr.reason["middle"][1, 0] == "occluded" and np.isnan(tr.X[1, 0]).all()
 
@@ -380,7 +383,7 @@ def test_uneven_light_is_corrected_by_the_slope_pooled_over_the_track():
             px[k, 0] = det.weighted_centroids(img, reg, [big])[0]
             slope[k], moments[k] = det.light_terms(img, reg, [big])
         plain = px[:, 0] - truth
-        fixed = ident.correct_light(px, slope, moments)[:, 0] - truth
+        fixed = candidates.correct_light(px, slope, moments)[:, 0] - truth
         assert np.median(np.hypot(*plain.T)) > 0.05                                 # the pull of the light
         assert np.median(np.hypot(*fixed.T)) < 0.03, r
         assert np.all(np.std(fixed, axis=0) <= np.std(plain, axis=0) * 1.2 + 0.005)   # no noise added
@@ -390,22 +393,22 @@ def _tracker(frames, static):
     from horsemocap.detection import DetectionParams
 
     cams = RIG.names
-    thr = {c: ident.auto_threshold(frames[c], "otsu3") for c in cams}
-    return ident._Tracker(frames, RIG, cams, thr, {c: DetectionParams() for c in cams}, static[:3], 3,
-                          ident.DEFAULT_MAX_RESIDUAL_PX, ident.RIGID_SLACK_M, len(frames[cams[0]]))
+    thr = {c: auto_threshold(frames[c], "otsu3") for c in cams}
+    return tracker3d._Tracker(frames, RIG, cams, thr, {c: DetectionParams() for c in cams}, static[:3], 3,
+                          DEFAULT_MAX_RESIDUAL_PX, RIGID_SLACK_M, len(frames[cams[0]]))
 
 
 def test_reacquiring_stops_searching_once_the_cameras_cannot_see_every_marker(monkeypatch):
     """A frame where a camera sees fewer than every marker cannot be reacquired: its search ends there (issue 16)."""
     calls = []
-    search = ident._whole_count         # each camera's search (by the compiled core or in Python)
-    monkeypatch.setattr(ident, "_whole_count", lambda *a, **k: calls.append(1) or search(*a, **k))
+    search = tracker3d.whole_frame_count         # each camera's search
+    monkeypatch.setattr(tracker3d, "whole_frame_count", lambda *a, **k: calls.append(1) or search(*a, **k))
     frames, _, static = render(n=2, hide=(RIG.names[0], 0, 0, 2), blob=False, stirrup=False)
     tr = _tracker(frames, static)
     assert tr._reacquire_candidates(0) is None and len(calls) == 1
     assert not tr._reacquire(0)
-    cands = ident._whole_frame_candidates(frames, 0, RIG.names, tr.thr, tr.cparams)    # the full test agrees
-    vp, fit, _ = ident.label_frame(RIG, cands, tr.model, 3, tr.tol, np.arange(3), tr.slack)
+    cands = candidates.whole_frame_candidates(frames, 0, RIG.names, tr.thr, tr.cparams)    # the full test agrees
+    vp, fit, _ = marker_model.label_frame(RIG, cands, tr.model, 3, tr.tol, np.arange(3), tr.slack)
     assert fit is None or np.any((vp.index[fit.assignment] >= 0).sum(axis=1) < 3)
     frames, _, static = render(n=2, blob=False, stirrup=False)
     tr = _tracker(frames, static)

@@ -4,7 +4,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from horsemocap.detection.timeshift import best_frame_shift, frame_shift_residuals
+from horsemocap.detection import best_frame_shift, frame_shift_residuals
 
 from test_identification import BODY, RIG, render, world
 

@@ -24,13 +24,13 @@ chain of filters, each of which is a pure function here:
 (Figure 4.15); :func:`weighted_centroids` and :func:`find_candidates` live
 beside the filters.
 
-:func:`detect_markers` (``tracking.py``) runs the chain over a sequence (the
-thesis' ``left_image_centroids_3.m``) and returns ``marker_px`` (``PM_L``,
-Figure 4.14, transposed to the house layout ``(frames, markers, 2)``); every
-prompt of ``left_data_from_first_image_2.m`` is a field of
-:class:`DetectionParams` and is chosen automatically when left at ``None``
-(:class:`CandidateCache`, :func:`choose_markers`, :func:`follow_cluster`,
-:func:`cluster_persistence`, also in ``tracking.py``, with
+The thesis' per-camera chain is ``thesis_chain.py``: :func:`detect_markers`
+runs it over a sequence (the thesis' ``left_image_centroids_3.m``) and
+returns ``marker_px`` (``PM_L``, Figure 4.14, transposed to the house layout
+``(frames, markers, 2)``); every prompt of ``left_data_from_first_image_2.m``
+is a field of :class:`DetectionParams` and is chosen automatically when left
+at ``None`` (:class:`CandidateCache`, :func:`choose_markers`,
+:func:`follow_cluster`, :func:`cluster_persistence`, with
 :func:`valid_frames` and :func:`usable_frames`). :func:`detect_still`
 (``stills.py``) serves the plumb and static stills (Appendix A steps 7a, 8a,
 12a) of one camera; :func:`detect_still_views` finds them in all cameras at
@@ -40,18 +40,31 @@ like markers. ``markers2d.py`` is the one writer of ``markers_2d.csv``
 (:func:`marker_label`, :func:`markers_2d_csv_text`,
 :func:`write_markers_2d_csv`). ``base.py`` holds what they share:
 :class:`DetectionParams`, :class:`MarkerTrack`, :class:`Regions`,
-:data:`REASONS` and :class:`DetectionError`.
+:data:`REASONS`, :class:`DetectionError` and the default candidate rules.
 
-The pipeline's default is not this per-camera chain but
-``identification.py`` (issue 17, seed 000 sec. 5): candidates of every camera
-(the same threshold, labels, area and circularity rules), matched across the
-cameras by triangulation (:func:`match_views`: the epipolar constraint,
-validation by a further camera), labelled by the rigid marker model of the
-static shot (:func:`fit_marker_model`: 3D side lengths and handedness) and
-followed in 3D with a minimum-acceleration prediction
-(:func:`identify_markers`); a stirrup, a buckle or a glint fails the 3D tests
-that one camera cannot make. The thesis' chain stays selectable
-(``detection_method="thesis"``).
+The pipeline's default is not this per-camera chain but the multi-view
+identification (seed 000 sec. 5), in five modules named by what they do:
+
+- ``candidates.py``: the candidates of every camera (the same threshold,
+  labels, area and circularity rules; :func:`frame_candidates`,
+  :func:`whole_frame_search`, :func:`candidate_area_range`,
+  :func:`candidate_min_circularity`) and :func:`correct_light`;
+- ``matching.py``: matched across the cameras by triangulation
+  (:func:`match_views`: the epipolar constraint, validation by a further
+  camera);
+- ``marker_model.py``: labelled by the rigid marker model of the static shot
+  (:func:`fit_marker_model`: 3D side lengths and handedness;
+  :func:`label_frame`);
+- ``tracker3d.py``: followed in 3D with a minimum-acceleration prediction
+  (:func:`identify_markers`, :class:`Identification`,
+  :data:`IDENTIFICATION_REASONS`, :func:`reason_counts`);
+- ``gaps.py``: short gaps bridged in 3D (:func:`bridge_gaps`,
+  :func:`default_max_gap`).
+
+A stirrup, a buckle or a glint fails the 3D tests that one camera cannot
+make. The thesis' chain stays selectable (``detection_method="thesis"``).
+``timeshift.py`` checks the synchronisation with the identified markers
+(:func:`frame_shift_residuals`, :func:`best_frame_shift`).
 
 Pixel coordinates are ``(u, v)`` = (column, row), 0-based, with the centre of
 pixel ``(i, j)`` at ``u = j, v = i`` (OpenCV convention; MATLAB's regionprops
@@ -59,41 +72,50 @@ is 1-based). Centres are, by default, intensity-weighted centroids of the gray
 image above the local background (``centroid="weighted"``); the thesis'
 geometric centre of the binary region is ``centroid="binary"``.
 
-The candidate search (threshold, labels, area, circularity, centres) runs in a
-compiled core when it is built (:mod:`~horsemocap.detection.regions_core`,
-issue 16); :data:`ACTIVE_PATH` says which path runs (``"compiled"`` or
-``"python"``; ``HORSEMOCAP_PURE_PYTHON=1`` forces Python). The two give the
-same candidates.
+Everything runs in Python with NumPy and OpenCV; :data:`ACTIVE_PATH` (always
+``"python"``) is what ``analysis.json`` records as ``software.detection_core``.
 
-Every name below is importable from ``horsemocap.detection`` as before the
-module became a package.
+Every name below is importable from ``horsemocap.detection``.
 """
 from __future__ import annotations
 
-from .base import REASONS, DetectionError, DetectionParams, MarkerTrack, Regions
+from .base import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, REASONS, DetectionError, DetectionParams, MarkerTrack,
+                   Regions)
+from .candidates import (candidate_area_range, candidate_min_circularity, correct_light, frame_candidates,
+                         whole_frame_search)
 from .filters import (cross_product_signs, filter_area, filter_circularity, filter_cross_product,
                       filter_distance, filter_stages, filter_window, find_candidates, label_regions,
                       light_terms, marker_distances, region_circularity, weighted_centroids, window_center)
-from .identification import (IDENTIFICATION_REASONS, Identification, bridge_gaps, correct_light, default_max_gap,
-                             fit_marker_model, frame_candidates, identify_markers, label_frame, match_views)
-from .regions_core import ACTIVE_PATH, ACTIVE_REASON
+from .gaps import bridge_gaps, default_max_gap
+from .marker_model import fit_marker_model, label_frame
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
+from .matching import match_views
 from .stills import (StillCandidates, StillViews, detect_still, detect_still_views, match_still_views,
                      still_candidates)
+from .thesis_chain import (CandidateCache, choose_markers, cluster_persistence, detect_markers, follow_cluster,
+                           usable_frames, valid_frames)
 from .thresholds import auto_threshold, binarize, otsu3_thresholds, otsu_threshold, to_gray
-from .tracking import (CandidateCache, choose_markers, cluster_persistence, detect_markers, follow_cluster,
-                       usable_frames, valid_frames)
+from .timeshift import FrameShift, best_frame_shift, frame_shift_residuals
+from .tracker3d import IDENTIFICATION_REASONS, Identification, identify_markers, reason_counts
+
+#: The path that finds the candidate regions, as ``analysis.json`` records it (``software.detection_core``).
+ACTIVE_PATH = "python"
+ACTIVE_REASON = "pure Python"  # transitional (benchmarks/bench_identification.py, benchmarks/bench_detection.py)
 
 __all__ = [
     "ACTIVE_PATH", "ACTIVE_REASON",
     "REASONS", "DetectionError", "DetectionParams", "MarkerTrack", "Regions",
+    "GENERIC_AREA", "AUTO_MIN_CIRCULARITY",
     "to_gray", "binarize", "otsu_threshold", "otsu3_thresholds", "auto_threshold",
     "label_regions", "region_circularity", "filter_area", "filter_circularity",
     "filter_window", "window_center", "marker_distances", "filter_distance",
     "cross_product_signs", "filter_cross_product", "weighted_centroids", "light_terms", "correct_light",
-    "find_candidates", "follow_cluster", "choose_markers", "cluster_persistence", "CandidateCache", "filter_stages", "detect_markers", "detect_still",
+    "find_candidates", "follow_cluster", "choose_markers", "cluster_persistence", "CandidateCache", "filter_stages",
+    "detect_markers", "detect_still",
     "StillCandidates", "still_candidates", "StillViews", "match_still_views", "detect_still_views",
     "valid_frames", "usable_frames", "markers_2d_rows", "markers_2d_csv_text", "marker_label", "write_markers_2d_csv",
-    "IDENTIFICATION_REASONS", "Identification", "identify_markers", "frame_candidates", "match_views",
-    "fit_marker_model", "label_frame", "bridge_gaps", "default_max_gap",
+    "IDENTIFICATION_REASONS", "Identification", "identify_markers", "frame_candidates", "whole_frame_search",
+    "match_views", "fit_marker_model", "label_frame", "bridge_gaps", "default_max_gap",
+    "candidate_area_range", "candidate_min_circularity", "reason_counts",
+    "FrameShift", "frame_shift_residuals", "best_frame_shift",
 ]

@@ -3,7 +3,9 @@
 :class:`DetectionParams` (every prompt of thesis Appendix A step 4),
 :class:`MarkerTrack` (``PM`` of one camera, Figure 4.14), :class:`Regions`
 (labelled regions of one image, 4.5.2), the reason strings :data:`REASONS`
-of a marker not found, and :class:`DetectionError`. Every other module of the
+of a marker not found, :class:`DetectionError`, and the candidate rules used when
+none is given (:data:`GENERIC_AREA`, :data:`GENERIC_MAX_AREA_FRACTION`,
+:data:`AUTO_MIN_CIRCULARITY`). Every other module of the
 package imports from here; this one imports none of them.
 """
 from __future__ import annotations
@@ -13,6 +15,9 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 
 __all__ = [
+    "GENERIC_AREA",
+    "GENERIC_MAX_AREA_FRACTION",
+    "AUTO_MIN_CIRCULARITY",
     "REASONS",
     "DetectionError",
     "DetectionParams",
@@ -30,6 +35,15 @@ REASONS = {
     "ambiguous": "two or more regions fit equally well; no guess is made",
     "not_tracked": "no marker of the set could be followed to this frame",
 }
+
+
+#: Area range (px) of a candidate region when none is given: 3 px up to ``GENERIC_MAX_AREA_FRACTION``
+#: of the image (``None``).
+GENERIC_AREA = (3, None)
+#: The largest candidate region when no ``area_max`` is given, as a fraction of the image (0.5 %).
+GENERIC_MAX_AREA_FRACTION = 0.005
+#: The smallest circularity of a candidate region when none is given.
+AUTO_MIN_CIRCULARITY = 0.5
 
 
 class DetectionError(ValueError):

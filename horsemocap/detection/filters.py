@@ -24,7 +24,6 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from . import regions_core
 from .base import DetectionParams, Regions, boxes_touch_border
 from .thresholds import binarize, connected_components, to_gray
 
@@ -491,7 +490,7 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
     plane ``a + g . (p - p0)`` fitted to their heights above the background
     gives ``s = g / a``. One frame's slope is noisy (a few pixels, the
     sensor's noise); pooled over a marker's track it is precise
-    (:func:`~horsemocap.detection.identification.correct_light`).
+    (:func:`~horsemocap.detection.candidates.correct_light`).
 
     The moments and the plane's normal equations come from ``cv2.moments``
     (of the weights, of the interior pixels and of their heights); the plane
@@ -542,7 +541,7 @@ def light_terms(gray: np.ndarray, regions: Regions, index=None, margin: int = 2,
 def _central_moments(m: dict):
     """``(mu20, mu11, mu02)`` from the raw moments of ``cv2.moments`` (exact sums), by ``cv::Moments``'
     formula: the same numbers whether OpenCV computed its central moments itself or by IPP (which rounds
-    differently), and the compiled core's (issue 16)."""
+    differently)."""
     inv = 1.0 / m["m00"]
     cx, cy = m["m10"] * inv, m["m01"] * inv
     return m["m20"] - m["m10"] * cx, m["m11"] - m["m10"] * cy, m["m02"] - m["m01"] * cy
@@ -696,12 +695,8 @@ def _candidates_in(sub, origin, size, threshold, area_range, min_circularity, co
                         np.zeros((0, 2)), (u0, v0), (W, H))
         return empty, np.zeros(0, np.intp)
     u1, v1 = u0 + sub.shape[1], v0 + sub.shape[0]
-    labelled = regions_core.core_label(sub, threshold) if connectivity == 8 else None
-    if labelled is not None:          # the compiled core: threshold and labels in one pass, the same result
-        regions = _regions_of(labelled, sub.shape, (u0, v0), (W, H))
-    else:
-        bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
-        regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
+    bw = cv2.threshold(sub, int(threshold), 255, cv2.THRESH_BINARY)[1]
+    regions = label_regions(bw, connectivity, origin=(u0, v0), image_size=(W, H))
     if len(regions) <= KEEP_IN_PYTHON:
         keep = np.array(_kept(regions, area_range, (u0, v0, u1, v1), (W, H)), np.intp)
     else:

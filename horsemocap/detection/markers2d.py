@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..store import atomic_write_text
+
 __all__ = [
     "marker_label",
     "markers_2d_rows",
@@ -95,5 +97,4 @@ def markers_2d_csv_text(tracks: dict, frame_offsets: dict | None = None, reasons
 def write_markers_2d_csv(path, tracks: dict, frame_offsets: dict | None = None, reasons: dict | None = None,
                          residuals: dict | None = None) -> Path:
     """Write ``markers_2d.csv`` atomically (:func:`markers_2d_csv_text`)."""
-    from ..store import atomic_write_text
     return atomic_write_text(path, markers_2d_csv_text(tracks, frame_offsets, reasons, residuals))

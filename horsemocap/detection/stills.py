@@ -15,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import DetectionError, DetectionParams
+from ..reconstruction import triangulate
+from .base import AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION, DetectionError, DetectionParams
 from .filters import label_regions, weighted_centroids
+from .thesis_chain import CandidateCache, _tuple_cost_static
 from .thresholds import auto_threshold, binarize, to_gray
-from .tracking import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION, CandidateCache,
-                       _tuple_cost_static)
 
 __all__ = [
     "detect_still",
@@ -280,8 +280,6 @@ def _consistent_points(rig, cams, cand, max_residual_px, sizes=None):
 
 def _matched_in(rig, cams, cand, max_residual_px):
     """Correspondences seen by ALL of ``cams`` (see :func:`_consistent_points`)."""
-    from ..reconstruction import triangulate
-
     hyp = np.arange(len(cand[cams[0]]))[:, None]
     X, res = np.zeros((len(hyp), 3)), np.zeros(len(hyp))
     for j in range(1, len(cams)):

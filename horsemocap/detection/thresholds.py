@@ -181,7 +181,7 @@ def auto_threshold(images, method: str = "otsu3") -> int:
 
 
 # --------------------------------------------------------------------------
-# labelling a sparse bright image in crops (the whole-frame search, issue 16)
+# labelling a sparse bright image in crops (the whole-frame search)
 # --------------------------------------------------------------------------
 def connected_components(binary: np.ndarray, connectivity: int = 8):
     """``cv2.connectedComponentsWithStats`` (int32 labels) of ``binary``: ``(n, labels, stats, centroids)``.
@@ -190,9 +190,7 @@ def connected_components(binary: np.ndarray, connectivity: int = 8):
     (``cv2.CCL_BBDT``), which scans the image by 2 x 2 blocks as OpenCV's
     default does and gives the same labels, stats and centres
     (``tests/test_speed.py``), but in OpenCV 5.0 the default call with int32
-    labels takes a slower path: 1.59 against 0.47 ms on a 640 x 480 frame
-    of the long session (one thread; measured 2026-11-24). 4-connected
-    regions: OpenCV's default.
+    labels takes a slower path. 4-connected regions: OpenCV's default.
     """
     if connectivity == 8:
         return cv2.connectedComponentsWithStatsWithAlgorithm(binary, 8, cv2.CV_32S, cv2.CCL_BBDT)

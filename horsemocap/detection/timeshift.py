@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .identification import frame_candidates
+from .candidates import frame_candidates
 
 __all__ = ["FrameShift", "frame_shift_residuals", "best_frame_shift"]
 
@@ -84,7 +84,7 @@ def frame_shift_residuals(camera, points: np.ndarray, frames, first: int, shifts
     first : int
     shifts : iterable of int
     threshold, area_range, min_circularity, centroid
-        Candidate rules (:func:`~horsemocap.detection.identification.frame_candidates`).
+        Candidate rules (:func:`~horsemocap.detection.candidates.frame_candidates`).
     n_sample : int
         Frames sampled, evenly over those with at least two known markers.
     miss_px : float

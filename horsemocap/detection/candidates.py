@@ -1,0 +1,388 @@
+"""Candidate marker regions of one camera's image, and their centres freed of uneven light.
+
+The multi-view identification (:mod:`~horsemocap.detection.tracker3d`) looks
+for the markers among the *candidates* of every camera: the regions of a gray
+image above the threshold ``l`` (thesis eq. 4.5), 8-connected (4.5.2), in the
+area range (4.5.3) and round enough (circularity by geometric moments, seed
+000), each with its centre (intensity-weighted by default).
+
+- :func:`frame_candidates`: the candidates of one image or of a crop of it
+  (the tracker's search around a predicted marker);
+- :func:`whole_frame_search`, :func:`whole_frame_candidates`: the candidates
+  of whole images, labelled only in crops around their bright pixels (the
+  search for the marker set without a prediction);
+- :func:`candidate_area_range`, :func:`candidate_min_circularity`: the
+  candidate rules a camera's :class:`~horsemocap.detection.DetectionParams`
+  give;
+- :func:`correct_light`: a marker's centres freed of the pull of uneven light,
+  pooled over its track.
+
+Example
+-------
+>>> import numpy as np
+>>> gray = np.zeros((60, 80), np.uint8)
+>>> gray[20:25, 30:35] = 200
+>>> cands = frame_candidates(gray, 100)
+>>> len(cands), cands.centre.round(1).tolist()
+(1, [[32.0, 22.0]])
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .base import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, GENERIC_MAX_AREA_FRACTION, DetectionParams, Regions)
+from .filters import clip_crop, find_candidates, light_terms, region_circularity, region_weights, weighted_centroids
+from .thresholds import bright_crops, connected_components, region_order_key
+
+__all__ = [
+    "MAX_CANDIDATES_PER_CAMERA", "LIGHT_WINDOW", "Candidates", "frame_candidates", "whole_frame_search",
+    "whole_frame_candidates", "whole_frame_count", "candidate_area_range", "candidate_min_circularity",
+    "correct_light",
+]
+
+#: The most candidates kept per camera and image (the largest).
+MAX_CANDIDATES_PER_CAMERA = 24
+#: Frames on either side whose light slopes are pooled (:func:`correct_light`).
+LIGHT_WINDOW = 100
+
+
+# --------------------------------------------------------------------------
+# candidates of one image
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Candidates:
+    """Marker-like regions of one image (thesis 4.5.2-4.5.3 and circularity).
+
+    Attributes
+    ----------
+    centre : ndarray (K, 2)
+        ``(u, v)`` intensity-weighted (or binary) centres, full-image pixels.
+    area : ndarray (K,)
+        Pixel count.
+    cut : ndarray (K,) bool
+        Region touching the image border (its centre from the part symmetric
+        about it; used only as described in :func:`_whole_inside`).
+    slope, moments : ndarray (K, 2) and (K, 2, 2), optional
+        The light across the region and its weights' second moments
+        (:func:`~horsemocap.detection.filters.light_terms`), when asked for.
+    """
+
+    centre: np.ndarray
+    area: np.ndarray
+    cut: np.ndarray
+    slope: np.ndarray | None = None
+    moments: np.ndarray | None = None
+
+    def __len__(self):
+        return len(self.area)
+
+
+def frame_candidates(gray: np.ndarray, threshold: int, area_range=(GENERIC_AREA[0], None),
+                     min_circularity: float | None = AUTO_MIN_CIRCULARITY, crop=None,
+                     centroid: str = "weighted", max_count: int = MAX_CANDIDATES_PER_CAMERA,
+                     light: bool = False) -> Candidates:
+    """Candidate marker regions of one gray image, or of a crop of it.
+
+    Threshold ``l`` (eq. 4.5), 8-connected labels (4.5.2), area range (4.5.3),
+    circularity ``>= min_circularity`` (seed 000), at most ``max_count`` of the
+    largest. Regions cut by the image border are kept with ``cut=True`` (the
+    tracker needs to know a marker is there but unusable); regions cut by
+    the crop edge are dropped (:func:`~horsemocap.detection.find_candidates`).
+
+    Parameters
+    ----------
+    gray : (h, w) uint8 full image
+    threshold : int
+    area_range : (min, max) pixels; ``max=None``: 0.5 % of the image
+    min_circularity : float or None
+    crop : (u0, v0, u1, v1) or None
+    centroid : {"weighted", "binary"}
+
+    light : bool
+        Also measure the light across each region (``slope``, ``moments``;
+        :func:`correct_light`).
+
+    Returns
+    -------
+    Candidates
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> gray = np.zeros((60, 80), np.uint8)
+    >>> gray[20:25, 30:35] = 200
+    >>> gray[40:43, 0:3] = 200                        # cut by the image border
+    >>> cands = frame_candidates(gray, 100)
+    >>> cands.area.tolist(), cands.cut.tolist()
+    ([25.0, 9.0], [False, True])
+    """
+    regions, keep = find_candidates(gray, threshold, (area_range[0], _max_area(area_range, gray)), None, crop=crop)
+    return _candidates_of(gray, regions, keep, min_circularity, centroid, max_count, light)
+
+
+def _max_area(area_range, gray) -> float:
+    """The area range's upper end; None: 0.5 % of the image (at least 50 pixels)."""
+    H, W = gray.shape[:2]
+    return area_range[1] if area_range[1] is not None else max(50.0, GENERIC_MAX_AREA_FRACTION * H * W)
+
+
+def _candidates_of(gray, regions, keep, min_circularity, centroid: str, max_count: int, light: bool) -> Candidates:
+    """The labelled regions ``keep`` (area already filtered) of ``gray`` as :class:`Candidates`:
+    circularity, at most ``max_count`` of the largest, their centres (and light, when asked)."""
+    if len(keep) and min_circularity is not None:
+        circ = region_circularity(regions.subset(keep))
+        keep = keep[circ >= min_circularity]
+    if len(keep) > max_count:
+        keep = keep[np.argsort(-regions.area[keep], kind="stable")[:max_count]]
+    if len(keep) == 0:
+        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    slope = moments = None
+    if centroid == "binary":
+        centre = regions.centroid[keep].astype(float)
+    else:
+        u0, v0 = regions.origin
+        sub = gray[v0:v0 + regions.labels.shape[0], u0:u0 + regions.labels.shape[1]]
+        patches = region_weights(sub, regions, keep, 2) if light else None   # made once for both
+        centre = weighted_centroids(sub, regions, keep, symmetric_border=True, patches=patches)
+        if light:
+            slope, moments = light_terms(sub, regions, keep, patches=patches)
+    return Candidates(centre, regions.area[keep].astype(float), regions.touches_border[keep].copy(), slope, moments)
+
+
+
+# --------------------------------------------------------------------------
+# the candidate rules of a camera's parameters
+# --------------------------------------------------------------------------
+def candidate_area_range(params: DetectionParams) -> tuple:
+    """The area range ``(min, max)`` (pixels) of a camera's candidates.
+
+    ``params.area_min`` (default ``GENERIC_AREA[0]``, 3 px) and
+    ``params.area_max`` (None: 0.5 % of the image, decided per image by
+    :func:`frame_candidates`).
+
+    Example
+    -------
+    >>> from horsemocap.detection import DetectionParams
+    >>> candidate_area_range(DetectionParams()), candidate_area_range(DetectionParams(area_min=5, area_max=80))
+    ((3, None), (5, 80))
+    """
+    return (params.area_min if params.area_min is not None else GENERIC_AREA[0], params.area_max)
+
+
+def candidate_min_circularity(params: DetectionParams) -> float:
+    """The smallest circularity of a camera's candidates: ``params.min_circularity``, default
+    ``AUTO_MIN_CIRCULARITY`` (0.5).
+
+    Example
+    -------
+    >>> from horsemocap.detection import DetectionParams
+    >>> candidate_min_circularity(DetectionParams()), candidate_min_circularity(DetectionParams(min_circularity=0.7))
+    (0.5, 0.7)
+    """
+    return params.min_circularity if params.min_circularity is not None else AUTO_MIN_CIRCULARITY
+
+
+# --------------------------------------------------------------------------
+# candidates of whole images (no prediction)
+# --------------------------------------------------------------------------
+def whole_frame_candidates(frames: dict, k: int, cams, thr: dict, cparams: dict) -> dict:
+    """Candidates of frame ``k`` of every camera, searched in the whole image (no prediction).
+
+    Parameters
+    ----------
+    frames : dict camera -> sequence of (h, w) uint8 gray frames
+    k : int
+    cams : sequence of camera names
+    thr : dict camera -> threshold
+    cparams : dict camera -> DetectionParams (:func:`candidate_area_range`,
+        :func:`candidate_min_circularity`, ``centroid``)
+
+    Returns
+    -------
+    dict camera -> Candidates (:func:`whole_frame_search`)
+    """
+    return {c: whole_frame_search(frames[c][k], thr[c], candidate_area_range(cparams[c]),
+                                  candidate_min_circularity(cparams[c]), centroid=cparams[c].centroid)
+            for c in cams}
+
+
+def whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circularity, centroid: str = "weighted",
+                       max_count: int = MAX_CANDIDATES_PER_CAMERA) -> Candidates:
+    """:func:`frame_candidates` of a whole image, labelled in crops around its bright pixels.
+
+    The same candidates (same regions, same order, same centres), without a
+    label image of the whole frame: each crop of
+    :func:`~horsemocap.detection.thresholds.bright_crops` (padded groups of
+    bright 8 x 8 blocks; in a frame without the horse, most of a long
+    session, only glints, lamps and rails are bright) is labelled alone
+    (:func:`_bright_regions`); its regions in the area range get their
+    circularity (by the method the whole image's would:
+    :func:`~horsemocap.detection.filters.region_circularity`) and their
+    centres from the crop (a weighted centre looks at most 7 px beyond its
+    region, a crop holds 10); the candidates of all crops are put in the
+    order OpenCV's labelling of the whole image gives them
+    (:func:`~horsemocap.detection.thresholds.region_order_key`) before the
+    ``max_count`` largest are kept (:func:`_crop_candidates`).
+
+    Parameters
+    ----------
+    gray : (h, w) uint8 image
+    threshold : int
+    area_range : (min, max) pixels (``max=None``: 0.5 % of the image)
+    min_circularity : float or None
+    centroid : {"weighted", "binary"}
+    max_count : int
+
+    Returns
+    -------
+    Candidates
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> gray = np.zeros((120, 160), np.uint8)
+    >>> gray[20:25, 30:35] = gray[90:96, 120:126] = 200
+    >>> whole = whole_frame_search(gray, 100, (3, None), 0.5)
+    >>> same = frame_candidates(gray, 100, (3, None), 0.5)
+    >>> bool(np.array_equal(whole.centre, same.centre)), len(whole)
+    (True, 2)
+    """
+    return _crop_candidates(gray, _bright_regions(gray, threshold, area_range), min_circularity, centroid, max_count)
+
+
+def whole_frame_count(gray: np.ndarray, threshold: int, area_range):
+    """The regions of a whole image that can be markers, counted before the shape rule, and their search.
+
+    Parameters
+    ----------
+    gray : (h, w) uint8 image
+    threshold : int
+    area_range : (min, max) pixels (``max=None``: 0.5 % of the image)
+
+    Returns
+    -------
+    count : int
+        Regions in the area range not touching the image border.
+    search : callable ``search(min_circularity, centroid, max_count) -> Candidates``
+        :func:`whole_frame_search`'s candidates of the same image, from the
+        same labels (made once).
+    """
+    regions = _bright_regions(gray, threshold, area_range)
+
+    def search(min_circularity, centroid, max_count):
+        return _crop_candidates(gray, regions, min_circularity, centroid, max_count)
+    return sum(int(np.count_nonzero(~r.touches_border)) for r in regions), search
+
+
+def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
+    """The regions in the area range of each crop around the bright pixels (:class:`Regions` per crop)."""
+    H, W = gray.shape[:2]
+    amin, amax = area_range[0], _max_area(area_range, gray)
+    binary, boxes = bright_crops(gray, threshold)
+    crops = []
+    for u0, v0, u1, v1 in boxes:
+        n, lab, st, ce = connected_components(binary[v0:v1, u0:u1])
+        area = st[1:, 4].astype(np.int64)
+        keep = np.flatnonzero((area >= amin) & (area <= amax))
+        if len(keep) == 0:
+            continue
+        bbox = st[1:, :4].astype(np.int64) + np.array([u0, v0, 0, 0])
+        # OpenCV's centre is (sum of coordinates) / area: the sums are integers, recovered exactly
+        cents = (np.rint(ce[1:] * area[:, None]) + np.array([u0, v0]) * area[:, None]) / area[:, None]
+        crops.append(Regions(labels=lab, ids=np.arange(1, n), area=area, bbox=bbox, centroid=cents,
+                             origin=(u0, v0), image_size=(W, H)).subset(keep))
+    return crops
+
+
+def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: str, max_count: int) -> Candidates:
+    """:class:`Candidates` of the regions of :func:`_bright_regions`, in the whole image's labelling order."""
+    W = gray.shape[1]
+    if min_circularity is not None and crops:
+        by_moments = sum(len(r) for r in crops) <= 8
+        crops = [r.subset(region_circularity(r, by_moments) >= min_circularity) for r in crops]
+    crops = [r for r in crops if len(r)]
+    if not crops:
+        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    crop_of = np.concatenate([np.full(len(r), ci) for ci, r in enumerate(crops)])
+    in_crop = np.concatenate([np.arange(len(r)) for r in crops])
+    key = np.array([region_order_key(r.labels, rid, y, x, w, r.origin, W) for r in crops
+                    for rid, (x, y, w, _) in zip(r.ids.tolist(), r.bbox.tolist())])
+    order = np.argsort(key, kind="stable")
+    if len(order) > max_count:
+        areas = np.concatenate([r.area for r in crops])
+        order = order[np.argsort(-areas[order], kind="stable")[:max_count]]
+    centre = np.empty((len(order), 2))
+    area = np.empty(len(order))
+    cut = np.empty(len(order), bool)
+    for ci, r in enumerate(crops):
+        at = np.flatnonzero(crop_of[order] == ci)
+        if len(at) == 0:
+            continue
+        idx = in_crop[order[at]]
+        if centroid == "binary":
+            centre[at] = r.centroid[idx]
+        else:
+            (u0, v0), (h, w) = r.origin, r.labels.shape
+            centre[at] = weighted_centroids(gray[v0:v0 + h, u0:u0 + w], r, idx, symmetric_border=True)
+        area[at] = r.area[idx]
+        cut[at] = r.touches_border[idx]
+    return Candidates(centre, area, cut)
+
+
+
+# --------------------------------------------------------------------------
+# uneven light
+# --------------------------------------------------------------------------
+def correct_light(marker_px: np.ndarray, slope: np.ndarray, moments: np.ndarray, window: int = LIGHT_WINDOW,
+                  min_count: int = 5) -> np.ndarray:
+    """Centres of one camera freed of the pull of uneven light, pooled over each marker's track.
+
+    A marker lit unevenly (brightness ``1 + s . (p - p0)`` across it) has its
+    weighted centre ``S s`` from its disc's centre (``S`` the weights' second
+    moments; :func:`~horsemocap.detection.filters.light_terms`), the same in
+    every frame of the marker's track while the lamps and the tape do not
+    change. One frame's slope is too
+    noisy to correct that frame alone (it would add more noise to the
+    centres, and to the accelerations, than the bias it removes); the median
+    slope of the marker's frames within ``window`` frames (at least
+    ``min_count`` of them, else the nearest ``min_count``) is precise. The
+    moments are pooled alike (their median over the same frames): the
+    correction is the marker's steady offset, which hardly changes from
+    frame to frame, so that it adds no motion of its own (with each frame's
+    own moments the offset would follow the streak's length through the
+    stride, and the slope, taken from a streak's interior, is not exact for
+    a streak longer than the marker). Fewer than ``min_count`` slopes in the
+    record: unchanged.
+
+    Parameters
+    ----------
+    marker_px : (n, M, 2)
+    slope : (n, M, 2)
+        Per frame and marker (NaN: not measured).
+    moments : (n, M, 2, 2)
+
+    Returns
+    -------
+    (n, M, 2) corrected centres (NaN where ``marker_px`` is NaN).
+    """
+    out = np.array(marker_px, float, copy=True)
+    for m in range(out.shape[1]):
+        have = np.flatnonzero(np.all(np.isfinite(slope[:, m]), axis=1))
+        if len(have) < min_count:
+            continue
+        with_s = np.flatnonzero(np.all(np.isfinite(moments[:, m]), axis=(1, 2)))
+        if len(with_s) == 0:
+            continue
+        for k in np.flatnonzero(np.all(np.isfinite(out[:, m]), axis=1)):
+            near = have[np.abs(have - k) <= window]
+            if len(near) < min_count:
+                near = have[np.argsort(np.abs(have - k), kind="stable")[:min_count]]
+            near_s = with_s[np.abs(with_s - k) <= window]
+            if len(near_s) == 0:
+                near_s = with_s[np.argsort(np.abs(with_s - k), kind="stable")[:min_count]]
+            S = np.median(moments[near_s, m], axis=0)
+            out[k, m] = out[k, m] - S @ np.median(slope[near, m], axis=0)
+    return out
+
