@@ -15,10 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..camera import Rig
-from ..detection import (DetectionError, DetectionParams, bridge_gaps, default_max_gap, detect_markers,
-                         identify_markers)
-from ..detection.identification import _area_range, _min_circ, reason_counts
-from ..detection.timeshift import best_frame_shift, frame_shift_residuals
+from ..detection import (DetectionError, DetectionParams, best_frame_shift, bridge_gaps, candidate_area_range,
+                         candidate_min_circularity, default_max_gap, detect_markers, frame_shift_residuals,
+                         identify_markers, reason_counts)
 from ..params import DetectParams
 from ..progress import CountingFrames, counter
 from .. import subframe
@@ -351,7 +350,7 @@ def _check_round(session, section, sync, rig, idn, progress):
         p = camera_detection_params(section, c) or DetectionParams()
         try:
             shifts, med, npts = frame_shift_residuals(rig[c], points, seq, first, range(-reach, reach + 1),
-                                                      idn.thresholds[c], _area_range(p), _min_circ(p),
+                                                      idn.thresholds[c], candidate_area_range(p), candidate_min_circularity(p),
                                                       centroid=p.centroid)
         finally:
             seq.close()
