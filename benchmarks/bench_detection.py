@@ -126,8 +126,7 @@ def main(argv=None):
     ap.add_argument("--no-session", action="store_true", help="skip the default session's videos")
     a = ap.parse_args(argv)
     cv2.setNumThreads(1)
-    from horsemocap.detection import ACTIVE_REASON
-    print(f"OpenCV {cv2.__version__}, numpy {np.__version__}, 1 OpenCV thread; candidate search: {ACTIVE_REASON}")
+    print(f"OpenCV {cv2.__version__}, numpy {np.__version__}, 1 OpenCV thread; candidate search: pure Python")
     run((640, 480), a.frames, a.repeat)
     run((1920, 1080), max(10, a.frames // 2), a.repeat)
     if not a.no_session:

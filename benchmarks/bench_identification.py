@@ -146,8 +146,7 @@ def main():
     ap.add_argument("--frames", type=int, default=150)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    from horsemocap.detection import ACTIVE_REASON
-    print(f"candidate search: {ACTIVE_REASON}", flush=True)
+    print("candidate search: pure Python", flush=True)
     if args.speed:
         speed(args.speed, args.frames, args.repeat)
         return

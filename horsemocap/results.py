@@ -131,8 +131,8 @@ def angular_text(analysis) -> str:
 
 def software_record() -> dict:
     """What computed the results: the versions of horsemocap, Python, NumPy, SciPy and OpenCV, and the
-    detection path (``"compiled"``: the optional compiled core, ``"python"``: the pure-Python path;
-    the two give the same results, ``tests/test_regions_core.py``)."""
+    detection path (``"python"``: the only one since the optional compiled core was removed; earlier
+    results may say ``"compiled"``, which gave the same numbers)."""
     return {"horsemocap": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "scipy": scipy.__version__, "opencv": cv2.__version__, "detection_core": ACTIVE_PATH}
 

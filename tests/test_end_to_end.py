@@ -43,7 +43,7 @@ def test_analyze_writes_every_spec_file(demo_run):
     record = json.loads((demo_run / "analysis.json").read_text())
     assert set(record["parameters"]["sync"]["offsets"]) == {"left", "middle", "right"}
     from horsemocap.detection import ACTIVE_PATH
-    assert record["software"]["detection_core"] == ACTIVE_PATH in ("compiled", "python")
+    assert record["software"]["detection_core"] == ACTIVE_PATH == "python"
     assert record["software"]["horsemocap"] and record["software"]["opencv"]
     assert record["chosen"]["pose_smoothing"]["method"] == "gcv"            # the canter is periodic
     assert record["chosen"]["pose_smoothing"]["reason"].startswith("periodic record")

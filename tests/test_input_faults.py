@@ -365,7 +365,7 @@ def test_wrong_marker_count_fails_at_the_static_step_naming_the_field(tmp_path, 
 
 
 def test_reason_counts():
-    from horsemocap.detection.identification import reason_counts
+    from horsemocap.detection import reason_counts
 
     reason = {"left": np.array([["", "lost"], ["occluded", "lost"]], dtype=object),
               "right": np.full((2, 2), "", dtype=object)}

@@ -3,8 +3,7 @@ import cv2
 import numpy as np
 import pytest
 
-from horsemocap.detection.identification import (AUTO_MIN_CIRCULARITY, GENERIC_AREA, _whole_frame_search,
-                                                 frame_candidates)
+from horsemocap.detection import AUTO_MIN_CIRCULARITY, GENERIC_AREA, frame_candidates, whole_frame_search
 from horsemocap.detection.thresholds import connected_components, label_bright
 from horsemocap.virtuallab.longsession import _EmptyArena, pass_starts
 
@@ -66,7 +65,7 @@ def test_whole_frame_search_equals_frame_candidates(seed):
         for max_count in (3, 24):
             a = frame_candidates(img, 127, (GENERIC_AREA[0], None), AUTO_MIN_CIRCULARITY, centroid=centroid,
                                  max_count=max_count)
-            b = _whole_frame_search(img, 127, (GENERIC_AREA[0], None), AUTO_MIN_CIRCULARITY, centroid=centroid,
+            b = whole_frame_search(img, 127, (GENERIC_AREA[0], None), AUTO_MIN_CIRCULARITY, centroid=centroid,
                                     max_count=max_count)
             assert np.array_equal(a.centre, b.centre) and np.array_equal(a.area, b.area)
             assert np.array_equal(a.cut, b.cut)

@@ -100,10 +100,9 @@ from .tracker3d import IDENTIFICATION_REASONS, Identification, identify_markers,
 
 #: The path that finds the candidate regions, as ``analysis.json`` records it (``software.detection_core``).
 ACTIVE_PATH = "python"
-ACTIVE_REASON = "pure Python"  # transitional (benchmarks/bench_identification.py, benchmarks/bench_detection.py)
 
 __all__ = [
-    "ACTIVE_PATH", "ACTIVE_REASON",
+    "ACTIVE_PATH",
     "REASONS", "DetectionError", "DetectionParams", "MarkerTrack", "Regions",
     "GENERIC_AREA", "AUTO_MIN_CIRCULARITY",
     "to_gray", "binarize", "otsu_threshold", "otsu3_thresholds", "auto_threshold",

@@ -136,9 +136,9 @@ def plot_identification(images: dict, candidates: dict, views, fit, zoom=None, f
     Parameters
     ----------
     images : dict camera -> gray or RGB frame
-    candidates : dict camera -> :class:`~horsemocap.detection.identification.Candidates`
-    views : :class:`~horsemocap.detection.identification.ViewPoints`
-    fit : :class:`~horsemocap.detection.identification.ModelFit` or None
+    candidates : dict camera -> :class:`~horsemocap.detection.candidates.Candidates`
+    views : :class:`~horsemocap.detection.matching.ViewPoints`
+    fit : :class:`~horsemocap.detection.marker_model.ModelFit` or None
     zoom : (u0, v0, u1, v1) per camera (dict) or one box, optional
 
     Returns

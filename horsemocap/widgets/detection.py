@@ -20,7 +20,7 @@ from ._text import ControlText
 import numpy as np
 
 from .. import detection as det
-from ..detection.tracking import GENERIC_AREA
+from ..detection import GENERIC_AREA
 
 __all__ = ["ThresholdPicker", "LabelPicker", "WindowPicker", "DetectionControls",
            "ui_threshold", "ui_label_picker", "ui_area_range", "ui_window", "ui_distance_tolerance",

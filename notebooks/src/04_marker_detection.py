@@ -340,7 +340,7 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 
 # %%
 from horsemocap import accuracy
-from horsemocap.detection import identification
+from horsemocap.detection import frame_candidates, label_frame
 from horsemocap.workspace import results_for
 
 analysis = results_for(session, until="triangulate")
@@ -348,8 +348,8 @@ k = analysis.detect.identification.anchor_frame
 offsets = analysis.synchronisation.offsets
 thresholds = {c: analysis.detect.detection[c]["threshold"] for c in truth.cameras}
 images = {c: FrameSource(session / "motion" / f"{c}.avi").frame(offsets[c] + k, color=False) for c in truth.cameras}
-candidates = {c: identification.frame_candidates(images[c], thresholds[c]) for c in truth.cameras}
-views, fit, why = identification.label_frame(analysis.rig.rig, candidates, analysis.static.static_points, 3, 2.0)
+candidates = {c: frame_candidates(images[c], thresholds[c]) for c in truth.cameras}
+views, fit, why = label_frame(analysis.rig.rig, candidates, analysis.static.static_points, 3, 2.0)
 print(f"synchronised frame {k}; thresholds {thresholds}")
 print("candidate regions per camera: " + ", ".join(f"{c} {len(candidates[c])}" for c in truth.cameras))
 print(f"3D points consistent in two or more cameras: {len(views)}; the markers: points {fit.assignment.tolist()}, "
