@@ -34,7 +34,7 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 from functools import lru_cache
 from pathlib import Path
 
-from .store import read_text_utf8
+from .store import MAX_JSON_DEPTH, json_depth, read_text_utf8
 
 
 class ParamsError(ValueError):
@@ -1366,12 +1366,13 @@ def _read_params_object(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ParamsError(f"{path}: parameter file not found")
+    text = read_text_utf8(path, ParamsError)
+    if json_depth(text) > MAX_JSON_DEPTH:
+        raise ParamsError(f"{path}: JSON nested too deeply to read (a parameter file is a few levels deep)")
     try:
-        data = json.loads(read_text_utf8(path, ParamsError))
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    except RecursionError:
-        raise ParamsError(f"{path}: JSON nested too deeply to read (a parameter file is a few levels deep)") from None
     if isinstance(data, dict) and "parameters" in data:
         data = data["parameters"]
     if not isinstance(data, dict):

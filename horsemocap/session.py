@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .sources import check_image_file, FrameSource, SourceError
-from .store import read_text_utf8
+from .store import MAX_JSON_DEPTH, json_depth, read_text_utf8
 
 FORMAT = "horsemocap-session/1"
 KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion", "sync",
@@ -193,8 +193,12 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     if not path.is_file():
         raise SessionError(f"{path}: session file not found (a session folder holds session.json)")
 
+    text = read_text_utf8(path, SessionError)
+    if json_depth(text) > MAX_JSON_DEPTH:
+        raise SessionError(f"{path}: JSON nested too deeply to read (a session.json is a few levels deep: "
+                           "objects of fields, cameras and values)")
     try:
-        data = json.loads(read_text_utf8(path, SessionError))
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SessionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
     except RecursionError:

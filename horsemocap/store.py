@@ -59,6 +59,42 @@ def read_text_utf8(path, error=ValueError) -> str:
                     "save the file as UTF-8") from None
 
 
+MAX_JSON_DEPTH = 64
+"""The deepest nesting of objects and arrays a horsemocap JSON file is read with (session.json,
+parameter files and choices are a few levels deep)."""
+
+
+def json_depth(text: str) -> int:
+    """The deepest nesting of objects and arrays in a JSON text (brackets inside strings not counted).
+
+    Measured before parsing, so a hostile file is refused by its depth, whatever Python's recursion
+    limit is at the time.
+
+    Examples
+    --------
+    >>> json_depth('{"a": [1, {"b": "[[["}]}')
+    3
+    """
+    depth = deepest = 0
+    in_string = escaped = False
+    for ch in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_string = False
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
 def _atomic_write(path: Path, write, by_name: bool = False, suffix: str = "") -> Path:
     """Write ``path`` through a temporary file beside it; any OSError becomes a :class:`WriteError` naming ``path``."""
     path = Path(path)

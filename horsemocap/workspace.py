@@ -44,7 +44,7 @@ from .data import cache_dir, data_samples_dir, default_session_dir
 from .params import AnalysisParams, ParamsError
 from .pipeline import Analysis, analyze, resolve_params
 from .session import Session, load_session
-from .store import atomic_write_json, read_text_utf8, refuse_link
+from .store import MAX_JSON_DEPTH, atomic_write_json, json_depth, read_text_utf8, refuse_link
 
 CHOICES_FILE = "choices.json"
 WORKSPACE_FILE = "workspace.json"
@@ -114,12 +114,13 @@ def choices_path(session_dir=None) -> Path:
 # ---------------------------------------------------------------------------
 
 def _read_json(path: Path):
+    text = read_text_utf8(path, ParamsError)
+    if json_depth(text) > MAX_JSON_DEPTH:
+        raise ParamsError(f"{path}: JSON nested too deeply to read")
     try:
-        return json.loads(read_text_utf8(path, ParamsError))
+        return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParamsError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    except RecursionError:
-        raise ParamsError(f"{path}: JSON nested too deeply to read") from None
 
 
 def read_choices(session_dir=None) -> dict:
