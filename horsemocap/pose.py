@@ -1537,12 +1537,15 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     """
     rho = float("nan") if noise_correlation is None else float(noise_correlation)
     method, reason = _choose_white_noise_smoothing(fundamental_hz, events, order, lam_given)
-    if not np.isfinite(rho) or lam_given or order != 5:
+    if lam_given or order != 5:
         return method, reason
+    if not np.isfinite(rho):
+        return method, reason + ("" if noise_correlation is None else
+                                 "; no AR(1) noise correlation measurable from the rigidity residual")
     if rho >= NOISE_CORRELATION_THRESHOLD and not (events is not None and len(events)):
         return "gcv_ar1", (f"gcv with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
                            "(correlated-error GCV, no harmonics)")
-    return method, reason + (f"; rigidity residual's lag-1 correlation {rho:.2f}"
+    return method, reason + (f"; AR(1) noise correlation {rho:.2f} from the rigidity residual"
                              + (" (events: kept)" if rho >= NOISE_CORRELATION_THRESHOLD else
                                 f", below {NOISE_CORRELATION_THRESHOLD:g}: noise taken as white"))
 
