@@ -725,6 +725,17 @@ def _adaptive_events(x, y, w, lam, events, degree=2):
     return s2, e2, info2
 
 
+def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None:
+    """A clear error for a ``noise_correlation`` of :func:`smoothing_spline` that cannot be used."""
+    if rho is None:
+        return
+    if not (np.isfinite(rho) and -1 < rho < 1):
+        raise ValueError(f"noise_correlation: expected a lag-1 autocorrelation in (-1, 1), got {rho!r}")
+    if method != "gcv" or order != 5 or fundamental_hz is not None or (events is not None and len(events)):
+        raise ValueError("noise_correlation: the correlated-error GCV is the quintic 'gcv' spline without "
+                         "harmonics or events only")
+
+
 def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | None = None,
                      weights=None, noise: float | None = None, fundamental_hz: float | None = None,
                      max_harmonics: int = 10, harmonic_cutoff: bool = False,
@@ -810,12 +821,7 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         raise ValueError("t: times must increase")
     if method not in ("gcv", "adaptive", "noise", "none"):
         raise ValueError(f"method: expected 'gcv', 'adaptive', 'noise' or 'none', got {method!r}")
-    if noise_correlation is not None:
-        if not (np.isfinite(noise_correlation) and -1 < noise_correlation < 1):
-            raise ValueError(f"noise_correlation: expected a lag-1 autocorrelation in (-1, 1), got {noise_correlation!r}")
-        if method != "gcv" or order != 5 or fundamental_hz is not None or (events is not None and len(events)):
-            raise ValueError("noise_correlation: the correlated-error GCV is the quintic 'gcv' spline without "
-                             "harmonics or events only")
+    _check_noise_correlation(noise_correlation, method, order, fundamental_hz, events)
     if method == "noise" and not (noise is not None and np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise: method 'noise' needs a positive noise level, got {noise!r}")
     if method == "adaptive" and order != 5:
