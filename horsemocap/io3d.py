@@ -803,7 +803,9 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     ``events``: known times (s, the file's time axis) where the acceleration
     may jump, e.g. an impact's onset from a force plate
     (:func:`horsemocap.pose.fit_pose_trajectory`, ``events``; smoothing
-    "auto" (default: gcv with harmonics on a periodic record, adaptive otherwise), "gcv" or "adaptive"). With events the record is smoothed without stride
+    "auto" (default: gcv with harmonics on a periodic record, adaptive otherwise, and GCV with
+    the noise's AR(1) correlation where the markers' rigidity residual shows correlated noise,
+    :func:`horsemocap.pose.choose_smoothing`), "gcv" or "adaptive"). With events the record is smoothed without stride
     harmonics (the change points are for a non-periodic record; the two are
     not fitted together).
 
@@ -836,9 +838,14 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     model_all = sp[ok[0]]
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
-    reg = pose.register_pose(traj.subset(markers), model, names=markers)
+    points = traj.subset(markers)
+    reg = pose.register_pose(points, model, names=markers)
     harmonics = "none" if events is not None and len(events) else "auto"
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, PoseParams(smoothing=smoothing, harmonics=harmonics, events=events))
+    # the markers go with the poses: "auto" measures the noise's correlation from their rigidity residual
+    # (frames with two markers stay out of the smoothing, as without the markers)
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, PoseParams(smoothing=smoothing, harmonics=harmonics,
+                                                                      events=events, partial_frames=False),
+                                  points=points)
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,

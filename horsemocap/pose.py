@@ -23,8 +23,11 @@ object throughout:
    comes from the same covariances.
 2. **Smoothing of the pose trajectory** (:func:`fit_pose_trajectory`): the
    position of the model's centroid ``c(t)`` and the rotation written as
-   ``R(t) = Exp(phi(t)) R_ref`` (``R_ref`` the mean rotation, ``phi`` the
-   rotation vector in the motion frame, unwrapped so that it is continuous)
+   ``R(t) = Exp(phi(t)) R_ref(t)`` (``R_ref`` the mean rotation, or, for a
+   body that turns far, a smooth reference that turns with it about its main
+   axis, :func:`rotation_reference`; ``phi`` the rotation vector in the
+   motion frame, unwrapped so that it is continuous: no singularity at any
+   number of turns)
    are smoothed component by component with a smoothing spline whose
    smoothing parameter is chosen from the data by generalised
    cross-validation (:func:`horsemocap.splines.smoothing_spline`). With
@@ -45,7 +48,8 @@ object throughout:
    frames, then act beyond the frames that are reported.
 3. **Analytic derivatives** (:class:`PoseTrajectory`): ``v_c = c'``,
    ``a_c = c''``; ``omega = J_l(phi) phi'`` and ``alpha = J_l(phi) phi'' +
-   J_l'(phi) phi'`` with the left Jacobian of SO(3); any body point ``d``
+   J_l'(phi) phi'`` with the left Jacobian of SO(3) (plus the moving
+   reference's own turning, :meth:`PoseTrajectory.omega`); any body point ``d``
    (model coordinates relative to the centroid) has ``r = R d``,
    ``v = v_c + omega x r``, ``a = a_c + alpha x r + omega x (omega x r)``
    (eq. 6.54/6.55 with the body's own omega and alpha).
@@ -114,6 +118,7 @@ import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import make_lsq_spline
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
@@ -133,10 +138,13 @@ __all__ = [
     "refine_pose_covariance",
     "extra_marker_noise",
     "unwrap_rotvec",
+    "RotationReference",
+    "rotation_reference",
     "left_jacobian",
     "angular_velocity_from_rotvec",
     "angular_acceleration_from_rotvec",
     "fit_pose_trajectory",
+    "rigidity_residual_correlation",
     "conditioning_warnings",
     "pose_noise",
     "frame_variances",
@@ -656,9 +664,10 @@ def _register_covariance(points, model, cov, used, rotation, translation, extra_
 def unwrap_rotvec(phi) -> np.ndarray:
     """Make a sequence of rotation vectors (n, 3) continuous (NaN rows kept).
 
-    ``phi`` and ``phi - 2 pi phi/|phi|`` are the same rotation; for each
-    frame the representative closest to the previous finite frame is kept,
-    so a rotation passing through 180 degrees from the reference does not jump.
+    ``phi`` and ``phi + 2 pi k phi/|phi|`` (any integer ``k``) are the same
+    rotation; for each frame the representative closest to the previous
+    finite frame is kept, so a rotation about a fixed axis stays continuous
+    through 180 degrees and over any number of turns.
 
     Examples
     --------
@@ -666,6 +675,13 @@ def unwrap_rotvec(phi) -> np.ndarray:
 
     >>> unwrap_rotvec([[0.0, 0, 3.1], [0.0, 0, -3.1]])[:, 2].round(4)
     array([3.1   , 3.1832])
+
+    Ten turns in steps of 0.5 rad stay one straight line:
+
+    >>> from scipy.spatial.transform import Rotation
+    >>> raw = Rotation.from_rotvec(np.outer(np.arange(130) * 0.5, [0, 0, 1])).as_rotvec()
+    >>> float(unwrap_rotvec(raw)[-1, 2])
+    64.5
     """
     phi = np.array(phi, float)
     prev = None
@@ -676,10 +692,136 @@ def unwrap_rotvec(phi) -> np.ndarray:
             th = np.linalg.norm(phi[i])
             if th > 1e-12:
                 u = phi[i] / th
-                cands = [phi[i] + 2 * np.pi * j * u for j in (-2, -1, 0, 1, 2)]
+                k0 = np.round((prev @ u - th) / (2 * np.pi))
+                cands = [phi[i] + 2 * np.pi * (k0 + j) * u for j in (-1, 0, 1)]
                 phi[i] = min(cands, key=lambda c: np.linalg.norm(c - prev))
         prev = phi[i]
     return phi
+
+
+#: The largest rotation (rad) from the record's mean rotation for which the
+#: rotation vector is taken about that one fixed reference; beyond it the
+#: reference turns with the body (:func:`rotation_reference`).
+FIXED_REFERENCE_MAX_ANGLE = np.pi / 2
+#: The largest rotation (rad) of a frame from the moving reference that
+#: :func:`rotation_reference` accepts before it gives the reference's angle more knots.
+MOVING_REFERENCE_MAX_ANGLE = np.pi / 4
+#: The fewest frames per knot interval of the moving reference's angle.
+MOVING_REFERENCE_MIN_FRAMES = 8
+
+
+@dataclass(frozen=True)
+class RotationReference:
+    """The rotation ``R_ref(t) = Exp(theta(t) u) R_0`` about which the pose's rotation vector is taken.
+
+    A fixed reference (``axis`` None) is ``R_0``; a moving one turns about
+    the fixed axis ``u`` (motion frame) by the smooth angle ``theta(t)`` (a
+    quintic spline), so that a body turning any number of times stays close to
+    it and its rotation vector ``phi`` in ``R(t) = Exp(phi(t)) R_ref(t)``
+    stays small, far from the singularities of ``Exp`` at ``|phi| = 2 pi k``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.interpolate import make_interp_spline
+    >>> ref = RotationReference(np.eye(3), np.array([0, 0, 1.0]),
+    ...                         make_interp_spline([0, 1, 2, 3], [0, 2.0, 4.0, 6.0], k=3))
+    >>> ref.omega([1.5]).round(6)
+    array([[0., 0., 2.]])
+    """
+
+    base: np.ndarray
+    axis: np.ndarray | None = None
+    angle: object = None
+
+    def rotation(self, t) -> Rotation:
+        """``R_ref(t)`` as a :class:`~scipy.spatial.transform.Rotation` of ``len(t)`` rotations."""
+        t = np.atleast_1d(np.asarray(t, float))
+        base = Rotation.from_matrix(np.broadcast_to(self.base, (t.size, 3, 3)))
+        if self.axis is None:
+            return base
+        return Rotation.from_rotvec(np.outer(self.angle(t), self.axis)) * base
+
+    def omega(self, t) -> np.ndarray:
+        """The reference's angular velocity (rad/s, motion frame) (n, 3)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        if self.axis is None:
+            return np.zeros((t.size, 3))
+        return np.outer(self.angle(t, 1), self.axis)
+
+    def alpha(self, t) -> np.ndarray:
+        """The reference's angular acceleration (rad/s^2, motion frame) (n, 3)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        if self.axis is None:
+            return np.zeros((t.size, 3))
+        return np.outer(self.angle(t, 2), self.axis)
+
+
+def _turning_axis(rots: Rotation) -> np.ndarray:
+    """The axis (3,) about which a sequence of rotations mostly turns: the sum of its frame-to-frame
+    rotation vectors, or, where they cancel (a back-and-forth motion), their principal direction."""
+    step = (rots[1:] * rots[:-1].inv()).as_rotvec()
+    total = step.sum(0)
+    if np.linalg.norm(total) > 0.5 * np.linalg.norm(step, axis=1).sum():
+        return total / np.linalg.norm(total)
+    w, v = np.linalg.eigh(step.T @ step)
+    axis = v[:, -1]
+    return axis if axis @ total >= 0 else -axis
+
+
+def rotation_reference(t, rots: Rotation) -> tuple[RotationReference, np.ndarray]:
+    """The reference rotation of a pose trajectory and each frame's rotation vector about it.
+
+    ``(reference, phi)`` with ``R_k = Exp(phi_k) R_ref(t_k)``, ``phi``
+    continuous (:func:`unwrap_rotvec`). A record whose rotations stay within
+    :data:`FIXED_REFERENCE_MAX_ANGLE` of their mean keeps the mean as a
+    fixed reference. Otherwise the reference turns with the body about its
+    main turning axis ``u`` (:func:`_turning_axis`) by an angle ``theta(t)``:
+    the frame-to-frame rotations projected on ``u`` and summed, fitted by a
+    least-squares quintic spline (as smooth as the
+    pose's own splines, so that its knots leave no kink in ``phi``) with as few knots as keep every frame within
+    :data:`MOVING_REFERENCE_MAX_ANGLE` of the reference (one quintic over the
+    record at a constant or steadily changing speed; at least
+    :data:`MOVING_REFERENCE_MIN_FRAMES` frames per knot interval). The
+    reference is smooth and slow, and what the smoothing of ``phi`` sees is
+    the motion about it.
+
+    Parameters
+    ----------
+    t : (n,)
+        Times of the frames with a rotation (s), increasing.
+    rots : Rotation of n rotations
+
+    Examples
+    --------
+    Four turns about z at 3 rad/s: the reference turns with the body.
+
+    >>> t = np.arange(200) / 25.0
+    >>> ref, phi = rotation_reference(t, Rotation.from_rotvec(np.outer(3 * t, [0, 0, 1])))
+    >>> float(np.abs(phi).max()) < 1e-9, ref.omega([2.0]).round(6)
+    (True, array([[0., 0., 3.]]))
+    """
+    t = np.asarray(t, float)
+    mean = rots.mean()
+    phi = unwrap_rotvec((rots * mean.inv()).as_rotvec())
+    if np.linalg.norm(phi, axis=1).max() <= FIXED_REFERENCE_MAX_ANGLE or len(rots) < 4:
+        return RotationReference(mean.as_matrix()), phi
+    axis = _turning_axis(rots)
+    step = (rots[1:] * rots[:-1].inv()).as_rotvec() @ axis
+    theta = np.concatenate([[0.0], np.cumsum(step)])
+    intervals = 1
+    while True:
+        knots = np.quantile(t, np.linspace(0, 1, intervals + 1))
+        spline = make_lsq_spline(t, theta, np.r_[[t[0]] * 5, knots, [t[-1]] * 5], k=5)
+        turn = Rotation.from_rotvec(np.outer(spline(t), axis))
+        base = (turn.inv() * rots).mean()
+        ref = RotationReference(base.as_matrix(), axis, spline)
+        phi = unwrap_rotvec((rots * ref.rotation(t).inv()).as_rotvec())
+        finer = 2 * intervals
+        if (np.linalg.norm(phi, axis=1).max() <= MOVING_REFERENCE_MAX_ANGLE
+                or len(t) / finer < MOVING_REFERENCE_MIN_FRAMES):
+            return ref, phi
+        intervals = finer
 
 
 def _jac_coeffs(th):
@@ -770,7 +912,7 @@ class PointKinematics:
 class PoseTrajectory:
     """A rigid body's smoothed pose over time and its analytic derivatives.
 
-    ``R(t) = Exp(phi(t)) R_ref``, centroid ``c(t)``; both smoothed
+    ``R(t) = Exp(phi(t)) R_ref(t)``, centroid ``c(t)``; both smoothed
     (:func:`fit_pose_trajectory`). Evaluate at any times inside the record.
 
     Attributes
@@ -778,7 +920,8 @@ class PoseTrajectory:
     t : (n,)
         The frames' times.
     reference : (3, 3)
-        ``R_ref``: the mean of the registered rotations.
+        ``R_ref``: the mean of the registered rotations; for a body that
+        turns far, ``R_0`` of the moving reference.
     model_centroid : (3,)
         Mean of the model (static shot): body points are given relative to it.
     centre_splines, rotvec_splines : tuple of 3 smoothing splines
@@ -788,6 +931,11 @@ class PoseTrajectory:
     reason : (n,) str
         Why a frame is NaN, or ``"bridged gap ..."`` for interpolated frames.
     registration : PoseRegistration
+    rotvec_data : (n, 3)
+        The rotation vectors the splines were fitted to.
+    moving_reference : RotationReference or None
+        ``R_ref(t)`` of a body that turns far (:func:`rotation_reference`);
+        None: the fixed ``reference``.
     """
 
     t: np.ndarray
@@ -799,6 +947,10 @@ class PoseTrajectory:
     reason: np.ndarray
     registration: PoseRegistration
     rotvec_data: np.ndarray = field(repr=False, default=None)
+    moving_reference: RotationReference | None = field(repr=False, default=None)
+
+    def _reference(self) -> RotationReference:
+        return self.moving_reference or RotationReference(self.reference)
 
     @property
     def smoothing(self) -> dict:
@@ -813,7 +965,10 @@ class PoseTrajectory:
         info = self.centre_splines[0].info
         if "smoothing_method" not in info:
             return None
-        return {"method": info["smoothing_method"], "reason": info["smoothing_reason"]}
+        out = {"method": info["smoothing_method"], "reason": info["smoothing_reason"]}
+        if "noise_correlation" in info:
+            out["noise_correlation"] = info["noise_correlation"]
+        return out
 
     def _inside(self, t):
         t = np.asarray(t, float)
@@ -846,16 +1001,36 @@ class PoseTrajectory:
         ok = np.all(np.isfinite(phi), axis=1)
         R = np.full((len(phi), 3, 3), np.nan)
         if ok.any():
-            R[ok] = (Rotation.from_rotvec(phi[ok]) * Rotation.from_matrix(self.reference)).as_matrix()
+            R[ok] = (Rotation.from_rotvec(phi[ok]) * self._reference().rotation(np.asarray(t, float)[ok])).as_matrix()
         return R
 
+    def _turned_reference_rate(self, t, phi, rate) -> np.ndarray:
+        """``Exp(phi) rate``: the reference's angular velocity or acceleration seen through ``Exp(phi)``."""
+        out = np.full(phi.shape, np.nan)
+        ok = np.all(np.isfinite(phi), axis=1)
+        if ok.any():
+            out[ok] = Rotation.from_rotvec(phi[ok]).apply(rate[ok])
+        return out
+
     def omega(self, t) -> np.ndarray:
-        """Angular velocity (rad/s) in the motion frame, analytic."""
-        return angular_velocity_from_rotvec(self.rotvec(t), self.rotvec(t, 1))
+        """Angular velocity (rad/s) in the motion frame, analytic:
+        ``J_l(phi) phi' + Exp(phi) omega_ref``."""
+        phi = self.rotvec(t)
+        w = angular_velocity_from_rotvec(phi, self.rotvec(t, 1))
+        if self.moving_reference is None:
+            return w
+        return w + self._turned_reference_rate(t, phi, self.moving_reference.omega(t))
 
     def alpha(self, t) -> np.ndarray:
-        """Angular acceleration (rad/s^2) in the motion frame, analytic."""
-        return angular_acceleration_from_rotvec(self.rotvec(t), self.rotvec(t, 1), self.rotvec(t, 2))
+        """Angular acceleration (rad/s^2) in the motion frame, analytic:
+        ``alpha_phi + omega_phi x (Exp(phi) omega_ref) + Exp(phi) alpha_ref``."""
+        phi, dphi = self.rotvec(t), self.rotvec(t, 1)
+        a = angular_acceleration_from_rotvec(phi, dphi, self.rotvec(t, 2))
+        if self.moving_reference is None:
+            return a
+        w_phi = angular_velocity_from_rotvec(phi, dphi)
+        w_ref = self._turned_reference_rate(t, phi, self.moving_reference.omega(t))
+        return a + np.cross(w_phi, w_ref) + self._turned_reference_rate(t, phi, self.moving_reference.alpha(t))
 
     def centre(self, t, derivative: int = 0) -> np.ndarray:
         """The model centroid's smoothed position, velocity or acceleration (n, 3)."""
@@ -1101,19 +1276,20 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     n = t.size
     lam = _check_smoothing_choices(params, lam)
     smoothing, order = ("gcv", 3) if params.smoothing == "gcv_cubic" else (params.smoothing, 5)
-    rots = Rotation.from_matrix(reg.rotation[ok])
-    ref = rots.mean()
+    ref, phi_ok = rotation_reference(t[ok], Rotation.from_matrix(reg.rotation[ok]))
     phi = np.full((n, 3), np.nan)
-    phi[ok] = unwrap_rotvec((rots * ref.inv()).as_rotvec())
+    phi[ok] = phi_ok
     sig = np.full(6, None)
     if smoothing == "noise":
         if points is None:
             raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
         sig = pose_noise(reg, points, model)
+    rho = rigidity_residual_correlation(points, reg) if smoothing == "auto" and points is not None else None
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
                                               params, fundamental_hz, expected_fundamental_hz,
                                               lam_given=all(v is not None for v in lam),
-                                              weighted=reg.information is not None)
+                                              weighted=reg.information is not None, noise_correlation=rho)
+    correlated = choice is not None and "noise_correlation" in choice
     two = _two_marker_frames(points, ok, n) if params.partial_frames else np.zeros(n, bool)
     # the rotation components' noise, against which their harmonics are tested: predicted from the
     # registration residual and the marker geometry (isotropic marker noise; pose_noise without the points)
@@ -1121,19 +1297,23 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     if f0 is not None and params.harmonics == "auto" and rotation_noise_test:
         rot_noise = [float(v) if np.isfinite(v) else None for v in pose_noise(reg, None, model)[3:]]
     var = None
-    if params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None:
+    if (params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None
+            and not correlated):
         var = frame_variances(reg)[:, 3:]
     spline_options = dict(method=smoothing, order=order, fundamental_hz=f0,
                           events=_pose_events(params.events, smoothing, order, f0))
+    if correlated:
+        spline_options["noise_correlation"] = choice["noise_correlation"]
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     if choice is not None:
         for s in cs + ps:
             s.info.update(choice)
     valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
-    return PoseTrajectory(t=t, reference=ref.as_matrix(), model_centroid=np.asarray(model, float).mean(0),
+    return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
                           centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
-                          registration=reg, rotvec_data=phi)
+                          registration=reg, rotvec_data=phi,
+                          moving_reference=None if ref.axis is None else ref)
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:
@@ -1163,7 +1343,7 @@ def _check_pose_frames(t, reg: PoseRegistration) -> np.ndarray:
 
 
 def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fundamental_hz, expected_hz, *,
-                      lam_given: bool, weighted: bool):
+                      lam_given: bool, weighted: bool, noise_correlation: float | None = None):
     """``(smoothing, fundamental or None, choice)``: ``"auto"`` settled (:func:`choose_smoothing`; ``choice``
     says what ran and why, else None) and the stride frequency whose harmonics are fitted, if any."""
     def with_harmonics(method):
@@ -1173,11 +1353,16 @@ def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fund
     if (smoothing == "auto" or with_harmonics(smoothing)) and found_f0 is None:
         found_f0, confirmed = _record_fundamental(t, Y, expected_hz)
     if smoothing == "auto":
-        smoothing, reason = choose_smoothing(found_f0, params.events, order, lam_given=lam_given)
-        reason += confirmed
-        if smoothing == "adaptive" and weighted and params.rotation_weights == "auto":
-            reason += "; the rotation's per-frame variance weights are a GCV option and not applied"
+        smoothing, reason = choose_smoothing(found_f0, params.events, order, lam_given=lam_given,
+                                             noise_correlation=noise_correlation)
         choice = {"smoothing_method": smoothing, "smoothing_reason": reason}
+        if smoothing == "gcv_ar1":
+            smoothing = "gcv"
+            choice["noise_correlation"] = min(float(noise_correlation), 0.99)
+            return smoothing, None, choice
+        choice["smoothing_reason"] += confirmed
+        if smoothing == "adaptive" and weighted and params.rotation_weights == "auto":
+            choice["smoothing_reason"] += "; the rotation's per-frame variance weights are a GCV option and not applied"
     return smoothing, (found_f0 if with_harmonics(smoothing) else None), choice
 
 
@@ -1207,11 +1392,11 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
         if it == iterations or not two.any():
             break
         tk = t[two]
-        Rp = (Rotation.from_rotvec(np.stack([s(tk) for s in ps], -1)) * ref).as_matrix()
+        Rp = (Rotation.from_rotvec(np.stack([s(tk) for s in ps], -1)) * ref.rotation(tk)).as_matrix()
         cp = np.stack([s(tk) for s in cs], -1)
         R2, c2 = partial_pose(np.asarray(points, float)[two], x_model, Rp, cp)
         centre[two] = c2
-        phi[two] = (Rotation.from_matrix(R2) * ref.inv()).as_rotvec()
+        phi[two] = (Rotation.from_matrix(R2) * ref.rotation(tk).inv()).as_rotvec()
         phi = unwrap_rotvec(phi)
         use = ok | two
     return centre, phi, cs, ps
@@ -1263,7 +1448,61 @@ def _record_fundamental(t, Y, expected_hz=None) -> tuple:
                f"confirmed by the stride period of the motion-frame step, {expected_hz:.4g} Hz)")
 
 
-def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False) -> tuple[str, str]:
+#: The lag-1 autocorrelation of the markers' rigidity residual (:func:`rigidity_residual_correlation`)
+#: from which ``smoothing="auto"`` treats the noise as correlated (:func:`choose_smoothing`).
+NOISE_CORRELATION_THRESHOLD = 0.3
+#: The fewest pairs of consecutive residuals :func:`rigidity_residual_correlation` measures from.
+NOISE_CORRELATION_MIN_PAIRS = 30
+
+
+def rigidity_residual_correlation(points, registration: PoseRegistration) -> float:
+    """The lag-1 autocorrelation ``rho`` of the markers' rigidity residual as an AR(1) noise; NaN if none.
+
+    The residual (each frame's markers minus the registered model) is noise
+    the rigid motion does not contain. Real residuals also hold slow parts
+    (skin and tape movement, a cluster that bends) whose correlation is near
+    1 at one frame: taken as the noise of an AR(1) model they would make
+    everything noise. ``rho`` is therefore estimated from the residual's
+    frame-to-frame differences, which the slow parts hardly reach: for an
+    AR(1) noise the differences have lag-1 correlation ``-(1 - rho)/2``, so
+    ``rho = 1 + 2 corr(d_k, d_(k+1))``, pooled over the markers' coordinates
+    and the frames where three consecutive residuals are finite. NaN with
+    fewer than :data:`NOISE_CORRELATION_MIN_PAIRS` pairs, no residual beyond
+    round-off (exact data), or an estimate outside (-1, 1) (differences
+    positively correlated: a residual smooth at the frame scale, which an
+    AR(1) noise does not describe).
+
+    Examples
+    --------
+    Four markers with AR(1) noise of correlation 0.6 on a still body:
+
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> model = np.array([[0.0, 0, 0], [0.2, 0, 0], [0.0, 0.15, 0.05], [0.1, 0.1, 0.1]])
+    >>> e = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(0, 1e-3, (3000, 4, 3)), axis=0)
+    >>> pts = model + e
+    >>> round(rigidity_residual_correlation(pts, register_pose(pts, model)), 1)
+    0.6
+    """
+    if points is None:
+        return float("nan")
+    pts = np.asarray(points, float)
+    if pts.shape != registration.registered.shape:
+        raise ValueError(f"points: expected shape {registration.registered.shape} to match the registration, "
+                         f"got {pts.shape}")
+    d = np.diff((pts - registration.registered).reshape(pts.shape[0], -1), axis=0)
+    a, b = d[:-1], d[1:]
+    both = np.isfinite(a) & np.isfinite(b)
+    den = 0.5 * np.sum(np.where(both, a * a + b * b, 0.0))
+    size = np.nanmax(np.abs(pts)) if np.isfinite(pts).any() else 0.0
+    if both.sum() < NOISE_CORRELATION_MIN_PAIRS or not den > (1e-10 * size) ** 2 * both.sum():
+        return float("nan")
+    rho = 1 + 2 * float(np.sum(np.where(both, a * b, 0.0)) / den)
+    return rho if -1 < rho < 1 else float("nan")
+
+
+def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False,
+                     noise_correlation: float | None = None) -> tuple[str, str]:
     """The smoothing ``"auto"`` of :func:`fit_pose_trajectory` runs, and why.
 
     A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics;
@@ -1284,11 +1523,20 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
         The spline's order.
     lam_given : bool
         All six smoothing parameters are given.
+    noise_correlation : float, optional
+        The lag-1 autocorrelation of the markers' rigidity residual
+        (:func:`rigidity_residual_correlation`). At or above
+        :data:`NOISE_CORRELATION_THRESHOLD` (a real system's filtering, marker
+        wobble, skin), without events, the choice is ``"gcv_ar1"``: GCV with
+        that AR(1) error correlation (``noise_correlation`` of
+        :func:`horsemocap.splines.smoothing_spline`), without harmonics, since
+        plain GCV and the adaptive penalty both take slow noise for motion.
+        Below it the reason records the value.
 
     Returns
     -------
     method : str
-        ``"gcv"`` or ``"adaptive"``.
+        ``"gcv"``, ``"adaptive"`` or ``"gcv_ar1"``.
     reason : str
 
     Examples
@@ -1297,7 +1545,26 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     ('gcv', 'periodic record: fundamental 1.4 Hz')
     >>> choose_smoothing(None, None)[0]
     'adaptive'
+    >>> choose_smoothing(None, None, noise_correlation=0.62)
+    ('gcv_ar1', 'gcv with AR(1) 0.62 noise correlation from the rigidity residual (correlated-error GCV, no harmonics)')
     """
+    rho = float("nan") if noise_correlation is None else float(noise_correlation)
+    method, reason = _choose_white_noise_smoothing(fundamental_hz, events, order, lam_given)
+    if lam_given or order != 5:
+        return method, reason
+    if not np.isfinite(rho):
+        return method, reason + ("" if noise_correlation is None else
+                                 "; no AR(1) noise correlation measurable from the rigidity residual")
+    if rho >= NOISE_CORRELATION_THRESHOLD and not (events is not None and len(events)):
+        return "gcv_ar1", (f"gcv with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
+                           "(correlated-error GCV, no harmonics)")
+    return method, reason + (f"; AR(1) noise correlation {rho:.2f} from the rigidity residual"
+                             + (" (events: kept)" if rho >= NOISE_CORRELATION_THRESHOLD else
+                                f", below {NOISE_CORRELATION_THRESHOLD:g}: noise taken as white"))
+
+
+def _choose_white_noise_smoothing(fundamental_hz, events, order: int, lam_given: bool) -> tuple[str, str]:
+    """:func:`choose_smoothing` for white noise."""
     if order != 5:
         return "gcv", f"order {order}: the adaptive smoothing is quintic only"
     if lam_given:

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
 from scipy.linalg import solve_triangular
 from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
 
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
@@ -253,7 +254,29 @@ def _demmler_reinsch(B, P, w):
     return T, d, Bw @ T
 
 
-def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
+def ar1_correlation_times(Z, rho: float) -> np.ndarray:
+    """``C Z`` for the AR(1) correlation matrix ``C_ij = rho^|i - j|`` (n, p), in O(n p).
+
+    ``C z = f + b - z`` with the forward ``f_i = z_i + rho f_(i-1)`` and the
+    backward ``b_i = z_i + rho b_(i+1)`` recursions.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> C = 0.5 ** np.abs(np.subtract.outer(np.arange(4), np.arange(4)))
+    >>> z = np.arange(4.0)[:, None]
+    >>> bool(np.allclose(ar1_correlation_times(z, 0.5), C @ z))
+    True
+    """
+    Z = np.asarray(Z, float)
+    forward = lfilter([1.0], [1.0, -rho], Z, axis=0)
+    backward = lfilter([1.0], [1.0, -rho], Z[::-1], axis=0)[::-1]
+    return forward + backward - Z
+
+
+def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correlation=None):
+    """The quintic smoothing spline with ``lam`` chosen by GCV (``noise``: unbiased risk; ``correlation``:
+    the AR(1) coefficient of the noise, GCV with ``tr(H C)`` for ``tr(H)``, Opsomer, Wang and Yang 2001)."""
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
@@ -278,6 +301,15 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
         _, rss, tr = fit(10.0 ** loglam)
         return n * rss / max(n - gamma * tr, 1e-9) ** 2
 
+    if correlation is not None and correlation != 0:
+        # tr(H C) = sum_k (z_k^T C z_k) / (1 + lam d_k) with H = Z diag(1 / (1 + lam d)) Z^T
+        q = np.einsum("ij,ij->j", Z, ar1_correlation_times(Z, float(correlation)))
+
+        def gcv(loglam):  # noqa: F811  (correlated-error GCV)
+            lmb = 10.0 ** loglam
+            _, rss, _ = fit(lmb)
+            return n * rss / max(n - gamma * float(np.sum(q / (1 + lmb * d))), 1e-9) ** 2
+
     if noise is not None:
         def gcv(loglam):  # noqa: F811  (unbiased risk with the noise known: Mallows' C_p / UBRE)
             _, rss, tr = fit(10.0 ** loglam)
@@ -289,9 +321,12 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None):
         lam, _ = _choose_lam(gcv, -np.log10(pos.max()) - 2, -np.log10(pos.min()) + 2)
     f, rss, tr = fit(lam)
     spline = BSpline(knots, T @ f, k)
-    return spline, {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
-                    "n": n, "order": k, "method": "gcv" if noise is None else "noise",
-                    "noise": float("nan") if noise is None else float(noise)}
+    info = {"lam": float(lam), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())),
+            "n": n, "order": k, "method": "gcv" if noise is None else "noise",
+            "noise": float("nan") if noise is None else float(noise)}
+    if correlation is not None:
+        info["noise_correlation"] = float(correlation)
+    return spline, info
 
 
 def harmonic_columns(t, frequency_hz: float, order: int, t0: float = 0.0, derivative: int = 0) -> np.ndarray:
@@ -690,11 +725,22 @@ def _adaptive_events(x, y, w, lam, events, degree=2):
     return s2, e2, info2
 
 
+def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None:
+    """A clear error for a ``noise_correlation`` of :func:`smoothing_spline` that cannot be used."""
+    if rho is None:
+        return
+    if not (np.isfinite(rho) and -1 < rho < 1):
+        raise ValueError(f"noise_correlation: expected a lag-1 autocorrelation in (-1, 1), got {rho!r}")
+    if method != "gcv" or order != 5 or fundamental_hz is not None or (events is not None and len(events)):
+        raise ValueError("noise_correlation: the correlated-error GCV is the quintic 'gcv' spline without "
+                         "harmonics or events only")
+
+
 def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | None = None,
                      weights=None, noise: float | None = None, fundamental_hz: float | None = None,
                      max_harmonics: int = 10, harmonic_cutoff: bool = False,
                      harmonic_noise: float | None = None, events=None,
-                     event_degree: int = 2) -> SmoothingSpline:
+                     event_degree: int = 2, noise_correlation: float | None = None) -> SmoothingSpline:
     """Fit a smoothing spline to samples ``y(t)``; its smoothing chosen by GCV.
 
     Parameters
@@ -750,6 +796,20 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         leaves that sample on the calm side, one placed a hair before it moves the sample to the other
         side, and on a sharp onset that one sample can change the record's acceleration error by several
         points.
+    noise_correlation : float, optional
+        ``method="gcv"`` (order 5, no harmonics, no events): the noise's lag-1 autocorrelation
+        ``rho`` (an AR(1) error, measured elsewhere, e.g. from a rigid cluster's residuals).
+        GCV assumes independent errors and, with positively correlated ones, takes the slow
+        noise for signal; with ``rho`` the criterion is ``n RSS / (n - gamma tr(H C))^2`` with
+        ``C_ij = rho^|i-j|`` (correlated-error GCV, Opsomer, Wang and Yang 2001).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 1, 101)
+    >>> s = smoothing_spline(t, np.sin(2 * np.pi * t), noise_correlation=0.5)
+    >>> bool(abs(s(0.25) - 1) < 1e-3), s.info["noise_correlation"]
+    (True, 0.5)
     """
     x = np.asarray(t, float)
     y = np.asarray(y, float)
@@ -761,6 +821,7 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         raise ValueError("t: times must increase")
     if method not in ("gcv", "adaptive", "noise", "none"):
         raise ValueError(f"method: expected 'gcv', 'adaptive', 'noise' or 'none', got {method!r}")
+    _check_noise_correlation(noise_correlation, method, order, fundamental_hz, events)
     if method == "noise" and not (noise is not None and np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise: method 'noise' needs a positive noise level, got {noise!r}")
     if method == "adaptive" and order != 5:
@@ -833,8 +894,10 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         if order != 5:
             raise ValueError("method 'noise' is a quintic spline: order must be 5")
         s, info = _quintic_gcv(x, y, w, lam, noise=noise)
+    elif method == "adaptive":
+        s, info = _adaptive(x, y, w, lam)
     else:
-        s, info = (_adaptive if method == "adaptive" else _quintic_gcv)(x, y, w, lam)
+        s, info = _quintic_gcv(x, y, w, lam, correlation=noise_correlation)
     return SmoothingSpline(s, info)
 
 

@@ -1,0 +1,91 @@
+"""The smoothing under correlated marker noise: the rigidity residual's correlation, the correlated-error
+GCV and the automatic choice (horsemocap.pose, horsemocap.splines), against exact ground truth."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from horsemocap import pose, splines
+from horsemocap.params import PoseParams
+
+from test_rotation_continuity import _centre, _cluster, _observe, _wandering_body
+
+
+def _ar1(rng, shape, rho, sigma):
+    """Stationary AR(1) noise along axis 0 with lag-1 correlation ``rho`` and standard deviation ``sigma``."""
+    return lfilter([1.0], [1.0, -rho], rng.normal(0, sigma * np.sqrt(1 - rho ** 2), shape), axis=0)
+
+
+def _cluster_case(seed, rho, sigma=0.001):
+    rng, t, R, omega, alpha, _ = _wandering_body(seed)
+    markers, hidden = _cluster(rng)
+    _, c_acc = _centre(t)
+    r = R.apply(hidden - markers.mean(0))
+    acc = c_acc + np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+    clean = _observe(rng, t, R, markers, 0.0)
+    return t, clean + _ar1(rng, clean.shape, rho, sigma), markers, hidden, acc
+
+
+def _relative_error(est, true):
+    return float(np.sqrt(np.mean(np.sum((est - true) ** 2, 1)) / np.mean(np.sum(true ** 2, 1))))
+
+
+def test_ar1_correlation_product_matches_the_dense_matrix():
+    rng = np.random.default_rng(0)
+    Z = rng.normal(size=(50, 4))
+    C = 0.7 ** np.abs(np.subtract.outer(np.arange(50), np.arange(50)))
+    np.testing.assert_allclose(splines.ar1_correlation_times(Z, 0.7), C @ Z, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.5, 0.8])
+def test_rigidity_residual_measures_the_noise_correlation(rho):
+    t, pts, markers, _, _ = _cluster_case(1, rho)
+    pts = np.concatenate([pts] * 3)          # more frames: a sharper estimate (the motion is not used)
+    from horsemocap.pose import register_pose
+    est = pose.rigidity_residual_correlation(pts, register_pose(pts, markers))
+    assert abs(est - rho) < 0.08
+
+
+def test_exact_markers_have_no_measurable_correlation():
+    t, _, markers, _, _ = _cluster_case(0, 0.8)
+    from horsemocap.pose import register_pose
+    rng, tt, R, *_ = _wandering_body(0)
+    clean = _observe(rng, tt, R, markers, 0.0)
+    assert np.isnan(pose.rigidity_residual_correlation(clean, register_pose(clean, markers)))
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_correlated_noise_choice_beats_plain_gcv_on_the_hidden_point_acceleration(seed):
+    t, pts, markers, hidden, acc = _cluster_case(seed, 0.8)
+    reg = pose.register_pose(pts, markers)
+    auto = pose.fit_pose_trajectory(t, reg, markers, points=pts)
+    gcv = pose.fit_pose_trajectory(t, reg, markers, PoseParams(smoothing="gcv"), points=pts)
+    choice = auto.smoothing_choice
+    assert choice["method"] == "gcv_ar1"
+    assert abs(choice["noise_correlation"] - 0.8) < 0.1
+    assert "AR(1)" in choice["reason"] and "rigidity residual" in choice["reason"]
+    e_auto = _relative_error(auto.point(t, hidden).acceleration, acc)
+    e_gcv = _relative_error(gcv.point(t, hidden).acceleration, acc)
+    assert e_auto < 0.3 * e_gcv, f"acceleration error {100 * e_auto:.1f} % (AR(1) GCV) vs {100 * e_gcv:.1f} % (GCV)"
+    assert e_auto < 0.25
+
+
+def test_white_noise_keeps_the_white_noise_choice_and_says_so():
+    t, pts, markers, _, _ = _cluster_case(0, 0.0, sigma=0.0005)
+    reg = pose.register_pose(pts, markers)
+    with_points = pose.fit_pose_trajectory(t, reg, markers, points=pts)
+    without = pose.fit_pose_trajectory(t, reg, markers)
+    assert with_points.smoothing_choice["method"] == without.smoothing_choice["method"]
+    assert "noise taken as white" in with_points.smoothing_choice["reason"]
+    for a, b in zip(with_points.centre_splines + with_points.rotvec_splines,
+                    without.centre_splines + without.rotvec_splines):
+        np.testing.assert_array_equal(a.spline.c, b.spline.c)
+
+
+def test_noise_correlation_is_refused_where_it_does_not_apply():
+    t = np.linspace(0, 1, 50)
+    with pytest.raises(ValueError, match="noise_correlation"):
+        splines.smoothing_spline(t, np.sin(t), noise_correlation=1.0)
+    with pytest.raises(ValueError, match="noise_correlation"):
+        splines.smoothing_spline(t, np.sin(t), method="adaptive", noise_correlation=0.5)
