@@ -736,6 +736,37 @@ def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None
                          "harmonics or events only")
 
 
+def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
+                     harmonic_noise) -> SmoothingSpline:
+    """:func:`smoothing_spline` with unpenalised harmonics of ``fundamental_hz`` (a partial quintic spline)."""
+    dt = float(np.median(np.diff(x)))
+    kmax = int(min(max_harmonics, np.floor(0.4 / dt / fundamental_hz - 1e-9)))
+    nz = noise if method == "noise" else None
+    cutoff = float("nan")
+    if harmonic_cutoff:
+        # harmonics only where the plain spline passes the signal: below its cutoff frequency
+        # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
+        # hides from the plain spline is not taken whole
+        s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz)
+        cutoff = (float(np.mean(w)) / (dt * max(info0["lam"], 1e-300))) ** (1 / 6) / (2 * np.pi)
+        kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
+        if kmax < 1:
+            info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
+            return SmoothingSpline(s0, info0, None)
+    candidates = list(range(1, max(kmax, 0) + 1))
+    amplitude = np.zeros(0)
+    if harmonic_noise is not None and candidates:
+        candidates, amplitude = _significant_harmonics(x, y, w, fundamental_hz, candidates, harmonic_noise)
+    # nested candidate sets: none, the first significant harmonic, the first two, ...
+    sets = [tuple(candidates[:j]) for j in range(len(candidates) + 1)]
+    s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz)
+    info["cutoff_hz"] = cutoff
+    info["harmonic_amplitudes"] = amplitude.tolist()
+    if harmonic_noise is not None:
+        info["harmonic_noise"] = float(harmonic_noise)     # the level the harmonics were tested at
+    return SmoothingSpline(s, info, harm)
+
+
 def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | None = None,
                      weights=None, noise: float | None = None, fundamental_hz: float | None = None,
                      max_harmonics: int = 10, harmonic_cutoff: bool = False,
@@ -859,32 +890,8 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
                                    "rms_residual": float(np.sqrt(np.sum(w * r * r) / w.sum())), "n": n,
                                    "order": 3, "method": "gcv"})
     if fundamental_hz is not None:
-        dt = float(np.median(np.diff(x)))
-        kmax = int(min(max_harmonics, np.floor(0.4 / dt / fundamental_hz - 1e-9)))
-        nz = noise if method == "noise" else None
-        cutoff = float("nan")
-        if harmonic_cutoff:
-            # harmonics only where the plain spline passes the signal: below its cutoff frequency
-            # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
-            # hides from the plain spline is not taken whole
-            s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz)
-            cutoff = (float(np.mean(w)) / (dt * max(info0["lam"], 1e-300))) ** (1 / 6) / (2 * np.pi)
-            kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
-            if kmax < 1:
-                info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
-                return SmoothingSpline(s0, info0, None)
-        candidates = list(range(1, max(kmax, 0) + 1))
-        amplitude = np.zeros(0)
-        if harmonic_noise is not None and candidates:
-            candidates, amplitude = _significant_harmonics(x, y, w, fundamental_hz, candidates, harmonic_noise)
-        # nested candidate sets: none, the first significant harmonic, the first two, ...
-        sets = [tuple(candidates[:j]) for j in range(len(candidates) + 1)]
-        s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz)
-        info["cutoff_hz"] = cutoff
-        info["harmonic_amplitudes"] = amplitude.tolist()
-        if harmonic_noise is not None:
-            info["harmonic_noise"] = float(harmonic_noise)     # the level the harmonics were tested at
-        return SmoothingSpline(s, info, harm)
+        return _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
+                                harmonic_noise)
     if events is not None and len(events):
         ev = sorted(float(e) for e in events)
         fn = _adaptive_events if method == "adaptive" else _event_quintic
