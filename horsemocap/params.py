@@ -386,9 +386,11 @@ class PoseParams:
         Smoothing of the pose trajectory
         (:func:`horsemocap.splines.smoothing_spline`): ``"auto"`` (default:
         ``"gcv"`` with the stride harmonics on a periodic record, a
-        fundamental found, and ``"adaptive"`` on one without,
-        :func:`horsemocap.pose.choose_smoothing`; the choice and its reason in
-        the progress output), ``"gcv"`` (quintic, one generalised
+        fundamental found, ``"adaptive"`` on one without, and GCV with the
+        noise's AR(1) correlation when the markers' rigidity residual shows
+        correlated noise (rho >= 0.3, as real systems' filtered trajectories
+        do), :func:`horsemocap.pose.choose_smoothing`; the choice and its
+        reason in the progress output and ``analysis.json``), ``"gcv"`` (quintic, one generalised
         cross-validation parameter per component), ``"adaptive"`` (a second
         GCV pass with a penalty weighted by the local roughness: better on
         motions that are calm then ringing), ``"gcv_cubic"`` (SciPy's
