@@ -1,6 +1,6 @@
 """pytest setup shared by the unit tests and nbval.
 
-Every notebook run starts from a clean results folder: ``HORSEMOCAP_RESULTS``
+Every notebook run starts from a clean results folder (and without the user-level board cache): ``HORSEMOCAP_RESULTS``
 points at a fresh temporary folder for the whole test session (the kernels
 nbval starts inherit it), removed when the session ends; when
 ``HORSEMOCAP_RESULTS`` is already set, that folder is used and no other is made.
@@ -14,6 +14,10 @@ _RESULTS = None if os.environ.get("HORSEMOCAP_RESULTS") else tempfile.mkdtemp(pr
 if _RESULTS:
     os.environ["HORSEMOCAP_RESULTS"] = _RESULTS
 os.environ.setdefault("MPLBACKEND", "module://matplotlib_inline.backend_inline")
+# The user-level board-detection cache stays out of the tests (a test that counts a calibration's
+# views, or a skipped view's message, must not depend on what an earlier run left there);
+# tests/test_batch.py gives its own.
+os.environ["HORSEMOCAP_BOARD_CACHE"] = "off"
 
 
 def pytest_sessionfinish(session, exitstatus):

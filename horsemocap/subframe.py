@@ -37,6 +37,8 @@ __all__ = ["FlashOnset", "flash_onset", "flash_phases", "TrackInterpolant", "Pha
 DEFAULT_EXPOSURE_FRACTION = 0.5
 #: A frame at least this share of the fully lit level counts as fully lit.
 FULLY_LIT = 0.98
+#: A first lit frame at or below this share of the flash's brightness is dark: the flash was not found there.
+UNLIT = 0.05
 #: Reason of a 2D position that cannot be interpolated (the instant is outside a run of seen frames).
 OUTSIDE_TRACK = "outside_track"
 #: Phases searched around the flash's estimate (frames either side) and the grid step (frames).
@@ -103,6 +105,12 @@ def flash_onset(signal, off_level: float, on_level: float, first_on: int,
     >>> o = flash_onset([0, 0, 0, 1, 1, 1], 0.0, 1.0, 3, 0.5)
     >>> round(o.onset_frames, 3), round(o.uncertainty_frames, 3), o.partial
     (2.75, 0.144, False)
+
+    A frame said to be lit that is dark (a flash found in the wrong frame) gives no fraction; the
+    markers' whole-frame check corrects such an offset:
+
+    >>> flash_onset([0, 0, 0, 0, 1, 1], 0.0, 1.0, 2, 0.5).partial
+    False
     """
     if not 0.0 < exposure_fraction <= 1.0:
         raise ValueError(f"flash_onset: exposure_fraction must be in (0, 1], got {exposure_fraction!r}")
@@ -115,6 +123,8 @@ def flash_onset(signal, off_level: float, on_level: float, first_on: int,
     while k > 0 and b[k - 1] > 1.0 - FULLY_LIT:      # an earlier frame already caught some light
         k -= 1
     e = float(exposure_fraction)
+    if b[k] <= UNLIT:       # the frame said to be lit is dark: the flash was not found here, no fraction to read
+        return FlashOnset(float(k), 0.5, False, float(b[k]))
     if b[k] < FULLY_LIT:
         return FlashOnset(k + e * (1.0 - float(b[k])), 0.02 * e, True, float(b[k]))
     gap = 1.0 - e
