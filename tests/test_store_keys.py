@@ -26,11 +26,15 @@ def test_switching_presets_back_and_forth_reuses_only_matching_steps(tmp_path, m
     monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path / "store"))
     session = default_session_dir()
     fresh = {name: _summary(analyze(session, None, choice, progress=lambda *a: None))
-             for name, choice in (("default", None), ("thesis", {"preset": "thesis"}))}
+             for name, choice in (("default", None), ("thesis", {"preset": "thesis"}),
+                                  ("pairwise", {"rig": {"mode": "pairwise"}}))}
     # the two chains calibrate differently: a store that mixed them up would show here
     assert fresh["default"]["calibration"].startswith("joint") and fresh["thesis"]["calibration"].startswith("pairwise")
+    assert fresh["pairwise"]["calibration"].startswith("pairwise")
+    # the store keeps the latest result of each step; the preset is in every key, so the pairwise
+    # calibration chosen alone right after a default run is what a key without the mode would reuse wrongly
     for name, choice in (("default", {}), ("thesis", {"preset": "thesis"}), ("default", {}),
-                         ("thesis", {"preset": "thesis"})):
+                         ("pairwise", {"rig": {"mode": "pairwise"}}), ("thesis", {"preset": "thesis"})):
         got = _summary(results_for(session, params=choice))
         want = fresh[name]
         assert got["calibration"] == want["calibration"], name
