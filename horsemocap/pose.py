@@ -146,6 +146,9 @@ __all__ = [
     "fit_pose_trajectory",
     "rigidity_residual_correlation",
     "conditioning_warnings",
+    "ROTATION_NOISE_LIMIT_DEG",
+    "frame_rotation_std",
+    "rotation_noise_deg",
     "pose_noise",
     "frame_variances",
     "partial_pose",
@@ -1638,15 +1641,110 @@ def _pose_events(events, smoothing: str, order: int, f0):
     return sorted(float(e) for e in events)
 
 
+#: The marker-geometry warning's threshold: the predicted rotation noise of one frame's pose (deg, the RMS over
+#: the frames of its worst-observed component, :func:`rotation_noise_deg`) above which
+#: :func:`conditioning_warnings` warns of a thin marker triangle.
+ROTATION_NOISE_LIMIT_DEG = 1.0
+
+
+def frame_rotation_std(registration: PoseRegistration) -> np.ndarray:
+    """Each frame's predicted standard deviation of the rotation vector's components (n, 3), rad.
+
+    The linearised registration (as :func:`pose_noise`): a small rotation
+    ``dphi`` moves a marker at ``d`` from the visible markers' centroid by
+    ``dphi x d``, so the rotation's information is ``sum_m [d_m]x^T
+    Sigma_m^-1 [d_m]x``. With the markers' covariances (``registration``
+    made with ``covariance``) it is the registration's own information
+    matrix; without, ``Sigma_m = noise_m^2 I`` with the registration's
+    isotropic noise estimate. Either way a rotation about the long direction
+    of a thin triangle (height ``h``) gets a standard deviation of about
+    ``noise / h``. NaN where a frame has no pose of three or more markers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.5, 0.03, 0]])     # 30 mm high
+    >>> cov = np.broadcast_to(1e-6 * np.eye(3), (4, 3, 3, 3))             # 1 mm per marker
+    >>> reg = register_pose(np.repeat(model[None], 4, axis=0), model, covariance=cov)
+    >>> np.round(np.degrees(frame_rotation_std(reg)[0]), 2).tolist()      # about x: ~ 1 mm / 30 mm
+    [2.34, 0.08, 0.08]
+    """
+    reg = registration
+    n = reg.rotation.shape[0]
+    full = np.isfinite(reg.rotation[:, 0, 0]) & (reg.n_markers >= 3)
+    if reg.information is not None:
+        good = full & np.all(np.isfinite(reg.information), axis=(1, 2))
+        var = np.full((n, 6), np.nan)
+        if good.any():
+            var[good] = np.diagonal(np.linalg.inv(reg.information[good]), axis1=1, axis2=2)
+        return np.sqrt(var[:, 3:])
+    out = np.full((n, 3), np.nan)
+    if not (full.any() and np.isfinite(reg.noise_m) and reg.noise_m > 0):
+        return out
+    vis = np.isfinite(reg.residual[full])
+    pts = reg.registered[full]
+    centroid = np.sum(np.where(vis[..., None], pts, 0.0), axis=1) / vis.sum(1)[:, None]
+    d = np.where(vis[..., None], pts - centroid[:, None], 0.0)
+    # [d]x^T [d]x = |d|^2 I - d d^T, summed over the visible markers
+    H = np.einsum("km,ij->kij", np.sum(d * d, axis=2), np.eye(3)) - np.einsum("kmi,kmj->kij", d, d)
+    ok = np.linalg.cond(H) < 1e12
+    idx = np.flatnonzero(full)[ok]
+    out[idx] = reg.noise_m * np.sqrt(np.diagonal(np.linalg.inv(H[ok]), axis1=1, axis2=2))
+    return out
+
+
+def rotation_noise_deg(registration: PoseRegistration) -> float:
+    """The figure the thin-triangle warning judges: predicted rotation noise of one frame's pose (deg).
+
+    Per frame the standard deviation of each rotation component
+    (:func:`frame_rotation_std`); over the frames with a pose the RMS of
+    each component, and of the three the largest (the rotation the
+    markers observe worst: about the long direction of a thin triangle).
+    NaN without a frame of three markers or a noise estimate.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.5, 0.03, 0]])
+    >>> cov = np.broadcast_to(1e-6 * np.eye(3), (4, 3, 3, 3))
+    >>> round(rotation_noise_deg(register_pose(np.repeat(model[None], 4, axis=0), model, covariance=cov)), 2)
+    2.34
+
+    The same figure from the isotropic noise the residuals give, when the covariances say that noise:
+
+    >>> rng = np.random.default_rng(1)
+    >>> noisy = model + rng.normal(0, 1e-3, (200, 3, 3))
+    >>> plain = register_pose(noisy, model)
+    >>> cov = np.broadcast_to(plain.noise_m ** 2 * np.eye(3), (200, 3, 3, 3))
+    >>> a, b = rotation_noise_deg(plain), rotation_noise_deg(register_pose(noisy, model, covariance=cov))
+    >>> bool(abs(a - b) < 0.01 * a)
+    True
+    """
+    std = frame_rotation_std(registration)
+    seen = np.all(np.isfinite(std), axis=1)
+    if not seen.any():
+        return float("nan")
+    return float(np.degrees(np.max(np.sqrt(np.mean(std[seen] ** 2, axis=0)))))
+
+
 def conditioning_warnings(registration: PoseRegistration, lever_m: float | None = None,
-                          rotation_noise_limit_deg: float = 1.0) -> list[str]:
+                          rotation_noise_limit_deg: float = ROTATION_NOISE_LIMIT_DEG) -> list[str]:
     """Messages when the marker geometry makes the result unreliable.
 
-    The rotation about the markers' long direction has a noise of about
-    ``noise / h`` rad per frame (``h`` the smallest height); a body point
-    ``lever_m`` away moves by that times the lever. A message is returned
-    when that rotation noise exceeds ``rotation_noise_limit_deg`` or frames
-    were left without a pose.
+    One rule judges the marker triangle, wherever the pose comes from (the
+    pipeline's registration with the markers' triangulation covariances, or
+    a trajectory file's with their isotropic noise): the predicted rotation
+    noise of one frame's pose, :func:`rotation_noise_deg`, above
+    ``rotation_noise_limit_deg`` (:data:`ROTATION_NOISE_LIMIT_DEG`). The
+    triangle's height alone does not decide: a rotation about the long
+    direction of a triangle of height ``h`` is observed through markers
+    ``h`` apart, so its noise is about the markers' noise over ``h``; a thin
+    triangle of precise markers can be better than a wide one of noisy
+    markers. The message gives the smallest height, the noise, and, with
+    ``lever_m`` (the saddle's distance from the markers' centroid), how far
+    that noise moves a point ``lever_m`` away in one frame (before smoothing):
+    the angular results and the paths of far points carry it. Frames left
+    without a pose give a message of their own.
 
     Examples
     --------
@@ -1657,24 +1755,16 @@ def conditioning_warnings(registration: PoseRegistration, lever_m: float | None 
     """
     reg = registration
     out = []
-    h = reg.height[np.isfinite(reg.rotation[:, 0, 0])]
-    if h.size and np.isfinite(reg.noise_m):
-        if reg.information is not None:
-            # registered with the markers' covariances: the pose's own information gives the rotation
-            # noise (the isotropic residual overstates it: the weighted fit leaves the poorly measured
-            # depth its larger residuals)
-            rot = pose_noise(reg, None, None)[3:]
-            rot_noise = float(np.degrees(np.nanmax(rot))) if np.isfinite(rot).any() else float("nan")
-            basis = "the markers' triangulation covariances give"
-        else:
-            rot_noise = float(np.degrees(reg.noise_m / max(float(np.min(h)), 1e-12)))
-            basis = f"a marker noise of {1000 * reg.noise_m:.2f} mm gives"
-        if rot_noise > rotation_noise_limit_deg:
-            extra = "" if lever_m is None else (f"; a point {lever_m:.2f} m away moves by about "
-                                                f"{1000 * lever_m * np.radians(rot_noise):.1f} mm per frame")
-            out.append(f"thin marker triangle: smallest height {1000 * np.min(h):.0f} mm; {basis} about "
-                       f"{rot_noise:.1f} deg of rotation noise per frame"
-                       f"{extra}; the smoothing removes part of it, but angular results and far points are unreliable")
+    h = reg.height[np.isfinite(reg.rotation[:, 0, 0]) & (reg.n_markers >= 3)]
+    rot_noise = rotation_noise_deg(reg)
+    if h.size and np.isfinite(rot_noise) and rot_noise > rotation_noise_limit_deg:
+        basis = ("the markers' triangulation covariances give" if reg.information is not None
+                 else f"a marker noise of {1000 * reg.noise_m:.2f} mm gives")
+        extra = "" if lever_m is None else (f"; a point {lever_m:.2f} m away moves by about "
+                                            f"{1000 * lever_m * np.radians(rot_noise):.1f} mm per frame")
+        out.append(f"thin marker triangle: smallest height {1000 * np.min(h):.0f} mm; {basis} about "
+                   f"{rot_noise:.1f} deg of rotation noise per frame (above {rotation_noise_limit_deg:g} deg)"
+                   f"{extra}; the smoothing removes part of it, but angular results and far points are unreliable")
     missing = int(np.sum(reg.reason != ""))
     if missing:
         out.append(f"{missing} of {reg.reason.size} frames have no pose ({sorted(set(reg.reason[reg.reason != '']))[0]} ...)")

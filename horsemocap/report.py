@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 from . import plots
 from .results import analysis_record
 from .store import atomic_write_text
-from .vibration import comfort_table_rows, unit_text
+from .vibration import COMFORT_UNITS, comfort_table_rows, unit_text
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;color:#222;padding:0 1em}
@@ -28,6 +28,10 @@ table{border-collapse:collapse;margin:.5em 0} td,th{border:1px solid #ccc;paddin
 th{background:#f3f3f3} td.num{text-align:right;font-variant-numeric:tabular-nums}
 figure{margin:1em 0} figcaption{color:#555;font-size:.9em} img{max-width:100%}
 .note{color:#555;font-size:.9em}
+.summary{font-size:1.05em;background:#f6f8fa;border:1px solid #d0d7de;border-radius:6px;padding:.6em .9em}
+.alert{border-radius:6px;padding:.6em .9em;margin:1em 0;border:2px solid #d4a72c;background:#fff8c5}
+.alert.unreliable{border-color:#cf222e;background:#ffebe9} .alert h2{margin-top:.2em;border:none}
+.alert li{margin:.4em 0} .alert .means{display:block;color:#333;margin-top:.2em}
 """
 
 
@@ -58,16 +62,17 @@ def report_figures(analysis) -> list:
         t, pos = rb.t, rb.registered
         series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
         series["saddle"] = rb.saddle_position
-        for data, unit, title, caption in (
-                (series, "m", "Positions in the motion frame",
+        for data, unit, title, quantity, caption in (
+                (series, "m", "Positions in the motion frame", None,
                  "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."),
-                ({"omega": rb.omega}, "rad/s", "Angular velocity", "Angular velocity of the body, in rad/s (chapter 6)."),
-                ({"alpha": rb.alpha}, "rad/s²", "Angular acceleration",
-                 "Angular acceleration of the body, in rad/s² (chapter 6)."),
-                ({"saddle": rb.saddle_acceleration}, "m/s²", "Saddle acceleration",
-                 "Acceleration of the hidden saddle marker, in m/s² (section 6.4).")):
-            figures.append((lambda data=data, unit=unit, title=title: plots.plot_axes_timeseries(t, data, unit, title),
-                            caption))
+                ({"omega": rb.omega}, "rad/s", "Angular velocity", "angular velocity about",
+                 "Angular velocity of the body about the motion frame's axes, in rad/s (chapter 6)."),
+                ({"alpha": rb.alpha}, "rad/s²", "Angular acceleration", "angular acceleration about",
+                 "Angular acceleration of the body about the motion frame's axes, in rad/s² (chapter 6)."),
+                ({"saddle": rb.saddle_acceleration}, "m/s²", "Saddle acceleration", "acceleration along",
+                 "Acceleration of the hidden saddle marker along the motion frame's axes, in m/s² (section 6.4).")):
+            figures.append((lambda data=data, unit=unit, title=title, quantity=quantity:
+                            plots.plot_axes_timeseries(t, data, unit, title, quantity=quantity), caption))
     return figures
 
 
@@ -438,16 +443,157 @@ def _html_table(rows, header, align_numbers: bool = True) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
+def hours_minutes(hours) -> str:
+    """A time in hours as a person reads it: ``0.106`` -> ``0 h 06 min`` (to the nearest minute).
+
+    Under half a minute the seconds are added (``0 h 00 min (8 s)``); an
+    infinite time (no vibration) is ``never``; NaN ``not computed``.
+
+    Examples
+    --------
+    >>> hours_minutes(0.106), hours_minutes(2.5), hours_minutes(0.9999), hours_minutes(0.002329)
+    ('0 h 06 min', '2 h 30 min', '1 h 00 min', '0 h 00 min (8 s)')
+    """
+    h = float(hours)
+    if h != h:
+        return "not computed"
+    if h == float("inf"):
+        return "never"
+    minutes = int(round(h * 60))
+    text = f"{minutes // 60} h {minutes % 60:02d} min"
+    return text + f" ({h * 3600:.0f} s)" if minutes == 0 else text
+
+
+def distance_km(km) -> str:
+    """A distance in km to 3 significant digits: ``1.862`` -> ``1.86 km``; infinite ``no limit``."""
+    d = float(km)
+    if d != d:
+        return "not computed"
+    return "no limit" if d == float("inf") else f"{d:.3g} km"
+
+
+def summary_items(indicators: dict | None, verdict: str | None) -> list[tuple[str, str]]:
+    """The summary line's ``(label, value as text)`` pairs: the quality verdict, the vertical
+    acceleration's Wb and Wk rms, the VDV (Wb, Wk), and the riding time (h:min) and distance (km)
+    to the EU action and limit values by A(8) (vertical, Wk; and the Directive's three axes when computed).
+
+    Examples
+    --------
+    >>> from horsemocap.vibration import THESIS_TABLE_8_7
+    >>> dict(summary_items(THESIS_TABLE_8_7, "ok"))["EU action value (A(8), vertical Wk)"]
+    '0 h 09 min, 2.58 km'
+    """
+    items = [("quality verdict", (verdict or "not judged").upper())]
+    if indicators is None:
+        return items
+
+    def value(key):
+        return f"{format_value(float(indicators[key]), 3)} {unit_text(COMFORT_UNITS[key])}"
+
+    items += [("Wb rms", value("acc_y_Wb_rms")), ("Wk rms", value("acc_y_Wk_rms")),
+              ("VDV", f"Wb {value('VDV_y_Wb')}, Wk {value('VDV_y_Wk')}")]
+    for what in ("action", "limit"):
+        items.append((f"EU {what} value (A(8), vertical Wk)",
+                      f"{hours_minutes(indicators[f'TA_8_{what}_Wk'])}, "
+                      f"{distance_km(indicators[f'Distance_TA_8_{what}_Wk'])}"))
+    if "TA_8_action_directive" in indicators:
+        items.append(("the Directive's three axes",
+                      "action " + hours_minutes(indicators["TA_8_action_directive"]) + ", "
+                      + distance_km(indicators["Distance_TA_8_action_directive"]) + "; limit "
+                      + hours_minutes(indicators["TA_8_limit_directive"]) + ", "
+                      + distance_km(indicators["Distance_TA_8_limit_directive"])))
+    return items
+
+
+def summary_html(comfort, quality: dict | None) -> str:
+    """The report's summary line (:func:`summary_items`), or why the comfort was not computed."""
+    indicators = comfort.indicators if comfort is not None else None
+    parts = [f"<b>{html.escape(k)}</b>: {text_html(v)}"
+             for k, v in summary_items(indicators, quality["verdict"] if quality else None)]
+    if comfort is None:
+        parts.append("comfort: not computed (the analysis stopped before it)")
+    elif indicators is None:
+        parts.append(f"comfort: not computed ({html.escape(comfort.reason)})")
+    return f'<p class="summary">{" · ".join(parts)}</p>'
+
+
+WARNING_MEANINGS = {
+    "thin marker triangle": (
+        "The check predicts the noise of each frame's rotation from the markers' noise and the triangle's "
+        "height, before any smoothing, and how far it moves a point at the saddle's distance. The roll, pitch, "
+        "yaw, angular velocity and angular acceleration carry this noise, and so does the saddle's path: the "
+        "saddle is such a far point, and the comfort figures are computed from its acceleration. The smoothing "
+        "removes part of the noise; the check does not measure how much is left. Noise that is left adds to "
+        "the saddle's acceleration, so the Wb/Wk rms and VDV tend to be overstated and the times and "
+        "distances to the EU values understated: use the comfort figures as a cautious (upper) estimate, "
+        "not as a measurement, and the angular results not at all."),
+    "frames have no pose": (
+        "In these frames too few markers were found for a pose: the kinematics there are bridged by the "
+        "smoothing from the frames around them, not measured. The comfort figures include the bridged "
+        "frames; with many of them, or a long gap, they describe the interpolation there."),
+    "omega within": (
+        "The thesis' versions of the angular velocity divide by its component normal to the markers' plane "
+        "(eq. 6.35), which is small in these frames: the angular results, the saddle's acceleration built "
+        "from them and so every comfort figure of this chain are unreliable. Kinematics 'pose_spline' does "
+        "not divide by it."),
+}
+"""What each rigid-body warning (by the words it starts with) means for the report's numbers."""
+
+
+def warning_meaning(message: str) -> str:
+    """What a warning of the analysis means for the numbers (:data:`WARNING_MEANINGS`), or ``""``.
+
+    Examples
+    --------
+    >>> warning_meaning("thin marker triangle: smallest height 32 mm; ...").split(".")[0]
+    "The check predicts the noise of each frame's rotation from the markers' noise and the triangle's height, before any smoothing, and how far it moves a point at the saddle's distance"
+    >>> warning_meaning("something else")
+    ''
+    """
+    for start, meaning in WARNING_MEANINGS.items():
+        if start in message:
+            return meaning
+    return ""
+
+
+def warnings_box(rigid_body_warnings, quality: dict | None) -> list[str]:
+    """The report's highlighted box of warnings (empty when there is none).
+
+    Each rigid-body warning with what it means for the numbers
+    (:func:`warning_meaning`), and each quality check whose level is not
+    ``ok`` (the marker-geometry check only repeats the rigid-body warnings:
+    left out). Red when a check is ``unreliable``, amber otherwise.
+    """
+    items = [(w, warning_meaning(w)) for w in rigid_body_warnings]
+    checks = [c for c in (quality or {}).get("checks", [])
+              if c["level"] in ("warning", "unreliable") and not (c["name"] == "marker_geometry" and items)]
+    items += [(f"{c['name'].replace('_', ' ')} ({c['level']}): {c['message']}",
+               "Do not use the numbers: the input or the result is wrong." if c["level"] == "unreliable" else "")
+              for c in checks]
+    if not items:
+        return []
+    unreliable = any(c["level"] == "unreliable" for c in checks)
+    lis = "".join(f"<li>{text_html(text)}" + (f'<span class="means"><b>For the numbers:</b> {html.escape(m)}</span>'
+                                              if m else "") + "</li>" for text, m in items)
+    return [f'<div class="alert{" unreliable" if unreliable else ""}"><h2>Warnings ({len(items)})</h2>'
+            f"<ul>{lis}</ul></div>"]
+
+
 def report_html(analysis, quality: dict | None = None) -> str:
     """The text of the report for an :class:`~horsemocap.pipeline.Analysis`.
 
-    ``quality``: the record of :func:`horsemocap.quality.quality_record`,
-    shown first.
+    Below the title: the summary line (:func:`summary_html`), the warnings
+    with what each means for the numbers (:func:`warnings_box`, only when
+    there is one), then ``quality`` (the record of
+    :func:`horsemocap.quality.quality_record`) check by check.
     """
     s = analysis.session
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
              '<p class="note">horsemocap, after G. Dogan, METU 2009. Session folder: '
              f"{html.escape(str(s.root))}</p>"]
+    parts.append(summary_html(analysis.comfort, quality))
+    warn = list(analysis.rigid_body.warnings) if analysis.rigid_body is not None else []
+    parts += warnings_box(warn, quality)
     if quality is not None:
         parts += quality_section(quality)
     meta = [(k, format_value(v)) for k, v in s.metadata.items()] + [
@@ -483,12 +629,6 @@ def report_html(analysis, quality: dict | None = None) -> str:
               "exact in analysis.json (<code>horsemocap analyze --params analysis.json</code> repeats the run "
               "exactly).</p>", _html_table([(html.escape(a), html.escape(b)) for a, b in choice_rows(record)],
                                             ["choice", "value"], align_numbers=False)]
-
-    warn = analysis.rigid_body.warnings if analysis.rigid_body is not None else []
-    if warn:
-        parts += ["<h2>Warnings</h2>", "<p class=\"note\">The rigid-body step's conditioning (angular.csv: "
-                  "singularity_deg, triangle_height_m, registration_rms_m) makes these results unreliable:</p>",
-                  "<ul>" + "".join(f"<li>{html.escape(w)}</li>" for w in warn) + "</ul>"]
 
     parts.append("<h2>Figures</h2>")
     figures = report_figures(analysis)

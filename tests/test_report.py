@@ -102,6 +102,78 @@ def test_quality_section_rounds_figures():
     assert "peak &lt;12.15 m/s<sup>2</sup>&gt;" in text and "m/s^2" not in text
 
 
+@pytest.mark.parametrize("hours, expected", [
+    (0.106, "0 h 06 min"), (0.5596, "0 h 34 min"), (2.5, "2 h 30 min"), (0.9999, "1 h 00 min"),
+    (12.0, "12 h 00 min"), (0.002329, "0 h 00 min (8 s)"), (float("inf"), "never"),
+    (float("nan"), "not computed")])
+def test_times_read_in_hours_and_minutes(hours, expected):
+    assert report.hours_minutes(hours) == expected
+
+
+def _indicators():
+    from horsemocap.vibration import THESIS_TABLE_8_7
+    ind = dict(THESIS_TABLE_8_7)
+    ind.update({"TA_8_action_directive": 0.0759, "TA_8_limit_directive": 0.4018,
+                "Distance_TA_8_action_directive": 1.3369, "Distance_TA_8_limit_directive": 7.072})
+    return ind
+
+
+def test_summary_line_has_verdict_rms_vdv_and_times_in_h_min_and_km():
+    from types import SimpleNamespace
+    ind = _indicators()
+    text = report.summary_html(SimpleNamespace(indicators=ind, reason=""), {"verdict": "warning"})
+    assert text.startswith('<p class="summary">')
+    assert "WARNING" in text
+    assert "Wb rms</b>: 3.19 m/s²" in text and "Wk rms</b>: 3.7 m/s²" in text
+    assert "Wb 3.79 m/s<sup>1.75</sup>, Wk 4.4 m/s<sup>1.75</sup>" in text
+    # Table 8.7: 0.1460 h = 8.76 min, 0.7725 h = 46.35 min
+    assert f"EU action value (A(8), vertical Wk)</b>: 0 h 09 min, 2.58 km" in text
+    assert "EU limit value (A(8), vertical Wk)</b>: 0 h 46 min, 13.6 km" in text
+    assert "action 0 h 05 min, 1.34 km; limit 0 h 24 min, 7.07 km" in text
+    assert not any(f"{ind[k]}" in text for k in ("TA_8_action_Wk", "TA_8_limit_Wk"))   # no decimal hours
+    stopped = report.summary_html(SimpleNamespace(indicators=None, reason="no saddle"), None)
+    assert "NOT JUDGED" in stopped and "comfort: not computed (no saddle)" in stopped and "rms" not in stopped
+
+
+THIN = ("thin marker triangle: smallest height 32 mm; a marker noise of 0.90 mm gives about 1.6 deg of rotation "
+        "noise per frame (above 1 deg); a point 0.56 m away moves by about 15.6 mm per frame; the smoothing removes "
+        "part of it, but angular results and far points are unreliable")
+
+
+@pytest.mark.parametrize("rigid, levels, box", [
+    ([], ["ok", "ok"], False), ([THIN], ["ok", "ok"], True), ([], ["ok", "warning"], True),
+    ([], ["unreliable", "ok"], True), ([], [], False)])
+def test_warnings_are_highlighted_exactly_when_there_is_one(rigid, levels, box):
+    quality = {"verdict": "ok", "checks": [{"name": f"check_{i}", "level": lv, "message": f"message {i}"}
+                                           for i, lv in enumerate(levels)]}
+    parts = report.warnings_box(rigid, quality)
+    assert bool(parts) == box
+    if box:
+        assert parts[0].startswith('<div class="alert')
+        assert ('class="alert unreliable"' in parts[0]) == ("unreliable" in levels)
+
+
+def test_a_thin_triangle_warning_says_what_it_means_for_the_comfort_figures():
+    text = "".join(report.warnings_box([THIN], {"verdict": "warning", "checks": [
+        {"name": "marker_geometry", "level": "warning", "message": THIN}]}))
+    assert text.count("thin marker triangle") == 1           # the quality check repeating it is not listed twice
+    meaning = report.warning_meaning(THIN)
+    assert "For the numbers:" in text and "comfort figures" in meaning and "saddle" in meaning
+    assert "overstated" in meaning and "upper" in meaning
+
+
+def test_report_has_summary_first_then_the_box_and_angular_panels_by_what_they_show():
+    import matplotlib
+    matplotlib.use("Agg")
+    import numpy as np
+    from horsemocap.plots import plot_axes_timeseries
+    fig = plot_axes_timeseries(np.arange(3.0), {"omega": np.zeros((3, 3))}, "rad/s", "Angular velocity",
+                               quantity="angular velocity about")
+    assert [ax.get_title() for ax in fig.axes] == [f"angular velocity about {a} (rad/s)" for a in "xyz"]
+    fig = plot_axes_timeseries(np.arange(3.0), {"p": np.zeros((3, 3))}, "m", "Positions")
+    assert fig.axes[0].get_title() == "x-motion (m)"
+
+
 # --- progress ---------------------------------------------------------------
 
 def test_progress_bar_text():

@@ -36,17 +36,21 @@ def plot_marker_tracks(marker_px: dict, image_size=(640, 480), fig=None):
     return fig
 
 
-def plot_axes_timeseries(t, series: dict, unit: str, title: str, fig=None):
+def plot_axes_timeseries(t, series: dict, unit: str, title: str, fig=None, quantity: str | None = None):
     """One panel per motion axis; ``series`` maps a label to an ``(n, 3)`` array.
 
-    Each panel's title names its axis and ``unit`` (e.g. ``x-motion (m/s²)``).
+    Each panel's title names its axis and ``unit`` (e.g. ``x-motion (m)``);
+    with ``quantity`` it names what the panel shows about or along that
+    axis (``quantity="angular velocity about"``: ``angular velocity about x
+    (rad/s)``), the axes being the motion frame's (x forward, y down).
     """
     fig = fig or plt.figure(figsize=(12, 3))
     for k in range(3):
         ax = fig.add_subplot(1, 3, k + 1)
         for label, arr in series.items():
             ax.plot(t, np.asarray(arr)[:, k], label=label, lw=1.2)
-        ax.set_title(f"{AXES[k]} ({unit})" if unit else AXES[k])
+        name = f"{quantity} {'xyz'[k]}" if quantity else AXES[k]
+        ax.set_title(f"{name} ({unit})" if unit else name)
         ax.set_xlabel("t (s)")
         if k == 0:
             ax.set_ylabel(unit)
