@@ -19,6 +19,8 @@ reference camera and for genlocked cameras. Camera ``c``'s frame
   ratio) that puts its tracks on the other cameras' triangulated markers.
 - :func:`tracks_at_reference_instants` -- every camera's tracks interpolated
   to the reference camera's instants.
+- :func:`others_residual` -- how far each camera's positions lie from the
+  other cameras' markers projected into it (the sync residual).
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ from .reconstruction import triangulate
 
 __all__ = ["FlashOnset", "flash_onset", "flash_phases", "TrackInterpolant", "PhaseFit", "phase_residual",
            "fit_phase", "joint_residual", "refine_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
-           "OUTSIDE_TRACK"]
+           "others_residual", "OUTSIDE_TRACK"]
 
 #: Exposure as a fraction of the frame when the session does not say (the "180 degree shutter").
 DEFAULT_EXPOSURE_FRACTION = 0.5
@@ -458,3 +460,50 @@ def _spread_and_rate(chunk_phase: list, chunk_mid: list) -> tuple[float, float]:
     sx = float(np.sqrt(np.sum((mid - mid.mean()) ** 2)))
     se = float(np.sqrt(np.sum(resid ** 2) / max(len(ph) - 2, 1)) / sx) if sx > 0 else np.inf
     return max(unc, 1e-3), (1.0 + float(slope[0]) if abs(slope[0]) > 2 * se else 1.0)
+
+
+def others_residual(rig, marker_px: dict) -> dict:
+    """Camera -> (n, m) distance (px) of its positions from the other cameras' markers projected into it.
+
+    For every camera the markers are triangulated from the OTHER cameras
+    alone (joint, no residual limit) and projected into it; the distance to
+    its own position at the same instant is left by a timing error (a
+    camera ``d`` frames off lies about ``d`` times the markers' motion per
+    frame from the others' points) as well as by the detection noise and
+    the calibration. Evaluated on the cameras' positions at common instants
+    (e.g. :func:`tracks_at_reference_instants`), it is the residual of the
+    synchronisation after the sub-frame correction. NaN where this camera
+    or fewer than two others see the marker.
+
+    Parameters
+    ----------
+    rig : Rig
+        The cameras (at least three, indexed by name).
+    marker_px : dict
+        Camera -> (n, m, 2) positions at the same instants.
+
+    Examples
+    --------
+    Three cameras in a row see two markers; the middle camera's view is
+    then shifted by 2 px, as a timing error would move it:
+
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> rig = Rig(tuple(Camera(n, (640, 480), K, translation=[x, 0.0, 0.0])
+    ...                 for n, x in (("left", 0.5), ("middle", 0.0), ("right", -0.5))))
+    >>> points = np.array([[[0.1, 0.0, 4.0], [-0.2, 0.1, 5.0]]])
+    >>> px = {c.name: c.project(points) for c in rig.cameras}
+    >>> px["middle"] = px["middle"] + [2.0, 0.0]
+    >>> round(float(np.nanmedian(others_residual(rig, px)["middle"])), 3)
+    2.0
+    """
+    out = {}
+    for cam, px in marker_px.items():
+        px = np.asarray(px, float)
+        others = {o: p for o, p in marker_px.items() if o != cam}
+        if len(others) < 2:
+            out[cam] = np.full(px.shape[:2], np.nan)
+            continue
+        points = triangulate(rig, others, mode="joint", max_residual_px=None).points
+        out[cam] = np.linalg.norm(px - rig[cam].project(points), axis=-1)
+    return out
