@@ -156,10 +156,13 @@ def flash_phases(onsets: dict, offsets: dict, reference: str) -> tuple[dict, dic
 class TrackInterpolant:
     """One camera's 2D marker tracks as cubic functions of time.
 
-    Each marker's track is split into runs of consecutive frames where it is
-    seen; each run of two or more frames is a cubic spline (a straight line
-    for two) over the frames' times, extended by :data:`EXTEND_FRAMES` beyond
-    its ends. An instant outside every (extended) run is NaN.
+    Each marker's track is split into runs of frames where it is seen, a run
+    going on across gaps of at most ``max_gap`` unseen frames; each run of
+    two or more frames is a cubic spline (a straight line for two) over the
+    observations' times. An instant is read from its run's spline only when
+    an observation of the run lies within :data:`EXTEND_FRAMES` of it (so
+    a run reaches that far beyond its ends, and across a gap only that far
+    from its edges); elsewhere it is NaN.
 
     Parameters
     ----------
@@ -168,6 +171,9 @@ class TrackInterpolant:
     times : (n,) or (n, m) array, optional
         Each observation's instant (default: the frame index); e.g. the frame
         time plus the row time of a rolling shutter.
+    max_gap : int
+        Longest run of unseen frames a spline spans (0: runs of consecutive
+        frames only).
 
     Examples
     --------
@@ -175,49 +181,66 @@ class TrackInterpolant:
     >>> track = TrackInterpolant(px)
     >>> track([0.5, 2.5, 3.5, 5.5])[:, 0, 0]
     array([ 0.5,  5.5, 12.5,  nan])
+
+    Spanning the one-frame gap, the cubic through frames 0, 1, 3 and 4
+    follows the parabola across it:
+
+    >>> TrackInterpolant(px, max_gap=1)([0.5, 2.5, 3.5, 5.5])[:, 0, 0]
+    array([ 0.25,  6.25, 12.25,   nan])
     """
 
-    def __init__(self, marker_px, times=None):
+    def __init__(self, marker_px, times=None, max_gap: int = 0):
         px = np.asarray(marker_px, float)
         if px.ndim != 3 or px.shape[2] != 2:
             raise ValueError(f"TrackInterpolant: marker_px must be (frames, markers, 2), got {px.shape}")
         self.n, self.m = px.shape[:2]
         t = np.arange(self.n, dtype=float) if times is None else np.asarray(times, float)
         t = np.broadcast_to(t[:, None] if t.ndim == 1 else t, (self.n, self.m))
-        self.runs = [[] for _ in range(self.m)]      # per marker: (t_first, t_last, spline or line)
+        self.runs = [[] for _ in range(self.m)]      # per marker: (sorted observation times, spline or line)
         seen = np.all(np.isfinite(px), axis=2) & np.isfinite(t)
         for j in range(self.m):
             idx = np.flatnonzero(seen[:, j])
             if idx.size == 0:
                 continue
-            breaks = np.flatnonzero(np.diff(idx) > 1) + 1
+            breaks = np.flatnonzero(np.diff(idx) > int(max_gap) + 1) + 1
             for run in np.split(idx, breaks):
                 if run.size >= 2:
                     tt = t[run, j]
                     order = np.argsort(tt)
-                    self.runs[j].append((tt[order][0], tt[order][-1], CubicSpline(tt[order], px[run[order], j])))
+                    self.runs[j].append((tt[order], CubicSpline(tt[order], px[run[order], j])))
 
     def __call__(self, instants) -> np.ndarray:
-        """Positions ``(len(instants), m, 2)`` at the given instants (frames), NaN outside the runs."""
+        """Positions ``(len(instants), m, 2)`` at the given instants (frames), NaN where no observation of a
+        run lies within :data:`EXTEND_FRAMES`."""
         q = np.asarray(instants, float)
         out = np.full((q.size, self.m, 2), np.nan)
         for j, runs in enumerate(self.runs):
-            for t0, t1, spline in runs:
-                inside = (q >= t0 - EXTEND_FRAMES) & (q <= t1 + EXTEND_FRAMES) & ~np.isfinite(out[:, j, 0])
+            for tt, spline in runs:
+                inside = (_nearest_distance(tt, q) <= EXTEND_FRAMES) & ~np.isfinite(out[:, j, 0])
                 if inside.any():
                     out[inside, j] = spline(q[inside])
         return out
 
 
+def _nearest_distance(sorted_times: np.ndarray, instants: np.ndarray) -> np.ndarray:
+    """Distance of every instant to the nearest of ``sorted_times`` (ascending, at least one)."""
+    i = np.clip(np.searchsorted(sorted_times, instants), 1, max(len(sorted_times) - 1, 1))
+    lower = np.abs(instants - sorted_times[i - 1])
+    upper = np.abs(sorted_times[np.minimum(i, len(sorted_times) - 1)] - instants)
+    return np.minimum(lower, upper)
+
+
 def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict | None = None,
-                                 times: dict | None = None) -> tuple[dict, dict]:
+                                 times: dict | None = None, max_gap: int = 0) -> tuple[dict, dict]:
     """Every camera's tracks interpolated to the reference camera's instants.
 
     Camera ``c``'s synchronised frame ``k`` is at reference instant
     ``k + phase[c]`` (times ``rate_ratio[c]`` per frame over the record, when
     given); the reference instant ``k`` is then its frame
     ``(k - phase[c]) / rate_ratio[c]``. A camera at phase 0 (and rate 1) is
-    returned as it is.
+    returned as it is. ``max_gap``: the longest run of unseen frames a
+    track's spline spans (:class:`TrackInterpolant`); an instant is read
+    only within :data:`EXTEND_FRAMES` of an observation.
 
     Returns
     -------
@@ -243,7 +266,7 @@ def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict 
             out[c], outside[c] = px, np.zeros(px.shape[:2], bool)
             continue
         k = np.arange(len(px), dtype=float)
-        out[c] = TrackInterpolant(px, times.get(c))((k - float(phase.get(c, 0.0))) / ratio)
+        out[c] = TrackInterpolant(px, times.get(c), max_gap)((k - float(phase.get(c, 0.0))) / ratio)
         outside[c] = np.all(np.isfinite(px), axis=2) & ~np.all(np.isfinite(out[c]), axis=2)
     return out, outside
 

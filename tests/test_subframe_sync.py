@@ -111,3 +111,15 @@ def test_subframe_sync_check_judges_the_fraction_not_the_whole_frames():
     moved = quality.check_subframe_sync_by_markers({}, {**flash, "middle": 27.25}, refined,
                                                    {"left": 0.1, "middle": 0.04, "right": 0.1})
     assert moved.level == "warning" and "27.250" in moved.message
+
+
+def test_interpolation_spans_short_gaps_but_reads_only_near_an_observation():
+    k = np.arange(12, dtype=float)
+    px = np.stack([k ** 2, k], axis=-1)[:, None, :].copy()
+    px[[4, 5, 7]] = np.nan                              # frame 6 seen alone between gaps of 2 and 1 frames
+    alone, outside = subframe.tracks_at_reference_instants({"a": px}, {"a": 0.2})
+    joined, gone = subframe.tracks_at_reference_instants({"a": px}, {"a": 0.2}, max_gap=2)
+    assert np.isnan(alone["a"][5:8, 0, 0]).all() and outside["a"][6, 0]
+    assert joined["a"][7, 0, 0] == pytest.approx(6.8 ** 2, rel=1e-2) and not gone["a"][6, 0]
+    assert np.isnan(joined["a"][5, 0, 0])              # instant 4.8: no observation within one frame
+    assert joined["a"][6, 0, 0] == pytest.approx(5.8 ** 2, rel=1e-2)

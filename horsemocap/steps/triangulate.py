@@ -98,7 +98,8 @@ def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | 
     """The cameras' centroids at the reference camera's instants, and where a camera's could not be interpolated.
 
     Genlocked cameras (no phase, no rate, no row times): the detections as they are and None. Free-running
-    cameras: each camera's tracks interpolated (cubic, on the frames where the marker is seen) to the reference
+    cameras: each camera's tracks interpolated (cubic, on the frames where the marker is seen, spanning gaps of
+    up to the step's bridged gap ``detect.max_gap_frames``, read within a frame of an observation) to the reference
     instants (:func:`horsemocap.subframe.tracks_at_reference_instants`); the returned (n, m) mask marks the
     marker-frames that some camera saw but could not interpolate (reason ``outside_track``).
     """
@@ -106,7 +107,7 @@ def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | 
     if not sync.free_running and not detect.observation_frames:
         return detect.marker_px, None
     moved, outside = tracks_at_reference_instants(detect.marker_px, sync.phase_frames, sync.rate_ratio,
-                                                  detect.observation_frames)
+                                                  detect.observation_frames, max_gap=detect.max_gap_frames)
     lost = np.any(np.stack(list(outside.values())), axis=0)
     progress("triangulate", "the cameras' tracks interpolated to the reference camera's instants (phases "
                             + ", ".join(f"{c} {v:+.3f}" for c, v in sync.phase_frames.items())
