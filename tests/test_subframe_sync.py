@@ -7,6 +7,7 @@ from horsemocap.cli import _parse_offsets
 from horsemocap.data import default_session_dir
 from horsemocap.params import AnalysisParams, ParamsError
 from horsemocap.pipeline import analyze
+from horsemocap.steps.detect import CameraSyncCheck
 from horsemocap.steps.sync import SyncResult
 
 
@@ -99,7 +100,6 @@ def test_sync_residual_is_the_timing_error_times_the_motion(rig):
 
 
 def test_subframe_sync_check_judges_the_fraction_not_the_whole_frames():
-    from horsemocap.steps.detect import CameraSyncCheck
     unsettled = {c: CameraSyncCheck(shift=1, moved=True, current_px=10.0, best_px=2.0, n_points=100, decided=True,
                                     rounds=3, settled=False) for c in ("left", "right")}
     flash = {"left": 0.0, "middle": 26.25, "right": 44.73}
