@@ -5,7 +5,7 @@ Renders (on demand, into the cache) free-running sessions of the virtual laborat
 timing set ``--seed``) and runs the default analysis on each (:func:`horsemocap.pipeline.analyze` with no
 parameters, what ``horsemocap analyze SESSION --out DIR`` runs). Per session it prints the frame rate, image
 size and drawn camera timings, then the exit status the command would give (3 when the verdict is unreliable,
-2 when a step stops), the verdict, the saddle's vertical acceleration error (% of rms), the Wb and Wk rms
+2 when a step stops), the verdict, the checks flagged (warning or unreliable) and the sync residual, the saddle's vertical acceleration error (% of rms), the Wb and Wk rms
 errors (%), and the offsets found (frames after the reference camera's, with the fraction and its uncertainty; the flash's own in brackets
 when the markers corrected them) against the true fractional offsets.
 
@@ -62,7 +62,11 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
             found = f"none ({sync_exc})"
         return (f"{head}\n  exit 2, stopped: {exc}\n  flash offsets found: {found}  "
                 f"({time.perf_counter() - t0:.0f} s)")
-    verdict = quality.verdict(quality.post_checks(a))
+    checks = quality.post_checks(a)
+    verdict = quality.verdict(checks)
+    flagged = "; ".join(f"{c.name} {c.level}" for c in checks if c.level in ("warning", "unreliable")) or "none"
+    sync_resid = next((c for c in checks if c.name == "sync_residual"), None)
+    sync_text = "" if sync_resid is None else f"; sync residual {sync_resid.figure:.3f} px ({sync_resid.level})"
     st = accuracy.stage_errors(a, truth)
     ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
     sync = a.synchronisation
@@ -78,7 +82,8 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
     frames = f"{last - first} of {sync.n_frames}"
     return (f"{head}\n  exit {3 if verdict == 'unreliable' else 0}, verdict {verdict}; saddle A_y error "
             f"{st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of rms; Wb rms {ce['acc_y_Wb_rms']:+.1f} %, Wk rms "
-            f"{ce['acc_y_Wk_rms']:+.1f} %; frames analysed {frames}\n  offsets found: " + ", ".join(found) +
+            f"{ce['acc_y_Wk_rms']:+.1f} %; frames analysed {frames}\n  checks flagged: {flagged}{sync_text}"
+            "\n  offsets found: " + ", ".join(found) +
             f"  ({time.perf_counter() - t0:.0f} s)")
 
 

@@ -475,6 +475,154 @@ def check_sync_by_markers(sync_check: dict, input_="sync offsets (the flash)", a
     return Check("sync_by_markers", float(worst), "frames", level, (0, 0), (None, None), threshold, input_, msg)
 
 
+#: Camera whose sub-frame offset moved this far (frames) from the flash's is a correction: the flash's whole
+#: frame was wrong. Less only re-splits the offset between whole frames and the fraction (the whole-frame check
+#: rounds a camera 0.9 frame after another to the next frame; the fraction moves with it).
+FRACTION_CORRECTION_FRAMES = 0.5
+
+
+def check_subframe_sync_by_markers(sync_check: dict, flash_fraction: dict, final_fraction: dict,
+                                   sync_residual_px: dict, ambiguous=None,
+                                   input_="sync offsets (the flash, refined by the markers)") -> Check:
+    """Did the markers confirm every free-running camera's flash offset, fractions of a frame included?
+
+    Free-running cameras expose a fraction of a frame after one another, so
+    the whole-frame check of the flash (:func:`check_sync_by_markers`) rounds
+    each camera's offset to the nearest whole frame of the others' markers:
+    a camera 0.9 frame after the reference is "moved" by a frame, and with
+    three cameras the rounds can chase one another between the two whole
+    frames that bracket the true offset without settling. Those moves say
+    nothing about the flash; what does is where the sub-frame fit ended:
+
+    - the figure is the largest distance (frames) between a camera's offset
+      with its fraction as the flash gave it (``flash_fraction``) and as the
+      markers refined it (``final_fraction``);
+    - a camera is confirmed when the others' markers fall on its positions
+      at the refined offset: its median sync residual (``sync_residual_px``,
+      :func:`horsemocap.subframe.others_residual`) is below
+      :data:`horsemocap.detection.timeshift.MIN_CURRENT_PX`, the bar the
+      whole-frame check sets genlocked cameras;
+    - ``ok``: every camera within :data:`FRACTION_CORRECTION_FRAMES` of the
+      flash and confirmed; ``warning``: a camera moved further (the flash was
+      found in another frame: the results use the markers' offset) or is not
+      confirmed (an ambiguous flash included); ``unreliable``: the whole-frame
+      rounds did not settle and a camera is not confirmed (the offsets used
+      were never checked).
+
+    Parameters
+    ----------
+    sync_check : dict
+        Camera -> :class:`horsemocap.steps.CameraSyncCheck` (the whole-frame check).
+    flash_fraction, final_fraction : dict
+        Camera -> offset with fraction (frames after the reference camera's).
+    sync_residual_px : dict
+        Camera -> median sync residual (px) at the refined offsets.
+    ambiguous : dict, optional
+        Camera -> the frame of a second flash candidate nearly as likely.
+
+    Examples
+    --------
+    >>> c = check_subframe_sync_by_markers({}, {"left": 0.0, "middle": 26.25}, {"left": 0.0, "middle": 26.06},
+    ...                                    {"left": 0.1, "middle": 0.04})
+    >>> c.level, round(c.figure, 2)
+    ('ok', 0.19)
+    >>> check_subframe_sync_by_markers({}, {"left": 0.0, "middle": 27.25}, {"left": 0.0, "middle": 26.06},
+    ...                                {"left": 0.1, "middle": 0.04}).level
+    'warning'
+    """
+    threshold = (f"every camera within {FRACTION_CORRECTION_FRAMES:g} frame of the flash's offset and the others' "
+                 f"markers on it (sync residual < {MIN_CURRENT_PX:g} px): ok; a camera moved further or not "
+                 "confirmed: warning; whole-frame rounds unsettled and a camera not confirmed: unreliable")
+    moved = {c: abs(float(final_fraction[c]) - float(flash_fraction[c])) for c in final_fraction if c in flash_fraction}
+    resid = {c: float(v) for c, v in sync_residual_px.items()}
+    unconfirmed = sorted(c for c, v in resid.items() if not (math.isfinite(v) and v < MIN_CURRENT_PX))
+    corrected = sorted(c for c, v in moved.items() if v >= FRACTION_CORRECTION_FRAMES)
+    settled = all(v.settled for v in sync_check.values())
+    level = "unreliable" if unconfirmed and not settled else "warning" if corrected or unconfirmed else "ok"
+    parts = []
+    if corrected:
+        parts.append("the markers moved the flash's offset of " + ", ".join(
+            f"camera '{c}' from {flash_fraction[c]:.3f} to {final_fraction[c]:.3f} frames" for c in corrected)
+            + "; the results use the markers' offsets; check the flash in those videos")
+    if unconfirmed:
+        amb = dict(ambiguous or {})
+        parts.append("the others' markers do not fall on " + ", ".join(
+            f"camera '{c}' (median sync residual {resid[c]:.3g} px"
+            + (f"; flash frame {amb[c]} nearly as likely as the one taken" if c in amb else "") + ")"
+            for c in unconfirmed) + ("; the whole-frame rounds did not settle: the offsets used were not confirmed; "
+                                     "give the offsets (--offsets, fractions allowed)" if not settled else ""))
+    msg = "; ".join(parts) if parts else (
+        "the markers confirm every camera's offset to a fraction of a frame (largest move from the flash's "
+        f"{max(moved.values(), default=0.0):.3f} frame; sync residuals "
+        + ", ".join(f"{c} {v:.3g} px" for c, v in resid.items()) + ")")
+    figure = max(moved.values(), default=0.0)
+    return Check("sync_by_markers", float(figure), "frames", level, (0, FRACTION_CORRECTION_FRAMES), (None, None),
+                 threshold, input_, msg)
+
+
+#: The sync residual (:func:`horsemocap.subframe.others_residual`, median per camera) of genlocked cameras,
+#: where no timing error enters: the detection noise and the calibration alone. The bundled session and the
+#: genlocked canter and sitting-trot sessions of the virtual laboratory give 0.018-0.050 px (640x480 to
+#: 1280x720); real markers and a real calibration give more, so the calibration's own RMS, when the rig gives
+#: it, replaces the floor when larger.
+GENLOCKED_SYNC_RESIDUAL_PX = 0.05
+#: A timing error of ``d`` frames in one camera puts its marker ``d`` times the markers' motion per frame from
+#: the others' points; the fractions of a frame beyond the genlocked floor for ``ok`` and ``warning``.
+SYNC_RESIDUAL_FRAMES = (0.05, 0.15)
+
+
+def check_sync_residual(sync_residual_px: dict | None, motion_px_per_frame: dict, calibration_rms_px=None,
+                        input_="sync offsets with fraction (analysis.json) and the rolling-shutter readout") -> Check:
+    """The residual of free-running cameras' synchronisation after the sub-frame correction.
+
+    The figure is the worst camera's median distance (px) of its positions
+    at the reference camera's instants from the other cameras' markers
+    projected into it (:func:`horsemocap.subframe.others_residual`). On
+    genlocked cameras this is the detection and calibration floor ``g``
+    (:data:`GENLOCKED_SYNC_RESIDUAL_PX`, or the calibration RMS when larger);
+    a camera whose offset is ``d`` frames off adds about ``d m`` (``m`` the
+    markers' image motion per frame). ``ok`` up to ``3 g + 0.05 m`` (within
+    the floor's spread, or a twentieth of a frame), ``warning`` up to
+    ``6 g + 0.15 m``, beyond ``unreliable`` (the cameras see the markers at
+    instants the correction did not bring together: a wrong fraction, an
+    unknown rolling shutter, a drifting rate). Skipped for genlocked
+    sessions (``sync_residual_px`` None): there the reprojection residuals
+    judge the same thing.
+
+    Examples
+    --------
+    >>> check_sync_residual({"left": [0.05, 0.1], "right": [0.1, 0.12]}, {"left": 10.0, "right": 10.0}).level
+    'ok'
+    >>> check_sync_residual({"left": [0.05, 0.1], "right": [3.0, 3.2]}, {"left": 10.0, "right": 10.0}).level
+    'unreliable'
+    >>> check_sync_residual(None, {}).level
+    'skipped'
+    """
+    e = float(calibration_rms_px) if calibration_rms_px is not None and math.isfinite(calibration_rms_px) \
+        and calibration_rms_px > 0 else 0.0
+    floor = max(GENLOCKED_SYNC_RESIDUAL_PX, e)
+    ok_d, warn_d = SYNC_RESIDUAL_FRAMES
+    if not sync_residual_px:
+        return range_check("sync_residual", None, "px", (None, None), (None, None), input_,
+                           "residual of the sub-frame synchronisation (genlocked cameras)")
+    worst = None
+    for cam, r in sync_residual_px.items():
+        r = np.asarray(r, float)
+        med = float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan")
+        m = float(motion_px_per_frame.get(cam, float("nan")))
+        m = m if math.isfinite(m) else 0.0
+        check = range_check("sync_residual", med, "px", (None, 3 * floor + ok_d * m), (None, 6 * floor + warn_d * m),
+                            input_, f"median sync residual of camera '{cam}' (the others' markers projected into it)")
+        key = (LEVELS.index(check.level), med / (6 * floor + warn_d * m) if math.isfinite(med) else math.inf)
+        if worst is None or key > worst[0]:
+            worst = (key, cam, m, med, check)
+    _, cam, m, med, check = worst
+    detail = (f" (markers move {m:.3g} px per frame: about {med / m:.3f} frame of timing)" if m > 0 else "")
+    if check.level != "ok":
+        detail += "; check the offsets' fractions (--offsets), the rolling-shutter readout and the frame rates"
+    return replace(check, message=check.message + detail)
+
+
 def check_marker_geometry(warnings, input_="the markers' layout (static shot) and the frames without a pose") -> Check:
     """Does the marker geometry support the pose the kinematics rest on?
 
@@ -554,15 +702,23 @@ def post_checks(analysis) -> list[Check]:
     if a_.triangulate is not None and a_.detect is not None:
         a, b = a_.triangulate.segment
         resid = {c: np.asarray(r)[a:b] for c, r in a_.triangulate.residual_px.items()}
-        rms = a_.rig.rig.metadata.get("error") if a_.rig is not None else None
-        try:
-            rms = float(rms) if rms is not None else None
-        except (TypeError, ValueError):
-            rms = None
-        checks.append(check_reprojection_residuals(resid, marker_motion_px(a_.detect.marker_px, (a, b)), rms))
+        checks.append(check_reprojection_residuals(resid, marker_motion_px(a_.detect.marker_px, (a, b)),
+                                                   _calibration_rms(a_)))
     ambiguous = a_.sync.flash_ambiguous if a_.sync is not None else {}
-    if a_.detect is not None and (a_.detect.sync_check or ambiguous):
+    sync_residual = _sync_residuals(a_)
+    if sync_residual is not None and a_.detect.sync_check:
+        ref = s.reference_camera
+        checks.append(check_subframe_sync_by_markers(a_.detect.sync_check, a_.sync.offsets_with_fraction(ref),
+                                                     a_.detect.sync.offsets_with_fraction(ref),
+                                                     {c: float(np.nanmedian(r)) if np.isfinite(r).any()
+                                                      else float("nan") for c, r in sync_residual.items()},
+                                                     ambiguous=ambiguous))
+    elif a_.detect is not None and (a_.detect.sync_check or ambiguous):
         checks.append(check_sync_by_markers(a_.detect.sync_check, ambiguous=ambiguous))
+    if sync_residual is not None:
+        a, b = a_.triangulate.segment
+        checks.append(check_sync_residual(sync_residual, marker_motion_px(a_.detect.marker_px, (a, b)),
+                                          _calibration_rms(a_)))
     if a_.motion_frame is not None and a_.motion_frame.period_frames is not None:
         fast = a_.motion_frame.faster_period_frames
         checks.append(check_stride_frequency(s.fps / a_.motion_frame.period_frames,
@@ -576,3 +732,22 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
         checks.append(check_saddle_acceleration(ind.get("acc_y_max")))
     return checks
+
+
+def _calibration_rms(analysis) -> float | None:
+    """The rig's RMS reprojection error (``rig.toml`` metadata ``error``), or None."""
+    rms = analysis.rig.rig.metadata.get("error") if analysis.rig is not None else None
+    try:
+        return float(rms) if rms is not None else None
+    except (TypeError, ValueError):
+        return None
+
+
+def _sync_residuals(analysis) -> dict | None:
+    """Camera -> the analysed frames' sync residuals (px) of a free-running session; None when genlocked or
+    not triangulated."""
+    tri = analysis.triangulate
+    if tri is None or analysis.detect is None or getattr(tri, "sync_residual_px", None) is None:
+        return None
+    a, b = tri.segment
+    return {c: np.asarray(r, float)[a:b] for c, r in tri.sync_residual_px.items()}

@@ -19,6 +19,8 @@ reference camera and for genlocked cameras. Camera ``c``'s frame
   ratio) that puts its tracks on the other cameras' triangulated markers.
 - :func:`tracks_at_reference_instants` -- every camera's tracks interpolated
   to the reference camera's instants.
+- :func:`others_residual` -- how far each camera's positions lie from the
+  other cameras' markers projected into it (the sync residual).
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ from .reconstruction import triangulate
 
 __all__ = ["FlashOnset", "flash_onset", "flash_phases", "TrackInterpolant", "PhaseFit", "phase_residual",
            "fit_phase", "joint_residual", "refine_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
-           "OUTSIDE_TRACK"]
+           "others_residual", "OUTSIDE_TRACK"]
 
 #: Exposure as a fraction of the frame when the session does not say (the "180 degree shutter").
 DEFAULT_EXPOSURE_FRACTION = 0.5
@@ -164,10 +166,13 @@ def flash_phases(onsets: dict, offsets: dict, reference: str) -> tuple[dict, dic
 class TrackInterpolant:
     """One camera's 2D marker tracks as cubic functions of time.
 
-    Each marker's track is split into runs of consecutive frames where it is
-    seen; each run of two or more frames is a cubic spline (a straight line
-    for two) over the frames' times, extended by :data:`EXTEND_FRAMES` beyond
-    its ends. An instant outside every (extended) run is NaN.
+    Each marker's track is split into runs of frames where it is seen, a run
+    going on across gaps of at most ``max_gap`` unseen frames; each run of
+    two or more frames is a cubic spline (a straight line for two) over the
+    observations' times. An instant is read from its run's spline only when
+    an observation of the run lies within :data:`EXTEND_FRAMES` of it (so
+    a run reaches that far beyond its ends, and across a gap only that far
+    from its edges); elsewhere it is NaN.
 
     Parameters
     ----------
@@ -176,6 +181,9 @@ class TrackInterpolant:
     times : (n,) or (n, m) array, optional
         Each observation's instant (default: the frame index); e.g. the frame
         time plus the row time of a rolling shutter.
+    max_gap : int
+        Longest run of unseen frames a spline spans (0: runs of consecutive
+        frames only).
 
     Examples
     --------
@@ -183,49 +191,66 @@ class TrackInterpolant:
     >>> track = TrackInterpolant(px)
     >>> track([0.5, 2.5, 3.5, 5.5])[:, 0, 0]
     array([ 0.5,  5.5, 12.5,  nan])
+
+    Spanning the one-frame gap, the cubic through frames 0, 1, 3 and 4
+    follows the parabola across it:
+
+    >>> TrackInterpolant(px, max_gap=1)([0.5, 2.5, 3.5, 5.5])[:, 0, 0]
+    array([ 0.25,  6.25, 12.25,   nan])
     """
 
-    def __init__(self, marker_px, times=None):
+    def __init__(self, marker_px, times=None, max_gap: int = 0):
         px = np.asarray(marker_px, float)
         if px.ndim != 3 or px.shape[2] != 2:
             raise ValueError(f"TrackInterpolant: marker_px must be (frames, markers, 2), got {px.shape}")
         self.n, self.m = px.shape[:2]
         t = np.arange(self.n, dtype=float) if times is None else np.asarray(times, float)
         t = np.broadcast_to(t[:, None] if t.ndim == 1 else t, (self.n, self.m))
-        self.runs = [[] for _ in range(self.m)]      # per marker: (t_first, t_last, spline or line)
+        self.runs = [[] for _ in range(self.m)]      # per marker: (sorted observation times, spline or line)
         seen = np.all(np.isfinite(px), axis=2) & np.isfinite(t)
         for j in range(self.m):
             idx = np.flatnonzero(seen[:, j])
             if idx.size == 0:
                 continue
-            breaks = np.flatnonzero(np.diff(idx) > 1) + 1
+            breaks = np.flatnonzero(np.diff(idx) > int(max_gap) + 1) + 1
             for run in np.split(idx, breaks):
                 if run.size >= 2:
                     tt = t[run, j]
                     order = np.argsort(tt)
-                    self.runs[j].append((tt[order][0], tt[order][-1], CubicSpline(tt[order], px[run[order], j])))
+                    self.runs[j].append((tt[order], CubicSpline(tt[order], px[run[order], j])))
 
     def __call__(self, instants) -> np.ndarray:
-        """Positions ``(len(instants), m, 2)`` at the given instants (frames), NaN outside the runs."""
+        """Positions ``(len(instants), m, 2)`` at the given instants (frames), NaN where no observation of a
+        run lies within :data:`EXTEND_FRAMES`."""
         q = np.asarray(instants, float)
         out = np.full((q.size, self.m, 2), np.nan)
         for j, runs in enumerate(self.runs):
-            for t0, t1, spline in runs:
-                inside = (q >= t0 - EXTEND_FRAMES) & (q <= t1 + EXTEND_FRAMES) & ~np.isfinite(out[:, j, 0])
+            for tt, spline in runs:
+                inside = (_nearest_distance(tt, q) <= EXTEND_FRAMES) & ~np.isfinite(out[:, j, 0])
                 if inside.any():
                     out[inside, j] = spline(q[inside])
         return out
 
 
+def _nearest_distance(sorted_times: np.ndarray, instants: np.ndarray) -> np.ndarray:
+    """Distance of every instant to the nearest of ``sorted_times`` (ascending, at least one)."""
+    i = np.clip(np.searchsorted(sorted_times, instants), 1, max(len(sorted_times) - 1, 1))
+    lower = np.abs(instants - sorted_times[i - 1])
+    upper = np.abs(sorted_times[np.minimum(i, len(sorted_times) - 1)] - instants)
+    return np.minimum(lower, upper)
+
+
 def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict | None = None,
-                                 times: dict | None = None) -> tuple[dict, dict]:
+                                 times: dict | None = None, max_gap: int = 0) -> tuple[dict, dict]:
     """Every camera's tracks interpolated to the reference camera's instants.
 
     Camera ``c``'s synchronised frame ``k`` is at reference instant
     ``k + phase[c]`` (times ``rate_ratio[c]`` per frame over the record, when
     given); the reference instant ``k`` is then its frame
     ``(k - phase[c]) / rate_ratio[c]``. A camera at phase 0 (and rate 1) is
-    returned as it is.
+    returned as it is. ``max_gap``: the longest run of unseen frames a
+    track's spline spans (:class:`TrackInterpolant`); an instant is read
+    only within :data:`EXTEND_FRAMES` of an observation.
 
     Returns
     -------
@@ -251,7 +276,7 @@ def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict 
             out[c], outside[c] = px, np.zeros(px.shape[:2], bool)
             continue
         k = np.arange(len(px), dtype=float)
-        out[c] = TrackInterpolant(px, times.get(c))((k - float(phase.get(c, 0.0))) / ratio)
+        out[c] = TrackInterpolant(px, times.get(c), max_gap)((k - float(phase.get(c, 0.0))) / ratio)
         outside[c] = np.all(np.isfinite(px), axis=2) & ~np.all(np.isfinite(out[c]), axis=2)
     return out, outside
 
@@ -468,3 +493,50 @@ def _spread_and_rate(chunk_phase: list, chunk_mid: list) -> tuple[float, float]:
     sx = float(np.sqrt(np.sum((mid - mid.mean()) ** 2)))
     se = float(np.sqrt(np.sum(resid ** 2) / max(len(ph) - 2, 1)) / sx) if sx > 0 else np.inf
     return max(unc, 1e-3), (1.0 + float(slope[0]) if abs(slope[0]) > 2 * se else 1.0)
+
+
+def others_residual(rig, marker_px: dict) -> dict:
+    """Camera -> (n, m) distance (px) of its positions from the other cameras' markers projected into it.
+
+    For every camera the markers are triangulated from the OTHER cameras
+    alone (joint, no residual limit) and projected into it; the distance to
+    its own position at the same instant is left by a timing error (a
+    camera ``d`` frames off lies about ``d`` times the markers' motion per
+    frame from the others' points) as well as by the detection noise and
+    the calibration. Evaluated on the cameras' positions at common instants
+    (e.g. :func:`tracks_at_reference_instants`), it is the residual of the
+    synchronisation after the sub-frame correction. NaN where this camera
+    or fewer than two others see the marker.
+
+    Parameters
+    ----------
+    rig : Rig
+        The cameras (at least three, indexed by name).
+    marker_px : dict
+        Camera -> (n, m, 2) positions at the same instants.
+
+    Examples
+    --------
+    Three cameras in a row see two markers; the middle camera's view is
+    then shifted by 2 px, as a timing error would move it:
+
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> rig = Rig(tuple(Camera(n, (640, 480), K, translation=[x, 0.0, 0.0])
+    ...                 for n, x in (("left", 0.5), ("middle", 0.0), ("right", -0.5))))
+    >>> points = np.array([[[0.1, 0.0, 4.0], [-0.2, 0.1, 5.0]]])
+    >>> px = {c.name: c.project(points) for c in rig.cameras}
+    >>> px["middle"] = px["middle"] + [2.0, 0.0]
+    >>> round(float(np.nanmedian(others_residual(rig, px)["middle"])), 3)
+    2.0
+    """
+    out = {}
+    for cam, px in marker_px.items():
+        px = np.asarray(px, float)
+        others = {o: p for o, p in marker_px.items() if o != cam}
+        if len(others) < 2:
+            out[cam] = np.full(px.shape[:2], np.nan)
+            continue
+        points = triangulate(rig, others, mode="joint", max_residual_px=None).points
+        out[cam] = np.linalg.norm(px - rig[cam].project(points), axis=-1)
+    return out

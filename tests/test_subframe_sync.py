@@ -2,11 +2,12 @@
 import numpy as np
 import pytest
 
-from horsemocap import subframe
+from horsemocap import quality, subframe
 from horsemocap.cli import _parse_offsets
 from horsemocap.data import default_session_dir
 from horsemocap.params import AnalysisParams, ParamsError
 from horsemocap.pipeline import analyze
+from horsemocap.steps.detect import CameraSyncCheck
 from horsemocap.steps.sync import SyncResult
 
 
@@ -74,3 +75,51 @@ def test_offsets_take_fractions():
     assert params.sync.offsets["middle"] == 53.4
     with pytest.raises(ParamsError):
         AnalysisParams().updated({"sync.offsets": {"left": 0, "middle": -1.5, "right": 126}})
+
+
+def _free_running_views(rig, n, true_phase):
+    where = _trajectory(n)
+    return {c: rig[c].project(where(np.arange(n) + true_phase.get(c, 0.0))) for c in rig.names}
+
+
+def test_sync_residual_is_the_timing_error_times_the_motion(rig):
+    n, true_phase = 90, {rig.names[1]: 0.37, rig.names[2]: -0.22}
+    px = _free_running_views(rig, n, true_phase)
+    motion = quality.marker_motion_px(px)
+    right, _ = subframe.tracks_at_reference_instants(px, true_phase)
+    resid = subframe.others_residual(rig, right)
+    assert max(float(np.nanmedian(r[2:-2])) for r in resid.values()) < 0.05
+    off = {**true_phase, rig.names[1]: true_phase[rig.names[1]] + 0.2}     # a fraction 0.2 frame wrong
+    wrong, _ = subframe.tracks_at_reference_instants(px, off)
+    bad = {c: float(np.nanmedian(r[2:-2])) for c, r in subframe.others_residual(rig, wrong).items()}
+    assert bad[rig.names[1]] == pytest.approx(0.2 * motion[rig.names[1]], rel=0.5)
+    checks = {lvl: quality.check_sync_residual(r, motion).level
+              for lvl, r in (("right", subframe.others_residual(rig, right)),
+                             ("wrong", subframe.others_residual(rig, wrong)))}
+    assert checks == {"right": "ok", "wrong": "unreliable"}
+
+
+def test_subframe_sync_check_judges_the_fraction_not_the_whole_frames():
+    unsettled = {c: CameraSyncCheck(shift=1, moved=True, current_px=10.0, best_px=2.0, n_points=100, decided=True,
+                                    rounds=3, settled=False) for c in ("left", "right")}
+    flash = {"left": 0.0, "middle": 26.25, "right": 44.73}
+    refined = {"left": 0.0, "middle": 26.06, "right": 44.73}
+    ok = quality.check_subframe_sync_by_markers(unsettled, flash, refined, {"left": 0.1, "middle": 0.04, "right": 0.1})
+    assert ok.level == "ok" and ok.figure == pytest.approx(0.19)
+    lost = quality.check_subframe_sync_by_markers(unsettled, flash, refined, {"left": 0.1, "middle": 4.0, "right": 0.1})
+    assert lost.level == "unreliable" and "middle" in lost.message
+    moved = quality.check_subframe_sync_by_markers({}, {**flash, "middle": 27.25}, refined,
+                                                   {"left": 0.1, "middle": 0.04, "right": 0.1})
+    assert moved.level == "warning" and "27.250" in moved.message
+
+
+def test_interpolation_spans_short_gaps_but_reads_only_near_an_observation():
+    k = np.arange(12, dtype=float)
+    px = np.stack([k ** 2, k], axis=-1)[:, None, :].copy()
+    px[[4, 5, 7]] = np.nan                              # frame 6 seen alone between gaps of 2 and 1 frames
+    alone, outside = subframe.tracks_at_reference_instants({"a": px}, {"a": 0.2})
+    joined, gone = subframe.tracks_at_reference_instants({"a": px}, {"a": 0.2}, max_gap=2)
+    assert np.isnan(alone["a"][5:8, 0, 0]).all() and outside["a"][6, 0]
+    assert joined["a"][7, 0, 0] == pytest.approx(6.8 ** 2, rel=1e-2) and not gone["a"][6, 0]
+    assert np.isnan(joined["a"][5, 0, 0])              # instant 4.8: no observation within one frame
+    assert joined["a"][6, 0, 0] == pytest.approx(5.8 ** 2, rel=1e-2)

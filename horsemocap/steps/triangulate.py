@@ -9,7 +9,7 @@ from ..camera import Rig
 from ..detection import bridge_gaps
 from ..params import TriangulateParams
 from ..reconstruction import nearest_covariance, triangulate
-from ..subframe import OUTSIDE_TRACK, tracks_at_reference_instants
+from ..subframe import OUTSIDE_TRACK, others_residual, tracks_at_reference_instants
 from .base import AnalysisError, StepResult, longest_run
 from .detect import MIN_SEGMENT_FRAMES, DetectResult
 
@@ -35,6 +35,10 @@ class TriangulateResult(StepResult):
         Each point's covariance for the detection noise (world frame).
     noise_px : float or None
         The detection noise estimated from the residuals.
+    sync_residual_px : dict or None
+        Free-running cameras: camera -> (n, m) distance (px) of its positions at the reference instants from
+        the other cameras' markers projected into it (:func:`horsemocap.subframe.others_residual`), the
+        residual of the sub-frame synchronisation; None for genlocked cameras.
     """
 
     points: np.ndarray
@@ -44,6 +48,7 @@ class TriangulateResult(StepResult):
     segment: tuple
     covariance: np.ndarray | None
     noise_px: float | None
+    sync_residual_px: dict | None = None
 
 
 def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult, progress) -> TriangulateResult:
@@ -84,15 +89,17 @@ def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult,
                                 f"{a}..{b - 1} could not be triangulated ("
                                 + ", ".join(sorted({str(r) for r in reason[a:b].ravel() if r and r != "interpolated"}))
                                 + ")")
+    sync_residual = None if outside is None or len(marker_px) < 3 else others_residual(rig, marker_px)
     return TriangulateResult(points=points, residual_px=tri.residual_px, reason=reason, n_views=tri.n_views,
-                             segment=segment, covariance=cov, noise_px=tri.noise_px)
+                             segment=segment, covariance=cov, noise_px=tri.noise_px, sync_residual_px=sync_residual)
 
 
 def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | None]:
     """The cameras' centroids at the reference camera's instants, and where a camera's could not be interpolated.
 
     Genlocked cameras (no phase, no rate, no row times): the detections as they are and None. Free-running
-    cameras: each camera's tracks interpolated (cubic, on the frames where the marker is seen) to the reference
+    cameras: each camera's tracks interpolated (cubic, on the frames where the marker is seen, spanning gaps of
+    up to the step's bridged gap ``detect.max_gap_frames``, read within a frame of an observation) to the reference
     instants (:func:`horsemocap.subframe.tracks_at_reference_instants`); the returned (n, m) mask marks the
     marker-frames that some camera saw but could not interpolate (reason ``outside_track``).
     """
@@ -100,7 +107,7 @@ def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | 
     if not sync.free_running and not detect.observation_frames:
         return detect.marker_px, None
     moved, outside = tracks_at_reference_instants(detect.marker_px, sync.phase_frames, sync.rate_ratio,
-                                                  detect.observation_frames)
+                                                  detect.observation_frames, max_gap=detect.max_gap_frames)
     lost = np.any(np.stack(list(outside.values())), axis=0)
     progress("triangulate", "the cameras' tracks interpolated to the reference camera's instants (phases "
                             + ", ".join(f"{c} {v:+.3f}" for c, v in sync.phase_frames.items())
