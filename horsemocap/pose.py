@@ -710,6 +710,8 @@ FIXED_REFERENCE_MAX_ANGLE = np.pi / 2
 #: The largest rotation (rad) of a frame from the moving reference that
 #: :func:`rotation_reference` accepts before it gives the reference's angle more knots.
 MOVING_REFERENCE_MAX_ANGLE = np.pi / 4
+#: The moving reference is taken only where it at least halves the frames' median rotation from it.
+MOVING_REFERENCE_GAIN = 0.5
 #: The fewest frames per knot interval of the moving reference's angle.
 MOVING_REFERENCE_MIN_FRAMES = 8
 
@@ -779,7 +781,10 @@ def rotation_reference(t, rots: Rotation) -> tuple[RotationReference, np.ndarray
     ``(reference, phi)`` with ``R_k = Exp(phi_k) R_ref(t_k)``, ``phi``
     continuous (:func:`unwrap_rotvec`). A record whose rotations stay within
     :data:`FIXED_REFERENCE_MAX_ANGLE` of their mean keeps the mean as a
-    fixed reference. Otherwise the reference turns with the body about its
+    fixed reference; so does one where a turning reference would not at
+    least halve the frames' median rotation from it
+    (:data:`MOVING_REFERENCE_GAIN`: frames registered far off by noise, not a
+    body that turns). Otherwise the reference turns with the body about its
     main turning axis ``u`` (:func:`_turning_axis`) by an angle ``theta(t)``:
     the frame-to-frame rotations projected on ``u`` and summed, fitted by a
     least-squares quintic spline (as smooth as the
@@ -810,6 +815,16 @@ def rotation_reference(t, rots: Rotation) -> tuple[RotationReference, np.ndarray
     phi = unwrap_rotvec((rots * mean.inv()).as_rotvec())
     if np.linalg.norm(phi, axis=1).max() <= FIXED_REFERENCE_MAX_ANGLE or len(rots) < 4:
         return RotationReference(mean.as_matrix()), phi
+    ref, moving = _moving_reference(t, rots)
+    # a body that turns: about the moving reference its rotations are much smaller; frames that noise
+    # registered far off (a thin marker triangle, pixels of noise) are not made smaller by it
+    if np.median(np.linalg.norm(moving, axis=1)) > MOVING_REFERENCE_GAIN * np.median(np.linalg.norm(phi, axis=1)):
+        return RotationReference(mean.as_matrix()), phi
+    return ref, moving
+
+
+def _moving_reference(t, rots: Rotation) -> tuple[RotationReference, np.ndarray]:
+    """The reference turning with the body about its main axis, and the rotation vectors about it."""
     axis = _turning_axis(rots)
     step = (rots[1:] * rots[:-1].inv()).as_rotvec() @ axis
     theta = np.concatenate([[0.0], np.cumsum(step)])
