@@ -134,11 +134,13 @@ def read_choices(session_dir=None) -> dict:
     return data["parameters"]
 
 
-def session_params(session_dir=None, choices: dict | None = None) -> AnalysisParams:
-    """Defaults, then the session's ``analysis`` object, then the choices (validated).
+def session_params(session_dir=None, choices: dict | None = None, overrides: dict | None = None) -> AnalysisParams:
+    """Defaults, then the session's ``analysis`` object, then the choices, then ``overrides`` (validated).
 
-    Raises :class:`ParamsError` naming ``choices.json`` and the parameter
-    when a choice is not valid for the session (a camera it does not have).
+    Each layer overrides the ones before field by field (a section given in
+    two layers keeps the fields only the earlier one names). Raises
+    :class:`ParamsError` naming ``choices.json`` and the parameter when a
+    choice is not valid for the session (a camera it does not have).
     """
     session_dir = Path(session_dir or current_session())
     session = load_session(session_dir, open_sources=False)
@@ -146,8 +148,8 @@ def session_params(session_dir=None, choices: dict | None = None) -> AnalysisPar
     source = str(choices_path(session_dir))
     resolve_params(session)   # the session's own analysis object, checked (its errors name session.json)
     # the given values only, not the defaults filled in: a preset chosen in a notebook is not undone
-    # by the defaults it replaces (as in pipeline.resolve_params, which results_for and the CLI use)
-    params = AnalysisParams.from_layers(session.analysis or {}, choices, source=source)
+    # by the defaults it replaces (as in pipeline.resolve_params, which the CLI uses)
+    params = AnalysisParams.from_layers(session.analysis or {}, choices, overrides or {}, source=source)
     params.check_session(session, source)
     return params
 
@@ -528,9 +530,7 @@ def results_for(session_dir=None, until: str = "comfort", params=None) -> Analys
     session_dir = Path(session_dir or current_session()).resolve()
     if not isinstance(params, AnalysisParams):
         chosen = read_choices(session_dir)
-        if chosen or params:   # field by field: a section given in both keeps the choices' other fields
-            session = load_session(session_dir, open_sources=False)
-            params = AnalysisParams.from_layers(session.analysis or {}, chosen, params or {},
-                                                source=str(choices_path(session_dir)))
+        if chosen or params:
+            params = session_params(session_dir, chosen, overrides=params)
     return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
                    progress=lambda *a: None, reuse=True)

@@ -90,7 +90,7 @@ def test_analysed_truth_rows_and_frame():
     unset = lambda cls, **given: cls(**{**{f.name: None for f in fields(cls)}, **given})  # noqa: E731
     analysis = Analysis(session, None, sync=unset(SyncResult, offsets={"left": 8}),
                         triangulate=unset(TriangulateResult, segment=(24, 34)),
-                        motion_frame=unset(MotionFrameResult, frame=mf, axes=axes))
+                        motion_frame=unset(MotionFrameResult, frame=mf))
     d = analysed_truth(analysis, truth)
     np.testing.assert_array_equal(d["frames"], np.arange(32, 42))
     assert d["known"].tolist() == [True] * 8 + [False] * 2

@@ -203,7 +203,7 @@ def test_post_checks_judge_the_markers_shape():
         return cls(**{**{f.name: None for f in dataclasses.fields(cls)}, **given})
 
     model = np.array([[0.3, 0.0, 0.0], [-0.15, 0.1, 0.0], [-0.15, -0.1, 0.05]])
-    good = unset(RigidBodyResult, warnings=[], model=model,
+    good = unset(RigidBodyResult, model=model,
                  conditioning=unset(Conditioning, registration_rms_m=np.full(40, 0.0008), warnings=[]))
     bad = good.replace(conditioning=dataclasses.replace(good.conditioning, registration_rms_m=np.full(40, 0.044)))
     session = SimpleNamespace(fps=30.0)

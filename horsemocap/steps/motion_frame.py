@@ -19,8 +19,6 @@ class MotionFrameResult(StepResult):
     ----------
     frame : MotionFrame
         Origin, axes and the period used (eq. 5.6/5.7).
-    axes : (3, 3) array
-        Rows x, y, z of the motion frame in the world frame.
     period_frames : float or None
         The motion's period in frames (given or estimated), None when none was found.
     positions : (n, m, 3) array
@@ -32,11 +30,15 @@ class MotionFrameResult(StepResult):
     """
 
     frame: MotionFrame
-    axes: np.ndarray
     period_frames: float | None
     positions: np.ndarray
     static: np.ndarray
     faster_period_frames: float | None = None
+
+    @property
+    def axes(self) -> np.ndarray:
+        """Rows x, y, z of the motion frame in the world frame (``frame.axes``)."""
+        return self.frame.axes
 
 
 def step_motion_frame(session: Session, section: MotionFrameParams, smoothed: np.ndarray, gravity: np.ndarray,
@@ -91,7 +93,7 @@ def step_motion_frame(session: Session, section: MotionFrameParams, smoothed: np
         progress("motion_frame", f"period {mf.period_frames:.2f} frames")
         period = mf.period_frames
     _say_faster(session.fps, period, faster, progress)
-    return MotionFrameResult(frame=mf, axes=mf.axes, period_frames=None if period is None else float(period),
+    return MotionFrameResult(frame=mf, period_frames=None if period is None else float(period),
                              positions=to_motion_frame(smoothed, mf), static=to_motion_frame(static_points, mf),
                              faster_period_frames=None if faster is None else float(faster))
 

@@ -1,6 +1,7 @@
 """Step ``rig``: the calibrated cameras (thesis sections 3.3-3.6)."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from ..calibration.cache import cached_calibration
@@ -24,6 +25,18 @@ class RigResult(StepResult):
 
     rig: Rig
     rig_from: str
+
+    def origin(self, mode: str) -> str:
+        """Where the rig came from, whichever cache served it: a calibration reused from a results
+        folder or the user-level board cache is the rig a new calibration in ``mode`` gives.
+
+        Examples
+        --------
+        >>> from horsemocap.camera import Rig
+        >>> RigResult(Rig(()), "calibrated from checkerboard views (cached in calibration.json)").origin("joint")
+        'calibrated from checkerboard views (joint)'
+        """
+        return re.sub(r" \(cached in [^)]*\)", f" ({mode})", self.rig_from)
 
 
 def step_rig(session: Session, section: RigParams, progress, *, cache_dirs=(), board_views=None) -> RigResult:

@@ -41,13 +41,11 @@ class RigidBodyResult(StepResult):
         The Fourier orders (y, z) per marker of the thesis' chain.
     omega, alpha : (n, 3) arrays
         Angular velocity and acceleration (chapter 6).
-    singularity_deg : (n,) array
-        The eq. 6.35 angle per frame (``conditioning.singularity_deg``).
     saddle_position, saddle_velocity, saddle_acceleration : (n, 3) arrays
         The hidden saddle marker (eq. 6.48-6.55 or the pose trajectory).
     conditioning : horsemocap.rigid.Conditioning
-        The eq. 6.35 angle, the marker triangle's height and the registration residual per frame.
-    warnings : list of str
+        The eq. 6.35 angle, the marker triangle's height and the registration residual per frame,
+        and the warnings they give (:attr:`singularity_deg`, :attr:`warnings`).
     saddle_angles_deg : (n, 3) array
         Roll, pitch, yaw of the saddle.
     """
@@ -64,35 +62,21 @@ class RigidBodyResult(StepResult):
     orders: np.ndarray | None
     omega: np.ndarray
     alpha: np.ndarray
-    singularity_deg: np.ndarray
     saddle_position: np.ndarray
     saddle_velocity: np.ndarray
     saddle_acceleration: np.ndarray
     conditioning: Conditioning
-    warnings: list
     saddle_angles_deg: np.ndarray
 
+    @property
+    def singularity_deg(self) -> np.ndarray:
+        """The eq. 6.35 angle per frame (:attr:`horsemocap.rigid.Conditioning.singularity_deg`)."""
+        return self.conditioning.singularity_deg
 
-def _fourier_orders(given, n_markers):
-    """``{"y": N, "z": N}`` or per-marker ``[[Ny, Nz], ...]`` -> array (m, 2) or None."""
-    if given is None:
-        return None
-    if isinstance(given, dict):
-        if "y" not in given or "z" not in given:
-            return None
-        return np.tile([int(given["y"]), int(given["z"])], (n_markers, 1))
-    arr = np.asarray(given, int)
-    if arr.shape != (n_markers, 2):
-        raise AnalysisError("rigid_body", f"parameter 'fourier_orders': expected {{'y': N, 'z': N}} or "
-                                          f"{n_markers} pairs [Ny, Nz], got {given!r}")
-    return arr
-
-
-def _extra_orders(given, key, k):
-    """``fourier_orders[key]`` ("rotation": 3 ints or one, "saddle": [Ny, Nz] or one) or None."""
-    if not isinstance(given, dict) or given.get(key) is None:
-        return None
-    return np.broadcast_to(np.asarray(given[key], int), (k,)).copy()
+    @property
+    def warnings(self) -> list:
+        """Messages when the conditioning makes the result unreliable (:attr:`horsemocap.rigid.Conditioning.warnings`)."""
+        return self.conditioning.warnings
 
 
 def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: TriangulateResult,
@@ -129,13 +113,15 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     if cov is not None:   # the markers' covariances in the motion frame (x_M = A (x - o): A C A^T)
         cov = motion.axes @ cov[lo:hi] @ motion.axes.T
     period = motion.period_frames
-    fo = fits.fourier_orders
+    try:     # the parameter file's form parsed once (markers, orientation, saddle path)
+        given_orders = FourierOrders.from_param(fits.fourier_orders, positions.shape[1])
+    except ValueError as exc:   # "fourier_orders: expected ...", named as every parameter is
+        raise AnalysisError("rigid_body", f"parameter 'fourier_orders'{str(exc).removeprefix('fourier_orders')}") from None
     _check_pose_events(pose.events, t if pose_t is None else pose_t)
     try:
         rb = analyse_rigid_body(
             t, positions, static, section, period_s=None if period is None else period / session.fps,
-            fourier_orders=FourierOrders(_fourier_orders(fo, positions.shape[1]), _extra_orders(fo, "rotation", 3),
-                                         _extra_orders(fo, "saddle", 2)),
+            fourier_orders=given_orders,
             pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov))
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
@@ -149,9 +135,9 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
         body=rb, t=t, registered=pos, model=rb.model, saddle_static=rb.static_saddle,
         static_order=[int(i) for i in rb.static_index], saddle_index=int(rb.saddle_index),
         velocity=vel, acceleration=acc, orders=orders, omega=rb.omega, alpha=rb.alpha,
-        singularity_deg=cond.singularity_deg, saddle_position=rb.saddle_position,
+        saddle_position=rb.saddle_position,
         saddle_velocity=rb.saddle_velocity, saddle_acceleration=rb.saddle_acceleration, conditioning=cond,
-        warnings=list(cond.warnings), saddle_angles_deg=saddle_angles(rb))
+        saddle_angles_deg=saddle_angles(rb))
 
 
 def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning, orders, progress) -> None:

@@ -40,8 +40,6 @@ ws = open_workspace()
 display(ui_session(ws))
 
 # %%
-import re
-
 import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
@@ -76,7 +74,7 @@ a, b = analysis.detect.segment                            # analysed frames a..b
 marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}   # PM per camera, (n, 3, 2)
 fps = analysis.session.fps
 # where the rig comes from ("(cached ...)" when an earlier run calibrated it: the same rig)
-rig_from = re.sub(r" \(cached in [^)]*\)", f" ({analysis.params.rig.mode})", analysis.rig.rig_from)  # cached or not
+rig_from = analysis.rig.origin(analysis.params.rig.mode)
 print(f"rig: {rig_from}; cameras {list(rig.names)}")
 print("sync offsets (" + sync.offsets_from + "): "
       + ", ".join(f"{c} {v:d}" for c, v in offsets.items()))

@@ -40,8 +40,6 @@ ws = open_workspace()
 display(ui_session(ws))
 
 # %%
-import re
-
 import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
@@ -73,7 +71,7 @@ mf_pipeline = analysis.motion_frame.frame
 fps = analysis.session.fps
 n = points.shape[0]
 par = analysis.params
-rig_from = re.sub(r" \(cached in [^)]*\)", f" ({par.rig.mode})", analysis.rig.rig_from)  # cached or not
+rig_from = analysis.rig.origin(par.rig.mode)
 print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
       f"{analysis.params.triangulate.mode} triangulation")
 print(f"pipeline choices: smoothing_method '{par.smooth.method}' (span {par.smooth.span:.2f} if used), "
