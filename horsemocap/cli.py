@@ -17,6 +17,7 @@ import numpy as np
 
 from .errors import one_line
 from .params import ParamField, params_fields, ParamsError, read_params, section_title
+from .readable import hours_minutes
 
 DESCRIPTION = """\
 horsemocap: saddle motion analysis of horses with a 3-camera vision system
@@ -306,9 +307,9 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
     ind = comfort.indicators if comfort is not None else None
     if ind:
         print(f"comfort [quality {outcome.verdict}]: Wk-weighted rms {ind['acc_y_Wk_rms']:.3f} m/s², "
-              f"VDV {ind['VDV_y_Wk']:.3f} m/s^1.75, 8-h action value reached in {ind['TA_8_action_Wk']:.3f} h "
-              f"at {ind['vel_x_avg']:.1f} km/h (vertical axis, the thesis)"
-              + (f"; by the EU Directive's three axes in {ind['TA_8_action_directive']:.3f} h"
+              f"VDV {ind['VDV_y_Wk']:.3f} m/s^1.75, 8-h action value reached in "
+              f"{hours_minutes(ind['TA_8_action_Wk'])} at {ind['vel_x_avg']:.1f} km/h (vertical axis, the thesis)"
+              + (f"; by the EU Directive's three axes in {hours_minutes(ind['TA_8_action_directive'])}"
                  if "TA_8_action_directive" in ind else ""))
     if outcome.exit_code == 3:
         print(f"horsemocap: the quality verdict is UNRELIABLE (exit status {outcome.exit_code}): do not use these "

@@ -5,7 +5,7 @@ import io
 
 import pytest
 
-from horsemocap import report
+from horsemocap import readable, report
 from horsemocap.params import AnalysisParams
 from horsemocap.progress import CountingFrames, ProgressPrinter, counter, plain_count_due, progress_bar
 from horsemocap.vibration import COMFORT_KEYS, COMFORT_UNITS
@@ -107,7 +107,7 @@ def test_quality_section_rounds_figures():
     (12.0, "12 h 00 min"), (0.002329, "0 h 00 min (8 s)"), (float("inf"), "never"),
     (float("nan"), "not computed")])
 def test_times_read_in_hours_and_minutes(hours, expected):
-    assert report.hours_minutes(hours) == expected
+    assert readable.hours_minutes(hours) == expected
 
 
 def _indicators():
