@@ -29,6 +29,8 @@ from .steps.base import longest_run
 from .steps.detect import MIN_SEGMENT_FRAMES
 from .vibration import COMFORT_KEYS, allowable_distances, exposure_times
 
+#: Passes named one by one in the progress line (more are counted by verdict).
+MAX_PASSES_LISTED = 8
 #: The steps run again for every pass (those after the triangulation).
 PASS_STEPS = ("smooth", "motion_frame", "rigid_body", "comfort")
 
@@ -237,8 +239,29 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
     result = PassesResult(tuple(out), combined_comfort([p.indicators for p in out], [p.duration_s for p in out]))
     analysed = sum(p.analysis is not None for p in out)
     progress("passes", f"{len(out)} passes of the horse through the views, {analysed} analysed; "
-                       + "; ".join(_pass_text(p) for p in out))
+                       + summary_text(out))
     return result
+
+
+def summary_text(passes) -> str:
+    """The passes in words: each one when there are at most :data:`MAX_PASSES_LISTED`, else the count per
+    verdict and the first of those not ``ok``.
+
+    Examples
+    --------
+    >>> many = [PassResult(i, (10 * i, 10 * i + 9), None, None, "unreliable", error="too short") for i in range(1, 11)]
+    >>> summary_text(many[:1])
+    'pass 1 (frames 10..18): not analysed (too short)'
+    >>> summary_text(many)[:59]
+    '10 unreliable (passes.csv has each); pass 1 (frames 10..18):'
+    """
+    passes = list(passes)
+    if len(passes) <= MAX_PASSES_LISTED:
+        return "; ".join(_pass_text(p) for p in passes)
+    counts = {v: sum(p.verdict == v for p in passes) for v in ("ok", "warning", "unreliable")}
+    text = ", ".join(f"{n} {v}" for v, n in counts.items() if n) + " (passes.csv has each)"
+    flagged = [p for p in passes if p.verdict != "ok"][:MAX_PASSES_LISTED]
+    return text + "".join(f"; {_pass_text(p)}" for p in flagged)
 
 
 def _verdict(analysis) -> str:
