@@ -252,7 +252,7 @@ def summary_text(passes) -> str:
     >>> many = [PassResult(i, (10 * i, 10 * i + 9), None, None, "unreliable", error="too short") for i in range(1, 11)]
     >>> summary_text(many[:1])
     'pass 1 (frames 10..18): not analysed (too short)'
-    >>> summary_text(many)[:59]
+    >>> summary_text(many)[:60]
     '10 unreliable (passes.csv has each); pass 1 (frames 10..18):'
     """
     passes = list(passes)
