@@ -19,6 +19,10 @@ analysed change.
 """
 from __future__ import annotations
 
+import multiprocessing
+import os
+import pickle
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -216,31 +220,106 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
         return None
     tri, det = analysis.triangulate, analysis.detect
     main_a, main_b = tri.segment
-    out = []
+    out, jobs = {}, {}
     for i, run in enumerate(runs, 1):
         if run[0] <= main_a and main_b <= run[1]:
-            out.append(PassResult(i, run, tri.segment, analysis, _verdict(analysis), main=True))
+            out[i] = PassResult(i, run, tri.segment, analysis, _verdict(analysis), main=True)
             continue
         segment = pass_segment(tri.points, run)
         if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
-            out.append(PassResult(i, run, segment, None, "unreliable",
-                                  error=f"fewer than {MIN_SEGMENT_FRAMES} consecutive frames with every marker "
-                                        "triangulated"))
+            out[i] = PassResult(i, run, segment, None, "unreliable",
+                                error=f"fewer than {MIN_SEGMENT_FRAMES} consecutive frames with every marker "
+                                      "triangulated")
             continue
         given = {name: getattr(analysis, name) for name in ("sync", "rig", "plumb", "static")}
         given["detect"] = det.replace(segment=run)
         given["triangulate"] = tri.replace(segment=segment)
-        try:
-            an = run_later(given, PASS_STEPS)
-        except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:
-            out.append(PassResult(i, run, segment, None, "unreliable", error=str(exc)))
+        jobs[i] = (run, segment, given)
+    later = run_beside([lambda given=given: _later_steps(run_later, given) for _, _, given in jobs.values()])
+    for (i, (run, segment, given)), (results, error) in zip(jobs.items(), later):
+        if error:
+            out[i] = PassResult(i, run, segment, None, "unreliable", error=error)
             continue
-        out.append(PassResult(i, run, segment, an, _verdict(an)))
+        an = analysis.__class__(analysis.session, analysis.params)
+        for name, value in {**given, **results}.items():
+            setattr(an, name, value)
+        out[i] = PassResult(i, run, segment, an, _verdict(an))
+    out = [out[i] for i in sorted(out)]
     result = PassesResult(tuple(out), combined_comfort([p.indicators for p in out], [p.duration_s for p in out]))
     analysed = sum(p.analysis is not None for p in out)
     progress("passes", f"{len(out)} passes of the horse through the views, {analysed} analysed; "
                        + summary_text(out))
     return result
+
+
+def _later_steps(run_later, given) -> tuple[dict, str]:
+    """The results of :data:`PASS_STEPS` on ``given`` and "", or {} and why they could not be computed."""
+    try:
+        an = run_later(given, PASS_STEPS)
+    except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:
+        return {}, str(exc)
+    return {name: getattr(an, name) for name in PASS_STEPS}, ""
+
+
+def run_beside(tasks) -> list:
+    """The values of ``tasks`` (callables without arguments), in order, a forked copy of this process taking
+    tasks beside this one where it can.
+
+    As :func:`horsemocap.report.render_pngs` draws figures: where the system
+    can ``fork``, has two or more cores and this process runs no other
+    Python thread and is not itself a worker of a pool (a batch's worker
+    already shares the cores with the others), the two processes take the
+    next task not yet taken as each becomes free (one byte per task read
+    from a shared pipe), and the copy sends its values back pickled. The
+    copy computes with the same code and data, so the values are the same
+    either way; those it did not deliver are computed here.
+
+    Examples
+    --------
+    >>> run_beside([lambda: 1, lambda: 2, lambda: 3])
+    [1, 2, 3]
+    """
+    tasks = list(tasks)
+    if (len(tasks) < 2 or len(tasks) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
+            or threading.active_count() > 1 or multiprocessing.parent_process() is not None):
+        return [task() for task in tasks]
+    claims_r, claims_w = os.pipe()
+    os.write(claims_w, bytes(range(len(tasks))))
+    os.close(claims_w)
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                     # the copy: compute, send, leave without cleanup
+        code = 1
+        try:
+            os.close(read_end)
+            done = _claimed(tasks, claims_r)
+            with os.fdopen(write_end, "wb") as sent:
+                pickle.dump(done, sent)
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write_end)
+    got = os.fdopen(read_end, "rb")
+    try:
+        with got:
+            out = _claimed(tasks, claims_r)
+            data = got.read()
+    finally:
+        _, status = os.waitpid(pid, 0)
+        os.close(claims_r)
+    if status == 0 and data:
+        out.update(pickle.loads(data))
+    return [out[i] if i in out else task() for i, task in enumerate(tasks)]
+
+
+def _claimed(tasks, claims_fd: int) -> dict:
+    """The tasks this process takes from the shared pipe of task numbers, computed: {number: value}."""
+    done = {}
+    while True:
+        claim = os.read(claims_fd, 1)
+        if not claim:
+            return done
+        done[claim[0]] = tasks[claim[0]]()
 
 
 def summary_text(passes) -> str:

@@ -125,3 +125,42 @@ def test_a_pass_too_short_to_triangulate_is_a_row_with_its_reason(bundled):
     second = result.passes[1]
     assert second.analysis is None and second.verdict == "unreliable" and "fewer than 8" in second.error
     assert result.combined["duration_s"] == pytest.approx(result.passes[0].duration_s)
+
+
+def _times(a, gap: int, times: int):
+    if isinstance(a, dict):
+        return {k: _times(v, gap, times) for k, v in a.items()}
+    if a is None:
+        return None
+    a = np.asarray(a)
+    fill = np.full((gap,) + a.shape[1:], {"b": False, "U": "", "i": 0, "u": 0}.get(a.dtype.kind, np.nan),
+                   dtype=a.dtype)
+    return np.concatenate([a] + [np.concatenate([fill, a]) for _ in range(times - 1)])
+
+
+def test_passes_computed_beside_in_a_forked_copy_are_the_same(bundled, monkeypatch):
+    from horsemocap import passes as passes_module
+
+    det, tri = bundled.detect, bundled.triangulate
+    record = bundled.__class__(bundled.session, bundled.params)
+    for name in ("sync", "rig", "plumb", "static", "smooth", "motion_frame", "rigid_body", "comfort"):
+        setattr(record, name, getattr(bundled, name))
+    record.detect = det.replace(marker_px=_times(det.marker_px, 30, 3), reason=_times(det.reason, 30, 3),
+                                all_seen=_times(det.all_seen, 30, 3))
+    record.triangulate = tri.replace(points=_times(tri.points, 30, 3), residual_px=_times(tri.residual_px, 30, 3),
+                                     reason=_times(tri.reason, 30, 3), n_views=_times(tri.n_views, 30, 3),
+                                     covariance=_times(tri.covariance, 30, 3))
+    later = lambda given, steps: run_steps(record.session, record.params, given, steps)  # noqa: E731
+    forks = []
+    real_fork = passes_module.os.fork
+    monkeypatch.setattr(passes_module.os, "fork", lambda: (forks.append(1), real_fork())[1])
+    beside = analyse_passes(record, later, lambda *a: None)
+    monkeypatch.setattr(passes_module, "run_beside", lambda tasks: [t() for t in tasks])
+    alone = analyse_passes(record, later, lambda *a: None)
+    import threading
+    assert len(forks) == (1 if threading.active_count() == 1 else 0)
+    assert [p.segment for p in beside.passes] == [p.segment for p in alone.passes] and len(alone.passes) == 3
+    for b, a in zip(beside.passes, alone.passes):
+        assert b.indicators == a.indicators and b.verdict == a.verdict
+        np.testing.assert_array_equal(b.analysis.rigid_body.saddle_acceleration, a.analysis.rigid_body.saddle_acceleration)
+    assert beside.combined == alone.combined
