@@ -72,6 +72,13 @@ def main():
     for p in last["passes"]:
         print(f"  pass {p['pass']}: frames {p['frames'][0]}..{p['frames'][1] - 1}, {p['verdict']}, "
               f"{p['duration_s']:.2f} s, Wb rms {p['acc_y_Wb_rms']}")
+    truth = json.loads((Path(args.session) / "truth" / "truth.json").read_text()).get("extras", {}).get("long_session")
+    if truth:                       # each true pass (motion frames after the flash = synchronised frames)
+        n = truth["pass_frames"]
+        inside = [sum(1 for p in last["passes"] if s <= p["frames"][0] and p["frames"][1] <= s + n)
+                  for s in truth["pass_starts"]]
+        print(f"passes found {len(last['passes'])}; true passes {len(inside)}, with exactly one found pass inside "
+              f"its frames: {sum(k == 1 for k in inside)}")
     median = statistics.median(r["ratio"] for r in rounds)
     after = load()
     print(f"median decode / analyze throughput ratio {median:.2f} (target >= 0.7); load average before {before}, "
