@@ -31,7 +31,7 @@ from . import quality
 from .steps import AnalysisError, ComfortResult
 from .steps.base import longest_run
 from .steps.detect import MIN_SEGMENT_FRAMES
-from .vibration import COMFORT_KEYS, allowable_distances, exposure_times
+from .vibration import COMFORT_KEYS, exposure_times
 
 #: Passes named one by one in the progress line (more are counted by verdict).
 MAX_PASSES_LISTED = 8
