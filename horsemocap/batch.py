@@ -44,6 +44,8 @@ from .run import EXIT_ERROR, run_analysis
 from .session import load_session
 from .store import atomic_write_json, atomic_write_text
 from .virtuallab import herd_session
+from .data import cache_dir
+from .virtuallab.herd import _key as _herd_key, session_slug
 
 BATCH_FILE = "batch.json"
 BATCH_FORMAT = "horsemocap-batch/1"
@@ -240,6 +242,29 @@ def _comfort(folder: Path) -> dict:
                 for r in csv.DictReader(fh)}
 
 
+PASSES_PREFIX = "passes"
+"""Optional columns of a recording with several passes (``passes.csv``): ``passes`` (how many),
+``passes_verdict`` (the worst pass') and ``passes_<indicator>``, the comfort over every pass weighted by
+their durations (its row ``all``); the indicators of ``comfort.csv`` are the longest pass'."""
+
+
+def _passes(folder: Path) -> dict:
+    """The optional ``passes*`` columns from ``passes.csv`` (none when the file is absent)."""
+    path = folder / "passes.csv"
+    if not path.is_file():
+        return {}
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    combined = next((r for r in rows if r["pass"] == "all"), None)
+    if combined is None:
+        return {}
+    skip = {"pass", "main", "first_frame", "last_frame", "start_s", "error", "verdict"}
+    out = {PASSES_PREFIX: len(rows) - 1, f"{PASSES_PREFIX}_verdict": combined["verdict"]}
+    out.update({f"{PASSES_PREFIX}_{k}": float(v) if v not in ("", None) else float("nan")
+                for k, v in combined.items() if k not in skip})
+    return out
+
+
 def reusable_row(task: BatchTask) -> dict | None:
     """The row of an earlier complete run of ``task`` under the same run key, else None.
 
@@ -302,6 +327,7 @@ def analyse_task(task: BatchTask, single_threaded: bool = True) -> dict:
     row["exit_status"] = outcome.exit_code
     row["error"] = "" if outcome.error is None else _error_text(outcome.error)
     row.update(_comfort(outcome.out))
+    row.update(_passes(outcome.out))
     row["seconds"] = time.perf_counter() - start
     try:
         atomic_write_json(outcome.out / BATCH_FILE, {"format": BATCH_FORMAT, "run_key": key,
@@ -489,7 +515,7 @@ def herd_batch(out_dir, *, horses=HORSES, gaits=GAITS, workers: int | None = Non
     """The herd study as one batch: every (horse, gait) session analysed into ``out_dir``, one table.
 
     The sessions are rendered into the cache first (once each,
-    ``virtuallab.herd_session``), then analysed as ``horsemocap batch``
+    :func:`render_herd`, a progress line per session rendered), then analysed as ``horsemocap batch``
     analyses them (:func:`horsemocap.batch.run_batch`: ``workers`` local
     processes, or the Dask cluster at ``scheduler``); run again, only the
     sessions not finished are analysed.
@@ -499,6 +525,36 @@ def herd_batch(out_dir, *, horses=HORSES, gaits=GAITS, workers: int | None = Non
     horsemocap.batch.BatchSummary
         ``.table`` is ``out_dir/sessions.csv``; :func:`horsemocap.herd.table_indicators` reads it.
     """
-    sessions = [herd_session(h, g) for h in horses for g in gaits]
+    sessions = render_herd([(h, g) for h in horses for g in gaits], progress)
     return run_batch(sessions, out_dir, workers=workers, scheduler=scheduler, params_file=params_file,
                      progress=progress)
+
+
+def herd_session_cached(horse: str, gait: str) -> bool:
+    """Whether ``virtuallab.herd_session`` finds the session complete in the cache (nothing to render)."""
+    folder = cache_dir() / "virtuallab" / f"{session_slug(horse, gait)}-{_herd_key(horse, gait)}"
+    return (folder / ".complete").is_file()
+
+
+def render_herd(pairs, progress=None, stream=None) -> list[Path]:
+    """The herd sessions of ``pairs`` ((horse, gait), ...), rendered into the cache where absent.
+
+    A line per session rendered: how many are ready and the rendering
+    time left (the mean of the renders so far times those left to
+    render; sessions already in the cache cost nothing). ``progress``
+    (a :class:`BatchProgress`): its stream is used for the lines.
+    """
+    stream = stream or getattr(progress, "stream", None) or sys.stderr
+    missing = [p for p in pairs if not herd_session_cached(*p)]
+    paths, times = [], []
+    for h, g in pairs:
+        t0 = time.perf_counter()
+        paths.append(herd_session(h, g))
+        if (h, g) in missing:
+            times.append(time.perf_counter() - t0)
+            left = len(missing) - len(times)
+            text = f"herd: {len(times)}/{len(missing)} sessions rendered"
+            text += f", about {_duration(sum(times) / len(times) * left)} of rendering left" if left else ", done"
+            stream.write(text + "\n")
+            stream.flush()
+    return paths

@@ -48,7 +48,8 @@ from .store import atomic_write_text
 __all__ = ["HORSES", "GAITS", "GAIT_LABELS", "THESIS_INDICATORS", "EXPECTED_SIGN",
            "CAVEATS", "load_grades", "mean_grades", "analytic_indicators",
            "pipeline_indicators", "herd_indicators", "indicator_matrix", "compare",
-           "Correlation", "herd_rows", "write_herd_csv", "table_indicators"]
+           "Correlation", "herd_rows", "write_herd_csv", "table_indicators", "INDICATOR_LABELS",
+           "batch_saddle_series"]
 
 HORSES = ("Horse 1", "Horse 2", "Horse 3", "Horse 4")
 GAITS = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -58,6 +59,22 @@ GAIT_LABELS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "r
 THESIS_INDICATORS = ("acc_y_max", "acc_y_Wb_rms", "crest_factor_y", "Distance_TA_8_limit_Wb",
                      "TA_8_limit_Wb", "VDV_y_Wb", "vel_x_avg", "amplitude_y")
 """The 8 indicators of section 8.5, in the order of Figures 8.29-8.32."""
+
+INDICATOR_LABELS = {
+    "acc_y_max": "Peak vertical acceleration (m/s²)",
+    "acc_y_Wb_rms": "Weighted rms acceleration, Wb (m/s²)",
+    "acc_y_Wk_rms": "Weighted rms acceleration, Wk (m/s²)",
+    "crest_factor_y": "Crest factor",
+    "Distance_TA_8_limit_Wb": "Distance to the limit (km)",
+    "Distance_TA_8_action_Wb": "Distance to the action value (km)",
+    "TA_8_limit_Wb": "Time to the limit (h)",
+    "TA_8_action_Wb": "Time to the action value (h)",
+    "TA_8_limit_directive": "Time to the limit, three axes (h)",
+    "VDV_y_Wb": "Vibration dose value, Wb (m/s^1.75)",
+    "vel_x_avg": "Mean speed (km/h)",
+    "amplitude_y": "Vertical amplitude (m)",
+}
+"""Axis labels of the indicators in words (the figures of section 8.5)."""
 
 EXPECTED_SIGN = {"acc_y_max": -1, "acc_y_Wb_rms": -1, "VDV_y_Wb": -1,
                  "TA_8_limit_Wb": +1, "Distance_TA_8_limit_Wb": +1,
@@ -235,7 +252,8 @@ def table_indicators(table, indicators=None) -> dict:
     table : path or list of dict
         ``sessions.csv`` of a batch (:func:`horsemocap.batch.read_table`) or its rows.
     indicators : iterable of str, optional
-        The indicators kept (default: every column of ``comfort.csv`` the table has).
+        The indicators kept (default: every column of ``comfort.csv`` the table has; the optional
+        ``passes*`` columns of a recording with several passes are left out).
 
     Only the sessions with results are kept (a failed one, exit status 2,
     has no indicators); two sessions of the same horse and gait raise a
@@ -257,7 +275,8 @@ def table_indicators(table, indicators=None) -> dict:
         if key in out:
             raise ValueError(f"sessions {names[key]!r} and {row['name']!r} are both {key[0]}, {key[1]}: "
                              "give the table of one session per horse and gait")
-        keep = [k for k in row if k not in BASE_COLUMNS] if indicators is None else list(indicators)
+        keep = ([k for k in row if k not in BASE_COLUMNS and not k.startswith("passes")] if indicators is None
+                else list(indicators))
         out[key] = {k: float(row[k]) for k in keep}
         names[key] = row["name"]
     return out
@@ -351,3 +370,32 @@ def write_herd_csv(path, table: dict, indicators=vib.COMFORT_KEYS, grades: dict 
     for r in rows:
         w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
     return atomic_write_text(path, buf.getvalue())
+
+
+def batch_saddle_series(results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The saddle's motion from one session's results folder (a batch's ``<name>/``, or any ``analyze`` output).
+
+    Returns ``(t, position, acceleration)``: the times (s) of ``trajectories.csv``, the saddle's
+    positions (n, 3) in the motion frame (m) and its accelerations (n, 3) of ``kinematics.csv``
+    (m/s^2) -- the arrays of the rigid-body step, read back instead of analysed again.
+
+    Raises
+    ------
+    ValueError
+        Naming the file when it has no ``saddle`` rows.
+    """
+    folder = Path(results)
+
+    def saddle(name, columns):
+        path = folder / name
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = [r for r in csv.DictReader(fh) if r["point"] == "saddle"]
+        if not rows:
+            raise ValueError(f"{path}: no rows of point 'saddle'")
+        t = np.array([float(r["time_s"]) for r in rows])
+        values = np.array([[float(r[c]) if r[c] else np.nan for c in columns] for r in rows])
+        return t, values
+
+    t, position = saddle("trajectories.csv", ("x_m", "y_m", "z_m"))
+    _, acceleration = saddle("kinematics.csv", ("ax_mps2", "ay_mps2", "az_mps2"))
+    return t, position, acceleration

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import results as result_files
+from .passes import PassesResult, analyse_passes
 from .fingerprint import run_key
 from .params import STEP_SECTIONS, AnalysisParams
 from .progress import ProgressPrinter
@@ -48,6 +49,10 @@ class Analysis:
         The parameters given (automatic fields are chosen by the steps and recorded in their results).
     sync, rig, plumb, static, detect, triangulate, smooth, motion_frame, rigid_body, comfort
         The steps' results (:mod:`horsemocap.steps`), or None.
+    passes : PassesResult or None
+        Every pass of the horse through the views, each analysed from the smoothing on
+        (:mod:`horsemocap.passes`), when the record holds more than one; None otherwise. The steps'
+        results above are those of the longest pass.
     chosen : dict
         Automatic choices recorded for ``analysis.json``.
     timings : dict
@@ -73,6 +78,7 @@ class Analysis:
     motion_frame: MotionFrameResult | None = None
     rigid_body: RigidBodyResult | None = None
     comfort: ComfortResult | None = None
+    passes: PassesResult | None = None
     chosen: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
 
@@ -302,6 +308,22 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
                 result_files.write_available(Path(out_dir), analysis)
         if name == until:
             break
+    if analysis.comfort is not None:
+        _run_passes(analysis, out_dir, write_outputs, progress)
+
+
+def _run_passes(analysis: Analysis, out_dir, write_outputs: bool, progress) -> None:
+    """Every other pass of the record through the later steps (:func:`horsemocap.passes.analyse_passes`)."""
+    t0 = time.perf_counter()
+    quiet = lambda *a: None  # noqa: E731  (one line per pass instead of every step's)
+    passes = analyse_passes(analysis, lambda given, steps: run_steps(analysis.session, analysis.params, given,
+                                                                      steps, quiet), progress)
+    if passes is None:
+        return
+    analysis.passes = passes
+    analysis.timings["passes"] = time.perf_counter() - t0
+    if out_dir is not None and write_outputs:
+        result_files.write_available(Path(out_dir), analysis)
 
 
 def run_steps(session: Session, params: AnalysisParams, results, steps, progress=None) -> Analysis:

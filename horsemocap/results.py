@@ -21,6 +21,7 @@ from . import __version__
 from .camera import rig_to_toml
 from .detection import ACTIVE_PATH
 from .detection.markers2d import marker_label, markers_2d_csv_text
+from .passes import passes_rows
 from .store import atomic_write_json, atomic_write_text
 from .vibration import write_comfort_csv, write_comfort_spreadsheet
 
@@ -129,6 +130,14 @@ def angular_text(analysis) -> str:
     return _csv_text(header, rows)
 
 
+def passes_text(analysis) -> str:
+    """``passes.csv``: every pass of the horse through the views, its verdict and comfort indicators, and
+    the row ``all``: the comfort over every pass, weighted by their durations (:mod:`horsemocap.passes`)."""
+    offset = analysis.synchronisation.offsets[analysis.session.reference_camera]
+    header, rows = passes_rows(analysis.passes, offset, analysis.session.fps)
+    return _csv_text(header, rows)
+
+
 def software_record() -> dict:
     """What computed the results: the versions of horsemocap, Python, NumPy, SciPy and OpenCV, and the
     detection path (``"python"``: the only one since the optional compiled core was removed; earlier
@@ -167,6 +176,10 @@ def analysis_record(analysis) -> dict:
         _record_rigid_body(analysis.rigid_body, p, chosen)
     if analysis.comfort is not None and analysis.comfort.indicators is None:
         chosen["comfort_not_computed"] = analysis.comfort.reason
+    if getattr(analysis, "passes", None) is not None:
+        chosen["passes"] = [{"pass": p.index, "frames": list(p.run), "analysed_frames":
+                             list(p.segment) if p.segment is not None else None, "verdict": p.verdict,
+                             **({"error": p.error} if p.error else {})} for p in analysis.passes.passes]
     return record
 
 
@@ -244,6 +257,8 @@ def write_available(out_dir: Path, analysis) -> list[Path]:
     if analysis.comfort is not None and analysis.comfort.indicators is not None:
         written.append(write_comfort_csv(out / "comfort.csv", analysis.comfort.indicators))
         written.append(write_comfort_spreadsheet(out / "comfort.xlsx", analysis.comfort.indicators))
+    if getattr(analysis, "passes", None) is not None:
+        written.append(atomic_write_text(out / "passes.csv", passes_text(analysis)))
     written.append(atomic_write_json(out / "analysis.json", analysis_record(analysis)))
     return written
 

@@ -6,6 +6,7 @@ Thesis Appendix A spends pages renaming files so that MATLAB reads
 from __future__ import annotations
 
 import re
+import threading
 from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -18,18 +19,27 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 #: A video read ahead by fewer frames than this is decoded through, not sought (OpenCV's seek in an
 #: MJPEG AVI costs 6-8 ms, about 15 frames' decoding at 640 x 480).
 _DECODE_THROUGH = 16
-#: Frames a :class:`FrameSequence` read forwards decodes ahead in a second thread.
-READ_AHEAD = 8
+#: Frames a :class:`FrameSequence` read forwards keeps decoded ahead of the one being read, by a second
+#: thread, in blocks of :data:`READ_BLOCK` (the next block starts as soon as the last is collected);
+#: at most half and a quarter of the sequence's cache.
+READ_AHEAD = 48
+READ_BLOCK = 16
 #: Bytes of decoded gray video frames shared by the readers of a video in one process: the flash
 #: search decodes the first frames of each video, the detection and its check read them again.
 SHARED_GRAY_BYTES = 160 * 2 ** 20
 
 
 class _SharedGray:
-    """Decoded gray frames of videos, least recently used first out, at most ``limit`` bytes."""
+    """Decoded gray frames of videos, at most ``limit`` bytes.
+
+    Frames put ``pinned`` (the flash search's, which the detection reads again from the start of the
+    record) leave only when no other frame is left to make room; the others least recently used first.
+    """
 
     def __init__(self, limit: int):
         self.limit, self.size, self.frames = int(limit), 0, OrderedDict()
+        self.pinned: set = set()
+        self.lock = threading.Lock()        # the reading threads of several sequences share it
 
     @staticmethod
     def video_key(path: Path):
@@ -37,19 +47,31 @@ class _SharedGray:
         return str(path.resolve()), st.st_mtime_ns, st.st_size
 
     def get(self, video, index: int):
-        f = self.frames.get((video, index))
-        if f is not None:
-            self.frames.move_to_end((video, index))
-        return f
+        with self.lock:
+            f = self.frames.get((video, index))
+            if f is not None:
+                self.frames.move_to_end((video, index))
+            return f
 
-    def put(self, video, index: int, frame: np.ndarray) -> None:
-        if frame.nbytes > self.limit or (video, index) in self.frames:
+    def put(self, video, index: int, frame: np.ndarray, pinned: bool = False) -> None:
+        with self.lock:
+            self._put((video, index), frame, pinned)
+
+    def _put(self, key, frame: np.ndarray, pinned: bool) -> None:
+        if frame.nbytes > self.limit or key in self.frames:
             return
-        self.frames[(video, index)] = frame
+        if not pinned and self.size + frame.nbytes > self.limit and len(self.pinned) == len(self.frames):
+            return                      # room only by dropping a pinned frame: keep those instead
+        self.frames[key] = frame
         self.size += frame.nbytes
+        if pinned:
+            self.pinned.add(key)
         while self.size > self.limit:
-            _, old = self.frames.popitem(last=False)
-            self.size -= old.nbytes
+            old_key = next((k for k in self.frames if k not in self.pinned), None)
+            if old_key is None:         # only pinned frames left: the oldest of them
+                old_key = next(iter(self.frames))
+            self.pinned.discard(old_key)
+            self.size -= self.frames.pop(old_key).nbytes
 
 
 _SHARED = _SharedGray(SHARED_GRAY_BYTES)
@@ -375,7 +397,7 @@ class FrameSource:
                 else:
                     gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
                     if video is not None:
-                        _SHARED.put(video, i, gray)
+                        _SHARED.put(video, i, gray, pinned=True)
                     yield i, gray
                 i += 1
         finally:
@@ -414,6 +436,10 @@ class FrameSource:
     def sequence(self, start: int, stop: int, color: bool = True, cache_frames: int = 128) -> "FrameSequence":
         """Frames ``start..stop-1`` decoded on demand: :class:`FrameSequence`."""
         return FrameSequence(self, int(start), int(stop), color, cache_frames)
+
+
+class _Shared(list):
+    """Frames of a block taken from the shared frames: the capture did not move."""
 
 
 class FrameSequence:
@@ -474,9 +500,10 @@ class FrameSequence:
     # reading ahead: while the caller works on frame k, a second thread decodes the next frames
     # (OpenCV releases the interpreter while it decodes); only when reading forwards, frame by frame
     def _read_ahead(self, k: int) -> None:
+        ahead, block = min(READ_AHEAD, self.cache_frames // 2), min(READ_BLOCK, self.cache_frames // 4)
         if (self._job is None and self._cap is not None and self._next is not None
-                and k < self._next <= k + READ_AHEAD and self._next < len(self)):
-            count = min(READ_AHEAD, len(self) - self._next)
+                and k < self._next <= k + ahead and self._next < len(self)):
+            count = min(block, len(self) - self._next)
             self._submit(self._decode, self._cap, count, count=count)
 
     # reading backwards: while the caller works down the block decoded last (frames low.. upwards), a second
@@ -498,12 +525,23 @@ class FrameSequence:
             setattr(self._job, name, value)
 
     def _decode_block(self, cap, first: int, count: int):
-        """Frames ``first..first+count-1`` (seek, then decode); None when the codec cannot seek."""
-        index = self.start + first
+        """Frames ``first..first+count-1`` (seek, then decode); None when the codec cannot seek.
+
+        The block's first frames that another reader of the video decoded already (the flash search's)
+        are taken as they are; only the rest is decoded."""
+        shared = []
+        while self._video is not None and len(shared) < count:
+            f = _SHARED.get(self._video, self.start + first + len(shared))
+            if f is None:
+                break
+            shared.append(f)
+        if len(shared) == count:
+            return _Shared(shared)
+        index = self.start + first + len(shared)
         cap.set(cv2.CAP_PROP_POS_FRAMES, index)
         if int(cap.get(cv2.CAP_PROP_POS_FRAMES)) != index:
             return None
-        return self._decode(cap, count)
+        return shared + self._decode(cap, count - len(shared))
 
     def _decode(self, cap, count: int) -> list:
         frames = []
@@ -529,8 +567,9 @@ class FrameSequence:
             if self._video is not None:
                 _SHARED.put(self._video, self.start + self._next, f)
             self._next += 1
-        if len(frames) < job.count:
-            self._next = None          # the source ended early: _load seeks and reports it
+        if len(frames) < job.count or isinstance(frames, _Shared):
+            self._next = None          # the source ended early (_load seeks and reports it), or the capture
+                                       # did not move (every frame was shared): the next decode seeks
 
     def _keep(self, k: int, frame: np.ndarray) -> None:
         self._cache[k] = frame

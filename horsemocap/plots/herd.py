@@ -11,6 +11,8 @@ __all__ = ["plot_indicators_by_gait", "plot_indicators_vs_grades", "plot_saddle_
 
 
 def _label(key):
+    if key in _herd.INDICATOR_LABELS:
+        return _herd.INDICATOR_LABELS[key]
     u = COMFORT_UNITS.get(key, "")
     return f"{key} ({u})" if u and u != "1" else key
 
@@ -63,7 +65,7 @@ def plot_indicators_vs_grades(table: dict, gait: str, correlations=None,
             ax.annotate(h.replace("Horse ", "H"), (gi, vi), fontsize=7, xytext=(3, 3),
                         textcoords="offset points")
         c = rho.get(key)
-        ttl = key if c is None or not np.isfinite(c.rho) else f"{key}\nrho = {c.rho:+.2f}"
+        ttl = _label(key) if c is None or not np.isfinite(c.rho) else f"{_label(key)}\nrho = {c.rho:+.2f}"
         ax.set_title(ttl, fontsize=8)
         ax.set_xlabel("mean grade", fontsize=8)
         ax.tick_params(labelsize=7)

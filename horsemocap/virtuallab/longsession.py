@@ -153,7 +153,9 @@ def long_session(n_frames: int = 18000, *, horse: str = "Horse 2", gait: str = "
     The folder is ``<cache>/virtuallab/long_<n_frames>-<key>``, composed in a
     ``.partial`` folder and renamed when complete (as the herd and hard
     sessions). Ten minutes (the default) take a few minutes to compose and
-    about 0.5 GB.
+    about 0.5 GB; ``long_session(1200, pass_period_s=10.0)`` is a short
+    recording of four passes (``pass_starts`` 0, 300, 600, 900), composed in
+    about the time of rendering one pass.
     """
     root = Path(cache) if cache else cache_dir()
     folder = root / "virtuallab" / f"long_{int(n_frames)}-{long_key(n_frames, horse, gait, seed, pass_period_s)}"

@@ -6,17 +6,23 @@
 #   Figures 8.29-8.32) and the four horses in each gait (8.5.2, Figures 8.33-8.36);
 # - the riders' grades of thesis Table 8.8, and how to relate indicators to grades with a rank
 #   correlation (Spearman's $\rho$) — and how little four horses can prove;
-# - the thesis' caveats: rising trot, and the EU limits read as *relative* comfort.
+# - the thesis' caveats: rising trot, and the EU limits read as *relative* comfort;
+# - how many sessions are analysed side by side as one batch, into one table.
 #
 # The thesis' eight indicators (section 8.5): `acc_y_max`, `acc_y_Wb_rms`, `crest_factor_y`,
 # `Distance_TA_8_limit_Wb`, `TA_8_limit_Wb`, `VDV_y_Wb`, `vel_x_avg`, `amplitude_y` (eq. 7.3-7.25;
 # see notebook 12).
 
 # %%
+from collections import Counter
+from pathlib import Path
+
 import matplotlib.pyplot as plt
 import numpy as np
 
-from horsemocap import herd, plots, vibration
+from horsemocap import batch, herd, plots, vibration
+from horsemocap.batch_table import read_table
+from horsemocap.workspace import results_root
 
 # %% [markdown]
 # ## 1 · The riders' grades (Table 8.8)
@@ -36,24 +42,31 @@ overall = [np.mean([mean[(g, h)] for g in herd.GAITS]) for h in herd.HORSES]
 print(f"{'overall':13s}" + "".join(f"{x:9.4f}" for x in overall))
 
 # %% [markdown]
-# ## 2 · The indicators of the 16 sessions
+# ## 2 · The 16 sessions, analysed as one batch
 #
 # **Data source.** The thesis' videos are not public. The 16 sessions here are the virtual
 # laboratory's herd (notebook 01): the same four horses (Table 8.6: ages, breeds, heights) with
-# invented gait amplitudes. The cell below is the only place that loads them:
+# invented gait amplitudes, filmed by the thesis' three cameras. A riding school or a research group
+# would have many such recordings; `horsemocap batch` analyses them side by side on every core, each
+# exactly as `horsemocap analyze` would, and gathers one row per session into one table,
+# `sessions.csv`: the horse, gait and rider from each `session.json`, the quality verdict, and every
+# comfort indicator of `comfort.csv`.
 #
-# - `SOURCE = "analytic"` (used here): the indicators of the **ground truth**, the analytic saddle
-#   motion of each virtual session — fast, no rendering;
-# - `SOURCE = "pipeline"`: render each session into the cache on first use and analyse its videos
-#   with the full pipeline (as `horsemocap analyze` does) — about 45 s of rendering and 2-5 s of
-#   analysis per session on two cores. Section 6 does this and compares with the truth.
-#
-# Everything below uses the same defaults as notebook 12: `mode="iso"`, $\tau$ = two strides.
+# The cell below renders the sessions that are not in the cache yet (about 45 s each, once) and
+# analyses those whose results are missing or out of date (about 10-20 s each on two cores); a
+# progress line with the time left is printed while it runs. Run again, it finds every result in
+# place and only reads the table. The table lives in the notebooks' results folder
+# (`$HORSEMOCAP_RESULTS`, default `~/.cache/horsemocap/results`), outside the repository.
 
 # %%
-SOURCE = "analytic"
-table = herd.herd_indicators(SOURCE, mode="iso")
-print(f"{len(table)} sessions from source '{SOURCE}'")
+BATCH = results_root() / "herd_batch"
+summary = batch.herd_batch(BATCH)        # renders what is missing, then analyses what is not analysed yet
+rows = read_table(summary.table)
+verdicts = Counter(r["verdict"] or "failed" for r in rows)
+print(f"{len(rows)} sessions in {summary.table.name}: "
+      + ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())) + f"; {summary.failed} failed")
+table = herd.table_indicators(rows)
+print(f"{len(table)} sessions with comfort indicators")
 
 # %%
 keys = herd.THESIS_INDICATORS
@@ -103,8 +116,10 @@ t_lim = herd.indicator_matrix(table, "TA_8_limit_Wb")
 print("TA_8_limit_Wb: longest at walk for every horse:", bool(np.all(t_lim.argmax(0) == 0)))
 
 # %% [markdown]
-# A check that prints `False` would point at the virtual herd's invented gait amplitudes, not at the
-# method: the indicators are computed the same way for every session.
+# A check that prints `False` points at the virtual herd's invented gait amplitudes or at the
+# measurement error (section 6), not at the method: the indicators are computed the same way for
+# every session. Here `amplitude_y` prints `False`: the virtual horses were given a smaller saddle
+# amplitude at sitting trot than at walk (their true motion has it too), unlike the thesis' horses.
 #
 # ## 4 · Different horses in each gait (section 8.5.2)
 #
@@ -182,63 +197,105 @@ for c in herd.compare(table, grades, indicators=("TA_8_limit_Wb", "TA_8_limit_di
         print(f"pooled rho with the grades: {c.indicator} {c.rho:+.2f} (n = {c.n})")
 
 # %% [markdown]
+# ## 6 · The measurement against the truth
+#
+# Everything above is measured: rendered videos, analysed by the pipeline with its automatic
+# choices. The virtual herd also knows the saddle's true motion, so each session's indicators can be
+# computed from it (`herd.herd_indicators("analytic")`: no videos, no measurement) and compared.
+# How far are the measured indicators from the truth, and does the ranking of the horses survive the
+# measurement error? Real recordings have no truth: for them this section prints that it is left out.
+
+# %%
+with_truth = [r for r in rows if (Path(r["folder"]) / "truth").is_dir() and (r["horse"], r["gait"]) in table]
+truth = herd.herd_indicators("analytic", mode="iso") if with_truth else {}
+if not with_truth:
+    print("no session of the batch has a truth (real recordings): the comparison is left out")
+else:
+    print(f"{'session':24s} {'Wb rms':>7s} {'truth':>7s} {'err %':>6s}   {'VDV Wb':>7s} {'truth':>7s} {'err %':>6s}")
+    errs = []
+    for r in with_truth:
+        key = (r["horse"], r["gait"])
+        ind, tr = table[key], truth[key]
+        e1 = 100 * (ind["acc_y_Wb_rms"] / tr["acc_y_Wb_rms"] - 1)
+        e2 = 100 * (ind["VDV_y_Wb"] / tr["VDV_y_Wb"] - 1)
+        errs.append((abs(e1), abs(e2)))
+        print(f"{key[0] + ' ' + herd.GAIT_LABELS[key[1]]:24s} {ind['acc_y_Wb_rms']:7.3f} {tr['acc_y_Wb_rms']:7.3f}"
+              f" {e1:6.1f}   {ind['VDV_y_Wb']:7.3f} {tr['VDV_y_Wb']:7.3f} {e2:6.1f}")
+    med, worst = np.median(errs, axis=0), np.max(errs, axis=0)
+    print(f"median |error|: Wb rms {med[0]:.1f} %, VDV Wb {med[1]:.1f} %; worst {worst[0]:.1f} % and {worst[1]:.1f} %")
+
+# %%
+if truth:
+    rho_measured = {(c.gait, c.indicator): c.rho for c in herd.compare(table, grades)}
+    rho_truth = {(c.gait, c.indicator): c.rho for c in herd.compare(truth, grades)}
+    print("Spearman rho of the Wb-weighted rms with the riders' mean grade: measured vs truth")
+    for g in list(herd.GAITS) + ["pooled"]:
+        print(f"  {herd.GAIT_LABELS.get(g, 'pooled (no rising trot)'):24s} {rho_measured[(g, 'acc_y_Wb_rms')]:6.2f}"
+              f"  {rho_truth[(g, 'acc_y_Wb_rms')]:6.2f}")
+
+# %% [markdown]
+# Read the errors printed above: on these rendered sessions the rig measures the indicators to
+# within them, and where the two columns of rank correlations agree, the measurement error does not
+# change how the horses are ranked (two horses within the measurement error of each other could
+# swap places). Real video is noisier (notebook 14's noise study). The absolute riding times rest on
+# the thesis' own reading of the standards as well as on the measurement: read them as relative
+# comfort (section 5).
+#
 # ### Does the weighting mode change the ranking?
 #
 # Thesis mode (one weight at the dominant harmonic, as Table 8.7) gives smaller rms values than the
-# standards' per-harmonic weighting (notebook 12). Does it reorder the horses?
+# standards' per-harmonic weighting (notebook 12). Does it reorder the horses? Computed on the
+# true motion, where it is cheap (a batch with `--params` giving `{"comfort": {"weighting_mode":
+# "thesis"}}` would measure it):
 
 # %%
-table_thesis = herd.herd_indicators(SOURCE, mode="thesis")
+if truth:
+    truth_thesis = herd.herd_indicators("analytic", mode="thesis")
+    for g in herd.GAITS:
+        a = herd.indicator_matrix(truth, "acc_y_Wb_rms", gaits=(g,))[0]
+        b = herd.indicator_matrix(truth_thesis, "acc_y_Wb_rms", gaits=(g,))[0]
+        same = bool(np.array_equal(np.argsort(a), np.argsort(b)))
+        print(f"{herd.GAIT_LABELS[g]:13s} rms_Wb thesis/iso = "
+              + " ".join(f"{x:.3f}" for x in b / a) + f"   same ranking: {same}")
+
+# %% [markdown]
+# ## 7 · The horses and their saddles, gait by gait (Table 8.6, Figures 8.25-8.28)
+#
+# The four horses of the experiments (thesis Table 8.6; the virtual herd takes its ages, breeds and
+# heights from it):
+
+# %%
+print(f"{'':22s}" + "".join(f"{r['horse']:>10s}" for r in herd.horse_table()))
+for key, label, fmt in (("age", "age", "{:10d}"), ("breed", "breed", "{:>10s}"),
+                        ("withers_m", "height at withers (m)", "{:10.2f}")):
+    print(f"{label:22s}" + "".join(fmt.format(r[key]) for r in herd.horse_table()))
+
+# %% [markdown]
+# Figures 8.25-8.28 of the thesis show, for each gait, the x-, y- and z-motion of the saddle marker's
+# position and acceleration for the four horses. Here they are read from the batch's results
+# (`trajectories.csv` and `kinematics.csv` in each session's folder, the row `results` of the
+# table), so nothing is analysed twice. The x position is drawn from the start of each record (the
+# horse travels metres along x). The x acceleration is measured here: the pipeline's default
+# differentiates the smoothed pose trajectory. In the thesis' figures it is flat zero, because the
+# thesis fits x with a straight line in time (section 5.5.2.1: a steady speed); with
+# `{"kinematics": "fits"}` (the thesis' chain of fits) these panels are flat too, the model and not
+# a measurement. The rising trot's saddle moves with the rider out of the saddle every other beat
+# (section 8.5).
+
+# %%
+results = {(r["horse"], r["gait"]): r["results"] for r in rows if r["exit_status"] != 2}
 for g in herd.GAITS:
-    a = herd.indicator_matrix(table, "acc_y_Wb_rms", gaits=(g,))[0]
-    b = herd.indicator_matrix(table_thesis, "acc_y_Wb_rms", gaits=(g,))[0]
-    same = bool(np.array_equal(np.argsort(a), np.argsort(b)))
-    print(f"{herd.GAIT_LABELS[g]:13s} rms_Wb thesis/iso = "
-          + " ".join(f"{x:.3f}" for x in b / a) + f"   same ranking: {same}")
+    series = {}
+    for h in herd.HORSES:
+        if (h, g) in results:
+            series[h] = herd.batch_saddle_series(results[(h, g)])
+        else:
+            print(f"{h} {herd.GAIT_LABELS[g]}: not analysed (see its row's error in {summary.table.name})")
+            series[h] = None
+    plots.plot_saddle_by_gait(series, herd.GAIT_LABELS[g])
+    plt.show()
 
 # %% [markdown]
-# ## 6 · The same comparison through the whole pipeline
-#
-# Everything above used the truth. Now the 16 sessions are rendered (into the cache outside the
-# repository, on first use: about 45 s each, 12 minutes the first time; then read from the cache)
-# and each one is analysed from its videos by the pipeline with its automatic choices, exactly as
-# `horsemocap analyze` would. How far are the measured indicators from the truth, and does the
-# ranking of the horses survive the measurement error?
-
-# %%
-measured = herd.herd_indicators("pipeline", mode="iso")   # renders on first use, then analyses each session
-print(f"{'session':24s} {'Wb rms':>7s} {'truth':>7s} {'err %':>6s}   {'VDV Wb':>7s} {'truth':>7s} {'err %':>6s}")
-errs = []
-for (h, g), ind in measured.items():
-    tr = table[(h, g)]
-    e1 = 100 * (ind["acc_y_Wb_rms"] / tr["acc_y_Wb_rms"] - 1)
-    e2 = 100 * (ind["VDV_y_Wb"] / tr["VDV_y_Wb"] - 1)
-    errs.append((abs(e1), abs(e2)))
-    print(f"{h + ' ' + herd.GAIT_LABELS[g]:24s} {ind['acc_y_Wb_rms']:7.3f} {tr['acc_y_Wb_rms']:7.3f} {e1:6.1f}"
-          f"   {ind['VDV_y_Wb']:7.3f} {tr['VDV_y_Wb']:7.3f} {e2:6.1f}")
-med = np.median(errs, axis=0)
-print(f"median |error|: Wb rms {med[0]:.1f} %, VDV Wb {med[1]:.1f} %; worst {np.max(errs, axis=0)[0]:.1f} % and "
-      f"{np.max(errs, axis=0)[1]:.1f} %")
-
-# %%
-rho_measured = {(c.gait, c.indicator): c.rho for c in herd.compare(measured)}
-rho_truth = {(c.gait, c.indicator): c.rho for c in herd.compare(table)}
-print("Spearman rho of the Wb-weighted rms with the riders' mean grade: measured vs truth")
-for g in list(herd.GAITS) + ["pooled"]:
-    print(f"  {herd.GAIT_LABELS.get(g, 'pooled (no rising trot)'):24s} {rho_measured[(g, 'acc_y_Wb_rms')]:6.2f}"
-          f"  {rho_truth[(g, 'acc_y_Wb_rms')]:6.2f}")
-
-# %% [markdown]
-# With the pipeline's defaults the rig measures each session's indicators to within the errors
-# printed above (a few tenths of a percent in the median, about one percent at worst, on these
-# rendered sessions; real video is noisier: notebook 14's noise study), and within every gait the
-# horses are ranked as the truth ranks them (the rank correlations above agree; where two horses are
-# within the measurement error of each other they could swap places): the comparison of section 8.5
-# survives the measurement error. The absolute riding times rest on the thesis' own reading of the
-# standards as well as on the measurement — read them as relative comfort (section 5). `benchmarks/bench_herd.py` prints
-# the same comparison with every stage's error, and shows how the default smoothing (loess) was
-# chosen over the thesis' rloess on these 16 sessions.
-#
 # ## Exercises
 #
 # 1. Which horse would you recommend to a beginner for a long hack at walk and canter, by
@@ -260,41 +317,3 @@ for g in list(herd.GAITS) + ["pooled"]:
 #    acceleration is not what the rider feels.
 #
 # </details>
-
-# %% [markdown]
-# ## 7 · The horses and their saddles, gait by gait (Table 8.6, Figures 8.25-8.28)
-#
-# The four horses of the experiments (thesis Table 8.6; the virtual herd takes its ages, breeds and
-# heights from it):
-
-# %%
-print(f"{'':22s}" + "".join(f"{r['horse']:>10s}" for r in herd.horse_table()))
-for key, label, fmt in (("age", "age", "{:10d}"), ("breed", "breed", "{:>10s}"),
-                        ("withers_m", "height at withers (m)", "{:10.2f}")):
-    print(f"{label:22s}" + "".join(fmt.format(r[key]) for r in herd.horse_table()))
-
-# %% [markdown]
-# Figures 8.25-8.28 of the thesis show, for each gait, the x-, y- and z-motion of the saddle marker's
-# position and acceleration for the four horses. Here they are from the same analyses as section 6
-# (kept in the results store, so nothing is analysed twice). The x position is drawn from the
-# start of each record (the horse travels metres along x). The x acceleration is measured here: the
-# pipeline's default differentiates the smoothed pose trajectory. In the thesis' figures it is flat
-# zero, because the thesis fits x with a straight line in time (section 5.5.2.1: a steady speed);
-# with `{"kinematics": "fits"}` (the thesis' chain of fits) these panels are flat too, the model
-# and not a measurement. The rising trot's saddle moves with the rider out of the saddle every
-# other beat (section 8.5).
-
-# %%
-from horsemocap.pipeline import AnalysisError
-
-for g in herd.GAITS:
-    series = {}
-    for h in herd.HORSES:
-        try:
-            rb = herd.pipeline_analysis(h, g, {"weighting_mode": "iso"}).rigid_body
-            series[h] = (rb.t, rb.saddle_position, rb.saddle_acceleration)
-        except AnalysisError as exc:
-            print(f"{h} {herd.GAIT_LABELS[g]}: not analysed ({exc})")
-            series[h] = None
-    plots.plot_saddle_by_gait(series, herd.GAIT_LABELS[g])
-    plt.show()

@@ -1,0 +1,387 @@
+"""Every pass of the horse through the cameras' view in one recording.
+
+A long session films the horse circling the arena: it crosses the views
+again and again, and between the crossings the cameras see the empty
+arena. The detect step follows the markers through the whole record
+(:attr:`horsemocap.steps.DetectResult.all_seen` marks the frames in which
+every marker is seen) and the analysis proper runs on its longest run of
+such frames. This module finds every run long enough to analyse (a *pass*),
+follows each through the later steps (smoothing .. comfort) by replacing
+the analysed frames of the detect and triangulate results
+(:meth:`~horsemocap.steps.base.StepResult.replace`), gives each pass its
+verdict (the checks of :func:`horsemocap.quality.post_checks` on the pass'
+results) and combines the comfort indicators of all passes, weighted by
+their durations (:func:`combined_comfort`).
+
+Nothing is recomputed before the smoothing: the markers' 2D centres and 3D
+positions of every frame are those of the whole record; only the frames
+analysed change.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import quality
+from .steps import AnalysisError, ComfortResult
+from .steps.base import longest_run
+from .steps.detect import MIN_SEGMENT_FRAMES
+from .vibration import COMFORT_KEYS, exposure_times
+
+#: Passes named one by one in the progress line (more are counted by verdict).
+MAX_PASSES_LISTED = 8
+#: The steps run again for every pass (those after the triangulation).
+PASS_STEPS = ("smooth", "motion_frame", "rigid_body", "comfort")
+
+
+def find_runs(mask, min_frames: int = MIN_SEGMENT_FRAMES) -> list[tuple[int, int]]:
+    """Every run of True in ``mask`` at least ``min_frames`` long, as ``(start, stop)``, in order.
+
+    Examples
+    --------
+    >>> find_runs([True] * 9 + [False] + [True] * 3 + [False] + [True] * 8, min_frames=8)
+    [(0, 9), (14, 22)]
+    """
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(m))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_frames]
+
+
+def pass_segment(points: np.ndarray, run: tuple[int, int]) -> tuple[int, int] | None:
+    """The analysed frames of one pass: the longest run inside ``run`` in which every marker has a 3D
+    position (as the triangulate step chooses them inside the detection's segment), or None.
+
+    Examples
+    --------
+    >>> p = np.ones((12, 3, 3)); p[5, 1] = np.nan
+    >>> pass_segment(p, (2, 12))
+    (6, 12)
+    """
+    a, b = run
+    ok = np.zeros(len(points), bool)
+    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=(1, 2))
+    return longest_run(ok)
+
+
+_MAX_KEYS = ("acc_y_max",)
+
+
+def combined_comfort(indicators: list[dict], durations_s) -> dict:
+    """The comfort indicators of several passes taken as one exposure, each pass weighted by its duration.
+
+    The rms accelerations are those of the passes' records put end to end
+    (``sqrt(sum(tau_i a_i^2) / sum(tau_i))``), the vibration dose values
+    add by their fourth powers (``(sum VDV_i^4)^(1/4)``, eq. 7.4) over the
+    total duration, and the times to the action and limit values (eq. 7.10-
+    7.17) and the distances (eq. 7.18-7.25) are computed again from those
+    and the mean speed; the peak is the largest; every other indicator
+    (speed, amplitude, crest factor, frequency, period) is the mean weighted
+    by the durations. ``duration_s`` is the total. Passes without
+    indicators (None) are left out; the result holds the indicators every pass has.
+
+    Examples
+    --------
+    Two passes of equal length, rms 1 and 2 m/s^2:
+
+    >>> one = {"acc_y_Wb_rms": 1.0, "VDV_y_Wb": 1.0, "vel_x_avg": 10.0, "TA_8_action_Wb": 2.0, "duration_s": 2.0}
+    >>> two = {"acc_y_Wb_rms": 2.0, "VDV_y_Wb": 2.0, "vel_x_avg": 20.0, "TA_8_action_Wb": 0.5, "duration_s": 2.0}
+    >>> c = combined_comfort([one, two], [2.0, 2.0])
+    >>> round(c["acc_y_Wb_rms"], 4), round(c["VDV_y_Wb"], 4), c["vel_x_avg"], c["duration_s"]
+    (1.5811, 2.0305, 15.0, 4.0)
+    >>> round(c["TA_8_action_Wb"], 3)    # 8 h (0.5 / 1.5811)^2
+    0.8
+    """
+    kept = [(ind, float(d)) for ind, d in zip(indicators, durations_s) if ind is not None and d > 0]
+    if not kept:
+        return {}
+    tau = np.array([d for _, d in kept])
+    total = float(tau.sum())
+    keys = [k for k in kept[0][0] if all(k in ind for ind, _ in kept)]
+    values = {k: np.array([float(ind[k]) for ind, _ in kept]) for k in keys}
+    out = {}
+    for k, v in values.items():
+        if k.endswith("_rms") or k.endswith("_rms_iso") or k == "A_w_directive":
+            out[k] = float(np.sqrt(np.sum(tau * v ** 2) / total))
+        elif k.startswith("VDV_"):
+            out[k] = float(np.sum(v ** 4) ** 0.25)
+        elif k in _MAX_KEYS:
+            out[k] = float(np.max(v))
+        else:
+            out[k] = float(np.sum(tau * v) / total)
+    out["duration_s"] = total
+    speed = out.get("vel_x_avg")
+    for weighting in ("Wb", "Wk"):
+        a_rms, vdv = out.get(f"acc_y_{weighting}_rms"), out.get(f"VDV_y_{weighting}")
+        times = exposure_times(a_rms=a_rms, vdv_value=vdv, duration_s=total if vdv is not None else None)
+        for name, hours in times.items():
+            out[f"{name}_{weighting}"] = float(hours)
+            if speed is not None:
+                out[f"Distance_{name}_{weighting}"] = float(speed * hours)
+    if speed is not None:       # the Directive's times (extension rows) from their own combined values
+        times = exposure_times(a_rms=out.get("A_w_directive"), vdv_value=out.get("VDV_directive"),
+                               duration_s=total if "VDV_directive" in out else None)
+        for name, hours in times.items():
+            if f"{name}_directive" in out:
+                out[f"{name}_directive"] = float(hours)
+                out[f"Distance_{name}_directive"] = float(speed * hours)
+    return {k: out[k] for k in keys}
+
+
+@dataclass(frozen=True)
+class PassResult:
+    """One pass of the horse through the views, analysed.
+
+    Attributes
+    ----------
+    index : int
+        1-based, in the order of the record.
+    run : (int, int)
+        Synchronised frames ``[start, stop)`` in which every marker is seen.
+    segment : (int, int) or None
+        The analysed frames (every marker triangulated), None if fewer than the analysis needs.
+    analysis : Analysis or None
+        The pass' results: the session's own results up to the triangulation, the later steps of this
+        pass (None when the pass could not be analysed).
+    verdict : str
+        ``ok``, ``warning`` or ``unreliable``: the worst level of the checks of the pass' results.
+    error : str
+        Why the pass could not be analysed ("" when it was).
+    main : bool
+        The pass the session's own result files (trajectories.csv, comfort.csv, ...) hold.
+    """
+
+    index: int
+    run: tuple
+    segment: tuple | None
+    analysis: object
+    verdict: str
+    error: str = ""
+    main: bool = False
+
+    @property
+    def indicators(self) -> dict | None:
+        """The pass' comfort indicators, or None."""
+        c = self.analysis.comfort if self.analysis is not None else None
+        return c.indicators if isinstance(c, ComfortResult) else None
+
+    @property
+    def duration_s(self) -> float:
+        """The analysed time (s), 0 when the pass was not analysed."""
+        ind = self.indicators
+        return float(ind["duration_s"]) if ind and "duration_s" in ind else 0.0
+
+
+@dataclass(frozen=True)
+class PassesResult:
+    """Every pass of a recording and the comfort over all of them.
+
+    Attributes
+    ----------
+    passes : tuple of PassResult
+    combined : dict
+        :func:`combined_comfort` of the passes with indicators (empty if none).
+    """
+
+    passes: tuple
+    combined: dict
+
+    @property
+    def verdict(self) -> str:
+        """The worst verdict of the passes."""
+        return quality.verdict([_Level(p.verdict) for p in self.passes])
+
+
+@dataclass(frozen=True)
+class _Level:
+    level: str
+
+
+def pass_runs(analysis) -> list[tuple[int, int]]:
+    """The runs of the detection that are passes: every run of :attr:`DetectResult.all_seen` long enough."""
+    return find_runs(analysis.detect.all_seen, MIN_SEGMENT_FRAMES)
+
+
+def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
+    """Every pass of ``analysis`` (an :class:`~horsemocap.pipeline.Analysis` that ran to the comfort step).
+
+    ``run_later(results, steps)`` runs ``steps`` on top of the given
+    results (:func:`horsemocap.pipeline.run_steps` with the session and the
+    parameters). The pass that holds the analysis' own segment keeps its
+    results; every other is analysed anew from the smoothing on. Returns
+    None when the record holds one pass only (nothing to add).
+    """
+    runs = pass_runs(analysis)
+    if len(runs) < 2:
+        return None
+    tri, det = analysis.triangulate, analysis.detect
+    main_a, main_b = tri.segment
+    out, jobs = {}, {}
+    for i, run in enumerate(runs, 1):
+        if run[0] <= main_a and main_b <= run[1]:
+            out[i] = PassResult(i, run, tri.segment, analysis, _verdict(analysis), main=True)
+            continue
+        segment = pass_segment(tri.points, run)
+        if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
+            out[i] = PassResult(i, run, segment, None, "unreliable",
+                                error=f"fewer than {MIN_SEGMENT_FRAMES} consecutive frames with every marker "
+                                      "triangulated")
+            continue
+        given = {name: getattr(analysis, name) for name in ("sync", "rig", "plumb", "static")}
+        given["detect"] = det.replace(segment=run)
+        given["triangulate"] = tri.replace(segment=segment)
+        jobs[i] = (run, segment, given)
+    later = run_beside([lambda given=given: _later_steps(run_later, given) for _, _, given in jobs.values()])
+    for (i, (run, segment, given)), (results, error) in zip(jobs.items(), later):
+        if error:
+            out[i] = PassResult(i, run, segment, None, "unreliable", error=error)
+            continue
+        an = analysis.__class__(analysis.session, analysis.params)
+        for name, value in {**given, **results}.items():
+            setattr(an, name, value)
+        out[i] = PassResult(i, run, segment, an, _verdict(an))
+    out = [out[i] for i in sorted(out)]
+    result = PassesResult(tuple(out), combined_comfort([p.indicators for p in out], [p.duration_s for p in out]))
+    analysed = sum(p.analysis is not None for p in out)
+    progress("passes", f"{len(out)} passes of the horse through the views, {analysed} analysed; "
+                       + summary_text(out))
+    return result
+
+
+def _later_steps(run_later, given) -> tuple[dict, str]:
+    """The results of :data:`PASS_STEPS` on ``given`` and "", or {} and why they could not be computed."""
+    try:
+        an = run_later(given, PASS_STEPS)
+    except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:
+        return {}, str(exc)
+    return {name: getattr(an, name) for name in PASS_STEPS}, ""
+
+
+def run_beside(tasks) -> list:
+    """The values of ``tasks`` (callables without arguments), in order, a forked copy of this process taking
+    tasks beside this one where it can.
+
+    As :func:`horsemocap.report.render_pngs` draws figures: where the system
+    can ``fork``, has two or more cores and this process runs no other
+    Python thread and is not itself a worker of a pool (a batch's worker
+    already shares the cores with the others), the two processes take the
+    next task not yet taken as each becomes free (one byte per task read
+    from a shared pipe), and the copy sends its values back pickled. The
+    copy computes with the same code and data, so the values are the same
+    either way; those it did not deliver are computed here.
+
+    Examples
+    --------
+    >>> run_beside([lambda: 1, lambda: 2, lambda: 3])
+    [1, 2, 3]
+    """
+    tasks = list(tasks)
+    if (len(tasks) < 2 or len(tasks) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
+            or threading.active_count() > 1 or multiprocessing.parent_process() is not None):
+        return [task() for task in tasks]
+    claims_r, claims_w = os.pipe()
+    os.write(claims_w, bytes(range(len(tasks))))
+    os.close(claims_w)
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                     # the copy: compute, send, leave without cleanup
+        code = 1
+        try:
+            os.close(read_end)
+            done = _claimed(tasks, claims_r)
+            with os.fdopen(write_end, "wb") as sent:
+                pickle.dump(done, sent)
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write_end)
+    got = os.fdopen(read_end, "rb")
+    try:
+        with got:
+            out = _claimed(tasks, claims_r)
+            data = got.read()
+    finally:
+        _, status = os.waitpid(pid, 0)
+        os.close(claims_r)
+    if status == 0 and data:
+        out.update(pickle.loads(data))
+    return [out[i] if i in out else task() for i, task in enumerate(tasks)]
+
+
+def _claimed(tasks, claims_fd: int) -> dict:
+    """The tasks this process takes from the shared pipe of task numbers, computed: {number: value}."""
+    done = {}
+    while True:
+        claim = os.read(claims_fd, 1)
+        if not claim:
+            return done
+        done[claim[0]] = tasks[claim[0]]()
+
+
+def summary_text(passes) -> str:
+    """The passes in words: each one when there are at most :data:`MAX_PASSES_LISTED`, else the count per
+    verdict and the first of those not ``ok``.
+
+    Examples
+    --------
+    >>> many = [PassResult(i, (10 * i, 10 * i + 9), None, None, "unreliable", error="too short") for i in range(1, 11)]
+    >>> summary_text(many[:1])
+    'pass 1 (frames 10..18): not analysed (too short)'
+    >>> summary_text(many)[:60]
+    '10 unreliable (passes.csv has each); pass 1 (frames 10..18):'
+    """
+    passes = list(passes)
+    if len(passes) <= MAX_PASSES_LISTED:
+        return "; ".join(_pass_text(p) for p in passes)
+    counts = {v: sum(p.verdict == v for p in passes) for v in ("ok", "warning", "unreliable")}
+    text = ", ".join(f"{n} {v}" for v, n in counts.items() if n) + " (passes.csv has each)"
+    flagged = [p for p in passes if p.verdict != "ok"][:MAX_PASSES_LISTED]
+    return text + "".join(f"; {_pass_text(p)}" for p in flagged)
+
+
+def _verdict(analysis) -> str:
+    return quality.verdict(quality.post_checks(analysis))
+
+
+def _pass_text(p: PassResult) -> str:
+    where = f"pass {p.index} (frames {p.run[0]}..{p.run[1] - 1})"
+    if p.analysis is None:
+        return f"{where}: not analysed ({p.error})"
+    ind = p.indicators
+    rms = f", Wb rms {ind['acc_y_Wb_rms']:.3g} m/s^2" if ind and "acc_y_Wb_rms" in ind else ""
+    return f"{where}: {p.verdict}{rms}"
+
+
+PASS_COLUMNS = ("pass", "main", "first_frame", "last_frame", "start_s", "duration_s", "verdict", "error")
+"""The leading columns of ``passes.csv``; the comfort indicators follow (docs/sessions.md)."""
+
+
+def passes_rows(passes: PassesResult, reference_offset: int, fps: float) -> tuple[list, list]:
+    """Header and rows of ``passes.csv``: a row per pass, then the row ``all`` (the combined comfort).
+
+    ``first_frame``/``last_frame`` are the analysed frames in the reference camera's own numbering
+    (``reference_offset`` = its sync offset), ``start_s`` the time of the first from the synchronised
+    start; the indicators are ``comfort.csv``'s, empty for a pass without them.
+    """
+    keys = [k for k in COMFORT_KEYS if k != "duration_s"]
+    extra = [k for p in passes.passes if p.indicators for k in p.indicators if k not in COMFORT_KEYS]
+    keys += list(dict.fromkeys(extra))
+    rows = []
+    for p in passes.passes:
+        seg = p.segment if p.segment is not None else p.run
+        ind = p.indicators or {}
+        rows.append([p.index, int(p.main), seg[0] + reference_offset, seg[1] - 1 + reference_offset,
+                     _num(seg[0] / fps), _num(p.duration_s) if p.analysis is not None else "", p.verdict,
+                     p.error, *(_num(ind.get(k)) for k in keys)])
+    c = passes.combined
+    rows.append(["all", "", "", "", "", _num(c.get("duration_s")), passes.verdict, "",
+                 *(_num(c.get(k)) for k in keys)])
+    return [*PASS_COLUMNS, *keys], rows
+
+
+def _num(v, digits: int = 9) -> str:
+    return "" if v is None or not np.isfinite(float(v)) else f"{float(v):.{digits}g}"
