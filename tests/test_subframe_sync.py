@@ -185,3 +185,26 @@ def test_timing_floor_is_the_residual_in_frames(rig):
     assert floor[rig.names[1]] == pytest.approx(0.2, rel=0.5)
     assert motion[rig.names[1]] > 1.0
 
+
+
+def test_residual_curve_is_least_at_the_true_phase(rig):
+    n, true_phase = 90, {rig.names[1]: 0.37, rig.names[2]: -0.22}
+    px = _free_running_views(rig, n, true_phase)
+    trials = true_phase[rig.names[1]] + np.array([-0.4, -0.2, 0.0, 0.2, 0.4])
+    curve = subframe.residual_curve(rig, px, {rig.names[0]: 0.0, **true_phase}, rig.names[1], trials)
+    assert int(np.argmin(curve)) == 2 and curve[2] < 0.05 and curve[0] > 5 * curve[2]
+
+
+def test_nearest_frames_moves_whole_frames_into_the_offsets():
+    offsets, phase = subframe.nearest_frames({"left": 6, "middle": 27, "right": 45},
+                                             {"left": 0.0, "middle": 0.919, "right": 0.222})
+    assert offsets == {"left": 6, "middle": 26, "right": 45}
+    assert phase["middle"] == pytest.approx(-0.081) and phase["right"] == pytest.approx(0.222)
+    # the same instants: offset minus phase is kept
+    assert 26 - phase["middle"] == pytest.approx(27 - 0.919)
+
+
+def test_phase_widget_defaults_to_the_estimate():
+    from horsemocap.widgets import ui_phase
+    s = ui_phase("right", 0.123, 0.01)
+    assert s.value == pytest.approx(0.123) and s.min == pytest.approx(-0.377) and s.max == pytest.approx(0.623)
