@@ -250,12 +250,17 @@ def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright
       former place (0 for a light; about 1 for an object that moved by its
       own size or more; 0.5 or more rejects).
 
-    ``score = (1 - surround_bright) * stays * (1 - vacated)`` for a region
+    * ``steady`` (not a test, a weight): the region's lowest level over its
+      highest in its on-frames after the first (above the off level): 1 for
+      a light, whose first on-frame alone may be lit in part; below 1 for a
+      bright thing that keeps brightening as it comes into place.
+
+    ``score = (1 - surround_bright) * stays * (1 - vacated) * steady`` for a region
     that passed them all (1: a region lit up in place, with nothing bright
     beside it before and nothing darkening beside it), 0 for a rejected one.
     """
     rise, before, after, earlier, always = (a[win] for a in maps)
-    ev = dict.fromkeys(("lit_before", "surround_bright", "stays", "vacated"), float("nan"))
+    ev = dict.fromkeys(("lit_before", "surround_bright", "stays", "vacated", "steady"), float("nan"))
     ev.update(score=0.0, reason="")
     if touches_edge:
         ev["reason"] = "it touches the image edge (a moving bright object entering the view)"
@@ -296,7 +301,9 @@ def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright
         ev["reason"] = (f"an area {ev['vacated']:.1f} times its own went dark beside it at the same frame "
                         "(a moving bright object leaving its place)")
         return ev
-    ev["score"] = (1.0 - ev["surround_bright"]) * ev["stays"] * (1.0 - ev["vacated"])
+    later = on_levels[1:]
+    ev["steady"] = float(np.clip((min(later) - off) / (max(later) - off), 0.0, 1.0)) if max(later) > off else 0.0
+    ev["score"] = (1.0 - ev["surround_bright"]) * ev["stays"] * (1.0 - ev["vacated"]) * ev["steady"]
     return ev
 
 

@@ -208,3 +208,19 @@ def test_phase_widget_defaults_to_the_estimate():
     from horsemocap.widgets import ui_phase
     s = ui_phase("right", 0.123, 0.01)
     assert s.value == pytest.approx(0.123) and s.min == pytest.approx(-0.377) and s.max == pytest.approx(0.623)
+
+
+def test_a_thing_brightening_over_its_on_frames_weighs_less_than_a_light():
+    # a larger bright thing comes into place at frame 10, brightening over four frames, then leaves; the
+    # flashlight switches on at frame 25 and holds its level: the flash is chosen
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[:96, :128]
+    frames = np.clip(rng.normal(30, 2, (60, 96, 128)), 0, 255)
+    thing = (xx - 30) ** 2 + (yy - 60) ** 2 <= 64
+    for i, level in enumerate((130, 150, 175, 200)):
+        frames[10 + i][thing] = level
+    frames[25:, (xx - 100) ** 2 + (yy - 20) ** 2 <= 25] = 230
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.frame == 25
+    steady = {c["frame"]: c["steady"] for c in det.candidates if c["accepted"]}
+    assert steady[24] == pytest.approx(1.0, abs=0.02) and steady[9] < 0.85
