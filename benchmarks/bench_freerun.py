@@ -18,6 +18,8 @@ sessions of ``results/freerun_before.txt``).
 import argparse
 import time
 
+import numpy as np
+
 from horsemocap import accuracy, quality
 from horsemocap.pipeline import AnalysisError, analyze
 from horsemocap.virtuallab.hard import FREE_RUNNING_HARD, hard_free_running
@@ -25,6 +27,8 @@ from horsemocap.virtuallab.herd import FREE_RUNNING_HERD, herd_free_running
 from horsemocap.virtuallab.truth import camera_timings, load_truth, true_offsets_frames
 
 DEFAULT = ("free_horse2_sitting_trot_30", "free_canter720_toedin_60", "free_pal576_sitting_25_interlaced")
+#: Offset errors (frames) and reported uncertainties of every run, for the summary line.
+ERRORS: list = []
 
 
 def session_folder(name: str, seed: int, genlocked: bool = False):
@@ -58,6 +62,7 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
             sy = analyze(folder, None, {}, until="sync", progress=lambda *x: None).synchronisation
             frac = sy.offsets_with_fraction("left")
             found = ", ".join(f"{c} {frac[c]:.3f} (error {frac[c] - true[c]:+.3f})" for c in truth.cameras[1:])
+            ERRORS.extend((abs(frac[c] - true[c]), None) for c in truth.cameras[1:])
         except AnalysisError as sync_exc:
             found = f"none ({sync_exc})"
         return (f"{head}\n  exit 2, stopped: {exc}\n  flash offsets found: {found}  "
@@ -77,6 +82,7 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
         got = frac[c]
         flash = "" if not sync.flash_offsets else f" [flash {sync.flash_offsets[c] - sync.flash_offsets['left']}]"
         unc = sync.offset_uncertainty_frames.get(c)
+        ERRORS.append((abs(got - true[c]), unc))
         found.append(f"{c} {got:.3f}{'' if unc is None else f' +- {unc:.3f}'}{flash} (error {got - true[c]:+.3f})")
     first, last = a.triangulate.segment
     frames = f"{last - first} of {sync.n_frames}"
@@ -96,6 +102,12 @@ def main():
     args = parser.parse_args()
     for name in args.names:
         print(run(name, args.seed, args.genlocked), flush=True)
+    if ERRORS:
+        err = np.array([e for e, _ in ERRORS])
+        ratio = np.array([e / u for e, u in ERRORS if u])
+        print(f"offsets: median |error| {np.median(err):.3f} frame, worst {err.max():.3f} over {err.size}"
+              + (f"; |error| / reported uncertainty: median {np.median(ratio):.2f}, worst {ratio.max():.2f}, "
+                 f"{np.mean(ratio <= 2):.0%} within 2" if ratio.size else ""))
 
 
 if __name__ == "__main__":

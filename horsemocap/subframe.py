@@ -31,9 +31,9 @@ from scipy.interpolate import CubicSpline
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "flash_onset", "flash_phases", "TrackInterpolant", "PhaseFit", "phase_residual",
+__all__ = ["FlashOnset", "flash_onset", "flash_phases", "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual",
            "fit_phase", "joint_residual", "refine_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
-           "others_residual", "OUTSIDE_TRACK"]
+           "others_residual", "timing_floor", "residual_curve", "observation_instants", "OUTSIDE_TRACK"]
 
 #: Exposure as a fraction of the frame when the session does not say (the "180 degree shutter").
 DEFAULT_EXPOSURE_FRACTION = 0.5
@@ -48,6 +48,8 @@ SEARCH_HALF_WIDTH = 1.0
 GRID_STEP = 0.05
 #: A run's cubic is extended this far (frames) beyond its first and last seen frame.
 EXTEND_FRAMES = 1.0
+#: Delay of an interlaced frame's second field (frames).
+INTERLACED_FIELD_FRAMES = 0.5
 #: Chunks of the record over which the phase is fitted separately (spread -> uncertainty, slope -> rate).
 CHUNKS = 5
 
@@ -161,6 +163,26 @@ def flash_phases(onsets: dict, offsets: dict, reference: str) -> tuple[dict, dic
         phase[c] = float((offsets[c] - offsets[reference]) - (o.onset_frames - ref.onset_frames))
         unc[c] = float(np.hypot(o.uncertainty_frames, ref.uncertainty_frames))
     return phase, unc
+
+
+def nearest_frames(offsets: dict, phase: dict) -> tuple[dict, dict]:
+    """Whole-frame offsets of the frames nearest in time, and the phases left (within half a frame).
+
+    Camera ``c``'s synchronised frame ``k`` is at reference instant ``k +
+    phase[c]``; a phase above half a frame means its next frame is nearer
+    in time: the offset takes the whole frames, ``offsets[c] -
+    round(phase[c])``, and the phase keeps the rest. The same instants, with
+    the frames compared whole (identification, the markers' whole-frame
+    check) at most half a frame apart.
+
+    Examples
+    --------
+    >>> nearest_frames({"left": 2, "middle": 12, "right": 21}, {"left": 0.0, "middle": -0.24, "right": 0.63})
+    ({'left': 2, 'middle': 12, 'right': 20}, {'left': 0.0, 'middle': -0.24, 'right': -0.37})
+    """
+    whole = {c: int(np.round(phase.get(c, 0.0))) for c in offsets}
+    return ({c: int(o) - whole[c] for c, o in offsets.items()},
+            {c: round(float(phase.get(c, 0.0)) - whole[c], 12) for c in offsets})
 
 
 class TrackInterpolant:
@@ -294,6 +316,29 @@ def rolling_shutter_frames(marker_px, height: int, readout_frames: float) -> np.
     return np.arange(len(px), dtype=float)[:, None] + px[..., 1] / float(height) * float(readout_frames)
 
 
+def observation_instants(marker_px, height: int, readout_frames: float = 0.0, interlaced: bool = False) -> np.ndarray:
+    """Each observation's instant in its camera's frames: the frame index, plus the row time of a rolling
+    shutter, plus a quarter of a frame for an interlaced camera.
+
+    A rolling shutter starts row ``r`` of ``height`` ``r / height x readout``
+    after row 0 (:func:`rolling_shutter_frames`). An interlaced frame holds
+    two fields exposed half a frame apart (PAL DV: 20 ms); a marker's blob
+    takes its rows from both fields alike, so its centroid is the mean of
+    the two fields' positions: to first order the position half-way between
+    the fields, a quarter of a frame after the first field's start. (Which
+    field comes first does not change that instant.)
+
+    Examples
+    --------
+    >>> px = np.array([[[10.0, 0.0]], [[10.0, 240.0]]])
+    >>> observation_instants(px, 480, 0.5)[:, 0]
+    array([0.  , 1.25])
+    >>> observation_instants(px, 480, interlaced=True)[:, 0]
+    array([0.25, 1.25])
+    """
+    return rolling_shutter_frames(marker_px, height, readout_frames) + (INTERLACED_FIELD_FRAMES / 2.0 if interlaced else 0.0)
+
+
 def phase_residual(camera, points: np.ndarray, track: TrackInterpolant, phases, rate: float = 0.0,
                    frames=None) -> np.ndarray:
     """Median distance (px) of the projected points from the camera's tracks, for every trial phase.
@@ -340,6 +385,10 @@ class PhaseFit:
         Median residual at the fitted phase.
     n_points : int
         Marker-frames compared.
+    timing_floor_frames : float
+        The camera's sync residual at the fitted phases over its markers' image speed
+        (:func:`timing_floor`): the timing error the residual left cannot tell from noise and
+        calibration (NaN when not measured).
     """
 
     phase: float
@@ -347,6 +396,7 @@ class PhaseFit:
     rate_ratio: float
     residual_px: float
     n_points: int
+    timing_floor_frames: float = float("nan")
 
 
 def fit_phase(camera, points: np.ndarray, track: TrackInterpolant, center: float,
@@ -415,6 +465,41 @@ def _axis_fit(rig, tracks, phase, cam, frames, grid):
     return _parabolic_minimum(grid, curve) if np.isfinite(curve).any() else float("nan")
 
 
+def residual_curve(rig, marker_px: dict, phase: dict, camera: str, trials, times: dict | None = None) -> np.ndarray:
+    """The markers' joint residual (px, :func:`joint_residual`) for trial phases of one camera, the others fixed.
+
+    The curve :func:`refine_phases` minimises along ``camera``'s axis:
+    every camera's tracks (:class:`TrackInterpolant`, observation instants
+    ``times``) read at the reference instants with ``phase``, ``camera``'s
+    replaced by each trial, and triangulated together.
+
+    Examples
+    --------
+    Three cameras in a row see two markers moving across; the middle
+    camera's frames fall 0.3 frame after the reference's:
+
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> rig = Rig(tuple(Camera(n, (640, 480), K, translation=[x, 0.0, 0.0])
+    ...                 for n, x in (("left", 0.5), ("middle", 0.0), ("right", -0.5))))
+    >>> def points(k):
+    ...     k = np.asarray(k, float)[:, None, None]
+    ...     bounce = 0.01 * np.sin(k) * np.array([0.0, 1.0, 0.0])
+    ...     return np.array([[0.1, 0.0, 4.0], [-0.2, 0.1, 5.0]]) + k * np.array([0.02, 0.004, 0.0]) + bounce
+    >>> k = np.arange(30.0)
+    >>> px = {"left": rig["left"].project(points(k)), "middle": rig["middle"].project(points(k + 0.3)),
+    ...       "right": rig["right"].project(points(k))}
+    >>> trials = np.array([0.0, 0.3, 0.6])
+    >>> curve = residual_curve(rig, px, {"left": 0.0, "middle": 0.0, "right": 0.0}, "middle", trials)
+    >>> float(trials[np.argmin(curve)])
+    0.3
+    """
+    times = times or {}
+    tracks = {c: TrackInterpolant(px, times.get(c)) for c, px in marker_px.items()}
+    frames = np.arange(len(next(iter(marker_px.values()))), dtype=float)
+    return np.array([joint_residual(rig, tracks, {**phase, camera: float(g)}, frames) for g in trials])
+
+
 def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict | None = None,
                   half_width: float = SEARCH_HALF_WIDTH, step: float = 0.1) -> dict:
     """The cameras' phases that make the markers of all cameras meet, searched jointly.
@@ -426,8 +511,9 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
     interpolated in time, triangulated by all cameras together). Each phase
     is then refined on a grid of :data:`GRID_STEP` by a parabola; the record
     cut into :data:`CHUNKS` chunks, each chunk's phase gives the uncertainty
-    (spread over ``sqrt(chunks)``) and, when their drift is larger than twice
-    its standard error, the rate ratio.
+    (spread over ``sqrt(chunks)``, combined with :func:`timing_floor`: the
+    residual left, in frames) and, when their drift is larger than twice its
+    standard error, the rate ratio.
 
     Parameters
     ----------
@@ -468,6 +554,7 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
         g = _axis_fit(rig, tracks, best, c, frames, fine)
         if np.isfinite(g):
             best[c] = g
+    floor = timing_floor(rig, marker_px, best, times)
     for c in free:
         fine = np.arange(best[c] - 3 * GRID_STEP, best[c] + 3.5 * GRID_STEP, GRID_STEP)
         chunk_phase, chunk_mid = [], []
@@ -477,9 +564,55 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                 chunk_phase.append(g)
                 chunk_mid.append(float(part.mean()))
         unc, ratio = _spread_and_rate(chunk_phase, chunk_mid)
+        if np.isfinite(floor.get(c, np.nan)):
+            unc = float(np.hypot(unc, floor[c]))
         fits[c] = PhaseFit(phase=float(best[c]), uncertainty=unc, rate_ratio=ratio,
-                           residual_px=joint_residual(rig, tracks, best, frames), n_points=int(n))
+                           residual_px=joint_residual(rig, tracks, best, frames), n_points=int(n),
+                           timing_floor_frames=float(floor.get(c, np.nan)))
     return fits
+
+
+def timing_floor(rig, marker_px: dict, phase: dict, times: dict | None = None) -> dict:
+    """Camera -> the timing error (frames) its sync residual cannot rule out: residual / image speed.
+
+    With every camera's tracks at the reference instants (``phase``,
+    :func:`tracks_at_reference_instants`), a camera ``d`` frames off puts
+    its markers about ``d`` times their image speed (px per frame) from the
+    other cameras' markers projected into it (:func:`others_residual`). The
+    median residual left at the fitted phases is also made of detection
+    noise and calibration error, which the residual cannot tell from a
+    timing error: its median over the median image speed is how well the
+    markers time the camera, whatever the chunks' agreement (the chunks
+    share the calibration and the tracks' interpolation, so their spread
+    misses these). NaN where the camera has no residual or its markers do
+    not move.
+
+    Examples
+    --------
+    Three cameras in a row see two markers moving 3-4 px per frame across
+    the image; the middle camera's view lies 0.4 px off (noise or
+    calibration), as a timing error of about a tenth of a frame would put it:
+
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> rig = Rig(tuple(Camera(n, (640, 480), K, translation=[x, 0.0, 0.0])
+    ...                 for n, x in (("left", 0.5), ("middle", 0.0), ("right", -0.5))))
+    >>> t = np.arange(20.0)[:, None, None]
+    >>> points = np.array([[0.1, 0.0, 4.0], [-0.2, 0.1, 5.0]]) + t * np.array([0.02, 0.0, 0.0])
+    >>> px = {c.name: c.project(points) for c in rig.cameras}
+    >>> px["middle"] = px["middle"] + [0.0, 0.4]
+    >>> floor = timing_floor(rig, px, {"left": 0.0, "middle": 0.0, "right": 0.0})
+    >>> round(floor["middle"], 2)
+    0.11
+    """
+    at_ref, _ = tracks_at_reference_instants(marker_px, phase, None, times)
+    resid = others_residual(rig, at_ref)
+    out = {}
+    for c, px in at_ref.items():
+        speed = np.linalg.norm(np.diff(np.asarray(px, float), axis=0), axis=-1)
+        r, v = resid[c][np.isfinite(resid[c])], speed[np.isfinite(speed)]
+        out[c] = float(np.median(r) / np.median(v)) if r.size and v.size and np.median(v) > 0 else float("nan")
+    return out
 
 
 def _spread_and_rate(chunk_phase: list, chunk_mid: list) -> tuple[float, float]:

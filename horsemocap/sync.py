@@ -38,6 +38,8 @@ from .sources import FrameSource, SourceError
 
 #: Frames searched from the start of each source when none are given (20 s at 30 fps).
 DEFAULT_SEARCH_FRAMES = 600
+#: An on-frame at least this share of the way from the off level to the brightest on-frame counts as fully lit.
+FULLY_LIT_SHARE = 0.9
 
 
 class SyncError(ValueError):
@@ -172,12 +174,16 @@ def _switch_ons(g, min_rise, min_area, m, k):
     frames before ``t``, ``after`` the minimum of the ``m`` after it (frame
     ``t`` itself, maybe lit during part of its exposure, is skipped),
     ``earlier`` and ``always`` the maximum and the minimum of all frames
-    before those ``k`` (``always`` is 0 while there are none: no pixel is
-    known to be static yet).
+    before those ``k`` (while there are none, as at the very start of a
+    record, ``always`` is the median of the frames after the first ``k + m
+    + 1``: a static thing is as bright there, a moving object has left).
     """
     shape = g.shape[1:]
     prev_rise = np.zeros(shape, bool)
-    earlier, always = np.zeros(shape, np.uint8), np.zeros(shape, np.uint8)
+    earlier = np.zeros(shape, np.uint8)
+    # before any frame lies k frames back, the frames after the first on-frames tell the static things
+    later = g[min(k + m + 2, g.shape[0] - 1):]
+    always = np.median(later[np.linspace(0, len(later) - 1, min(len(later), 51)).astype(int)], axis=0).astype(np.uint8)
     for t in range(1, g.shape[0] - m):
         if t - k - 1 == 0:
             always = g[0].copy()
@@ -234,20 +240,27 @@ def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright
       keeps still, ``2 / (m + 1)`` at the leading edge of an object moving at
       any steady speed (the first fully lit frame shows the pixels first
       covered in frames ``t`` and ``t + 1``, the on-frames those of ``t ..
-      t + m``); below half-way between the two rejects. A first on-frame lit
-      only during part of its exposure is passed over, so that a flash
-      switched on mid-exposure keeps 1;
+      t + m``); below half-way between the two rejects. An on-frame lit
+      only during part of its exposure (below :data:`FULLY_LIT_SHARE` of the
+      way to the brightest on-frame) is passed over, so that a flash
+      switched on mid-exposure, or mid-frame between two interlaced fields,
+      keeps 1;
     * ``vacated``: pixels beside it that were as bright a frame before and are
       dark in all its on-frames, over its area: a moving object leaving its
       former place (0 for a light; about 1 for an object that moved by its
       own size or more; 0.5 or more rejects).
 
-    ``score = (1 - surround_bright) * stays * (1 - vacated)`` for a region
+    * ``steady`` (not a test, a weight): the region's lowest level over its
+      highest in its on-frames after the first (above the off level): 1 for
+      a light, whose first on-frame alone may be lit in part; below 1 for a
+      bright thing that keeps brightening as it comes into place.
+
+    ``score = (1 - surround_bright) * stays * (1 - vacated) * steady`` for a region
     that passed them all (1: a region lit up in place, with nothing bright
     beside it before and nothing darkening beside it), 0 for a rejected one.
     """
     rise, before, after, earlier, always = (a[win] for a in maps)
-    ev = dict.fromkeys(("lit_before", "surround_bright", "stays", "vacated"), float("nan"))
+    ev = dict.fromkeys(("lit_before", "surround_bright", "stays", "vacated", "steady"), float("nan"))
     ev.update(score=0.0, reason="")
     if touches_edge:
         ev["reason"] = "it touches the image edge (a moving bright object entering the view)"
@@ -271,7 +284,7 @@ def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright
         return ev
     on_frames = [g[j][win] for j in range(t + 1, t + 1 + m)]
     on_levels = [float(np.median(f[comp])) for f in on_frames]
-    lit = 0.5 * (off + max(on_levels))
+    lit = off + FULLY_LIT_SHARE * (max(on_levels) - off)
     first = next(i for i, v in enumerate(on_levels) if v >= lit)
     newly = [cv2.subtract(f, before) >= min_rise for f in on_frames[first:]]
     region = _touching(newly[0] | comp, comp)
@@ -288,7 +301,9 @@ def _judge(g, t, comp, win, touches_edge, maps, m, min_rise, max_surround_bright
         ev["reason"] = (f"an area {ev['vacated']:.1f} times its own went dark beside it at the same frame "
                         "(a moving bright object leaving its place)")
         return ev
-    ev["score"] = (1.0 - ev["surround_bright"]) * ev["stays"] * (1.0 - ev["vacated"])
+    later = on_levels[1:]
+    ev["steady"] = float(np.clip((min(later) - off) / (max(later) - off), 0.0, 1.0)) if max(later) > off else 0.0
+    ev["score"] = (1.0 - ev["surround_bright"]) * ev["stays"] * (1.0 - ev["vacated"]) * ev["steady"]
     return ev
 
 

@@ -179,3 +179,16 @@ def test_rolling_shutter_markers_are_drawn_where_the_truth_says(tmp_path):
         assert np.linalg.norm(centroid - px[j]) < 0.3
         # the marker's own instant is its row's: a readout of 30 ms puts it well after the frame's instant
         assert truth.extras["marker_time_s__middle"][1, j] - frame_instant == pytest.approx(0.03 * v / 480, abs=2e-4)
+
+
+def test_fraction_cost_known_answers():
+    from horsemocap.virtuallab.timing import fraction_cost
+    c = fraction_cost("Horse 2", "canter", 30.0, 0.5)
+    assert c.delay_ms == pytest.approx(1000 / 60)
+    assert c.travel_mm == pytest.approx(4.888888888888889 * 1000 / 60, rel=1e-9)
+    # a small delay: the acceleration read late is off by about 2 pi f delay per harmonic, so it halves
+    # with the delay, and is zero without one
+    half = fraction_cost("Horse 2", "canter", 60.0, 0.05).acc_y_pct
+    quarter = fraction_cost("Horse 2", "canter", 120.0, 0.05).acc_y_pct
+    assert half == pytest.approx(2 * quarter, rel=0.02)
+    assert fraction_cost("Horse 2", "walk", 30.0, 0.0).acc_y_pct == 0.0

@@ -1,4 +1,6 @@
 """Sub-frame synchronisation: the flash's fraction, the markers' refinement, tracks at common instants."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -8,7 +10,8 @@ from horsemocap.data import default_session_dir
 from horsemocap.params import AnalysisParams, ParamsError
 from horsemocap.pipeline import analyze
 from horsemocap.steps.detect import CameraSyncCheck
-from horsemocap.steps.sync import SyncResult
+from horsemocap.steps.sync import SyncResult, exposure_fractions
+from horsemocap.sync import detect_flash
 
 
 @pytest.fixture(scope="module")
@@ -123,3 +126,101 @@ def test_interpolation_spans_short_gaps_but_reads_only_near_an_observation():
     assert joined["a"][7, 0, 0] == pytest.approx(6.8 ** 2, rel=1e-2) and not gone["a"][6, 0]
     assert np.isnan(joined["a"][5, 0, 0])              # instant 4.8: no observation within one frame
     assert joined["a"][6, 0, 0] == pytest.approx(5.8 ** 2, rel=1e-2)
+
+
+def _flash_next_to_a_rail(n=40, on_at=2, lit=(0.7, 1.0, 1.0, 0.3), seed=1):
+    """Dark noisy frames, a static bright rail's posts either side of the flashlight, and a flash switched on at frame
+    ``on_at`` (the record starts just before it) for a few frames, the first and last lit in part."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[:96, :128]
+    frames = np.clip(rng.normal(30, 2, (n, 96, 128)), 0, 255)
+    frames[:, 8:32, 67:100] = 200                                 # the rail's posts either side, bright in
+    frames[:, 8:32, 20:53] = 200                                  # every frame
+    lamp = (xx - 60) ** 2 + (yy - 20) ** 2 <= 36
+    for i, share in enumerate(lit):
+        frames[on_at + i][lamp] = 30 + share * 220
+    return frames.astype(np.uint8)
+
+
+def test_flash_at_the_start_of_a_record_beside_a_static_bright_thing():
+    # no frame lies two frames before the switch-on: the frames after the flash tell the rail is static
+    det = detect_flash(_flash_next_to_a_rail())
+    assert det.frame == 2 and not det.ambiguous
+
+
+def test_short_flash_with_a_mostly_lit_first_frame_keeps_still():
+    # lit 70 % in its first frame (an interlaced frame whose first field caught it), 2 full frames, then off
+    det = detect_flash(_flash_next_to_a_rail(on_at=12), min_on_frames=3)
+    assert det.frame == 12
+    best = max(det.candidates, key=lambda c: c["score"])
+    assert best["stays"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_observation_instants_rolling_shutter_and_interlaced_fields():
+    px = np.array([[[5.0, 0.0], [5.0, 480.0]], [[5.0, 240.0], [np.nan, np.nan]]])
+    rs = subframe.observation_instants(px, 480, readout_frames=0.6)
+    np.testing.assert_allclose(rs[0], [0.0, 0.6])
+    assert rs[1, 0] == pytest.approx(1.3)
+    il = subframe.observation_instants(px, 480, interlaced=True)
+    np.testing.assert_allclose(il[0], [0.25, 0.25])         # half-way between the fields, 0 and 0.5 frame
+
+
+def test_interlaced_frame_collects_light_over_both_fields(tmp_path):
+    meta = {"camera_timing": {"left": {"exposure_s": 0.02, "interlaced": "bottom_first"},
+                              "middle": {"exposure_s": 0.01}}}
+    s = SimpleNamespace(metadata=meta, fps=25.0, cameras=("left", "middle", "right"))
+    e = exposure_fractions(s)
+    assert e == {"left": pytest.approx(1.0), "middle": pytest.approx(0.25), "right": subframe.DEFAULT_EXPOSURE_FRACTION}
+
+
+def test_timing_floor_is_the_residual_in_frames(rig):
+    n, true_phase = 90, {rig.names[1]: 0.37, rig.names[2]: -0.22}
+    px = _free_running_views(rig, n, true_phase)
+    motion = quality.marker_motion_px(px)
+    exact = subframe.timing_floor(rig, px, true_phase)
+    assert max(exact.values()) < 0.01
+    wrong = {**true_phase, rig.names[1]: true_phase[rig.names[1]] + 0.2}
+    floor = subframe.timing_floor(rig, px, wrong)
+    # a camera read 0.2 frame off lies about 0.2 x its motion from the others' markers
+    assert floor[rig.names[1]] == pytest.approx(0.2, rel=0.5)
+    assert motion[rig.names[1]] > 1.0
+
+
+
+def test_residual_curve_is_least_at_the_true_phase(rig):
+    n, true_phase = 90, {rig.names[1]: 0.37, rig.names[2]: -0.22}
+    px = _free_running_views(rig, n, true_phase)
+    trials = true_phase[rig.names[1]] + np.array([-0.4, -0.2, 0.0, 0.2, 0.4])
+    curve = subframe.residual_curve(rig, px, {rig.names[0]: 0.0, **true_phase}, rig.names[1], trials)
+    assert int(np.argmin(curve)) == 2 and curve[2] < 0.05 and curve[0] > 5 * curve[2]
+
+
+def test_nearest_frames_moves_whole_frames_into_the_offsets():
+    offsets, phase = subframe.nearest_frames({"left": 6, "middle": 27, "right": 45},
+                                             {"left": 0.0, "middle": 0.919, "right": 0.222})
+    assert offsets == {"left": 6, "middle": 26, "right": 45}
+    assert phase["middle"] == pytest.approx(-0.081) and phase["right"] == pytest.approx(0.222)
+    # the same instants: offset minus phase is kept
+    assert 26 - phase["middle"] == pytest.approx(27 - 0.919)
+
+
+def test_phase_widget_defaults_to_the_estimate():
+    from horsemocap.widgets import ui_phase
+    s = ui_phase("right", 0.123, 0.01)
+    assert s.value == pytest.approx(0.123) and s.min == pytest.approx(-0.377) and s.max == pytest.approx(0.623)
+
+
+def test_a_thing_brightening_over_its_on_frames_weighs_less_than_a_light():
+    # a larger bright thing comes into place at frame 10, brightening over four frames, then leaves; the
+    # flashlight switches on at frame 25 and holds its level: the flash is chosen
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[:96, :128]
+    frames = np.clip(rng.normal(30, 2, (60, 96, 128)), 0, 255)
+    thing = (xx - 30) ** 2 + (yy - 60) ** 2 <= 64
+    for i, level in enumerate((130, 150, 175, 200)):
+        frames[10 + i][thing] = level
+    frames[25:, (xx - 100) ** 2 + (yy - 20) ** 2 <= 25] = 230
+    det = detect_flash(frames.astype(np.uint8))
+    assert det.frame == 25
+    steady = {c["frame"]: c["steady"] for c in det.candidates if c["accepted"]}
+    assert steady[24] == pytest.approx(1.0, abs=0.02) and steady[9] < 0.85

@@ -248,14 +248,16 @@ def free_running_tolerance(rig: Rig) -> float:
 
 
 def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
-    """Camera -> (n, m) instants of its centroids in its frames, for the cameras whose rolling-shutter readout
-    ``metadata.camera_timing.<camera>.rolling_shutter_s`` (s) session.json gives; others are absent."""
+    """Camera -> (n, m) instants of its centroids in its frames (:func:`subframe.observation_instants`), for the
+    cameras whose rolling-shutter readout ``metadata.camera_timing.<camera>.rolling_shutter_s`` (s) or interlaced
+    fields (``.interlaced``) session.json gives; others are absent."""
     timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
     out = {}
     for c, px in marker_px.items():
-        readout = (timing.get(c) or {}).get("rolling_shutter_s") if isinstance(timing.get(c), dict) else None
-        if readout:
-            out[c] = subframe.rolling_shutter_frames(px, rig[c].size[1], float(readout) * session.fps)
+        given = timing.get(c) if isinstance(timing.get(c), dict) else {}
+        readout, interlaced = given.get("rolling_shutter_s"), bool(given.get("interlaced"))
+        if readout or interlaced:
+            out[c] = subframe.observation_instants(px, rig[c].size[1], float(readout or 0.0) * session.fps, interlaced)
     return out
 
 

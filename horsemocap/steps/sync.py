@@ -91,6 +91,7 @@ def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
         offsets = {c: int(d.frame) for c, d in found.items()}
         ambiguous = {c: int(d.runner_up["on_frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}
         sub = _flash_fractions(session, found, offsets)
+        offsets = sub.pop("offsets", offsets)
     counts = {c: len(s) for c, s in sources.items()}
     n = check_frame_counts(session, counts, offsets, offsets_from=how)
     progress("sync", f"offsets {offsets} ({how}); {n} synchronised frames")
@@ -106,21 +107,37 @@ def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
 
 
 def exposure_fractions(session: Session) -> dict:
-    """Camera -> exposure / frame period from the optional ``metadata.camera_timing.<camera>.exposure_s``."""
+    """Camera -> the part of the frame period its frame collects light, from the optional
+    ``metadata.camera_timing.<camera>.exposure_s`` (default half a frame) and ``.interlaced``.
+
+    An interlaced frame's two fields are exposed half a frame apart, each for the exposure: the frame
+    collects light from its first field's start to its second field's end, half a frame more (with the
+    usual field exposure of half a frame, the whole frame period; the flash's onset inside the frame then
+    follows from the first lit frame's brightness as for a progressive frame of that exposure).
+    """
     timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
     out = {}
     for c in session.cameras:
-        e = (timing.get(c) or {}).get("exposure_s") if isinstance(timing.get(c), dict) else None
-        out[c] = min(1.0, float(e) * session.fps) if e else subframe.DEFAULT_EXPOSURE_FRACTION
+        given = timing.get(c) if isinstance(timing.get(c), dict) else {}
+        e = given.get("exposure_s")
+        fraction = float(e) * session.fps if e else subframe.DEFAULT_EXPOSURE_FRACTION
+        if given.get("interlaced"):
+            fraction += subframe.INTERLACED_FIELD_FRAMES
+        out[c] = min(1.0, fraction)
     return out
 
 
 def _flash_fractions(session: Session, found: dict, offsets: dict) -> dict:
-    """The flash's sub-frame phases as SyncResult fields, or {} when every first lit frame was fully lit."""
+    """The flash's sub-frame phases as SyncResult fields, or {} when every first lit frame was fully lit.
+
+    The whole-frame offsets are those of the frames nearest in time (:func:`subframe.nearest_frames`: phases
+    within half a frame), under key ``offsets``; the markers identify and check the cameras on them.
+    """
     exposure = exposure_fractions(session)
     onsets = {c: subframe.flash_onset(d.signal, d.off_level, d.on_level, d.frame - d.start, exposure[c])
               for c, d in found.items()}
     if not any(o.partial for o in onsets.values()):
         return {}
     phase, unc = subframe.flash_phases(onsets, offsets, session.reference_camera)
-    return dict(phase_frames=phase, offset_uncertainty_frames=unc, subframe_method="flash")
+    offsets, phase = subframe.nearest_frames(offsets, phase)
+    return dict(offsets=offsets, phase_frames=phase, offset_uncertainty_frames=unc, subframe_method="flash")

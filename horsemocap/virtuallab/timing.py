@@ -28,6 +28,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .horse import GAITS, saddle_motion
+
 #: Interlacing orders: which field (rows ``r % 2``) is exposed first.
 INTERLACE_ORDERS = ("bottom_first", "top_first")
 
@@ -278,3 +280,77 @@ def draw_free_running(rng: np.random.Generator, fps: float, cameras=("left", "mi
         out[cam] = CameraTiming(phase_frames=phase, rate_offset_ppm=ppm, nominal_fps=float(fps),
                                 exposure_s=exposure_s, rolling_shutter_s=readout, interlaced=interlaced)
     return out
+
+
+@dataclass(frozen=True)
+class FractionCost:
+    """What a timing error of a fraction of a frame costs a horse at a gait (see :func:`fraction_cost`).
+
+    Attributes
+    ----------
+    gait : str
+    fps : float
+    fraction : float
+        Frames.
+    delay_ms : float
+        The fraction in milliseconds.
+    travel_mm : float
+        The saddle's travel along the path in that time (its mean speed x delay).
+    acc_y_pct : float
+        Rms of the saddle's vertical acceleration read that late against the true one, % of its rms.
+    """
+
+    gait: str
+    fps: float
+    fraction: float
+    delay_ms: float
+    travel_mm: float
+    acc_y_pct: float
+
+
+def fraction_cost(horse: str, gait: str, fps: float, fraction: float, samples: int = 400) -> FractionCost:
+    """What a view ``fraction`` of a frame late costs: the saddle's travel, and its vertical acceleration.
+
+    Two cameras whose frames fall ``fraction / fps`` seconds apart see
+    each marker where it was at two instants: ``travel_mm`` apart along the
+    path (the saddle's mean speed times the delay) for a marker moving with
+    the horse. The vertical acceleration the comfort indices weigh, read
+    that late (``a_y(t + delay)`` against ``a_y(t)`` over a stride of the
+    analytic saddle motion, :func:`horsemocap.virtuallab.horse.saddle_motion`),
+    is off by ``acc_y_pct`` % of its rms: about ``2 pi f delay`` for a
+    component at ``f`` Hz, so the stride's higher harmonics weigh most. A
+    camera that far off in time moves the triangulated points by part of
+    these (its share of the views).
+
+    Examples
+    --------
+    Half a frame at 30 fps at canter (about 4.9 m/s): 8 cm of travel.
+
+    >>> c = fraction_cost("Horse 2", "canter", 30.0, 0.5)
+    >>> round(c.delay_ms, 1), round(c.travel_mm)
+    (16.7, 81)
+    >>> fraction_cost("Horse 2", "canter", 60.0, 0.25).acc_y_pct < c.acc_y_pct
+    True
+    """
+    motion = saddle_motion(horse, gait)
+    delay = float(fraction) / float(fps)
+    t = np.linspace(0.0, motion.period_s, int(samples), endpoint=False) + 1.0
+    down = motion.gravity
+    a_now = motion.saddle(t)[2] @ down
+    a_late = motion.saddle(t + delay)[2] @ down
+    pct = 100.0 * float(np.sqrt(np.mean((a_late - a_now) ** 2)) / np.std(a_now))
+    return FractionCost(gait=gait, fps=float(fps), fraction=float(fraction), delay_ms=1e3 * delay,
+                        travel_mm=1e3 * motion.gait.speed_mps * delay, acc_y_pct=pct)
+
+
+def fraction_costs(horse: str = "Horse 2", fps_values=(25.0, 30.0, 50.0, 60.0), fractions=(0.1, 0.25, 0.5),
+                   gaits=GAITS) -> list:
+    """:func:`fraction_cost` for every gait, frame rate and fraction (a list of :class:`FractionCost`).
+
+    Examples
+    --------
+    >>> rows = fraction_costs(fps_values=(30.0,), fractions=(0.5,), gaits=("walk", "canter"))
+    >>> [(r.gait, round(r.travel_mm)) for r in rows]
+    [('walk', 28), ('canter', 81)]
+    """
+    return [fraction_cost(horse, g, f, x) for g in gaits for f in fps_values for x in fractions]

@@ -83,3 +83,22 @@ def ui_sync(frames: dict, offsets: dict, regions: dict | None = None) -> SyncCho
         Flash regions (:attr:`FlashDetection.region`) to crop the preview around.
     """
     return SyncChooser(frames, offsets, regions)
+
+
+def ui_phase(camera: str, value: float, uncertainty: float = 0.05) -> w.FloatSlider:
+    """The fraction of a frame by which ``camera``'s frames fall after the reference camera's.
+
+    Its default ``value`` is the pipeline's estimate (``analysis.detect.sync.phase_frames[camera]``); the
+    slider spans half a frame either side, in steps of a hundredth of a frame (``uncertainty`` is shown).
+
+    Examples
+    --------
+    >>> s = ui_phase("middle", -0.256, 0.02)
+    >>> s.value, s.min, s.max
+    (-0.256, -0.756, 0.244)
+    """
+    return w.FloatSlider(value=float(value), min=round(float(value) - 0.5, 6), max=round(float(value) + 0.5, 6),
+                         step=0.01, readout_format=".3f",
+                         description=f"{camera} phase", style={"description_width": "initial"},
+                         layout=w.Layout(width="520px"),
+                         tooltip=f"frames after the reference camera's; estimate {value:+.3f} +- {uncertainty:.3f}")
