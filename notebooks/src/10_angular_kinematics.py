@@ -219,6 +219,32 @@ plt.show()
 #
 
 # %% [markdown]
+# ## The saddle's roll, pitch and yaw
+#
+# $\boldsymbol\omega$ and $\boldsymbol\alpha$ are rates; a rider feels the saddle's attitude too. The
+# saddle's body axes are those of the static shot (x along the back's markers, y down, z across),
+# carried by the registered pose of every frame; written as rotations about the motion frame's axes,
+# $\mathbf{R} = \mathbf{R}_y(\text{yaw})\,\mathbf{R}_z(\text{pitch})\,\mathbf{R}_x(\text{roll})$: roll about the
+# longitudinal axis (x), pitch about the lateral one (z), yaw about the vertical (y). The pipeline
+# writes them with every result (`saddle_angles_deg` of the rigid-body step; the `roll_deg`,
+# `pitch_deg` and `yaw_deg` columns of `angular.csv`). Roll is the worst observed under a thin marker triangle (the
+# markers lie almost along the roll axis).
+
+# %%
+ang = an.rigid_body.saddle_angles_deg                   # (n, 3): roll, pitch, yaw in degrees
+fig, axes = plt.subplots(1, 3, figsize=(12, 3), sharex=True)
+for ax, i, name in zip(axes, range(3), ("roll (about x)", "pitch (about z)", "yaw (about y)")):
+    ax.plot(t, ang[:, i], "k-")
+    ax.set_title(name, fontsize=9)
+    ax.set_xlabel("time (s)")
+axes[0].set_ylabel("angle (deg)")
+fig.tight_layout()
+plt.show()
+for i, name in enumerate(("roll", "pitch", "yaw")):
+    a_i = ang[:, i]
+    print(f"{name:5s}: mean {np.nanmean(a_i):+6.1f} deg, peak to peak {np.nanmax(a_i) - np.nanmin(a_i):5.1f} deg")
+
+# %% [markdown]
 # ## Your choices, downstream
 #
 # What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of

@@ -68,6 +68,23 @@ for name, p in vibration.WEIGHTINGS.items():
           f"f6={p.f6:g} Q6={p.Q6:g} K={p.K:g}  ({p.source})")
 
 # %% [markdown]
+# Thesis Table 7.1, the weightings of the standards and what each is for (this notebook uses $W_b$ and
+# $W_k$ for the vertical axis, as the thesis did, and $W_d$ for the two horizontal axes of the EU
+# Directive, section 4):
+#
+# | weighting | direction | application area | standard |
+# |---|---|---|---|
+# | $W_b$ | vertical | whole body | BS 6841 |
+# | $W_c$ | fore-aft | whole body | ISO 2631-1, BS 6841 |
+# | $W_d$ | lateral, fore-aft | whole body | ISO 2631-1, BS 6841 |
+# | $W_e$ | roll, pitch, yaw | whole body (rotational) | ISO 2631-1, BS 6841 |
+# | $W_f$ | vertical | motion sickness | ISO 2631-1, BS 6841 |
+# | $W_g$ | vertical | activity interference | BS 6841 |
+# | $W_h$ | lateral, fore-aft, vertical | hand-arm | ISO 5349-1 |
+# | $W_j$ | vertical | head | ISO 2631-1 |
+# | $W_k$ | vertical | whole body | ISO 2631-1 |
+# | $W_m$ | all | building | ISO 2631-2 |
+#
 # The thesis could not find closed forms and derived its own from Rimell and Mansfield (2007); it
 # does not print them. We start again from the definitions and check them against the factors
 # ISO 2631-1:1997 tabulates (Table 3) at the one-third-octave frequencies.
@@ -158,7 +175,17 @@ print(caught[0].message if caught else "no warning")
 #   power of the ratio);
 # - eq. 7.16-7.17 put the *action* value into the *limit* times.
 #
-# The table itself was computed correctly, with $\tau = 1.2$ s (two periods of 18 frames at 30 fps):
+# The thresholds are those of thesis Table 7.2, the EU Directive 2002/44/EC's exposure action value
+# (EAV: above it, the employer must act) and exposure limit value (ELV: never to be exceeded), for the
+# daily exposure $A(8)$ (an rms over 8 hours) and for the VDV:
+#
+# | | EAV | ELV |
+# |---|---|---|
+# | $A(8)$ | 0.5 m/s² | 1.15 m/s² |
+# | $VDV_\mathrm{threshold}$ | 9.1 m/s$^{1.75}$ | 21 m/s$^{1.75}$ |
+#
+# (`vibration.EU_2002_44_EC` holds them.) The table itself was computed correctly, with $\tau = 1.2$ s
+# (two periods of 18 frames at 30 fps):
 
 # %%
 T = vibration.THESIS_TABLE_8_7
@@ -254,7 +281,7 @@ if truth is None:
     harm = vibration.fit_harmonics(rb.t, rb.saddle_acceleration[:, 1], f0, n_h)
     source = f"{an.session.name} (analysis)"
 else:
-    horse, gait = truth.extras["motion"]["horse"], truth.extras["motion"]["gait"]
+    horse, gait = truth.extras["motion"]["horse"]["name"], truth.extras["motion"]["gait"]["name"]
     ref_iso = herd.analytic_indicators(horse, gait, mode="iso")
     ref_thesis = herd.analytic_indicators(horse, gait, mode="thesis")
     motion = saddle_motion(horse, gait)
