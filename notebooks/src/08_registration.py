@@ -267,6 +267,50 @@ fig.suptitle(f"Figure 8.3: the ball in the {bcam} camera, original (top) and are
 plt.show()
 
 # %% [markdown]
+# ## Figures 6.1 and 6.2: the body frame, in the static shot and during the motion
+#
+# The saddle marker is hidden by the rider's leg during the ride, so the thesis fixes a frame to the
+# horse's back (section 6.3): its origin $O_B$ is marker 1, $\mathbf{u}_1$ points to marker 2, marker 3
+# lies in its $\mathbf{u}_1\mathbf{u}_2$ plane and $\mathbf{u}_3$ completes it (eq. 6.41-6.45). In the
+# static shot, where the saddle marker is visible, its position in that frame, $\mathbf{r}_{BS}^{(B)}$
+# (eq. 6.47), is measured once; during the motion the registered markers give $\mathbf{R}_{MB}(t)$ and
+# $\mathbf{r}_{MB}(t)$, and eq. 6.48 places the saddle marker. Left: the static shot (Figure 6.1); right:
+# one frame of the motion (Figure 6.2), both in the motion frame's x-y plane.
+
+# %%
+from horsemocap import pose, rigid
+
+order, s_idx = list(an.rigid_body.static_order), an.rigid_body.saddle_index
+static_markers, static_saddle = static[order], static[s_idx]
+R_static, o_static = rigid.body_frame(static_markers)                # eq. 6.41-6.45
+r_BS = rigid.saddle_in_body(static_markers, static_saddle)           # eq. 6.47
+k_mid = len(t) // 2
+R_k, o_k = rigid.body_frames(an.rigid_body.registered[k_mid:k_mid + 1])
+saddle_k = R_k[0] @ r_BS + o_k[0]                                    # eq. 6.48
+print("r_BS^(B) (saddle marker in the body frame): " + ", ".join(f"{1000 * v:+.0f}" for v in r_BS) + " mm")
+fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+plots.plot_body_frame(static_markers, static_saddle, R_static, o_static, ax=axes[0],
+                      title="Figure 6.1: the static shot")
+plots.plot_body_frame(an.rigid_body.registered[k_mid], saddle_k, R_k[0], o_k[0], ax=axes[1],
+                      title=f"Figure 6.2: during the motion, t = {t[k_mid]:.2f} s")
+fig.tight_layout()
+plt.show()
+
+# %% [markdown]
+# The thesis' body frame follows the markers, wherever they sit on the back. The saddle's roll, pitch
+# and yaw (notebook 10) need axes that mean something for the horse: as in the body-axes convention of
+# human motion analysis (a default pose fixes the body's planes), the static shot fixes them here: the
+# body's vertical is gravity (y-motion), its longitudinal axis the direction along which the static
+# shot's markers lie, made horizontal and pointed forward, and the lateral axis completes the frame
+# (`pose.static_body_axes`). Their angles to the thesis' body axes in the static shot:
+
+# %%
+body_axes = pose.static_body_axes(static)                            # columns: longitudinal, down, lateral
+for i, name in enumerate(("longitudinal", "vertical (down)", "lateral")):
+    ang = np.degrees(np.arccos(np.clip(abs(body_axes[:, i] @ R_static[:, i]), 0, 1)))
+    print(f"{name:16s} axis {np.array2string(body_axes[:, i], precision=3)}: {ang:5.1f} deg from the thesis' u{i + 1}")
+
+# %% [markdown]
 # ## Your choices, downstream
 #
 # What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
