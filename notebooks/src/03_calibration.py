@@ -221,6 +221,24 @@ ws.bind(exclude_session, "calibration_exclude", convert=lambda v: {c: n for c, n
 display(exclude_session)
 
 # %% [markdown]
+# ### The camera model (thesis 3.2)
+#
+# A calibrated camera is a pinhole (focal lengths $f_x, f_y$ and principal point $c_x, c_y$, eq. 3.10)
+# behind a lens that bends the rays: the radial terms $k_1 r^2 + k_2 r^4 + k_5 r^6$ and the tangential
+# term $\mathbf{d}\mathbf{x}$ of eq. 3.7-3.9 move each image point away from where the pinhole alone
+# would put it, more the further it is from the principal point. The arrows show that move for the left
+# camera of this session's rig, to scale:
+
+# %%
+fig, ax = plt.subplots(figsize=(6.5, 4.2))
+plots.plot_distortion_field(virtual.rig["left"], ax=ax)
+plt.show()
+k = virtual.rig["left"].distortions
+print("left camera: f = " + np.array2string(virtual.rig["left"].focal, precision=1) + " px, c = "
+      + np.array2string(virtual.rig["left"].principal_point, precision=1) + " px, kc = "
+      + np.array2string(np.asarray(k), precision=4))
+
+# %% [markdown]
 # ### Against the truth
 #
 # Focal lengths in percent, principal points in pixels, and the baseline of every pair, for the joint
