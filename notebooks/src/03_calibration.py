@@ -338,6 +338,23 @@ print("\nthesis Table 8.5: AB 500 -> 489.1015 mm (2.1797 %), AC 500 -> 522.9729 
       "AD 707.1 -> 726.5618 mm (2.7514 %)")
 
 # %% [markdown]
+# Figure 8.6: the points A, B, C and D on the board, in the first view the check reconstructs (left
+# camera; green +: the detected corners).
+
+# %%
+k_view = list(virtual.views["left"].names).index(chk_joint.view_names[0])
+corners = virtual.views["left"].corners[k_view]
+ax = plots.plot_board_view(virtual, "left", k_view)
+for name, i in chk_joint.corners_idx.items():
+    ax.plot(*corners[i], "o", mfc="none", mec="r", ms=12, mew=1.5)
+    ax.annotate(name, corners[i], textcoords="offset points", xytext=(6, -8), color="r", fontsize=11)
+lo, hi = np.nanmin(corners, axis=0), np.nanmax(corners, axis=0)
+ax.set_xlim(lo[0] - 25, hi[0] + 25)
+ax.set_ylim(hi[1] + 25, lo[1] - 25)
+ax.set_title(f"Figure 8.6: A, B, C, D on view {chk_joint.view_names[0]} (left camera)", fontsize=9)
+plt.show()
+
+# %% [markdown]
 # The thesis triangulated pair by pair, each pair with its own calibration (section 5.1). Doing the
 # same here, and, as a warning, putting the pairs literally into one rig (`rig_from_pairs`: the right
 # camera's pose was estimated with the left camera's intrinsics of the left-right pair, but the rig
