@@ -42,12 +42,15 @@ import numpy as np
 
 from .data import cache_dir, data_samples_dir, default_session_dir
 from .params import AnalysisParams, ParamsError
-from .pipeline import Analysis, analyze, resolve_params
-from .session import Session, load_session
+from . import quality
+from .pipeline import Analysis, AnalysisError, analyze, resolve_params
+from .session import Session, SessionError, load_session
+from .virtuallab.truth import load_truth
 from .store import MAX_JSON_DEPTH, atomic_write_json, json_depth, read_text_utf8, refuse_link
 
 CHOICES_FILE = "choices.json"
 WORKSPACE_FILE = "workspace.json"
+NO_TRUTH = "no ground truth for this session"
 
 
 # ---------------------------------------------------------------------------
@@ -102,6 +105,34 @@ def set_current_session(session_dir) -> Path:
     root.mkdir(parents=True, exist_ok=True)
     atomic_write_json(root / WORKSPACE_FILE, {"session": str(p)})
     return p
+
+
+def session_truth(session_dir=None):
+    """The virtual laboratory's ground truth of a session, or ``None`` when it has none.
+
+    A rendered session carries its truth in ``truth/``; a recorded one (every
+    real session) does not. The notebooks compare with the truth where there
+    is one and print :data:`NO_TRUTH` in its place otherwise.
+
+    Parameters
+    ----------
+    session_dir : path, optional
+        Default: the session of the workspace (:func:`current_session`).
+
+    Returns
+    -------
+    horsemocap.virtuallab.Truth or None
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> session_truth(tempfile.mkdtemp()) is None
+    True
+    """
+    session_dir = Path(session_dir or current_session())
+    if not (session_dir / "truth").is_dir():
+        return None
+    return load_truth(session_dir)
 
 
 def choices_path(session_dir=None) -> Path:
@@ -534,3 +565,109 @@ def results_for(session_dir=None, until: str = "comfort", params=None) -> Analys
             params = session_params(session_dir, chosen, overrides=params)
     return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
                    progress=lambda *a: None, reuse=True)
+
+
+# ---------------------------------------------------------------------------
+# the two chains, downstream
+# ---------------------------------------------------------------------------
+
+CHAIN_NAMES = {"default": "the automatic choices", "thesis": "the thesis' chain"}
+
+
+def followed_chain(session_dir=None) -> str:
+    """The chain the notebooks follow for a session: ``"thesis"`` when chosen in notebook 00, else ``"default"``."""
+    return read_choices(session_dir).get("preset") or "default"
+
+
+def chain_choices(choices: dict, chain: str) -> dict:
+    """``choices`` with the chain switched to ``chain`` (``"default"`` or ``"thesis"``).
+
+    Every other choice is kept and, as always, overrides the chain's own
+    value: a Fourier order chosen in notebook 09 is used by whichever chain
+    reads Fourier orders.
+
+    Examples
+    --------
+    >>> chain_choices({"preset": "thesis", "x_degree": 2}, "default")
+    {'x_degree': 2}
+    >>> chain_choices({"x_degree": 2}, "thesis")
+    {'x_degree': 2, 'preset': 'thesis'}
+    """
+    if chain not in CHAIN_NAMES:
+        raise ParamsError(f"chain: expected one of {sorted(CHAIN_NAMES)}, got {chain!r}")
+    out = {k: v for k, v in choices.items() if k != "preset"}
+    if chain != "default":
+        out["preset"] = chain
+    return out
+
+
+def analysis_verdict(analysis: Analysis) -> tuple[str, list]:
+    """The quality verdict of an analysis (as in ``quality.json``) and its checks that are not ``ok``."""
+    checks = quality.pre_checks(analysis.session, analysis.rig.rig if analysis.rig is not None else None)
+    checks += quality.post_checks(analysis)
+    return quality.verdict(checks), [c for c in checks if c.level in ("warning", "unreliable")]
+
+
+def downstream(session_dir=None, chain: str | None = None) -> dict:
+    """What the current choices give at the end of one chain: saddle acceleration, Wb/Wk rms, verdict.
+
+    Parameters
+    ----------
+    session_dir : path, optional
+        Default: the workspace's session.
+    chain : {"default", "thesis"}, optional
+        Default: the chain followed (:func:`followed_chain`). The session's
+        choices are applied with the chain switched (:func:`chain_choices`).
+
+    Returns
+    -------
+    dict
+        ``chain``, ``followed`` (bool), ``saddle_acc_y_rms`` (m/s^2, the
+        saddle's unweighted vertical acceleration), ``acc_y_Wb_rms`` and
+        ``acc_y_Wk_rms`` (m/s^2, NaN when the comfort step could not
+        compute them), ``verdict`` and ``problems`` (the checks' messages
+        that are not ``ok``), or ``error`` (why the chain stopped).
+    """
+    session_dir = Path(session_dir or current_session()).resolve()
+    choices = read_choices(session_dir)
+    followed = choices.get("preset") or "default"
+    chain = chain or followed
+    row = {"chain": chain, "followed": chain == followed}
+    params = session_params(session_dir, chain_choices(choices, chain))
+    try:
+        an = results_for(session_dir, params=params)
+    except (AnalysisError, SessionError) as exc:
+        return {**row, "error": str(exc)}
+    acc = an.rigid_body.saddle_acceleration if an.rigid_body is not None else None
+    ind = (an.comfort.indicators if an.comfort is not None else None) or {}
+    verdict_, problems = analysis_verdict(an)
+    with np.errstate(all="ignore"):
+        rms = float(np.sqrt(np.nanmean(np.asarray(acc)[:, 1] ** 2))) if acc is not None else float("nan")
+    return {**row, "saddle_acc_y_rms": rms, "acc_y_Wb_rms": float(ind.get("acc_y_Wb_rms", np.nan)),
+            "acc_y_Wk_rms": float(ind.get("acc_y_Wk_rms", np.nan)), "verdict": verdict_,
+            "problems": [f"{c.level}: {c.message}" for c in problems]}
+
+
+def downstream_text(session_dir=None, chains=("default", "thesis"), problems: bool = True) -> str:
+    """Both chains' :func:`downstream` numbers under the current choices, as a small table.
+
+    The notebooks print it after their widgets: move a widget, run the cell
+    again, and see what the choice does to the saddle and the comfort
+    numbers on the chain the widget belongs to.
+    """
+    session_dir = Path(session_dir or current_session()).resolve()
+    rows = [downstream(session_dir, c) for c in chains]
+    lines = [f"{'chain (session ' + session_dir.name + ')':40s} {'saddle A_y rms':>15s} {'Wb rms':>8s} "
+             f"{'Wk rms':>8s}  verdict"]
+    for r in rows:
+        label = CHAIN_NAMES[r["chain"]] + (" (followed)" if r["followed"] else "")
+        if "error" in r:
+            lines.append(f"{label:40s} stopped: {r['error']}")
+            continue
+        lines.append(f"{label:40s} {r['saddle_acc_y_rms']:10.2f} m/s² {r['acc_y_Wb_rms']:8.2f} "
+                     f"{r['acc_y_Wk_rms']:8.2f}  {r['verdict'].upper()}")
+    if problems:
+        for r in rows:
+            for msg in r.get("problems", []):
+                lines.append(f"  {CHAIN_NAMES[r['chain']]}: {msg}")
+    return "\n".join(lines)

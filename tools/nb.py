@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 
 import nbformat
+from jupyter_client.kernelspec import KernelSpecManager
 from nbclient import NotebookClient
 from nbformat.sign import NotebookNotary
 
@@ -66,10 +67,24 @@ def parse(text: str):
     return cells
 
 
+def kernelspec() -> dict:
+    """The ``kernelspec`` metadata JupyterLab writes for the installed python3 kernel.
+
+    JupyterLab replaces a notebook's kernelspec with the running kernel's as
+    it opens it; any difference (a display name "Python 3" against the
+    kernel's "Python 3 (ipykernel)") marks the notebook modified at once.
+    """
+    try:
+        spec = KernelSpecManager().get_kernel_spec("python3")
+        return {"display_name": spec.display_name, "language": spec.language, "name": "python3"}
+    except Exception:  # noqa: BLE001 - no kernelspec installed: the generic one
+        return {"display_name": "Python 3 (ipykernel)", "language": "python", "name": "python3"}
+
+
 def build(src: Path, execute: bool = True) -> Path:
     nb = nbformat.v4.new_notebook()
     nb.cells = parse(src.read_text())
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.metadata["kernelspec"] = kernelspec()
     nb.metadata["language_info"] = {"name": "python"}
     out = NB_DIR / (src.stem + ".ipynb")
     if execute:
@@ -107,6 +122,7 @@ def rewrite_sources(src: Path) -> tuple[Path, str]:
     why = sources_mismatch(new_cells, nb.cells)
     if why:
         return out, why
+    nb.metadata["kernelspec"] = kernelspec()
     for new, old in zip(new_cells, nb.cells):
         old.source = new.source
         if new.metadata.get("tags"):

@@ -8,7 +8,7 @@ import numpy as np
 from ..calibration.board import board_points
 from ..sources import read_image
 
-__all__ = ["plot_board_view", "plot_view_errors", "plot_rig_top", "plot_grid_errors", "reprojected_corners",
+__all__ = ["plot_distortion_field", "plot_board_view", "plot_view_errors", "plot_rig_top", "plot_grid_errors", "reprojected_corners",
            "draw_board_view"]
 
 
@@ -116,4 +116,39 @@ def plot_grid_errors(checks: dict, ax=None):
     ax.set_xlabel("error of a measured grid distance (%)  (dotted: thesis Table 8.5)")
     ax.set_ylabel("segments")
     ax.legend(fontsize=8)
+    return ax
+
+
+def plot_distortion_field(camera, ax=None, n: int = 13, title: str = ""):
+    """The camera model (thesis 3.2, eq. 3.7-3.10): where the lens moves each pixel.
+
+    For a grid of image points, an arrow from the pixel an ideal pinhole
+    camera would give (``f x_n + c``) to the pixel of the calibrated camera
+    with its radial and tangential distortion; the colour is the shift in
+    pixels. The principal point is marked with a cross.
+
+    Parameters
+    ----------
+    camera : horsemocap.camera.Camera
+    n : int
+        Grid points along the image width.
+    """
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 4.5))
+    w, h = camera.size
+    u, v = np.meshgrid(np.linspace(0, w, n), np.linspace(0, h, max(2, round(n * h / w))))
+    K = camera.matrix
+    xn = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1]], axis=-1)   # ideal pinhole pixels
+    moved = camera.normalized_to_pixels(xn) - np.stack([u, v], axis=-1)
+    size = np.linalg.norm(moved, axis=-1)
+    q = ax.quiver(u, v, moved[..., 0], moved[..., 1], size, angles="xy", scale_units="xy", scale=1, cmap="viridis")
+    plt.colorbar(q, ax=ax, label="shift by the lens (px)")
+    ax.plot(*camera.principal_point, "r+", ms=12, label="principal point")
+    ax.set_xlim(0, w)
+    ax.set_ylim(h, 0)
+    ax.set_aspect("equal")
+    ax.set_xlabel("u (px)")
+    ax.set_ylabel("v (px)")
+    ax.set_title(title or f"{camera.name}: distortion (arrows to scale)", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
     return ax

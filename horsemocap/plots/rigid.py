@@ -5,7 +5,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
-__all__ = ["plot_registration", "plot_marker_distances", "plot_angular_versions",
+__all__ = ["plot_body_frame", "plot_registration", "plot_marker_distances", "plot_angular_versions",
            "plot_angular_average", "plot_singularity", "plot_saddle_position",
            "plot_saddle_kinematics"]
 
@@ -177,3 +177,51 @@ def plot_saddle_kinematics(t, velocity_versions, acceleration_versions, velocity
     axes[-1, 1].set_xlabel("t (s)")
     fig.tight_layout()
     return fig
+
+
+def plot_body_frame(markers, saddle, R_MB, origin, ax=None, title: str = "", axis_length: float = 0.15):
+    """Figures 6.1/6.2: the motion frame, the body frame of three markers and the saddle marker.
+
+    Drawn in the motion frame's x-y plane (x forward, y down, so y points
+    down the page): the motion frame's axes (in a corner: its origin ``O_M``
+    is metres away, the coordinates on the axes are measured from it), the
+    markers 1-3, the body frame's origin ``O_B`` (marker 1, at ``r_MB``) with
+    its axes ``u1, u2`` (eq. 6.41-6.44; ``u3`` points out of or into the
+    page) and ``r_BS`` from ``O_B`` to the saddle marker ``S`` (eq. 6.40,
+    6.48).
+
+    Parameters
+    ----------
+    markers : (3, 3)
+        Markers 1-3 in the motion frame (m).
+    saddle : (3,)
+        The saddle marker in the motion frame (m).
+    R_MB : (3, 3)
+        Columns ``u1 | u2 | u3`` (:func:`horsemocap.rigid.body_frame`).
+    origin : (3,)
+        ``r_MB``, the body frame's origin in the motion frame.
+    """
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 4))
+    m, s, o = np.asarray(markers, float), np.asarray(saddle, float), np.asarray(origin, float)
+    ax.plot(m[:, 0], m[:, 1], "o", color="tab:blue", ms=7, label="markers 1-3")
+    for j, pt in enumerate(m):
+        ax.annotate(f"{j + 1}", pt[:2], textcoords="offset points", xytext=(5, -10), fontsize=8)
+    ax.plot(*s[:2], "s", color="tab:red", ms=7, label="saddle marker S")
+    for vec, name, colour in ((R_MB[:, 0], "u1", "tab:green"), (R_MB[:, 1], "u2", "tab:purple")):
+        ax.annotate("", o[:2] + axis_length * vec[:2], o[:2], arrowprops=dict(arrowstyle="->", color=colour, lw=1.8))
+        ax.annotate(name, o[:2] + 1.1 * axis_length * vec[:2], color=colour, fontsize=9)
+    ax.annotate("", s[:2], o[:2], arrowprops=dict(arrowstyle="->", color="tab:red", lw=1, ls="--"))
+    ax.annotate("r_BS", (o[:2] + s[:2]) / 2, color="tab:red", fontsize=8)
+    ref = np.array([min(m[:, 0].min(), s[0]) - 0.25, min(m[:, 1].min(), s[1]) - 0.1])   # the axes, in a corner
+    for vec, name in (((axis_length, 0), "x"), ((0, axis_length), "y")):
+        ax.annotate("", ref + vec, ref, arrowprops=dict(arrowstyle="->", color="k", lw=1.2))
+        ax.annotate(name, ref + 1.15 * np.array(vec), fontsize=9)
+    ax.annotate("motion frame axes", ref, textcoords="offset points", xytext=(-10, -12), fontsize=7)
+    ax.set_aspect("equal")
+    ax.invert_yaxis()                       # y down, as the motion frame
+    ax.set_xlabel("x-motion (m)")
+    ax.set_ylabel("y-motion, down (m)")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
+    return ax

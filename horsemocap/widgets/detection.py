@@ -136,23 +136,36 @@ class LabelPicker(ControlText, W.VBox):
     """
 
     def __init__(self, image, threshold: int, labels=(), area_range=(3, np.inf), scale: int = 2):
+        self._area_range = area_range
+        self._scale = scale
+        self.select = W.SelectMultiple(options=[], rows=3, description="labels")
+        self.picture = W.Image(format="png")
+        super().__init__([self.select, self.picture])
+        self.relabel(image, threshold, labels)
+        self.select.observe(self._redraw, "value")
+
+    def relabel(self, image, threshold: int, labels=()) -> None:
+        """Label ``image`` at ``threshold`` again; the selection becomes those of ``labels`` that exist.
+
+        The options and the selection always name regions of the image shown
+        (a threshold change renumbers the regions, so a selection is not
+        carried over to another threshold or frame).
+        """
+        self.threshold = int(threshold)
         self.regions = det.label_regions(det.binarize(det.to_gray(np.asarray(image)), threshold))
         r = self.regions
-        idx = np.flatnonzero(det.filter_area(r.area, *area_range))
+        idx = np.flatnonzero(det.filter_area(r.area, *self._area_range))
         if len(idx) > 60:                       # keep the picture legible
             idx = idx[np.argsort(-r.area[idx])[:60]]
             idx = np.union1d(idx, [i for i in range(len(r)) if int(r.ids[i]) in set(labels)]).astype(int)
         self.index = idx
         opts = [(f"{int(r.ids[i])}: area {int(r.area[i])} px at ({r.centroid[i, 0]:.0f}, {r.centroid[i, 1]:.0f})",
                  int(r.ids[i])) for i in idx]
-        self.select = W.SelectMultiple(options=opts, value=tuple(int(x) for x in labels if int(x) in
-                                                                   {o[1] for o in opts}),
-                                       rows=min(12, max(3, len(opts))), description="labels")
         self._image = np.asarray(image)
-        self._scale = scale
-        self.picture = W.Image(format="png")
-        super().__init__([self.select, self.picture])
-        self.select.observe(self._redraw, "value")
+        self.select.value = ()
+        self.select.options = opts
+        self.select.rows = min(12, max(3, len(opts)))
+        self.select.value = tuple(int(x) for x in labels if int(x) in {o[1] for o in opts})
         self._redraw()
 
     @property
@@ -232,8 +245,10 @@ class DetectionControls(ControlText, W.VBox):
     """All detection prompts together; ``.value`` is a :class:`DetectionParams`.
 
     The first frame (the frame whose regions the labels name, ``first_frame``)
-    has its own slider; labels are kept only while the threshold and the
-    first frame are the ones they were picked at.
+    has its own slider; the label picker follows the threshold and the first
+    frame (moving either relabels the image and clears the selection, back to
+    the automatic one at the automatic threshold and frame), so its options,
+    its selection and ``.value.labels`` always agree.
     """
 
     def __init__(self, frames, params: det.DetectionParams, scale: int = 1):
@@ -247,16 +262,24 @@ class DetectionControls(ControlText, W.VBox):
         size = (np.asarray(frames[0]).shape[1], np.asarray(frames[0]).shape[0])
         self.window = ui_window(params, size)
         self.tolerance = ui_distance_tolerance(params)
+        self._frames = frames
         super().__init__([self.threshold, self.first_frame, self.labels, self.area, self.window, self.tolerance])
+        self.threshold.slider.observe(self._relabel, "value")
+        self.first_frame.observe(self._relabel, "value")
+
+    def _relabel(self, *_):
+        """The label picker follows the threshold and the first frame (its labels name their regions)."""
+        thr, f0 = int(self.threshold.value), int(self.first_frame.value)
+        same = thr == self.base.threshold and f0 == (self.base.first_frame or 0)
+        self.labels.relabel(np.asarray(self._frames[f0]), thr, (self.base.labels or ()) if same else ())
 
     @property
     def value(self) -> det.DetectionParams:
-        same = self.threshold.value == self.base.threshold and self.first_frame.value == (self.base.first_frame or 0)
         dt = float(self.tolerance.value)
         if self.base.distance_tolerance is not None and abs(dt - self.base.distance_tolerance) <= TOLERANCE_STEP / 2:
             dt = float(self.base.distance_tolerance)   # the slider's grid point of the automatic value
         return replace(self.base, threshold=self.threshold.value,
-                       labels=self.labels.value if (same and self.labels.value) else None,
+                       labels=self.labels.value or None,   # regions at this threshold and first frame
                        first_frame=int(self.first_frame.value),
                        area_min=float(self.area.value[0]), area_max=float(self.area.value[1]),
                        window=self.window.value, distance_tolerance=dt)
@@ -265,7 +288,7 @@ class DetectionControls(ControlText, W.VBox):
 def ui_detection(frames, params: det.DetectionParams, scale: int = 1) -> DetectionControls:
     """Every prompt of ``left_data_from_first_image_2.m`` in one control.
 
-    Labels are kept only while the threshold is the one they were picked at
-    (labels name regions of one binary image).
+    The label picker follows the threshold and the first frame (labels name
+    regions of one binary image).
     """
     return DetectionControls(frames, params, scale)

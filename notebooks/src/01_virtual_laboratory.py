@@ -49,12 +49,17 @@ from horsemocap import virtuallab as vl
 from horsemocap.data import data_samples_dir, default_session_dir
 from horsemocap.sources import FrameSource
 from horsemocap.virtuallab.measure import naive_regions, session_centroid_errors
+from horsemocap.workspace import NO_TRUTH, session_truth
 
 session = ws.session_dir
-truth = vl.load_truth(session)
+truth = session_truth(session)     # None for a recorded session (no truth/ folder)
 meta = json.loads((session / "session.json").read_text())
-print("session:", meta["name"], "|", meta["metadata"]["horse"], meta["metadata"]["gait"])
-print("cameras:", ", ".join(truth.cameras), f"| {truth.fps:.0f} fps")
+cameras = list(meta["motion"])
+print("session:", meta["name"], "|", ", ".join(f"{k} {v}" for k, v in meta.get("metadata", {}).items()
+                                          if k in ("horse", "gait")))
+print("cameras:", ", ".join(cameras), f"| {meta['fps']:.0f} fps" if "fps" in meta else "")
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the sections below that compare with the truth say so and go on")
 
 # %% [markdown]
 # ## 1. The rig (Tables 8.1-8.4, Figure 8.1)
@@ -93,10 +98,13 @@ print(f"baseline middle-right: rig {d['baseline_rig_mm']:.1f} mm, table {d['base
 # checkerboards will show its own disagreement.
 
 # %%
-fig, ax = plt.subplots(figsize=(7, 4.5))
-plots.plot_rig_top_view(rig, truth.marker_pos, depth=9.0, ax=ax)
-ax.set_title("top view: three cameras, the path of the skin markers at ~8 m")
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    plots.plot_rig_top_view(rig, truth.marker_pos, depth=9.0, ax=ax)
+    ax.set_title("top view: three cameras, the path of the skin markers at ~8 m")
+    plt.show()
 
 # %% [markdown]
 # ## 2. The horse and saddle model
@@ -124,26 +132,32 @@ for h in vl.HORSES:
 # Horse 2 at canter: the thesis analysed 38 frames, two periods of 18 frames; here:
 
 # %%
-n = len(truth.ref_frames)
-print(f"analysed frames: {n} (left frames {truth.ref_frames[0]}..{truth.ref_frames[-1]}), "
-      f"{truth.time_s[-1]:.3f} s, period {truth.comfort['period_s'] * 30:.1f} frames")
-# analytic velocity and acceleration vs finite differences of the positions
-dt_ = 1 / truth.fps
-v_fd = (truth.marker_pos[2:] - truth.marker_pos[:-2]) / (2 * dt_)
-a_fd = (truth.marker_pos[2:] - 2 * truth.marker_pos[1:-1] + truth.marker_pos[:-2]) / dt_ ** 2
-print(f"|v - central difference| max {np.abs(v_fd - truth.marker_vel[1:-1]).max():.3f} m/s "
-      f"(of {np.abs(truth.marker_vel).max():.2f}); |a - 2nd difference| max "
-      f"{np.abs(a_fd - truth.marker_acc[1:-1]).max():.2f} m/s² (of {np.abs(truth.marker_acc).max():.1f})")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    n = len(truth.ref_frames)
+    print(f"analysed frames: {n} (left frames {truth.ref_frames[0]}..{truth.ref_frames[-1]}), "
+          f"{truth.time_s[-1]:.3f} s, period {truth.comfort['period_s'] * 30:.1f} frames")
+    # analytic velocity and acceleration vs finite differences of the positions
+    dt_ = 1 / truth.fps
+    v_fd = (truth.marker_pos[2:] - truth.marker_pos[:-2]) / (2 * dt_)
+    a_fd = (truth.marker_pos[2:] - 2 * truth.marker_pos[1:-1] + truth.marker_pos[:-2]) / dt_ ** 2
+    print(f"|v - central difference| max {np.abs(v_fd - truth.marker_vel[1:-1]).max():.3f} m/s "
+          f"(of {np.abs(truth.marker_vel).max():.2f}); |a - 2nd difference| max "
+          f"{np.abs(a_fd - truth.marker_acc[1:-1]).max():.2f} m/s² (of {np.abs(truth.marker_acc).max():.1f})")
 
 # %% [markdown]
-# At 30 fps the differences are those of sampling, not of the truth: the unit tests compare the
-# analytic derivatives with finite differences at $h = 10^{-5}$ s, where they agree to $10^{-6}$.
+# At 30 fps the differences are those of sampling, not of the truth: compared with finite
+# differences at $h = 10^{-5}$ s instead, the analytic derivatives agree to $10^{-6}$.
 # In the motion frame (rows of `truth.motion_axes`), the saddle marker:
 
 # %%
-t_s = truth.time_s
-fig = plots.plot_saddle_truth(t_s, truth.to_motion(truth.saddle_pos), truth.to_motion(truth.saddle_acc))
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    t_s = truth.time_s
+    fig = plots.plot_saddle_truth(t_s, truth.to_motion(truth.saddle_pos), truth.to_motion(truth.saddle_acc))
+    plt.show()
 
 # %% [markdown]
 # The comfort indicators of Table 8.7 computed from the *true* saddle motion (by
@@ -151,10 +165,13 @@ plt.show()
 # acceleration over two stride periods) are what the pipeline's estimate should approach:
 
 # %%
-print(truth.comfort_source)
-for key in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max", "crest_factor_y", "TA_8_limit_Wb",
-            "Distance_TA_8_limit_Wb", "vel_x_avg", "amplitude_y"):
-    print(f"{key:24s} {truth.comfort[key]:9.4f}")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    print(truth.comfort_source)
+    for key in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max", "crest_factor_y", "TA_8_limit_Wb",
+                "Distance_TA_8_limit_Wb", "vel_x_avg", "amplitude_y"):
+        print(f"{key:24s} {truth.comfort[key]:9.4f}")
 
 # %% [markdown]
 # ## 3. The session on disk
@@ -170,8 +187,12 @@ for key in ("motion", "plumb", "static"):
     print(f"{key:7s}", ", ".join(f"{c}: {p}" for c, p in meta[key].items()))
 print("calibration:", {k: (v if k == "board" else "...") for k, v in meta["calibration"].items()},
       "| views per camera:", len(list((session / "calibration" / "left").iterdir())))
-print("sync:", meta["sync"], "| true offsets:", truth.offsets,
-      f"| dF_LM = {truth.offsets['middle'] - truth.offsets['left']}, dF_MR = {truth.offsets['right'] - truth.offsets['middle']}")
+print("sync:", meta["sync"])
+if truth is None:
+    print("true offsets:", NO_TRUTH)
+else:
+    print("true offsets:", truth.offsets, f"| dF_LM = {truth.offsets['middle'] - truth.offsets['left']}, "
+          f"dF_MR = {truth.offsets['right'] - truth.offsets['middle']}")
 total = sum(p.stat().st_size for p in session.rglob("*") if p.is_file())
 print(f"session size: {total / 1e6:.1f} MB")
 
@@ -180,17 +201,20 @@ print(f"session size: {total / 1e6:.1f} MB")
 # green + for visible skin markers, orange o for the saddle marker hidden by the rider's thigh.
 
 # %%
-k_left = int(truth.ref_frames[n // 2])
-sources = {c: FrameSource(session / meta["motion"][c]) for c in truth.cameras}
-fig, axs = plt.subplots(2, 3, figsize=(12, 6.2))
-for i, cam in enumerate(truth.cameras):
-    k = k_left - truth.offsets["left"] + truth.offsets[cam]
-    frame = sources[cam].frame(k)
-    plots.plot_frame_truth(frame, truth.marker_px[cam][k], truth.marker_visible[cam][k], ax=axs[0, i],
-                           title=f"{cam}, frame {k}")
-    plots.plot_frame_truth(frame, truth.marker_px[cam][k], truth.marker_visible[cam][k], ax=axs[1, i], zoom=45)
-fig.tight_layout()
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    k_left = int(truth.ref_frames[n // 2])
+    sources = {c: FrameSource(session / meta["motion"][c]) for c in truth.cameras}
+    fig, axs = plt.subplots(2, 3, figsize=(12, 6.2))
+    for i, cam in enumerate(truth.cameras):
+        k = k_left - truth.offsets["left"] + truth.offsets[cam]
+        frame = sources[cam].frame(k)
+        plots.plot_frame_truth(frame, truth.marker_px[cam][k], truth.marker_visible[cam][k], ax=axs[0, i],
+                               title=f"{cam}, frame {k}")
+        plots.plot_frame_truth(frame, truth.marker_px[cam][k], truth.marker_visible[cam][k], ax=axs[1, i], zoom=45)
+    fig.tight_layout()
+    plt.show()
 
 # %% [markdown]
 # ## 4. What makes the images hard
@@ -201,31 +225,37 @@ plt.show()
 # or something better, find the three markers.
 
 # %%
-counts = {}
-for cam in truth.cameras:
-    frames = sources[cam].read(0, None, False)
-    ks = truth.ref_frames - truth.offsets["left"] + truth.offsets[cam]
-    counts[cam] = np.array([len(naive_regions(frames[k])[0]) for k in ks])
-    c = counts[cam]
-    print(f"{cam:6s} regions kept per analysed frame: min {c.min()}, median {np.median(c):.0f}, max {c.max()}; "
-          f"frames with exactly 3: {(c == 3).sum()} of {len(c)}")
-frame = sources["left"].frame(k_left)
-fig, ax = plt.subplots(figsize=(8, 6))
-plots.plot_pseudo_markers(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY), 115, (15, 240), truth.marker_px["left"][k_left], ax=ax)
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    counts = {}
+    for cam in truth.cameras:
+        frames = sources[cam].read(0, None, False)
+        ks = truth.ref_frames - truth.offsets["left"] + truth.offsets[cam]
+        counts[cam] = np.array([len(naive_regions(frames[k])[0]) for k in ks])
+        c = counts[cam]
+        print(f"{cam:6s} regions kept per analysed frame: min {c.min()}, median {np.median(c):.0f}, max {c.max()}; "
+              f"frames with exactly 3: {(c == 3).sum()} of {len(c)}")
+    frame = sources["left"].frame(k_left)
+    fig, ax = plt.subplots(figsize=(8, 6))
+    plots.plot_pseudo_markers(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY), 115, (15, 240), truth.marker_px["left"][k_left], ax=ax)
+    plt.show()
 
 # %% [markdown]
-# How good can a careful detector be? An *oracle* centroid (intensity-weighted, local background
-# removed, in a window placed at the true centre) on the compressed, noisy, motion-blurred video
+# How good can a careful detector be? An *ideal* centroid, one that is told where the marker is
+# (intensity-weighted, local background removed, in a window placed at the true centre), on the compressed, noisy, motion-blurred video
 # measures what the images allow; the projected disc's own perspective bias is recorded in the truth:
 
 # %%
-errs = session_centroid_errors(session, truth)
-allv = np.concatenate(list(errs.values()))
-for cam, e in errs.items():
-    print(f"{cam:6s} n = {len(e):3d}  median {np.median(e):.3f} px  95% {np.percentile(e, 95):.3f} px")
-print(f"all    median {np.median(allv):.3f} px; perspective bias of a 60 mm disc at ~8 m: "
-      f"{truth.extras['perspective_centroid_bias_px_max']:.4f} px")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    errs = session_centroid_errors(session, truth)
+    allv = np.concatenate(list(errs.values()))
+    for cam, e in errs.items():
+        print(f"{cam:6s} n = {len(e):3d}  median {np.median(e):.3f} px  95% {np.percentile(e, 95):.3f} px")
+    print(f"all    median {np.median(allv):.3f} px; perspective bias of a 60 mm disc at ~8 m: "
+          f"{truth.extras['perspective_centroid_bias_px_max']:.4f} px")
 
 # %% [markdown]
 # ## 5. The stills: plumb, static shot, checkerboards
@@ -234,19 +264,22 @@ print(f"all    median {np.median(allv):.3f} px; perspective bias of a 60 mm disc
 # shot shows the horse standing without rider, so the saddle marker is visible (section 6.3).
 
 # %%
-fig, axs = plt.subplots(1, 3, figsize=(12, 3.4))
-img = cv2.cvtColor(cv2.imread(str(session / meta["plumb"]["left"])), cv2.COLOR_BGR2RGB)
-plumb_px = rig["left"].project(truth.plumb_pos)
-plots.plot_frame_truth(img, np.vstack([plumb_px, [[np.nan, np.nan]] * 2]), ax=axs[0], title="plumb (left)")
-img = cv2.cvtColor(cv2.imread(str(session / meta["static"]["left"])), cv2.COLOR_BGR2RGB)
-plots.plot_frame_truth(img, rig["left"].project(truth.static_pos), ax=axs[1], title="static shot (left)", zoom=60)
-calib = sorted((session / "calibration" / "left").iterdir())[0]
-axs[2].imshow(cv2.cvtColor(cv2.imread(str(calib)), cv2.COLOR_BGR2RGB))
-axs[2].set_title(f"checkerboard view {calib.name}", fontsize=9)
-axs[2].set_xticks([])
-axs[2].set_yticks([])
-fig.tight_layout()
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    fig, axs = plt.subplots(1, 3, figsize=(12, 3.4))
+    img = cv2.cvtColor(cv2.imread(str(session / meta["plumb"]["left"])), cv2.COLOR_BGR2RGB)
+    plumb_px = rig["left"].project(truth.plumb_pos)
+    plots.plot_frame_truth(img, np.vstack([plumb_px, [[np.nan, np.nan]] * 2]), ax=axs[0], title="plumb (left)")
+    img = cv2.cvtColor(cv2.imread(str(session / meta["static"]["left"])), cv2.COLOR_BGR2RGB)
+    plots.plot_frame_truth(img, rig["left"].project(truth.static_pos), ax=axs[1], title="static shot (left)", zoom=60)
+    calib = sorted((session / "calibration" / "left").iterdir())[0]
+    axs[2].imshow(cv2.cvtColor(cv2.imread(str(calib)), cv2.COLOR_BGR2RGB))
+    axs[2].set_title(f"checkerboard view {calib.name}", fontsize=9)
+    axs[2].set_xticks([])
+    axs[2].set_yticks([])
+    fig.tight_layout()
+    plt.show()
 
 # %% [markdown]
 # **The board.** The thesis' board is 0.8 x 1.5 m with 50 mm squares (15 x 29 inner corners), slid
@@ -371,7 +404,7 @@ plt.show()
 #
 # 1. Render a noise-free, uncompressed session of Horse 4 at canter with 45 frames after the flash
 #    (`vl.render_session(tmp, "Horse 4", "canter", noise=False, compress=False, n_motion_frames=45,
-#    calibration_views=0)`, about 30 s) and compare its oracle centroid errors with those above.
+#    calibration_views=0)`, about 30 s) and compare its ideal centroid errors with those above.
 # 2. How many pixels apart are the three markers at canter in the left camera? Which filter of
 #    thesis 4.5 could use that?
 # 3. Using `truth.to_motion`, verify that the net displacement of marker 1 over two periods points
@@ -380,9 +413,9 @@ plt.show()
 # <details><summary>Solutions</summary>
 #
 # 1. `errs = session_centroid_errors(path)`: the median falls from about 0.07 px to about 0.04 px
-#    (21 analysed frames). Without noise, compression and uneven light what remains is the oracle's
-#    own bias (its 25 % floor cuts the motion-blurred edges unevenly): the exact intensity-weighted
-#    centroid of a noise-free marker is within 0.015 px of the truth (unit test).
+#    (21 analysed frames). Without noise, compression and uneven light what remains is the ideal
+#    centroid's own bias (its 25 % floor cuts the motion-blurred edges unevenly): the exact intensity-weighted
+#    centroid of a noise-free marker is within 0.015 px of the truth.
 # 2. `np.diff(truth.marker_px["left"][truth.ref_frames, :3, 0], axis=1)`: about 20-23 px between
 #    neighbours; the distance filter (eq. 4.6-4.9) compares region distances with these.
 # 3. `m = vl.saddle_motion(); P = m.markers(np.array([0.3, 0.3 + 2 * m.period_s]))[0];

@@ -116,6 +116,8 @@ truth_file = session / "truth" / "truth.json"
 if truth_file.is_file():
     true_offsets = json.loads(truth_file.read_text())["offsets"]
     print("true offsets:", true_offsets, "| found exactly:", offsets == true_offsets)
+else:
+    print("true offsets: no ground truth for this session")
 
 # %% [markdown]
 # Frame 20 of the left camera and the frames of the same instant in the other cameras (eq. 3.11, 3.13):
@@ -142,8 +144,10 @@ print("offsets used:", chosen)
 print("Delta F:", frame_differences(chosen))
 
 # %% [markdown]
-# The chosen offsets go into `session.json` as `"sync": {"offsets": {...}}` when they differ from the
-# automatic ones; `horsemocap analyze` then uses them instead of searching for the flash.
+# The chosen offsets are saved in the session's `choices.json` (in the notebooks' results store, never
+# in the session folder) as `"sync_offsets": {...}` when they differ from the automatic ones; the
+# later notebooks, and `horsemocap analyze SESSION --params choices.json`, then use them instead of
+# searching for the flash.
 #
 # ## Robust to the horse's bright spots: a test you can see
 #

@@ -185,7 +185,8 @@ print(chk_real.table())
 # saved beside the session.
 
 # %%
-from horsemocap.virtuallab import load_truth, thesis_rig
+from horsemocap.virtuallab import thesis_rig
+from horsemocap.workspace import NO_TRUTH, session_truth
 
 session = ws.session_dir
 calib_dir = session / "calibration"
@@ -196,7 +197,10 @@ board = meta["calibration"]["board"]
 inner = tuple(board["inner_corners"])
 square = board["square_size_m"]
 image_dirs = {cam: session / path for cam, path in meta["calibration"]["images"].items()}
-truth_rig = load_truth(session).rig
+truth = session_truth(session)      # None for a recorded session (no truth/ folder)
+truth_rig = None if truth is None else truth.rig
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the errors against the true rig below are left out")
 print(f"board {inner[0]} x {inner[1]} inner corners, {1000 * square:.0f} mm squares; views per camera:",
       {c: len(list(d.iterdir())) for c, d in image_dirs.items()})
 
@@ -217,6 +221,24 @@ ws.bind(exclude_session, "calibration_exclude", convert=lambda v: {c: n for c, n
 display(exclude_session)
 
 # %% [markdown]
+# ### The camera model (thesis 3.2)
+#
+# A calibrated camera is a pinhole (focal lengths $f_x, f_y$ and principal point $c_x, c_y$, eq. 3.10)
+# behind a lens that bends the rays: the radial terms $k_1 r^2 + k_2 r^4 + k_5 r^6$ and the tangential
+# term $\mathbf{d}\mathbf{x}$ of eq. 3.7-3.9 move each image point away from where the pinhole alone
+# would put it, more the further it is from the principal point. The arrows show that move for the left
+# camera of this session's rig, to scale:
+
+# %%
+fig, ax = plt.subplots(figsize=(6.5, 4.2))
+plots.plot_distortion_field(virtual.rig["left"], ax=ax)
+plt.show()
+k = virtual.rig["left"].distortions
+print("left camera: f = " + np.array2string(virtual.rig["left"].focal, precision=1) + " px, c = "
+      + np.array2string(virtual.rig["left"].principal_point, precision=1) + " px, kc = "
+      + np.array2string(np.asarray(k), precision=4))
+
+# %% [markdown]
 # ### Against the truth
 #
 # Focal lengths in percent, principal points in pixels, and the baseline of every pair, for the joint
@@ -224,8 +246,11 @@ display(exclude_session)
 
 # %%
 pairwise_rig = cal.pairwise_rig(virtual)
-print(f"{'camera':8s}{'calibration':>12s}{'fx err %':>10s}{'fy err %':>10s}{'cx err px':>11s}{'cy err px':>11s}")
-for cam in virtual.cameras:
+if truth is None:
+    print("errors of the focal lengths, principal points and baselines:", NO_TRUTH)
+else:
+    print(f"{'camera':8s}{'calibration':>12s}{'fx err %':>10s}{'fy err %':>10s}{'cx err px':>11s}{'cy err px':>11s}")
+for cam in virtual.cameras if truth is not None else ():
     t = truth_rig[cam]
     for label, rig in (("joint", virtual.rig), ("pairwise", pairwise_rig)):
         c = rig[cam]
@@ -234,8 +259,9 @@ for cam in virtual.cameras:
         print(f"{cam:8s}{label:>12s}{fe[0]:10.3f}{fe[1]:10.3f}{ce[0]:11.2f}{ce[1]:11.2f}")
 print(f"RMS reprojection error: joint {virtual.joint.rms:.3f} px; pairs",
       ", ".join(f"{a}-{b} {p.rms:.3f} px" for (a, b), p in virtual.pairs.items()))
-print(f"{'pair':14s}{'true (mm)':>11s}{'pair (mm)':>11s}{'err %':>8s}{'joint (mm)':>12s}{'err %':>8s}")
-for (a, b), p in virtual.pairs.items():
+if truth is not None:
+    print(f"{'pair':14s}{'true (mm)':>11s}{'pair (mm)':>11s}{'err %':>8s}{'joint (mm)':>12s}{'err %':>8s}")
+for (a, b), p in virtual.pairs.items() if truth is not None else ():
     tb_ = 1000 * np.linalg.norm(truth_rig[a].center - truth_rig[b].center)
     pb = 1000 * np.linalg.norm(p.T)
     jb = 1000 * np.linalg.norm(virtual.rig[a].center - virtual.rig[b].center)
@@ -254,22 +280,23 @@ for (a, b), p in virtual.pairs.items():
 from horsemocap.virtuallab import saddle_motion
 from horsemocap.virtuallab.calibration import board_corners, board_poses
 
-motion = saddle_motion("Horse 2", "canter")
+motion = saddle_motion("Horse 2", "canter")   # where the boards are held: along the bundled canter's path
+known_rig = truth_rig if truth is not None else virtual.rig   # the rig the simulated views are taken with
 rows, cols = inner          # the virtual laboratory writes [rows, cols]; either order calibrates
 pts = board_corners((rows, cols), square)
 for n_views in (15, 45):
     poses = board_poses(n_views, motion, 0, squares=(rows + 1, cols + 1), square=square)
     rng = np.random.default_rng(0)
     sim = {}
-    for cam in truth_rig:
+    for cam in known_rig:
         c = np.array([cam.project(pts @ R.T + t) for R, t in poses])
         c[~np.all(cam.in_image(c, 5), axis=1)] = np.nan
         sim[cam.name] = cal.views_from_corners(cam.name, c + rng.normal(0, 0.1, c.shape), cam.size, (cols, rows))
     r = cal.calibrate_rig(None, (cols, rows), square, views=sim, pairs=False)
-    fe = max(np.abs(100 * (r.rig[c].focal / truth_rig[c].focal - 1)).max() for c in r.cameras)
-    ce = max(np.abs(r.rig[c].principal_point - truth_rig[c].principal_point).max() for c in r.cameras)
+    fe = max(np.abs(100 * (r.rig[c].focal / known_rig[c].focal - 1)).max() for c in r.cameras)
+    ce = max(np.abs(r.rig[c].principal_point - known_rig[c].principal_point).max() for c in r.cameras)
     be = max(abs(100 * (np.linalg.norm(r.rig[a].center - r.rig[b].center)
-                        / np.linalg.norm(truth_rig[a].center - truth_rig[b].center) - 1))
+                        / np.linalg.norm(known_rig[a].center - known_rig[b].center) - 1))
              for a, b in (("left", "middle"), ("left", "right"), ("middle", "right")))
     print(f"{n_views:3d} views: worst fx/fy error {fe:.3f} %, worst cc error {ce:.2f} px, worst baseline error {be:.3f} %")
 
@@ -278,14 +305,16 @@ for n_views in (15, 45):
 #
 # The thesis calibrated the three pairs separately, so each camera has two sets of intrinsics
 # (the two columns of Tables 8.1-8.3) and the middle-right pair does not agree exactly with the two
-# pairs of the left camera. The joint bundle adjustment gives one set per camera and one consistent
-# rig. `pairwise_rig` is the consistent way to build a rig from pairs: each camera keeps its own
+# pairs of the left camera. The joint *bundle adjustment* (one least-squares fit of every
+# camera's intrinsics and pose and of every board pose to all the corners seen, minimising the
+# reprojection error in pixels) gives one set per camera and one consistent rig. `pairwise_rig` is the consistent way to build a rig from pairs: each camera keeps its own
 # calibration ("alone") and is placed by a stereo calibration with the left camera, intrinsics fixed.
 
 # %%
 print(cal.format_comparison(virtual))
 fig, ax = plt.subplots(figsize=(8.5, 4))
-plots.plot_rig_top({"truth": truth_rig, "joint": virtual.rig, "pairwise": pairwise_rig}, ax=ax)
+plots.plot_rig_top({**({} if truth is None else {"truth": truth_rig}), "joint": virtual.rig,
+                    "pairwise": pairwise_rig}, ax=ax)
 fig.tight_layout()
 plt.show()
 
@@ -301,12 +330,29 @@ plt.show()
 # %%
 chk_joint = cal.grid_distance_check(virtual.rig, virtual.views, square)
 chk_pair = cal.grid_distance_check(pairwise_rig, virtual.views, square)
-chk_true = cal.grid_distance_check(truth_rig, virtual.views, square)
+chk_true = None if truth is None else cal.grid_distance_check(truth_rig, virtual.views, square)
 print("joint rig\n" + chk_joint.table())
 print("\npairwise rig\n" + chk_pair.table())
-print("\ntrue rig (what the corner noise alone costs)\n" + chk_true.table())
+print("\ntrue rig (what the corner noise alone costs)\n" + (NO_TRUTH if truth is None else chk_true.table()))
 print("\nthesis Table 8.5: AB 500 -> 489.1015 mm (2.1797 %), AC 500 -> 522.9729 mm (4.5946 %), "
       "AD 707.1 -> 726.5618 mm (2.7514 %)")
+
+# %% [markdown]
+# Figure 8.6: the points A, B, C and D on the board, in the first view the check reconstructs (left
+# camera; green +: the detected corners).
+
+# %%
+k_view = list(virtual.views["left"].names).index(chk_joint.view_names[0])
+corners = virtual.views["left"].corners[k_view]
+ax = plots.plot_board_view(virtual, "left", k_view)
+for name, i in chk_joint.corners_idx.items():
+    ax.plot(*corners[i], "o", mfc="none", mec="r", ms=12, mew=1.5)
+    ax.annotate(name, corners[i], textcoords="offset points", xytext=(6, -8), color="r", fontsize=11)
+lo, hi = np.nanmin(corners, axis=0), np.nanmax(corners, axis=0)
+ax.set_xlim(lo[0] - 25, hi[0] + 25)
+ax.set_ylim(hi[1] + 25, lo[1] - 25)
+ax.set_title(f"Figure 8.6: A, B, C, D on view {chk_joint.view_names[0]} (left camera)", fontsize=9)
+plt.show()
 
 # %% [markdown]
 # The thesis triangulated pair by pair, each pair with its own calibration (section 5.1). Doing the
@@ -327,7 +373,7 @@ print(f"pairs mixed into one rig: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct'
 
 # %%
 fig, ax = plt.subplots(figsize=(7, 3.2))
-plots.plot_grid_errors({"joint": chk_joint, "pairwise": chk_pair, "true rig": chk_true}, ax=ax)
+plots.plot_grid_errors({"joint": chk_joint, "pairwise": chk_pair, **({} if truth is None else {"true rig": chk_true})}, ax=ax)
 plt.show()
 
 # %% [markdown]

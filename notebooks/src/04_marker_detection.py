@@ -39,6 +39,7 @@ ws = open_workspace()
 display(ui_session(ws))
 
 # %%
+import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -50,7 +51,8 @@ from IPython.display import display
 from horsemocap import detection, plots, widgets, workspace
 from horsemocap.data import default_session_dir
 from horsemocap.sources import FrameSource, read_image
-from horsemocap.virtuallab import load_truth
+from horsemocap.session import load_session
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
 # ## The data
@@ -63,8 +65,10 @@ from horsemocap.virtuallab import load_truth
 
 # %%
 session = ws.session_dir
-truth = load_truth(session)
-frames = FrameSource(session / "motion" / "left.avi").read()
+truth = session_truth(session)     # None for a recorded session (no truth/ folder)
+videos = load_session(session, open_sources=False).motion   # camera -> video file
+cameras = list(videos)
+frames = FrameSource(videos["left"]).read()
 n_frames, height, width = frames.shape[:3]
 print(f"left camera: {n_frames} frames of {width}x{height} px, RGB {frames.dtype}")
 
@@ -93,6 +97,25 @@ ax.set_xlabel("gray level")
 ax.set_ylabel("pixels + 1")
 ax.legend(fontsize=8)
 plt.show()
+
+# %% [markdown]
+# **One threshold, or one per image?** The thesis (4.5.1) keeps the threshold constant when it holds for
+# all images of the motion, and lets its user type a different level per image when the light changes
+# across the video. The three-class Otsu level of each frame on its own shows whether one level fits
+# this video:
+
+# %%
+per_frame = np.array([detection.otsu3_thresholds(np.bincount(detection.to_gray(f).ravel(), minlength=256))[1]
+                      for f in frames])
+fig, ax = plt.subplots(figsize=(7, 2.6))
+ax.plot(per_frame, "k.-", lw=0.8, label="three-class Otsu l2 of each frame")
+ax.axhline(l2, color="tab:red", ls="--", label=f"from 8 frames over the motion: {l2}")
+ax.set_xlabel("frame (left camera)")
+ax.set_ylabel("threshold")
+ax.legend(fontsize=8)
+plt.show()
+print(f"per-frame levels {per_frame.min()}-{per_frame.max()} (median {np.median(per_frame):.0f}); "
+      f"from 8 frames over the motion: {l2}")
 
 # %% [markdown]
 # The automatic run below makes every choice; we then revisit each one with a widget.
@@ -132,10 +155,28 @@ print(f"threshold {level}: {len(regions)} white regions in frame {p.first_frame}
 # disc) of similar area, the cluster of 3 that keeps its shape over the next frames, moves, and
 # looks most like a marker (round and white) is followed through the sequence; the cluster
 # followed through the most frames wins (chance clusters of bandages, stirrup and glints break
-# up). The picker shows the numbered regions; the default selection is the automatic choice.
+# up). The picker shows the numbered regions at the threshold of section 1 (run its cells first after
+# moving the slider: a threshold renumbers the regions); the default selection is the automatic choice
+# at the automatic threshold. A selection other than the automatic one is saved as this session's
+# `detection.left` labels, with the frame they name (`first_frame`), and every later notebook uses it.
 
 # %% tags=["nbval-ignore-output"]
-ui_labels = widgets.ui_label_picker(frames[p.first_frame], p)
+auto_labels = tuple(p.labels) if level == p.threshold else ()   # the automatic labels name regions at p.threshold
+ui_labels = widgets.ui_label_picker(frames[p.first_frame], dataclasses.replace(p, threshold=level, labels=auto_labels))
+stored = ws.choices.get("detection", {}).get("left", {})
+if stored.get("labels") and stored.get("first_frame") == p.first_frame and stored.get("threshold", p.threshold) == level:
+    ui_labels.relabel(frames[p.first_frame], level, stored["labels"])   # the labels chosen earlier
+
+
+def save_labels(change=None):
+    """The picked labels (with their frame) as this session's choice; the automatic ones leave none."""
+    picked = list(ui_labels.value)
+    chosen = bool(picked) and tuple(picked) != auto_labels
+    ws.choose("detection.left.labels", picked if chosen else None)
+    ws.choose("detection.left.first_frame", p.first_frame if chosen else None)
+
+
+ui_labels.select.observe(save_labels, "value")
 display(ui_labels)
 
 # %%
@@ -181,8 +222,11 @@ zoom = (c[0] - 1.2 * p.window[0], c[1] - 1.2 * p.window[1], c[0] + 1.2 * p.windo
 print(f"frame {k}: {len(stages['regions'])} regions, {len(stages['area_ok'])} after the area filter, "
       f"{len(stages['window_ok'])} in the window, {len(stages['choices'])} choices after the distance "
       f"filter, {len(stages['kept'])} after the cross product")
-err_k = np.linalg.norm(stages["marker_px"] - truth.marker_px["left"][k, :3], axis=1)
-print("centre errors vs truth (px):", ", ".join(f"{e:.3f}" for e in err_k))
+if truth is None:
+    print("centre errors vs truth:", NO_TRUTH)
+else:
+    err_k = np.linalg.norm(stages["marker_px"] - truth.marker_px["left"][k, :3], axis=1)
+    print("centre errors vs truth (px):", ", ".join(f"{e:.3f}" for e in err_k))
 
 # %%
 fig = plots.plot_detection_stages(frames[k], stages, window=p.window, center=c, zoom=zoom)
@@ -196,7 +240,7 @@ plt.show()
 # `ambiguous`. The thin lines are the truth.
 
 # %%
-true_left = truth.marker_px["left"][:, :3]
+true_left = None if truth is None else truth.marker_px["left"][:, :3]   # drawn thin where known
 fig, ax = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
 plots.plot_marker_track(track, true_left, ax=ax)
 plt.show()
@@ -225,9 +269,13 @@ def score(track, true_px, visible):
 
 
 tracks, errors = {"left": track}, {}
-for cam in truth.cameras:
+for cam in cameras:
     if cam not in tracks:
-        tracks[cam] = detection.detect_markers(FrameSource(session / "motion" / f"{cam}.avi").read(), 3)
+        tracks[cam] = detection.detect_markers(FrameSource(videos[cam]).read(), 3)
+    if truth is None:
+        print(f"{cam:6s}: frames with all 3 markers {int(tracks[cam].all_found.sum())} of {len(tracks[cam].found)}; "
+              f"centre errors: {NO_TRUTH}")
+        continue
     true_px, visible = truth.marker_px[cam][:, :3], truth.marker_visible[cam][:, :3]
     e, swaps, pseudo, missed = score(tracks[cam], true_px, visible)
     errors[cam] = e
@@ -242,20 +290,27 @@ for cam in truth.cameras:
 # position, from two cameras or more, or bridged over a short gap.
 
 # %%
-usable = detection.usable_frames(tracks, truth.offsets, "left")
-print(f"usable left frames: {usable[0]}..{usable[-1]} ({len(usable)} frames); "
-      f"same as the truth's: {np.array_equal(usable, truth.ref_frames)}")
+offsets = results_for(session, until="sync").synchronisation.offsets   # the flash frames (notebook 02)
+usable = detection.usable_frames(tracks, offsets, "left")
+print(f"usable left frames: {usable[0]}..{usable[-1]} ({len(usable)} frames)")
+print(NO_TRUTH if truth is None else f"same as the truth's: {np.array_equal(usable, truth.ref_frames)}")
 
 # %%
-binary_track = detection.detect_markers(frames, 3, detection.DetectionParams(centroid="binary"))
-e_bin = score(binary_track, true_left, truth.marker_visible["left"][:, :3])[0]
-print(f"left, binary centre (thesis): median {np.median(e_bin):.3f} px, p99 {np.percentile(e_bin, 99):.3f} px")
-print(f"left, weighted centre:        median {np.median(errors['left']):.3f} px, "
-      f"p99 {np.percentile(errors['left'], 99):.3f} px")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    binary_track = detection.detect_markers(frames, 3, detection.DetectionParams(centroid="binary"))
+    e_bin = score(binary_track, true_left, truth.marker_visible["left"][:, :3])[0]
+    print(f"left, binary centre (thesis): median {np.median(e_bin):.3f} px, p99 {np.percentile(e_bin, 99):.3f} px")
+    print(f"left, weighted centre:        median {np.median(errors['left']):.3f} px, "
+          f"p99 {np.percentile(errors['left'], 99):.3f} px")
 
 # %%
-ax = plots.plot_centroid_errors({"binary centre (left)": e_bin, "weighted centre (left)": errors["left"]})
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    ax = plots.plot_centroid_errors({"binary centre (left)": e_bin, "weighted centre (left)": errors["left"]})
+    plt.show()
 
 # %% [markdown]
 # ## 7 · The stills: plumb line and static shot (Appendix A steps 7a, 8a, 12a)
@@ -265,17 +320,20 @@ plt.show()
 # by ascending $u$.
 
 # %%
-for cam in truth.cameras:
-    cm = truth.rig[cam]
-    plumb = detection.detect_still(read_image(session / "plumb" / f"{cam}.jpg"), 2)
-    true_plumb = cm.project(np.asarray(truth.plumb_pos))
-    true_plumb = true_plumb[np.argsort(true_plumb[:, 1])]
-    static = detection.detect_still(read_image(session / "static" / f"{cam}.jpg"), 4)
-    true_static = cm.project(np.asarray(truth.static_pos))
-    true_static = true_static[np.argsort(true_static[:, 0])]
-    ep = np.linalg.norm(plumb - true_plumb, axis=1).max()
-    es = np.linalg.norm(static - true_static, axis=1).max()
-    print(f"{cam:6s}: plumb max error {ep:.3f} px, static shot max error {es:.3f} px")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    for cam in truth.cameras:
+        cm = truth.rig[cam]
+        plumb = detection.detect_still(read_image(session / "plumb" / f"{cam}.jpg"), 2)
+        true_plumb = cm.project(np.asarray(truth.plumb_pos))
+        true_plumb = true_plumb[np.argsort(true_plumb[:, 1])]
+        static = detection.detect_still(read_image(session / "static" / f"{cam}.jpg"), 4)
+        true_static = cm.project(np.asarray(truth.static_pos))
+        true_static = true_static[np.argsort(true_static[:, 0])]
+        ep = np.linalg.norm(plumb - true_plumb, axis=1).max()
+        es = np.linalg.norm(static - true_static, axis=1).max()
+        print(f"{cam:6s}: plumb max error {ep:.3f} px, static shot max error {es:.3f} px")
 
 # %% [markdown]
 # ## 8 · The output: `markers_2d.csv`
@@ -341,17 +399,15 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 # %%
 from horsemocap import accuracy
 from horsemocap.detection import frame_candidates, label_frame
-from horsemocap.workspace import results_for
-
 analysis = results_for(session, until="triangulate")
 k = analysis.detect.identification.anchor_frame
 offsets = analysis.synchronisation.offsets
-thresholds = {c: analysis.detect.detection[c]["threshold"] for c in truth.cameras}
-images = {c: FrameSource(session / "motion" / f"{c}.avi").frame(offsets[c] + k, color=False) for c in truth.cameras}
-candidates = {c: frame_candidates(images[c], thresholds[c]) for c in truth.cameras}
+thresholds = {c: analysis.detect.detection[c]["threshold"] for c in cameras}
+images = {c: FrameSource(videos[c]).frame(offsets[c] + k, color=False) for c in cameras}
+candidates = {c: frame_candidates(images[c], thresholds[c]) for c in cameras}
 views, fit, why = label_frame(analysis.rig.rig, candidates, analysis.static.static_points, 3, 2.0)
 print(f"synchronised frame {k}; thresholds {thresholds}")
-print("candidate regions per camera: " + ", ".join(f"{c} {len(candidates[c])}" for c in truth.cameras))
+print("candidate regions per camera: " + ", ".join(f"{c} {len(candidates[c])}" for c in cameras))
 print(f"3D points consistent in two or more cameras: {len(views)}; the markers: points {fit.assignment.tolist()}, "
       f"distances within {1000 * fit.rms_m:.1f} mm rms of the static shot's")
 fig = plots.plot_identification(images, candidates, views, fit)
@@ -381,12 +437,15 @@ for point in range(len(views)):
 # `reason` column of `markers_2d.csv`); against the truth, no centre carries a wrong identity.
 
 # %%
-ident = accuracy.identification_errors(analysis, truth)
-for cam, e in ident["cameras"].items():
-    why = ", ".join(f"{r} {n}" for r, n in sorted(e["reasons"].items())) or "none"
-    print(f"{cam:6s}: {e['used']:3d} centres used, {e['wrong']} wrong identities, median error "
-          f"{e['median_px']:.3f} px; visible but not used: {e['missed']} ({why})")
-print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with a 3D position: {ident['with_3d']}")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    ident = accuracy.identification_errors(analysis, truth)
+    for cam, e in ident["cameras"].items():
+        why = ", ".join(f"{r} {n}" for r, n in sorted(e["reasons"].items())) or "none"
+        print(f"{cam:6s}: {e['used']:3d} centres used, {e['wrong']} wrong identities, median error "
+              f"{e['median_px']:.3f} px; visible but not used: {e['missed']} ({why})")
+    print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with a 3D position: {ident['with_3d']}")
 
 # %% [markdown]
 # ## Every camera's prompts
@@ -399,22 +458,38 @@ print(f"marker-frames seen by two or more cameras: {ident['seen_by_two']}, with 
 # %% tags=["nbval-ignore-output"]
 import ipywidgets as W
 
-cam_frames = {cam: FrameSource(session / "motion" / f"{cam}.avi").read() for cam in truth.cameras if cam != "left"}
+cam_frames = {cam: FrameSource(videos[cam]).read() for cam in cameras if cam != "left"}
 ui_cams = {"left": ui_all}
 for cam, fr in cam_frames.items():
     ui_cams[cam] = widgets.ui_detection(fr, tracks[cam].params)
     ws.bind(ui_cams[cam], f"detection.{cam}", automatic={},
             convert=lambda chosen, q=tracks[cam].params: workspace.detection_changes(chosen, q))
-tabs = W.Tab(children=[ui_cams[c] for c in truth.cameras if c != "left"])
-for k, cam in enumerate(c for c in truth.cameras if c != "left"):
+tabs = W.Tab(children=[ui_cams[c] for c in cameras if c != "left"])
+for k, cam in enumerate(c for c in cameras if c != "left"):
     tabs.set_title(k, cam)
 display(tabs)
 
 # %%
-for cam in truth.cameras:
+for cam in cameras:
     q = ui_cams[cam].value
     print(f"{cam:6s}: threshold {q.threshold}, first frame {q.first_frame}, labels {list(q.labels or [])}, "
           f"area [{q.area_min:.0f}, {q.area_max:.0f}] px, window {q.window} px, DT {q.distance_tolerance:.3f}")
+
+# %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
 
 # %% [markdown]
 # ## Exercises

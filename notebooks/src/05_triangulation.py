@@ -46,8 +46,7 @@ from IPython.display import display
 
 from horsemocap import accuracy, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
-from horsemocap.virtuallab import load_truth
-from horsemocap.workspace import results_for
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
 # ## The data: what the pipeline gives triangulation
@@ -89,16 +88,25 @@ print(f"pipeline's triangulation: {analysis.params.triangulate.mode} mode, media
 # the calibration is from it.
 
 # %%
-truth = load_truth(session_dir)
+truth = session_truth(session_dir)                        # None for a recorded session (no truth/ folder)
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the errors below are left out, the rest goes on")
+true_pos = None
 frames_ref = offsets[analysis.session.reference_camera] + np.arange(a, b)   # reference-camera frames
-known = np.isin(frames_ref, truth.ref_frames)             # the truth covers the frames all cameras see whole
-print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames (errors below are measured on those); "
-      "true offsets " + ", ".join(f"{c} {v:d}" for c, v in truth.offsets.items()))
+for cam in rig.names if truth is None else ():
+    print(f"  {cam:6s}: {int(np.isfinite(marker_px[cam][..., 0]).sum()):d} of {marker_px[cam][..., 0].size:d} "
+          f"centres found | calibrated focal {rig[cam].focal.mean():7.1f} px")
+known = np.ones(b - a, bool) if truth is None else np.isin(frames_ref, truth.ref_frames)
+if truth is not None:
+    # the truth covers the frames all cameras see whole
+    print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames (errors below are measured on those); "
+          "true offsets " + ", ".join(f"{c} {v:d}" for c, v in truth.offsets.items()))
 a, b = a + int(np.argmax(known)), a + len(known) - int(np.argmax(known[::-1]))
 marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}
 frames_ref = offsets[analysis.session.reference_camera] + np.arange(a, b)
-true_pos = truth.marker_pos[np.searchsorted(truth.ref_frames, frames_ref)]   # (n, 3, 3), world = left camera frame
-for cam in rig.names:
+if truth is not None:
+    true_pos = truth.marker_pos[np.searchsorted(truth.ref_frames, frames_ref)]   # (n, 3, 3), world = left camera frame
+for cam in rig.names if truth is not None else ():
     err = np.linalg.norm(marker_px[cam] - truth.marker_px[cam][offsets[cam] + np.arange(a, b), :3], axis=-1)
     cal, tru = rig[cam], truth.rig[cam]
     print(f"  {cam:6s}: {int(np.isfinite(err).sum()):d} of {err.size:d} centres found, RMS error "
@@ -123,8 +131,11 @@ XL, XM = reconstruction.stereo_triangulation(xn_L, xn_M, R_ML, t_ML)
 print("R_ML =", np.array2string(R_ML, precision=4, suppress_small=True))
 print("t_ML (mm) =", np.array2string(t_ML * 1000, precision=2))
 print(f"marker 1, frame {k}, left-middle pair, left frame (m):", np.array2string(XL, precision=4))
-print("                               true position (m):   ", np.array2string(true_pos[k, 0], precision=4))
-print(f"error: {1000 * np.linalg.norm(XL - true_pos[k, 0]):.1f} mm")
+if truth is None:
+    print("true position:", NO_TRUTH)
+else:
+    print("                               true position (m):   ", np.array2string(true_pos[k, 0], precision=4))
+    print(f"error: {1000 * np.linalg.norm(XL - true_pos[k, 0]):.1f} mm")
 
 # %% [markdown]
 # ## 2 · The thesis mode: three pairs, averaged
@@ -135,11 +146,18 @@ print(f"error: {1000 * np.linalg.norm(XL - true_pos[k, 0]):.1f} mm")
 # %%
 thesis = reconstruction.triangulate(rig, marker_px, mode="thesis")
 for name, pair in thesis.pairs.items():
+    print(f"{name:13s} in {pair.cameras[0]:6s} frame: first point {np.array2string(pair.points_local[0, 0], precision=3)}",
+          end="")
+    if truth is None:
+        print()
+        continue
     err = 1000 * np.linalg.norm(pair.points - true_pos, axis=-1)
-    print(f"{name:13s} in {pair.cameras[0]:6s} frame: first point {np.array2string(pair.points_local[0, 0], precision=3)}"
-          f"   error vs truth: median {np.nanmedian(err):5.1f} mm, max {np.nanmax(err):5.1f} mm")
-err = 1000 * np.linalg.norm(thesis.points - true_pos, axis=-1)
-print(f"average (eq. 5.5)                                        error vs truth: median {np.nanmedian(err):5.1f} mm, max {np.nanmax(err):5.1f} mm")
+    print(f"   error vs truth: median {np.nanmedian(err):5.1f} mm, max {np.nanmax(err):5.1f} mm")
+if truth is None:
+    print("errors vs truth:", NO_TRUTH)
+else:
+    err = 1000 * np.linalg.norm(thesis.points - true_pos, axis=-1)
+    print(f"average (eq. 5.5)                                        error vs truth: median {np.nanmedian(err):5.1f} mm, max {np.nanmax(err):5.1f} mm")
 
 # %% [markdown]
 # Each pair's error is mostly depth. Under all of them sits the calibrated rig's constant offset,
@@ -190,7 +208,7 @@ plt.show()
 # depth). The thin black lines are the truth.
 
 # %%
-_ = plots.plot_camera_positions(tri.points, truth=true_pos, title="Horse 2 canter, left camera frame")
+_ = plots.plot_camera_positions(tri.points, truth=true_pos, title=f"{analysis.session.name}, left camera frame")
 plt.show()
 
 # %% [markdown]
@@ -214,45 +232,51 @@ plt.show()
 # comparison only the virtual laboratory allows): what is left is the detector's error.
 
 # %%
-A = truth.motion_axes                                      # rows: true x-, y-, z-motion
+if truth is None:
+    print(NO_TRUTH)
+else:
+    A = truth.motion_axes                                      # rows: true x-, y-, z-motion
 
 
-def errors_mm(points):
-    """RMSE per true motion axis, the mean error (bias) and the RMSE without it, in mm."""
-    est, ref = points @ A.T, true_pos @ A.T
-    bias = np.nanmean((est - ref).reshape(-1, 3), axis=0)
-    return 1000 * accuracy.rmse_axes(est, ref), 1000 * bias, 1000 * accuracy.rmse_axes(est - bias, ref)
+    def errors_mm(points):
+        """RMSE per true motion axis, the mean error (bias) and the RMSE without it, in mm."""
+        est, ref = points @ A.T, true_pos @ A.T
+        bias = np.nanmean((est - ref).reshape(-1, 3), axis=0)
+        return 1000 * accuracy.rmse_axes(est, ref), 1000 * bias, 1000 * accuracy.rmse_axes(est - bias, ref)
 
 
-PIPE = analysis.params.smooth.method                    # the pipeline's default: "loess"
-SPAN = analysis.params.smooth.span
-joint = reconstruction.triangulate(rig, marker_px, mode="joint")
-rows_table, errors = {}, {}
-for mode, t in (("thesis", thesis), ("joint", joint)):
-    rows_table[f"{mode}, triangulated (none)"] = errors_mm(t.points)
-    rows_table[f"{mode}, smoothed: {PIPE} {SPAN:.1f} (pipeline)"] = errors_mm(
-        smoothing.smooth_positions(t.points, SPAN, PIPE, nan="omit"))
-    rows_table[f"{mode}, smoothed: rloess 0.1 (thesis)"] = errors_mm(
-        smoothing.smooth_positions(t.points, 0.1, "rloess", nan="omit"))
-for mode in ("thesis", "joint"):
-    rows_table[f"{mode}, TRUE rig, triangulated"] = errors_mm(
-        reconstruction.triangulate(truth.rig, marker_px, mode=mode).points)
-print(f"{'':42s} {'RMSE x':>7s} {'y':>6s} {'z':>6s} | {'bias x':>7s} {'y':>6s} {'z':>6s} | "
-      f"{'no bias x':>9s} {'y':>6s} {'z':>6s}   (mm)")
-for label, (r, bias, rc) in rows_table.items():
-    print(f"{label:42s} {r[0]:7.2f} {r[1]:6.2f} {r[2]:6.2f} | {bias[0]:7.2f} {bias[1]:6.2f} {bias[2]:6.2f} | "
-          f"{rc[0]:9.2f} {rc[1]:6.2f} {rc[2]:6.2f}")
-    if "TRUE" not in label:
-        errors[label.replace(", smoothed: ", " ").replace(", triangulated", "")] = (r, rc)
+    PIPE = analysis.params.smooth.method                    # the pipeline's default: "loess"
+    SPAN = analysis.params.smooth.span
+    joint = reconstruction.triangulate(rig, marker_px, mode="joint")
+    rows_table, errors = {}, {}
+    for mode, t in (("thesis", thesis), ("joint", joint)):
+        rows_table[f"{mode}, triangulated (none)"] = errors_mm(t.points)
+        rows_table[f"{mode}, smoothed: {PIPE} {SPAN:.1f} (pipeline)"] = errors_mm(
+            smoothing.smooth_positions(t.points, SPAN, PIPE, nan="omit"))
+        rows_table[f"{mode}, smoothed: rloess 0.1 (thesis)"] = errors_mm(
+            smoothing.smooth_positions(t.points, 0.1, "rloess", nan="omit"))
+    for mode in ("thesis", "joint"):
+        rows_table[f"{mode}, TRUE rig, triangulated"] = errors_mm(
+            reconstruction.triangulate(truth.rig, marker_px, mode=mode).points)
+    print(f"{'':42s} {'RMSE x':>7s} {'y':>6s} {'z':>6s} | {'bias x':>7s} {'y':>6s} {'z':>6s} | "
+          f"{'no bias x':>9s} {'y':>6s} {'z':>6s}   (mm)")
+    for label, (r, bias, rc) in rows_table.items():
+        print(f"{label:42s} {r[0]:7.2f} {r[1]:6.2f} {r[2]:6.2f} | {bias[0]:7.2f} {bias[1]:6.2f} {bias[2]:6.2f} | "
+              f"{rc[0]:9.2f} {rc[1]:6.2f} {rc[2]:6.2f}")
+        if "TRUE" not in label:
+            errors[label.replace(", smoothed: ", " ").replace(", triangulated", "")] = (r, rc)
 
 # %%
-fig, (ax_abs, ax_rel) = plt.subplots(1, 2, figsize=(12, 3.6), sharey=True)
-plots.plot_triangulation_modes({k: v[0] for k, v in errors.items()}, ax=ax_abs, target=3.0)
-plots.plot_triangulation_modes({k: v[1] for k, v in errors.items()}, ax=ax_rel, target=3.0)
-ax_abs.set_title("RMSE vs truth (calibrated rig)")
-ax_rel.set_title("RMSE with the constant offset removed")
-fig.tight_layout()
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    fig, (ax_abs, ax_rel) = plt.subplots(1, 2, figsize=(12, 3.6), sharey=True)
+    plots.plot_triangulation_modes({k: v[0] for k, v in errors.items()}, ax=ax_abs, target=3.0)
+    plots.plot_triangulation_modes({k: v[1] for k, v in errors.items()}, ax=ax_rel, target=3.0)
+    ax_abs.set_title("RMSE vs truth (calibrated rig)")
+    ax_rel.set_title("RMSE with the constant offset removed")
+    fig.tight_layout()
+    plt.show()
 
 # %% [markdown]
 # **Reading the numbers** (the cell below prints each one the text refers to).
@@ -273,25 +297,28 @@ plt.show()
 #   differences of hundredths of a millimetre; on this rig the three pairs compose almost exactly).
 
 # %%
-TARGET_MM = 3.0
-pipe_row = f"smoothed: {PIPE} {SPAN:.1f} (pipeline)"
+if truth is None:
+    print(NO_TRUTH)
+else:
+    TARGET_MM = 3.0
+    pipe_row = f"smoothed: {PIPE} {SPAN:.1f} (pipeline)"
 
 
-def verdict(v):
-    return "meets" if v < TARGET_MM else "MISSES"
+    def verdict(v):
+        return "meets" if v < TARGET_MM else "MISSES"
 
 
-for mode in ("thesis", "joint"):
-    r, bias, rc = rows_table[f"{mode}, {pipe_row}"]
-    print(f"{mode:6s} (pipeline smoothing '{PIPE}'): absolute x {r[0]:.2f} mm {verdict(r[0])}, "
-          f"y {r[1]:.2f} mm {verdict(r[1])} | bias removed x {rc[0]:.2f} mm {verdict(rc[0])}, "
-          f"y {rc[1]:.2f} mm {verdict(rc[1])} | bias x {bias[0]:+.2f}, y {bias[1]:+.2f}, z {bias[2]:+.2f} mm")
-for label in ("triangulated (none)", "smoothed: rloess 0.1 (thesis)"):
-    rc_other = rows_table[f"joint, {label}"][2]
-    print(f"joint, {label:30s}: bias removed y {rc_other[1]:.2f} mm, pipeline's {PIPE} minus this: "
-          + ", ".join(f"{n} {d:+.2f}" for n, d in zip("xyz", rows_table[f"joint, {pipe_row}"][2] - rc_other)) + " mm")
-rj, rt = rows_table[f"joint, {pipe_row}"][2], rows_table[f"thesis, {pipe_row}"][2]
-print(f"joint minus thesis ({PIPE}), bias removed (mm): " + ", ".join(f"{n} {d:+.2f}" for n, d in zip("xyz", rj - rt)))
+    for mode in ("thesis", "joint"):
+        r, bias, rc = rows_table[f"{mode}, {pipe_row}"]
+        print(f"{mode:6s} (pipeline smoothing '{PIPE}'): absolute x {r[0]:.2f} mm {verdict(r[0])}, "
+              f"y {r[1]:.2f} mm {verdict(r[1])} | bias removed x {rc[0]:.2f} mm {verdict(rc[0])}, "
+              f"y {rc[1]:.2f} mm {verdict(rc[1])} | bias x {bias[0]:+.2f}, y {bias[1]:+.2f}, z {bias[2]:+.2f} mm")
+    for label in ("triangulated (none)", "smoothed: rloess 0.1 (thesis)"):
+        rc_other = rows_table[f"joint, {label}"][2]
+        print(f"joint, {label:30s}: bias removed y {rc_other[1]:.2f} mm, pipeline's {PIPE} minus this: "
+              + ", ".join(f"{n} {d:+.2f}" for n, d in zip("xyz", rows_table[f"joint, {pipe_row}"][2] - rc_other)) + " mm")
+    rj, rt = rows_table[f"joint, {pipe_row}"][2], rows_table[f"thesis, {pipe_row}"][2]
+    print(f"joint minus thesis ({PIPE}), bias removed (mm): " + ", ".join(f"{n} {d:+.2f}" for n, d in zip("xyz", rj - rt)))
 
 # %% [markdown]
 # The depth (z-motion) error is the largest: the rig's baselines are short for its distance. For a
@@ -300,7 +327,7 @@ print(f"joint minus thesis ({PIPE}), bias removed (mm): " + ", ".join(f"{n} {d:+
 # 6 px discs:
 
 # %%
-Z = float(np.mean(true_pos[..., 2]))
+Z = float(np.nanmean(tri.points[..., 2]))          # the markers' depth
 f = float(rig["left"].focal.mean())
 for cam_a, cam_b in (("left", "middle"), ("left", "right"), ("middle", "right")):
     pair, B = f"{cam_a}-{cam_b}", float(np.linalg.norm(rig[cam_a].center - rig[cam_b].center))
@@ -316,16 +343,19 @@ for cam_a, cam_b in (("left", "middle"), ("left", "right"), ("middle", "right"))
 # calibrated rig:
 
 # %%
-rng = np.random.default_rng(2009)
-noisy_all = accuracy.noisy_projections(truth, offsets, sync.n_frames, 3, 0.1, rng)
-noisy_px = {cam: px[a:b] for cam, px in noisy_all.items()}
-for mode in ("thesis", "joint"):
-    p = reconstruction.triangulate(rig, noisy_px, mode=mode).points
-    for label, q in (("none", p), (f"{PIPE} {SPAN:.1f}", smoothing.smooth_positions(p, SPAN, PIPE)),
-                     ("rloess 0.1", smoothing.smooth_positions(p, 0.1, "rloess"))):
-        r, _, rc = errors_mm(q)
-        print(f"0.1 px noise, {mode:6s}, {label:10s}: RMSE x {r[0]:5.2f} {verdict(r[0]):6s}, y {r[1]:5.2f}, "
-              f"z {r[2]:6.2f} mm | bias removed x {rc[0]:5.2f} {verdict(rc[0]):6s}, y {rc[1]:5.2f}, z {rc[2]:6.2f} mm")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    rng = np.random.default_rng(2009)
+    noisy_all = accuracy.noisy_projections(truth, offsets, sync.n_frames, 3, 0.1, rng)
+    noisy_px = {cam: px[a:b] for cam, px in noisy_all.items()}
+    for mode in ("thesis", "joint"):
+        p = reconstruction.triangulate(rig, noisy_px, mode=mode).points
+        for label, q in (("none", p), (f"{PIPE} {SPAN:.1f}", smoothing.smooth_positions(p, SPAN, PIPE)),
+                         ("rloess 0.1", smoothing.smooth_positions(p, 0.1, "rloess"))):
+            r, _, rc = errors_mm(q)
+            print(f"0.1 px noise, {mode:6s}, {label:10s}: RMSE x {r[0]:5.2f} {verdict(r[0]):6s}, y {r[1]:5.2f}, "
+                  f"z {r[2]:6.2f} mm | bias removed x {rc[0]:5.2f} {verdict(rc[0]):6s}, y {rc[1]:5.2f}, z {rc[2]:6.2f} mm")
 
 # %% [markdown]
 # With 0.1 px of noise the x-motion error misses 3 mm in both modes, smoothed or not: the rig, not
@@ -350,9 +380,12 @@ for k, m in ((5, 0), (6, 2)):
     print(f"frame {k:d}, marker {m + 1:d}: cameras used {g.n_views[k, m]:d}, reason '{g.reason[k, m]}', "
           f"point {np.array2string(g.points[k, m], precision=3)}")
 two = rig.subset(["left", "right"])
-r2, _, rc2 = errors_mm(reconstruction.triangulate(two, {c: marker_px[c] for c in two.names}, mode="joint").points)
-print(f"left + right only: RMSE x {r2[0]:.2f} mm, y {r2[1]:.2f} mm, z {r2[2]:.2f} mm "
-      f"(bias removed: {rc2[0]:.2f}, {rc2[1]:.2f}, {rc2[2]:.2f} mm)")
+if truth is None:
+    print("left + right only, errors vs truth:", NO_TRUTH)
+else:
+    r2, _, rc2 = errors_mm(reconstruction.triangulate(two, {c: marker_px[c] for c in two.names}, mode="joint").points)
+    print(f"left + right only: RMSE x {r2[0]:.2f} mm, y {r2[1]:.2f} mm, z {r2[2]:.2f} mm "
+          f"(bias removed: {rc2[0]:.2f}, {rc2[1]:.2f}, {rc2[2]:.2f} mm)")
 
 # %% [markdown]
 # A wrong detection is worse than a missing one. If a camera swaps two markers, the rays no longer
@@ -366,9 +399,25 @@ swapped = {c: v.copy() for c, v in marker_px.items()}
 swapped["middle"][10, [0, 1]] = swapped["middle"][10, [1, 0]]     # frame 10: markers 1 and 2 swapped
 for mode in ("thesis", "joint"):
     s_ = reconstruction.triangulate(rig, swapped, mode=mode)
-    err = 1000 * np.linalg.norm(s_.points[10, 0] - true_pos[10, 0])
-    print(f"{mode:6s}: marker 1 in frame 10 is {err:6.1f} mm off; middle residual "
+    err = np.nan if truth is None else 1000 * np.linalg.norm(s_.points[10, 0] - true_pos[10, 0])
+    print(f"{mode:6s}: marker 1 in frame 10 is {err:6.1f} mm off ({'no truth' if truth is None else 'vs truth'}); middle residual "
           f"{s_.residual_px['middle'][10, 0]:5.1f} px; rejected by the check: {bool(s_.rejected['middle'][10, 0])}")
+
+# %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
 
 # %% [markdown]
 # ## Exercises

@@ -47,8 +47,7 @@ from IPython.display import display
 from horsemocap import accuracy, frames, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
 from horsemocap.pipeline import run_steps
-from horsemocap.virtuallab import load_truth
-from horsemocap.workspace import results_for
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
 # ## The data
@@ -85,13 +84,17 @@ print(f"pipeline choices: smoothing_method '{par.smooth.method}' (span {par.smoo
 # bias, which no velocity, acceleration or angle sees) is removed.
 
 # %%
-truth = load_truth(session_dir)
-frames_ref = analysis.synchronisation.offsets[analysis.session.reference_camera] + np.arange(a, b)
-rows = np.searchsorted(truth.ref_frames, frames_ref).clip(0, len(truth.ref_frames) - 1)
-known = truth.ref_frames[rows] == frames_ref                # the truth covers the frames all cameras see whole
-print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames; errors are measured on those")
-true_pos = np.where(known[:, None, None], truth.marker_pos[rows], np.nan)   # NaN where the truth has no row
-A_true = truth.motion_axes                                  # rows: true x-, y-, z-motion directions
+truth = session_truth(session_dir)                         # None for a recorded session (no truth/ folder)
+true_pos = A_true = None
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the errors below are left out, the rest goes on")
+else:
+    frames_ref = analysis.synchronisation.offsets[analysis.session.reference_camera] + np.arange(a, b)
+    rows = np.searchsorted(truth.ref_frames, frames_ref).clip(0, len(truth.ref_frames) - 1)
+    known = truth.ref_frames[rows] == frames_ref            # the truth covers the frames all cameras see whole
+    print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames; errors are measured on those")
+    true_pos = np.where(known[:, None, None], truth.marker_pos[rows], np.nan)   # NaN where the truth has no row
+    A_true = truth.motion_axes                              # rows: true x-, y-, z-motion directions
 
 
 def errors_mm(pts, ref=None):
@@ -101,9 +104,10 @@ def errors_mm(pts, ref=None):
     return 1000 * accuracy.rmse_axes(est, ref), 1000 * motion
 
 
-r, rc = errors_mm(points)
-print(f"triangulated: RMSE x {r[0]:.2f}, y {r[1]:.2f}, z {r[2]:.2f} mm; bias removed x {rc[0]:.2f}, "
-      f"y {rc[1]:.2f}, z {rc[2]:.2f} mm")
+if truth is not None:
+    r, rc = errors_mm(points)
+    print(f"triangulated: RMSE x {r[0]:.2f}, y {r[1]:.2f}, z {r[2]:.2f} mm; bias removed x {rc[0]:.2f}, "
+          f"y {rc[1]:.2f}, z {rc[2]:.2f} mm")
 
 # %% [markdown]
 # ## 1 · Smoothing, the MATLAB way
@@ -150,7 +154,7 @@ plt.show()
 #
 # With 38 frames the span is 5 samples. The tricube weights give the two farthest samples of an
 # interior window zero weight, so the quadratic (3 coefficients) passes exactly through the 3 that
-# remain: **the interior is not smoothed at all** (the unit tests check it). Every interior
+# remain: **the interior is not smoothed at all**. Every interior
 # residual is then zero, the robust scale $\mathrm{median}|r|$ collapses, every end sample is
 # rejected, and the end windows slide inwards and *extrapolate* — iteration after iteration.
 # MATLAB would do exactly this. `smoothing.smooth_positions` keeps the thesis' `rloess` with span
@@ -162,24 +166,27 @@ plt.show()
 # measurement error at all: what the smoother alone does to the motion):
 
 # %%
-variants = {
-    "none (an option)": None,
-    "MATLAB rloess exactly (span 5)": dict(method="rloess", min_span=None, windows="matlab"),
-    "MATLAB windows, span >= 7": dict(method="rloess", min_span="auto", windows="matlab"),
-    "rloess 0.1, fixed windows, span >= 7": dict(method="rloess", min_span="auto", windows="fixed"),
-    "loess, span >= 7 (pipeline default)": dict(method="loess", min_span="auto"),
-    "rlowess, fixed windows": dict(method="rlowess", min_span="auto", windows="fixed"),
-}
-print(f"{'':38s} {'measured positions':^36s} | {'true positions':^17s}")
-print(f"{'':38s} {'RMSE x':>7s} {'y':>5s} {'z':>6s} | {'no bias x':>9s} {'y':>5s} {'z':>5s} | "
-      f"{'x':>5s} {'y':>5s} {'z':>5s}   (mm)")
-for label, kw in variants.items():
-    s_meas = points if kw is None else smoothing.smooth_positions(points, 0.1, nan="omit", **kw)
-    s_true = true_pos if kw is None else smoothing.smooth_positions(true_pos, 0.1, nan="omit", **kw)
-    r, rc = errors_mm(s_meas)
-    rt, _ = errors_mm(s_true)
-    print(f"{label:38s} {r[0]:7.2f} {r[1]:5.2f} {r[2]:6.2f} | {rc[0]:9.2f} {rc[1]:5.2f} {rc[2]:5.2f} | "
-          f"{rt[0]:5.2f} {rt[1]:5.2f} {rt[2]:5.2f}")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    variants = {
+        "none (an option)": None,
+        "MATLAB rloess exactly (span 5)": dict(method="rloess", min_span=None, windows="matlab"),
+        "MATLAB windows, span >= 7": dict(method="rloess", min_span="auto", windows="matlab"),
+        "rloess 0.1, fixed windows, span >= 7": dict(method="rloess", min_span="auto", windows="fixed"),
+        "loess, span >= 7 (pipeline default)": dict(method="loess", min_span="auto"),
+        "rlowess, fixed windows": dict(method="rlowess", min_span="auto", windows="fixed"),
+    }
+    print(f"{'':38s} {'measured positions':^36s} | {'true positions':^17s}")
+    print(f"{'':38s} {'RMSE x':>7s} {'y':>5s} {'z':>6s} | {'no bias x':>9s} {'y':>5s} {'z':>5s} | "
+          f"{'x':>5s} {'y':>5s} {'z':>5s}   (mm)")
+    for label, kw in variants.items():
+        s_meas = points if kw is None else smoothing.smooth_positions(points, 0.1, nan="omit", **kw)
+        s_true = true_pos if kw is None else smoothing.smooth_positions(true_pos, 0.1, nan="omit", **kw)
+        r, rc = errors_mm(s_meas)
+        rt, _ = errors_mm(s_true)
+        print(f"{label:38s} {r[0]:7.2f} {r[1]:5.2f} {r[2]:6.2f} | {rc[0]:9.2f} {rc[1]:5.2f} {rc[2]:5.2f} | "
+              f"{rt[0]:5.2f} {rt[1]:5.2f} {rt[2]:5.2f}")
 
 # %% [markdown]
 # ## 3 · Why the pipeline smooths with `loess`, not `rloess`
@@ -215,25 +222,28 @@ for label, kw in variants.items():
 # *unsmoothed* positions with a smoothing chosen from their own noise.
 
 # %%
-downstream = {}
-for kin in ("fits", "pose_spline"):
-    for method in ("none", "loess", "rloess"):
-        run = run_steps(analysis.session, accuracy.with_params(analysis, smoothing_method=method, kinematics=kin),
-                        analysis, ("smooth", "motion_frame", "rigid_body"))
-        st = accuracy.stage_errors(run, truth)
-        downstream[kin, method] = st
-        print(f"{kin:11s} smoothing {method:7s}: marker RMSE y-motion {1000 * st['smoothed'][1]:5.2f} mm, "
-              f"marker acceleration RMSE y-motion {st['acceleration'][1]:5.3f} m/s², "
-              f"saddle vertical acceleration error {st['saddle_acc_y_rmse_pct_of_rms']:5.1f} % of its RMS")
-pct = {m: downstream["fits", m]["saddle_acc_y_rmse_pct_of_rms"] for m in ("none", "loess", "rloess")}
-best = min(pct, key=pct.get)
-print(f"chain of fits: best on this session {best} ({pct[best]:.1f} %); rloess / {par.smooth.method} = "
-      f"{pct['rloess'] / pct[par.smooth.method]:.1f} times the error")
-pose_pct = [downstream["pose_spline", m]["saddle_acc_y_rmse_pct_of_rms"] for m in ("none", "loess", "rloess")]
-print(f"pose trajectory (the default): {min(pose_pct):.1f}-{max(pose_pct):.1f} % whatever the smoothing here")
-k_win = smoothing.effective_span(n, par.smooth.span, "loess", "auto")
-print(f"window: {k_win:d} frames = {k_win / fps:.2f} s, {k_win / mf_pipeline.period_frames:.2f} of the "
-      f"estimated stride ({mf_pipeline.period_frames / fps:.2f} s)")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    downstream = {}
+    for kin in ("fits", "pose_spline"):
+        for method in ("none", "loess", "rloess"):
+            run = run_steps(analysis.session, accuracy.with_params(analysis, smoothing_method=method, kinematics=kin),
+                            analysis, ("smooth", "motion_frame", "rigid_body"))
+            st = accuracy.stage_errors(run, truth)
+            downstream[kin, method] = st
+            print(f"{kin:11s} smoothing {method:7s}: marker RMSE y-motion {1000 * st['smoothed'][1]:5.2f} mm, "
+                  f"marker acceleration RMSE y-motion {st['acceleration'][1]:5.3f} m/s², "
+                  f"saddle vertical acceleration error {st['saddle_acc_y_rmse_pct_of_rms']:5.1f} % of its RMS")
+    pct = {m: downstream["fits", m]["saddle_acc_y_rmse_pct_of_rms"] for m in ("none", "loess", "rloess")}
+    best = min(pct, key=pct.get)
+    print(f"chain of fits: best on this session {best} ({pct[best]:.1f} %); rloess / {par.smooth.method} = "
+          f"{pct['rloess'] / pct[par.smooth.method]:.1f} times the error")
+    pose_pct = [downstream["pose_spline", m]["saddle_acc_y_rmse_pct_of_rms"] for m in ("none", "loess", "rloess")]
+    print(f"pose trajectory (the default): {min(pose_pct):.1f}-{max(pose_pct):.1f} % whatever the smoothing here")
+    k_win = smoothing.effective_span(n, par.smooth.span, "loess", "auto")
+    print(f"window: {k_win:d} frames = {k_win / fps:.2f} s, {k_win / mf_pipeline.period_frames:.2f} of the "
+          f"estimated stride ({mf_pipeline.period_frames / fps:.2f} s)")
 
 # %% [markdown]
 # The pipeline's default pose trajectory does not see this choice (the last line above): it
@@ -281,9 +291,12 @@ if choice["method"] == "none":
 else:
     k_used = smoothing.effective_span(n, choice["span"], choice["method"], "auto")
     print(f"{choice['method']} span {choice['span']:.2f} -> {k_used:d} frames per window")
-r, rc = errors_mm(smoothed)
-print(f"RMSE vs truth: x-motion {r[0]:.2f} mm, y-motion {r[1]:.2f} mm, z-motion {r[2]:.2f} mm; "
-      f"bias removed: {rc[0]:.2f}, {rc[1]:.2f}, {rc[2]:.2f} mm")
+if truth is None:
+    print("RMSE vs truth:", NO_TRUTH)
+else:
+    r, rc = errors_mm(smoothed)
+    print(f"RMSE vs truth: x-motion {r[0]:.2f} mm, y-motion {r[1]:.2f} mm, z-motion {r[2]:.2f} mm; "
+          f"bias removed: {rc[0]:.2f}, {rc[1]:.2f}, {rc[2]:.2f} mm")
 
 # %% [markdown]
 # Thesis Figure 8.9 (b) with the thesis' smoother: the first marker before and after `rloess` 0.1,
@@ -324,8 +337,11 @@ u2e = frames.gravity_from_plumb(tip_w, tail_w)
 plumb_res = reconstruction.reprojection_residuals(rig, analysis.plumb.plumb_points, analysis.plumb.plumb_px)
 print("u2e (estimated gravity, down) =", np.array2string(u2e, precision=5))
 print("pipeline's gravity            =", np.array2string(gravity, precision=5))
-print("true gravity                  =", np.array2string(truth.gravity, precision=5))
-print(f"angle to the true gravity: {frames.angle_deg(gravity, truth.gravity):.3f} deg (target: within 0.2 deg)")
+if truth is None:
+    print("true gravity:", NO_TRUTH)
+else:
+    print("true gravity                  =", np.array2string(truth.gravity, precision=5))
+    print(f"angle to the true gravity: {frames.angle_deg(gravity, truth.gravity):.3f} deg (target: within 0.2 deg)")
 print("plumb reprojection residuals (px): " + ", ".join(f"{c} {np.max(v):.3f}" for c, v in plumb_res.items()))
 
 # %% [markdown]
@@ -340,10 +356,13 @@ print("plumb reprojection residuals (px): " + ", ".join(f"{c} {np.max(v):.3f}" f
 vertical = smoothed @ gravity
 acf = frames.autocorrelation(vertical, max_lag=int(0.6 * n))
 period = frames.estimate_period(smoothed, fps, gravity=gravity)
-stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
 print(f"estimated period: {period:.2f} frames = {period / fps:.3f} s (the pipeline's: "
       f"{analysis.motion_frame.period_frames:.2f} frames)")
-print(f"true stride period: {fps / stride_hz:.2f} frames (the thesis user typed 18 for this horse and gait)")
+if truth is None:
+    print("true stride period:", NO_TRUTH)
+else:
+    stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
+    print(f"true stride period: {fps / stride_hz:.2f} frames (the thesis user typed 18 for Horse 2 at canter)")
 
 # %%
 _ = plots.plot_period_estimate(acf, period, fps)
@@ -371,7 +390,9 @@ print("R_CM = [u1 | u2 | u3] =")
 print(np.array2string(mf.R_CM, precision=5, suppress_small=True))
 print(f"u1 from marker {mf.marker + 1:d} over {mf.n_periods:d} period(s) of {mf.period_frames:.2f} frames")
 print(f"gravity correction (u2e -> u2, eq. 5.8-5.9): {mf.gravity_correction_deg:.3f} deg")
-for i, name in enumerate(("x-motion", "y-motion", "z-motion")):
+if truth is None:
+    print("angles to the true axes:", NO_TRUTH)
+for i, name in enumerate(("x-motion", "y-motion", "z-motion") if truth is not None else ()):
     print(f"angle of {name} to the truth: {frames.angle_deg(mf.axes[i], A_true[i]):.3f} deg "
           f"(pipeline's axis: {frames.angle_deg(mf_pipeline.axes[i], A_true[i]):.3f} deg)")
 
@@ -382,7 +403,7 @@ for i, name in enumerate(("x-motion", "y-motion", "z-motion")):
 # %%
 t = frames.time_axis(n, fps)
 motion = frames.to_motion_frame(smoothed, mf)
-_ = plots.plot_motion_positions(motion, t, marker=0, truth=frames.to_motion_frame(true_pos, mf),
+_ = plots.plot_motion_positions(motion, t, marker=0, truth=None if truth is None else frames.to_motion_frame(true_pos, mf),
                                 title="marker 1, motion reference frame")
 plt.show()
 
@@ -396,18 +417,21 @@ plt.show()
 # point 7.5 m from the camera by 13 mm, which would hide the position error in the axis error).
 
 # %%
-runs = {}
-for mode in ("thesis", "joint"):
-    for method in ("none", "loess", "rloess"):
-        run = run_steps(analysis.session, accuracy.with_params(analysis, triangulation=mode, smoothing_method=method),
-                        {"sync": analysis.sync, "rig": analysis.rig, "detect": analysis.detect},
-                        ("triangulate", "plumb", "static", "smooth", "motion_frame"))
-        runs[mode, method] = run
-        st = accuracy.stage_errors(run, truth)
-        r, rc = errors_mm(run.smooth.smoothed)
-        print(f"{mode:6s} + {method:6s}: RMSE x {r[0]:5.2f}, y {r[1]:5.2f}, z {r[2]:6.2f} mm | bias removed "
-              f"x {rc[0]:5.2f}, y {rc[1]:5.2f}, z {rc[2]:5.2f} mm | gravity {st['gravity_deg']:.3f} deg, "
-              f"x-motion axis {st['x_axis_deg']:.3f} deg")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    runs = {}
+    for mode in ("thesis", "joint"):
+        for method in ("none", "loess", "rloess"):
+            run = run_steps(analysis.session, accuracy.with_params(analysis, triangulation=mode, smoothing_method=method),
+                            {"sync": analysis.sync, "rig": analysis.rig, "detect": analysis.detect},
+                            ("triangulate", "plumb", "static", "smooth", "motion_frame"))
+            runs[mode, method] = run
+            st = accuracy.stage_errors(run, truth)
+            r, rc = errors_mm(run.smooth.smoothed)
+            print(f"{mode:6s} + {method:6s}: RMSE x {r[0]:5.2f}, y {r[1]:5.2f}, z {r[2]:6.2f} mm | bias removed "
+                  f"x {rc[0]:5.2f}, y {rc[1]:5.2f}, z {rc[2]:5.2f} mm | gravity {st['gravity_deg']:.3f} deg, "
+                  f"x-motion axis {st['x_axis_deg']:.3f} deg")
 
 # %% [markdown]
 # The reproduction's accuracy goals, checked on these numbers (x- and y-motion RMSE below 3 mm after smoothing,
@@ -416,27 +440,28 @@ for mode in ("thesis", "joint"):
 # modes are counted as equal (they are far below the detector's own error).
 
 # %%
-TARGET_MM, TARGET_DEG, TIE_MM = 3.0, 0.2, 0.05
+TARGET_MM, TARGET_DEG, TIE_MM = 3.0, 0.2, 0.05   # the accuracy goals named above
+if truth is None:
+    print(NO_TRUTH)
+else:
+    def verdict(ok):
+        return "meets" if ok else "MISSES"
 
 
-def verdict(ok):
-    return "meets" if ok else "MISSES"
-
-
-for method in (par.smooth.method, "none", "rloess"):
-    tag = " (pipeline default)" if method == par.smooth.method else ""
-    r, rc = errors_mm(runs["joint", method].smooth.smoothed)
-    print(f"joint + {method:6s}{tag}: x {r[0]:.2f} mm {verdict(r[0] < TARGET_MM)}, y {r[1]:.2f} mm "
-          f"{verdict(r[1] < TARGET_MM)} (absolute) | x {rc[0]:.2f} mm {verdict(rc[0] < TARGET_MM)}, "
-          f"y {rc[1]:.2f} mm {verdict(rc[1] < TARGET_MM)} (bias removed)")
-    rt, rct = errors_mm(runs["thesis", method].smooth.smoothed)
-    no_worse = bool(np.all(r[:2] - rt[:2] < TIE_MM) and np.all(rc[:2] - rct[:2] < TIE_MM))
-    print(f"   joint minus thesis (x, y): absolute " + ", ".join(f"{d:+.2f}" for d in r[:2] - rt[:2])
-          + " mm, bias removed " + ", ".join(f"{d:+.2f}" for d in rc[:2] - rct[:2])
-          + f" mm -> joint no worse than thesis: {verdict(no_worse)}")
-for mode in ("joint", "thesis"):
-    g_err = frames.angle_deg(runs[mode, par.smooth.method].plumb.gravity, truth.gravity)
-    print(f"plumb gravity, {mode:6s} triangulation: {g_err:.3f} deg {verdict(g_err < TARGET_DEG)}")
+    for method in (par.smooth.method, "none", "rloess"):
+        tag = " (pipeline default)" if method == par.smooth.method else ""
+        r, rc = errors_mm(runs["joint", method].smooth.smoothed)
+        print(f"joint + {method:6s}{tag}: x {r[0]:.2f} mm {verdict(r[0] < TARGET_MM)}, y {r[1]:.2f} mm "
+              f"{verdict(r[1] < TARGET_MM)} (absolute) | x {rc[0]:.2f} mm {verdict(rc[0] < TARGET_MM)}, "
+              f"y {rc[1]:.2f} mm {verdict(rc[1] < TARGET_MM)} (bias removed)")
+        rt, rct = errors_mm(runs["thesis", method].smooth.smoothed)
+        no_worse = bool(np.all(r[:2] - rt[:2] < TIE_MM) and np.all(rc[:2] - rct[:2] < TIE_MM))
+        print(f"   joint minus thesis (x, y): absolute " + ", ".join(f"{d:+.2f}" for d in r[:2] - rt[:2])
+              + " mm, bias removed " + ", ".join(f"{d:+.2f}" for d in rc[:2] - rct[:2])
+              + f" mm -> joint no worse than thesis: {verdict(no_worse)}")
+    for mode in ("joint", "thesis"):
+        g_err = frames.angle_deg(runs[mode, par.smooth.method].plumb.gravity, truth.gravity)
+        print(f"plumb gravity, {mode:6s} triangulation: {g_err:.3f} deg {verdict(g_err < TARGET_DEG)}")
 
 # %% [markdown]
 # **Reading the numbers** (all printed above). With the calibrated rig and the pipeline's `loess`,
@@ -497,22 +522,25 @@ for protocol, n_views in setups:
           f"in {100 * inside:.0f} % of them; worst motion RMSE x {mot[:, 0].max():.2f}, y {mot[:, 1].max():.2f} mm")
 
 # %%
-fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
-for (protocol, n_views), marker in zip(setups, ("o", "s", "^", "v")):
-    off = 1000 * np.array([d["offset_m"] for d in draws if d["protocol"] == protocol and d["n_views"] == n_views])
-    ax[0].scatter(off[:, 0], off[:, 1], marker=marker, label=f"{protocol}, {n_views} views")
-    ax[1].scatter(off[:, 2], off[:, 1], marker=marker, label=f"{protocol}, {n_views} views")
-offset_here, _ = accuracy.offset_and_motion(smoothed @ A_true.T, true_pos @ A_true.T)
-for axis, (i, name) in zip(ax, ((0, "x"), (2, "z"))):
-    axis.axhspan(-TARGET_MM, TARGET_MM, color="0.9", label="±3 mm (y target)", zorder=0)
-    axis.scatter(1000 * offset_here[i], 1000 * offset_here[1], marker="*", s=150, color="k",
-                 label="this session (detected, smoothed)")
-    axis.set_xlabel(f"{name}-motion offset (mm)")
-    axis.set_ylabel("y-motion offset (mm)")
-ax[0].legend(fontsize=7)
-fig.suptitle("constant offset of the reconstructed markers, one point per calibration")
-plt.tight_layout()
-plt.show()
+if truth is None:
+    print(NO_TRUTH)
+else:
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+    for (protocol, n_views), marker in zip(setups, ("o", "s", "^", "v")):
+        off = 1000 * np.array([d["offset_m"] for d in draws if d["protocol"] == protocol and d["n_views"] == n_views])
+        ax[0].scatter(off[:, 0], off[:, 1], marker=marker, label=f"{protocol}, {n_views} views")
+        ax[1].scatter(off[:, 2], off[:, 1], marker=marker, label=f"{protocol}, {n_views} views")
+    offset_here, _ = accuracy.offset_and_motion(smoothed @ A_true.T, true_pos @ A_true.T)
+    for axis, (i, name) in zip(ax, ((0, "x"), (2, "z"))):
+        axis.axhspan(-TARGET_MM, TARGET_MM, color="0.9", label="±3 mm (y target)", zorder=0)
+        axis.scatter(1000 * offset_here[i], 1000 * offset_here[1], marker="*", s=150, color="k",
+                     label="this session (detected, smoothed)")
+        axis.set_xlabel(f"{name}-motion offset (mm)")
+        axis.set_ylabel("y-motion offset (mm)")
+    ax[0].legend(fontsize=7)
+    fig.suptitle("constant offset of the reconstructed markers, one point per calibration")
+    plt.tight_layout()
+    plt.show()
 
 # %% [markdown]
 # **What this says about the 3 mm target.** The motion itself is measured to a fraction of a
@@ -527,7 +555,24 @@ plt.show()
 # of triangulation or smoothing; none of the protocols tried makes it reliable. This session's
 # own offset is the star above. The kinematics, the rigid-body analysis and the comfort
 # indicators only see the motion.
+
+# %% [markdown]
+# ## Your choices, downstream
 #
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. Smooth the positions with `min_span=None, windows="matlab", nan="omit"` (MATLAB exactly) and plot marker 1:

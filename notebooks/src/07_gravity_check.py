@@ -175,6 +175,22 @@ print("plumb prompts:", ui_plumb.value or "automatic")
 print("gravity in the reference camera's frame:", np.round(plumb_run.plumb.gravity, 4).tolist())
 
 # %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. How does the error in $g$ grow with the pixel noise? Add 0.3 px and 1 px of noise to the detections.

@@ -66,8 +66,8 @@ from horsemocap import plots, rigid
 # the robust iterations then reject good samples near the ends of the record.
 
 # %%
-from horsemocap import accuracy, data, frames, virtuallab
-from horsemocap.workspace import results_for
+from horsemocap import accuracy, data, frames
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 an = results_for(until="rigid_body")
 mf = an.motion_frame
@@ -81,8 +81,11 @@ moved = 1000 * np.linalg.norm(an.smooth.smoothed - an.smooth.raw, axis=-1)
 print(f"smoothing: {an.params.smooth.method}, span {an.params.smooth.span}; it moved the triangulated "
       f"markers by median {np.median(moved):.2f} mm, max {moved.max():.2f} mm")
 
-truth = virtuallab.load_truth(ws.session_dir)
-true_pos = accuracy.analysed_truth(an, truth)["marker_pos"]   # the truth at the analysed frames, pipeline's frame
+truth = session_truth(ws.session_dir)            # None for a recorded session (no truth/ folder)
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the comparison with the truth below is left out")
+else:
+    true_pos = accuracy.analysed_truth(an, truth)["marker_pos"]   # the truth at the analysed frames, pipeline's frame
 
 # %% [markdown]
 # ## Which static marker is which?
@@ -137,13 +140,16 @@ plt.show()
 # which differs from the pipeline's by a fraction of a degree):
 
 # %%
-err_m = frames.rmse_per_axis(markers, true_pos) * 1000
-err_r = frames.rmse_per_axis(reg.registered, true_pos) * 1000
-print("RMSE per axis x/y/z (mm), triangulated: " + "  ".join(f"{e:5.2f}" for e in err_m))
-print("RMSE per axis x/y/z (mm), registered:   " + "  ".join(f"{e:5.2f}" for e in err_r))
-st = accuracy.stage_errors(an, truth)
-print(f"stage_errors (true motion frame, x axis {st['x_axis_deg']:.2f} deg off), registered: "
-      + "  ".join(f"{1000 * e:5.2f}" for e in st["registered"]) + " mm")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    err_m = frames.rmse_per_axis(markers, true_pos) * 1000
+    err_r = frames.rmse_per_axis(reg.registered, true_pos) * 1000
+    print("RMSE per axis x/y/z (mm), triangulated: " + "  ".join(f"{e:5.2f}" for e in err_m))
+    print("RMSE per axis x/y/z (mm), registered:   " + "  ".join(f"{e:5.2f}" for e in err_r))
+    st = accuracy.stage_errors(an, truth)
+    print(f"stage_errors (true motion frame, x axis {st['x_axis_deg']:.2f} deg off), registered: "
+          + "  ".join(f"{1000 * e:5.2f}" for e in st["registered"]) + " mm")
 
 # %% [markdown]
 # The depth (z, along the cameras' optical axes) is the weak axis of the rig: triangulation errors are
@@ -152,8 +158,9 @@ print(f"stage_errors (true motion frame, x axis {st['x_axis_deg']:.2f} deg off),
 # triangle's shape. The static shot has its own error too: every registered frame inherits the model's
 # shape error, a constant per marker.
 #
-# The quaternion and the thesis' form: $\mathbf{R}_{thesis} = $ `rotation.T`,
-# $\mathbf{q}_t = -\mathbf{R}_{thesis}\,$`translation`, and eq. 5.20 gives back the registered points.
+# The quaternion and the thesis' form (eq. 5.20 gives back the registered points with them):
+#
+# $$\mathbf{R}_\mathrm{thesis} = \texttt{rotation}^T, \qquad \mathbf{q}_t = -\mathbf{R}_\mathrm{thesis}\,\texttt{translation}$$
 
 # %%
 k = 26
@@ -182,36 +189,6 @@ display(ui_static)
 
 # %%
 print("static-shot prompts:", ui_static.value or "automatic")
-
-# %% [markdown]
-# ## Exercises
-#
-# 1. Shuffle the static shot (`static[np.random.default_rng(1).permutation(4)]`) and rerun
-#    `match_static_markers`: does the assignment change? Then swap markers 1 and 3 of the static shot: why
-#    are the distances alone not enough here?
-# 2. Register the *true* markers (`true_pos`) to the true static shot
-#    (`frames.to_motion_frame(truth.static_pos, mf.frame)[:3]`): how large is the residual, and why?
-# 3. Add a 2 cm outlier to marker 2 in frame 10 (`m2 = markers.copy(); m2[9, 1, 1] += 0.02`) before
-#    registration. How does the residual of that frame change, and how far does the error spread to
-#    markers 1 and 3?
-#
-# <details><summary>Solutions</summary>
-#
-# 1. The order is found from distances and orientation, not from the input order, so shuffling changes
-#    only the indices, not which point is which marker. Markers 1 and 3 are about 0.25 m from marker 2
-#    within a few mm of each other, so a swap costs little in distance; the near-tie is broken by the
-#    rotation the registration would need (a swap needs a half turn).
-# 2. The residual is at the level of rounding (1e-16 m): the truth is rigid and the quaternion solution
-#    is exact.
-# 3. Least squares spreads the error: the frame's residual grows to about 2/3 of 2 cm at marker 2 and the
-#    registered markers of that frame, 1 and 3 included, move by about a third of the outlier (rotation and
-#    translation absorb part of it).
-#    In the thesis' chain the smoothing before registration removes such outliers: the robust iterations
-#    of its `rloess` give an outlier almost no weight. The pipeline's default `loess` has no robust
-#    iterations and would spread an outlier over the frames within its span instead (notebook 06); the
-#    pipeline's detector and triangulation produce no such outlier on this session.
-#
-# </details>
 
 # %% [markdown]
 # ## Chapter 8's images, filtered and labelled (Figures 8.3, 8.4, 8.7, 8.11, 8.21)
@@ -288,3 +265,93 @@ fig = plots.plot_filtered_images([bframes[k] for k in pick], bdet["threshold"], 
                                  titles=[f"frame {k}" for k in pick], zoom=(lo[0], lo[1], hi[0], hi[1]))
 fig.suptitle(f"Figure 8.3: the ball in the {bcam} camera, original (top) and area-filtered (bottom)")
 plt.show()
+
+# %% [markdown]
+# ## Figures 6.1 and 6.2: the body frame, in the static shot and during the motion
+#
+# The saddle marker is hidden by the rider's leg during the ride, so the thesis fixes a frame to the
+# horse's back (section 6.3): its origin $O_B$ is marker 1, $\mathbf{u}_1$ points to marker 2, marker 3
+# lies in its $\mathbf{u}_1\mathbf{u}_2$ plane and $\mathbf{u}_3$ completes it (eq. 6.41-6.45). In the
+# static shot, where the saddle marker is visible, its position in that frame, $\mathbf{r}_{BS}^{(B)}$
+# (eq. 6.47), is measured once; during the motion the registered markers give $\mathbf{R}_{MB}(t)$ and
+# $\mathbf{r}_{MB}(t)$, and eq. 6.48 places the saddle marker. Left: the static shot (Figure 6.1); right:
+# one frame of the motion (Figure 6.2), both in the motion frame's x-y plane.
+
+# %%
+from horsemocap import pose, rigid
+
+order, s_idx = list(an.rigid_body.static_order), an.rigid_body.saddle_index
+static_markers, static_saddle = static[order], static[s_idx]
+R_static, o_static = rigid.body_frame(static_markers)                # eq. 6.41-6.45
+r_BS = rigid.saddle_in_body(static_markers, static_saddle)           # eq. 6.47
+k_mid = len(t) // 2
+R_k, o_k = rigid.body_frames(an.rigid_body.registered[k_mid:k_mid + 1])
+saddle_k = R_k[0] @ r_BS + o_k[0]                                    # eq. 6.48
+print("r_BS^(B) (saddle marker in the body frame): " + ", ".join(f"{1000 * v:+.0f}" for v in r_BS) + " mm")
+fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+plots.plot_body_frame(static_markers, static_saddle, R_static, o_static, ax=axes[0],
+                      title="Figure 6.1: the static shot")
+plots.plot_body_frame(an.rigid_body.registered[k_mid], saddle_k, R_k[0], o_k[0], ax=axes[1],
+                      title=f"Figure 6.2: during the motion, t = {t[k_mid]:.2f} s")
+fig.tight_layout()
+plt.show()
+
+# %% [markdown]
+# The thesis' body frame follows the markers, wherever they sit on the back. The saddle's roll, pitch
+# and yaw (notebook 10) need axes that mean something for the horse: as in the body-axes convention of
+# human motion analysis (a default pose fixes the body's planes), the static shot fixes them here: the
+# body's vertical is gravity (y-motion), its longitudinal axis the direction along which the static
+# shot's markers lie, made horizontal and pointed forward, and the lateral axis completes the frame
+# (`pose.static_body_axes`). Their angles to the thesis' body axes in the static shot:
+
+# %%
+body_axes = pose.static_body_axes(static)                            # columns: longitudinal, down, lateral
+for i, name in enumerate(("longitudinal", "vertical (down)", "lateral")):
+    ang = np.degrees(np.arccos(np.clip(abs(body_axes[:, i] @ R_static[:, i]), 0, 1)))
+    print(f"{name:16s} axis {np.array2string(body_axes[:, i], precision=3)}: {ang:5.1f} deg from the thesis' u{i + 1}")
+
+# %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
+
+# %% [markdown]
+# ## Exercises
+#
+# 1. Shuffle the static shot (`static[np.random.default_rng(1).permutation(4)]`) and rerun
+#    `match_static_markers`: does the assignment change? Then swap markers 1 and 3 of the static shot: why
+#    are the distances alone not enough here?
+# 2. Register the *true* markers (`true_pos`) to the true static shot
+#    (`frames.to_motion_frame(truth.static_pos, mf.frame)[:3]`): how large is the residual, and why?
+# 3. Add a 2 cm outlier to marker 2 in frame 10 (`m2 = markers.copy(); m2[9, 1, 1] += 0.02`) before
+#    registration. How does the residual of that frame change, and how far does the error spread to
+#    markers 1 and 3?
+#
+# <details><summary>Solutions</summary>
+#
+# 1. The order is found from distances and orientation, not from the input order, so shuffling changes
+#    only the indices, not which point is which marker. Markers 1 and 3 are about 0.25 m from marker 2
+#    within a few mm of each other, so a swap costs little in distance; the near-tie is broken by the
+#    rotation the registration would need (a swap needs a half turn).
+# 2. The residual is at the level of rounding (1e-16 m): the truth is rigid and the quaternion solution
+#    is exact.
+# 3. Least squares spreads the error: the frame's residual grows to about 2/3 of 2 cm at marker 2 and the
+#    registered markers of that frame, 1 and 3 included, move by about a third of the outlier (rotation and
+#    translation absorb part of it).
+#    In the thesis' chain the smoothing before registration removes such outliers: the robust iterations
+#    of its `rloess` give an outlier almost no weight. The pipeline's default `loess` has no robust
+#    iterations and would spread an outlier over the frames within its span instead (notebook 06); the
+#    pipeline's detector and triangulation produce no such outlier on this session.
+#
+# </details>

@@ -59,8 +59,8 @@ from horsemocap import fitting, plots, rigid, widgets
 # frame) only measures the errors.
 
 # %%
-from horsemocap import accuracy, data, frames, virtuallab
-from horsemocap.workspace import results_for
+from horsemocap import accuracy, data, frames
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 an = results_for(until="rigid_body")
 rb = an.rigid_body.body
@@ -71,13 +71,17 @@ w0 = 2 * np.pi / period_s                                 # start point of every
 print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smooth.method}'; order rule '{prm.rigid_body.fits.order_rule}', "
       f"trend {prm.rigid_body.fits.trend}, x degree {prm.rigid_body.fits.x_degree}; period {an.motion_frame.period_frames:.2f} frames = {period_s:.3f} s")
 
-truth = virtuallab.load_truth(ws.session_dir)
+truth = session_truth(ws.session_dir)                   # None for a recorded session (no truth/ folder)
 a, b = an.triangulate.segment
-tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
-true_kin = {"pos": tt["marker_pos"], "vel": tt["marker_vel"], "acc": tt["marker_acc"]}
-stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
-print(f"stride period of the virtual horse {1 / stride_hz:.3f} s (w = {2 * np.pi * stride_hz:.2f} rad/s); "
-      f"the pipeline's estimate w = {w0:.2f} rad/s")
+true_kin = None
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the fits are shown without the truth beside them")
+else:
+    tt = accuracy.analysed_truth(an, truth)              # the truth at the analysed frames, pipeline's frame
+    true_kin = {"pos": tt["marker_pos"], "vel": tt["marker_vel"], "acc": tt["marker_acc"]}
+    stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
+    print(f"stride period of the virtual horse {1 / stride_hz:.3f} s (w = {2 * np.pi * stride_hz:.2f} rad/s); "
+          f"the pipeline's estimate w = {w0:.2f} rad/s")
 
 # %% [markdown]
 # ## x-motion: a straight line
@@ -87,13 +91,16 @@ print(f"stride period of the virtual horse {1 / stride_hz:.3f} s (w = {2 * np.pi
 # %%
 fx = auto.fits[0][0]
 print(fx.summary())
-print(f"V_x,avg = {fx.coefficients[0]:.3f} m/s = {3.6 * fx.coefficients[0]:.2f} km/h "
-      f"(truth mean {3.6 * np.nanmean(true_kin['vel'][:, 0, 0]):.2f} km/h)")
-x_true = true_kin["pos"][:, 0, 0]
-known = np.isfinite(x_true)                              # frames the truth covers
-surge = x_true - np.polyval(np.polyfit(t[known], x_true[known], 1), t)
-print(f"true surge of marker 1 about a straight line: {100 * np.nanmin(surge):+.1f} to {100 * np.nanmax(surge):+.1f} cm; "
-      f"rms of its true A_x {np.sqrt(np.nanmean(true_kin['acc'][:, 0, 0] ** 2)):.2f} m/s²")
+print(f"V_x,avg = {fx.coefficients[0]:.3f} m/s = {3.6 * fx.coefficients[0]:.2f} km/h")
+if truth is None:
+    print("truth:", NO_TRUTH)
+else:
+    print(f"truth mean {3.6 * np.nanmean(true_kin['vel'][:, 0, 0]):.2f} km/h")
+    x_true = true_kin["pos"][:, 0, 0]
+    known = np.isfinite(x_true)                          # frames the truth covers
+    surge = x_true - np.polyval(np.polyfit(t[known], x_true[known], 1), t)
+    print(f"true surge of marker 1 about a straight line: {100 * np.nanmin(surge):+.1f} to {100 * np.nanmax(surge):+.1f} cm; "
+          f"rms of its true A_x {np.sqrt(np.nanmean(true_kin['acc'][:, 0, 0] ** 2)):.2f} m/s²")
 
 # %% [markdown]
 # The virtual horse, like a real one, surges a little within each stride (printed above): a straight
@@ -127,7 +134,7 @@ f1, f2 = (fitting.fit_fourier(t, y, n, w0=w0, trend=prm.rigid_body.fits.trend) f
 print(f"E = {E} extremes -> proposed fourier{N1} and fourier{N2}; the pipeline chose fourier{auto.orders[0, 1]}")
 for f in (f1, f2):
     print(f.summary())
-truth_y = {"t": t, "pos": true_kin["pos"][:, 0, 1], "vel": true_kin["vel"][:, 0, 1], "acc": true_kin["acc"][:, 0, 1]}
+truth_y = None if truth is None else {"t": t, **{k: true_kin[k][:, 0, 1] for k in ("pos", "vel", "acc")}}
 fig = plots.plot_fit_choice(f1, f2, truth=truth_y, suptitle="marker 1, y-motion (down)")
 plt.show()
 
@@ -139,12 +146,15 @@ plt.show()
 # period instead:
 
 # %%
-for N in (1, 2, 3, 4):
-    fm = fitting.fit_fourier(t, y, N, trend=prm.rigid_body.fits.trend)
-    fp = fitting.fit_fourier(t, y, N, w0=w0, trend=prm.rigid_body.fits.trend)
-    err = lambda f: np.sqrt(np.nanmean((f.evaluate(t, 2) - truth_y["acc"]) ** 2))
-    print(f"fourier{N}: MATLAB start w = {fm.frequency:6.3f} rad/s, acc RMSE {err(fm):5.2f} m/s² | "
-          f"start at the period, w = {fp.frequency:6.3f}, acc RMSE {err(fp):5.2f} m/s²")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    for N in (1, 2, 3, 4):
+        fm = fitting.fit_fourier(t, y, N, trend=prm.rigid_body.fits.trend)
+        fp = fitting.fit_fourier(t, y, N, w0=w0, trend=prm.rigid_body.fits.trend)
+        err = lambda f: np.sqrt(np.nanmean((f.evaluate(t, 2) - truth_y["acc"]) ** 2))
+        print(f"fourier{N}: MATLAB start w = {fm.frequency:6.3f} rad/s, acc RMSE {err(fm):5.2f} m/s² | "
+              f"start at the period, w = {fp.frequency:6.3f}, acc RMSE {err(fp):5.2f} m/s²")
 
 # %% [markdown]
 # ## z-motion of marker 1 (Figure 5.9)
@@ -158,7 +168,7 @@ Ez = int(auto.n_extremes[0, 2])
 g1, g2 = (fitting.fit_fourier(t, z, n, w0=w0, trend=prm.rigid_body.fits.trend) for n in fitting.proposed_orders(Ez))
 print(f"E = {Ez} -> fourier{g1.order} (adj R2 {g1.gof.adjrsquare:.4f}) or fourier{g2.order} "
       f"(adj R2 {g2.gof.adjrsquare:.4f}); the pipeline chose fourier{auto.orders[0, 2]}")
-truth_z = {"t": t, "pos": true_kin["pos"][:, 0, 2], "vel": true_kin["vel"][:, 0, 2], "acc": true_kin["acc"][:, 0, 2]}
+truth_z = None if truth is None else {"t": t, **{k: true_kin[k][:, 0, 2] for k in ("pos", "vel", "acc")}}
 fig = plots.plot_fit_choice(g1, g2, truth=truth_z, suptitle="marker 1, z-motion")
 plt.show()
 
@@ -187,7 +197,9 @@ mfit = fitting.fit_motion(t, registered, x_degree=ui_x.value, orders=orders, w0=
 print("orders (x degree, y, z) per marker:", mfit.orders.tolist(), "; the pipeline's:", auto.orders.tolist())
 vel, acc = mfit.velocity(t), mfit.acceleration(t)
 print(f"velocities equal the pipeline's (to 1e-9 m/s): {np.allclose(vel, rb.vel, rtol=0, atol=1e-9)}")
-for m in range(3):
+if truth is None:
+    print("velocity and acceleration errors:", NO_TRUTH)
+for m in range(3 if truth is not None else 0):
     ev = frames.rmse_per_axis(vel[:, m], true_kin["vel"][:, m])
     ea = frames.rmse_per_axis(acc[:, m], true_kin["acc"][:, m])
     print(f"marker {m + 1}: velocity RMSE x/y/z " + " ".join(f"{e:.3f}" for e in ev)
@@ -201,6 +213,22 @@ for m in range(3):
 # %%
 fig = plots.plot_marker_fits(t, registered, mfit, marker=0, truth=true_kin)
 plt.show()
+
+# %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
 
 # %% [markdown]
 # ## Exercises

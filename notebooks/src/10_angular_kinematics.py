@@ -61,8 +61,8 @@ from horsemocap import fitting, plots, rigid, widgets
 # (virtual laboratory, in the pipeline's motion frame) only measures errors.
 
 # %%
-from horsemocap import accuracy, data, frames, pipeline, virtuallab
-from horsemocap.workspace import results_for
+from horsemocap import accuracy, data, frames, pipeline
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 an = results_for(until="rigid_body")
 rb = an.rigid_body.body
@@ -71,10 +71,14 @@ t, pos, vel, acc = rb.t, rb.pos, rb.vel, rb.acc
 print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
       f"angular method '{prm.rigid_body.fits.angular_method}'; versions used: omega {sum(prm.rigid_body.fits.omega_versions)}, alfa {sum(prm.rigid_body.fits.alpha_versions)}")
 
-truth = virtuallab.load_truth(ws.session_dir)
+truth = session_truth(ws.session_dir)                   # None for a recorded session (no truth/ folder)
 a, b = an.triangulate.segment
-tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
-omega_true, alpha_true = tt["omega"], tt["alpha"]
+omega_true = alpha_true = None
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): below, the rms of each estimate stands where its error would")
+else:
+    tt = accuracy.analysed_truth(an, truth)              # the truth at the analysed frames, pipeline's frame
+    omega_true, alpha_true = tt["omega"], tt["alpha"]
 
 # %% [markdown]
 # ## First, on exact data
@@ -83,18 +87,21 @@ omega_true, alpha_true = tt["omega"], tt["alpha"]
 # to rounding — except where $\boldsymbol\omega$ lies in the markers' plane:
 
 # %%
-P, V = tt["marker_pos"], tt["marker_vel"]
-with np.errstate(all="ignore"):
-    exact = rigid.angular_velocity_versions(P, V)
-ang_true = rigid.singularity_angle(P, omega_true)
-far = np.abs(ang_true - 90) > 10
-print(f"compatibility residual (eq. 6.20) below 1e-12 m^2/s: {np.nanmax(np.abs(rigid.compatibility_residual(P, V))) < 1e-12}")
-print(f"versions vs truth where |angle - 90| > 10 deg ({far.sum()} frames): exact to 1e-6 rad/s: "
-      f"{np.nanmax(np.abs(exact[:, far] - omega_true[far])) < 1e-6}")
-print(f"least squares vs truth, all frames: exact to 1e-6 rad/s: "
-      f"{np.nanmax(np.abs(rigid.angular_velocity_lstsq(P, V) - omega_true)) < 1e-6}")
-print(f"angle(omega, n) of the true motion: {np.nanmin(ang_true):.0f} to {np.nanmax(ang_true):.0f} deg; "
-      f"within 15 deg of 90 in {np.mean(np.abs(ang_true - 90) < 15) * 100:.0f} % of the frames")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    P, V = tt["marker_pos"], tt["marker_vel"]
+    with np.errstate(all="ignore"):
+        exact = rigid.angular_velocity_versions(P, V)
+    ang_true = rigid.singularity_angle(P, omega_true)
+    far = np.abs(ang_true - 90) > 10
+    print(f"compatibility residual (eq. 6.20) below 1e-12 m^2/s: {np.nanmax(np.abs(rigid.compatibility_residual(P, V))) < 1e-12}")
+    print(f"versions vs truth where |angle - 90| > 10 deg ({far.sum()} frames): exact to 1e-6 rad/s: "
+          f"{np.nanmax(np.abs(exact[:, far] - omega_true[far])) < 1e-6}")
+    print(f"least squares vs truth, all frames: exact to 1e-6 rad/s: "
+          f"{np.nanmax(np.abs(rigid.angular_velocity_lstsq(P, V) - omega_true)) < 1e-6}")
+    print(f"angle(omega, n) of the true motion: {np.nanmin(ang_true):.0f} to {np.nanmax(ang_true):.0f} deg; "
+          f"within 15 deg of 90 in {np.mean(np.abs(ang_true - 90) < 15) * 100:.0f} % of the frames")
 
 # %% [markdown]
 # ## The six versions on measured data (Figures 8.14-8.16)
@@ -134,11 +141,16 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
     rb2 = pipeline.run_steps(an.session, chosen, an, ["rigid_body"]).rigid_body.body
 omega_avg = rigid.average_versions(rb2.omega_versions, use_w)
-rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - tr) ** 2)))
-per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, tr))
-print(f"rms of the true omega: {np.sqrt(np.nanmean(omega_true ** 2)):.3f} rad/s, x/y/z "
-      + "  ".join(f"{v:6.3f}" for v in np.sqrt(np.nanmean(omega_true ** 2, axis=0))) + f"; method used: {rb2.method}")
-print("omega RMSE (rad/s, all components; smoothed versions):")
+# the error against the truth; on a session without truth, the estimate's own rms
+rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - (0 if tr is None else tr)) ** 2)))
+per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, np.zeros_like(e) if tr is None else tr))
+if truth is None:
+    print(f"true omega: {NO_TRUTH}; method used: {rb2.method}")
+    print("omega rms (rad/s, all components; smoothed versions; no truth to subtract):")
+else:
+    print(f"rms of the true omega: {np.sqrt(np.nanmean(omega_true ** 2)):.3f} rad/s, x/y/z "
+          + "  ".join(f"{v:6.3f}" for v in np.sqrt(np.nanmean(omega_true ** 2, axis=0))) + f"; method used: {rb2.method}")
+    print("omega RMSE (rad/s, all components; smoothed versions):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
     print(f"  {lab}: {rmse(rb2.omega_versions[i], omega_true):8.3f}" + ("" if use_w[i] else "  (not used)"))
 print(f"  average of chosen versions:        {rmse(omega_avg, omega_true):8.3f}   x/y/z {per_axis(omega_avg, omega_true)}")
@@ -178,8 +190,11 @@ plt.show()
 
 # %%
 alpha_avg = rigid.average_versions(rb2.alpha_versions, use_a)
-print(f"rms of the true alpha: {np.sqrt(np.nanmean(alpha_true ** 2)):.2f} rad/s²")
-print("alpha RMSE (rad/s², all components):")
+if truth is None:
+    print(f"true alpha: {NO_TRUTH}; alpha rms (rad/s², all components; no truth to subtract):")
+else:
+    print(f"rms of the true alpha: {np.sqrt(np.nanmean(alpha_true ** 2)):.2f} rad/s²")
+    print("alpha RMSE (rad/s², all components):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
     print(f"  {lab.replace('omega', 'alfa')}: {rmse(rb2.alpha_versions[i], alpha_true):9.2f}" + ("" if use_a[i] else "  (not used)"))
 print(f"  average of chosen versions:        {rmse(alpha_avg, alpha_true):9.2f}")
@@ -202,6 +217,50 @@ plt.show()
 # roll rate (both printed above): the error is the larger, roll is not measured by this marker layout. None
 # of this is needed for the saddle's vertical acceleration if the saddle's own path is fitted (notebook 11).
 #
+
+# %% [markdown]
+# ## The saddle's roll, pitch and yaw
+#
+# $\boldsymbol\omega$ and $\boldsymbol\alpha$ are rates; a rider feels the saddle's attitude too. The
+# saddle's body axes are those of the static shot (x along the back's markers, y down, z across),
+# carried by the registered pose of every frame; written as rotations about the motion frame's axes,
+# $\mathbf{R} = \mathbf{R}_y(\text{yaw})\,\mathbf{R}_z(\text{pitch})\,\mathbf{R}_x(\text{roll})$: roll about the
+# longitudinal axis (x), pitch about the lateral one (z), yaw about the vertical (y). The pipeline
+# writes them with every result (`saddle_angles_deg` of the rigid-body step; the `roll_deg`,
+# `pitch_deg` and `yaw_deg` columns of `angular.csv`). Roll is the worst observed under a thin marker triangle (the
+# markers lie almost along the roll axis).
+
+# %%
+ang = an.rigid_body.saddle_angles_deg                   # (n, 3): roll, pitch, yaw in degrees
+fig, axes = plt.subplots(1, 3, figsize=(12, 3), sharex=True)
+for ax, i, name in zip(axes, range(3), ("roll (about x)", "pitch (about z)", "yaw (about y)")):
+    ax.plot(t, ang[:, i], "k-")
+    ax.set_title(name, fontsize=9)
+    ax.set_xlabel("time (s)")
+axes[0].set_ylabel("angle (deg)")
+fig.tight_layout()
+plt.show()
+for i, name in enumerate(("roll", "pitch", "yaw")):
+    a_i = ang[:, i]
+    print(f"{name:5s}: mean {np.nanmean(a_i):+6.1f} deg, peak to peak {np.nanmax(a_i) - np.nanmin(a_i):5.1f} deg")
+
+# %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. Uncheck `omega1_ver2` and `omega1_ver3` as the thesis' user did. Does the average improve? Which

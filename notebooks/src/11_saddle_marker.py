@@ -42,8 +42,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from horsemocap import accuracy, data, frames, pipeline, plots, rigid, virtuallab, widgets
-from horsemocap.workspace import results_for
+from horsemocap import accuracy, data, frames, pipeline, plots, rigid, widgets
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
 # ## The data: the pipeline's own
@@ -64,10 +64,14 @@ print(f"{len(t)} frames; static shot {static.shape}: markers 1-3 are static poin
 print(f"the pipeline's choices: smoothing '{prm.smooth.method}', omega/alfa by '{prm.rigid_body.fits.angular_method}', "
       f"saddle v/a by '{prm.rigid_body.fits.saddle_method}'")
 
-truth = virtuallab.load_truth(ws.session_dir)
+truth = session_truth(ws.session_dir)                   # None for a recorded session (no truth/ folder)
 a, b = an.triangulate.segment
-tt = accuracy.analysed_truth(an, truth)                  # the truth at the analysed frames, pipeline's frame
-S_true = {"pos": tt["saddle_pos"], "vel": tt["saddle_vel"], "acc": tt["saddle_acc"]}
+S_true = dict.fromkeys(("pos", "vel", "acc"))           # the truth's saddle, where there is one
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the errors below are left out, the rest goes on")
+else:
+    tt = accuracy.analysed_truth(an, truth)              # the truth at the analysed frames, pipeline's frame
+    S_true = {"pos": tt["saddle_pos"], "vel": tt["saddle_vel"], "acc": tt["saddle_acc"]}
 
 # %% [markdown]
 # ## The saddle marker in the body frame (static shot)
@@ -110,16 +114,21 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
     run = pipeline.run_steps(an.session, chosen, an, ["rigid_body"])
 res = run.rigid_body.body
-st = accuracy.stage_errors(run, truth)
-print("saddle position (eq. 6.48) RMSE x/y/z (mm): "
-      + "  ".join(f"{1000 * e:.1f}" for e in frames.rmse_per_axis(res.saddle.position, S_true["pos"])))
-print(f"saddle path passed on ({res.saddle_method}) RMSE x/y/z (mm): "
-      + "  ".join(f"{1000 * e:.1f}" for e in st["saddle_position"]))
+if truth is None:
+    print(f"{NO_TRUTH}; the saddle passed on ({res.saddle_method}): vertical acceleration rms "
+          f"{np.sqrt(np.nanmean(run.rigid_body.saddle_acceleration[:, 1] ** 2)):.2f} m/s²")
+else:
+    st = accuracy.stage_errors(run, truth)
+    print("saddle position (eq. 6.48) RMSE x/y/z (mm): "
+          + "  ".join(f"{1000 * e:.1f}" for e in frames.rmse_per_axis(res.saddle.position, S_true["pos"])))
+    print(f"saddle path passed on ({res.saddle_method}) RMSE x/y/z (mm): "
+          + "  ".join(f"{1000 * e:.1f}" for e in st["saddle_position"]))
 print("per-base position versions agree (to 1e-9 m):",
       bool(np.abs(res.saddle.position_versions - res.saddle.position).max() < 1e-9))
 print(f"fit of the saddle path: orders {res.saddle_fit.orders.tolist()}")
-print("saddle acceleration RMSE x/y/z (m/s²): " + "  ".join(f"{e:.2f}" for e in st["saddle_acceleration"])
-      + f"; vertical: {st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of its rms")
+if truth is not None:
+    print("saddle acceleration RMSE x/y/z (m/s²): " + "  ".join(f"{e:.2f}" for e in st["saddle_acceleration"])
+          + f"; vertical: {st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of its rms")
 
 # %% [markdown]
 # Figure 8.22: the saddle marker (a) alone and (b) with the visible markers (y points down).
@@ -151,28 +160,31 @@ plt.show()
 # measured by `accuracy.stage_errors`:
 
 # %%
-variants = [("eq. 6.55 mean", prm.rigid_body.fits.angular_method, "thesis"),
-            ("eq. 6.55 mean", "thesis", "thesis"),
-            ("eq. 6.55 mean", "lstsq", "thesis"),
-            ("fit of eq. 6.48 path", prm.rigid_body.fits.angular_method, "direct"),
-            ("fit of pose path", prm.rigid_body.fits.angular_method, "pose")]
-ay = S_true["acc"][:, 1]
-print(f"rms of the true vertical acceleration: {np.sqrt(np.nanmean(ay ** 2)):.2f} m/s²")
-print("saddle v/a from          omega/alfa  position RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
-fits_default = prm.rigid_body.kinematics == "fits"
-for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
-    change = dict(kinematics="fits", angular_method=am, saddle_method=sm) if am != "-" else \
-        dict(kinematics="pose_spline")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        r = pipeline.run_steps(an.session, accuracy.with_params(an, **change), an, ["rigid_body"])
-    e = accuracy.stage_errors(r, truth)
-    pct = e["saddle_acc_y_rmse_pct_of_rms"]
-    default = (am == "-" and not fits_default) or \
-        (fits_default and (am, sm) == (prm.rigid_body.fits.angular_method, prm.rigid_body.fits.saddle_method))
-    print(f"{label:24s} {am:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
-          + f"   {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
-          + ("   <- pipeline default" if default else ""))
+if truth is None:
+    print(NO_TRUTH)
+else:
+    variants = [("eq. 6.55 mean", prm.rigid_body.fits.angular_method, "thesis"),
+                ("eq. 6.55 mean", "thesis", "thesis"),
+                ("eq. 6.55 mean", "lstsq", "thesis"),
+                ("fit of eq. 6.48 path", prm.rigid_body.fits.angular_method, "direct"),
+                ("fit of pose path", prm.rigid_body.fits.angular_method, "pose")]
+    ay = S_true["acc"][:, 1]
+    print(f"rms of the true vertical acceleration: {np.sqrt(np.nanmean(ay ** 2)):.2f} m/s²")
+    print("saddle v/a from          omega/alfa  position RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
+    fits_default = prm.rigid_body.kinematics == "fits"
+    for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
+        change = dict(kinematics="fits", angular_method=am, saddle_method=sm) if am != "-" else \
+            dict(kinematics="pose_spline")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            r = pipeline.run_steps(an.session, accuracy.with_params(an, **change), an, ["rigid_body"])
+        e = accuracy.stage_errors(r, truth)
+        pct = e["saddle_acc_y_rmse_pct_of_rms"]
+        default = (am == "-" and not fits_default) or \
+            (fits_default and (am, sm) == (prm.rigid_body.fits.angular_method, prm.rigid_body.fits.saddle_method))
+        print(f"{label:24s} {am:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
+              + f"   {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
+              + ("   <- pipeline default" if default else ""))
 
 # %% [markdown]
 # The first five rows are the thesis' chain of fits (`kinematics="fits"`) with its choices of
@@ -203,17 +215,20 @@ for label, am, sm in variants + [("smoothed pose trajectory", "-", "-")]:
 # on:
 
 # %%
-print("smoothing   saddle path RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
-for sm in ("none", "loess", "rloess"):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        r = pipeline.run_steps(an.session, accuracy.with_params(an, smoothing_method=sm, kinematics="fits"),
-                               an, ["smooth", "motion_frame", "rigid_body"])
-    e = accuracy.stage_errors(r, truth)
-    pct = e["saddle_acc_y_rmse_pct_of_rms"]
-    print(f"{sm:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
-          + f"          {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
-          + ("   <- pipeline default" if sm == prm.smooth.method else ""))
+if truth is None:
+    print(NO_TRUTH)
+else:
+    print("smoothing   saddle path RMSE x/y/z (mm)   vertical acc RMSE        target <= 5 %")
+    for sm in ("none", "loess", "rloess"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            r = pipeline.run_steps(an.session, accuracy.with_params(an, smoothing_method=sm, kinematics="fits"),
+                                   an, ["smooth", "motion_frame", "rigid_body"])
+        e = accuracy.stage_errors(r, truth)
+        pct = e["saddle_acc_y_rmse_pct_of_rms"]
+        print(f"{sm:10s}  " + " ".join(f"{1000 * v:6.1f}" for v in e["saddle_position"])
+              + f"          {e['saddle_acceleration'][1]:8.3f} m/s² {pct:8.1f} %   {'met' if pct <= 5 else 'MISSED'}"
+              + ("   <- pipeline default" if sm == prm.smooth.method else ""))
 
 # %% [markdown]
 # On this one session no smoothing happens to be the best, and the thesis' `rloess` is the worst: its robust

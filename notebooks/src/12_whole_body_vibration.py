@@ -68,6 +68,23 @@ for name, p in vibration.WEIGHTINGS.items():
           f"f6={p.f6:g} Q6={p.Q6:g} K={p.K:g}  ({p.source})")
 
 # %% [markdown]
+# Thesis Table 7.1, the weightings of the standards and what each is for (this notebook uses $W_b$ and
+# $W_k$ for the vertical axis, as the thesis did, and $W_d$ for the two horizontal axes of the EU
+# Directive, section 4):
+#
+# | weighting | direction | application area | standard |
+# |---|---|---|---|
+# | $W_b$ | vertical | whole body | BS 6841 |
+# | $W_c$ | fore-aft | whole body | ISO 2631-1, BS 6841 |
+# | $W_d$ | lateral, fore-aft | whole body | ISO 2631-1, BS 6841 |
+# | $W_e$ | roll, pitch, yaw | whole body (rotational) | ISO 2631-1, BS 6841 |
+# | $W_f$ | vertical | motion sickness | ISO 2631-1, BS 6841 |
+# | $W_g$ | vertical | activity interference | BS 6841 |
+# | $W_h$ | lateral, fore-aft, vertical | hand-arm | ISO 5349-1 |
+# | $W_j$ | vertical | head | ISO 2631-1 |
+# | $W_k$ | vertical | whole body | ISO 2631-1 |
+# | $W_m$ | all | building | ISO 2631-2 |
+#
 # The thesis could not find closed forms and derived its own from Rimell and Mansfield (2007); it
 # does not print them. We start again from the definitions and check them against the factors
 # ISO 2631-1:1997 tabulates (Table 3) at the one-third-octave frequencies.
@@ -158,7 +175,17 @@ print(caught[0].message if caught else "no warning")
 #   power of the ratio);
 # - eq. 7.16-7.17 put the *action* value into the *limit* times.
 #
-# The table itself was computed correctly, with $\tau = 1.2$ s (two periods of 18 frames at 30 fps):
+# The thresholds are those of thesis Table 7.2, the EU Directive 2002/44/EC's exposure action value
+# (EAV: above it, the employer must act) and exposure limit value (ELV: never to be exceeded), for the
+# daily exposure $A(8)$ (an rms over 8 hours) and for the VDV:
+#
+# | | EAV | ELV |
+# |---|---|---|
+# | $A(8)$ | 0.5 m/s² | 1.15 m/s² |
+# | $VDV_\mathrm{threshold}$ | 9.1 m/s$^{1.75}$ | 21 m/s$^{1.75}$ |
+#
+# (`vibration.EU_2002_44_EC` holds them.) The table itself was computed correctly, with $\tau = 1.2$ s
+# (two periods of 18 frames at 30 fps):
 
 # %%
 T = vibration.THESIS_TABLE_8_7
@@ -174,8 +201,8 @@ for k in T:
 # All eight times agree to the printed 4 decimals. Five distances differ in the 4th decimal (by at
 # most 5e-4): the table multiplied unrounded speeds and times, we multiply the printed, rounded ones.
 # The rounding of $V_{x,avg}$ and $a_{rms}$ (±5e-5) moves e.g. $D = V\,8(1.15/a)^2$ by
-# $18.33\,(5\cdot10^{-5}/17.64 + 2\cdot5\cdot10^{-5}/3.19) = 6\cdot10^{-4}$ km. The unit tests show
-# more: one set of unrounded inputs, each within ±5e-5 of its printed value, reproduces every
+# $18.33\,(5\cdot10^{-5}/17.64 + 2\cdot5\cdot10^{-5}/3.19) = 6\cdot10^{-4}$ km. More can be
+# shown: one set of unrounded inputs, each within ±5e-5 of its printed value, reproduces every
 # printed time and distance to 4 decimals — and no such set exists for the equations as printed.
 # The printed form would give:
 
@@ -228,25 +255,44 @@ print(f"|Wb| implied by rms_Wb / (acc_y_max / CF): {wb_implied:.4f}, reached at 
 #   $W(f_k)$ at its own frequency — what the standards mean;
 # - `mode="thesis"`: one scalar $|W(f_\mathrm{dom})|$ at the dominant harmonic — what Table 8.7 shows.
 #
-# ## 4 · The default session (Horse 2, canter): the ground truth
+# ## 4 · This session's saddle: its ground truth, or its analysis
 #
-# The cells below use the **ground truth** of the default virtual session: the analytic saddle
-# acceleration of the virtual laboratory (notebook 01), sampled over one stride in the motion frame
-# (y down). The videos' analysis (notebooks 02-11, `horsemocap analyze`) estimates the same
-# quantity from the rendered frames.
+# For a session of the virtual laboratory the cells below use its **ground truth**: the analytic
+# saddle acceleration of its horse and gait (notebook 01), sampled over one stride in the motion
+# frame (y down); the videos' analysis (notebooks 02-11, `horsemocap analyze`) estimates the same
+# quantity from the rendered frames. A recorded session has no truth: there they use the saddle
+# acceleration the analysis found (notebook 11), as a harmonic series of its stride frequency.
 
 # %%
-truth_iso = herd.analytic_indicators("Horse 2", "canter", mode="iso")
 from horsemocap.virtuallab.horse import saddle_motion
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
-motion = saddle_motion("Horse 2", "canter")
-period = motion.period_s
-t1 = np.arange(512) * period / 512
-_, _, acc = motion.saddle(t1)
-acc_y = acc @ motion.motion_axes[1]
-harm = vibration.harmonics_from_periodic_samples(acc_y, period, max_harmonic=40)
-harm = vibration.Harmonics(harm.freq_hz, harm.amplitude, 0.0)
-print(f"stride {1 / period:.4f} Hz, period {period:.4f} s ({period * 30:.1f} frames at 30 fps)")
+an = results_for()                          # the chosen session's analysis, with the choices made so far
+truth = session_truth(ws.session_dir)       # None for a recorded session (no truth/ folder)
+if truth is None:
+    print(NO_TRUTH, "(a recorded session): the saddle acceleration below is the analysis' estimate")
+    rb = an.rigid_body
+    f0 = an.comfort.indicators["f0_hz"]
+    kin = (rb.t, rb.saddle_position, rb.saddle_acceleration, rb.saddle_velocity)
+    ref_iso = vibration.saddle_comfort(*kin, mode="iso", f0_hz=f0)
+    ref_thesis = vibration.saddle_comfort(*kin, mode="thesis", f0_hz=f0)
+    period = 1 / f0
+    n_h = max(1, int(min(15.0, 0.45 * an.session.fps) // f0))
+    harm = vibration.fit_harmonics(rb.t, rb.saddle_acceleration[:, 1], f0, n_h)
+    source = f"{an.session.name} (analysis)"
+else:
+    horse, gait = truth.extras["motion"]["horse"]["name"], truth.extras["motion"]["gait"]["name"]
+    ref_iso = herd.analytic_indicators(horse, gait, mode="iso")
+    ref_thesis = herd.analytic_indicators(horse, gait, mode="thesis")
+    motion = saddle_motion(horse, gait)
+    period = motion.period_s
+    t1 = np.arange(512) * period / 512
+    _, _, acc = motion.saddle(t1)
+    acc_y = acc @ motion.motion_axes[1]
+    harm = vibration.harmonics_from_periodic_samples(acc_y, period, max_harmonic=40)
+    source = f"{horse}, {gait} (ground truth)"
+harm = vibration.Harmonics(harm.freq_hz, harm.amplitude, 0.0)   # a mean acceleration is not vibration
+print(f"{source}: stride {1 / period:.4f} Hz, period {period:.4f} s ({period * 30:.1f} frames at 30 fps)")
 for k in range(5):
     print(f"harmonic {k + 1}: {harm.freq_hz[k]:.3f} Hz, |c| = {abs(harm.amplitude[k]):.3f} m/s²")
 
@@ -263,8 +309,8 @@ display(ui_mode, ui_tau)
 # %%
 mode, n_periods = ui_mode.value, ui_tau.value
 hist = vibration.weighted_histories(harm, n_periods * period, mode=mode)
-ind = vibration.comfort_indicators(harm, n_periods * period, truth_iso["vel_x_avg"] / 3.6,
-                                   truth_iso["amplitude_y"], mode=mode)
+ind = vibration.comfort_indicators(harm, n_periods * period, ref_iso["vel_x_avg"] / 3.6,
+                                   ref_iso["amplitude_y"], mode=mode)
 print(f"mode {mode}, tau = {ind['duration_s']:.3f} s")
 for k, v, u in vibration.comfort_table_rows(ind):
     print(f"{k:26s} {v:10.4f} {u}")
@@ -275,7 +321,7 @@ for k, v, u in vibration.comfort_table_rows(ind):
 # another signal), so this is our definition, as in the results' `comfort.csv`.
 
 # %%
-plots.plot_weighted_acceleration(hist, f"Horse 2, canter (ground truth), mode {mode}")
+plots.plot_weighted_acceleration(hist, f"{source}, mode {mode}")
 plt.show()
 
 # %% [markdown]
@@ -286,18 +332,17 @@ plt.show()
 # dominant harmonic therefore underestimates the weighted rms:
 
 # %%
-truth_thesis = herd.analytic_indicators("Horse 2", "canter", mode="thesis")
 for k in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk", "crest_factor_y",
           "TA_8_limit_Wb", "Distance_TA_8_limit_Wb", "TVDV_limit_Wb"):
-    a, b = truth_iso[k], truth_thesis[k]
+    a, b = ref_iso[k], ref_thesis[k]
     print(f"{k:24s} iso {a:9.4f}  thesis {b:9.4f}  thesis/iso - 1 = {100 * (b / a - 1):+6.1f}%")
 
 # %%
-plots.plot_mode_comparison(truth_iso, truth_thesis)
+plots.plot_mode_comparison(ref_iso, ref_thesis)
 plt.show()
 
 # %% [markdown]
-# ### From the analysis' fitted curves
+# ### From fitted curves sampled at the frame rate
 #
 # The pipeline calls `vibration.saddle_comfort(t, position, acceleration, velocity)` with the saddle
 # marker's kinematics sampled at the video frames (30 fps). It estimates the stride frequency, fits a
@@ -306,13 +351,16 @@ plt.show()
 # steps, not from this one:
 
 # %%
-t = np.arange(0, 3.0, 1 / 30)
-p, v, a = motion.saddle(t)
-axes = motion.motion_axes
-est = vibration.saddle_comfort(t, p @ axes.T, a @ axes.T, v @ axes.T)
-for k in ("f0_hz", "acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max", "vel_x_avg", "amplitude_y"):
-    print(f"{k:14s} from 30 fps samples {est[k]:9.4f}   truth {truth_iso[k]:9.4f}   "
-          f"|error| {100 * abs(est[k] / truth_iso[k] - 1):.3f}%")
+if truth is None:
+    print(NO_TRUTH)
+else:
+    t = np.arange(0, 3.0, 1 / 30)
+    p, v, a = motion.saddle(t)
+    axes = motion.motion_axes
+    est = vibration.saddle_comfort(t, p @ axes.T, a @ axes.T, v @ axes.T)
+    for k in ("f0_hz", "acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max", "vel_x_avg", "amplitude_y"):
+        print(f"{k:14s} from 30 fps samples {est[k]:9.4f}   truth {ref_iso[k]:9.4f}   "
+              f"|error| {100 * abs(est[k] / ref_iso[k] - 1):.3f}%")
 
 # %% [markdown]
 # ### All three axes: what the EU Directive counts
@@ -330,16 +378,17 @@ print(f"{'axis':10s}{'weighting':>10s}{'rms m/s²':>10s}{'x factor':>10s}{'count
 k_h = vibration.DIRECTIVE_HORIZONTAL_FACTOR          # the Directive's factor on the horizontal axes
 for axis, w, key, k in (("fore-aft", "Wd", "acc_x_Wd_rms", k_h), ("vertical", "Wk", "acc_y_Wk_rms_iso", 1.0),
                         ("lateral", "Wd", "acc_z_Wd_rms", k_h)):
-    print(f"{axis:10s}{w:>10s}{truth_iso[key]:10.3f}{k:10.1f}{k * truth_iso[key]:10.3f}")
-print(f"the Directive's A_w = {truth_iso['A_w_directive']:.3f} m/s²")
+    print(f"{axis:10s}{w:>10s}{ref_iso[key]:10.3f}{k:10.1f}{k * ref_iso[key]:10.3f}")
+print(f"the Directive's A_w = {ref_iso['A_w_directive']:.3f} m/s²")
 for name in ("TA_8_limit", "TVDV_limit"):
-    print(f"{name}: vertical Wb {truth_iso[name + '_Wb']:.3f} h, vertical Wk {truth_iso[name + '_Wk']:.3f} h, "
-          f"the Directive (three axes) {truth_iso[name + '_directive']:.3f} h")
-print(f"from the exact kinematics at 30 fps: A_w {est['A_w_directive']:.3f} m/s² "
-      f"({100 * (est['A_w_directive'] / truth_iso['A_w_directive'] - 1):+.2f}%)")
+    print(f"{name}: vertical Wb {ref_iso[name + '_Wb']:.3f} h, vertical Wk {ref_iso[name + '_Wk']:.3f} h, "
+          f"the Directive (three axes) {ref_iso[name + '_directive']:.3f} h")
+if truth is not None:
+    print(f"from the exact kinematics at 30 fps: A_w {est['A_w_directive']:.3f} m/s² "
+          f"({100 * (est['A_w_directive'] / ref_iso['A_w_directive'] - 1):+.2f}%)")
 
 # %% [markdown]
-# On this canter the fore-aft axis decides, and the time to the limit value by A(8) is about 30 %
+# On the bundled canter the fore-aft axis decides, and the time to the limit value by A(8) is about 30 %
 # shorter than the thesis' vertical $W_k$ time (and half its $W_b$ time): a rider reaches the
 # Directive's limit sooner than Table 8.7's reading says. The thesis' own x fit is a straight line
 # (section 5.5.2.1), so its fore-aft acceleration is zero and it could not have seen this.
@@ -354,40 +403,13 @@ print(f"from the exact kinematics at 30 fps: A_w {est['A_w_directive']:.3f} m/s�
 
 # %%
 out = Path(tempfile.mkdtemp(prefix="comfort-"))
-csv_path = vibration.write_comfort_csv(out / "comfort.csv", truth_iso)
-xlsx_path = vibration.write_comfort_spreadsheet(out / "comfort.xlsx", truth_iso)
+csv_path = vibration.write_comfort_csv(out / "comfort.csv", ref_iso)
+xlsx_path = vibration.write_comfort_spreadsheet(out / "comfort.xlsx", ref_iso)
 print(csv_path.name, "and", xlsx_path.name, "written")
 lines = csv_path.read_text().splitlines()
 print(f"{lines[0]}  + {len(lines) - 1} rows, e.g. {lines[1].split(',')[0]} ... {lines[-1].split(',')[0]}")
 back = vibration.read_comfort_csv(csv_path)
 print(f"read back acc_y_Wk_rms = {back['acc_y_Wk_rms']:.4f} m/s²")
-
-# %% [markdown]
-# ## Exercises
-#
-# 1. A rider on Horse 2 at canter: how many hours until the EU **action** value by A(8) with $W_k$?
-#    And by VDV? Which is stricter, and why does the VDV time depend on $\tau$?
-# 2. Halve every harmonic amplitude. By what factor do the A(8) times grow? The VDV times?
-# 3. An accelerometer at 100 Hz records 20 s of a 2 Hz sine of 3 m/s² amplitude. Compute the
-#    $W_k$-weighted rms with `comfort_from_samples` using `method="iir"` and `method="fft"`,
-#    and compare with $3\,|W_k(2)|/\sqrt2$.
-# 4. Using the Table 8.7 values, what speed would a horse need so that the rider covers 25 km before
-#    the A(8) limit with $W_b$?
-#
-# <details><summary>Solutions</summary>
-#
-# 1. `truth_iso["TA_8_action_Wk"]` and `truth_iso["TVDV_action_Wk"]`. The VDV time is the shorter:
-#    VDV weights peaks with the fourth power. $T_{VDV} = \tau (VDV_{thr}/VDV)^4$ with VDV measured
-#    over $\tau$; VDV$^4$ grows in proportion to $\tau$, so the ratio stays the same — only for whole
-#    periods.
-# 2. rms halves, $T_{A(8)} \propto 1/a^2$ grows 4×; $T_{VDV} \propto 1/VDV^4$ grows 16×.
-# 3. `fs = 100; t = np.arange(2000) / fs; x = 3 * np.sin(2 * np.pi * 2 * t)`, then
-#    `vibration.comfort_from_samples(x, fs, method=m)["acc_y_Wk_rms"]` for each `m`. The FFT path
-#    gives $3 \cdot 0.531/\sqrt2 = 1.127$; the IIR path is a little lower because the filter starts
-#    from rest (its transient is part of the record).
-# 4. $D = V \cdot T$: $V = 25 / 1.0393 = 24.1$ km/h.
-#
-# </details>
 
 # %% [markdown]
 # ## Comfort of the visible markers and their amplitudes (Appendix A steps 9 and 10)
@@ -400,9 +422,7 @@ print(f"read back acc_y_Wk_rms = {back['acc_y_Wk_rms']:.4f} m/s²")
 
 # %%
 from horsemocap.report import unit_text
-from horsemocap.workspace import results_for
 
-an = results_for()
 rb = an.rigid_body
 period = an.motion_frame.period_frames
 f0 = None if period is None else an.session.fps / period
@@ -426,3 +446,46 @@ plt.show()
 # differently because the back also pitches and rolls, so its vertical acceleration, and with it
 # the time to the EU limits, differ from point to point. This is why the thesis went on to the
 # saddle marker (section 6.4): the rider sits there, not on the markers.
+
+# %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the widgets of this notebook and of the earlier ones) give at the end of
+# each chain: the saddle's vertical acceleration (unweighted rms), its $W_b$- and $W_k$-weighted rms
+# (chapter 7, notebook 12) and the quality verdict of the run (the `quality.json` of a results folder:
+# *ok*, *warning* or *unreliable*, with what each check found). The chain followed is the one chosen in
+# notebook 00; both are shown because a choice belongs to one chain: the Fourier orders, the omega/alfa
+# versions and the saddle method are read only by the thesis' chain of fits, so they change only its
+# row. Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
+
+# %% [markdown]
+# ## Exercises
+#
+# 1. A rider on Horse 2 at canter: how many hours until the EU **action** value by A(8) with $W_k$?
+#    And by VDV? Which is stricter, and why does the VDV time depend on $\tau$?
+# 2. Halve every harmonic amplitude. By what factor do the A(8) times grow? The VDV times?
+# 3. An accelerometer at 100 Hz records 20 s of a 2 Hz sine of 3 m/s² amplitude. Compute the
+#    $W_k$-weighted rms with `comfort_from_samples` using `method="iir"` and `method="fft"`,
+#    and compare with $3\,|W_k(2)|/\sqrt2$.
+# 4. Using the Table 8.7 values, what speed would a horse need so that the rider covers 25 km before
+#    the A(8) limit with $W_b$?
+#
+# <details><summary>Solutions</summary>
+#
+# 1. `ref_iso["TA_8_action_Wk"]` and `ref_iso["TVDV_action_Wk"]`. The VDV time is the shorter:
+#    VDV weights peaks with the fourth power. $T_{VDV} = \tau (VDV_{thr}/VDV)^4$ with VDV measured
+#    over $\tau$; VDV$^4$ grows in proportion to $\tau$, so the ratio stays the same — only for whole
+#    periods.
+# 2. rms halves, $T_{A(8)} \propto 1/a^2$ grows 4×; $T_{VDV} \propto 1/VDV^4$ grows 16×.
+# 3. `fs = 100; t = np.arange(2000) / fs; x = 3 * np.sin(2 * np.pi * 2 * t)`, then
+#    `vibration.comfort_from_samples(x, fs, method=m)["acc_y_Wk_rms"]` for each `m`. The FFT path
+#    gives $3 \cdot 0.531/\sqrt2 = 1.127$; the IIR path is a little lower because the filter starts
+#    from rest (its transient is part of the record).
+# 4. $D = V \cdot T$: $V = 25 / 1.0393 = 24.1$ km/h.
+#
+# </details>

@@ -1,0 +1,208 @@
+"""The notebooks run on a session without ground truth (every recorded session).
+
+The bundled session is copied without its ``truth/`` folder into a temporary
+folder, made the workspace's session (``workspace.json`` in a temporary
+``$HORSEMOCAP_RESULTS``), and each notebook is executed top to bottom with
+nbclient, as JupyterLab's "Run All" would. A cell that raises fails the test,
+naming the notebook, the cell and the error. Cells that compare with the truth
+must print :data:`horsemocap.workspace.NO_TRUTH` instead, and at least one cell
+of each notebook that has such cells does (checked below).
+
+Notebook 13 renders the herd's sessions (minutes each on two cores): it is
+left out here; its truth comes from the sessions it renders, not from the
+workspace's session.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+from horsemocap.data import default_session_dir
+from horsemocap.workspace import (NO_TRUTH, WORKSPACE_FILE, current_session, downstream_text, session_truth,
+                                  set_current_session)
+
+NB_DIR = Path(__file__).resolve().parents[1] / "notebooks"
+SKIPPED = {"13_horses_and_gaits.ipynb"}   # renders sessions: minutes of CPU (see the module's docstring)
+NOTEBOOKS = sorted(p.name for p in NB_DIR.glob("[0-9][0-9]_*.ipynb") if p.name not in SKIPPED)
+# notebooks that never look at the workspace's session's truth (their comparisons use bundled sessions)
+NO_TRUTH_CELLS = {"00_start_here.ipynb", "07_gravity_check.ipynb"}
+# notebooks that print both chains' downstream numbers (workspace.downstream_text)
+DOWNSTREAM_CELLS = {p for p in NOTEBOOKS if "04" <= p[:2] <= "14" and p[:2] != "11"}
+
+
+@pytest.fixture(scope="module")
+def truthless_workspace(tmp_path_factory):
+    """A copy of the bundled session without ``truth/``, chosen as the workspace's session."""
+    root = tmp_path_factory.mktemp("any_session")
+    session = root / "recorded_session"
+    shutil.copytree(default_session_dir(), session, ignore=shutil.ignore_patterns("truth"))
+    before = os.environ.get("HORSEMOCAP_RESULTS")
+    os.environ["HORSEMOCAP_RESULTS"] = str(root / "results")   # the kernels inherit it
+    try:
+        set_current_session(session)
+        yield session
+    finally:
+        if before is None:
+            os.environ.pop("HORSEMOCAP_RESULTS", None)
+        else:
+            os.environ["HORSEMOCAP_RESULTS"] = before
+
+
+def test_the_copy_has_no_truth(truthless_workspace):
+    assert session_truth(truthless_workspace) is None
+    assert current_session() == truthless_workspace.resolve()
+    assert (Path(os.environ["HORSEMOCAP_RESULTS"]) / WORKSPACE_FILE).is_file()
+
+
+def _execute(name: str) -> dict:
+    """Run one notebook as "Run All" does; its errors and printed text (in a worker process)."""
+    nb = nbformat.read(NB_DIR / name, as_version=4)
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.outputs = []
+    t0 = time.perf_counter()
+    NotebookClient(nb, timeout=600, kernel_name="python3", allow_errors=True,
+                   resources={"metadata": {"path": str(NB_DIR)}}).execute()
+    errors = []
+    for i, cell in enumerate(nb.cells):
+        for o in cell.get("outputs", []):
+            if o.get("output_type") == "error":
+                first = cell.source.splitlines()[0] if cell.source else ""
+                errors.append(f"cell {i} ({first[:60]!r}): {o.ename}: {o.evalue[:300]}")
+    printed = "\n".join(o.get("text", "") for c in nb.cells for o in c.get("outputs", [])
+                        if o.get("output_type") == "stream")
+    return {"errors": errors, "printed": printed, "seconds": time.perf_counter() - t0}
+
+
+@pytest.fixture(scope="module")
+def executed(truthless_workspace):
+    """Every notebook (but 13) executed on the truthless session, a few at once."""
+    # the analysis of both chains first, so that the notebooks load it instead of computing it side by side
+    downstream_text(truthless_workspace)
+    workers = max(1, min(3, os.cpu_count() or 1))
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return dict(zip(NOTEBOOKS, pool.map(_execute, NOTEBOOKS)))
+
+
+@pytest.mark.parametrize("name", NOTEBOOKS)
+def test_notebook_runs_without_truth(executed, name):
+    run = executed[name]
+    assert not run["errors"], f"{name} on a session without truth/:\n" + "\n".join(run["errors"])
+    if name not in NO_TRUTH_CELLS:
+        assert NO_TRUTH in run["printed"], f"{name}: no cell says {NO_TRUTH!r}"
+    if name in DOWNSTREAM_CELLS:
+        assert "the thesis' chain" in run["printed"] and "saddle A_y rms" in run["printed"], \
+            f"{name}: the two chains' downstream numbers are not shown"
+
+
+# ---------------------------------------------------------------------------
+# every widget of notebooks 04-12 changes a number downstream, on its own chain
+# ---------------------------------------------------------------------------
+
+def _still_threshold(session_dir, kind):
+    from horsemocap.detection import still_candidates
+    from horsemocap.session import load_session
+    from horsemocap.sources import read_image
+
+    session = load_session(session_dir, open_sources=False)
+    return int(still_candidates(read_image(getattr(session, kind)["left"])).threshold)
+
+
+def _widget_changes(session_dir):
+    """(notebook, the bound parameter, a value the widget can take, the chain it belongs to)."""
+    from horsemocap.workspace import results_for
+
+    an = results_for(session_dir)
+    left = an.detect.detection["left"]["threshold"]
+    right = an.detect.detection["right"]["threshold"]
+    orders = an.rigid_body.body.motion_fit.orders if an.rigid_body.body.motion_fit is not None else None
+    return [
+        ("04 threshold slider", "detection.left.threshold", left + 12, "default"),
+        ("04 all prompts (left)", "detection.left", {"threshold": left - 12}, "default"),
+        ("04 every camera's prompts", "detection.right", {"threshold": right + 12}, "default"),
+        ("05 triangulation", "triangulation", "thesis", "default"),
+        ("06 smoothing method", "smoothing_method", "rloess", "default"),
+        ("06 smoothing span", "smoothing_span", 0.3, "default"),
+        ("06 x-motion marker", "x_marker", 2, "default"),
+        ("06 period", "period_frames", 16.0, "default"),
+        ("06 number of periods", "n_periods", 1, "default"),
+        ("07 plumb prompts", "stills.plumb", {"left": {"threshold": _still_threshold(session_dir, "plumb") + 25}},
+         "default"),
+        ("08 static-shot prompts", "stills.static",
+         {"left": {"threshold": _still_threshold(session_dir, "static") + 25}}, "default"),
+        ("09 Fourier orders", "fourier_orders", [[1, 1]] * 3 if orders is None else
+         [[int(o) % 4 + 1 for o in row[1:]] for row in orders], "thesis"),
+        ("09 x degree", "x_degree", 2, "thesis"),
+        ("10 omega versions", "omega_versions", [True, False, True, False, True, False], "thesis"),
+        ("10 alfa versions", "alpha_versions", [True, False, True, False, True, False], "thesis"),
+        ("10 angular method", "angular_method", "lstsq", "thesis"),
+        ("11 saddle method", "saddle_method", "direct", "thesis"),
+        ("12 weighting mode", "weighting_mode", "iso", "thesis"),
+    ]
+
+
+DOWNSTREAM_KEYS = ("saddle_acc_y_rms", "acc_y_Wb_rms", "acc_y_Wk_rms")
+
+
+@pytest.fixture(scope="module")
+def bundled_workspace(tmp_path_factory):
+    """The bundled session with a temporary results store (its choices start empty)."""
+    before = os.environ.get("HORSEMOCAP_RESULTS")
+    os.environ["HORSEMOCAP_RESULTS"] = str(tmp_path_factory.mktemp("widgets") / "results")
+    try:
+        yield default_session_dir().resolve()
+    finally:
+        if before is None:
+            os.environ.pop("HORSEMOCAP_RESULTS", None)
+        else:
+            os.environ["HORSEMOCAP_RESULTS"] = before
+
+
+def test_every_widget_changes_a_downstream_number(bundled_workspace):
+    from horsemocap.workspace import Workspace, clear_choices, downstream
+
+    ws = Workspace(bundled_workspace)
+    base = {c: downstream(bundled_workspace, c) for c in ("default", "thesis")}
+    for chain, row in base.items():
+        assert "error" not in row, (chain, row)
+    unchanged = []
+    for label, name, value, chain in _widget_changes(bundled_workspace):
+        ws.choose(name, value)         # what the widget's callback does (Workspace.bind)
+        try:
+            row = downstream(bundled_workspace, chain)
+        finally:
+            clear_choices(bundled_workspace)
+        assert "error" not in row, f"{label}: {row['error']}"
+        if all(abs(row[k] - base[chain][k]) <= 1e-9 * abs(base[chain][k]) for k in DOWNSTREAM_KEYS):
+            unchanged.append(f"{label} ({name}={value!r}) on the {chain} chain")
+    assert not unchanged, "no downstream number changed for:\n" + "\n".join(unchanged)
+
+
+def test_label_picker_follows_the_threshold():
+    """Notebook 04, section 3: after a threshold change the picker's options, selection and value agree."""
+    from horsemocap import detection, widgets
+    from horsemocap.session import load_session
+    from horsemocap.sources import FrameSource
+
+    frames = FrameSource(load_session(default_session_dir(), open_sources=False).motion["left"]).read()
+    p = detection.detect_markers(frames, 3).params
+    control = widgets.ui_detection(frames, p)
+    assert control.labels.value == tuple(p.labels) == control.value.labels
+    control.threshold.slider.value = p.threshold + 10
+    options = {o[1] for o in control.labels.select.options}
+    assert control.labels.value == () and control.value.labels is None and options
+    assert control.labels.threshold == p.threshold + 10
+    picked = tuple(sorted(options))[:3]
+    control.labels.select.value = picked
+    assert control.value.labels == picked and control.value.threshold == p.threshold + 10
+    assert control.value.first_frame == p.first_frame
+    control.threshold.slider.value = p.threshold
+    assert control.value.labels == tuple(p.labels)
