@@ -1305,8 +1305,44 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
             raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
         sig = pose_noise(reg, points, model)
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
+    fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
+               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations)
+    centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho,
+                                                           **fit)
+    if choice is not None and "noise_correlation" in choice and any(
+            s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE for s in cs + ps):
+        # the correlated-error criterion smoothed a component down to the penalty's null space: it took
+        # that component's whole motion for noise (short records); the white-noise choice is taken instead
+        centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order,
+                                                               None, **fit)
+        choice["smoothing_reason"] += (f"; the correlated-error GCV (AR(1) {min(float(rho), 0.99):.2f} from the "
+                                       "rigidity residual) took a component's whole motion for noise (smoothed to the "
+                                       "penalty's null space, a quadratic): noise taken as white")
+    phi = phi_fit
+    if choice is not None:
+        for s in cs + ps:
+            s.info.update(choice)
+    valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
+    return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
+                          centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
+                          registration=reg, rotvec_data=phi,
+                          moving_reference=None if ref.axis is None else ref)
+
+
+#: Effective degrees of freedom of the quintic spline's penalty null space (a quadratic): a component smoothed
+#: down to it has had all its motion taken for noise.
+NULL_SPACE_EDF = 3.0
+#: How near :data:`NULL_SPACE_EDF` counts as at it.
+NULL_SPACE_TOLERANCE = 0.05
+
+
+def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
+                    fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int):
+    """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white):
+    ``(centre, phi, centre splines, rotation splines, choice, two-marker frames)``."""
+    n = t.size
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
-                                              params, fundamental_hz, expected_fundamental_hz,
+                                              params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
                                               weighted=reg.information is not None, noise_correlation=rho)
     correlated = choice is not None and "noise_correlation" in choice
@@ -1326,14 +1362,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         spline_options["noise_correlation"] = choice["noise_correlation"]
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
-    if choice is not None:
-        for s in cs + ps:
-            s.info.update(choice)
-    valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
-    return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
-                          centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
-                          registration=reg, rotvec_data=phi,
-                          moving_reference=None if ref.axis is None else ref)
+    return centre, phi, cs, ps, choice, two
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:

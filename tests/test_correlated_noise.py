@@ -122,3 +122,25 @@ def test_cross_validation_refuses_too_few_markers():
     reg = pose.register_pose(pts, markers)
     with pytest.raises(ValueError, match="m >= 3"):
         pose.marker_cross_validation(t, reg, pts[:, :2], markers[:2], np.ones(6))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_short_periodic_record_never_keeps_a_correlated_choice_that_flattens_a_component(seed):
+    """70 frames of a trot-like oscillation with AR(1) 0.8 noise: the correlated-error GCV smooths components
+    down to a quadratic (their whole motion taken for noise); the choice falls back to the white-noise one
+    and says why."""
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(seed)
+    model = np.array([[0.0, 0, 0], [0.25, 0, 0], [0.05, 0.2, 0.03]])
+    t = np.arange(70) / 30.0
+    f = 1.4
+    R = Rotation.from_rotvec(np.column_stack([0.05 * np.sin(2 * np.pi * f * t), 0.03 * np.sin(4 * np.pi * f * t),
+                                              0 * t])).as_matrix()
+    c = np.column_stack([0.02 * np.sin(4 * np.pi * f * t), 0.03 * np.sin(4 * np.pi * f * t + 1), 4 * t])
+    clean = c[:, None] + np.einsum("kij,mj->kmi", R, model - model.mean(0)) + model.mean(0)
+    pts = clean + _ar1(rng, clean.shape, 0.8, 0.004)
+    tr = pose.fit_pose_trajectory(t, pose.register_pose(pts, model), model, points=pts)
+    edf = [s.info["edf"] for s in tr.centre_splines + tr.rotvec_splines]
+    assert tr.smoothing_choice["method"] != "gcv_ar1" or min(edf) > pose.NULL_SPACE_EDF + pose.NULL_SPACE_TOLERANCE
+    assert "took a component's whole motion for noise" in tr.smoothing_choice["reason"]
+    assert tr.smoothing_choice["method"] == "gcv" and "noise_correlation" not in tr.smoothing_choice
