@@ -387,9 +387,12 @@ class PoseParams:
         (:func:`horsemocap.splines.smoothing_spline`): ``"auto"`` (default:
         ``"gcv"`` with the stride harmonics on a periodic record, a
         fundamental found, ``"adaptive"`` on one without, and GCV with the
-        noise's AR(1) correlation when the markers' rigidity residual shows
-        correlated noise (rho >= 0.3, as real systems' filtered trajectories
-        do), :func:`horsemocap.pose.choose_smoothing`; the choice and its
+        noise's AR(1) correlation, without harmonics, when the markers'
+        rigidity residual shows correlated noise (rho, from the residual's
+        frame-to-frame differences, at least 0.3 and more than two standard
+        errors, about 4 / sqrt(frames), above zero; no events given), as real
+        systems' filtered trajectories do; otherwise the noise is taken as
+        white, :func:`horsemocap.pose.choose_smoothing`; the choice and its
         reason in the progress output and ``analysis.json``), ``"gcv"`` (quintic, one generalised
         cross-validation parameter per component), ``"adaptive"`` (a second
         GCV pass with a penalty weighted by the local roughness: better on

@@ -115,7 +115,7 @@ motion frame, ``h`` smallest height of the marker triangle.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.interpolate import make_lsq_spline
@@ -135,6 +135,7 @@ __all__ = [
     "smallest_height",
     "check_model_conditioning",
     "register_pose",
+    "marker_cross_validation",
     "refine_pose_covariance",
     "extra_marker_noise",
     "unwrap_rotvec",
@@ -1304,8 +1305,44 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
             raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
         sig = pose_noise(reg, points, model)
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
+    fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
+               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations)
+    centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho,
+                                                           **fit)
+    if choice is not None and "noise_correlation" in choice and any(
+            s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE for s in cs + ps):
+        # the correlated-error criterion smoothed a component down to the penalty's null space: it took
+        # that component's whole motion for noise (short records); the white-noise choice is taken instead
+        centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order,
+                                                               None, **fit)
+        choice["smoothing_reason"] += (f"; the correlated-error GCV (AR(1) {min(float(rho), 0.99):.2f} from the "
+                                       "rigidity residual) took a component's whole motion for noise (smoothed to the "
+                                       "penalty's null space, a quadratic): noise taken as white")
+    phi = phi_fit
+    if choice is not None:
+        for s in cs + ps:
+            s.info.update(choice)
+    valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
+    return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
+                          centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
+                          registration=reg, rotvec_data=phi,
+                          moving_reference=None if ref.axis is None else ref)
+
+
+#: Effective degrees of freedom of the quintic spline's penalty null space (a quadratic): a component smoothed
+#: down to it has had all its motion taken for noise.
+NULL_SPACE_EDF = 3.0
+#: How near :data:`NULL_SPACE_EDF` counts as at it.
+NULL_SPACE_TOLERANCE = 0.05
+
+
+def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
+                    fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int):
+    """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white):
+    ``(centre, phi, centre splines, rotation splines, choice, two-marker frames)``."""
+    n = t.size
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
-                                              params, fundamental_hz, expected_fundamental_hz,
+                                              params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
                                               weighted=reg.information is not None, noise_correlation=rho)
     correlated = choice is not None and "noise_correlation" in choice
@@ -1325,14 +1362,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         spline_options["noise_correlation"] = choice["noise_correlation"]
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
-    if choice is not None:
-        for s in cs + ps:
-            s.info.update(choice)
-    valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
-    return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
-                          centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
-                          registration=reg, rotvec_data=phi,
-                          moving_reference=None if ref.axis is None else ref)
+    return centre, phi, cs, ps, choice, two
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:
@@ -1558,6 +1588,129 @@ def significant_noise_correlation(points, registration: PoseRegistration) -> flo
     if frames < 1 or rho < NOISE_CORRELATION_SIGNIFICANCE * 2.0 / np.sqrt(frames):
         return float("nan")
     return rho
+
+
+#: The common factors (powers of ten) on the GCV smoothing parameters that :func:`marker_cross_validation` tries.
+CROSS_VALIDATION_DECADES = np.arange(-1.0, 6.01, 0.5)
+#: The part of the record at each end (a fraction of its frames) left out of the cross-validation's error:
+#: there the acceleration of any smoothing spline rests on a few frames.
+CROSS_VALIDATION_MARGIN = 0.05
+
+
+def _left_out_registration(registration: PoseRegistration, points, model, i: int):
+    """``(registration, model)`` of the cluster without marker ``i``: registered anew from three or more
+    others; with two others their partial pose (:func:`partial_pose`) completed by the full registration
+    (the rotation about their line, which moves marker ``i`` only across the cluster's plane)."""
+    keep = [j for j in range(model.shape[0]) if j != i]
+    if len(keep) >= 3:
+        return register_pose(points[:, keep], model[keep]), model[keep]
+    p = points.copy()
+    p[:, i] = np.nan
+    ok = np.isfinite(registration.rotation[:, 0, 0]) & np.all(np.isfinite(p[:, keep]), axis=(1, 2))
+    rot = np.full_like(registration.rotation, np.nan)
+    cen = np.full_like(registration.centre, np.nan)
+    if ok.any():
+        rot[ok], cen[ok] = partial_pose(p[ok], model, registration.rotation[ok], registration.centre[ok])
+    reason = np.where(ok, "", "no pose of the other markers").astype(object)
+    return replace(registration, rotation=rot, centre=cen, information=None, reason=reason), model
+
+
+def marker_cross_validation(t, registration: PoseRegistration, points, model, base_lam,
+                            decades=CROSS_VALIDATION_DECADES) -> tuple[np.ndarray, dict]:
+    """The smoothing that predicts each left-out marker's acceleration best, and the criterion.
+
+    Each marker in turn is left out, the pose is registered from the others
+    and smoothed with the six smoothing parameters ``base_lam * 10^s`` (one
+    common ``s`` per candidate), and the left-out marker's position is
+    predicted from it. The criterion is the mean squared difference between
+    the second differences (frame-to-frame acceleration) of the prediction
+    and of the measured marker, over the frames inside the record
+    (:data:`CROSS_VALIDATION_MARGIN` at each end). A marker's noise is not
+    in the pose that predicts it, so the criterion is the prediction's
+    acceleration error plus a constant (the marker's own noise, second
+    differenced), whatever the noise's correlation over frames: only the
+    markers' noises must be independent of each other. With three markers
+    the other two leave the rotation about their line unseen; it is taken
+    from the full registration, and only the left-out marker's movement in
+    the cluster's plane (which that rotation does not reach) is compared.
+
+    Parameters
+    ----------
+    t : (n,)
+    registration : PoseRegistration
+        Of all the markers (:func:`register_pose`).
+    points : (n, m, 3)
+        The measured markers, m >= 3.
+    model : (m, 3)
+    base_lam : (6,)
+        The smoothing parameters scaled (e.g. those GCV chose).
+    decades : sequence of float
+        The candidate ``s``.
+
+    Returns
+    -------
+    lam : (6,)
+        ``base_lam * 10^s`` of the best candidate.
+    info : dict
+        ``cross_validation_decades`` (the best ``s``), ``cross_validation_scores`` (per candidate,
+        m/s^2 rms), ``cross_validation_markers``.
+
+    Examples
+    --------
+    Four markers of a body turning slowly, with noise correlated over frames: the choice
+    smooths far more than the GCV parameters it scales.
+
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from scipy.spatial.transform import Rotation
+    >>> rng = np.random.default_rng(1)
+    >>> model = np.array([[0.0, 0, 0], [0.2, 0, 0], [0.0, 0.15, 0.05], [0.1, 0.1, 0.1]])
+    >>> t = np.arange(300) / 100.0
+    >>> R = Rotation.from_rotvec(np.outer(0.4 * np.sin(2 * t), [0, 0, 1])).as_matrix()
+    >>> e = lfilter([1.0], [1.0, -0.7], rng.normal(0, 3e-4, (300, 4, 3)), axis=0)
+    >>> pts = np.einsum("kij,mj->kmi", R, model) + e
+    >>> reg = register_pose(pts, model)
+    >>> lam, info = marker_cross_validation(t, reg, pts, model, np.full(6, 1e-8))
+    >>> bool(info["cross_validation_decades"] > 0)
+    True
+    """
+    t = np.asarray(t, float)
+    pts = np.asarray(points, float)
+    x = np.asarray(model, float)
+    base = np.asarray(base_lam, float)
+    m, n = x.shape[0], t.size
+    if m < 3 or pts.shape != (n, m, 3):
+        raise ValueError(f"points: marker cross-validation needs (n, m >= 3, 3) markers matching t and the model, "
+                         f"got {pts.shape} for {n} frames and {m} model markers")
+    edge = int(np.ceil(CROSS_VALIDATION_MARGIN * n))
+    inner = np.zeros(n - 2, bool)
+    inner[edge:n - 2 - edge] = True
+    normal = None
+    if m == 3:
+        nrm = np.cross(x[1] - x[0], x[2] - x[0])
+        normal = np.einsum("kij,j->ki", registration.rotation, nrm / np.linalg.norm(nrm))[1:-1]
+    params = PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal", partial_frames=False)
+    scores = np.zeros(len(decades))
+    count = np.zeros(len(decades))
+    for i in range(m):
+        reg_i, model_i = _left_out_registration(registration, pts, x, i)
+        measured = np.diff(pts[:, i], 2, axis=0)
+        for j, s in enumerate(decades):
+            tr = fit_pose_trajectory(t, reg_i, model_i, params, lam=base * 10.0 ** s, iterations=0)
+            err = np.diff(tr.point(t, x[i]).position, 2, axis=0) - measured
+            if normal is not None:
+                err = err - np.sum(err * normal, axis=1, keepdims=True) * normal
+            use = inner & np.all(np.isfinite(err), axis=1)
+            scores[j] += np.sum(err[use] ** 2)
+            count[j] += use.sum()
+    if not np.all(count > 0):
+        raise ValueError("points: no frame inside the record where a left-out marker and the others' pose are seen")
+    dt = float(np.median(np.diff(t)))
+    rms = np.sqrt(scores / count) / dt ** 2
+    best = int(np.argmin(rms))
+    return base * 10.0 ** decades[best], {"cross_validation_decades": float(decades[best]),
+                                          "cross_validation_scores": [float(v) for v in rms],
+                                          "cross_validation_markers": m}
 
 
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False,

@@ -89,3 +89,58 @@ def test_noise_correlation_is_refused_where_it_does_not_apply():
         splines.smoothing_spline(t, np.sin(t), noise_correlation=1.0)
     with pytest.raises(ValueError, match="noise_correlation"):
         splines.smoothing_spline(t, np.sin(t), method="adaptive", noise_correlation=0.5)
+
+
+def _grid_errors(t, reg, markers, hidden, acc, base):
+    """The hidden point's acceleration error at every candidate of the cross-validation's grid."""
+    params = PoseParams(smoothing="gcv", harmonics="none")
+    return np.array([_relative_error(pose.fit_pose_trajectory(t, reg, markers, params, lam=base * 10.0 ** s)
+                                     .point(t, hidden).acceleration, acc)
+                     for s in pose.CROSS_VALIDATION_DECADES])
+
+
+@pytest.mark.parametrize("seed, n_markers", [(0, 4), (1, 4), (2, 3)])
+def test_leaving_a_marker_out_chooses_near_the_best_smoothing_under_correlated_noise(seed, n_markers):
+    """Noise independent between markers but AR(1) 0.8 over frames: the left-out markers choose a smoothing
+    whose hidden-point acceleration error is near the best of the grid (the truth is known here), far
+    below plain GCV's."""
+    t, pts, markers, hidden, acc = _cluster_case(seed, 0.8)
+    pts, markers = pts[:, :n_markers], markers[:n_markers]
+    reg = pose.register_pose(pts, markers)
+    gcv = pose.fit_pose_trajectory(t, reg, markers, PoseParams(smoothing="gcv", harmonics="none"), points=pts)
+    base = np.array([s.info["lam"] for s in gcv.centre_splines + gcv.rotvec_splines])
+    lam, info = pose.marker_cross_validation(t, reg, pts, markers, base)
+    errors = _grid_errors(t, reg, markers, hidden, acc, base)
+    chosen = errors[list(pose.CROSS_VALIDATION_DECADES).index(info["cross_validation_decades"])]
+    assert info["cross_validation_markers"] == n_markers
+    assert chosen < 1.5 * errors.min() + 0.02, f"chosen {chosen:.3f}, best {errors.min():.3f}"
+    assert chosen < 0.5 * errors[list(pose.CROSS_VALIDATION_DECADES).index(0.0)]
+
+
+def test_cross_validation_refuses_too_few_markers():
+    t, pts, markers, _, _ = _cluster_case(0, 0.0)
+    reg = pose.register_pose(pts, markers)
+    with pytest.raises(ValueError, match="m >= 3"):
+        pose.marker_cross_validation(t, reg, pts[:, :2], markers[:2], np.ones(6))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_short_periodic_record_never_keeps_a_correlated_choice_that_flattens_a_component(seed):
+    """70 frames of a trot-like oscillation with AR(1) 0.8 noise: the correlated-error GCV smooths components
+    down to a quadratic (their whole motion taken for noise); the choice falls back to the white-noise one
+    and says why."""
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(seed)
+    model = np.array([[0.0, 0, 0], [0.25, 0, 0], [0.05, 0.2, 0.03]])
+    t = np.arange(70) / 30.0
+    f = 1.4
+    R = Rotation.from_rotvec(np.column_stack([0.05 * np.sin(2 * np.pi * f * t), 0.03 * np.sin(4 * np.pi * f * t),
+                                              0 * t])).as_matrix()
+    c = np.column_stack([0.02 * np.sin(4 * np.pi * f * t), 0.03 * np.sin(4 * np.pi * f * t + 1), 4 * t])
+    clean = c[:, None] + np.einsum("kij,mj->kmi", R, model - model.mean(0)) + model.mean(0)
+    pts = clean + _ar1(rng, clean.shape, 0.8, 0.004)
+    tr = pose.fit_pose_trajectory(t, pose.register_pose(pts, model), model, points=pts)
+    edf = [s.info["edf"] for s in tr.centre_splines + tr.rotvec_splines]
+    assert tr.smoothing_choice["method"] != "gcv_ar1" or min(edf) > pose.NULL_SPACE_EDF + pose.NULL_SPACE_TOLERANCE
+    assert "took a component's whole motion for noise" in tr.smoothing_choice["reason"]
+    assert tr.smoothing_choice["method"] == "gcv" and "noise_correlation" not in tr.smoothing_choice

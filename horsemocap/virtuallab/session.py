@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import shutil
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -44,6 +44,7 @@ from .horse import saddle_motion, SaddleMotion
 from .render import (add_glints, Arena, blend, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish,
                      horse_parts, perspective_centroid_bias, polygon_coverage, project_parts, render_arena, rider_parts,
                      sphere_silhouette)
+from .noise import MarkerNoise
 from .rig import FPS, thesis_rig
 from .timing import (CameraTiming, field_rows, field_start_times, flash_fraction, frame_start_times)
 from .truth import save_truth, Truth
@@ -87,6 +88,8 @@ class Scene:
     #: ``draw(img, scene, cam, t, exposure_s)``, ``hides(scene, cam, t, px) -> (n, 4) bool``
     #: and ``truth(scene, offsets, n_frames, fps) -> dict`` (see :mod:`.hard`).
     extras: tuple = ()
+    #: Correlated marker-centroid noise with per-marker biases (:class:`.noise.MarkerNoise`); None: the images' own.
+    marker_noise: MarkerNoise | None = None
 
     def ground_to_world(self, p_g):
         return self.motion.ground_to_world_points(p_g)
@@ -134,11 +137,15 @@ def draw_horse_frame(img, scene: Scene, cam: Camera, pose, t: float, *, rider: b
         if exposure_s > 0 and not standing:
             ts = t + (np.arange(n_sub) + 0.5) / n_sub * exposure_s - exposure_s / 2
             centres, normals = scene.marker_geometry(m.pose(ts))
+            if scene.marker_noise is not None:
+                centres = scene.marker_noise.displace(centres, cam, t, scene.seed)
             grads = marker_gradients(scene) if uneven else [None] * centres.shape[1]
             for j in range(centres.shape[1]):
                 draw_disc_blurred(img, cam, centres[:, j], normals[:, j], MARKER_DIAMETER / 2, gradient=grads[j])
         else:
             centres, normals = scene.marker_geometry(pose)
+            if scene.marker_noise is not None:
+                centres = scene.marker_noise.displace(centres, cam, t, scene.seed)
             for j in range(centres.shape[1]):
                 draw_disc(img, cam, centres[0, j], normals[0, j], MARKER_DIAMETER / 2)
     if rider:
@@ -442,6 +449,8 @@ def draw_horse_exposure(img, scene: Scene, cam: Camera, body_time: float, marker
     grads = marker_gradients(scene) if uneven else [None] * len(marker_times)
     for j, tj in enumerate(marker_times):
         centres, normals = scene.marker_geometry(m.pose(tj + sub))
+        if scene.marker_noise is not None:
+            centres = scene.marker_noise.displace(centres, cam, body_time, scene.seed)
         draw_disc_blurred(img, cam, centres[:, j], normals[:, j], MARKER_DIAMETER / 2, gradient=grads[j])
     _draw_averaged(img, [_rider_and_buckle(scene, cam, p, s) for s, p in zip(times, poses)], cam.size)
 
@@ -686,7 +695,7 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
                    calibration_views: int | None = 45, name: str | None = None, left_offset: int = 8,
                    exposure_s: float = EXPOSURE_S, verbose: bool = False, scene: Scene | None = None,
                    fps: float = FPS, sync_deltas_s=None, metadata: dict | None = None,
-                   timing: dict | None = None) -> Path:
+                   timing: dict | None = None, marker_noise: MarkerNoise | None = None) -> Path:
     """Render a complete session folder and its ground truth.
 
     Parameters
@@ -730,6 +739,10 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         camera's instants (:func:`build_truth`). ``session.json`` records the
         timings in ``metadata.camera_timing``. ``None``: the cameras are
         genlocked (every frame at ``(k - offset) / fps``).
+    marker_noise : MarkerNoise, optional
+        Marker-centroid noise correlated over frames, with per-marker biases
+        (:class:`horsemocap.virtuallab.noise.MarkerNoise`, its frame rate set to
+        ``fps``), recorded in the truth's extras. None: the images' own noise only.
 
     Returns
     -------
@@ -741,6 +754,8 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     out.mkdir(parents=True, exist_ok=True)
     _clear_generated(out)
     scene, bgs = _scene_and_backgrounds(horse, gait, seed, scene)
+    if marker_noise is not None:
+        scene = replace(scene, marker_noise=replace(marker_noise, frame_rate_hz=float(fps)))
     rig, motion = scene.rig, scene.motion
     offsets, n_after = plan_timeline(scene, fps, left_offset=left_offset, sync_deltas_s=sync_deltas_s)
     if n_motion_frames is not None:
@@ -787,6 +802,8 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         truth.extras.update(board_info.get("truth_extras", {}))
     truth.extras["exposure_s"] = float(exposure_s if timing is None else timing[rig.names[0]].exposure)
     truth.extras["noise"] = bool(noise)
+    if scene.marker_noise is not None:
+        truth.extras["marker_noise"] = scene.marker_noise.to_dict()
     truth.extras["compress"] = bool(compress)
     save_truth(truth, out)
     meta = {"horse": horse, "gait": gait, "direction": "CCW", "rider": "A", "seed": int(seed),
