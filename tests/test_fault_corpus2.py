@@ -737,3 +737,46 @@ def test_correct_notebooks_folder_reusing_every_step_holds_no_later_file_of_othe
     assert "comfort.csv" not in files and "quality.json" not in files and "report.html" not in files
     assert "trajectories.csv" in files and "markers_2d.csv" in files   # steps whose key did not change
     assert not (folder / "steps" / "comfort.json").exists()
+
+
+# ---------------------------------------------------------------------------
+# exchanged inputs: the identification's failure names the offsets and the videos
+# ---------------------------------------------------------------------------
+
+BUNDLED_FLASH = {"left": 8, "middle": 61, "right": 134}       # the flash's frames in the bundled videos
+
+EXCHANGED = {
+    "offsets-left-middle": ({"sync": {"offsets": {"left": 61, "middle": 8, "right": 134}}},
+                            r"disagree with the flash, found at frames \{'left': 8, 'middle': 61, 'right': 134\}; "
+                            r"the offsets of cameras 'left' and 'middle' look exchanged"),
+    "videos-left-middle-offsets-given": ({"motion": {"left": "motion/middle.avi", "middle": "motion/left.avi",
+                                                     "right": "motion/right.avi"},
+                                          "sync": {"offsets": BUNDLED_FLASH}},
+                                         r"the offsets of cameras 'left' and 'middle' look exchanged.*"
+                                         r"'motion' \(left: middle.avi, middle: left.avi, right: right.avi\)"),
+    "videos-left-right-flash": ({"motion": {"left": "motion/right.avi", "middle": "motion/middle.avi",
+                                            "right": "motion/left.avi"}},
+                                r"'motion' \(left: right.avi, middle: middle.avi, right: left.avi\).*"
+                                r"videos or offsets exchanged"),
+}
+
+
+@pytest.mark.parametrize("change,message", EXCHANGED.values(), ids=[f"clear-exchanged-{k}" for k in EXCHANGED])
+def test_exchanged_offsets_or_videos_are_named(tmp_path, session_json, change, message):
+    from horsemocap.pipeline import analyze
+    from horsemocap.steps import AnalysisError
+
+    session = light_session(tmp_path / "s", {**session_json, **change})
+    with pytest.raises(AnalysisError, match=message) as err:
+        analyze(session, None, until="detect", progress=lambda *a: None)
+    assert "detect" in str(err.value)
+
+
+def test_clear_exchanged_offsets_past_a_video_end_name_the_offset(tmp_path, session_json):
+    from horsemocap.pipeline import analyze
+
+    session = light_session(tmp_path / "s", {**session_json, "sync": {"offsets": {"left": 8, "middle": 134,
+                                                                                  "right": 61}}})
+    with pytest.raises(SessionError, match=r"camera 'middle' has 129 frames, but its sync offset is frame 134.*"
+                                           r"'sync.offsets' in .*session.json"):
+        analyze(session, None, until="detect", progress=lambda *a: None)
