@@ -111,19 +111,24 @@ def main() -> None:
             written = time.perf_counter() - t0
             out = folder / f"kin{n}"
             t0 = time.perf_counter()
+            cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             proc = subprocess.run([sys.executable, "-c", "import resource, sys; from horsemocap.cli import main; "
                                    "rc = main(sys.argv[1:]); print('peak_rss_kb', resource.getrusage("
                                    "resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr); sys.exit(rc)",
                                    "kinematics", str(traj), "--static", str(static), "--out", str(out)],
                                   capture_output=True, text=True)
             took = time.perf_counter() - t0
+            cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
             peak = [ln for ln in proc.stderr.splitlines() if ln.startswith("peak_rss_kb")]
             err = hidden_error(out, n) if proc.returncode in (0, 3) else float("nan")
-            print(f"{n} frames: exit {proc.returncode}, {took:.1f} s, peak RSS "
+            print(f"{n} frames: exit {proc.returncode}, {took:.1f} s wall, {cpu:.1f} s CPU, peak RSS "
                   f"{int(peak[0].split()[1]) / 1024 if peak else float('nan'):.0f} MB, hidden-point acceleration "
                   f"RMS error {err:.3f} m/s^2 (record written in {written:.1f} s)", flush=True)
             if proc.returncode not in (0, 3):
                 print(proc.stderr[-2000:])
+            else:
+                print("\n".join(ln for ln in proc.stderr.splitlines() if "windows" in ln and "[#" not in ln)[-600:])
 
 
 if __name__ == "__main__":
