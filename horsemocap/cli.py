@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -400,51 +401,97 @@ def cmd_kinematics(args) -> int:
     ``--out DIR`` follows analyze's rule (:mod:`horsemocap.runfolder`): DIR
     new, empty or an earlier ``kinematics`` run's output (it holds
     ``kinematics-run.json``), checked before the computation and replaced
-    whole when the files are written.
+    whole when the files are written. A record longer than
+    :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` is smoothed in windows
+    (:mod:`horsemocap.streaming`) and its tables written window by window.
     """
-    from .io3d import (TrajectoryFileError, check_trajectory_input, kinematics_checks, kinematics_from_trajectories,
-                       kinematics_verdict, read_trajectories)
+    from .io3d import TrajectoryFileError, check_trajectory_input, kinematics_verdict, read_trajectories
     from .pose import CollinearMarkersError, conditioning_warnings
     from .runfolder import RunFolder
-    from .store import atomic_write_json, atomic_write_text
+    from .store import atomic_write_json
+    from .threads import blas_single_threaded
 
     _no_nul(("TRAJECTORIES", args.trajectories), ("--static", args.static))
     folder = RunFolder(args.out, "kinematics")        # the target checked here, before the computation
     target = folder.out
     _check_inputs_outside(target, args)
-    try:
-        traj = read_trajectories(args.trajectories)
-        static = read_trajectories(args.static)
-        check_trajectory_input(traj, static)
-        events = parse_seconds(args.events, "--events") if args.events else None
-        res = kinematics_from_trajectories(traj, static, smoothing=args.smoothing, events=events)
-    except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
-        print(f"horsemocap: error: {exc}", file=sys.stderr)
-        return 2
-    checks = kinematics_checks(traj, res)
-    verdict = kinematics_verdict(checks)
-    tables = _kinematics_tables(traj, res)
-    tr, reg = res["trajectory"], res["registration"]
-    source = _kinematics_input(traj)
-    with folder as tmp:
-        for name, text in tables.items():
-            atomic_write_text(tmp / name, text)
-        record = _kinematics_record(args, events, res, list(tables), source)
-        record["quality"] = {"verdict": verdict, "checks": checks}
-        atomic_write_json(tmp / "kinematics-run.json", record)
-        folder.commit()
+    # the smoothing's matrices are small: more BLAS threads only wait for each other
+    with blas_single_threaded():
+        try:
+            traj = read_trajectories(args.trajectories)
+            static = read_trajectories(args.static)
+            check_trajectory_input(traj, static)
+            events = parse_seconds(args.events, "--events") if args.events else None
+            res = _kinematics_result(traj, static, args.smoothing, events)
+        except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
+            print(f"horsemocap: error: {exc}", file=sys.stderr)
+            return 2
+        reg = res["registration"]
+        source = _kinematics_input(traj)
+        with folder as tmp:
+            norms = _write_kinematics_tables(tmp, traj, res)
+            checks = _kinematics_checks(traj, res, *norms)
+            verdict = kinematics_verdict(checks)
+            record = _kinematics_record(args, events, res, list(KINEMATICS_TABLES), source)
+            record["quality"] = {"verdict": verdict, "checks": checks}
+            atomic_write_json(tmp / "kinematics-run.json", record)
+            folder.commit()
     for msg in _kinematics_notes(traj, static, res, source):
         print(f"[horsemocap] kinematics: {msg}", file=sys.stderr)
     for msg in conditioning_warnings(reg):
         print(f"[horsemocap] kinematics: WARNING: {msg}", file=sys.stderr)
     print(f"[horsemocap] kinematics: {len(res['markers'])} markers {res['markers']}, hidden points "
           f"{res['hidden']}; marker noise from the registration {1000 * reg.noise_m:.3f} mm", file=sys.stderr)
-    ran = tr.smoothing_choice
+    ran = res["smoothing_choice"]
     if ran:
         print(f"[horsemocap] kinematics: {ran['method']} smoothing ({args.smoothing}: {ran['reason']})",
               file=sys.stderr)
+    if res.get("windows"):
+        w = res["windows"]
+        print(f"[horsemocap] kinematics: {traj.frame.size} frames smoothed in {w['count']} windows of "
+              f"{w['window_frames']} frames (margin {w['margin_frames']}; smoothing settled on frames "
+              f"{w['settled_on'][0]}..{w['settled_on'][1]})", file=sys.stderr)
     print(f"results: {target}")
     return _kinematics_verdict_lines(verdict, checks)
+
+
+KINEMATICS_TABLES = ("trajectories.csv", "kinematics.csv", "angular.csv")
+
+
+def _kinematics_checks(traj, res, speed, acceleration) -> list:
+    from .io3d import kinematics_checks_of_norms
+
+    return kinematics_checks_of_norms(traj, res["markers"], speed, acceleration)
+
+
+def _kinematics_result(traj, static, smoothing: str, events) -> dict:
+    """What ``kinematics`` writes: the whole record's fit, or for a long record the smoothing settled
+    on its middle and the windows' blocks to come (``blocks``, a generator)."""
+    from . import streaming
+    from .io3d import kinematics_from_trajectories, kinematics_params, kinematics_setup
+    from .progress import ProgressPrinter
+
+    if traj.frame.size <= streaming.WHOLE_RECORD_FRAMES:
+        res = kinematics_from_trajectories(traj, static, smoothing=smoothing, events=events)
+        tr = res["trajectory"]
+        mk, hk = res["marker_kinematics"], res["hidden_kinematics"]
+        parts = [mk] if hk is None else [mk, hk]
+        block = streaming.KinematicsBlock(0, traj.frame.size, *(np.concatenate([getattr(k, f) for k in parts], 1)
+                                                                for f in ("position", "velocity", "acceleration")),
+                                          tr.omega(traj.time_s), tr.alpha(traj.time_s), tr.reason)
+        return {**res, "blocks": iter([block]), "smoothing_choice": tr.smoothing_choice}
+    setup = kinematics_setup(traj, static)
+    params = kinematics_params(smoothing, events)
+    reg, model = setup["registration"], setup["model"]
+    settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params)
+    blocks = streaming.windowed_kinematics(traj.time_s, reg, setup["points"], model, setup["model_all"], params,
+                                           settled=settled, progress=ProgressPrinter())
+    lo, hi = streaming.representative_range(traj.frame.size)
+    windows = {"count": len(streaming.window_plan(traj.frame.size, streaming.WINDOW_FRAMES, settled.margin)),
+               "window_frames": streaming.WINDOW_FRAMES, "margin_frames": settled.margin,
+               "settled_on": [int(traj.frame[lo]), int(traj.frame[hi - 1])],
+               "lam": list(settled.lam), "fundamental_hz": settled.fundamental_hz}
+    return {**setup, "blocks": blocks, "smoothing_choice": settled.choice, "windows": windows}
 
 
 def _kinematics_verdict_lines(verdict: str, checks) -> int:
@@ -516,53 +563,51 @@ def _kinematics_record(args, events, res, files, input_summary) -> dict:
     return {"format": KINEMATICS_FORMAT, "command": "kinematics", "horsemocap_version": __version__,
             "inputs": {"trajectories": source(args.trajectories), "static": source(args.static)},
             "options": {"smoothing": args.smoothing, "events": events},
-            "smoothing_ran": res["trajectory"].smoothing_choice or None,
+            "smoothing_ran": res["smoothing_choice"] or None, "windows": res.get("windows"),
             "markers": list(res["markers"]), "hidden": list(res["hidden"]),
             "unmatched": list(res["unmatched"]), "matched_loosely": res["matched_loosely"],
             "input": input_summary, "files": files}
 
 
-def _kinematics_tables(traj, res) -> dict:
-    """File name -> text of trajectories.csv, kinematics.csv and angular.csv of a kinematics run.
+def _write_kinematics_tables(folder: Path, traj, res) -> tuple:
+    """trajectories.csv, kinematics.csv and angular.csv of a kinematics run, written block by block
+    (``res["blocks"]``); the markers' smoothed speeds and accelerations (n, k) for the checks.
 
     Written with the csv module: a point name holding a comma or a quote is quoted.
     """
-    tr, t = res["trajectory"], traj.time_s
-    names = res["markers"] + res["hidden"]
-    mk, hk = res["marker_kinematics"], res["hidden_kinematics"]
-    pos = mk.position if hk is None else np.concatenate([mk.position, hk.position], 1)
-    vel = mk.velocity if hk is None else np.concatenate([mk.velocity, hk.velocity], 1)
-    acc = mk.acceleration if hk is None else np.concatenate([mk.acceleration, hk.acceleration], 1)
+    import csv
 
+    from .store import StreamedTextFiles
+
+    names = res["markers"] + res["hidden"]
+    n, k = traj.frame.size, len(res["markers"])
+    speed, accel = np.full((n, k), np.nan, np.float32), np.full((n, k), np.nan, np.float32)
+    with StreamedTextFiles([folder / name for name in KINEMATICS_TABLES]) as files:
+        pos_w, kin_w, ang_w = (csv.writer(fh, lineterminator="\n") for fh in files)
+        pos_w.writerow(["frame", "time_s", "point", "x_m", "y_m", "z_m"])
+        kin_w.writerow(["frame", "time_s", "point", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2"])
+        ang_w.writerow(["frame", "time_s", "wx_radps", "wy_radps", "wz_radps", "alphax_radps2", "alphay_radps2",
+                        "alphaz_radps2", "triangle_height_m", "registration_rms_m", "note"])
+        for block in res["blocks"]:
+            _write_block(pos_w, kin_w, ang_w, traj, names, res["registration"], block)
+            speed[block.start:block.stop] = np.linalg.norm(block.velocity[:, :k], axis=2)
+            accel[block.start:block.stop] = np.linalg.norm(block.acceleration[:, :k], axis=2)
+    return speed, accel
+
+
+def _write_block(pos_w, kin_w, ang_w, traj, names, reg, block) -> None:
+    """The rows of the frames of one :class:`horsemocap.streaming.KinematicsBlock`."""
     def num(v):
         return "" if not np.isfinite(v) else f"{float(v):.9g}"
 
-    lines = [["frame", "time_s", "point", "x_m", "y_m", "z_m"]]
-    klines = [["frame", "time_s", "point", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2"]]
-    for k in range(t.size):
+    for i, k in enumerate(range(block.start, block.stop)):
+        fr, tt = traj.frame[k], num(traj.time_s[k])
         for j, nm in enumerate(names):
-            lines.append([traj.frame[k], num(t[k]), nm, *(num(v) for v in pos[k, j])])
-            klines.append([traj.frame[k], num(t[k]), nm, *(num(v) for v in (*vel[k, j], *acc[k, j]))])
-    w, al = tr.omega(t), tr.alpha(t)
-    reg = res["registration"]
-    alines = [["frame", "time_s", "wx_radps", "wy_radps", "wz_radps", "alphax_radps2", "alphay_radps2",
-               "alphaz_radps2", "triangle_height_m", "registration_rms_m", "note"]]
-    for k in range(t.size):
-        alines.append([traj.frame[k], num(t[k]), *(num(v) for v in (*w[k], *al[k])),
-                       num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan), num(reg.rms[k]),
-                       tr.reason[k].replace(",", ";")])
-    return {"trajectories.csv": _csv_text(lines), "kinematics.csv": _csv_text(klines),
-            "angular.csv": _csv_text(alines)}
-
-
-def _csv_text(rows) -> str:
-    """Rows -> CSV text (csv module, ``\\n`` line ends, fields quoted only where needed)."""
-    import csv
-    import io
-
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerows(rows)
-    return buf.getvalue()
+            pos_w.writerow([fr, tt, nm, *(num(v) for v in block.position[i, j])])
+            kin_w.writerow([fr, tt, nm, *(num(v) for v in (*block.velocity[i, j], *block.acceleration[i, j]))])
+        ang_w.writerow([fr, tt, *(num(v) for v in (*block.omega[i], *block.alpha[i])),
+                        num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan), num(reg.rms[k]),
+                        str(block.reason[i]).replace(",", ";")])
 
 
 def cmd_export(args) -> int:
@@ -713,6 +758,14 @@ class _Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, handled like Ctrl-C."""
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning on the command line: one line ``horsemocap: warning: ...`` (``--debug``: Python's format,
+    with the code's file and line)."""
+    kind = "" if issubclass(category, UserWarning) else f"{category.__name__}: "
+    text = str(message).replace("\n", " ")
+    print(f"horsemocap: warning: {kind}{text}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None) -> int:
     """The ``horsemocap`` command. Every failure ends with one line on stderr and
     exit status 2 (``--debug``: the traceback too); Ctrl-C and SIGTERM leave the
@@ -735,7 +788,10 @@ def main(argv=None) -> int:
             except ValueError:  # not the main thread
                 pass
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.showwarning = _warning_line
+            return args.func(args)
     except KeyboardInterrupt as exc:
         if debug:
             traceback.print_exc()

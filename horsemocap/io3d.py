@@ -756,16 +756,21 @@ def kinematics_checks(traj: Trajectories, res: dict) -> list:
     it), the smoothed speed or acceleration above it unreliable; frames
     whose times do not fall on the rate's grid are a warning.
     """
+    mk = res["marker_kinematics"]
+    return kinematics_checks_of_norms(traj, res["markers"], np.linalg.norm(mk.velocity, axis=2),
+                                      np.linalg.norm(mk.acceleration, axis=2))
+
+
+def kinematics_checks_of_norms(traj: Trajectories, markers, speed, acceleration) -> list:
+    """:func:`kinematics_checks` from the markers' smoothed speeds and accelerations (n, k) (m/s, m/s^2)."""
     checks = []
-    pts, t = traj.subset(res["markers"]), traj.time_s
+    pts, t = traj.subset(markers), traj.time_s
     if t.size >= 2:
         raw = np.linalg.norm(np.diff(pts, axis=0), axis=2) / np.diff(t)[:, None]
         checks.append(_limit_check("raw_marker_speed", _p99(raw), SPEED_LIMIT_MPS, "m/s",
                                    "speed of the record's markers between frames", "warning"))
-    mk = res["marker_kinematics"]
-    checks.append(_limit_check("marker_speed", _p99(np.linalg.norm(mk.velocity, axis=2)), SPEED_LIMIT_MPS, "m/s",
-                               "smoothed speed of the markers"))
-    checks.append(_limit_check("marker_acceleration", _p99(np.linalg.norm(mk.acceleration, axis=2)),
+    checks.append(_limit_check("marker_speed", _p99(speed), SPEED_LIMIT_MPS, "m/s", "smoothed speed of the markers"))
+    checks.append(_limit_check("marker_acceleration", _p99(acceleration),
                                ACCELERATION_LIMIT_MPS2, "m/s²", "smoothed acceleration of the markers"))
     if t.size >= 3:
         rate = frame_rate(traj)
@@ -819,7 +824,38 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     without prefix or case).
     """
     from . import pose
+
+    setup = kinematics_setup(traj, static)
+    markers, hidden, model, model_all = setup["markers"], setup["hidden"], setup["model"], setup["model_all"]
+    points, reg = setup["points"], setup["registration"]
+    # the markers go with the poses: "auto" measures the noise's correlation from their rigidity residual
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, kinematics_params(smoothing, events), points=points)
+    mk = tr.points(traj.time_s, model)
+    hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
+    return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
+            "hidden_kinematics": hk, "registration": reg, "unmatched": setup["unmatched"],
+            "matched_loosely": setup["matched_loosely"]}
+
+
+def kinematics_params(smoothing: str = "auto", events=None):
+    """The pose smoothing of :func:`kinematics_from_trajectories`: with known events the record is
+    smoothed without stride harmonics; frames with two markers stay out of the smoothing."""
     from .params import PoseParams
+
+    harmonics = "none" if events is not None and len(events) else "auto"
+    return PoseParams(smoothing=smoothing, harmonics=harmonics, events=events, partial_frames=False)
+
+
+def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
+    """The markers matched to the static shot, the model and the record's registration.
+
+    What :func:`kinematics_from_trajectories` fits (its docstring says how the
+    points are matched): a dict with ``markers``, ``hidden`` (names),
+    ``model`` (the markers in the static shot), ``model_all`` (markers then
+    hidden points), ``points`` (n, k, 3) of the markers, ``registration``,
+    ``unmatched`` and ``matched_loosely``.
+    """
+    from . import pose
 
     match = match_point_names(traj.names, static.names)
     pairs = sorted(match["pairs"], key=lambda pr: traj.names.index(pr[0]))
@@ -840,14 +876,6 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     points = traj.subset(markers)
     reg = pose.register_pose(points, model, names=markers)
-    harmonics = "none" if events is not None and len(events) else "auto"
-    # the markers go with the poses: "auto" measures the noise's correlation from their rigidity residual
-    # (frames with two markers stay out of the smoothing, as without the markers)
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, PoseParams(smoothing=smoothing, harmonics=harmonics,
-                                                                      events=events, partial_frames=False),
-                                  points=points)
-    mk = tr.points(traj.time_s, model)
-    hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
-    return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
-            "hidden_kinematics": hk, "registration": reg, "unmatched": match["unmatched"],
+    return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
+            "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}

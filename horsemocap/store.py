@@ -158,6 +158,69 @@ def atomic_write_by_name(path, write, suffix: str = "") -> Path:
     return _atomic_write(Path(path), write, by_name=True, suffix=suffix)
 
 
+class StreamedTextFiles:
+    r"""Text files written a piece at a time and put in place together, whole or not at all.
+
+    Inside the ``with`` block each of ``paths`` is a text file (UTF-8,
+    ``newline=""``) with a temporary name beside it; when the block ends
+    without an error each is renamed onto its path (through the same atomic
+    write as :func:`atomic_write_text`), otherwise they are removed. Any
+    OSError is a :class:`WriteError` naming the file, not its temporary name.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> with StreamedTextFiles([folder / "a.csv", folder / "b.csv"]) as (a, b):
+    ...     _ = a.write("x\n"), b.write("y\n")
+    >>> sorted(p.name for p in folder.iterdir()), (folder / "a.csv").read_text()
+    (['a.csv', 'b.csv'], 'x\n')
+    """
+
+    def __init__(self, paths):
+        self.paths = [Path(p) for p in paths]
+        self._parts, self._files = [], []
+
+    def __enter__(self):
+        for path in self.paths:
+            part = path.parent / f".{path.name}.{secrets.token_hex(6)}.part"
+            self._parts.append(part)
+            try:
+                self._files.append(open(part, "x", encoding="utf-8", newline=""))
+            except OSError as exc:
+                self._discard()
+                raise WriteError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+        return self._files
+
+    def _discard(self) -> None:
+        for fh in self._files:
+            fh.close()
+        for part in self._parts:
+            try:
+                os.unlink(part)
+            except FileNotFoundError:
+                pass
+
+    def __exit__(self, kind, exc, tb):
+        if kind is not None:
+            self._discard()
+            if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+                where = next((str(p) for p, part in zip(self.paths, self._parts)
+                              if exc.filename in (str(part), part)), str(self.paths[0]))
+                raise WriteError(exc.errno, exc.strerror or str(exc), where) from exc
+            return False
+        try:
+            for path, fh, part in zip(self.paths, self._files, self._parts):
+                try:
+                    fh.close()
+                except OSError as err:
+                    raise WriteError(err.errno, err.strerror or str(err), str(path)) from err
+                _atomic_write(path, lambda tmp, part=part: os.replace(part, tmp), by_name=True)
+        finally:
+            self._discard()
+        return False
+
+
 def atomic_write_npz(path, **arrays) -> Path:
     """Write arrays to a compressed ``.npz`` atomically."""
     return _atomic_write(Path(path), lambda fh: np.savez_compressed(fh, **arrays))
@@ -356,6 +419,47 @@ class ResultsStore:
             if path.is_symlink() or path.is_file():
                 path.unlink()
                 removed.append(path)
+        return removed
+
+    def stored_key(self, step: str) -> str | None:
+        """The key ``step``'s stored result was saved under (its marker), or None (none stored, unreadable)."""
+        self._check_links(step)
+        try:
+            payload = json.loads(self.path(step).read_text(encoding="utf-8"))
+        except (OSError, ValueError, RecursionError):
+            return None
+        return payload.get("key") if isinstance(payload, dict) else None
+
+    def forget_stale(self, keys: dict, until: str) -> list:
+        """After a run up to ``until``: remove the later steps' stored results and files of another analysis.
+
+        A later step's result and files stay only where its stored result
+        carries the key this run's parameters give it (``keys``, step ->
+        key): they are what this run would compute. A later step's file
+        without a stored result (a marker) is of unknown origin and removed
+        too, and so are the records of a whole analysis
+        (:data:`WHOLE_ANALYSIS_FILES`) when any later step was stale.
+        Returns the paths removed.
+        """
+        names = [name for name, _ in STEP_RESULT_FILES]
+        if until not in names:
+            return []
+        removed, stale = [], False
+        for later, files in STEP_RESULT_FILES[names.index(until) + 1:]:
+            if later in keys and self.stored_key(later) == keys[later]:
+                continue
+            json_path = self.path(later)
+            for path in (json_path, json_path.with_suffix(".npz"), *(self.root / f for f in files)):
+                if path.is_symlink() or path.is_file():
+                    path.unlink()
+                    removed.append(path)
+                    stale = True
+        if stale:
+            for name in WHOLE_ANALYSIS_FILES:
+                path = self.root / name
+                if path.is_symlink() or path.is_file():
+                    path.unlink()
+                    removed.append(path)
         return removed
 
     def save(self, step: str, result, key: str) -> Path | None:

@@ -43,10 +43,10 @@ import numpy as np
 from .data import cache_dir, data_samples_dir, default_session_dir
 from .params import AnalysisParams, ParamsError
 from . import quality
-from .pipeline import Analysis, AnalysisError, analyze, resolve_params
+from .pipeline import Analysis, AnalysisError, analyze, resolve_params, step_keys
 from .session import Session, SessionError, load_session
+from .store import MAX_JSON_DEPTH, ResultsStore, atomic_write_json, json_depth, read_text_utf8, refuse_link
 from .virtuallab.truth import load_truth
-from .store import MAX_JSON_DEPTH, atomic_write_json, json_depth, read_text_utf8, refuse_link
 
 CHOICES_FILE = "choices.json"
 WORKSPACE_FILE = "workspace.json"
@@ -563,8 +563,11 @@ def results_for(session_dir=None, until: str = "comfort", params=None) -> Analys
         chosen = read_choices(session_dir)
         if chosen or params:
             params = session_params(session_dir, chosen, overrides=params)
-    return analyze(session_dir, notebook_results_dir(session_dir), params, until=until,
-                   progress=lambda *a: None, reuse=True)
+    out = notebook_results_dir(session_dir)
+    analysis = analyze(session_dir, out, params, until=until, progress=lambda *a: None, reuse=True)
+    # a later step's files from an analysis with other parameters (nothing recomputed removes them)
+    ResultsStore(out).forget_stale(step_keys(analysis.session, analysis.params), until)
+    return analysis
 
 
 # ---------------------------------------------------------------------------

@@ -314,6 +314,36 @@ def test_a_step_computed_anew_removes_the_later_steps_files(tmp_path, step):
     assert store.load(step, "new-key")["value"].tolist() == [0.0, 1.0, 2.0, 3.0]
 
 
+@pytest.mark.parametrize("until", ["detect", "smooth", "rigid_body"],
+                         ids=lambda s: f"correct-reuse-until-{s}-removes-later-files-of-other-parameters")
+def test_nothing_recomputed_still_leaves_no_later_file_of_other_parameters(tmp_path, until):
+    """A run up to ``until`` that reuses every stored step (another comfort setting, say) keeps a later
+    step's files only where its stored result carries the key this run's parameters give it."""
+    store = _filled_store(tmp_path / "res")
+    names = [n for n, _ in STEP_RESULT_FILES]
+    keys = {name: f"key-{name}" for name in names}
+    assert store.forget_stale(keys, until) == []          # the same parameters: every later file is this run's
+    assert (store.root / "comfort.csv").exists() and (store.root / "report.html").exists()
+    keys["comfort"] = "key-comfort-other-weighting"
+    removed = {p.name for p in store.forget_stale(keys, until)}
+    assert removed == {"comfort.json", "comfort.npz", "comfort.csv", "comfort.xlsx", "quality.json", "report.html"}
+    later = names[names.index(until) + 1:]
+    for name, files in STEP_RESULT_FILES:
+        assert (store.load(name, f"key-{name}") is None) == (name == "comfort"), name
+        for f in files:
+            assert (store.root / f).exists() == (name != "comfort"), f
+    assert "rigid_body" not in later or (store.root / "kinematics.csv").exists()
+
+
+def test_correct_a_later_file_without_its_stored_result_is_removed(tmp_path):
+    store = _filled_store(tmp_path / "res")
+    (store.root / "steps" / "triangulate.json").unlink()            # markers_3d.csv now of unknown origin
+    keys = {name: f"key-{name}" for name, _ in STEP_RESULT_FILES}
+    removed = {p.name for p in store.forget_stale(keys, "detect")}
+    assert removed == {"triangulate.npz", "markers_3d.csv", "quality.json", "report.html"}
+    assert (store.root / "comfort.csv").exists() and (store.root / "markers_2d.csv").exists()
+
+
 LINKS = {
     "steps_folder": lambda root, away: (root.mkdir(), (root / "steps").symlink_to(away)),
     "step_json": lambda root, away: ((root / "steps").mkdir(parents=True),
@@ -599,6 +629,15 @@ def test_a_new_top_level_field_is_read_with_a_warning(tmp_path, session_json, ke
     assert loaded.name == session_json["name"]
 
 
+def test_flagged_session_new_field_is_one_line_on_the_command_line(tmp_path, session_json, capsys):
+    session = light_session(tmp_path / "s", {**session_json, "operator": "A. Rider"})
+    code, _, err = run(["analyze", session, "--out", tmp_path / "out", "--set", "smooth.span=7"], capsys)
+    warned = [ln for ln in err.splitlines() if "field 'operator'" in ln]
+    assert code == 2 and len(warned) == 1, err
+    assert warned[0].startswith("horsemocap: warning: ") and "SessionWarning" not in err
+    assert "warnings.warn(" not in err and "session.py" not in err
+
+
 @pytest.mark.parametrize("key", ["fsp", "marker", "camera", "calibraton"], ids=lambda k: f"clear-session-typo-{k}")
 def test_a_misspelled_top_level_field_is_still_refused(tmp_path, session_json, key):
     session = light_session(tmp_path / "s", {**session_json, key: 1})
@@ -681,3 +720,63 @@ def test_correct_notebooks_folder_after_an_earlier_step_changed_holds_no_later_f
     assert json.loads((folder / "analysis.json").read_text())["steps_done"][-1] == "detect"
     assert not any(p.name.startswith(("triangulate", "smooth", "rigid_body", "comfort"))
                    for p in (folder / "steps").iterdir())
+
+
+def test_correct_notebooks_folder_reusing_every_step_holds_no_later_file_of_other_parameters(tmp_path, monkeypatch):
+    """A stored detect result reused with another comfort setting: nothing is recomputed, and the
+    earlier comfort.csv (of the other setting) is not left beside the new analysis.json."""
+    from horsemocap.workspace import notebook_results_dir, results_for
+
+    monkeypatch.setenv("HORSEMOCAP_RESULTS", str(tmp_path / "store"))
+    results_for(BUNDLED, until="comfort")
+    folder = notebook_results_dir(BUNDLED)
+    results_for(BUNDLED, until="detect")                              # the same parameters: the files stay
+    assert (folder / "comfort.csv").is_file() and (folder / "trajectories.csv").is_file()
+    results_for(BUNDLED, until="detect", params={"comfort": {"weighting_mode": "thesis"}})
+    files = sorted(p.name for p in folder.iterdir())
+    assert "comfort.csv" not in files and "quality.json" not in files and "report.html" not in files
+    assert "trajectories.csv" in files and "markers_2d.csv" in files   # steps whose key did not change
+    assert not (folder / "steps" / "comfort.json").exists()
+
+
+# ---------------------------------------------------------------------------
+# exchanged inputs: the identification's failure names the offsets and the videos
+# ---------------------------------------------------------------------------
+
+BUNDLED_FLASH = {"left": 8, "middle": 61, "right": 134}       # the flash's frames in the bundled videos
+
+EXCHANGED = {
+    "offsets-left-middle": ({"sync": {"offsets": {"left": 61, "middle": 8, "right": 134}}},
+                            r"disagree with the flash, found at frames \{'left': 8, 'middle': 61, 'right': 134\}; "
+                            r"the offsets of cameras 'left' and 'middle' look exchanged"),
+    "videos-left-middle-offsets-given": ({"motion": {"left": "motion/middle.avi", "middle": "motion/left.avi",
+                                                     "right": "motion/right.avi"},
+                                          "sync": {"offsets": BUNDLED_FLASH}},
+                                         r"the offsets of cameras 'left' and 'middle' look exchanged.*"
+                                         r"'motion' \(left: middle.avi, middle: left.avi, right: right.avi\)"),
+    "videos-left-right-flash": ({"motion": {"left": "motion/right.avi", "middle": "motion/middle.avi",
+                                            "right": "motion/left.avi"}},
+                                r"'motion' \(left: right.avi, middle: middle.avi, right: left.avi\).*"
+                                r"videos or offsets exchanged"),
+}
+
+
+@pytest.mark.parametrize("change,message", EXCHANGED.values(), ids=[f"clear-exchanged-{k}" for k in EXCHANGED])
+def test_exchanged_offsets_or_videos_are_named(tmp_path, session_json, change, message):
+    from horsemocap.pipeline import analyze
+    from horsemocap.steps import AnalysisError
+
+    session = light_session(tmp_path / "s", {**session_json, **change})
+    with pytest.raises(AnalysisError, match=message) as err:
+        analyze(session, None, until="detect", progress=lambda *a: None)
+    assert "detect" in str(err.value)
+
+
+def test_clear_exchanged_offsets_past_a_video_end_name_the_offset(tmp_path, session_json):
+    from horsemocap.pipeline import analyze
+
+    session = light_session(tmp_path / "s", {**session_json, "sync": {"offsets": {"left": 8, "middle": 134,
+                                                                                  "right": 61}}})
+    with pytest.raises(SessionError, match=r"camera 'middle' has 129 frames, but its sync offset is frame 134.*"
+                                           r"'sync.offsets' in .*session.json"):
+        analyze(session, None, until="detect", progress=lambda *a: None)

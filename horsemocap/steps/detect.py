@@ -24,6 +24,7 @@ from .. import subframe
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from ..session import Session, check_frame_counts
 from ..sources import FrameSource
+from ..swaps import identification_hint
 from .base import AnalysisError, StepResult, frames_text, longest_run
 from .sync import SyncResult
 
@@ -226,7 +227,7 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
         hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
                 f"{sync.offsets}, the flash's {sync.flash_offsets or sync.offsets}): "
                 "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
-                if moved else "")
+                if moved else "") + identification_hint(session, sync)
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
                             "motion videos, the threshold, the rig and 'markers.count' in session.json" + hint)
@@ -293,7 +294,7 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None,
         return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
                                 **kwargs)
     except DetectionError as exc:
-        raise AnalysisError("detect", f"{exc}") from None
+        raise AnalysisError("detect", f"{exc}{identification_hint(session, sync)}") from None
     finally:
         for f in frames.values():
             f.close()

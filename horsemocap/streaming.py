@@ -1,0 +1,307 @@
+"""Pose-trajectory kinematics of a long record in overlapping windows, in time and memory linear in its length.
+
+The smoothing of :func:`horsemocap.pose.fit_pose_trajectory` solves for the
+whole record at once; its cost grows faster than the record's length. A
+long record (a capture of minutes at a few hundred hertz) is smoothed here
+in windows instead:
+
+1. the smoothing is settled once, on a representative stretch (the
+   :data:`REPRESENTATIVE_FRAMES` frames at the record's middle): what
+   ``"auto"`` runs and the stride frequency of the harmonics (a record
+   without harmonics: also the six smoothing parameters, lambda, of the
+   centroid and rotation-vector components);
+2. the record is cut into cores of :data:`WINDOW_FRAMES` frames; each core is
+   fitted with a margin of frames on both sides (so the fit's ends, where a
+   spline is least certain, fall outside the core) and with the settled
+   smoothing: every window smooths with the same method and stride frequency
+   (and lambdas where they are settled), so neighbouring windows estimate the
+   same curve;
+3. across each cut the two windows' values are blended over a band of frames
+   around it (weights rising as a raised cosine), so the result has no step
+   at the cut.
+
+A fit with stride harmonics chooses its lambdas per window (its harmonics are
+tested against the cutoff of a plain spline whose lambda is not the partial
+spline's), as does an adaptive smoothing (its penalty's weight is local
+anyway).
+
+Only the current window's arrays live at a time: :func:`windowed_kinematics`
+yields :class:`KinematicsBlock` s of consecutive frames for the caller to
+write out.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import pose
+from .params import PoseParams
+from .progress import counter
+
+__all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
+           "WHOLE_RECORD_FRAMES", "representative_range", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
+
+WINDOW_FRAMES = 1000
+"""Frames of a window's core (the frames whose values the window gives)."""
+
+MARGIN_FRAMES = 150
+"""Least frames fitted on each side of a core (more where the smoothing's kernel is wider)."""
+
+REPRESENTATIVE_FRAMES = 4000
+"""Frames at the record's middle on which the smoothing is settled."""
+
+WHOLE_RECORD_FRAMES = 20_000
+"""Records up to this many frames are smoothed whole (:func:`horsemocap.pose.fit_pose_trajectory`);
+longer ones in windows."""
+
+COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+
+
+@dataclass(frozen=True)
+class KinematicsBlock:
+    """Kinematics of the record's frames ``start .. stop - 1``.
+
+    ``position``, ``velocity``, ``acceleration`` (b, k, 3) of the body points
+    asked for, ``omega``, ``alpha`` (b, 3) of the body, ``reason`` (b,) why a
+    frame is NaN (or that it bridges a gap; "" otherwise).
+    """
+
+    start: int
+    stop: int
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    omega: np.ndarray
+    alpha: np.ndarray
+    reason: np.ndarray
+
+
+@dataclass(frozen=True)
+class SettledSmoothing:
+    """The smoothing every window runs: ``params``, ``lam`` (six, or None per component: chosen per
+    window), ``fundamental_hz`` (None: no harmonics), ``choice`` (what ``"auto"`` ran and why, or
+    None), ``margin`` (frames fitted each side of a core) and ``info`` (the representative fit's
+    per-component smoothing)."""
+
+    params: PoseParams
+    lam: tuple
+    fundamental_hz: float | None
+    choice: dict | None
+    margin: int
+    info: dict
+
+
+def window_plan(n: int, window: int = WINDOW_FRAMES, margin: int = MARGIN_FRAMES) -> list:
+    """The windows over ``n`` frames: ``(lo, hi, core_lo, core_hi)`` index ranges.
+
+    The cores tile ``0..n`` in order; each window fits ``lo..hi`` (the core and
+    up to ``margin`` frames on each side). The last core takes a short rest
+    (under half a window) rather than leaving a short window.
+
+    Examples
+    --------
+    >>> window_plan(2400, window=1000, margin=100)
+    [(0, 1100, 0, 1000), (900, 2400, 1000, 2400)]
+    """
+    if window < 1 or margin < 0:
+        raise ValueError(f"window {window}, margin {margin}: expected a positive window and a margin >= 0")
+    cuts = list(range(0, n, window)) + [n]
+    if len(cuts) > 2 and cuts[-1] - cuts[-2] < window // 2:
+        cuts.pop(-2)
+    return [(max(0, a - margin), min(n, b + margin), a, b) for a, b in zip(cuts[:-1], cuts[1:])]
+
+
+def slice_registration(reg: pose.PoseRegistration, lo: int, hi: int) -> pose.PoseRegistration:
+    """The registration of frames ``lo .. hi - 1`` (every per-frame array sliced; the record's
+    noise figures kept).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> reg = pose.register_pose(np.repeat(model[None], 10, 0), model)
+    >>> slice_registration(reg, 2, 5).rotation.shape
+    (3, 3, 3)
+    """
+    n = reg.rotation.shape[0]
+    fields = {}
+    for f in dataclasses.fields(reg):
+        value = getattr(reg, f.name)
+        if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == n:
+            fields[f.name] = value[lo:hi]
+    return dataclasses.replace(reg, **fields)
+
+
+def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[int, int]:
+    """The frames ``lo .. hi - 1`` at the middle of ``n`` on which :func:`settle_smoothing` settles.
+
+    Examples
+    --------
+    >>> representative_range(10_000, 4000)
+    (3000, 7000)
+    """
+    lo = max(0, (n - frames) // 2)
+    return lo, min(n, lo + frames)
+
+
+def settle_smoothing(t, registration, points, model, params: PoseParams,
+                     frames: int = REPRESENTATIVE_FRAMES, window: int = WINDOW_FRAMES) -> SettledSmoothing:
+    """The smoothing of a long record, settled on its middle ``frames`` frames (module step 1).
+
+    ``params.smoothing="auto"`` is run there (:func:`horsemocap.pose.choose_smoothing`) and the
+    method it ran is kept, and the stride frequency of its harmonics; without harmonics the six
+    lambdas of that fit are kept too (with harmonics, and for the adaptive smoothing, the lambdas
+    are chosen per window). The margin is at least
+    :data:`MARGIN_FRAMES` and six times the frames per effective degree of freedom of the least
+    flexible component (the width of the smoothing's kernel), at most half a ``window``.
+    """
+    lo, hi = representative_range(len(t), frames)
+    sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
+    tr = pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, sub_params,
+                                  points=None if points is None else points[lo:hi])
+    info = tr.smoothing
+    choice = tr.smoothing_choice
+    method = params.smoothing
+    if choice is not None:
+        method = choice["method"]
+    method = "gcv" if method == "gcv_ar1" else method
+    f0 = info["cx"].get("fundamental_hz")
+    f0 = None if f0 is None or not np.isfinite(f0) else float(f0)
+    harmonics = params.harmonics if f0 is not None else "none"
+    # a fit with harmonics tests them against the plain spline's cutoff, whose lambda is not the partial
+    # spline's: there (and in the adaptive smoothing) each window chooses its lambdas
+    per_window = method == "adaptive" or f0 is not None
+    lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
+    edf = [float(info[c]["edf"]) for c in COMPONENTS if np.isfinite(info[c].get("edf", np.nan))]
+    kernel = (hi - lo) / max(min(edf), 1.0) if edf else 0.0
+    margin = int(min(max(MARGIN_FRAMES, np.ceil(6 * kernel)), window // 2))
+    settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
+    return SettledSmoothing(settled, lam, f0, choice, margin, info)
+
+
+def _events_inside(events, t0: float, t1: float):
+    if events is None:
+        return None
+    return [e for e in events if t0 < e < t1]
+
+
+def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int):
+    """The window's pose trajectory, or the reason it has none (a ValueError's message)."""
+    params = dataclasses.replace(settled.params, events=_events_inside(settled.params.events, t[lo], t[hi - 1]))
+    try:
+        return pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, params,
+                                        points=None if points is None else points[lo:hi],
+                                        fundamental_hz=settled.fundamental_hz,
+                                        lam=settled.lam), None
+    except ValueError as exc:
+        return None, str(exc)
+
+
+def _evaluate(tr, t, a: int, b: int, body_points, registration, why: str | None) -> KinematicsBlock:
+    """The window's kinematics at frames ``a .. b - 1`` (NaN with ``why`` without a trajectory)."""
+    m, tw = len(body_points), t[a:b]
+    if tr is None:
+        nan3, nank = np.full((b - a, 3), np.nan), np.full((b - a, m, 3), np.nan)
+        reason = np.where(registration.reason[a:b] != "", registration.reason[a:b],
+                          f"no pose trajectory in this stretch: {why}")
+        return KinematicsBlock(a, b, nank, nank, nank, nan3, nan3, reason.astype(object))
+    k = tr.points(tw, body_points)
+    i0 = int(np.searchsorted(tr.t, tw[0]))
+    return KinematicsBlock(a, b, k.position, k.velocity, k.acceleration, tr.omega(tw), tr.alpha(tw),
+                           np.asarray(tr.reason[i0:i0 + b - a], dtype=object))
+
+
+def _blend(left: KinematicsBlock, right: KinematicsBlock) -> KinematicsBlock:
+    """Two windows' values over the same frames, weighted from ``left`` to ``right`` (raised cosine)."""
+    n = left.stop - left.start
+    w = 0.5 - 0.5 * np.cos(np.pi * (np.arange(n) + 0.5) / n)
+
+    def mix(a, b):
+        ww = w.reshape((n,) + (1,) * (a.ndim - 1))
+        return (1 - ww) * a + ww * b
+
+    reason = np.where(w < 0.5, left.reason, right.reason)
+    return KinematicsBlock(left.start, left.stop, *(mix(getattr(left, f), getattr(right, f))
+                                                    for f in ("position", "velocity", "acceleration", "omega",
+                                                              "alpha")), reason)
+
+
+def windowed_kinematics(t, registration, points, model, body_points, params: PoseParams = PoseParams(), *,
+                        settled: SettledSmoothing | None = None, window: int = WINDOW_FRAMES, progress=None):
+    """Kinematics of ``body_points`` over a long record, window by window (the module's steps 2 and 3).
+
+    Parameters
+    ----------
+    t : (n,)
+        The frames' times (s), increasing.
+    registration : horsemocap.pose.PoseRegistration
+        The record's registration (:func:`horsemocap.pose.register_pose`).
+    points : (n, m, 3) or None
+        The registered markers (the noise-correlation measure of ``"auto"``).
+    model : (m, 3)
+        The static shot's markers.
+    body_points : (k, 3)
+        Points in the static shot's frame whose kinematics are wanted.
+    params : horsemocap.params.PoseParams
+        The pose smoothing (``partial_frames`` is not used here).
+    settled : SettledSmoothing, optional
+        From :func:`settle_smoothing` (default: settled on this record).
+    window : int
+        Frames of a core.
+    progress : callable, optional
+        A progress callback taking counts (:mod:`horsemocap.progress`): windows done of all.
+
+    Yields
+    ------
+    KinematicsBlock
+        Consecutive blocks covering frames ``0 .. n - 1`` in order.
+
+    Examples
+    --------
+    A body turning at a constant rate, smoothed in windows of 100 frames:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> t = np.arange(400) / 100.0
+    >>> R = Rotation.from_rotvec(np.outer(0.5 * t, [0, 0, 1])).as_matrix()
+    >>> pts = np.einsum("kij,mj->kmi", R, model)
+    >>> reg = pose.register_pose(pts, model)
+    >>> blocks = list(windowed_kinematics(t, reg, pts, model, model[:1], PoseParams(smoothing="gcv"), window=100))
+    >>> blocks[0].start, blocks[-1].stop
+    (0, 400)
+    >>> float(np.round(np.concatenate([b.omega for b in blocks])[:, 2].mean(), 6))
+    0.5
+    """
+    t = np.asarray(t, float)
+    n = t.size
+    body_points = np.asarray(body_points, float)
+    params = dataclasses.replace(params, partial_frames=False)
+    if settled is None:
+        settled = settle_smoothing(t, registration, points, model, params, window=window)
+    plan = window_plan(n, window, settled.margin)
+    band = max(1, min(settled.margin // 2, window // 4))
+    tick = counter(progress, "kinematics", "smoothing the pose in windows", len(plan))
+    pending = None                                 # the previous window's values over the next cut's band
+    for j, (lo, hi, c0, c1) in enumerate(plan):
+        tr, why = _window_fit(t, registration, points, model, settled, lo, hi)
+        a = c0 if j == 0 else max(lo, c0 - band)
+        b = c1 if j == len(plan) - 1 else min(hi, c1 + band)
+        block = _evaluate(tr, t, a, b, body_points, registration, why)
+        if pending is not None:
+            yield _blend(pending, _part(block, pending.start, pending.stop))
+        keep_to = b if j == len(plan) - 1 else c1 - band
+        start = a if pending is None else pending.stop
+        if keep_to > start:
+            yield _part(block, start, keep_to)
+        pending = None if j == len(plan) - 1 else _part(block, c1 - band, b)
+        tick(j + 1)
+
+
+def _part(block: KinematicsBlock, start: int, stop: int) -> KinematicsBlock:
+    """Frames ``start .. stop - 1`` of ``block``."""
+    i, k = start - block.start, stop - block.start
+    return KinematicsBlock(start, stop, *(getattr(block, f)[i:k] for f in
+                                          ("position", "velocity", "acceleration", "omega", "alpha", "reason")))
