@@ -36,13 +36,34 @@ def run(name: str) -> str:
     truth = load_truth(folder)
     ide = accuracy.identification_errors(a, truth)
     st = accuracy.stage_errors(a, truth)
+    if a.comfort is None or a.comfort.indicators is None:
+        why = a.comfort.reason if a.comfort is not None else "no comfort step"
+        return f"{name:22s} markers {a.session.marker_count} exit {3 if v == 'unreliable' else 0} {v} no comfort: {why}"
     ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
     bad = [f"{c.name}:{c.level}" for c in checks if c.level in ("warning", "unreliable")]
     covered = {c: int(np.sum(r == "partly_covered")) for c, r in a.detect.reason.items()}
+    during = _reasons_under_covers(a, truth)
     return (f"{name:22s} markers {a.session.marker_count} exit {3 if v == 'unreliable' else 0} {v:10s} "
             f"wrong {ide['wrong_total']:3d} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
             f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % partly_covered {covered} {bad} "
-            f"{time.perf_counter() - t0:.0f}s")
+            f"{time.perf_counter() - t0:.0f}s" + "".join(f"\n    under the cover, {k}: {v}" for k, v in during.items()))
+
+
+def _reasons_under_covers(a, truth) -> dict:
+    """Per camera: the reasons the covered marker's 2D values got while more than 5 % of it was covered."""
+    out = {}
+    off = a.synchronisation.offsets
+    for key, frac in truth.extras.items():
+        if not key.startswith("cover_fraction__"):
+            continue
+        _, name, cam = key.split("__")
+        marker = truth.extras[f"cover_{name}"]["marker"]
+        frames = np.flatnonzero(np.asarray(frac) > 0.05) - off[cam]
+        r = a.detect.reason[cam]
+        frames = frames[(frames >= 0) & (frames < len(r))]
+        labels, counts = np.unique(r[frames, marker], return_counts=True)
+        out[f"{name} {cam}"] = {str(lab) or "used": int(n) for lab, n in zip(labels, counts)}
+    return out
 
 
 if __name__ == "__main__":

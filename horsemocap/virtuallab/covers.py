@@ -270,8 +270,8 @@ CROUP = (-0.86, -0.02, -0.28)
 LOWER_FLANK = (-0.26, 0.20, -0.34)
 
 
-def _base(name, horse, gait, seed, fps=50.0, strides=2.2, **kw) -> HardScenario:
-    return HardScenario(name, horse, gait, seed, fps, _r("720p", "toed_in", 0.7, 1.0), strides=strides,
+def _base(name, horse, gait, seed, fps=50.0, strides=3.0, **kw) -> HardScenario:
+    return HardScenario(name, horse, gait, seed, fps, _r("720p", "toed_in", 0.6, 0.8), strides=strides,
                         enter_time_s=0.6, **kw)
 
 
@@ -284,16 +284,16 @@ def _scenarios():
         out.append(CoverScenario(f"three_{gait}", b, exercises=f"the same ride with the three markers, {gait}"))
     for gait, horse, seed in (("walk", "Horse 3", 3111), ("sitting_trot", "Horse 4", 3112),
                               ("rising_trot", "Horse 2", 3113), ("canter", "Horse 1", 3114)):
-        b = _base(f"cover_{gait}", horse, gait, seed, strides=2.0 if gait != "walk" else 1.4)
+        b = _base(f"cover_{gait}", horse, gait, seed, strides=3.0 if gait != "walk" else 2.6)
         out.append(CoverScenario(f"leg_{gait}", b, covers=(
             Cover(marker=2, cameras=("left", "middle"), start_s=0.85, duration_s=0.32, fraction=0.33,
                   angle_deg=60.0, kind="leg", name="leg"),), exercises=f"the rider's leg over a third of the "
                   f"front marker in the left and middle cameras for 0.32 s near the record's end, {gait}"))
-    b = _base("cover_rein", "Horse 2", "sitting_trot", 3121, strides=2.0)
+    b = _base("cover_rein", "Horse 2", "sitting_trot", 3121)
     out.append(CoverScenario("rein_sitting_trot", b, covers=(
         Cover(marker=1, cameras=("middle", "right"), start_s=0.5, duration_s=0.4, fraction=0.25, angle_deg=-80.0,
               kind="rein", band=0.5, name="rein"),), exercises="a rein across the middle marker in two cameras"))
-    b = _base("cover_hand", "Horse 3", "canter", 3122, strides=2.0)
+    b = _base("cover_hand", "Horse 3", "canter", 3122)
     out.append(CoverScenario("hand_canter", b, (CROUP,), covers=(
         Cover(marker=0, cameras=("left", "middle"), start_s=0.3, duration_s=0.3, fraction=0.4, angle_deg=180.0,
               kind="hand", name="hand"),), exercises="four markers; the rider's hand over the croup marker"))
