@@ -189,6 +189,11 @@ def step_detect(session: Session, section: DetectParams, sync: SyncResult, rig: 
             progress("detect", f"multi-view identification not possible ({why}); the thesis' per-camera chain")
     if method == "multiview":
         return _detect_multiview(session, section, sync, rig, static_points, progress)
+    if session.marker_count > 3:
+        raise AnalysisError("detect", f"the thesis' per-camera chain (chapter 4) follows three markers, "
+                                      f"{session.json_path} 'markers.count' says {session.marker_count}"
+                                      + (f" and {why}" if why else "")
+                                      + ": use detection method 'multiview' with a static shot of every marker")
     return _detect_per_camera(session, section, sync, progress, why)
 
 
