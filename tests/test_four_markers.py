@@ -104,3 +104,21 @@ def test_virtual_horse_with_more_markers_keeps_them_rear_to_front():
     assert np.all(np.diff(h.marker_body[:, 0]) > 0)
     with pytest.raises(ValueError, match="extra_body"):
         horse_with_markers(HERD["Horse 2"], [[1.0, 2.0]])
+
+
+def test_assignments_built_marker_by_marker_are_the_permutations_that_fit():
+    """The pruned search lists exactly the permutations whose every distance fits, in the same order."""
+    import itertools
+    from horsemocap.detection.marker_model import _pair_distances, _rigid_assignments
+    rng = np.random.default_rng(3)
+    model = BODY5[[0, 1, 2, 4]]
+    pts = np.vstack([model[[2, 0, 3, 1]] + [0.1, 0.0, 8.0], rng.uniform(-1, 1, (7, 3)) + [0, 0, 8.0]])
+    cov = np.tile(np.eye(3) * 4e-6, (len(pts), 1, 1))
+    d, tol = _pair_distances(pts, cov, 0.2)          # a wide slack: many chance fits to compare
+    model_d = np.linalg.norm(model[:, None] - model[None], axis=-1)
+    brute = [p for p in itertools.permutations(range(len(pts)), 4)
+             if all(abs(d[p[i], p[j]] - model_d[i, j]) / tol[p[i], p[j]] <= 1.0
+                    for i, j in itertools.combinations(range(4), 2))]
+    got = _rigid_assignments(d, tol, model_d)
+    assert len(brute) > 1
+    assert got.tolist() == [list(p) for p in brute]
