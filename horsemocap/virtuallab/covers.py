@@ -289,6 +289,11 @@ def _scenarios():
             Cover(marker=2, cameras=("left", "middle"), start_s=0.85, duration_s=0.32, fraction=0.33,
                   angle_deg=60.0, kind="leg", name="leg"),), exercises=f"the rider's leg over a third of the "
                   f"front marker in the left and middle cameras for 0.32 s near the record's end, {gait}"))
+        # the same ride and leg with a fourth marker on the croup (the front marker is then index 3)
+        out.append(CoverScenario(f"leg4_{gait}", b, (CROUP,), covers=(
+            Cover(marker=3, cameras=("left", "middle"), start_s=0.85, duration_s=0.32, fraction=0.33,
+                  angle_deg=60.0, kind="leg", name="leg"),), exercises=f"leg_{gait} with a fourth marker on the "
+                  "croup"))
     b = _base("cover_rein", "Horse 2", "sitting_trot", 3121)
     out.append(CoverScenario("rein_sitting_trot", b, covers=(
         Cover(marker=1, cameras=("middle", "right"), start_s=0.5, duration_s=0.4, fraction=0.25, angle_deg=-80.0,
