@@ -86,8 +86,10 @@ COVER_AREA = 0.85
 #: at a fifth covered, 0.67 and 0.45 at a third.
 COVER_SPREAD = 0.72
 #: Frames looked back for the marker's recent shape in a camera (a cover may last longer than the search's
-#: area memory).
+#: area memory), the used views its median is taken over, and the frames just before left out of it.
 SHAPE_MEMORY = 60
+SHAPE_VIEWS = 9
+SHAPE_LAG = 4
 #: Smallest leave-one-out residual limit (px) of a view (see ``_Tracker._limit``).
 RESIDUAL_FLOOR_PX = 0.3
 #: The most candidates of one camera tried for one marker (the nearest its prediction).
@@ -331,6 +333,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     for direction in (1, -1):
         k1 = tracker.seed_neighbour(k0, direction)
         tracker.run(k1, direction)
+    tracker.flag_covered_views()
     return tracker.result(fit0.model_index, k0, fit0.margin)
 
 
@@ -585,11 +588,16 @@ class _Tracker:
         self._record_views(k, m, cams, cands, options, why, used, dropped, why_all, edge)
 
     def _reference_shape(self, k, c, m):
-        """Marker ``m``'s recent area and second moments in camera ``c`` (medians of its last five used views
-        within :data:`SHAPE_MEMORY` frames before ``k`` in tracking order), or NaNs."""
+        """Marker ``m``'s recent area and second moments in camera ``c``, or NaNs.
+
+        Medians of its last :data:`SHAPE_VIEWS` used views within
+        :data:`SHAPE_MEMORY` frames before ``k`` in tracking order, leaving
+        out the :data:`SHAPE_LAG` frames just before ``k``: a cover sliding
+        in a little each frame would otherwise carry the reference with it.
+        """
         direction = getattr(self, "_direction", 1)
-        j, recent = k - direction, []
-        while 0 <= j < self.n and len(recent) < 5 and abs(k - j) <= SHAPE_MEMORY:
+        j, recent = k - direction * (1 + SHAPE_LAG), []
+        while 0 <= j < self.n and len(recent) < SHAPE_VIEWS and abs(k - j) <= SHAPE_MEMORY:
             if self.reason[c][j, m] == "" and np.isfinite(self.area[c][j, m]) \
                     and np.all(np.isfinite(self.moments[c][j, m])):
                 recent.append(j)
@@ -1024,6 +1032,37 @@ class _Tracker:
             return False
         self.start(k, cands, vp, fit)
         return True
+
+    def flag_covered_views(self):
+        """Leave out every used view whose region lost the marker's shape against its own track around it.
+
+        The tracker compares a region with the marker's shape in the frames
+        before it in tracking order; a track that starts inside a cover (its
+        anchor frame covered) takes the covered shape for the marker's. Here
+        each used view is compared (:func:`shape_change`) with the medians of
+        the marker's used views in that camera within ``SHAPE_MEMORY / 2``
+        frames on both sides (at least ``SHAPE_VIEWS`` of them), and left out
+        as ``partly_covered`` when it fails; the marker is triangulated again
+        from its other views (or has no position).
+        """
+        half = SHAPE_MEMORY // 2
+        for c in self.cams:
+            for m in range(self.M):
+                used = np.flatnonzero((self.reason[c][:, m] == "") & np.isfinite(self.area[c][:, m])
+                                      & np.all(np.isfinite(self.moments[c][:, m]), axis=(1, 2)))
+                flagged = []
+                for k in used:
+                    near = used[np.abs(used - k) <= half]
+                    if len(near) < SHAPE_VIEWS:
+                        continue
+                    a, sp = shape_change(self.area[c][k, m], self.moments[c][k, m],
+                                         float(np.median(self.area[c][near, m])),
+                                         np.median(self.moments[c][near, m], axis=0))
+                    if a < COVER_AREA and sp < COVER_SPREAD:
+                        flagged.append(k)
+                for k in flagged:
+                    self._drop_view(k, m, c, "partly_covered")
+                    self._rigid_rms(k)
 
     def result(self, model_index, k0, margin):
         px = {c: correct_light(self.px[c], self.slope[c], self.moments[c]) for c in self.cams}

@@ -77,11 +77,13 @@ def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult,
                             + ", ".join(f"{c} {v:.3f}" for c, v in med.items()))
     a, b = detect.segment
     ok = np.zeros(len(tri.points), bool)
-    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=(1, 2))
+    # every marker of three; any three or more of four or more (the others define the pose meanwhile)
+    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=2).sum(axis=1) >= min(3, points.shape[1])
     segment = longest_run(ok)
     if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
         why = sorted({str(r) for r in reason[a:b].ravel() if r})
-        raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker triangulated "
+        raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker (three of four or "
+                            f"more) triangulated "
                             f"(reasons: {', '.join(why) or 'none'}); check the rig (calibration) and the "
                             "detections in markers_2d.csv")
     if segment != (a, b):
