@@ -288,10 +288,110 @@ def check_stride_frequency(frequency_hz, input_="stride frequency = fps / period
     return check
 
 
-def check_saddle_acceleration(peak_mps2, input_="comfort.csv 'acc_y_max'") -> Check:
-    """Peak vertical saddle acceleration: ``ok`` 0.5-40 m/s^2, ``warning`` 0.2-80 m/s^2 (see the module)."""
+def check_saddle_acceleration(peak_mps2, input_="kinematics.csv 'ay_mps2' of the saddle, every frame") -> Check:
+    """Peak vertical saddle acceleration: ``ok`` 0.5-40 m/s^2, ``warning`` 0.2-80 m/s^2 (see the module).
+
+    ``peak_mps2``: the largest ``|ay|`` of the saddle written to kinematics.csv
+    (:func:`written_saddle_acceleration`), over the whole record, its ends included.
+    """
     return range_check("saddle_acceleration", peak_mps2, "m/s^2", (0.5, 40.0), (0.2, 80.0), input_,
                        "peak vertical acceleration of the saddle")
+
+
+def written_saddle_acceleration(analysis) -> np.ndarray | None:
+    """The saddle's vertical acceleration (m/s^2, motion frame, y down) per analysed frame, as kinematics.csv
+    writes it (the rigid-body step's ``saddle_acceleration``, column y); None before that step."""
+    rb = analysis.rigid_body
+    if rb is None or rb.saddle_acceleration is None:
+        return None
+    return np.asarray(rb.saddle_acceleration, float)[:, 1]
+
+
+#: The record's ends (its first and last half stride) against its middle (:func:`stride_repeat`): the rms
+#: change from one stride to the next at an end, over that in the middle (floored at
+#: ``STRIDE_CHANGE_FLOOR`` of the signal's rms): ``ok`` up to 2, ``warning`` up to 4, ``unreliable`` above.
+END_RATIO = (2.0, 4.0)
+#: A horse's strides differ a little; the middle's stride-to-stride change is taken as at least this share
+#: of the acceleration's rms (so a perfectly repeating middle does not make every end look bad).
+STRIDE_CHANGE_FLOOR = 0.1
+
+
+def stride_repeat(values, period_frames: float) -> dict | None:
+    """How well the record's ends repeat the stride, against its middle.
+
+    For a stride period ``T`` (frames, rounded), each frame's value is
+    compared with the same phase one stride inwards: ``x[k] - x[k + T]`` in
+    the first half of the record, ``x[k] - x[k - T]`` in the second. The rms
+    of these changes over the first half stride (``start``), the last half
+    stride (``end``) and the frames between (``middle``) say whether the
+    ends hold the same motion as the middle: a smoothing spline's end, a
+    marker lost or biased near the record's end, show there and nowhere
+    else. NaN frames are left out.
+
+    Returns ``{"start", "end", "middle", "rms", "ratio"}`` (``ratio``: the
+    larger end over ``max(middle, STRIDE_CHANGE_FLOOR * rms)``), or None when
+    the record is shorter than two strides.
+
+    Examples
+    --------
+    >>> t = np.arange(200)
+    >>> x = np.sin(2 * np.pi * t / 40)
+    >>> round(stride_repeat(x, 40)["ratio"], 3)
+    0.0
+    >>> x[-10:] += 3.0                      # the last frames wrong
+    >>> stride_repeat(x, 40)["ratio"] > 4
+    True
+    """
+    x = np.asarray(values, float)
+    T = int(round(float(period_frames))) if period_frames and np.isfinite(period_frames) else 0
+    n = x.size
+    if T < 2 or n < 2 * T:
+        return None
+    k = np.arange(n)
+    change = np.where(k < n / 2, x - np.roll(x, -T), x - np.roll(x, T))
+    half = max(T // 2, 1)
+    parts = {"start": change[:half], "end": change[n - half:], "middle": change[half:n - half]}
+
+    def rms(v):
+        v = v[np.isfinite(v)]
+        return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
+
+    out = {key: rms(v) for key, v in parts.items()}
+    out["rms"] = rms(x - np.nanmean(x))
+    ref = max(out["middle"], STRIDE_CHANGE_FLOOR * out["rms"])
+    out["ratio"] = float(max(out["start"], out["end"]) / ref) if ref > 0 else float("nan")
+    return out
+
+
+def check_record_ends(values, period_frames, input_="kinematics.csv 'ay_mps2' of the saddle: its first and last "
+                                                   "half stride against the middle") -> Check:
+    """Do the record's ends hold the same motion as its middle? (:func:`stride_repeat`).
+
+    The comfort indicators use every written frame, the ends as much as the
+    middle, and a pose trajectory is least constrained at its ends (one side
+    only, a marker entering or leaving a view, a cover near the end): the
+    ends get the same scrutiny as the middle. ``ok`` when each end repeats
+    the stride within twice the middle's stride-to-stride change (or 10 % of
+    the signal's rms), ``warning`` within 4 times, ``unreliable`` beyond.
+    """
+    ok, warn = END_RATIO
+    threshold = f"ok <= {ok:g}; warning <= {warn:g}; unreliable above"
+    rep = stride_repeat(values, period_frames) if values is not None else None
+    if rep is None or not np.isfinite(rep["ratio"]):
+        return Check("record_ends", None, "ratio", SKIPPED, (None, ok), (None, warn), threshold, input_,
+                     "the record's ends against its middle: not available (no stride period, or under "
+                     "two strides)")
+    check = range_check("record_ends", rep["ratio"], "ratio", (None, ok), (None, warn), input_,
+                        "stride-to-stride change at the record's ends over the middle's")
+    what = (f"rms change from one stride to the next: first half stride {rep['start']:.3g}, last half stride "
+            f"{rep['end']:.3g}, middle {rep['middle']:.3g} m/s^2 (signal rms {rep['rms']:.3g})")
+    if check.level == "ok":
+        msg = f"the record's ends repeat the stride as its middle does: {what}"
+    else:
+        msg = (f"the record's ends do not repeat the stride as its middle does: {what}; the saddle's acceleration "
+               "there (and the comfort figures that use it) is suspect: a marker lost, biased or partly covered "
+               "near an end, or the horse changed its motion; look at kinematics.csv's first and last frames")
+    return replace(check, message=msg, threshold=threshold)
 
 
 def check_reprojection_residuals(residual_px: dict, motion_px_per_frame: dict, calibration_rms_px=None,
@@ -727,10 +827,14 @@ def post_checks(analysis) -> list[Check]:
         rb = a_.rigid_body
         checks.append(check_marker_geometry(rb.warnings))
         checks.append(check_marker_rigidity(rb.conditioning.registration_rms_m, rb.model))
+        ay = written_saddle_acceleration(a_)
+        peak = float(np.nanmax(np.abs(ay))) if ay is not None and np.isfinite(ay).any() else None
+        checks.append(check_saddle_acceleration(peak))
+        period = a_.motion_frame.period_frames if a_.motion_frame is not None else None
+        checks.append(check_record_ends(ay, period))
     if a_.comfort is not None and a_.comfort.indicators is not None:
         ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
-        checks.append(check_saddle_acceleration(ind.get("acc_y_max")))
     return checks
 
 

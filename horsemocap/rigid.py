@@ -1287,10 +1287,13 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     ----------
     t : (n,)
         Time (s), eq. 5.13.
-    points : (n, 3, 3)
-        Smoothed marker positions in the motion frame (``MM``).
+    points : (n, m, 3), m >= 3
+        Smoothed marker positions in the motion frame (``MM``). The thesis'
+        chain takes three markers: with more, only the pose trajectory
+        (registration over every marker seen in a frame) is computed, and
+        ``kinematics="fits"`` is refused.
     static_points : (k, 3)
-        Static-shot markers in the motion frame (the 3 skin markers and the
+        Static-shot markers in the motion frame (the m skin markers and the
         saddle marker, any order).
     params : horsemocap.params.RigidBodyParams
         The step's choices (the module docstring, "The step's choices", says
@@ -1346,7 +1349,7 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     """
     _check_choices(params)
     t = np.asarray(t, float)
-    pts = _check_three("points", points, t.size)
+    pts = _marker_positions(points, t.size, params.kinematics)
     if fourier_orders is None:
         fourier_orders = FourierOrders.from_param(params.fits.fourier_orders, pts.shape[1])
     static = np.asarray(static_points, float)
@@ -1370,6 +1373,8 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     psaddle = traj.point(t, s_saddle)
     pmarkers = traj.points(t, model)
     pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
+    if pts.shape[1] != 3:
+        return _pose_only(common, pose, pts, f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}")
     try:
         chain = _thesis_chain(*chain_inputs)
     except (ValueError, np.linalg.LinAlgError) as exc:
@@ -1391,6 +1396,19 @@ def _check_choices(params: RigidBodyParams) -> None:
     events = params.pose.events
     if events is not None and len(events) and params.kinematics != "pose_spline":
         raise ValueError(f"pose.events: change points are a 'pose_spline' option, got kinematics={params.kinematics!r}")
+
+
+def _marker_positions(points, n_frames: int, kinematics: str) -> np.ndarray:
+    """The ride's markers (n, m, 3), m >= 3; the thesis' chain (``kinematics="fits"``) takes exactly three."""
+    pts = _as_positions("points", points)
+    if pts.shape[0] != n_frames:
+        raise ValueError(f"points: expected {n_frames} frames, got {pts.shape[0]}")
+    if pts.shape[1] < 3:
+        raise ValueError(f"points: expected 3 or more markers on axis 1 (a pose needs three), got {pts.shape[1]}")
+    if pts.shape[1] != 3 and kinematics == "fits":
+        raise ValueError(f"kinematics: 'fits' is the thesis' chain of three markers (eq. 6.3-6.55), the ride has "
+                         f"{pts.shape[1]}; use kinematics 'pose_spline' (registration over all the markers seen)")
+    return pts
 
 
 def _static_correspondence(static, pts, static_index, saddle_marker) -> tuple[np.ndarray, int]:
@@ -1445,7 +1463,7 @@ def _pose_only(common: dict, pose: dict, pts, chain_error: str) -> RigidBodyAnal
                              omega_rotation=nan3, alpha_rotation=nan3, omega_use=np.ones(6, bool),
                              alpha_use=np.ones(6, bool),
                              singularity_deg=singularity_angle(pose["pose_markers"].position[:, :3], omega),
-                             saddle_body=saddle_in_body_versions(model, s_saddle), saddle=sk, saddle_fit=None,
+                             saddle_body=saddle_in_body_versions(model[:3], s_saddle), saddle=sk, saddle_fit=None,
                              saddle_path=pose["pose_saddle"].position, chain_error=chain_error)
 
 

@@ -161,7 +161,8 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
                      missing=None, areas=None, views=None) -> ModelFit | None:
     """Label the frame's 3D points with the rigid marker model of the static shot.
 
-    Every ordered choice of ``n_markers`` distinct frame points is compared
+    Every ordered choice of ``n_markers`` distinct frame points
+    (:func:`_rigid_assignments`: only those whose distances agree) is compared
     with every choice of ``n_markers`` model points (the static shot holds the
     skin markers and the saddle marker; which of them are the skin markers is
     decided by the fit unless ``model_index`` is given): all pairwise 3D
@@ -205,41 +206,28 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
     if P < M or M < 3:
         return None
     model = np.asarray(model, float)
+    points = np.asarray(points, float)
     subsets = [np.asarray(model_index, int)] if model_index is not None else \
         [np.asarray(s, int) for s in itertools.combinations(range(len(model)), M)]
-    if math.perm(P, M) > 200000:
-        raise DetectionError(f"identification: {P} consistent 3D points in one frame are too many to label; "
-                             "give a higher threshold or a smaller area range")
-    perms = np.array(list(itertools.permutations(range(P), M)), dtype=np.intp)
     pairs = list(itertools.combinations(range(M), 2))
-    pts = points[perms]                                           # (K, M, 3)
-    extra = (np.asarray(missing, float)[perms].sum(axis=1) * MISSING_VIEW_COST if missing is not None
-             else np.zeros(len(perms)))
-    size_ok = np.ones(len(perms), bool)
-    if views is not None:                      # a region of one camera serves one marker only
-        idx = np.asarray(views, int)[perms]                          # (K, M, C)
-        srt = np.sort(idx, axis=1)
-        size_ok &= ~np.any((srt[:, 1:] == srt[:, :-1]) & (srt[:, 1:] >= 0), axis=(1, 2))
-    if areas is not None:
-        la = np.log(np.asarray(areas, float))[perms]               # (K, M, C), NaN where unseen
-        spread = np.fmax.reduce(la, axis=1) - np.fmin.reduce(la, axis=1)
-        size_ok &= np.all(~(spread > math.log(SIZE_SPREAD)), axis=1)   # (and kept the shared-region rule)
+    d_pts, tol_pts = _pair_distances(points, cov, slack_m)
     best = []
     for sub in subsets:
         ms = model[sub]
+        model_d = np.array([[np.linalg.norm(ms[i] - ms[j]) for j in range(M)] for i in range(M)])
+        perms = _rigid_assignments(d_pts, tol_pts, model_d)
+        if not len(perms):
+            continue
+        ok = _region_rules(perms, areas, views)
+        pts = points[perms]                                           # (K, M, 3)
+        extra = (np.asarray(missing, float)[perms].sum(axis=1) * MISSING_VIEW_COST if missing is not None
+                 else np.zeros(len(perms)))
         err = np.zeros(len(perms))
-        ok = size_ok.copy()
         for i, j in pairs:
             d = np.linalg.norm(pts[:, i] - pts[:, j], axis=-1)
             D = np.linalg.norm(ms[i] - ms[j])
             tol = distance_tolerance(cov[perms[:, i]], cov[perms[:, j]], pts[:, i], pts[:, j], slack_m)
-            e = np.abs(d - D) / tol
-            ok &= e <= 1.0
-            err += e ** 2
-            if not ok.any():
-                break
-        if not ok.any():
-            continue
+            err += (np.abs(d - D) / tol) ** 2
         face_model = _facing(ms[None, :3], camera_centre)[0]
         if face_model != 0:
             face = _facing(pts[:, :3], camera_centre)
@@ -255,6 +243,69 @@ def fit_marker_model(points: np.ndarray, cov: np.ndarray, model: np.ndarray, n_m
     return ModelFit(np.asarray(best[0][1], int), np.asarray(best[0][2], int), float(best[0][3]),
                     float(margin), len(best))
 
+
+
+#: Most assignments of a frame's points to the markers that agree with every model distance (beyond: a
+#: cluttered frame, refused with a message).
+MAX_ASSIGNMENTS = 200000
+
+
+def _pair_distances(points, cov, slack_m):
+    """Distances ``(P, P)`` between the frame's points and their tolerances (:func:`distance_tolerance`)."""
+    a, b = np.triu_indices(len(points), 1)
+    d = np.zeros((len(points), len(points)))
+    tol = np.zeros((len(points), len(points)))          # (0 on the diagonal: a point serves one marker)
+    d[a, b] = d[b, a] = np.linalg.norm(points[a] - points[b], axis=-1)
+    tol[a, b] = tol[b, a] = distance_tolerance(cov[a], cov[b], points[a], points[b], slack_m)
+    return d, tol
+
+
+def _rigid_assignments(d_pts, tol_pts, model_d) -> np.ndarray:
+    """Every ordered choice of ``M`` distinct points whose pairwise distances all agree with the model's.
+
+    Built marker by marker: a point joins an assignment only when its
+    distance to each point already chosen is within tolerance of the
+    model's (``|d - D| / tol <= 1``), so the choices that break a distance
+    are never listed (the search stays small with four or more markers in a
+    cluttered frame). Lexicographic order, as :func:`itertools.permutations`.
+
+    Examples
+    --------
+    >>> pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 2, 0], [5, 5, 5]])
+    >>> d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    >>> tol = np.full(d.shape, 0.01)
+    >>> _rigid_assignments(d, tol, d[:3, :3]).tolist()
+    [[0, 1, 2]]
+    """
+    P, M = len(d_pts), len(model_d)
+    prefix = np.arange(P)[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for level in range(1, M):
+            fits = np.ones((len(prefix), P), bool)
+            for i in range(level):
+                fits &= np.abs(d_pts[prefix[:, i]] - model_d[i, level]) / tol_pts[prefix[:, i]] <= 1.0
+            rows, cols = np.nonzero(fits)
+            if len(rows) > MAX_ASSIGNMENTS:
+                raise DetectionError(f"identification: {P} consistent 3D points in one frame are too many to "
+                                     "label; give a higher threshold or a smaller area range")
+            prefix = np.column_stack([prefix[rows], cols])
+            if not len(prefix):
+                break
+    return prefix.astype(np.intp).reshape(-1, M)
+
+
+def _region_rules(perms, areas, views) -> np.ndarray:
+    """Assignments that give no region of a camera to two markers and whose markers' areas are alike."""
+    size_ok = np.ones(len(perms), bool)
+    if views is not None:                      # a region of one camera serves one marker only
+        idx = np.asarray(views, int)[perms]                          # (K, M, C)
+        srt = np.sort(idx, axis=1)
+        size_ok &= ~np.any((srt[:, 1:] == srt[:, :-1]) & (srt[:, 1:] >= 0), axis=(1, 2))
+    if areas is not None:
+        la = np.log(np.asarray(areas, float))[perms]               # (K, M, C), NaN where unseen
+        spread = np.fmax.reduce(la, axis=1) - np.fmin.reduce(la, axis=1)
+        size_ok &= np.all(~(spread > math.log(SIZE_SPREAD)), axis=1)   # (and kept the shared-region rule)
+    return size_ok
 
 
 def in_working_volume(rig, points: np.ndarray, static_points: np.ndarray, depth_range=DEPTH_RANGE) -> np.ndarray:

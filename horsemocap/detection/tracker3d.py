@@ -66,6 +66,8 @@ IDENTIFICATION_REASONS = {
     "not_rigid": "triangulates consistently but breaks the marker set's rigid shape (a stirrup, a glint)",
     "merged": "its region merged with another bright region (far larger than the marker's): centre biased",
     "partly_occluded": "its region is far smaller than the marker's recent area: centre biased",
+    "partly_covered": "its region shrank and lost the marker's own shape (a leg, a rein, a hand over part of it): "
+                      "centre biased",
     "single_view": "seen by one camera only: its identity cannot be validated by another camera",
     "off_track": "consistent in the cameras, but further from the predicted 3D position than a marker moves",
     "unconfirmed": "found alone (no other marker confirms its distance) on an extrapolated track or by too few cameras",
@@ -76,6 +78,18 @@ IDENTIFICATION_REASONS = {
 #: A region whose area is more than this factor away from the marker's recent
 #: area in that camera is a merge (or a partial occlusion): its centre is biased.
 AREA_FACTOR = 1.6
+#: A region is partly covered (:func:`shape_change`) when its area is below this share of the marker's
+#: recent area in that camera ...
+COVER_AREA = 0.85
+#: ... and the marker's spread along some direction is below this share of its recent spread (variance
+#: ratio): a disc covered beyond a chord keeps 0.78 of its area and 0.59 of its variance across the chord
+#: at a fifth covered, 0.67 and 0.45 at a third.
+COVER_SPREAD = 0.72
+#: Frames looked back for the marker's recent shape in a camera (a cover may last longer than the search's
+#: area memory), the used views its median is taken over, and the frames just before left out of it.
+SHAPE_MEMORY = 60
+SHAPE_VIEWS = 9
+SHAPE_LAG = 4
 #: Smallest leave-one-out residual limit (px) of a view (see ``_Tracker._limit``).
 RESIDUAL_FLOOR_PX = 0.3
 #: The most candidates of one camera tried for one marker (the nearest its prediction).
@@ -85,6 +99,37 @@ MAX_LOST_FRAMES = 10
 #: A marker neither seen lately nor carried by the others is looked for this many frames on its
 #: own extrapolated track, then no more (until the set is found again).
 MAX_STALE_FRAMES = 3
+
+
+def shape_change(area, moments, ref_area, ref_moments) -> tuple[float, float]:
+    """How a region's size and shape compare with a marker's recent ones in the same camera.
+
+    Returns ``(area_ratio, spread_ratio)``: the region's area over the
+    reference area, and the smallest eigenvalue of ``S_ref^-1/2 S S_ref^-1/2``
+    (``S`` the weights' second central moments, px^2): the smallest ratio of
+    the region's variance to the reference's along any direction. A marker
+    partly covered by something dark shrinks (area) and loses spread across
+    the covering edge; one seen whole keeps both near 1 whatever its smear
+    (the reference is its own recent shape). NaN when a term is missing.
+
+    Examples
+    --------
+    >>> S = np.diag([4.0, 2.0])
+    >>> shape_change(60.0, S, 60.0, S)
+    (1.0, 1.0)
+    >>> a, s = shape_change(40.0, np.diag([1.8, 2.1]), 60.0, S)
+    >>> round(a, 3), round(s, 3)
+    (0.667, 0.45)
+    """
+    S, R = np.asarray(moments, float), np.asarray(ref_moments, float)
+    if not (np.all(np.isfinite(S)) and np.all(np.isfinite(R)) and np.isfinite(area) and np.isfinite(ref_area)
+            and ref_area > 0):
+        return float("nan"), float("nan")
+    w, V = np.linalg.eigh(R)
+    if w.min() <= 0:
+        return float(area / ref_area), float("nan")
+    Ri = V @ np.diag(w ** -0.5) @ V.T
+    return float(area / ref_area), float(np.linalg.eigvalsh(Ri @ S @ Ri).min())
 
 
 def reason_counts(reason: dict) -> str:
@@ -288,6 +333,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     for direction in (1, -1):
         k1 = tracker.seed_neighbour(k0, direction)
         tracker.run(k1, direction)
+    tracker.flag_covered_views()
     return tracker.result(fit0.model_index, k0, fit0.margin)
 
 
@@ -491,6 +537,7 @@ class _Tracker:
     def step(self, k, direction):
         """Follow the markers into frame ``k`` (``direction`` +1 or -1); True when any marker was found."""
         pred, gaps = self._predict(k, direction)
+        self._direction, self._pred = direction, pred
         predicted = np.all(np.isfinite(pred), axis=1)
         if not predicted.any():
             return False
@@ -534,9 +581,40 @@ class _Tracker:
 
     def _solve_marker(self, k, m, cams, proj, radius, ref_area, cands, pred):
         """Marker ``m`` in frame ``k``: its best consistent views near the prediction ``pred``, recorded."""
+        self._shape_ref = {c: self._reference_shape(k, c, m) for c in cams}
         options, why = self._view_options(m, cams, proj, radius, ref_area, cands)
+        self._k, self._m = k, m
         used, dropped, why_all, edge = self._best_views(k, m, cams, proj, radius, cands, pred, options)
         self._record_views(k, m, cams, cands, options, why, used, dropped, why_all, edge)
+
+    def _reference_shape(self, k, c, m):
+        """Marker ``m``'s recent area and second moments in camera ``c``, or NaNs.
+
+        Medians of its last :data:`SHAPE_VIEWS` used views within
+        :data:`SHAPE_MEMORY` frames before ``k`` in tracking order, leaving
+        out the :data:`SHAPE_LAG` frames just before ``k``: a cover sliding
+        in a little each frame would otherwise carry the reference with it.
+        """
+        direction = getattr(self, "_direction", 1)
+        j, recent = k - direction * (1 + SHAPE_LAG), []
+        while 0 <= j < self.n and len(recent) < SHAPE_VIEWS and abs(k - j) <= SHAPE_MEMORY:
+            if self.reason[c][j, m] == "" and np.isfinite(self.area[c][j, m]) \
+                    and np.all(np.isfinite(self.moments[c][j, m])):
+                recent.append(j)
+            j -= direction
+        if len(recent) < 3:
+            return np.nan, np.full((2, 2), np.nan)
+        return float(np.median(self.area[c][recent, m])), np.median(self.moments[c][recent, m], axis=0)
+
+    def _covered(self, c, cc, j) -> bool:
+        """Is candidate ``j`` of camera ``c`` the current marker partly covered (:func:`shape_change`)?"""
+        if cc.moments is None:
+            return False
+        ra, rs = self._shape_ref.get(c, (np.nan, None))
+        if rs is None:
+            return False
+        a, s = shape_change(cc.area[j], cc.moments[j], ra, rs)
+        return bool(a < COVER_AREA and s < COVER_SPREAD)
 
     def _view_options(self, m, cams, proj, radius, ref_area, cands):
         """Per camera, the candidates near marker ``m``'s projection that may stand for it.
@@ -574,6 +652,8 @@ class _Tracker:
                     rejected.append("merged")
                 elif np.isfinite(ra) and cc.area[j] < ra / AREA_FACTOR:
                     rejected.append("partly_occluded")
+                elif self._covered(c, cc, j):
+                    rejected.append("partly_covered")
                 else:
                     good.append(int(j))
             why[c] = rejected[0] if rejected else "occluded"
@@ -700,6 +780,8 @@ class _Tracker:
             if not loo:
                 break
             ci, (r, ratio, Xr) = max(loo.items(), key=lambda kv: kv[1][1])
+            if ratio > 1.0 and len(loo) == 3:       # two views agree, one does not: the rigid set decides
+                ci, (r, _, Xr) = self._rigid_choice(loo, ci)
             if ratio <= 1.0:
                 for cj, (rj, _, _) in loo.items():
                     self._loo.setdefault(cams[cj], []).append(rj)
@@ -709,6 +791,35 @@ class _Tracker:
             X = Xr
             dropped.add(ci)
         return used, X, dropped
+
+    def _rigid_error(self, X) -> float:
+        """RMS error (m) of the current marker at ``X`` against the static shot's distances to the others
+        (their positions in this frame where found, else their predictions from the neighbouring frames)."""
+        k, m = self._k, self._m
+        errs = []
+        for o in range(self.M):
+            if o == m:
+                continue
+            P = self.X[k, o] if np.all(np.isfinite(self.X[k, o])) else self._pred[o]
+            if np.all(np.isfinite(P)):
+                errs.append(np.linalg.norm(X - P) - self.model_d[m, o])
+        return math.sqrt(np.mean(np.square(errs))) if errs else float("nan")
+
+    def _rigid_choice(self, loo, ci):
+        """The view to leave out of three when one disagrees: not by a vote of two.
+
+        Two views of a marker partly covered the same way in two cameras
+        agree with each other (their centres are biased alike) and outvote
+        the third, correct one. Each pair's point is compared with the rigid
+        set (:meth:`_rigid_error`); the pair that keeps it rigid wins when
+        its error is less than half that of the pair the residuals chose.
+        Returns the item of ``loo`` to leave out.
+        """
+        err = {cj: self._rigid_error(v[2]) for cj, v in loo.items()}
+        best = min(err, key=lambda cj: err[cj] if np.isfinite(err[cj]) else np.inf)
+        if best != ci and np.isfinite(err[best]) and np.isfinite(err[ci]) and err[best] < 0.5 * err[ci]:
+            return best, loo[best]
+        return ci, loo[ci]
 
     def _drop_view(self, k, m, c, why):
         self.px[c][k, m] = np.nan
@@ -921,6 +1032,37 @@ class _Tracker:
             return False
         self.start(k, cands, vp, fit)
         return True
+
+    def flag_covered_views(self):
+        """Leave out every used view whose region lost the marker's shape against its own track around it.
+
+        The tracker compares a region with the marker's shape in the frames
+        before it in tracking order; a track that starts inside a cover (its
+        anchor frame covered) takes the covered shape for the marker's. Here
+        each used view is compared (:func:`shape_change`) with the medians of
+        the marker's used views in that camera within ``SHAPE_MEMORY / 2``
+        frames on both sides (at least ``SHAPE_VIEWS`` of them), and left out
+        as ``partly_covered`` when it fails; the marker is triangulated again
+        from its other views (or has no position).
+        """
+        half = SHAPE_MEMORY // 2
+        for c in self.cams:
+            for m in range(self.M):
+                used = np.flatnonzero((self.reason[c][:, m] == "") & np.isfinite(self.area[c][:, m])
+                                      & np.all(np.isfinite(self.moments[c][:, m]), axis=(1, 2)))
+                flagged = []
+                for k in used:
+                    near = used[np.abs(used - k) <= half]
+                    if len(near) < SHAPE_VIEWS:
+                        continue
+                    a, sp = shape_change(self.area[c][k, m], self.moments[c][k, m],
+                                         float(np.median(self.area[c][near, m])),
+                                         np.median(self.moments[c][near, m], axis=0))
+                    if a < COVER_AREA and sp < COVER_SPREAD:
+                        flagged.append(k)
+                for k in flagged:
+                    self._drop_view(k, m, c, "partly_covered")
+                    self._rigid_rms(k)
 
     def result(self, model_index, k0, margin):
         px = {c: correct_light(self.px[c], self.slope[c], self.moments[c]) for c in self.cams}

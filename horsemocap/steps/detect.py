@@ -190,6 +190,11 @@ def step_detect(session: Session, section: DetectParams, sync: SyncResult, rig: 
             progress("detect", f"multi-view identification not possible ({why}); the thesis' per-camera chain")
     if method == "multiview":
         return _detect_multiview(session, section, sync, rig, static_points, progress)
+    if session.marker_count > 3:
+        raise AnalysisError("detect", f"the thesis' per-camera chain (chapter 4) follows three markers, "
+                                      f"{session.json_path} 'markers.count' says {session.marker_count}"
+                                      + (f" and {why}" if why else "")
+                                      + ": use detection method 'multiview' with a static shot of every marker")
     return _detect_per_camera(session, section, sync, progress, why)
 
 
@@ -220,7 +225,10 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
         sync = _subframe_by_markers(session, sync, rig, idn.marker_px, times, progress)
     gap = max_gap_frames(session, section)
     have, _ = bridge_gaps(idn.points, gap)
-    tracked = np.all(np.isfinite(have), axis=(1, 2))
+    # the frames with a pose: every marker of three, any three or more of four or more (the others
+    # define the pose while one is hidden)
+    located = np.all(np.isfinite(have), axis=2).sum(axis=1)
+    tracked = located >= min(3, have.shape[1])
     segment = longest_run(tracked)
     if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
         moved = [c for c, v in check.items() if v.moved or not v.decided]
@@ -228,11 +236,13 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                 f"{sync.offsets}, the flash's {sync.flash_offsets or sync.offsets}): "
                 "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
                 if moved else "") + identification_hint(session, sync)
-        raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker is seen by two or "
+        raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker (three of four or more) "
+                            "is seen by two or "
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
                             "motion videos, the threshold, the rig and 'markers.count' in session.json" + hint)
     progress("detect", f"{frames_text(session.reference_camera, sync.offsets, segment[0], segment[1] - 1)}: every "
-                       f"marker seen by two or more cameras (or bridged); labelled in synchronised frame "
+                       f"marker{'' if have.shape[1] <= 3 else ' (three or more of them)'} seen by two or more cameras "
+                       f"(or bridged); labelled in synchronised frame "
                        f"{idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
     summary = IdentificationSummary(anchor_frame=idn.anchor_frame, anchor_margin=idn.anchor_margin,

@@ -113,6 +113,11 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     if cov is not None:   # the markers' covariances in the motion frame (x_M = A (x - o): A C A^T)
         cov = motion.axes @ cov[lo:hi] @ motion.axes.T
     period = motion.period_frames
+    if section.kinematics == "fits" and positions.shape[1] != 3:
+        raise AnalysisError("rigid_body", f"parameter 'kinematics': 'fits' is the thesis' chain of three markers "
+                                          f"(eq. 6.3-6.55), {session.json_path} 'markers.count' says "
+                                          f"{positions.shape[1]}: use 'pose_spline' (registration over every "
+                                          "marker seen in a frame)")
     try:     # the parameter file's form parsed once (markers, orientation, saddle path)
         given_orders = FourierOrders.from_param(fits.fourier_orders, positions.shape[1])
     except ValueError as exc:   # "fourier_orders: expected ...", named as every parameter is

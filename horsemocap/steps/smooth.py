@@ -37,4 +37,5 @@ def step_smooth(section: SmoothParams, triangulated: TriangulateResult, progress
     raw = triangulated.points[a:b]
     if section.method == "none":
         return SmoothResult(raw=raw, smoothed=raw.copy())
-    return SmoothResult(raw=raw, smoothed=smooth_positions(raw, span=section.span, method=section.method))
+    gaps = "omit" if raw.shape[1] > 3 else "raise"      # four or more markers: one may be hidden (NaN kept)
+    return SmoothResult(raw=raw, smoothed=smooth_positions(raw, span=section.span, method=section.method, nan=gaps))

@@ -77,11 +77,13 @@ def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult,
                             + ", ".join(f"{c} {v:.3f}" for c, v in med.items()))
     a, b = detect.segment
     ok = np.zeros(len(tri.points), bool)
-    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=(1, 2))
-    segment = longest_run(ok)
+    # every marker of three; any three or more of four or more (the others define the pose meanwhile)
+    ok[a:b] = np.all(np.isfinite(points[a:b]), axis=2).sum(axis=1) >= min(3, points.shape[1])
+    segment = _whole_at_ends(longest_run(ok), points)
     if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
         why = sorted({str(r) for r in reason[a:b].ravel() if r})
-        raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker triangulated "
+        raise AnalysisError("triangulate", f"fewer than 8 consecutive frames with every marker (three of four or "
+                            f"more) triangulated "
                             f"(reasons: {', '.join(why) or 'none'}); check the rig (calibration) and the "
                             "detections in markers_2d.csv")
     if segment != (a, b):
@@ -92,6 +94,27 @@ def step_triangulate(section: TriangulateParams, rig: Rig, detect: DetectResult,
     sync_residual = None if outside is None or len(marker_px) < 3 else others_residual(rig, marker_px)
     return TriangulateResult(points=points, residual_px=tri.residual_px, reason=reason, n_views=tri.n_views,
                              segment=segment, covariance=cov, noise_px=tri.noise_px, sync_residual_px=sync_residual)
+
+
+def _whole_at_ends(segment, points):
+    """The segment shortened until its first and last frames hold every marker (the motion frame's net
+    displacement is measured between them); a marker may still be missing inside. None stays None.
+
+    Examples
+    --------
+    >>> pts = np.zeros((6, 4, 3)); pts[0, 1] = np.nan; pts[3, 2] = np.nan
+    >>> _whole_at_ends((0, 6), pts)
+    (1, 6)
+    """
+    if segment is None:
+        return None
+    whole = np.all(np.isfinite(points), axis=(1, 2))
+    a, b = segment
+    while a < b and not whole[a]:
+        a += 1
+    while b > a and not whole[b - 1]:
+        b -= 1
+    return (int(a), int(b)) if b > a else None
 
 
 def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | None]:

@@ -650,7 +650,7 @@ def _with_occluder(sc: HardScenario, scene: Scene, truth) -> Scene:
     return replace(scene, extras=tuple(scene.extras) + (occ,))
 
 
-def plan(sc: HardScenario) -> dict:
+def plan(sc: HardScenario, adapt=None) -> dict:
     """Everything about a scenario that needs no image: scene, timeline and truth.
 
     The timeline keeps the durations of the herd's in seconds where it
@@ -666,6 +666,7 @@ def plan(sc: HardScenario) -> dict:
     skin marker's centre to the image edges, per camera: any edge and top/bottom).
     """
     scene, info = build_scene(sc)
+    scene = adapt(scene) if adapt is not None else scene      # e.g. :func:`.covers.adapt_scene`
     left = int(round(0.1 * sc.fps))
     offsets, n_after = plan_timeline(scene, sc.fps, left_offset=left, sync_deltas_s=sc.sync_deltas_s)
     n_frames = {c: offsets[c] + n_after for c in CAMERA_NAMES}
@@ -748,14 +749,15 @@ def hard_key(sc: HardScenario) -> str:
 
 
 def render_hard(out_dir, sc: HardScenario, *, noise: bool = True, compress: bool = True, verbose: bool = False,
-                timing: dict | None = None, metadata: dict | None = None) -> Path:
+                timing: dict | None = None, metadata: dict | None = None, adapt=None) -> Path:
     """Render one hard scenario into ``out_dir`` (a session folder with its truth).
 
     ``timing``: free-running cameras (see :func:`horsemocap.virtuallab.render_session`);
-    ``metadata`` is merged into ``session.json``'s.
+    ``metadata`` is merged into ``session.json``'s; ``adapt(scene) -> scene``
+    changes the planned scene (other markers, covers: :mod:`.covers`).
     """
     t0 = time.perf_counter()
-    p = plan(sc)
+    p = plan(sc, adapt)
     meta = {"hard_scenario": sc.to_dict(), "exercises": sc.exercises}
     meta.update(metadata or {})
     out = render_session(out_dir, sc.horse, sc.gait, sc.seed, noise=noise, compress=compress,

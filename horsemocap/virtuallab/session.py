@@ -105,10 +105,11 @@ class Scene:
 
 
 def marker_gradients(scene: Scene) -> np.ndarray:
-    """Per-marker uneven-illumination gradients (4, 2), fixed for a session seed."""
+    """Per-marker uneven-illumination gradients (m + 1, 2) (skin markers and saddle), fixed for a session seed."""
     rng = _seed(scene.seed, 21)
-    ang = rng.uniform(0, 2 * np.pi, 4)
-    mag = rng.uniform(0.02, 0.06, 4)
+    count = len(scene.motion.horse.marker_body) + 1
+    ang = rng.uniform(0, 2 * np.pi, count)
+    mag = rng.uniform(0.02, 0.06, count)
     return np.column_stack([mag * np.cos(ang), mag * np.sin(ang)])
 
 
@@ -188,7 +189,7 @@ def marker_projection_truth(scene: Scene, cam: Camera, t: np.ndarray, ride: bool
                 reason[i, j] = "outside_image"
             elif not np.all(inside):
                 reason[i, j] = "partly_outside_image"
-            elif ride and j == 3:
+            elif ride and j == m - 1:      # the saddle marker (last), under the rider's thigh
                 reason[i, j] = "occluded_by_rider"
             else:
                 visible[i, j] = True
@@ -814,7 +815,8 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     sname = name or f"{horse.lower().replace(' ', '')}_{gait}"
     board = board_info["board"] if board_info else {"inner_corners": [15, 29], "square_size_m": 0.05}
     sj = session_json(sname, meta, motion_paths, stills, bool(calibration_views),
-                      board=board["inner_corners"], square=board["square_size_m"], fps=fps)
+                      board=board["inner_corners"], square=board["square_size_m"], fps=fps,
+                      marker_count=len(motion.horse.marker_body))
     atomic_write_json(out / "session.json", sj)
     if verbose:
         print(f"rendered {out} in {time.perf_counter() - t_start:.1f} s")
@@ -933,7 +935,7 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS, t
         kc = kL - offsets["left"] + offsets[cam.name]
         good = (kc >= 0) & (kc < n_frames[cam.name])
         vis = np.zeros(len(kL), bool)
-        seen = marker_vis[cam.name][kc[good], :3] | (marker_reason[cam.name][kc[good], :3] == "occluded_in_camera")
+        seen = marker_vis[cam.name][kc[good], :-1] | (marker_reason[cam.name][kc[good], :-1] == "occluded_in_camera")
         vis[good] = seen.all(axis=1)
         ok &= vis
     idx = np.nonzero(ok)[0]
