@@ -233,6 +233,22 @@ fig = plots.plot_detection_stages(frames[k], stages, window=p.window, center=c, 
 plt.show()
 
 # %% [markdown]
+# **What each filter removes.** The same frame, every white region coloured by the filter that
+# removed it. The area filter (4.5.3) removes what is too big or too small: the rail, the helmet,
+# the bandages, single-pixel glints. The sliding window (4.5.4) removes what is too far from where
+# the markers were in the previous frame. The regions left are many more than three, so the distance
+# filter (4.5.5, eq. 4.6-4.11) tries every *ordered* choice of three of them (region $a_1$ for
+# marker 1, $a_2$ for marker 2, ...) and keeps a choice only if its three distances match the
+# previous frame's $DM_{ij}$ within the tolerance $DT$. A choice and the same regions taken in
+# another order can pass together when two distances are alike; the cross-product filter
+# (Figure 4.13) then keeps the order whose path 1-2-3 turns the same way as in the first frame
+# (right: the choice it removed is the same three regions numbered the other way round).
+
+# %%
+fig = plots.plot_filter_removals(frames[k], stages, prev, window=p.window, center=c, zoom=zoom)
+plt.show()
+
+# %% [markdown]
 # ## 5 · Through the sequence, with reasons
 #
 # Where a marker is not found it is NaN, and `track.reason` says why: `left_image` (predicted
