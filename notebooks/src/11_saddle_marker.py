@@ -349,8 +349,9 @@ print(f"saddle marker: static-shot point {ui_saddle_marker.value} (the pipeline'
 # (noisy, but with nothing chosen).
 #
 # The markers' rigidity residual (what the rigid fit leaves) is a measurement of the noise the motion
-# does not contain. Its frame-to-frame correlation `rho` tells how correlated the noise is; generalised
-# cross-validation (GCV) assumes independent errors and, with correlated ones, takes slow noise for motion.
+# does not contain. Its frame-to-frame correlation `rho` tells how correlated the noise is (modelled as a
+# first-order autoregression, AR(1): each frame's error is `rho` times the previous frame's plus fresh noise);
+# GCV (section above) assumes independent errors and, with correlated ones, takes slow noise for motion.
 
 # %%
 from scipy.signal import savgol_filter
