@@ -343,15 +343,19 @@ def plot_filter_removals(image, stages: dict, reference_px, window=None, center=
     for name, colour in FILTER_COLOURS.items():
         colour_of[r.ids[removed == name]] = plt.matplotlib.colors.to_rgba(colour)
     ax.imshow(colour_of[r.labels])
+    n_choices_removed = len(stages["choices"]) - len(stages["kept"]) if stages.get("choices") is not None else 0
     for name, colour in FILTER_COLOURS.items():
         n = int(np.sum(removed == name))
-        what = ("markers left" if name == "marker" else "only in choices the cross product removed"
-                if name == "cross product" else f"removed by the {name} filter")
-        ax.plot([], [], "s", color=colour, label=f"{n} {what}")
+        if name == "cross product":
+            label = (f"{n_choices_removed} ordered choice{'s' * (n_choices_removed != 1)} removed by the "
+                     f"cross-product filter (right)" + (f", {n} regions with them" if n else ""))
+        else:
+            label = f"{n} " + ("markers left" if name == "marker" else f"removed by the {name} filter")
+        ax.plot([], [], "s", color=colour, label=label)
     if window is not None and center is not None:
         w, c = np.asarray(window, float), np.asarray(center, float)
         ax.add_patch(Rectangle(c - w / 2, w[0], w[1], fill=False, ec="tab:orange", lw=1.2, ls="--"))
-    ax.legend(fontsize=8, loc="lower left", framealpha=0.9)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=2, frameon=False)
     ax.set_title(f"{len(r)} white regions after the threshold", fontsize=10)
     _zoom(ax, zoom, img.shape)
     ax.set_xticks([])
