@@ -164,8 +164,10 @@ plt.show()
 # %%
 thesis = reconstruction.triangulate(rig, marker_px, mode="thesis")
 for name, pair in thesis.pairs.items():
-    print(f"{name:13s} in {pair.cameras[0]:6s} frame: first point {np.array2string(pair.points_local[0, 0], precision=3)}",
-          end="")
+    seen_pair = np.flatnonzero(np.isfinite(pair.points_local[:, 0, 0]))   # frames where the pair sees marker 1
+    first = (f"marker 1 first seen in frame {seen_pair[0]:2d} at {np.array2string(pair.points_local[seen_pair[0], 0], precision=3)}"
+             if len(seen_pair) else "marker 1 never seen by both")
+    print(f"{name:13s} in {pair.cameras[0]:6s} frame: {first}", end="")
     if truth is None:
         print()
         continue
