@@ -8,7 +8,10 @@ from matplotlib.patches import Rectangle
 from ._layout import label_away_from_centre
 
 __all__ = ["plot_detection_stages", "plot_marker_track", "plot_centroid_errors", "plot_identification",
-           "plot_filtered_images"]
+           "plot_filtered_images", "plot_filter_removals", "filter_removals"]
+
+FILTER_COLOURS = {"area": "tab:red", "window": "tab:orange", "distance": "magenta",
+                  "cross product": "tab:blue", "marker": "lime"}
 
 
 def _zoom(ax, box, shape=None):
@@ -260,5 +263,134 @@ def plot_filtered_images(images, threshold: int, area_range=None, marker_px=None
             ax.set_yticks([])
     if n > 1:
         fig.text(0.5, 0.01, f"bottom row: {what}", ha="center", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def filter_removals(stages: dict) -> np.ndarray:
+    """Which filter removed each region of one frame's :func:`~horsemocap.detection.filter_stages`.
+
+    Returns
+    -------
+    ndarray (R,) of str, one per region of ``stages["regions"]``: ``"area"``
+    (outside the area range, or not round enough), ``"window"`` (outside the
+    sliding window), ``"distance"`` (in no choice the distance filter kept),
+    ``"cross product"`` (only in choices the cross-product filter removed),
+    ``"marker"`` (in a choice that is left), ``""`` when the distance filters
+    were not run (no reference centres).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from horsemocap.detection import DetectionParams, filter_stages
+    >>> img = np.zeros((60, 80), np.uint8)
+    >>> for u, v in ((10, 10), (50, 12), (20, 40), (70, 50)):
+    ...     img[v - 2:v + 3, u - 2:u + 3] = 255
+    >>> img[30:32, 60:62] = 255                                 # a 4-pixel glint
+    >>> p = DetectionParams(threshold=128, area_min=10, area_max=50, window=(60, 50),
+    ...                     distance_tolerance=0.1)
+    >>> ref = np.array([[10., 10.], [50., 12.], [20., 40.]])
+    >>> stages = filter_stages(img, p, center=ref.mean(0), reference_px=ref)
+    >>> [str(w) for w in filter_removals(stages)]
+    ['marker', 'marker', 'area', 'marker', 'window']
+    """
+    r = stages["regions"]
+    removed = np.full(len(r), "", dtype=object)
+    removed[:] = "area"
+    removed[np.asarray(stages["area_ok"], int)] = "window"
+    window_ok = np.asarray(stages["window_ok"], int)
+    if stages.get("choices") is None:
+        removed[window_ok] = ""
+        return removed.astype(str)
+    removed[window_ok] = "distance"
+    choices = np.asarray(stages["choices"], int)
+    kept = np.asarray(stages["kept"], int)
+    removed[np.unique(choices)] = "cross product"
+    removed[np.unique(kept)] = "marker"
+    return removed.astype(str)
+
+
+def plot_filter_removals(image, stages: dict, reference_px, window=None, center=None, zoom=None, fig=None):
+    """What each filter of chapter 4 removes on one frame (sections 4.5.2-4.5.5).
+
+    Left: the frame with every white region of the threshold coloured by the
+    filter that removed it (area, sliding window, distance, cross product)
+    and the markers left, the window drawn. Right: the ordered choices of
+    regions that the distance filter kept, each drawn as a path through its
+    regions in marker order 1-2-3-..., beside the reference centres
+    ``reference_px`` (the previous frame's): the cross-product filter keeps
+    only the choices that turn the same way as the markers of the first frame.
+
+    Parameters
+    ----------
+    image : the frame (RGB or gray)
+    stages : dict from :func:`horsemocap.detection.filter_stages` (with ``reference_px``)
+    reference_px : (M, 2) the centres that gave ``DM_ij``
+    window, center : the sliding window's size and centre (drawn)
+    zoom : ``(u0, v0, u1, v1)`` region shown on the left (None = whole image)
+
+    Returns
+    -------
+    matplotlib Figure
+    """
+    img = np.asarray(image)
+    r = stages["regions"]
+    removed = filter_removals(stages)
+    fig = fig or plt.figure(figsize=(12, 4.8))
+    ax, ax_ch = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.5, 1]})
+    ax.imshow(img, cmap=None if img.ndim == 3 else "gray", alpha=0.55)
+    colour_of = np.zeros((len(r) + 1, 4))
+    for name, colour in FILTER_COLOURS.items():
+        colour_of[r.ids[removed == name]] = plt.matplotlib.colors.to_rgba(colour)
+    ax.imshow(colour_of[r.labels])
+    n_choices_removed = len(stages["choices"]) - len(stages["kept"]) if stages.get("choices") is not None else 0
+    for name, colour in FILTER_COLOURS.items():
+        n = int(np.sum(removed == name))
+        if name == "cross product":
+            label = (f"{n_choices_removed} ordered choice{'s' * (n_choices_removed != 1)} removed by the "
+                     f"cross-product filter (right)" + (f", {n} regions with them" if n else ""))
+        else:
+            label = f"{n} " + ("markers left" if name == "marker" else f"removed by the {name} filter")
+        ax.plot([], [], "s", color=colour, label=label)
+    if window is not None and center is not None:
+        w, c = np.asarray(window, float), np.asarray(center, float)
+        ax.add_patch(Rectangle(c - w / 2, w[0], w[1], fill=False, ec="tab:orange", lw=1.2, ls="--"))
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=2, frameon=False)
+    ax.set_title(f"{len(r)} white regions after the threshold", fontsize=10)
+    _zoom(ax, zoom, img.shape)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+    ref = np.asarray(reference_px, float)
+    centres = r.centroid
+    ax_ch.plot(*ref.T, "k-", lw=4, alpha=0.25, label="reference (previous frame)")
+    for m, (u, v) in enumerate(ref):
+        ax_ch.annotate(str(m + 1), (u, v), color="k", alpha=0.6, fontsize=11, ha="center", va="center")
+    kept_rows = {tuple(k) for k in np.asarray(stages["kept"], int)}
+    for row in np.asarray(stages["choices"], int):
+        ok = tuple(row) in kept_rows
+        pts = centres[row]
+        colour = FILTER_COLOURS["marker"] if ok else FILTER_COLOURS["cross product"]
+        ax_ch.plot(*pts.T, "-" if ok else "--", color="green" if ok else colour, lw=1.5 if ok else 2.5,
+                   marker="o", mfc="none",
+                   label="kept by the cross product" if ok else "removed by the cross product (turns the other way)")
+        for m, (u, v) in enumerate(pts):
+            ax_ch.annotate(str(m + 1), (u, v), xytext=(5, 5) if ok else (-10, -12), textcoords="offset points",
+                           color="green" if ok else colour, fontsize=9)
+    handles, labels = ax_ch.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    ax_ch.legend(unique.values(), unique.keys(), fontsize=7, loc="best")
+    n_in = len(stages["window_ok"])
+    m = len(ref)
+    n_ordered = int(np.prod(np.arange(n_in - m + 1, n_in + 1))) if n_in >= m else 0
+    ax_ch.set_title(f"ordered choices of {m} of the {n_in} regions: {n_ordered};\n"
+                    f"distance filter kept {len(stages['choices'])}, cross product {len(stages['kept'])}",
+                    fontsize=10)
+    span = np.ptp(np.vstack([ref, centres[np.unique(np.asarray(stages["choices"], int))]]), axis=0) \
+        if len(stages["choices"]) else np.ptp(ref, axis=0)
+    ax_ch.margins(0.15)
+    ax_ch.invert_yaxis()
+    ax_ch.set_xlabel("u (px)")
+    ax_ch.set_ylabel("v (px)" + (" (stretched: a turn keeps its sense)" if span[1] < 0.5 * span[0] else ""))
     fig.tight_layout()
     return fig

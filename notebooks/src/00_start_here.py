@@ -12,7 +12,9 @@
 # (`pip install -r environment.txt`, README). The notebooks are stored with their outputs; their
 # controls (sliders, pickers, check boxes) draw as controls once the notebook is trusted
 # (`jupyter trust notebooks/*.ipynb`, once after cloning) or once their cells have run:
-# **Run > Run All Cells** first, then move a control and re-run the cells below it.
+# **Run > Run All Cells** first, then move a control and re-run the cells below it. Before the cells
+# have run, each stored control carries a small red broken-link sign: it is a picture of the control,
+# not yet connected to Python, and moving it changes nothing until its cell has run.
 #
 # A horse's back moves the rider up and down a few centimetres several times a second. The thesis
 # filmed four horses in four gaits with three cameras, followed reflective markers stuck near the

@@ -290,11 +290,11 @@ print(f"middle phase {chosen_phase:+.3f} frame: median residual {at_chosen:.3f} 
 # 1. `detect_flash(sources["left"], min_on_frames=5)` raises `SyncError`: no region stays bright for 5
 #    frames, and the message names the camera's file and the largest region it saw.
 # 2. At 30 % the region's brightness in frame 37 is below half-way, so the flash counts as on from
-#    frame 38; at 70 % frame 37 is returned (`tests/test_sync.py` checks both).
+#    frame 38; at 70 % frame 37 is returned.
 # 3. Still frame 37: without the surroundings test the helmet's leading edge is rejected because its
 #    bright area grows over its on-frames (`stays`), and the flash has the best score anyway. Each test
 #    alone would be fooled by some moving object; together, and with the best score rather than the
-#    earliest candidate, they held on 123 of 123 cameras of rendered sessions
-#    (`benchmarks/bench_sync.py`).
+#    earliest candidate, they found the right frame on 123 of 123 cameras of rendered sessions
+#    (measured by the script `benchmarks/bench_sync.py`).
 #
 # </details>

@@ -233,6 +233,42 @@ fig = plots.plot_detection_stages(frames[k], stages, window=p.window, center=c, 
 plt.show()
 
 # %% [markdown]
+# **What each filter removes.** A frame of the same run (the first after the first image in which
+# the area, window and distance filters all have something to remove), every white region coloured by
+# the filter that removed it. The area filter (4.5.3) removes what is too big or too small: the rail, the helmet,
+# the bandages, single-pixel glints. The sliding window (4.5.4) removes what is too far from where
+# the markers were in the previous frame. The regions left are many more than three, so the distance
+# filter (4.5.5, eq. 4.6-4.11) tries every *ordered* choice of three of them (region $a_1$ for
+# marker 1, $a_2$ for marker 2, ...) and keeps a choice only if its three distances match the
+# previous frame's $DM_{ij}$ within the tolerance $DT$. A choice and the same regions taken in
+# another order can pass together when two distances are alike; the cross-product filter
+# (Figure 4.13) then keeps the order whose path 1-2-3 turns the same way as in the first frame
+# (right: the choice it removed is the same three regions numbered the other way round).
+
+# %%
+# a frame of the tracked run where the area, window and distance filters each remove something
+# (the frame above if there is none)
+k_f = k
+for k_try in range(p.first_frame + 1, n_frames):
+    prev_try = track.marker_px[k_try - 1]
+    if not np.all(np.isfinite(prev_try)):
+        continue
+    stages_try = detection.filter_stages(frames[k_try], p, center=detection.window_center(prev_try),
+                                         reference_px=prev_try, first_px=track.marker_px[p.first_frame])
+    removed = plots.filter_removals(stages_try)
+    if all((removed == name).any() for name in ("area", "window", "distance")):
+        k_f = k_try
+        break
+prev_f = track.marker_px[k_f - 1]
+c_f = detection.window_center(prev_f)
+stages_f = detection.filter_stages(frames[k_f], p, center=c_f, reference_px=prev_f,
+                                   first_px=track.marker_px[p.first_frame])
+zoom_f = (c_f[0] - 1.2 * p.window[0], c_f[1] - 1.2 * p.window[1], c_f[0] + 1.2 * p.window[0], c_f[1] + 1.2 * p.window[1])
+fig = plots.plot_filter_removals(frames[k_f], stages_f, prev_f, window=p.window, center=c_f, zoom=zoom_f)
+print(f"left camera, frame {k_f}: {len(stages_f['regions'])} regions")
+plt.show()
+
+# %% [markdown]
 # ## 5 · Through the sequence, with reasons
 #
 # Where a marker is not found it is NaN, and `track.reason` says why: `left_image` (predicted

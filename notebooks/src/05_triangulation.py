@@ -46,6 +46,7 @@ from IPython.display import display
 
 from horsemocap import accuracy, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
+from horsemocap.sources import FrameSource
 from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
@@ -138,6 +139,23 @@ else:
     print(f"error: {1000 * np.linalg.norm(XL - true_pos[k, 0]):.1f} mm")
 
 # %% [markdown]
+# **The geometry of one pair.** Below, the same left-middle pair in a frame where the middle camera
+# sees marker 1 near its image centre. Left: seen from above, each camera's ray through the marker's
+# pixel; the two rays meet at the marker, at a small angle (the baseline is short against the depth),
+# which is why depth is the least precise coordinate. Right: all the points of the left camera's ray
+# project in the middle camera onto one line, the *epipolar line* (it ends where the ray's far end
+# vanishes). The marker's pixel in the middle camera lies on it: a second camera need only search that
+# line for the match, and a pixel far from it is the wrong region or a bad calibration.
+
+# %%
+both = np.isfinite(marker_px["left"][:, 0, 0]) & np.isfinite(marker_px["middle"][:, 0, 0])
+k_mid = int(np.nanargmin(np.where(both, np.abs(marker_px["middle"][:, 0, 0] - rig["middle"].size[0] / 2), np.nan)))
+frame_mid = FrameSource(analysis.session.motion["middle"]).frame(offsets["middle"] + a + k_mid)
+fig = plots.plot_stereo_geometry(rig["left"], rig["middle"], marker_px["left"][k_mid, 0],
+                                 marker_px["middle"][k_mid, 0], image_b=frame_mid)
+plt.show()
+
+# %% [markdown]
 # ## 2 · The thesis mode: three pairs, averaged
 #
 # `triangulate(..., mode="thesis")` does the three pairs. The middle-right result comes out in the
@@ -146,8 +164,10 @@ else:
 # %%
 thesis = reconstruction.triangulate(rig, marker_px, mode="thesis")
 for name, pair in thesis.pairs.items():
-    print(f"{name:13s} in {pair.cameras[0]:6s} frame: first point {np.array2string(pair.points_local[0, 0], precision=3)}",
-          end="")
+    seen_pair = np.flatnonzero(np.isfinite(pair.points_local[:, 0, 0]))   # frames where the pair sees marker 1
+    first = (f"marker 1 first seen in frame {seen_pair[0]:2d} at {np.array2string(pair.points_local[seen_pair[0], 0], precision=3)}"
+             if len(seen_pair) else "marker 1 never seen by both")
+    print(f"{name:13s} in {pair.cameras[0]:6s} frame: {first}", end="")
     if truth is None:
         print()
         continue

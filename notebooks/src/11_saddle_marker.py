@@ -188,15 +188,15 @@ else:
 
 # %% [markdown]
 # The first five rows are the thesis' chain of fits (`kinematics="fits"`) with its choices of
-# $\boldsymbol\omega$, $\boldsymbol\alpha$ and saddle path; the last is the pipeline's default since
-# November 2026 (`kinematics="pose_spline"`): every frame's pose registered from all markers, its trajectory
+# $\boldsymbol\omega$, $\boldsymbol\alpha$ and saddle path; the last is the pipeline's default
+# (`kinematics="pose_spline"`): every frame's pose registered from all markers, its trajectory
 # smoothed by splines that keep the stride's harmonics whole (their frequency found in the record), the
 # saddle's acceleration from the smoothed pose. On this one session the best of the chain of fits (the pose
 # path, fitted) is about as good: the session's motion is exactly a Fourier series of the stride (the
 # virtual laboratory builds it that way), the fits' own model. On 24 other sessions (the 16 of the virtual
 # herd and 8 harder ones: other rigs, frame rates, a horse that slows down) the pose trajectory is far
-# better: saddle error median 2.7 % and 1.1 % against 24.1 % and 17.9 % with the fits (`benchmarks/README.md`,
-# Kinematics and Marker identification), and so it is the default; a real horse's motion is not an exact
+# better: saddle error median 2.7 % and 1.1 % against 24.1 % and 17.9 % with the fits (measured by the
+# scripts of `benchmarks/`, whose `README.md` lists the numbers), and so it is the default; a real horse's motion is not an exact
 # Fourier series, and the pose trajectory needs no period at all (a lift, a transition).
 #
 # Among the fits, the saddle path built with the fitted orientation ("pose", then fitted) meets the 5 %
@@ -234,10 +234,9 @@ else:
 # On this one session no smoothing happens to be the best, and the thesis' `rloess` is the worst: its robust
 # iterations reject good samples near the ends of a 39-frame record, where a 0.1 span is only a few points.
 # One session is not enough to choose a default. The default comes from the 16 sessions of the virtual herd
-# (4 horses × walk, sitting trot, rising trot, canter), measured by `benchmarks/bench_herd.py` with the same
-# detections and rig for each method (the thesis' per-camera detection); these numbers are quoted from
-# that benchmark, this notebook does not
-# recompute them:
+# (4 horses × walk, sitting trot, rising trot, canter), measured by the script `benchmarks/bench_herd.py`
+# with the same detections and rig for each method (the thesis' per-camera detection); the numbers below
+# are quoted from its results, this notebook does not recompute them (it takes many minutes):
 #
 # | smoothing | saddle vertical acc RMSE, median over the 16 sessions (% of rms) | Wb-weighted rms, median \|error\| | Wb-weighted rms, worst session \|error\| |
 # |---|---|---|---|
@@ -258,10 +257,20 @@ else:
 # Everything above is periodic: a horse at a steady gait. The pose trajectory needs no period, and a real
 # recording may hold none (a transition, an impact). `synthetic.lift_with_ringing` is such a record with
 # exact truth: a box of four markers lifted, held, set down, and ringing at 10 Hz after the set-down (100 Hz,
-# 0.3 mm marker noise; the fixture of issue 13). Which smoothing runs is the pipeline's choice
-# (`pose_smoothing="auto"`, `pose.choose_smoothing`): GCV with the stride's harmonics when a stride frequency is
-# found, otherwise the *adaptive* spline, whose penalty follows the local roughness so that the calm lift is
-# smoothed harder than the ringing. Below: the hidden corner's acceleration and the body's $\boldsymbol\omega$,
+# 0.3 mm marker noise), a deliberately hard test for any smoother.
+#
+# **How much to smooth: GCV.** A smoothing spline trades closeness to the measured points against
+# roughness; one number, the smoothing parameter $\lambda$, sets the trade. *Generalised cross-validation*
+# (GCV) chooses $\lambda$ from the data alone: it estimates, for each $\lambda$, how well the spline would
+# predict a sample left out of the fit, $\mathrm{GCV}(\lambda) = n\,\mathrm{RSS}(\lambda) / (n -
+# \mathrm{tr}\,\mathbf H_\lambda)^2$, where RSS is the sum of squared residuals and
+# $\mathrm{tr}\,\mathbf H_\lambda$ the spline's *effective degrees of freedom* (how many free parameters
+# the smoothed curve behaves as if it had: $n$ with no smoothing, 2 for a straight line), and keeps the
+# $\lambda$ with the smallest value. It assumes the errors are independent from sample to sample.
+#
+# Which smoothing runs is the pipeline's choice (`pose_smoothing="auto"`, `pose.choose_smoothing`): GCV with
+# the stride's harmonics when a stride frequency is found, otherwise the *adaptive* spline, whose penalty
+# follows the local roughness so that the calm lift is smoothed harder than the ringing. Below: the hidden corner's acceleration and the body's $\boldsymbol\omega$,
 # RMSE as a percentage of their rms, for the default, for plain GCV, and for the default told when the
 # ringing starts (`events`, as a force plate would tell it; `horsemocap kinematics ... --events 2.8`).
 
@@ -296,8 +305,9 @@ fig.tight_layout()
 plt.show()
 
 # %% [markdown]
-# The targets of issue 13 are 15 % for the acceleration and 10 % for $\boldsymbol\omega$. The table above
-# is one noise draw (seed 0). Over three draws (`benchmarks/bench_kinematics.py`, medians) the default
+# The goals set for this record are errors below 15 % for the acceleration and 10 % for
+# $\boldsymbol\omega$. The table above is one noise draw (seed 0). Over three draws (the script
+# `benchmarks/bench_kinematics.py`, medians) the default
 # meets the second and misses the first: 18.4 % and 9.6 % (plain GCV 25.0 % and 13.9 %); over ten draws
 # 18.0 % and 9.1 %, every draw's omega below 10 %. Most of the error sits in the dozen
 # samples where the ringing starts: the acceleration jumps there, and any smoother spreads a jump. Told the
@@ -306,7 +316,8 @@ plt.show()
 # 15.5 %: at the target, not safely below it). Found from the data, it is not: a scan
 # for the onset mistakes the lift's own starts for onsets, or, calibrated against them, finds nothing
 # (`benchmarks/bench_kinematics_tries.py --detect`); and no smoother with constant settings can do better than
-# 21 % on this record (an oracle bound, `benchmarks/README.md`). An honest miss, kept visible here.
+# 21 % on this record (a bound found by choosing the smoothing with the exact truth in hand, which no real
+# measurement has; `benchmarks/README.md`). The acceleration goal is missed, and the miss is kept visible here.
 
 # %% [markdown]
 # ## Which point of the static shot is the saddle marker? (Appendix A 12a)
@@ -332,12 +343,15 @@ print(f"saddle marker: static-shot point {ui_saddle_marker.value} (the pipeline'
 # a real record (a tennis player's head, four markers of an OptiTrack system at 50 Hz, from
 # `data_samples/real_c3d`, see its `PROVENANCE.md`). Three markers play the skin markers; the fourth
 # plays the saddle marker: it is left out of everything and only used to judge. Its *reference*
-# acceleration is its own measured path through a Savitzky-Golay filter (order 4, 13 frames), and a second
-# reference has no filter at all: its plain second differences (noisy, but with nothing chosen).
+# acceleration is its own measured path through a Savitzky-Golay filter (order 4, 13 frames: each sample
+# replaced by the value, or the second derivative, of a 4th-degree polynomial fitted by least squares to
+# the 13 samples around it), and a second reference has no filter at all: its plain second differences
+# (noisy, but with nothing chosen).
 #
 # The markers' rigidity residual (what the rigid fit leaves) is a measurement of the noise the motion
-# does not contain. Its frame-to-frame correlation `rho` tells how correlated the noise is; generalised
-# cross-validation (GCV) assumes independent errors and, with correlated ones, takes slow noise for motion.
+# does not contain. Its frame-to-frame correlation `rho` tells how correlated the noise is (modelled as a
+# first-order autoregression, AR(1): each frame's error is `rho` times the previous frame's plus fresh noise);
+# GCV (section above) assumes independent errors and, with correlated ones, takes slow noise for motion.
 
 # %%
 from scipy.signal import savgol_filter
@@ -359,7 +373,9 @@ print(f"{len(t_head)} frames at {rate:.0f} Hz; rigidity residual's correlation r
 
 # %% [markdown]
 # Four smoothings of the same three markers, and the naive filter a biomechanics lab would use: the
-# per-frame rigid fit (Kabsch), then a Savitzky-Golay filter of the predicted point (order 3, 7 frames).
+# per-frame rigid fit (the rotation and translation that carry the static shot's markers closest, in least
+# squares, onto this frame's: Kabsch's method, the registration of notebook 08), then a Savitzky-Golay filter
+# of the predicted point (order 3, 7 frames).
 #
 # - `auto`: the pipeline's choice (with `rho` significant: GCV with the AR(1) correlation);
 # - plain GCV (the noise taken as independent);
@@ -427,7 +443,7 @@ plt.show()
 # reference removes is shared by all four markers of the head: real motion, or an error common to the
 # whole cluster, which no data from the cluster alone can tell apart. The "best" smoothing therefore depends
 # on what it is judged against: a fixed filter rewards the smoothing closest to its own, and a comparison
-# of methods must say which reference it uses (`benchmarks/README.md` has both for seven real clusters).
+# of methods must say which reference it uses (`benchmarks/README.md` lists both for seven real clusters).
 
 # %% [markdown]
 # ## Exercises

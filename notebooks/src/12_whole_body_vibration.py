@@ -55,7 +55,9 @@ from horsemocap import herd, plots, vibration, widgets
 # frequency by how much it matters. Every weighting of ISO 2631-1 Annex A (and ISO 8041) is a
 # product of four analogue filters, $s = 2\pi i f$:
 #
-# - band limiting: a 2nd-order Butterworth high-pass at $f_1 = 0.4$ Hz and low-pass at $f_2 = 100$ Hz;
+# - band limiting: a 2nd-order Butterworth high-pass at $f_1 = 0.4$ Hz and low-pass at $f_2 = 100$ Hz
+#   (a Butterworth filter is the one whose gain is flattest in its pass band; at 2nd order the high-pass
+#   gain is $1/\sqrt{1 + (f_1/f)^4}$, $1/\sqrt 2$ at $f_1$ itself);
 # - acceleration–velocity transition $\dfrac{1 + s/\omega_3}{1 + s/(Q_4\omega_4) + s^2/\omega_4^2}$;
 # - upward step $\dfrac{s^2 + s\,\omega_5/Q_5 + \omega_5^2}{s^2 + s\,\omega_6/Q_6 + \omega_6^2}$;
 # - a gain $K$.

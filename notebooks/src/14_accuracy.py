@@ -160,8 +160,8 @@ else:
 # (`pose_rotation_weights`): a few frames' poses are ten times noisier than the rest (the thin marker
 # triangle seen almost edge-on), and the weights take them out. A tenth of a pixel then costs the
 # saddle's acceleration a few percent (the equal-weight registration of the thesis' eq. 5.14-5.21
-# gave about 31 %), a quarter of a pixel about 12 % in this draw (the reproduction's target is 20 %; 5.9-9.2 %
-# on five seeds of the benchmark, medians of three draws each, `benchmarks/README.md`). The depth formula explains what remains:
+# gave about 31 %), a quarter of a pixel about 12 % in this draw (the goal set for this reproduction is 20 %;
+# 5.9-9.2 % on five other virtual sessions, medians of three noise draws each, `benchmarks/README.md`). The depth formula explains what remains:
 # with $Z = 7.5$ m, $f \approx 725$ px and $B = 0.45$ m, one pixel of error is
 # $\delta Z \approx 7.5^2 / (725 \cdot 0.45) \approx 0.17$ m of depth. The markers' depth noise becomes
 # a pitch error of the rigid body (rotation about the lateral axis), and the saddle, about 0.5 m along
@@ -266,8 +266,8 @@ for field in params_fields():
 #
 # The cell below runs the thesis' chain from the detection on, on top of this session's
 # synchronisation, rig, plumb line and static shot (`pipeline.run_steps`; the preset's pairwise
-# calibration is the only step it skips, and the benchmark below measures the preset whole, pairwise
-# calibration included). Then it swaps single thesis choices back to the default's, keeping the
+# calibration is the only step it skips; the measurement in the next section runs the preset whole,
+# pairwise calibration included). Then it swaps single thesis choices back to the default's, keeping the
 # thesis' detections and positions, to see which choice makes the difference.
 
 # %%
@@ -318,7 +318,8 @@ else:
 #   $\boldsymbol\alpha$, follows. Replacing either the angular velocity (by the fitted orientation)
 #   or the saddle's kinematics (by the fitted pose) brings the error down by two to three orders
 #   of magnitude. How large the blow-up is depends on the noise of the positions, so it changes
-#   from one rig to another (compare the benchmark's bundled row, measured with the pairwise rig).
+#   from one rig to another (compare the bundled session's row in the next section, measured with the
+#   pairwise rig).
 # - **The remaining difference** (tens of per cent after that swap) is the order E/2 without a drift
 #   term and `rloess`: with fewer harmonics the fits miss part of the saddle's vertical
 #   acceleration, so the thesis chain *under*estimates the comfort indicators once its
