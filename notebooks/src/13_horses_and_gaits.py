@@ -29,8 +29,8 @@ from horsemocap.workspace import results_root
 #
 # Four experienced riders (A-D) rode each of the four horses in each gait, counter-clockwise, and
 # graded its comfort from 1 (very bad) to 5 (very good). The grades ship with the package
-# (`data_samples/riders_grades.csv`, transcribed from Table 8.8; the tests check them against the
-# printed averages).
+# (`data_samples/riders_grades.csv`, transcribed from Table 8.8; their averages agree with the
+# averages the thesis prints beside the table).
 
 # %%
 grades = herd.load_grades()
