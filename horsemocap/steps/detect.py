@@ -272,6 +272,19 @@ def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
     return out
 
 
+def row_timing(session: Session) -> dict:
+    """Camera -> ``(start, readout)`` frames of its rows' instants (:func:`subframe.observation_instants`:
+    a quarter of a frame for interlaced fields, the rolling-shutter readout), for the cameras session.json's
+    ``metadata.camera_timing`` describes."""
+    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
+    out = {}
+    for c, given in timing.items():
+        if isinstance(given, dict) and (given.get("rolling_shutter_s") or given.get("interlaced")):
+            start = subframe.INTERLACED_FIELD_FRAMES / 2.0 if given.get("interlaced") else 0.0
+            out[c] = (start, float(given.get("rolling_shutter_s") or 0.0) * session.fps)
+    return out
+
+
 def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
     """The sync with every camera's phase (and rate ratio) refined by the markers (:func:`subframe.refine_phases`)."""
     ref = session.reference_camera
@@ -302,7 +315,7 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None,
     kwargs = {} if tolerance == DEFAULT_MAX_RESIDUAL_PX else {"max_residual_px": tolerance}
     try:
         return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
-                                **kwargs)
+                                phase=sync.phase_frames, row_timing=row_timing(session), **kwargs)
     except DetectionError as exc:
         raise AnalysisError("detect", f"{exc}{identification_hint(session, sync)}") from None
     finally:
