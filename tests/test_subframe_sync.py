@@ -269,3 +269,19 @@ def test_views_moved_to_the_reference_instant_keep_the_marker_distances(rig):
         assert ok.all()
         errors[label] = np.abs(np.linalg.norm(np.diff(X, axis=0), axis=1) - model).max()
     assert errors["moved"] < 0.002 < 0.01 < errors["raw"]
+
+
+def test_blended_fields_make_a_combed_marker_one_blob_at_the_mean_of_its_fields():
+    """A marker (14 px across) 10 px further right in the second field: the interlaced frame's comb is no
+    marker-shaped region; blended, it is one region centred half-way between the fields' positions."""
+    from horsemocap.detection.candidates import frame_candidates
+    from horsemocap.sources import fields_blended
+
+    v, u = np.mgrid[0:480, 0:640].astype(float)
+    disc = lambda cu, cv: 255.0 * np.clip(7.0 - np.hypot(u - cu, v - cv), 0.0, 1.0)
+    first, second = disc(70.0, 60.0), disc(80.0, 60.0)
+    frame = np.where((np.arange(480) % 2 == 1)[:, None], first, second).astype(np.uint8)   # bottom field first
+    assert len(frame_candidates(frame, 100)) == 0
+    blended = frame_candidates(fields_blended(frame), 100)
+    assert len(blended) == 1
+    assert blended.centre[0] == pytest.approx([75.0, 60.0], abs=0.3)
