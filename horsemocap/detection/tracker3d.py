@@ -391,7 +391,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     if len(votes) > 1:
         progress("detect", "the skin markers among the static shot's points, as labelled frame by frame: "
                  + "; ".join(f"points {list(sub)} in frames {ks}" for sub, ks in votes.items())
-                 + f"; taken: {list(fit0.model_index)}")
+                 + f"; taken: {[int(i) for i in fit0.model_index]}")
     progress("detect", f"markers labelled in synchronised frame {k0} (model fit {1000 * fit0.rms_m:.1f} mm rms); "
                        "following them in 3D ...")
     for direction in (1, -1):
