@@ -224,3 +224,64 @@ def test_a_thing_brightening_over_its_on_frames_weighs_less_than_a_light():
     assert det.frame == 25
     steady = {c["frame"]: c["steady"] for c in det.candidates if c["accepted"]}
     assert steady[24] == pytest.approx(1.0, abs=0.02) and steady[9] < 0.85
+
+
+def test_candidates_at_instant_follows_regions_moving_more_than_half_their_spacing():
+    """Three markers 20 px apart moving 12 px a frame (the nearest region in the next frame is the
+    neighbour's) and a still lamp: each is moved along its own path."""
+    from horsemocap.detection.candidates import Candidates
+    from horsemocap.detection.matching import candidates_at_instant
+
+    def frame(k):
+        xy = np.array([[100.0 + 12.0 * k, 50.0], [120.0 + 12.0 * k, 52.0], [140.0 + 12.0 * k, 49.0], [300.0, 200.0]])
+        return Candidates(xy, np.full(4, 20.0), np.zeros(4, bool))
+
+    moved = candidates_at_instant(frame(-1), frame(0), frame(1), -0.4)
+    assert moved.centre[:3, 0] == pytest.approx([100.0 - 4.8, 120.0 - 4.8, 140.0 - 4.8])
+    assert moved.centre[3].tolist() == [300.0, 200.0]
+    ends = candidates_at_instant(None, frame(0), frame(1), np.array([-0.4, -0.4, -0.4, -0.4]))
+    assert np.all(np.isfinite(ends.centre))
+    assert candidates_at_instant(frame(-1), frame(0), frame(1), 0.0).centre.tolist() == frame(0).centre.tolist()
+
+
+def test_views_moved_to_the_reference_instant_keep_the_marker_distances(rig):
+    """Cameras a third of a frame apart at trot: the raw views' 3D distances are centimetres off, the
+    views moved to the reference instant (:func:`candidates_at_instant`) agree with the rigid set."""
+    from horsemocap.detection.candidates import Candidates
+    from horsemocap.detection.matching import candidates_at_instant, triangulate_rows
+
+    n, k, true_phase = 40, 20, {"middle": 0.34, "right": -0.41}
+    where = _trajectory(n)
+    names = list(rig.names)
+    model = np.linalg.norm(np.diff(where(np.array([k]))[0], axis=0), axis=1)
+
+    def cands(c, j):
+        xy = rig[c].project(where(np.array([j + true_phase.get(c, 0.0)]))[0])
+        return Candidates(xy, np.full(3, 20.0), np.zeros(3, bool))
+
+    raw = {c: cands(c, k) for c in names}
+    moved = {c: candidates_at_instant(cands(c, k - 1), raw[c], cands(c, k + 1), -true_phase.get(c, 0.0))
+             for c in names}
+    rows = np.tile(np.arange(3)[:, None], (1, len(names)))
+    errors = {}
+    for label, cc in (("raw", raw), ("moved", moved)):
+        X, _, ok = triangulate_rows(rig, tuple(names), cc, rows, 50.0)
+        assert ok.all()
+        errors[label] = np.abs(np.linalg.norm(np.diff(X, axis=0), axis=1) - model).max()
+    assert errors["moved"] < 0.002 < 0.01 < errors["raw"]
+
+
+def test_blended_fields_make_a_combed_marker_one_blob_at_the_mean_of_its_fields():
+    """A marker (14 px across) 10 px further right in the second field: the interlaced frame's comb is no
+    marker-shaped region; blended, it is one region centred half-way between the fields' positions."""
+    from horsemocap.detection.candidates import frame_candidates
+    from horsemocap.sources import fields_blended
+
+    v, u = np.mgrid[0:480, 0:640].astype(float)
+    disc = lambda cu, cv: 255.0 * np.clip(7.0 - np.hypot(u - cu, v - cv), 0.0, 1.0)
+    first, second = disc(70.0, 60.0), disc(80.0, 60.0)
+    frame = np.where((np.arange(480) % 2 == 1)[:, None], first, second).astype(np.uint8)   # bottom field first
+    assert len(frame_candidates(frame, 100)) == 0
+    blended = frame_candidates(fields_blended(frame), 100)
+    assert len(blended) == 1
+    assert blended.centre[0] == pytest.approx([75.0, 60.0], abs=0.3)

@@ -9,6 +9,8 @@ then validates each point by the further cameras (the nearest candidate near
 its projection joins it when the point stays consistent). The result,
 :class:`ViewPoints`, holds each point with its candidate in every camera.
 :func:`triangulate_rows` is the fast linear triangulation both use.
+:func:`candidates_at_instant` moves a free-running camera's candidates to the
+instant the other cameras' frames show, before they are matched.
 
 Example
 -------
@@ -31,7 +33,7 @@ import numpy as np
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, _dlt, _undistort
 from .candidates import Candidates
 
-__all__ = ["ViewPoints", "match_views", "triangulate_rows"]
+__all__ = ["ViewPoints", "match_views", "triangulate_rows", "candidates_at_instant"]
 
 
 @dataclass(frozen=True)
@@ -208,3 +210,109 @@ def match_views(rig, cands: dict, max_residual_px: float = DEFAULT_MAX_RESIDUAL_
             missing[np.flatnonzero(free)[inside]] += 1
     return ViewPoints(X, rows, worst[keep], cams, missing)
 
+
+
+def _followed(centre: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """Index in ``other`` of each of ``centre``'s regions in one neighbouring frame, ``-1`` when unclear.
+
+    A pair is taken when each is the other's nearest region and the
+    nearest is at most half as far as the runner-up in both frames (so two
+    regions passing near each other are not swapped).
+    """
+    out = np.full(len(centre), -1, int)
+    if len(centre) == 0 or len(other) == 0:
+        return out
+    d = np.linalg.norm(centre[:, None] - other[None], axis=-1)
+    fwd, back = np.argmin(d, axis=1), np.argmin(d, axis=0)
+    for i, j in enumerate(fwd):
+        if back[j] != i:
+            continue
+        near = d[i, j]
+        row = np.delete(d[i], j)
+        col = np.delete(d[:, j], i)
+        if (row.size and near > 0.5 * row.min()) or (col.size and near > 0.5 * col.min()):
+            continue
+        out[i] = j
+    return out
+
+
+def _followed_both(previous: np.ndarray, centre: np.ndarray, following: np.ndarray) -> np.ndarray:
+    """Per region of ``centre``, its image motion per frame from the previous and following frames, NaN when
+    unclear.
+
+    The pair of regions (one in each neighbouring frame) that makes its
+    path straightest (the smallest second difference ``|x(k+1) - 2 x(k) +
+    x(k-1)|``: a marker's acceleration over two frames is a fraction of a
+    pixel, while a neighbouring marker's region, a marker spacing away,
+    bends the path by that spacing) is taken when its bend is at most half
+    that of the runner-up pair; markers moving further in a frame than
+    half their spacing are followed too, unlike by nearness alone.
+    """
+    out = np.full(centre.shape, np.nan)
+    if len(previous) == 0 or len(following) == 0:
+        return out
+    bend = np.linalg.norm(following[None, None, :] + previous[None, :, None] - 2.0 * centre[:, None, None],
+                          axis=-1)                                        # (K, P, F)
+    flat = bend.reshape(len(centre), -1)
+    order = np.argsort(flat, axis=1)
+    for i in range(len(centre)):
+        best = flat[i, order[i, 0]]
+        if flat.shape[1] > 1 and best > 0.5 * flat[i, order[i, 1]]:
+            continue
+        p, f = np.unravel_index(order[i, 0], bend.shape[1:])
+        out[i] = 0.5 * (following[f] - previous[p])
+    return out
+
+
+def candidates_at_instant(previous: Candidates | None, current: Candidates, following: Candidates | None,
+                          shift) -> Candidates:
+    """A frame's candidates moved along their image motion by ``shift`` frames.
+
+    A free-running camera's frame ``k`` shows the instant ``k + phase``
+    (reference frames); its regions at the reference instant ``k`` are
+    where they were ``shift = -phase`` frames later. Each region is
+    followed into the previous and the following frame
+    (:func:`_followed`: mutual nearest regions, clearly nearest); its
+    motion per frame is the central difference of the two (one side when
+    the other is not followed), and its centre moves by ``shift`` times
+    that motion. A region followed into neither frame stays where it is.
+    Areas, cut flags and order are kept, so an index into the result is
+    an index into ``current``.
+
+    Parameters
+    ----------
+    previous, current, following : Candidates
+        Frames ``k - 1``, ``k`` and ``k + 1`` of one camera (``None`` at the
+        record's ends).
+    shift : float or ndarray (K,)
+        Frames to move, for all regions or each (a rolling shutter's rows
+        are exposed one after another); ``0``: ``current`` itself.
+
+    Returns
+    -------
+    Candidates
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> box = lambda x: Candidates(np.array([[x, 10.0], [x + 40.0, 60.0]]), np.full(2, 20.0), np.zeros(2, bool))
+    >>> moved = candidates_at_instant(box(100.0), box(104.0), box(108.0), -0.25)
+    >>> moved.centre.tolist()
+    [[103.0, 10.0], [143.0, 60.0]]
+    """
+    shift = np.asarray(shift, float)
+    if len(current) == 0 or not np.any(shift):
+        return current
+    centre = np.asarray(current.centre, float)
+    have = [c is not None and len(c) > 0 for c in (previous, following)]
+    if all(have):
+        velocity = _followed_both(np.asarray(previous.centre, float), centre, np.asarray(following.centre, float))
+    elif any(have):
+        other, sign = (previous, -1.0) if have[0] else (following, 1.0)
+        j = _followed(centre, np.asarray(other.centre, float))
+        velocity = np.full(centre.shape, np.nan)
+        velocity[j >= 0] = sign * (np.asarray(other.centre, float)[j[j >= 0]] - centre[j >= 0])
+    else:
+        velocity = np.full(centre.shape, np.nan)
+    moved = centre + shift.reshape(-1, 1) * np.where(np.isfinite(velocity), velocity, 0.0)
+    return Candidates(moved, current.area, current.cut, current.slope, current.moments)

@@ -52,7 +52,7 @@ from .base import DetectionError, DetectionParams
 from .candidates import (MAX_CANDIDATES_PER_CAMERA, Candidates, candidate_area_range, candidate_min_circularity,
                          correct_light, frame_candidates, whole_frame_candidates, whole_frame_count)
 from .marker_model import RIGID_SLACK_M, distance_tolerance, label_frame, point_uncertainty
-from .matching import triangulate_rows
+from .matching import candidates_at_instant, triangulate_rows
 from .thresholds import auto_threshold
 
 __all__ = ["IDENTIFICATION_REASONS", "Identification", "identify_markers", "reason_counts"]
@@ -230,7 +230,50 @@ def _middle_out(n, step) -> list:
 ANCHOR_VOTES = 5
 
 
-def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step):
+def _camera_timing(cams, phase, row_timing, rig) -> dict:
+    """Camera -> ``(start, readout, height)``: frames after the reference instant ``k`` at which its frame
+    ``k``'s row 0 is seen (its phase plus the start given in ``row_timing``), the frames its rows take
+    to be read (rolling shutter) and its image height; only the cameras not exposing at ``k`` itself."""
+    out = {}
+    for c in cams:
+        start, readout = (row_timing or {}).get(c, (0.0, 0.0))
+        start = float((phase or {}).get(c, 0.0)) + float(start)
+        if start != 0.0 or float(readout) != 0.0:
+            out[c] = (start, float(readout), float(rig[c].size[1]))
+    return out
+
+
+def _delay(timing: tuple, centre: np.ndarray) -> np.ndarray:
+    """Frames after the reference instant at which regions at ``centre`` (K, 2) were seen (:func:`_camera_timing`)."""
+    start, readout, height = timing
+    return start + np.asarray(centre, float)[:, 1] / height * readout
+
+
+def _candidates_at_reference(frames, k, cams, thr, cparams, timing) -> tuple[dict, dict]:
+    """Frame ``k``'s candidates of every camera, and the same moved to the reference instant ``k``.
+
+    A camera whose frame ``k`` shows a region at the instant ``k + delay``
+    (free running: its phase; a rolling shutter: plus its row's time;
+    :func:`_camera_timing`) has its candidates moved by ``-delay`` frames
+    along their image motion
+    (:func:`~horsemocap.detection.matching.candidates_at_instant`, with
+    frames ``k - 1`` and ``k + 1``), so the cameras are compared at one
+    instant; a camera exposing at ``k`` is its own.
+    """
+    cands = whole_frame_candidates(frames, k, cams, thr, cparams)
+    moving = [c for c in cams if c in (timing or {})]
+    if not moving:
+        return cands, cands
+    n = len(frames[cams[0]])
+    near = {j: (whole_frame_candidates(frames, j, moving, thr, cparams) if 0 <= j < n else {}) for j in (k - 1, k + 1)}
+    moved = dict(cands)
+    for c in moving:
+        moved[c] = candidates_at_instant(near[k - 1].get(c), cands[c], near[k + 1].get(c),
+                                         -_delay(timing[c], cands[c].centre))
+    return cands, moved
+
+
+def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step, timing=None):
     """The first frame (middle of the record outward) labelled clearly, and the skin markers.
 
     The static shot holds the skin markers and the saddle marker; which of
@@ -241,6 +284,14 @@ def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_res
     half in view, say) does not decide it. The anchor is the first of the
     frames that chose it.
 
+    Free-running cameras (``timing``: :func:`_camera_timing`) are compared at the reference
+    instants: their candidates are moved there first
+    (:func:`_candidates_at_reference`), as a marker moves tens of
+    millimetres in a fraction of a frame at trot and the 3D distances the
+    subsets are told apart by would change with it. The returned
+    candidates are the frame's own (the centres measured), indexed as the
+    labelling's views.
+
     Returns ``((k, cands, vp, fit) or None, tried, votes)``: ``tried`` lists
     ``(frame, why)`` of the frames without a clear labelling, ``votes`` maps
     each chosen subset to its frames.
@@ -249,8 +300,8 @@ def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_res
     tried, fits = [], []
     single = model_index is not None or len(model) == M
     for k in _middle_out(n, step):
-        cands = whole_frame_candidates(frames, k, cams, thr, cparams)
-        vp, fit, why = label_frame(rig, cands, model, M, max_residual_px, model_index)
+        cands, moved = _candidates_at_reference(frames, k, cams, thr, cparams, timing)
+        vp, fit, why = label_frame(rig, moved, model, M, max_residual_px, model_index)
         if fit is None:
             tried.append((k, why))
             continue
@@ -268,7 +319,7 @@ def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_res
 
 def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: int, params=None, *,
                      max_residual_px: float = DEFAULT_MAX_RESIDUAL_PX, slack_m: float = RIGID_SLACK_M,
-                     progress=None) -> Identification:
+                     progress=None, phase: dict | None = None, row_timing: dict | None = None) -> Identification:
     """Find, label and follow the markers with all cameras together.
 
     Parameters
@@ -294,6 +345,18 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
         :func:`~horsemocap.reconstruction.triangulate`).
     slack_m : float
         Tolerance added to the measured uncertainty of a 3D distance.
+    phase : dict camera -> float, optional
+        Free-running cameras: camera ``c``'s frame ``k`` shows the instant
+        ``k + phase[c]`` (reference frames; the flash's estimate, see
+        :mod:`horsemocap.subframe`). The labelling that chooses the skin
+        markers, and the tracking, compare the cameras at the reference
+        instants. Absent or 0: the cameras expose together.
+    row_timing : dict camera -> (start, readout), optional
+        When a camera's rows are seen, in frames: row 0 ``start`` after its
+        frame's instant (a quarter of a frame for interlaced fields, whose
+        blobs' centres lie half-way between the fields), row ``r`` of
+        ``height`` a further ``r / height x readout`` (a rolling shutter;
+        :func:`~horsemocap.subframe.observation_instants`).
 
     Returns
     -------
@@ -311,8 +374,9 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     cparams = _camera_params(params, cams)
     thr = _thresholds(frames, cams, cparams, n)
     step = max(1, min(8, n // 30))
+    timing = _camera_timing(cams, phase, row_timing, rig)
     found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
-                                       max_residual_px, step)
+                                       max_residual_px, step, timing)
     if found is None:
         why = "; ".join(f"frame {k}: {w}" for k, w in tried[:6])
         raise DetectionError(
@@ -321,13 +385,13 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
             "static stills, the threshold, or use detection_method 'thesis'")
     k0, cands0, vp0, fit0 = found
     tracker = _Tracker(frames, rig, cams, thr, cparams, static_points[fit0.model_index], M,
-                       max_residual_px, slack_m, n)
+                       max_residual_px, slack_m, n, timing)
     tracker.anchor_rms = fit0.rms_m
     tracker.start(k0, cands0, vp0, fit0)
     if len(votes) > 1:
         progress("detect", "the skin markers among the static shot's points, as labelled frame by frame: "
                  + "; ".join(f"points {list(sub)} in frames {ks}" for sub, ks in votes.items())
-                 + f"; taken: {list(fit0.model_index)}")
+                 + f"; taken: {[int(i) for i in fit0.model_index]}")
     progress("detect", f"markers labelled in synchronised frame {k0} (model fit {1000 * fit0.rms_m:.1f} mm rms); "
                        "following them in 3D ...")
     for direction in (1, -1):
@@ -404,8 +468,10 @@ def _in_image(camera, point) -> bool:
 class _Tracker:
     """3D tracking with minimum-acceleration prediction (seed 000 sec. 5.2.4)."""
 
-    def __init__(self, frames, rig, cams, thr, cparams, model, M, max_residual_px, slack_m, n):
+    def __init__(self, frames, rig, cams, thr, cparams, model, M, max_residual_px, slack_m, n, timing=None):
         self.frames, self.rig, self.cams, self.thr, self.cparams = frames, rig, cams, thr, cparams
+        #: The cameras not exposing at the reference instants (:func:`_camera_timing`).
+        self.timing = dict(timing or {})
         self.model, self.M, self.tol, self.slack, self.n = model, M, max_residual_px, slack_m, n
         C = len(cams)
         self.px = {c: np.full((n, M, 2), np.nan) for c in cams}
@@ -584,8 +650,42 @@ class _Tracker:
         self._shape_ref = {c: self._reference_shape(k, c, m) for c in cams}
         options, why = self._view_options(m, cams, proj, radius, ref_area, cands)
         self._k, self._m = k, m
-        used, dropped, why_all, edge = self._best_views(k, m, cams, proj, radius, cands, pred, options)
+        at_ref = self._at_reference(k, m, cands)
+        used, dropped, why_all, edge = self._best_views(k, m, cams, proj, radius, at_ref, pred, options)
         self._record_views(k, m, cams, cands, options, why, used, dropped, why_all, edge)
+
+    def _image_velocity(self, k, c, m) -> np.ndarray:
+        """Marker ``m``'s image motion (px per frame, forward in time) in camera ``c`` before frame ``k``
+        (tracking order), from its last two centres within three frames; zero when unknown."""
+        direction = getattr(self, "_direction", 1)
+        seen = [j for j in (k - direction * i for i in (1, 2, 3))
+                if 0 <= j < self.n and np.all(np.isfinite(self.px[c][j, m]))]
+        if len(seen) < 2:
+            return np.zeros(2)
+        a, b = seen[0], seen[1]
+        return (self.px[c][a, m] - self.px[c][b, m]) / (a - b)
+
+    def _at_reference(self, k, m, cands) -> dict:
+        """The candidates of a free-running camera moved to the reference instant ``k`` for marker ``m``.
+
+        Camera ``c``'s frame ``k`` shows a region at the instant ``k +
+        delay`` (:func:`_delay`); near marker ``m`` its regions are moved by
+        ``-delay`` frames of the marker's own image motion
+        (:meth:`_image_velocity`), so its views are triangulated and checked
+        against the other cameras' at one instant. The recorded centres stay
+        the measured ones. Cameras exposing at ``k``: the candidates themselves.
+        """
+        out = dict(cands)
+        for c, timing in self.timing.items():
+            if len(cands[c]) == 0:
+                continue
+            v = self._image_velocity(k, c, m)
+            if not np.any(v):
+                continue
+            cc = cands[c]
+            out[c] = Candidates(cc.centre - _delay(timing, cc.centre)[:, None] * v, cc.area, cc.cut, cc.slope,
+                                cc.moments)
+        return out
 
     def _reference_shape(self, k, c, m):
         """Marker ``m``'s recent area and second moments in camera ``c``, or NaNs.
@@ -986,8 +1086,10 @@ class _Tracker:
     def _label_whole_frame(self, k, cands=None):
         """Candidates (searched without a prediction unless given), 3D points and model labelling of frame ``k``."""
         if cands is None:
-            cands = whole_frame_candidates(self.frames, k, self.cams, self.thr, self.cparams)
-        vp, fit, _ = label_frame(self.rig, cands, self.model, self.M, self.tol, np.arange(self.M), self.slack)
+            cands, moved = _candidates_at_reference(self.frames, k, self.cams, self.thr, self.cparams, self.timing)
+        else:
+            moved = cands
+        vp, fit, _ = label_frame(self.rig, moved, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         return cands, vp, fit
 
     def _reacquire_candidates(self, k):

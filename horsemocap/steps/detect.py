@@ -23,7 +23,7 @@ from ..progress import CountingFrames, counter
 from .. import subframe
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
 from ..session import Session, check_frame_counts
-from ..sources import FrameSource
+from ..sources import BlendedFields, FrameSource
 from ..swaps import identification_hint
 from .base import AnalysisError, StepResult, frames_text, longest_run
 from .sync import SyncResult
@@ -162,9 +162,13 @@ def camera_detection_params(section: DetectParams, camera: str) -> DetectionPara
 
 
 def synchronised_frames(session: Session, sync: SyncResult, cam: str, progress=None, message: str = ""):
-    """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted."""
+    """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted.
+    An interlaced camera (``metadata.camera_timing.<cam>.interlaced``): its frames with the two fields
+    blended (:class:`~horsemocap.sources.BlendedFields`: a moving marker's combed blob made whole)."""
     offsets, n = sync.offsets, sync.n_frames
     seq = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
+    if _interlaced(session, cam):
+        seq = BlendedFields(seq)
     if progress is None or not getattr(progress, "counts", False):
         return seq
     return CountingFrames(seq, counter(progress, "detect", message or f"camera '{cam}' frames", n))
@@ -272,13 +276,41 @@ def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
     return out
 
 
-def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
-    """The sync with every camera's phase (and rate ratio) refined by the markers (:func:`subframe.refine_phases`)."""
-    ref = session.reference_camera
+def _interlaced(session: Session, cam: str) -> bool:
+    """Does session.json's ``metadata.camera_timing.<cam>.interlaced`` say the camera records interlaced fields?"""
+    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
+    given = timing.get(cam) if isinstance(timing.get(cam), dict) else {}
+    return bool(given.get("interlaced"))
+
+
+def row_timing(session: Session) -> dict:
+    """Camera -> ``(start, readout)`` frames of its rows' instants (:func:`subframe.observation_instants`:
+    a quarter of a frame for interlaced fields, the rolling-shutter readout), for the cameras session.json's
+    ``metadata.camera_timing`` describes."""
+    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
+    out = {}
+    for c, given in timing.items():
+        if isinstance(given, dict) and (given.get("rolling_shutter_s") or given.get("interlaced")):
+            start = subframe.INTERLACED_FIELD_FRAMES / 2.0 if given.get("interlaced") else 0.0
+            out[c] = (start, float(given.get("rolling_shutter_s") or 0.0) * session.fps)
+    return out
+
+
+def current_phases(sync: SyncResult, reference: str) -> dict:
+    """The flash's phases in the current offsets: a camera the markers moved whole frames after the flash
+    (``sync.flash_offsets``) has its phase moved by as many frames (its frame ``k`` shows ``k + phase``)."""
     start = dict(sync.phase_frames)
     if sync.flash_offsets is not None:          # the markers moved whole frames after the flash's fractions
         f = sync.flash_offsets
-        start = {c: start.get(c, 0.0) + (sync.offsets[c] - sync.offsets[ref]) - (f[c] - f[ref]) for c in sync.offsets}
+        start = {c: start.get(c, 0.0) + (sync.offsets[c] - sync.offsets[reference]) - (f[c] - f[reference])
+                 for c in sync.offsets}
+    return start
+
+
+def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
+    """The sync with every camera's phase (and rate ratio) refined by the markers (:func:`subframe.refine_phases`)."""
+    ref = session.reference_camera
+    start = current_phases(sync, ref)
     fits = subframe.refine_phases(rig, marker_px, start, ref, times=times)
     if not fits:
         progress("detect", "the markers could not refine the fractions of a frame (too few marker-frames); "
@@ -302,6 +334,7 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None,
     kwargs = {} if tolerance == DEFAULT_MAX_RESIDUAL_PX else {"max_residual_px": tolerance}
     try:
         return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
+                                phase=current_phases(sync, session.reference_camera), row_timing=row_timing(session),
                                 **kwargs)
     except DetectionError as exc:
         raise AnalysisError("detect", f"{exc}{identification_hint(session, sync)}") from None
