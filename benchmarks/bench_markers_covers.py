@@ -6,7 +6,8 @@ Renders (into the cache, on demand, one at a time) the sessions of
 command would give (3 when the verdict is unreliable, 2 when a step stops),
 the verdict, the checks above ok, wrong identities, the saddle's vertical
 acceleration error (% of its rms) and the Wb / Wk rms errors against the
-truth, and per camera the 2D values flagged as partly covered.
+truth, per camera the 2D values flagged as partly covered, and per marker
+the frames left out of the pose for moving against the others' rigid motion.
 
 Usage: ``python benchmarks/bench_markers_covers.py [NAME ...]``
 (``results/markers_covers.txt``: the run noted in benchmarks/README.md).
@@ -43,9 +44,12 @@ def run(name: str) -> str:
     bad = [f"{c.name}:{c.level}" for c in checks if c.level in ("warning", "unreliable")]
     covered = {c: int(np.sum(r == "partly_covered")) for c, r in a.detect.reason.items()}
     during = _reasons_under_covers(a, truth)
+    lo = a.rigid_body.body.left_out
+    left_out = {} if lo is None else {int(m): int(lo[:, m].sum()) for m in np.flatnonzero(lo.any(axis=0))}
     return (f"{name:22s} markers {a.session.marker_count} exit {3 if v == 'unreliable' else 0} {v:10s} "
             f"wrong {ide['wrong_total']:3d} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
-            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % partly_covered {covered} {bad} "
+            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % partly_covered {covered} "
+            f"left out of the pose {left_out} {bad} "
             f"{time.perf_counter() - t0:.0f}s" + "".join(f"\n    under the cover, {k}: {v}" for k, v in during.items()))
 
 

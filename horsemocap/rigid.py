@@ -1070,6 +1070,10 @@ class RigidBodyAnalysis:
     saddle_path : (n, 3)
         The saddle path that was fitted (``saddle.position`` for "thesis" and
         "direct", the fitted-orientation path for "pose").
+    left_out : (N, m) bool array or None
+        Markers of the pose frames left out of the pose registration because
+        they moved against the other markers' rigid motion
+        (:func:`against_rigid_motion`; four or more markers only).
     """
 
     t: np.ndarray
@@ -1108,6 +1112,7 @@ class RigidBodyAnalysis:
     pose_markers: object = None
     chain_error: str = ""
     pose_registration: object = None
+    left_out: object = None
 
     @property
     def saddle_position(self) -> np.ndarray:
@@ -1359,11 +1364,14 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     check_model_conditioning(model, name="static shot (the markers matched to the ride)")
     pose_input = PoseInput() if pose_input is None else pose_input
     ppts, pt, inside = _pose_frames(t, pts, pose_input)
+    left_out = against_rigid_motion(ppts, model, pt)
+    if left_out.any():
+        ppts = np.where(left_out[..., None], np.nan, ppts)
     preg_all = register_pose(ppts, model, pose_input.weights, covariance=pose_input.covariance)
     preg = preg_all if pose_input.t is None else _registration_rows(preg_all, inside)
     common = dict(t=t, static_index=static_index, saddle_index=saddle_index, model=model, static_saddle=s_saddle,
                   method=params.fits.angular_method, saddle_method=params.fits.saddle_method,
-                  kinematics=params.kinematics, pose_registration=preg)
+                  kinematics=params.kinematics, pose_registration=preg, left_out=left_out)
     chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders, period_s, smooth_span, fourier_start)
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
@@ -1382,6 +1390,170 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     omega, alpha = traj.omega(t), traj.alpha(t)
     chain.update(omega=omega, alpha=alpha)
     return RigidBodyAnalysis(**common, **chain, **pose, singularity_deg=singularity_angle(chain["pos"], omega))
+
+
+#: How far (in the marker's own robust noise scale) a marker's offset from the others' rigid pose may jump away
+#: from its offset in the neighbouring frames before it is left out of the pose (a 3D normal error passes it
+#: about once in ten million frames).
+RIGID_MOTION_THRESHOLD = 6.0
+#: Half-width (s) of the neighbouring frames whose median offset is the marker's expected one (a cover
+#: shorter than the half-width's double is outvoted by the frames around it).
+RIGID_MOTION_HALF_WINDOW_S = 0.5
+#: Median of a chi distribution with three degrees of freedom (a 3D error's length over its per-axis sigma).
+_CHI3_MEDIAN = 1.5382
+
+
+def leave_one_out_offsets(points, model) -> np.ndarray:
+    """Each marker's offset from the pose the other markers give, in the body (model) frame.
+
+    For every frame and marker ``j`` the model is fitted (least squares,
+    rotation and translation) to the other markers seen in that frame; the
+    offset is the marker's measured position minus the fitted model's,
+    rotated back into the model frame. A rigid marker set keeps every
+    offset at the noise; a marker partly covered in the views that see it
+    moves its centre against the others' rigid motion.
+
+    Parameters
+    ----------
+    points : (n, m, 3) array
+        The markers per frame (NaN where hidden), m >= 4.
+    model : (m, 3) array
+        The same markers in the model (static shot).
+
+    Returns
+    -------
+    (n, m, 3) array
+        NaN where the marker or fewer than three of the others are seen.
+
+    Examples
+    --------
+    >>> model = np.array([[0., 0, 0], [0.3, 0, 0], [0, 0.2, 0], [0.1, 0.1, 0.15]])
+    >>> R = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
+    >>> pts = np.stack([model @ R.T + 1.0, model @ R.T + 2.0])
+    >>> pts[1, 3] += R @ [0.01, 0, 0]
+    >>> np.round(leave_one_out_offsets(pts, model)[:, 3], 6) + 0.0
+    array([[0.  , 0.  , 0.  ],
+           [0.01, 0.  , 0.  ]])
+    """
+    return _leave_one_out(_as_positions("points", points), np.asarray(model, float))[0]
+
+
+def _leave_one_out(pts, model) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`leave_one_out_offsets` and, per frame and marker ``j``, the rms residual (m) of the others' fit."""
+    n, m = pts.shape[:2]
+    seen = np.all(np.isfinite(pts), axis=2)
+    x = np.nan_to_num(pts)
+    out = np.full((n, m, 3), np.nan)
+    others_rms = np.full((n, m), np.nan)
+    for j in range(m):
+        w = seen.copy()
+        w[:, j] = False
+        nw = w.sum(1)
+        ok = (nw >= 3) & seen[:, j]
+        if not ok.any():
+            continue
+        wf = w[ok].astype(float)[..., None]
+        cx = (wf * x[ok]).sum(1) / nw[ok, None]
+        cm = (wf * model[None]).sum(1) / nw[ok, None]
+        H = np.einsum("kmi,kmj->kij", wf * (model[None] - cm[:, None]), x[ok] - cx[:, None])
+        U, _, Vt = np.linalg.svd(H)
+        d = np.sign(np.linalg.det(np.einsum("kji,klj->kil", Vt, U)))
+        D = np.ones((len(d), 3))
+        D[:, 2] = d
+        R = np.einsum("kji,kj,klj->kil", Vt, D, U)          # model -> world: x = R (p - cm) + cx
+        resid = x[ok, j] - cx - np.einsum("kij,kj->ki", R, model[j] - cm)
+        out[ok, j] = np.einsum("kji,kj->ki", R, resid)
+        fitted = cx[:, None] + np.einsum("kij,kmj->kmi", R, model[None] - cm[:, None])
+        others_rms[ok, j] = np.sqrt((wf[..., 0] * np.sum((x[ok] - fitted) ** 2, axis=2)).sum(1) / nw[ok])
+    return out, others_rms
+
+
+def against_rigid_motion(points, model, t, threshold: float | None = None,
+                         half_window_s: float | None = None) -> np.ndarray:
+    """Markers that move against the other markers' rigid motion, per frame (four or more markers).
+
+    A marker partly covered alike in every camera that sees it (a boot, a
+    rein) triangulates consistently, its views agree, yet its centre moves
+    against the others. Each marker's offset from the pose the others give
+    (:func:`leave_one_out_offsets`) is compared with its median over the
+    neighbouring frames (``half_window_s`` either side: skin motion and the
+    static shot's own error stay in that median); the jump's length over the
+    marker's robust noise scale (its median jump over the record, a chi
+    distribution's with three degrees of freedom) above ``threshold`` marks
+    it. One marker at most per frame, so that three or more others always
+    keep the pose: the one whose removal leaves the others' fit to the model
+    least above its usual residual (a wrong marker moves every other
+    marker's leave-one-out offset too, a far one's most), marked when its
+    own jump is above ``threshold``. With three markers the others cannot give a pose:
+    nothing is marked.
+
+    Parameters
+    ----------
+    points : (n, m, 3) array
+    model : (m, 3) array
+    t : (n,) array
+        Times (s).
+    threshold, half_window_s : float, optional
+        Default :data:`RIGID_MOTION_THRESHOLD`, :data:`RIGID_MOTION_HALF_WINDOW_S`.
+
+    Returns
+    -------
+    (n, m) bool array
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> model = np.array([[0., 0, 0], [0.3, 0, 0], [0, 0.2, 0], [0.1, 0.1, 0.15]])
+    >>> t = np.arange(100) / 50.0
+    >>> pts = model + np.outer(t, [2.0, 0, 0])[:, None] + rng.normal(0, 5e-4, (100, 4, 3))
+    >>> pts[60:66, 2] += [0.0, 0.02, 0.0]
+    >>> np.flatnonzero(against_rigid_motion(pts, model, t)[:, 2]).tolist()
+    [60, 61, 62, 63, 64, 65]
+    """
+    pts = _as_positions("points", points)
+    n, m = pts.shape[:2]
+    flagged = np.zeros((n, m), bool)
+    if m < 4 or n < 3:
+        return flagged
+    threshold = RIGID_MOTION_THRESHOLD if threshold is None else float(threshold)
+    half_window_s = RIGID_MOTION_HALF_WINDOW_S if half_window_s is None else float(half_window_s)
+    t = np.asarray(t, float)
+    if t.shape != (n,):
+        raise ValueError(f"t: expected {n} times (one per frame of points), got shape {t.shape}")
+    dt = float(np.median(np.diff(t)))
+    half = max(1, int(round(half_window_s / dt))) if dt > 0 else 1
+    off, others_rms = _leave_one_out(pts, np.asarray(model, float))
+    jump = np.linalg.norm(off - _running_nanmedian(off, half), axis=2)          # (n, m)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)                         # a marker never seen: all-NaN
+        scale = np.nanmedian(jump, axis=0) / _CHI3_MEDIAN
+    score = jump / np.where(scale > 0, scale, np.nan)
+    # which marker goes: the one whose removal leaves the others most rigid (their fit's residual the least
+    # above its usual size) -- one wrong marker moves every other's leave-one-out offset too, far markers most
+    excess = others_rms - _running_nanmedian(others_rms, half)
+    finite = np.isfinite(score) & np.isfinite(excess)
+    if not finite.any():
+        return flagged
+    culprit = np.argmin(np.where(finite, excess, np.inf), axis=1)
+    rows = np.arange(n)
+    flagged[rows, culprit] = finite[rows, culprit] & (score[rows, culprit] > threshold)
+    return flagged
+
+
+def _running_nanmedian(a, half: int) -> np.ndarray:
+    """Median over frames ``k - half .. k + half`` (NaN ignored) of an (n, ...) array, frame by frame."""
+    a = np.asarray(a, float)
+    n = a.shape[0]
+    pad = np.concatenate([np.full((half,) + a.shape[1:], np.nan), a, np.full((half,) + a.shape[1:], np.nan)])
+    out = np.empty_like(a)
+    step = max(1, 2_000_000 // max(1, (2 * half + 1) * int(np.prod(a.shape[1:]))))   # bounded memory
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)                          # windows with no value: NaN
+        for s in range(0, n, step):
+            e = min(n, s + step)
+            win = np.lib.stride_tricks.sliding_window_view(pad[s:e + 2 * half], 2 * half + 1, axis=0)
+            out[s:e] = np.nanmedian(win, axis=-1)
+    return out
 
 
 def _check_choices(params: RigidBodyParams) -> None:

@@ -4,6 +4,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from horsemocap.detection.marker_model import fit_marker_model
+from horsemocap import rigid
 from horsemocap.params import PoseParams, RigidBodyParams
 from horsemocap.rigid import analyse_rigid_body, match_static_markers, register
 from horsemocap.virtuallab.covers import CROUP, LOWER_FLANK, horse_with_markers
@@ -122,3 +123,47 @@ def test_assignments_built_marker_by_marker_are_the_permutations_that_fit():
     got = _rigid_assignments(d, tol, model_d)
     assert len(brute) > 1
     assert got.tolist() == [list(p) for p in brute]
+
+
+def _cover_bias(n, start, length, size_m, ramp=3):
+    """A cover's pull on a marker's centre: rising over ``ramp`` frames to ``size_m``, held, falling again."""
+    k = np.arange(n, dtype=float)
+    rise = np.clip((k - start + 1) / ramp, 0, 1) * np.clip((start + length - k) / ramp, 0, 1)
+    return size_m * rise
+
+
+@pytest.mark.parametrize("m, marker", [(4, 3), (5, 1), (4, 0)])
+def test_a_marker_moving_against_the_others_is_left_out(m, marker, monkeypatch):
+    """Views that agree but a centre pulled against the others' rigid motion: left out, the others keep the pose.
+
+    BODY5's three rear markers lie nearly on a line: without the front one (4 markers, marker 3) they hold the
+    roll about that line poorly, so leaving it out helps less there than elsewhere.
+    """
+    body = BODY5[[0, 1, 2, 4]] if m == 4 else BODY5
+    t, pts, saddle = _ride(body, n=200, noise_m=0.0005, seed=3)
+    pulled = pts.copy()
+    pulled[:, marker] += _cover_bias(len(t), 120, 16, 0.02)[:, None] * np.array([0.5, -0.8, 0.3])
+    static = np.vstack([body, SADDLE])
+    rb_clean, err_clean = _saddle_error(t, pts, static, saddle)
+    rb, err = _saddle_error(t, pulled, static, saddle)
+    bias = _cover_bias(len(t), 120, 16, 0.02)
+    big = np.flatnonzero(bias > 0.01)
+    assert rb.left_out[bias > 0.019, marker].all()                        # the whole cover
+    assert rb.left_out[big, marker].mean() >= 0.8                          # most of its ramps
+    assert rb.left_out.sum() <= big.size + 0.02 * rb.left_out.size        # few false alarms on the noise
+    assert rb_clean.left_out.sum() <= 0.02 * rb_clean.left_out.size
+    monkeypatch.setattr(rigid, "RIGID_MOTION_THRESHOLD", np.inf)            # the same without leaving out
+    rb_kept, err_kept = _saddle_error(t, pulled, static, saddle)
+    assert not rb_kept.left_out.any()
+    assert err < 0.8 * err_kept, (err, err_kept)
+    if marker != 3 or m != 4:
+        assert err < err_clean + 0.0002, (err, err_clean)                  # as if nothing were covered
+
+
+def test_three_markers_are_never_left_out():
+    """With three markers the others cannot give a pose: nothing is marked, the thesis' chain is untouched."""
+    body = BODY5[[1, 2, 4]]
+    t, pts, saddle = _ride(body, noise_m=0.0005)
+    pts[60:70, 1] += 0.02
+    rb, _ = _saddle_error(t, pts, np.vstack([body, SADDLE]), saddle)
+    assert not rb.left_out.any()

@@ -136,6 +136,7 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     pos, vel, acc = rb.marker_kinematics
     cond = conditioning(rb)
     _report(section, rb, cond, orders, progress)
+    _report_left_out(rb.left_out, lo, name, progress)
     return RigidBodyResult(
         body=rb, t=t, registered=pos, model=rb.model, saddle_static=rb.static_saddle,
         static_order=[int(i) for i in rb.static_index], saddle_index=int(rb.saddle_index),
@@ -177,6 +178,22 @@ def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning,
                            f"triangle height {1000 * np.nanmin(cond.triangle_height_m):.1f} mm")
     for w in cond.warnings:
         progress("rigid_body", "WARNING: " + w)
+
+
+def _report_left_out(left_out, first: int, name, progress) -> None:
+    """A progress line per marker left out of the pose for moving against the others' rigid motion.
+
+    ``left_out``: (N, m) bool of the pose frames, the first of which is synchronised frame ``first``;
+    ``name(a, b)`` names frames a..b.
+    """
+    if left_out is None or not np.any(left_out):
+        return
+    for m in np.flatnonzero(left_out.any(axis=0)):
+        rows = np.flatnonzero(left_out[:, m])
+        progress("rigid_body", f"marker {m} left out of the pose in {rows.size} frames of "
+                               f"{name(first + int(rows[0]), first + int(rows[-1]))}: its position moved against "
+                               "the other markers' rigid motion (partly covered alike in every view that sees it?); "
+                               "the others gave the pose there")
 
 
 def _harmonics_text(info: dict) -> str:
