@@ -40,7 +40,7 @@ from . import pose
 from .params import PoseParams
 from .progress import counter
 
-__all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
+__all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
            "WHOLE_RECORD_FRAMES", "representative_range", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
@@ -48,6 +48,13 @@ WINDOW_FRAMES = 1000
 
 MARGIN_FRAMES = 150
 """Least frames fitted on each side of a core (more where the smoothing's kernel is wider)."""
+
+MARGIN_DECAY = 0.01
+"""What is left of a cut's effect at the edge of a core: the margin is where the smoothing's kernel
+has decayed to this fraction (:func:`kernel_margin`)."""
+
+SPLINE_NULL_SPACE = 3
+"""Degrees of freedom of the quintic spline's unpenalised polynomials (degree < 3)."""
 
 REPRESENTATIVE_FRAMES = 4000
 """Frames at the record's middle on which the smoothing is settled."""
@@ -153,9 +160,8 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     ``params.smoothing="auto"`` is run there (:func:`horsemocap.pose.choose_smoothing`) and the
     method it ran is kept, and the stride frequency of its harmonics; without harmonics the six
     lambdas of that fit are kept too (with harmonics, and for the adaptive smoothing, the lambdas
-    are chosen per window). The margin is at least
-    :data:`MARGIN_FRAMES` and six times the frames per effective degree of freedom of the least
-    flexible component (the width of the smoothing's kernel), at most half a ``window``.
+    are chosen per window). The margin is the widest of the components' :func:`kernel_margin`, at
+    least :data:`MARGIN_FRAMES` and at most a ``window``.
     """
     lo, hi = representative_range(len(t), frames)
     sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
@@ -174,11 +180,40 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     # spline's: there (and in the adaptive smoothing) each window chooses its lambdas
     per_window = method == "adaptive" or f0 is not None
     lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
-    edf = [float(info[c]["edf"]) for c in COMPONENTS if np.isfinite(info[c].get("edf", np.nan))]
-    kernel = (hi - lo) / max(min(edf), 1.0) if edf else 0.0
-    margin = int(min(max(MARGIN_FRAMES, np.ceil(6 * kernel)), window // 2))
+    margin = min(max([MARGIN_FRAMES] + [kernel_margin(hi - lo, info[c]) for c in COMPONENTS]), window)
     settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
     return SettledSmoothing(settled, lam, f0, choice, margin, info)
+
+
+def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY) -> int:
+    """Frames beyond a cut after which a component's smoothing no longer feels the cut (to ``decay``).
+
+    A quintic smoothing spline (penalty on the third derivative) acts as a
+    kernel whose transfer function is ``1 / (1 + (w / w0)^6)``; its effective
+    degrees of freedom over ``frames`` frames are ``edf = frames w0 / 3`` (w0
+    in radians per frame), and the kernel decays as ``exp(-w0 |u| / 2)``
+    (the poles nearest the real axis, ``w0 exp(i pi / 6)``). So a cut's
+    effect falls to ``decay`` after ``2 frames ln(1 / decay) / (3 edf)``
+    frames, with ``edf`` the spline's penalised part: ``info["edf"]`` less its
+    polynomials (:data:`SPLINE_NULL_SPACE`) and the two columns of each stride
+    harmonic (``info["harmonics"]``). A component whose spline is its
+    polynomial alone (under one penalised degree of freedom) has no local
+    kernel: each window fits its own low-degree trend and gives no margin
+    (0).
+
+    Examples
+    --------
+    A spline of 40 degrees of freedom over 4000 frames (kernel decay 72 frames):
+
+    >>> kernel_margin(4000, {"edf": 40.0 + SPLINE_NULL_SPACE})
+    308
+    >>> kernel_margin(4000, {"edf": 5.05, "harmonics": 1})       # a trend and one harmonic
+    0
+    """
+    edf = float(info.get("edf", np.nan)) - SPLINE_NULL_SPACE - 2 * int(info.get("harmonics") or 0)
+    if not np.isfinite(edf) or edf < 1.0:
+        return 0
+    return int(np.ceil(2.0 * frames * np.log(1.0 / decay) / (3.0 * edf)))
 
 
 def _events_inside(events, t0: float, t1: float):

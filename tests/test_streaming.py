@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 
 import numpy as np
@@ -9,7 +10,7 @@ import pytest
 
 from horsemocap import pose, streaming
 from horsemocap.cli import main
-from horsemocap.io3d import kinematics_params
+from horsemocap.io3d import RunningPercentile, kinematics_params
 from horsemocap.synthetic import Jet, _rotation_jets
 from horsemocap.threads import blas_single_threaded
 
@@ -121,3 +122,61 @@ def test_kinematics_command_smooths_a_long_record_in_windows(tmp_path, monkeypat
     assert sorted(p.name for p in out.iterdir()) == ["angular.csv", "kinematics-run.json", "kinematics.csv",
                                                      "trajectories.csv"]
     assert len((out / "angular.csv").read_text().splitlines()) == 2601
+
+
+@pytest.mark.parametrize("n, blocks", [(1, 1), (7, 3), (150, 4), (4001, 17)])
+def test_running_percentile_is_numpys_of_the_finite_values(n, blocks):
+    rng = np.random.default_rng(n)
+    values = rng.lognormal(size=(n, 4))
+    values[rng.random(values.shape) < 0.1] = np.nan
+    values[rng.random(values.shape) < 0.01] = np.inf
+    for q in (99, 50, 100, 0):
+        running = RunningPercentile(q, values.size)
+        for part in np.array_split(values, blocks):
+            running.add(part)
+        finite = values[np.isfinite(values)]
+        assert running.value() == pytest.approx(np.percentile(finite, q), rel=1e-12, abs=0)
+        assert running._top.size <= running.capacity
+    assert np.isnan(RunningPercentile(99, 3).value())
+
+
+def test_running_percentile_refuses_more_values_than_its_count():
+    running = RunningPercentile(99, 100)
+    running.add(np.arange(1000.0))
+    with pytest.raises(ValueError, match="more than the 3 kept"):
+        running.value()
+
+
+def test_the_margin_is_where_a_cuts_effect_has_decayed():
+    """Known answer of kernel_margin: a record fitted whole and cut in two (same lambdas, no harmonics)
+    differ at the cut; beyond the widest component's margin the hidden point's acceleration differs by
+    less than 3 MARGIN_DECAY of the difference at the cut (measured: 0.9 %, 0.081 of 9.04 m/s^2; the
+    record is short enough that both fits have a knot every sample or two, so the basis' resolution
+    adds little)."""
+    n = 800
+    d = trot(n)
+    reg = pose.register_pose(d["markers"], MODEL)
+    params = dataclasses.replace(kinematics_params(smoothing="gcv"), harmonics="none")
+    settled = streaming.settle_smoothing(d["t"], reg, d["markers"], MODEL, params)
+    margin = max(streaming.kernel_margin(n, settled.info[c]) for c in streaming.COMPONENTS)
+    assert 20 < margin < n // 4
+    whole = pose.fit_pose_trajectory(d["t"], reg, MODEL, settled.params, points=d["markers"], lam=settled.lam)
+    cut = n // 2
+    part = pose.fit_pose_trajectory(d["t"][:cut], streaming.slice_registration(reg, 0, cut), MODEL, settled.params,
+                                    points=d["markers"][:cut], lam=settled.lam)
+    t = d["t"][:cut]
+    diff = np.linalg.norm(whole.points(t, HIDDEN[None]).acceleration[:, 0]
+                          - part.points(t, HIDDEN[None]).acceleration[:, 0], axis=1)[::-1]   # by distance
+    at_cut = diff[:3].max()
+    assert at_cut > 0.1 * np.sqrt(np.mean(np.sum(d["hidden_acc"] ** 2, 1)))     # the cut matters there
+    assert diff[margin:].max() < 3 * streaming.MARGIN_DECAY * at_cut
+
+
+def test_a_trend_with_harmonics_sets_no_margin():
+    """A component whose spline is its polynomial (the stride harmonics carry the motion) has no local
+    kernel; a flexible one gives the decay length times ln(1 / MARGIN_DECAY)."""
+    assert streaming.kernel_margin(4000, {"edf": 5.05, "harmonics": 1}) == 0
+    assert streaming.kernel_margin(4000, {"edf": float("nan")}) == 0
+    edf = 36.3
+    want = 2 * 4000 * np.log(1 / streaming.MARGIN_DECAY) / (3 * (edf - 3 - 8))
+    assert streaming.kernel_margin(4000, {"edf": edf, "harmonics": 4}) == int(np.ceil(want))
