@@ -483,12 +483,13 @@ def _kinematics_result(traj, static, smoothing: str, events) -> dict:
     setup = kinematics_setup(traj, static)
     params = kinematics_params(smoothing, events)
     reg, model = setup["registration"], setup["model"]
-    settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params)
+    settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params,
+                                         window=streaming.WINDOW_FRAMES)
     blocks = streaming.windowed_kinematics(traj.time_s, reg, setup["points"], model, setup["model_all"], params,
                                            settled=settled, progress=ProgressPrinter())
     lo, hi = streaming.representative_range(traj.frame.size)
-    windows = {"count": len(streaming.window_plan(traj.frame.size, streaming.WINDOW_FRAMES, settled.margin)),
-               "window_frames": streaming.WINDOW_FRAMES, "margin_frames": settled.margin,
+    windows = {"count": len(streaming.window_plan(traj.frame.size, settled.window, settled.margin)),
+               "window_frames": settled.window, "margin_frames": settled.margin,
                "settled_on": [int(traj.frame[lo]), int(traj.frame[hi - 1])],
                "lam": list(settled.lam), "fundamental_hz": settled.fundamental_hz}
     return {**setup, "blocks": blocks, "smoothing_choice": settled.choice, "windows": windows}
@@ -558,7 +559,11 @@ def _kinematics_record(args, events, res, files, input_summary) -> dict:
 
     def source(given):
         path = Path(given).expanduser().resolve()
-        return {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+        digest = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):       # in blocks, not the whole file at once
+                digest.update(block)
+        return {"path": str(path), "sha256": digest.hexdigest()}
 
     return {"format": KINEMATICS_FORMAT, "command": "kinematics", "horsemocap_version": __version__,
             "inputs": {"trajectories": source(args.trajectories), "static": source(args.static)},

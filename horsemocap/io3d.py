@@ -101,8 +101,11 @@ class Trajectories:
     info: dict = field(default_factory=dict)
 
     def subset(self, names) -> np.ndarray:
-        """Points (n, len(names), 3) in the given order."""
+        """Points (n, len(names), 3) in the given order (a view of ``points``, not a copy, when the
+        names follow one another in the file's order)."""
         idx = [self.names.index(nm) for nm in names]
+        if idx and idx == list(range(idx[0], idx[0] + len(idx))):
+            return self.points[:, idx[0]:idx[0] + len(idx)]
         return self.points[:, idx]
 
 
@@ -735,11 +738,17 @@ def match_point_names(traj_names, static_names) -> dict:
             "hidden": [nm for nm in static_names if nm not in used_s]}
 
 
+SPACING_FRAMES = 20_000
+"""Frames (evenly spread) over which :func:`_median_spacing` takes the median of a longer record."""
+
+
 def _median_spacing(points) -> float:
-    """The median distance (m) between two points of one frame over the frames of (n, k, 3) ``points``."""
+    """The median distance (m) between two points of one frame over the frames of (n, k, 3) ``points``
+    (over every ``ceil(n / SPACING_FRAMES)``-th frame of a longer record)."""
     k = points.shape[1]
     if k < 2:
         return math.nan
+    points = points[::max(1, -(-points.shape[0] // SPACING_FRAMES))]
     i, j = np.triu_indices(k, 1)
     d = np.linalg.norm(points[:, i] - points[:, j], axis=2)
     d = d[np.isfinite(d)]
@@ -1019,6 +1028,7 @@ def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
     ``unmatched`` and ``matched_loosely``.
     """
     from . import pose
+    from .streaming import register_in_chunks
 
     match = match_point_names(traj.names, static.names)
     pairs = sorted(match["pairs"], key=lambda pr: traj.names.index(pr[0]))
@@ -1038,7 +1048,7 @@ def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     points = traj.subset(markers)
-    reg = pose.register_pose(points, model, names=markers)
+    reg = register_in_chunks(points, model, names=markers)
     return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
             "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}

@@ -180,3 +180,49 @@ def test_a_trend_with_harmonics_sets_no_margin():
     edf = 36.3
     want = 2 * 4000 * np.log(1 / streaming.MARGIN_DECAY) / (3 * (edf - 3 - 8))
     assert streaming.kernel_margin(4000, {"edf": edf, "harmonics": 4}) == int(np.ceil(want))
+
+
+def test_chunked_registration_is_the_whole_records():
+    d = trot(1000)
+    pts = d["markers"].copy()
+    pts[300:320, 1] = np.nan                              # three markers left
+    pts[500:510, :2] = np.nan                             # no pose
+    whole = pose.register_pose(pts, MODEL, names=["a", "b", "c", "d"])
+    parts = streaming.register_in_chunks(pts, MODEL, names=["a", "b", "c", "d"], chunk=137)
+    for name in ("rotation", "translation", "centre", "registered", "residual", "rms", "n_markers", "height"):
+        np.testing.assert_allclose(getattr(parts, name), getattr(whole, name), rtol=0, atol=1e-12, err_msg=name)
+    assert parts.reason.tolist() == whole.reason.tolist() and parts.reason[505] != ""
+    assert parts.noise_m == pytest.approx(whole.noise_m, rel=1e-12)
+
+
+def test_the_compact_reader_places_shuffled_rows_and_names_the_earliest_fault(tmp_path):
+    from horsemocap import io3d
+
+    rng = np.random.default_rng(3)
+    head = "frame,time_s,point,x_m,y_m,z_m\n"
+    rows = [f"{k},{k / 100!r},{nm},{x!r},1,2" for k in range(40) for nm, x in (("a", k / 7), ("b", -k / 3))]
+    gap = int(rng.integers(len(rows)))
+    rows[gap] = ",".join(rows[gap].split(",")[:3] + ["", "", ""])                 # a missing point
+    order = rng.permutation(len(rows))
+    (tmp_path / "s.csv").write_text(head + "\n".join(rows[i] for i in order) + "\n")
+    tr = io3d.read_trajectories_csv(tmp_path / "s.csv")
+    first = rows[order[0]].split(",")[2]
+    assert tr.frame.tolist() == list(range(40)) and tr.names == (first, "b" if first == "a" else "a")
+    assert tr.time_s.tolist() == [k / 100 for k in range(40)]
+    assert np.isnan(tr.points[gap // 2, tr.names.index("ab"[gap % 2])]).all()
+    assert np.isfinite(tr.points).all(axis=2).sum() == 79
+    a = tr.names.index("a")
+    np.testing.assert_array_equal(np.where(np.arange(40) == gap // 2, np.nan, np.arange(40) / 7) if gap % 2 == 0
+                                  else np.arange(40) / 7, tr.points[:, a, 0])
+    # two faults: the one on the earlier line is named, whichever kind it is
+    text = head + "0,0.0,a,1,2,3\n1,0.01,a,1,2,3\n0,0.0,a,1,2,4\n1,0.02,a,1,2,3\n2,0.02,a,x,2,3\n"
+    (tmp_path / "two.csv").write_text(text)
+    with pytest.raises(io3d.TrajectoryFileError, match=r"two.csv: lines 2 and 4: point 'a' of frame 0 twice"):
+        io3d.read_trajectories_csv(tmp_path / "two.csv")
+    (tmp_path / "time.csv").write_text(head + "0,0.0,a,1,2,3\n1,0.01,a,1,2,3\n\n1,0.02,a,1,2,3\n0,0.0,a,1,2,4\n")
+    with pytest.raises(io3d.TrajectoryFileError, match=r"time.csv: line 5: frame 1 has two times \(0.01 on line 3 "
+                                                          r"and 0.02\)"):
+        io3d.read_trajectories_csv(tmp_path / "time.csv")
+    (tmp_path / "late.csv").write_text(head + "0,0.0,a,1,2,3\n0,0.0,a,1,2,4\n1,0.01,a,x,2,3\n")
+    with pytest.raises(io3d.TrajectoryFileError, match=r"late.csv: lines 2 and 3: point 'a' of frame 0"):
+        io3d.read_trajectories_csv(tmp_path / "late.csv")
