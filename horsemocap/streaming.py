@@ -222,8 +222,8 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     ``params.smoothing="auto"`` is run there (:func:`horsemocap.pose.choose_smoothing`) and the
     method it ran is kept, and the stride frequency of its harmonics; without harmonics the six
     lambdas of that fit are kept too (with harmonics, and for the adaptive smoothing, the lambdas
-    are chosen per window). The margin is the widest of the components' :func:`kernel_margin`, at
-    least :data:`MARGIN_FRAMES` and at most a ``window``; the core is :func:`window_core`.
+    are chosen per window). The margin is the widest of the components' :func:`kernel_margin` (those
+    a window holds), at least :data:`MARGIN_FRAMES`; the core is :func:`window_core`.
     """
     lo, hi = representative_range(len(t), frames)
     sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
@@ -261,9 +261,9 @@ def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: 
     polynomials (:data:`SPLINE_NULL_SPACE`) and the two columns of each stride
     harmonic (``info["harmonics"]``). A component whose spline is its
     polynomial alone (under one penalised degree of freedom), or whose
-    kernel decays more slowly than over a ``window`` (its decay length
-    ``2 frames / (3 edf)`` longer than the core), is a trend at the scale of a
-    window: each window fits its own, and it sets no margin (0).
+    kernel does not decay within a ``window`` (its margin longer than the
+    core), is a trend at the scale of a window: each window fits its own,
+    and it sets no margin (0).
 
     Examples
     --------
@@ -273,16 +273,14 @@ def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: 
     308
     >>> kernel_margin(4000, {"edf": 5.05, "harmonics": 1})       # a trend and one harmonic
     0
-    >>> kernel_margin(4000, {"edf": 5.0}, window=1000)            # decay length 1333 frames
+    >>> kernel_margin(4000, {"edf": 8.0}, window=1000)            # decay 533 frames: margin 2456
     0
     """
     edf = float(info.get("edf", np.nan)) - SPLINE_NULL_SPACE - 2 * int(info.get("harmonics") or 0)
     if not np.isfinite(edf) or edf < 1.0:
         return 0
-    decay_length = 2.0 * frames / (3.0 * edf)
-    if window is not None and decay_length > window:
-        return 0
-    return int(np.ceil(decay_length * np.log(1.0 / decay)))
+    margin = int(np.ceil(2.0 * frames * np.log(1.0 / decay) / (3.0 * edf)))
+    return 0 if window is not None and margin > window else margin
 
 
 def _events_inside(events, t0: float, t1: float):
