@@ -458,10 +458,10 @@ def cmd_kinematics(args) -> int:
 KINEMATICS_TABLES = ("trajectories.csv", "kinematics.csv", "angular.csv")
 
 
-def _kinematics_checks(traj, res, speed, acceleration) -> list:
-    from .io3d import kinematics_checks_of_norms
+def _kinematics_checks(traj, res, speed_p99, acceleration_p99) -> list:
+    from .io3d import kinematics_checks_of_percentiles
 
-    return kinematics_checks_of_norms(traj, res["markers"], speed, acceleration)
+    return kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
 
 
 def _kinematics_result(traj, static, smoothing: str, events) -> dict:
@@ -483,12 +483,13 @@ def _kinematics_result(traj, static, smoothing: str, events) -> dict:
     setup = kinematics_setup(traj, static)
     params = kinematics_params(smoothing, events)
     reg, model = setup["registration"], setup["model"]
-    settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params)
+    settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params,
+                                         window=streaming.WINDOW_FRAMES)
     blocks = streaming.windowed_kinematics(traj.time_s, reg, setup["points"], model, setup["model_all"], params,
                                            settled=settled, progress=ProgressPrinter())
     lo, hi = streaming.representative_range(traj.frame.size)
-    windows = {"count": len(streaming.window_plan(traj.frame.size, streaming.WINDOW_FRAMES, settled.margin)),
-               "window_frames": streaming.WINDOW_FRAMES, "margin_frames": settled.margin,
+    windows = {"count": len(streaming.window_plan(traj.frame.size, settled.window, settled.margin)),
+               "window_frames": settled.window, "margin_frames": settled.margin,
                "settled_on": [int(traj.frame[lo]), int(traj.frame[hi - 1])],
                "lam": list(settled.lam), "fundamental_hz": settled.fundamental_hz}
     return {**setup, "blocks": blocks, "smoothing_choice": settled.choice, "windows": windows}
@@ -558,7 +559,11 @@ def _kinematics_record(args, events, res, files, input_summary) -> dict:
 
     def source(given):
         path = Path(given).expanduser().resolve()
-        return {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+        digest = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):       # in blocks, not the whole file at once
+                digest.update(block)
+        return {"path": str(path), "sha256": digest.hexdigest()}
 
     return {"format": KINEMATICS_FORMAT, "command": "kinematics", "horsemocap_version": __version__,
             "inputs": {"trajectories": source(args.trajectories), "static": source(args.static)},
@@ -571,17 +576,19 @@ def _kinematics_record(args, events, res, files, input_summary) -> dict:
 
 def _write_kinematics_tables(folder: Path, traj, res) -> tuple:
     """trajectories.csv, kinematics.csv and angular.csv of a kinematics run, written block by block
-    (``res["blocks"]``); the markers' smoothed speeds and accelerations (n, k) for the checks.
+    (``res["blocks"]``); the 99th percentiles of the markers' smoothed speed and acceleration for the
+    checks, taken block by block (:class:`horsemocap.io3d.RunningPercentile`: nothing per frame kept).
 
     Written with the csv module: a point name holding a comma or a quote is quoted.
     """
     import csv
 
+    from .io3d import RunningPercentile
     from .store import StreamedTextFiles
 
     names = res["markers"] + res["hidden"]
     n, k = traj.frame.size, len(res["markers"])
-    speed, accel = np.full((n, k), np.nan, np.float32), np.full((n, k), np.nan, np.float32)
+    speed, accel = RunningPercentile(99, n * k), RunningPercentile(99, n * k)
     with StreamedTextFiles([folder / name for name in KINEMATICS_TABLES]) as files:
         pos_w, kin_w, ang_w = (csv.writer(fh, lineterminator="\n") for fh in files)
         pos_w.writerow(["frame", "time_s", "point", "x_m", "y_m", "z_m"])
@@ -590,9 +597,9 @@ def _write_kinematics_tables(folder: Path, traj, res) -> tuple:
                         "alphaz_radps2", "triangle_height_m", "registration_rms_m", "note"])
         for block in res["blocks"]:
             _write_block(pos_w, kin_w, ang_w, traj, names, res["registration"], block)
-            speed[block.start:block.stop] = np.linalg.norm(block.velocity[:, :k], axis=2)
-            accel[block.start:block.stop] = np.linalg.norm(block.acceleration[:, :k], axis=2)
-    return speed, accel
+            speed.add(np.linalg.norm(block.velocity[:, :k], axis=2))
+            accel.add(np.linalg.norm(block.acceleration[:, :k], axis=2))
+    return speed.value(), accel.value()
 
 
 def _write_block(pos_w, kin_w, ang_w, traj, names, reg, block) -> None:

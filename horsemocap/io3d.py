@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import math
 import struct
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,7 +24,7 @@ import numpy as np
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
            "FIRST_TIME_PARAMETER", "RATE_PARAMETER", "check_trajectory_input", "check_stated_rate",
-           "kinematics_checks", "kinematics_verdict"]
+           "kinematics_checks", "kinematics_checks_of_percentiles", "kinematics_verdict", "RunningPercentile"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "dm": 0.1}
 _UNITS_TEXT = ", ".join(_UNITS)
@@ -100,8 +101,11 @@ class Trajectories:
     info: dict = field(default_factory=dict)
 
     def subset(self, names) -> np.ndarray:
-        """Points (n, len(names), 3) in the given order."""
+        """Points (n, len(names), 3) in the given order (a view of ``points``, not a copy, when the
+        names follow one another in the file's order)."""
         idx = [self.names.index(nm) for nm in names]
+        if idx and idx == list(range(idx[0], idx[0] + len(idx))):
+            return self.points[:, idx[0]:idx[0] + len(idx)]
         return self.points[:, idx]
 
 
@@ -113,7 +117,12 @@ def read_trajectories_csv(path) -> Trajectories:
     fields than the header (an unquoted comma in a name), a non-finite
     ``time_s``, an infinite coordinate, two rows of one (frame, point) with
     different values, two times of one frame, times that do not increase
-    with the frame number.
+    with the frame number. Of several faults the one on the earliest line is
+    named.
+
+    The rows are read into flat typed columns (44 bytes a row) and placed
+    with NumPy; the checks across rows run on those columns, and the line
+    numbers an error names are found by reading the file once more.
 
     Examples
     --------
@@ -142,42 +151,132 @@ def read_trajectories_csv(path) -> Trajectories:
             raise TrajectoryFileError(f"{path}: header lacks the column(s) {missing} (expected {','.join(want)}, "
                                       f"got {','.join(header)})")
         col = {c: header.index(c) for c in want}
-        rows, row_line, times, time_line, names = {}, {}, {}, {}, []
+        rows = _read_rows(path, reader, col, len(header))
+    if not rows.frame.size:
+        raise TrajectoryFileError(f"{path}: no data rows")
+    frames, first_row, inverse = _refuse_conflicts(path, rows)
+    pts = np.full((frames.size, len(rows.names), 3), np.nan)
+    pts[inverse, rows.point] = rows.xyz
+    t = rows.time[first_row]
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        i0, i1 = int(back[0]), int(back[0]) + 1
+        f0, f1 = int(frames[i0]), int(frames[i1])
+        line = _row_lines(path, [first_row[i0], first_row[i1]])
+        raise TrajectoryFileError(f"{path}: field 'time_s' must increase with 'frame': frame {f1} (line "
+                                  f"{line[first_row[i1]]}) has time {t[i1]}, not after frame {f0}'s {t[i0]} "
+                                  f"(line {line[first_row[i0]]})")
+    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
+            "time_origin": "the file's time_s column"}
+    return Trajectories(t, frames, tuple(rows.names), pts, str(path), info)
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """A trajectories CSV's data rows as columns: ``frame`` (r,) int64, ``time`` (r,), ``point`` (r,)
+    index into ``names``, ``xyz`` (r, 3)."""
+
+    frame: np.ndarray
+    time: np.ndarray
+    point: np.ndarray
+    xyz: np.ndarray
+    names: list
+
+
+def _read_rows(path, reader, col, n_fields) -> _Rows:
+    """The data rows of ``reader`` in flat typed columns; a bad row ends with the file, line and field
+    (or with an earlier line's conflict, :func:`_refuse_conflicts`, when there is one)."""
+    frame, time, point, xyz = array("q"), array("d"), array("i"), array("d")
+    names, index = [], {}
+    cf, ct, cp, cx, cy, cz = (col[c] for c in ("frame", "time_s", "point", "x_m", "y_m", "z_m"))
+
+    def columns():
+        return _Rows(np.frombuffer(frame, np.int64), np.frombuffer(time, float), np.frombuffer(point, np.int32),
+                     np.frombuffer(xyz, float).reshape(-1, 3), names)
+
+    for ln, row in enumerate(reader, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        try:
+            # the common row, read directly; anything unusual goes through _csv_row for its message
+            fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
+            x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
+            usual = (len(row) == n_fields and math.isfinite(tm) and name != "" and abs(x) <= MAX_COORDINATE_M
+                     and abs(y) <= MAX_COORDINATE_M and abs(z) <= MAX_COORDINATE_M)
+        except (ValueError, IndexError):
+            usual = False
+        if not usual:
+            try:
+                fr, tm, name, (x, y, z) = _csv_row(path, ln, row, col, n_fields)
+            except TrajectoryFileError:
+                if frame:
+                    _refuse_conflicts(path, columns())          # a fault on an earlier line is named first
+                raise
+        j = index.get(name)
+        if j is None:
+            j = index[name] = len(names)
+            names.append(name)
+        frame.append(fr)
+        time.append(tm)
+        point.append(j)
+        xyz.extend((x, y, z))
+    return columns()
+
+
+def _refuse_conflicts(path, rows: _Rows):
+    """Refuse two times of one frame and two values of one (frame, point), naming the earliest line.
+
+    Returns the sorted distinct frames, the row of each frame's first appearance and each row's
+    frame index."""
+    frames, inverse = np.unique(rows.frame, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    first_row = _first_rows(inverse, frames.size)
+    bad_time = np.flatnonzero(np.abs(rows.time - rows.time[first_row][inverse]) > 1e-9)
+    key = inverse.astype(np.int64) * max(len(rows.names), 1) + rows.point
+    keys, key_inverse = np.unique(key, return_inverse=True)
+    first_of_key = _first_rows(key_inverse.reshape(-1), keys.size)[key_inverse.reshape(-1)]
+    a, b = rows.xyz, rows.xyz[first_of_key]
+    bad_value = np.flatnonzero(~np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1))
+    r_time = int(bad_time[0]) if bad_time.size else None
+    r_value = int(bad_value[0]) if bad_value.size else None
+    if r_time is not None and (r_value is None or r_time <= r_value):
+        f, first = int(rows.frame[r_time]), int(first_row[inverse[r_time]])
+        line = _row_lines(path, [r_time, first])
+        raise TrajectoryFileError(f"{path}: line {line[r_time]}: frame {f} has two times ({rows.time[first]} on "
+                                  f"line {line[first]} and {rows.time[r_time]})")
+    if r_value is not None:
+        first = int(first_of_key[r_value])
+        line = _row_lines(path, [r_value, first])
+        raise TrajectoryFileError(f"{path}: lines {line[first]} and {line[r_value]}: point "
+                                  f"{rows.names[rows.point[r_value]]!r} of frame {int(rows.frame[r_value])} twice "
+                                  f"with different values ({_xyz_text(rows.xyz[first])} and "
+                                  f"{_xyz_text(rows.xyz[r_value])})")
+    return frames, first_row, inverse
+
+
+def _first_rows(group, n_groups: int) -> np.ndarray:
+    """The first row (index into ``group``) of each of ``n_groups`` groups numbered 0 .. n_groups - 1."""
+    first = np.full(n_groups, group.size, np.int64)
+    np.minimum.at(first, group, np.arange(group.size))
+    return first
+
+
+def _row_lines(path, rows) -> dict:
+    """The file's line number of each data row (0-based, blank rows not counted) in ``rows``."""
+    wanted, found = {int(r) for r in rows}, {}
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        next(reader, None)
+        k = 0
         for ln, row in enumerate(reader, start=2):
             if not row or all(not c.strip() for c in row):
                 continue
-            fr, tm, name, xyz = _csv_row(path, ln, row, col, len(header))
-            if name not in names:
-                names.append(name)
-            if fr in times and abs(times[fr] - tm) > 1e-9:
-                raise TrajectoryFileError(f"{path}: line {ln}: frame {fr} has two times ({times[fr]} on line "
-                                          f"{time_line[fr]} and {tm})")
-            times.setdefault(fr, tm)
-            time_line.setdefault(fr, ln)
-            key = (fr, name)
-            if key in rows and not np.array_equal(rows[key], xyz, equal_nan=True):
-                raise TrajectoryFileError(f"{path}: lines {row_line[key]} and {ln}: point {name!r} of frame {fr} "
-                                          f"twice with different values ({_xyz_text(rows[key])} and "
-                                          f"{_xyz_text(xyz)})")
-            rows[key] = xyz
-            row_line.setdefault(key, ln)
-    if not times:
-        raise TrajectoryFileError(f"{path}: no data rows")
-    frames = np.array(sorted(times))
-    pts = np.full((frames.size, len(names), 3), np.nan)
-    fi = {f: i for i, f in enumerate(frames)}
-    for (fr, name), xyz in rows.items():
-        pts[fi[fr], names.index(name)] = xyz
-    t = np.array([times[f] for f in frames])
-    back = np.flatnonzero(np.diff(t) <= 0)
-    if back.size:
-        f0, f1 = int(frames[back[0]]), int(frames[back[0] + 1])
-        raise TrajectoryFileError(f"{path}: field 'time_s' must increase with 'frame': frame {f1} (line "
-                                  f"{time_line[f1]}) has time {times[f1]}, not after frame {f0}'s {times[f0]} "
-                                  f"(line {time_line[f0]})")
-    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
-            "time_origin": "the file's time_s column"}
-    return Trajectories(t, frames, tuple(names), pts, str(path), info)
+            if k in wanted:
+                found[k] = ln
+                if len(found) == len(wanted):
+                    break
+            k += 1
+    return found
 
 
 def _xyz_text(xyz) -> str:
@@ -221,7 +320,7 @@ def _csv_row(path, ln, row, col, n_fields):
             raise TrajectoryFileError(f"{path}: line {ln}: field '{c}' of point {name!r}, frame {fr}: {v} is beyond "
                                       f"any position of a body (|{c}| <= {MAX_COORDINATE_M:g} m)")
         xyz.append(num)
-    return fr, tm, name, np.array(xyz)
+    return fr, tm, name, tuple(xyz)
 
 
 def c3d_header(path) -> dict:
@@ -639,11 +738,17 @@ def match_point_names(traj_names, static_names) -> dict:
             "hidden": [nm for nm in static_names if nm not in used_s]}
 
 
+SPACING_FRAMES = 20_000
+"""Frames (evenly spread) over which :func:`_median_spacing` takes the median of a longer record."""
+
+
 def _median_spacing(points) -> float:
-    """The median distance (m) between two points of one frame over the frames of (n, k, 3) ``points``."""
+    """The median distance (m) between two points of one frame over the frames of (n, k, 3) ``points``
+    (over every ``ceil(n / SPACING_FRAMES)``-th frame of a longer record)."""
     k = points.shape[1]
     if k < 2:
         return math.nan
+    points = points[::max(1, -(-points.shape[0] // SPACING_FRAMES))]
     i, j = np.triu_indices(k, 1)
     d = np.linalg.norm(points[:, i] - points[:, j], axis=2)
     d = d[np.isfinite(d)]
@@ -743,6 +848,61 @@ def _p99(values) -> float:
     return float(np.percentile(finite, 99)) if finite.size else math.nan
 
 
+class RunningPercentile:
+    r"""The ``q``-th percentile (``np.percentile``'s linear rule) of values given a block at a time.
+
+    Exact with memory bounded by the count: of at most ``count`` values (NaN
+    and infinite ones are left out, as :func:`numpy.percentile` of the finite
+    values) only the largest ``ceil((1 - q / 100) count) + 2`` are kept, which
+    hold the two order statistics the percentile interpolates between.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> values = rng.normal(size=(1000, 4))
+    >>> p = RunningPercentile(99, values.size)
+    >>> for block in np.split(values, 10):
+    ...     p.add(block)
+    >>> bool(np.isclose(p.value(), np.percentile(values, 99), rtol=0, atol=1e-12))
+    True
+    """
+
+    def __init__(self, q: float, count: int):
+        if not 0 <= q <= 100 or count < 0:
+            raise ValueError(f"percentile {q} of {count} values: expected 0 <= q <= 100 and a count >= 0")
+        self.q = float(q)
+        self.capacity = int(math.ceil((100 - self.q) * count / 100)) + 2
+        self.count = 0
+        self._top = np.empty(0)
+
+    def add(self, values) -> None:
+        """Take the finite ones of ``values`` (any shape)."""
+        v = np.asarray(values, float).ravel()
+        v = v[np.isfinite(v)]
+        self.count += v.size
+        merged = np.concatenate([self._top, v])
+        if merged.size > self.capacity:
+            merged = np.partition(merged, merged.size - self.capacity)[-self.capacity:]
+        self._top = merged
+
+    def value(self) -> float:
+        """The percentile of the finite values taken (NaN without any)."""
+        n = self.count
+        if n == 0:
+            return math.nan
+        top = np.sort(self._top)
+        skipped = n - top.size                        # values below the kept ones
+        pos = self.q / 100 * (n - 1)
+        lo = int(math.floor(pos))
+        if lo < skipped:
+            raise ValueError(f"{n} values: more than the {self.capacity} kept; give the count of all values")
+        a = top[lo - skipped]
+        b = top[min(lo + 1, n - 1) - skipped]
+        frac = pos - lo
+        # numpy's linear interpolation, evaluated from the nearer end
+        return float(b - (b - a) * (1 - frac) if frac >= 0.5 else a + (b - a) * frac)
+
+
 def kinematics_checks(traj: Trajectories, res: dict) -> list:
     """Plausibility checks of a kinematics result: speeds and accelerations within what bodies do.
 
@@ -763,14 +923,26 @@ def kinematics_checks(traj: Trajectories, res: dict) -> list:
 
 def kinematics_checks_of_norms(traj: Trajectories, markers, speed, acceleration) -> list:
     """:func:`kinematics_checks` from the markers' smoothed speeds and accelerations (n, k) (m/s, m/s^2)."""
+    return kinematics_checks_of_percentiles(traj, markers, _p99(speed), _p99(acceleration))
+
+
+def kinematics_checks_of_percentiles(traj: Trajectories, markers, speed_p99: float, acceleration_p99: float,
+                                     chunk: int = 100_000) -> list:
+    """:func:`kinematics_checks` from the 99th percentiles of the markers' smoothed speed (m/s) and
+    acceleration (m/s^2) (:class:`RunningPercentile` of a record given a window at a time); the raw
+    speed's percentile is taken ``chunk`` frames at a time."""
     checks = []
-    pts, t = traj.subset(markers), traj.time_s
+    t = traj.time_s
     if t.size >= 2:
-        raw = np.linalg.norm(np.diff(pts, axis=0), axis=2) / np.diff(t)[:, None]
-        checks.append(_limit_check("raw_marker_speed", _p99(raw), SPEED_LIMIT_MPS, "m/s",
+        idx = [traj.names.index(nm) for nm in markers]
+        raw = RunningPercentile(99, (t.size - 1) * len(idx))
+        for a in range(0, t.size - 1, chunk):
+            pts = traj.points[a:a + chunk + 1][:, idx]
+            raw.add(np.linalg.norm(np.diff(pts, axis=0), axis=2) / np.diff(t[a:a + chunk + 1])[:, None])
+        checks.append(_limit_check("raw_marker_speed", raw.value(), SPEED_LIMIT_MPS, "m/s",
                                    "speed of the record's markers between frames", "warning"))
-    checks.append(_limit_check("marker_speed", _p99(speed), SPEED_LIMIT_MPS, "m/s", "smoothed speed of the markers"))
-    checks.append(_limit_check("marker_acceleration", _p99(acceleration),
+    checks.append(_limit_check("marker_speed", speed_p99, SPEED_LIMIT_MPS, "m/s", "smoothed speed of the markers"))
+    checks.append(_limit_check("marker_acceleration", acceleration_p99,
                                ACCELERATION_LIMIT_MPS2, "m/s²", "smoothed acceleration of the markers"))
     if t.size >= 3:
         rate = frame_rate(traj)
@@ -856,6 +1028,7 @@ def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
     ``unmatched`` and ``matched_loosely``.
     """
     from . import pose
+    from .streaming import register_in_chunks
 
     match = match_point_names(traj.names, static.names)
     pairs = sorted(match["pairs"], key=lambda pr: traj.names.index(pr[0]))
@@ -875,7 +1048,7 @@ def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     points = traj.subset(markers)
-    reg = pose.register_pose(points, model, names=markers)
+    reg = register_in_chunks(points, model, names=markers)
     return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
             "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}

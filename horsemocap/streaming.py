@@ -38,10 +38,11 @@ import numpy as np
 
 from . import pose
 from .params import PoseParams
+from .splines import CACHE_SAMPLES
 from .progress import counter
 
-__all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
-           "WHOLE_RECORD_FRAMES", "representative_range", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
+__all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
+           "WHOLE_RECORD_FRAMES", "representative_range", "register_in_chunks", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""
@@ -49,8 +50,18 @@ WINDOW_FRAMES = 1000
 MARGIN_FRAMES = 150
 """Least frames fitted on each side of a core (more where the smoothing's kernel is wider)."""
 
+MARGIN_DECAY = 0.01
+"""What is left of a cut's effect at the edge of a core: the margin is where the smoothing's kernel
+has decayed to this fraction (:func:`kernel_margin`)."""
+
+SPLINE_NULL_SPACE = 3
+"""Degrees of freedom of the quintic spline's unpenalised polynomials (degree < 3)."""
+
 REPRESENTATIVE_FRAMES = 4000
 """Frames at the record's middle on which the smoothing is settled."""
+
+REGISTRATION_CHUNK = 50_000
+"""Frames registered at a time by :func:`register_in_chunks`."""
 
 WHOLE_RECORD_FRAMES = 20_000
 """Records up to this many frames are smoothed whole (:func:`horsemocap.pose.fit_pose_trajectory`);
@@ -82,8 +93,8 @@ class KinematicsBlock:
 class SettledSmoothing:
     """The smoothing every window runs: ``params``, ``lam`` (six, or None per component: chosen per
     window), ``fundamental_hz`` (None: no harmonics), ``choice`` (what ``"auto"`` ran and why, or
-    None), ``margin`` (frames fitted each side of a core) and ``info`` (the representative fit's
-    per-component smoothing)."""
+    None), ``margin`` (frames fitted each side of a core), ``info`` (the representative fit's
+    per-component smoothing) and ``window`` (frames of a core, :func:`window_core`)."""
 
     params: PoseParams
     lam: tuple
@@ -91,6 +102,25 @@ class SettledSmoothing:
     choice: dict | None
     margin: int
     info: dict
+    window: int = WINDOW_FRAMES
+
+
+def window_core(window: int, margin: int) -> int:
+    """Frames of a core: ``window``, or fewer so that a core with its margins fits the splines' cache.
+
+    The six components of a window share their B-spline basis and penalty
+    (a pure function of the times) only when a window has at most
+    :data:`horsemocap.splines.CACHE_SAMPLES` frames; otherwise each component
+    builds them anew, half of a window's time. The core is shortened to fit
+    when at least half of ``window`` remains.
+
+    Examples
+    --------
+    >>> window_core(1000, 369), window_core(1000, 150), window_core(1000, 600)
+    (862, 1000, 1000)
+    """
+    fitting = CACHE_SAMPLES - 2 * margin
+    return fitting if window // 2 <= fitting < window else window
 
 
 def window_plan(n: int, window: int = WINDOW_FRAMES, margin: int = MARGIN_FRAMES) -> list:
@@ -134,6 +164,45 @@ def slice_registration(reg: pose.PoseRegistration, lo: int, hi: int) -> pose.Pos
     return dataclasses.replace(reg, **fields)
 
 
+def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUNK) -> pose.PoseRegistration:
+    """:func:`horsemocap.pose.register_pose` of ``points`` (n, m, 3), ``chunk`` frames at a time.
+
+    Each frame's pose is its own; the marker noise ``noise_m`` pools the
+    chunks' squared residuals over their degrees of freedom (``3 k - 6`` per
+    frame of k markers), as one registration of the whole record does. The
+    result's arrays are filled in place: the memory beyond them is one
+    chunk's working arrays. Without marker weights or covariances.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1], [0.1, 0.1, -0.2]])
+    >>> rng = np.random.default_rng(1)
+    >>> pts = model[None] + rng.normal(0, 1e-3, (50, 4, 3))
+    >>> whole, parts = pose.register_pose(pts, model), register_in_chunks(pts, model, chunk=7)
+    >>> bool(np.allclose(whole.rotation, parts.rotation)), bool(np.isclose(whole.noise_m, parts.noise_m))
+    (True, True)
+    """
+    n = len(points)
+    if n <= chunk:
+        return pose.register_pose(points, model, names=names)
+    kept, reasons, pooled, dof = {}, [], 0.0, 0.0
+    for a in range(0, n, chunk):
+        reg = pose.register_pose(points[a:a + chunk], model, names=names)
+        for f in dataclasses.fields(reg):
+            value = getattr(reg, f.name)
+            if f.name != "reason" and isinstance(value, np.ndarray) and value.ndim and value.shape[0] == reg.rms.size:
+                if f.name not in kept:
+                    kept[f.name] = np.empty((n,) + value.shape[1:], value.dtype)
+                kept[f.name][a:a + value.shape[0]] = value
+        reasons.append(reg.reason)
+        frames_dof = float(np.sum(np.where(np.isfinite(reg.rms), 3 * reg.n_markers - 6, 0)))
+        if frames_dof > 0:
+            pooled, dof = pooled + reg.noise_m ** 2 * frames_dof, dof + frames_dof
+    noise = float(np.sqrt(pooled / dof)) if dof > 0 else float("nan")
+    return dataclasses.replace(reg, **kept, reason=np.concatenate(reasons), noise_m=noise)
+
+
 def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[int, int]:
     """The frames ``lo .. hi - 1`` at the middle of ``n`` on which :func:`settle_smoothing` settles.
 
@@ -153,9 +222,8 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     ``params.smoothing="auto"`` is run there (:func:`horsemocap.pose.choose_smoothing`) and the
     method it ran is kept, and the stride frequency of its harmonics; without harmonics the six
     lambdas of that fit are kept too (with harmonics, and for the adaptive smoothing, the lambdas
-    are chosen per window). The margin is at least
-    :data:`MARGIN_FRAMES` and six times the frames per effective degree of freedom of the least
-    flexible component (the width of the smoothing's kernel), at most half a ``window``.
+    are chosen per window). The margin is the widest of the components' :func:`kernel_margin` (those
+    a window holds), at least :data:`MARGIN_FRAMES`; the core is :func:`window_core`.
     """
     lo, hi = representative_range(len(t), frames)
     sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
@@ -174,11 +242,45 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     # spline's: there (and in the adaptive smoothing) each window chooses its lambdas
     per_window = method == "adaptive" or f0 is not None
     lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
-    edf = [float(info[c]["edf"]) for c in COMPONENTS if np.isfinite(info[c].get("edf", np.nan))]
-    kernel = (hi - lo) / max(min(edf), 1.0) if edf else 0.0
-    margin = int(min(max(MARGIN_FRAMES, np.ceil(6 * kernel)), window // 2))
+    margin = min(max([MARGIN_FRAMES] + [kernel_margin(hi - lo, info[c], window=window) for c in COMPONENTS]),
+                 window)
     settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
-    return SettledSmoothing(settled, lam, f0, choice, margin, info)
+    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin))
+
+
+def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: int | None = None) -> int:
+    """Frames beyond a cut after which a component's smoothing no longer feels the cut (to ``decay``).
+
+    A quintic smoothing spline (penalty on the third derivative) acts as a
+    kernel whose transfer function is ``1 / (1 + (w / w0)^6)``; its effective
+    degrees of freedom over ``frames`` frames are ``edf = frames w0 / 3`` (w0
+    in radians per frame), and the kernel decays as ``exp(-w0 |u| / 2)``
+    (the poles nearest the real axis, ``w0 exp(i pi / 6)``). So a cut's
+    effect falls to ``decay`` after ``2 frames ln(1 / decay) / (3 edf)``
+    frames, with ``edf`` the spline's penalised part: ``info["edf"]`` less its
+    polynomials (:data:`SPLINE_NULL_SPACE`) and the two columns of each stride
+    harmonic (``info["harmonics"]``). A component whose spline is its
+    polynomial alone (under one penalised degree of freedom), or whose
+    kernel does not decay within a ``window`` (its margin longer than the
+    core), is a trend at the scale of a window: each window fits its own,
+    and it sets no margin (0).
+
+    Examples
+    --------
+    A spline of 40 degrees of freedom over 4000 frames (kernel decay 72 frames):
+
+    >>> kernel_margin(4000, {"edf": 40.0 + SPLINE_NULL_SPACE})
+    308
+    >>> kernel_margin(4000, {"edf": 5.05, "harmonics": 1})       # a trend and one harmonic
+    0
+    >>> kernel_margin(4000, {"edf": 8.0}, window=1000)            # decay 533 frames: margin 2456
+    0
+    """
+    edf = float(info.get("edf", np.nan)) - SPLINE_NULL_SPACE - 2 * int(info.get("harmonics") or 0)
+    if not np.isfinite(edf) or edf < 1.0:
+        return 0
+    margin = int(np.ceil(2.0 * frames * np.log(1.0 / decay) / (3.0 * edf)))
+    return 0 if window is not None and margin > window else margin
 
 
 def _events_inside(events, t0: float, t1: float):
@@ -249,7 +351,7 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
     settled : SettledSmoothing, optional
         From :func:`settle_smoothing` (default: settled on this record).
     window : int
-        Frames of a core.
+        Frames of a core at most (used when ``settled`` is not given; otherwise ``settled.window``).
     progress : callable, optional
         A progress callback taking counts (:mod:`horsemocap.progress`): windows done of all.
 
@@ -281,6 +383,7 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
     params = dataclasses.replace(params, partial_frames=False)
     if settled is None:
         settled = settle_smoothing(t, registration, points, model, params, window=window)
+    window = settled.window
     plan = window_plan(n, window, settled.margin)
     band = max(1, min(settled.margin // 2, window // 4))
     tick = counter(progress, "kinematics", "smoothing the pose in windows", len(plan))
