@@ -19,15 +19,12 @@ analysed change.
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
-import pickle
-import threading
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import quality
+from .forking import run_beside
 from .steps import AnalysisError, ComfortResult
 from .steps.base import longest_run
 from .steps.detect import MIN_SEGMENT_FRAMES
@@ -259,67 +256,6 @@ def _later_steps(run_later, given) -> tuple[dict, str]:
     except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:
         return {}, str(exc)
     return {name: getattr(an, name) for name in PASS_STEPS}, ""
-
-
-def run_beside(tasks) -> list:
-    """The values of ``tasks`` (callables without arguments), in order, a forked copy of this process taking
-    tasks beside this one where it can.
-
-    As :func:`horsemocap.report.render_pngs` draws figures: where the system
-    can ``fork``, has two or more cores and this process runs no other
-    Python thread and is not itself a worker of a pool (a batch's worker
-    already shares the cores with the others), the two processes take the
-    next task not yet taken as each becomes free (one byte per task read
-    from a shared pipe), and the copy sends its values back pickled. The
-    copy computes with the same code and data, so the values are the same
-    either way; those it did not deliver are computed here.
-
-    Examples
-    --------
-    >>> run_beside([lambda: 1, lambda: 2, lambda: 3])
-    [1, 2, 3]
-    """
-    tasks = list(tasks)
-    if (len(tasks) < 2 or len(tasks) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
-            or threading.active_count() > 1 or multiprocessing.parent_process() is not None):
-        return [task() for task in tasks]
-    claims_r, claims_w = os.pipe()
-    os.write(claims_w, bytes(range(len(tasks))))
-    os.close(claims_w)
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:                                     # the copy: compute, send, leave without cleanup
-        code = 1
-        try:
-            os.close(read_end)
-            done = _claimed(tasks, claims_r)
-            with os.fdopen(write_end, "wb") as sent:
-                pickle.dump(done, sent)
-            code = 0
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    got = os.fdopen(read_end, "rb")
-    try:
-        with got:
-            out = _claimed(tasks, claims_r)
-            data = got.read()
-    finally:
-        _, status = os.waitpid(pid, 0)
-        os.close(claims_r)
-    if status == 0 and data:
-        out.update(pickle.loads(data))
-    return [out[i] if i in out else task() for i, task in enumerate(tasks)]
-
-
-def _claimed(tasks, claims_fd: int) -> dict:
-    """The tasks this process takes from the shared pipe of task numbers, computed: {number: value}."""
-    done = {}
-    while True:
-        claim = os.read(claims_fd, 1)
-        if not claim:
-            return done
-        done[claim[0]] = tasks[claim[0]]()
 
 
 def summary_text(passes) -> str:

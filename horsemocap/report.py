@@ -8,15 +8,13 @@ from __future__ import annotations
 import base64
 import html
 import io
-import os
-import pickle
 import re
-import threading
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 
 from . import plots
+from .forking import run_beside
 from .readable import distance_km, hours_minutes
 from .results import analysis_record
 from .store import atomic_write_text
@@ -80,64 +78,12 @@ def report_figures(analysis) -> list:
 def render_pngs(makers) -> list[str]:
     """Draw every figure of ``makers`` (callables returning a figure) as a base64 PNG, in order.
 
-    Where the system can ``fork`` and has two or more cores, a forked copy of
-    this process draws figures beside this one (issue 16: the six figures of
-    the bundled report took 0.8 s of matplotlib's text layout on one core).
-    The two take the next figure not yet taken as each becomes free (one byte
-    per figure read from a shared pipe: reading one byte is atomic), so a
-    slower figure does not leave one of them waiting. The copy draws with the
-    same code and data, so the PNGs are the same bytes either way; the
-    figures the copy did not deliver are drawn here.
-
-    The copy is made only while this process runs no other Python thread (a
-    Jupyter kernel's, an application's): a lock another thread holds at the fork
-    would stay held in the copy forever. The native threads left idle by OpenCV
-    and the BLAS (the command's case) hold none while they wait, and glibc and
-    OpenBLAS reset their own locks at a fork.
+    Where it is safe, a forked copy of this process draws figures beside this
+    one (:func:`horsemocap.forking.run_beside`: matplotlib's text layout is
+    the report's slowest part on one core). The copy draws with the same code
+    and data, so the PNGs are the same bytes either way.
     """
-    makers = list(makers)
-    if (len(makers) < 2 or len(makers) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
-            or threading.active_count() > 1):
-        return [_png(make()) for make in makers]
-    claims_r, claims_w = os.pipe()
-    os.write(claims_w, bytes(range(len(makers))))    # the figure numbers; read empty once all are taken
-    os.close(claims_w)
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:                                     # the copy: draw, send, leave without cleanup
-        code = 1
-        try:
-            os.close(read_end)
-            drawn = _draw_claimed(makers, claims_r)
-            with os.fdopen(write_end, "wb") as out:
-                pickle.dump(drawn, out)
-            code = 0
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    got = os.fdopen(read_end, "rb")
-    try:
-        # an error here closes the read end before the wait: a copy blocked in sending gets a
-        # broken pipe and exits, instead of both waiting for each other
-        with got:
-            out = _draw_claimed(makers, claims_r)
-            data = got.read()
-    finally:
-        _, status = os.waitpid(pid, 0)
-        os.close(claims_r)
-    if status == 0 and data:
-        out.update(pickle.loads(data))
-    return [out[i] if i in out else _png(make()) for i, make in enumerate(makers)]
-
-
-def _draw_claimed(makers, claims_fd: int) -> dict:
-    """The figures this process takes from the shared pipe of figure numbers, drawn: {number: PNG}."""
-    drawn = {}
-    while True:
-        claim = os.read(claims_fd, 1)
-        if not claim:
-            return drawn
-        drawn[claim[0]] = _png(makers[claim[0]]())
+    return run_beside([lambda make=make: _png(make()) for make in makers])
 
 
 def _table(rows, header) -> str:

@@ -139,7 +139,7 @@ def _times(a, gap: int, times: int):
 
 
 def test_passes_computed_beside_in_a_forked_copy_are_the_same(bundled, monkeypatch):
-    from horsemocap import passes as passes_module
+    from horsemocap import forking, passes as passes_module
 
     det, tri = bundled.detect, bundled.triangulate
     record = bundled.__class__(bundled.session, bundled.params)
@@ -152,8 +152,8 @@ def test_passes_computed_beside_in_a_forked_copy_are_the_same(bundled, monkeypat
                                      covariance=_times(tri.covariance, 30, 3))
     later = lambda given, steps: run_steps(record.session, record.params, given, steps)  # noqa: E731
     forks = []
-    real_fork = passes_module.os.fork
-    monkeypatch.setattr(passes_module.os, "fork", lambda: (forks.append(1), real_fork())[1])
+    real_fork = forking.os.fork
+    monkeypatch.setattr(forking.os, "fork", lambda: (forks.append(1), real_fork())[1])
     beside = analyse_passes(record, later, lambda *a: None)
     monkeypatch.setattr(passes_module, "run_beside", lambda tasks: [t() for t in tasks])
     alone = analyse_passes(record, later, lambda *a: None)
