@@ -51,11 +51,13 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 RESULTS_MARKERS = ("analysis.json", "PARTIAL.txt")
-# every file and folder an ``analyze`` run writes into its results folder (the notebooks' store adds ``steps``)
+# every file and folder an ``analyze`` run writes into its results folder (the notebooks' store adds ``steps``,
+# a batch its record ``batch.json``)
 ANALYZE_OUTPUTS = frozenset({
     "analysis.json", "PARTIAL.txt", "quality.json", "report.html", "rig.toml", "calibration.json",
     "markers_2d.csv", "markers_3d.csv", "trajectories.csv", "kinematics.csv", "angular.csv",
-    "comfort.csv", "comfort.xlsx", "steps", "choices.json", ".choices.json.lock"})
+    "comfort.csv", "comfort.xlsx", "passes.csv", "steps", "choices.json", ".choices.json.lock",
+    "batch.json"})
 KINEMATICS_OUTPUTS = frozenset({"kinematics-run.json", "trajectories.csv", "kinematics.csv", "angular.csv"})
 # a temporary folder of a run: .NAME.run-<pid>-<hex> (or .NAME.run-old-<hex> of the two-rename swap)
 _TMP_PATTERN = r"\.{name}\.run-(?:(?P<pid>\d+)|old)-[0-9A-Za-z]+"

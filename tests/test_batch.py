@@ -127,6 +127,23 @@ def _table_names(path: Path) -> list:
     return [r["name"] for r in batch.read_table(path)] if path.is_file() else []
 
 
+def test_a_session_analysed_again_replaces_its_batch_results_folder(tmp_path):
+    """A batch's results folder (its record batch.json, a long recording's passes.csv) is a run's own:
+    when the session or the parameters change, the batch analyses it again into the same folder."""
+    from horsemocap.runfolder import check_results_target
+    from horsemocap.store import StoreError
+
+    folder = tmp_path / "horse1_walk"
+    folder.mkdir()
+    (folder / "analysis.json").write_text('{"format": "horsemocap-results/1"}')
+    for name in (batch.BATCH_FILE, "passes.csv", "comfort.csv"):
+        (folder / name).write_text("written by a run")
+    assert check_results_target(folder) == folder.resolve()
+    (folder / "notes.txt").write_text("a user's file")
+    with pytest.raises(StoreError, match="notes.txt"):
+        check_results_target(folder)
+
+
 def test_a_batch_killed_with_sigkill_finishes_only_the_rest(tmp_path, monkeypatch):
     sessions = tmp_path / "sessions"
     for k in (1, 2, 3):
