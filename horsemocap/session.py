@@ -69,6 +69,23 @@ class Session:
     def json_path(self) -> Path:
         return self.root / "session.json"
 
+    def camera_timing(self, camera: str) -> dict:
+        """What ``metadata.camera_timing.<camera>`` gives of a camera that runs free (``exposure_s``,
+        ``rolling_shutter_s``, ``interlaced``; docs/sessions.md), or ``{}``.
+
+        Examples
+        --------
+        >>> s = Session(root=Path("."), name="s", fps=25.0, cameras=("left",), reference_camera="left", motion={},
+        ...             sync_method="flash", sync_offsets=None, rig_path=None, calibration_images=None, board=None,
+        ...             plumb=None, static=None, marker_count=3, marker_diameter_m=0.06,
+        ...             metadata={"camera_timing": {"left": {"interlaced": "bottom_first"}}})
+        >>> s.camera_timing("left"), s.camera_timing("right")
+        ({'interlaced': 'bottom_first'}, {})
+        """
+        timing = self.metadata.get("camera_timing", {}) if isinstance(self.metadata, dict) else {}
+        given = timing.get(camera) if isinstance(timing, dict) else None
+        return given if isinstance(given, dict) else {}
+
     def calibrates_from_views(self, recalibrate: bool = False) -> bool:
         """Whether the rig comes from the checkerboard views: no ``rig.toml``, or ``recalibrate``."""
         return self.calibration_images is not None and (self.rig_path is None or recalibrate)

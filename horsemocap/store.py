@@ -357,6 +357,16 @@ def refuse_link(path: Path, what: str) -> None:
                          "follow links out of itself: delete the link and run again")
 
 
+def _remove_present(paths) -> list:
+    """Remove every file or link of ``paths`` that exists; the paths removed."""
+    removed = []
+    for path in paths:
+        if path.is_symlink() or path.is_file():
+            path.unlink()
+            removed.append(path)
+    return removed
+
+
 @dataclass(frozen=True)
 class ResultsStore:
     """Step results of one session's analysis, so a notebook reuses what an
@@ -410,16 +420,8 @@ class ResultsStore:
         removed = []
         for later, files in STEP_RESULT_FILES[names.index(step) + 1:]:
             json_path = self.path(later)
-            for path in (json_path, json_path.with_suffix(".npz"), *(self.root / f for f in files)):
-                if path.is_symlink() or path.is_file():
-                    path.unlink()
-                    removed.append(path)
-        for name in WHOLE_ANALYSIS_FILES:
-            path = self.root / name
-            if path.is_symlink() or path.is_file():
-                path.unlink()
-                removed.append(path)
-        return removed
+            removed += _remove_present((json_path, json_path.with_suffix(".npz"), *(self.root / f for f in files)))
+        return removed + _remove_present(self.root / name for name in WHOLE_ANALYSIS_FILES)
 
     def stored_key(self, step: str) -> str | None:
         """The key ``step``'s stored result was saved under (its marker), or None (none stored, unreadable)."""
@@ -444,22 +446,14 @@ class ResultsStore:
         names = [name for name, _ in STEP_RESULT_FILES]
         if until not in names:
             return []
-        removed, stale = [], False
+        removed = []
         for later, files in STEP_RESULT_FILES[names.index(until) + 1:]:
             if later in keys and self.stored_key(later) == keys[later]:
                 continue
             json_path = self.path(later)
-            for path in (json_path, json_path.with_suffix(".npz"), *(self.root / f for f in files)):
-                if path.is_symlink() or path.is_file():
-                    path.unlink()
-                    removed.append(path)
-                    stale = True
-        if stale:
-            for name in WHOLE_ANALYSIS_FILES:
-                path = self.root / name
-                if path.is_symlink() or path.is_file():
-                    path.unlink()
-                    removed.append(path)
+            removed += _remove_present((json_path, json_path.with_suffix(".npz"), *(self.root / f for f in files)))
+        if removed:
+            removed += _remove_present(self.root / name for name in WHOLE_ANALYSIS_FILES)
         return removed
 
     def save(self, step: str, result, key: str) -> Path | None:

@@ -9,6 +9,7 @@ from horsemocap.cli import _parse_offsets
 from horsemocap.data import default_session_dir
 from horsemocap.params import AnalysisParams, ParamsError
 from horsemocap.pipeline import analyze
+from horsemocap.session import Session
 from horsemocap.steps.detect import CameraSyncCheck
 from horsemocap.steps.sync import SyncResult, exposure_fractions
 from horsemocap.sync import detect_flash
@@ -169,6 +170,7 @@ def test_interlaced_frame_collects_light_over_both_fields(tmp_path):
     meta = {"camera_timing": {"left": {"exposure_s": 0.02, "interlaced": "bottom_first"},
                               "middle": {"exposure_s": 0.01}}}
     s = SimpleNamespace(metadata=meta, fps=25.0, cameras=("left", "middle", "right"))
+    s.camera_timing = lambda camera: Session.camera_timing(s, camera)
     e = exposure_fractions(s)
     assert e == {"left": pytest.approx(1.0), "middle": pytest.approx(0.25), "right": subframe.DEFAULT_EXPOSURE_FRACTION}
 

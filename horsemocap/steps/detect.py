@@ -266,10 +266,9 @@ def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
     """Camera -> (n, m) instants of its centroids in its frames (:func:`subframe.observation_instants`), for the
     cameras whose rolling-shutter readout ``metadata.camera_timing.<camera>.rolling_shutter_s`` (s) or interlaced
     fields (``.interlaced``) session.json gives; others are absent."""
-    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
     out = {}
     for c, px in marker_px.items():
-        given = timing.get(c) if isinstance(timing.get(c), dict) else {}
+        given = session.camera_timing(c)
         readout, interlaced = given.get("rolling_shutter_s"), bool(given.get("interlaced"))
         if readout or interlaced:
             out[c] = subframe.observation_instants(px, rig[c].size[1], float(readout or 0.0) * session.fps, interlaced)
@@ -278,19 +277,17 @@ def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
 
 def _interlaced(session: Session, cam: str) -> bool:
     """Does session.json's ``metadata.camera_timing.<cam>.interlaced`` say the camera records interlaced fields?"""
-    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
-    given = timing.get(cam) if isinstance(timing.get(cam), dict) else {}
-    return bool(given.get("interlaced"))
+    return bool(session.camera_timing(cam).get("interlaced"))
 
 
 def row_timing(session: Session) -> dict:
     """Camera -> ``(start, readout)`` frames of its rows' instants (:func:`subframe.observation_instants`:
     a quarter of a frame for interlaced fields, the rolling-shutter readout), for the cameras session.json's
     ``metadata.camera_timing`` describes."""
-    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
     out = {}
-    for c, given in timing.items():
-        if isinstance(given, dict) and (given.get("rolling_shutter_s") or given.get("interlaced")):
+    for c in session.cameras:
+        given = session.camera_timing(c)
+        if given.get("rolling_shutter_s") or given.get("interlaced"):
             start = subframe.INTERLACED_FIELD_FRAMES / 2.0 if given.get("interlaced") else 0.0
             out[c] = (start, float(given.get("rolling_shutter_s") or 0.0) * session.fps)
     return out

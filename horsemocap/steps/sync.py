@@ -115,10 +115,9 @@ def exposure_fractions(session: Session) -> dict:
     usual field exposure of half a frame, the whole frame period; the flash's onset inside the frame then
     follows from the first lit frame's brightness as for a progressive frame of that exposure).
     """
-    timing = session.metadata.get("camera_timing", {}) if isinstance(session.metadata, dict) else {}
     out = {}
     for c in session.cameras:
-        given = timing.get(c) if isinstance(timing.get(c), dict) else {}
+        given = session.camera_timing(c)
         e = given.get("exposure_s")
         fraction = float(e) * session.fps if e else subframe.DEFAULT_EXPOSURE_FRACTION
         if given.get("interlaced"):
