@@ -41,6 +41,7 @@ import numpy as np
 
 from .detection.timeshift import MIN_CURRENT_PX, MISS_PX
 from .frames import HORSE_STRIDE_HZ
+from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_image
 
 LEVELS = ("ok", "warning", "unreliable")
@@ -795,6 +796,79 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
     return replace(check, message=msg, threshold=threshold)
 
 
+#: Share of the pose frames (%) with a marker left out of the pose for moving against the other markers' rigid
+#: motion: ``ok`` up to 25 %, ``warning`` up to 50 %, ``unreliable`` above. The test compares each frame with the
+#: median over its neighbours, which holds while most frames keep the rigid shape; past half of them it no longer
+#: tells the moved marker from the others.
+LEFT_OUT_PCT = (25.0, 50.0)
+
+
+def _longest_run(flags) -> int:
+    """Length of the longest run of True in a 1D bool array."""
+    best = run = 0
+    for f in np.asarray(flags, bool):
+        run = run + 1 if f else 0
+        best = max(best, run)
+    return best
+
+
+def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MOTION_HALF_WINDOW_S,
+                           input_="the pose registration's markers (a marker left out where it moved against "
+                                  "the others' rigid motion)") -> Check:
+    """How often a marker was left out of the pose for moving against the other markers' rigid motion.
+
+    ``left_out`` (n, m) bool: the pose frames' markers left out
+    (:func:`horsemocap.rigid.against_rigid_motion`). The figure is the share
+    of frames with a marker left out (%), against :data:`LEFT_OUT_PCT`. A
+    run of a marker's left-out frames longer than ``half_window_s`` makes it
+    at least a ``warning``: the neighbouring frames' median the test compares
+    with then follows the moved marker, and the run's further frames may pass
+    unnoticed. With three markers no marker can be left out (skipped).
+
+    Examples
+    --------
+    >>> lo = np.zeros((100, 4), bool); lo[40:45, 2] = True
+    >>> c = check_left_out_markers(lo, 50.0)
+    >>> c.level, c.figure
+    ('ok', 5.0)
+    >>> lo[10:70, 1] = True
+    >>> check_left_out_markers(lo, 50.0).level
+    'unreliable'
+    """
+    ok, warn = LEFT_OUT_PCT
+    threshold = (f"ok <= {ok:g} % of frames and no run over {half_window_s:g} s; warning <= {warn:g} %; "
+                 "unreliable above")
+    lo = None if left_out is None else np.asarray(left_out, bool)
+    if lo is None or lo.ndim != 2 or lo.shape[1] < 4 or lo.shape[0] == 0:
+        return Check("left_out_markers", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
+                     "markers left out of the pose: not tested (it takes four or more markers)")
+    figure = 100.0 * float(lo.any(axis=1).mean())
+    check = range_check("left_out_markers", figure, "%", (None, ok), (None, warn), input_,
+                        "frames with a marker left out of the pose")
+    runs = {int(j): _longest_run(lo[:, j]) for j in np.flatnonzero(lo.any(axis=0))}
+    per_marker = ", ".join(f"marker {j}: {int(lo[:, j].sum())} frames (longest run {runs[j]})" for j in runs)
+    long_runs = [j for j, r in runs.items() if r / float(fps) > half_window_s]
+    if not runs:
+        return replace(check, message="no marker moved against the others' rigid motion: every marker seen "
+                                      "was in the pose")
+    what = (f"{figure:.1f} % of the {lo.shape[0]} pose frames had a marker left out for moving against the "
+            f"others' rigid motion ({per_marker}); the others gave the pose there")
+    level = check.level
+    if long_runs and level == "ok":
+        level = "warning"
+    if level == "ok":
+        msg = what
+    elif level == "warning":
+        msg = (f"{what}: " + (f"marker {long_runs[0]} moved for longer than {half_window_s:g} s, so the test may "
+                              "miss the run's further frames" if long_runs else "a marker is often partly covered "
+                              "or slides on the skin") + "; check that marker in the videos")
+    else:
+        msg = (f"{what}: most frames disagree with the markers' rigid shape, so the test cannot tell which "
+               "marker moved (a marker covered for most of the record, skin sliding, or wrong identities); the "
+               "pose and the saddle may rest on the wrong markers")
+    return replace(check, level=level, message=msg)
+
+
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
     a_, s = analysis, analysis.session
@@ -827,6 +901,7 @@ def post_checks(analysis) -> list[Check]:
         rb = a_.rigid_body
         checks.append(check_marker_geometry(rb.warnings))
         checks.append(check_marker_rigidity(rb.conditioning.registration_rms_m, rb.model))
+        checks.append(check_left_out_markers(getattr(getattr(rb, "body", None), "left_out", None), s.fps))
         ay = written_saddle_acceleration(a_)
         peak = float(np.nanmax(np.abs(ay))) if ay is not None and np.isfinite(ay).any() else None
         checks.append(check_saddle_acceleration(peak))

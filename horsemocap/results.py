@@ -232,6 +232,8 @@ def _record_detect(detect, p: dict, chosen: dict) -> None:
 def _record_rigid_body(rb, p: dict, chosen: dict) -> None:
     chosen["static_order"] = rb.static_order
     chosen["saddle_index_in_static"] = rb.saddle_index
+    if getattr(rb.body, "model_choice", None) is not None:     # the static shot's shape or the moving frames'
+        chosen["marker_model"] = rb.body.model_choice.to_dict()
     if rb.orders is not None:
         _set(p, "rigid_body.fits.fourier_orders", np.asarray(rb.orders).astype(int).tolist())
     if rb.warnings:

@@ -107,6 +107,7 @@ from dataclasses import dataclass, fields, replace
 from typing import Callable
 
 import numpy as np
+from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
@@ -144,6 +145,10 @@ __all__ = [
     "FourierOrders",
     "PoseInput",
     "analyse_rigid_body",
+    "ModelChoice",
+    "body_coordinates",
+    "mean_marker_shape",
+    "choose_marker_model",
     "Conditioning",
     "conditioning",
     "saddle_angles",
@@ -1039,7 +1044,9 @@ class RigidBodyAnalysis:
     static_index : (3,) int ; saddle_index : int
         Correspondence of the static shot (:func:`match_static_markers`).
     model : (3, 3) ; static_saddle : (3,)
-        Static-shot markers (same order as the motion markers) and saddle.
+        Static-shot markers (same order as the motion markers) and saddle; the
+        model is the moving frames' mean shape instead when the static shot's
+        shape is off by more than a frame's noise (``model_choice``).
     registration : Registration
     motion_fit : horsemocap.fitting.MotionFit
     pos, vel, acc : (n, 3, 3)
@@ -1074,6 +1081,9 @@ class RigidBodyAnalysis:
         Markers of the pose frames left out of the pose registration because
         they moved against the other markers' rigid motion
         (:func:`against_rigid_motion`; four or more markers only).
+    model_choice : ModelChoice or None
+        Whether ``model`` is the static shot's shape or the moving frames'
+        mean shape, and why (:func:`choose_marker_model`).
     """
 
     t: np.ndarray
@@ -1113,6 +1123,7 @@ class RigidBodyAnalysis:
     chain_error: str = ""
     pose_registration: object = None
     left_out: object = None
+    model_choice: object = None
 
     @property
     def saddle_position(self) -> np.ndarray:
@@ -1280,8 +1291,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
                        fourier_start: str = "matlab") -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call (the rigid-body step).
 
-    The static shot is matched to the ride (:func:`match_static_markers`),
-    every frame's pose is registered (:func:`horsemocap.pose.register_pose`),
+    The static shot is matched to the ride (:func:`match_static_markers`);
+    its marker shape is the model unless it is off the moving frames' mean
+    shape by more than a frame's noise (:func:`choose_marker_model`); every
+    frame's pose is registered (:func:`horsemocap.pose.register_pose`),
     and then, as ``params.kinematics`` asks, the smoothed pose trajectory
     (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
     (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
@@ -1367,11 +1380,14 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     left_out = against_rigid_motion(ppts, model, pt)
     if left_out.any():
         ppts = np.where(left_out[..., None], np.nan, ppts)
+    model_choice = choose_marker_model(ppts, model)
+    model = model_choice.model
     preg_all = register_pose(ppts, model, pose_input.weights, covariance=pose_input.covariance)
     preg = preg_all if pose_input.t is None else _registration_rows(preg_all, inside)
     common = dict(t=t, static_index=static_index, saddle_index=saddle_index, model=model, static_saddle=s_saddle,
                   method=params.fits.angular_method, saddle_method=params.fits.saddle_method,
-                  kinematics=params.kinematics, pose_registration=preg, left_out=left_out)
+                  kinematics=params.kinematics, pose_registration=preg, left_out=left_out,
+                  model_choice=model_choice)
     chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders, period_s, smooth_span, fourier_start)
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
@@ -1538,6 +1554,251 @@ def against_rigid_motion(points, model, t, threshold: float | None = None,
     rows = np.arange(n)
     flagged[rows, culprit] = finite[rows, culprit] & (score[rows, culprit] > threshold)
     return flagged
+
+
+# --------------------------------------------------------------------------
+# the marker model: the static shot's shape or the moving frames' mean shape
+
+#: Significance level of the test that the static shot's marker shape differs from the moving frames' mean shape
+#: by more than a frame's noise (:func:`choose_marker_model`).
+MODEL_TEST_LEVEL = 0.01
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The marker model the registration used, and why (:func:`choose_marker_model`).
+
+    Attributes
+    ----------
+    model : (m, 3) array
+        The model used (in the static shot's coordinates).
+    source : str
+        ``"static shot"`` or ``"moving frames"``.
+    reason : str
+        Why, in words.
+    statistic, p_value : float
+        Hotelling's T^2 of the static shot's shape against the moving frames'
+        mean shape, and its p-value (NaN when the test could not be made).
+    dof : int
+        Degrees of freedom of the shape (3 m - 6).
+    frames, effective_frames : int, float
+        Frames with every marker seen, and as many independent ones as their
+        noise's correlation over frames is worth.
+    shift_m : (m,) array
+        Distance of each marker of the mean shape from the static shot's, after
+        the best rigid fit (m).
+    """
+
+    model: np.ndarray
+    source: str
+    reason: str
+    statistic: float = float("nan")
+    p_value: float = float("nan")
+    dof: int = 0
+    frames: int = 0
+    effective_frames: float = 0.0
+    shift_m: np.ndarray | None = None
+
+    def to_dict(self) -> dict:
+        """The choice for ``analysis.json`` (rounded; NaN as None)."""
+        def num(x, d=6):
+            return round(float(x), d) if np.isfinite(x) else None
+        return {"source": self.source, "reason": self.reason, "hotelling_t2": num(self.statistic, 3),
+                "p_value": num(self.p_value, 6), "test_level": MODEL_TEST_LEVEL, "dof": int(self.dof),
+                "frames": int(self.frames), "effective_frames": num(self.effective_frames, 1),
+                "shift_mm": None if self.shift_m is None else [num(1000 * s, 2) for s in self.shift_m]}
+
+
+def _kabsch(model, x, w):
+    """Per frame, the rotation ``R`` and centres with ``x ~ R (model - cm) + cx`` over the weighted markers.
+
+    ``model`` (k, m, 3) or (m, 3), ``x`` (k, m, 3) with no NaN, ``w`` (k, m) weights (0 = not used).
+    """
+    model = np.broadcast_to(model, x.shape)
+    wf = w[..., None]
+    nw = w.sum(1)[:, None]
+    cx = (wf * x).sum(1) / nw
+    cm = (wf * model).sum(1) / nw
+    H = np.einsum("kmi,kmj->kij", wf * (model - cm[:, None]), x - cx[:, None])
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(np.einsum("kji,klj->kil", Vt, U)))
+    D = np.ones((len(d), 3))
+    D[:, 2] = d
+    return np.einsum("kji,kj,klj->kil", Vt, D, U), cm, cx
+
+
+def body_coordinates(points, model) -> np.ndarray:
+    """Each frame's markers in the model's coordinates: the model fitted to the frame, the frame moved back.
+
+    Parameters
+    ----------
+    points : (n, m, 3) array
+        Markers per frame (NaN where not seen).
+    model : (m, 3) array
+
+    Returns
+    -------
+    (n, m, 3) array
+        NaN where a marker is not seen or fewer than three are.
+
+    Examples
+    --------
+    >>> model = np.array([[0., 0, 0], [0.3, 0, 0], [0, 0.2, 0]])
+    >>> R = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
+    >>> bool(np.allclose(body_coordinates((model @ R.T + 1.0)[None], model)[0], model))
+    True
+    """
+    pts = _as_positions("points", points)
+    model = np.asarray(model, float)
+    seen = np.all(np.isfinite(pts), axis=2)
+    ok = seen.sum(1) >= 3
+    out = np.full(pts.shape, np.nan)
+    if ok.any():
+        x = np.nan_to_num(pts[ok])
+        R, cm, cx = _kabsch(model, x, seen[ok].astype(float))
+        body = np.einsum("kji,kmj->kmi", R, x - cx[:, None]) + cm[:, None]
+        out[ok] = np.where(seen[ok][..., None], body, np.nan)
+    return out
+
+
+def mean_marker_shape(points, model, iterations: int = 50, tol_m: float = 1e-9):
+    """The markers' mean shape over the frames (generalised Procrustes analysis), in the model's coordinates.
+
+    Each frame is fitted by the current shape and moved back into its
+    coordinates (:func:`body_coordinates`); their mean over the frames is the
+    next shape, fitted back onto ``model`` (so that it keeps the model's
+    place and orientation, and a point known in the model's coordinates --
+    the saddle -- keeps its meaning). Per-frame noise averages out over the
+    frames.
+
+    Parameters
+    ----------
+    points : (n, m, 3) array
+        Markers per frame (NaN where not seen).
+    model : (m, 3) array
+        The starting shape (the static shot's markers).
+
+    Returns
+    -------
+    shape : (m, 3) array
+    body : (n, m, 3) array
+        Each frame's markers in the shape's coordinates (NaN where not seen).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> true = np.array([[0., 0, 0], [0.3, 0, 0], [0, 0.2, 0], [0.1, 0.1, 0.15]])
+    >>> R = Rotation.from_rotvec(rng.normal(0, 0.3, (400, 3))).as_matrix()
+    >>> pts = np.einsum("kij,mj->kmi", R, true) + rng.normal(0, 1e-3, (400, 4, 3))
+    >>> shape, _ = mean_marker_shape(pts, true + rng.normal(0, 5e-3, (4, 3)))
+    >>> float(np.abs(pairwise_distances(shape) - pairwise_distances(true)).max()) < 3e-4
+    True
+    """
+    model = np.asarray(model, float)
+    shape = model
+    for _ in range(iterations):
+        body = body_coordinates(points, shape)
+        if not np.isfinite(body).any():
+            return shape, body
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)               # a marker never seen: NaN
+            mean = np.nanmean(body, axis=0)
+        if not np.all(np.isfinite(mean)):
+            return shape, body
+        R, cm, cx = _kabsch(mean[None], model[None], np.ones((1, len(model))))
+        new = (mean - cm[0]) @ R[0].T + cx[0]
+        step = float(np.abs(new - shape).max())
+        shape = new
+        if step < tol_m:
+            break
+    return shape, body_coordinates(points, shape)
+
+
+def _lag1_correlation(resid) -> float:
+    """Mean lag-1 autocorrelation over the components of (n, k) residual series (consecutive rows), >= 0."""
+    r = np.asarray(resid, float)
+    if len(r) < 3:
+        return 0.0
+    r = r - r.mean(0)
+    num = np.sum(r[1:] * r[:-1], axis=0)
+    den = np.sum(r * r, axis=0)
+    rho = num[den > 0] / den[den > 0]
+    return float(np.clip(np.mean(rho), 0.0, 0.99)) if rho.size else 0.0
+
+
+def choose_marker_model(points, static_model, level: float = MODEL_TEST_LEVEL) -> ModelChoice:
+    """The static shot's marker shape, or the moving frames' mean shape when the static shot's is off.
+
+    The static shot is one still per camera: its markers carry one frame's
+    centroid noise and biases, never averaged. The moving frames' mean shape
+    (:func:`mean_marker_shape`) averages many frames' noise. The static shot
+    is kept unless it differs from that mean shape by more than a single
+    frame's noise explains: with ``e_k`` the frames' deviations from the mean
+    shape (every marker seen, in the shape's coordinates; rank 3 m - 6 after
+    the rigid fit) and ``d`` the static shot's, Hotelling's
+    ``T^2 = d^T (S (1 + 1/n_e))^+ d`` with ``S`` the frames' covariance and
+    ``n_e = n (1 - rho) / (1 + rho)`` the independent frames their lag-1
+    autocorrelation ``rho`` leaves; ``T^2 (n_e - r) / (r (n_e - 1))`` is
+    F(r, n_e - r) when the static shot is a frame like the others. Below
+    ``level`` the mean shape is used.
+
+    Parameters
+    ----------
+    points : (n, m, 3) array
+        The ride's markers per frame (unsmoothed; NaN where not seen).
+    static_model : (m, 3) array
+        The static shot's markers, in the same order.
+    level : float
+        Significance level of the test.
+
+    Returns
+    -------
+    ModelChoice
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(2)
+    >>> true = np.array([[0., 0, 0], [0.3, 0, 0], [0, 0.2, 0], [0.1, 0.1, 0.15]])
+    >>> R = Rotation.from_rotvec(rng.normal(0, 0.3, (300, 3))).as_matrix()
+    >>> pts = np.einsum("kij,mj->kmi", R, true) + rng.normal(0, 1e-3, (300, 4, 3))
+    >>> choose_marker_model(pts, true + rng.normal(0, 1e-3, (4, 3))).source
+    'static shot'
+    >>> off = true.copy(); off[3, 2] += 0.01
+    >>> choice = choose_marker_model(pts, off)
+    >>> choice.source, float(np.round(choice.shift_m[3], 2))
+    ('moving frames', 0.01)
+    """
+    static_model = np.asarray(static_model, float)
+    m = len(static_model)
+    shape, body = mean_marker_shape(points, static_model)
+    complete = np.all(np.isfinite(body), axis=(1, 2))
+    n, r = int(complete.sum()), 3 * m - 6
+    keep = ModelChoice(model=static_model, source="static shot", reason="", dof=r, frames=n)
+    if n < r + 3:
+        return replace(keep, reason=f"{n} frames with every marker seen: too few to measure the noise of the "
+                                    "markers' shape")
+    e = (body[complete] - shape).reshape(n, 3 * m)
+    rho = _lag1_correlation(e)
+    n_eff = n * (1 - rho) / (1 + rho)
+    d = (body_coordinates(static_model[None], shape)[0] - shape).reshape(3 * m)
+    shift = np.linalg.norm(d.reshape(m, 3), axis=1)
+    keep = replace(keep, effective_frames=n_eff, shift_m=shift)
+    if n_eff < r + 2:
+        return replace(keep, reason=f"{n} frames with every marker seen, worth {n_eff:.1f} independent ones "
+                                    f"(lag-1 correlation {rho:.2f}): too few to test the static shot's shape")
+    cov = np.cov(e, rowvar=False) * (1 + 1 / n_eff)
+    t2 = float(d @ np.linalg.pinv(cov, rcond=1e-10, hermitian=True) @ d)
+    f = t2 * (n_eff - r) / (r * (n_eff - 1))
+    p = float(stats.f.sf(f, r, n_eff - r))
+    what = (f"the static shot's marker shape is {1000 * shift.max():.1f} mm (largest) from the mean shape of {n} "
+            f"moving frames (worth {n_eff:.0f} independent ones), Hotelling T^2 {t2:.1f} on {r} degrees of "
+            f"freedom, p = {p:.2g}")
+    if p < level:
+        return replace(keep, model=shape, source="moving frames", statistic=t2, p_value=p,
+                       reason=f"{what} < {level:g}: more than a frame's noise, so the static shot's noise or "
+                              "biases are not averaged; the moving frames' mean shape is used, the saddle "
+                              "placed by fitting the static shot's markers to it")
+    return replace(keep, statistic=t2, p_value=p, reason=f"{what} >= {level:g}: within a frame's noise")
 
 
 def _running_nanmedian(a, half: int) -> np.ndarray:

@@ -137,6 +137,8 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     cond = conditioning(rb)
     _report(section, rb, cond, orders, progress)
     _report_left_out(rb.left_out, lo, name, progress)
+    if rb.model_choice is not None:
+        progress("rigid_body", f"marker model: {rb.model_choice.source} ({rb.model_choice.reason})")
     return RigidBodyResult(
         body=rb, t=t, registered=pos, model=rb.model, saddle_static=rb.static_saddle,
         static_order=[int(i) for i in rb.static_index], saddle_index=int(rb.saddle_index),

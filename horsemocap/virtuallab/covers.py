@@ -37,6 +37,7 @@ from ..data import cache_dir
 from .hard import HARD_VERSION, HardScenario, _r, plan, render_hard
 from .herd import RENDER_VERSION, render_into_cache
 from .horse import HERD, Horse
+from .noise import MarkerNoise
 from .render import fill_polygon
 from .session import MARKER_DIAMETER, Scene
 
@@ -198,7 +199,8 @@ class CoverScenario:
     ``start_s`` is a FRACTION (0-1) of the fully visible run at which the
     cover starts (placed when the session is planned); ``drop_markers``:
     skin markers (indices after adding) left off the horse, for the same
-    session with fewer markers.
+    session with fewer markers; ``marker_noise``: correlated centroid noise
+    and biases of the cameras (:class:`.noise.MarkerNoise`, none by default).
     """
 
     name: str
@@ -207,6 +209,7 @@ class CoverScenario:
     covers: tuple = ()
     drop_markers: tuple = ()
     exercises: str = ""
+    marker_noise: MarkerNoise | None = None
 
     def horse(self) -> Horse:
         h = HERD[self.base.horse]
@@ -218,19 +221,23 @@ class CoverScenario:
         return h
 
     def to_dict(self) -> dict:
-        return json.loads(json.dumps({"name": self.name, "base": self.base.to_dict(),
-                                      "extra_markers": [list(map(float, m)) for m in self.extra_markers],
-                                      "covers": [asdict(c) for c in self.covers],
-                                      "drop_markers": list(self.drop_markers), "exercises": self.exercises}))
+        out = {"name": self.name, "base": self.base.to_dict(),
+               "extra_markers": [list(map(float, m)) for m in self.extra_markers],
+               "covers": [asdict(c) for c in self.covers],
+               "drop_markers": list(self.drop_markers), "exercises": self.exercises}
+        if self.marker_noise is not None:          # absent otherwise: the sessions without it keep their keys
+            out["marker_noise"] = self.marker_noise.to_dict()
+        return json.loads(json.dumps(out))
 
 
 def adapt_scene(sc: CoverScenario, covers=()):
     """``scene -> scene`` for :func:`horsemocap.virtuallab.hard.plan`: the scenario's horse and ``covers``."""
     horse = sc.horse()
+    noise = None if sc.marker_noise is None else replace(sc.marker_noise, frame_rate_hz=float(sc.base.fps))
 
     def adapt(scene: Scene) -> Scene:
-        return replace(scene, motion=replace(scene.motion, horse=horse),
-                       extras=tuple(scene.extras) + tuple(covers))
+        scene = replace(scene, motion=replace(scene.motion, horse=horse), extras=tuple(scene.extras) + tuple(covers))
+        return scene if noise is None else replace(scene, marker_noise=noise)
     return adapt
 
 
@@ -268,6 +275,11 @@ def cover_key(sc: CoverScenario) -> str:
 #: Croup and lower-flank markers added to the horse's three (body frame, m).
 CROUP = (-0.86, -0.02, -0.28)
 LOWER_FLANK = (-0.26, 0.20, -0.34)
+#: A marker high on the back behind the saddle pad's cantle (body frame, m): with it the rig spreads over the
+#: flank's height instead of lying along one line.
+UPPER_BACK = (-0.48, -0.16, -0.29)
+#: Marker-centroid noise of the spread rigs' sessions: correlated over frames, with per-camera biases.
+RIG_NOISE = MarkerNoise(sigma_px=0.15, rho=0.8, bias_px=0.1)
 
 
 def _base(name, horse, gait, seed, fps=50.0, strides=3.0, **kw) -> HardScenario:
@@ -282,6 +294,12 @@ def _scenarios():
         out.append(CoverScenario(f"four_{gait}", b, (CROUP,), exercises=f"four markers, {gait}"))
         out.append(CoverScenario(f"five_{gait}", b, (CROUP, LOWER_FLANK), exercises=f"five markers, {gait}"))
         out.append(CoverScenario(f"three_{gait}", b, exercises=f"the same ride with the three markers, {gait}"))
+    for gait, horse, seed in (("canter", "Horse 2", 3131), ("rising_trot", "Horse 1", 3132)):
+        b = _base(f"spread_{gait}", horse, gait, seed)
+        out.append(CoverScenario(f"spread4_{gait}", b, (UPPER_BACK,), marker_noise=RIG_NOISE,
+                                 exercises=f"four markers spread over the flank's height, marker noise, {gait}"))
+        out.append(CoverScenario(f"spread5_{gait}", b, (UPPER_BACK, LOWER_FLANK), marker_noise=RIG_NOISE,
+                                 exercises=f"five markers spread over the flank's height, marker noise, {gait}"))
     for gait, horse, seed in (("walk", "Horse 3", 3111), ("sitting_trot", "Horse 4", 3112),
                               ("rising_trot", "Horse 2", 3113), ("canter", "Horse 1", 3114)):
         b = _base(f"cover_{gait}", horse, gait, seed, strides=3.0 if gait != "walk" else 2.6)
