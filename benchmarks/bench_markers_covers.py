@@ -9,18 +9,90 @@ acceleration error (% of its rms) and the Wb / Wk rms errors against the
 truth, per camera the 2D values flagged as partly covered, and per marker
 the frames left out of the pose for moving against the others' rigid motion.
 
-Usage: ``python benchmarks/bench_markers_covers.py [NAME ...]``
+Usage: ``python benchmarks/bench_markers_covers.py [--cut] [NAME ...]``
 (``results/markers_covers.txt``: the run noted in benchmarks/README.md).
+``--cut``: a session with more than three markers is also analysed cut to the
+horse's own three (the same ride and the same noise: the extra markers' columns
+dropped from the triangulated points and their points from the static shot
+the rigid-body step reads),
+and the marker model chosen is printed.
 """
+import dataclasses
 import sys
 import time
 
 import numpy as np
 
-from horsemocap import accuracy, quality
+from horsemocap import accuracy, pipeline, quality
 from horsemocap.pipeline import AnalysisError, analyze
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.covers import COVER_SESSIONS, cover_session
+from horsemocap.virtuallab.horse import HERD
+
+
+def kept_three(name: str) -> list:
+    """Indices (in the session's marker order) of the herd horse's own three markers."""
+    sc = COVER_SESSIONS[name]
+    body = sc.horse().marker_body
+    own = HERD[sc.base.horse].marker_body
+    return [int(np.argmin(np.linalg.norm(body - m, axis=1))) for m in own]
+
+
+class _Cut:
+    """``pipeline.STEP_CALLS`` with the triangulated markers and the static shot's (in the motion frame, as the
+    rigid-body step reads them) cut to ``keep``; detection and identification see every marker."""
+
+    def __init__(self, keep, truth):
+        self.keep, self.truth = list(keep), truth
+        self.saved = {}
+
+    def _motion_frame(self, a, r):
+        pts = np.asarray(a.static.static_points, float)       # the static shot (world), rows as r.static's
+        m = len(self.truth.static_pos) - 1                    # the truth's static points: markers, then the saddle
+        drop = [j for j in range(m) if j not in self.keep]
+        gone = {int(np.argmin(np.linalg.norm(pts - self.truth.static_pos[j], axis=1))) for j in drop}
+        rows = [i for i in range(len(pts)) if i not in gone]
+        return dataclasses.replace(r, static=np.asarray(r.static)[rows])
+
+    def _triangulate(self, a, r):
+        k = self.keep
+        cut = lambda d: None if d is None else {c: np.asarray(v)[:, k] for c, v in d.items()}  # noqa: E731
+        return dataclasses.replace(r, points=r.points[:, k], residual_px=cut(r.residual_px), reason=r.reason[:, k],
+                                   n_views=r.n_views[:, k], sync_residual_px=cut(r.sync_residual_px),
+                                   covariance=None if r.covariance is None else r.covariance[:, k])
+
+    def __enter__(self):
+        for step, f in (("motion_frame", self._motion_frame), ("triangulate", self._triangulate)):
+            original = self.saved[step] = pipeline.STEP_CALLS[step]
+            pipeline.STEP_CALLS[step] = lambda a, pr, f=f, original=original: f(a, original(a, pr))
+        return self
+
+    def __exit__(self, *exc):
+        pipeline.STEP_CALLS.update(self.saved)
+
+
+def _cut_truth(truth, keep):
+    """The truth with its markers cut to ``keep`` (the saddle and the comfort unchanged)."""
+    static = np.asarray(truth.static_pos)
+    cut = {k: np.asarray(getattr(truth, k))[:, keep] for k in ("marker_pos", "marker_vel", "marker_acc")}
+    return dataclasses.replace(truth, **cut, static_pos=np.vstack([static[keep], static[-1:]]))
+
+
+def run_cut(name: str) -> str:
+    """The session cut to the horse's own three markers: A_y, Wb, Wk against the truth."""
+    t0 = time.perf_counter()
+    folder = cover_session(name)
+    truth = load_truth(folder)
+    keep = kept_three(name)
+    with _Cut(keep, truth):
+        a = analyze(folder, None, {}, progress=lambda *x: None)
+    st = accuracy.stage_errors(a, _cut_truth(truth, keep))
+    ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
+    v = quality.verdict(quality.post_checks(a))
+    mc = a.rigid_body.body.model_choice
+    return (f"{name + ' cut to 3':22s} markers {keep} {v:10s} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
+            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % model: {mc.source} "
+            f"(p {mc.p_value:.2g}) {time.perf_counter() - t0:.0f}s")
 
 
 def run(name: str) -> str:
@@ -49,8 +121,13 @@ def run(name: str) -> str:
     return (f"{name:22s} markers {a.session.marker_count} exit {3 if v == 'unreliable' else 0} {v:10s} "
             f"wrong {ide['wrong_total']:3d} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
             f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % partly_covered {covered} "
-            f"left out of the pose {left_out} {bad} "
+            f"left out of the pose {left_out} {bad} model: {_model_text(a)} "
             f"{time.perf_counter() - t0:.0f}s" + "".join(f"\n    under the cover, {k}: {v}" for k, v in during.items()))
+
+
+def _model_text(a) -> str:
+    mc = getattr(a.rigid_body.body, "model_choice", None)
+    return "-" if mc is None else f"{mc.source} (p {mc.p_value:.2g})"
 
 
 def _reasons_under_covers(a, truth) -> dict:
@@ -71,5 +148,9 @@ def _reasons_under_covers(a, truth) -> dict:
 
 
 if __name__ == "__main__":
-    for n in sys.argv[1:] or list(COVER_SESSIONS):
+    args = sys.argv[1:]
+    cut = "--cut" in args
+    for n in [x for x in args if x != "--cut"] or list(COVER_SESSIONS):
         print(run(n), flush=True)
+        if cut and len(COVER_SESSIONS[n].horse().marker_body) > 3:
+            print(run_cut(n), flush=True)
