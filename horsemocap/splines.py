@@ -45,7 +45,8 @@ from scipy.signal import lfilter
 
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
-           "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "MAX_BASIS"]
+           "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "half_gain_frequency",
+           "MAX_BASIS"]
 
 HUBER_K = 1.345
 """Huber's tuning constant (in robust standard deviations) of :func:`robust_weighted_spline`: 95 %
@@ -828,6 +829,32 @@ def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None
                          "harmonics or events only")
 
 
+def half_gain_frequency(lam: float, dt: float, mean_weight: float = 1.0) -> float:
+    """The frequency (Hz) at which a quintic smoothing spline passes half of a sinusoid's amplitude.
+
+    Away from the record's ends, a quintic smoothing spline of uniformly
+    sampled data (interval ``dt``, weights of mean ``mean_weight``, penalty
+    ``lam`` on the third derivative, as :func:`smoothing_spline`) acts as the
+    filter ``1 / (1 + lam dt (2 pi f)^6 / mean_weight)``: its gain is 1/2 at
+    ``f = (mean_weight / (lam dt))^(1/6) / (2 pi)``, the number a
+    biomechanist compares with a Butterworth filter's cutoff. Where a signal's
+    power equals the noise's, a Wiener filter's gain is 1/2 too.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dt = 0.01
+    >>> lam = 1 / (dt * (2 * np.pi * 6.0) ** 6)
+    >>> round(half_gain_frequency(lam, dt), 6)
+    6.0
+    >>> t = np.arange(600) * dt
+    >>> s = smoothing_spline(t, np.sin(2 * np.pi * 6.0 * t), lam=lam)
+    >>> round(float(np.std(s(t)[100:-100]) / np.std(np.sin(2 * np.pi * 6.0 * t)[100:-100])), 2)
+    0.5
+    """
+    return float((mean_weight / (dt * max(float(lam), 1e-300))) ** (1 / 6) / (2 * np.pi))
+
+
 def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
                      harmonic_noise) -> SmoothingSpline:
     """:func:`smoothing_spline` with unpenalised harmonics of ``fundamental_hz`` (a partial quintic spline)."""
@@ -840,7 +867,7 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
         # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
         # hides from the plain spline is not taken whole
         s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz)
-        cutoff = (float(np.mean(w)) / (dt * max(info0["lam"], 1e-300))) ** (1 / 6) / (2 * np.pi)
+        cutoff = half_gain_frequency(info0["lam"], dt, float(np.mean(w)))
         kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
         if kmax < 1:
             info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
