@@ -45,3 +45,29 @@ def test_pose_reports_each_components_half_gain_frequency():
     given = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none"),
                                      lam=[1 / (dt * (2 * np.pi * 5.0) ** 6)] * 6)
     assert all(v == pytest.approx(5.0, rel=1e-3) for v in given.half_gain_hz.values())
+
+
+def test_common_smoothing_of_one_series_is_its_own_gcv_choice():
+    rng = np.random.default_rng(1)
+    t = np.arange(300) / 100.0
+    y = np.sin(2 * np.pi * 1.3 * t) + rng.normal(0, 0.05, t.size)
+    own = splines.smoothing_spline(t, y).info["lam"]
+    assert splines.common_smoothing(t, y[:, None])["lam"] == pytest.approx(own, rel=0.02)
+    ar1 = splines.smoothing_spline(t, y, noise_correlation=0.5).info["lam"]
+    assert splines.common_smoothing(t, y[:, None], noise_correlation=0.5)["lam"] == pytest.approx(ar1, rel=0.02)
+
+
+def test_common_smoothing_does_not_depend_on_units_and_weighs_columns_by_their_noise():
+    rng = np.random.default_rng(2)
+    t = np.arange(400) / 100.0
+    signal = np.column_stack([np.sin(2 * np.pi * t), np.sin(2 * np.pi * 3 * t)])
+    Y = signal + rng.normal(0, 1, signal.shape) * [0.02, 0.02]
+    base = splines.common_smoothing(t, Y, scales=[0.02, 0.02])["lam"]
+    scaled = splines.common_smoothing(t, Y * [1000.0, 1.0], scales=[20.0, 0.02])["lam"]
+    assert scaled == pytest.approx(base, rel=1e-6)
+    # a column scaled up a thousandfold without its scale dominates the pooled criterion
+    alone = splines.smoothing_spline(t, Y[:, 0] * 1000).info["lam"]
+    dominated = splines.common_smoothing(t, Y * [1000.0, 1.0])["lam"]
+    assert dominated == pytest.approx(alone, rel=0.05)
+    with pytest.raises(ValueError, match="scales"):
+        splines.common_smoothing(t, Y, scales=[1.0, -1.0])
