@@ -124,8 +124,8 @@ from scipy.spatial.transform import Rotation
 
 from .params import PoseParams
 from .registration import check_model, rotation_from_cross_covariance, skew
-from .splines import (ChangePointError, estimate_fundamental, residual_log_likelihood, robust_weighted_spline,
-                      smoothing_spline)
+from .splines import (ChangePointError, estimate_fundamental, half_gain_frequency, residual_log_likelihood,
+                      robust_weighted_spline, smoothing_spline)
 
 __all__ = [
     "CollinearMarkersError",
@@ -988,6 +988,22 @@ class PoseTrajectory:
         out = {"method": info["smoothing_method"], "reason": info["smoothing_reason"]}
         if "noise_correlation" in info:
             out["noise_correlation"] = info["noise_correlation"]
+        out["half_gain_hz"] = self.half_gain_hz
+        return out
+
+    @property
+    def half_gain_hz(self) -> dict:
+        """Per component, the frequency (Hz) its smoothing passes at half amplitude
+        (:func:`horsemocap.splines.half_gain_frequency`; stride harmonics, where fitted, pass whole);
+        None where the penalty is not one filter over the record (adaptive, per-frame weights, none)."""
+        dt = float(np.median(np.diff(self.t)))
+        out = {}
+        for name, info in self.smoothing.items():
+            lam = info.get("lam")
+            uniform = (info.get("order") == 5 and info.get("method") in ("gcv", "noise")
+                       and info.get("weights", "equal") == "equal"
+                       and lam is not None and np.isfinite(lam) and lam > 0)
+            out[name] = round(half_gain_frequency(lam, dt), 3) if uniform else None
         return out
 
     def _inside(self, t):

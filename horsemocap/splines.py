@@ -45,7 +45,8 @@ from scipy.signal import lfilter
 
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
-           "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "MAX_BASIS"]
+           "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "half_gain_frequency",
+           "common_smoothing", "MAX_BASIS"]
 
 HUBER_K = 1.345
 """Huber's tuning constant (in robust standard deviations) of :func:`robust_weighted_spline`: 95 %
@@ -419,6 +420,76 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correla
     if correlation is not None:
         info["noise_correlation"] = float(correlation)
     return spline, info
+
+
+def common_smoothing(t, Y, scales=None, noise_correlation: float | None = None, m: int = 3) -> dict:
+    """One smoothing parameter for several series sampled at the same times: pooled GCV.
+
+    The quintic smoothing spline's filter depends on ``lam`` alone, not on the
+    series' units (:func:`half_gain_frequency`), so one ``lam`` smooths every
+    column of ``Y`` to the same bandwidth, as for the six components of a rigid
+    body's pose: a point of the body then follows one filter of its measured
+    path, and no component's lighter smoothing sets its acceleration's noise.
+    ``lam`` minimises the GCV score pooled over the columns, each divided by
+    its scale (its noise, so that each counts in units of its own noise),
+    ``n sum_j |(I - H) y_j / s_j|^2 / (n - gamma tr(H C))^2``, with ``C`` the
+    AR(1) correlation of ``noise_correlation`` (the identity without it: plain
+    GCV) and ``gamma`` the GCV inflation of :func:`smoothing_spline`.
+
+    Parameters
+    ----------
+    t : (n,)
+        Increasing times.
+    Y : (n, p)
+        Finite samples, one series per column.
+    scales : (p,), optional
+        Positive scale of each column (default 1).
+    noise_correlation : float, optional
+        AR(1) lag-1 correlation of the noise, in (-1, 1).
+
+    Returns
+    -------
+    dict
+        ``lam``, ``edf`` (the fit's effective degrees of freedom) and ``half_gain_hz``.
+
+    Examples
+    --------
+    Two noisy sines at 1 Hz, one in millimetres and one in metres: one smoothing for both.
+
+    >>> import numpy as np
+    >>> t = np.arange(400) / 100.0
+    >>> rng = np.random.default_rng(0)
+    >>> Y = np.column_stack([1000 * np.sin(2 * np.pi * t), np.cos(2 * np.pi * t)])
+    >>> Y += rng.normal(0, 1, (400, 2)) * [10, 0.01]
+    >>> out = common_smoothing(t, Y, scales=[10, 0.01])
+    >>> bool(2.0 < out["half_gain_hz"] < 10.0)
+    True
+    """
+    x = np.ascontiguousarray(t, float)
+    Y = np.asarray(Y, float)
+    n = x.size
+    if Y.ndim != 2 or Y.shape[0] != n or not np.all(np.isfinite(Y)):
+        raise ValueError(f"Y: expected finite samples of shape ({n}, p), got {Y.shape}")
+    sc = np.ones(Y.shape[1]) if scales is None else np.asarray(scales, float)
+    if sc.shape != (Y.shape[1],) or not np.all(sc > 0):
+        raise ValueError(f"scales: expected {Y.shape[1]} positive scales, got {scales!r}")
+    _, d, Z = _gcv_basis(x.tobytes(), np.ones(n).tobytes(), m)
+    Ys = Y / sc
+    z = Z.T @ Ys
+    outside = float(np.sum(Ys * Ys) - np.sum(z * z))           # the part of the data no spline fits
+    z2 = np.sum(z * z, axis=1)
+    q = (np.ones(d.size) if not noise_correlation else
+         np.einsum("ij,ij->j", Z, ar1_correlation_times(Z, float(noise_correlation))))
+
+    def score(loglam):
+        g = 1 / (1 + 10.0 ** loglam * d)
+        rss = outside + float(np.sum((1 - g) ** 2 * z2))
+        return n * rss / max(n - GCV_GAMMA * float(np.sum(q * g)), 1e-9) ** 2
+
+    pos = d[d > 1e-12 * max(d.max(), 1e-300)]
+    lam, _ = _choose_lam(score, -np.log10(pos.max()) - 2, -np.log10(pos.min()) + 2)
+    return {"lam": lam, "edf": float(np.sum(1 / (1 + lam * d))),
+            "half_gain_hz": half_gain_frequency(lam, float(np.median(np.diff(x))))}
 
 
 def harmonic_columns(t, frequency_hz: float, order: int, t0: float = 0.0, derivative: int = 0) -> np.ndarray:
@@ -828,6 +899,32 @@ def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None
                          "harmonics or events only")
 
 
+def half_gain_frequency(lam: float, dt: float, mean_weight: float = 1.0) -> float:
+    """The frequency (Hz) at which a quintic smoothing spline passes half of a sinusoid's amplitude.
+
+    Away from the record's ends, a quintic smoothing spline of uniformly
+    sampled data (interval ``dt``, weights of mean ``mean_weight``, penalty
+    ``lam`` on the third derivative, as :func:`smoothing_spline`) acts as the
+    filter ``1 / (1 + lam dt (2 pi f)^6 / mean_weight)``: its gain is 1/2 at
+    ``f = (mean_weight / (lam dt))^(1/6) / (2 pi)``, the number a
+    biomechanist compares with a Butterworth filter's cutoff. Where a signal's
+    power equals the noise's, a Wiener filter's gain is 1/2 too.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dt = 0.01
+    >>> lam = 1 / (dt * (2 * np.pi * 6.0) ** 6)
+    >>> round(half_gain_frequency(lam, dt), 6)
+    6.0
+    >>> t = np.arange(600) * dt
+    >>> s = smoothing_spline(t, np.sin(2 * np.pi * 6.0 * t), lam=lam)
+    >>> round(float(np.std(s(t)[100:-100]) / np.std(np.sin(2 * np.pi * 6.0 * t)[100:-100])), 2)
+    0.5
+    """
+    return float((mean_weight / (dt * max(float(lam), 1e-300))) ** (1 / 6) / (2 * np.pi))
+
+
 def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
                      harmonic_noise) -> SmoothingSpline:
     """:func:`smoothing_spline` with unpenalised harmonics of ``fundamental_hz`` (a partial quintic spline)."""
@@ -840,7 +937,7 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
         # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
         # hides from the plain spline is not taken whole
         s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz)
-        cutoff = (float(np.mean(w)) / (dt * max(info0["lam"], 1e-300))) ** (1 / 6) / (2 * np.pi)
+        cutoff = half_gain_frequency(info0["lam"], dt, float(np.mean(w)))
         kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
         if kmax < 1:
             info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
