@@ -488,6 +488,41 @@ def warnings_box(rigid_body_warnings, quality: dict | None) -> list[str]:
             f"<ul>{lis}</ul></div>"]
 
 
+def passes_section(analysis) -> list[str]:
+    """Every pass of a recording with several (:mod:`horsemocap.passes`): a table of the analysed frames
+    (the reference camera's numbering, as in ``passes.csv``), duration, verdict and the vertical Wb/Wk
+    rms, and the row of all passes (durations weighted); nothing for a record of one pass."""
+    passes = getattr(analysis, "passes", None)
+    if passes is None:
+        return []
+    offset = analysis.synchronisation.offsets[analysis.session.reference_camera]
+
+    def rms(indicators, key):
+        return format_value(float(indicators[key]), 4) if indicators and key in indicators else ""
+
+    rows = []
+    for p in passes.passes:
+        first, stop = p.segment if p.segment is not None else p.run
+        note = "the result files" if p.main else (f"not analysed: {p.error}" if p.analysis is None else "")
+        rows.append((str(p.index), f"{first + offset}..{stop - 1 + offset}",
+                     format_value(p.duration_s, 3) if p.analysis is not None else "", p.verdict,
+                     rms(p.indicators, "acc_y_Wb_rms"), rms(p.indicators, "acc_y_Wk_rms"), note))
+    combined = passes.combined
+    rows.append(("all", "", format_value(combined["duration_s"], 3) if "duration_s" in combined else "",
+                 passes.verdict, rms(combined, "acc_y_Wb_rms"), rms(combined, "acc_y_Wk_rms"),
+                 "weighted by the durations"))
+    rms_unit = unit_text(COMFORT_UNITS["acc_y_Wb_rms"])
+    analysed = sum(p.analysis is not None for p in passes.passes)
+    return [f"<h2>Passes of the horse through the views ({len(passes.passes)})</h2>",
+            '<p class="note">The recording holds several passes; each analysed on its own frames '
+            f"({analysed} of {len(passes.passes)}). The sections below and the result files describe the longest "
+            "(marked); the row <i>all</i> is the comfort over every analysed pass, each weighted by its duration "
+            "(every indicator in passes.csv). The overall quality verdict accounts for every pass (check "
+            "<i>passes</i>).</p>",
+            _table(rows, ["pass", "frames", "duration (s)", "verdict", f"Wb rms ({rms_unit})",
+                          f"Wk rms ({rms_unit})", ""])]
+
+
 def report_html(analysis, quality: dict | None = None, painter: EarlyCall | None = None) -> str:
     """The text of the report for an :class:`~horsemocap.pipeline.Analysis`.
 
@@ -507,6 +542,7 @@ def report_html(analysis, quality: dict | None = None, painter: EarlyCall | None
     parts.append(summary_html(analysis.comfort, quality))
     warn = list(analysis.rigid_body.warnings) if analysis.rigid_body is not None else []
     parts += warnings_box(warn, quality)
+    parts += passes_section(analysis)
     if quality is not None:
         parts += quality_section(quality)
     meta = [(k, format_value(v)) for k, v in s.metadata.items()] + [

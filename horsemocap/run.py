@@ -17,6 +17,7 @@ from pathlib import Path
 from . import quality
 from .camera import read_rig
 from .pipeline import _progress_printer, AnalysisError, analyze, resolve_params
+from .passes import passes_check
 from .report import figure_painter, report_figures, write_report
 from .runfolder import check_results_target, RunFolder
 from .session import load_session, SessionError
@@ -141,6 +142,8 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
             if rig is None and analysis.rig is not None:
                 checks += quality.rig_checks(session, analysis.rig.rig)
             checks += quality.post_checks(analysis)
+            if getattr(analysis, "passes", None) is not None:     # the other passes of a long recording
+                checks.append(passes_check(analysis.passes))
         if outcome.error is not None:
             checks.append(quality.Check("run_complete", None, "", "unreliable", (None, None), (None, None),
                                         "every step ran", "the step named in the message",
