@@ -78,6 +78,8 @@ _SHARED = _SharedGray(SHARED_GRAY_BYTES)
 #: Frame counts of the videos read in this process (FrameSource._video_counts), by video_key.
 _COUNTS: dict = {}
 _COUNTS_LOCK = threading.Lock()
+#: Videos found to open and decode a first frame in this process (FrameSource), by video_key.
+_OPENED: set = set()
 
 
 class SourceError(ValueError):
@@ -272,12 +274,14 @@ class FrameSource:
         if path.is_dir():
             if not list_images(path):
                 raise SourceError(f"{path}: folder holds no image files ({', '.join(sorted(IMAGE_SUFFIXES))})")
-        else:
+        elif _SharedGray.video_key(path) not in _OPENED:     # each file as it is checked once per process
             cap = cv2.VideoCapture(str(path))
             ok = cap.isOpened() and cap.read()[0]
             cap.release()
             if not ok:
                 raise SourceError(f"{path}: cannot be opened as a video (OpenCV read no frame)")
+            with _COUNTS_LOCK:
+                _OPENED.add(_SharedGray.video_key(path))
 
     @property
     def is_video(self) -> bool:

@@ -112,3 +112,14 @@ def test_frame_counts_are_kept_for_the_file_as_it_is(tmp_path):
     path = tmp_path / "v.avi"
     assert len(_video(path, 60)) == 60
     assert len(_video(path, 25)) == 25          # written again: another size, counted again
+
+
+def test_a_video_rewritten_unreadable_is_refused_again(tmp_path):
+    import pytest
+
+    path = tmp_path / "v.avi"
+    _video(path, 10)
+    sources.FrameSource(path)                      # checked once
+    path.write_bytes(b"not a video at all")
+    with pytest.raises(sources.SourceError, match="cannot be opened as a video"):
+        sources.FrameSource(path)
