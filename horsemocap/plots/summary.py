@@ -13,7 +13,9 @@ def _fixed_layout(fig, left: float, bottom: float, top: float, right: float = 0.
     """Margins given in inches (room for the tick labels, axis labels and titles), set once.
 
     A fixed layout instead of ``tight_layout``: measuring every text to fit
-    the panels costs more than drawing the figure.
+    the panels costs more than drawing the figure. The panels' titles are
+    placed at a fixed height too (``set_title(..., y=1.0)``: just above the
+    panel, where matplotlib would put them after measuring the tick labels).
     """
     width, height = fig.get_size_inches()
     fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
@@ -38,7 +40,7 @@ def plot_marker_tracks(marker_px: dict, image_size=(640, 480), fig=None):
         ax.set_xlim(0, image_size[0])
         ax.set_ylim(image_size[1], 0)
         ax.set_aspect("equal")
-        ax.set_title(f"{cam} camera")
+        ax.set_title(f"{cam} camera", y=1.0)
         ax.set_xlabel("u (px)")
         if i == 0:
             ax.set_ylabel("v (px)")
@@ -61,7 +63,7 @@ def plot_axes_timeseries(t, series: dict, unit: str, title: str, fig=None, quant
         for label, arr in series.items():
             ax.plot(t, np.asarray(arr)[:, k], label=label, lw=1.2)
         name = f"{quantity} {'xyz'[k]}" if quantity else AXES[k]
-        ax.set_title(f"{name} ({unit})" if unit else name)
+        ax.set_title(f"{name} ({unit})" if unit else name, y=1.0)
         ax.set_xlabel("t (s)")
         if k == 0:
             ax.set_ylabel(unit)
@@ -85,7 +87,7 @@ def plot_reprojection_residuals(residual_px: dict, fig=None):
         ax.plot(r, label=cam, lw=1)
     ax.set_xlabel("synchronised frame")
     ax.set_ylabel("residual (px)")
-    ax.set_title("Reprojection residuals")
+    ax.set_title("Reprojection residuals", y=1.0)
     ax.legend(fontsize=7)
     _fixed_layout(fig, left=0.75, bottom=0.5, top=0.35)
     return fig
