@@ -3,35 +3,48 @@
 The report's figures and the passes of a long recording are independent
 computations on data already in memory; on two cores a forked copy of the
 process can take half of them without pickling the data there (only the
-values come back).
+values come back) (:func:`run_beside`). A computation whose module is slow
+to load (the report's figures: matplotlib) can have a copy forked before
+its data exist, which loads the module while this process works
+(:class:`EarlyCall`).
 """
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 import os
 import pickle
+import signal
 import threading
+
+
+def can_fork() -> bool:
+    """Whether a forked copy of this process may compute beside it.
+
+    Only where the system can ``fork``, has two or more cores, and this
+    process runs no other Python thread and is not itself a worker of a pool
+    (a batch's worker already shares the cores with the others). The copy is
+    made only while no other Python thread runs (a Jupyter kernel's, an
+    application's): a lock another thread holds at the fork would stay held
+    in the copy forever. The native threads left idle by OpenCV and the BLAS
+    hold none while they wait, and glibc and OpenBLAS reset their own locks
+    at a fork.
+    """
+    return (hasattr(os, "fork") and (os.cpu_count() or 1) >= 2 and threading.active_count() == 1
+            and multiprocessing.parent_process() is None)
 
 
 def run_beside(tasks) -> list:
     """The values of ``tasks`` (callables without arguments), in order, a forked copy of this process taking
     tasks beside this one where it can.
 
-    Where the system can ``fork``, has two or more cores, and this process
-    runs no other Python thread and is not itself a worker of a pool (a
-    batch's worker already shares the cores with the others), a forked copy
-    of this process takes tasks beside it: the two take the next task not
-    yet taken as each becomes free (one byte per task read from a shared
-    pipe: reading one byte is atomic), so a slower task does not leave one
-    of them waiting, and the copy sends its values back pickled. The copy
-    computes with the same code and data, so the values are the same either
-    way; those it did not deliver are computed here.
-
-    The copy is made only while this process runs no other Python thread (a
-    Jupyter kernel's, an application's): a lock another thread holds at the
-    fork would stay held in the copy forever. The native threads left idle
-    by OpenCV and the BLAS hold none while they wait, and glibc and OpenBLAS
-    reset their own locks at a fork.
+    Where that is safe (:func:`can_fork`), a forked copy of this process
+    takes tasks beside it: the two take the next task not yet taken as each
+    becomes free (one byte per task read from a shared pipe: reading one
+    byte is atomic), so a slower task does not leave one of them waiting,
+    and the copy sends its values back pickled. The copy computes with the
+    same code and data, so the values are the same either way; those it did
+    not deliver are computed here.
 
     Examples
     --------
@@ -39,8 +52,7 @@ def run_beside(tasks) -> list:
     [1, 2, 3]
     """
     tasks = list(tasks)
-    if (len(tasks) < 2 or len(tasks) > 255 or not hasattr(os, "fork") or (os.cpu_count() or 1) < 2
-            or threading.active_count() > 1 or multiprocessing.parent_process() is not None):
+    if len(tasks) < 2 or len(tasks) > 255 or not can_fork():
         return [task() for task in tasks]
     claims_r, claims_w = os.pipe()
     os.write(claims_w, bytes(range(len(tasks))))
@@ -81,3 +93,112 @@ def _claimed(tasks, claims_fd: int) -> dict:
         if not claim:
             return done
         done[claim[0]] = tasks[claim[0]]()
+
+
+class EarlyCall:
+    """``module.function(*args)``, computed by a copy of this process forked before ``args`` exist.
+
+    Made where it is safe (:func:`can_fork`), the copy loads ``module``
+    at once, beside this process' own work, then waits for the arguments
+    (:meth:`submit`, sent pickled through a pipe), computes, and sends the
+    value back (:meth:`result`). Without a copy, or when the copy fails,
+    :meth:`result` loads the module and computes here: the value is the same
+    either way. :meth:`close` (or leaving the ``with`` block) ends a copy
+    that was given nothing: it reads the end of the pipe and exits.
+
+    Examples
+    --------
+    >>> with EarlyCall("math", "hypot") as call:
+    ...     call.submit(3.0, 4.0)
+    ...     call.result()
+    5.0
+    """
+
+    def __init__(self, module: str, function: str, fork: bool = True):
+        self.module, self.function = module, function
+        self._args = None
+        self._pid = self._args_fd = self._value_fd = None
+        if fork and can_fork():
+            self._fork()
+
+    def _fork(self) -> None:
+        args_r, args_w = os.pipe()
+        value_r, value_w = os.pipe()
+        pid = os.fork()
+        if pid == 0:                                 # the copy: load, wait, compute, send, leave
+            code = 1
+            try:
+                os.close(args_w)
+                os.close(value_r)
+                target = getattr(importlib.import_module(self.module), self.function)
+                with os.fdopen(args_r, "rb") as given:
+                    data = given.read()
+                if data:
+                    value = target(*pickle.loads(data))
+                    with os.fdopen(value_w, "wb") as sent:
+                        pickle.dump(value, sent)
+                code = 0
+            finally:
+                os._exit(code)
+        os.close(args_r)
+        os.close(value_w)
+        self._pid, self._args_fd, self._value_fd = pid, args_w, value_r
+
+    @property
+    def forked(self) -> bool:
+        """Whether a copy computes the call."""
+        return self._pid is not None
+
+    @property
+    def submitted(self) -> bool:
+        """Whether the call has its arguments."""
+        return self._args is not None
+
+    def submit(self, *args) -> None:
+        """Give the call its arguments (once)."""
+        if self._args is not None:
+            raise RuntimeError(f"{self.module}.{self.function}: arguments given twice")
+        self._args = args
+        if self._args_fd is not None:
+            fd, self._args_fd = self._args_fd, None
+            try:
+                with os.fdopen(fd, "wb") as sent:
+                    pickle.dump(args, sent)
+            except OSError:          # the copy has gone (its failure is seen in result): computed here
+                pass
+
+    def result(self):
+        """The call's value: the copy's, or computed here."""
+        if self._args is None:
+            raise RuntimeError(f"{self.module}.{self.function}: no arguments given (submit)")
+        if self._value_fd is not None:
+            fd, self._value_fd = self._value_fd, None
+            with os.fdopen(fd, "rb") as got:
+                data = got.read()
+            if self._wait() == 0 and data:
+                return pickle.loads(data)
+        return getattr(importlib.import_module(self.module), self.function)(*self._args)
+
+    def _wait(self) -> int | None:
+        pid, self._pid = self._pid, None
+        if pid is None:
+            return None
+        _, status = os.waitpid(pid, 0)
+        return status
+
+    def close(self) -> None:
+        """End the copy (if any) without waiting for a value."""
+        for name in ("_args_fd", "_value_fd"):
+            fd = getattr(self, name)
+            if fd is not None:
+                setattr(self, name, None)
+                os.close(fd)
+        if self._pid is not None and self._args is not None:
+            os.kill(self._pid, signal.SIGKILL)       # computing a value nobody will read
+        self._wait()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

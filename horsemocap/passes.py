@@ -279,6 +279,45 @@ def summary_text(passes) -> str:
     return text + "".join(f"; {_pass_text(p)}" for p in flagged)
 
 
+def passes_check(passes: PassesResult) -> quality.Check:
+    """The check ``passes`` of a recording with several passes, for the session's overall verdict.
+
+    The session's own checks judge the pass its result files hold (the
+    longest); this one judges the others, whose comfort is in the combined
+    indicators (``passes.csv``, row ``all``). Its level is the worst verdict
+    of the analysed passes (an unreliable pass makes the combined comfort
+    unreliable), and at least ``warning`` when a pass could not be analysed
+    (its time is missing from the combined comfort; no number of it is
+    reported). The figure is the number of passes analysed.
+
+    Examples
+    --------
+    >>> ok = PassResult(1, (0, 40), (0, 40), object(), "ok")
+    >>> short = PassResult(2, (60, 69), None, None, "unreliable", error="too short")
+    >>> check = passes_check(PassesResult((ok, short), {}))
+    >>> check.level, check.figure
+    ('warning', 1)
+    >>> check.message
+    '2 passes, 1 analysed: 1 ok; 1 not analysed (left out of the combined comfort): pass 2 (frames 60..68): not analysed (too short)'
+    """
+    analysed = [p for p in passes.passes if p.analysis is not None]
+    missing = [p for p in passes.passes if p.analysis is None]
+    levels = [p.verdict for p in analysed] + (["warning"] if missing else [])
+    level = quality.verdict([_Level(v) for v in levels])
+    counts = ", ".join(f"{n} {v}" for v, n in ((v, sum(p.verdict == v for p in analysed)) for v in quality.LEVELS)
+                       if n)
+    message = f"{len(passes.passes)} passes, {len(analysed)} analysed" + (f": {counts}" if counts else "")
+    if missing:
+        message += (f"; {len(missing)} not analysed (left out of the combined comfort): "
+                    + "; ".join(_pass_text(p) for p in missing[:MAX_PASSES_LISTED]))
+    flagged = [p for p in analysed if p.verdict != "ok"][:MAX_PASSES_LISTED]
+    if flagged and level != "ok":
+        message += "; " + "; ".join(_pass_text(p) for p in flagged)
+    return quality.Check("passes", len(analysed), "passes", level, (None, None), (None, None),
+                         "the worst verdict of the analysed passes; a pass not analysed: warning",
+                         "passes.csv", message)
+
+
 def _verdict(analysis) -> str:
     return quality.verdict(quality.post_checks(analysis))
 

@@ -1,20 +1,19 @@
 """``report.html``: the analysis of a session for a person, self-contained.
 
 Figures are embedded as base64 PNG and the page carries its own CSS, so it
-opens in any browser without Python, a network or the results folder.
+opens in any browser without Python, a network or the results folder. They
+are described here as data (:func:`report_figures`) and drawn by
+:mod:`horsemocap.plots.report_figures`, the only part that needs
+matplotlib: usually in a copy of the process forked before the analysis
+(:func:`figure_painter`), which loads matplotlib while the analysis runs.
 """
 from __future__ import annotations
 
-import base64
 import html
-import io
 import re
 from pathlib import Path
 
-import matplotlib.pyplot as plt
-
-from . import plots
-from .forking import run_beside
+from .forking import EarlyCall
 from .readable import distance_km, hours_minutes
 from .results import analysis_record
 from .store import atomic_write_text
@@ -34,11 +33,14 @@ figure{margin:1em 0} figcaption{color:#555;font-size:.9em} img{max-width:100%}
 """
 
 
-def _png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+#: Where the figures are drawn: the module and its function of figure descriptions.
+FIGURE_PAINTER = ("horsemocap.plots.report_figures", "draw_pngs")
+
+
+def figure_painter(fork: bool = True) -> EarlyCall:
+    """The call that will draw the report's figures (:data:`FIGURE_PAINTER`): forked now where that is
+    safe, so that matplotlib loads beside the analysis; give it :func:`report_figures`' descriptions."""
+    return EarlyCall(*FIGURE_PAINTER, fork=fork)
 
 
 def _figure_html(png: str, caption: str) -> str:
@@ -47,14 +49,15 @@ def _figure_html(png: str, caption: str) -> str:
 
 
 def report_figures(analysis) -> list:
-    """The report's figures as ``(make, caption)``: ``make()`` draws one and returns it."""
+    """The report's figures as ``((function, args, kwargs), caption)``: ``function`` names a plotting
+    function of :data:`horsemocap.plots.report_figures.FIGURE_FUNCTIONS`, the arguments are arrays."""
     figures = []
     if analysis.detect is not None:
         size = analysis.rig.rig.cameras[0].size
-        figures.append((lambda: plots.plot_marker_tracks(analysis.detect.marker_px, size),
+        figures.append((("marker_tracks", (analysis.detect.marker_px, size), {}),
                         "Detected marker centroids in each camera, in pixels (chapter 4)."))
     if analysis.triangulate is not None:
-        figures.append((lambda: plots.plot_reprojection_residuals(analysis.triangulate.residual_px),
+        figures.append((("reprojection_residuals", (analysis.triangulate.residual_px,), {}),
                         "Reprojection residuals of the triangulated markers, in pixels (section 5.1)."))
     if analysis.rigid_body is not None:
         rb = analysis.rigid_body
@@ -70,20 +73,8 @@ def report_figures(analysis) -> list:
                  "Angular acceleration of the body about the motion frame's axes, in rad/s² (chapter 6)."),
                 ({"saddle": rb.saddle_acceleration}, "m/s²", "Saddle acceleration", "acceleration along",
                  "Acceleration of the hidden saddle marker along the motion frame's axes, in m/s² (section 6.4).")):
-            figures.append((lambda data=data, unit=unit, title=title, quantity=quantity:
-                            plots.plot_axes_timeseries(t, data, unit, title, quantity=quantity), caption))
+            figures.append((("axes_timeseries", (t, data, unit, title), {"quantity": quantity}), caption))
     return figures
-
-
-def render_pngs(makers) -> list[str]:
-    """Draw every figure of ``makers`` (callables returning a figure) as a base64 PNG, in order.
-
-    Where it is safe, a forked copy of this process draws figures beside this
-    one (:func:`horsemocap.forking.run_beside`: matplotlib's text layout is
-    the report's slowest part on one core). The copy draws with the same code
-    and data, so the PNGs are the same bytes either way.
-    """
-    return run_beside([lambda make=make: _png(make()) for make in makers])
 
 
 def _table(rows, header) -> str:
@@ -497,13 +488,52 @@ def warnings_box(rigid_body_warnings, quality: dict | None) -> list[str]:
             f"<ul>{lis}</ul></div>"]
 
 
-def report_html(analysis, quality: dict | None = None) -> str:
+def passes_section(analysis) -> list[str]:
+    """Every pass of a recording with several (:mod:`horsemocap.passes`): a table of the analysed frames
+    (the reference camera's numbering, as in ``passes.csv``), duration, verdict and the vertical Wb/Wk
+    rms, and the row of all passes (durations weighted); nothing for a record of one pass."""
+    passes = getattr(analysis, "passes", None)
+    if passes is None:
+        return []
+    offset = analysis.synchronisation.offsets[analysis.session.reference_camera]
+
+    def rms(indicators, key):
+        return format_value(float(indicators[key]), 4) if indicators and key in indicators else ""
+
+    rows = []
+    for p in passes.passes:
+        first, stop = p.segment if p.segment is not None else p.run
+        note = "the result files" if p.main else (f"not analysed: {p.error}" if p.analysis is None else "")
+        rows.append((str(p.index), f"{first + offset}..{stop - 1 + offset}",
+                     format_value(p.duration_s, 3) if p.analysis is not None else "", p.verdict,
+                     rms(p.indicators, "acc_y_Wb_rms"), rms(p.indicators, "acc_y_Wk_rms"), note))
+    combined = passes.combined
+    rows.append(("all", "", format_value(combined["duration_s"], 3) if "duration_s" in combined else "",
+                 passes.verdict, rms(combined, "acc_y_Wb_rms"), rms(combined, "acc_y_Wk_rms"),
+                 "weighted by the durations"))
+    rms_unit = unit_text(COMFORT_UNITS["acc_y_Wb_rms"])
+    analysed = sum(p.analysis is not None for p in passes.passes)
+    return [f"<h2>Passes of the horse through the views ({len(passes.passes)})</h2>",
+            '<p class="note">The recording holds several passes; each analysed on its own frames '
+            f"({analysed} of {len(passes.passes)}). The sections below and the result files describe the longest "
+            "(marked); the row <i>all</i> is the comfort over every analysed pass, each weighted by its duration "
+            "(every indicator in passes.csv). The overall quality verdict accounts for every pass (check "
+            "<i>passes</i>).</p>",
+            _table(rows, ["pass", "frames", "duration (s)", "verdict", f"Wb rms ({rms_unit})",
+                          f"Wk rms ({rms_unit})", ""])]
+
+
+def report_html(analysis, quality: dict | None = None, painter: EarlyCall | None = None) -> str:
     """The text of the report for an :class:`~horsemocap.pipeline.Analysis`.
 
     Below the title: the summary line (:func:`summary_html`), the warnings
     with what each means for the numbers (:func:`warnings_box`, only when
     there is one), then ``quality`` (the record of
     :func:`horsemocap.quality.quality_record`) check by check.
+
+    ``painter`` (:func:`figure_painter`) draws the figures; given
+    :func:`report_figures` of ``analysis`` already (:meth:`EarlyCall.submit`)
+    or not. Without it they are drawn in this process.
     """
     s = analysis.session
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
@@ -512,6 +542,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
     parts.append(summary_html(analysis.comfort, quality))
     warn = list(analysis.rigid_body.warnings) if analysis.rigid_body is not None else []
     parts += warnings_box(warn, quality)
+    parts += passes_section(analysis)
     if quality is not None:
         parts += quality_section(quality)
     meta = [(k, format_value(v)) for k, v in s.metadata.items()] + [
@@ -550,7 +581,7 @@ def report_html(analysis, quality: dict | None = None) -> str:
 
     parts.append("<h2>Figures</h2>")
     figures = report_figures(analysis)
-    pngs = render_pngs([make for make, _ in figures])
+    pngs = _drawn(painter, [description for description, _ in figures])
     parts += [_figure_html(png, caption) for png, (_, caption) in zip(pngs, figures)]
     note = x_acceleration_note(analysis.params) if analysis.rigid_body is not None else None
     if note:
@@ -563,6 +594,17 @@ def report_html(analysis, quality: dict | None = None) -> str:
             + "\n".join(parts) + "</body></html>\n")
 
 
-def write_report(path, analysis, quality: dict | None = None) -> Path:
-    """Write ``report.html`` atomically; returns its path."""
-    return atomic_write_text(Path(path), report_html(analysis, quality))
+def _drawn(painter: EarlyCall | None, descriptions) -> list[str]:
+    """The PNGs of ``descriptions``, from ``painter`` (given them here unless it has them)."""
+    if painter is None:
+        with figure_painter(fork=False) as painter:
+            painter.submit(descriptions)
+            return painter.result()
+    if not painter.submitted:
+        painter.submit(descriptions)
+    return painter.result()
+
+
+def write_report(path, analysis, quality: dict | None = None, painter: EarlyCall | None = None) -> Path:
+    """Write ``report.html`` atomically; returns its path (``painter``: :func:`report_html`)."""
+    return atomic_write_text(Path(path), report_html(analysis, quality, painter))

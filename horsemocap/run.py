@@ -17,7 +17,8 @@ from pathlib import Path
 from . import quality
 from .camera import read_rig
 from .pipeline import _progress_printer, AnalysisError, analyze, resolve_params
-from .report import write_report
+from .passes import passes_check
+from .report import figure_painter, report_figures, write_report
 from .runfolder import check_results_target, RunFolder
 from .session import load_session, SessionError
 from .store import atomic_write_json, atomic_write_text, check_outside
@@ -121,7 +122,9 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
             progress("quality", f"{c.level}: {c.message} [{c.input}]")
 
     folder = RunFolder(out)
-    with folder as tmp:
+    # the report's figures: a copy of the process forked now loads matplotlib while the analysis runs
+    painter = figure_painter(fork=report)
+    with painter, folder as tmp:
         outcome = RunOutcome(Path(target), None)
         try:
             analysis = analyze(session_dir, tmp, params, progress=progress, previous_results=target,
@@ -131,11 +134,16 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
                 raise   # the disk, not the step: DIR stays as it was (RunFolder names the file)
             analysis = getattr(exc, "partial", None)
             outcome.error = exc
+        else:
+            if report:       # drawn while the checks run
+                painter.submit([description for description, _ in report_figures(analysis)])
         outcome.analysis = analysis
         if analysis is not None:
             if rig is None and analysis.rig is not None:
                 checks += quality.rig_checks(session, analysis.rig.rig)
             checks += quality.post_checks(analysis)
+            if getattr(analysis, "passes", None) is not None:     # the other passes of a long recording
+                checks.append(passes_check(analysis.passes))
         if outcome.error is not None:
             checks.append(quality.Check("run_complete", None, "", "unreliable", (None, None), (None, None),
                                         "every step ran", "the step named in the message",
@@ -152,7 +160,7 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
         else:
             _mark_record(tmp, complete=True, quality_verdict=outcome.verdict)
             if report:
-                write_report(tmp / "report.html", analysis, quality=record)
+                write_report(tmp / "report.html", analysis, quality=record, painter=painter)
                 outcome.report = outcome.out / "report.html"
         folder.commit()
     return outcome

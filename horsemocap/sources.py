@@ -75,6 +75,11 @@ class _SharedGray:
 
 
 _SHARED = _SharedGray(SHARED_GRAY_BYTES)
+#: Frame counts of the videos read in this process (FrameSource._video_counts), by video_key.
+_COUNTS: dict = {}
+_COUNTS_LOCK = threading.Lock()
+#: Videos found to open and decode a first frame in this process (FrameSource), by video_key.
+_OPENED: set = set()
 
 
 class SourceError(ValueError):
@@ -269,12 +274,14 @@ class FrameSource:
         if path.is_dir():
             if not list_images(path):
                 raise SourceError(f"{path}: folder holds no image files ({', '.join(sorted(IMAGE_SUFFIXES))})")
-        else:
+        elif _SharedGray.video_key(path) not in _OPENED:     # each file as it is checked once per process
             cap = cv2.VideoCapture(str(path))
             ok = cap.isOpened() and cap.read()[0]
             cap.release()
             if not ok:
                 raise SourceError(f"{path}: cannot be opened as a video (OpenCV read no frame)")
+            with _COUNTS_LOCK:
+                _OPENED.add(_SharedGray.video_key(path))
 
     @property
     def is_video(self) -> bool:
@@ -298,8 +305,34 @@ class FrameSource:
             return len(list_images(self.path))
         return self._video_counts()[1]
 
+    def gray_bytes(self, frames: int | None = None) -> int:
+        """Bytes of the first ``frames`` frames (None: all) decoded gray, from the size of a frame and the
+        count the container declares (a folder: its images), without decoding the video."""
+        if self.is_video:
+            cap = cv2.VideoCapture(str(self.path))
+            try:
+                size = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)) * int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+                count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            finally:
+                cap.release()
+        else:
+            files = list_images(self.path)
+            size, count = read_image(files[0], color=False).size, len(files)
+        return max(size, 0) * max(count if frames is None else min(count, int(frames)), 0)
+
     def _video_counts(self) -> tuple[int | None, int]:
-        """The frame count the video container declares (None: none) and the count that decodes."""
+        """The frame count the video container declares (None: none) and the count that decodes (kept
+        for the file as it is: its path, size and modification time)."""
+        key = _SharedGray.video_key(self.path)
+        with _COUNTS_LOCK:
+            known = _COUNTS.get(key)
+        if known is None:
+            known = self._count_frames()
+            with _COUNTS_LOCK:
+                _COUNTS[key] = known
+        return known
+
+    def _count_frames(self) -> tuple[int | None, int]:
         cap = cv2.VideoCapture(str(self.path))
         try:
             # the count the container declares, if its last frame is read and nothing after it

@@ -29,6 +29,8 @@ frame index, in each camera's own source, of the same instant (the flash);
 """
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
@@ -509,11 +511,27 @@ def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_F
     >>> {camera: flash.frame for camera, flash in flash_detections({"left": frames}).items()}
     {'left': 12}
     """
-    out = {}
-    for cam, src in sources.items():
-        label = f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource) else f"camera {cam!r}"
-        out[cam] = detect_flash(src, search_frames=search_frames, name=label, **kwargs)
-    return out
+    # the cameras searched side by side (OpenCV decodes without holding the GIL), as many at once as
+    # FLASH_SEARCH_BYTES of decoded frames allow; an error is the first camera's in session order
+    with ThreadPoolExecutor(max_workers=_flash_readers(sources, search_frames),
+                            thread_name_prefix="horsemocap-flash") as pool:
+        found = {cam: pool.submit(detect_flash, src, search_frames=search_frames, name=label, **kwargs)
+                 for cam, src, label in ((cam, src, f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource)
+                                          else f"camera {cam!r}") for cam, src in sources.items())}
+        return {cam: future.result() for cam, future in found.items()}
+
+
+#: Decoded gray frames the flash searches of several cameras may hold at once (bytes).
+FLASH_SEARCH_BYTES = 512 * 2 ** 20
+
+
+def _flash_readers(sources: dict, search_frames: int | None) -> int:
+    """How many cameras' flash searches run at once: each holds its searched frames decoded."""
+    held = [src.gray_bytes(search_frames) if isinstance(src, FrameSource) else np.asarray(src).nbytes
+            for src in sources.values()]
+    if (os.cpu_count() or 1) < 2 or not held:
+        return 1
+    return int(np.clip(FLASH_SEARCH_BYTES // max(max(held), 1), 1, len(held)))
 
 
 def flash_offsets(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, **kwargs) -> dict:

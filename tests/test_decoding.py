@@ -55,3 +55,71 @@ def test_reading_ahead_stays_inside_the_cache(tmp_path):
             seen_ahead = max(seen_ahead, sum(1 for j in seq._cache if j > k))
         seq.close()
         assert seen_ahead >= 1              # frames decoded ahead of the one read
+
+
+def _flash_video(path, flash_at: int, n=40):
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (160, 120))
+    for k in range(n):
+        frame = np.full((120, 160, 3), 20, np.uint8)
+        if k >= flash_at:
+            frame[40:60, 70:90] = 230
+        w.write(frame)
+    w.release()
+    return sources.FrameSource(path)
+
+
+def test_the_cameras_flash_searches_side_by_side_find_what_one_by_one_finds(tmp_path, monkeypatch):
+    from horsemocap import sync
+
+    cams = {name: _flash_video(tmp_path / f"{name}.avi", at) for name, at in (("left", 7), ("middle", 12),
+                                                                               ("right", 3))}
+    side_by_side = sync.flash_detections(cams)
+    monkeypatch.setattr(sync, "_flash_readers", lambda *a: 1)
+    one_by_one = sync.flash_detections(cams)
+    assert {c: d.frame for c, d in side_by_side.items()} == {"left": 7, "middle": 12, "right": 3}
+    assert list(side_by_side) == ["left", "middle", "right"]
+    for c in cams:
+        assert side_by_side[c].frame == one_by_one[c].frame
+        np.testing.assert_array_equal(side_by_side[c].signal, one_by_one[c].signal)
+        np.testing.assert_array_equal(side_by_side[c].region, one_by_one[c].region)
+
+
+def test_a_camera_without_flash_is_the_error_even_when_searched_beside_others(tmp_path):
+    import pytest
+
+    from horsemocap import sync
+
+    cams = {"left": _flash_video(tmp_path / "left.avi", 5), "middle": _flash_video(tmp_path / "m.avi", 99),
+            "right": _flash_video(tmp_path / "right.avi", 99)}
+    with pytest.raises(sync.SyncError, match="camera 'middle'"):
+        sync.flash_detections(cams)
+
+
+def test_flash_searches_at_once_are_bounded_by_the_memory_they_hold(tmp_path, monkeypatch):
+    from horsemocap import sync
+
+    cams = {name: _video(tmp_path / f"{name}.avi") for name in ("a", "b", "c")}    # 60 frames of 40 x 30
+    assert cams["a"].gray_bytes() == 60 * 40 * 30 and cams["a"].gray_bytes(10) == 10 * 40 * 30
+    monkeypatch.setattr(sync.os, "cpu_count", lambda: 2)
+    assert sync._flash_readers(cams, None) == 3
+    monkeypatch.setattr(sync, "FLASH_SEARCH_BYTES", 2 * 60 * 40 * 30)
+    assert sync._flash_readers(cams, None) == 2 and sync._flash_readers(cams, 30) == 3
+    monkeypatch.setattr(sync.os, "cpu_count", lambda: 1)
+    assert sync._flash_readers(cams, None) == 1
+
+
+def test_frame_counts_are_kept_for_the_file_as_it_is(tmp_path):
+    path = tmp_path / "v.avi"
+    assert len(_video(path, 60)) == 60
+    assert len(_video(path, 25)) == 25          # written again: another size, counted again
+
+
+def test_a_video_rewritten_unreadable_is_refused_again(tmp_path):
+    import pytest
+
+    path = tmp_path / "v.avi"
+    _video(path, 10)
+    sources.FrameSource(path)                      # checked once
+    path.write_bytes(b"not a video at all")
+    with pytest.raises(sources.SourceError, match="cannot be opened as a video"):
+        sources.FrameSource(path)

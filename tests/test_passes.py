@@ -164,3 +164,71 @@ def test_passes_computed_beside_in_a_forked_copy_are_the_same(bundled, monkeypat
         assert b.indicators == a.indicators and b.verdict == a.verdict
         np.testing.assert_array_equal(b.analysis.rigid_body.saddle_acceleration, a.analysis.rigid_body.saddle_acceleration)
     assert beside.combined == alone.combined
+
+
+# --- every pass in the overall verdict and the report --------------------------------------------------------
+
+def _analysed(verdict: str, index: int):
+    from types import SimpleNamespace
+
+    from horsemocap.passes import PassResult
+
+    return PassResult(index, (40 * index, 40 * index + 30), (40 * index, 40 * index + 30),
+                      SimpleNamespace(comfort=None), verdict)
+
+
+@pytest.mark.parametrize("verdicts, missing, level", [
+    (("ok", "ok"), False, "ok"),
+    (("ok", "warning"), False, "warning"),
+    (("ok", "ok"), True, "warning"),              # a pass left out of the combined comfort
+    (("warning", "unreliable"), True, "unreliable"),   # an unreliable pass is in the combined comfort
+])
+def test_the_passes_check_is_the_worst_analysed_pass_and_a_missing_one_warns(verdicts, missing, level):
+    from horsemocap.passes import PassResult, PassesResult, passes_check
+
+    passes = [_analysed(v, i) for i, v in enumerate(verdicts, 1)]
+    if missing:
+        passes.append(PassResult(9, (400, 409), None, None, "unreliable", error="too short"))
+    check = passes_check(PassesResult(tuple(passes), {}))
+    assert check.name == "passes" and check.level == level and check.figure == len(verdicts)
+    assert ("pass 9 (frames 400..408): not analysed (too short)" in check.message) == missing
+    if "unreliable" in verdicts:
+        assert "pass 2 (frames 80..109): unreliable" in check.message
+
+
+def test_the_report_shows_every_pass_and_the_verdict_counts_them(bundled):
+    """A record of two passes, the second too short to analyse: the report's table has a row per pass and
+    the row 'all'; the overall verdict (the session's checks and the passes check) is at least a warning."""
+    from horsemocap import quality, report
+    from horsemocap.passes import passes_check
+
+    det, tri = bundled.detect, bundled.triangulate
+    gap = 20
+    record = bundled.__class__(bundled.session, bundled.params)
+    for name in ("sync", "rig", "plumb", "static", "smooth", "motion_frame", "rigid_body", "comfort"):
+        setattr(record, name, getattr(bundled, name))
+    points = _twice(tri.points, gap)
+    n = len(det.all_seen)
+    points[n + gap::3] = np.nan
+    record.detect = det.replace(all_seen=_twice(det.all_seen, gap))
+    record.triangulate = tri.replace(points=points)
+    record.passes = analyse_passes(record, lambda given, steps: run_steps(record.session, record.params, given,
+                                                                             steps), lambda *a: None)
+    check = passes_check(record.passes)
+    assert check.level != "ok" and "not analysed" in check.message
+    checks = quality.post_checks(record) + [check]
+    assert quality.LEVELS.index(quality.verdict(checks)) >= quality.LEVELS.index(check.level)
+
+    section = "".join(report.passes_section(record))
+    assert "Passes of the horse through the views (2)" in section
+    cells = [row.split("</td><td") for row in section.split("<tr>")[2:]]
+    assert [c[0].split(">")[-1] for c in cells] == ["1", "2", "all"]
+    offset = record.synchronisation.offsets[record.session.reference_camera]
+    a, b = tri.segment
+    assert f">{a + offset}..{b - 1 + offset}<" in section
+    wb = report.format_value(record.passes.passes[0].indicators["acc_y_Wb_rms"], 4)
+    assert section.count(f">{wb}<") == 2               # the first pass, and all (the second has none)
+    assert "not analysed: fewer than 8" in section and "the result files" in section
+    assert report.passes_section(bundled) == []        # one pass: no section
+    page = report.report_html(record, quality.quality_record(checks))
+    assert section.split("</p>")[-1] in page and ">passes<" in page and page.count("data:image/png") == 6

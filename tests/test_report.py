@@ -227,6 +227,14 @@ def test_counting_frames_counts_each_frame_once_in_any_order():
     assert seen == [1, 2, 3, 4] and len(frames) == 4
 
 
+@pytest.fixture
+def report_figures():
+    """The module that draws the report's figures (loads matplotlib: imported by the tests that draw)."""
+    import importlib
+
+    return importlib.import_module("horsemocap.plots.report_figures")
+
+
 def _line_figure(k):
     import matplotlib.pyplot as plt
 
@@ -238,14 +246,14 @@ def _line_figure(k):
     return make
 
 
-def test_render_pngs_gives_the_sequential_pngs_in_order():
+def test_render_pngs_gives_the_sequential_pngs_in_order(report_figures):
     makers = [_line_figure(k) for k in range(5)]
-    alone = [report._png(make()) for make in makers]
-    assert report.render_pngs(makers) == alone
+    alone = [report_figures.png(make()) for make in makers]
+    assert report_figures.render_pngs(makers) == alone
     assert len(set(alone)) == 5          # five different figures: the order is checked
 
 
-def test_render_pngs_draws_here_what_the_forked_copy_failed_to_draw():
+def test_render_pngs_draws_here_what_the_forked_copy_failed_to_draw(report_figures):
     import os
 
     parent = os.getpid()
@@ -256,8 +264,8 @@ def test_render_pngs_draws_here_what_the_forked_copy_failed_to_draw():
         return _line_figure(7)()
 
     makers = [fails_in_a_copy, _line_figure(1), fails_in_a_copy]
-    expected = [report._png(_line_figure(7)()), report._png(_line_figure(1)()), report._png(_line_figure(7)())]
-    assert report.render_pngs(makers) == expected
+    expected = [report_figures.png(_line_figure(7)()), report_figures.png(_line_figure(1)()), report_figures.png(_line_figure(7)())]
+    assert report_figures.render_pngs(makers) == expected
 
 
 def _pid_recording_figure(log):
@@ -272,7 +280,7 @@ def _pid_recording_figure(log):
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork") or (__import__("os").cpu_count() or 1) < 2,
                     reason="the forked copy is made only where fork exists and two cores do")
-def test_render_pngs_forks_only_without_other_python_threads(tmp_path):
+def test_render_pngs_forks_only_without_other_python_threads(report_figures, tmp_path):
     """Alone, the process shares the figures with a forked copy; while another Python thread runs
     (a Jupyter kernel's, an application's), it draws them all itself: a lock that thread holds at the
     fork would stay held in the copy."""
@@ -285,7 +293,7 @@ def test_render_pngs_forks_only_without_other_python_threads(tmp_path):
     log = tmp_path / "alone.txt"
     slow = [_pid_recording_figure(log)] * 6
     assert threading.active_count() == 1, "the test needs a process without other Python threads"
-    report.render_pngs(slow)
+    report_figures.render_pngs(slow)
     assert len(pids(log)) == 2 and os.getpid() in pids(log)
 
     stop = threading.Event()
@@ -293,14 +301,14 @@ def test_render_pngs_forks_only_without_other_python_threads(tmp_path):
     worker.start()
     try:
         log = tmp_path / "threaded.txt"
-        report.render_pngs([_pid_recording_figure(log)] * 6)
+        report_figures.render_pngs([_pid_recording_figure(log)] * 6)
         assert pids(log) == {os.getpid()}
     finally:
         stop.set()
         worker.join()
 
 
-def test_render_pngs_error_here_neither_hangs_nor_is_swallowed():
+def test_render_pngs_error_here_neither_hangs_nor_is_swallowed(report_figures):
     """A figure failing in this process ends the call with its error, even while the forked copy is
     sending more than a pipe holds (before, both waited for each other: the copy blocked in sending,
     this process in waiting for it)."""
@@ -324,7 +332,75 @@ def test_render_pngs_error_here_neither_hangs_nor_is_swallowed():
     signal.alarm(120)
     try:
         with pytest.raises(RuntimeError, match="drawing failed here"):
-            report.render_pngs([large_noise_figure] * 4)
+            report_figures.render_pngs([large_noise_figure] * 4)
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, signal.SIG_DFL)
+
+
+# --- the figures drawn by a copy forked before the analysis -------------------------------------------------
+
+def test_early_call_gives_the_same_value_forked_or_not():
+    from horsemocap.forking import EarlyCall
+
+    values = []
+    for fork in (True, False):
+        with EarlyCall("statistics", "median", fork=fork) as call:
+            call.submit([3.0, 1.0, 2.0, 8.0])
+            values.append(call.result())
+    assert values == [2.5, 2.5]
+
+
+def test_early_call_computes_here_what_the_copy_could_not():
+    """A copy that dies (here: its module raises when loaded in the copy) leaves the value to this process."""
+    import os
+    import sys
+    import types
+
+    from horsemocap.forking import EarlyCall
+
+    parent = os.getpid()
+    module = types.ModuleType("f34_fragile")
+    module.twice = lambda x: 2 * x if os.getpid() == parent else os._exit(3)
+    sys.modules["f34_fragile"] = module
+    try:
+        with EarlyCall("f34_fragile", "twice") as call:
+            call.submit(21)
+            assert call.result() == 42
+    finally:
+        del sys.modules["f34_fragile"]
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork") or (__import__("os").cpu_count() or 1) < 2,
+                    reason="the forked copy is made only where fork exists and two cores do")
+def test_early_call_without_arguments_ends_its_copy():
+    import os
+
+    from horsemocap.forking import EarlyCall
+
+    call = EarlyCall("statistics", "median")
+    assert call.forked
+    pid = call._pid
+    call.close()
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
+
+
+def test_the_analysis_never_loads_matplotlib_and_the_report_draws_the_same_figures(report_figures):
+    """``horsemocap.run`` (the analysis and the report's text) loads no matplotlib: the figures are drawn
+    from their descriptions by :mod:`horsemocap.plots.report_figures`, in a forked copy or here, alike."""
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    code = "import sys, horsemocap.run, horsemocap.report; print('matplotlib' in sys.modules)"
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert loaded.strip() == "False"
+    descriptions = [("reprojection_residuals", ({"left": np.linspace(0, 1, 9)},), {}),
+                    ("axes_timeseries", (np.arange(4.0), {"p": np.ones((4, 3))}, "m", "Positions"), {"quantity": None})]
+    here = report_figures.draw_pngs(descriptions)
+    painter = report.figure_painter()
+    with painter:
+        assert report._drawn(painter, descriptions) == here
+    assert len(set(here)) == 2

@@ -9,6 +9,19 @@ __all__ = ["plot_marker_tracks", "plot_axes_timeseries", "plot_reprojection_resi
 AXES = ("x-motion", "y-motion (down)", "z-motion")
 
 
+def _fixed_layout(fig, left: float, bottom: float, top: float, right: float = 0.15, wspace: float = 0.25) -> None:
+    """Margins given in inches (room for the tick labels, axis labels and titles), set once.
+
+    A fixed layout instead of ``tight_layout``: measuring every text to fit
+    the panels costs more than drawing the figure. The panels' titles are
+    placed at a fixed height too (``set_title(..., y=1.0)``: just above the
+    panel, where matplotlib would put them after measuring the tick labels).
+    """
+    width, height = fig.get_size_inches()
+    fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                        top=1 - top / height, wspace=wspace)
+
+
 def plot_marker_tracks(marker_px: dict, image_size=(640, 480), fig=None):
     """Detected marker paths in each camera's image (one panel per camera).
 
@@ -27,12 +40,12 @@ def plot_marker_tracks(marker_px: dict, image_size=(640, 480), fig=None):
         ax.set_xlim(0, image_size[0])
         ax.set_ylim(image_size[1], 0)
         ax.set_aspect("equal")
-        ax.set_title(f"{cam} camera")
+        ax.set_title(f"{cam} camera", y=1.0)
         ax.set_xlabel("u (px)")
         if i == 0:
             ax.set_ylabel("v (px)")
             ax.legend(fontsize=7)
-    fig.tight_layout()
+    _fixed_layout(fig, left=0.7, bottom=0.55, top=0.35, wspace=0.2)
     return fig
 
 
@@ -50,13 +63,13 @@ def plot_axes_timeseries(t, series: dict, unit: str, title: str, fig=None, quant
         for label, arr in series.items():
             ax.plot(t, np.asarray(arr)[:, k], label=label, lw=1.2)
         name = f"{quantity} {'xyz'[k]}" if quantity else AXES[k]
-        ax.set_title(f"{name} ({unit})" if unit else name)
+        ax.set_title(f"{name} ({unit})" if unit else name, y=1.0)
         ax.set_xlabel("t (s)")
         if k == 0:
             ax.set_ylabel(unit)
             ax.legend(fontsize=7)
     fig.suptitle(title)
-    fig.tight_layout()
+    _fixed_layout(fig, left=0.75, bottom=0.5, top=0.65, wspace=0.22)
     return fig
 
 
@@ -74,7 +87,7 @@ def plot_reprojection_residuals(residual_px: dict, fig=None):
         ax.plot(r, label=cam, lw=1)
     ax.set_xlabel("synchronised frame")
     ax.set_ylabel("residual (px)")
-    ax.set_title("Reprojection residuals")
+    ax.set_title("Reprojection residuals", y=1.0)
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    _fixed_layout(fig, left=0.75, bottom=0.5, top=0.35)
     return fig
