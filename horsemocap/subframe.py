@@ -53,8 +53,9 @@ EXTEND_FRAMES = 1.0
 INTERLACED_FIELD_FRAMES = 0.5
 #: Chunks of the record over which the phase is fitted separately (spread -> uncertainty, slope -> rate).
 CHUNKS = 5
-#: The joint refinement of the phases: its tolerance (frames) and most simplex steps.
+#: The joint refinement of the phases: its tolerance (frames), of the residual (px) and most simplex steps.
 REFINE_TOLERANCE = 1e-4
+REFINE_RESIDUAL_TOLERANCE_PX = 1e-6
 REFINE_MAX_STEPS = 400
 
 
@@ -575,7 +576,8 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
 
 def _refine_jointly(rig, tracks: dict, phase: dict, free: list, frames: np.ndarray) -> dict:
     """The phases of ``free`` moved together to the least :func:`joint_residual` (Nelder-Mead simplex from
-    ``phase``, first steps of :data:`GRID_STEP`, to :data:`REFINE_TOLERANCE` frames).
+    ``phase``, first steps of :data:`GRID_STEP`, to :data:`REFINE_TOLERANCE` frames and
+    :data:`REFINE_RESIDUAL_TOLERANCE_PX`).
 
     The cameras' phases are coupled through the joint triangulation: a camera's best phase moves with
     the others' errors, so refining one camera at a time, the others held at their coarse-grid values,
@@ -589,7 +591,8 @@ def _refine_jointly(rig, tracks: dict, phase: dict, free: list, frames: np.ndarr
 
     simplex = np.vstack([start] + [start + GRID_STEP * np.eye(len(free))[i] for i in range(len(free))])
     res = minimize(cost, start, method="Nelder-Mead",
-                   options=dict(initial_simplex=simplex, xatol=REFINE_TOLERANCE, fatol=0.0, maxiter=REFINE_MAX_STEPS))
+                   options=dict(initial_simplex=simplex, xatol=REFINE_TOLERANCE, fatol=REFINE_RESIDUAL_TOLERANCE_PX,
+                                maxiter=REFINE_MAX_STEPS))
     if not np.isfinite(res.fun) or res.fun > cost(start):
         return dict(phase)
     return {**phase, **{c: float(v) for c, v in zip(free, res.x)}}
