@@ -151,6 +151,7 @@ def _widget_changes(session_dir):
     left = an.detect.detection["left"]["threshold"]
     right = an.detect.detection["right"]["threshold"]
     orders = an.rigid_body.body.motion_fit.orders if an.rigid_body.body.motion_fit is not None else None
+    n_static = len(next(iter(an.static.static_px.values())))
     return [
         ("04 threshold slider", "detection.left.threshold", left + 12, "default"),
         ("04 all prompts (left)", "detection.left", {"threshold": left - 12}, "default"),
@@ -172,6 +173,7 @@ def _widget_changes(session_dir):
         ("10 alfa versions", "alpha_versions", [True, False, True, False, True, False], "thesis"),
         ("10 angular method", "angular_method", "lstsq", "thesis"),
         ("11 saddle method", "saddle_method", "direct", "thesis"),
+        ("11 saddle marker", "saddle_marker", (an.rigid_body.saddle_index + 1) % n_static, "default"),
         ("12 weighting mode", "weighting_mode", "iso", "thesis"),
     ]
 
@@ -211,6 +213,39 @@ def test_every_widget_changes_a_downstream_number(bundled_workspace):
         if all(abs(row[k] - base[chain][k]) <= 1e-9 * abs(base[chain][k]) for k in DOWNSTREAM_KEYS):
             unchanged.append(f"{label} ({name}={value!r}) on the {chain} chain")
     assert not unchanged, "no downstream number changed for:\n" + "\n".join(unchanged)
+
+
+def test_label_picker_drives_the_thesis_chain(bundled_workspace):
+    """Notebook 04, section 2: the picked labels are what the thesis' per-camera detection follows.
+
+    Two of the automatic markers and another region of the area range in their place: the
+    thesis' chain follows that region, so its numbers change or it stops, naming the step (as
+    the thesis' own chain did with a wrong answer). The default chain identifies the markers
+    in 3D and does not read labels.
+    """
+    from horsemocap import detection
+    from horsemocap.steps.detect import synchronised_frames
+    from horsemocap.workspace import Workspace, chain_choices, clear_choices, downstream, results_for, session_params
+
+    sd = bundled_workspace
+    base = downstream(sd, "thesis")
+    an = results_for(sd, params=session_params(sd, chain_choices({}, "thesis")))
+    auto = an.detect.detection["left"]
+    image = synchronised_frames(an.session, an.synchronisation, "left")[auto["first_frame"]]
+    regions = detection.label_regions(detection.binarize(detection.to_gray(image), auto["threshold"]))
+    others = [int(lab) for lab, area in zip(regions.ids, regions.area)
+              if lab not in auto["labels"] and auto["area_min"] <= area <= auto["area_max"]]
+    assert others, "no other region in the area range to pick"
+    picked = list(auto["labels"][:2]) + [others[0]]
+    Workspace(sd).choose("detection.left", {"labels": picked, "first_frame": auto["first_frame"]})
+    try:
+        row = downstream(sd, "thesis")
+    finally:
+        clear_choices(sd)
+    if "error" in row:
+        assert row["error"].startswith("step '"), row["error"]
+    else:
+        assert any(abs(row[k] - base[k]) > 1e-9 * abs(base[k]) for k in DOWNSTREAM_KEYS), (picked, row)
 
 
 def test_label_picker_follows_the_threshold():

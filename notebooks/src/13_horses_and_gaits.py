@@ -53,9 +53,10 @@ print(f"{'overall':13s}" + "".join(f"{x:9.4f}" for x in overall))
 # comfort indicator of `comfort.csv`.
 #
 # The cell below renders the sessions that are not in the cache yet (about 45 s each, once) and
-# analyses those whose results are missing or out of date (about 10-20 s each on two cores); a
-# progress line with the time left is printed while it runs. Run again, it finds every result in
-# place and only reads the table. The table lives in the notebooks' results folder
+# analyses those whose results are missing or out of date (about 15 s each on two cores). On two
+# cores the first run takes about 16 minutes (12 of rendering, 4 of analysis); with every session
+# rendered, about 4 minutes. A progress line with the time left is printed below the cell while it
+# runs. Run again, it finds every result in place and only reads the table (a few seconds). The table lives in the notebooks' results folder
 # (`$HORSEMOCAP_RESULTS`, default `~/.cache/horsemocap/results`), outside the repository.
 
 # %%
