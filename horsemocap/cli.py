@@ -596,25 +596,22 @@ def _write_kinematics_tables(folder: Path, traj, res) -> tuple:
         ang_w.writerow(["frame", "time_s", "wx_radps", "wy_radps", "wz_radps", "alphax_radps2", "alphay_radps2",
                         "alphaz_radps2", "triangle_height_m", "registration_rms_m", "note"])
         for block in res["blocks"]:
-            _write_block(pos_w, kin_w, ang_w, traj, names, res["registration"], block)
+            _write_block(files, traj, names, res["registration"], block)
             speed.add(np.linalg.norm(block.velocity[:, :k], axis=2))
             accel.add(np.linalg.norm(block.acceleration[:, :k], axis=2))
     return speed.value(), accel.value()
 
 
-def _write_block(pos_w, kin_w, ang_w, traj, names, reg, block) -> None:
-    """The rows of the frames of one :class:`horsemocap.streaming.KinematicsBlock`."""
-    def num(v):
-        return "" if not np.isfinite(v) else f"{float(v):.9g}"
+def _write_block(files, traj, names, reg, block) -> None:
+    """The rows of the frames of one :class:`horsemocap.streaming.KinematicsBlock`
+    (:func:`horsemocap.io3d.kinematics_block_text`)."""
+    from .io3d import kinematics_block_text
 
-    for i, k in enumerate(range(block.start, block.stop)):
-        fr, tt = traj.frame[k], num(traj.time_s[k])
-        for j, nm in enumerate(names):
-            pos_w.writerow([fr, tt, nm, *(num(v) for v in block.position[i, j])])
-            kin_w.writerow([fr, tt, nm, *(num(v) for v in (*block.velocity[i, j], *block.acceleration[i, j]))])
-        ang_w.writerow([fr, tt, *(num(v) for v in (*block.omega[i], *block.alpha[i])),
-                        num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan), num(reg.rms[k]),
-                        str(block.reason[i]).replace(",", ";")])
+    a, b = block.start, block.stop
+    height = np.where(reg.n_markers[a:b] >= 3, reg.height[a:b], np.nan)
+    for fh, text in zip(files, kinematics_block_text(traj.frame[a:b], traj.time_s[a:b], names, block, height,
+                                                     reg.rms[a:b])):
+        fh.write(text)
 
 
 def cmd_export(args) -> int:

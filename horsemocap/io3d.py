@@ -24,7 +24,8 @@ import numpy as np
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
            "FIRST_TIME_PARAMETER", "RATE_PARAMETER", "check_trajectory_input", "check_stated_rate",
-           "kinematics_checks", "kinematics_checks_of_percentiles", "kinematics_verdict", "RunningPercentile"]
+           "kinematics_checks", "kinematics_checks_of_percentiles", "kinematics_verdict", "RunningPercentile",
+           "kinematics_block_text", "csv_field"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "dm": 0.1}
 _UNITS_TEXT = ", ".join(_UNITS)
@@ -1052,3 +1053,67 @@ def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
     return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
             "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}
+
+
+def csv_field(text: str) -> str:
+    """``text`` as the csv module writes one field (quoted where it holds a comma, a quote or a line end).
+
+    Examples
+    --------
+    >>> csv_field("saddle"), csv_field("left, front")
+    ('saddle', '"left, front"')
+    """
+    if any(c in text for c in ',"\r\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def _number_rows(head, values) -> list:
+    """Lines ``head[i] + ",%.9g" * columns`` of ``values`` (r, c); a NaN or infinite value is an empty field."""
+    finite = np.isfinite(values).all(axis=1)
+    fmt = "%s" + ",%.9g" * values.shape[1] + "\n"
+    rows = values.tolist()
+    lines = []
+    for h, ok, row in zip(head, finite.tolist(), rows):
+        if ok:
+            lines.append(fmt % (h, *row))
+        else:
+            lines.append(h + "".join("," + ("%.9g" % v if math.isfinite(v) else "") for v in row) + "\n")
+    return lines
+
+
+def kinematics_block_text(frame, time_s, names, block, height, rms) -> tuple:
+    """The rows of trajectories.csv, kinematics.csv and angular.csv of one block of frames, as text.
+
+    ``frame``, ``time_s``, ``height``, ``rms`` (b,) of the block's frames;
+    ``names`` the points of ``block.position`` (b, k, 3) etc.; ``block``: a
+    :class:`horsemocap.streaming.KinematicsBlock`. Numbers are written with
+    nine significant digits (``%.9g``), a non-finite one as an empty field;
+    point names as the csv module quotes them; a note's commas become
+    semicolons.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> one = np.ones((1, 1, 3))
+    >>> b = SimpleNamespace(position=one, velocity=one * 2, acceleration=one * np.nan, omega=np.zeros((1, 3)),
+    ...                     alpha=np.zeros((1, 3)), reason=np.array(["bridged gap, 1 frame"], object))
+    >>> pos, kin, ang = kinematics_block_text([7], [0.035], ["a,b"], b, [0.1], [np.nan])
+    >>> pos, kin, ang
+    ('7,0.035,"a,b",1,1,1\\n', '7,0.035,"a,b",2,2,2,,,\\n', '7,0.035,0,0,0,0,0,0,0.1,,bridged gap; 1 frame\\n')
+    """
+    b, k = len(frame), len(names)
+    t_text = ["" if not math.isfinite(v) else "%.9g" % v for v in np.asarray(time_s, float).tolist()]
+    lead = ["%d,%s," % (f, tt) for f, tt in zip(np.asarray(frame).tolist(), t_text)]
+    quoted = [csv_field(nm) for nm in names]
+    head = [ld + nm for ld in lead for nm in quoted]
+    pos = _number_rows(head, np.asarray(block.position, float).reshape(b * k, 3))
+    kin = _number_rows(head, np.concatenate([block.velocity, block.acceleration], axis=2).reshape(b * k, 6))
+    angular = np.column_stack([block.omega, block.alpha, height, rms])
+    notes = {}
+    for r in block.reason:
+        if r not in notes:
+            notes[r] = csv_field(str(r).replace(",", ";"))
+    ang = [line[:-1] + "," + notes[r] + "\n"
+           for line, r in zip(_number_rows([ld[:-1] for ld in lead], angular), block.reason)]
+    return "".join(pos), "".join(kin), "".join(ang)

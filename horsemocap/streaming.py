@@ -42,7 +42,8 @@ from .splines import CACHE_SAMPLES
 from .progress import counter
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
-           "WHOLE_RECORD_FRAMES", "representative_range", "register_in_chunks", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
+           "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "window_times", "point_kinematics",
+           "representative_range", "register_in_chunks", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""
@@ -66,6 +67,10 @@ REGISTRATION_CHUNK = 50_000
 WHOLE_RECORD_FRAMES = 20_000
 """Records up to this many frames are smoothed whole (:func:`horsemocap.pose.fit_pose_trajectory`);
 longer ones in windows."""
+
+GRID_TOLERANCE_S = 1e-6
+"""A window's times within this (s) of a uniform grid are fitted on the grid (:func:`window_times`): the
+rounding of a time column written to the microsecond."""
 
 COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
 
@@ -289,30 +294,92 @@ def _events_inside(events, t0: float, t1: float):
     return [e for e in events if t0 < e < t1]
 
 
-def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int):
-    """The window's pose trajectory, or the reason it has none (a ValueError's message)."""
-    params = dataclasses.replace(settled.params, events=_events_inside(settled.params.events, t[lo], t[hi - 1]))
+def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
+    """The times of frames ``lo .. hi - 1`` counted from the window's first frame; on the grid
+    ``0, step, 2 step, ...`` where they lie within :data:`GRID_TOLERANCE_S` (or 1e-3 of a step) of it.
+
+    The smoothing's basis and penalty are a pure function of the times
+    (:func:`horsemocap.splines.smoothing_spline` keeps the last few): windows of
+    one length whose times are the same grid share them, where each window's
+    own clock times (``t0 + k step`` rounded differently at each ``t0``) would
+    build them anew. Velocities and accelerations do not depend on the time
+    origin; moving a time by less than a microsecond is the rounding of the
+    time column itself.
+
+    Examples
+    --------
+    >>> t = 1000.0 + np.arange(6) * 0.005
+    >>> window_times(t, 2, 5, 0.005).tolist() == (np.arange(3) * 0.005).tolist()
+    True
+    >>> window_times(np.array([0.0, 0.1, 0.25]), 0, 3, 0.1).tolist()   # off the grid: its own times
+    [0.0, 0.1, 0.25]
+    """
+    local = t[lo:hi] - t[lo]
+    grid = np.arange(hi - lo) * step
+    if local.size and np.max(np.abs(local - grid)) <= min(GRID_TOLERANCE_S, 1e-3 * step):
+        return grid
+    return local
+
+
+def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int, step: float):
+    """The window's pose trajectory on its own times (:func:`window_times`) and those times, or None and
+    the reason it has none (a ValueError's message)."""
+    tl = window_times(t, lo, hi, step)
+    events = _events_inside(settled.params.events, t[lo], t[hi - 1])
+    params = dataclasses.replace(settled.params, events=None if events is None else [e - t[lo] for e in events])
     try:
-        return pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, params,
+        return pose.fit_pose_trajectory(tl, slice_registration(registration, lo, hi), model, params,
                                         points=None if points is None else points[lo:hi],
                                         fundamental_hz=settled.fundamental_hz,
-                                        lam=settled.lam), None
+                                        lam=settled.lam), tl, None
     except ValueError as exc:
-        return None, str(exc)
+        return None, tl, str(exc)
 
 
-def _evaluate(tr, t, a: int, b: int, body_points, registration, why: str | None) -> KinematicsBlock:
-    """The window's kinematics at frames ``a .. b - 1`` (NaN with ``why`` without a trajectory)."""
-    m, tw = len(body_points), t[a:b]
+def point_kinematics(tr, t, body_points) -> tuple:
+    """``(position, velocity, acceleration)`` (n, k, 3) of ``body_points`` (k, 3) and the body's
+    ``omega``, ``alpha`` (n, 3) at times ``t`` of a :class:`horsemocap.pose.PoseTrajectory`.
+
+    :meth:`horsemocap.pose.PoseTrajectory.point`'s rigid-body kinematics
+    (``p = c + r``, ``v = c' + omega x r``, ``a = c'' + alpha x r + omega x (omega x r)``,
+    ``r = R (X - mean(model))``) with the rotation, the centroid's derivatives and
+    the angular rates evaluated once for all the points.
+
+    Examples
+    --------
+    >>> from scipy.spatial.transform import Rotation
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> t = np.arange(40) / 20.0
+    >>> R = Rotation.from_rotvec(np.outer(0.5 * t, [0, 0, 1])).as_matrix()
+    >>> tr = pose.fit_pose_trajectory(t, pose.register_pose(np.einsum("kij,mj->kmi", R, model), model), model,
+    ...                               PoseParams(smoothing="none"))
+    >>> p, v, a, w, al = point_kinematics(tr, t, model)
+    >>> bool(np.allclose(v, tr.points(t, model).velocity)), p.shape
+    (True, (40, 3, 3))
+    """
+    R, w, al = tr.rotation(t), tr.omega(t), tr.alpha(t)
+    c, dc, ddc = (tr.centre(t, d) for d in (0, 1, 2))
+    pos, vel, acc = [], [], []
+    for X in np.asarray(body_points, float):
+        r = np.einsum("kij,j->ki", R, X - tr.model_centroid)
+        pos.append(c + r)
+        vel.append(dc + np.cross(w, r))
+        acc.append(ddc + np.cross(al, r) + np.cross(w, np.cross(w, r)))
+    return np.stack(pos, 1), np.stack(vel, 1), np.stack(acc, 1), w, al
+
+
+def _evaluate(tr, tl, lo: int, a: int, b: int, body_points, registration, why: str | None) -> KinematicsBlock:
+    """The window's kinematics at frames ``a .. b - 1`` (``tl``: the window's times from frame ``lo``; NaN
+    with ``why`` without a trajectory)."""
+    m = len(body_points)
     if tr is None:
         nan3, nank = np.full((b - a, 3), np.nan), np.full((b - a, m, 3), np.nan)
         reason = np.where(registration.reason[a:b] != "", registration.reason[a:b],
                           f"no pose trajectory in this stretch: {why}")
         return KinematicsBlock(a, b, nank, nank, nank, nan3, nan3, reason.astype(object))
-    k = tr.points(tw, body_points)
-    i0 = int(np.searchsorted(tr.t, tw[0]))
-    return KinematicsBlock(a, b, k.position, k.velocity, k.acceleration, tr.omega(tw), tr.alpha(tw),
-                           np.asarray(tr.reason[i0:i0 + b - a], dtype=object))
+    tw = tl[a - lo:b - lo]
+    return KinematicsBlock(a, b, *point_kinematics(tr, tw, body_points),
+                           np.asarray(tr.reason[a - lo:b - lo], dtype=object))
 
 
 def _blend(left: KinematicsBlock, right: KinematicsBlock) -> KinematicsBlock:
@@ -386,13 +453,14 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
     window = settled.window
     plan = window_plan(n, window, settled.margin)
     band = max(1, min(settled.margin // 2, window // 4))
+    step = float(np.median(np.diff(t))) if n > 1 else 1.0
     tick = counter(progress, "kinematics", "smoothing the pose in windows", len(plan))
     pending = None                                 # the previous window's values over the next cut's band
     for j, (lo, hi, c0, c1) in enumerate(plan):
-        tr, why = _window_fit(t, registration, points, model, settled, lo, hi)
+        tr, tl, why = _window_fit(t, registration, points, model, settled, lo, hi, step)
         a = c0 if j == 0 else max(lo, c0 - band)
         b = c1 if j == len(plan) - 1 else min(hi, c1 + band)
-        block = _evaluate(tr, t, a, b, body_points, registration, why)
+        block = _evaluate(tr, tl, lo, a, b, body_points, registration, why)
         if pending is not None:
             yield _blend(pending, _part(block, pending.start, pending.stop))
         keep_to = b if j == len(plan) - 1 else c1 - band

@@ -226,3 +226,75 @@ def test_the_compact_reader_places_shuffled_rows_and_names_the_earliest_fault(tm
     (tmp_path / "late.csv").write_text(head + "0,0.0,a,1,2,3\n0,0.0,a,1,2,4\n1,0.01,a,x,2,3\n")
     with pytest.raises(io3d.TrajectoryFileError, match=r"late.csv: lines 2 and 3: point 'a' of frame 0"):
         io3d.read_trajectories_csv(tmp_path / "late.csv")
+
+
+def test_windows_on_one_time_grid_share_it_and_keep_their_kinematics():
+    """A window's times counted from its first frame are the record's grid where they lie on it (the
+    smoothing's basis then shared by windows of one length); off the grid, its own times. Fitted on
+    either, a window's accelerations agree to the lambda search's tolerance."""
+    t = 1234.5 + np.arange(2000) / FPS
+    a, b = streaming.window_times(t, 100, 900, 1 / FPS), streaming.window_times(t, 1100, 1900, 1 / FPS)
+    assert a.tobytes() == b.tobytes() and a[0] == 0.0
+    jitter = t + np.where(np.arange(2000) == 1500, 1e-4, 0.0)
+    assert streaming.window_times(jitter, 1100, 1900, 1 / FPS)[400] == pytest.approx(jitter[1500] - jitter[1100])
+    d = trot(1200)
+    reg = pose.register_pose(d["markers"], MODEL)
+    params = kinematics_params(smoothing="gcv")
+    own = pose.fit_pose_trajectory(d["t"] + 500.0, reg, MODEL, params, points=d["markers"])
+    grid = pose.fit_pose_trajectory(streaming.window_times(d["t"] + 500.0, 0, 1200, 1 / FPS), reg, MODEL, params,
+                                    points=d["markers"])
+    acc_own = own.points(d["t"] + 500.0, HIDDEN[None]).acceleration[:, 0]
+    acc_grid = grid.points(d["t"], HIDDEN[None]).acceleration[:, 0]
+    assert np.max(np.abs(acc_own - acc_grid)) < 1e-3 * np.sqrt(np.mean(np.sum(d["hidden_acc"] ** 2, 1)))
+
+
+def test_point_kinematics_are_the_trajectorys_own():
+    d = trot(600)
+    reg = pose.register_pose(d["markers"], MODEL)
+    tr = pose.fit_pose_trajectory(d["t"], reg, MODEL, kinematics_params(smoothing="gcv"), points=d["markers"])
+    body = np.vstack([MODEL, HIDDEN])
+    p, v, a, w, al = streaming.point_kinematics(tr, d["t"], body)
+    k = tr.points(d["t"], body)
+    for mine, theirs in ((p, k.position), (v, k.velocity), (a, k.acceleration), (w, tr.omega(d["t"])),
+                         (al, tr.alpha(d["t"]))):
+        np.testing.assert_array_equal(mine, theirs)
+
+
+def test_block_text_is_what_the_csv_module_writes():
+    """The kinematics tables' rows formatted in bulk: the same text as csv.writer with '%.9g' numbers and
+    empty fields for NaN and infinities, names and notes quoted as the csv module quotes them."""
+    import io
+
+    from horsemocap.io3d import kinematics_block_text
+
+    rng = np.random.default_rng(5)
+    b, names = 40, ["m1", "a,b", 'say "x"', "hidden"]
+    shape = (b, len(names), 3)
+    vals = [rng.normal(0, 10.0 ** rng.integers(-8, 9, shape), shape) for _ in range(3)]
+    for v in vals:
+        v[rng.random(shape) < 0.05] = np.nan
+    vals[2][3, 1, 2] = np.inf
+    omega, alpha = rng.normal(size=(b, 3)), rng.normal(size=(b, 3))
+    omega[7] = np.nan
+    height, rms = rng.random(b), rng.random(b) * 1e-3
+    height[9] = np.nan
+    reason = np.array(["" if i % 5 else f'gap, "{i}"\nframes' for i in range(b)], object)
+    block = streaming.KinematicsBlock(100, 100 + b, *vals, omega, alpha, reason)
+    frame, time_s = np.arange(100, 100 + b), np.arange(100, 100 + b) / 300.0
+    time_s[4] = np.nan
+
+    def num(v):
+        return "" if not np.isfinite(v) else f"{float(v):.9g}"
+
+    want = [io.StringIO() for _ in range(3)]
+    pos_w, kin_w, ang_w = (csv.writer(fh, lineterminator="\n") for fh in want)
+    for i in range(b):
+        fr, tt = frame[i], num(time_s[i])
+        for j, nm in enumerate(names):
+            pos_w.writerow([fr, tt, nm, *(num(v) for v in vals[0][i, j])])
+            kin_w.writerow([fr, tt, nm, *(num(v) for v in (*vals[1][i, j], *vals[2][i, j]))])
+        ang_w.writerow([fr, tt, *(num(v) for v in (*omega[i], *alpha[i])), num(height[i]), num(rms[i]),
+                        str(reason[i]).replace(",", ";")])
+    got = kinematics_block_text(frame, time_s, names, block, height, rms)
+    for g, w in zip(got, want):
+        assert g == w.getvalue()
