@@ -32,7 +32,9 @@ write out.
 from __future__ import annotations
 
 import dataclasses
+import mmap
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -43,7 +45,7 @@ from .progress import counter
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
            "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "window_times", "point_kinematics",
-           "representative_range", "register_in_chunks", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
+           "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""
@@ -110,6 +112,30 @@ class SettledSmoothing:
     window: int = WINDOW_FRAMES
 
 
+def release_pages(*arrays) -> None:
+    """Let the system take back the memory of the pages of memory-mapped ``arrays`` read so far.
+
+    A memory-mapped file's pages stay in the process' memory once read; for
+    a file mapped shared (:class:`numpy.memmap`) they are only unmapped (their
+    contents stay in the file), so that a record read window by window does
+    not accumulate in memory. Arrays not mapped from a file are left alone.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.f8"
+    >>> a = np.lib.format.open_memmap(path, mode="w+", dtype=float, shape=(1000,))
+    >>> a[:] = 2.0
+    >>> release_pages(a, np.zeros(3))
+    >>> float(a.sum())
+    2000.0
+    """
+    for a in arrays:
+        mapped = getattr(a, "_mmap", None)
+        if mapped is not None:
+            mapped.madvise(mmap.MADV_DONTNEED)
+
+
 def window_core(window: int, margin: int) -> int:
     """Frames of a core: ``window``, or fewer so that a core with its margins fits the splines' cache.
 
@@ -169,14 +195,18 @@ def slice_registration(reg: pose.PoseRegistration, lo: int, hi: int) -> pose.Pos
     return dataclasses.replace(reg, **fields)
 
 
-def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUNK) -> pose.PoseRegistration:
+def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUNK,
+                       folder=None) -> pose.PoseRegistration:
     """:func:`horsemocap.pose.register_pose` of ``points`` (n, m, 3), ``chunk`` frames at a time.
 
     Each frame's pose is its own; the marker noise ``noise_m`` pools the
     chunks' squared residuals over their degrees of freedom (``3 k - 6`` per
     frame of k markers), as one registration of the whole record does. The
     result's arrays are filled in place: the memory beyond them is one
-    chunk's working arrays. Without marker weights or covariances.
+    chunk's working arrays; with ``folder`` they are memory-mapped files
+    there (:func:`release_pages` after each chunk), so that a long record's
+    registration is not held in memory; each frame's ``reason`` is one of a
+    few shared strings (an object array). Without marker weights or covariances.
 
     Examples
     --------
@@ -190,22 +220,71 @@ def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUN
     """
     n = len(points)
     if n <= chunk:
-        return pose.register_pose(points, model, names=names)
+        return pose.register_pose(np.asarray(points), model, names=names)
     kept, reasons, pooled, dof = {}, [], 0.0, 0.0
     for a in range(0, n, chunk):
-        reg = pose.register_pose(points[a:a + chunk], model, names=names)
+        reg = pose.register_pose(np.asarray(points[a:a + chunk]), model, names=names)
         for f in dataclasses.fields(reg):
             value = getattr(reg, f.name)
             if f.name != "reason" and isinstance(value, np.ndarray) and value.ndim and value.shape[0] == reg.rms.size:
                 if f.name not in kept:
-                    kept[f.name] = np.empty((n,) + value.shape[1:], value.dtype)
+                    shape = (n,) + value.shape[1:]
+                    kept[f.name] = (np.empty(shape, value.dtype) if folder is None else np.lib.format.open_memmap(
+                        Path(folder) / f"registration-{f.name}.npy", mode="w+", dtype=value.dtype, shape=shape))
                 kept[f.name][a:a + value.shape[0]] = value
-        reasons.append(reg.reason)
+        names_of_reasons, which = np.unique(reg.reason, return_inverse=True)
+        reasons.append(np.array(names_of_reasons.tolist(), dtype=object)[which.reshape(-1)])  # shared strings
         frames_dof = float(np.sum(np.where(np.isfinite(reg.rms), 3 * reg.n_markers - 6, 0)))
         if frames_dof > 0:
             pooled, dof = pooled + reg.noise_m ** 2 * frames_dof, dof + frames_dof
+        release_pages(points, *kept.values())
     noise = float(np.sqrt(pooled / dof)) if dof > 0 else float("nan")
     return dataclasses.replace(reg, **kept, reason=np.concatenate(reasons), noise_m=noise)
+
+
+def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGISTRATION_CHUNK) -> list:
+    """:func:`horsemocap.pose.conditioning_warnings` of a long record's registration, ``chunk`` frames at a time.
+
+    The per-frame figures (:func:`horsemocap.pose.frame_rotation_std`, the
+    triangle's height, the frames without a pose) are taken chunk by chunk
+    and pooled (the rotation noise as the RMS over every frame with a pose),
+    so the working memory is one chunk's; the messages are worded as
+    :func:`horsemocap.pose.conditioning_warnings`' for a registration without
+    covariances (one with covariances is passed to it whole).
+
+    Examples
+    --------
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> conditioning_warnings(pose.register_pose(np.repeat(model[None], 5, axis=0), model), chunk=2)
+    []
+    """
+    reg = registration
+    n = reg.rotation.shape[0]
+    if n <= chunk or reg.information is not None:
+        return pose.conditioning_warnings(reg)
+    sq, count, low, missing, first = np.zeros(3), 0, np.inf, 0, None
+    for a in range(0, n, chunk):
+        part = slice_registration(reg, a, min(n, a + chunk))
+        std = pose.frame_rotation_std(part)
+        seen = np.all(np.isfinite(std), axis=1)
+        sq, count = sq + np.sum(std[seen] ** 2, axis=0), count + int(seen.sum())
+        h = part.height[np.isfinite(part.rotation[:, 0, 0]) & (part.n_markers >= 3)]
+        low = min(low, float(np.min(h))) if h.size else low
+        bad = part.reason[part.reason != ""]
+        missing += bad.size
+        if bad.size:
+            first = min(bad.tolist()) if first is None else min(first, min(bad.tolist()))
+        release_pages(*(getattr(reg, f.name) for f in dataclasses.fields(reg)))
+    out = []
+    rot_noise = float(np.degrees(np.max(np.sqrt(sq / count)))) if count else float("nan")
+    if np.isfinite(low) and np.isfinite(rot_noise) and rot_noise > pose.ROTATION_NOISE_LIMIT_DEG:
+        out.append(f"thin marker triangle: smallest height {1000 * low:.0f} mm; a marker noise of "
+                   f"{1000 * reg.noise_m:.2f} mm gives about {rot_noise:.1f} deg of rotation noise per frame (above "
+                   f"{pose.ROTATION_NOISE_LIMIT_DEG:g} deg); the smoothing removes part of it, but angular results "
+                   "and far points are unreliable")
+    if missing:
+        out.append(f"{missing} of {n} frames have no pose ({first} ...)")
+    return out
 
 
 def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[int, int]:
@@ -468,6 +547,7 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
         if keep_to > start:
             yield _part(block, start, keep_to)
         pending = None if j == len(plan) - 1 else _part(block, c1 - band, b)
+        release_pages(points, *(getattr(registration, f.name) for f in dataclasses.fields(registration)))
         tick(j + 1)
 
 

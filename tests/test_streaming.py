@@ -298,3 +298,44 @@ def test_block_text_is_what_the_csv_module_writes():
     got = kinematics_block_text(frame, time_s, names, block, height, rms)
     for g, w in zip(got, want):
         assert g == w.getvalue()
+
+
+def test_chunked_conditioning_warnings_are_the_whole_records():
+    thin = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.25, 0.004, 0], [0.1, 0.002, 0.0]])
+    rng = np.random.default_rng(2)
+    pts = np.repeat(thin[None], 900, 0) + rng.normal(0, 1e-3, (900, 4, 3))
+    pts[100:130, :2] = np.nan                               # no pose
+    pts[400:420, 3] = np.nan                                # three markers
+    reg = pose.register_pose(pts, thin)
+    whole = pose.conditioning_warnings(reg)
+    assert len(whole) == 2
+    assert streaming.conditioning_warnings(reg, chunk=128) == whole
+    reg_on_disk = streaming.register_in_chunks(pts, thin, chunk=128)
+    assert streaming.conditioning_warnings(reg_on_disk, chunk=128) == whole
+
+
+def test_a_record_read_to_disk_is_the_record_read_whole(tmp_path):
+    from horsemocap import io3d
+
+    d = trot(700)
+    names = ["m1", "m2", "m3", "m4"]
+    pts = d["markers"].copy()
+    pts[50:60, 2] = np.nan
+    _write(tmp_path / "traj.csv", 3.0 + d["t"], names, pts)
+    whole = io3d.read_trajectories_csv(tmp_path / "traj.csv")
+    (tmp_path / "disk").mkdir()
+    disk = io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk", block_rows=333)
+    assert isinstance(disk.points, np.memmap) and disk.names == whole.names and disk.info == whole.info
+    np.testing.assert_array_equal(disk.points, whole.points)
+    np.testing.assert_array_equal(disk.time_s, whole.time_s)
+    np.testing.assert_array_equal(disk.frame, whole.frame)
+    # out of order, or with a fault: read whole (the same result, or the whole reader's message)
+    lines = (tmp_path / "traj.csv").read_text().splitlines()
+    (tmp_path / "swap.csv").write_text("\n".join([lines[0], lines[5], *lines[1:5], *lines[6:]]) + "\n")
+    swapped = io3d.read_trajectories_csv_to_disk(tmp_path / "swap.csv", tmp_path / "disk")
+    assert not isinstance(swapped.points, np.memmap)
+    np.testing.assert_array_equal(swapped.points, whole.points)
+    (tmp_path / "bad.csv").write_text("\n".join([*lines[:300], "12,x,m1,1,2,3", *lines[300:]]) + "\n")
+    with pytest.raises(io3d.TrajectoryFileError, match="line 301: field 'time_s'"):
+        io3d.read_trajectories_csv_to_disk(tmp_path / "bad.csv", tmp_path / "disk")
+    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["points.npy"]
