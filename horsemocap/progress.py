@@ -12,14 +12,18 @@ On a terminal (``stream.isatty()``) a count is a bar redrawn in place::
     [horsemocap] rig: detecting the board in camera 'left' [########------------]  12/30
 
 otherwise (a log file, a notebook, CI) it is a plain line at the first
-count, at every quarter and at the last, so a log shows that the step works
-without one line per frame.
+count, at every quarter and at the last, and at least once a minute in
+between (with the time left at the rate so far), so a log shows that the step
+works without one line per frame.
 """
 from __future__ import annotations
 
 import sys
+import time
 
 BAR_WIDTH = 24
+HEARTBEAT_S = 60.0   # a plain count line at least this often (s) during a long count
+ESTIMATE_AFTER_S = 10.0   # a count's time left is said once it has run this long (s)
 
 
 def progress_bar(done: int, total: int, width: int = BAR_WIDTH) -> str:
@@ -67,14 +71,35 @@ class ProgressPrinter:
         Default ``sys.stderr`` (looked up when printing).
     tty : bool, optional
         Draw counts as a bar redrawn in place; default ``stream.isatty()``.
+    heartbeat_s : float
+        Plain lines: a count line at least this often (s), besides the first,
+        the quarters and the last (:func:`plain_count_due`).
+    clock : callable
+        Seconds (``time.monotonic``), for the heartbeat and the time left.
+
+    Examples
+    --------
+    >>> import io
+    >>> now = iter([0.0, 30.0, 70.0, 75.0])
+    >>> buf = io.StringIO()
+    >>> p = ProgressPrinter(buf, clock=lambda: next(now))
+    >>> for k in (1, 2, 3, 4):
+    ...     p("kinematics", "windows", k, 100)
+    >>> print(buf.getvalue(), end="")
+    [horsemocap] kinematics: windows 1/100
+    [horsemocap] kinematics: windows 3/100 (about 57 min left)
     """
 
     counts = True
 
-    def __init__(self, stream=None, tty: bool | None = None):
+    def __init__(self, stream=None, tty: bool | None = None, heartbeat_s: float = HEARTBEAT_S,
+                 clock=time.monotonic):
         self._stream = stream
         self._tty = tty
         self._open = False  # a bar is drawn on the current line
+        self._heartbeat_s = float(heartbeat_s)
+        self._clock = clock
+        self._count = None  # (step, message, total, first count's time and value, last plain line's time)
 
     @property
     def stream(self):
@@ -101,8 +126,23 @@ class ProgressPrinter:
             if not self._open:
                 out.write("\n")
             out.flush()
-        elif plain_count_due(done, total):
-            print(f"[horsemocap] {step}: {message} {done}/{total}", file=out, flush=True)
+        else:
+            self._plain_count(step, message, done, total)
+
+    def _plain_count(self, step, message, done, total):
+        now = self._clock()
+        key = (step, message, total)
+        if self._count is None or self._count[0] != key or done < self._count[2]:
+            self._count = [key, now, done, now]
+        _, first_time, first_done, last_time = self._count
+        if not (plain_count_due(done, total) or now - last_time >= self._heartbeat_s):
+            return
+        self._count[3] = now
+        left = ""
+        if now - first_time >= ESTIMATE_AFTER_S and first_done < done < total:
+            seconds = (now - first_time) / (done - first_done) * (total - done)
+            left = f" (about {seconds / 60:.0f} min left)" if seconds >= 90 else f" (about {seconds:.0f} s left)"
+        print(f"[horsemocap] {step}: {message} {done}/{total}{left}", file=self.stream, flush=True)
 
     def _close(self):
         if self._open:

@@ -404,3 +404,18 @@ def test_the_analysis_never_loads_matplotlib_and_the_report_draws_the_same_figur
     with painter:
         assert report._drawn(painter, descriptions) == here
     assert len(set(here)) == 2
+
+
+def test_plain_lines_at_least_once_a_minute_with_the_time_left():
+    """A long count in a log: a line at least once a minute between the quarters, saying the time left at
+    the rate so far (once the count has run 10 s); quick counts print exactly the quarters as before."""
+    now = iter([0.0, 59.0, 61.0, 100.0, 121.5, 1000.0])
+    buf = io.StringIO()
+    p = ProgressPrinter(buf, clock=lambda: next(now))
+    for k in (1, 2, 3, 4, 5, 400):
+        p("kinematics", "windows", k, 400)
+    lines = buf.getvalue().splitlines()
+    assert lines == ["[horsemocap] kinematics: windows 1/400",
+                     "[horsemocap] kinematics: windows 3/400 (about 202 min left)",
+                     "[horsemocap] kinematics: windows 5/400 (about 200 min left)",
+                     "[horsemocap] kinematics: windows 400/400"]
