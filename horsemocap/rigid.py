@@ -112,8 +112,8 @@ from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
 from .params import FitsParams, RigidBodyParams
-from .pose import (PoseRegistration, PoseTrajectory, check_model_conditioning, conditioning_warnings,
-                   fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
+from .pose import (PoseRegistration, PoseTrajectory, SettledPoseSmoothing, check_model_conditioning,
+                   conditioning_warnings, fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
 from .registration import check_model, rotation_from_cross_covariance, skew
 
 __all__ = [
@@ -1272,6 +1272,9 @@ class PoseInput:
         ``weights``.
     weights : (m,) or (N, m), optional
         Marker weights (inverse variances) of the pose registration.
+    settled : horsemocap.pose.SettledPoseSmoothing, optional
+        The pose smoothing's choices settled on another record (``settled`` of
+        :func:`horsemocap.pose.fit_pose_trajectory`); default: chosen here.
 
     Examples
     --------
@@ -1283,6 +1286,7 @@ class PoseInput:
     t: np.ndarray | None = None
     covariance: np.ndarray | None = None
     weights: np.ndarray | None = None
+    settled: SettledPoseSmoothing | None = None
 
 
 def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = RigidBodyParams(), *,
@@ -1392,7 +1396,7 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
-    traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts,
+    traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
                                expected_fundamental_hz=None if not period_s else 1.0 / period_s)
     psaddle = traj.point(t, s_saddle)
     pmarkers = traj.points(t, model)
