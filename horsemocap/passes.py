@@ -275,13 +275,15 @@ def _later_steps(run_later, given, settled: SettledPoseSmoothing | None = None) 
     """The results of :data:`PASS_STEPS` on ``given`` and "", or {} and why they could not be computed.
 
     The rigid-body step is called here with the arguments :data:`horsemocap.pipeline.STEP_CALLS` gives it,
-    and the ``settled`` pose smoothing.
+    the ``settled`` pose smoothing, and without the thesis' chain of fits (a pass' comfort and verdict come
+    from the pose trajectory; the chain is the main pass' own, in its result files).
     """
     quiet = lambda *a: None  # noqa: E731
     try:
         an = run_later(given, ("smooth", "motion_frame"))
         rigid_body = step_rigid_body(an.session, an.params.rigid_body, an.triangulate, an.smooth.raw,
-                                     an.motion_frame, an.detect.sync.offsets, quiet, settled=settled)
+                                     an.motion_frame, an.detect.sync.offsets, quiet, settled=settled,
+                                     thesis_chain=False)
         an = run_later({**given, "smooth": an.smooth, "motion_frame": an.motion_frame, "rigid_body": rigid_body},
                        ("comfort",))
     except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:

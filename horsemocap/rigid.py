@@ -1292,7 +1292,7 @@ class PoseInput:
 def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = RigidBodyParams(), *,
                        period_s: float | None = None, fourier_orders: FourierOrders | None = None,
                        pose_input: PoseInput | None = None, static_index=None, smooth_span: float = 0.1,
-                       fourier_start: str = "matlab") -> RigidBodyAnalysis:
+                       fourier_start: str = "matlab", thesis_chain: bool = True) -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call (the rigid-body step).
 
     The static shot is matched to the ride (:func:`match_static_markers`);
@@ -1340,6 +1340,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         rloess span for the versions (Appendix A step 11).
     fourier_start : "matlab" or "all"
         ``start`` of every Fourier fit (:func:`horsemocap.fitting.fit_fourier`).
+    thesis_chain : bool
+        With ``kinematics="pose_spline"``: compute the thesis' chain beside the
+        pose trajectory (False: the pose trajectory alone, as for a ride of
+        other than three markers; nothing passed on depends on the chain).
 
     Returns
     -------
@@ -1403,6 +1407,8 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
     if pts.shape[1] != 3:
         return _pose_only(common, pose, pts, f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}")
+    if not thesis_chain:
+        return _pose_only(common, pose, pts, "not asked for (thesis_chain False)")
     try:
         chain = _thesis_chain(*chain_inputs)
     except (ValueError, np.linalg.LinAlgError) as exc:
