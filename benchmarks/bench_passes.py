@@ -78,7 +78,8 @@ def per_pass(session, repeats: int) -> list:
             row[label] = {"cpu_s": min(cpu), **{k: ind[k] for k in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb")}}
         rows.append(row)
         before, after = row["per_pass"], row["settled"]
-        print(f"  pass {i} (frames {segment[0]}..{segment[1] - 1}): CPU {before['cpu_s']:.3f} -> {after['cpu_s']:.3f} s; "
+        print(f"  pass {i} (frames {segment[0]}..{segment[1] - 1}): "
+              f"CPU {before['cpu_s']:.3f} -> {after['cpu_s']:.3f} s; "
               + ", ".join(f"{k} {before[k]:.4f} -> {after[k]:.4f} ({100 * (after[k] / before[k] - 1):+.2f} %)"
                           for k in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb")), flush=True)
     return rows
