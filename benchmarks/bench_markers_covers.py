@@ -84,8 +84,11 @@ def run_cut(name: str) -> str:
     folder = cover_session(name)
     truth = load_truth(folder)
     keep = kept_three(name)
-    with _Cut(keep, truth):
-        a = analyze(folder, None, {}, progress=lambda *x: None)
+    try:
+        with _Cut(keep, truth):
+            a = analyze(folder, None, {}, progress=lambda *x: None)
+    except AnalysisError as exc:
+        return f"{name + ' cut to 3':22s} markers {keep} exit 2 stopped: {str(exc)[:160]}"
     st = accuracy.stage_errors(a, _cut_truth(truth, keep))
     ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
     v = quality.verdict(quality.post_checks(a))

@@ -7,16 +7,21 @@ layout, runs the command in a child process (``/usr/bin/time``-like peak RSS
 from ``resource.getrusage(RUSAGE_CHILDREN)``) and compares the hidden point's
 acceleration with the truth.
 
-    python benchmarks/bench_streaming_kinematics.py 10000 100000 [--whole]
+    python benchmarks/bench_streaming_kinematics.py 10000 100000 [--log FILE]
+
+``--log FILE``: the command's progress (its stderr) goes to FILE as it runs.
+The load average (1 min) is sampled every 10 s during the command's run.
 """
 from __future__ import annotations
 
 import argparse
 import csv
+import os
 import resource
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -101,6 +106,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("frames", type=int, nargs="+")
     ap.add_argument("--keep", type=Path, default=None, help="folder to keep the records in")
+    ap.add_argument("--log", type=Path, default=None, help="file the command's progress goes to as it runs")
     args = ap.parse_args()
     for n in args.frames:
         with tempfile.TemporaryDirectory() as tmp:
@@ -112,11 +118,26 @@ def main() -> None:
             out = folder / f"kin{n}"
             t0 = time.perf_counter()
             cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            loads, running = [], threading.Event()
+            running.set()
+
+            def sample_load():
+                while running.is_set():
+                    loads.append(os.getloadavg()[0])
+                    time.sleep(10)
+
+            sampler = threading.Thread(target=sample_load, daemon=True)
+            sampler.start()
+            log = open(args.log, "w") if args.log else subprocess.PIPE
             proc = subprocess.run([sys.executable, "-c", "import resource, sys; from horsemocap.cli import main; "
                                    "rc = main(sys.argv[1:]); print('peak_rss_kb', resource.getrusage("
                                    "resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr); sys.exit(rc)",
                                    "kinematics", str(traj), "--static", str(static), "--out", str(out)],
-                                  capture_output=True, text=True)
+                                  stdout=subprocess.PIPE, stderr=log, text=True)
+            running.clear()
+            if args.log:
+                log.close()
+                proc.stderr = Path(args.log).read_text()
             took = time.perf_counter() - t0
             cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
@@ -124,7 +145,8 @@ def main() -> None:
             err = hidden_error(out, n) if proc.returncode in (0, 3) else float("nan")
             print(f"{n} frames: exit {proc.returncode}, {took:.1f} s wall, {cpu:.1f} s CPU, peak RSS "
                   f"{int(peak[0].split()[1]) / 1024 if peak else float('nan'):.0f} MB, hidden-point acceleration "
-                  f"RMS error {err:.3f} m/s^2 (record written in {written:.1f} s)", flush=True)
+                  f"RMS error {err:.3f} m/s^2 (record written in {written:.1f} s); load average during the run "
+                  f"{min(loads):.1f} .. {max(loads):.1f} (mean {np.mean(loads):.1f})", flush=True)
             if proc.returncode not in (0, 3):
                 print(proc.stderr[-2000:])
             else:

@@ -405,24 +405,29 @@ def cmd_kinematics(args) -> int:
     :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` is smoothed in windows
     (:mod:`horsemocap.streaming`) and its tables written window by window.
     """
-    from .io3d import TrajectoryFileError, check_trajectory_input, kinematics_verdict, read_trajectories
-    from .pose import CollinearMarkersError, conditioning_warnings
+    import tempfile
+
+    from .io3d import TrajectoryFileError, check_trajectory_input, kinematics_verdict, read_trajectories, \
+        read_trajectories_to_disk
+    from .pose import CollinearMarkersError
     from .runfolder import RunFolder
     from .store import atomic_write_json
+    from .streaming import conditioning_warnings
     from .threads import blas_single_threaded
 
     _no_nul(("TRAJECTORIES", args.trajectories), ("--static", args.static))
     folder = RunFolder(args.out, "kinematics")        # the target checked here, before the computation
     target = folder.out
     _check_inputs_outside(target, args)
-    # the smoothing's matrices are small: more BLAS threads only wait for each other
-    with blas_single_threaded():
+    # the smoothing's matrices are small: more BLAS threads only wait for each other; a long record's
+    # points and registration are memory-mapped in a scratch folder, not held in memory
+    with blas_single_threaded(), tempfile.TemporaryDirectory(prefix="horsemocap-kinematics-") as scratch:
         try:
-            traj = read_trajectories(args.trajectories)
+            traj = read_trajectories_to_disk(args.trajectories, scratch)
             static = read_trajectories(args.static)
             check_trajectory_input(traj, static)
             events = parse_seconds(args.events, "--events") if args.events else None
-            res = _kinematics_result(traj, static, args.smoothing, events)
+            res = _kinematics_result(traj, static, args.smoothing, events, scratch)
         except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
             print(f"horsemocap: error: {exc}", file=sys.stderr)
             return 2
@@ -464,7 +469,7 @@ def _kinematics_checks(traj, res, speed_p99, acceleration_p99) -> list:
     return kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
 
 
-def _kinematics_result(traj, static, smoothing: str, events) -> dict:
+def _kinematics_result(traj, static, smoothing: str, events, scratch=None) -> dict:
     """What ``kinematics`` writes: the whole record's fit, or for a long record the smoothing settled
     on its middle and the windows' blocks to come (``blocks``, a generator)."""
     from . import streaming
@@ -480,7 +485,7 @@ def _kinematics_result(traj, static, smoothing: str, events) -> dict:
                                                                 for f in ("position", "velocity", "acceleration")),
                                           tr.omega(traj.time_s), tr.alpha(traj.time_s), tr.reason)
         return {**res, "blocks": iter([block]), "smoothing_choice": tr.smoothing_choice}
-    setup = kinematics_setup(traj, static)
+    setup = kinematics_setup(traj, static, folder=scratch)
     params = kinematics_params(smoothing, events)
     reg, model = setup["registration"], setup["model"]
     settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params,
@@ -596,25 +601,22 @@ def _write_kinematics_tables(folder: Path, traj, res) -> tuple:
         ang_w.writerow(["frame", "time_s", "wx_radps", "wy_radps", "wz_radps", "alphax_radps2", "alphay_radps2",
                         "alphaz_radps2", "triangle_height_m", "registration_rms_m", "note"])
         for block in res["blocks"]:
-            _write_block(pos_w, kin_w, ang_w, traj, names, res["registration"], block)
+            _write_block(files, traj, names, res["registration"], block)
             speed.add(np.linalg.norm(block.velocity[:, :k], axis=2))
             accel.add(np.linalg.norm(block.acceleration[:, :k], axis=2))
     return speed.value(), accel.value()
 
 
-def _write_block(pos_w, kin_w, ang_w, traj, names, reg, block) -> None:
-    """The rows of the frames of one :class:`horsemocap.streaming.KinematicsBlock`."""
-    def num(v):
-        return "" if not np.isfinite(v) else f"{float(v):.9g}"
+def _write_block(files, traj, names, reg, block) -> None:
+    """The rows of the frames of one :class:`horsemocap.streaming.KinematicsBlock`
+    (:func:`horsemocap.io3d.kinematics_block_text`)."""
+    from .io3d import kinematics_block_text
 
-    for i, k in enumerate(range(block.start, block.stop)):
-        fr, tt = traj.frame[k], num(traj.time_s[k])
-        for j, nm in enumerate(names):
-            pos_w.writerow([fr, tt, nm, *(num(v) for v in block.position[i, j])])
-            kin_w.writerow([fr, tt, nm, *(num(v) for v in (*block.velocity[i, j], *block.acceleration[i, j]))])
-        ang_w.writerow([fr, tt, *(num(v) for v in (*block.omega[i], *block.alpha[i])),
-                        num(reg.height[k] if reg.n_markers[k] >= 3 else np.nan), num(reg.rms[k]),
-                        str(block.reason[i]).replace(",", ";")])
+    a, b = block.start, block.stop
+    height = np.where(reg.n_markers[a:b] >= 3, reg.height[a:b], np.nan)
+    for fh, text in zip(files, kinematics_block_text(traj.frame[a:b], traj.time_s[a:b], names, block, height,
+                                                     reg.rms[a:b])):
+        fh.write(text)
 
 
 def cmd_export(args) -> int:

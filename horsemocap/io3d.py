@@ -24,7 +24,9 @@ import numpy as np
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
            "FIRST_TIME_PARAMETER", "RATE_PARAMETER", "check_trajectory_input", "check_stated_rate",
-           "kinematics_checks", "kinematics_checks_of_percentiles", "kinematics_verdict", "RunningPercentile"]
+           "kinematics_checks", "kinematics_checks_of_percentiles", "kinematics_verdict", "RunningPercentile",
+           "kinematics_block_text", "csv_field",
+           "read_trajectories_csv_to_disk", "read_trajectories_to_disk"]
 
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "dm": 0.1}
 _UNITS_TEXT = ", ".join(_UNITS)
@@ -748,11 +750,23 @@ def _median_spacing(points) -> float:
     k = points.shape[1]
     if k < 2:
         return math.nan
-    points = points[::max(1, -(-points.shape[0] // SPACING_FRAMES))]
+    step = max(1, -(-points.shape[0] // SPACING_FRAMES))
+    points = np.concatenate([_read_frames(points, a, a + 1000 * step, step)
+                             for a in range(0, points.shape[0], 1000 * step)])
     i, j = np.triu_indices(k, 1)
     d = np.linalg.norm(points[:, i] - points[:, j], axis=2)
     d = d[np.isfinite(d)]
     return float(np.median(d)) if d.size else math.nan
+
+
+def _read_frames(points, start: int, stop: int, step: int = 1) -> np.ndarray:
+    """``points[start:stop:step]`` as an array in memory; a memory-mapped record's pages read are let go
+    (:func:`horsemocap.streaming.release_pages`)."""
+    from .streaming import release_pages
+
+    out = np.array(points[start:stop:step])
+    release_pages(points)
+    return out
 
 
 def check_trajectory_input(traj: Trajectories, static: Trajectories) -> None:
@@ -937,7 +951,7 @@ def kinematics_checks_of_percentiles(traj: Trajectories, markers, speed_p99: flo
         idx = [traj.names.index(nm) for nm in markers]
         raw = RunningPercentile(99, (t.size - 1) * len(idx))
         for a in range(0, t.size - 1, chunk):
-            pts = traj.points[a:a + chunk + 1][:, idx]
+            pts = _read_frames(traj.points, a, a + chunk + 1)[:, idx]
             raw.add(np.linalg.norm(np.diff(pts, axis=0), axis=2) / np.diff(t[a:a + chunk + 1])[:, None])
         checks.append(_limit_check("raw_marker_speed", raw.value(), SPEED_LIMIT_MPS, "m/s",
                                    "speed of the record's markers between frames", "warning"))
@@ -1018,14 +1032,15 @@ def kinematics_params(smoothing: str = "auto", events=None):
     return PoseParams(smoothing=smoothing, harmonics=harmonics, events=events, partial_frames=False)
 
 
-def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
+def kinematics_setup(traj: Trajectories, static: Trajectories, folder=None) -> dict:
     """The markers matched to the static shot, the model and the record's registration.
 
     What :func:`kinematics_from_trajectories` fits (its docstring says how the
     points are matched): a dict with ``markers``, ``hidden`` (names),
     ``model`` (the markers in the static shot), ``model_all`` (markers then
     hidden points), ``points`` (n, k, 3) of the markers, ``registration``,
-    ``unmatched`` and ``matched_loosely``.
+    ``unmatched`` and ``matched_loosely``. With ``folder`` a long record's
+    registration is memory-mapped there (:func:`horsemocap.streaming.register_in_chunks`).
     """
     from . import pose
     from .streaming import register_in_chunks
@@ -1042,13 +1057,219 @@ def kinematics_setup(traj: Trajectories, static: Trajectories) -> dict:
     ok = np.flatnonzero(np.all(np.isfinite(sp), axis=(1, 2)))
     if ok.size == 0:
         raise TrajectoryFileError(f"{static.source}: no frame has every point {static_order} finite")
-    if not np.isfinite(traj.subset(markers)).all(axis=2).any():
+    chunk = 100_000
+    marker_points = traj.subset(markers)
+    if not any(np.isfinite(_read_frames(marker_points, a, a + chunk)).all(axis=2).any()
+               for a in range(0, len(marker_points), chunk)):
         raise TrajectoryFileError(f"{traj.source}: the markers {markers} are missing in every frame (all gaps)")
     model_all = sp[ok[0]]
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
     points = traj.subset(markers)
-    reg = register_in_chunks(points, model, names=markers)
+    reg = register_in_chunks(points, model, names=markers, folder=folder)
     return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
             "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}
+
+
+def csv_field(text: str) -> str:
+    """``text`` as the csv module writes one field (quoted where it holds a comma, a quote or a line end).
+
+    Examples
+    --------
+    >>> csv_field("saddle"), csv_field("left, front")
+    ('saddle', '"left, front"')
+    """
+    if any(c in text for c in ',"\r\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def _number_rows(head, values) -> list:
+    """Lines ``head[i] + ",%.9g" * columns`` of ``values`` (r, c); a NaN or infinite value is an empty field."""
+    finite = np.isfinite(values).all(axis=1)
+    fmt = "%s" + ",%.9g" * values.shape[1] + "\n"
+    rows = values.tolist()
+    lines = []
+    for h, ok, row in zip(head, finite.tolist(), rows):
+        if ok:
+            lines.append(fmt % (h, *row))
+        else:
+            lines.append(h + "".join("," + ("%.9g" % v if math.isfinite(v) else "") for v in row) + "\n")
+    return lines
+
+
+def kinematics_block_text(frame, time_s, names, block, height, rms) -> tuple:
+    """The rows of trajectories.csv, kinematics.csv and angular.csv of one block of frames, as text.
+
+    ``frame``, ``time_s``, ``height``, ``rms`` (b,) of the block's frames;
+    ``names`` the points of ``block.position`` (b, k, 3) etc.; ``block``: a
+    :class:`horsemocap.streaming.KinematicsBlock`. Numbers are written with
+    nine significant digits (``%.9g``), a non-finite one as an empty field;
+    point names as the csv module quotes them; a note's commas become
+    semicolons.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> one = np.ones((1, 1, 3))
+    >>> b = SimpleNamespace(position=one, velocity=one * 2, acceleration=one * np.nan, omega=np.zeros((1, 3)),
+    ...                     alpha=np.zeros((1, 3)), reason=np.array(["bridged gap, 1 frame"], object))
+    >>> pos, kin, ang = kinematics_block_text([7], [0.035], ["a,b"], b, [0.1], [np.nan])
+    >>> pos, kin, ang
+    ('7,0.035,"a,b",1,1,1\\n', '7,0.035,"a,b",2,2,2,,,\\n', '7,0.035,0,0,0,0,0,0,0.1,,bridged gap; 1 frame\\n')
+    """
+    b, k = len(frame), len(names)
+    t_text = ["" if not math.isfinite(v) else "%.9g" % v for v in np.asarray(time_s, float).tolist()]
+    lead = ["%d,%s," % (f, tt) for f, tt in zip(np.asarray(frame).tolist(), t_text)]
+    quoted = [csv_field(nm) for nm in names]
+    head = [ld + nm for ld in lead for nm in quoted]
+    pos = _number_rows(head, np.asarray(block.position, float).reshape(b * k, 3))
+    kin = _number_rows(head, np.concatenate([block.velocity, block.acceleration], axis=2).reshape(b * k, 6))
+    angular = np.column_stack([block.omega, block.alpha, height, rms])
+    notes = {}
+    for r in block.reason:
+        if r not in notes:
+            notes[r] = csv_field(str(r).replace(",", ";"))
+    ang = [line[:-1] + "," + notes[r] + "\n"
+           for line, r in zip(_number_rows([ld[:-1] for ld in lead], angular), block.reason)]
+    return "".join(pos), "".join(kin), "".join(ang)
+
+
+STREAM_BLOCK_ROWS = 200_000
+"""Rows parsed at a time by :func:`read_trajectories_csv_to_disk`."""
+
+
+def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_ROWS) -> Trajectories:
+    r""":func:`read_trajectories_csv` with the points in a read-only memory-mapped file in ``folder``.
+
+    The rows are parsed ``block_rows`` at a time and written to a compact
+    binary file; the frames' numbers and times stay in memory (16 bytes a
+    frame), the points go to ``folder/points.npy`` (n, k, 3) and are mapped,
+    not loaded. This takes a file whose frames come in order (each frame's
+    rows together, frame numbers and times increasing) with every row
+    readable and no (frame, point) twice; any other file (out of order, a
+    bad row, a repeated point) is read by :func:`read_trajectories_csv`
+    whole, which names the fault or places the rows as usual. The result is
+    the same either way.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> path = folder / "walk.csv"
+    >>> _ = path.write_text("frame,time_s,point,x_m,y_m,z_m\n"
+    ...                     "0,0.0,marker1,0.0,1.0,4.0\n0,0.0,marker2,0.3,1.0,4.0\n"
+    ...                     "1,0.01,marker1,0.05,1.0,4.0\n1,0.01,marker2,,,\n")
+    >>> walk = read_trajectories_csv_to_disk(path, folder)
+    >>> walk.names, type(walk.points).__name__, walk.points[1, 0].tolist()
+    (('marker1', 'marker2'), 'memmap', [0.05, 1.0, 4.0])
+    """
+    path, folder = Path(path), Path(folder)
+    rows_file = folder / "rows.bin"
+    try:
+        try:
+            streamed = _stream_rows(path, rows_file, block_rows)
+        except (OSError, UnicodeError, csv.Error):
+            streamed = None                              # the whole reader says what it is
+        if streamed is None:
+            return read_trajectories_csv(path)
+        frames, times, names, n_rows = streamed
+        points = _place_rows(rows_file, folder / "points.npy", frames.size, len(names), n_rows, block_rows)
+    finally:
+        rows_file.unlink(missing_ok=True)
+    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
+            "time_origin": "the file's time_s column"}
+    return Trajectories(times, frames, tuple(names), points, str(path), info)
+
+
+def read_trajectories_to_disk(path, folder) -> Trajectories:
+    """:func:`read_trajectories`, a CSV's points memory-mapped in ``folder``
+    (:func:`read_trajectories_csv_to_disk`); a C3D is read whole."""
+    if str(path).lower().endswith(".c3d"):
+        return read_c3d(path)
+    return read_trajectories_csv_to_disk(path, folder)
+
+
+_ROW = np.dtype([("frame", np.int64), ("point", np.int32), ("xyz", np.float64, 3)])
+
+
+def _stream_rows(path, rows_file, block_rows: int):
+    """Parse the file in blocks into ``rows_file`` (frame index, point index, xyz); ``(frames, times, names,
+    rows)``, or None for a file :func:`read_trajectories_csv_to_disk` leaves to the whole reader."""
+    if not path.is_file():
+        return None
+    with open(path, newline="") as fh, open(rows_file, "wb") as out:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None:
+            return None
+        header = [h.strip() for h in header]
+        want = ["frame", "time_s", "point", "x_m", "y_m", "z_m"]
+        if any(c not in header for c in want):
+            return None
+        col = {c: header.index(c) for c in want}
+        cf, ct, cp, cx, cy, cz = (col[c] for c in want)
+        n_fields = len(header)
+        frames, times, names, index = array("q"), array("d"), [], {}
+        seen, n_rows, block = set(), 0, []
+        for row in reader:
+            if not row or all(not c.strip() for c in row):
+                continue
+            try:
+                fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
+                x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
+            except (ValueError, IndexError):
+                try:                                  # a missing point (empty coordinates), or a bad row
+                    fr, tm, name, (x, y, z) = _csv_row(path, 0, row, col, n_fields)
+                except TrajectoryFileError:
+                    return None
+            if not (len(row) == n_fields and math.isfinite(tm) and name != "" and not abs(x) > MAX_COORDINATE_M
+                    and not abs(y) > MAX_COORDINATE_M and not abs(z) > MAX_COORDINATE_M):
+                return None
+            if not frames or fr != frames[-1]:
+                if frames and (fr < frames[-1] or not tm > times[-1]):
+                    return None                      # out of order, or times not increasing: the whole reader
+                frames.append(fr)
+                times.append(tm)
+                seen = set()
+            elif tm != times[-1]:
+                return None
+            j = index.get(name)
+            if j is None:
+                j = index[name] = len(names)
+                names.append(name)
+            if j in seen:
+                return None
+            seen.add(j)
+            block.append((len(frames) - 1, j, (x, y, z)))
+            if len(block) == block_rows:
+                np.array(block, _ROW).tofile(out)
+                n_rows, block = n_rows + len(block), []
+        if block:
+            np.array(block, _ROW).tofile(out)
+            n_rows += len(block)
+    if not frames:
+        return None
+    return np.frombuffer(frames, np.int64).copy(), np.frombuffer(times, float).copy(), names, n_rows
+
+
+def _place_rows(rows_file, points_file, n: int, k: int, n_rows: int, block_rows: int) -> np.ndarray:
+    """The points (n, k, 3) of ``rows_file`` in a memory-mapped ``points_file`` (NaN where no row), filled
+    ``block_rows`` rows at a time and returned read-only."""
+    from .streaming import release_pages
+
+    grid = np.lib.format.open_memmap(points_file, mode="w+", dtype=np.float64, shape=(n, k, 3))
+    with open(rows_file, "rb") as fh:
+        filled = 0
+        for a in range(0, n_rows, block_rows):
+            rows = np.fromfile(fh, _ROW, min(block_rows, n_rows - a))
+            lo, hi = int(rows["frame"][0]), int(rows["frame"][-1]) + 1
+            grid[filled:hi] = np.nan
+            grid[rows["frame"], rows["point"]] = rows["xyz"]
+            filled = hi
+            release_pages(grid)
+    grid[filled:] = np.nan
+    grid.flush()
+    del grid
+    return np.load(points_file, mmap_mode="r")

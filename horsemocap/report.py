@@ -310,13 +310,14 @@ def _leaves(parameters: dict, prefix: str = ""):
 def comfort_rows(indicators: dict) -> list[tuple[str, str, str, str]]:
     """``(name, meaning, value, unit as HTML)`` for every indicator of ``comfort.csv``, Table 8.7's order.
 
-    Values to 4 significant digits; the identifier of ``comfort.csv`` is
-    kept in the name, in brackets.
+    Values to 4 significant digits, times in hours also in hours and
+    minutes; the identifier of ``comfort.csv`` is kept in the name, in brackets.
     """
     out = []
     for key, value, unit in comfort_table_rows(indicators):
         name, meaning = INDICATORS.get(key, (key, ""))
-        out.append((f"{name} [{key}]", meaning, format_value(float(value)), unit_html(unit)))
+        shown = format_value(float(value)) + (f" ({hours_minutes(value)})" if unit == "h" else "")
+        out.append((f"{name} [{key}]", meaning, shown, unit_html(unit)))
     return out
 
 

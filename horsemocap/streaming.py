@@ -32,7 +32,9 @@ write out.
 from __future__ import annotations
 
 import dataclasses
+import mmap
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -42,7 +44,8 @@ from .splines import CACHE_SAMPLES
 from .progress import counter
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
-           "WHOLE_RECORD_FRAMES", "representative_range", "register_in_chunks", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
+           "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "window_times", "point_kinematics",
+           "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""
@@ -66,6 +69,10 @@ REGISTRATION_CHUNK = 50_000
 WHOLE_RECORD_FRAMES = 20_000
 """Records up to this many frames are smoothed whole (:func:`horsemocap.pose.fit_pose_trajectory`);
 longer ones in windows."""
+
+GRID_TOLERANCE_S = 1e-6
+"""A window's times within this (s) of a uniform grid are fitted on the grid (:func:`window_times`): the
+rounding of a time column written to the microsecond."""
 
 COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
 
@@ -103,6 +110,30 @@ class SettledSmoothing:
     margin: int
     info: dict
     window: int = WINDOW_FRAMES
+
+
+def release_pages(*arrays) -> None:
+    """Let the system take back the memory of the pages of memory-mapped ``arrays`` read so far.
+
+    A memory-mapped file's pages stay in the process' memory once read; for
+    a file mapped shared (:class:`numpy.memmap`) they are only unmapped (their
+    contents stay in the file), so that a record read window by window does
+    not accumulate in memory. Arrays not mapped from a file are left alone.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.f8"
+    >>> a = np.lib.format.open_memmap(path, mode="w+", dtype=float, shape=(1000,))
+    >>> a[:] = 2.0
+    >>> release_pages(a, np.zeros(3))
+    >>> float(a.sum())
+    2000.0
+    """
+    for a in arrays:
+        mapped = getattr(a, "_mmap", None)
+        if mapped is not None:
+            mapped.madvise(mmap.MADV_DONTNEED)
 
 
 def window_core(window: int, margin: int) -> int:
@@ -164,14 +195,18 @@ def slice_registration(reg: pose.PoseRegistration, lo: int, hi: int) -> pose.Pos
     return dataclasses.replace(reg, **fields)
 
 
-def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUNK) -> pose.PoseRegistration:
+def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUNK,
+                       folder=None) -> pose.PoseRegistration:
     """:func:`horsemocap.pose.register_pose` of ``points`` (n, m, 3), ``chunk`` frames at a time.
 
     Each frame's pose is its own; the marker noise ``noise_m`` pools the
     chunks' squared residuals over their degrees of freedom (``3 k - 6`` per
     frame of k markers), as one registration of the whole record does. The
     result's arrays are filled in place: the memory beyond them is one
-    chunk's working arrays. Without marker weights or covariances.
+    chunk's working arrays; with ``folder`` they are memory-mapped files
+    there (:func:`release_pages` after each chunk), so that a long record's
+    registration is not held in memory; each frame's ``reason`` is one of a
+    few shared strings (an object array). Without marker weights or covariances.
 
     Examples
     --------
@@ -185,22 +220,71 @@ def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUN
     """
     n = len(points)
     if n <= chunk:
-        return pose.register_pose(points, model, names=names)
+        return pose.register_pose(np.asarray(points), model, names=names)
     kept, reasons, pooled, dof = {}, [], 0.0, 0.0
     for a in range(0, n, chunk):
-        reg = pose.register_pose(points[a:a + chunk], model, names=names)
+        reg = pose.register_pose(np.asarray(points[a:a + chunk]), model, names=names)
         for f in dataclasses.fields(reg):
             value = getattr(reg, f.name)
             if f.name != "reason" and isinstance(value, np.ndarray) and value.ndim and value.shape[0] == reg.rms.size:
                 if f.name not in kept:
-                    kept[f.name] = np.empty((n,) + value.shape[1:], value.dtype)
+                    shape = (n,) + value.shape[1:]
+                    kept[f.name] = (np.empty(shape, value.dtype) if folder is None else np.lib.format.open_memmap(
+                        Path(folder) / f"registration-{f.name}.npy", mode="w+", dtype=value.dtype, shape=shape))
                 kept[f.name][a:a + value.shape[0]] = value
-        reasons.append(reg.reason)
+        names_of_reasons, which = np.unique(reg.reason, return_inverse=True)
+        reasons.append(np.array(names_of_reasons.tolist(), dtype=object)[which.reshape(-1)])  # shared strings
         frames_dof = float(np.sum(np.where(np.isfinite(reg.rms), 3 * reg.n_markers - 6, 0)))
         if frames_dof > 0:
             pooled, dof = pooled + reg.noise_m ** 2 * frames_dof, dof + frames_dof
+        release_pages(points, *kept.values())
     noise = float(np.sqrt(pooled / dof)) if dof > 0 else float("nan")
     return dataclasses.replace(reg, **kept, reason=np.concatenate(reasons), noise_m=noise)
+
+
+def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGISTRATION_CHUNK) -> list:
+    """:func:`horsemocap.pose.conditioning_warnings` of a long record's registration, ``chunk`` frames at a time.
+
+    The per-frame figures (:func:`horsemocap.pose.frame_rotation_std`, the
+    triangle's height, the frames without a pose) are taken chunk by chunk
+    and pooled (the rotation noise as the RMS over every frame with a pose),
+    so the working memory is one chunk's; the messages are worded as
+    :func:`horsemocap.pose.conditioning_warnings`' for a registration without
+    covariances (one with covariances is passed to it whole).
+
+    Examples
+    --------
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> conditioning_warnings(pose.register_pose(np.repeat(model[None], 5, axis=0), model), chunk=2)
+    []
+    """
+    reg = registration
+    n = reg.rotation.shape[0]
+    if n <= chunk or reg.information is not None:
+        return pose.conditioning_warnings(reg)
+    sq, count, low, missing, first = np.zeros(3), 0, np.inf, 0, None
+    for a in range(0, n, chunk):
+        part = slice_registration(reg, a, min(n, a + chunk))
+        std = pose.frame_rotation_std(part)
+        seen = np.all(np.isfinite(std), axis=1)
+        sq, count = sq + np.sum(std[seen] ** 2, axis=0), count + int(seen.sum())
+        h = part.height[np.isfinite(part.rotation[:, 0, 0]) & (part.n_markers >= 3)]
+        low = min(low, float(np.min(h))) if h.size else low
+        bad = part.reason[part.reason != ""]
+        missing += bad.size
+        if bad.size:
+            first = min(bad.tolist()) if first is None else min(first, min(bad.tolist()))
+        release_pages(*(getattr(reg, f.name) for f in dataclasses.fields(reg)))
+    out = []
+    rot_noise = float(np.degrees(np.max(np.sqrt(sq / count)))) if count else float("nan")
+    if np.isfinite(low) and np.isfinite(rot_noise) and rot_noise > pose.ROTATION_NOISE_LIMIT_DEG:
+        out.append(f"thin marker triangle: smallest height {1000 * low:.0f} mm; a marker noise of "
+                   f"{1000 * reg.noise_m:.2f} mm gives about {rot_noise:.1f} deg of rotation noise per frame (above "
+                   f"{pose.ROTATION_NOISE_LIMIT_DEG:g} deg); the smoothing removes part of it, but angular results "
+                   "and far points are unreliable")
+    if missing:
+        out.append(f"{missing} of {n} frames have no pose ({first} ...)")
+    return out
 
 
 def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[int, int]:
@@ -289,30 +373,92 @@ def _events_inside(events, t0: float, t1: float):
     return [e for e in events if t0 < e < t1]
 
 
-def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int):
-    """The window's pose trajectory, or the reason it has none (a ValueError's message)."""
-    params = dataclasses.replace(settled.params, events=_events_inside(settled.params.events, t[lo], t[hi - 1]))
+def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
+    """The times of frames ``lo .. hi - 1`` counted from the window's first frame; on the grid
+    ``0, step, 2 step, ...`` where they lie within :data:`GRID_TOLERANCE_S` (or 1e-3 of a step) of it.
+
+    The smoothing's basis and penalty are a pure function of the times
+    (:func:`horsemocap.splines.smoothing_spline` keeps the last few): windows of
+    one length whose times are the same grid share them, where each window's
+    own clock times (``t0 + k step`` rounded differently at each ``t0``) would
+    build them anew. Velocities and accelerations do not depend on the time
+    origin; moving a time by less than a microsecond is the rounding of the
+    time column itself.
+
+    Examples
+    --------
+    >>> t = 1000.0 + np.arange(6) * 0.005
+    >>> window_times(t, 2, 5, 0.005).tolist() == (np.arange(3) * 0.005).tolist()
+    True
+    >>> window_times(np.array([0.0, 0.1, 0.25]), 0, 3, 0.1).tolist()   # off the grid: its own times
+    [0.0, 0.1, 0.25]
+    """
+    local = t[lo:hi] - t[lo]
+    grid = np.arange(hi - lo) * step
+    if local.size and np.max(np.abs(local - grid)) <= min(GRID_TOLERANCE_S, 1e-3 * step):
+        return grid
+    return local
+
+
+def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int, step: float):
+    """The window's pose trajectory on its own times (:func:`window_times`) and those times, or None and
+    the reason it has none (a ValueError's message)."""
+    tl = window_times(t, lo, hi, step)
+    events = _events_inside(settled.params.events, t[lo], t[hi - 1])
+    params = dataclasses.replace(settled.params, events=None if events is None else [e - t[lo] for e in events])
     try:
-        return pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, params,
+        return pose.fit_pose_trajectory(tl, slice_registration(registration, lo, hi), model, params,
                                         points=None if points is None else points[lo:hi],
                                         fundamental_hz=settled.fundamental_hz,
-                                        lam=settled.lam), None
+                                        lam=settled.lam), tl, None
     except ValueError as exc:
-        return None, str(exc)
+        return None, tl, str(exc)
 
 
-def _evaluate(tr, t, a: int, b: int, body_points, registration, why: str | None) -> KinematicsBlock:
-    """The window's kinematics at frames ``a .. b - 1`` (NaN with ``why`` without a trajectory)."""
-    m, tw = len(body_points), t[a:b]
+def point_kinematics(tr, t, body_points) -> tuple:
+    """``(position, velocity, acceleration)`` (n, k, 3) of ``body_points`` (k, 3) and the body's
+    ``omega``, ``alpha`` (n, 3) at times ``t`` of a :class:`horsemocap.pose.PoseTrajectory`.
+
+    :meth:`horsemocap.pose.PoseTrajectory.point`'s rigid-body kinematics
+    (``p = c + r``, ``v = c' + omega x r``, ``a = c'' + alpha x r + omega x (omega x r)``,
+    ``r = R (X - mean(model))``) with the rotation, the centroid's derivatives and
+    the angular rates evaluated once for all the points.
+
+    Examples
+    --------
+    >>> from scipy.spatial.transform import Rotation
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> t = np.arange(40) / 20.0
+    >>> R = Rotation.from_rotvec(np.outer(0.5 * t, [0, 0, 1])).as_matrix()
+    >>> tr = pose.fit_pose_trajectory(t, pose.register_pose(np.einsum("kij,mj->kmi", R, model), model), model,
+    ...                               PoseParams(smoothing="none"))
+    >>> p, v, a, w, al = point_kinematics(tr, t, model)
+    >>> bool(np.allclose(v, tr.points(t, model).velocity)), p.shape
+    (True, (40, 3, 3))
+    """
+    R, w, al = tr.rotation(t), tr.omega(t), tr.alpha(t)
+    c, dc, ddc = (tr.centre(t, d) for d in (0, 1, 2))
+    pos, vel, acc = [], [], []
+    for X in np.asarray(body_points, float):
+        r = np.einsum("kij,j->ki", R, X - tr.model_centroid)
+        pos.append(c + r)
+        vel.append(dc + np.cross(w, r))
+        acc.append(ddc + np.cross(al, r) + np.cross(w, np.cross(w, r)))
+    return np.stack(pos, 1), np.stack(vel, 1), np.stack(acc, 1), w, al
+
+
+def _evaluate(tr, tl, lo: int, a: int, b: int, body_points, registration, why: str | None) -> KinematicsBlock:
+    """The window's kinematics at frames ``a .. b - 1`` (``tl``: the window's times from frame ``lo``; NaN
+    with ``why`` without a trajectory)."""
+    m = len(body_points)
     if tr is None:
         nan3, nank = np.full((b - a, 3), np.nan), np.full((b - a, m, 3), np.nan)
         reason = np.where(registration.reason[a:b] != "", registration.reason[a:b],
                           f"no pose trajectory in this stretch: {why}")
         return KinematicsBlock(a, b, nank, nank, nank, nan3, nan3, reason.astype(object))
-    k = tr.points(tw, body_points)
-    i0 = int(np.searchsorted(tr.t, tw[0]))
-    return KinematicsBlock(a, b, k.position, k.velocity, k.acceleration, tr.omega(tw), tr.alpha(tw),
-                           np.asarray(tr.reason[i0:i0 + b - a], dtype=object))
+    tw = tl[a - lo:b - lo]
+    return KinematicsBlock(a, b, *point_kinematics(tr, tw, body_points),
+                           np.asarray(tr.reason[a - lo:b - lo], dtype=object))
 
 
 def _blend(left: KinematicsBlock, right: KinematicsBlock) -> KinematicsBlock:
@@ -386,13 +532,14 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
     window = settled.window
     plan = window_plan(n, window, settled.margin)
     band = max(1, min(settled.margin // 2, window // 4))
+    step = float(np.median(np.diff(t))) if n > 1 else 1.0
     tick = counter(progress, "kinematics", "smoothing the pose in windows", len(plan))
     pending = None                                 # the previous window's values over the next cut's band
     for j, (lo, hi, c0, c1) in enumerate(plan):
-        tr, why = _window_fit(t, registration, points, model, settled, lo, hi)
+        tr, tl, why = _window_fit(t, registration, points, model, settled, lo, hi, step)
         a = c0 if j == 0 else max(lo, c0 - band)
         b = c1 if j == len(plan) - 1 else min(hi, c1 + band)
-        block = _evaluate(tr, t, a, b, body_points, registration, why)
+        block = _evaluate(tr, tl, lo, a, b, body_points, registration, why)
         if pending is not None:
             yield _blend(pending, _part(block, pending.start, pending.stop))
         keep_to = b if j == len(plan) - 1 else c1 - band
@@ -400,6 +547,7 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
         if keep_to > start:
             yield _part(block, start, keep_to)
         pending = None if j == len(plan) - 1 else _part(block, c1 - band, b)
+        release_pages(points, *(getattr(registration, f.name) for f in dataclasses.fields(registration)))
         tick(j + 1)
 
 

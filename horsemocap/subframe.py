@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
@@ -52,6 +53,10 @@ EXTEND_FRAMES = 1.0
 INTERLACED_FIELD_FRAMES = 0.5
 #: Chunks of the record over which the phase is fitted separately (spread -> uncertainty, slope -> rate).
 CHUNKS = 5
+#: The joint refinement of the phases: its tolerance (frames), of the residual (px) and most simplex steps.
+REFINE_TOLERANCE = 1e-4
+REFINE_RESIDUAL_TOLERANCE_PX = 1e-6
+REFINE_MAX_STEPS = 400
 
 
 @dataclass(frozen=True)
@@ -508,8 +513,9 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
     frames of ``phase`` (the flash's estimate) on a grid of ``step``: all
     combinations for up to two cameras, coordinate by coordinate (three
     passes) for more; the residual is :func:`joint_residual` (the tracks
-    interpolated in time, triangulated by all cameras together). Each phase
-    is then refined on a grid of :data:`GRID_STEP` by a parabola; the record
+    interpolated in time, triangulated by all cameras together). The phases
+    are then refined together (a simplex: the cameras' phases are coupled
+    through the joint triangulation); the record
     cut into :data:`CHUNKS` chunks, each chunk's phase gives the uncertainty
     (spread over ``sqrt(chunks)``, combined with :func:`timing_floor`: the
     residual left, in frames) and, when their drift is larger than twice its
@@ -548,12 +554,8 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                 g = _axis_fit(rig, tracks, best, c, frames, axes[c])
                 if np.isfinite(g):
                     best[c] = g
+    best = _refine_jointly(rig, tracks, best, free, frames)
     fits = {}
-    for c in free:
-        fine = np.arange(best[c] - 2 * step, best[c] + 2 * step + GRID_STEP / 2, GRID_STEP)
-        g = _axis_fit(rig, tracks, best, c, frames, fine)
-        if np.isfinite(g):
-            best[c] = g
     floor = timing_floor(rig, marker_px, best, times)
     for c in free:
         fine = np.arange(best[c] - 3 * GRID_STEP, best[c] + 3.5 * GRID_STEP, GRID_STEP)
@@ -570,6 +572,30 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                            residual_px=joint_residual(rig, tracks, best, frames), n_points=int(n),
                            timing_floor_frames=float(floor.get(c, np.nan)))
     return fits
+
+
+def _refine_jointly(rig, tracks: dict, phase: dict, free: list, frames: np.ndarray) -> dict:
+    """The phases of ``free`` moved together to the least :func:`joint_residual` (Nelder-Mead simplex from
+    ``phase``, first steps of :data:`GRID_STEP`, to :data:`REFINE_TOLERANCE` frames and
+    :data:`REFINE_RESIDUAL_TOLERANCE_PX`).
+
+    The cameras' phases are coupled through the joint triangulation: a camera's best phase moves with
+    the others' errors, so refining one camera at a time, the others held at their coarse-grid values,
+    leaves each off by a share of the others' error; the simplex moves them together.
+    """
+    start = np.array([float(phase[c]) for c in free])
+
+    def cost(x):
+        v = joint_residual(rig, tracks, {**phase, **dict(zip(free, x))}, frames)
+        return v if np.isfinite(v) else np.inf
+
+    simplex = np.vstack([start] + [start + GRID_STEP * np.eye(len(free))[i] for i in range(len(free))])
+    res = minimize(cost, start, method="Nelder-Mead",
+                   options=dict(initial_simplex=simplex, xatol=REFINE_TOLERANCE, fatol=REFINE_RESIDUAL_TOLERANCE_PX,
+                                maxiter=REFINE_MAX_STEPS))
+    if not np.isfinite(res.fun) or res.fun > cost(start):
+        return dict(phase)
+    return {**phase, **{c: float(v) for c, v in zip(free, res.x)}}
 
 
 def timing_floor(rig, marker_px: dict, phase: dict, times: dict | None = None) -> dict:

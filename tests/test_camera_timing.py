@@ -192,3 +192,19 @@ def test_fraction_cost_known_answers():
     quarter = fraction_cost("Horse 2", "canter", 120.0, 0.05).acc_y_pct
     assert half == pytest.approx(2 * quarter, rel=0.02)
     assert fraction_cost("Horse 2", "walk", 30.0, 0.0).acc_y_pct == 0.0
+
+
+def test_fractional_given_offsets_keep_the_interlaced_fields_timing():
+    """Offsets given with a fraction of a frame (``--offsets``) time the centroids like the automatic ones do:
+    an interlaced camera's blob a quarter frame after its frame's start, a rolling shutter's row by row."""
+    from types import SimpleNamespace
+    from horsemocap.steps.detect import observation_times
+    timing = {"left": {"interlaced": True}, "right": {"rolling_shutter_s": 0.02}}
+    session = SimpleNamespace(fps=25.0, camera_timing=lambda c: timing.get(c, {}))
+    rig = {"left": SimpleNamespace(size=(720, 576)), "right": SimpleNamespace(size=(720, 576))}
+    px = {c: np.array([[[100.0, 0.0]], [[100.0, 575.0]]]) for c in rig}
+    given = observation_times(session, SimpleNamespace(subframe_method="given in parameters"), rig, px)
+    assert set(given) == {"left", "right"}
+    assert np.all(given["left"][:, 0] - np.arange(2) > 0.2)          # the fields' mean: a quarter frame late
+    assert given["right"][1, 0] - 1.0 > given["right"][0, 0]          # the last row read out later
+    assert observation_times(session, SimpleNamespace(subframe_method=""), rig, px) == {}

@@ -84,3 +84,20 @@ def test_filtered_images_keep_only_regions_in_the_area_range():
     assert [t.get_text() for t in original.texts] == ["saddle"]
     fig = plots.plot_filtered_images([img, img], 128, marker_px=[np.array([[11.5, 11.5]]), None], zoom="markers")
     assert fig.axes[0].get_xlim() == pytest.approx((11.5 - 4.8, 11.5 + 4.8))  # 8 % of 60 px around the marker
+
+
+def test_distortion_field_magnifies_small_shifts_and_says_so():
+    """A lens moving pixels by a few px: arrows drawn magnified (the title says how much), the colour the
+    true shift; a camera without distortion draws them to scale."""
+    import matplotlib.pyplot as plt
+    from horsemocap.camera import Camera
+    K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    lens = Camera("left", (640, 480), K, distortions=np.array([-0.1, 0.0, 0.0, 0.0, 0.0]))
+    ax = plots.plot_distortion_field(lens)
+    q = ax.collections[0]
+    assert "times their length" in ax.get_title()
+    assert q.scale < 1.0                                          # 1/magnify: longer arrows than the shifts
+    assert 1.0 < float(np.max(q.get_array())) < 30.0              # the colour: the true shift in px
+    flat = Camera("left", (640, 480), K)
+    assert "to scale" in plots.plot_distortion_field(flat).get_title()
+    plt.close("all")

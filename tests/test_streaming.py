@@ -226,3 +226,116 @@ def test_the_compact_reader_places_shuffled_rows_and_names_the_earliest_fault(tm
     (tmp_path / "late.csv").write_text(head + "0,0.0,a,1,2,3\n0,0.0,a,1,2,4\n1,0.01,a,x,2,3\n")
     with pytest.raises(io3d.TrajectoryFileError, match=r"late.csv: lines 2 and 3: point 'a' of frame 0"):
         io3d.read_trajectories_csv(tmp_path / "late.csv")
+
+
+def test_windows_on_one_time_grid_share_it_and_keep_their_kinematics():
+    """A window's times counted from its first frame are the record's grid where they lie on it (the
+    smoothing's basis then shared by windows of one length); off the grid, its own times. Fitted on
+    either, a window's accelerations agree to the lambda search's tolerance."""
+    t = 1234.5 + np.arange(2000) / FPS
+    a, b = streaming.window_times(t, 100, 900, 1 / FPS), streaming.window_times(t, 1100, 1900, 1 / FPS)
+    assert a.tobytes() == b.tobytes() and a[0] == 0.0
+    jitter = t + np.where(np.arange(2000) == 1500, 1e-4, 0.0)
+    assert streaming.window_times(jitter, 1100, 1900, 1 / FPS)[400] == pytest.approx(jitter[1500] - jitter[1100])
+    d = trot(1200)
+    reg = pose.register_pose(d["markers"], MODEL)
+    params = kinematics_params(smoothing="gcv")
+    own = pose.fit_pose_trajectory(d["t"] + 500.0, reg, MODEL, params, points=d["markers"])
+    grid = pose.fit_pose_trajectory(streaming.window_times(d["t"] + 500.0, 0, 1200, 1 / FPS), reg, MODEL, params,
+                                    points=d["markers"])
+    acc_own = own.points(d["t"] + 500.0, HIDDEN[None]).acceleration[:, 0]
+    acc_grid = grid.points(d["t"], HIDDEN[None]).acceleration[:, 0]
+    assert np.max(np.abs(acc_own - acc_grid)) < 1e-3 * np.sqrt(np.mean(np.sum(d["hidden_acc"] ** 2, 1)))
+
+
+def test_point_kinematics_are_the_trajectorys_own():
+    d = trot(600)
+    reg = pose.register_pose(d["markers"], MODEL)
+    tr = pose.fit_pose_trajectory(d["t"], reg, MODEL, kinematics_params(smoothing="gcv"), points=d["markers"])
+    body = np.vstack([MODEL, HIDDEN])
+    p, v, a, w, al = streaming.point_kinematics(tr, d["t"], body)
+    k = tr.points(d["t"], body)
+    for mine, theirs in ((p, k.position), (v, k.velocity), (a, k.acceleration), (w, tr.omega(d["t"])),
+                         (al, tr.alpha(d["t"]))):
+        np.testing.assert_array_equal(mine, theirs)
+
+
+def test_block_text_is_what_the_csv_module_writes():
+    """The kinematics tables' rows formatted in bulk: the same text as csv.writer with '%.9g' numbers and
+    empty fields for NaN and infinities, names and notes quoted as the csv module quotes them."""
+    import io
+
+    from horsemocap.io3d import kinematics_block_text
+
+    rng = np.random.default_rng(5)
+    b, names = 40, ["m1", "a,b", 'say "x"', "hidden"]
+    shape = (b, len(names), 3)
+    vals = [rng.normal(0, 10.0 ** rng.integers(-8, 9, shape), shape) for _ in range(3)]
+    for v in vals:
+        v[rng.random(shape) < 0.05] = np.nan
+    vals[2][3, 1, 2] = np.inf
+    omega, alpha = rng.normal(size=(b, 3)), rng.normal(size=(b, 3))
+    omega[7] = np.nan
+    height, rms = rng.random(b), rng.random(b) * 1e-3
+    height[9] = np.nan
+    reason = np.array(["" if i % 5 else f'gap, "{i}"\nframes' for i in range(b)], object)
+    block = streaming.KinematicsBlock(100, 100 + b, *vals, omega, alpha, reason)
+    frame, time_s = np.arange(100, 100 + b), np.arange(100, 100 + b) / 300.0
+    time_s[4] = np.nan
+
+    def num(v):
+        return "" if not np.isfinite(v) else f"{float(v):.9g}"
+
+    want = [io.StringIO() for _ in range(3)]
+    pos_w, kin_w, ang_w = (csv.writer(fh, lineterminator="\n") for fh in want)
+    for i in range(b):
+        fr, tt = frame[i], num(time_s[i])
+        for j, nm in enumerate(names):
+            pos_w.writerow([fr, tt, nm, *(num(v) for v in vals[0][i, j])])
+            kin_w.writerow([fr, tt, nm, *(num(v) for v in (*vals[1][i, j], *vals[2][i, j]))])
+        ang_w.writerow([fr, tt, *(num(v) for v in (*omega[i], *alpha[i])), num(height[i]), num(rms[i]),
+                        str(reason[i]).replace(",", ";")])
+    got = kinematics_block_text(frame, time_s, names, block, height, rms)
+    for g, w in zip(got, want):
+        assert g == w.getvalue()
+
+
+def test_chunked_conditioning_warnings_are_the_whole_records():
+    thin = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.25, 0.004, 0], [0.1, 0.002, 0.0]])
+    rng = np.random.default_rng(2)
+    pts = np.repeat(thin[None], 900, 0) + rng.normal(0, 1e-3, (900, 4, 3))
+    pts[100:130, :2] = np.nan                               # no pose
+    pts[400:420, 3] = np.nan                                # three markers
+    reg = pose.register_pose(pts, thin)
+    whole = pose.conditioning_warnings(reg)
+    assert len(whole) == 2
+    assert streaming.conditioning_warnings(reg, chunk=128) == whole
+    reg_on_disk = streaming.register_in_chunks(pts, thin, chunk=128)
+    assert streaming.conditioning_warnings(reg_on_disk, chunk=128) == whole
+
+
+def test_a_record_read_to_disk_is_the_record_read_whole(tmp_path):
+    from horsemocap import io3d
+
+    d = trot(700)
+    names = ["m1", "m2", "m3", "m4"]
+    pts = d["markers"].copy()
+    pts[50:60, 2] = np.nan
+    _write(tmp_path / "traj.csv", 3.0 + d["t"], names, pts)
+    whole = io3d.read_trajectories_csv(tmp_path / "traj.csv")
+    (tmp_path / "disk").mkdir()
+    disk = io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk", block_rows=333)
+    assert isinstance(disk.points, np.memmap) and disk.names == whole.names and disk.info == whole.info
+    np.testing.assert_array_equal(disk.points, whole.points)
+    np.testing.assert_array_equal(disk.time_s, whole.time_s)
+    np.testing.assert_array_equal(disk.frame, whole.frame)
+    # out of order, or with a fault: read whole (the same result, or the whole reader's message)
+    lines = (tmp_path / "traj.csv").read_text().splitlines()
+    (tmp_path / "swap.csv").write_text("\n".join([lines[0], lines[5], *lines[1:5], *lines[6:]]) + "\n")
+    swapped = io3d.read_trajectories_csv_to_disk(tmp_path / "swap.csv", tmp_path / "disk")
+    assert not isinstance(swapped.points, np.memmap)
+    np.testing.assert_array_equal(swapped.points, whole.points)
+    (tmp_path / "bad.csv").write_text("\n".join([*lines[:300], "12,x,m1,1,2,3", *lines[300:]]) + "\n")
+    with pytest.raises(io3d.TrajectoryFileError, match="line 301: field 'time_s'"):
+        io3d.read_trajectories_csv_to_disk(tmp_path / "bad.csv", tmp_path / "disk")
+    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["points.npy"]

@@ -119,19 +119,25 @@ def plot_grid_errors(checks: dict, ax=None):
     return ax
 
 
-def plot_distortion_field(camera, ax=None, n: int = 13, title: str = ""):
+def plot_distortion_field(camera, ax=None, n: int = 13, title: str = "", magnify: float | None = None):
     """The camera model (thesis 3.2, eq. 3.7-3.10): where the lens moves each pixel.
 
     For a grid of image points, an arrow from the pixel an ideal pinhole
     camera would give (``f x_n + c``) to the pixel of the calibrated camera
     with its radial and tangential distortion; the colour is the shift in
-    pixels. The principal point is marked with a cross.
+    pixels. The principal point is marked with a cross. A lens moves pixels
+    by a few pixels on an image hundreds wide, so the arrows are drawn
+    magnified (the title says by how much); the colour stays the true shift.
 
     Parameters
     ----------
     camera : horsemocap.camera.Camera
     n : int
         Grid points along the image width.
+    magnify : float, optional
+        Arrow length per pixel of shift; by default the longest arrow is
+        drawn 0.8 of the grid's spacing long (never shorter than to scale;
+        to scale when the lens moves no pixel by a thousandth of one).
     """
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 4.5))
@@ -141,7 +147,11 @@ def plot_distortion_field(camera, ax=None, n: int = 13, title: str = ""):
     xn = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1]], axis=-1)   # ideal pinhole pixels
     moved = camera.normalized_to_pixels(xn) - np.stack([u, v], axis=-1)
     size = np.linalg.norm(moved, axis=-1)
-    q = ax.quiver(u, v, moved[..., 0], moved[..., 1], size, angles="xy", scale_units="xy", scale=1, cmap="viridis")
+    if magnify is None:
+        longest = float(np.max(size))
+        magnify = 1.0 if longest < 1e-3 else max(1.0, 0.8 * (w / max(n - 1, 1)) / longest)
+    q = ax.quiver(u, v, moved[..., 0], moved[..., 1], size, angles="xy", scale_units="xy", scale=1.0 / magnify,
+                  cmap="viridis")
     plt.colorbar(q, ax=ax, label="shift by the lens (px)")
     ax.plot(*camera.principal_point, "r+", ms=12, label="principal point")
     ax.set_xlim(0, w)
@@ -149,6 +159,7 @@ def plot_distortion_field(camera, ax=None, n: int = 13, title: str = ""):
     ax.set_aspect("equal")
     ax.set_xlabel("u (px)")
     ax.set_ylabel("v (px)")
-    ax.set_title(title or f"{camera.name}: distortion (arrows to scale)", fontsize=9)
+    drawn = "to scale" if magnify == 1.0 else f"{magnify:.0f} times their length"
+    ax.set_title(title or f"{camera.name}: distortion (arrows {drawn})", fontsize=9)
     ax.legend(fontsize=7, loc="lower right")
     return ax

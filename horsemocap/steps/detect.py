@@ -223,9 +223,8 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
         idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
                                                tolerance)
-    times = {}
+    times = observation_times(session, sync, rig, idn.marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
-        times = observation_frames(session, rig, idn.marker_px)
         sync = _subframe_by_markers(session, sync, rig, idn.marker_px, times, progress)
     gap = max_gap_frames(session, section)
     have, _ = bridge_gaps(idn.points, gap)
@@ -260,6 +259,20 @@ def free_running_tolerance(rig: Rig) -> float:
     """The identification's residual limit (px) for free-running cameras (:data:`FREE_RUNNING_TOLERANCE_OF_WIDTH`)."""
     width = max(rig[c].size[0] for c in rig.names)
     return DEFAULT_MAX_RESIDUAL_PX + FREE_RUNNING_TOLERANCE_OF_WIDTH * width
+
+
+def observation_times(session: Session, sync: SyncResult, rig: Rig, marker_px: dict) -> dict:
+    """The centroids' own instants (:func:`observation_frames`) whenever the cameras' offsets have a fraction of
+    a frame (found from the flash and the markers, or given as fractional ``--offsets``); none for genlocked
+    cameras, whose rows and fields are exposed at the same instants in every camera.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> observation_times(None, SimpleNamespace(subframe_method=""), None, {})
+    {}
+    """
+    return observation_frames(session, rig, marker_px) if sync.subframe_method else {}
 
 
 def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:

@@ -380,7 +380,7 @@ fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
 w, h = sc.rig.size
 for j in range(3):
     vis = ht.marker_visible[cam][:, j] | hidden[:, j]
-    axs[0].plot(*ht.marker_px[cam][vis, j].T, ".", ms=2, label=f"marker {j}")
+    axs[0].plot(*ht.marker_px[cam][vis, j].T, ".", ms=2, label=f"marker {j + 1}")
 for ex, c in (("stirrup", "0.5"), ("reflector", "m")):
     ins = ht.extras[f"{ex}_inside__{cam}"]
     axs[0].plot(*ht.extras[f"{ex}_px__{cam}"][ins].T, "-", color=c, lw=1, label=ex)

@@ -72,7 +72,7 @@ for cam, src in sources.items():
 # on-frames (`stays`: 1 for a light, about $2/(m+1)$ for the leading edge of an object moving over $m$
 # frames), or leave a place that goes dark (`vacated`). Among the rest the flash is the one with the best
 # score (near 1: large, in place, nothing bright or darkening beside it), **not the earliest**: a bright
-# horse's head entering the picture before the flash used to win. When another candidate at another
+# horse's head entering the picture before the flash would otherwise win. When another candidate at another
 # frame scores nearly as well, the detection is `ambiguous` and the pipeline asks the markers to settle
 # it. The flash frame is then measured on the chosen region: the first frame whose mean brightness is
 # above half-way between the region's off and on levels.

@@ -227,7 +227,8 @@ display(exclude_session)
 # behind a lens that bends the rays: the radial terms $k_1 r^2 + k_2 r^4 + k_5 r^6$ and the tangential
 # term $\mathbf{d}\mathbf{x}$ of eq. 3.7-3.9 move each image point away from where the pinhole alone
 # would put it, more the further it is from the principal point. The arrows show that move for the left
-# camera of this session's rig, to scale:
+# camera of this session's rig, drawn magnified (the title says how much; the colour is the true shift in
+# pixels):
 
 # %%
 fig, ax = plt.subplots(figsize=(6.5, 4.2))

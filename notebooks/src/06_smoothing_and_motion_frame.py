@@ -256,9 +256,9 @@ else:
 # notebook 13), the same detections and rig for each method, with
 # `python benchmarks/bench_herd.py --params '{"smoothing_method": "none"}'` (then `"loess"`,
 # `"rloess"`). It takes minutes, so it is **not** computed here. The measurements below were made
-# with the thesis' per-camera detection, before the multi-view identification became the default
-# (notebook 13, section 6, measures the current default); medians over the 16 sessions of |error|
-# against the truth:
+# with the thesis' per-camera detection, not with the pipeline's default identification in 3D
+# (notebook 04, section 9; notebook 13, section 6, measures the default's errors); medians over the
+# 16 sessions of |error| against the truth:
 #
 # | smoothing | saddle vertical acceleration error (% of its RMS) | Wb-weighted rms | Wk-weighted rms | VDV (Wb) | VDV (Wk) | worst session |
 # |---|---|---|---|---|---|---|

@@ -446,6 +446,21 @@ plt.show()
 # of methods must say which reference it uses (`benchmarks/README.md` lists both for seven real clusters).
 
 # %% [markdown]
+# ## Your choices, downstream
+#
+# What the choices made so far (the saddle-marker picker and the smoothing above, and the widgets of the
+# earlier notebooks) give at the end of each chain: the saddle's vertical acceleration (unweighted rms), its
+# $W_b$- and $W_k$-weighted rms (chapter 7, notebook 12) and the quality verdict of the run (the
+# `quality.json` of a results folder: *ok*, *warning* or *unreliable*, with what each check found). The
+# chain followed is the one chosen in notebook 00; both are shown because a choice belongs to one chain.
+# Move a widget above, then run this cell again.
+
+# %%
+from horsemocap.workspace import downstream_text
+
+print(downstream_text(ws.session_dir))
+
+# %% [markdown]
 # ## Exercises
 #
 # 1. Use the base-2 body frame (`rigid.saddle_in_body(rb.model, rb.static_saddle, base=1)`) and eq. 6.48

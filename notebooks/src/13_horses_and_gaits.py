@@ -53,9 +53,10 @@ print(f"{'overall':13s}" + "".join(f"{x:9.4f}" for x in overall))
 # comfort indicator of `comfort.csv`.
 #
 # The cell below renders the sessions that are not in the cache yet (about 45 s each, once) and
-# analyses those whose results are missing or out of date (about 10-20 s each on two cores); a
-# progress line with the time left is printed while it runs. Run again, it finds every result in
-# place and only reads the table. The table lives in the notebooks' results folder
+# analyses those whose results are missing or out of date (about 15 s each on two cores). On two
+# cores the first run takes about 16 minutes (12 of rendering, 4 of analysis); with every session
+# rendered, about 4 minutes. A progress line with the time left is printed below the cell while it
+# runs. Run again, it finds every result in place and only reads the table (a few seconds). The table lives in the notebooks' results folder
 # (`$HORSEMOCAP_RESULTS`, default `~/.cache/horsemocap/results`), outside the repository.
 
 # %%
@@ -294,6 +295,45 @@ for g in herd.GAITS:
             series[h] = None
     plots.plot_saddle_by_gait(series, herd.GAIT_LABELS[g])
     plt.show()
+
+# %% [markdown]
+# ## 8 · Your session beside the herd
+#
+# The session chosen in notebook 00 (with the choices made in notebooks 02-12), its comfort
+# indicators beside the herd's in the same gait (the gait comes from its `session.json`; without one,
+# beside all 16 sessions). A session of the virtual laboratory is then compared with its ground
+# truth; a recorded session has none.
+
+# %%
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
+
+yours = results_for()                       # the workspace's session, as notebooks 02-12 analysed it
+your_gait = yours.session.metadata.get("gait")
+gaits_beside = (your_gait,) if your_gait in herd.GAITS else herd.GAITS
+your_ind = (yours.comfort.indicators if yours.comfort is not None else None) or {}
+print(f"your session: {yours.session.name} ({yours.session.metadata.get('horse', 'horse not given')}, "
+      f"{herd.GAIT_LABELS.get(your_gait, 'gait not given')}); beside the herd's "
+      f"{', '.join(herd.GAIT_LABELS[g] for g in gaits_beside)}")
+if not your_ind:
+    print("its comfort step did not run (notebook 12 says why): nothing to set beside the herd")
+for k in ("acc_y_Wb_rms", "VDV_y_Wb", "TA_8_limit_Wb") if your_ind else ():
+    herd_values = herd.indicator_matrix(table, k, gaits=gaits_beside).ravel()
+    herd_values = herd_values[np.isfinite(herd_values)]
+    print(f"{k:16s} yours {your_ind[k]:8.3f}   herd {herd_values.min():8.3f} to {herd_values.max():8.3f}"
+          f"   {int(np.sum(herd_values < your_ind[k]))} of {herd_values.size} herd sessions lower")
+
+# %%
+your_truth = session_truth()                # None for a recorded session (no truth/ folder)
+if your_truth is None:
+    print(NO_TRUTH, "(a recorded session): its indicators above are the measurement alone")
+elif your_ind:
+    horse = your_truth.extras["motion"]["horse"]["name"]
+    gait = your_truth.extras["motion"]["gait"]["name"]
+    exact = herd.analytic_indicators(horse, gait, mode=yours.params.comfort.weighting_mode)
+    print(f"ground truth: {horse}, {herd.GAIT_LABELS.get(gait, gait)}")
+    for k in ("acc_y_Wb_rms", "VDV_y_Wb", "TA_8_limit_Wb"):
+        print(f"{k:16s} measured {your_ind[k]:8.3f}   truth {exact[k]:8.3f}   "
+              f"error {100 * (your_ind[k] / exact[k] - 1):+6.1f} %")
 
 # %% [markdown]
 # ## Exercises

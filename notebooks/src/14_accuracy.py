@@ -441,13 +441,13 @@ for label, change in variants.items():
 
 # %%
 keys = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max")
-print(f"{'indicator':14s} {'Table 8.7':>10s} {'default chain':>14s}" + "".join(f"{k:>19s}" for k in best))
+print(f"{'indicator':14s} {'Table 8.7':>10s} {'default chain':>14s}" + "".join(f"{k:>18s}" for k in best))
 default_ind = analysis.comfort.indicators
 print(f"{'(answer)':14s} {'':>10s} {'':>14s}" + "".join(
-    f"{'' if r is None else thesis_answers.mask_text(r['mask']):>19s}" for r in best.values()))
+    f"{'' if r is None else thesis_answers.mask_text(r['mask']):>18s}" for r in best.values()))
 for k in keys:
     print(f"{k:14s} {T[k]:10.2f} {default_ind[k]:14.2f}" + "".join(
-        f"{'-' if r is None else format(r[k], '.2f'):>19s}" for r in best.values()))
+        f"{'-' if r is None else format(r[k], '.2f'):>18s}" for r in best.values()))
 
 # %% [markdown]
 # What this shows, on the bundled canter: with the automatic inputs only 3 of the 13 answers stay
