@@ -1,6 +1,6 @@
 """A long recording with several passes: ``analyze`` beside raw OpenCV decoding, in one run.
 
-    python benchmarks/bench_passes.py [--frames 1200] [--period 10] [--rounds 2] [--session DIR]
+    python benchmarks/bench_passes.py [--frames 1200] [--period 10] [--rounds 2] [--session DIR] [--per-pass N]
 
 The long session of :mod:`horsemocap.virtuallab.longsession` (``--frames``
 frames per camera after the flash, a pass every ``--period`` seconds;
@@ -10,8 +10,12 @@ three videos are decoded alone (OpenCV, gray, one after another, one OpenCV
 thread: the floor), each in its own process, taking turns for ``--rounds``
 rounds. Printed: the load average before and after, each round's times, the
 median throughput ratio decode / analyze (1 = the analysis as fast as
-decoding its videos) and the passes found with their verdicts. Results in
-``results/passes.json``.
+decoding its videos) and the passes found with their verdicts. With
+``--per-pass N`` each pass other than the longest is also timed in this
+process (CPU, the least of N runs) through the later steps as the pipeline
+runs them (every choice made on the pass) and as :mod:`horsemocap.passes`
+runs them (the pose smoothing settled on the longest pass, no thesis' chain),
+with the Wb/Wk rms and VDV of both. Results in ``results/passes.json``.
 """
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ import json
 import os
 import statistics
 import sys
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -44,16 +49,53 @@ print(json.dumps({"timings": a.timings, "total_s": total, "synced_frames": a.syn
 """
 
 
+def per_pass(session, repeats: int) -> list:
+    """Each extra pass' later steps timed both ways (see the module docstring), with their comfort."""
+    from horsemocap import passes as P
+    from horsemocap.pipeline import analyze, run_steps
+    a = analyze(session, progress=lambda *args: None)
+    run_later = lambda given, steps: run_steps(a.session, a.params, given, steps, lambda *args: None)  # noqa: E731
+    settled = P.pass_smoothing(a)
+    tri, det = a.triangulate, a.detect
+    rows = []
+    for i, run in enumerate(P.pass_runs(a), 1):
+        segment = P.pass_segment(tri.points, run)
+        if (run[0] <= tri.segment[0] and tri.segment[1] <= run[1]) or segment is None:
+            continue
+        given = {n: getattr(a, n) for n in ("sync", "rig", "plumb", "static")}
+        given["detect"], given["triangulate"] = det.replace(segment=run), tri.replace(segment=segment)
+        row = {"pass": i, "frames": list(segment)}
+        for label in ("per_pass", "settled"):
+            cpu = []
+            for _ in range(repeats):
+                c0 = time.process_time()
+                if label == "per_pass":
+                    comfort = run_later(given, P.PASS_STEPS).comfort
+                else:
+                    comfort = P._later_steps(run_later, given, settled)[0]["comfort"]
+                cpu.append(time.process_time() - c0)
+            ind = comfort.indicators
+            row[label] = {"cpu_s": min(cpu), **{k: ind[k] for k in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb")}}
+        rows.append(row)
+        before, after = row["per_pass"], row["settled"]
+        print(f"  pass {i} (frames {segment[0]}..{segment[1] - 1}): "
+              f"CPU {before['cpu_s']:.3f} -> {after['cpu_s']:.3f} s; "
+              + ", ".join(f"{k} {before[k]:.4f} -> {after[k]:.4f} ({100 * (after[k] / before[k] - 1):+.2f} %)"
+                          for k in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb")), flush=True)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=1200)
     ap.add_argument("--period", type=float, default=10.0)
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--session", type=Path)
+    ap.add_argument("--per-pass", type=int, default=0, metavar="N")
     args = ap.parse_args()
     repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo))
     if args.session is None:
-        sys.path.insert(0, str(repo))
         from horsemocap.virtuallab.longsession import long_session
         args.session = long_session(args.frames, pass_period_s=args.period, progress=print)
     before = load()
@@ -83,9 +125,13 @@ def main():
     after = load()
     print(f"median decode / analyze throughput ratio {median:.2f} (target >= 0.7); load average before {before}, "
           f"after {after}; {os.cpu_count()} processors")
+    extra = {}
+    if args.per_pass:
+        print(f"each extra pass' later steps, choices per pass -> settled on the longest (load {load()}):")
+        extra = {"per_pass": per_pass(args.session, args.per_pass), "per_pass_load": load()}
     out = Path(__file__).resolve().parent / "results" / "passes.json"
     out.write_text(json.dumps({"session": str(args.session), "rounds": rounds, "median_ratio": median,
-                               "load_before": before, "load_after": after}, indent=1))
+                               "load_before": before, "load_after": after, **extra}, indent=1))
 
 
 if __name__ == "__main__":

@@ -25,9 +25,11 @@ import numpy as np
 
 from . import quality
 from .forking import run_beside
+from .pose import SettledPoseSmoothing, settle_pose_smoothing
 from .steps import AnalysisError, ComfortResult
 from .steps.base import longest_run
 from .steps.detect import MIN_SEGMENT_FRAMES
+from .steps.rigid_body import step_rigid_body
 from .vibration import COMFORT_KEYS, exposure_times
 
 #: Passes named one by one in the progress line (more are counted by verdict).
@@ -209,8 +211,10 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
     ``run_later(results, steps)`` runs ``steps`` on top of the given
     results (:func:`horsemocap.pipeline.run_steps` with the session and the
     parameters). The pass that holds the analysis' own segment keeps its
-    results; every other is analysed anew from the smoothing on. Returns
-    None when the record holds one pass only (nothing to add).
+    results; every other is analysed anew from the smoothing on, its pose
+    smoothing with the choices settled on the analysis' own pass
+    (:func:`pass_smoothing`). Returns None when the record holds one pass
+    only (nothing to add).
     """
     runs = pass_runs(analysis)
     if len(runs) < 2:
@@ -232,7 +236,9 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
         given["detect"] = det.replace(segment=run)
         given["triangulate"] = tri.replace(segment=segment)
         jobs[i] = (run, segment, given)
-    later = run_beside([lambda given=given: _later_steps(run_later, given) for _, _, given in jobs.values()])
+    settled = pass_smoothing(analysis)
+    later = run_beside([lambda given=given: _later_steps(run_later, given, settled)
+                        for _, _, given in jobs.values()])
     for (i, (run, segment, given)), (results, error) in zip(jobs.items(), later):
         if error:
             out[i] = PassResult(i, run, segment, None, "unreliable", error=error)
@@ -249,10 +255,37 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
     return result
 
 
-def _later_steps(run_later, given) -> tuple[dict, str]:
-    """The results of :data:`PASS_STEPS` on ``given`` and "", or {} and why they could not be computed."""
+def pass_smoothing(analysis) -> SettledPoseSmoothing | None:
+    """The pose smoothing's choices of ``analysis`` (its longest pass), for the other passes of the record.
+
+    The passes film the same horse in the same gait: the method, stride
+    frequency, smoothing parameters, harmonics and rotation weighting chosen
+    on the longest pass (:func:`horsemocap.pose.settle_pose_smoothing`) serve
+    the others, which then search none of them. None when the analysis has
+    no pose trajectory (``kinematics="fits"``).
+    """
+    rb = analysis.rigid_body
+    trajectory = None if rb is None else getattr(rb.body, "pose", None)
+    if trajectory is None or analysis.params.rigid_body.kinematics != "pose_spline":
+        return None
+    return settle_pose_smoothing(trajectory, analysis.params.rigid_body.pose)
+
+
+def _later_steps(run_later, given, settled: SettledPoseSmoothing | None = None) -> tuple[dict, str]:
+    """The results of :data:`PASS_STEPS` on ``given`` and "", or {} and why they could not be computed.
+
+    The rigid-body step is called here with the arguments :data:`horsemocap.pipeline.STEP_CALLS` gives it,
+    the ``settled`` pose smoothing, and without the thesis' chain of fits (a pass' comfort and verdict come
+    from the pose trajectory; the chain is the main pass' own, in its result files).
+    """
+    quiet = lambda *a: None  # noqa: E731
     try:
-        an = run_later(given, PASS_STEPS)
+        an = run_later(given, ("smooth", "motion_frame"))
+        rigid_body = step_rigid_body(an.session, an.params.rigid_body, an.triangulate, an.smooth.raw,
+                                     an.motion_frame, an.detect.sync.offsets, quiet, settled=settled,
+                                     thesis_chain=False)
+        an = run_later({**given, "smooth": an.smooth, "motion_frame": an.motion_frame, "rigid_body": rigid_body},
+                       ("comfort",))
     except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:
         return {}, str(exc)
     return {name: getattr(an, name) for name in PASS_STEPS}, ""

@@ -131,6 +131,8 @@ __all__ = [
     "CollinearMarkersError",
     "PoseRegistration",
     "PoseTrajectory",
+    "SettledPoseSmoothing",
+    "settle_pose_smoothing",
     "PointKinematics",
     "smallest_height",
     "check_model_conditioning",
@@ -1237,7 +1239,8 @@ def partial_pose(points, model, rotation, centre):
 def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PoseParams = PoseParams(), *,
                         points=None, fundamental_hz: float | None = None,
                         expected_fundamental_hz: float | None = None, max_gap_s: float | None = None,
-                        lam=None, iterations: int = 3, rotation_noise_test: bool = True) -> PoseTrajectory:
+                        lam=None, iterations: int = 3, rotation_noise_test: bool = True,
+                        settled: SettledPoseSmoothing | None = None) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     The centroid ``c(t)`` and the rotation vector ``phi(t)`` of ``R(t) = Exp(phi(t)) R_ref`` are
@@ -1278,6 +1281,15 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     rotation_noise_test : bool
         With ``harmonics="auto"``: the rotation harmonics' test against the
         predicted rotation noise (default on; off for comparison).
+    settled : SettledPoseSmoothing, optional
+        The smoothing's choices settled on another record of the same body
+        and motion (:func:`settle_pose_smoothing`, e.g. on a long recording's
+        longest pass): its method, noise correlation, stride frequency,
+        smoothing parameters, most harmonics per component and rotation
+        weighting are taken instead of chosen here; only which of the first
+        harmonics each component keeps is chosen (at the given smoothing
+        parameter). ``lam`` and ``fundamental_hz``, when given, still take
+        precedence over its values.
 
     Returns
     -------
@@ -1311,7 +1323,11 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     ok = _check_pose_frames(t, reg)
     n = t.size
     lam = _check_smoothing_choices(params, lam)
-    smoothing, order = ("gcv", 3) if params.smoothing == "gcv_cubic" else (params.smoothing, 5)
+    if settled is not None:
+        lam = [s if g is None else g for g, s in zip(lam, settled.lam)]
+        fundamental_hz = settled.fundamental_hz if fundamental_hz is None else fundamental_hz
+    method = params.smoothing if settled is None else settled.method
+    smoothing, order = ("gcv", 3) if method == "gcv_cubic" else (method, 5)
     ref, phi_ok = rotation_reference(t[ok], Rotation.from_matrix(reg.rotation[ok]))
     phi = np.full((n, 3), np.nan)
     phi[ok] = phi_ok
@@ -1322,10 +1338,10 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         sig = pose_noise(reg, points, model)
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
     fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
-               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations)
+               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled)
     centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho,
                                                            **fit)
-    if choice is not None and "noise_correlation" in choice and any(
+    if settled is None and choice is not None and "noise_correlation" in choice and any(
             s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE for s in cs + ps):
         # the correlated-error criterion smoothed a component down to the penalty's null space: it took
         # that component's whole motion for noise (short records); the white-noise choice is taken instead
@@ -1353,10 +1369,15 @@ NULL_SPACE_TOLERANCE = 0.05
 
 
 def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
-                    fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int):
+                    fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int,
+                    settled: SettledPoseSmoothing | None = None):
     """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white):
     ``(centre, phi, centre splines, rotation splines, choice, two-marker frames)``."""
     n = t.size
+    if settled is not None:
+        return _fit_settled_components(t, reg, model, phi, ok, ref, order, settled, params=params,
+                                       fundamental_hz=fundamental_hz, lam=lam, sig=sig, points=points,
+                                       iterations=iterations)
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
                                               params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
@@ -1379,6 +1400,130 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
+
+
+def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order: int,
+                            settled: SettledPoseSmoothing, *, params, fundamental_hz, lam, sig, points,
+                            iterations: int):
+    """:func:`_fit_components` with the choices of ``settled``: no method, stride frequency, noise correlation
+    or rotation weighting chosen; each component keeps the first 0 .. ``settled.harmonics`` harmonics that
+    the criterion prefers at the given smoothing parameter (neither the plain spline's cutoff nor the rotation
+    noise test is run again: the settled count passed them)."""
+    n = t.size
+    f0 = fundamental_hz if settled.method in ("gcv", "noise") and order == 5 else None
+    choice = None if settled.choice is None else dict(settled.choice)
+    two = _two_marker_frames(points, ok, n) if params.partial_frames else np.zeros(n, bool)
+    var = None
+    if any(settled.rotation_weighted) and reg.information is not None:
+        var = frame_variances(reg)[:, 3:].copy()
+        var[:, ~np.asarray(settled.rotation_weighted, bool)] = np.nan    # equal weights there
+    spline_options = dict(method="gcv" if settled.method == "gcv_cubic" else settled.method, order=order,
+                          fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
+    if settled.noise_correlation is not None:
+        spline_options["noise_correlation"] = settled.noise_correlation
+    most = settled.harmonics if f0 is not None else None
+    centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
+                                       sig, var, [None] * 3, False, iterations, most_harmonics=most,
+                                       compare_weights=False)
+    return centre, phi, cs, ps, choice, two
+
+
+@dataclass(frozen=True)
+class SettledPoseSmoothing:
+    """The pose smoothing's choices made once, to be reused on other records of the same body and motion.
+
+    A long recording's passes film the same horse in the same gait: the
+    smoothing's choices (which method ``"auto"`` runs, the noise correlation,
+    the stride frequency, each component's smoothing parameter, how many
+    stride harmonics it may keep and whether the rotation is weighted by its
+    predicted variance) are settled on the longest pass
+    (:func:`settle_pose_smoothing`) and given to :func:`fit_pose_trajectory`
+    (``settled``) for the others, which then fit each component once instead
+    of searching. A smoothing parameter of the quintic spline is a bandwidth
+    (:func:`horsemocap.splines.half_gain_frequency`, weights of mean 1), so
+    it keeps its meaning on a record of another length.
+
+    Attributes
+    ----------
+    method : str
+        The method run: ``"gcv"``, ``"adaptive"``, ``"noise"``, ``"gcv_cubic"`` or ``"none"``.
+    noise_correlation : float or None
+        The AR(1) noise correlation of the correlated-error GCV, None for white noise.
+    fundamental_hz : float or None
+        The stride frequency of the harmonics (None: no harmonics).
+    lam : tuple of 6 (float or None)
+        The smoothing parameters ``cx, cy, cz, phix, phiy, phiz``; None where they are chosen again
+        (the adaptive penalty, whose scale belongs to its record's roughness).
+    harmonics : tuple of 6 int
+        The most stride harmonics each component may keep (its largest harmonic's order; 0: none).
+    rotation_weighted : tuple of 3 bool
+        Whether each rotation component is smoothed with every frame weighted by its predicted variance.
+    choice : dict or None
+        What ``smoothing="auto"`` ran and why (copied into each component's ``info``), None if the
+        method was named.
+
+    Examples
+    --------
+    >>> s = SettledPoseSmoothing("gcv", None, 1.5, (1e-6,) * 6, (2, 2, 1, 1, 0, 1), (False, True, False))
+    >>> s.harmonics[2], s.rotation_weighted[1]
+    (1, True)
+    """
+
+    method: str
+    noise_correlation: float | None
+    fundamental_hz: float | None
+    lam: tuple
+    harmonics: tuple
+    rotation_weighted: tuple
+    choice: dict | None = None
+
+
+def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseParams()) -> SettledPoseSmoothing:
+    """The choices :func:`fit_pose_trajectory` made for ``trajectory`` (smoothed with ``params``), to reuse.
+
+    Examples
+    --------
+    A body swaying at 1 Hz; the settled choices smooth a second record of it
+    with the same smoothing parameters, searching none:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.transform import Rotation
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> rng = np.random.default_rng(0)
+    >>> def record(n):
+    ...     t = np.arange(n) / 50.0
+    ...     R = Rotation.from_rotvec(np.outer(0.1 * np.sin(2 * np.pi * t), [0, 0, 1])).as_matrix()
+    ...     pts = np.einsum("kij,mj->kmi", R, model) + rng.normal(0, 1e-3, (n, 3, 3))
+    ...     return t, pts, register_pose(pts, model)
+    >>> t, pts, reg = record(400)
+    >>> first = fit_pose_trajectory(t, reg, model, points=pts)
+    >>> settled = settle_pose_smoothing(first)
+    >>> settled.method, round(settled.fundamental_hz, 2)
+    ('gcv', 1.0)
+    >>> t2, pts2, reg2 = record(200)
+    >>> second = fit_pose_trajectory(t2, reg2, model, points=pts2, settled=settled)
+    >>> second.smoothing["phiz"]["lam"] == first.smoothing["phiz"]["lam"]
+    True
+    """
+    info = trajectory.smoothing
+    names = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+    choice = trajectory.smoothing_choice
+    method = params.smoothing if choice is None else choice["method"]
+    rho = None
+    if method == "gcv_ar1":
+        method, rho = "gcv", float(choice["noise_correlation"])
+    f0 = info["cx"].get("fundamental_hz")
+    f0 = float(f0) if f0 is not None and np.isfinite(f0) and method in ("gcv", "noise") else None
+    lam = tuple(float(info[c]["lam"]) if method != "adaptive" and np.isfinite(info[c].get("lam", np.nan))
+                and info[c]["lam"] > 0 else None for c in names)
+    harmonics = tuple(int(max(info[c].get("harmonic_indices") or [0])) if f0 is not None else 0 for c in names)
+    weighted = tuple(info[c].get("weights", "equal") != "equal" for c in names[3:])
+    kept = None
+    if choice is not None:
+        kept = {"smoothing_method": choice["method"], "smoothing_reason": choice["reason"]}
+        if "noise_correlation" in choice:
+            kept["noise_correlation"] = choice["noise_correlation"]
+    return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept)
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:
@@ -1442,18 +1587,23 @@ def _two_marker_frames(points, ok, n) -> np.ndarray:
 
 
 def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam, sig, var, rot_noise,
-                 harmonic_cutoff: bool, iterations: int):
+                 harmonic_cutoff: bool, iterations: int, most_harmonics=None, compare_weights: bool = True):
     """The six components' splines; with partial frames (``two``) smoothed again with their completed poses.
 
+    ``most_harmonics``: (6,) the most harmonics each component tries (None: the spline's default);
+    ``compare_weights`` False: a rotation component with variances is fitted weighted only.
     Returns the centroid and rotation vectors the splines were fitted to and the splines (3 + 3).
     """
     use = ok
     x_model = np.asarray(model, float)
+    extra = [{} if most_harmonics is None else {"max_harmonics": int(k)} for k in (most_harmonics or [0] * 6)]
     for it in range(iterations + 1 if two.any() else 1):
-        cs = tuple(smoothing_spline(t[use], centre[use, i], lam=lam[i], noise=sig[i], **options) for i in range(3))
+        cs = tuple(smoothing_spline(t[use], centre[use, i], lam=lam[i], noise=sig[i], **options, **extra[i])
+                   for i in range(3))
         ps = tuple(_rotation_component(t[use], phi[use, i], None if var is None else var[use, i],
                                        lam=lam[3 + i], noise=sig[3 + i], harmonic_cutoff=harmonic_cutoff,
-                                       harmonic_noise=rot_noise[i], **options) for i in range(3))
+                                       harmonic_noise=rot_noise[i], compare=compare_weights, **options,
+                                       **extra[3 + i]) for i in range(3))
         if it == iterations or not two.any():
             break
         tk = t[two]
@@ -1836,18 +1986,23 @@ def frame_variances(registration: PoseRegistration) -> np.ndarray:
     return var
 
 
-def _rotation_component(t, y, variance, *, harmonic_noise=None, **kwargs):
+def _rotation_component(t, y, variance, *, harmonic_noise=None, compare: bool = True, **kwargs):
     """One rotation component's spline: with ``variance`` (predicted per frame) the robust weighted fit
     and the equal-weight fit, the one whose noise model explains its residuals better kept
     (:func:`horsemocap.splines.residual_log_likelihood`); without, the equal-weight fit. The weighted
     fit's harmonic test uses the noise of a unit-weight frame, calibrated by the fit's standardised residuals
     (``harmonic_noise="calibrated"`` of :func:`horsemocap.splines.robust_weighted_spline`, which also lifts the
-    plain spline's cutoff), when ``harmonic_noise`` is given."""
-    equal = smoothing_spline(t, y, harmonic_noise=harmonic_noise, **kwargs)
-    if variance is None or not np.all(np.isfinite(variance) & (variance > 0)):
+    plain spline's cutoff), when ``harmonic_noise`` is given. ``compare`` False: with ``variance`` the
+    weighted fit only (the weighting settled elsewhere)."""
+    usable = variance is not None and np.all(np.isfinite(variance) & (variance > 0))
+    if not usable or compare:
+        equal = smoothing_spline(t, y, harmonic_noise=harmonic_noise, **kwargs)
+    if not usable:
         return equal
     weighted = robust_weighted_spline(t, y, variance, harmonic_noise=None if harmonic_noise is None else "calibrated",
                                       **kwargs)
+    if not compare:
+        return weighted
     lw = residual_log_likelihood(weighted, t, y, variance)
     le = residual_log_likelihood(equal, t, y)
     best = weighted if lw > le else equal

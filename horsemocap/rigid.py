@@ -112,8 +112,8 @@ from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
 from .params import FitsParams, RigidBodyParams
-from .pose import (PoseRegistration, PoseTrajectory, check_model_conditioning, conditioning_warnings,
-                   fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
+from .pose import (PoseRegistration, PoseTrajectory, SettledPoseSmoothing, check_model_conditioning,
+                   conditioning_warnings, fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
 from .registration import check_model, rotation_from_cross_covariance, skew
 
 __all__ = [
@@ -1272,6 +1272,9 @@ class PoseInput:
         ``weights``.
     weights : (m,) or (N, m), optional
         Marker weights (inverse variances) of the pose registration.
+    settled : horsemocap.pose.SettledPoseSmoothing, optional
+        The pose smoothing's choices settled on another record (``settled`` of
+        :func:`horsemocap.pose.fit_pose_trajectory`); default: chosen here.
 
     Examples
     --------
@@ -1283,12 +1286,13 @@ class PoseInput:
     t: np.ndarray | None = None
     covariance: np.ndarray | None = None
     weights: np.ndarray | None = None
+    settled: SettledPoseSmoothing | None = None
 
 
 def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = RigidBodyParams(), *,
                        period_s: float | None = None, fourier_orders: FourierOrders | None = None,
                        pose_input: PoseInput | None = None, static_index=None, smooth_span: float = 0.1,
-                       fourier_start: str = "matlab") -> RigidBodyAnalysis:
+                       fourier_start: str = "matlab", thesis_chain: bool = True) -> RigidBodyAnalysis:
     """Registration, fits, angular kinematics and the saddle in one call (the rigid-body step).
 
     The static shot is matched to the ride (:func:`match_static_markers`);
@@ -1336,6 +1340,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         rloess span for the versions (Appendix A step 11).
     fourier_start : "matlab" or "all"
         ``start`` of every Fourier fit (:func:`horsemocap.fitting.fit_fourier`).
+    thesis_chain : bool
+        With ``kinematics="pose_spline"``: compute the thesis' chain beside the
+        pose trajectory (False: the pose trajectory alone, as for a ride of
+        other than three markers; nothing passed on depends on the chain).
 
     Returns
     -------
@@ -1392,7 +1400,7 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
-    traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts,
+    traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
                                expected_fundamental_hz=None if not period_s else 1.0 / period_s)
     traj = _white_if_stride_lost(traj, pt, preg_all, model, params, ppts, period_s)
     psaddle = traj.point(t, s_saddle)
@@ -1400,6 +1408,8 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
     if pts.shape[1] != 3:
         return _pose_only(common, pose, pts, f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}")
+    if not thesis_chain:
+        return _pose_only(common, pose, pts, "not asked for (thesis_chain False)")
     try:
         chain = _thesis_chain(*chain_inputs)
     except (ValueError, np.linalg.LinAlgError) as exc:

@@ -94,10 +94,22 @@ def test_a_second_pass_is_analysed_alone_and_combined(bundled):
     a, b = tri.segment
     assert second.segment == (a + n + gap, b + n + gap)
     assert second.verdict == first.verdict
+    # the second pass is the first's data smoothed with the first's settled choices: the centroid's fits are
+    # the same; the rotation's robust reweighting iterates at the settled (final) parameter, hence not to 1e-9
     for key, value in first.indicators.items():
-        assert second.indicators[key] == pytest.approx(value, rel=1e-9, abs=1e-12), key
+        assert second.indicators[key] == pytest.approx(value, rel=1e-3, abs=1e-9), key
+    smoothing = (first.analysis.rigid_body.body.pose.smoothing, second.analysis.rigid_body.body.pose.smoothing)
+    for c in ("cx", "cy", "cz", "phix", "phiy", "phiz"):
+        assert smoothing[1][c]["lam"] == smoothing[0][c]["lam"], c
+        assert max(smoothing[1][c].get("harmonic_indices") or [0]) <= max(smoothing[0][c].get("harmonic_indices")
+                                                                            or [0]), c
+        assert smoothing[1][c].get("weights") == smoothing[0][c].get("weights"), c
+    # the thesis' chain of fits is the main pass' alone: the other passes' comfort and verdict do without it
+    assert first.analysis.rigid_body.body.motion_fit is not None
+    assert second.analysis.rigid_body.body.motion_fit is None
+    assert "not asked" in second.analysis.rigid_body.body.chain_error
     assert result.combined["duration_s"] == pytest.approx(2 * first.duration_s)
-    assert result.combined["acc_y_Wb_rms"] == pytest.approx(first.indicators["acc_y_Wb_rms"])
+    assert result.combined["acc_y_Wb_rms"] == pytest.approx(first.indicators["acc_y_Wb_rms"], rel=1e-3)
     assert "2 passes" in messages[-1]
 
     record.passes = result
@@ -106,7 +118,7 @@ def test_a_second_pass_is_analysed_alone_and_combined(bundled):
     offset = record.synchronisation.offsets[record.session.reference_camera]
     assert int(rows[1]["first_frame"]) == a + n + gap + offset
     assert float(rows[2]["duration_s"]) == pytest.approx(2 * first.duration_s)
-    assert float(rows[2]["acc_y_Wb_rms"]) == pytest.approx(first.indicators["acc_y_Wb_rms"])
+    assert float(rows[2]["acc_y_Wb_rms"]) == pytest.approx(first.indicators["acc_y_Wb_rms"], rel=1e-3)
 
 
 def test_a_pass_too_short_to_triangulate_is_a_row_with_its_reason(bundled):

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..frames import time_axis, to_motion_frame
 from ..params import RigidBodyParams
-from ..pose import CollinearMarkersError
+from ..pose import CollinearMarkersError, SettledPoseSmoothing
 from ..rigid import (Conditioning, FourierOrders, PoseInput, RigidBodyAnalysis, analyse_rigid_body, conditioning,
                      saddle_angles)
 from ..session import Session
@@ -80,7 +80,8 @@ class RigidBodyResult(StepResult):
 
 
 def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: TriangulateResult,
-                    raw: np.ndarray, motion: MotionFrameResult, offsets: dict, progress) -> RigidBodyResult:
+                    raw: np.ndarray, motion: MotionFrameResult, offsets: dict, progress,
+                    settled: SettledPoseSmoothing | None = None, thesis_chain: bool = True) -> RigidBodyResult:
     """Registration, pose trajectory, fits, omega/alpha and the hidden saddle marker (5.4-5.5, 6).
 
     One call of :func:`horsemocap.rigid.analyse_rigid_body`. With
@@ -94,7 +95,11 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     smoothed; ``offsets``: the synchronisation, to name frames in messages.
     Per-frame conditioning (the eq. 6.35 angle, the marker triangle's
     smallest height, the registration residual) is kept, and a warning is
-    printed when it makes the result unreliable.
+    printed when it makes the result unreliable. ``settled``: the pose
+    smoothing's choices made on another pass of the same record
+    (:func:`horsemocap.pose.settle_pose_smoothing`), reused instead of chosen;
+    ``thesis_chain`` False: with ``kinematics="pose_spline"``, the thesis'
+    chain (which nothing passed on uses there) is not computed.
     """
     fits, pose = section.fits, section.pose
     positions, static, mframe = motion.positions, motion.static, motion.frame
@@ -127,7 +132,8 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
         rb = analyse_rigid_body(
             t, positions, static, section, period_s=None if period is None else period / session.fps,
             fourier_orders=given_orders,
-            pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov))
+            pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov, settled=settled),
+            thesis_chain=thesis_chain)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
     except ChangePointError as exc:
