@@ -307,7 +307,8 @@ class FrameSource:
 
     def gray_bytes(self, frames: int | None = None) -> int:
         """Bytes of the first ``frames`` frames (None: all) decoded gray, from the size of a frame and the
-        count the container declares (a folder: its images), without decoding the video."""
+        count the container declares (a folder: its images), without decoding the video. A container that
+        declares no count is taken to hold at least ``frames`` (None: :meth:`__len__`, which decodes to count)."""
         if self.is_video:
             cap = cv2.VideoCapture(str(self.path))
             try:
@@ -318,6 +319,8 @@ class FrameSource:
         else:
             files = list_images(self.path)
             size, count = read_image(files[0], color=False).size, len(files)
+        if count <= 0:      # the container does not say: never assume fewer frames than may be held
+            count = len(self) if frames is None else int(frames)
         return max(size, 0) * max(count if frames is None else min(count, int(frames)), 0)
 
     def _video_counts(self) -> tuple[int | None, int]:

@@ -521,7 +521,9 @@ def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_F
         return {cam: future.result() for cam, future in found.items()}
 
 
-#: Decoded gray frames the flash searches of several cameras may hold at once (bytes).
+#: Decoded gray frames the flash searches of several cameras may hold at once (bytes): about what one
+#: 1080p camera's whole search holds (600 frames, 1.2 GB) halved, so two 640x480 searches (2 x 184 MB)
+#: run side by side while 1080p cameras search one at a time, within the memory a single search needs.
 FLASH_SEARCH_BYTES = 512 * 2 ** 20
 
 

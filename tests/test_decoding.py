@@ -123,3 +123,14 @@ def test_a_video_rewritten_unreadable_is_refused_again(tmp_path):
     path.write_bytes(b"not a video at all")
     with pytest.raises(sources.SourceError, match="cannot be opened as a video"):
         sources.FrameSource(path)
+
+
+def test_a_video_without_a_declared_count_is_not_taken_as_empty(tmp_path, monkeypatch):
+    """A container that declares no frame count: the flash searches' memory bound counts the frames searched
+    (or those that decode), not zero, so it still applies."""
+    cam = _video(tmp_path / "a.avi")                           # 60 frames of 40 x 30
+    real_get = cv2.VideoCapture.get
+    monkeypatch.setattr(cv2.VideoCapture, "get",
+                        lambda self, prop: 0.0 if prop == cv2.CAP_PROP_FRAME_COUNT else real_get(self, prop))
+    assert cam.gray_bytes(10) == 10 * 40 * 30
+    assert cam.gray_bytes() == len(cam) * 40 * 30 > 0
