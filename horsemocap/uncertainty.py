@@ -94,12 +94,13 @@ def smoothed_acceleration_noise(sigma: float, lam: float, dt: float, n: int, fun
     return float(sigma * np.sqrt(var))
 
 
-def unresolved_harmonics_acceleration(t, y, sigma: float, lam: float, fundamental_hz, kept) -> float:
+def unresolved_harmonics_acceleration(t, y, sigma: float, lam: float, fundamental_hz, kept,
+                                      detection_sd: float = DETECTION_SD) -> float:
     """Rms acceleration the smoothing may have taken from the stride harmonics it did not keep.
 
     For each harmonic above the last kept one, up to :data:`HARMONIC_LIMIT_OF_RATE` of the sampling rate:
-    its least-squares amplitude in ``y`` plus its detection floor (:data:`DETECTION_SD` standard deviations,
-    ``sigma sqrt(2 / n)`` each), times the part of it the spline removes and ``(2 pi f_k)^2``; the root sum
+    its least-squares amplitude in ``y`` plus its detection floor (``detection_sd`` standard deviations,
+    ``sigma sqrt(2 / n)`` each; 0: the measured amplitudes alone, what the smoothing most likely removed), times the part of it the spline removes and ``(2 pi f_k)^2``; the root sum
     of squares of their rms values.
 
     Examples
@@ -120,7 +121,7 @@ def unresolved_harmonics_acceleration(t, y, sigma: float, lam: float, fundamenta
     if kmax < first or 3 + 2 * kmax >= t.size - 2:
         return 0.0
     amp = harmonic_amplitudes(t, y, fundamental_hz, kmax)
-    floor = DETECTION_SD * sigma * np.sqrt(2.0 / t.size)
+    floor = detection_sd * sigma * np.sqrt(2.0 / t.size)
     total = 0.0
     for k in range(first, kmax + 1):
         fk = k * fundamental_hz
@@ -137,7 +138,7 @@ def _component(info: dict):
 
 
 def saddle_vertical_uncertainty(pose: PoseTrajectory, model, saddle_static, alpha, saddle_acceleration,
-                                axis: int = 1) -> AccelerationUncertainty:
+                                axis: int = 1, detection_sd: float = DETECTION_SD) -> AccelerationUncertainty:
     """The saddle vertical acceleration's uncertainty from the pose trajectory it came from (module docstring).
 
     Parameters
@@ -150,6 +151,9 @@ def saddle_vertical_uncertainty(pose: PoseTrajectory, model, saddle_static, alph
         Angular acceleration (rad/s^2); ``saddle_acceleration`` (n, 3) the saddle's (m/s^2).
     axis : int
         The vertical axis of the motion frame.
+    detection_sd : float
+        The unresolved harmonics' detection floor in standard deviations of their amplitudes
+        (:func:`unresolved_harmonics_acceleration`).
 
     Returns
     -------
@@ -165,8 +169,10 @@ def saddle_vertical_uncertainty(pose: PoseTrajectory, model, saddle_static, alph
     info = pose.smoothing
     lam, f0, kept = _component(info["cy"])
     y = np.asarray(reg.centre, float)[ok, axis]
-    noise_c = smoothed_acceleration_noise(sig[axis], lam, dt, n, f0, kept) if np.isfinite(lam) else float("nan")
-    unresolved = unresolved_harmonics_acceleration(t, y, sig[axis], lam, f0, kept) if np.isfinite(lam) else 0.0
+    noise_c, unresolved = float("nan"), 0.0
+    if np.isfinite(lam):
+        noise_c = smoothed_acceleration_noise(sig[axis], lam, dt, n, f0, kept)
+        unresolved = unresolved_harmonics_acceleration(t, y, sig[axis], lam, f0, kept, detection_sd)
     # the rotation's noise through the saddle's lever: the vertical part of delta_alpha x r
     lever = np.asarray(saddle_static, float) - model.mean(0)
     R0 = np.nanmean(pose.rotation(pose.t), axis=0)
