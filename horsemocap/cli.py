@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -405,8 +406,6 @@ def cmd_kinematics(args) -> int:
     :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` is smoothed in windows
     (:mod:`horsemocap.streaming`) and its tables written window by window.
     """
-    import tempfile
-
     from .io3d import TrajectoryFileError, check_trajectory_input, kinematics_verdict, read_trajectories, \
         read_trajectories_to_disk
     from .pose import CollinearMarkersError

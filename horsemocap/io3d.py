@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .store import release_pages
+
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
            "FIRST_TIME_PARAMETER", "RATE_PARAMETER", "check_trajectory_input", "check_stated_rate",
@@ -761,9 +763,7 @@ def _median_spacing(points) -> float:
 
 def _read_frames(points, start: int, stop: int, step: int = 1) -> np.ndarray:
     """``points[start:stop:step]`` as an array in memory; a memory-mapped record's pages read are let go
-    (:func:`horsemocap.streaming.release_pages`)."""
-    from .streaming import release_pages
-
+    (:func:`horsemocap.store.release_pages`)."""
     out = np.array(points[start:stop:step])
     release_pages(points)
     return out
@@ -1257,8 +1257,6 @@ def _stream_rows(path, rows_file, block_rows: int):
 def _place_rows(rows_file, points_file, n: int, k: int, n_rows: int, block_rows: int) -> np.ndarray:
     """The points (n, k, 3) of ``rows_file`` in a memory-mapped ``points_file`` (NaN where no row), filled
     ``block_rows`` rows at a time and returned read-only."""
-    from .streaming import release_pages
-
     grid = np.lib.format.open_memmap(points_file, mode="w+", dtype=np.float64, shape=(n, k, 3))
     with open(rows_file, "rb") as fh:
         filled = 0

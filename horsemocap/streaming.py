@@ -32,7 +32,6 @@ write out.
 from __future__ import annotations
 
 import dataclasses
-import mmap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +41,7 @@ from . import pose
 from .params import PoseParams
 from .splines import CACHE_SAMPLES
 from .progress import counter
+from .store import release_pages
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
            "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "window_times", "point_kinematics",
@@ -110,30 +110,6 @@ class SettledSmoothing:
     margin: int
     info: dict
     window: int = WINDOW_FRAMES
-
-
-def release_pages(*arrays) -> None:
-    """Let the system take back the memory of the pages of memory-mapped ``arrays`` read so far.
-
-    A memory-mapped file's pages stay in the process' memory once read; for
-    a file mapped shared (:class:`numpy.memmap`) they are only unmapped (their
-    contents stay in the file), so that a record read window by window does
-    not accumulate in memory. Arrays not mapped from a file are left alone.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.f8"
-    >>> a = np.lib.format.open_memmap(path, mode="w+", dtype=float, shape=(1000,))
-    >>> a[:] = 2.0
-    >>> release_pages(a, np.zeros(3))
-    >>> float(a.sum())
-    2000.0
-    """
-    for a in arrays:
-        mapped = getattr(a, "_mmap", None)
-        if mapped is not None:
-            mapped.madvise(mmap.MADV_DONTNEED)
 
 
 def window_core(window: int, margin: int) -> int:
