@@ -56,7 +56,9 @@ def release_pages(*arrays) -> None:
     A memory-mapped file's pages stay in the process' memory once read; for
     a file mapped shared (:class:`numpy.memmap`) they are only unmapped (their
     contents stay in the file), so that a record read window by window does
-    not accumulate in memory. Arrays not mapped from a file are left alone.
+    not accumulate in memory. Arrays not mapped from a file are left alone,
+    as is every array where the system offers no ``madvise`` (Windows, some
+    builds): there the pages stay until the mapping is closed.
 
     Examples
     --------
@@ -68,6 +70,8 @@ def release_pages(*arrays) -> None:
     >>> float(a.sum())
     2000.0
     """
+    if not (hasattr(mmap, "MADV_DONTNEED") and hasattr(mmap.mmap, "madvise")):
+        return
     for a in arrays:
         mapped = getattr(a, "_mmap", None)
         if mapped is not None:

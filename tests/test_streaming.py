@@ -4,11 +4,12 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import mmap
 
 import numpy as np
 import pytest
 
-from horsemocap import pose, streaming
+from horsemocap import pose, store, streaming
 from horsemocap.cli import main
 from horsemocap.io3d import RunningPercentile, kinematics_params
 from horsemocap.synthetic import Jet, _rotation_jets
@@ -339,3 +340,12 @@ def test_a_record_read_to_disk_is_the_record_read_whole(tmp_path):
     with pytest.raises(io3d.TrajectoryFileError, match="line 301: field 'time_s'"):
         io3d.read_trajectories_csv_to_disk(tmp_path / "bad.csv", tmp_path / "disk")
     assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["points.npy"]
+
+
+def test_release_pages_without_madvise(tmp_path, monkeypatch):
+    """Where the system has no madvise (Windows, some builds) the pages are simply kept."""
+    a = np.lib.format.open_memmap(tmp_path / "a.npy", mode="w+", dtype=float, shape=(100,))
+    a[:] = 1.0
+    monkeypatch.delattr(mmap, "MADV_DONTNEED", raising=False)
+    store.release_pages(a)
+    assert float(a.sum()) == 100.0
