@@ -14,14 +14,16 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import struct
+import tempfile
 from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .store import release_pages
+from .store import ScratchWriteError, release_pages
 
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
@@ -1057,19 +1059,60 @@ def kinematics_setup(traj: Trajectories, static: Trajectories, folder=None) -> d
     ok = np.flatnonzero(np.all(np.isfinite(sp), axis=(1, 2)))
     if ok.size == 0:
         raise TrajectoryFileError(f"{static.source}: no frame has every point {static_order} finite")
-    chunk = 100_000
-    marker_points = traj.subset(markers)
-    if not any(np.isfinite(_read_frames(marker_points, a, a + chunk)).all(axis=2).any()
-               for a in range(0, len(marker_points), chunk)):
+    points = _marker_points(traj, markers, folder)
+    if not any(np.isfinite(_read_frames(points, a, a + READ_FRAMES)).all(axis=2).any()
+               for a in range(0, len(points), READ_FRAMES)):
         raise TrajectoryFileError(f"{traj.source}: the markers {markers} are missing in every frame (all gaps)")
     model_all = sp[ok[0]]
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
-    points = traj.subset(markers)
     reg = register_in_chunks(points, model, names=markers, folder=folder)
     return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
             "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}
+
+
+READ_FRAMES = 100_000
+"""Frames of a long record read into memory at a time when its markers are checked or copied: at ten
+points 24 MB, small beside the registration's chunk, and few enough reads that their overhead is nil."""
+
+
+def _marker_points(traj: Trajectories, markers, folder=None) -> np.ndarray:
+    """The points (n, k, 3) of ``markers``: a view of the record when they follow one another in the file;
+    otherwise a copy, made ``READ_FRAMES`` frames at a time into a memory-mapped file in ``folder`` when
+    the record's points are themselves mapped and a folder is given (the record is not held in memory)."""
+    idx = [traj.names.index(nm) for nm in markers]
+    adjacent = idx == list(range(idx[0], idx[0] + len(idx)))
+    if adjacent or folder is None or not isinstance(traj.points, np.memmap):
+        return traj.subset(markers)
+    n = len(traj.points)
+    path = _scratch_path(folder, "markers-", ".npy")
+    try:
+        copy = np.lib.format.open_memmap(path, mode="w+", dtype=np.float64, shape=(n, len(idx), 3))
+        for a in range(0, n, READ_FRAMES):
+            copy[a:a + READ_FRAMES] = _read_frames(traj.points, a, a + READ_FRAMES)[:, idx]
+            release_pages(copy)
+        copy.flush()
+        del copy
+    except OSError as exc:
+        raise _scratch_error(exc, path) from exc
+    return np.load(path, mmap_mode="r")
+
+
+def _scratch_path(folder, prefix: str, suffix: str) -> Path:
+    """A new file of a unique name in the scratch ``folder`` (a second reader of the same folder does not
+    overwrite a file the first one has mapped); :class:`horsemocap.store.ScratchWriteError` if it cannot be made."""
+    try:
+        handle, name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=folder)
+    except OSError as exc:
+        raise _scratch_error(exc, Path(folder) / f"{prefix}*{suffix}") from exc
+    os.close(handle)
+    return Path(name)
+
+
+def _scratch_error(exc: OSError, path) -> ScratchWriteError:
+    """``exc``, raised writing the scratch file ``path``, as the error naming the file and its folder."""
+    return ScratchWriteError(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def csv_field(text: str) -> str:

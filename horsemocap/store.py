@@ -50,6 +50,21 @@ class WriteError(OSError):
         return self.describe()
 
 
+class ScratchWriteError(WriteError):
+    """A scratch file (a long record's memory-mapped points or registration) that could not be written;
+    the message names the file and its folder.
+
+    Examples
+    --------
+    >>> print(ScratchWriteError(28, "No space left on device", "/tmp/run/points-1.npy"))
+    cannot write /tmp/run/points-1.npy: No space left on device; /tmp/run is the scratch folder of a long record's memory-mapped arrays: make room there or choose another
+    """
+
+    def _tail(self) -> str:
+        return (f"; {Path(self.filename).parent} is the scratch folder of a long record's memory-mapped arrays: "
+                "make room there or choose another")
+
+
 def release_pages(*arrays) -> None:
     """Let the system take back the memory of the pages of memory-mapped ``arrays`` read so far.
 

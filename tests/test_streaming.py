@@ -9,7 +9,7 @@ import mmap
 import numpy as np
 import pytest
 
-from horsemocap import pose, store, streaming
+from horsemocap import io3d, pose, store, streaming
 from horsemocap.cli import main
 from horsemocap.io3d import RunningPercentile, kinematics_params
 from horsemocap.synthetic import Jet, _rotation_jets
@@ -349,3 +349,19 @@ def test_release_pages_without_madvise(tmp_path, monkeypatch):
     monkeypatch.delattr(mmap, "MADV_DONTNEED", raising=False)
     store.release_pages(a)
     assert float(a.sum()) == 100.0
+
+
+def test_markers_apart_in_the_file_are_copied_to_disk_in_chunks(tmp_path, monkeypatch):
+    """Markers not adjacent in a mapped record: one copy, made in chunks into the scratch folder."""
+    d = trot(300)
+    pts = np.concatenate([d["markers"][:, :1], np.ones((300, 1, 3)), d["markers"][:, 1:]], axis=1)
+    pts[20:25, 3] = np.nan
+    _write(tmp_path / "traj.csv", d["t"], ["m1", "other", "m2", "m3", "m4"], pts)
+    _write(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "m4"], MODEL[None])
+    monkeypatch.setattr(io3d, "READ_FRAMES", 64)
+    (tmp_path / "disk").mkdir()
+    traj = io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk")
+    setup = io3d.kinematics_setup(traj, io3d.read_trajectories(tmp_path / "static.csv"), folder=tmp_path / "disk")
+    assert setup["markers"] == ["m1", "m2", "m3", "m4"]
+    assert isinstance(setup["points"], np.memmap)
+    np.testing.assert_array_equal(setup["points"], pts[:, [0, 2, 3, 4]])
