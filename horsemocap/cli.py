@@ -410,7 +410,7 @@ def cmd_kinematics(args) -> int:
         read_trajectories_to_disk
     from .pose import CollinearMarkersError
     from .runfolder import RunFolder
-    from .store import atomic_write_json
+    from .store import ScratchWriteError, atomic_write_json
     from .streaming import conditioning_warnings
     from .threads import blas_single_threaded
 
@@ -427,7 +427,7 @@ def cmd_kinematics(args) -> int:
             check_trajectory_input(traj, static)
             events = parse_seconds(args.events, "--events") if args.events else None
             res = _kinematics_result(traj, static, args.smoothing, events, scratch)
-        except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
+        except (TrajectoryFileError, CollinearMarkersError, ValueError, ScratchWriteError) as exc:
             print(f"horsemocap: error: {exc}", file=sys.stderr)
             return 2
         reg = res["registration"]

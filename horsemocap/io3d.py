@@ -1188,8 +1188,10 @@ def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_R
 
     The rows are parsed ``block_rows`` at a time and written to a compact
     binary file; the frames' numbers and times stay in memory (16 bytes a
-    frame), the points go to ``folder/points.npy`` (n, k, 3) and are mapped,
-    not loaded. This takes a file whose frames come in order (each frame's
+    frame), the points go to a file ``points-*.npy`` (n, k, 3) of a unique
+    name in ``folder`` and are mapped, not loaded; a scratch file that cannot
+    be written (a full disk) ends with a
+    :class:`horsemocap.store.ScratchWriteError` naming it and its folder. This takes a file whose frames come in order (each frame's
     rows together, frame numbers and times increasing) with every row
     readable and no (frame, point) twice; any other file (out of order, a
     bad row, a repeated point) is read by :func:`read_trajectories_csv`
@@ -1209,16 +1211,23 @@ def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_R
     (('marker1', 'marker2'), 'memmap', [0.05, 1.0, 4.0])
     """
     path, folder = Path(path), Path(folder)
-    rows_file = folder / "rows.bin"
+    rows_file = _scratch_path(folder, "rows-", ".bin")
     try:
         try:
             streamed = _stream_rows(path, rows_file, block_rows)
+        except ScratchWriteError:
+            raise
         except (OSError, UnicodeError, csv.Error):
-            streamed = None                              # the whole reader says what it is
+            streamed = None                              # reading the input: the whole reader says what it is
         if streamed is None:
             return read_trajectories_csv(path)
         frames, times, names, n_rows = streamed
-        points = _place_rows(rows_file, folder / "points.npy", frames.size, len(names), n_rows, block_rows)
+        points_file = _scratch_path(folder, "points-", ".npy")
+        try:
+            points = _place_rows(rows_file, points_file, frames.size, len(names), n_rows, block_rows)
+        except OSError as exc:
+            points_file.unlink(missing_ok=True)
+            raise _scratch_error(exc, points_file) from exc
     finally:
         rows_file.unlink(missing_ok=True)
     info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
@@ -1242,7 +1251,7 @@ def _stream_rows(path, rows_file, block_rows: int):
     rows)``, or None for a file :func:`read_trajectories_csv_to_disk` leaves to the whole reader."""
     if not path.is_file():
         return None
-    with open(path, newline="") as fh, open(rows_file, "wb") as out:
+    with open(path, newline="") as fh, _open_scratch(rows_file) as out:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None:
@@ -1287,14 +1296,31 @@ def _stream_rows(path, rows_file, block_rows: int):
             seen.add(j)
             block.append((len(frames) - 1, j, (x, y, z)))
             if len(block) == block_rows:
-                np.array(block, _ROW).tofile(out)
+                _write_rows(out, block, rows_file)
                 n_rows, block = n_rows + len(block), []
         if block:
-            np.array(block, _ROW).tofile(out)
+            _write_rows(out, block, rows_file)
             n_rows += len(block)
     if not frames:
         return None
     return np.frombuffer(frames, np.int64).copy(), np.frombuffer(times, float).copy(), names, n_rows
+
+
+def _open_scratch(rows_file):
+    """``rows_file`` opened for writing; :class:`horsemocap.store.ScratchWriteError` if it cannot be."""
+    try:
+        return open(rows_file, "wb")
+    except OSError as exc:
+        raise _scratch_error(exc, rows_file) from exc
+
+
+def _write_rows(out, block: list, rows_file) -> None:
+    """Append ``block`` (frame index, point index, xyz) to the scratch file ``out``; a failed write
+    (a full disk) is a :class:`horsemocap.store.ScratchWriteError`, not a fault of the input."""
+    try:
+        np.array(block, _ROW).tofile(out)
+    except OSError as exc:
+        raise _scratch_error(exc, rows_file) from exc
 
 
 def _place_rows(rows_file, points_file, n: int, k: int, n_rows: int, block_rows: int) -> np.ndarray:

@@ -339,7 +339,33 @@ def test_a_record_read_to_disk_is_the_record_read_whole(tmp_path):
     (tmp_path / "bad.csv").write_text("\n".join([*lines[:300], "12,x,m1,1,2,3", *lines[300:]]) + "\n")
     with pytest.raises(io3d.TrajectoryFileError, match="line 301: field 'time_s'"):
         io3d.read_trajectories_csv_to_disk(tmp_path / "bad.csv", tmp_path / "disk")
-    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["points.npy"]
+    left = [p.name for p in (tmp_path / "disk").iterdir()]
+    assert len(left) == 1 and left[0].startswith("points-") and left[0].endswith(".npy")
+    again = io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk")
+    assert len(list((tmp_path / "disk").iterdir())) == 2                 # its own file: the first stays mapped
+    np.testing.assert_array_equal(disk.points, again.points)
+
+
+def test_a_scratch_folder_that_cannot_be_written_is_named(tmp_path, monkeypatch, capsys):
+    d = trot(200)
+    _write(tmp_path / "traj.csv", d["t"], ["m1", "m2", "m3", "m4"], d["markers"])
+    with pytest.raises(store.ScratchWriteError, match="gone is the scratch folder"):
+        io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "gone")
+
+    def full_disk(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    (tmp_path / "disk").mkdir()
+    monkeypatch.setattr(np.lib.format, "open_memmap", full_disk)
+    with pytest.raises(store.ScratchWriteError, match=r"points-.*\.npy: No space left on device; .*disk is the"):
+        io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk")
+    assert list((tmp_path / "disk").iterdir()) == []                       # nothing half-written left
+    _write(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "m4"], MODEL[None])
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "disk"))
+    code = main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
+                 "--out", str(tmp_path / "out")])
+    assert code == 2 and "No space left on device" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_release_pages_without_madvise(tmp_path, monkeypatch):
