@@ -391,3 +391,20 @@ def test_markers_apart_in_the_file_are_copied_to_disk_in_chunks(tmp_path, monkey
     assert setup["markers"] == ["m1", "m2", "m3", "m4"]
     assert isinstance(setup["points"], np.memmap)
     np.testing.assert_array_equal(setup["points"], pts[:, [0, 2, 3, 4]])
+
+
+def test_registration_in_chunks_on_disk_is_the_whole_registration(tmp_path):
+    """register_in_chunks with a folder and more frames than a chunk: memory-mapped, the same numbers."""
+    rng = np.random.default_rng(4)
+    pts = np.repeat(MODEL[None], 500, 0) + rng.normal(0, 1e-3, (500, 4, 3))
+    pts[40:45, :2] = np.nan                                 # no pose
+    pts[300:310, 3] = np.nan                                # three markers
+    whole = pose.register_pose(pts, MODEL)
+    on_disk = streaming.register_in_chunks(pts, MODEL, chunk=64, folder=tmp_path)
+    assert isinstance(on_disk.rotation, np.memmap) and isinstance(on_disk.rms, np.memmap)
+    assert sorted(p.name for p in tmp_path.iterdir())[0].startswith("registration-")
+    np.testing.assert_allclose(on_disk.rotation, whole.rotation, atol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(on_disk.translation, whole.translation, atol=1e-12, equal_nan=True)
+    np.testing.assert_array_equal(on_disk.n_markers, whole.n_markers)
+    assert on_disk.reason.tolist() == whole.reason.tolist()
+    assert np.isclose(on_disk.noise_m, whole.noise_m, rtol=1e-12)
