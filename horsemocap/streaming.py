@@ -218,15 +218,17 @@ def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUN
     return dataclasses.replace(reg, **kept, reason=np.concatenate(reasons), noise_m=noise)
 
 
-def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGISTRATION_CHUNK) -> list:
+def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGISTRATION_CHUNK,
+                          lever_m: float | None = None,
+                          rotation_noise_limit_deg: float = pose.ROTATION_NOISE_LIMIT_DEG) -> list:
     """:func:`horsemocap.pose.conditioning_warnings` of a long record's registration, ``chunk`` frames at a time.
 
     The per-frame figures (:func:`horsemocap.pose.frame_rotation_std`, the
     triangle's height, the frames without a pose) are taken chunk by chunk
     and pooled (the rotation noise as the RMS over every frame with a pose),
-    so the working memory is one chunk's; the messages are worded as
-    :func:`horsemocap.pose.conditioning_warnings`' for a registration without
-    covariances (one with covariances is passed to it whole).
+    so the working memory is one chunk's; the messages are
+    :func:`horsemocap.pose.conditioning_messages` of them (a registration with
+    covariances is passed to :func:`horsemocap.pose.conditioning_warnings` whole).
 
     Examples
     --------
@@ -237,7 +239,7 @@ def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGI
     reg = registration
     n = reg.rotation.shape[0]
     if n <= chunk or reg.information is not None:
-        return pose.conditioning_warnings(reg)
+        return pose.conditioning_warnings(reg, lever_m, rotation_noise_limit_deg)
     sq, count, low, missing, first = np.zeros(3), 0, np.inf, 0, None
     for a in range(0, n, chunk):
         part = slice_registration(reg, a, min(n, a + chunk))
@@ -251,16 +253,10 @@ def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGI
         if bad.size:
             first = min(bad.tolist()) if first is None else min(first, min(bad.tolist()))
         release_pages(*(getattr(reg, f.name) for f in dataclasses.fields(reg)))
-    out = []
     rot_noise = float(np.degrees(np.max(np.sqrt(sq / count)))) if count else float("nan")
-    if np.isfinite(low) and np.isfinite(rot_noise) and rot_noise > pose.ROTATION_NOISE_LIMIT_DEG:
-        out.append(f"thin marker triangle: smallest height {1000 * low:.0f} mm; a marker noise of "
-                   f"{1000 * reg.noise_m:.2f} mm gives about {rot_noise:.1f} deg of rotation noise per frame (above "
-                   f"{pose.ROTATION_NOISE_LIMIT_DEG:g} deg); the smoothing removes part of it, but angular results "
-                   "and far points are unreliable")
-    if missing:
-        out.append(f"{missing} of {n} frames have no pose ({first} ...)")
-    return out
+    figures = pose.ConditioningFigures(low if np.isfinite(low) else float("nan"), rot_noise, float(reg.noise_m),
+                                       False, n, int(missing), "" if first is None else str(first))
+    return pose.conditioning_messages(figures, lever_m, rotation_noise_limit_deg)
 
 
 def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[int, int]:

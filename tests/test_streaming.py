@@ -311,6 +311,10 @@ def test_chunked_conditioning_warnings_are_the_whole_records():
     whole = pose.conditioning_warnings(reg)
     assert len(whole) == 2
     assert streaming.conditioning_warnings(reg, chunk=128) == whole
+    far = pose.conditioning_warnings(reg, lever_m=0.8)
+    assert "a point 0.80 m away moves by about" in far[0]
+    assert streaming.conditioning_warnings(reg, chunk=128, lever_m=0.8) == far
+    assert streaming.conditioning_warnings(reg, chunk=128, rotation_noise_limit_deg=1e3) == whole[1:]
     reg_on_disk = streaming.register_in_chunks(pts, thin, chunk=128)
     assert streaming.conditioning_warnings(reg_on_disk, chunk=128) == whole
 
