@@ -145,18 +145,16 @@ def read_trajectories_csv(path) -> Trajectories:
     path = Path(path)
     if not path.is_file():
         raise TrajectoryFileError(f"{path}: file not found")
-    want = ["frame", "time_s", "point", "x_m", "y_m", "z_m"]
+    want = ",".join(TRAJECTORY_COLUMNS)
     with open(path, newline="") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None:
-            raise TrajectoryFileError(f"{path}: empty file (expected the header {','.join(want)})")
-        header = [h.strip() for h in header]
-        missing = [c for c in want if c not in header]
+            raise TrajectoryFileError(f"{path}: empty file (expected the header {want})")
+        header, col, missing = _header_columns(header)
         if missing:
-            raise TrajectoryFileError(f"{path}: header lacks the column(s) {missing} (expected {','.join(want)}, "
+            raise TrajectoryFileError(f"{path}: header lacks the column(s) {missing} (expected {want}, "
                                       f"got {','.join(header)})")
-        col = {c: header.index(c) for c in want}
         rows = _read_rows(path, reader, col, len(header))
     if not rows.frame.size:
         raise TrajectoryFileError(f"{path}: no data rows")
@@ -172,9 +170,39 @@ def read_trajectories_csv(path) -> Trajectories:
         raise TrajectoryFileError(f"{path}: field 'time_s' must increase with 'frame': frame {f1} (line "
                                   f"{line[first_row[i1]]}) has time {t[i1]}, not after frame {f0}'s {t[i0]} "
                                   f"(line {line[first_row[i0]]})")
-    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
+    return Trajectories(t, frames, tuple(rows.names), pts, str(path), _csv_info())
+
+
+TRAJECTORY_COLUMNS = ("frame", "time_s", "point", "x_m", "y_m", "z_m")
+"""The columns of a trajectories CSV (in any order, others ignored)."""
+
+
+def _csv_info() -> dict:
+    """The ``info`` of a trajectories CSV (its own dict: a caller may add to it)."""
+    return {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
             "time_origin": "the file's time_s column"}
-    return Trajectories(t, frames, tuple(rows.names), pts, str(path), info)
+
+
+def _header_columns(header) -> tuple:
+    """``(header stripped, {column: index}, [missing columns])`` of a trajectories CSV's header row."""
+    header = [h.strip() for h in header]
+    missing = [c for c in TRAJECTORY_COLUMNS if c not in header]
+    return header, {c: header.index(c) for c in TRAJECTORY_COLUMNS if c not in missing}, missing
+
+
+def _usual_row(row, cf, ct, cp, cx, cy, cz, n_fields):
+    """``(frame, time, point, x, y, z)`` of a common row (every field present and plain, coordinates
+    finite and within :data:`MAX_COORDINATE_M`), read directly; None for anything else, which
+    :func:`_csv_row` reads or names."""
+    try:
+        fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
+        x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
+    except (ValueError, IndexError):
+        return None
+    if (len(row) == n_fields and math.isfinite(tm) and name != "" and abs(x) <= MAX_COORDINATE_M
+            and abs(y) <= MAX_COORDINATE_M and abs(z) <= MAX_COORDINATE_M):
+        return fr, tm, name, x, y, z
+    return None
 
 
 @dataclass(frozen=True)
@@ -194,7 +222,7 @@ def _read_rows(path, reader, col, n_fields) -> _Rows:
     (or with an earlier line's conflict, :func:`_refuse_conflicts`, when there is one)."""
     frame, time, point, xyz = array("q"), array("d"), array("i"), array("d")
     names, index = [], {}
-    cf, ct, cp, cx, cy, cz = (col[c] for c in ("frame", "time_s", "point", "x_m", "y_m", "z_m"))
+    cf, ct, cp, cx, cy, cz = (col[c] for c in TRAJECTORY_COLUMNS)
 
     def columns():
         return _Rows(np.frombuffer(frame, np.int64), np.frombuffer(time, float), np.frombuffer(point, np.int32),
@@ -203,15 +231,10 @@ def _read_rows(path, reader, col, n_fields) -> _Rows:
     for ln, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
-        try:
-            # the common row, read directly; anything unusual goes through _csv_row for its message
-            fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
-            x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
-            usual = (len(row) == n_fields and math.isfinite(tm) and name != "" and abs(x) <= MAX_COORDINATE_M
-                     and abs(y) <= MAX_COORDINATE_M and abs(z) <= MAX_COORDINATE_M)
-        except (ValueError, IndexError):
-            usual = False
-        if not usual:
+        usual = _usual_row(row, cf, ct, cp, cx, cy, cz, n_fields)   # anything unusual: _csv_row's message
+        if usual is not None:
+            fr, tm, name, x, y, z = usual
+        else:
             try:
                 fr, tm, name, (x, y, z) = _csv_row(path, ln, row, col, n_fields)
             except TrajectoryFileError:
@@ -1230,9 +1253,7 @@ def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_R
             raise _scratch_error(exc, points_file) from exc
     finally:
         rows_file.unlink(missing_ok=True)
-    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
-            "time_origin": "the file's time_s column"}
-    return Trajectories(times, frames, tuple(names), points, str(path), info)
+    return Trajectories(times, frames, tuple(names), points, str(path), _csv_info())
 
 
 def read_trajectories_to_disk(path, folder) -> Trajectories:
@@ -1256,29 +1277,24 @@ def _stream_rows(path, rows_file, block_rows: int):
         header = next(reader, None)
         if header is None:
             return None
-        header = [h.strip() for h in header]
-        want = ["frame", "time_s", "point", "x_m", "y_m", "z_m"]
-        if any(c not in header for c in want):
+        header, col, missing = _header_columns(header)
+        if missing:
             return None
-        col = {c: header.index(c) for c in want}
-        cf, ct, cp, cx, cy, cz = (col[c] for c in want)
+        cf, ct, cp, cx, cy, cz = (col[c] for c in TRAJECTORY_COLUMNS)
         n_fields = len(header)
         frames, times, names, index = array("q"), array("d"), [], {}
         seen, n_rows, block = set(), 0, []
         for row in reader:
             if not row or all(not c.strip() for c in row):
                 continue
-            try:
-                fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
-                x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
-            except (ValueError, IndexError):
+            usual = _usual_row(row, cf, ct, cp, cx, cy, cz, n_fields)
+            if usual is not None:
+                fr, tm, name, x, y, z = usual
+            else:
                 try:                                  # a missing point (empty coordinates), or a bad row
                     fr, tm, name, (x, y, z) = _csv_row(path, 0, row, col, n_fields)
                 except TrajectoryFileError:
                     return None
-            if not (len(row) == n_fields and math.isfinite(tm) and name != "" and not abs(x) > MAX_COORDINATE_M
-                    and not abs(y) > MAX_COORDINATE_M and not abs(z) > MAX_COORDINATE_M):
-                return None
             if not frames or fr != frames[-1]:
                 if frames and (fr < frames[-1] or not tm > times[-1]):
                     return None                      # out of order, or times not increasing: the whole reader
