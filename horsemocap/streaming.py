@@ -44,7 +44,7 @@ from .progress import counter
 from .store import release_pages
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
-           "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "window_times", "point_kinematics",
+           "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "GRID_TOLERANCE_STEPS", "window_times", "point_kinematics",
            "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
@@ -73,6 +73,12 @@ longer ones in windows."""
 GRID_TOLERANCE_S = 1e-6
 """A window's times within this (s) of a uniform grid are fitted on the grid (:func:`window_times`): the
 rounding of a time column written to the microsecond."""
+
+GRID_TOLERANCE_STEPS = 1e-3
+"""The same tolerance as a fraction of the frame interval, the smaller of the two applying: at rates of
+tens of kilohertz a microsecond is a few percent of a frame, and moving a time by a fraction f of a
+frame changes a finite-difference velocity by about f relative, so the grid is taken only where that
+is at most 0.1 %."""
 
 COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
 
@@ -347,7 +353,8 @@ def _events_inside(events, t0: float, t1: float):
 
 def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
     """The times of frames ``lo .. hi - 1`` counted from the window's first frame; on the grid
-    ``0, step, 2 step, ...`` where they lie within :data:`GRID_TOLERANCE_S` (or 1e-3 of a step) of it.
+    ``0, step, 2 step, ...`` where they lie within :data:`GRID_TOLERANCE_S` (or
+    :data:`GRID_TOLERANCE_STEPS` of a step, the smaller) of it.
 
     The smoothing's basis and penalty are a pure function of the times
     (:func:`horsemocap.splines.smoothing_spline` keeps the last few): windows of
@@ -367,7 +374,7 @@ def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
     """
     local = t[lo:hi] - t[lo]
     grid = np.arange(hi - lo) * step
-    if local.size and np.max(np.abs(local - grid)) <= min(GRID_TOLERANCE_S, 1e-3 * step):
+    if local.size and np.max(np.abs(local - grid)) <= min(GRID_TOLERANCE_S, GRID_TOLERANCE_STEPS * step):
         return grid
     return local
 
