@@ -1260,8 +1260,22 @@ def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_R
 
 
 def read_trajectories_to_disk(path, folder) -> Trajectories:
-    """:func:`read_trajectories`, a CSV's points memory-mapped in ``folder``
-    (:func:`read_trajectories_csv_to_disk`); a C3D is read whole."""
+    r""":func:`read_trajectories`, a CSV's points memory-mapped in ``folder``
+    (:func:`read_trajectories_csv_to_disk`); a C3D is read whole.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "walk.csv").write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,0.0,1.0,4.0\n"
+    ...                                      "1,0.01,m1,0.05,1.0,4.0\n")
+    >>> walk = read_trajectories_to_disk(folder / "walk.csv", folder)
+    >>> type(walk.points).__name__, walk.points[:, 0, 0].tolist()
+    ('memmap', [0.0, 0.05])
+    >>> _ = write_c3d(folder / "walk.c3d", walk)
+    >>> type(read_trajectories_to_disk(folder / "walk.c3d", folder).points).__name__
+    'ndarray'
+    """
     if str(path).lower().endswith(".c3d"):
         return read_c3d(path)
     return read_trajectories_csv_to_disk(path, folder)
@@ -1350,7 +1364,7 @@ def _place_rows(rows_file, points_file, n: int, k: int, n_rows: int, block_rows:
         filled = 0
         for a in range(0, n_rows, block_rows):
             rows = np.fromfile(fh, _ROW, min(block_rows, n_rows - a))
-            lo, hi = int(rows["frame"][0]), int(rows["frame"][-1]) + 1
+            hi = int(rows["frame"][-1]) + 1
             grid[filled:hi] = np.nan
             grid[rows["frame"], rows["point"]] = rows["xyz"]
             filled = hi
