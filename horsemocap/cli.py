@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -405,13 +406,11 @@ def cmd_kinematics(args) -> int:
     :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` is smoothed in windows
     (:mod:`horsemocap.streaming`) and its tables written window by window.
     """
-    import tempfile
-
     from .io3d import TrajectoryFileError, check_trajectory_input, kinematics_verdict, read_trajectories, \
         read_trajectories_to_disk
     from .pose import CollinearMarkersError
     from .runfolder import RunFolder
-    from .store import atomic_write_json
+    from .store import ScratchWriteError, atomic_write_json
     from .streaming import conditioning_warnings
     from .threads import blas_single_threaded
 
@@ -428,7 +427,7 @@ def cmd_kinematics(args) -> int:
             check_trajectory_input(traj, static)
             events = parse_seconds(args.events, "--events") if args.events else None
             res = _kinematics_result(traj, static, args.smoothing, events, scratch)
-        except (TrajectoryFileError, CollinearMarkersError, ValueError) as exc:
+        except (TrajectoryFileError, CollinearMarkersError, ValueError, ScratchWriteError) as exc:
             print(f"horsemocap: error: {exc}", file=sys.stderr)
             return 2
         reg = res["registration"]

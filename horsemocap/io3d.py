@@ -14,12 +14,16 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import struct
+import tempfile
 from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .store import ScratchWriteError, release_pages
 
 __all__ = ["TrajectoryFileError", "Trajectories", "read_trajectories", "read_trajectories_csv", "read_c3d",
            "c3d_header", "write_trc", "write_c3d", "frame_rate", "match_point_names", "kinematics_from_trajectories",
@@ -141,18 +145,16 @@ def read_trajectories_csv(path) -> Trajectories:
     path = Path(path)
     if not path.is_file():
         raise TrajectoryFileError(f"{path}: file not found")
-    want = ["frame", "time_s", "point", "x_m", "y_m", "z_m"]
+    want = ",".join(TRAJECTORY_COLUMNS)
     with open(path, newline="") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None:
-            raise TrajectoryFileError(f"{path}: empty file (expected the header {','.join(want)})")
-        header = [h.strip() for h in header]
-        missing = [c for c in want if c not in header]
+            raise TrajectoryFileError(f"{path}: empty file (expected the header {want})")
+        header, col, missing = _header_columns(header)
         if missing:
-            raise TrajectoryFileError(f"{path}: header lacks the column(s) {missing} (expected {','.join(want)}, "
+            raise TrajectoryFileError(f"{path}: header lacks the column(s) {missing} (expected {want}, "
                                       f"got {','.join(header)})")
-        col = {c: header.index(c) for c in want}
         rows = _read_rows(path, reader, col, len(header))
     if not rows.frame.size:
         raise TrajectoryFileError(f"{path}: no data rows")
@@ -168,9 +170,39 @@ def read_trajectories_csv(path) -> Trajectories:
         raise TrajectoryFileError(f"{path}: field 'time_s' must increase with 'frame': frame {f1} (line "
                                   f"{line[first_row[i1]]}) has time {t[i1]}, not after frame {f0}'s {t[i0]} "
                                   f"(line {line[first_row[i0]]})")
-    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
+    return Trajectories(t, frames, tuple(rows.names), pts, str(path), _csv_info())
+
+
+TRAJECTORY_COLUMNS = ("frame", "time_s", "point", "x_m", "y_m", "z_m")
+"""The columns of a trajectories CSV (in any order, others ignored)."""
+
+
+def _csv_info() -> dict:
+    """The ``info`` of a trajectories CSV (its own dict: a caller may add to it)."""
+    return {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
             "time_origin": "the file's time_s column"}
-    return Trajectories(t, frames, tuple(rows.names), pts, str(path), info)
+
+
+def _header_columns(header) -> tuple:
+    """``(header stripped, {column: index}, [missing columns])`` of a trajectories CSV's header row."""
+    header = [h.strip() for h in header]
+    missing = [c for c in TRAJECTORY_COLUMNS if c not in header]
+    return header, {c: header.index(c) for c in TRAJECTORY_COLUMNS if c not in missing}, missing
+
+
+def _usual_row(row, cf, ct, cp, cx, cy, cz, n_fields):
+    """``(frame, time, point, x, y, z)`` of a common row (every field present and plain, coordinates
+    finite and within :data:`MAX_COORDINATE_M`), read directly; None for anything else, which
+    :func:`_csv_row` reads or names."""
+    try:
+        fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
+        x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
+    except (ValueError, IndexError):
+        return None
+    if (len(row) == n_fields and math.isfinite(tm) and name != "" and abs(x) <= MAX_COORDINATE_M
+            and abs(y) <= MAX_COORDINATE_M and abs(z) <= MAX_COORDINATE_M):
+        return fr, tm, name, x, y, z
+    return None
 
 
 @dataclass(frozen=True)
@@ -190,7 +222,7 @@ def _read_rows(path, reader, col, n_fields) -> _Rows:
     (or with an earlier line's conflict, :func:`_refuse_conflicts`, when there is one)."""
     frame, time, point, xyz = array("q"), array("d"), array("i"), array("d")
     names, index = [], {}
-    cf, ct, cp, cx, cy, cz = (col[c] for c in ("frame", "time_s", "point", "x_m", "y_m", "z_m"))
+    cf, ct, cp, cx, cy, cz = (col[c] for c in TRAJECTORY_COLUMNS)
 
     def columns():
         return _Rows(np.frombuffer(frame, np.int64), np.frombuffer(time, float), np.frombuffer(point, np.int32),
@@ -199,15 +231,10 @@ def _read_rows(path, reader, col, n_fields) -> _Rows:
     for ln, row in enumerate(reader, start=2):
         if not row or all(not c.strip() for c in row):
             continue
-        try:
-            # the common row, read directly; anything unusual goes through _csv_row for its message
-            fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
-            x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
-            usual = (len(row) == n_fields and math.isfinite(tm) and name != "" and abs(x) <= MAX_COORDINATE_M
-                     and abs(y) <= MAX_COORDINATE_M and abs(z) <= MAX_COORDINATE_M)
-        except (ValueError, IndexError):
-            usual = False
-        if not usual:
+        usual = _usual_row(row, cf, ct, cp, cx, cy, cz, n_fields)   # anything unusual: _csv_row's message
+        if usual is not None:
+            fr, tm, name, x, y, z = usual
+        else:
             try:
                 fr, tm, name, (x, y, z) = _csv_row(path, ln, row, col, n_fields)
             except TrajectoryFileError:
@@ -742,6 +769,9 @@ def match_point_names(traj_names, static_names) -> dict:
 
 SPACING_FRAMES = 20_000
 """Frames (evenly spread) over which :func:`_median_spacing` takes the median of a longer record."""
+SPACING_READ_FRAMES = 1000
+"""Of those, the frames read into memory at a time (each read spans ``SPACING_READ_FRAMES`` times the
+stride through the record): at ten points 240 kB in memory, a mapped record's pages let go after each read."""
 
 
 def _median_spacing(points) -> float:
@@ -751,8 +781,8 @@ def _median_spacing(points) -> float:
     if k < 2:
         return math.nan
     step = max(1, -(-points.shape[0] // SPACING_FRAMES))
-    points = np.concatenate([_read_frames(points, a, a + 1000 * step, step)
-                             for a in range(0, points.shape[0], 1000 * step)])
+    span = SPACING_READ_FRAMES * step
+    points = np.concatenate([_read_frames(points, a, a + span, step) for a in range(0, points.shape[0], span)])
     i, j = np.triu_indices(k, 1)
     d = np.linalg.norm(points[:, i] - points[:, j], axis=2)
     d = d[np.isfinite(d)]
@@ -761,9 +791,7 @@ def _median_spacing(points) -> float:
 
 def _read_frames(points, start: int, stop: int, step: int = 1) -> np.ndarray:
     """``points[start:stop:step]`` as an array in memory; a memory-mapped record's pages read are let go
-    (:func:`horsemocap.streaming.release_pages`)."""
-    from .streaming import release_pages
-
+    (:func:`horsemocap.store.release_pages`)."""
     out = np.array(points[start:stop:step])
     release_pages(points)
     return out
@@ -1057,19 +1085,60 @@ def kinematics_setup(traj: Trajectories, static: Trajectories, folder=None) -> d
     ok = np.flatnonzero(np.all(np.isfinite(sp), axis=(1, 2)))
     if ok.size == 0:
         raise TrajectoryFileError(f"{static.source}: no frame has every point {static_order} finite")
-    chunk = 100_000
-    marker_points = traj.subset(markers)
-    if not any(np.isfinite(_read_frames(marker_points, a, a + chunk)).all(axis=2).any()
-               for a in range(0, len(marker_points), chunk)):
+    points = _marker_points(traj, markers, folder)
+    if not any(np.isfinite(_read_frames(points, a, a + READ_FRAMES)).all(axis=2).any()
+               for a in range(0, len(points), READ_FRAMES)):
         raise TrajectoryFileError(f"{traj.source}: the markers {markers} are missing in every frame (all gaps)")
     model_all = sp[ok[0]]
     model = model_all[: len(markers)]
     pose.check_model_conditioning(model, name=f"static shot {static.source}")
-    points = traj.subset(markers)
     reg = register_in_chunks(points, model, names=markers, folder=folder)
     return {"markers": markers, "hidden": hidden, "model": model, "model_all": model_all, "points": points,
             "registration": reg, "unmatched": match["unmatched"],
             "matched_loosely": [list(pr) for pr in match["loose"]]}
+
+
+READ_FRAMES = 100_000
+"""Frames of a long record read into memory at a time when its markers are checked or copied: at ten
+points 24 MB, small beside the registration's chunk, and few enough reads that their overhead is nil."""
+
+
+def _marker_points(traj: Trajectories, markers, folder=None) -> np.ndarray:
+    """The points (n, k, 3) of ``markers``: a view of the record when they follow one another in the file;
+    otherwise a copy, made ``READ_FRAMES`` frames at a time into a memory-mapped file in ``folder`` when
+    the record's points are themselves mapped and a folder is given (the record is not held in memory)."""
+    idx = [traj.names.index(nm) for nm in markers]
+    adjacent = idx == list(range(idx[0], idx[0] + len(idx)))
+    if adjacent or folder is None or not isinstance(traj.points, np.memmap):
+        return traj.subset(markers)
+    n = len(traj.points)
+    path = _scratch_path(folder, "markers-", ".npy")
+    try:
+        copy = np.lib.format.open_memmap(path, mode="w+", dtype=np.float64, shape=(n, len(idx), 3))
+        for a in range(0, n, READ_FRAMES):
+            copy[a:a + READ_FRAMES] = _read_frames(traj.points, a, a + READ_FRAMES)[:, idx]
+            release_pages(copy)
+        copy.flush()
+        del copy
+    except OSError as exc:
+        raise _scratch_error(exc, path) from exc
+    return np.load(path, mmap_mode="r")
+
+
+def _scratch_path(folder, prefix: str, suffix: str) -> Path:
+    """A new file of a unique name in the scratch ``folder`` (a second reader of the same folder does not
+    overwrite a file the first one has mapped); :class:`horsemocap.store.ScratchWriteError` if it cannot be made."""
+    try:
+        handle, name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=folder)
+    except OSError as exc:
+        raise _scratch_error(exc, Path(folder) / f"{prefix}*{suffix}") from exc
+    os.close(handle)
+    return Path(name)
+
+
+def _scratch_error(exc: OSError, path) -> ScratchWriteError:
+    """``exc``, raised writing the scratch file ``path``, as the error naming the file and its folder."""
+    return ScratchWriteError(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def csv_field(text: str) -> str:
@@ -1145,8 +1214,10 @@ def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_R
 
     The rows are parsed ``block_rows`` at a time and written to a compact
     binary file; the frames' numbers and times stay in memory (16 bytes a
-    frame), the points go to ``folder/points.npy`` (n, k, 3) and are mapped,
-    not loaded. This takes a file whose frames come in order (each frame's
+    frame), the points go to a file ``points-*.npy`` (n, k, 3) of a unique
+    name in ``folder`` and are mapped, not loaded; a scratch file that cannot
+    be written (a full disk) ends with a
+    :class:`horsemocap.store.ScratchWriteError` naming it and its folder. This takes a file whose frames come in order (each frame's
     rows together, frame numbers and times increasing) with every row
     readable and no (frame, point) twice; any other file (out of order, a
     bad row, a repeated point) is read by :func:`read_trajectories_csv`
@@ -1166,26 +1237,45 @@ def read_trajectories_csv_to_disk(path, folder, block_rows: int = STREAM_BLOCK_R
     (('marker1', 'marker2'), 'memmap', [0.05, 1.0, 4.0])
     """
     path, folder = Path(path), Path(folder)
-    rows_file = folder / "rows.bin"
+    rows_file = _scratch_path(folder, "rows-", ".bin")
     try:
         try:
             streamed = _stream_rows(path, rows_file, block_rows)
+        except ScratchWriteError:
+            raise
         except (OSError, UnicodeError, csv.Error):
-            streamed = None                              # the whole reader says what it is
+            streamed = None                              # reading the input: the whole reader says what it is
         if streamed is None:
             return read_trajectories_csv(path)
         frames, times, names, n_rows = streamed
-        points = _place_rows(rows_file, folder / "points.npy", frames.size, len(names), n_rows, block_rows)
+        points_file = _scratch_path(folder, "points-", ".npy")
+        try:
+            points = _place_rows(rows_file, points_file, frames.size, len(names), n_rows, block_rows)
+        except OSError as exc:
+            points_file.unlink(missing_ok=True)
+            raise _scratch_error(exc, points_file) from exc
     finally:
         rows_file.unlink(missing_ok=True)
-    info = {"format": "csv", "units": "m", "scale_to_m": 1.0, "rate_hz": None,
-            "time_origin": "the file's time_s column"}
-    return Trajectories(times, frames, tuple(names), points, str(path), info)
+    return Trajectories(times, frames, tuple(names), points, str(path), _csv_info())
 
 
 def read_trajectories_to_disk(path, folder) -> Trajectories:
-    """:func:`read_trajectories`, a CSV's points memory-mapped in ``folder``
-    (:func:`read_trajectories_csv_to_disk`); a C3D is read whole."""
+    r""":func:`read_trajectories`, a CSV's points memory-mapped in ``folder``
+    (:func:`read_trajectories_csv_to_disk`); a C3D is read whole.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "walk.csv").write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,0.0,1.0,4.0\n"
+    ...                                      "1,0.01,m1,0.05,1.0,4.0\n")
+    >>> walk = read_trajectories_to_disk(folder / "walk.csv", folder)
+    >>> type(walk.points).__name__, walk.points[:, 0, 0].tolist()
+    ('memmap', [0.0, 0.05])
+    >>> _ = write_c3d(folder / "walk.c3d", walk)
+    >>> type(read_trajectories_to_disk(folder / "walk.c3d", folder).points).__name__
+    'ndarray'
+    """
     if str(path).lower().endswith(".c3d"):
         return read_c3d(path)
     return read_trajectories_csv_to_disk(path, folder)
@@ -1199,34 +1289,29 @@ def _stream_rows(path, rows_file, block_rows: int):
     rows)``, or None for a file :func:`read_trajectories_csv_to_disk` leaves to the whole reader."""
     if not path.is_file():
         return None
-    with open(path, newline="") as fh, open(rows_file, "wb") as out:
+    with open(path, newline="") as fh, _open_scratch(rows_file) as out:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None:
             return None
-        header = [h.strip() for h in header]
-        want = ["frame", "time_s", "point", "x_m", "y_m", "z_m"]
-        if any(c not in header for c in want):
+        header, col, missing = _header_columns(header)
+        if missing:
             return None
-        col = {c: header.index(c) for c in want}
-        cf, ct, cp, cx, cy, cz = (col[c] for c in want)
+        cf, ct, cp, cx, cy, cz = (col[c] for c in TRAJECTORY_COLUMNS)
         n_fields = len(header)
         frames, times, names, index = array("q"), array("d"), [], {}
         seen, n_rows, block = set(), 0, []
         for row in reader:
             if not row or all(not c.strip() for c in row):
                 continue
-            try:
-                fr, tm, name = int(row[cf]), float(row[ct]), row[cp].strip()
-                x, y, z = float(row[cx]), float(row[cy]), float(row[cz])
-            except (ValueError, IndexError):
+            usual = _usual_row(row, cf, ct, cp, cx, cy, cz, n_fields)
+            if usual is not None:
+                fr, tm, name, x, y, z = usual
+            else:
                 try:                                  # a missing point (empty coordinates), or a bad row
                     fr, tm, name, (x, y, z) = _csv_row(path, 0, row, col, n_fields)
                 except TrajectoryFileError:
                     return None
-            if not (len(row) == n_fields and math.isfinite(tm) and name != "" and not abs(x) > MAX_COORDINATE_M
-                    and not abs(y) > MAX_COORDINATE_M and not abs(z) > MAX_COORDINATE_M):
-                return None
             if not frames or fr != frames[-1]:
                 if frames and (fr < frames[-1] or not tm > times[-1]):
                     return None                      # out of order, or times not increasing: the whole reader
@@ -1244,27 +1329,42 @@ def _stream_rows(path, rows_file, block_rows: int):
             seen.add(j)
             block.append((len(frames) - 1, j, (x, y, z)))
             if len(block) == block_rows:
-                np.array(block, _ROW).tofile(out)
+                _write_rows(out, block, rows_file)
                 n_rows, block = n_rows + len(block), []
         if block:
-            np.array(block, _ROW).tofile(out)
+            _write_rows(out, block, rows_file)
             n_rows += len(block)
     if not frames:
         return None
     return np.frombuffer(frames, np.int64).copy(), np.frombuffer(times, float).copy(), names, n_rows
 
 
+def _open_scratch(rows_file):
+    """``rows_file`` opened for writing; :class:`horsemocap.store.ScratchWriteError` if it cannot be."""
+    try:
+        return open(rows_file, "wb")
+    except OSError as exc:
+        raise _scratch_error(exc, rows_file) from exc
+
+
+def _write_rows(out, block: list, rows_file) -> None:
+    """Append ``block`` (frame index, point index, xyz) to the scratch file ``out``; a failed write
+    (a full disk) is a :class:`horsemocap.store.ScratchWriteError`, not a fault of the input."""
+    try:
+        np.array(block, _ROW).tofile(out)
+    except OSError as exc:
+        raise _scratch_error(exc, rows_file) from exc
+
+
 def _place_rows(rows_file, points_file, n: int, k: int, n_rows: int, block_rows: int) -> np.ndarray:
     """The points (n, k, 3) of ``rows_file`` in a memory-mapped ``points_file`` (NaN where no row), filled
     ``block_rows`` rows at a time and returned read-only."""
-    from .streaming import release_pages
-
     grid = np.lib.format.open_memmap(points_file, mode="w+", dtype=np.float64, shape=(n, k, 3))
     with open(rows_file, "rb") as fh:
         filled = 0
         for a in range(0, n_rows, block_rows):
             rows = np.fromfile(fh, _ROW, min(block_rows, n_rows - a))
-            lo, hi = int(rows["frame"][0]), int(rows["frame"][-1]) + 1
+            hi = int(rows["frame"][-1]) + 1
             grid[filled:hi] = np.nan
             grid[rows["frame"], rows["point"]] = rows["xyz"]
             filled = hi

@@ -150,6 +150,9 @@ __all__ = [
     "rigidity_residual_correlation",
     "significant_noise_correlation",
     "conditioning_warnings",
+    "ConditioningFigures",
+    "conditioning_figures",
+    "conditioning_messages",
     "ROTATION_NOISE_LIMIT_DEG",
     "frame_rotation_std",
     "rotation_noise_deg",
@@ -2134,23 +2137,68 @@ def conditioning_warnings(registration: PoseRegistration, lever_m: float | None 
     >>> conditioning_warnings(register_pose(np.repeat(model[None], 5, axis=0), model))
     []
     """
+    return conditioning_messages(conditioning_figures(registration), lever_m, rotation_noise_limit_deg)
+
+
+@dataclass(frozen=True)
+class ConditioningFigures:
+    """What :func:`conditioning_messages` judges: the smallest triangle height (m, NaN: no frame with a
+    pose), the predicted rotation noise (deg, :func:`rotation_noise_deg`), the marker noise (m), whether
+    that came from triangulation covariances, the frames, those without a pose and the first reason."""
+
+    smallest_height_m: float
+    rotation_noise_deg: float
+    noise_m: float
+    from_covariances: bool
+    frames: int
+    frames_without_pose: int
+    first_reason: str
+
+
+def conditioning_figures(registration: PoseRegistration) -> ConditioningFigures:
+    """The figures of :func:`conditioning_warnings` of a registration held whole.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> model = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0.3, 0]])
+    >>> conditioning_figures(register_pose(np.repeat(model[None], 5, axis=0), model)).smallest_height_m
+    0.3
+    """
     reg = registration
-    out = []
     h = reg.height[np.isfinite(reg.rotation[:, 0, 0]) & (reg.n_markers >= 3)]
-    rot_noise = rotation_noise_deg(reg)
-    if h.size and np.isfinite(rot_noise) and rot_noise > rotation_noise_limit_deg:
-        basis = ("the markers' triangulation covariances give" if reg.information is not None
-                 else f"a marker noise of {1000 * reg.noise_m:.2f} mm gives")
+    bad = reg.reason[reg.reason != ""]
+    return ConditioningFigures(float(np.min(h)) if h.size else float("nan"), float(rotation_noise_deg(reg)),
+                               float(reg.noise_m), reg.information is not None, int(reg.reason.size),
+                               int(bad.size), str(min(bad.tolist())) if bad.size else "")
+
+
+def conditioning_messages(figures: ConditioningFigures, lever_m: float | None = None,
+                          rotation_noise_limit_deg: float = ROTATION_NOISE_LIMIT_DEG) -> list[str]:
+    """The messages of :func:`conditioning_warnings` from its figures (however they were taken).
+
+    Examples
+    --------
+    >>> f = ConditioningFigures(0.004, 3.0, 0.001, False, 100, 2, "fewer than 3 markers")
+    >>> for message in conditioning_messages(f, lever_m=0.5):
+    ...     print(message[:60])
+    thin marker triangle: smallest height 4 mm; a marker noise o
+    2 of 100 frames have no pose (fewer than 3 markers ...)
+    """
+    f = figures
+    out = []
+    rot_noise = f.rotation_noise_deg
+    if np.isfinite(f.smallest_height_m) and np.isfinite(rot_noise) and rot_noise > rotation_noise_limit_deg:
+        basis = ("the markers' triangulation covariances give" if f.from_covariances
+                 else f"a marker noise of {1000 * f.noise_m:.2f} mm gives")
         extra = "" if lever_m is None else (f"; a point {lever_m:.2f} m away moves by about "
                                             f"{1000 * lever_m * np.radians(rot_noise):.1f} mm per frame")
-        out.append(f"thin marker triangle: smallest height {1000 * np.min(h):.0f} mm; {basis} about "
+        out.append(f"thin marker triangle: smallest height {1000 * f.smallest_height_m:.0f} mm; {basis} about "
                    f"{rot_noise:.1f} deg of rotation noise per frame (above {rotation_noise_limit_deg:g} deg)"
                    f"{extra}; the smoothing removes part of it, but angular results and far points are unreliable")
-    missing = int(np.sum(reg.reason != ""))
-    if missing:
-        out.append(f"{missing} of {reg.reason.size} frames have no pose ({sorted(set(reg.reason[reg.reason != '']))[0]} ...)")
+    if f.frames_without_pose:
+        out.append(f"{f.frames_without_pose} of {f.frames} frames have no pose ({f.first_reason} ...)")
     return out
-
 
 
 # --------------------------------------------------------------------------

@@ -16,6 +16,7 @@ import hashlib
 import importlib
 import io
 import json
+import mmap
 import os
 import secrets
 import warnings
@@ -47,6 +48,49 @@ class WriteError(OSError):
 
     def __str__(self) -> str:
         return self.describe()
+
+
+class ScratchWriteError(WriteError):
+    """A scratch file (a long record's memory-mapped points or registration) that could not be written;
+    the message names the file and its folder.
+
+    Examples
+    --------
+    >>> print(ScratchWriteError(28, "No space left on device", "/tmp/run/points-1.npy"))
+    cannot write /tmp/run/points-1.npy: No space left on device; /tmp/run is the scratch folder of a long record's memory-mapped arrays: make room there or choose another
+    """
+
+    def _tail(self) -> str:
+        return (f"; {Path(self.filename).parent} is the scratch folder of a long record's memory-mapped arrays: "
+                "make room there or choose another")
+
+
+def release_pages(*arrays) -> None:
+    """Let the system take back the memory of the pages of memory-mapped ``arrays`` read so far.
+
+    A memory-mapped file's pages stay in the process' memory once read; for
+    a file mapped shared (:class:`numpy.memmap`) they are only unmapped (their
+    contents stay in the file), so that a record read window by window does
+    not accumulate in memory. Arrays not mapped from a file are left alone,
+    as is every array where the system offers no ``madvise`` (Windows, some
+    builds): there the pages stay until the mapping is closed.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.f8"
+    >>> a = np.lib.format.open_memmap(path, mode="w+", dtype=float, shape=(1000,))
+    >>> a[:] = 2.0
+    >>> release_pages(a, np.zeros(3))
+    >>> float(a.sum())
+    2000.0
+    """
+    if not (hasattr(mmap, "MADV_DONTNEED") and hasattr(mmap.mmap, "madvise")):
+        return
+    for a in arrays:
+        mapped = getattr(a, "_mmap", None)
+        if mapped is not None:
+            mapped.madvise(mmap.MADV_DONTNEED)
 
 
 def read_text_utf8(path, error=ValueError) -> str:

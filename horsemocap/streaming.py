@@ -32,7 +32,6 @@ write out.
 from __future__ import annotations
 
 import dataclasses
-import mmap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,9 +41,10 @@ from . import pose
 from .params import PoseParams
 from .splines import CACHE_SAMPLES
 from .progress import counter
+from .store import release_pages
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
-           "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "window_times", "point_kinematics",
+           "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "GRID_TOLERANCE_STEPS", "window_times", "point_kinematics",
            "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
@@ -73,6 +73,12 @@ longer ones in windows."""
 GRID_TOLERANCE_S = 1e-6
 """A window's times within this (s) of a uniform grid are fitted on the grid (:func:`window_times`): the
 rounding of a time column written to the microsecond."""
+
+GRID_TOLERANCE_STEPS = 1e-3
+"""The same tolerance as a fraction of the frame interval, the smaller of the two applying: at rates of
+tens of kilohertz a microsecond is a few percent of a frame, and moving a time by a fraction f of a
+frame changes a finite-difference velocity by about f relative, so the grid is taken only where that
+is at most 0.1 %."""
 
 COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
 
@@ -110,30 +116,6 @@ class SettledSmoothing:
     margin: int
     info: dict
     window: int = WINDOW_FRAMES
-
-
-def release_pages(*arrays) -> None:
-    """Let the system take back the memory of the pages of memory-mapped ``arrays`` read so far.
-
-    A memory-mapped file's pages stay in the process' memory once read; for
-    a file mapped shared (:class:`numpy.memmap`) they are only unmapped (their
-    contents stay in the file), so that a record read window by window does
-    not accumulate in memory. Arrays not mapped from a file are left alone.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.f8"
-    >>> a = np.lib.format.open_memmap(path, mode="w+", dtype=float, shape=(1000,))
-    >>> a[:] = 2.0
-    >>> release_pages(a, np.zeros(3))
-    >>> float(a.sum())
-    2000.0
-    """
-    for a in arrays:
-        mapped = getattr(a, "_mmap", None)
-        if mapped is not None:
-            mapped.madvise(mmap.MADV_DONTNEED)
 
 
 def window_core(window: int, margin: int) -> int:
@@ -242,15 +224,17 @@ def register_in_chunks(points, model, names=None, chunk: int = REGISTRATION_CHUN
     return dataclasses.replace(reg, **kept, reason=np.concatenate(reasons), noise_m=noise)
 
 
-def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGISTRATION_CHUNK) -> list:
+def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGISTRATION_CHUNK,
+                          lever_m: float | None = None,
+                          rotation_noise_limit_deg: float = pose.ROTATION_NOISE_LIMIT_DEG) -> list:
     """:func:`horsemocap.pose.conditioning_warnings` of a long record's registration, ``chunk`` frames at a time.
 
     The per-frame figures (:func:`horsemocap.pose.frame_rotation_std`, the
     triangle's height, the frames without a pose) are taken chunk by chunk
     and pooled (the rotation noise as the RMS over every frame with a pose),
-    so the working memory is one chunk's; the messages are worded as
-    :func:`horsemocap.pose.conditioning_warnings`' for a registration without
-    covariances (one with covariances is passed to it whole).
+    so the working memory is one chunk's; the messages are
+    :func:`horsemocap.pose.conditioning_messages` of them (a registration with
+    covariances is passed to :func:`horsemocap.pose.conditioning_warnings` whole).
 
     Examples
     --------
@@ -261,7 +245,7 @@ def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGI
     reg = registration
     n = reg.rotation.shape[0]
     if n <= chunk or reg.information is not None:
-        return pose.conditioning_warnings(reg)
+        return pose.conditioning_warnings(reg, lever_m, rotation_noise_limit_deg)
     sq, count, low, missing, first = np.zeros(3), 0, np.inf, 0, None
     for a in range(0, n, chunk):
         part = slice_registration(reg, a, min(n, a + chunk))
@@ -275,16 +259,10 @@ def conditioning_warnings(registration: pose.PoseRegistration, chunk: int = REGI
         if bad.size:
             first = min(bad.tolist()) if first is None else min(first, min(bad.tolist()))
         release_pages(*(getattr(reg, f.name) for f in dataclasses.fields(reg)))
-    out = []
     rot_noise = float(np.degrees(np.max(np.sqrt(sq / count)))) if count else float("nan")
-    if np.isfinite(low) and np.isfinite(rot_noise) and rot_noise > pose.ROTATION_NOISE_LIMIT_DEG:
-        out.append(f"thin marker triangle: smallest height {1000 * low:.0f} mm; a marker noise of "
-                   f"{1000 * reg.noise_m:.2f} mm gives about {rot_noise:.1f} deg of rotation noise per frame (above "
-                   f"{pose.ROTATION_NOISE_LIMIT_DEG:g} deg); the smoothing removes part of it, but angular results "
-                   "and far points are unreliable")
-    if missing:
-        out.append(f"{missing} of {n} frames have no pose ({first} ...)")
-    return out
+    figures = pose.ConditioningFigures(low if np.isfinite(low) else float("nan"), rot_noise, float(reg.noise_m),
+                                       False, n, int(missing), "" if first is None else str(first))
+    return pose.conditioning_messages(figures, lever_m, rotation_noise_limit_deg)
 
 
 def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[int, int]:
@@ -375,7 +353,8 @@ def _events_inside(events, t0: float, t1: float):
 
 def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
     """The times of frames ``lo .. hi - 1`` counted from the window's first frame; on the grid
-    ``0, step, 2 step, ...`` where they lie within :data:`GRID_TOLERANCE_S` (or 1e-3 of a step) of it.
+    ``0, step, 2 step, ...`` where they lie within :data:`GRID_TOLERANCE_S` (or
+    :data:`GRID_TOLERANCE_STEPS` of a step, the smaller) of it.
 
     The smoothing's basis and penalty are a pure function of the times
     (:func:`horsemocap.splines.smoothing_spline` keeps the last few): windows of
@@ -395,7 +374,7 @@ def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
     """
     local = t[lo:hi] - t[lo]
     grid = np.arange(hi - lo) * step
-    if local.size and np.max(np.abs(local - grid)) <= min(GRID_TOLERANCE_S, 1e-3 * step):
+    if local.size and np.max(np.abs(local - grid)) <= min(GRID_TOLERANCE_S, GRID_TOLERANCE_STEPS * step):
         return grid
     return local
 

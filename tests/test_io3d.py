@@ -46,6 +46,20 @@ def test_csv_and_c3d_round_trip(ringing, tmp_path):
     assert text[0].startswith("PathFileType\t4") and text[2].split("\t")[4] == "mm"
 
 
+def test_a_c3d_read_to_disk_is_read_whole(ringing, tmp_path):
+    """read_trajectories_to_disk: a C3D (upper-case extension too) is read whole, the scratch folder unused."""
+    d, root = ringing
+    tr = io3d.read_trajectories(root / "traj.csv")
+    io3d.write_c3d(tmp_path / "t.C3D", tr)
+    (tmp_path / "disk").mkdir()
+    back = io3d.read_trajectories_to_disk(tmp_path / "t.C3D", tmp_path / "disk")
+    assert back.info["format"] == "c3d" and not isinstance(back.points, np.memmap)
+    np.testing.assert_array_equal(back.points, io3d.read_trajectories(tmp_path / "t.C3D").points)
+    assert list((tmp_path / "disk").iterdir()) == []
+    csv_back = io3d.read_trajectories_to_disk(root / "traj.csv", tmp_path / "disk")
+    assert isinstance(csv_back.points, np.memmap)
+
+
 def test_kinematics_command_recovers_the_hidden_point(ringing, tmp_path, capsys):
     d, root = ringing
     out = tmp_path / "kin"

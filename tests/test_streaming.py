@@ -4,11 +4,12 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import mmap
 
 import numpy as np
 import pytest
 
-from horsemocap import pose, streaming
+from horsemocap import io3d, pose, store, streaming
 from horsemocap.cli import main
 from horsemocap.io3d import RunningPercentile, kinematics_params
 from horsemocap.synthetic import Jet, _rotation_jets
@@ -310,6 +311,10 @@ def test_chunked_conditioning_warnings_are_the_whole_records():
     whole = pose.conditioning_warnings(reg)
     assert len(whole) == 2
     assert streaming.conditioning_warnings(reg, chunk=128) == whole
+    far = pose.conditioning_warnings(reg, lever_m=0.8)
+    assert "a point 0.80 m away moves by about" in far[0]
+    assert streaming.conditioning_warnings(reg, chunk=128, lever_m=0.8) == far
+    assert streaming.conditioning_warnings(reg, chunk=128, rotation_noise_limit_deg=1e3) == whole[1:]
     reg_on_disk = streaming.register_in_chunks(pts, thin, chunk=128)
     assert streaming.conditioning_warnings(reg_on_disk, chunk=128) == whole
 
@@ -338,4 +343,72 @@ def test_a_record_read_to_disk_is_the_record_read_whole(tmp_path):
     (tmp_path / "bad.csv").write_text("\n".join([*lines[:300], "12,x,m1,1,2,3", *lines[300:]]) + "\n")
     with pytest.raises(io3d.TrajectoryFileError, match="line 301: field 'time_s'"):
         io3d.read_trajectories_csv_to_disk(tmp_path / "bad.csv", tmp_path / "disk")
-    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["points.npy"]
+    left = [p.name for p in (tmp_path / "disk").iterdir()]
+    assert len(left) == 1 and left[0].startswith("points-") and left[0].endswith(".npy")
+    again = io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk")
+    assert len(list((tmp_path / "disk").iterdir())) == 2                 # its own file: the first stays mapped
+    np.testing.assert_array_equal(disk.points, again.points)
+
+
+def test_a_scratch_folder_that_cannot_be_written_is_named(tmp_path, monkeypatch, capsys):
+    d = trot(200)
+    _write(tmp_path / "traj.csv", d["t"], ["m1", "m2", "m3", "m4"], d["markers"])
+    with pytest.raises(store.ScratchWriteError, match="gone is the scratch folder"):
+        io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "gone")
+
+    def full_disk(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    (tmp_path / "disk").mkdir()
+    monkeypatch.setattr(np.lib.format, "open_memmap", full_disk)
+    with pytest.raises(store.ScratchWriteError, match=r"points-.*\.npy: No space left on device; .*disk is the"):
+        io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk")
+    assert list((tmp_path / "disk").iterdir()) == []                       # nothing half-written left
+    _write(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "m4"], MODEL[None])
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "disk"))
+    code = main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
+                 "--out", str(tmp_path / "out")])
+    assert code == 2 and "No space left on device" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_release_pages_without_madvise(tmp_path, monkeypatch):
+    """Where the system has no madvise (Windows, some builds) the pages are simply kept."""
+    a = np.lib.format.open_memmap(tmp_path / "a.npy", mode="w+", dtype=float, shape=(100,))
+    a[:] = 1.0
+    monkeypatch.delattr(mmap, "MADV_DONTNEED", raising=False)
+    store.release_pages(a)
+    assert float(a.sum()) == 100.0
+
+
+def test_markers_apart_in_the_file_are_copied_to_disk_in_chunks(tmp_path, monkeypatch):
+    """Markers not adjacent in a mapped record: one copy, made in chunks into the scratch folder."""
+    d = trot(300)
+    pts = np.concatenate([d["markers"][:, :1], np.ones((300, 1, 3)), d["markers"][:, 1:]], axis=1)
+    pts[20:25, 3] = np.nan
+    _write(tmp_path / "traj.csv", d["t"], ["m1", "other", "m2", "m3", "m4"], pts)
+    _write(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "m4"], MODEL[None])
+    monkeypatch.setattr(io3d, "READ_FRAMES", 64)
+    (tmp_path / "disk").mkdir()
+    traj = io3d.read_trajectories_csv_to_disk(tmp_path / "traj.csv", tmp_path / "disk")
+    setup = io3d.kinematics_setup(traj, io3d.read_trajectories(tmp_path / "static.csv"), folder=tmp_path / "disk")
+    assert setup["markers"] == ["m1", "m2", "m3", "m4"]
+    assert isinstance(setup["points"], np.memmap)
+    np.testing.assert_array_equal(setup["points"], pts[:, [0, 2, 3, 4]])
+
+
+def test_registration_in_chunks_on_disk_is_the_whole_registration(tmp_path):
+    """register_in_chunks with a folder and more frames than a chunk: memory-mapped, the same numbers."""
+    rng = np.random.default_rng(4)
+    pts = np.repeat(MODEL[None], 500, 0) + rng.normal(0, 1e-3, (500, 4, 3))
+    pts[40:45, :2] = np.nan                                 # no pose
+    pts[300:310, 3] = np.nan                                # three markers
+    whole = pose.register_pose(pts, MODEL)
+    on_disk = streaming.register_in_chunks(pts, MODEL, chunk=64, folder=tmp_path)
+    assert isinstance(on_disk.rotation, np.memmap) and isinstance(on_disk.rms, np.memmap)
+    assert sorted(p.name for p in tmp_path.iterdir())[0].startswith("registration-")
+    np.testing.assert_allclose(on_disk.rotation, whole.rotation, atol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(on_disk.translation, whole.translation, atol=1e-12, equal_nan=True)
+    np.testing.assert_array_equal(on_disk.n_markers, whole.n_markers)
+    assert on_disk.reason.tolist() == whole.reason.tolist()
+    assert np.isclose(on_disk.noise_m, whole.noise_m, rtol=1e-12)
