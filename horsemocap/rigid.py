@@ -1045,8 +1045,9 @@ class RigidBodyAnalysis:
         Correspondence of the static shot (:func:`match_static_markers`).
     model : (3, 3) ; static_saddle : (3,)
         Static-shot markers (same order as the motion markers) and saddle; the
-        model is the moving frames' mean shape instead when the static shot's
-        shape is off by more than a frame's noise (``model_choice``).
+        model of the pose registration is the moving frames' mean shape instead
+        when the static shot's shape is off by more than a frame's noise
+        (``model_choice``); the thesis' chain always uses the static shot's.
     registration : Registration
     motion_fit : horsemocap.fitting.MotionFit
     pos, vel, acc : (n, 3, 3)
@@ -1296,9 +1297,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     """Registration, fits, angular kinematics and the saddle in one call (the rigid-body step).
 
     The static shot is matched to the ride (:func:`match_static_markers`);
-    its marker shape is the model unless it is off the moving frames' mean
-    shape by more than a frame's noise (:func:`choose_marker_model`); every
-    frame's pose is registered (:func:`horsemocap.pose.register_pose`),
+    its marker shape is the pose registration's model unless it is off the
+    moving frames' mean shape by more than a frame's noise
+    (:func:`choose_marker_model`; ``params.marker_model="static"`` keeps it
+    always; the thesis' chain always uses the static shot); every frame's pose is registered (:func:`horsemocap.pose.register_pose`),
     and then, as ``params.kinematics`` asks, the smoothed pose trajectory
     (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
     (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
@@ -1388,7 +1390,8 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     left_out = against_rigid_motion(ppts, model, pt)
     if left_out.any():
         ppts = np.where(left_out[..., None], np.nan, ppts)
-    model_choice = choose_marker_model(ppts, model)
+    static_model = model
+    model_choice = _marker_model_choice(ppts, static_model, params.marker_model)
     model = model_choice.model
     preg_all = register_pose(ppts, model, pose_input.weights, covariance=pose_input.covariance)
     preg = preg_all if pose_input.t is None else _registration_rows(preg_all, inside)
@@ -1396,7 +1399,9 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
                   method=params.fits.angular_method, saddle_method=params.fits.saddle_method,
                   kinematics=params.kinematics, pose_registration=preg, left_out=left_out,
                   model_choice=model_choice)
-    chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders, period_s, smooth_span, fourier_start)
+    # the thesis' chain (eq. 6.3-6.55) is written for the static shot's markers: never the mean shape
+    chain_inputs = (t, pts, static_model, s_saddle, params.fits, fourier_orders, period_s, smooth_span,
+                    fourier_start)
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
@@ -1931,6 +1936,17 @@ def _running_nanmedian(a, half: int) -> np.ndarray:
     return out
 
 
+def _marker_model_choice(points, static_model, marker_model: str) -> ModelChoice:
+    """:func:`choose_marker_model`'s choice (``"auto"``), or the static shot's shape when ``"static"`` is asked
+    for (the test still made and reported, its choice not taken)."""
+    choice = choose_marker_model(points, static_model)
+    if marker_model == "auto" or choice.source == "static shot":
+        return choice
+    return replace(choice, model=np.asarray(static_model, float), source="static shot",
+                   reason=f"asked for (rigid_body.marker_model 'static'); the test would have used the moving "
+                          f"frames' mean shape: {choice.reason}")
+
+
 def _check_choices(params: RigidBodyParams) -> None:
     """Refuse a choice of the section that :func:`analyse_rigid_body` does not know, naming the field."""
     fits = params.fits
@@ -1940,6 +1956,8 @@ def _check_choices(params: RigidBodyParams) -> None:
         raise ValueError(f"fits.saddle_method: expected 'thesis', 'direct' or 'pose', got {fits.saddle_method!r}")
     if params.kinematics not in ("fits", "pose_spline"):
         raise ValueError(f"kinematics: expected 'fits' or 'pose_spline', got {params.kinematics!r}")
+    if params.marker_model not in ("auto", "static"):
+        raise ValueError(f"marker_model: expected 'auto' or 'static', got {params.marker_model!r}")
     events = params.pose.events
     if events is not None and len(events) and params.kinematics != "pose_spline":
         raise ValueError(f"pose.events: change points are a 'pose_spline' option, got kinematics={params.kinematics!r}")
