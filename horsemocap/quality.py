@@ -846,7 +846,8 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
     check = range_check("left_out_markers", figure, "%", (None, ok), (None, warn), input_,
                         "frames with a marker left out of the pose")
     runs = {int(j): _longest_run(lo[:, j]) for j in np.flatnonzero(lo.any(axis=0))}
-    per_marker = ", ".join(f"marker {j}: {int(lo[:, j].sum())} frames (longest run {runs[j]})" for j in runs)
+    per_marker = ", ".join(f"marker {j + 1}: {int(lo[:, j].sum())} frames (longest run {runs[j]})"
+                           for j in runs)                                  # numbered from 1, as the plots
     long_runs = [j for j, r in runs.items() if r / float(fps) > half_window_s]
     if not runs:
         return replace(check, message="no marker moved against the others' rigid motion: every marker seen "
@@ -859,7 +860,7 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
     if level == "ok":
         msg = what
     elif level == "warning":
-        msg = (f"{what}: " + (f"marker {long_runs[0]} moved for longer than {half_window_s:g} s, so the test may "
+        msg = (f"{what}: " + (f"marker {long_runs[0] + 1} moved for longer than {half_window_s:g} s, so the test may "
                               "miss the run's further frames" if long_runs else "a marker is often partly covered "
                               "or slides on the skin") + "; check that marker in the videos")
     else:

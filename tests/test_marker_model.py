@@ -113,12 +113,12 @@ def test_marker_model_is_validated_and_the_thesis_preset_keeps_the_static_shot()
 def test_left_out_check_levels():
     lo = np.zeros((200, 4), bool)
     assert quality.check_left_out_markers(lo, 50.0).level == "ok"
-    lo[50:60, 3] = True                                          # 0.2 s: ok, named
+    lo[50:60, 3] = True                                          # 0.2 s: ok, named (from 1, as the plots)
     c = quality.check_left_out_markers(lo, 50.0)
-    assert c.level == "ok" and c.figure == 5.0 and "marker 3: 10 frames" in c.message
+    assert c.level == "ok" and c.figure == 5.0 and "marker 4: 10 frames" in c.message
     lo[100:140, 2] = True                                        # 0.8 s in one run: longer than the test sees
     c = quality.check_left_out_markers(lo, 50.0)
-    assert c.level == "warning" and "longer than" in c.message
+    assert c.level == "warning" and "marker 3 moved for longer than" in c.message
     lo[:120, 1] = True
     assert quality.check_left_out_markers(lo, 50.0).level == "unreliable"
     assert quality.check_left_out_markers(np.zeros((50, 3), bool), 50.0).level == "skipped"
