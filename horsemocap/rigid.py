@@ -1441,7 +1441,8 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     of the frame rate. Noise left by a smoothing, white or correlated, has
     no preferred phase in the stride; motion the smoothing took for noise
     returns every stride at the same phase. The regression is prewhitened
-    with the residual's lag-1 correlation (an AR(1) noise; measured before
+    with the residual's lag-1 correlation over pairs of consecutive frames
+    with a pose (a gap is never bridged) (an AR(1) noise; measured before
     the harmonics are fitted: after a fit of that many terms to a short
     record it reads low and the test would find harmonics in noise) and
     judged by the F test of the harmonics' terms.
@@ -1477,10 +1478,12 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     >>> bool(np.all(stride_harmonics_left(fits, 1.5) > 1e-3))
     True
     """
+    # the whole grid of frames, NaN where there is no pose: the AR(1) prewhitening pairs only consecutive frames
     ok = np.all(np.isfinite(np.asarray(trajectory.registration.rotation, float)), axis=(1, 2))
-    t = np.asarray(trajectory.t, float)[ok]
-    data = np.column_stack([np.asarray(trajectory.registration.centre, float)[ok],
-                            np.asarray(trajectory.rotvec_data, float)[ok]])
+    t = np.asarray(trajectory.t, float)
+    data = np.column_stack([np.asarray(trajectory.registration.centre, float),
+                            np.asarray(trajectory.rotvec_data, float)])
+    data[~ok] = np.nan
     fitted = np.column_stack([s(t) for s in tuple(trajectory.centre_splines) + tuple(trajectory.rotvec_splines)])
     rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
     orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
@@ -1490,11 +1493,12 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     for i in range(6):
         y = data[:, i] - fitted[:, i]
         keep = np.isfinite(y)
-        if keep.sum() < 2 * X.shape[1] + 8 or not np.all(keep[keep.argmax():len(keep) - keep[::-1].argmax()]):
-            continue   # too few frames, or gaps inside (the AR(1) prewhitening needs consecutive frames)
-        y, Xk = y[keep] - y[keep].mean(), X[keep]
-        rho = float(np.sum(y[1:] * y[:-1]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
-        yw, Xw = y[1:] - rho * y[:-1], Xk[1:] - rho * Xk[:-1]
+        pairs = keep[1:] & keep[:-1]                     # frame k and k - 1 both with a pose
+        if pairs.sum() < 2 * X.shape[1] + 8:
+            continue   # too few consecutive frames for the prewhitened F test
+        y = np.where(keep, y - y[keep].mean(), 0.0)
+        rho = float(np.sum((y[1:] * y[:-1])[pairs]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
+        yw, Xw = (y[1:] - rho * y[:-1])[pairs], (X[1:] - rho * X[:-1])[pairs]
         rss1 = float(np.sum((yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]) ** 2))
         rss0 = float(np.sum(yw ** 2))
         q, dof = Xw.shape[1], yw.size - Xw.shape[1] - 1
