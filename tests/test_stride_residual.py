@@ -65,3 +65,35 @@ def test_a_gap_is_never_bridged_by_the_prewhitening():
         rss1 = np.sum((yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]) ** 2)
         q, dof = Xw.shape[1], yw.size - Xw.shape[1] - 1
         assert p[i] == pytest.approx(stats.f.sf(((np.sum(yw ** 2) - rss1) / q) / (rss1 / dof), q, dof), rel=1e-9)
+
+
+def _white_if_lost(monkeypatch, p_values, choice={"method": "gcv_ar1", "noise_correlation": 0.6}, period_s=0.8):
+    """rigid._white_if_stride_lost on a stand-in trajectory, the test's p-values and the refit given."""
+    asked = {}
+
+    def refit(t, registration, model, params, **kw):
+        asked.update(params=params, **kw)
+        spline = SimpleNamespace(info={"fundamental_hz": 1.25})
+        return SimpleNamespace(centre_splines=[spline], rotvec_splines=[SimpleNamespace(info={})])
+
+    monkeypatch.setattr(rigid, "stride_harmonics_left", lambda traj, f0: np.asarray(p_values, float))
+    monkeypatch.setattr(rigid, "fit_pose_trajectory", refit)
+    traj = SimpleNamespace(smoothing_choice=choice)
+    out = rigid._white_if_stride_lost(traj, None, None, None, rigid.RigidBodyParams(), None, period_s)
+    return traj, out, asked
+
+
+def test_white_noise_refit_only_when_the_stride_is_left_in_the_residual(monkeypatch):
+    level = rigid.STRIDE_RESIDUAL_LEVEL
+    traj, out, asked = _white_if_lost(monkeypatch, [0.5, 0.3, np.nan, 0.2, level / 10, 0.9])
+    assert out is not traj and asked["params"].smoothing == "gcv" and asked["expected_fundamental_hz"] == 1.25
+    reason = out.rotvec_splines[0].info["smoothing_reason"]
+    assert "phiy" in reason and "noise taken as white" in reason and "AR(1) 0.60" in reason
+    assert out.centre_splines[0].info["smoothing_method"] == "gcv"
+    for p, choice, period in [([0.5, 0.3, 0.2, 0.2, level, 0.9], None, 0.8),          # at the level: kept
+                              ([level / 10] * 6, {"method": "gcv"}, 0.8),             # not the correlated GCV
+                              ([level / 10] * 6, None, None),                         # no period: no test
+                              ([np.nan] * 6, None, 0.8)]:                             # no component testable
+        choice = {"method": "gcv_ar1"} if choice is None else choice
+        traj, out, asked = _white_if_lost(monkeypatch, p, choice, period)
+        assert out is traj and not asked
