@@ -1734,8 +1734,9 @@ class ModelChoice:
                 "shift_mm": None if self.shift_m is None else [num(1000 * s, 2) for s in self.shift_m]}
 
 
-def _kabsch(model, x, w):
-    """Per frame, the rotation ``R`` and centres with ``x ~ R (model - cm) + cx`` over the weighted markers.
+def _weighted_rigid_fit(model, x, w):
+    """Per frame, the rotation ``R`` and centres with ``x ~ R (model - cm) + cx`` over the weighted markers
+    (Horn's rotation, :func:`horsemocap.registration.rotation_from_cross_covariance`, of their cross-covariance).
 
     ``model`` (k, m, 3) or (m, 3), ``x`` (k, m, 3) with no NaN, ``w`` (k, m) weights (0 = not used).
     """
@@ -1745,11 +1746,7 @@ def _kabsch(model, x, w):
     cx = (wf * x).sum(1) / nw
     cm = (wf * model).sum(1) / nw
     H = np.einsum("kmi,kmj->kij", wf * (model - cm[:, None]), x - cx[:, None])
-    U, _, Vt = np.linalg.svd(H)
-    d = np.sign(np.linalg.det(np.einsum("kji,klj->kil", Vt, U)))
-    D = np.ones((len(d), 3))
-    D[:, 2] = d
-    return np.einsum("kji,kj,klj->kil", Vt, D, U), cm, cx
+    return rotation_from_cross_covariance(H).as_matrix(), cm, cx
 
 
 def body_coordinates(points, model) -> np.ndarray:
@@ -1780,7 +1777,7 @@ def body_coordinates(points, model) -> np.ndarray:
     out = np.full(pts.shape, np.nan)
     if ok.any():
         x = np.nan_to_num(pts[ok])
-        R, cm, cx = _kabsch(model, x, seen[ok].astype(float))
+        R, cm, cx = _weighted_rigid_fit(model, x, seen[ok].astype(float))
         body = np.einsum("kji,kmj->kmi", R, x - cx[:, None]) + cm[:, None]
         out[ok] = np.where(seen[ok][..., None], body, np.nan)
     return out
@@ -1830,7 +1827,7 @@ def mean_marker_shape(points, model, iterations: int = 50, tol_m: float = 1e-9):
             mean = np.nanmean(body, axis=0)
         if not np.all(np.isfinite(mean)):
             return shape, body
-        R, cm, cx = _kabsch(mean[None], model[None], np.ones((1, len(model))))
+        R, cm, cx = _weighted_rigid_fit(mean[None], model[None], np.ones((1, len(model))))
         new = (mean - cm[0]) @ R[0].T + cx[0]
         step = float(np.abs(new - shape).max())
         shape = new
