@@ -43,6 +43,7 @@ from .detection.timeshift import MIN_CURRENT_PX, MISS_PX
 from .frames import HORSE_STRIDE_HZ
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_image
+from .steps.base import longest_run
 
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
@@ -803,15 +804,6 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
 LEFT_OUT_PCT = (25.0, 50.0)
 
 
-def _longest_run(flags) -> int:
-    """Length of the longest run of True in a 1D bool array."""
-    best = run = 0
-    for f in np.asarray(flags, bool):
-        run = run + 1 if f else 0
-        best = max(best, run)
-    return best
-
-
 def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MOTION_HALF_WINDOW_S,
                            input_="the pose registration's markers (a marker left out where it moved against "
                                   "the others' rigid motion)") -> Check:
@@ -845,7 +837,10 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
     figure = 100.0 * float(lo.any(axis=1).mean())
     check = range_check("left_out_markers", figure, "%", (None, ok), (None, warn), input_,
                         "frames with a marker left out of the pose")
-    runs = {int(j): _longest_run(lo[:, j]) for j in np.flatnonzero(lo.any(axis=0))}
+    runs = {}                                         # marker -> its longest run of left-out frames
+    for j in np.flatnonzero(lo.any(axis=0)):
+        start, stop = longest_run(lo[:, j])
+        runs[int(j)] = stop - start
     per_marker = ", ".join(f"marker {j + 1}: {int(lo[:, j].sum())} frames (longest run {runs[j]})"
                            for j in runs)                                  # numbered from 1, as the plots
     long_runs = [j for j, r in runs.items() if r / float(fps) > half_window_s]
