@@ -800,7 +800,8 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
 #: Share of the pose frames (%) with a marker left out of the pose for moving against the other markers' rigid
 #: motion: ``ok`` up to 25 %, ``warning`` up to 50 %, ``unreliable`` above. The test compares each frame with the
 #: median over its neighbours, which holds while most frames keep the rigid shape; past half of them it no longer
-#: tells the moved marker from the others.
+#: tells the moved marker from the others. The 25 % is half that breakdown: left-out frames that crowd into part
+#: of the record at twice their mean share still leave the median a majority of rigid frames there.
 LEFT_OUT_PCT = (25.0, 50.0)
 
 

@@ -1431,6 +1431,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
 STRIDE_RESIDUAL_LEVEL = 1e-4
 #: The harmonics tested lie below this fraction of the frame rate (a gait's pose motion; far from Nyquist).
 STRIDE_RESIDUAL_MAX_FRACTION = 0.2
+#: Consecutive frames the F test needs beyond twice its harmonic terms (q): the residual's variance is then
+#: measured on at least q + 7 degrees of freedom, more than the harmonics take, so that its own scatter does not
+#: fatten the F distribution's tail at :data:`STRIDE_RESIDUAL_LEVEL`.
+STRIDE_RESIDUAL_SPARE_FRAMES = 8
 
 
 def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> np.ndarray:
@@ -1496,7 +1500,7 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
         y = data[:, i] - fitted[:, i]
         keep = np.isfinite(y)
         pairs = keep[1:] & keep[:-1]                     # frame k and k - 1 both with a pose
-        if pairs.sum() < 2 * X.shape[1] + 8:
+        if pairs.sum() < 2 * X.shape[1] + STRIDE_RESIDUAL_SPARE_FRAMES:
             continue   # too few consecutive frames for the prewhitened F test
         y = np.where(keep, y - y[keep].mean(), 0.0)
         rho = float(np.sum((y[1:] * y[:-1])[pairs]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
