@@ -263,6 +263,14 @@ def pass_smoothing(analysis) -> SettledPoseSmoothing | None:
     on the longest pass (:func:`horsemocap.pose.settle_pose_smoothing`) serve
     the others, which then search none of them. None when the analysis has
     no pose trajectory (``kinematics="fits"``).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from horsemocap.params import AnalysisParams
+    >>> fits = AnalysisParams.from_dict({"rigid_body": {"kinematics": "fits"}})
+    >>> print(pass_smoothing(SimpleNamespace(rigid_body=None, params=fits)))
+    None
     """
     rb = analysis.rigid_body
     trajectory = None if rb is None else getattr(rb.body, "pose", None)

@@ -1729,7 +1729,15 @@ class ModelChoice:
     shift_m: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """The choice for ``analysis.json`` (rounded; NaN as None)."""
+        """The choice for ``analysis.json`` (rounded; NaN as None).
+
+        Examples
+        --------
+        >>> choice = ModelChoice(model=np.zeros((3, 3)), source="static shot", reason="too few frames", dof=3)
+        >>> d = choice.to_dict()
+        >>> d["source"], d["p_value"], d["dof"], d["shift_mm"]
+        ('static shot', None, 3, None)
+        """
         def num(x, d=6):
             return round(float(x), d) if np.isfinite(x) else None
         return {"source": self.source, "reason": self.reason, "hotelling_t2": num(self.statistic, 3),
