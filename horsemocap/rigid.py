@@ -1300,8 +1300,9 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     its marker shape is the pose registration's model unless it is off the
     moving frames' mean shape by more than a frame's noise
     (:func:`choose_marker_model`; ``params.marker_model="static"`` keeps it
-    always; the thesis' chain always uses the static shot); every frame's pose is registered (:func:`horsemocap.pose.register_pose`),
-    and then, as ``params.kinematics`` asks, the smoothed pose trajectory
+    always; the thesis' chain always uses the static shot); every frame's
+    pose is registered (:func:`horsemocap.pose.register_pose`), and then, as
+    ``params.kinematics`` asks, the smoothed pose trajectory
     (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
     (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
     give the markers', the body's and the saddle's kinematics. Every estimate
