@@ -60,15 +60,12 @@ def run_beside(tasks) -> list:
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:                                     # the copy: compute, send, leave without cleanup
-        code = 1
-        try:
+        def work():
             os.close(read_end)
             done = _claimed(tasks, claims_r)
             with os.fdopen(write_end, "wb") as sent:
                 pickle.dump(done, sent)
-            code = 0
-        finally:
-            os._exit(code)
+        _child(work)
     os.close(write_end)
     got = os.fdopen(read_end, "rb")
     try:
@@ -83,6 +80,17 @@ def run_beside(tasks) -> list:
     if status == 0 and data:
         out.update(pickle.loads(data))
     return [out[i] if i in out else task() for i, task in enumerate(tasks)]
+
+
+def _child(work) -> None:
+    """A forked copy's whole life: ``work()``, then leave at once without the parent's cleanup (exit status 0
+    only when ``work`` finished; an error is seen by the parent as a copy that delivered nothing)."""
+    code = 1
+    try:
+        work()
+        code = 0
+    finally:
+        os._exit(code)
 
 
 def _claimed(tasks, claims_fd: int) -> dict:
@@ -126,8 +134,7 @@ class EarlyCall:
         value_r, value_w = os.pipe()
         pid = os.fork()
         if pid == 0:                                 # the copy: load, wait, compute, send, leave
-            code = 1
-            try:
+            def work():
                 os.close(args_w)
                 os.close(value_r)
                 target = getattr(importlib.import_module(self.module), self.function)
@@ -137,9 +144,7 @@ class EarlyCall:
                     value = target(*pickle.loads(data))
                     with os.fdopen(value_w, "wb") as sent:
                         pickle.dump(value, sent)
-                code = 0
-            finally:
-                os._exit(code)
+            _child(work)
         os.close(args_r)
         os.close(value_w)
         self._pid, self._args_fd, self._value_fd = pid, args_w, value_r

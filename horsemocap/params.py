@@ -503,6 +503,13 @@ class RigidBodyParams:
         (Appendix A 12a); ``None`` = the point left over by the matching of
         the static shot to the ride
         (:func:`horsemocap.rigid.match_static_markers`).
+    marker_model : str
+        The markers' shape the pose registration uses: ``"auto"`` (default:
+        the static shot's, or the moving frames' mean shape when the static
+        shot's is off by more than a frame's noise,
+        :func:`horsemocap.rigid.choose_marker_model`) or ``"static"`` (always
+        the static shot's, as the thesis). The thesis' chain of fits
+        (``kinematics="fits"``, eq. 6.3-6.55) always uses the static shot.
     fits : FitsParams
         The thesis' chain of fits.
     pose : PoseParams
@@ -512,6 +519,8 @@ class RigidBodyParams:
     --------
     >>> RigidBodyParams(kinematics="fits").fits.angular_method
     'rotation'
+    >>> RigidBodyParams(marker_model="static").marker_model
+    'static'
     """
 
     kinematics: str = _p("pose_spline", choices=("pose_spline", "fits"), cli="--kinematics", legacy="kinematics",
@@ -522,6 +531,10 @@ class RigidBodyParams:
                                    help="which static-shot point (0-based, left to right in the reference "
                                         "camera) is the saddle marker (Appendix A 12a; automatic: the one the "
                                         "ride's markers leave over)")
+    marker_model: str = _p("auto", choices=("auto", "static"),
+                           help="the markers' shape of the pose registration: auto: the static shot's unless it "
+                                "is off by more than a frame's noise (then the moving frames' mean shape); static: "
+                                "always the static shot's (the thesis' chain of fits always uses it)")
     fits: FitsParams = _section(FitsParams)
     pose: PoseParams = _section(PoseParams)
 
@@ -557,6 +570,7 @@ PRESETS: dict[str, dict] = {
         "motion_frame": {"mode": "period"},       # eq. 5.6/5.7: net displacement over whole periods
         "rigid_body": {
             "kinematics": "fits",                 # 5.5 and chapter 6: the chain of fits
+            "marker_model": "static",             # 6.3: the static shot's markers are the body's shape
             "fits": {
                 "x_degree": 1,                    # 5.5.2.1: x-motion a line in time
                 "order_rule": "thesis",           # 5.5.2.2: N = E/2, the thesis' suggested order

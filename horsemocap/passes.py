@@ -29,7 +29,6 @@ from .pose import SettledPoseSmoothing, settle_pose_smoothing
 from .steps import AnalysisError, ComfortResult
 from .steps.base import longest_run
 from .steps.detect import MIN_SEGMENT_FRAMES
-from .steps.rigid_body import step_rigid_body
 from .vibration import COMFORT_KEYS, exposure_times
 
 #: Passes named one by one in the progress line (more are counted by verdict).
@@ -208,9 +207,10 @@ def pass_runs(analysis) -> list[tuple[int, int]]:
 def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
     """Every pass of ``analysis`` (an :class:`~horsemocap.pipeline.Analysis` that ran to the comfort step).
 
-    ``run_later(results, steps)`` runs ``steps`` on top of the given
-    results (:func:`horsemocap.pipeline.run_steps` with the session and the
-    parameters). The pass that holds the analysis' own segment keeps its
+    ``run_later(results, steps, overrides)`` runs ``steps`` on top of the
+    given results, each step's function given its ``overrides`` keywords
+    besides its own (:func:`horsemocap.pipeline.run_steps` with the session
+    and the parameters). The pass that holds the analysis' own segment keeps its
     results; every other is analysed anew from the smoothing on, its pose
     smoothing with the choices settled on the analysis' own pass
     (:func:`pass_smoothing`). Returns None when the record holds one pass
@@ -263,6 +263,14 @@ def pass_smoothing(analysis) -> SettledPoseSmoothing | None:
     on the longest pass (:func:`horsemocap.pose.settle_pose_smoothing`) serve
     the others, which then search none of them. None when the analysis has
     no pose trajectory (``kinematics="fits"``).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from horsemocap.params import AnalysisParams
+    >>> fits = AnalysisParams.from_dict({"rigid_body": {"kinematics": "fits"}})
+    >>> print(pass_smoothing(SimpleNamespace(rigid_body=None, params=fits)))
+    None
     """
     rb = analysis.rigid_body
     trajectory = None if rb is None else getattr(rb.body, "pose", None)
@@ -274,18 +282,12 @@ def pass_smoothing(analysis) -> SettledPoseSmoothing | None:
 def _later_steps(run_later, given, settled: SettledPoseSmoothing | None = None) -> tuple[dict, str]:
     """The results of :data:`PASS_STEPS` on ``given`` and "", or {} and why they could not be computed.
 
-    The rigid-body step is called here with the arguments :data:`horsemocap.pipeline.STEP_CALLS` gives it,
-    the ``settled`` pose smoothing, and without the thesis' chain of fits (a pass' comfort and verdict come
-    from the pose trajectory; the chain is the main pass' own, in its result files).
+    The rigid-body step is given the ``settled`` pose smoothing and runs without the thesis' chain of fits
+    (a pass' comfort and verdict come from the pose trajectory; the chain is the main pass' own, in its
+    result files).
     """
-    quiet = lambda *a: None  # noqa: E731
     try:
-        an = run_later(given, ("smooth", "motion_frame"))
-        rigid_body = step_rigid_body(an.session, an.params.rigid_body, an.triangulate, an.smooth.raw,
-                                     an.motion_frame, an.detect.sync.offsets, quiet, settled=settled,
-                                     thesis_chain=False)
-        an = run_later({**given, "smooth": an.smooth, "motion_frame": an.motion_frame, "rigid_body": rigid_body},
-                       ("comfort",))
+        an = run_later(given, PASS_STEPS, {"rigid_body": {"settled": settled, "thesis_chain": False}})
     except (AnalysisError, ValueError, np.linalg.LinAlgError) as exc:
         return {}, str(exc)
     return {name: getattr(an, name) for name in PASS_STEPS}, ""

@@ -118,22 +118,24 @@ def _comfort_f0(a: Analysis):
 
 # How each step is called: its section and the typed results it needs (the arrows of DESIGN.md).
 STEP_CALLS = {
-    "sync": lambda a, pr: step_sync(a.session, a.params.sync, pr),
-    "rig": lambda a, pr: step_rig(a.session, a.params.rig, pr),
-    "plumb": lambda a, pr: step_plumb(a.session, a.params.stills, a.rig.rig,
-                                      a.params.triangulate.mode, pr),
-    "static": lambda a, pr: step_static(a.session, a.params.stills, a.rig.rig,
-                                        a.params.triangulate.mode, pr),
-    "detect": lambda a, pr: step_detect(a.session, a.params.detect, a.sync, a.rig.rig,
-                                        a.static.static_points, pr),
-    "triangulate": lambda a, pr: step_triangulate(a.params.triangulate, a.rig.rig, a.detect, pr),
-    "smooth": lambda a, pr: step_smooth(a.params.smooth, a.triangulate, pr),
-    "motion_frame": lambda a, pr: step_motion_frame(a.session, a.params.motion_frame, a.smooth.smoothed,
-                                                    a.plumb.gravity, a.static.static_points, a.triangulate.segment,
-                                                    pr, static_missing=a.static.missing),
-    "rigid_body": lambda a, pr: step_rigid_body(a.session, a.params.rigid_body, a.triangulate,
-                                                a.smooth.raw, a.motion_frame, a.detect.sync.offsets, pr),
-    "comfort": lambda a, pr: step_comfort(a.params.comfort, a.rigid_body, _comfort_f0(a), pr),
+    "sync": lambda a, pr, **kw: step_sync(a.session, a.params.sync, pr, **kw),
+    "rig": lambda a, pr, **kw: step_rig(a.session, a.params.rig, pr, **kw),
+    "plumb": lambda a, pr, **kw: step_plumb(a.session, a.params.stills, a.rig.rig,
+                                            a.params.triangulate.mode, pr, **kw),
+    "static": lambda a, pr, **kw: step_static(a.session, a.params.stills, a.rig.rig,
+                                              a.params.triangulate.mode, pr, **kw),
+    "detect": lambda a, pr, **kw: step_detect(a.session, a.params.detect, a.sync, a.rig.rig,
+                                              a.static.static_points, pr, **kw),
+    "triangulate": lambda a, pr, **kw: step_triangulate(a.params.triangulate, a.rig.rig, a.detect, pr, **kw),
+    "smooth": lambda a, pr, **kw: step_smooth(a.params.smooth, a.triangulate, pr, **kw),
+    "motion_frame": lambda a, pr, **kw: step_motion_frame(a.session, a.params.motion_frame, a.smooth.smoothed,
+                                                          a.plumb.gravity, a.static.static_points,
+                                                          a.triangulate.segment, pr,
+                                                          static_missing=a.static.missing, **kw),
+    "rigid_body": lambda a, pr, **kw: step_rigid_body(a.session, a.params.rigid_body, a.triangulate,
+                                                      a.smooth.raw, a.motion_frame, a.detect.sync.offsets, pr,
+                                                      **kw),
+    "comfort": lambda a, pr, **kw: step_comfort(a.params.comfort, a.rigid_body, _comfort_f0(a), pr, **kw),
 }
 
 
@@ -316,8 +318,8 @@ def _run_passes(analysis: Analysis, out_dir, write_outputs: bool, progress) -> N
     """Every other pass of the record through the later steps (:func:`horsemocap.passes.analyse_passes`)."""
     t0 = time.perf_counter()
     quiet = lambda *a: None  # noqa: E731  (one line per pass instead of every step's)
-    passes = analyse_passes(analysis, lambda given, steps: run_steps(analysis.session, analysis.params, given,
-                                                                      steps, quiet), progress)
+    passes = analyse_passes(analysis, lambda given, steps, overrides: run_steps(
+        analysis.session, analysis.params, given, steps, quiet, overrides), progress)
     if passes is None:
         return
     analysis.passes = passes
@@ -326,14 +328,17 @@ def _run_passes(analysis: Analysis, out_dir, write_outputs: bool, progress) -> N
         result_files.write_available(Path(out_dir), analysis)
 
 
-def run_steps(session: Session, params: AnalysisParams, results, steps, progress=None) -> Analysis:
+def run_steps(session: Session, params: AnalysisParams, results, steps, progress=None,
+              overrides: dict | None = None) -> Analysis:
     """Run ``steps`` (names, in pipeline order) on top of given ``results``.
 
     For studies that replace one step's output (e.g. noisy detections) and
     follow the change through the later steps. ``results``: an
     :class:`Analysis` or a mapping step name -> typed result; the steps named
-    in ``steps`` are computed anew, the others taken as given. Nothing is
-    written.
+    in ``steps`` are computed anew, the others taken as given. ``overrides``:
+    step name -> keyword arguments its step function is given besides those
+    of :data:`STEP_CALLS` (e.g. ``{"rigid_body": {"thesis_chain": False}}``).
+    Nothing is written.
     """
     progress = progress or (lambda *a: None)
     given = {n: getattr(results, n) for n in STEPS} if isinstance(results, Analysis) else dict(results)
@@ -344,7 +349,7 @@ def run_steps(session: Session, params: AnalysisParams, results, steps, progress
     for name in steps:
         t0 = time.perf_counter()
         setattr(analysis, name, None)
-        analysis.with_result(name, STEP_CALLS[name](analysis, progress))
+        analysis.with_result(name, STEP_CALLS[name](analysis, progress, **(overrides or {}).get(name, {})))
         analysis.timings[name] = time.perf_counter() - t0
     return analysis
 

@@ -1000,7 +1000,24 @@ class PoseTrajectory:
     def half_gain_hz(self) -> dict:
         """Per component, the frequency (Hz) its smoothing passes at half amplitude
         (:func:`horsemocap.splines.half_gain_frequency`; stride harmonics, where fitted, pass whole);
-        None where the penalty is not one filter over the record (adaptive, per-frame weights, none)."""
+        None where the penalty is not one filter over the record (adaptive, per-frame weights, none).
+
+        Examples
+        --------
+        A pose smoothed with the penalty of a 5 Hz half-gain filter (50 frames a second):
+
+        >>> import numpy as np
+        >>> from horsemocap.params import PoseParams
+        >>> t = np.arange(200) / 50.0
+        >>> model = np.array([[0.3, 0.0, 0.0], [-0.2, 0.1, 0.0], [-0.1, -0.2, 0.05]])
+        >>> pts = np.broadcast_to(model + np.array([0.0, 0.0, 1.0]), (200, 3, 3)).copy()
+        >>> pts[:, :, 0] += 0.5 * t[:, None]
+        >>> reg = register_pose(pts, model)
+        >>> lam = 1 / (0.02 * (2 * np.pi * 5.0) ** 6)
+        >>> traj = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none"), lam=[lam] * 6)
+        >>> traj.half_gain_hz["phiz"]
+        5.0
+        """
         dt = float(np.median(np.diff(self.t)))
         out = {}
         for name, info in self.smoothing.items():
@@ -1420,6 +1437,10 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
     if any(settled.rotation_weighted) and reg.information is not None:
         var = frame_variances(reg)[:, 3:].copy()
         var[:, ~np.asarray(settled.rotation_weighted, bool)] = np.nan    # equal weights there
+    elif any(settled.rotation_weighted) and choice is not None:
+        choice["smoothing_reason"] = (choice.get("smoothing_reason", "") + "; the settled rotation weighting is "
+                                      "not applied: this record's registration has no marker covariances, so the "
+                                      "rotation is weighted equally")
     spline_options = dict(method="gcv" if settled.method == "gcv_cubic" else settled.method, order=order,
                           fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
     if settled.noise_correlation is not None:

@@ -43,6 +43,7 @@ from .detection.timeshift import MIN_CURRENT_PX, MISS_PX
 from .frames import HORSE_STRIDE_HZ
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_image
+from .steps.base import longest_run
 
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
@@ -799,17 +800,9 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
 #: Share of the pose frames (%) with a marker left out of the pose for moving against the other markers' rigid
 #: motion: ``ok`` up to 25 %, ``warning`` up to 50 %, ``unreliable`` above. The test compares each frame with the
 #: median over its neighbours, which holds while most frames keep the rigid shape; past half of them it no longer
-#: tells the moved marker from the others.
+#: tells the moved marker from the others. The 25 % is half that breakdown: left-out frames that crowd into part
+#: of the record at twice their mean share still leave the median a majority of rigid frames there.
 LEFT_OUT_PCT = (25.0, 50.0)
-
-
-def _longest_run(flags) -> int:
-    """Length of the longest run of True in a 1D bool array."""
-    best = run = 0
-    for f in np.asarray(flags, bool):
-        run = run + 1 if f else 0
-        best = max(best, run)
-    return best
 
 
 def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MOTION_HALF_WINDOW_S,
@@ -845,8 +838,12 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
     figure = 100.0 * float(lo.any(axis=1).mean())
     check = range_check("left_out_markers", figure, "%", (None, ok), (None, warn), input_,
                         "frames with a marker left out of the pose")
-    runs = {int(j): _longest_run(lo[:, j]) for j in np.flatnonzero(lo.any(axis=0))}
-    per_marker = ", ".join(f"marker {j}: {int(lo[:, j].sum())} frames (longest run {runs[j]})" for j in runs)
+    runs = {}                                         # marker -> its longest run of left-out frames
+    for j in np.flatnonzero(lo.any(axis=0)):
+        start, stop = longest_run(lo[:, j])
+        runs[int(j)] = stop - start
+    per_marker = ", ".join(f"marker {j + 1}: {int(lo[:, j].sum())} frames (longest run {runs[j]})"
+                           for j in runs)                                  # numbered from 1, as the plots
     long_runs = [j for j, r in runs.items() if r / float(fps) > half_window_s]
     if not runs:
         return replace(check, message="no marker moved against the others' rigid motion: every marker seen "
@@ -859,7 +856,7 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
     if level == "ok":
         msg = what
     elif level == "warning":
-        msg = (f"{what}: " + (f"marker {long_runs[0]} moved for longer than {half_window_s:g} s, so the test may "
+        msg = (f"{what}: " + (f"marker {long_runs[0] + 1} moved for longer than {half_window_s:g} s, so the test may "
                               "miss the run's further frames" if long_runs else "a marker is often partly covered "
                               "or slides on the skin") + "; check that marker in the videos")
     else:

@@ -103,6 +103,7 @@ PARAMETER_NAMES = {
     "detect.cameras": "detector settings",
     "detect.max_gap_frames": "longest gap bridged (frames)",
     "rigid_body.saddle_marker": "saddle marker in the static shot (given)",
+    "rigid_body.marker_model": "marker shape of the pose registration",
     "stills.plumb": "plumb stills' threshold and labels",
     "stills.static": "static-shot stills' threshold and labels",
     "triangulate.mode": "triangulation",

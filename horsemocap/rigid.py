@@ -1045,8 +1045,9 @@ class RigidBodyAnalysis:
         Correspondence of the static shot (:func:`match_static_markers`).
     model : (3, 3) ; static_saddle : (3,)
         Static-shot markers (same order as the motion markers) and saddle; the
-        model is the moving frames' mean shape instead when the static shot's
-        shape is off by more than a frame's noise (``model_choice``).
+        model of the pose registration is the moving frames' mean shape instead
+        when the static shot's shape is off by more than a frame's noise
+        (``model_choice``); the thesis' chain always uses the static shot's.
     registration : Registration
     motion_fit : horsemocap.fitting.MotionFit
     pos, vel, acc : (n, 3, 3)
@@ -1296,10 +1297,12 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     """Registration, fits, angular kinematics and the saddle in one call (the rigid-body step).
 
     The static shot is matched to the ride (:func:`match_static_markers`);
-    its marker shape is the model unless it is off the moving frames' mean
-    shape by more than a frame's noise (:func:`choose_marker_model`); every
-    frame's pose is registered (:func:`horsemocap.pose.register_pose`),
-    and then, as ``params.kinematics`` asks, the smoothed pose trajectory
+    its marker shape is the pose registration's model unless it is off the
+    moving frames' mean shape by more than a frame's noise
+    (:func:`choose_marker_model`; ``params.marker_model="static"`` keeps it
+    always; the thesis' chain always uses the static shot); every frame's
+    pose is registered (:func:`horsemocap.pose.register_pose`), and then, as
+    ``params.kinematics`` asks, the smoothed pose trajectory
     (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
     (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
     give the markers', the body's and the saddle's kinematics. Every estimate
@@ -1388,7 +1391,8 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     left_out = against_rigid_motion(ppts, model, pt)
     if left_out.any():
         ppts = np.where(left_out[..., None], np.nan, ppts)
-    model_choice = choose_marker_model(ppts, model)
+    static_model = model
+    model_choice = _marker_model_choice(ppts, static_model, params.marker_model)
     model = model_choice.model
     preg_all = register_pose(ppts, model, pose_input.weights, covariance=pose_input.covariance)
     preg = preg_all if pose_input.t is None else _registration_rows(preg_all, inside)
@@ -1396,7 +1400,9 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
                   method=params.fits.angular_method, saddle_method=params.fits.saddle_method,
                   kinematics=params.kinematics, pose_registration=preg, left_out=left_out,
                   model_choice=model_choice)
-    chain_inputs = (t, pts, model, s_saddle, params.fits, fourier_orders, period_s, smooth_span, fourier_start)
+    # the thesis' chain (eq. 6.3-6.55) is written for the static shot's markers: never the mean shape
+    chain_inputs = (t, pts, static_model, s_saddle, params.fits, fourier_orders, period_s, smooth_span,
+                    fourier_start)
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
@@ -1420,10 +1426,16 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
 
 
 #: Below this p-value (per pose component; six are tested) the smoothed pose's residual is taken to hold the
-#: stride's harmonics: motion the smoothing took for noise (:func:`stride_harmonics_left`).
+#: stride's harmonics: motion the smoothing took for noise (:func:`stride_harmonics_left`). The intended
+#: false-alarm rate is for the family of six: at most 6 x 1e-4 = 6e-4 per record (Bonferroni), about one record
+#: of noise alone in 1700 smoothed again as white for nothing; a missed stride motion costs more than that.
 STRIDE_RESIDUAL_LEVEL = 1e-4
 #: The harmonics tested lie below this fraction of the frame rate (a gait's pose motion; far from Nyquist).
 STRIDE_RESIDUAL_MAX_FRACTION = 0.2
+#: Consecutive frames the F test needs beyond twice its harmonic terms (q): the residual's variance is then
+#: measured on at least q + 7 degrees of freedom, more than the harmonics take, so that its own scatter does not
+#: fatten the F distribution's tail at :data:`STRIDE_RESIDUAL_LEVEL`.
+STRIDE_RESIDUAL_SPARE_FRAMES = 8
 
 
 def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> np.ndarray:
@@ -1436,7 +1448,8 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     of the frame rate. Noise left by a smoothing, white or correlated, has
     no preferred phase in the stride; motion the smoothing took for noise
     returns every stride at the same phase. The regression is prewhitened
-    with the residual's lag-1 correlation (an AR(1) noise; measured before
+    with the residual's lag-1 correlation over pairs of consecutive frames
+    with a pose (a gap is never bridged) (an AR(1) noise; measured before
     the harmonics are fitted: after a fit of that many terms to a short
     record it reads low and the test would find harmonics in noise) and
     judged by the F test of the harmonics' terms.
@@ -1472,10 +1485,12 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     >>> bool(np.all(stride_harmonics_left(fits, 1.5) > 1e-3))
     True
     """
+    # the whole grid of frames, NaN where there is no pose: the AR(1) prewhitening pairs only consecutive frames
     ok = np.all(np.isfinite(np.asarray(trajectory.registration.rotation, float)), axis=(1, 2))
-    t = np.asarray(trajectory.t, float)[ok]
-    data = np.column_stack([np.asarray(trajectory.registration.centre, float)[ok],
-                            np.asarray(trajectory.rotvec_data, float)[ok]])
+    t = np.asarray(trajectory.t, float)
+    data = np.column_stack([np.asarray(trajectory.registration.centre, float),
+                            np.asarray(trajectory.rotvec_data, float)])
+    data[~ok] = np.nan
     fitted = np.column_stack([s(t) for s in tuple(trajectory.centre_splines) + tuple(trajectory.rotvec_splines)])
     rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
     orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
@@ -1485,11 +1500,12 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     for i in range(6):
         y = data[:, i] - fitted[:, i]
         keep = np.isfinite(y)
-        if keep.sum() < 2 * X.shape[1] + 8 or not np.all(keep[keep.argmax():len(keep) - keep[::-1].argmax()]):
-            continue   # too few frames, or gaps inside (the AR(1) prewhitening needs consecutive frames)
-        y, Xk = y[keep] - y[keep].mean(), X[keep]
-        rho = float(np.sum(y[1:] * y[:-1]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
-        yw, Xw = y[1:] - rho * y[:-1], Xk[1:] - rho * Xk[:-1]
+        pairs = keep[1:] & keep[:-1]                     # frame k and k - 1 both with a pose
+        if pairs.sum() < 2 * X.shape[1] + STRIDE_RESIDUAL_SPARE_FRAMES:
+            continue   # too few consecutive frames for the prewhitened F test
+        y = np.where(keep, y - y[keep].mean(), 0.0)
+        rho = float(np.sum((y[1:] * y[:-1])[pairs]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
+        yw, Xw = (y[1:] - rho * y[:-1])[pairs], (X[1:] - rho * X[:-1])[pairs]
         rss1 = float(np.sum((yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]) ** 2))
         rss0 = float(np.sum(yw ** 2))
         q, dof = Xw.shape[1], yw.size - Xw.shape[1] - 1
@@ -1714,7 +1730,15 @@ class ModelChoice:
     shift_m: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """The choice for ``analysis.json`` (rounded; NaN as None)."""
+        """The choice for ``analysis.json`` (rounded; NaN as None).
+
+        Examples
+        --------
+        >>> choice = ModelChoice(model=np.zeros((3, 3)), source="static shot", reason="too few frames", dof=3)
+        >>> d = choice.to_dict()
+        >>> d["source"], d["p_value"], d["dof"], d["shift_mm"]
+        ('static shot', None, 3, None)
+        """
         def num(x, d=6):
             return round(float(x), d) if np.isfinite(x) else None
         return {"source": self.source, "reason": self.reason, "hotelling_t2": num(self.statistic, 3),
@@ -1723,8 +1747,9 @@ class ModelChoice:
                 "shift_mm": None if self.shift_m is None else [num(1000 * s, 2) for s in self.shift_m]}
 
 
-def _kabsch(model, x, w):
-    """Per frame, the rotation ``R`` and centres with ``x ~ R (model - cm) + cx`` over the weighted markers.
+def _weighted_rigid_fit(model, x, w):
+    """Per frame, the rotation ``R`` and centres with ``x ~ R (model - cm) + cx`` over the weighted markers
+    (Horn's rotation, :func:`horsemocap.registration.rotation_from_cross_covariance`, of their cross-covariance).
 
     ``model`` (k, m, 3) or (m, 3), ``x`` (k, m, 3) with no NaN, ``w`` (k, m) weights (0 = not used).
     """
@@ -1734,11 +1759,7 @@ def _kabsch(model, x, w):
     cx = (wf * x).sum(1) / nw
     cm = (wf * model).sum(1) / nw
     H = np.einsum("kmi,kmj->kij", wf * (model - cm[:, None]), x - cx[:, None])
-    U, _, Vt = np.linalg.svd(H)
-    d = np.sign(np.linalg.det(np.einsum("kji,klj->kil", Vt, U)))
-    D = np.ones((len(d), 3))
-    D[:, 2] = d
-    return np.einsum("kji,kj,klj->kil", Vt, D, U), cm, cx
+    return rotation_from_cross_covariance(H).as_matrix(), cm, cx
 
 
 def body_coordinates(points, model) -> np.ndarray:
@@ -1769,7 +1790,7 @@ def body_coordinates(points, model) -> np.ndarray:
     out = np.full(pts.shape, np.nan)
     if ok.any():
         x = np.nan_to_num(pts[ok])
-        R, cm, cx = _kabsch(model, x, seen[ok].astype(float))
+        R, cm, cx = _weighted_rigid_fit(model, x, seen[ok].astype(float))
         body = np.einsum("kji,kmj->kmi", R, x - cx[:, None]) + cm[:, None]
         out[ok] = np.where(seen[ok][..., None], body, np.nan)
     return out
@@ -1819,7 +1840,7 @@ def mean_marker_shape(points, model, iterations: int = 50, tol_m: float = 1e-9):
             mean = np.nanmean(body, axis=0)
         if not np.all(np.isfinite(mean)):
             return shape, body
-        R, cm, cx = _kabsch(mean[None], model[None], np.ones((1, len(model))))
+        R, cm, cx = _weighted_rigid_fit(mean[None], model[None], np.ones((1, len(model))))
         new = (mean - cm[0]) @ R[0].T + cx[0]
         step = float(np.abs(new - shape).max())
         shape = new
@@ -1931,6 +1952,17 @@ def _running_nanmedian(a, half: int) -> np.ndarray:
     return out
 
 
+def _marker_model_choice(points, static_model, marker_model: str) -> ModelChoice:
+    """:func:`choose_marker_model`'s choice (``"auto"``), or the static shot's shape when ``"static"`` is asked
+    for (the test still made and reported, its choice not taken)."""
+    choice = choose_marker_model(points, static_model)
+    if marker_model == "auto" or choice.source == "static shot":
+        return choice
+    return replace(choice, model=np.asarray(static_model, float), source="static shot",
+                   reason=f"asked for (rigid_body.marker_model 'static'); the test would have used the moving "
+                          f"frames' mean shape: {choice.reason}")
+
+
 def _check_choices(params: RigidBodyParams) -> None:
     """Refuse a choice of the section that :func:`analyse_rigid_body` does not know, naming the field."""
     fits = params.fits
@@ -1940,6 +1972,8 @@ def _check_choices(params: RigidBodyParams) -> None:
         raise ValueError(f"fits.saddle_method: expected 'thesis', 'direct' or 'pose', got {fits.saddle_method!r}")
     if params.kinematics not in ("fits", "pose_spline"):
         raise ValueError(f"kinematics: expected 'fits' or 'pose_spline', got {params.kinematics!r}")
+    if params.marker_model not in ("auto", "static"):
+        raise ValueError(f"marker_model: expected 'auto' or 'static', got {params.marker_model!r}")
     events = params.pose.events
     if events is not None and len(events) and params.kinematics != "pose_spline":
         raise ValueError(f"pose.events: change points are a 'pose_spline' option, got kinematics={params.kinematics!r}")

@@ -74,6 +74,12 @@ def _twice(a, gap: int):
     return np.concatenate([a, np.full((gap,) + a.shape[1:], fill, dtype=a.dtype), a])
 
 
+def _later(record):
+    """``run_later`` of :func:`analyse_passes`: the record's session and parameters."""
+    return lambda given, steps, overrides: run_steps(record.session, record.params, given, steps,
+                                                     overrides=overrides)
+
+
 def test_a_second_pass_is_analysed_alone_and_combined(bundled):
     det, tri = bundled.detect, bundled.triangulate
     n, gap = len(det.all_seen), 50
@@ -86,7 +92,7 @@ def test_a_second_pass_is_analysed_alone_and_combined(bundled):
                                      reason=_twice(tri.reason, gap), n_views=_twice(tri.n_views, gap),
                                      covariance=_twice(tri.covariance, gap))
     messages = []
-    result = analyse_passes(record, lambda given, steps: run_steps(record.session, record.params, given, steps),
+    result = analyse_passes(record, _later(record),
                             lambda step, message: messages.append(message))
     assert result is not None and len(result.passes) == 2
     first, second = result.passes
@@ -121,18 +127,23 @@ def test_a_second_pass_is_analysed_alone_and_combined(bundled):
     assert float(rows[2]["acc_y_Wb_rms"]) == pytest.approx(first.indicators["acc_y_Wb_rms"], rel=1e-3)
 
 
-def test_a_pass_too_short_to_triangulate_is_a_row_with_its_reason(bundled):
+def _second_pass_too_short(bundled, gap=20):
+    """The bundled record twice, ``gap`` frames apart, the second pass' markers never triangulated in 8 frames
+    running."""
     det, tri = bundled.detect, bundled.triangulate
-    gap = 20
     record = bundled.__class__(bundled.session, bundled.params)
     for name in ("sync", "rig", "plumb", "static", "smooth", "motion_frame", "rigid_body", "comfort"):
         setattr(record, name, getattr(bundled, name))
     points = _twice(tri.points, gap)
-    n = len(det.all_seen)
-    points[n + gap::3] = np.nan           # the second pass' markers never triangulated in 8 frames running
+    points[len(det.all_seen) + gap::3] = np.nan
     record.detect = det.replace(all_seen=_twice(det.all_seen, gap))
     record.triangulate = tri.replace(points=points)
-    result = analyse_passes(record, lambda given, steps: run_steps(record.session, record.params, given, steps),
+    return record
+
+
+def test_a_pass_too_short_to_triangulate_is_a_row_with_its_reason(bundled):
+    record = _second_pass_too_short(bundled)
+    result = analyse_passes(record, _later(record),
                             lambda *a: None)
     second = result.passes[1]
     assert second.analysis is None and second.verdict == "unreliable" and "fewer than 8" in second.error
@@ -162,7 +173,7 @@ def test_passes_computed_beside_in_a_forked_copy_are_the_same(bundled, monkeypat
     record.triangulate = tri.replace(points=_times(tri.points, 30, 3), residual_px=_times(tri.residual_px, 30, 3),
                                      reason=_times(tri.reason, 30, 3), n_views=_times(tri.n_views, 30, 3),
                                      covariance=_times(tri.covariance, 30, 3))
-    later = lambda given, steps: run_steps(record.session, record.params, given, steps)  # noqa: E731
+    later = _later(record)
     forks = []
     real_fork = forking.os.fork
     monkeypatch.setattr(forking.os, "fork", lambda: (forks.append(1), real_fork())[1])
@@ -214,18 +225,9 @@ def test_the_report_shows_every_pass_and_the_verdict_counts_them(bundled):
     from horsemocap import quality, report
     from horsemocap.passes import passes_check
 
-    det, tri = bundled.detect, bundled.triangulate
-    gap = 20
-    record = bundled.__class__(bundled.session, bundled.params)
-    for name in ("sync", "rig", "plumb", "static", "smooth", "motion_frame", "rigid_body", "comfort"):
-        setattr(record, name, getattr(bundled, name))
-    points = _twice(tri.points, gap)
-    n = len(det.all_seen)
-    points[n + gap::3] = np.nan
-    record.detect = det.replace(all_seen=_twice(det.all_seen, gap))
-    record.triangulate = tri.replace(points=points)
-    record.passes = analyse_passes(record, lambda given, steps: run_steps(record.session, record.params, given,
-                                                                             steps), lambda *a: None)
+    tri = bundled.triangulate
+    record = _second_pass_too_short(bundled)
+    record.passes = analyse_passes(record, _later(record), lambda *a: None)
     check = passes_check(record.passes)
     assert check.level != "ok" and "not analysed" in check.message
     checks = quality.post_checks(record) + [check]

@@ -360,15 +360,15 @@ def test_early_call_computes_here_what_the_copy_could_not():
     from horsemocap.forking import EarlyCall
 
     parent = os.getpid()
-    module = types.ModuleType("f34_fragile")
+    module = types.ModuleType("fragile_module")
     module.twice = lambda x: 2 * x if os.getpid() == parent else os._exit(3)
-    sys.modules["f34_fragile"] = module
+    sys.modules["fragile_module"] = module
     try:
-        with EarlyCall("f34_fragile", "twice") as call:
+        with EarlyCall("fragile_module", "twice") as call:
             call.submit(21)
             assert call.result() == 42
     finally:
-        del sys.modules["f34_fragile"]
+        del sys.modules["fragile_module"]
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork") or (__import__("os").cpu_count() or 1) < 2,
@@ -408,7 +408,7 @@ def test_the_analysis_never_loads_matplotlib_and_the_report_draws_the_same_figur
 
 def test_plain_lines_at_least_once_a_minute_with_the_time_left():
     """A long count in a log: a line at least once a minute between the quarters, saying the time left at
-    the rate so far (once the count has run 10 s); quick counts print exactly the quarters as before."""
+    the rate so far (once the count has run 10 s); quick counts print exactly the quarters."""
     now = iter([0.0, 59.0, 61.0, 100.0, 121.5, 1000.0])
     buf = io.StringIO()
     p = ProgressPrinter(buf, clock=lambda: next(now))

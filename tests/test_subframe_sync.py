@@ -65,8 +65,8 @@ def test_markers_recover_the_phases(rig):
 
 
 def test_coupled_phases_are_refined_until_they_settle(rig):
-    """Two cameras' phases off the search grid: each camera's best phase moves with the other's error, so the
-    fine search is repeated until both settle at the joint minimum (noise-free: a few thousandths of a frame)."""
+    """Two cameras' phases off the search grid: each camera's best phase moves with the other's error, so both
+    are moved together (a Nelder-Mead simplex) to the joint minimum (noise-free: a few thousandths of a frame)."""
     n, true_phase = 90, {rig.names[1]: 0.337, rig.names[2]: -0.263}
     px = _free_running_views(rig, n, true_phase)
     fits = subframe.refine_phases(rig, px, {c: 0.0 for c in rig.names}, rig.names[0])
