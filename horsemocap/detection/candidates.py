@@ -44,6 +44,9 @@ __all__ = [
 
 #: The most candidates kept per camera and image (the largest).
 MAX_CANDIDATES_PER_CAMERA = 24
+#: Up to this many regions in a crop, the whole-frame search filters them in Python (NumPy's per-call cost
+#: is larger for a few).
+FEW_REGIONS = 16
 #: Frames on either side whose light slopes are pooled (:func:`correct_light`).
 LIGHT_WINDOW = 100
 
@@ -276,9 +279,13 @@ def whole_frame_count(gray: np.ndarray, threshold: int, area_range):
     components = _bright_components(gray, threshold, area_range)
     count = 0
     for u0, v0, _, _, st, _, keep in components:          # the count from the labelling's boxes alone
-        x, y, w, h = st[1:, :4][keep].T
-        x, y = x + u0, y + v0
-        count += int(np.count_nonzero((x > 0) & (y > 0) & (x + w < W) & (y + h < H)))
+        if len(keep) <= FEW_REGIONS:                      # a few regions (an empty arena): in Python
+            count += sum(1 for x, y, w, h, _ in st[1:][keep].tolist()
+                         if x + u0 > 0 and y + v0 > 0 and x + u0 + w < W and y + v0 + h < H)
+        else:
+            x, y, w, h = st[1:, :4][keep].T
+            x, y = x + u0, y + v0
+            count += int(np.count_nonzero((x > 0) & (y > 0) & (x + w < W) & (y + h < H)))
     return count, WholeFrameSearch(gray, components)
 
 
@@ -297,8 +304,11 @@ def _bright_components(gray: np.ndarray, threshold: int, area_range) -> list:
     out = []
     for u0, v0, u1, v1 in boxes:
         n, lab, st, ce = connected_components(binary[v0:v1, u0:u1])
-        area = st[1:, 4]
-        keep = np.flatnonzero((area >= amin) & (area <= amax))
+        if n - 1 <= FEW_REGIONS:                          # a few regions: in Python
+            keep = np.array([i for i, a in enumerate(st[1:, 4].tolist()) if amin <= a <= amax], np.intp)
+        else:
+            area = st[1:, 4]
+            keep = np.flatnonzero((area >= amin) & (area <= amax))
         if len(keep):
             out.append((u0, v0, n, lab, st, ce, keep))
     return out
