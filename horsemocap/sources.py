@@ -39,6 +39,7 @@ class _SharedGray:
     def __init__(self, limit: int):
         self.limit, self.size, self.frames = int(limit), 0, OrderedDict()
         self.pinned: set = set()
+        self.unpinned: OrderedDict = OrderedDict()     # the frames not pinned, in the order of ``frames``
         self.lock = threading.Lock()        # the reading threads of several sequences share it
 
     @staticmethod
@@ -51,6 +52,8 @@ class _SharedGray:
             f = self.frames.get((video, index))
             if f is not None:
                 self.frames.move_to_end((video, index))
+                if (video, index) in self.unpinned:
+                    self.unpinned.move_to_end((video, index))
             return f
 
     def put(self, video, index: int, frame: np.ndarray, pinned: bool = False) -> None:
@@ -66,11 +69,15 @@ class _SharedGray:
         self.size += frame.nbytes
         if pinned:
             self.pinned.add(key)
+        else:
+            self.unpinned[key] = None
         while self.size > self.limit:
-            old_key = next((k for k in self.frames if k not in self.pinned), None)
-            if old_key is None:         # only pinned frames left: the oldest of them
+            if self.unpinned:           # the least recently used frame not pinned (no scan past the pinned)
+                old_key = next(iter(self.unpinned))
+                del self.unpinned[old_key]
+            else:                       # only pinned frames left: the oldest of them
                 old_key = next(iter(self.frames))
-            self.pinned.discard(old_key)
+                self.pinned.discard(old_key)
             self.size -= self.frames.pop(old_key).nbytes
 
 

@@ -134,3 +134,33 @@ def test_a_video_without_a_declared_count_is_not_taken_as_empty(tmp_path, monkey
                         lambda self, prop: 0.0 if prop == cv2.CAP_PROP_FRAME_COUNT else real_get(self, prop))
     assert cam.gray_bytes(10) == 10 * 40 * 30
     assert cam.gray_bytes() == len(cam) * 40 * 30 > 0
+
+
+def test_the_shared_frames_leave_in_the_order_the_scan_over_every_frame_gives(monkeypatch):
+    """The store's eviction (least recently used frame not pinned, else the oldest pinned) against the rule
+    written out as a scan of every frame, over random puts and gets."""
+    rng = np.random.default_rng(3)
+    frame = np.zeros((3, 4), np.uint8)
+    store = sources._SharedGray(frame.nbytes * 15)
+    ref, ref_pinned = [], set()                     # keys in use order, and the pinned ones
+    for _ in range(3000):
+        key = ("v", int(rng.integers(0, 60)))
+        if rng.random() < 0.4:
+            store.get(*key)
+            if key in ref:
+                ref.remove(key)
+                ref.append(key)
+            continue
+        pinned = bool(rng.random() < 0.2)
+        store.put(*key, frame, pinned=pinned)
+        if key in ref or (not pinned and len(ref) == 15 and len(ref_pinned) == len(ref)):
+            continue
+        ref.append(key)
+        if pinned:
+            ref_pinned.add(key)
+        if len(ref) > 15:
+            old = next((k for k in ref if k not in ref_pinned), ref[0])
+            ref.remove(old)
+            ref_pinned.discard(old)
+        assert list(store.frames) == ref and store.pinned == ref_pinned
+    assert store.size == frame.nbytes * len(ref) <= frame.nbytes * 15

@@ -610,3 +610,24 @@ def test_still_views_on_a_cached_herd_session():
         for cam in rig.names:
             err = np.linalg.norm(got[cam] - truth.rig[cam].project(pos), axis=1)
             assert err.max() < 0.5, (kind, cam, err)
+
+
+def test_the_whole_frame_count_and_its_whole_candidates_agree_with_the_search():
+    """whole_frame_count's count (before the shape rule) and search.whole_count (after it, without centres)
+    against whole_frame_search's candidates of the same image: a cut, a long and a round region, many discs."""
+    from horsemocap.detection.candidates import whole_frame_count, whole_frame_search
+    rng = np.random.default_rng(5)
+    for n_discs in (0, 2, 5, 30):
+        gray = np.zeros((240, 320), np.uint8)
+        gray[0:6, 50:56] = 200                      # cut by the border
+        gray[100:102, 10:40] = 200                  # long: not round
+        for _ in range(n_discs):
+            u, v = rng.integers(20, 300), rng.integers(20, 220)
+            gray[v:v + 5, u:u + 5] = rng.integers(150, 255)
+        count, search = whole_frame_count(gray, 100, (3, None))
+        for circ, most in ((0.5, 24), (None, 24), (0.5, 3)):
+            full = whole_frame_search(gray, 100, (3, None), circ, "weighted", most)
+            assert search.whole_count(circ, most) == int(np.count_nonzero(~full.cut))
+            got = search(circ, "weighted", most)
+            assert np.array_equal(got.centre, full.centre) and np.array_equal(got.cut, full.cut)
+        assert count == int(np.count_nonzero(~whole_frame_search(gray, 100, (3, None), None, "binary", 10 ** 6).cut))

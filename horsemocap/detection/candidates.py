@@ -44,6 +44,9 @@ __all__ = [
 
 #: The most candidates kept per camera and image (the largest).
 MAX_CANDIDATES_PER_CAMERA = 24
+#: Up to this many regions in a crop, the whole-frame search filters them in Python (NumPy's per-call cost
+#: is larger for a few).
+FEW_REGIONS = 16
 #: Frames on either side whose light slopes are pooled (:func:`correct_light`).
 LIGHT_WINDOW = 100
 
@@ -265,29 +268,57 @@ def whole_frame_count(gray: np.ndarray, threshold: int, area_range):
     -------
     count : int
         Regions in the area range not touching the image border.
-    search : callable ``search(min_circularity, centroid, max_count) -> Candidates``
+    search : :class:`WholeFrameSearch`
+        ``search(min_circularity, centroid, max_count) -> Candidates``:
         :func:`whole_frame_search`'s candidates of the same image, from the
-        same labels (made once).
+        same labels (made once); ``search.whole_count(min_circularity,
+        max_count)``: how many of them the border does not cut, without
+        their centres.
     """
-    regions = _bright_regions(gray, threshold, area_range)
-
-    def search(min_circularity, centroid, max_count):
-        return _crop_candidates(gray, regions, min_circularity, centroid, max_count)
-    return sum(int(np.count_nonzero(~r.touches_border)) for r in regions), search
+    H, W = gray.shape[:2]
+    components = _bright_components(gray, threshold, area_range)
+    count = 0
+    for u0, v0, _, _, st, _, keep in components:          # the count from the labelling's boxes alone
+        if len(keep) <= FEW_REGIONS:                      # a few regions (an empty arena): in Python
+            count += sum(1 for x, y, w, h, _ in st[1:][keep].tolist()
+                         if x + u0 > 0 and y + v0 > 0 and x + u0 + w < W and y + v0 + h < H)
+        else:
+            x, y, w, h = st[1:, :4][keep].T
+            x, y = x + u0, y + v0
+            count += int(np.count_nonzero((x > 0) & (y > 0) & (x + w < W) & (y + h < H)))
+    return count, WholeFrameSearch(gray, components)
 
 
 def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
     """The regions in the area range of each crop around the bright pixels (:class:`Regions` per crop)."""
     H, W = gray.shape[:2]
+    return _regions_of(_bright_components(gray, threshold, area_range), W, H)
+
+
+def _bright_components(gray: np.ndarray, threshold: int, area_range) -> list:
+    """Each crop around the bright pixels that holds a region in the area range, labelled:
+    ``(u0, v0, n, labels, stats, centres, keep)`` (:func:`connected_components` of the crop at ``(u0, v0)``,
+    ``keep`` the indices in ``stats[1:]`` of its regions in the range)."""
     amin, amax = area_range[0], _max_area(area_range, gray)
     binary, boxes = bright_crops(gray, threshold)
-    crops = []
+    out = []
     for u0, v0, u1, v1 in boxes:
         n, lab, st, ce = connected_components(binary[v0:v1, u0:u1])
+        if n - 1 <= FEW_REGIONS:                          # a few regions: in Python
+            keep = np.array([i for i, a in enumerate(st[1:, 4].tolist()) if amin <= a <= amax], np.intp)
+        else:
+            area = st[1:, 4]
+            keep = np.flatnonzero((area >= amin) & (area <= amax))
+        if len(keep):
+            out.append((u0, v0, n, lab, st, ce, keep))
+    return out
+
+
+def _regions_of(components: list, W: int, H: int) -> list:
+    """:class:`Regions` (full-image boxes and centres) of the crops' regions :func:`_bright_components` kept."""
+    crops = []
+    for u0, v0, n, lab, st, ce, keep in components:
         area = st[1:, 4].astype(np.int64)
-        keep = np.flatnonzero((area >= amin) & (area <= amax))
-        if len(keep) == 0:
-            continue
         bbox = st[1:, :4].astype(np.int64) + np.array([u0, v0, 0, 0])
         # OpenCV's centre is (sum of coordinates) / area: the sums are integers, recovered exactly
         cents = (np.rint(ce[1:] * area[:, None]) + np.array([u0, v0]) * area[:, None]) / area[:, None]
@@ -298,13 +329,20 @@ def _bright_regions(gray: np.ndarray, threshold: int, area_range) -> list:
 
 def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: str, max_count: int) -> Candidates:
     """:class:`Candidates` of the regions of :func:`_bright_regions`, in the whole image's labelling order."""
+    return _selected_candidates(gray, _crop_selection(gray, crops, min_circularity, max_count), centroid)
+
+
+def _crop_selection(gray: np.ndarray, crops: list, min_circularity, max_count: int):
+    """The candidates :func:`_crop_candidates` keeps, before their centres: ``(crops, crop_of, in_crop, order)``
+    (the round regions of each crop, each candidate's crop and index in it, the kept ones in the whole image's
+    labelling order), or None when none is left."""
     W = gray.shape[1]
     if min_circularity is not None and crops:
         by_moments = sum(len(r) for r in crops) <= 8
         crops = [r.subset(region_circularity(r, by_moments) >= min_circularity) for r in crops]
     crops = [r for r in crops if len(r)]
     if not crops:
-        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+        return None
     crop_of = np.concatenate([np.full(len(r), ci) for ci, r in enumerate(crops)])
     in_crop = np.concatenate([np.arange(len(r)) for r in crops])
     key = np.array([region_order_key(r.labels, rid, y, x, w, r.origin, W) for r in crops
@@ -313,6 +351,23 @@ def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: s
     if len(order) > max_count:
         areas = np.concatenate([r.area for r in crops])
         order = order[np.argsort(-areas[order], kind="stable")[:max_count]]
+    return crops, crop_of, in_crop, order
+
+
+def _selection_whole_count(selection) -> int:
+    """Candidates of a :func:`_crop_selection` not cut by the image border."""
+    if selection is None:
+        return 0
+    crops, crop_of, in_crop, order = selection
+    return sum(int(np.count_nonzero(~r.touches_border[in_crop[order[crop_of[order] == ci]]]))
+               for ci, r in enumerate(crops))
+
+
+def _selected_candidates(gray: np.ndarray, selection, centroid: str) -> Candidates:
+    """:class:`Candidates` of a :func:`_crop_selection`, with their centres."""
+    if selection is None:
+        return Candidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    crops, crop_of, in_crop, order = selection
     centre = np.empty((len(order), 2))
     area = np.empty(len(order))
     cut = np.empty(len(order), bool)
@@ -330,6 +385,34 @@ def _crop_candidates(gray: np.ndarray, crops: list, min_circularity, centroid: s
         cut[at] = r.touches_border[idx]
     return Candidates(centre, area, cut)
 
+
+class WholeFrameSearch:
+    """:func:`whole_frame_search` of one image from labels made once (:func:`whole_frame_count`).
+
+    Called as ``search(min_circularity, centroid, max_count)``: the
+    :class:`Candidates`. :meth:`whole_count` gives how many of them are not
+    cut by the image border without computing their centres (the centres
+    are computed once, on the call).
+    """
+
+    def __init__(self, gray: np.ndarray, components: list):
+        self.gray, self.components = gray, components
+        self._selections: dict = {}
+
+    def _selection(self, min_circularity, max_count: int):
+        rule = (min_circularity, int(max_count))
+        if rule not in self._selections:
+            H, W = self.gray.shape[:2]
+            self._selections[rule] = _crop_selection(self.gray, _regions_of(self.components, W, H),
+                                                     min_circularity, max_count)
+        return self._selections[rule]
+
+    def whole_count(self, min_circularity, max_count: int) -> int:
+        """The candidates (``min_circularity``, ``max_count`` as for the call) not cut by the image border."""
+        return _selection_whole_count(self._selection(min_circularity, max_count))
+
+    def __call__(self, min_circularity, centroid: str, max_count: int) -> Candidates:
+        return _selected_candidates(self.gray, self._selection(min_circularity, max_count), centroid)
 
 
 # --------------------------------------------------------------------------

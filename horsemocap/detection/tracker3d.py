@@ -1113,11 +1113,13 @@ class _Tracker:
             whole, search = whole_frame_count(gray[c], self.thr[c], candidate_area_range(cp))  # before the shape rule
             if have + min(whole, self.M) + left < need:
                 return None
-            cands[c] = search(candidate_min_circularity(cp), cp.centroid, MAX_CANDIDATES_PER_CAMERA)
-            have += min(int(np.count_nonzero(~cands[c].cut)), self.M)
+            have += min(search.whole_count(candidate_min_circularity(cp), MAX_CANDIDATES_PER_CAMERA), self.M)
             if have + left < need:
                 return None
-        return cands
+            cands[c] = search
+        # the centres only for a frame that can succeed
+        return {c: search(candidate_min_circularity(self.cparams[c]), self.cparams[c].centroid,
+                          MAX_CANDIDATES_PER_CAMERA) for c, search in cands.items()}
 
     def _reacquire(self, k):
         cands = self._reacquire_candidates(k)
