@@ -292,6 +292,41 @@ def indicator_matrix(table: dict, key: str, horses=HORSES, gaits=GAITS) -> np.nd
     return m
 
 
+@dataclass(frozen=True)
+class HerdPlace:
+    """Where one session's indicator stands among the herd's: its ``value``, the herd's ``low`` and
+    ``high`` over the gaits compared, and how many of the ``n`` herd sessions are ``lower``."""
+
+    key: str
+    value: float
+    low: float
+    high: float
+    lower: int
+    n: int
+
+
+def beside_herd(table: dict, indicators: dict, gait: str | None = None,
+                keys=("acc_y_Wb_rms", "VDV_y_Wb", "TA_8_limit_Wb")) -> list[HerdPlace]:
+    """A session's comfort ``indicators`` set beside the herd ``table``'s in the same ``gait`` (any gait
+    of :data:`GAITS` when ``gait`` is None or not one of them).
+
+    Examples
+    --------
+    >>> table = {("Horse 1", "canter"): {"acc_y_Wb_rms": 3.0}, ("Horse 2", "canter"): {"acc_y_Wb_rms": 5.0}}
+    >>> place = beside_herd(table, {"acc_y_Wb_rms": 4.0}, "canter", keys=("acc_y_Wb_rms",))[0]
+    >>> place.low, place.high, place.lower, place.n
+    (3.0, 5.0, 1, 2)
+    """
+    gaits = (gait,) if gait in GAITS else GAITS
+    out = []
+    for k in keys:
+        herd = indicator_matrix(table, k, gaits=gaits).ravel()
+        herd = herd[np.isfinite(herd)]
+        out.append(HerdPlace(k, float(indicators[k]), float(herd.min()), float(herd.max()),
+                             int(np.sum(herd < indicators[k])), int(herd.size)))
+    return out
+
+
 # ---------------------------------------------------------------------------
 # Rank correlation with the grades (Figures 8.33-8.36)
 # ---------------------------------------------------------------------------

@@ -33,9 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera
-from ..data import cache_dir
 from .hard import HARD_VERSION, HardScenario, _r, plan, render_hard
-from .herd import RENDER_VERSION, render_into_cache
+from .herd import RENDER_VERSION, scenario_session
 from .horse import HERD, Horse
 from .noise import MarkerNoise
 from .render import fill_polygon
@@ -329,10 +328,5 @@ COVER_SESSIONS = _scenarios()
 
 def cover_session(name: str, cache=None, force: bool = False) -> Path:
     """Path of a cover session, rendering it into the cache if needed (as :func:`.hard.hard_session`)."""
-    if name not in COVER_SESSIONS:
-        raise ValueError(f"unknown cover session {name!r}; expected one of {sorted(COVER_SESSIONS)}")
-    sc = COVER_SESSIONS[name]
-    root = Path(cache) if cache else cache_dir()
-    folder = root / "virtuallab" / f"cover-{name}-{cover_key(sc)}"
-    render_into_cache(folder, lambda tmp: render_covered(tmp, sc), "horsemocap.virtuallab.covers.cover_session", force)
-    return folder
+    return scenario_session("cover", name, COVER_SESSIONS, cover_key, render_covered,
+                            "horsemocap.virtuallab.covers.cover_session", cache, force)

@@ -49,7 +49,7 @@ import numpy as np
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..data import cache_dir
-from .herd import free_running_timings, RENDER_VERSION, render_into_cache
+from .herd import free_running_timings, RENDER_VERSION, render_into_cache, scenario_session
 from .horse import HERD, Harmonics, marker_height, SaddleMotion
 from .render import disc_boundary, draw_disc_blurred, fill_polygon
 from .session import (CAMERA_NAMES, EXPOSURE_S, FLASH_POSITION_G, MARKER_DIAMETER, PLUMB_TAIL_G, PLUMB_TIP_G,
@@ -793,13 +793,8 @@ def hard_session(name: str, cache=None, force: bool = False) -> Path:
     force : bool
         Render again even if a complete render exists.
     """
-    if name not in HARD_SESSIONS:
-        raise ValueError(f"unknown hard session {name!r}; expected one of {sorted(HARD_SESSIONS)}")
-    sc = HARD_SESSIONS[name]
-    root = Path(cache) if cache else cache_dir()
-    folder = root / "virtuallab" / f"hard-{name}-{hard_key(sc)}"
-    render_into_cache(folder, lambda tmp: render_hard(tmp, sc), "horsemocap.virtuallab.hard.hard_session", force)
-    return folder
+    return scenario_session("hard", name, HARD_SESSIONS, hard_key, render_hard,
+                            "horsemocap.virtuallab.hard.hard_session", cache, force)
 
 
 # ---------------------------------------------------------------------------

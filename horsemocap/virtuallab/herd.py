@@ -126,6 +126,31 @@ def render_into_cache(folder: Path, render, by: str, force: bool = False) -> Pat
     return folder
 
 
+def scenario_session(kind: str, name: str, scenarios: dict, key, render, by: str, cache=None,
+                     force: bool = False) -> Path:
+    """Path of the ``kind`` session ``name`` of ``scenarios``, rendered into the cache by
+    ``render(folder, scenario)`` if needed (:func:`render_into_cache`): the folder is
+    ``<cache>/virtuallab/<kind>-<name>-<key(scenario)>``, so a changed scenario renders anew.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> made = scenario_session("demo", "one", {"one": 3}, str, lambda folder, n: folder.mkdir(parents=True),
+    ...                         "a doctest", cache=tempfile.mkdtemp())
+    >>> made.name, (made / ".complete").is_file()
+    ('demo-one-3', True)
+    >>> scenario_session("demo", "two", {"one": 3}, str, None, "a doctest")
+    Traceback (most recent call last):
+    ValueError: unknown demo session 'two'; expected one of ['one']
+    """
+    if name not in scenarios:
+        raise ValueError(f"unknown {kind} session {name!r}; expected one of {sorted(scenarios)}")
+    scenario = scenarios[name]
+    root = Path(cache) if cache else cache_dir()
+    folder = root / "virtuallab" / f"{kind}-{name}-{key(scenario)}"
+    return render_into_cache(folder, lambda tmp: render(tmp, scenario), by, force)
+
+
 # ---------------------------------------------------------------------------
 # free-running versions
 # ---------------------------------------------------------------------------

@@ -316,11 +316,9 @@ print(f"your session: {yours.session.name} ({yours.session.metadata.get('horse',
       f"{', '.join(herd.GAIT_LABELS[g] for g in gaits_beside)}")
 if not your_ind:
     print("its comfort step did not run (notebook 12 says why): nothing to set beside the herd")
-for k in ("acc_y_Wb_rms", "VDV_y_Wb", "TA_8_limit_Wb") if your_ind else ():
-    herd_values = herd.indicator_matrix(table, k, gaits=gaits_beside).ravel()
-    herd_values = herd_values[np.isfinite(herd_values)]
-    print(f"{k:16s} yours {your_ind[k]:8.3f}   herd {herd_values.min():8.3f} to {herd_values.max():8.3f}"
-          f"   {int(np.sum(herd_values < your_ind[k]))} of {herd_values.size} herd sessions lower")
+for place in herd.beside_herd(table, your_ind, your_gait) if your_ind else ():
+    print(f"{place.key:16s} yours {place.value:8.3f}   herd {place.low:8.3f} to {place.high:8.3f}"
+          f"   {place.lower} of {place.n} herd sessions lower")
 
 # %%
 your_truth = session_truth()                # None for a recorded session (no truth/ folder)
