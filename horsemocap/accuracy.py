@@ -173,7 +173,7 @@ def rmse_axes(estimate: np.ndarray, true: np.ndarray) -> np.ndarray:
 
 
 def rmse_pct_of_rms(estimate: np.ndarray, true: np.ndarray) -> float:
-    """RMSE of a vector signal as a percentage of the true signal's rms (issue 13's measure).
+    """RMSE of a vector signal as a percentage of the true signal's rms.
 
     ``100 sqrt(mean |e_k - x_k|^2) / sqrt(mean |x_k|^2)`` over the samples ``k`` (rows; the last axis holds
     the vector's components); samples where the estimate is NaN (no pose) are left out of the error.
