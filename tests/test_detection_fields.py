@@ -145,3 +145,29 @@ def test_row_aliasing_without_enough_frames_is_zero():
     np.testing.assert_array_equal(row_aliasing(np.full((5, 2, 3, 2), np.nan)), (0.0, 0.0))
     with pytest.raises(ValueError, match="frames, 2 fields, markers, 2"):
         row_aliasing(np.zeros((5, 3, 2)))
+
+
+def test_detect_step_measures_only_the_interlaced_cameras_by_fields(tmp_path):
+    """The detect step's pass: an interlaced camera's centres become the fields' mean (its combed frames written
+    as images), a progressive camera's are returned untouched (the same array)."""
+    import cv2
+    from types import SimpleNamespace
+
+    from horsemocap.steps.detect import measured_by_fields
+
+    folder = tmp_path / "left"
+    folder.mkdir()
+    first, second = (30.3, 20.6), (35.1, 20.9)
+    for k in range(3):
+        cv2.imwrite(str(folder / f"frame_{k:03d}.png"), cv2.cvtColor(combed((48, 72), first, second), cv2.COLOR_GRAY2BGR))
+    timing = {"left": {"interlaced": "bottom_first"}, "right": {}}
+    session = SimpleNamespace(cameras=["left", "right"], motion={"left": folder, "right": None},
+                              camera_timing=lambda c: timing[c])
+    sync = SimpleNamespace(offsets={"left": 1, "right": 0}, n_frames=2)
+    given = {"left": np.array([[[32.0, 21.0]], [[np.nan, np.nan]]]), "right": np.array([[[5.0, 6.0]], [[7.0, 8.0]]])}
+    messages = []
+    out = measured_by_fields(session, sync, given, {"left": 80, "right": 80}, lambda *a: messages.append(a))
+    assert out["right"] is given["right"]
+    np.testing.assert_allclose(out["left"][0, 0], 0.5 * (np.array(first) + np.array(second)), atol=0.03)
+    assert np.all(np.isnan(out["left"][1, 0]))
+    assert len(messages) == 1 and "'left' (interlaced)" in messages[0][1]

@@ -8,18 +8,22 @@ whose fields are blended (:func:`horsemocap.sources.fields_blended`: one
 blob again); here each identified marker is then measured in each field on
 its own (:func:`field_centroid`): the field's rows thresholded, the blob
 nearest the marker's position kept, its intensity-weighted centre above the
-local background (:func:`~horsemocap.detection.weighted_centroids`).
+local background (:func:`~horsemocap.detection.weighted_centroids`). A
+field's blob is one disc smeared over that field's exposure, not the streak
+of two overlapping discs the blended frame shows.
 
-The two fields' centres are combined with equal weight
-(:func:`field_centroids`): their mean is the marker half-way between the
-two fields' instants, the instant
+A field holds every other row, so a marker's vertical centre in one field
+errs periodically with its row (a period of two rows), with opposite signs
+in the two fields; the errors cancel in the fields' mean only when the
+marker has not moved vertically between them. :func:`row_aliasing` fits
+that error over a camera's whole record from the two fields' differences,
+:func:`corrected_mean` removes it and averages the fields
+(:func:`remeasure_by_fields` does all three). The mean is the marker
+half-way between the two fields' instants, the instant
 :func:`horsemocap.subframe.observation_instants` gives a centroid of an
-interlaced camera, so the times stay as they are. The mean of two separate
-centres is not the centre of the blended blob: a threshold drawn across a
-blended streak of two overlapping discs cuts its rim where the two discs
-overlap unevenly, which moves the centre along the motion; each field's
-blob is a single disc (smeared over its own exposure) and is cut evenly.
+interlaced camera, so the times stay as they are.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple

@@ -103,7 +103,8 @@ class DetectResult(StepResult):
     Attributes
     ----------
     marker_px : dict
-        Camera -> (n, m, 2) centroids (px), NaN where not found (thesis ``PM_L``, ``PM_M``, ``PM_R``).
+        Camera -> (n, m, 2) centroids (px), NaN where not found (thesis ``PM_L``, ``PM_M``, ``PM_R``); an
+        interlaced camera's measured field by field (:func:`measured_by_fields`).
     reason : dict
         Camera -> (n, m) why a centroid is missing ("" where found).
     segment : (int, int)
@@ -164,7 +165,8 @@ def camera_detection_params(section: DetectParams, camera: str) -> DetectionPara
 def synchronised_frames(session: Session, sync: SyncResult, cam: str, progress=None, message: str = ""):
     """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted.
     An interlaced camera (``metadata.camera_timing.<cam>.interlaced``): its frames with the two fields
-    blended (:class:`~horsemocap.sources.BlendedFields`: a moving marker's combed blob made whole)."""
+    blended (:class:`~horsemocap.sources.BlendedFields`: a moving marker's combed blob made whole); the
+    identified markers are then measured in each field (:func:`measured_by_fields`)."""
     offsets, n = sync.offsets, sync.n_frames
     seq = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
     if _interlaced(session, cam):
