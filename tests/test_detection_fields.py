@@ -109,7 +109,8 @@ def test_vertical_sampling_error_of_sharp_discs_is_fitted_and_removed():
     v = lambda s: 24.0 + 4.0 * np.sin(2 * np.pi * s / 13.0)             # up and down, px
     frames, truth = [], []
     for k in t:
-        frames.append(combed_discs((48, 72), (u(k - 0.25) % 40 + 16, v(k - 0.25)), (u(k + 0.25) % 40 + 16, v(k + 0.25))))
+        first, second = (u(k - 0.25) % 40 + 16, v(k - 0.25)), (u(k + 0.25) % 40 + 16, v(k + 0.25))
+        frames.append(combed_discs((48, 72), first, second))
         truth.append([0.5 * (u(k - 0.25) % 40 + 16 + u(k + 0.25) % 40 + 16), 0.5 * (v(k - 0.25) + v(k + 0.25))])
     truth = np.array(truth)[:, None, :]
     got = remeasure_by_fields(frames, truth + 0.3, 100)
@@ -159,7 +160,8 @@ def test_detect_step_measures_only_the_interlaced_cameras_by_fields(tmp_path):
     folder.mkdir()
     first, second = (30.3, 20.6), (35.1, 20.9)
     for k in range(3):
-        cv2.imwrite(str(folder / f"frame_{k:03d}.png"), cv2.cvtColor(combed((48, 72), first, second), cv2.COLOR_GRAY2BGR))
+        image = cv2.cvtColor(combed((48, 72), first, second), cv2.COLOR_GRAY2BGR)
+        cv2.imwrite(str(folder / f"frame_{k:03d}.png"), image)
     timing = {"left": {"interlaced": "bottom_first"}, "right": {}}
     session = SimpleNamespace(cameras=["left", "right"], motion={"left": folder, "right": None},
                               camera_timing=lambda c: timing[c])
