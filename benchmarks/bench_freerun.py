@@ -9,10 +9,14 @@ size and drawn camera timings, then the exit status the command would give (3 wh
 errors (%), and the offsets found (frames after the reference camera's, with the fraction and its uncertainty; the flash's own in brackets
 when the markers corrected them) against the true fractional offsets.
 
+``--centroids`` adds, per camera, the detected centroids' error against the truth's projections at their
+instants over the analysed frames: rms, and the standard deviation along the image's rows (u) and columns (v)
+(px).
+
 ``--genlocked`` runs the control: the same sessions, cameras and exposures with the cameras locked together
 (phase 0, no rate offset, no rolling shutter), so what the timing alone costs shows.
 
-Usage: ``python benchmarks/bench_freerun.py [--seed 0] [--genlocked] [NAME ...]`` (default: the three
+Usage: ``python benchmarks/bench_freerun.py [--seed 0] [--genlocked] [--centroids] [NAME ...]`` (default: the three
 sessions of ``results/freerun_before.txt``).
 """
 import argparse
@@ -48,7 +52,28 @@ def describe(truth) -> str:
     return f"{truth.fps:.3f} fps {size[0]}x{size[1]}; " + "; ".join(parts)
 
 
-def run(name: str, seed: int, genlocked: bool = False) -> str:
+def centroid_errors(a, truth) -> str:
+    """Per camera: the detected centroids minus the truth's projections (matched) over the analysed frames."""
+    first, last = a.detect.segment
+    parts = []
+    for cam, px in a.detect.marker_px.items():
+        m = px.shape[1]
+        frames = a.synchronisation.offsets[cam] + np.arange(px.shape[0])
+        diffs = []
+        for k in range(first, min(last, px.shape[0])):
+            if frames[k] >= truth.marker_px[cam].shape[0]:
+                continue
+            true = truth.marker_px[cam][frames[k], :m].copy()
+            true[~truth.marker_visible[cam][frames[k], :m]] = np.nan
+            pairs, _ = accuracy.match_points(px[k], true)
+            diffs.extend(px[k, i] - true[j] for i, j in pairs)
+        d = np.asarray(diffs)
+        parts.append(f"{cam} rms {np.sqrt(np.mean(np.sum(d ** 2, axis=1))):.3f}, sd u {d[:, 0].std():.3f}, "
+                     f"v {d[:, 1].std():.3f} ({len(d)})")
+    return "\n  centroids vs truth (px): " + "; ".join(parts)
+
+
+def run(name: str, seed: int, genlocked: bool = False, centroids: bool = False) -> str:
     folder = session_folder(name, seed, genlocked)
     truth = load_truth(folder)
     true = true_offsets_frames(truth)
@@ -90,7 +115,7 @@ def run(name: str, seed: int, genlocked: bool = False) -> str:
             f"{st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of rms; Wb rms {ce['acc_y_Wb_rms']:+.1f} %, Wk rms "
             f"{ce['acc_y_Wk_rms']:+.1f} %; frames analysed {frames}\n  checks flagged: {flagged}{sync_text}"
             "\n  offsets found: " + ", ".join(found) +
-            f"  ({time.perf_counter() - t0:.0f} s)")
+            f"  ({time.perf_counter() - t0:.0f} s)" + (centroid_errors(a, truth) if centroids else ""))
 
 
 def main():
@@ -99,9 +124,11 @@ def main():
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--genlocked", action="store_true",
                         help="the control: the same sessions with the cameras locked together")
+    parser.add_argument("--centroids", action="store_true",
+                        help="per camera, the centroids' error against the truth's projections")
     args = parser.parse_args()
     for name in args.names:
-        print(run(name, args.seed, args.genlocked), flush=True)
+        print(run(name, args.seed, args.genlocked, args.centroids), flush=True)
     if ERRORS:
         err = np.array([e for e, _ in ERRORS])
         ratio = np.array([e / u for e, u in ERRORS if u])

@@ -17,7 +17,7 @@ import numpy as np
 from ..camera import Rig
 from ..detection import (DetectionError, DetectionParams, best_frame_shift, bridge_gaps, candidate_area_range,
                          candidate_min_circularity, default_max_gap, detect_markers, frame_shift_residuals,
-                         identify_markers, reason_counts)
+                         identify_markers, reason_counts, remeasure_by_fields)
 from ..params import DetectParams
 from ..progress import CountingFrames, counter
 from .. import subframe
@@ -103,7 +103,8 @@ class DetectResult(StepResult):
     Attributes
     ----------
     marker_px : dict
-        Camera -> (n, m, 2) centroids (px), NaN where not found (thesis ``PM_L``, ``PM_M``, ``PM_R``).
+        Camera -> (n, m, 2) centroids (px), NaN where not found (thesis ``PM_L``, ``PM_M``, ``PM_R``); an
+        interlaced camera's measured field by field (:func:`measured_by_fields`).
     reason : dict
         Camera -> (n, m) why a centroid is missing ("" where found).
     segment : (int, int)
@@ -164,7 +165,8 @@ def camera_detection_params(section: DetectParams, camera: str) -> DetectionPara
 def synchronised_frames(session: Session, sync: SyncResult, cam: str, progress=None, message: str = ""):
     """The synchronised gray frames of ``cam``; with ``progress``, each first read of a frame is counted.
     An interlaced camera (``metadata.camera_timing.<cam>.interlaced``): its frames with the two fields
-    blended (:class:`~horsemocap.sources.BlendedFields`: a moving marker's combed blob made whole)."""
+    blended (:class:`~horsemocap.sources.BlendedFields`: a moving marker's combed blob made whole); the
+    identified markers are then measured in each field (:func:`measured_by_fields`)."""
     offsets, n = sync.offsets, sync.n_frames
     seq = FrameSource(session.motion[cam]).sequence(offsets[cam], offsets[cam] + n, color=False)
     if _interlaced(session, cam):
@@ -223,9 +225,10 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
         idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
                                                tolerance)
-    times = observation_times(session, sync, rig, idn.marker_px)
+    marker_px = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
+    times = observation_times(session, sync, rig, marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
-        sync = _subframe_by_markers(session, sync, rig, idn.marker_px, times, progress)
+        sync = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
     gap = max_gap_frames(session, section)
     have, _ = bridge_gaps(idn.points, gap)
     # the frames with a pose: every marker of three, any three or more of four or more (the others
@@ -250,9 +253,35 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
     summary = IdentificationSummary(anchor_frame=idn.anchor_frame, anchor_margin=idn.anchor_margin,
                                     model_index=[int(i) for i in idn.model_index], rigid_rms_m=idn.rigid_rms_m)
-    return DetectResult(marker_px=idn.marker_px, reason=idn.reason, segment=segment, detection=chosen,
+    return DetectResult(marker_px=marker_px, reason=idn.reason, segment=segment, detection=chosen,
                         all_seen=tracked, method="multiview", method_note="", max_gap_frames=gap, sync=sync,
                         sync_check=check, identification=summary, observation_frames=times)
+
+
+def measured_by_fields(session: Session, sync: SyncResult, marker_px: dict, thresholds: dict, progress) -> dict:
+    """The interlaced cameras' centroids measured again in each field of their frames as recorded
+    (:func:`horsemocap.detection.remeasure_by_fields`: each field's centre, the fields' vertical sampling
+    error removed, the two averaged, half-way between the fields' instants); other cameras' as they are.
+
+    The identification follows the markers in frames whose fields are blended; a blended combed blob's
+    centre errs more than the mean of its two fields' centres. A marker a field does not show near its
+    blended centre keeps that centre (the count is reported)."""
+    out = dict(marker_px)
+    for c in session.cameras:
+        if not _interlaced(session, c):
+            continue
+        seq = FrameSource(session.motion[c]).sequence(sync.offsets[c], sync.offsets[c] + sync.n_frames, color=False)
+        try:
+            fm = remeasure_by_fields(seq, marker_px[c], int(thresholds[c]))
+        finally:
+            seq.close()
+        out[c] = fm.marker_px
+        kept = int(np.count_nonzero(fm.reason))
+        progress("detect", f"camera '{c}' (interlaced): centroids measured in each field (vertical sampling "
+                           f"error {fm.aliasing[0]:+.3f} cos, {fm.aliasing[1]:+.3f} sin px removed)"
+                           + (f"; {kept} marker-frame(s) not found in a field keep the blended frame's centroid"
+                              if kept else ""))
+    return out
 
 
 def free_running_tolerance(rig: Rig) -> float:
