@@ -9,13 +9,24 @@ acceleration error (% of its rms) and the Wb / Wk rms errors against the
 truth, per camera the 2D values flagged as partly covered, and per marker
 the frames left out of the pose for moving against the others' rigid motion.
 
-Usage: ``python benchmarks/bench_markers_covers.py [--cut] [NAME ...]``
+Every line also gives the per-frame pose's saddle error before the pose
+smoothing (``unsmoothed saddle y``: the registration's share of the error,
+mm rms with the record's mean removed), so that a change of the registration
+and a change of the smoothing can be told apart.
+
+Usage: ``python benchmarks/bench_markers_covers.py [--cut] [--draws N] [NAME ...]``
 (``results/markers_covers.txt``: the run noted in benchmarks/README.md).
 ``--cut``: a session with more than three markers is also analysed cut to the
 horse's own three (the same ride and the same noise: the extra markers' columns
 dropped from the triangulated points and their points from the static shot
 the rigid-body step reads),
 and the marker model chosen is printed.
+``--draws N``: for a session with more than three markers, N draws of
+synthetic marker noise on the true markers (AR(1) over frames, each marker's
+3D error shaped by its triangulation covariance; the scale and the lag-1
+correlation measured from the render's own triangulation errors), analysed
+with every marker and with each extra marker dropped (the same draw): the
+expected effect of a marker, which one render's noise hides.
 """
 import dataclasses
 import sys
@@ -24,7 +35,7 @@ import time
 import numpy as np
 
 from horsemocap import accuracy, pipeline, quality
-from horsemocap.pipeline import AnalysisError, analyze
+from horsemocap.pipeline import AnalysisError, analyze, run_steps
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.covers import COVER_SESSIONS, cover_session
 from horsemocap.virtuallab.horse import HERD
@@ -78,6 +89,22 @@ def _cut_truth(truth, keep):
     return dataclasses.replace(truth, **cut, static_pos=np.vstack([static[keep], static[-1:]]))
 
 
+def unsmoothed_saddle_error_mm(a, truth) -> np.ndarray:
+    """The per-frame pose's saddle (the registration, before the pose smoothing) against the truth: rms (mm) per
+    axis of the true motion frame, each axis' mean over the record removed (a constant offset adds no
+    acceleration)."""
+    body = a.rigid_body.body
+    reg = body.pose_registration
+    seg = a.triangulate.segment
+    frames = a.synchronisation.offsets[a.session.reference_camera] + np.arange(*seg)
+    rows, known = accuracy._truth_rows(truth, frames)
+    per_frame = np.einsum("kij,j->ki", reg.rotation, body.static_saddle) + reg.translation     # motion frame
+    est = (per_frame @ a.motion_frame.axes) @ truth.motion_axes.T                             # true motion frame
+    err = est[known] - np.asarray(truth.saddle_pos)[rows[known]] @ truth.motion_axes.T
+    err = err - np.nanmean(err, axis=0)
+    return 1000 * np.sqrt(np.nanmean(err ** 2, axis=0))
+
+
 def run_cut(name: str) -> str:
     """The session cut to the horse's own three markers: A_y, Wb, Wk against the truth."""
     t0 = time.perf_counter()
@@ -93,8 +120,10 @@ def run_cut(name: str) -> str:
     ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
     v = quality.verdict(quality.post_checks(a))
     mc = a.rigid_body.body.model_choice
+    y_mm = unsmoothed_saddle_error_mm(a, _cut_truth(truth, keep))[1]
     return (f"{name + ' cut to 3':22s} markers {keep} {v:10s} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
-            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % model: {mc.source} "
+            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % unsmoothed saddle y {y_mm:.2f} mm "
+            f"model: {mc.source} "
             f"(p {mc.p_value:.2g}) {time.perf_counter() - t0:.0f}s")
 
 
@@ -123,9 +152,102 @@ def run(name: str) -> str:
     left_out = {} if lo is None else {int(m): int(lo[:, m].sum()) for m in np.flatnonzero(lo.any(axis=0))}
     return (f"{name:22s} markers {a.session.marker_count} exit {3 if v == 'unreliable' else 0} {v:10s} "
             f"wrong {ide['wrong_total']:3d} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
-            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % partly_covered {covered} "
+            f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % "
+            f"unsmoothed saddle y {unsmoothed_saddle_error_mm(a, truth)[1]:.2f} mm partly_covered {covered} "
             f"left out of the pose {left_out} {bad} model: {_model_text(a)} "
             f"{time.perf_counter() - t0:.0f}s" + "".join(f"\n    under the cover, {k}: {v}" for k, v in during.items()))
+
+
+def _true_markers(a, truth) -> np.ndarray:
+    """The true markers (world) in the rows of the triangulated points (NaN where the truth has no frame)."""
+    pts = a.triangulate.points
+    frames = a.synchronisation.offsets[a.session.reference_camera] + np.arange(len(pts))
+    rows, known = accuracy._truth_rows(truth, frames)
+    out = np.full(pts.shape, np.nan)
+    out[known] = np.asarray(truth.marker_pos)[rows[known]]
+    return out
+
+
+def measured_noise(a, truth) -> tuple:
+    """``(scale, rho)`` of the render's triangulation errors over the analysed frames (each marker's mean, the
+    bias, removed): the rms Mahalanobis length per axis under the triangulation covariance, and the mean lag-1
+    autocorrelation over markers and axes."""
+    lo, hi = a.triangulate.segment
+    err = (a.triangulate.points - _true_markers(a, truth))[lo:hi]
+    cov = a.triangulate.covariance[lo:hi]
+    d2, rhos = [], []
+    for j in range(err.shape[1]):
+        ok = np.all(np.isfinite(err[:, j]), axis=1) & np.all(np.isfinite(cov[:, j]), axis=(1, 2))
+        e = err[ok, j] - err[ok, j].mean(axis=0)
+        d2.append(np.einsum("ki,kij,kj->k", e, np.linalg.inv(cov[ok, j]), e))
+        rhos += [np.corrcoef(e[1:, i], e[:-1, i])[0, 1] for i in range(3)]
+    return float(np.sqrt(np.mean(np.concatenate(d2)) / 3)), float(np.clip(np.mean(rhos), 0.0, 0.99))
+
+
+def _synthetic_points(a, truth, scale: float, rho: float, seed: int) -> np.ndarray:
+    """The true markers plus AR(1) noise (lag-1 ``rho``) shaped by the triangulation covariance times
+    ``scale**2``; NaN where the render's triangulation has none."""
+    pts, cov = a.triangulate.points, a.triangulate.covariance
+    seen = np.all(np.isfinite(pts), axis=2)
+    chol = np.linalg.cholesky(np.where(seen[..., None, None], cov, np.eye(3)))
+    rng = np.random.default_rng(seed)
+    z = np.empty(pts.shape)
+    z[0] = rng.standard_normal(pts.shape[1:])
+    for k in range(1, len(z)):
+        z[k] = rho * z[k - 1] + np.sqrt(1 - rho ** 2) * rng.standard_normal(pts.shape[1:])
+    noisy = _true_markers(a, truth) + scale * np.einsum("kmij,kmj->kmi", chol, z)
+    return np.where(seen[..., None], noisy, np.nan)
+
+
+def _analyse_points(a, truth, points, keep) -> tuple:
+    """A_y (%), Wb (%) and the unsmoothed saddle y error (mm) of ``a`` with its triangulated points replaced by
+    ``points`` cut to ``keep``, from the smoothing on."""
+    cut = _Cut(keep, truth)
+    tri = cut._triangulate(a, dataclasses.replace(a.triangulate, points=points))
+    given = {n: getattr(a, n) for n in pipeline.STEPS}
+    given["triangulate"] = tri
+    with cut:
+        an = run_steps(a.session, a.params, given, ["smooth", "motion_frame", "rigid_body", "comfort"])
+    ct = _cut_truth(truth, keep)
+    ce = accuracy.comfort_errors(an.comfort.indicators, truth.comfort, ("acc_y_Wb_rms",))
+    return (accuracy.stage_errors(an, ct)["saddle_acc_y_rmse_pct_of_rms"], ce["acc_y_Wb_rms"],
+            unsmoothed_saddle_error_mm(an, ct)[1])
+
+
+def run_draws(name: str, draws: int) -> str:
+    """Every marker against each extra marker dropped, over ``draws`` draws of synthetic noise (same draw for
+    every configuration): per draw A_y and the unsmoothed saddle y error, then the means and the paired
+    difference."""
+    folder = cover_session(name)
+    truth = load_truth(folder)
+    a = analyze(folder, None, {}, until="motion_frame", progress=lambda *x: None)
+    m = a.triangulate.points.shape[1]
+    own = kept_three(name)
+    configs = {"all": list(range(m))}
+    configs.update({f"no {j}": [i for i in range(m) if i != j] for j in range(m) if j not in own})
+    scale, rho = measured_noise(a, truth)
+    lines = [f"{name}: {draws} draws of synthetic noise, the triangulation covariance x {scale:.2f}^2, AR(1) "
+             f"{rho:.2f} (measured on the render); configurations {configs}"]
+    res = {c: [] for c in configs}
+    for d in range(draws):
+        points = _synthetic_points(a, truth, scale, rho, seed=d)
+        text = f"  draw {d}:"
+        for c, keep in configs.items():
+            res[c].append(_analyse_points(a, truth, points, keep))
+            ay, wb, y_mm = res[c][-1]
+            text += f"  [{c}] A_y {ay:5.1f} % Wb {wb:+5.1f} % unsmoothed y {y_mm:.2f} mm"
+        lines.append(text)
+    base = np.array(res["all"])
+    for c, v in res.items():
+        v = np.array(v)
+        text = (f"  [{c}] mean A_y {v[:, 0].mean():.1f} % rms Wb {np.sqrt(np.mean(v[:, 1] ** 2)):.1f} % mean "
+                f"unsmoothed y {v[:, 2].mean():.2f} mm")
+        if c != "all":
+            diff = base[:, 0] - v[:, 0]
+            text += (f"; all minus this: A_y {diff.mean():+.1f} (sd {diff.std(ddof=1) if draws > 1 else np.nan:.1f})"
+                     f" points, unsmoothed y lower with all in {int(np.sum(base[:, 2] < v[:, 2]))}/{draws} draws")
+        lines.append(text)
+    return "\n".join(lines)
 
 
 def _model_text(a) -> str:
@@ -153,7 +275,13 @@ def _reasons_under_covers(a, truth) -> dict:
 if __name__ == "__main__":
     args = sys.argv[1:]
     cut = "--cut" in args
-    for n in [x for x in args if x != "--cut"] or list(COVER_SESSIONS):
+    draws = int(args[args.index("--draws") + 1]) if "--draws" in args else 0
+    names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] != "--draws")]
+    for n in names or list(COVER_SESSIONS):
+        if draws:
+            if len(COVER_SESSIONS[n].horse().marker_body) > 3:
+                print(run_draws(n, draws), flush=True)
+            continue
         print(run(n), flush=True)
         if cut and len(COVER_SESSIONS[n].horse().marker_body) > 3:
             print(run_cut(n), flush=True)
