@@ -34,7 +34,8 @@ DEFAULT = ("bundled", "horse*_*", "hard-*", "free_*", "marker-noise_*", "cover-*
 CUTS = ("spread4_canter", "spread4_rising_trot", "spread5_canter", "spread5_rising_trot")
 BUNDLED = Path(__file__).resolve().parents[1] / "data_samples" / "horse2_canter"
 HEAD = (f"{'session':44s} {'A_y %':>6s} {'Wb %':>6s} {'Wk %':>6s} {'est %':>6s} {'still %':>7s} {'Wb sd':>5s} "
-        f"{'px':>5s}  verdict (checks flagged)")
+        f"{'px':>5s} {'check':10s} verdict (other checks flagged)")
+BAD_PCT = 10.0        # a run whose saddle vertical acceleration is off by more than this is wrong
 
 
 def folders(patterns):
@@ -69,10 +70,11 @@ def record_of(name, a, truth) -> dict:
     ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms")) \
         if a.comfort is not None and a.comfort.indicators is not None else {}
     u = quality.static_shot_of(a)
+    others = [c for c in checks if c.name != "static_shot"]
     rec = {"name": name, "error_pct": accuracy.stage_errors(a, truth)["saddle_acc_y_rmse_pct_of_rms"],
            "wb": ce.get("acc_y_Wb_rms", np.nan), "wk": ce.get("acc_y_Wk_rms", np.nan),
-           "verdict": quality.verdict(checks), "checks": [c.to_dict() for c in checks],
-           "flagged": ",".join(c.name for c in checks if c.level in ("warning", "unreliable"))}
+           "verdict": quality.verdict(others), "checks": [c.to_dict() for c in others],
+           "flagged": ",".join(c.name for c in others if c.level in ("warning", "unreliable"))}
     if isinstance(u, str):
         rec.update(estimate=None, why=u)
     else:
@@ -81,11 +83,44 @@ def record_of(name, a, truth) -> dict:
     return rec
 
 
+def levels(rec: dict) -> tuple[str, str]:
+    """The static_shot check's level (:data:`horsemocap.quality.STATIC_SHOT_PCT`) and the verdict with it."""
+    ok, warn = quality.STATIC_SHOT_PCT
+    est = rec.get("estimate")
+    level = "skipped" if est is None else "ok" if est <= ok else "warning" if est <= warn else "unreliable"
+    both = [rec["verdict"]] + ([level] if level != "skipped" else [])
+    return level, max(both, key=quality.LEVELS.index)
+
+
 def row(rec: dict) -> str:
     est = (f"{rec['estimate']:6.1f} {rec['explained']:7.1f} {rec['wb_sd']:5.1f} {rec['noise_px']:5.2f}"
            if rec.get("estimate") is not None else f"{'-':>6s} {'-':>7s} {'-':>5s} {'-':>5s}")
-    return (f"{rec['name'][:44]:44s} {rec['error_pct']:6.1f} {rec['wb']:+6.1f} {rec['wk']:+6.1f} {est}  "
-            f"{rec['verdict']} ({rec['flagged'] or 'none'})")
+    level, verdict = levels(rec)
+    return (f"{rec['name'][:44]:44s} {rec['error_pct']:6.1f} {rec['wb']:+6.1f} {rec['wk']:+6.1f} {est} {level:10s} "
+            f"{verdict} ({rec['flagged'] or 'none'})")
+
+
+def summary(records) -> list:
+    """How the check separates: the wrong runs (> BAD_PCT) and how they end, the good runs it flags."""
+    bad = [r for r in records if not r["error_pct"] <= BAD_PCT]
+    good = [r for r in records if r["error_pct"] <= BAD_PCT]
+    lines = [f"runs wrong by more than {BAD_PCT:g} % (A_y): {len(bad)}; ending unreliable with the check: "
+             f"{sum(levels(r)[1] == 'unreliable' for r in bad)}, before it: "
+             f"{sum(r['verdict'] == 'unreliable' for r in bad)}; flagged unreliable by static_shot itself: "
+             f"{sum(levels(r)[0] == 'unreliable' for r in bad)}"]
+    for r in bad:
+        lines.append(f"  {r['name'][:44]:44s} A_y {r['error_pct']:6.1f} %: static_shot {levels(r)[0]}, "
+                     f"verdict {levels(r)[1]}")
+    lines.append(f"good runs (A_y within {BAD_PCT:g} %): {len(good)}; static_shot unreliable on "
+                 f"{sum(levels(r)[0] == 'unreliable' for r in good)}, warning on "
+                 f"{sum(levels(r)[0] == 'warning' for r in good)}; verdict unreliable with the check "
+                 f"{sum(levels(r)[1] == 'unreliable' for r in good)} (before it "
+                 f"{sum(r['verdict'] == 'unreliable' for r in good)})")
+    for r in good:
+        if levels(r)[0] in ("warning", "unreliable"):
+            lines.append(f"  {r['name'][:44]:44s} A_y {r['error_pct']:6.1f} %: static_shot {levels(r)[0]} "
+                         f"({r['estimate']:.1f} %)")
+    return lines
 
 
 def run(folder: Path, dump=None, cut=None) -> str:
@@ -120,9 +155,12 @@ def main():
     args = parser.parse_args()
     print(HEAD, flush=True)
     if args.reuse:
+        records = []
         for f in sorted(Path(args.reuse).glob("*.pkl")):
             with open(f, "rb") as fh:
-                print(row(pickle.load(fh)), flush=True)
+                records.append(pickle.load(fh))
+            print(row(records[-1]), flush=True)
+        print("\n".join(summary(records)))
         return
     for f in folders(args.patterns):
         print(run(f, args.dump), flush=True)

@@ -891,8 +891,8 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
     'skipped'
     """
     ok, warn = STATIC_SHOT_PCT
+    threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
     if isinstance(uncertainty, str) or uncertainty is None:
-        threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
         return Check("static_shot", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
                      f"the static shot's effect on the saddle: not available ({uncertainty})")
     u = uncertainty
@@ -912,7 +912,7 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
         msg = (f"{what}: one still cannot place the saddle well enough for its acceleration to be trusted "
                "within 10 %; spread the markers wider (a thin triangle tilts about its long axis), put the "
                "saddle marker closer to them, or use cameras seeing the markers from more different directions")
-    return replace(check, message=msg)
+    return replace(check, message=msg, threshold=threshold)
 
 
 def post_checks(analysis) -> list[Check]:
@@ -953,6 +953,7 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_saddle_acceleration(peak))
         period = a_.motion_frame.period_frames if a_.motion_frame is not None else None
         checks.append(check_record_ends(ay, period))
+        checks.append(check_static_shot(static_shot_of(analysis)))
     if a_.comfort is not None and a_.comfort.indicators is not None:
         ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
@@ -967,8 +968,8 @@ def static_shot_of(analysis) -> StaticShotUncertainty | str:
     reprojection residuals); the still's points are the rigid-body step's (its motion-frame static shot
     taken back to the world frame, the markers and saddle it matched); the rotation, angular velocity and
     acceleration are those the saddle's written acceleration was computed with."""
-    rb, mf, tri = analysis.rigid_body, analysis.motion_frame, analysis.triangulate
-    if rb is None or mf is None or tri is None or analysis.rig is None:
+    rb, mf, tri = (getattr(analysis, k, None) for k in ("rigid_body", "motion_frame", "triangulate"))
+    if rb is None or getattr(rb, "body", None) is None or mf is None or tri is None or analysis.rig is None:
         return "the rigid-body step has not run"
     noise = getattr(tri, "noise_px", None)
     if noise is None or not np.isfinite(noise):

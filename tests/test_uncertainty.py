@@ -124,7 +124,7 @@ def _uncertainty(pct):
 def test_static_shot_check_levels(pct, level):
     c = quality.check_static_shot(_uncertainty(pct))
     assert (c.name, c.level, c.figure) == ("static_shot", level, pct)
-    assert "Wb rms" in c.message
+    assert "Wb rms" in c.message and c.threshold == "ok <= 2.5 %; warning <= 5 %; unreliable above"
     if level == "unreliable":
         assert "10 %" in c.message
 
