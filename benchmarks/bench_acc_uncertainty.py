@@ -30,6 +30,9 @@ from horsemocap.pipeline import AnalysisError, analyze
 from horsemocap.uncertainty import saddle_acceleration_sensitivity, saddle_offset_map
 from horsemocap.virtuallab import load_truth
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_markers_covers as bmc  # noqa: E402  (the spread rigs' three-marker cut)
+
 DEFAULT = ("bundled", "horse*_*", "hard-*", "free_*", "marker-noise_*", "cover-*")
 CUTS = ("spread4_canter", "spread4_rising_trot", "spread5_canter", "spread5_rising_trot")
 BUNDLED = Path(__file__).resolve().parents[1] / "data_samples" / "horse2_canter"
@@ -131,7 +134,6 @@ def run(folder: Path, dump=None, cut=None) -> str:
             truth = load_truth(folder)
             a = analyze(folder, None, {}, progress=lambda *x: None)
         else:
-            import bench_markers_covers as bmc
             full = load_truth(folder)
             keep = bmc.kept_three(cut)
             with bmc._Cut(keep, full):
@@ -165,8 +167,6 @@ def main():
     for f in folders(args.patterns):
         print(run(f, args.dump), flush=True)
     if args.cuts:
-        sys.path.insert(0, str(Path(__file__).resolve().parent))
-        import bench_markers_covers as bmc
         for c in CUTS:
             print(run(bmc.cover_session(c), args.dump, cut=c), flush=True)
 

@@ -13,7 +13,9 @@ video container's fps, the rig's image size against the frames and stills,
 the camera matrices, the board square size, the marker diameter. After it
 (:func:`post_checks`): the reprojection residuals per camera against the
 calibration's own RMS and the markers' motion per frame, the horse's speed,
-the stride frequency, the saddle's peak vertical acceleration.
+the stride frequency, the saddle's peak vertical acceleration, the share of
+the saddle's vertical acceleration the static shot's pixel noise leaves
+uncertain (:func:`check_static_shot`).
 
 Plausible ranges of horse locomotion (approximate, for ridden horses):
 
