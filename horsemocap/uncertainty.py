@@ -26,6 +26,15 @@ harmonics kept) the smoother is linear, so three cheap parts bound the vertical 
 
 The total is the root sum of squares; it is given in m/s^2 and as a percentage of the estimated
 vertical acceleration's rms (the measure the accuracy of the saddle's acceleration is reported in).
+
+The static shot, exactly (:func:`static_shot_uncertainty`)
+    The saddle's point is placed once, in a single still per camera: one draw of the detection noise, the
+    same offset in every frame. Its pixel noise (measured on the moving frames) goes through the cameras'
+    Jacobians to each still point's covariance (:func:`still_point_covariance`), through the linear map
+    from the still's errors to the saddle's offset from the markers' rigid fit (:func:`saddle_offset_map`),
+    and, since the saddle's acceleration is affine in its body-frame point, exactly through
+    ``([alpha]x + [omega]x^2) R`` of the run (:func:`saddle_acceleration_sensitivity`) to every frame's
+    acceleration; :func:`weighted_rms_sd_pct` gives its share of a frequency-weighted rms.
 """
 from __future__ import annotations
 
