@@ -13,7 +13,9 @@ video container's fps, the rig's image size against the frames and stills,
 the camera matrices, the board square size, the marker diameter. After it
 (:func:`post_checks`): the reprojection residuals per camera against the
 calibration's own RMS and the markers' motion per frame, the horse's speed,
-the stride frequency, the saddle's peak vertical acceleration.
+the stride frequency, the saddle's peak vertical acceleration, the share of
+the saddle's vertical acceleration the static shot's pixel noise leaves
+uncertain (:func:`check_static_shot`).
 
 Plausible ranges of horse locomotion (approximate, for ridden horses):
 
@@ -44,6 +46,7 @@ from .frames import HORSE_STRIDE_HZ
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_image
 from .steps.base import longest_run
+from .uncertainty import StaticShotUncertainty, saddle_acceleration_sensitivity, static_shot_uncertainty
 
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
@@ -866,6 +869,54 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
     return replace(check, level=level, message=msg)
 
 
+#: The static shot's share of the saddle's vertical acceleration error (% of its rms, one standard deviation,
+#: :func:`static_shot_of`): ``ok`` up to 2.5 %, ``warning`` up to 5 %, ``unreliable`` above. The saddle's
+#: vertical acceleration is wanted within 10 % of its rms; the static shot is a single still, so the error it
+#: leaves is one draw of a distribution whose spread this figure is, fixed for the whole record. At 5 % a
+#: 10 % error is a two-standard-deviation draw (about one run in twenty): above it the still alone makes the
+#: target a matter of luck. ``ok`` keeps a 10 % error four standard deviations away.
+STATIC_SHOT_PCT = (2.5, 5.0)
+
+
+def check_static_shot(uncertainty, input_="the static shot (one still per camera): the markers' triangle and the "
+                                          "saddle marker placed in it") -> Check:
+    """Is the saddle point placed precisely enough by the static shot? (thesis section 6.3).
+
+    ``uncertainty``: :func:`static_shot_of` (a
+    :class:`~horsemocap.uncertainty.StaticShotUncertainty`, or why it could not be computed: skipped). The
+    figure is the standard deviation of the written vertical acceleration's error that the still's pixel
+    noise leaves in the saddle (% of its rms), against :data:`STATIC_SHOT_PCT`.
+
+    Examples
+    --------
+    >>> check_static_shot("the rigid-body step has not run").level
+    'skipped'
+    """
+    ok, warn = STATIC_SHOT_PCT
+    threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
+    if isinstance(uncertainty, str) or uncertainty is None:
+        return Check("static_shot", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
+                     f"the static shot's effect on the saddle: not available ({uncertainty})")
+    u = uncertainty
+    check = range_check("static_shot", u.pct_of_rms, "%", (None, ok), (None, warn), input_,
+                        "the static shot's share of the saddle vertical acceleration's error")
+    weighted = "".join(f", {w} rms {v:.1f} %" for w, v in u.weighted_pct.items() if np.isfinite(v))
+    what = (f"the still's pixel noise ({u.noise_px:.3g} px, measured on the moving frames) places the saddle "
+            f"with standard deviations {', '.join(f'{1000 * v:.1f}' for v in u.offset_sd_m)} mm (x, y, z) "
+            f"relative to the markers, which moves its vertical acceleration by {u.sd:.3g} m/s^2 rms, "
+            f"{u.pct_of_rms:.1f} % of its {u.rms:.3g} m/s^2 (one standard deviation{weighted})")
+    if check.level == "ok":
+        msg = what
+    elif check.level == "warning":
+        msg = (f"{what}: the saddle's acceleration may be off by a few percent through the static shot alone; "
+               "a wider marker triangle or a saddle marker closer to the markers narrows it")
+    else:
+        msg = (f"{what}: one still cannot place the saddle well enough for its acceleration to be trusted "
+               "within 10 %; spread the markers wider (a thin triangle tilts about its long axis), put the "
+               "saddle marker closer to them, or use cameras seeing the markers from more different directions")
+    return replace(check, message=msg, threshold=threshold)
+
+
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
     a_, s = analysis, analysis.session
@@ -904,10 +955,36 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_saddle_acceleration(peak))
         period = a_.motion_frame.period_frames if a_.motion_frame is not None else None
         checks.append(check_record_ends(ay, period))
+        checks.append(check_static_shot(static_shot_of(analysis)))
     if a_.comfort is not None and a_.comfort.indicators is not None:
         ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))
     return checks
+
+
+def static_shot_of(analysis) -> StaticShotUncertainty | str:
+    """The static shot's uncertainty carried to the written saddle vertical acceleration
+    (:func:`horsemocap.uncertainty.static_shot_uncertainty`), or why it cannot be computed.
+
+    The pixel noise is the session's own (``TriangulateResult.noise_px``, from the moving frames'
+    reprojection residuals); the still's points are the rigid-body step's (its motion-frame static shot
+    taken back to the world frame, the markers and saddle it matched); the rotation, angular velocity and
+    acceleration are those the saddle's written acceleration was computed with."""
+    rb, mf, tri = (getattr(analysis, k, None) for k in ("rigid_body", "motion_frame", "triangulate"))
+    if rb is None or getattr(rb, "body", None) is None or mf is None or tri is None or analysis.rig is None:
+        return "the rigid-body step has not run"
+    noise = getattr(tri, "noise_px", None)
+    if noise is None or not np.isfinite(noise):
+        return "no pixel noise measured (no point seen by two cameras with a residual)"
+    axes = np.asarray(mf.frame.axes, float)
+    world = np.asarray(mf.static, float) @ axes + np.asarray(mf.frame.origin, float)
+    G = saddle_acceleration_sensitivity(rb.omega, rb.alpha, rb.rotation)
+    ay = written_saddle_acceleration(analysis)
+    try:
+        return static_shot_uncertainty(analysis.rig.rig, world, rb.static_order, rb.saddle_index, axes, noise, G, ay,
+                                       fs=float(analysis.session.fps))
+    except ValueError as exc:
+        return str(exc)
 
 
 def _calibration_rms(analysis) -> float | None:

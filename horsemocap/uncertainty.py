@@ -26,6 +26,15 @@ harmonics kept) the smoother is linear, so three cheap parts bound the vertical 
 
 The total is the root sum of squares; it is given in m/s^2 and as a percentage of the estimated
 vertical acceleration's rms (the measure the accuracy of the saddle's acceleration is reported in).
+
+The static shot, exactly (:func:`static_shot_uncertainty`)
+    The saddle's point is placed once, in a single still per camera: one draw of the detection noise, the
+    same offset in every frame. Its pixel noise (measured on the moving frames) goes through the cameras'
+    Jacobians to each still point's covariance (:func:`still_point_covariance`), through the linear map
+    from the still's errors to the saddle's offset from the markers' rigid fit (:func:`saddle_offset_map`),
+    and, since the saddle's acceleration is affine in its body-frame point, exactly through
+    ``([alpha]x + [omega]x^2) R`` of the run (:func:`saddle_acceleration_sensitivity`) to every frame's
+    acceleration; :func:`weighted_rms_sd_pct` gives its share of a frequency-weighted rms.
 """
 from __future__ import annotations
 
@@ -34,7 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .pose import PoseTrajectory, pose_noise, smallest_height
+from .reconstruction import point_covariance
 from .splines import harmonic_amplitudes
+from .vibration import apply_weighting
 
 #: Highest harmonic frequency considered, as a share of the sampling rate (0.8 of the Nyquist frequency,
 #: as the partial spline's own candidates).
@@ -200,3 +211,269 @@ def saddle_vertical_uncertainty(pose: PoseTrajectory, model, saddle_static, alph
     ay = np.asarray(saddle_acceleration, float)[:, axis]
     rms = float(np.sqrt(np.nanmean(ay ** 2)))
     return AccelerationUncertainty(noise, unresolved, static_offset, total, rms, 100 * total / rms)
+
+
+# ---------------------------------------------------------------------------
+# the static shot's uncertainty carried to the saddle's acceleration
+# ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class StaticShotUncertainty:
+    """How far the static shot's pixel noise may move the saddle's acceleration.
+
+    Attributes
+    ----------
+    noise_px : float
+        The detection noise per image coordinate the still is taken to carry (px).
+    offset_covariance : (3, 3) array
+        Covariance (m^2, motion frame of the static shot) of the saddle's point relative to the markers' rigid
+        fit: the offset every frame's saddle carries.
+    offset_sd_m : (3,) array
+        Its standard deviations.
+    acceleration_sd : (n,) array
+        Standard deviation of the saddle's vertical acceleration per frame (m/s^2) that offset causes.
+    sd : float
+        Its rms over the frames (m/s^2): the expected rms error of the vertical acceleration from the still.
+    rms : float
+        The vertical acceleration's rms (m/s^2, the values the error is relative to).
+    pct_of_rms : float
+        ``sd`` as a percentage of ``rms``.
+    weighted_pct : dict
+        Weighting name (``Wb``, ``Wk``) -> standard deviation (%) of the weighted rms that offset causes,
+        to first order (:func:`weighted_rms_sd_pct`); empty without a sampling rate.
+    """
+
+    noise_px: float
+    offset_covariance: np.ndarray
+    offset_sd_m: np.ndarray
+    acceleration_sd: np.ndarray
+    sd: float
+    rms: float
+    pct_of_rms: float
+    weighted_pct: dict
+
+
+def still_point_covariance(rig, points_world, noise_px: float) -> np.ndarray:
+    """Covariance (k, 3, 3) (m^2, world frame) of the k points of one still seen by every camera of ``rig``.
+
+    The still is a single image per camera, one draw of the detection noise: each point's covariance is
+    ``noise_px^2 (J^T J)^-1`` with ``J`` the Jacobian of its pixels in every camera
+    (:func:`horsemocap.reconstruction.point_covariance`), nothing averaged.
+
+    Examples
+    --------
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> rig = Rig((Camera("left", (640, 480), K), Camera("right", (640, 480), K, translation=[-0.5, 0, 0])))
+    >>> cov = still_point_covariance(rig, np.array([[0.0, 0.0, 2.0]]), 0.5)
+    >>> np.sqrt(np.diag(cov[0])).round(4)          # depth, along the rays, the least certain
+    array([0.0012, 0.0009, 0.0071])
+    """
+    pts = np.asarray(points_world, float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points_world: expected (k, 3), got {pts.shape}")
+    if not (np.isfinite(noise_px) and noise_px >= 0):
+        raise ValueError(f"noise_px: expected a finite pixel noise >= 0, got {noise_px!r}")
+    used = {c: np.ones((1, len(pts)), bool) for c in rig.names}
+    return point_covariance(rig, pts[None], used, noise_px)[0]
+
+
+def saddle_offset_map(markers, saddle) -> np.ndarray:
+    """The linear map (3, 3 (m + 1)) from the static shot's errors to the saddle's offset from the markers.
+
+    The saddle is seen only in the static shot, placed relative to its m markers; every frame's pose is the
+    markers' rigid fit, so an error ``d_i`` of the static markers moves the body frame by the rigid motion
+    that fits them best (a translation ``dc``, the mean error, and a small rotation ``dtheta``, least
+    squares of ``d_i - dc - dtheta x p_i`` with ``p_i`` the markers about their centroid), and an error
+    ``d_s`` of the saddle point stays in it. The saddle's offset in the body frame is
+    ``d_s - dc - dtheta x q``, ``q`` the saddle about the markers' centroid: a thin marker triangle tilted
+    about its long axis swings a far saddle point. The error vector is ordered as the markers' errors
+    (x, y, z each), then the saddle's.
+
+    Examples
+    --------
+    A triangle 0.1 m high, the saddle 0.3 m from its long axis; the two end markers moved 1 mm along y
+    (the third stays) turn the triangle 0.01 rad about that axis, and the saddle, seen only in the still,
+    ends 3 mm off across and 1 mm along:
+
+    >>> markers = np.array([[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0], [0.0, 0.0, 0.1]])
+    >>> L = saddle_offset_map(markers, [0.0, 0.3, 0.0])
+    >>> d = np.zeros(12); d[1] = d[4] = 1e-3     # markers 0 and 1 moved 1 mm along y
+    >>> (1000 * L @ d).round(2)
+    array([ 0., -1., -3.])
+    """
+    m = np.asarray(markers, float)
+    s = np.asarray(saddle, float)
+    if m.ndim != 2 or m.shape[1] != 3 or len(m) < 3 or s.shape != (3,):
+        raise ValueError(f"markers (m >= 3, 3) and saddle (3,): got {m.shape} and {s.shape}")
+    k = len(m)
+    p = m - m.mean(0)
+    q = s - m.mean(0)
+    cross = np.stack([_skew(v) for v in p])                 # [p_i]x
+    H = -np.einsum("kij,kjl->il", cross, cross)             # sum -[p_i]x^2
+    if np.linalg.cond(H) > 1e12:
+        raise ValueError("markers: collinear, the static shot defines no body frame")
+    Hinv = np.linalg.inv(H)
+    L = np.zeros((3, 3 * (k + 1)))
+    L[:, 3 * k:] = np.eye(3)
+    centred = np.eye(k) - 1.0 / k                           # d_i - dc as a map of the marker errors
+    for j in range(k):
+        # dtheta = H^-1 sum_i [p_i]x (d_i - dc), its part from marker j's error
+        dtheta_j = Hinv @ np.einsum("i,ikl->kl", centred[:, j], cross)
+        L[:, 3 * j:3 * j + 3] = -np.eye(3) / k + _skew(q) @ dtheta_j
+    return L
+
+
+def _skew(v) -> np.ndarray:
+    """``[v]x``: the matrix with ``[v]x w = v x w``."""
+    x, y, z = v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def saddle_acceleration_sensitivity(omega, alpha, rotation) -> np.ndarray:
+    """``G(t)`` (n, 3, 3): the change of the saddle's acceleration per metre of its body-frame offset.
+
+    The saddle's acceleration is affine in its body-frame point ``r``:
+    ``a(t) = a_c(t) + ([alpha(t)]x + [omega(t)]x^2) R(t) r``, so an offset ``dr`` from the static shot
+    changes it by exactly ``G(t) dr`` with ``G = ([alpha]x + [omega]x^2) R``, from the analysis' own
+    angular velocity, acceleration and rotation (motion frame).
+
+    Examples
+    --------
+    Turning at a steady 2 rad/s about z, a point 1 cm out along x pulls 4 cm/s^2 towards the axis:
+
+    >>> G = saddle_acceleration_sensitivity([[0, 0, 2.0]], [[0, 0, 0.0]], np.eye(3)[None])
+    >>> (G[0] @ [0.01, 0, 0]).round(3)
+    array([-0.04,  0.  ,  0.  ])
+    """
+    w = np.asarray(omega, float)
+    al = np.asarray(alpha, float)
+    R = np.asarray(rotation, float)
+    if w.shape != al.shape or w.ndim != 2 or w.shape[1] != 3 or R.shape != (len(w), 3, 3):
+        raise ValueError(f"omega, alpha (n, 3) and rotation (n, 3, 3): got {w.shape}, {al.shape}, {R.shape}")
+    W = np.stack([_skew(v) for v in w]) if len(w) else np.zeros((0, 3, 3))
+    A = np.stack([_skew(v) for v in al]) if len(al) else np.zeros((0, 3, 3))
+    return (A + W @ W) @ R
+
+
+def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: float, weighting: str) -> float:
+    """Standard deviation (%) of the frequency-weighted rms of the vertical acceleration for a random offset.
+
+    ``rows`` (n, 3): the vertical acceleration's change per metre of offset (the vertical row of
+    :func:`saddle_acceleration_sensitivity`); the offset has covariance ``offset_covariance``. With ``W`` the
+    weighting (:func:`horsemocap.vibration.apply_weighting`, by the DFT over the frames), the weighted mean
+    square ``<(W a + W g dr)^2>`` changes by ``2 <W a W g> dr`` to first order, so the weighted rms changes by
+    ``h dr / <(W a)^2>`` of itself, ``h = <W a W g>``; its standard deviation is ``sqrt(h C h) / <(W a)^2>``.
+    Frames with a NaN are left out (the longest finite run is used).
+
+    Examples
+    --------
+    An offset of 1 cm sd along x that adds ``20 sin`` m/s^2 per metre to a signal of ``5 sin``: 4 % of it.
+
+    >>> t = np.arange(200) / 50
+    >>> wave = np.sin(2 * np.pi * 2 * t)
+    >>> g = np.zeros((200, 3)); g[:, 0] = 20 * wave
+    >>> round(weighted_rms_sd_pct(g, np.diag([1e-4, 0, 0]), 5 * wave, 50.0, "Wb"), 3)
+    4.0
+    """
+    g = np.asarray(rows, float)
+    ay = np.asarray(vertical_acceleration, float)
+    ok = np.isfinite(ay) & np.isfinite(g).all(1)
+    start, stop = _longest_true_run(ok)
+    if stop - start < 8:
+        return float("nan")
+    wa = apply_weighting(ay[start:stop], fs, weighting, method="fft")
+    wg = apply_weighting(g[start:stop], fs, weighting, method="fft", axis=0)
+    ms = float(np.mean(wa ** 2))
+    h = np.mean(wa[:, None] * wg, axis=0)
+    return 100.0 * float(np.sqrt(max(h @ np.asarray(offset_covariance, float) @ h, 0.0))) / ms
+
+
+def _longest_true_run(ok) -> tuple[int, int]:
+    """``(start, stop)`` of the longest run of True in a boolean array."""
+    best, start = (0, 0), None
+    for i, v in enumerate(list(ok) + [False]):
+        if v and start is None:
+            start = i
+        elif not v and start is not None:
+            best = max(best, (start, i), key=lambda r: r[1] - r[0])
+            start = None
+    return best
+
+
+def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_motion, noise_px: float,
+                            sensitivity, vertical_acceleration, axis: int = 1,
+                            fs: float | None = None) -> StaticShotUncertainty:
+    """The vertical acceleration's error that the static shot's pixel noise leaves in the saddle.
+
+    Parameters
+    ----------
+    rig : horsemocap.camera.Rig
+        The cameras that took the still (every point seen by every camera).
+    static_world : (k, 3) array
+        The still's triangulated points (world frame).
+    marker_rows : sequence of int
+        The rows of the markers the pose is fitted to; ``saddle_row`` the saddle's row.
+    to_motion : (3, 3) array
+        The rotation from the world to the motion frame (``MotionFrame.axes``).
+    noise_px : float
+        The detection noise per image coordinate (px), measured on the session (the moving frames'
+        reprojection residuals, :func:`horsemocap.reconstruction.pixel_noise`).
+    sensitivity : (n, 3, 3) array
+        :func:`saddle_acceleration_sensitivity` of the frames.
+    vertical_acceleration : (n,) array
+        The saddle's vertical acceleration as written (m/s^2).
+    axis : int
+        The vertical axis of the motion frame.
+    fs : float, optional
+        The frame rate: with it, the Wb- and Wk-weighted rms's share too (:func:`weighted_rms_sd_pct`).
+
+    Returns
+    -------
+    StaticShotUncertainty
+        Propagated linearly and exactly: pixels -> the still's points (:func:`still_point_covariance`) ->
+        the saddle's body-frame offset (:func:`saddle_offset_map`) -> each frame's vertical acceleration.
+
+    Examples
+    --------
+    >>> from horsemocap.camera import Camera, Rig
+    >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    >>> rig = Rig((Camera("left", (640, 480), K), Camera("right", (640, 480), K, translation=[-0.5, 0, 0])))
+    >>> still = np.array([[-0.3, 0, 3.0], [0.3, 0, 3.0], [0, -0.05, 3.0], [0, 0.3, 3.0]])
+    >>> n = 50; t = np.arange(n) / 50
+    >>> alpha = np.zeros((n, 3)); alpha[:, 0] = 20 * np.sin(2 * np.pi * 2 * t)   # pitching about x
+    >>> G = saddle_acceleration_sensitivity(np.zeros((n, 3)), alpha, np.repeat(np.eye(3)[None], n, 0))
+    >>> u = static_shot_uncertainty(rig, still, [0, 1, 2], 3, np.eye(3), 0.2, G, 5 * np.sin(2 * np.pi * 2 * t))
+    >>> 1000 * u.offset_sd_m.round(4)            # the thin triangle's tilt: the saddle's depth (z) 5 cm
+    array([ 1. ,  0.9, 49.9])
+    >>> round(u.pct_of_rms)                         # of the vertical acceleration's rms
+    20
+    """
+    world = np.asarray(static_world, float)
+    rows = [int(i) for i in marker_rows]
+    if not np.isfinite(world[rows + [int(saddle_row)]]).all():
+        raise ValueError("static_world: the static shot's markers and saddle must be finite")
+    axes = np.asarray(to_motion, float)
+    cov_world = still_point_covariance(rig, world[rows + [int(saddle_row)]], noise_px)
+    cov = axes @ cov_world @ axes.T                          # motion frame, per point
+    motion = world[rows + [int(saddle_row)]] @ axes.T
+    L = saddle_offset_map(motion[:-1], motion[-1])
+    k = len(rows) + 1
+    block = np.zeros((3 * k, 3 * k))
+    for i in range(k):
+        block[3 * i:3 * i + 3, 3 * i:3 * i + 3] = cov[i]
+    offset_cov = L @ block @ L.T
+    g = np.asarray(sensitivity, float)[:, axis, :]           # (n, 3): the vertical row
+    var = np.einsum("ni,ij,nj->n", g, offset_cov, g)
+    sd_t = np.sqrt(np.clip(var, 0.0, None))
+    ay = np.asarray(vertical_acceleration, float)
+    ok = np.isfinite(sd_t) & np.isfinite(ay)
+    if not ok.any():
+        raise ValueError("sensitivity, vertical_acceleration: no frame with both finite")
+    sd = float(np.sqrt(np.mean(var[ok])))
+    rms = float(np.sqrt(np.mean(ay[ok] ** 2)))
+    weighted = ({w: weighted_rms_sd_pct(g, offset_cov, ay, fs, w) for w in ("Wb", "Wk")} if fs else {})
+    return StaticShotUncertainty(noise_px=float(noise_px), offset_covariance=offset_cov,
+                                 offset_sd_m=np.sqrt(np.clip(np.diag(offset_cov), 0, None)),
+                                 acceleration_sd=np.where(ok, sd_t, np.nan), sd=sd, rms=rms,
+                                 pct_of_rms=100.0 * sd / rms if rms > 0 else float("inf"), weighted_pct=weighted)
