@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import one_line
 from .params import ParamField, params_fields, ParamsError, read_params, section_title
 from .readable import hours_minutes
 
@@ -265,19 +264,48 @@ def _early_board_detection(session, out_dir: Path, args):
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
+    """Read the session, start the early work, then load the analysis and run it.
+
+    Before the analysis' modules are loaded (about a second): the copy of the
+    process that will draw the report's figures is forked (before any thread
+    starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
+    meanwhile), the board detection of the views is started
+    (:func:`_early_board_detection`) and so is the flash search of the
+    videos (:func:`_early_flash_search`).
+    """
+    from .forking import EarlyCalls
+    from .plots import REPORT_FIGURES
     from .session import load_session
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
-    board_views = _early_board_detection(session, out_dir, args)
+    painter = EarlyCalls(*REPORT_FIGURES) if not getattr(args, "no_report", False) else None
+    board_views = flash_search = None
     try:
-        return _analyse_session(session, session_dir, out_dir, args, board_views)
+        board_views = _early_board_detection(session, out_dir, args)
+        flash_search = _early_flash_search(session)
+        return _analyse_session(session, session_dir, out_dir, args, board_views, flash_search, painter)
     finally:
-        if board_views is not None:
-            board_views.close()
+        for job in (painter, board_views, flash_search):
+            if job is not None:
+                job.close()
 
 
-def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views) -> int:
+def _early_flash_search(session):
+    """The flash search of the session's videos, started before the analysis' modules are imported.
+
+    Started when the session gives no offsets (the sync step would search
+    the flash unless the parameters give them); None otherwise.
+    """
+    from .sync import FlashSearch
+
+    if session.sync_offsets:
+        return None
+    return FlashSearch({c: session.motion[c] for c in session.cameras})
+
+
+def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views, flash_search=None,
+                     painter=None) -> int:
     from .pipeline import resolve_params
     from .run import run_analysis
 
@@ -286,14 +314,17 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
     base = resolve_params(session, read_params(args.params)) if args.params else resolve_params(session)
     params = _params_from_args(args, base)
     params.check_session(session, f"{args.params}" if args.params else "parameters")
-    outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False),
-                           board_views=board_views)
+    if flash_search is not None and params.sync.offsets:
+        flash_search.close()        # the parameters give the offsets: no search
+        flash_search = None
+    outcome = run_analysis(session_dir, out_dir, params, report=painter is not None,
+                           board_views=board_views, flash_search=flash_search, painter=painter)
     if outcome.error is not None:
         if getattr(args, "debug", False):   # the step's own exception, with the error it was raised from
             import traceback
 
             traceback.print_exception(outcome.error)
-        print(f"horsemocap: error: {one_line(outcome.error)}", file=sys.stderr)
+        print(f"horsemocap: error: {_error_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
               f"quality: {outcome.verdict})", file=sys.stderr)
         return outcome.exit_code
@@ -766,6 +797,15 @@ class _Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, handled like Ctrl-C."""
 
 
+def _error_line(exc: BaseException) -> str:
+    """:func:`horsemocap.errors.one_line` of ``exc``; that module (which names every step's errors, so loads
+    the whole analysis) is imported only when an error is to be shown, so a run starts its early work
+    (:func:`_run_analysis`) before the analysis' modules load."""
+    from .errors import one_line
+
+    return one_line(exc)
+
+
 def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
     """A warning on the command line: one line ``horsemocap: warning: ...`` (``--debug``: Python's format,
     with the code's file and line)."""
@@ -810,7 +850,7 @@ def main(argv=None) -> int:
     except Exception as exc:  # noqa: BLE001 - the one place that turns errors into messages
         if debug:
             traceback.print_exc()
-        print(f"horsemocap: error: {one_line(exc)}", file=sys.stderr)
+        print(f"horsemocap: error: {_error_line(exc)}", file=sys.stderr)
         return 2
     finally:
         for sig, handler in previous.items():

@@ -30,8 +30,10 @@ frame index, in each camera's own source, of the same instant (the flash);
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -519,6 +521,68 @@ def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_F
                  for cam, src, label in ((cam, src, f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource)
                                           else f"camera {cam!r}") for cam, src in sources.items())}
         return {cam: future.result() for cam, future in found.items()}
+
+
+class FlashSearch:
+    """:func:`flash_detections` of a session's motion videos, started in a thread before the analysis needs it.
+
+    ``horsemocap analyze`` starts it as soon as the session is read, so the
+    videos are decoded (OpenCV decodes without holding the GIL) while the
+    interpreter loads the analysis' modules; the sync step takes the
+    detections from it (:meth:`detections`) when it searches the same videos
+    the same way, and the frames it decoded are shared with the detection as
+    those of a search made in the step.
+
+    Parameters
+    ----------
+    videos : dict
+        Camera -> its motion video or image folder, in the session's order.
+    search_frames : int or None
+        As :func:`flash_detections`.
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> from horsemocap.session import load_session
+    >>> session = load_session(default_session_dir())
+    >>> search = FlashSearch(session.motion)
+    >>> sources = {c: FrameSource(session.motion[c]) for c in session.cameras}
+    >>> {c: d.frame for c, d in search.detections(sources).items()}
+    {'left': 8, 'middle': 61, 'right': 134}
+    """
+
+    def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES):
+        self.videos = [(cam, Path(path)) for cam, path in videos.items()]
+        self.search_frames = search_frames
+        self._found, self._error = None, None
+        self._thread = threading.Thread(target=self._run, name="horsemocap-flash-search", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            sources = {cam: FrameSource(path) for cam, path in self.videos}
+            self._found = flash_detections(sources, self.search_frames)
+        except BaseException as exc:  # given to the caller by detections()
+            self._error = exc
+
+    def detections(self, sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES) -> dict | None:
+        """``flash_detections(sources, search_frames)`` if this search is that one (waits for it), else None.
+
+        Its error (a video that cannot be decoded, no flash in a camera) is
+        raised here, as the search in the step would raise it.
+        """
+        searched = [(cam, Path(src.path)) if isinstance(src, FrameSource) else (cam, None)
+                    for cam, src in sources.items()]
+        if searched != self.videos or search_frames != self.search_frames:
+            return None
+        self.close()
+        if self._error is not None:
+            raise self._error
+        return self._found
+
+    def close(self) -> None:
+        """Wait for the search to end (its result is kept for :meth:`detections`)."""
+        self._thread.join()
 
 
 #: Decoded gray frames the flash searches of several cameras may hold at once (bytes): about what one
