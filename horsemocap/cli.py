@@ -269,9 +269,9 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     Before the analysis' modules are loaded (about a second): the copy of the
     process that will draw the report's figures is forked (before any thread
     starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
-    meanwhile), the board detection of the views is started
-    (:func:`_early_board_detection`) and so is the flash search of the
-    videos (:func:`_early_flash_search`).
+    meanwhile), the flash search of the videos is started
+    (:func:`_early_flash_search`) and so is the board detection of the
+    views (:func:`_early_board_detection`).
     """
     from .forking import EarlyCalls
     from .plots import REPORT_FIGURES
@@ -282,8 +282,8 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     painter = EarlyCalls(*REPORT_FIGURES) if not getattr(args, "no_report", False) else None
     board_views = flash_search = None
     try:
+        flash_search = _early_flash_search(session)    # first: the check of the board cache loads modules
         board_views = _early_board_detection(session, out_dir, args)
-        flash_search = _early_flash_search(session)
         return _analyse_session(session, session_dir, out_dir, args, board_views, flash_search, painter)
     finally:
         for job in (painter, board_views, flash_search):
