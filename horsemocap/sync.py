@@ -497,8 +497,13 @@ def flash_frame(frames, **kwargs) -> int:
     return detect_flash(frames, **kwargs).frame
 
 
-def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, **kwargs) -> dict:
+def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, *,
+                     readers: int | None = None, **kwargs) -> dict:
     """:func:`detect_flash` in every camera: ``{camera: FlashDetection}`` (errors name the camera).
+
+    The cameras are searched side by side, as many at once as ``readers``
+    (default: as many as the decoded frames' memory allows, on two or more
+    cores; never more); the detections are the same however many.
 
     A detection with ``ambiguous`` set is a camera whose flash offset should
     be checked (two candidates of similar score at different frames).
@@ -515,7 +520,8 @@ def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_F
     """
     # the cameras searched side by side (OpenCV decodes without holding the GIL), as many at once as
     # FLASH_SEARCH_BYTES of decoded frames allow; an error is the first camera's in session order
-    with ThreadPoolExecutor(max_workers=_flash_readers(sources, search_frames),
+    at_once = _flash_readers(sources, search_frames)
+    with ThreadPoolExecutor(max_workers=at_once if readers is None else max(1, min(at_once, int(readers))),
                             thread_name_prefix="horsemocap-flash") as pool:
         found = {cam: pool.submit(detect_flash, src, search_frames=search_frames, name=label, **kwargs)
                  for cam, src, label in ((cam, src, f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource)
@@ -532,6 +538,10 @@ class FlashSearch:
     detections from it (:meth:`detections`) when it searches the same videos
     the same way, and the frames it decoded are shared with the detection as
     those of a search made in the step.
+
+    The cameras are searched one after another on a machine of two cores
+    (one reader per core beyond the one left to the interpreter loading the
+    analysis: side by side, the readers would take half of its core).
 
     Parameters
     ----------
@@ -561,7 +571,7 @@ class FlashSearch:
     def _run(self) -> None:
         try:
             sources = {cam: FrameSource(path) for cam, path in self.videos}
-            self._found = flash_detections(sources, self.search_frames)
+            self._found = flash_detections(sources, self.search_frames, readers=(os.cpu_count() or 1) - 1)
         except BaseException as exc:  # given to the caller by detections()
             self._error = exc
 
