@@ -119,6 +119,9 @@ def test_the_early_flash_search_finds_what_the_step_would():
         == {"left": 8, "middle": 61, "right": 134}
     assert all(np.array_equal(early[c].signal, late[c].signal) for c in late)
     assert list(early) == list(session.cameras)
+    one_by_one = flash_detections(sources, readers=1)
+    assert {c: (d.frame, d.off_level, d.on_level) for c, d in one_by_one.items()} \
+        == {c: (d.frame, d.off_level, d.on_level) for c, d in late.items()}
     # another search (fewer frames, other cameras or another order) is not this one
     assert search.detections(sources, search_frames=100) is None
     assert search.detections(dict(reversed(list(sources.items())))) is None
