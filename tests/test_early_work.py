@@ -137,3 +137,20 @@ def test_the_early_flash_search_raises_its_error_when_asked(tmp_path):
     search = FlashSearch({"left": dark})
     with pytest.raises(SyncError, match="camera 'left'.*no flash found"):
         search.detections({"left": FrameSource(dark)})
+
+
+def test_the_command_exempts_its_objects_from_the_collector_at_its_end_and_a_call_does_not(tmp_path):
+    import gc
+
+    from horsemocap.cli import main
+
+    frozen = gc.get_freeze_count()
+    assert main(["analyze", str(tmp_path / "no-such-session"), "--out", str(tmp_path / "out")]) == 2
+    assert gc.get_freeze_count() == frozen
+    code = ("import gc, sys\nfrom horsemocap.cli import main\n"
+            f"sys.argv = ['horsemocap', 'analyze', {str(tmp_path / 'no-such-session')!r}, '--out', "
+            f"{str(tmp_path / 'out')!r}]\n"
+            "code = main()\nprint(code, gc.get_freeze_count() > 0)\n")
+    got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert got.stdout.split() == ["2", "True"]
+    assert "no-such-session" in got.stderr
