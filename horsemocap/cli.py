@@ -264,12 +264,6 @@ def _early_board_detection(session, out_dir: Path, args):
         return None
 
 
-#: The scheduling priority the copy drawing the report's figures gives up (:func:`os.nice`): while the
-#: analysis' modules load and the videos are searched for the flash, it loads matplotlib on what the two
-#: leave of the cores; its figures are waited for only after the analysis.
-PAINTER_NICE = 10
-
-
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     """Read the session, start the early work, then load the analysis and run it.
 
@@ -286,7 +280,7 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
-    painter = EarlyCalls(*REPORT_FIGURES, nice=PAINTER_NICE) if not getattr(args, "no_report", False) else None
+    painter = EarlyCalls(*REPORT_FIGURES) if not getattr(args, "no_report", False) else None
     board_views = flash_search = None
     try:
         flash_search = _early_flash_search(session)    # first: the check of the board cache loads modules

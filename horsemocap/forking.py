@@ -222,9 +222,7 @@ class EarlyCalls:
     (:meth:`results`). A :meth:`submit` waits only when the pipe is full (the
     copy busy with an earlier call and the arguments larger than the pipe's
     buffer). Without a copy, or when the copy fails, :meth:`results` computes
-    every call here: the values are the same either way. ``nice`` lowers the
-    copy's scheduling priority (:func:`os.nice`): it then takes the cores'
-    time this process leaves, for work that is not waited for until later.
+    every call here: the values are the same either way.
 
     Examples
     --------
@@ -235,9 +233,8 @@ class EarlyCalls:
     [5.0, 13.0]
     """
 
-    def __init__(self, module: str, function: str, fork: bool = True, nice: int = 0):
+    def __init__(self, module: str, function: str, fork: bool = True):
         self.module, self.function = module, function
-        self.nice = int(nice)
         self._given: list = []
         self._pid = self._args_file = self._value_fd = None
         self._copy_failed = False
@@ -252,8 +249,6 @@ class EarlyCalls:
             def work():
                 os.close(args_w)
                 os.close(value_r)
-                if self.nice:
-                    os.nice(self.nice)
                 target = getattr(importlib.import_module(self.module), self.function)
                 values = []
                 with os.fdopen(args_r, "rb") as given:
