@@ -267,7 +267,7 @@ def _early_board_detection(session, out_dir: Path, args):
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     """Read the session, start the early work, then load the analysis and run it.
 
-    Before the analysis' modules are loaded (about a second): the copy of the
+    Before the analysis' modules are loaded (the longest part of a short run's start): the copy of the
     process that will draw the report's figures is forked (before any thread
     starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
     meanwhile), the flash search of the videos is started
@@ -864,7 +864,7 @@ def main(argv=None) -> int:
             signal.signal(sig, handler)
         if program:
             # every file is written and closed: the interpreter's garbage collections at exit would only walk
-            # the loaded modules' objects (a quarter of a second on a loaded machine), freed with the process
+            # the loaded modules' objects, which are freed with the process
             gc.freeze()
 
 

@@ -339,8 +339,8 @@ def encode_result(obj, arrays: dict):
 
 
 #: Where SciPy's B-spline class lives: looked up when a spline is stored or read, so a store (and every
-#: module reading JSON through this one) does not load ``scipy.interpolate`` (a third of a second) for
-#: results that hold none.
+#: module reading JSON through this one) does not load ``scipy.interpolate``, slow to load, for results
+#: that hold none.
 _BSPLINE_MODULE = "scipy.interpolate"
 
 
