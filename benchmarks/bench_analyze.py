@@ -19,6 +19,11 @@ new results folder (calibration not cached) and again into the same folder, agai
 ``horsemocap calibrate`` (the session's three view folders) + decode-only of its videos, in N
 interleaved rounds (results/analyze_demo.json); with ``--compare-with`` another checkout's demo and
 calibrate take turns in the same rounds.
+``--demo-phases N [--compare-with CHECKOUT]`` times a fresh ``horsemocap demo`` (new results folder, board
+cache warm) in N rounds alternating with the other checkout: wall and CPU (user + sys, the forked copies
+included), when each milestone's line appeared (the first output line, the sync, detect, rigid-body and
+comfort lines, the results line), each step's own seconds from analysis.json and the load average
+(results/demo_phases.json).
 Each measurement runs in its own process so the peak memory is its own.
 """
 from __future__ import annotations
@@ -161,6 +166,63 @@ def demo_rounds(rounds: int, compare_with=None) -> dict:
             "runs": rows, "medians": med}
 
 
+#: A fresh demo's milestones: name -> the text of the output line that marks it (its first appearance).
+DEMO_MILESTONES = {"first_line": "analysing the bundled", "sync": "sync: offsets", "detect": "detect: left camera",
+                   "rigid_body": "marker model", "comfort": "comfort: indicators", "results": "results:"}
+
+
+def demo_phases_run(code: Path, out: Path) -> dict:
+    """One fresh ``horsemocap demo`` of checkout ``code`` into ``out``: wall, CPU, milestones, steps, load."""
+    import shutil
+    import threading
+
+    shutil.rmtree(out, ignore_errors=True)
+    env = dict(os.environ, PYTHONPATH=str(code), PYTHONUNBUFFERED="1")
+    seen, load_before = {}, load()[0]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "horsemocap.cli", "demo", "--out", str(out)], env=env, cwd=code,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def watch(stream):
+        for line in stream:
+            now = time.perf_counter() - t0
+            for name, text in DEMO_MILESTONES.items():
+                if text in line:
+                    seen.setdefault(name, round(now, 3))
+
+    readers = [threading.Thread(target=watch, args=(s,)) for s in (proc.stdout, proc.stderr)]
+    for r in readers:
+        r.start()
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    for r in readers:
+        r.join()
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        raise SystemExit(f"demo of {code} failed ({proc.returncode})")
+    steps = json.loads((out / "analysis.json").read_text())["timings_s"]
+    return {"wall_s": round(wall, 3), "cpu_s": round(usage.ru_utime + usage.ru_stime, 3), "load": load_before,
+            "milestones_s": seen, "steps_s": steps}
+
+
+def demo_phases(rounds: int, compare_with=None) -> dict:
+    """:func:`demo_phases_run` of this checkout and ``compare_with`` in ``rounds`` alternating rounds."""
+    codes = {"this": Path(__file__).resolve().parents[1]}
+    if compare_with:
+        codes["compared"] = Path(compare_with).resolve()
+    runs = {k: [] for k in codes}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(rounds):
+            for name, code in codes.items():
+                got = demo_phases_run(code, Path(tmp) / f"{name}-{r}")
+                runs[name].append(got)
+                print(f"round {r + 1} {name}: load {got['load']:.1f}, wall {got['wall_s']:.2f} s, CPU "
+                      f"{got['cpu_s']:.2f} s; " + ", ".join(f"{k} {v:.2f}" for k, v in got["milestones_s"].items())
+                      + "; steps " + ", ".join(f"{k} {v:.2f}" for k, v in got["steps_s"].items() if v >= 0.01),
+                      flush=True)
+    return {"rounds": rounds, "codes": {k: str(v) for k, v in codes.items()}, "runs": runs}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--long-frames", type=int, default=18000)
@@ -172,12 +234,22 @@ def main():
                          "interleaved rounds (results/analyze_demo.json), then stop")
     ap.add_argument("--compare-with", default=None,
                     help="another checkout of horsemocap (e.g. the code before a change): its analyze is run too")
+    ap.add_argument("--demo-phases", type=int, default=0,
+                    help="time a fresh `horsemocap demo` (milestones, steps, CPU) in this many rounds alternating "
+                         "with --compare-with (results/demo_phases.json), then stop")
     args = ap.parse_args()
     from horsemocap.data import default_session_dir
 
     out = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "cpus": os.cpu_count(),
            "load_before": load()}
     print(f"load average {out['load_before']}", flush=True)
+    if args.demo_phases:
+        out["demo_phases"] = demo_phases(args.demo_phases, args.compare_with)
+        out["load_after"] = load()
+        path = Path(__file__).parent / "results" / "demo_phases.json"
+        path.write_text(json.dumps(out, indent=1) + "\n")
+        print(f"load average after {out['load_after']}; wrote {path}")
+        return
     if args.demo_rounds:
         out["demo"] = demo_rounds(args.demo_rounds, args.compare_with)
         for k, v in out["demo"]["medians"].items():

@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import sys
 import tempfile
@@ -17,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import one_line
 from .params import ParamField, params_fields, ParamsError, read_params, section_title
 from .readable import hours_minutes
 
@@ -265,19 +265,48 @@ def _early_board_detection(session, out_dir: Path, args):
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
+    """Read the session, start the early work, then load the analysis and run it.
+
+    Before the analysis' modules are loaded (the longest part of a short run's start): the copy of the
+    process that will draw the report's figures is forked (before any thread
+    starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
+    meanwhile), the flash search of the videos is started
+    (:func:`_early_flash_search`) and so is the board detection of the
+    views (:func:`_early_board_detection`).
+    """
+    from .forking import EarlyCalls
+    from .plots import REPORT_FIGURES
     from .session import load_session
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
-    board_views = _early_board_detection(session, out_dir, args)
+    painter = EarlyCalls(*REPORT_FIGURES) if not getattr(args, "no_report", False) else None
+    board_views = flash_search = None
     try:
-        return _analyse_session(session, session_dir, out_dir, args, board_views)
+        flash_search = _early_flash_search(session)    # first: the check of the board cache loads modules
+        board_views = _early_board_detection(session, out_dir, args)
+        return _analyse_session(session, session_dir, out_dir, args, board_views, flash_search, painter)
     finally:
-        if board_views is not None:
-            board_views.close()
+        for job in (painter, board_views, flash_search):
+            if job is not None:
+                job.close()
 
 
-def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views) -> int:
+def _early_flash_search(session):
+    """The flash search of the session's videos, started before the analysis' modules are imported.
+
+    Started when the session gives no offsets (the sync step would search
+    the flash unless the parameters give them); None otherwise.
+    """
+    from .sync import FlashSearch
+
+    if session.sync_offsets:
+        return None
+    return FlashSearch({c: session.motion[c] for c in session.cameras})
+
+
+def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views, flash_search=None,
+                     painter=None) -> int:
     from .pipeline import resolve_params
     from .run import run_analysis
 
@@ -286,14 +315,17 @@ def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_view
     base = resolve_params(session, read_params(args.params)) if args.params else resolve_params(session)
     params = _params_from_args(args, base)
     params.check_session(session, f"{args.params}" if args.params else "parameters")
-    outcome = run_analysis(session_dir, out_dir, params, report=not getattr(args, "no_report", False),
-                           board_views=board_views)
+    if flash_search is not None and params.sync.offsets:
+        flash_search.close()        # the parameters give the offsets: no search
+        flash_search = None
+    outcome = run_analysis(session_dir, out_dir, params, report=painter is not None,
+                           board_views=board_views, flash_search=flash_search, painter=painter)
     if outcome.error is not None:
         if getattr(args, "debug", False):   # the step's own exception, with the error it was raised from
             import traceback
 
             traceback.print_exception(outcome.error)
-        print(f"horsemocap: error: {one_line(outcome.error)}", file=sys.stderr)
+        print(f"horsemocap: error: {_error_line(outcome.error)}", file=sys.stderr)
         print(f"horsemocap: the files of the steps that finished are in {outcome.out} (marked PARTIAL.txt; "
               f"quality: {outcome.verdict})", file=sys.stderr)
         return outcome.exit_code
@@ -766,6 +798,15 @@ class _Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, handled like Ctrl-C."""
 
 
+def _error_line(exc: BaseException) -> str:
+    """:func:`horsemocap.errors.one_line` of ``exc``; that module (which names every step's errors, so loads
+    the whole analysis) is imported only when an error is to be shown, so a run starts its early work
+    (:func:`_run_analysis`) before the analysis' modules load."""
+    from .errors import one_line
+
+    return one_line(exc)
+
+
 def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
     """A warning on the command line: one line ``horsemocap: warning: ...`` (``--debug``: Python's format,
     with the code's file and line)."""
@@ -777,10 +818,16 @@ def _warning_line(message, category, filename, lineno, file=None, line=None) -> 
 def main(argv=None) -> int:
     """The ``horsemocap`` command. Every failure ends with one line on stderr and
     exit status 2 (``--debug``: the traceback too); Ctrl-C and SIGTERM leave the
-    results folder as it was before the run; 3 = results written, verdict unreliable."""
+    results folder as it was before the run; 3 = results written, verdict unreliable.
+
+    ``argv`` None: the command line of the process, which ends when this
+    returns (its objects are then exempted from the garbage collector:
+    :func:`gc.freeze`); a list: a call from Python, which leaves the collector
+    as it was."""
     import signal
     import traceback
 
+    program = argv is None       # the command itself (not a call from Python): the process ends with it
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)  # a bad option: argparse's usage line, exit status 2
     debug = bool(getattr(args, "debug", False))
@@ -810,11 +857,15 @@ def main(argv=None) -> int:
     except Exception as exc:  # noqa: BLE001 - the one place that turns errors into messages
         if debug:
             traceback.print_exc()
-        print(f"horsemocap: error: {one_line(exc)}", file=sys.stderr)
+        print(f"horsemocap: error: {_error_line(exc)}", file=sys.stderr)
         return 2
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        if program:
+            # every file is written and closed: the interpreter's garbage collections at exit would only walk
+            # the loaded modules' objects, which are freed with the process
+            gc.freeze()
 
 
 if __name__ == "__main__":

@@ -145,7 +145,8 @@ STEP_CALLS = {
 
 def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = None, *,
             until: str | None = None, progress=None, write_outputs: bool = True,
-            reuse: bool = False, previous_results=None, board_views=None) -> Analysis:
+            reuse: bool = False, previous_results=None, board_views=None, flash_search=None,
+            after_step=None) -> Analysis:
     """Run the analysis of a session, step by step.
 
     Parameters
@@ -174,6 +175,12 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
         The board detection of the session's views, started earlier by the
         caller (``horsemocap analyze`` starts it as soon as the session is
         read); its views are used when they are those of the session.
+    flash_search : horsemocap.sync.FlashSearch, optional
+        The flash search of the session's videos, started earlier by the
+        caller (as ``board_views``); the sync step takes its detections.
+    after_step : callable(analysis, step), optional
+        Called after each step's result is recorded (the report's figures
+        of that step are drawn while the next steps run).
 
     Returns
     -------
@@ -215,7 +222,7 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
                                         cache_dirs=(out_dir, previous_results), board_views=board_views)
         try:
             _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
-                       board_views)
+                       board_views, flash_search, after_step)
         except BaseException:
             if board_views is not None:
                 board_views.stop()  # an error or Ctrl-C: the rig step waiting for the views ends at once
@@ -275,8 +282,9 @@ def _serialised(progress):
 
 
 def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outputs: bool, progress,
-               previous_results, early_rig, board_views) -> None:
-    """:func:`analyze`'s loop over the steps (``early_rig``: the rig step already running)."""
+               previous_results, early_rig, board_views, flash_search=None, after_step=None) -> None:
+    """:func:`analyze`'s loop over the steps (``early_rig``: the rig step already running; ``flash_search``,
+    ``after_step``: as :func:`analyze`'s)."""
     session, params = analysis.session, analysis.params
     for name in STEPS:
         t0 = time.perf_counter()
@@ -292,6 +300,8 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
                 if name == "rig":
                     value = step_rig(session, params.rig, progress,
                                      cache_dirs=(out_dir, previous_results), board_views=board_views)
+                elif name == "sync":
+                    value = STEP_CALLS[name](analysis, progress, flash_search=flash_search)
                 else:
                     value = STEP_CALLS[name](analysis, progress)
                 analysis.with_result(name, value)
@@ -308,6 +318,8 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
             analysis.timings[name] = time.perf_counter() - t0
             if out_dir is not None and write_outputs:
                 result_files.write_available(Path(out_dir), analysis)
+        if after_step is not None:
+            after_step(analysis, name)
         if name == until:
             break
     if analysis.comfort is not None:

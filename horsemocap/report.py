@@ -5,7 +5,9 @@ opens in any browser without Python, a network or the results folder. They
 are described here as data (:func:`report_figures`) and drawn by
 :mod:`horsemocap.plots.report_figures`, the only part that needs
 matplotlib: usually in a copy of the process forked before the analysis
-(:func:`figure_painter`), which loads matplotlib while the analysis runs.
+(:func:`figure_painter`), which loads matplotlib while the analysis runs
+and draws each step's figures as soon as the step has ended
+(:func:`step_figures`).
 """
 from __future__ import annotations
 
@@ -13,7 +15,8 @@ import html
 import re
 from pathlib import Path
 
-from .forking import EarlyCall
+from .forking import EarlyCalls
+from .plots import REPORT_FIGURES
 from .readable import distance_km, hours_minutes
 from .results import analysis_record
 from .store import atomic_write_text
@@ -34,13 +37,17 @@ figure{margin:1em 0} figcaption{color:#555;font-size:.9em} img{max-width:100%}
 
 
 #: Where the figures are drawn: the module and its function of figure descriptions.
-FIGURE_PAINTER = ("horsemocap.plots.report_figures", "draw_pngs")
+FIGURE_PAINTER = REPORT_FIGURES
+
+#: The steps that have figures in the report, in the report's order.
+FIGURE_STEPS = ("detect", "triangulate", "rigid_body")
 
 
-def figure_painter(fork: bool = True) -> EarlyCall:
-    """The call that will draw the report's figures (:data:`FIGURE_PAINTER`): forked now where that is
-    safe, so that matplotlib loads beside the analysis; give it :func:`report_figures`' descriptions."""
-    return EarlyCall(*FIGURE_PAINTER, fork=fork)
+def figure_painter(fork: bool = True) -> EarlyCalls:
+    """The calls that will draw the report's figures (:data:`FIGURE_PAINTER`): forked now where that is
+    safe, so that matplotlib loads beside the analysis; give it the descriptions of :func:`step_figures`,
+    step by step as the steps end (or those of :func:`report_figures` at once)."""
+    return EarlyCalls(*FIGURE_PAINTER, fork=fork)
 
 
 def _figure_html(png: str, caption: str) -> str:
@@ -50,30 +57,45 @@ def _figure_html(png: str, caption: str) -> str:
 
 def report_figures(analysis) -> list:
     """The report's figures as ``((function, args, kwargs), caption)``: ``function`` names a plotting
-    function of :data:`horsemocap.plots.report_figures.FIGURE_FUNCTIONS`, the arguments are arrays."""
-    figures = []
-    if analysis.detect is not None:
+    function of :data:`horsemocap.plots.report_figures.FIGURE_FUNCTIONS`, the arguments are arrays.
+    Those of every step of :data:`FIGURE_STEPS` (:func:`step_figures`), in that order."""
+    return [figure for step in FIGURE_STEPS for figure in step_figures(analysis, step)]
+
+
+def step_figures(analysis, step: str) -> list:
+    """The report's figures of ``step`` (as :func:`report_figures`'), from its result in ``analysis``;
+    none for a step without figures or without a result.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> step_figures(SimpleNamespace(comfort=None), "comfort")
+    []
+    """
+    if step not in FIGURE_STEPS or getattr(analysis, step) is None:
+        return []
+    if step == "detect":
         size = analysis.rig.rig.cameras[0].size
-        figures.append((("marker_tracks", (analysis.detect.marker_px, size), {}),
-                        "Detected marker centroids in each camera, in pixels (chapter 4)."))
-    if analysis.triangulate is not None:
-        figures.append((("reprojection_residuals", (analysis.triangulate.residual_px,), {}),
-                        "Reprojection residuals of the triangulated markers, in pixels (section 5.1)."))
-    if analysis.rigid_body is not None:
-        rb = analysis.rigid_body
-        t, pos = rb.t, rb.registered
-        series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
-        series["saddle"] = rb.saddle_position
-        for data, unit, title, quantity, caption in (
-                (series, "m", "Positions in the motion frame", None,
-                 "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."),
-                ({"omega": rb.omega}, "rad/s", "Angular velocity", "angular velocity about",
-                 "Angular velocity of the body about the motion frame's axes, in rad/s (chapter 6)."),
-                ({"alpha": rb.alpha}, "rad/s²", "Angular acceleration", "angular acceleration about",
-                 "Angular acceleration of the body about the motion frame's axes, in rad/s² (chapter 6)."),
-                ({"saddle": rb.saddle_acceleration}, "m/s²", "Saddle acceleration", "acceleration along",
-                 "Acceleration of the hidden saddle marker along the motion frame's axes, in m/s² (section 6.4).")):
-            figures.append((("axes_timeseries", (t, data, unit, title), {"quantity": quantity}), caption))
+        return [(("marker_tracks", (analysis.detect.marker_px, size), {}),
+                 "Detected marker centroids in each camera, in pixels (chapter 4).")]
+    if step == "triangulate":
+        return [(("reprojection_residuals", (analysis.triangulate.residual_px,), {}),
+                 "Reprojection residuals of the triangulated markers, in pixels (section 5.1).")]
+    rb = analysis.rigid_body
+    t, pos = rb.t, rb.registered
+    series = {f"marker {m + 1}": pos[:, m] for m in range(pos.shape[1])}
+    series["saddle"] = rb.saddle_position
+    figures = []
+    for data, unit, title, quantity, caption in (
+            (series, "m", "Positions in the motion frame", None,
+             "Registered marker positions and the saddle marker, in metres (sections 5.3-5.4, 6.3)."),
+            ({"omega": rb.omega}, "rad/s", "Angular velocity", "angular velocity about",
+             "Angular velocity of the body about the motion frame's axes, in rad/s (chapter 6)."),
+            ({"alpha": rb.alpha}, "rad/s²", "Angular acceleration", "angular acceleration about",
+             "Angular acceleration of the body about the motion frame's axes, in rad/s² (chapter 6)."),
+            ({"saddle": rb.saddle_acceleration}, "m/s²", "Saddle acceleration", "acceleration along",
+             "Acceleration of the hidden saddle marker along the motion frame's axes, in m/s² (section 6.4).")):
+        figures.append((("axes_timeseries", (t, data, unit, title), {"quantity": quantity}), caption))
     return figures
 
 
@@ -525,7 +547,7 @@ def passes_section(analysis) -> list[str]:
                           f"Wk rms ({rms_unit})", ""])]
 
 
-def report_html(analysis, quality: dict | None = None, painter: EarlyCall | None = None) -> str:
+def report_html(analysis, quality: dict | None = None, painter: EarlyCalls | None = None) -> str:
     """The text of the report for an :class:`~horsemocap.pipeline.Analysis`.
 
     Below the title: the summary line (:func:`summary_html`), the warnings
@@ -534,8 +556,8 @@ def report_html(analysis, quality: dict | None = None, painter: EarlyCall | None
     :func:`horsemocap.quality.quality_record`) check by check.
 
     ``painter`` (:func:`figure_painter`) draws the figures; given
-    :func:`report_figures` of ``analysis`` already (:meth:`EarlyCall.submit`)
-    or not. Without it they are drawn in this process.
+    the figures of ``analysis``' first steps already (:meth:`EarlyCalls.submit`,
+    :func:`step_figures`) or not. Without it they are drawn in this process.
     """
     s = analysis.session
     parts = [f"<h1>Saddle motion analysis: {html.escape(s.name)}</h1>",
@@ -596,17 +618,20 @@ def report_html(analysis, quality: dict | None = None, painter: EarlyCall | None
             + "\n".join(parts) + "</body></html>\n")
 
 
-def _drawn(painter: EarlyCall | None, descriptions) -> list[str]:
-    """The PNGs of ``descriptions``, from ``painter`` (given them here unless it has them)."""
+def _drawn(painter: EarlyCalls | None, descriptions) -> list[str]:
+    """The PNGs of ``descriptions``, from ``painter``: it may have been given the first of them already (in
+    parts, step by step: :func:`step_figures`); it is given the rest here."""
     if painter is None:
         with figure_painter(fork=False) as painter:
-            painter.submit(descriptions)
-            return painter.result()
-    if not painter.submitted:
-        painter.submit(descriptions)
-    return painter.result()
+            return _drawn(painter, descriptions)
+    given = [d for (part,) in painter.given for d in part]
+    if [name for name, _, _ in given] != [name for name, _, _ in descriptions[:len(given)]]:
+        raise ValueError("the figures given to the painter are not the first of the report's")
+    if len(given) < len(descriptions):
+        painter.submit(descriptions[len(given):])
+    return [png for part in painter.results() for png in part]
 
 
-def write_report(path, analysis, quality: dict | None = None, painter: EarlyCall | None = None) -> Path:
+def write_report(path, analysis, quality: dict | None = None, painter: EarlyCalls | None = None) -> Path:
     """Write ``report.html`` atomically; returns its path (``painter``: :func:`report_html`)."""
     return atomic_write_text(Path(path), report_html(analysis, quality, painter))

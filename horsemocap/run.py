@@ -18,7 +18,7 @@ from . import quality
 from .camera import read_rig
 from .pipeline import _progress_printer, AnalysisError, analyze, resolve_params
 from .passes import passes_check
-from .report import figure_painter, report_figures, write_report
+from .report import figure_painter, step_figures, write_report
 from .runfolder import check_results_target, RunFolder
 from .session import load_session, SessionError
 from .store import atomic_write_json, atomic_write_text, check_outside
@@ -79,8 +79,18 @@ def _mark_record(folder: Path, **fields) -> None:
     atomic_write_json(path, record)
 
 
+def _figures_drawn_after(painter):
+    """The pipeline's ``after_step``: each step's report figures (:func:`horsemocap.report.step_figures`)
+    given to ``painter`` as the step ends."""
+    def after_step(analysis, step):
+        descriptions = [description for description, _ in step_figures(analysis, step)]
+        if descriptions:
+            painter.submit(descriptions)
+    return after_step
+
+
 def run_analysis(session_dir, out, params=None, *, progress=None, report: bool = True,
-                 board_views=None) -> RunOutcome:
+                 board_views=None, flash_search=None, painter=None) -> RunOutcome:
     """Analyse ``session_dir`` into ``out`` as one whole run.
 
     Parameters
@@ -95,6 +105,11 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
         Write ``report.html``.
     board_views : horsemocap.calibration.cache.BoardDetectionJob, optional
         Board detection already under way (:func:`horsemocap.pipeline.analyze`).
+    flash_search : horsemocap.sync.FlashSearch, optional
+        The flash search already under way (:func:`horsemocap.pipeline.analyze`).
+    painter : horsemocap.forking.EarlyCalls, optional
+        The report's figure painter (:func:`horsemocap.report.figure_painter`), made earlier by the
+        caller (before its threads started, so that it could fork); closed here. Default: made here.
 
     Returns
     -------
@@ -122,21 +137,20 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
             progress("quality", f"{c.level}: {c.message} [{c.input}]")
 
     folder = RunFolder(out)
-    # the report's figures: a copy of the process forked now loads matplotlib while the analysis runs
-    painter = figure_painter(fork=report)
+    # the report's figures: a copy of the process forked now loads matplotlib while the analysis runs and
+    # draws each step's figures while the next steps run
+    painter = painter if painter is not None else figure_painter(fork=report)
     with painter, folder as tmp:
         outcome = RunOutcome(Path(target), None)
         try:
             analysis = analyze(session_dir, tmp, params, progress=progress, previous_results=target,
-                               board_views=board_views)
+                               board_views=board_views, flash_search=flash_search,
+                               after_step=_figures_drawn_after(painter) if report else None)
         except (AnalysisError, SessionError) as exc:
             if folder.write_failure(exc) is not None:
                 raise   # the disk, not the step: DIR stays as it was (RunFolder names the file)
             analysis = getattr(exc, "partial", None)
             outcome.error = exc
-        else:
-            if report:       # drawn while the checks run
-                painter.submit([description for description, _ in report_figures(analysis)])
         outcome.analysis = analysis
         if analysis is not None:
             if rig is None and analysis.rig is not None:

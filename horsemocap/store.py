@@ -19,12 +19,12 @@ import json
 import mmap
 import os
 import secrets
+import sys
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 
 class StoreError(RuntimeError):
@@ -330,12 +330,30 @@ def encode_result(obj, arrays: dict):
         return {"$": "dataclass", "class": f"{cls.__module__}:{cls.__qualname__}",
                 "fields": {f.name: encode_result(getattr(obj, f.name), arrays) for f in dataclasses.fields(obj)}}
 
-    if type(obj) is BSpline:           # the pose trajectory's smoothing splines: knots, coefficients, degree
+    if type(obj) is _loaded_bspline_class():   # the pose trajectory's smoothing splines: knots, coefficients, degree
         return {"$": "bspline", "t": encode_result(np.asarray(obj.t), arrays),
                 "c": encode_result(np.asarray(obj.c), arrays), "k": int(obj.k),
                 "extrapolate": obj.extrapolate if isinstance(obj.extrapolate, bool) else str(obj.extrapolate),
                 "axis": int(obj.axis)}
     raise TypeError(f"cannot store a {type(obj).__module__}.{type(obj).__qualname__} without pickle")
+
+
+#: Where SciPy's B-spline class lives: looked up when a spline is stored or read, so a store (and every
+#: module reading JSON through this one) does not load ``scipy.interpolate``, slow to load, for results
+#: that hold none.
+_BSPLINE_MODULE = "scipy.interpolate"
+
+
+def _loaded_bspline_class():
+    """SciPy's :class:`~scipy.interpolate.BSpline` if ``scipy.interpolate`` is loaded, else None (then no
+    object can be one)."""
+    module = sys.modules.get(_BSPLINE_MODULE)
+    return None if module is None else module.BSpline
+
+
+def _bspline_class():
+    """SciPy's :class:`~scipy.interpolate.BSpline`, loading ``scipy.interpolate`` if needed."""
+    return importlib.import_module(_BSPLINE_MODULE).BSpline
 
 
 def _dataclass_type(spec: str):
@@ -366,7 +384,7 @@ def decode_result(tree, arrays):
     if tag == "dict":
         return {_hashable(decode_result(k, arrays)): decode_result(v, arrays) for k, v in tree["items"]}
     if tag == "bspline":
-        return BSpline(decode_result(tree["t"], arrays), decode_result(tree["c"], arrays), int(tree["k"]),
+        return _bspline_class()(decode_result(tree["t"], arrays), decode_result(tree["c"], arrays), int(tree["k"]),
                        extrapolate=tree["extrapolate"], axis=int(tree["axis"]))
     if tag == "dataclass":
         cls = _dataclass_type(tree["class"])

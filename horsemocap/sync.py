@@ -30,8 +30,10 @@ frame index, in each camera's own source, of the same instant (the flash);
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -495,8 +497,13 @@ def flash_frame(frames, **kwargs) -> int:
     return detect_flash(frames, **kwargs).frame
 
 
-def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, **kwargs) -> dict:
+def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, *,
+                     readers: int | None = None, **kwargs) -> dict:
     """:func:`detect_flash` in every camera: ``{camera: FlashDetection}`` (errors name the camera).
+
+    The cameras are searched side by side, as many at once as ``readers``
+    (default: as many as the decoded frames' memory allows, on two or more
+    cores; never more); the detections are the same however many.
 
     A detection with ``ambiguous`` set is a camera whose flash offset should
     be checked (two candidates of similar score at different frames).
@@ -513,12 +520,79 @@ def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_F
     """
     # the cameras searched side by side (OpenCV decodes without holding the GIL), as many at once as
     # FLASH_SEARCH_BYTES of decoded frames allow; an error is the first camera's in session order
-    with ThreadPoolExecutor(max_workers=_flash_readers(sources, search_frames),
+    at_once = _flash_readers(sources, search_frames)
+    with ThreadPoolExecutor(max_workers=at_once if readers is None else max(1, min(at_once, int(readers))),
                             thread_name_prefix="horsemocap-flash") as pool:
         found = {cam: pool.submit(detect_flash, src, search_frames=search_frames, name=label, **kwargs)
                  for cam, src, label in ((cam, src, f"camera {cam!r} ({src.path})" if isinstance(src, FrameSource)
                                           else f"camera {cam!r}") for cam, src in sources.items())}
         return {cam: future.result() for cam, future in found.items()}
+
+
+class FlashSearch:
+    """:func:`flash_detections` of a session's motion videos, started in a thread before the analysis needs it.
+
+    ``horsemocap analyze`` starts it as soon as the session is read, so the
+    videos are decoded (OpenCV decodes without holding the GIL) while the
+    interpreter loads the analysis' modules; the sync step takes the
+    detections from it (:meth:`detections`) when it searches the same videos
+    the same way, and the frames it decoded are shared with the detection as
+    those of a search made in the step.
+
+    The cameras are searched one after another on a machine of two cores
+    (one reader per core beyond the one left to the interpreter loading the
+    analysis: side by side, the readers would take half of its core).
+
+    Parameters
+    ----------
+    videos : dict
+        Camera -> its motion video or image folder, in the session's order.
+    search_frames : int or None
+        As :func:`flash_detections`.
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> from horsemocap.session import load_session
+    >>> session = load_session(default_session_dir())
+    >>> search = FlashSearch(session.motion)
+    >>> sources = {c: FrameSource(session.motion[c]) for c in session.cameras}
+    >>> {c: d.frame for c, d in search.detections(sources).items()}
+    {'left': 8, 'middle': 61, 'right': 134}
+    """
+
+    def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES):
+        self.videos = [(cam, Path(path)) for cam, path in videos.items()]
+        self.search_frames = search_frames
+        self._found, self._error = None, None
+        self._thread = threading.Thread(target=self._run, name="horsemocap-flash-search", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            sources = {cam: FrameSource(path) for cam, path in self.videos}
+            self._found = flash_detections(sources, self.search_frames, readers=(os.cpu_count() or 1) - 1)
+        except BaseException as exc:  # given to the caller by detections()
+            self._error = exc
+
+    def detections(self, sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES) -> dict | None:
+        """``flash_detections(sources, search_frames)`` if this search is that one (waits for it), else None.
+
+        Its error (a video that cannot be decoded, no flash in a camera) is
+        raised here, as the search in the step would raise it.
+        """
+        searched = [(cam, Path(src.path)) if isinstance(src, FrameSource) else (cam, None)
+                    for cam, src in sources.items()]
+        if searched != self.videos or search_frames != self.search_frames:
+            return None
+        self.close()
+        if self._error is not None:
+            raise self._error
+        return self._found
+
+    def close(self) -> None:
+        """Wait for the search to end (its result is kept for :meth:`detections`)."""
+        self._thread.join()
 
 
 #: Decoded gray frames the flash searches of several cameras may hold at once (bytes): about what one

@@ -3,8 +3,10 @@
 :mod:`horsemocap.report` describes each figure as data (which plotting
 function of :mod:`horsemocap.plots.summary`, its arrays and options) and
 has the figures drawn here, usually by a copy of the process forked before
-the analysis (:class:`horsemocap.forking.EarlyCall`), which loads
-matplotlib while the analysis runs: the analysis itself never loads it.
+the analysis (:class:`horsemocap.forking.EarlyCalls`), which loads
+matplotlib while the analysis runs and draws each step's figures as the
+step ends: the analysis itself never loads it. This module loads no other
+plotting module than the one it draws with.
 """
 from __future__ import annotations
 

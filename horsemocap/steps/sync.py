@@ -64,8 +64,12 @@ class SyncResult(StepResult):
         return {c: float(o - ref - self.phase_frames.get(c, 0.0)) for c, o in self.offsets.items()}
 
 
-def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
+def step_sync(session: Session, section: SyncParams, progress, flash_search=None) -> SyncResult:
     """Frame offsets from the parameters, the session or the flashlight (eq. 3.11-3.14).
+
+    ``flash_search`` (a :class:`horsemocap.sync.FlashSearch` started earlier
+    on the session's videos) gives the flash detections when the flashlight
+    is used; they are the same as those searched here.
 
     Examples
     --------
@@ -87,7 +91,8 @@ def step_sync(session: Session, section: SyncParams, progress) -> SyncResult:
     elif session.sync_offsets:
         offsets, how = dict(session.sync_offsets), "given in session.json"
     else:
-        found, how = flash.flash_detections(sources), "flashlight"
+        found = flash_search.detections(sources) if flash_search is not None else None
+        found, how = (found if found is not None else flash.flash_detections(sources)), "flashlight"
         offsets = {c: int(d.frame) for c, d in found.items()}
         ambiguous = {c: int(d.runner_up["on_frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}
         sub = _flash_fractions(session, found, offsets)
