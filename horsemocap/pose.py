@@ -1318,8 +1318,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         weighting are taken instead of chosen here; only which of the first
         harmonics each component keeps is chosen (at the given smoothing
         parameter). ``lam`` and ``fundamental_hz``, when given, still take
-        precedence over its values.  Nothing of the settled choice is checked again
-        (the record it was settled on was).
+        precedence over its values. Nothing of the settled choice is checked
+        again (the record it was settled on was).
 
     Returns
     -------
