@@ -116,8 +116,10 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 
 import numpy as np
+from scipy import stats
 from scipy.interpolate import make_lsq_spline
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
@@ -1280,6 +1282,13 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         what ``smoothing="auto"`` ran and why is in each component's ``info``
         (``smoothing_method``, ``smoothing_reason``). ``weights`` is not read
         here (it says whether :func:`register_pose` was given covariances).
+        When ``"auto"`` takes the correlated-error GCV, the fit is checked
+        for motion taken as noise (a component smoothed to the penalty's
+        null space, or the stride's harmonics left in a component's residual,
+        :func:`stride_harmonics_left` at the stride frequency of
+        ``expected_fundamental_hz``, else ``fundamental_hz``; without either
+        it is not tested) and smoothed again with the noise taken as white if
+        it did; the reason says what was tested and found.
     points : (n, m, 3), optional
         The measured markers that were registered: needed by ``"noise"``; with ``partial_frames``
         its frames with exactly two visible markers join the smoothing (:func:`partial_pose`, the
@@ -1309,7 +1318,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         weighting are taken instead of chosen here; only which of the first
         harmonics each component keeps is chosen (at the given smoothing
         parameter). ``lam`` and ``fundamental_hz``, when given, still take
-        precedence over its values.
+        precedence over its values. Nothing of the settled choice is checked
+        again (the record it was settled on was).
 
     Returns
     -------
@@ -1359,18 +1369,12 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
     fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
                points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled)
-    centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho,
-                                                           **fit)
-    if settled is None and choice is not None and "noise_correlation" in choice and any(
-            s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE for s in cs + ps):
-        # the correlated-error criterion smoothed a component down to the penalty's null space: it took
-        # that component's whole motion for noise (short records); the white-noise choice is taken instead
-        centre, phi_fit, cs, ps, choice, two = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order,
-                                                               None, **fit)
-        choice["smoothing_reason"] += (f"; the correlated-error GCV (AR(1) {min(float(rho), 0.99):.2f} from the "
-                                       "rigidity residual) took a component's whole motion for noise (smoothed to the "
-                                       "penalty's null space, a quadratic): noise taken as white")
-    phi = phi_fit
+    fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho, **fit)
+    if settled is None and fitted[4] is not None and "noise_correlation" in fitted[4]:
+        # the correlated-error choice is checked here once; settled records and named methods take it as it is
+        fitted = _white_if_motion_lost(fitted, t, reg, model, phi, ok, ref, smoothing, order, rho, fit,
+                                       expected_fundamental_hz)
+    centre, phi, cs, ps, choice, two = fitted
     if choice is not None:
         for s in cs + ps:
             s.info.update(choice)
@@ -1386,6 +1390,153 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
 NULL_SPACE_EDF = 3.0
 #: How near :data:`NULL_SPACE_EDF` counts as at it.
 NULL_SPACE_TOLERANCE = 0.05
+
+#: Below this p-value (per pose component; six are tested) the smoothed pose's residual is taken to hold the
+#: stride's harmonics: motion the smoothing took for noise (:func:`stride_harmonics_left`). The intended
+#: false-alarm rate is for the family of six: at most 6 x 1e-4 = 6e-4 per record (Bonferroni), about one record
+#: of noise alone in 1700 smoothed again as white for nothing; a missed stride motion costs more than that.
+STRIDE_RESIDUAL_LEVEL = 1e-4
+#: The harmonics tested lie below this fraction of the frame rate (a gait's pose motion; far from Nyquist).
+STRIDE_RESIDUAL_MAX_FRACTION = 0.2
+#: Consecutive frames the F test needs beyond twice its harmonic terms (q): the residual's variance is then
+#: measured on at least q + 7 degrees of freedom, more than the harmonics take, so that its own scatter does not
+#: fatten the F distribution's tail at :data:`STRIDE_RESIDUAL_LEVEL`.
+STRIDE_RESIDUAL_SPARE_FRAMES = 8
+
+
+def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> np.ndarray:
+    """Per pose component, the p-value that its smoothing residual holds no harmonics of the stride.
+
+    The residual of each of the six smoothed components (``cx, cy, cz,
+    phix, phiy, phiz``: the per-frame registration minus the spline, over
+    the frames with a pose) is regressed on the cosines and sines of the
+    stride frequency's harmonics below :data:`STRIDE_RESIDUAL_MAX_FRACTION`
+    of the frame rate. Noise left by a smoothing, white or correlated, has
+    no preferred phase in the stride; motion the smoothing took for noise
+    returns every stride at the same phase. The regression is prewhitened
+    with the residual's lag-1 correlation over pairs of consecutive frames
+    with a pose (a gap is never bridged) (an AR(1) noise; measured before
+    the harmonics are fitted: after a fit of that many terms to a short
+    record it reads low and the test would find harmonics in noise) and
+    judged by the F test of the harmonics' terms.
+
+    Parameters
+    ----------
+    trajectory : horsemocap.pose.PoseTrajectory
+    fundamental_hz : float
+        The stride frequency.
+
+    Returns
+    -------
+    (6,) array of p-values (NaN for a component with too few frames).
+
+    Examples
+    --------
+    A stride motion smoothed away entirely (the "spline" is the mean) is found; a fit that follows it is not.
+
+    >>> import numpy as np
+    >>> from types import SimpleNamespace
+    >>> t = np.arange(150) / 50.0
+    >>> rng = np.random.default_rng(0)
+    >>> y = 0.01 * np.sin(2 * np.pi * 1.5 * t) + rng.normal(0, 1e-3, (6, t.size))
+    >>> const = lambda v: (lambda tt: np.full_like(tt, v.mean()))
+    >>> reg = SimpleNamespace(rotation=np.tile(np.eye(3), (t.size, 1, 1)), centre=y[:3].T)
+    >>> flat = SimpleNamespace(t=t, registration=reg, rotvec_data=y[3:].T,
+    ...                        centre_splines=[const(v) for v in y[:3]], rotvec_splines=[const(v) for v in y[3:]])
+    >>> bool(np.all(stride_harmonics_left(flat, 1.5) < 1e-6))
+    True
+    >>> follow = lambda v: (lambda tt: 0.01 * np.sin(2 * np.pi * 1.5 * tt))
+    >>> fits = SimpleNamespace(t=t, registration=reg, rotvec_data=y[3:].T,
+    ...                        centre_splines=[follow(v) for v in y[:3]], rotvec_splines=[follow(v) for v in y[3:]])
+    >>> bool(np.all(stride_harmonics_left(fits, 1.5) > 1e-3))
+    True
+    """
+    # the whole grid of frames, NaN where there is no pose: the AR(1) prewhitening pairs only consecutive frames
+    ok = np.all(np.isfinite(np.asarray(trajectory.registration.rotation, float)), axis=(1, 2))
+    t = np.asarray(trajectory.t, float)
+    data = np.column_stack([np.asarray(trajectory.registration.centre, float),
+                            np.asarray(trajectory.rotvec_data, float)])
+    data[~ok] = np.nan
+    fitted = np.column_stack([s(t) for s in tuple(trajectory.centre_splines) + tuple(trajectory.rotvec_splines)])
+    rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
+    phase = 2 * np.pi * fundamental_hz * np.outer(t - t[0] if t.size else t, orders)
+    X = np.column_stack([np.cos(phase), np.sin(phase)])
+    p_values = np.full(6, np.nan)
+    for i in range(6):
+        y = data[:, i] - fitted[:, i]
+        keep = np.isfinite(y)
+        pairs = keep[1:] & keep[:-1]                     # frame k and k - 1 both with a pose
+        if pairs.sum() < 2 * X.shape[1] + STRIDE_RESIDUAL_SPARE_FRAMES:
+            continue   # too few consecutive frames for the prewhitened F test
+        y = np.where(keep, y - y[keep].mean(), 0.0)
+        rho = float(np.sum((y[1:] * y[:-1])[pairs]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
+        yw, Xw = (y[1:] - rho * y[:-1])[pairs], (X[1:] - rho * X[:-1])[pairs]
+        rss1 = float(np.sum((yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]) ** 2))
+        rss0 = float(np.sum(yw ** 2))
+        q, dof = Xw.shape[1], yw.size - Xw.shape[1] - 1
+        p_values[i] = 1.0 if rss1 <= 0 else float(stats.f.sf(((rss0 - rss1) / q) / (rss1 / dof), q, dof))
+    return p_values
+
+
+
+def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho,
+                          fit: dict, expected_hz):
+    """:func:`_fit_components`' ``fitted`` of the correlated-error GCV, or the fit again with the noise taken
+    as white when that criterion took motion for noise; the choice's reason says which and why.
+
+    Two checks, in turn: a component smoothed down to the penalty's null space (:data:`NULL_SPACE_EDF`: its
+    whole motion taken for noise, a short record), then the stride's harmonics left in a component's residual
+    (:func:`stride_harmonics_left` below :data:`STRIDE_RESIDUAL_LEVEL`; periodic motion taken for noise). The
+    stride frequency tested is ``expected_hz`` (another estimator's, the motion-frame step's period), else the
+    given ``fundamental_hz`` (:func:`_stride_test_frequency`); without either the residual is not tested, and
+    the reason says so."""
+    cs, ps, choice = fitted[2], fitted[3], fitted[4]
+    ar1 = f"the correlated-error GCV (AR(1) {choice['noise_correlation']:.2f} from the rigidity residual)"
+    if any(s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE for s in cs + ps):
+        fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, None, **fit)
+        fitted[4]["smoothing_reason"] += (f"; {ar1} took a component's whole motion for noise (smoothed to the "
+                                          "penalty's null space, a quadratic): noise taken as white")
+        return fitted
+    stride_hz, source = _stride_test_frequency(fit["fundamental_hz"], expected_hz)
+    if stride_hz is None:
+        choice["smoothing_reason"] += ("; its residual not tested for the stride's harmonics: no stride frequency "
+                                       "given or found by another estimator (the record's own is not tested "
+                                       "against itself)")
+        return fitted
+    trajectory = SimpleNamespace(t=t, registration=reg, rotvec_data=fitted[1], centre_splines=cs, rotvec_splines=ps)
+    p_values = stride_harmonics_left(trajectory, stride_hz)
+    tested = f"at {stride_hz:.4g} Hz ({source})"
+    if not np.isfinite(p_values).any():
+        choice["smoothing_reason"] += f"; its residual too short to test for the stride's harmonics {tested}"
+        return fitted
+    worst = int(np.nanargmin(p_values))
+    name = POSE_COMPONENTS[worst]
+    if p_values[worst] >= STRIDE_RESIDUAL_LEVEL:
+        choice["smoothing_reason"] += (f"; no stride harmonics {tested} left in its residual (F test, smallest p = "
+                                       f"{p_values[worst]:.2g} in {name}, >= {STRIDE_RESIDUAL_LEVEL:g})")
+        return fitted
+    fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, "gcv", order, None, **fit)
+    f0 = fitted[2][0].info.get("fundamental_hz")
+    reason = ((f"periodic record: fundamental {f0:.4g} Hz" if f0 else "gcv") + f"; {ar1} left the stride's "
+              f"harmonics {tested} in the residual of {name} (F test p = {p_values[worst]:.1g} < "
+              f"{STRIDE_RESIDUAL_LEVEL:g}): it took periodic motion for noise; noise taken as white")
+    return fitted[:4] + ({"smoothing_method": "gcv", "smoothing_reason": reason},) + fitted[5:]
+
+
+#: The six pose components, in the order of the splines (centroid, then rotation vector).
+POSE_COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+
+
+def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
+    """``(stride frequency or None, where it comes from)`` for :func:`_white_if_motion_lost`: another
+    estimator's or the given one, never the record's own (found in the data tested, a slow dominant period
+    puts dozens of harmonics in the tested band, and the test then finds any colour the AR(1) leaves)."""
+    if expected_hz is not None and np.isfinite(expected_hz) and expected_hz > 0:
+        return float(expected_hz), "the stride period of the motion-frame step"
+    if fundamental_hz is not None:
+        return float(fundamental_hz), "the given fundamental"
+    return None, ""
 
 
 def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,

@@ -1408,7 +1408,6 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
     traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
                                expected_fundamental_hz=None if not period_s else 1.0 / period_s)
-    traj = _white_if_stride_lost(traj, pt, preg_all, model, params, ppts, period_s)
     psaddle = traj.point(t, s_saddle)
     pmarkers = traj.points(t, model)
     pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
@@ -1423,119 +1422,6 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     omega, alpha = traj.omega(t), traj.alpha(t)
     chain.update(omega=omega, alpha=alpha)
     return RigidBodyAnalysis(**common, **chain, **pose, singularity_deg=singularity_angle(chain["pos"], omega))
-
-
-#: Below this p-value (per pose component; six are tested) the smoothed pose's residual is taken to hold the
-#: stride's harmonics: motion the smoothing took for noise (:func:`stride_harmonics_left`). The intended
-#: false-alarm rate is for the family of six: at most 6 x 1e-4 = 6e-4 per record (Bonferroni), about one record
-#: of noise alone in 1700 smoothed again as white for nothing; a missed stride motion costs more than that.
-STRIDE_RESIDUAL_LEVEL = 1e-4
-#: The harmonics tested lie below this fraction of the frame rate (a gait's pose motion; far from Nyquist).
-STRIDE_RESIDUAL_MAX_FRACTION = 0.2
-#: Consecutive frames the F test needs beyond twice its harmonic terms (q): the residual's variance is then
-#: measured on at least q + 7 degrees of freedom, more than the harmonics take, so that its own scatter does not
-#: fatten the F distribution's tail at :data:`STRIDE_RESIDUAL_LEVEL`.
-STRIDE_RESIDUAL_SPARE_FRAMES = 8
-
-
-def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> np.ndarray:
-    """Per pose component, the p-value that its smoothing residual holds no harmonics of the stride.
-
-    The residual of each of the six smoothed components (``cx, cy, cz,
-    phix, phiy, phiz``: the per-frame registration minus the spline, over
-    the frames with a pose) is regressed on the cosines and sines of the
-    stride frequency's harmonics below :data:`STRIDE_RESIDUAL_MAX_FRACTION`
-    of the frame rate. Noise left by a smoothing, white or correlated, has
-    no preferred phase in the stride; motion the smoothing took for noise
-    returns every stride at the same phase. The regression is prewhitened
-    with the residual's lag-1 correlation over pairs of consecutive frames
-    with a pose (a gap is never bridged) (an AR(1) noise; measured before
-    the harmonics are fitted: after a fit of that many terms to a short
-    record it reads low and the test would find harmonics in noise) and
-    judged by the F test of the harmonics' terms.
-
-    Parameters
-    ----------
-    trajectory : horsemocap.pose.PoseTrajectory
-    fundamental_hz : float
-        The stride frequency.
-
-    Returns
-    -------
-    (6,) array of p-values (NaN for a component with too few frames).
-
-    Examples
-    --------
-    A stride motion smoothed away entirely (the "spline" is the mean) is found; a fit that follows it is not.
-
-    >>> import numpy as np
-    >>> from types import SimpleNamespace
-    >>> t = np.arange(150) / 50.0
-    >>> rng = np.random.default_rng(0)
-    >>> y = 0.01 * np.sin(2 * np.pi * 1.5 * t) + rng.normal(0, 1e-3, (6, t.size))
-    >>> const = lambda v: (lambda tt: np.full_like(tt, v.mean()))
-    >>> reg = SimpleNamespace(rotation=np.tile(np.eye(3), (t.size, 1, 1)), centre=y[:3].T)
-    >>> flat = SimpleNamespace(t=t, registration=reg, rotvec_data=y[3:].T,
-    ...                        centre_splines=[const(v) for v in y[:3]], rotvec_splines=[const(v) for v in y[3:]])
-    >>> bool(np.all(stride_harmonics_left(flat, 1.5) < 1e-6))
-    True
-    >>> follow = lambda v: (lambda tt: 0.01 * np.sin(2 * np.pi * 1.5 * tt))
-    >>> fits = SimpleNamespace(t=t, registration=reg, rotvec_data=y[3:].T,
-    ...                        centre_splines=[follow(v) for v in y[:3]], rotvec_splines=[follow(v) for v in y[3:]])
-    >>> bool(np.all(stride_harmonics_left(fits, 1.5) > 1e-3))
-    True
-    """
-    # the whole grid of frames, NaN where there is no pose: the AR(1) prewhitening pairs only consecutive frames
-    ok = np.all(np.isfinite(np.asarray(trajectory.registration.rotation, float)), axis=(1, 2))
-    t = np.asarray(trajectory.t, float)
-    data = np.column_stack([np.asarray(trajectory.registration.centre, float),
-                            np.asarray(trajectory.rotvec_data, float)])
-    data[~ok] = np.nan
-    fitted = np.column_stack([s(t) for s in tuple(trajectory.centre_splines) + tuple(trajectory.rotvec_splines)])
-    rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
-    orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
-    phase = 2 * np.pi * fundamental_hz * np.outer(t - t[0] if t.size else t, orders)
-    X = np.column_stack([np.cos(phase), np.sin(phase)])
-    p_values = np.full(6, np.nan)
-    for i in range(6):
-        y = data[:, i] - fitted[:, i]
-        keep = np.isfinite(y)
-        pairs = keep[1:] & keep[:-1]                     # frame k and k - 1 both with a pose
-        if pairs.sum() < 2 * X.shape[1] + STRIDE_RESIDUAL_SPARE_FRAMES:
-            continue   # too few consecutive frames for the prewhitened F test
-        y = np.where(keep, y - y[keep].mean(), 0.0)
-        rho = float(np.sum((y[1:] * y[:-1])[pairs]) / np.sum(y * y)) if np.sum(y * y) > 0 else 0.0
-        yw, Xw = (y[1:] - rho * y[:-1])[pairs], (X[1:] - rho * X[:-1])[pairs]
-        rss1 = float(np.sum((yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]) ** 2))
-        rss0 = float(np.sum(yw ** 2))
-        q, dof = Xw.shape[1], yw.size - Xw.shape[1] - 1
-        p_values[i] = 1.0 if rss1 <= 0 else float(stats.f.sf(((rss0 - rss1) / q) / (rss1 / dof), q, dof))
-    return p_values
-
-
-def _white_if_stride_lost(traj: PoseTrajectory, t, registration, model, params: RigidBodyParams, points,
-                          period_s) -> PoseTrajectory:
-    """The pose trajectory again with the noise taken as white when ``"auto"``'s correlated-error smoothing
-    left the stride's harmonics in a component's residual (:func:`stride_harmonics_left`): that criterion took
-    periodic motion for noise. The choice and the test are written into the splines' ``smoothing_reason``."""
-    choice = traj.smoothing_choice
-    if not period_s or choice is None or choice.get("method") != "gcv_ar1":
-        return traj
-    p = stride_harmonics_left(traj, 1.0 / period_s)
-    worst = int(np.nanargmin(p)) if np.isfinite(p).any() else -1
-    if worst < 0 or p[worst] >= STRIDE_RESIDUAL_LEVEL:
-        return traj
-    white = replace(params.pose, smoothing="gcv")
-    again = fit_pose_trajectory(t, registration, model, white, points=points, expected_fundamental_hz=1.0 / period_s)
-    names = ("cx", "cy", "cz", "phix", "phiy", "phiz")
-    f0 = again.centre_splines[0].info.get("fundamental_hz")
-    reason = ((f"periodic record: fundamental {f0:.4g} Hz" if f0 else "gcv") + "; the correlated-error GCV (AR(1) "
-              f"{choice.get('noise_correlation', float('nan')):.2f} from the rigidity residual) left the stride's "
-              f"harmonics in the residual of {names[worst]} (F test p = {p[worst]:.1g} < {STRIDE_RESIDUAL_LEVEL:g}): "
-              "it took periodic motion for noise; noise taken as white")
-    for s in tuple(again.centre_splines) + tuple(again.rotvec_splines):
-        s.info.update(smoothing_method="gcv", smoothing_reason=reason)
-    return again
 
 
 #: How far (in the marker's own robust noise scale) a marker's offset from the others' rigid pose may jump away
