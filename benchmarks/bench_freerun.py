@@ -85,8 +85,8 @@ def centroid_errors(a, truth) -> str:
 
 def _sd_text(d: np.ndarray) -> str:
     d = d[np.all(np.isfinite(d), axis=1)]
-    return (f"rms {np.sqrt(np.mean(np.sum(d ** 2, axis=1))):.3f}, mean u {d[:, 0].mean():+.3f}, v {d[:, 1].mean():+.3f}, "
-            f"sd u {d[:, 0].std():.3f}, v {d[:, 1].std():.3f}")
+    return (f"rms {np.sqrt(np.mean(np.sum(d ** 2, axis=1))):.3f}, "
+            f"mean u {d[:, 0].mean():+.3f}, v {d[:, 1].mean():+.3f}, sd u {d[:, 0].std():.3f}, v {d[:, 1].std():.3f}")
 
 
 def field_centroid_errors(a, truth, folder, name: str) -> str:
