@@ -49,7 +49,7 @@ import numpy as np
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..data import cache_dir
-from .herd import free_running_timings, RENDER_VERSION, render_into_cache, scenario_session
+from .herd import free_running_timings, RENDER_VERSION, render_into_cache, scenario_session, timing_render_versions
 from .horse import HERD, Harmonics, marker_height, SaddleMotion
 from .render import disc_boundary, draw_disc_blurred, fill_polygon
 from .session import (CAMERA_NAMES, EXPOSURE_S, FLASH_POSITION_G, MARKER_DIAMETER, PLUMB_TAIL_G, PLUMB_TIP_G,
@@ -840,8 +840,8 @@ def hard_free_running(seed: int = 0, *, names=None, cache=None, force: bool = Fa
         timing = free_running_timings(seed, 100 + list(FREE_RUNNING_HARD).index(name), sc.fps, interlaced,
                                       genlocked=genlocked)
         blob = json.dumps({"v": HARD_VERSION, "render": RENDER_VERSION, "scenario": sc.to_dict(),
-                           "horse": HERD[sc.horse].to_dict(), "timing": {c: t.to_dict() for c, t in timing.items()}},
-                          sort_keys=True)
+                           "horse": HERD[sc.horse].to_dict(), "timing": {c: t.to_dict() for c, t in timing.items()},
+                           **timing_render_versions(timing)}, sort_keys=True)
         tag = "-genlocked" if genlocked else ""
         folder = root / "virtuallab" / f"{name}{tag}-s{int(seed)}-{hashlib.sha256(blob.encode()).hexdigest()[:12]}"
         out[name] = render_into_cache(

@@ -26,6 +26,9 @@ from .timing import CameraTiming, draw_free_running
 
 #: Bumped whenever the renderer changes its output (invalidates the cache).
 RENDER_VERSION = 3
+#: Bumped whenever the renderer changes only its interlaced frames: in the keys of sessions with an
+#: interlaced camera (:func:`timing_render_versions`), so the other renders stay valid.
+INTERLACED_RENDER_VERSION = 2
 #: Default session = Horse 2 canter with seed 0 (thesis 8.4.1).
 DEFAULT = ("Horse 2", "canter")
 
@@ -199,6 +202,22 @@ def short_record(scene, fps: float, left_offset: int, sync_deltas_s, strides: fl
     return offsets, n_after
 
 
+def timing_render_versions(timing: dict) -> dict:
+    """Renderer versions a free-running session's cache key adds for its cameras' timings.
+
+    ``{"interlaced_render": INTERLACED_RENDER_VERSION}`` when a camera records
+    interlaced fields, else nothing (the key of a progressive session is unchanged).
+
+    Examples
+    --------
+    >>> timing_render_versions({"left": CameraTiming(nominal_fps=25.0)})
+    {}
+    >>> timing_render_versions({"left": CameraTiming(nominal_fps=25.0, interlaced="bottom_first")})
+    {'interlaced_render': 2}
+    """
+    return {"interlaced_render": INTERLACED_RENDER_VERSION} if any(t.interlaced for t in timing.values()) else {}
+
+
 def _free_key(blob: dict) -> str:
     return hashlib.sha256(json.dumps({"v": RENDER_VERSION, **blob}, sort_keys=True).encode()).hexdigest()[:12]
 
@@ -243,7 +262,8 @@ def herd_free_running(seed: int = 0, *, names=None, cache=None, force: bool = Fa
         timing = free_running_timings(seed, list(FREE_RUNNING_HERD).index(name), fps, genlocked=genlocked)
         key = _free_key({"h": HERD[horse].to_dict(), "g": HERD[horse].gait(gait).to_dict(),
                          "seed": herd_seed(horse, gait), "fps": fps, "timing": {c: t.to_dict() for c, t in timing.items()},
-                         "strides": FREE_RUNNING_STRIDES, "deltas": FREE_RUNNING_SYNC_DELTAS_S})
+                         "strides": FREE_RUNNING_STRIDES, "deltas": FREE_RUNNING_SYNC_DELTAS_S,
+                         **timing_render_versions(timing)})
         folder = root / "virtuallab" / f"{name}{'-genlocked' if genlocked else ''}-s{int(seed)}-{key}"
         out[name] = render_into_cache(folder, lambda tmp, h=horse, g=gait, f=fps, t=timing, n=name:
                                       _render_free_herd(tmp, h, g, f, t, n, seed),

@@ -16,7 +16,9 @@ Every image is built in floating point RGB (0-255), in layers:
 4. the rider (torso, bright helmet, leg hiding the saddle marker, boot, shiny
    stirrup) during the ride;
 5. a flashlight in view (synchronisation, thesis 3.5), random small glints,
-   optical blur, sensor noise; lossy compression happens when writing.
+   optical blur, sensor noise; lossy compression happens when writing. An
+   interlaced frame is two images, one per field's instant, each blurred on
+   its own before the sensor reads its rows (:func:`interlaced_readout`).
 
 Truth of a marker's 2D position = projection of its 3D centre (with
 distortion). Under perspective the centroid of the projected disc differs
@@ -445,9 +447,34 @@ def add_glints(img, rng, n_mean: float, avoid_px=(), min_dist: float = 7.0, regi
         img[y0:y1, x0:x1] = np.maximum(img[y0:y1, x0:x1], (g * amp)[..., None])
 
 
-def finish(img, rng=None, noise: bool = True, blur_sigma: float = 0.55, noise_sigma: float = 2.2) -> np.ndarray:
-    """Optical blur, sensor noise (read + shot), quantisation to uint8 RGB."""
-    out = cv2.GaussianBlur(img.astype(np.float32), (0, 0), blur_sigma) if blur_sigma > 0 else img.astype(np.float32)
+def optical_blur(img, blur_sigma: float = 0.55) -> np.ndarray:
+    """The lens' blur of one continuous image: a Gaussian of ``blur_sigma`` px, as float32.
+
+    The lens blurs the light arriving at one instant (a progressive frame's,
+    or one field's of an interlaced frame) before the sensor samples its rows.
+
+    Examples
+    --------
+    >>> img = np.zeros((5, 5, 3)); img[2, 2] = 100.0
+    >>> out = optical_blur(img)
+    >>> out.dtype.name, [round(float(x)) for x in out[1:4, 2, 0]]
+    ('float32', [10, 52, 10])
+    """
+    return cv2.GaussianBlur(img.astype(np.float32), (0, 0), blur_sigma) if blur_sigma > 0 else img.astype(np.float32)
+
+
+def sensor_readout(light: np.ndarray, rng=None, noise: bool = True, noise_sigma: float = 2.2) -> np.ndarray:
+    """Sensor noise (read + shot) on the light each pixel received, quantised to uint8 in place.
+
+    Each pixel's noise depends on its own light only: ``sqrt(noise_sigma^2 +
+    0.04 max(light, 0))`` times a standard normal draw from ``rng``.
+
+    Examples
+    --------
+    >>> sensor_readout(np.array([[[-3.0, 12.4, 300.0]]], np.float32), noise=False).tolist()
+    [[[0, 12, 255]]]
+    """
+    out = light
     if noise:
         # sig = sqrt(noise_sigma^2 + 0.04 max(out, 0)); out += sig * N(0, 1): in place (the same
         # float32 operations in the same order as the expression, fewer full-frame temporaries)
@@ -461,6 +488,55 @@ def finish(img, rng=None, noise: bool = True, blur_sigma: float = 0.55, noise_si
     np.rint(out, out=out)
     np.clip(out, 0, 255, out=out)
     return out.astype(np.uint8)
+
+
+def finish(img, rng=None, noise: bool = True, blur_sigma: float = 0.55, noise_sigma: float = 2.2) -> np.ndarray:
+    """Optical blur (:func:`optical_blur`), sensor noise and quantisation (:func:`sensor_readout`)."""
+    return sensor_readout(optical_blur(img, blur_sigma), rng, noise=noise, noise_sigma=noise_sigma)
+
+
+def interlaced_readout(field_images, field_rows, rng=None, noise: bool = True, blur_sigma: float = 0.55,
+                       noise_sigma: float = 2.2) -> np.ndarray:
+    """An interlaced frame from its fields' images: each blurred on its own, its rows sampled, noised.
+
+    A camera's lens blurs the continuous image of each field's own instant;
+    the sensor then reads that field's rows. So each field's image is
+    blurred whole (:func:`optical_blur`), the frame takes field ``f``'s rows
+    ``field_rows[f]`` from it, and the sensor's noise and quantisation
+    (:func:`sensor_readout`, pixel by pixel) follow. Blurring the interleaved
+    frame instead would mix a third of the other field's light into each row.
+
+    Parameters
+    ----------
+    field_images : sequence of (h, w, 3) float
+        Each field's image at the frame's full size (exposure order).
+    field_rows : sequence of int arrays
+        The image rows each field holds (together every row once).
+
+    Examples
+    --------
+    Two fields, a bright line (row 3) in the first field's image only: the
+    second field's rows 2 and 4 stay dark (no light crosses from the other
+    field), where blurring the interleaved frame would light them.
+
+    >>> first = np.zeros((6, 4, 3)); first[3] = 200.0
+    >>> second = np.zeros((6, 4, 3))
+    >>> out = interlaced_readout([first, second], [np.arange(1, 6, 2), np.arange(0, 6, 2)], noise=False)
+    >>> out[:, 0, 0].tolist()
+    [0, 0, 0, 144, 0, 0]
+    >>> finish(first, noise=False)[:, 0, 0].tolist()
+    [0, 0, 28, 144, 28, 0]
+    """
+    if len(field_images) != len(field_rows):
+        raise ValueError(f"interlaced_readout: {len(field_images)} field images but {len(field_rows)} row sets")
+    height = field_images[0].shape[0]
+    covered = np.sort(np.concatenate([np.asarray(r, int) for r in field_rows]))
+    if not np.array_equal(covered, np.arange(height)):
+        raise ValueError(f"interlaced_readout: the fields' rows must hold each of the {height} rows once")
+    light = np.empty(field_images[0].shape, np.float32)
+    for image, rows in zip(field_images, field_rows):
+        light[rows] = optical_blur(image, blur_sigma)[rows]
+    return sensor_readout(light, rng, noise=noise, noise_sigma=noise_sigma)
 
 
 def perspective_centroid_bias(cam: Camera, center, normal, radius: float, n: int = 4096) -> np.ndarray:

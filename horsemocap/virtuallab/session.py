@@ -21,8 +21,9 @@ Free-running cameras (:func:`render_session` ``timing=``, see
 has the middle of its row-0 exposure ``phase_frames`` of a frame after the
 flash's onset (``t = 0``) and its frames follow at its own rate; each image
 row is exposed at its own instant (rolling shutter), each field of an
-interlaced frame at its own, the horse and markers are smeared over each
-exposure, and the flash (on from ``t = 0`` for :func:`flash_frames` frames)
+interlaced frame at its own (each field's image blurred by the lens on its
+own before the sensor reads its rows), the horse and markers are smeared
+over each exposure, and the flash (on from ``t = 0`` for :func:`flash_frames` frames)
 lights each frame in proportion to the part of its exposure it is on. The
 truth then gives every camera's instants (:func:`build_truth`).
 """
@@ -42,8 +43,8 @@ from ..store import atomic_write_json
 from .calibration import render_calibration_views
 from .horse import saddle_motion, SaddleMotion
 from .render import (add_glints, Arena, blend, disc_boundary, draw_disc, draw_disc_blurred, fill_polygon, finish,
-                     horse_parts, perspective_centroid_bias, polygon_coverage, project_parts, render_arena, rider_parts,
-                     sphere_silhouette)
+                     horse_parts, interlaced_readout, perspective_centroid_bias, polygon_coverage, project_parts,
+                     render_arena, rider_parts, sphere_silhouette)
 from .noise import MarkerNoise
 from .rig import FPS, thesis_rig
 from .timing import (CameraTiming, field_rows, field_start_times, flash_fraction, frame_start_times)
@@ -472,49 +473,68 @@ def render_free_running_frame(scene: Scene, cam: Camera, k: int, frame_start: fl
     """Frame ``k`` of a free-running camera whose row 0 starts exposing at ``frame_start`` (s).
 
     Each field (one, progressive) is drawn at its own instants
-    (:func:`draw_horse_exposure`; markers at the time of their own centre row,
-    :func:`marker_instants`); the flashlight is lit in proportion to the
-    part of its row's exposure it is on
-    (:func:`horsemocap.virtuallab.timing.flash_fraction`); an interlaced
-    frame takes each field's rows from that field's drawing. Glints, blur
-    and noise as :func:`render_motion_frame`.
+    (:func:`draw_field_image`). Glints, blur and noise as
+    :func:`render_motion_frame`; an interlaced frame's two field images are
+    each blurred on their own and the frame takes each field's rows from
+    its own (:func:`horsemocap.virtuallab.render.interlaced_readout`), as a
+    camera's lens blurs each field's instant before the sensor reads its rows.
     """
-    ci = _cam_index(cam.name)
-    rng = _seed(scene.seed, 1, ci, k)
+    rng = _seed(scene.seed, 1, _cam_index(cam.name), k)
+    fields = field_start_times(timing, frame_start)
+    images = [draw_field_image(scene, cam, start, timing, bg, noise=noise) for start in fields]
+    if len(images) == 1:
+        if noise:
+            _add_frame_glints(images[0], scene, cam, timing, frame_start, rng)
+        return finish(images[0], rng, noise=noise)
+    if noise:
+        # the specks are still (dust, sparkles of the arena): the same in both fields' images
+        specks = np.full_like(images[0], -np.inf)
+        _add_frame_glints(specks, scene, cam, timing, frame_start, rng)
+        images = [np.maximum(image, specks) for image in images]
+    h = cam.size[1]
+    return interlaced_readout(images, [field_rows(timing, f, h) for f in range(len(images))], rng, noise=noise)
+
+
+def draw_field_image(scene: Scene, cam: Camera, start: float, timing: CameraTiming, bg: np.ndarray, *,
+                     noise: bool) -> np.ndarray:
+    """The light of one field (or progressive frame) whose row 0 starts exposing at ``start`` (s), float RGB.
+
+    The horse, markers and extras at their own instants
+    (:func:`draw_horse_exposure`; markers at the time of their own centre
+    row, :func:`marker_instants`); the flashlight lit in proportion to the
+    part of its row's exposure it is on
+    (:func:`horsemocap.virtuallab.timing.flash_fraction`). No glints, blur or noise.
+    """
     e = timing.exposure
     h = cam.size[1]
     on, off = flash_interval(timing.nominal_fps)
-    fields = field_start_times(timing, frame_start)
-    img = None
-    for f, start in enumerate(fields):
-        layer = bg.copy()
-        # the field's start already holds the field delay: only the readout to the flash's row is added
-        lit = flash_fraction(timing, start + _flash_row(scene, cam) / h * timing.rolling_shutter_s, on, off)
-        if lit > 0:
-            draw_flash_fraction(layer, scene, cam, lit)
-        tm = marker_instants(scene, cam, timing, np.array([start]), both_fields=False)[0]
-        seen = cam.project(scene.marker_geometry(scene.motion.pose(tm))[0][np.arange(len(tm)), np.arange(len(tm))])
-        rows = seen[np.isfinite(seen[:, 1]), 1]
-        band = float(np.clip(rows.mean(), 0, h - 1)) if len(rows) else h / 2
-        body_time = start + e / 2 + band / h * timing.rolling_shutter_s
-        draw_horse_exposure(layer, scene, cam, body_time, tm, e, uneven=noise)
-        for extra in scene.extras:
-            extra.draw(layer, scene, cam, body_time, e)
-        if img is None:
-            img = layer
-        else:
-            rows_f = field_rows(timing, f, h)
-            img[rows_f] = layer[rows_f]
-    if noise:
-        t_mid = float(frame_start + e / 2 + timing.field_delay_s / 2 + timing.rolling_shutter_s / 2)
-        centres, _ = scene.marker_geometry(scene.motion.pose(np.array([t_mid])))
-        avoid = [tuple(p) for p in cam.project(centres[0])]
-        add_glints(img, rng, 5.0, avoid)
-        mk = cam.project(centres[0, :3])
-        if np.all(np.isfinite(mk)):
-            region = (mk[:, 0].min() - 45, mk[:, 1].min() - 25, mk[:, 0].max() + 45, mk[:, 1].max() + 25)
-            add_glints(img, rng, 1.2, avoid, region=region)
-    return finish(img, rng, noise=noise)
+    layer = bg.copy()
+    # the field's start already holds the field delay: only the readout to the flash's row is added
+    lit = flash_fraction(timing, start + _flash_row(scene, cam) / h * timing.rolling_shutter_s, on, off)
+    if lit > 0:
+        draw_flash_fraction(layer, scene, cam, lit)
+    tm = marker_instants(scene, cam, timing, np.array([start]), both_fields=False)[0]
+    seen = cam.project(scene.marker_geometry(scene.motion.pose(tm))[0][np.arange(len(tm)), np.arange(len(tm))])
+    rows = seen[np.isfinite(seen[:, 1]), 1]
+    band = float(np.clip(rows.mean(), 0, h - 1)) if len(rows) else h / 2
+    body_time = start + e / 2 + band / h * timing.rolling_shutter_s
+    draw_horse_exposure(layer, scene, cam, body_time, tm, e, uneven=noise)
+    for extra in scene.extras:
+        extra.draw(layer, scene, cam, body_time, e)
+    return layer
+
+
+def _add_frame_glints(img, scene: Scene, cam: Camera, timing: CameraTiming, frame_start: float, rng) -> None:
+    """Random small glints over a free-running frame, away from the markers at the frame's middle instant."""
+    e = timing.exposure
+    t_mid = float(frame_start + e / 2 + timing.field_delay_s / 2 + timing.rolling_shutter_s / 2)
+    centres, _ = scene.marker_geometry(scene.motion.pose(np.array([t_mid])))
+    avoid = [tuple(p) for p in cam.project(centres[0])]
+    add_glints(img, rng, 5.0, avoid)
+    mk = cam.project(centres[0, :3])
+    if np.all(np.isfinite(mk)):
+        region = (mk[:, 0].min() - 45, mk[:, 1].min() - 25, mk[:, 0].max() + 45, mk[:, 1].max() + 25)
+        add_glints(img, rng, 1.2, avoid, region=region)
 
 
 def render_static(scene: Scene, cam: Camera, bg, *, noise: bool) -> np.ndarray:
