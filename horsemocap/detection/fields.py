@@ -37,8 +37,7 @@ import numpy as np
 from ..sources import field_image
 from .filters import find_candidates, weighted_centroids
 
-#: Reason of a centroid kept from the blended frame: a field shows no blob there (or the blended frame none at
-#: the centre given).
+#: Reason of a centroid kept from the blended frame: a field shows no blob near it (or it lies outside the frame).
 FIELD_NOT_FOUND = "field_not_found"
 #: Reason of a centroid kept from the blended frame: the two fields' blobs do not straddle the blended centre
 #: (e.g. the marker is missing from one field and another light is near it there).
@@ -105,9 +104,7 @@ def field_window(frame: np.ndarray, parity: int, rows=None, cols=None) -> np.nda
     c0, c1 = (0, width) if cols is None else (max(0, int(cols[0])), min(width, int(cols[1])))
     if r1 <= r0 or c1 <= c0:
         raise ValueError(f"field_window: the window rows {rows}, columns {cols} misses the {width}x{height} frame")
-    s0, s1 = max(0, r0 - 1), min(height, r1 + 1)          # the interpolated rows' neighbours
-    if s1 - s0 < 2:
-        s0, s1 = max(0, s1 - 2), max(s1, 2)
+    s0, s1 = max(0, r0 - 1), min(height, r1 + 1)          # the interpolated rows' neighbours (2 rows or more)
     slab = field_image(frame[s0:s1, c0:c1], (parity - s0) % 2)
     return np.clip(np.rint(slab[r0 - s0:r1 - s0]), 0, 255).astype(np.uint8)
 
