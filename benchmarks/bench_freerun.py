@@ -11,7 +11,8 @@ when the markers corrected them) against the true fractional offsets.
 
 ``--centroids`` adds, per camera, the detected centroids' error against the truth's projections at their
 instants over the analysed frames: rms, and the standard deviation along the image's rows (u) and columns (v)
-(px).
+(px); for an interlaced camera also the fields' fitted vertical sampling error ``(a, b)`` and the marker-frames
+that kept the blended frame's centroid (:class:`horsemocap.steps.detect.FieldsMeasured`).
 
 For an interlaced camera it adds each field's own centroids (:func:`horsemocap.detection.remeasure_by_fields`)
 against the truth's projections at that field's own instant, as measured and with the fitted vertical sampling
@@ -78,8 +79,12 @@ def centroid_errors(a, truth) -> str:
             pairs, _ = accuracy.match_points(px[k], true)
             diffs.extend(px[k, i] - true[j] for i, j in pairs)
         d = np.asarray(diffs)
+        measured = a.detect.fields.get(cam)
+        by_fields = "" if measured is None else (
+            f"; fields: error ({measured.aliasing_px[0]:+.3f}, {measured.aliasing_px[1]:+.3f}) px"
+            f"{'' if not measured.aliasing_note else ' not removed'}, {measured.kept_blended} kept blended")
         parts.append(f"{cam} rms {np.sqrt(np.mean(np.sum(d ** 2, axis=1))):.3f}, sd u {d[:, 0].std():.3f}, "
-                     f"v {d[:, 1].std():.3f} ({len(d)})")
+                     f"v {d[:, 1].std():.3f} ({len(d)}){by_fields}")
     return "\n  centroids vs truth (px): " + "; ".join(parts)
 
 

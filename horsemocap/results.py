@@ -227,6 +227,17 @@ def _record_detect(detect, p: dict, chosen: dict) -> None:
         chosen["identification"] = {"anchor_frame": detect.identification.anchor_frame,
                                     "model_index_in_static": detect.identification.model_index}
     chosen["analysed_frames"] = list(detect.segment)
+    if detect.fields:               # interlaced cameras: measured field by field
+        chosen["interlaced_fields"] = {c: _fields_record(f) for c, f in detect.fields.items()}
+
+
+def _fields_record(measured) -> dict:
+    """An interlaced camera's :class:`~horsemocap.steps.detect.FieldsMeasured` as analysis.json records it."""
+    reasons, counts = np.unique(measured.reason[measured.reason != ""], return_counts=True)
+    return {"aliasing_px": [round(float(v), 4) for v in measured.aliasing_px],
+            "aliasing_removed": not measured.aliasing_note, **({"aliasing_note": measured.aliasing_note}
+                                                               if measured.aliasing_note else {}),
+            "kept_blended": {str(r): int(n) for r, n in zip(reasons, counts)}}
 
 
 def _record_rigid_body(rb, p: dict, chosen: dict) -> None:

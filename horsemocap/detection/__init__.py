@@ -66,7 +66,7 @@ make. The thesis' chain stays selectable (``detection_method="thesis"``).
 ``timeshift.py`` checks the synchronisation with the identified markers
 (:func:`frame_shift_residuals`, :func:`best_frame_shift`). ``fields.py``
 measures an interlaced camera's identified markers in each field
-(:func:`remeasure_by_fields`, :func:`field_centroid`, :func:`row_aliasing`).
+(:func:`remeasure_by_fields`, :func:`marker_in_fields`, :func:`row_aliasing`).
 
 Pixel coordinates are ``(u, v)`` = (column, row), 0-based, with the centre of
 pixel ``(i, j)`` at ``u = j, v = i`` (OpenCV convention; MATLAB's regionprops
@@ -88,8 +88,8 @@ from .candidates import (candidate_area_range, candidate_min_circularity, correc
 from .filters import (cross_product_signs, filter_area, filter_circularity, filter_cross_product,
                       filter_distance, filter_stages, filter_window, find_candidates, label_regions,
                       light_terms, marker_distances, region_circularity, weighted_centroids, window_center)
-from .fields import (FIELD_NOT_FOUND, FieldMeasurement, corrected_mean, field_centroid, field_centroids,
-                     remeasure_by_fields, row_aliasing)
+from .fields import (FIELD_NOT_FOUND, FIELDS_DISAGREE, FieldMeasurement, aliasing_removable, corrected_mean,
+                     field_centroids, field_window, marker_in_fields, remeasure_by_fields, row_aliasing)
 from .gaps import bridge_gaps, default_max_gap
 from .marker_model import fit_marker_model, label_frame
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
@@ -121,6 +121,6 @@ __all__ = [
     "match_views", "fit_marker_model", "label_frame", "bridge_gaps", "default_max_gap",
     "candidate_area_range", "candidate_min_circularity", "reason_counts",
     "FrameShift", "frame_shift_residuals", "best_frame_shift",
-    "FIELD_NOT_FOUND", "FieldMeasurement", "field_centroid", "field_centroids", "row_aliasing", "corrected_mean",
-    "remeasure_by_fields",
+    "FIELD_NOT_FOUND", "FIELDS_DISAGREE", "FieldMeasurement", "marker_in_fields", "field_centroids", "field_window",
+    "row_aliasing", "aliasing_removable", "corrected_mean", "remeasure_by_fields",
 ]

@@ -97,6 +97,34 @@ class IdentificationSummary(StepResult):
 
 
 @dataclass(frozen=True)
+class FieldsMeasured(StepResult):
+    """An interlaced camera's markers measured field by field (:func:`measured_by_fields`): what was kept.
+
+    Attributes
+    ----------
+    reason : (n, m) str
+        Why a centroid kept the blended frame's value
+        (:data:`~horsemocap.detection.fields.FIELD_NOT_FOUND`,
+        :data:`~horsemocap.detection.fields.FIELDS_DISAGREE`); ``""`` where the
+        fields measured it (or the marker was not seen).
+    aliasing_px : (2,) ndarray
+        The camera's vertical sampling error ``(a, b)`` fitted
+        (:func:`~horsemocap.detection.row_aliasing`), px.
+    aliasing_note : str
+        Why that error was not removed (``""``: removed).
+    """
+
+    reason: np.ndarray
+    aliasing_px: np.ndarray
+    aliasing_note: str = ""
+
+    @property
+    def kept_blended(self) -> int:
+        """Marker-frames that kept the blended frame's centroid."""
+        return int(np.count_nonzero(self.reason != ""))
+
+
+@dataclass(frozen=True)
 class DetectResult(StepResult):
     """Marker centroids per camera, in the synchronised numbering.
 
@@ -129,6 +157,8 @@ class DetectResult(StepResult):
     observation_frames : dict
         Camera -> (n, m) instant of each centroid in its synchronised frames (frame index plus the rolling
         shutter's row time, when the readout is known); empty: the frame instants.
+    fields : dict
+        Interlaced camera -> :class:`FieldsMeasured` (empty when no camera is interlaced).
     """
 
     marker_px: dict
@@ -143,6 +173,7 @@ class DetectResult(StepResult):
     sync_check: dict = field(default_factory=dict)
     identification: IdentificationSummary | None = None
     observation_frames: dict = field(default_factory=dict)
+    fields: dict = field(default_factory=dict)
 
     @property
     def sync_corrected(self) -> bool:
@@ -225,7 +256,7 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
         idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
                                                tolerance)
-    marker_px = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
+    marker_px, by_fields = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
     times = observation_times(session, sync, rig, marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
         sync = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
@@ -255,33 +286,72 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                                     model_index=[int(i) for i in idn.model_index], rigid_rms_m=idn.rigid_rms_m)
     return DetectResult(marker_px=marker_px, reason=idn.reason, segment=segment, detection=chosen,
                         all_seen=tracked, method="multiview", method_note="", max_gap_frames=gap, sync=sync,
-                        sync_check=check, identification=summary, observation_frames=times)
+                        sync_check=check, identification=summary, observation_frames=times, fields=by_fields)
 
 
-def measured_by_fields(session: Session, sync: SyncResult, marker_px: dict, thresholds: dict, progress) -> dict:
+def measured_by_fields(session: Session, sync: SyncResult, marker_px: dict, thresholds: dict,
+                       progress) -> tuple[dict, dict]:
     """The interlaced cameras' centroids measured again in each field of their frames as recorded
     (:func:`horsemocap.detection.remeasure_by_fields`: each field's centre, the fields' vertical sampling
     error removed, the two averaged, half-way between the fields' instants); other cameras' as they are.
 
     The identification follows the markers in frames whose fields are blended; a blended combed blob's
-    centre errs more than the mean of its two fields' centres. A marker a field does not show near its
-    blended centre keeps that centre (the count is reported)."""
-    out = dict(marker_px)
+    centre errs more than the mean of its two fields' centres. A marker the fields do not show as a pair
+    of blobs straddling its blended centre keeps that centre, with the reason recorded.
+
+    Returns
+    -------
+    marker_px : dict
+        Camera -> (n, m, 2) centroids (a progressive camera's array unchanged, the same object).
+    fields : dict
+        Interlaced camera -> :class:`FieldsMeasured`.
+
+    Examples
+    --------
+    One interlaced camera whose two frames show a marker combed between its fields, 4.8 px apart:
+
+    >>> import tempfile, pathlib, cv2
+    >>> from types import SimpleNamespace
+    >>> yy, xx = np.mgrid[0:48, 0:72]
+    >>> disc = lambda u, v: 20 + 210 * np.exp(-((xx - u) ** 2 + (yy - v) ** 2) / (2 * 1.6 ** 2))
+    >>> combed = np.where(yy % 2 == 1, disc(30.3, 20.6), disc(35.1, 20.9)).round().astype(np.uint8)
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> for k in range(2):
+    ...     _ = cv2.imwrite(str(folder / f"frame_{k:03d}.png"), combed)
+    >>> session = SimpleNamespace(cameras=["left"], motion={"left": folder},
+    ...                           camera_timing=lambda c: {"interlaced": "bottom_first"})
+    >>> sync = SimpleNamespace(offsets={"left": 0}, n_frames=2)
+    >>> px, fields = measured_by_fields(session, sync, {"left": np.array([[[32.7, 20.8]], [[50.0, 40.0]]])},
+    ...                                 {"left": 80}, lambda *message: None)
+    >>> np.round(px["left"], 2).tolist(), fields["left"].reason.tolist()
+    ([[[32.7, 20.75]], [[50.0, 40.0]]], [[''], ['field_not_found']])
+    """
+    measured, by_fields = dict(marker_px), {}
     for c in session.cameras:
         if not _interlaced(session, c):
             continue
         seq = FrameSource(session.motion[c]).sequence(sync.offsets[c], sync.offsets[c] + sync.n_frames, color=False)
         try:
-            fm = remeasure_by_fields(seq, marker_px[c], int(thresholds[c]))
+            remeasured = remeasure_by_fields(seq, marker_px[c], int(thresholds[c]))
         finally:
             seq.close()
-        out[c] = fm.marker_px
-        kept = int(np.count_nonzero(fm.reason))
-        progress("detect", f"camera '{c}' (interlaced): centroids measured in each field (vertical sampling "
-                           f"error {fm.aliasing[0]:+.3f} cos, {fm.aliasing[1]:+.3f} sin px removed)"
-                           + (f"; {kept} marker-frame(s) not found in a field keep the blended frame's centroid"
-                              if kept else ""))
-    return out
+        measured[c] = remeasured.marker_px
+        by_fields[c] = FieldsMeasured(reason=remeasured.reason, aliasing_px=np.asarray(remeasured.aliasing),
+                                      aliasing_note=remeasured.aliasing_note)
+        progress("detect", f"camera '{c}' (interlaced): {_fields_summary(by_fields[c])}")
+    return measured, by_fields
+
+
+def _fields_summary(measured: FieldsMeasured) -> str:
+    """One line for the progress output: the error removed and the marker-frames that kept the blended centre."""
+    a, b = measured.aliasing_px
+    text = ("centroids measured in each field (" + (measured.aliasing_note or
+            f"vertical sampling error {a:+.3f} cos, {b:+.3f} sin px removed") + ")")
+    if measured.kept_blended:
+        counts = ", ".join(f"{r} {n}" for r, n in zip(*np.unique(measured.reason[measured.reason != ""],
+                                                                    return_counts=True)))
+        text += f"; {measured.kept_blended} marker-frame(s) keep the blended frame's centroid ({counts})"
+    return text
 
 
 def free_running_tolerance(rig: Rig) -> float:
@@ -461,14 +531,16 @@ def _check_round(session, section, sync, rig, idn, progress):
 def _detect_per_camera(session, section, sync, progress, why: str) -> DetectResult:
     """The thesis' chain: every camera on its own (chapter 4)."""
     n = sync.n_frames
-    marker_px, reasons, chosen = {}, {}, {}
+    found, reasons, chosen = {}, {}, {}
     for cam in session.cameras:
         progress("detect", f"camera '{cam}': {n} frames ...")
         frames = synchronised_frames(session, sync, cam, progress, f"camera '{cam}' frames")
         track = detect_markers(frames, session.marker_count, params=camera_detection_params(section, cam))
-        marker_px[cam], reasons[cam] = track.marker_px, track.reason
+        found[cam], reasons[cam] = track.marker_px, track.reason
         chosen[cam] = track.params.to_dict()
         frames.close()
+    marker_px, by_fields = measured_by_fields(session, sync, found, {c: chosen[c]["threshold"] for c in chosen},
+                                              progress)
     seen = np.all([np.all(np.isfinite(marker_px[c][..., 0]), axis=1) for c in session.cameras], axis=0)
     segment = longest_run(seen)
     if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
@@ -483,7 +555,7 @@ def _detect_per_camera(session, section, sync, progress, why: str) -> DetectResu
                  + f"; analysing the longest run {segment[0]}..{segment[1] - 1}")
     return DetectResult(marker_px=marker_px, reason=reasons, segment=segment, detection=chosen, all_seen=seen,
                         method="thesis", method_note=why, max_gap_frames=max_gap_frames(session, section),
-                        sync=sync)
+                        sync=sync, fields=by_fields)
 
 
 def gaps_inside(seen: np.ndarray, reasons: dict) -> list[str]:
