@@ -130,6 +130,6 @@ def test_static_shot_check_levels(pct, level):
 
 
 def test_static_shot_check_skipped_with_its_reason():
-    c = quality.check_static_shot("no pixel noise measured")
+    c = quality.check_static_shot(quality.StaticShotSkipped("no pixel noise measured"))
     assert c.level == "skipped" and "no pixel noise measured" in c.message
     assert quality.verdict([c]) == "ok"
