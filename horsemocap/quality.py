@@ -1005,9 +1005,17 @@ def static_shot_of(analysis) -> StaticShotUncertainty | StaticShotSkipped:
         G = written_saddle_sensitivity(rb.body, static_model)
         return static_shot_uncertainty(analysis.rig.rig, world, rb.static_order, rb.saddle_index, axes,
                                        tri.noise_px, G, written_saddle_acceleration(analysis),
-                                       fs=float(analysis.session.fps))
+                                       fs=float(analysis.session.fps), seen=_still_seen(analysis))
     except ValueError as exc:
         return StaticShotSkipped(str(exc))
+
+
+def _still_seen(analysis) -> dict | None:
+    """Camera -> which of the static shot's points it saw (finite pixels), or None when the pixels are not kept."""
+    static = analysis.static
+    if static is None or static.static_px is None:
+        return None
+    return {c: np.isfinite(np.asarray(px, float)).all(-1) for c, px in static.static_px.items()}
 
 
 def _calibration_rms(analysis) -> float | None:

@@ -60,6 +60,15 @@ HARMONIC_LIMIT_OF_RATE = 0.4
 MAX_HARMONICS = 10
 #: Standard deviations of a harmonic's least-squares amplitude below which it is not detected.
 DETECTION_SD = 2.0
+#: Condition number of the markers' second-moment matrix (:func:`saddle_offset_map`) above which the markers are
+#: taken as collinear: inverting it would keep fewer than 4 of float64's 16 significant digits. Its condition
+#: grows as (length / height)^2 of a thin triangle, so this is a triangle of 0.7 m about 1 um high: a degenerate
+#: still, not a thin triangle (those are the rigid-body step's conditioning warnings).
+COLLINEAR_CONDITION = 1e12
+#: Fewest consecutive finite frames for a weighted rms's share (:func:`weighted_rms_sd_pct`): the weighting is
+#: applied by the DFT over those frames, and fewer than 8 resolve at most four frequencies, too few for a
+#: weighting curve to shape.
+MIN_WEIGHTED_FRAMES = 8
 #: Half the step (m) of the central difference through a fitted saddle path (:func:`written_saddle_sensitivity`):
 #: a millimetre, the size of the static shot's errors, so the difference is the fit's response to such an
 #: error; the fit's frequency search stops at a relative change of 1e-6, far below what a millimetre moves it.
@@ -263,12 +272,14 @@ class StaticShotUncertainty:
     weighted_pct: dict
 
 
-def still_point_covariance(rig, points_world, noise_px: float) -> np.ndarray:
-    """Covariance (k, 3, 3) (m^2, world frame) of the k points of one still seen by every camera of ``rig``.
+def still_point_covariance(rig, points_world, noise_px: float, seen: dict | None = None) -> np.ndarray:
+    """Covariance (k, 3, 3) (m^2, world frame) of the k points of one still.
 
     The still is a single image per camera, one draw of the detection noise: each point's covariance is
-    ``noise_px^2 (J^T J)^-1`` with ``J`` the Jacobian of its pixels in every camera
-    (:func:`horsemocap.reconstruction.point_covariance`), nothing averaged.
+    ``noise_px^2 (J^T J)^-1`` with ``J`` the Jacobian of its pixels in the cameras that saw it
+    (:func:`horsemocap.reconstruction.point_covariance`), nothing averaged. ``seen``: camera -> (k,) bool,
+    which points each camera saw (default: every camera of ``rig`` every point); a point seen by fewer than
+    two cameras gets NaN.
 
     Examples
     --------
@@ -284,7 +295,14 @@ def still_point_covariance(rig, points_world, noise_px: float) -> np.ndarray:
         raise ValueError(f"points_world: expected (k, 3), got {pts.shape}")
     if not (np.isfinite(noise_px) and noise_px >= 0):
         raise ValueError(f"noise_px: expected a finite pixel noise >= 0, got {noise_px!r}")
-    used = {c: np.ones((1, len(pts)), bool) for c in rig.names}
+    if seen is None:
+        seen = {c: np.ones(len(pts), bool) for c in rig.names}
+    used = {}
+    for c in rig.names:
+        mask = np.asarray(seen.get(c, np.zeros(len(pts), bool)), bool)
+        if mask.shape != (len(pts),):
+            raise ValueError(f"seen[{c!r}]: expected ({len(pts)},) booleans, one per point, got {mask.shape}")
+        used[c] = mask[None]
     return point_covariance(rig, pts[None], used, noise_px)[0]
 
 
@@ -321,7 +339,7 @@ def saddle_offset_map(markers, saddle) -> np.ndarray:
     q = s - m.mean(0)
     cross = np.stack([_skew(v) for v in p])                 # [p_i]x
     H = -np.einsum("kij,kjl->il", cross, cross)             # sum -[p_i]x^2
-    if np.linalg.cond(H) > 1e12:
+    if np.linalg.cond(H) > COLLINEAR_CONDITION:
         raise ValueError("markers: collinear, the static shot defines no body frame")
     Hinv = np.linalg.inv(H)
     L = np.zeros((3, 3 * (k + 1)))
@@ -461,7 +479,8 @@ def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: floa
     weighting (:func:`horsemocap.vibration.apply_weighting`, by the DFT over the frames), the weighted mean
     square ``<(W a + W g dr)^2>`` changes by ``2 <W a W g> dr`` to first order, so the weighted rms changes by
     ``h dr / <(W a)^2>`` of itself, ``h = <W a W g>``; its standard deviation is ``sqrt(h C h) / <(W a)^2>``.
-    Frames with a NaN are left out (the longest finite run is used).
+    Frames with a NaN are left out (the longest finite run is used; NaN when it is shorter than
+    :data:`MIN_WEIGHTED_FRAMES`).
 
     Examples
     --------
@@ -477,7 +496,7 @@ def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: floa
     ay = np.asarray(vertical_acceleration, float)
     ok = np.isfinite(ay) & np.isfinite(g).all(1)
     start, stop = _longest_true_run(ok)
-    if stop - start < 8:
+    if stop - start < MIN_WEIGHTED_FRAMES:
         return float("nan")
     wa = apply_weighting(ay[start:stop], fs, weighting, method="fft")
     wg = apply_weighting(g[start:stop], fs, weighting, method="fft", axis=0)
@@ -500,13 +519,13 @@ def _longest_true_run(ok) -> tuple[int, int]:
 
 def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_motion, noise_px: float,
                             sensitivity, vertical_acceleration, axis: int = 1,
-                            fs: float | None = None) -> StaticShotUncertainty:
+                            fs: float | None = None, seen: dict | None = None) -> StaticShotUncertainty:
     """The vertical acceleration's error that the static shot's pixel noise leaves in the saddle.
 
     Parameters
     ----------
     rig : horsemocap.camera.Rig
-        The cameras that took the still (every point seen by every camera).
+        The cameras that took the still.
     static_world : (k, 3) array
         The still's triangulated points (world frame).
     marker_rows : sequence of int
@@ -525,6 +544,8 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
         The vertical axis of the motion frame.
     fs : float, optional
         The frame rate: with it, the Wb- and Wk-weighted rms's share too (:func:`weighted_rms_sd_pct`).
+    seen : dict, optional
+        Camera -> (k,) bool: which of the still's points each camera saw (default: all of them).
 
     Returns
     -------
@@ -552,7 +573,12 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     if not np.isfinite(world[rows + [int(saddle_row)]]).all():
         raise ValueError("static_world: the static shot's markers and saddle must be finite")
     axes = np.asarray(to_motion, float)
-    cov_world = still_point_covariance(rig, world[rows + [int(saddle_row)]], noise_px)
+    used_rows = rows + [int(saddle_row)]
+    seen_used = None if seen is None else {c: np.asarray(v, bool)[used_rows] for c, v in seen.items()}
+    cov_world = still_point_covariance(rig, world[used_rows], noise_px, seen_used)
+    if not np.isfinite(cov_world).all():
+        raise ValueError("static_world: a marker or the saddle of the static shot was seen by fewer than two "
+                         "cameras; its place has no covariance")
     cov = axes @ cov_world @ axes.T                          # motion frame, per point
     motion = world[rows + [int(saddle_row)]] @ axes.T
     L = saddle_offset_map(motion[:-1], motion[-1])
