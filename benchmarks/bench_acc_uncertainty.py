@@ -5,18 +5,21 @@ default analysis (:func:`horsemocap.pipeline.analyze`, what ``horsemocap analyze
 error of the saddle's vertical acceleration against the truth (% of the true rms,
 :func:`horsemocap.accuracy.stage_errors`), the Wb/Wk-weighted rms errors, the static shot's estimate
 (:func:`horsemocap.quality.static_shot_of`: the still's pixel noise through the cameras' Jacobians, the marker
-model and the saddle's placement, then exactly through ``([alpha]x + [omega]x^2) R`` to the acceleration,
-% of the written rms), the part of the actual error the still's actual error explains (the same linear chain
-fed with the truth's static points instead of a covariance), the pixel noise used, and the verdict with the
-checks flagged.
+model and the saddle's placement, then through the chain that wrote the acceleration run on the saddle point moved
+along x, y, z (:func:`horsemocap.uncertainty.written_saddle_sensitivity`), % of the written rms), the part of the
+actual error the still's actual error explains (the same linear chain fed with the truth's static points instead
+of a covariance), the pixel noise used, and the verdict with the checks flagged.
 
-Usage: ``python benchmarks/bench_acc_uncertainty.py [--dump DIR] [--reuse DIR] [--cuts] [PATTERN ...]``
+Usage: ``python benchmarks/bench_acc_uncertainty.py [--dump DIR] [--reuse DIR] [--cuts] [--set NAME=VALUE ...]
+[PATTERN ...]``
 (glob patterns of folder names under the virtual laboratory's cache, default the herd, hard, free-running,
 marker-noise and cover renders, plus ``bundled``); one analysis at a time. ``--dump DIR`` pickles each run's
 numbers; ``--reuse DIR`` prints the table from those pickles without analysing again. ``--cuts``: also the
-spread rigs cut to the horse's own three markers (``bench_markers_covers.py --cut``).
+spread rigs cut to the horse's own three markers (``bench_markers_covers.py --cut``). ``--set`` gives analysis
+parameters by their dotted names (``--set rigid_body.kinematics=fits``; a value read as JSON when it parses).
 """
 import argparse
+import json
 import pickle
 import sys
 import time
@@ -27,7 +30,7 @@ import numpy as np
 from horsemocap import accuracy, quality
 from horsemocap.data import cache_dir
 from horsemocap.pipeline import AnalysisError, analyze
-from horsemocap.uncertainty import saddle_acceleration_sensitivity, saddle_offset_map
+from horsemocap.uncertainty import saddle_offset_map, written_saddle_sensitivity
 from horsemocap.virtuallab import load_truth
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -64,7 +67,7 @@ def still_explains(a, truth, u) -> float:
     rows = [int(i) for i in rb.static_order] + [int(rb.saddle_index)]
     err = (measured[rows] - true_motion[[match[i] for i in rows]]).reshape(-1)
     offset = saddle_offset_map(measured[rows[:-1]], measured[rows[-1]]) @ err
-    g = saddle_acceleration_sensitivity(rb.omega, rb.alpha, rb.rotation)[:, 1, :] @ offset
+    g = written_saddle_sensitivity(rb.body, measured[rows[:-1]])[:, 1, :] @ offset
     return 100 * float(np.sqrt(np.nanmean(g ** 2))) / u.rms
 
 
@@ -78,8 +81,8 @@ def record_of(name, a, truth) -> dict:
            "wb": ce.get("acc_y_Wb_rms", np.nan), "wk": ce.get("acc_y_Wk_rms", np.nan),
            "verdict": quality.verdict(others), "checks": [c.to_dict() for c in others],
            "flagged": ",".join(c.name for c in others if c.level in ("warning", "unreliable"))}
-    if isinstance(u, str):
-        rec.update(estimate=None, why=u)
+    if isinstance(u, quality.StaticShotSkipped):
+        rec.update(estimate=None, why=u.reason)
     else:
         rec.update(estimate=u.pct_of_rms, noise_px=u.noise_px, wb_sd=u.weighted_pct.get("Wb", np.nan), offset_sd_mm=(1000 * u.offset_sd_m).tolist(),
                    explained=still_explains(a, truth, u))
@@ -126,18 +129,37 @@ def summary(records) -> list:
     return lines
 
 
-def run(folder: Path, dump=None, cut=None) -> str:
+def parameters(assignments) -> dict:
+    """``["a.b=1", ...]`` -> ``{"a": {"b": 1}}``: analysis parameters by their dotted names."""
+    out: dict = {}
+    for text in assignments:
+        name, sep, value = text.partition("=")
+        if not sep:
+            raise SystemExit(f"--set {text!r}: expected NAME=VALUE")
+        try:
+            value = json.loads(value)
+        except json.JSONDecodeError:
+            pass
+        *sections, last = name.split(".")
+        node = out
+        for key in sections:
+            node = node.setdefault(key, {})
+        node[last] = value
+    return out
+
+
+def run(folder: Path, dump=None, cut=None, params=None) -> str:
     t0 = time.perf_counter()
     name = folder.name if cut is None else f"{cut} cut to 3"
     try:
         if cut is None:
             truth = load_truth(folder)
-            a = analyze(folder, None, {}, progress=lambda *x: None)
+            a = analyze(folder, None, params or {}, progress=lambda *x: None)
         else:
             full = load_truth(folder)
             keep = bmc.kept_three(cut)
             with bmc._Cut(keep, full):
-                a = analyze(folder, None, {}, progress=lambda *x: None)
+                a = analyze(folder, None, params or {}, progress=lambda *x: None)
             truth = bmc._cut_truth(full, keep)
     except AnalysisError as exc:
         return f"{name[:44]:44s} stopped: {str(exc)[:80]}"
@@ -154,7 +176,10 @@ def main():
     parser.add_argument("--dump", help="folder to pickle each run's numbers into")
     parser.add_argument("--reuse", help="folder of pickles written by --dump: the table without analysing")
     parser.add_argument("--cuts", action="store_true", help="also the spread rigs cut to three markers")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="an analysis parameter by its dotted name (repeatable)")
     args = parser.parse_args()
+    params = parameters(args.set)
     print(HEAD, flush=True)
     if args.reuse:
         records = []
@@ -165,10 +190,10 @@ def main():
         print("\n".join(summary(records)))
         return
     for f in folders(args.patterns):
-        print(run(f, args.dump), flush=True)
+        print(run(f, args.dump, params=params), flush=True)
     if args.cuts:
         for c in CUTS:
-            print(run(bmc.cover_session(c), args.dump, cut=c), flush=True)
+            print(run(bmc.cover_session(c), args.dump, cut=c, params=params), flush=True)
 
 
 if __name__ == "__main__":

@@ -46,7 +46,7 @@ from .frames import HORSE_STRIDE_HZ
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_image
 from .steps.base import longest_run
-from .uncertainty import StaticShotUncertainty, saddle_acceleration_sensitivity, static_shot_uncertainty
+from .uncertainty import StaticShotUncertainty, static_shot_uncertainty, written_saddle_sensitivity
 
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
@@ -883,28 +883,29 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
     """Is the saddle point placed precisely enough by the static shot? (thesis section 6.3).
 
     ``uncertainty``: :func:`static_shot_of` (a
-    :class:`~horsemocap.uncertainty.StaticShotUncertainty`, or why it could not be computed: skipped). The
-    figure is the standard deviation of the written vertical acceleration's error that the still's pixel
-    noise leaves in the saddle (% of its rms), against :data:`STATIC_SHOT_PCT`.
+    :class:`~horsemocap.uncertainty.StaticShotUncertainty`, or a :class:`StaticShotSkipped` saying why it
+    could not be computed: skipped). The figure is the standard deviation of the written vertical
+    acceleration's error that the still's pixel noise leaves in the saddle (% of its rms), against
+    :data:`STATIC_SHOT_PCT`.
 
     Examples
     --------
-    >>> check_static_shot("the rigid-body step has not run").level
+    >>> check_static_shot(StaticShotSkipped("the rigid-body step has not run")).level
     'skipped'
     """
     ok, warn = STATIC_SHOT_PCT
     threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
-    if isinstance(uncertainty, str) or uncertainty is None:
+    if isinstance(uncertainty, StaticShotSkipped):
         return Check("static_shot", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
-                     f"the static shot's effect on the saddle: not available ({uncertainty})")
-    u = uncertainty
-    check = range_check("static_shot", u.pct_of_rms, "%", (None, ok), (None, warn), input_,
+                     f"the static shot's effect on the saddle: not available ({uncertainty.reason})")
+    shot = uncertainty
+    check = range_check("static_shot", shot.pct_of_rms, "%", (None, ok), (None, warn), input_,
                         "the static shot's share of the saddle vertical acceleration's error")
-    weighted = "".join(f", {w} rms {v:.1f} %" for w, v in u.weighted_pct.items() if np.isfinite(v))
-    what = (f"the still's pixel noise ({u.noise_px:.3g} px, measured on the moving frames) places the saddle "
-            f"with standard deviations {', '.join(f'{1000 * v:.1f}' for v in u.offset_sd_m)} mm (x, y, z) "
-            f"relative to the markers, which moves its vertical acceleration by {u.sd:.3g} m/s^2 rms, "
-            f"{u.pct_of_rms:.1f} % of its {u.rms:.3g} m/s^2 (one standard deviation{weighted})")
+    weighted = "".join(f", {w} rms {v:.1f} %" for w, v in shot.weighted_pct.items() if np.isfinite(v))
+    what = (f"the still's pixel noise ({shot.noise_px:.3g} px, measured on the moving frames) places the saddle "
+            f"with standard deviations {', '.join(f'{1000 * v:.1f}' for v in shot.offset_sd_m)} mm (x, y, z) "
+            f"relative to the markers, which moves its vertical acceleration by {shot.sd:.3g} m/s^2 rms, "
+            f"{shot.pct_of_rms:.1f} % of its {shot.rms:.3g} m/s^2 (one standard deviation{weighted})")
     if check.level == "ok":
         msg = what
     elif check.level == "warning":
@@ -962,29 +963,59 @@ def post_checks(analysis) -> list[Check]:
     return checks
 
 
-def static_shot_of(analysis) -> StaticShotUncertainty | str:
+@dataclass(frozen=True)
+class StaticShotSkipped:
+    """Why the static shot's uncertainty could not be carried to the saddle (:func:`static_shot_of`).
+
+    Examples
+    --------
+    >>> check_static_shot(StaticShotSkipped("the rigid-body step has not run")).message
+    "the static shot's effect on the saddle: not available (the rigid-body step has not run)"
+    """
+
+    reason: str
+
+
+def static_shot_of(analysis) -> StaticShotUncertainty | StaticShotSkipped:
     """The static shot's uncertainty carried to the written saddle vertical acceleration
     (:func:`horsemocap.uncertainty.static_shot_uncertainty`), or why it cannot be computed.
 
     The pixel noise is the session's own (``TriangulateResult.noise_px``, from the moving frames'
     reprojection residuals); the still's points are the rigid-body step's (its motion-frame static shot
-    taken back to the world frame, the markers and saddle it matched); the rotation, angular velocity and
-    acceleration are those the saddle's written acceleration was computed with."""
-    rb, mf, tri = (getattr(analysis, k, None) for k in ("rigid_body", "motion_frame", "triangulate"))
-    if rb is None or getattr(rb, "body", None) is None or mf is None or tri is None or analysis.rig is None:
-        return "the rigid-body step has not run"
-    noise = getattr(tri, "noise_px", None)
-    if noise is None or not np.isfinite(noise):
-        return "no pixel noise measured (no point seen by two cameras with a residual)"
+    taken back to the world frame, the markers and saddle it matched); the saddle point's effect on the
+    written acceleration is the chain's own (:func:`horsemocap.uncertainty.written_saddle_sensitivity`).
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> from horsemocap.pipeline import analyze
+    >>> before = analyze(default_session_dir(), until="sync", progress=lambda *a: None)
+    >>> static_shot_of(before)
+    StaticShotSkipped(reason='the rigid-body step has not run')
+    """
+    rb, mf, tri = analysis.rigid_body, analysis.motion_frame, analysis.triangulate
+    if rb is None or mf is None or tri is None or analysis.rig is None:
+        return StaticShotSkipped("the rigid-body step has not run")
+    if tri.noise_px is None or not np.isfinite(tri.noise_px):
+        return StaticShotSkipped("no pixel noise measured (no point seen by two cameras with a residual)")
     axes = np.asarray(mf.frame.axes, float)
     world = np.asarray(mf.static, float) @ axes + np.asarray(mf.frame.origin, float)
-    G = saddle_acceleration_sensitivity(rb.omega, rb.alpha, rb.rotation)
-    ay = written_saddle_acceleration(analysis)
+    static_model = np.asarray(mf.static, float)[rb.static_order]
     try:
-        return static_shot_uncertainty(analysis.rig.rig, world, rb.static_order, rb.saddle_index, axes, noise, G, ay,
-                                       fs=float(analysis.session.fps))
+        G = written_saddle_sensitivity(rb.body, static_model)
+        return static_shot_uncertainty(analysis.rig.rig, world, rb.static_order, rb.saddle_index, axes,
+                                       tri.noise_px, G, written_saddle_acceleration(analysis),
+                                       fs=float(analysis.session.fps), seen=_still_seen(analysis))
     except ValueError as exc:
-        return str(exc)
+        return StaticShotSkipped(str(exc))
+
+
+def _still_seen(analysis) -> dict | None:
+    """Camera -> which of the static shot's points it saw (finite pixels), or None when the pixels are not kept."""
+    static = analysis.static
+    if static is None or static.static_px is None:
+        return None
+    return {c: np.isfinite(np.asarray(px, float)).all(-1) for c, px in static.static_px.items()}
 
 
 def _calibration_rms(analysis) -> float | None:

@@ -1959,19 +1959,38 @@ def _thesis_chain(t, pts, model, s_saddle, fits: FitsParams, orders: FourierOrde
     angular = _angular_chain(t, pos, vel, acc, reg.rotation, fits, orders.rotation_orders(), w0, smooth_span, start)
     sb = saddle_in_body_versions(model, s_saddle)
     sk = saddle_kinematics(pos, vel, acc, angular["omega"], angular["alpha"], sb)
-    # the saddle path for the direct fits: eq. 6.48 with the per-frame pose
-    # ("direct"), or with the fitted orientation and the markers' centroid
-    # ("pose"): p_S = R_fit(t) (s - mean(model)) + mean_m r_m(t)
-    path = sk.position
-    if fits.saddle_method == "pose":
-        path = (np.einsum("kij,j->ki", angular["rotation_fit"].rotation(t), s_saddle - model.mean(0))
-                + np.where(ok[:, None], pos.mean(1), np.nan))
+    path = (chain_saddle_path(t, pos, model, s_saddle, angular["rotation_fit"])
+            if fits.saddle_method == "pose" else sk.position)
     s_orders = orders.saddle_orders()
     sfit = fitting.fit_motion(t, np.where(ok[:, None], path, np.nan)[:, None, :], x_degree=fits.x_degree,
                               orders=None if s_orders is None else np.asarray(s_orders, int)[None],
                               rule=fits.order_rule, w0=w0, start=start, trend=fits.trend)
     return dict(registration=reg, motion_fit=mf, pos=pos, vel=vel, acc=acc, **angular, saddle_body=sb, saddle=sk,
                 saddle_fit=sfit, saddle_path=path)
+
+
+def chain_saddle_path(t, pos, model, static_saddle, rotation_fit: RotationFit) -> np.ndarray:
+    """The saddle path (n, 3) the chain fits with ``saddle_method="pose"``: the fitted orientation and the markers'
+    centroid, ``p_S = R_fit(t) (s - mean(model)) + mean_m r_m(t)`` (NaN where a marker is not registered); with
+    ``"direct"`` the path is eq. 6.48 with the per-frame pose (:func:`saddle_position`).
+
+    Examples
+    --------
+    A fixed orientation, the markers moving forward at 4 m/s: the saddle goes with them.
+
+    >>> import numpy as np
+    >>> t = np.arange(40) / 25.0
+    >>> model = np.array([[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0], [0.0, 0.1, 0.05]])
+    >>> fit = fit_rotations(t, np.repeat(np.eye(3)[None], 40, 0), orders=1, w0=2 * np.pi)
+    >>> pos = model + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> chain_saddle_path(t, pos, model, [0.0, 0.3, 0.0], fit)[-1].round(6)
+    array([6.24, 0.3 , 0.  ])
+    """
+    pos = np.asarray(pos, float)
+    ok = np.all(np.isfinite(pos), axis=(1, 2))
+    lever = np.asarray(static_saddle, float) - np.asarray(model, float).mean(0)
+    return (np.einsum("kij,j->ki", rotation_fit.rotation(t), lever)
+            + np.where(ok[:, None], pos.mean(1), np.nan))
 
 
 def _angular_chain(t, pos, vel, acc, rotation, fits: FitsParams, rotation_orders, w0, smooth_span, start) -> dict:

@@ -27,14 +27,17 @@ harmonics kept) the smoother is linear, so three cheap parts bound the vertical 
 The total is the root sum of squares; it is given in m/s^2 and as a percentage of the estimated
 vertical acceleration's rms (the measure the accuracy of the saddle's acceleration is reported in).
 
-The static shot, exactly (:func:`static_shot_uncertainty`)
+The static shot (:func:`static_shot_uncertainty`)
     The saddle's point is placed once, in a single still per camera: one draw of the detection noise, the
     same offset in every frame. Its pixel noise (measured on the moving frames) goes through the cameras'
     Jacobians to each still point's covariance (:func:`still_point_covariance`), through the linear map
     from the still's errors to the saddle's offset from the markers' rigid fit (:func:`saddle_offset_map`),
-    and, since the saddle's acceleration is affine in its body-frame point, exactly through
-    ``([alpha]x + [omega]x^2) R`` of the run (:func:`saddle_acceleration_sensitivity`) to every frame's
-    acceleration; :func:`weighted_rms_sd_pct` gives its share of a frequency-weighted rms.
+    and through the chain that wrote the saddle's acceleration, run on unit offsets of the saddle point
+    (:func:`written_saddle_sensitivity`), to every frame's acceleration: exact where the chain is linear in
+    that point (the pose trajectory; the thesis' eq. 6.55), to first order where it fits the saddle's path
+    again (a Fourier series with a fitted frequency). For a body carried by a rotation ``R`` the map is
+    ``([alpha]x + [omega]x^2) R`` (:func:`saddle_acceleration_sensitivity`); :func:`weighted_rms_sd_pct`
+    gives the offset's share of a frequency-weighted rms.
 """
 from __future__ import annotations
 
@@ -42,8 +45,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import fitting
 from .pose import PoseTrajectory, pose_noise, smallest_height
 from .reconstruction import point_covariance
+from .rigid import (RigidBodyAnalysis, chain_saddle_path, saddle_in_body, saddle_in_body_versions,
+                    saddle_kinematics, saddle_position)
 from .splines import harmonic_amplitudes
 from .vibration import apply_weighting
 
@@ -54,6 +60,19 @@ HARMONIC_LIMIT_OF_RATE = 0.4
 MAX_HARMONICS = 10
 #: Standard deviations of a harmonic's least-squares amplitude below which it is not detected.
 DETECTION_SD = 2.0
+#: Condition number of the markers' second-moment matrix (:func:`saddle_offset_map`) above which the markers are
+#: taken as collinear: inverting it would keep fewer than 4 of float64's 16 significant digits. Its condition
+#: grows as (length / height)^2 of a thin triangle, so this is a triangle of 0.7 m about 1 um high: a degenerate
+#: still, not a thin triangle (those are the rigid-body step's conditioning warnings).
+COLLINEAR_CONDITION = 1e12
+#: Fewest consecutive finite frames for a weighted rms's share (:func:`weighted_rms_sd_pct`): the weighting is
+#: applied by the DFT over those frames, and fewer than 8 resolve at most four frequencies, too few for a
+#: weighting curve to shape.
+MIN_WEIGHTED_FRAMES = 8
+#: Half the step (m) of the central difference through a fitted saddle path (:func:`written_saddle_sensitivity`):
+#: a millimetre, the size of the static shot's errors, so the difference is the fit's response to such an
+#: error; the fit's frequency search stops at a relative change of 1e-6, far below what a millimetre moves it.
+FIT_STEP_M = 1e-3
 
 
 @dataclass(frozen=True)
@@ -253,12 +272,14 @@ class StaticShotUncertainty:
     weighted_pct: dict
 
 
-def still_point_covariance(rig, points_world, noise_px: float) -> np.ndarray:
-    """Covariance (k, 3, 3) (m^2, world frame) of the k points of one still seen by every camera of ``rig``.
+def still_point_covariance(rig, points_world, noise_px: float, seen: dict | None = None) -> np.ndarray:
+    """Covariance (k, 3, 3) (m^2, world frame) of the k points of one still.
 
     The still is a single image per camera, one draw of the detection noise: each point's covariance is
-    ``noise_px^2 (J^T J)^-1`` with ``J`` the Jacobian of its pixels in every camera
-    (:func:`horsemocap.reconstruction.point_covariance`), nothing averaged.
+    ``noise_px^2 (J^T J)^-1`` with ``J`` the Jacobian of its pixels in the cameras that saw it
+    (:func:`horsemocap.reconstruction.point_covariance`), nothing averaged. ``seen``: camera -> (k,) bool,
+    which points each camera saw (default: every camera of ``rig`` every point); a point seen by fewer than
+    two cameras gets NaN.
 
     Examples
     --------
@@ -274,7 +295,14 @@ def still_point_covariance(rig, points_world, noise_px: float) -> np.ndarray:
         raise ValueError(f"points_world: expected (k, 3), got {pts.shape}")
     if not (np.isfinite(noise_px) and noise_px >= 0):
         raise ValueError(f"noise_px: expected a finite pixel noise >= 0, got {noise_px!r}")
-    used = {c: np.ones((1, len(pts)), bool) for c in rig.names}
+    if seen is None:
+        seen = {c: np.ones(len(pts), bool) for c in rig.names}
+    used = {}
+    for c in rig.names:
+        mask = np.asarray(seen.get(c, np.zeros(len(pts), bool)), bool)
+        if mask.shape != (len(pts),):
+            raise ValueError(f"seen[{c!r}]: expected ({len(pts)},) booleans, one per point, got {mask.shape}")
+        used[c] = mask[None]
     return point_covariance(rig, pts[None], used, noise_px)[0]
 
 
@@ -311,7 +339,7 @@ def saddle_offset_map(markers, saddle) -> np.ndarray:
     q = s - m.mean(0)
     cross = np.stack([_skew(v) for v in p])                 # [p_i]x
     H = -np.einsum("kij,kjl->il", cross, cross)             # sum -[p_i]x^2
-    if np.linalg.cond(H) > 1e12:
+    if np.linalg.cond(H) > COLLINEAR_CONDITION:
         raise ValueError("markers: collinear, the static shot defines no body frame")
     Hinv = np.linalg.inv(H)
     L = np.zeros((3, 3 * (k + 1)))
@@ -331,12 +359,13 @@ def _skew(v) -> np.ndarray:
 
 
 def saddle_acceleration_sensitivity(omega, alpha, rotation) -> np.ndarray:
-    """``G(t)`` (n, 3, 3): the change of the saddle's acceleration per metre of its body-frame offset.
+    """``G(t)`` (n, 3, 3): the change of a rigid body point's acceleration per metre of its body-frame offset.
 
-    The saddle's acceleration is affine in its body-frame point ``r``:
-    ``a(t) = a_c(t) + ([alpha(t)]x + [omega(t)]x^2) R(t) r``, so an offset ``dr`` from the static shot
-    changes it by exactly ``G(t) dr`` with ``G = ([alpha]x + [omega]x^2) R``, from the analysis' own
-    angular velocity, acceleration and rotation (motion frame).
+    A point carried by the body's rotation ``R(t)`` has the acceleration
+    ``a(t) = a_c(t) + ([alpha(t)]x + [omega(t)]x^2) R(t) r``, affine in its body-frame point ``r``, so an
+    offset ``dr`` changes it by exactly ``G(t) dr`` with ``G = ([alpha]x + [omega]x^2) R`` (motion frame).
+    This is the pose trajectory's saddle; a chain that fits the saddle's path again or takes its rotation
+    from elsewhere has its own map (:func:`written_saddle_sensitivity`).
 
     Examples
     --------
@@ -356,6 +385,92 @@ def saddle_acceleration_sensitivity(omega, alpha, rotation) -> np.ndarray:
     return (A + W @ W) @ R
 
 
+def written_saddle_sensitivity(body: RigidBodyAnalysis, static_model, step_m: float = FIT_STEP_M) -> np.ndarray:
+    """``G(t)`` (n, 3, 3): the written saddle acceleration's change per metre of the static shot's saddle point,
+    by the chain's own saddle computation.
+
+    Every chain carries the static saddle point ``s`` linearly into a path or an acceleration, so column ``j``
+    of ``G`` is that computation run at ``s + e_j`` less at ``s``: the pose trajectory
+    (``kinematics="pose_spline"``, :meth:`horsemocap.pose.PoseTrajectory.point`) and the thesis' eq. 6.55
+    (``saddle_method="thesis"``, :func:`horsemocap.rigid.saddle_kinematics` of the registered markers) are
+    linear in ``s``, so this is exact. With ``saddle_method`` ``"direct"`` or ``"pose"`` the path
+    (eq. 6.48 per frame, or :func:`horsemocap.rigid.chain_saddle_path`) is then fitted again
+    (:attr:`horsemocap.rigid.RigidBodyAnalysis.saddle_fit`), a Fourier series whose frequency is fitted too: a
+    central difference of that fit (the orders it chose kept, each frequency's search started where it
+    ended) with the path moved ``step_m`` either way, exact to first order.
+
+    Parameters
+    ----------
+    body : horsemocap.rigid.RigidBodyAnalysis
+        The rigid-body analysis whose ``saddle_acceleration`` is written.
+    static_model : (3, 3) array
+        The static shot's markers the thesis' chain placed the saddle against (the static shot's points of
+        ``body.static_index``; ``body.model`` may be the ride's mean shape).
+    step_m : float
+        Half the central difference's step (m), for the fitted paths.
+
+    Examples
+    --------
+    A body pitching ``0.1 sin(2 pi t)`` rad about x: a saddle point moved along z rises and falls with the
+    pitch's angular acceleration, up to ``0.1 (2 pi)^2`` m/s^2 per metre, in either chain:
+
+    >>> from scipy.spatial.transform import Rotation
+    >>> from horsemocap.params import PoseParams, RigidBodyParams
+    >>> from horsemocap.rigid import analyse_rigid_body
+    >>> t = np.arange(50) / 25.0
+    >>> body = np.array([[-0.3, 0.0, 0.0], [0.0, 0.05, 0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.0]])
+    >>> R = Rotation.from_rotvec(np.outer(0.1 * np.sin(2 * np.pi * t), [1, 0, 0])).as_matrix()
+    >>> moved = np.einsum("kij,mj->kmi", R, body) + np.outer(4 * t, [1, 0, 0])[:, None]
+    >>> for params in (RigidBodyParams(pose=PoseParams(smoothing="none")), RigidBodyParams(kinematics="fits")):
+    ...     res = analyse_rigid_body(t, moved[:, :3], body, params, period_s=1.0)
+    ...     G = written_saddle_sensitivity(res, body[:3])
+    ...     print(res.kinematics, round(float(np.abs(G[:, 1, 2]).max()), 2))
+    pose_spline 3.92
+    fits 3.92
+    """
+    s = np.asarray(body.static_saddle, float)
+    model = np.asarray(static_model, float)
+    if body.kinematics == "pose_spline":
+        return _unit_columns(lambda x: body.pose.point(body.t, x).acceleration, s)
+    if body.saddle_method == "thesis":
+        return _unit_columns(lambda x: saddle_kinematics(body.pos, body.vel, body.acc, body.omega, body.alpha,
+                                                         saddle_in_body_versions(model, x)).acceleration, s)
+    if body.saddle_method == "pose":
+        def path(x):
+            return chain_saddle_path(body.t, body.pos, model, x, body.rotation_fit)
+    else:
+        def path(x):
+            return saddle_position(body.pos, saddle_in_body(model, x, 0), 0)
+    ok = np.all(np.isfinite(body.pos), axis=(1, 2))[:, None]
+    fits = body.saddle_fit.fits[0]
+    columns = []
+    for step in step_m * np.eye(3):
+        ahead, behind = np.where(ok, path(s + step), np.nan), np.where(ok, path(s - step), np.nan)
+        columns.append((_refitted_acceleration(fits, body.t, ahead) - _refitted_acceleration(fits, body.t, behind))
+                       / (2 * step_m))
+    return np.stack(columns, -1)
+
+
+def _unit_columns(acceleration, point) -> np.ndarray:
+    """(n, 3, 3): ``acceleration(point + e_j) - acceleration(point)`` as column j (a map affine in ``point``)."""
+    base = acceleration(point)
+    return np.stack([acceleration(point + e) - base for e in np.eye(3)], -1)
+
+
+def _refitted_acceleration(fits, t, path) -> np.ndarray:
+    """(n, 3): the second derivative of ``path`` fitted again as ``fits`` (x, y, z) were: the same polynomial
+    degree and Fourier orders, each frequency's search started at the frequency it found."""
+    out = []
+    for axis, fit in enumerate(fits):
+        if fit.kind == "poly":
+            refit = fitting.fit_polynomial(t, path[:, axis], fit.order)
+        else:
+            refit = fitting.fit_fourier(t, path[:, axis], fit.order, w0=fit.frequency, start="matlab",
+                                        trend=fit.trend)
+        out.append(refit.evaluate(t, 2))
+    return np.stack(out, -1)
+
+
 def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: float, weighting: str) -> float:
     """Standard deviation (%) of the frequency-weighted rms of the vertical acceleration for a random offset.
 
@@ -364,7 +479,8 @@ def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: floa
     weighting (:func:`horsemocap.vibration.apply_weighting`, by the DFT over the frames), the weighted mean
     square ``<(W a + W g dr)^2>`` changes by ``2 <W a W g> dr`` to first order, so the weighted rms changes by
     ``h dr / <(W a)^2>`` of itself, ``h = <W a W g>``; its standard deviation is ``sqrt(h C h) / <(W a)^2>``.
-    Frames with a NaN are left out (the longest finite run is used).
+    Frames with a NaN are left out (the longest finite run is used; NaN when it is shorter than
+    :data:`MIN_WEIGHTED_FRAMES`).
 
     Examples
     --------
@@ -380,7 +496,7 @@ def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: floa
     ay = np.asarray(vertical_acceleration, float)
     ok = np.isfinite(ay) & np.isfinite(g).all(1)
     start, stop = _longest_true_run(ok)
-    if stop - start < 8:
+    if stop - start < MIN_WEIGHTED_FRAMES:
         return float("nan")
     wa = apply_weighting(ay[start:stop], fs, weighting, method="fft")
     wg = apply_weighting(g[start:stop], fs, weighting, method="fft", axis=0)
@@ -403,13 +519,13 @@ def _longest_true_run(ok) -> tuple[int, int]:
 
 def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_motion, noise_px: float,
                             sensitivity, vertical_acceleration, axis: int = 1,
-                            fs: float | None = None) -> StaticShotUncertainty:
+                            fs: float | None = None, seen: dict | None = None) -> StaticShotUncertainty:
     """The vertical acceleration's error that the static shot's pixel noise leaves in the saddle.
 
     Parameters
     ----------
     rig : horsemocap.camera.Rig
-        The cameras that took the still (every point seen by every camera).
+        The cameras that took the still.
     static_world : (k, 3) array
         The still's triangulated points (world frame).
     marker_rows : sequence of int
@@ -420,19 +536,22 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
         The detection noise per image coordinate (px), measured on the session (the moving frames'
         reprojection residuals, :func:`horsemocap.reconstruction.pixel_noise`).
     sensitivity : (n, 3, 3) array
-        :func:`saddle_acceleration_sensitivity` of the frames.
+        The acceleration's change per metre of the saddle's offset, per frame
+        (:func:`written_saddle_sensitivity`, or :func:`saddle_acceleration_sensitivity` of a rigid body).
     vertical_acceleration : (n,) array
         The saddle's vertical acceleration as written (m/s^2).
     axis : int
         The vertical axis of the motion frame.
     fs : float, optional
         The frame rate: with it, the Wb- and Wk-weighted rms's share too (:func:`weighted_rms_sd_pct`).
+    seen : dict, optional
+        Camera -> (k,) bool: which of the still's points each camera saw (default: all of them).
 
     Returns
     -------
     StaticShotUncertainty
-        Propagated linearly and exactly: pixels -> the still's points (:func:`still_point_covariance`) ->
-        the saddle's body-frame offset (:func:`saddle_offset_map`) -> each frame's vertical acceleration.
+        Propagated linearly: pixels -> the still's points (:func:`still_point_covariance`) -> the saddle's
+        body-frame offset (:func:`saddle_offset_map`) -> each frame's vertical acceleration (``sensitivity``).
 
     Examples
     --------
@@ -443,10 +562,10 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     >>> n = 50; t = np.arange(n) / 50
     >>> alpha = np.zeros((n, 3)); alpha[:, 0] = 20 * np.sin(2 * np.pi * 2 * t)   # pitching about x
     >>> G = saddle_acceleration_sensitivity(np.zeros((n, 3)), alpha, np.repeat(np.eye(3)[None], n, 0))
-    >>> u = static_shot_uncertainty(rig, still, [0, 1, 2], 3, np.eye(3), 0.2, G, 5 * np.sin(2 * np.pi * 2 * t))
-    >>> 1000 * u.offset_sd_m.round(4)            # the thin triangle's tilt: the saddle's depth (z) 5 cm
+    >>> shot = static_shot_uncertainty(rig, still, [0, 1, 2], 3, np.eye(3), 0.2, G, 5 * np.sin(2 * np.pi * 2 * t))
+    >>> 1000 * shot.offset_sd_m.round(4)         # the thin triangle's tilt: the saddle's depth (z) 5 cm
     array([ 1. ,  0.9, 49.9])
-    >>> round(u.pct_of_rms)                         # of the vertical acceleration's rms
+    >>> round(shot.pct_of_rms)                      # of the vertical acceleration's rms
     20
     """
     world = np.asarray(static_world, float)
@@ -454,7 +573,12 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     if not np.isfinite(world[rows + [int(saddle_row)]]).all():
         raise ValueError("static_world: the static shot's markers and saddle must be finite")
     axes = np.asarray(to_motion, float)
-    cov_world = still_point_covariance(rig, world[rows + [int(saddle_row)]], noise_px)
+    used_rows = rows + [int(saddle_row)]
+    seen_used = None if seen is None else {c: np.asarray(v, bool)[used_rows] for c, v in seen.items()}
+    cov_world = still_point_covariance(rig, world[used_rows], noise_px, seen_used)
+    if not np.isfinite(cov_world).all():
+        raise ValueError("static_world: a marker or the saddle of the static shot was seen by fewer than two "
+                         "cameras; its place has no covariance")
     cov = axes @ cov_world @ axes.T                          # motion frame, per point
     motion = world[rows + [int(saddle_row)]] @ axes.T
     L = saddle_offset_map(motion[:-1], motion[-1])

@@ -104,9 +104,26 @@ def test_weighted_share_is_first_order_exact():
     assert pct == pytest.approx(100 * 30 * 1e-2 / 4, rel=1e-6)          # only the in-phase part changes the rms
 
 
+def test_still_covariance_uses_only_the_cameras_that_saw_each_point():
+    rig, still = _rig(), np.vstack([MARKERS, SADDLE])
+    every = still_point_covariance(rig, still, 0.1)
+    seen = {c: np.ones(4, bool) for c in rig.names}
+    seen["middle"] = np.array([True, True, True, False])             # the saddle missed by the middle camera
+    fewer = still_point_covariance(rig, still, 0.1, seen)
+    assert np.allclose(fewer[:3], every[:3])
+    assert fewer[3][0, 0] > 1.2 * every[3][0, 0]                      # across the rays: two cameras, not three
+    pair = Rig((rig["left"], rig["right"]))
+    assert np.allclose(fewer[3], still_point_covariance(pair, still[3:], 0.1)[0])
+    seen["left"] = np.array([True, True, True, False])               # now only one camera saw it
+    with pytest.raises(ValueError, match="fewer than two cameras"):
+        static_shot_uncertainty(rig, still, [0, 1, 2], 3, np.eye(3), 0.1, np.ones((5, 3, 3)), np.ones(5), seen=seen)
+
+
 def test_bad_input_is_refused_naming_it():
     with pytest.raises(ValueError, match="noise_px"):
         still_point_covariance(_rig(), MARKERS, float("nan"))
+    with pytest.raises(ValueError, match="seen"):
+        still_point_covariance(_rig(), MARKERS, 0.1, {"left": np.ones(2, bool)})
     with pytest.raises(ValueError, match="collinear"):
         saddle_offset_map([[0, 0, 0], [1, 0, 0], [2, 0, 0]], SADDLE)
     with pytest.raises(ValueError, match="rotation"):
@@ -130,6 +147,6 @@ def test_static_shot_check_levels(pct, level):
 
 
 def test_static_shot_check_skipped_with_its_reason():
-    c = quality.check_static_shot("no pixel noise measured")
+    c = quality.check_static_shot(quality.StaticShotSkipped("no pixel noise measured"))
     assert c.level == "skipped" and "no pixel noise measured" in c.message
     assert quality.verdict([c]) == "ok"

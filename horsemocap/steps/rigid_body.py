@@ -74,14 +74,6 @@ class RigidBodyResult(StepResult):
         return self.conditioning.singularity_deg
 
     @property
-    def rotation(self) -> np.ndarray:
-        """``R(t)`` (n, 3, 3) of the analysed frames, static shot to motion frame: the pose trajectory's, or the
-        registration's for the thesis' chain (the rotation the saddle's point is carried by)."""
-        if self.body.pose is not None:
-            return self.body.pose.rotation(self.t)
-        return np.asarray(self.body.registration.rotation, float)
-
-    @property
     def warnings(self) -> list:
         """Messages when the conditioning makes the result unreliable (:attr:`horsemocap.rigid.Conditioning.warnings`)."""
         return self.conditioning.warnings
