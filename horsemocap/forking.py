@@ -14,11 +14,11 @@ import importlib
 import multiprocessing
 import os
 import pickle
-import select
 import signal
 import threading
 
-#: Bytes of arguments the writer thread offers the pipe at once (a pipe's buffer on Linux).
+#: Bytes of arguments the writer thread offers the pipe at once (a pipe's buffer on Linux): the unsent
+#: arguments are copied a chunk at a time, not whole.
 PIPE_CHUNK = 64 * 1024
 
 
@@ -212,19 +212,19 @@ class EarlyCalls:
                 self._writer.start()
 
     def _write_rest(self) -> None:
-        """The writer thread: the unsent arguments, as the copy takes them; ends when none is left."""
+        """The writer thread: the unsent arguments, as the copy takes them (blocking writes: submit does not
+        write while the thread runs); ends, the pipe's end non-blocking again, when none is left."""
         fd = self._args_fd
+        os.set_blocking(fd, True)
         while True:
             with self._unsent_lock:
                 if not self._unsent or self._copy_failed:
                     self._unsent.clear()
+                    os.set_blocking(fd, False)
                     return
                 chunk = bytes(self._unsent[:PIPE_CHUNK])
-            select.select([], [fd], [])
             try:
                 sent = os.write(fd, chunk)
-            except BlockingIOError:
-                sent = 0
             except OSError:          # the copy has gone (seen in results): computed here
                 self._copy_failed = True
                 continue
