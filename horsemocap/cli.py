@@ -271,10 +271,10 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     Before the analysis' modules are loaded (the longest part of a short run's start): the copy of the
     process that will draw the report's figures is forked (before any thread
     starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
-    meanwhile), the flash search of the videos is started when the sync step
-    will need it (:func:`_early_flash_search`) and so is the board detection
-    of the views (:func:`_early_board_detection`). The parameters are read
-    and checked first: a bad one stops the run before any of that starts.
+    meanwhile), then the parameters are read and checked (a bad one ends the
+    run before anything else starts), then the flash search of the videos is
+    started when the sync step will need it (:func:`_early_flash_search`) and
+    so is the board detection of the views (:func:`_early_board_detection`).
     Whatever early work nobody took is ended at the end, without being waited
     for (an error, Ctrl-C, a step's results reused from the results store).
     """
@@ -283,10 +283,11 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
-    params = _analysis_params(session, args)
+    # forked first: before any thread, and before the parameters' check loads the detection's modules
     painter = figure_painter() if not getattr(args, "no_report", False) else None
     board_views = flash_search = None
     try:
+        params = _analysis_params(session, args)
         flash_search = _early_flash_search(session, params)    # first: the check of the board cache loads modules
         board_views = _early_board_detection(session, out_dir, args)
         return _analyse_session(session, session_dir, out_dir, args, params, board_views, flash_search, painter)
