@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import ParamField, params_fields, ParamsError, read_params, section_title
+from .params import AnalysisParams, ParamField, params_fields, ParamsError, read_params, section_title
+from .plots import figure_painter
 from .readable import hours_minutes
 
 DESCRIPTION = """\
@@ -265,59 +266,75 @@ def _early_board_detection(session, out_dir: Path, args):
 
 
 def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
-    """Read the session, start the early work, then load the analysis and run it.
+    """Read the session and the parameters, start the early work, then load the analysis and run it.
 
     Before the analysis' modules are loaded (the longest part of a short run's start): the copy of the
     process that will draw the report's figures is forked (before any thread
     starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
-    meanwhile), the flash search of the videos is started
-    (:func:`_early_flash_search`) and so is the board detection of the
-    views (:func:`_early_board_detection`).
+    meanwhile), then the parameters are read and checked (a bad one ends the
+    run before anything else starts), then the flash search of the videos is
+    started when the sync step will need it (:func:`_early_flash_search`) and
+    so is the board detection of the views (:func:`_early_board_detection`).
+    Whatever early work nobody took is ended at the end, without being waited
+    for (an error, Ctrl-C, a step's results reused from the results store).
     """
-    from .forking import EarlyCalls
-    from .plots import REPORT_FIGURES
+    # OpenCV (the session's videos, the flash search) is loaded only by the commands that read a session
     from .session import load_session
 
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
-    painter = EarlyCalls(*REPORT_FIGURES) if not getattr(args, "no_report", False) else None
+    # forked first: before any thread, and before the parameters' check loads the detection's modules
+    painter = figure_painter() if not getattr(args, "no_report", False) else None
     board_views = flash_search = None
     try:
-        flash_search = _early_flash_search(session)    # first: the check of the board cache loads modules
+        params = _analysis_params(session, args)
+        flash_search = _early_flash_search(session, params)    # first: the check of the board cache loads modules
         board_views = _early_board_detection(session, out_dir, args)
-        return _analyse_session(session, session_dir, out_dir, args, board_views, flash_search, painter)
+        return _analyse_session(session, session_dir, out_dir, args, params, board_views, flash_search, painter)
     finally:
-        for job in (painter, board_views, flash_search):
+        if flash_search is not None:
+            flash_search.close(wanted=False)    # taken by the sync step already, or nobody will
+        for job in (painter, board_views):
             if job is not None:
                 job.close()
 
 
-def _early_flash_search(session):
+def _analysis_params(session, args):
+    """The run's parameters, checked against the session: the session's ``analysis`` object, the
+    ``--params`` file over it, then the preset, the options and ``--set``.
+
+    Made with the parameters module alone, as :func:`horsemocap.pipeline.resolve_params` makes them
+    (only the values a file gives, layered over the session's, so a preset named in either is not undone),
+    so that they are known before the analysis' modules load.
+    """
+    if args.params:
+        base = AnalysisParams.from_layers(session.analysis, read_params(args.params))
+    else:
+        base = AnalysisParams.from_dict(session.analysis, f"{session.json_path}: 'analysis'")
+    params = _params_from_args(args, base)
+    params.check_session(session, f"{args.params}" if args.params else "parameters")
+    return params
+
+
+def _early_flash_search(session, params):
     """The flash search of the session's videos, started before the analysis' modules are imported.
 
-    Started when the session gives no offsets (the sync step would search
-    the flash unless the parameters give them); None otherwise.
+    Started only when the sync step will search the flash: neither the
+    parameters (the session's ``analysis`` object, ``--params``,
+    ``--offsets``, ``--set``) nor ``session.json`` give the offsets;
+    None otherwise.
     """
-    from .sync import FlashSearch
+    from .sync import FlashSearch     # OpenCV, as load_session
 
-    if session.sync_offsets:
+    if params.sync.offsets or session.sync_offsets:
         return None
     return FlashSearch({c: session.motion[c] for c in session.cameras})
 
 
-def _analyse_session(session, session_dir: Path, out_dir: Path, args, board_views, flash_search=None,
+def _analyse_session(session, session_dir: Path, out_dir: Path, args, params, board_views, flash_search=None,
                      painter=None) -> int:
-    from .pipeline import resolve_params
     from .run import run_analysis
 
-    # a parameter file gives overrides on top of the session's own 'analysis' object: an earlier
-    # run's analysis.json (every parameter) or a notebooks' choices.json (only the choices made)
-    base = resolve_params(session, read_params(args.params)) if args.params else resolve_params(session)
-    params = _params_from_args(args, base)
-    params.check_session(session, f"{args.params}" if args.params else "parameters")
-    if flash_search is not None and params.sync.offsets:
-        flash_search.close()        # the parameters give the offsets: no search
-        flash_search = None
     outcome = run_analysis(session_dir, out_dir, params, report=painter is not None,
                            board_views=board_views, flash_search=flash_search, painter=painter)
     if outcome.error is not None:

@@ -6,7 +6,7 @@ process can take half of them without pickling the data there (only the
 values come back) (:func:`run_beside`). A computation whose module is slow
 to load (the report's figures: matplotlib) can have a copy forked before
 its data exist, which loads the module while this process works
-(:class:`EarlyCall`).
+(:class:`EarlyCalls`).
 """
 from __future__ import annotations
 
@@ -16,6 +16,10 @@ import os
 import pickle
 import signal
 import threading
+
+#: Bytes of arguments the writer thread offers the pipe at once (a pipe's buffer on Linux): the unsent
+#: arguments are copied a chunk at a time, not whole.
+PIPE_CHUNK = 64 * 1024
 
 
 def can_fork() -> bool:
@@ -103,126 +107,25 @@ def _claimed(tasks, claims_fd: int) -> dict:
         done[claim[0]] = tasks[claim[0]]()
 
 
-class EarlyCall:
-    """``module.function(*args)``, computed by a copy of this process forked before ``args`` exist.
-
-    Made where it is safe (:func:`can_fork`), the copy loads ``module``
-    at once, beside this process' own work, then waits for the arguments
-    (:meth:`submit`, sent pickled through a pipe), computes, and sends the
-    value back (:meth:`result`). Without a copy, or when the copy fails,
-    :meth:`result` loads the module and computes here: the value is the same
-    either way. :meth:`close` (or leaving the ``with`` block) ends a copy
-    that was given nothing: it reads the end of the pipe and exits.
-
-    Examples
-    --------
-    >>> with EarlyCall("math", "hypot") as call:
-    ...     call.submit(3.0, 4.0)
-    ...     call.result()
-    5.0
-    """
-
-    def __init__(self, module: str, function: str, fork: bool = True):
-        self.module, self.function = module, function
-        self._args = None
-        self._pid = self._args_fd = self._value_fd = None
-        if fork and can_fork():
-            self._fork()
-
-    def _fork(self) -> None:
-        args_r, args_w = os.pipe()
-        value_r, value_w = os.pipe()
-        pid = os.fork()
-        if pid == 0:                                 # the copy: load, wait, compute, send, leave
-            def work():
-                os.close(args_w)
-                os.close(value_r)
-                target = getattr(importlib.import_module(self.module), self.function)
-                with os.fdopen(args_r, "rb") as given:
-                    data = given.read()
-                if data:
-                    value = target(*pickle.loads(data))
-                    with os.fdopen(value_w, "wb") as sent:
-                        pickle.dump(value, sent)
-            _child(work)
-        os.close(args_r)
-        os.close(value_w)
-        self._pid, self._args_fd, self._value_fd = pid, args_w, value_r
-
-    @property
-    def forked(self) -> bool:
-        """Whether a copy computes the call."""
-        return self._pid is not None
-
-    @property
-    def submitted(self) -> bool:
-        """Whether the call has its arguments."""
-        return self._args is not None
-
-    def submit(self, *args) -> None:
-        """Give the call its arguments (once)."""
-        if self._args is not None:
-            raise RuntimeError(f"{self.module}.{self.function}: arguments given twice")
-        self._args = args
-        if self._args_fd is not None:
-            fd, self._args_fd = self._args_fd, None
-            try:
-                with os.fdopen(fd, "wb") as sent:
-                    pickle.dump(args, sent)
-            except OSError:          # the copy has gone (its failure is seen in result): computed here
-                pass
-
-    def result(self):
-        """The call's value: the copy's, or computed here."""
-        if self._args is None:
-            raise RuntimeError(f"{self.module}.{self.function}: no arguments given (submit)")
-        if self._value_fd is not None:
-            fd, self._value_fd = self._value_fd, None
-            with os.fdopen(fd, "rb") as got:
-                data = got.read()
-            if self._wait() == 0 and data:
-                return pickle.loads(data)
-        return getattr(importlib.import_module(self.module), self.function)(*self._args)
-
-    def _wait(self) -> int | None:
-        pid, self._pid = self._pid, None
-        if pid is None:
-            return None
-        _, status = os.waitpid(pid, 0)
-        return status
-
-    def close(self) -> None:
-        """End the copy (if any) without waiting for a value."""
-        for name in ("_args_fd", "_value_fd"):
-            fd = getattr(self, name)
-            if fd is not None:
-                setattr(self, name, None)
-                os.close(fd)
-        if self._pid is not None and self._args is not None:
-            os.kill(self._pid, signal.SIGKILL)       # computing a value nobody will read
-        self._wait()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
 class EarlyCalls:
     """``module.function(*args)`` for every ``args`` given, each computed by a copy of this process as soon
     as it is given; the copy is forked before any of them exists.
 
-    As :class:`EarlyCall`, for work that becomes ready piece by piece: the
-    report's figures are described step by step as the analysis runs, and a
-    figure drawn while the analysis goes on is not waited for after it. Made
-    where it is safe (:func:`can_fork`), the copy loads ``module`` at once,
-    then computes each call as its arguments arrive (:meth:`submit`, pickled
-    through a pipe, in order) and sends every value back at the end
-    (:meth:`results`). A :meth:`submit` waits only when the pipe is full (the
-    copy busy with an earlier call and the arguments larger than the pipe's
-    buffer). Without a copy, or when the copy fails, :meth:`results` computes
-    every call here: the values are the same either way.
+    For a computation whose module is slow to load and whose work becomes
+    ready piece by piece: the report's figures (matplotlib) are described
+    step by step as the analysis runs, and a figure drawn while the analysis
+    goes on is not waited for after it. Made where it is safe
+    (:func:`can_fork`), the copy loads ``module`` at once, beside this
+    process' own work, then computes each call as its arguments arrive
+    (:meth:`submit`, pickled through a pipe, in order) and sends every value
+    back at the end (:meth:`results`). :meth:`submit` never waits for the
+    copy: arguments the pipe cannot take at once (the copy still loading its
+    module or busy with an earlier call) are written by a thread of this
+    process that ends when they are all written. Without a copy, or when the
+    copy fails, :meth:`results` computes every call here: the values are the
+    same either way. :meth:`close` (or leaving the ``with`` block) ends a
+    copy whose values nobody will read at once (it is killed, not waited
+    for).
 
     Examples
     --------
@@ -236,8 +139,11 @@ class EarlyCalls:
     def __init__(self, module: str, function: str, fork: bool = True):
         self.module, self.function = module, function
         self._given: list = []
-        self._pid = self._args_file = self._value_fd = None
+        self._pid = self._args_fd = self._value_fd = None
         self._copy_failed = False
+        self._unsent = bytearray()              # pickled arguments the pipe has not taken yet
+        self._unsent_lock = threading.Lock()
+        self._writer: threading.Thread | None = None
         if fork and can_fork():
             self._fork()
 
@@ -263,7 +169,8 @@ class EarlyCalls:
             _child(work)
         os.close(args_r)
         os.close(value_w)
-        self._pid, self._args_file, self._value_fd = pid, os.fdopen(args_w, "wb"), value_r
+        os.set_blocking(args_w, False)              # submit writes what the pipe takes; the writer the rest
+        self._pid, self._args_fd, self._value_fd = pid, args_w, value_r
 
     @property
     def forked(self) -> bool:
@@ -276,14 +183,53 @@ class EarlyCalls:
         return list(self._given)
 
     def submit(self, *args) -> None:
-        """Give one call its arguments (its value is the next of :meth:`results`)."""
+        """Give one call its arguments (its value is the next of :meth:`results`); returns at once."""
         self._given.append(args)
-        if self._args_file is not None and not self._copy_failed:
+        if self._args_fd is None or self._copy_failed:
+            return
+        data = pickle.dumps(args, protocol=pickle.HIGHEST_PROTOCOL)
+        with self._unsent_lock:
+            writing = bool(self._unsent)             # the writer is sending earlier arguments: after them
+            self._unsent += data
+        if not writing:
+            self._send_what_fits()
+
+    def _send_what_fits(self) -> None:
+        """Write to the pipe what it takes now; a writer thread sends the rest as the copy reads."""
+        with self._unsent_lock:
             try:
-                pickle.dump(args, self._args_file)
-                self._args_file.flush()
+                sent = os.write(self._args_fd, self._unsent)
+            except BlockingIOError:
+                sent = 0
             except OSError:          # the copy has gone (seen in results): computed here
                 self._copy_failed = True
+                self._unsent.clear()
+                return
+            del self._unsent[:sent]
+            if self._unsent:
+                self._writer = threading.Thread(target=self._write_rest, name="horsemocap-early-calls",
+                                                daemon=True)
+                self._writer.start()
+
+    def _write_rest(self) -> None:
+        """The writer thread: the unsent arguments, as the copy takes them (blocking writes: submit does not
+        write while the thread runs); ends, the pipe's end non-blocking again, when none is left."""
+        fd = self._args_fd
+        os.set_blocking(fd, True)
+        while True:
+            with self._unsent_lock:
+                if not self._unsent or self._copy_failed:
+                    self._unsent.clear()
+                    os.set_blocking(fd, False)
+                    return
+                chunk = bytes(self._unsent[:PIPE_CHUNK])
+            try:
+                sent = os.write(fd, chunk)
+            except OSError:          # the copy has gone (seen in results): computed here
+                self._copy_failed = True
+                continue
+            with self._unsent_lock:
+                del self._unsent[:sent]
 
     def results(self) -> list:
         """The values of every call given, in order: the copy's, or computed here."""
@@ -301,12 +247,13 @@ class EarlyCalls:
         return values
 
     def _close_args(self) -> None:
-        f, self._args_file = self._args_file, None
-        if f is not None:
-            try:
-                f.close()
-            except OSError:          # the copy has gone: its end was closed
-                self._copy_failed = True
+        """Every argument sent, then the pipe's end closed (the copy sees the end of the calls)."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.join()
+        fd, self._args_fd = self._args_fd, None
+        if fd is not None:
+            os.close(fd)
 
     def _wait(self) -> int | None:
         pid, self._pid = self._pid, None
@@ -316,14 +263,14 @@ class EarlyCalls:
         return status
 
     def close(self) -> None:
-        """End the copy (if any) without waiting for its values."""
-        busy = self._pid is not None and bool(self._given)
-        self._close_args()
+        """End the copy (if any) without waiting for it: its values are not wanted (after :meth:`results`,
+        there is nothing left to end)."""
+        if self._pid is not None:
+            os.kill(self._pid, signal.SIGKILL)       # loading its module or computing values nobody will read
         if self._value_fd is not None:
             fd, self._value_fd = self._value_fd, None
             os.close(fd)
-        if busy:
-            os.kill(self._pid, signal.SIGKILL)       # computing values nobody will read
+        self._close_args()                           # the writer, if any, ends: the copy's end is closed
         self._wait()
 
     def __enter__(self):

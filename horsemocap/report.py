@@ -5,7 +5,7 @@ opens in any browser without Python, a network or the results folder. They
 are described here as data (:func:`report_figures`) and drawn by
 :mod:`horsemocap.plots.report_figures`, the only part that needs
 matplotlib: usually in a copy of the process forked before the analysis
-(:func:`figure_painter`), which loads matplotlib while the analysis runs
+(:func:`horsemocap.plots.figure_painter`), which loads matplotlib while the analysis runs
 and draws each step's figures as soon as the step has ended
 (:func:`step_figures`).
 """
@@ -16,7 +16,7 @@ import re
 from pathlib import Path
 
 from .forking import EarlyCalls
-from .plots import REPORT_FIGURES
+from .plots import figure_painter
 from .readable import distance_km, hours_minutes
 from .results import analysis_record
 from .store import atomic_write_text
@@ -36,18 +36,8 @@ figure{margin:1em 0} figcaption{color:#555;font-size:.9em} img{max-width:100%}
 """
 
 
-#: Where the figures are drawn: the module and its function of figure descriptions.
-FIGURE_PAINTER = REPORT_FIGURES
-
 #: The steps that have figures in the report, in the report's order.
 FIGURE_STEPS = ("detect", "triangulate", "rigid_body")
-
-
-def figure_painter(fork: bool = True) -> EarlyCalls:
-    """The calls that will draw the report's figures (:data:`FIGURE_PAINTER`): forked now where that is
-    safe, so that matplotlib loads beside the analysis; give it the descriptions of :func:`step_figures`,
-    step by step as the steps end (or those of :func:`report_figures` at once)."""
-    return EarlyCalls(*FIGURE_PAINTER, fork=fork)
 
 
 def _figure_html(png: str, caption: str) -> str:
@@ -60,6 +50,19 @@ def report_figures(analysis) -> list:
     function of :data:`horsemocap.plots.report_figures.FIGURE_FUNCTIONS`, the arguments are arrays.
     Those of every step of :data:`FIGURE_STEPS` (:func:`step_figures`), in that order."""
     return [figure for step in FIGURE_STEPS for figure in step_figures(analysis, step)]
+
+
+def _described_figures(analysis) -> tuple[list, list[str]]:
+    """:func:`report_figures`, leaving out a step whose figures cannot be described: ``(figures,
+    reasons)``, one reason per step left out (shown in the report instead of its figures)."""
+    figures, left_out = [], []
+    for step in FIGURE_STEPS:
+        try:
+            figures += step_figures(analysis, step)
+        except Exception as exc:    # noqa: BLE001 - one step's figures missing does not lose the report
+            left_out.append(f"The figures of step '{step}' are left out: describing them failed "
+                            f"({type(exc).__name__}: {exc}).")
+    return figures, left_out
 
 
 def step_figures(analysis, step: str) -> list:
@@ -555,7 +558,7 @@ def report_html(analysis, quality: dict | None = None, painter: EarlyCalls | Non
     there is one), then ``quality`` (the record of
     :func:`horsemocap.quality.quality_record`) check by check.
 
-    ``painter`` (:func:`figure_painter`) draws the figures; given
+    ``painter`` (:func:`horsemocap.plots.figure_painter`) draws the figures; given
     the figures of ``analysis``' first steps already (:meth:`EarlyCalls.submit`,
     :func:`step_figures`) or not. Without it they are drawn in this process.
     """
@@ -604,9 +607,10 @@ def report_html(analysis, quality: dict | None = None, painter: EarlyCalls | Non
                                             ["choice", "value"], align_numbers=False)]
 
     parts.append("<h2>Figures</h2>")
-    figures = report_figures(analysis)
+    figures, left_out = _described_figures(analysis)
     pngs = _drawn(painter, [description for description, _ in figures])
     parts += [_figure_html(png, caption) for png, (_, caption) in zip(pngs, figures)]
+    parts += [f'<p class="note">{html.escape(reason)}</p>' for reason in left_out]
     note = x_acceleration_note(analysis.params) if analysis.rigid_body is not None else None
     if note:
         parts.append(f'<p class="note">{html.escape(note)}</p>')

@@ -18,7 +18,8 @@ from . import quality
 from .camera import read_rig
 from .pipeline import _progress_printer, AnalysisError, analyze, resolve_params
 from .passes import passes_check
-from .report import figure_painter, step_figures, write_report
+from .plots import figure_painter
+from .report import step_figures, write_report
 from .runfolder import check_results_target, RunFolder
 from .session import load_session, SessionError
 from .store import atomic_write_json, atomic_write_text, check_outside
@@ -81,9 +82,23 @@ def _mark_record(folder: Path, **fields) -> None:
 
 def _figures_drawn_after(painter):
     """The pipeline's ``after_step``: each step's report figures (:func:`horsemocap.report.step_figures`)
-    given to ``painter`` as the step ends."""
+    given to ``painter`` as the step ends.
+
+    An error in describing a step's figures does not stop the analysis: no
+    more figures are given during it, and the report describes them all at
+    its end (:func:`horsemocap.report.report_html`: a figure that cannot be
+    described there either is left out with the reason).
+    """
+    failed = []
+
     def after_step(analysis, step):
-        descriptions = [description for description, _ in step_figures(analysis, step)]
+        if failed:
+            return
+        try:
+            descriptions = [description for description, _ in step_figures(analysis, step)]
+        except Exception as exc:    # noqa: BLE001 - the figures are described again, and reported, at the end
+            failed.append((step, exc))
+            return
         if descriptions:
             painter.submit(descriptions)
     return after_step
@@ -108,7 +123,7 @@ def run_analysis(session_dir, out, params=None, *, progress=None, report: bool =
     flash_search : horsemocap.sync.FlashSearch, optional
         The flash search already under way (:func:`horsemocap.pipeline.analyze`).
     painter : horsemocap.forking.EarlyCalls, optional
-        The report's figure painter (:func:`horsemocap.report.figure_painter`), made earlier by the
+        The report's figure painter (:func:`horsemocap.plots.figure_painter`), made earlier by the
         caller (before its threads started, so that it could fork); closed here. Default: made here.
 
     Returns

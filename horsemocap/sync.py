@@ -529,6 +529,28 @@ def flash_detections(sources: dict, search_frames: int | None = DEFAULT_SEARCH_F
         return {cam: future.result() for cam, future in found.items()}
 
 
+class FlashSearchCancelled(Exception):
+    """The flash search was ended by :meth:`FlashSearch.close` before it finished (its result is not wanted)."""
+
+
+@dataclass(frozen=True)
+class _CancellableSource(FrameSource):
+    """A :class:`~horsemocap.sources.FrameSource` whose frames stop coming once ``cancel`` is set: the
+    search reading it ends between two frames (:class:`FlashSearchCancelled`)."""
+
+    cancel: threading.Event | None = None
+
+    def iter_frames(self, start: int = 0, stop: int | None = None, color: bool = True, share: bool = False):
+        self._check()
+        for item in super().iter_frames(start, stop, color=color, share=share):
+            yield item
+            self._check()
+
+    def _check(self) -> None:
+        if self.cancel is not None and self.cancel.is_set():
+            raise FlashSearchCancelled(f"{self.path}: the flash search was cancelled")
+
+
 class FlashSearch:
     """:func:`flash_detections` of a session's motion videos, started in a thread before the analysis needs it.
 
@@ -542,6 +564,10 @@ class FlashSearch:
     The cameras are searched one after another on a machine of two cores
     (one reader per core beyond the one left to the interpreter loading the
     analysis: side by side, the readers would take half of its core).
+
+    A search whose result nobody will read (the run ended early, or the
+    offsets turned out to be given) is ended by ``close(wanted=False)``:
+    it stops before its next frame, without being waited for.
 
     Parameters
     ----------
@@ -559,40 +585,57 @@ class FlashSearch:
     >>> sources = {c: FrameSource(session.motion[c]) for c in session.cameras}
     >>> {c: d.frame for c, d in search.detections(sources).items()}
     {'left': 8, 'middle': 61, 'right': 134}
+    >>> unwanted = FlashSearch(session.motion)
+    >>> unwanted.close(wanted=False)
+    >>> unwanted.detections(sources) is None         # cancelled: the step searches itself
+    True
     """
 
     def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES):
         self.videos = [(cam, Path(path)) for cam, path in videos.items()]
         self.search_frames = search_frames
         self._found, self._error = None, None
+        self._cancel = threading.Event()
         self._thread = threading.Thread(target=self._run, name="horsemocap-flash-search", daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
         try:
-            sources = {cam: FrameSource(path) for cam, path in self.videos}
+            sources = {cam: _CancellableSource(path, cancel=self._cancel) for cam, path in self.videos}
             self._found = flash_detections(sources, self.search_frames, readers=(os.cpu_count() or 1) - 1)
+        except FlashSearchCancelled:
+            self._found = None
         except BaseException as exc:  # given to the caller by detections()
             self._error = exc
 
+    @property
+    def cancelled(self) -> bool:
+        """Whether :meth:`close` ended the search unwanted (it then gives no detections)."""
+        return self._cancel.is_set()
+
     def detections(self, sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES) -> dict | None:
-        """``flash_detections(sources, search_frames)`` if this search is that one (waits for it), else None.
+        """``flash_detections(sources, search_frames)`` if this search is that one (waits for it), else None
+        (also when the search was cancelled).
 
         Its error (a video that cannot be decoded, no flash in a camera) is
         raised here, as the search in the step would raise it.
         """
         searched = [(cam, Path(src.path)) if isinstance(src, FrameSource) else (cam, None)
                     for cam, src in sources.items()]
-        if searched != self.videos or search_frames != self.search_frames:
+        if searched != self.videos or search_frames != self.search_frames or self.cancelled:
             return None
-        self.close()
+        self._thread.join()
         if self._error is not None:
             raise self._error
         return self._found
 
-    def close(self) -> None:
-        """Wait for the search to end (its result is kept for :meth:`detections`)."""
-        self._thread.join()
+    def close(self, wanted: bool = True) -> None:
+        """End the search: ``wanted``, wait for it (its result is kept for :meth:`detections`); else
+        cancel it (it stops before its next frame) and return at once."""
+        if wanted and not self.cancelled:
+            self._thread.join()
+        else:
+            self._cancel.set()
 
 
 #: Decoded gray frames the flash searches of several cameras may hold at once (bytes): about what one

@@ -2,15 +2,22 @@
 light imports that let them start early."""
 from __future__ import annotations
 
+import gc
 import os
 import subprocess
 import sys
+import threading
+import time
+import types
 
+import cv2
 import numpy as np
 import pytest
 
+from horsemocap import cli, report, run, sync
 from horsemocap.data import default_session_dir
 from horsemocap.forking import EarlyCalls
+from horsemocap.plots import figure_painter, report_figures
 from horsemocap.session import load_session
 from horsemocap.sources import FrameSource
 from horsemocap.sync import FlashSearch, SyncError, flash_detections
@@ -67,8 +74,6 @@ def test_early_calls_give_each_value_in_order_forked_or_not(fork):
 @can_fork_here
 def test_early_calls_compute_here_what_the_copy_could_not():
     """A copy that dies on its second call leaves every value to this process."""
-    import types
-
     parent = os.getpid()
     module = types.ModuleType("fragile_calls")
     module.twice = lambda x: 2 * x if os.getpid() == parent or x < 10 else os._exit(3)
@@ -94,16 +99,13 @@ def test_early_calls_given_nothing_end_their_copy():
 
 
 def test_the_report_draws_the_same_figures_given_step_by_step_or_at_once():
-    from horsemocap import report
-    from horsemocap.plots import report_figures
-
     first = [("reprojection_residuals", ({"left": np.linspace(0, 1, 9)},), {})]
     rest = [("axes_timeseries", (np.arange(4.0), {"p": np.ones((4, 3))}, "m", "Positions"), {"quantity": None})]
     here = report_figures.draw_pngs(first + rest)
-    with report.figure_painter() as painter:
+    with figure_painter() as painter:
         painter.submit(first)
         assert report._drawn(painter, first + rest) == here
-    with report.figure_painter() as painter:
+    with figure_painter() as painter:
         painter.submit(rest)
         with pytest.raises(ValueError, match="not the first"):
             report._drawn(painter, first + rest)
@@ -130,8 +132,6 @@ def test_the_early_flash_search_finds_what_the_step_would():
 def test_the_early_flash_search_raises_its_error_when_asked(tmp_path):
     dark = tmp_path / "dark"
     dark.mkdir()
-    import cv2
-
     for k in range(12):
         cv2.imwrite(str(dark / f"f{k:03d}.png"), np.full((48, 64), 20, np.uint8))
     search = FlashSearch({"left": dark})
@@ -140,12 +140,8 @@ def test_the_early_flash_search_raises_its_error_when_asked(tmp_path):
 
 
 def test_the_command_exempts_its_objects_from_the_collector_at_its_end_and_a_call_does_not(tmp_path):
-    import gc
-
-    from horsemocap.cli import main
-
     frozen = gc.get_freeze_count()
-    assert main(["analyze", str(tmp_path / "no-such-session"), "--out", str(tmp_path / "out")]) == 2
+    assert cli.main(["analyze", str(tmp_path / "no-such-session"), "--out", str(tmp_path / "out")]) == 2
     assert gc.get_freeze_count() == frozen
     code = ("import gc, sys\nfrom horsemocap.cli import main\n"
             f"sys.argv = ['horsemocap', 'analyze', {str(tmp_path / 'no-such-session')!r}, '--out', "
@@ -154,3 +150,178 @@ def test_the_command_exempts_its_objects_from_the_collector_at_its_end_and_a_cal
     got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert got.stdout.split() == ["2", "True"]
     assert "no-such-session" in got.stderr
+
+
+# --- early work nobody will use is not waited for --------------------------------------------------------
+
+@pytest.fixture
+def slow_module(tmp_path, monkeypatch):
+    """A module whose import takes a minute (as matplotlib's takes a while): a copy loading it is busy."""
+    (tmp_path / "slow_to_load.py").write_text("import time\ntime.sleep(60)\ndef size(a):\n    return len(a)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return "slow_to_load"
+
+
+@can_fork_here
+def test_early_calls_closed_unwanted_do_not_wait_for_the_copy_loading_its_module(slow_module):
+    for submitted in (False, True):
+        calls = EarlyCalls(slow_module, "size")
+        assert calls.forked
+        pid = calls._pid
+        if submitted:
+            calls.submit(b"x")
+        started = time.perf_counter()
+        calls.close()
+        assert time.perf_counter() - started < 10
+        with pytest.raises(ChildProcessError):
+            os.waitpid(pid, os.WNOHANG)     # reaped: no zombie left behind
+
+
+@can_fork_here
+def test_early_calls_submit_never_waits_for_the_copy(slow_module):
+    """Arguments much larger than a pipe's buffer, given while the copy is still loading its module."""
+    calls = EarlyCalls(slow_module, "size")
+    assert calls.forked
+    started = time.perf_counter()
+    for _ in range(3):
+        calls.submit(bytes(1 << 20))
+    assert time.perf_counter() - started < 10
+    calls.close()
+    assert threading.active_count() == 1     # the thread writing the rest ended with the copy
+
+
+@can_fork_here
+def test_early_calls_deliver_arguments_larger_than_the_pipe_in_order():
+    with EarlyCalls("statistics", "fmean") as calls:
+        big = [np.full(300_000, float(k)) for k in range(4)]
+        for k, values in enumerate(big):
+            calls.submit(values)
+            calls.submit([float(k)])
+        assert calls.results() == [0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0]
+    assert threading.active_count() == 1
+
+
+def _gated_frames(monkeypatch):
+    """FrameSource.iter_frames replaced by one that yields a frame only when the test lets it:
+    ``(allow, yielded)``, a semaphore to release per frame and the (folder, frame) yielded."""
+    allow, yielded = threading.Semaphore(0), []
+
+    def iter_frames(self, start=0, stop=None, color=True, share=False):
+        for k in range(start, stop if stop is not None else 40):
+            allow.acquire()
+            yielded.append((self.path.name, k))
+            yield k, np.full((24, 32), 20, np.uint8)
+    monkeypatch.setattr(FrameSource, "iter_frames", iter_frames)
+    return allow, yielded
+
+
+def test_a_flash_search_closed_unwanted_is_not_waited_for_and_stops_between_frames(tmp_path, monkeypatch):
+    for camera in ("left", "right"):
+        (tmp_path / camera).mkdir()
+        cv2.imwrite(str(tmp_path / camera / "f000.png"), np.full((24, 32), 20, np.uint8))
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)      # one camera after the other
+    allow, yielded = _gated_frames(monkeypatch)
+    search = FlashSearch({c: tmp_path / c for c in ("left", "right")}, search_frames=40)
+    allow.release()
+    while not yielded:
+        time.sleep(0.01)
+    closing = threading.Thread(target=search.close, kwargs={"wanted": False})
+    closing.start()
+    closing.join(10)
+    assert not closing.is_alive()           # returned while the search waits for its next frame
+    for _ in range(80):
+        allow.release()
+    search._thread.join(10)
+    assert not search._thread.is_alive()
+    # the frame it was reading when cancelled, then it stopped: no further frame, no other camera
+    assert yielded in ([("left", 0)], [("left", 0), ("left", 1)])
+    assert search.detections({c: FrameSource(tmp_path / c) for c in ("left", "right")}, 40) is None
+
+
+class _SearchRecorder:
+    """In place of FlashSearch: records the searches started and how they were closed."""
+    started: list = []
+
+    def __init__(self, videos, search_frames=None):
+        self.videos, self.closed = videos, []
+        _SearchRecorder.started.append(self)
+
+    def close(self, wanted=True):
+        self.closed.append(wanted)
+
+
+@pytest.fixture
+def early_run(monkeypatch, tmp_path):
+    """``horsemocap analyze`` of the bundled session up to the analysis, which raises ``stop`` (the searches
+    started are recorded)."""
+    monkeypatch.setattr(sync, "FlashSearch", _SearchRecorder)
+
+    def run_until(extra, stop=RuntimeError("the analysis failed")):
+        _SearchRecorder.started = []
+
+        def analyse(*args, **kwargs):
+            raise stop
+        monkeypatch.setattr(cli, "_analyse_session", analyse)
+        try:
+            cli.main(["analyze", str(default_session_dir()), "--out", str(tmp_path / "out"), "--no-report", *extra])
+        except BaseException as exc:    # noqa: BLE001 - main turns some into exit codes
+            assert exc is stop
+        return _SearchRecorder.started
+    return run_until
+
+
+def test_the_command_line_starts_no_flash_search_when_the_parameters_give_the_offsets(early_run, tmp_path):
+    given = tmp_path / "choices.json"
+    given.write_text('{"sync": {"offsets": {"left": 8, "middle": 61, "right": 134}}}')
+    assert early_run(["--offsets", "left=8,middle=61,right=134"]) == []
+    assert early_run(["--set", 'sync.offsets={"left": 8, "middle": 61, "right": 134}']) == []
+    assert early_run(["--params", str(given)]) == []
+
+
+def test_the_command_line_ends_an_unused_flash_search_without_waiting_on_error_or_ctrl_c(early_run):
+    for stop in (RuntimeError("the analysis failed"), KeyboardInterrupt()):
+        started = early_run([], stop)
+        assert len(started) == 1 and started[0].closed == [False]
+
+
+def test_the_command_line_starts_no_flash_search_when_the_session_gives_the_offsets(tmp_path, monkeypatch):
+    session = load_session(default_session_dir())
+    monkeypatch.setattr(sync, "FlashSearch", _SearchRecorder)
+    _SearchRecorder.started = []
+    params = cli._analysis_params(session, cli.build_parser().parse_args(["demo"]))
+    assert not params.sync.offsets and not session.sync_offsets
+    assert cli._early_flash_search(session, params) is not None
+    given = types.SimpleNamespace(sync_offsets={"left": 8, "middle": 61, "right": 134}, motion=session.motion,
+                                  cameras=session.cameras)
+    assert cli._early_flash_search(given, params) is None
+    assert len(_SearchRecorder.started) == 1
+
+
+# --- figures described as the steps end ------------------------------------------------------------------
+
+def test_an_error_describing_a_steps_figures_mid_analysis_does_not_stop_it(monkeypatch):
+    given = []
+    painter = types.SimpleNamespace(submit=given.append)
+    described = {"detect": [(("marker_tracks", (), {}), "d")], "triangulate": None,
+                 "rigid_body": [(("axes_timeseries", (), {}), "r")]}
+
+    def step_figures(analysis, step):
+        if described[step] is None:
+            raise KeyError("no residuals")
+        return described[step]
+    monkeypatch.setattr(run, "step_figures", step_figures)
+    after_step = run._figures_drawn_after(painter)
+    for step in ("detect", "triangulate", "rigid_body"):
+        after_step(None, step)              # raises nothing
+    assert given == [[("marker_tracks", (), {})]]     # the rest: described and drawn with the report
+
+
+def test_the_report_leaves_out_figures_it_cannot_describe_and_says_why(monkeypatch):
+    def step_figures(analysis, step):
+        if step == "triangulate":
+            raise KeyError("residual_px")
+        return [(("axes_timeseries", (), {}), f"{step} caption")]
+    monkeypatch.setattr(report, "step_figures", step_figures)
+    figures, left_out = report._described_figures(None)
+    assert [caption for _, caption in figures] == ["detect caption", "rigid_body caption"]
+    assert len(left_out) == 1 and "'triangulate'" in left_out[0] and "KeyError" in left_out[0]

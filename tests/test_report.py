@@ -2,11 +2,15 @@
 from __future__ import annotations
 
 import io
+import subprocess
+import sys
 
+import numpy as np
 import pytest
 
 from horsemocap import readable, report
 from horsemocap.params import AnalysisParams
+from horsemocap.plots import figure_painter
 from horsemocap.progress import CountingFrames, ProgressPrinter, counter, plain_count_due, progress_bar
 from horsemocap.vibration import COMFORT_KEYS, COMFORT_UNITS
 
@@ -340,67 +344,16 @@ def test_render_pngs_error_here_neither_hangs_nor_is_swallowed(report_figures):
 
 # --- the figures drawn by a copy forked before the analysis -------------------------------------------------
 
-def test_early_call_gives_the_same_value_forked_or_not():
-    from horsemocap.forking import EarlyCall
-
-    values = []
-    for fork in (True, False):
-        with EarlyCall("statistics", "median", fork=fork) as call:
-            call.submit([3.0, 1.0, 2.0, 8.0])
-            values.append(call.result())
-    assert values == [2.5, 2.5]
-
-
-def test_early_call_computes_here_what_the_copy_could_not():
-    """A copy that dies (here: its module raises when loaded in the copy) leaves the value to this process."""
-    import os
-    import sys
-    import types
-
-    from horsemocap.forking import EarlyCall
-
-    parent = os.getpid()
-    module = types.ModuleType("fragile_module")
-    module.twice = lambda x: 2 * x if os.getpid() == parent else os._exit(3)
-    sys.modules["fragile_module"] = module
-    try:
-        with EarlyCall("fragile_module", "twice") as call:
-            call.submit(21)
-            assert call.result() == 42
-    finally:
-        del sys.modules["fragile_module"]
-
-
-@pytest.mark.skipif(not hasattr(__import__("os"), "fork") or (__import__("os").cpu_count() or 1) < 2,
-                    reason="the forked copy is made only where fork exists and two cores do")
-def test_early_call_without_arguments_ends_its_copy():
-    import os
-
-    from horsemocap.forking import EarlyCall
-
-    call = EarlyCall("statistics", "median")
-    assert call.forked
-    pid = call._pid
-    call.close()
-    with pytest.raises(ChildProcessError):
-        os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
-
-
 def test_the_analysis_never_loads_matplotlib_and_the_report_draws_the_same_figures(report_figures):
     """``horsemocap.run`` (the analysis and the report's text) loads no matplotlib: the figures are drawn
     from their descriptions by :mod:`horsemocap.plots.report_figures`, in a forked copy or here, alike."""
-    import subprocess
-    import sys
-
-    import numpy as np
-
     code = "import sys, horsemocap.run, horsemocap.report; print('matplotlib' in sys.modules)"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert loaded.strip() == "False"
     descriptions = [("reprojection_residuals", ({"left": np.linspace(0, 1, 9)},), {}),
                     ("axes_timeseries", (np.arange(4.0), {"p": np.ones((4, 3))}, "m", "Positions"), {"quantity": None})]
     here = report_figures.draw_pngs(descriptions)
-    painter = report.figure_painter()
+    painter = figure_painter()
     with painter:
         assert report._drawn(painter, descriptions) == here
     assert len(set(here)) == 2

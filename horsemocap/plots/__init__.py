@@ -23,10 +23,28 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
-#: Where the report's figures are drawn (:func:`horsemocap.report.figure_painter`): the module and its
-#: function of figure descriptions. Named here, where no plotting module is loaded, so a program can fork
-#: the copy that draws them before it loads anything else.
+from ..forking import EarlyCalls
+
+#: Where the report's figures are drawn (:func:`figure_painter`): the module and its function of figure
+#: descriptions. Named here, where no plotting module is loaded, so a program can fork the copy that draws
+#: them before it loads anything else.
 REPORT_FIGURES = (f"{__name__}.report_figures", "draw_pngs")
+
+
+def figure_painter(fork: bool = True) -> EarlyCalls:
+    """The calls that will draw the report's figures (:data:`REPORT_FIGURES`): forked now where that is
+    safe, so that matplotlib loads beside the analysis; give it the descriptions of
+    :func:`horsemocap.report.step_figures`, step by step as the steps end (or those of
+    :func:`horsemocap.report.report_figures` at once).
+
+    Examples
+    --------
+    >>> with figure_painter(fork=False) as painter:
+    ...     painter.submit([])
+    ...     painter.results()
+    [[]]
+    """
+    return EarlyCalls(*REPORT_FIGURES, fork=fork)
 
 #: The sub-modules, by name.
 _SUBMODULES = tuple(info.name for info in pkgutil.iter_modules(__path__))
