@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import AnalysisParams, ParamField, params_fields, ParamsError, read_params, section_title
+from .params import ParamField, params_fields, ParamsError, read_params, resolve_params, section_title
 from .plots import figure_painter
 from .readable import hours_minutes
 
@@ -271,10 +271,11 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     Before the analysis' modules are loaded (the longest part of a short run's start): the copy of the
     process that will draw the report's figures is forked (before any thread
     starts, see :func:`horsemocap.forking.can_fork`; it loads matplotlib
-    meanwhile), then the parameters are read and checked (a bad one ends the
-    run before anything else starts), then the flash search of the videos is
-    started when the sync step will need it (:func:`_early_flash_search`) and
-    so is the board detection of the views (:func:`_early_board_detection`).
+    meanwhile), then the flash search of the videos is started unless
+    ``session.json`` gives the offsets (:func:`_early_flash_search`), then
+    the parameters are read and checked (a bad one ends the run; when they
+    give the offsets the search is cancelled, not waited for), then the board
+    detection of the views starts (:func:`_early_board_detection`).
     Whatever early work nobody took is ended at the end, without being waited
     for (an error, Ctrl-C, a step's results reused from the results store).
     """
@@ -287,8 +288,12 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     painter = figure_painter() if not getattr(args, "no_report", False) else None
     board_views = flash_search = None
     try:
+        # the search first: reading the parameters loads the detection's modules (SciPy)
+        flash_search = _early_flash_search(session)
         params = _analysis_params(session, args)
-        flash_search = _early_flash_search(session, params)    # first: the check of the board cache loads modules
+        if flash_search is not None and params.sync.offsets:
+            flash_search.close(wanted=False)    # the parameters give the offsets: cancelled, not waited for
+            flash_search = None
         board_views = _early_board_detection(session, out_dir, args)
         return _analyse_session(session, session_dir, out_dir, args, params, board_views, flash_search, painter)
     finally:
@@ -303,30 +308,25 @@ def _analysis_params(session, args):
     """The run's parameters, checked against the session: the session's ``analysis`` object, the
     ``--params`` file over it, then the preset, the options and ``--set``.
 
-    Made with the parameters module alone, as :func:`horsemocap.pipeline.resolve_params` makes them
-    (only the values a file gives, layered over the session's, so a preset named in either is not undone),
-    so that they are known before the analysis' modules load.
+    Made with the parameters module alone (:func:`horsemocap.params.resolve_params`), so that they are
+    known before the analysis' modules load.
     """
-    if args.params:
-        base = AnalysisParams.from_layers(session.analysis, read_params(args.params))
-    else:
-        base = AnalysisParams.from_dict(session.analysis, f"{session.json_path}: 'analysis'")
+    base = resolve_params(session, read_params(args.params)) if args.params else resolve_params(session)
     params = _params_from_args(args, base)
     params.check_session(session, f"{args.params}" if args.params else "parameters")
     return params
 
 
-def _early_flash_search(session, params):
+def _early_flash_search(session):
     """The flash search of the session's videos, started before the analysis' modules are imported.
 
-    Started only when the sync step will search the flash: neither the
-    parameters (the session's ``analysis`` object, ``--params``,
-    ``--offsets``, ``--set``) nor ``session.json`` give the offsets;
-    None otherwise.
+    Started unless ``session.json`` gives the offsets (None then); the
+    caller cancels it when the parameters (the session's ``analysis``
+    object, ``--params``, ``--offsets``, ``--set``) give them.
     """
     from .sync import FlashSearch     # OpenCV, as load_session
 
-    if params.sync.offsets or session.sync_offsets:
+    if session.sync_offsets:
         return None
     return FlashSearch({c: session.motion[c] for c in session.cameras})
 

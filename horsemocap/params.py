@@ -1397,3 +1397,29 @@ def _read_params_object(path) -> dict:
     if not isinstance(data, dict):
         raise ParamsError(f"{path}: expected a JSON object of parameters")
     return dict(data)
+
+
+def resolve_params(session, params=None) -> AnalysisParams:
+    """Defaults, then the session's ``analysis`` object, then ``params``.
+
+    ``params``: None (the session's alone), an :class:`AnalysisParams`
+    (taken as it is) or a dict of the values a parameter file gives, layered
+    over the session's (only those values, not the defaults filled in, so a
+    preset named in either is not undone).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> session = SimpleNamespace(analysis={"smooth": {"span": 0.2}}, json_path="session.json")
+    >>> resolve_params(session).smooth.span
+    0.2
+    >>> given = resolve_params(session, {"rigid_body": {"pose": {"smoothing": "gcv"}}})
+    >>> given.rigid_body.pose.smoothing, given.smooth.span
+    ('gcv', 0.2)
+    """
+    base = AnalysisParams.from_dict(session.analysis, f"{session.json_path}: 'analysis'")
+    if params is None:
+        return base
+    if isinstance(params, AnalysisParams):
+        return params
+    return AnalysisParams.from_layers(session.analysis, params)

@@ -21,7 +21,7 @@ from pathlib import Path
 from . import results as result_files
 from .passes import PassesResult, analyse_passes
 from .fingerprint import run_key
-from .params import STEP_SECTIONS, AnalysisParams
+from .params import STEP_SECTIONS, AnalysisParams, resolve_params  # noqa: F401 - pipeline.resolve_params is public
 from .progress import ProgressPrinter
 from .session import Session, SessionError, load_session
 from .steps import (STEPS, AnalysisError, ComfortResult, DetectResult, MotionFrameResult, PlumbResult, RigidBodyResult,
@@ -364,17 +364,6 @@ def run_steps(session: Session, params: AnalysisParams, results, steps, progress
         analysis.with_result(name, STEP_CALLS[name](analysis, progress, **(overrides or {}).get(name, {})))
         analysis.timings[name] = time.perf_counter() - t0
     return analysis
-
-
-def resolve_params(session: Session, params=None) -> AnalysisParams:
-    """Defaults, then the session's ``analysis`` object, then ``params``."""
-    base = AnalysisParams.from_dict(session.analysis, f"{session.json_path}: 'analysis'")
-    if params is None:
-        return base
-    if isinstance(params, AnalysisParams):
-        return params
-    # the given values only (not the defaults filled in), so a preset named in either is not undone
-    return AnalysisParams.from_layers(session.analysis, params)
 
 
 def step_keys(session: Session, params: AnalysisParams) -> dict:

@@ -270,12 +270,15 @@ def early_run(monkeypatch, tmp_path):
     return run_until
 
 
-def test_the_command_line_starts_no_flash_search_when_the_parameters_give_the_offsets(early_run, tmp_path):
+def test_the_command_line_cancels_the_flash_search_when_the_parameters_give_the_offsets(early_run, tmp_path):
+    # started before the parameters are read (they load the detection's modules), cancelled once they give
+    # the offsets: closed unwanted, before the analysis, and not again
     given = tmp_path / "choices.json"
     given.write_text('{"sync": {"offsets": {"left": 8, "middle": 61, "right": 134}}}')
-    assert early_run(["--offsets", "left=8,middle=61,right=134"]) == []
-    assert early_run(["--set", 'sync.offsets={"left": 8, "middle": 61, "right": 134}']) == []
-    assert early_run(["--params", str(given)]) == []
+    for extra in (["--offsets", "left=8,middle=61,right=134"],
+                  ["--set", 'sync.offsets={"left": 8, "middle": 61, "right": 134}'], ["--params", str(given)]):
+        started = early_run(extra)
+        assert len(started) == 1 and started[0].closed == [False], extra
 
 
 def test_the_command_line_ends_an_unused_flash_search_without_waiting_on_error_or_ctrl_c(early_run):
@@ -290,10 +293,10 @@ def test_the_command_line_starts_no_flash_search_when_the_session_gives_the_offs
     _SearchRecorder.started = []
     params = cli._analysis_params(session, cli.build_parser().parse_args(["demo"]))
     assert not params.sync.offsets and not session.sync_offsets
-    assert cli._early_flash_search(session, params) is not None
+    assert cli._early_flash_search(session) is not None
     given = types.SimpleNamespace(sync_offsets={"left": 8, "middle": 61, "right": 134}, motion=session.motion,
                                   cameras=session.cameras)
-    assert cli._early_flash_search(given, params) is None
+    assert cli._early_flash_search(given) is None
     assert len(_SearchRecorder.started) == 1
 
 
