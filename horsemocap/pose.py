@@ -1417,9 +1417,42 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                           events=_pose_events(params.events, smoothing, order, f0))
     if correlated:
         spline_options["noise_correlation"] = choice["noise_correlation"]
+        if CORRELATED_NOISE_CRITERION == "reml":
+            spline_options["method"] = "reml"
+            choice["smoothing_reason"] += "; smoothing by REML with that AR(1) correlation"
+        elif CORRELATED_NOISE_CRITERION == "risk":
+            sig = _correlated_risk_noise(reg, model, points, choice)
+            spline_options["method"] = "noise" if sig[0] is not None else smoothing
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
+
+
+#: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
+#: rigidity residual): ``"gcv"``, the correlated-error GCV, which estimates the noise's level from the data it
+#: smooths; ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
+#: (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"`` with
+#: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual
+#: does not see the noise normal to their plane, the correlated-error GCV; ``"reml"``, restricted maximum
+#: likelihood with the residual's AR(1) correlation (``method="reml"``), which estimates the noise's level with
+#: the signal's instead of from the residual of a fit.
+CORRELATED_NOISE_CRITERION = "gcv"
+
+
+def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
+    """The six pose components' noise for the correlated-error unbiased risk, measured by the rigidity residual
+    (all None, the correlated-error GCV kept, with fewer than four markers or no residual); ``choice``'s reason
+    says which."""
+    markers = np.asarray(model).shape[0]
+    level = pose_noise(reg, points, model) if points is not None and markers >= 4 else np.full(6, np.nan)
+    if not np.all(np.isfinite(level) & (level > 0)):
+        why = (f"{markers} markers: their residual does not measure the noise normal to their plane" if markers < 4
+               else "no noise level measurable from the rigidity residual")
+        choice["smoothing_reason"] += f"; {why}: the correlated-error GCV kept"
+        return np.full(6, None)
+    choice["smoothing_reason"] += ("; smoothing by the unbiased risk with the noise's covariance known (its level "
+                                   "and AR(1) correlation from the rigidity residual)")
+    return level.astype(object)
 
 
 def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order: int,
