@@ -34,7 +34,8 @@ known: its level and AR(1) correlation from the rigidity residual; four or
 more markers) and ``reml`` (REML with the AR(1) correlation given); also
 on the herd records with correlated marker noise (``marker-noise_horse2_canter``,
 ``marker-noise_horse2_sitting_trot``: ``bench_marker_noise.py``'s records).
-Written to ``results/markers_covers_criteria.txt``.
+Its output: ``results/markers_covers_criteria.txt`` (``--kept``: also each criterion with its
+correlated choice kept where it smooths a component to the penalty's null space).
 """
 import dataclasses
 import sys
@@ -194,8 +195,7 @@ def measured_noise(a, truth) -> tuple:
 
 def _synthetic_points(a, truth, scale: float, rho: float, seed: int) -> np.ndarray:
     """The true markers plus AR(1) noise (lag-1 ``rho``) shaped by the triangulation covariance times
-    ``scale**2``; NaN where the render's triangulation has none, the render's own triangulated marker in a frame
-    the truth does not hold."""
+    ``scale**2``; NaN where the render's triangulation or the truth has none."""
     pts, cov = a.triangulate.points, a.triangulate.covariance
     seen = np.all(np.isfinite(pts), axis=2)
     chol = np.linalg.cholesky(np.where(seen[..., None, None], cov, np.eye(3)))
@@ -204,9 +204,7 @@ def _synthetic_points(a, truth, scale: float, rho: float, seed: int) -> np.ndarr
     z[0] = rng.standard_normal(pts.shape[1:])
     for k in range(1, len(z)):
         z[k] = rho * z[k - 1] + np.sqrt(1 - rho ** 2) * rng.standard_normal(pts.shape[1:])
-    true = _true_markers(a, truth)
-    noisy = true + scale * np.einsum("kmij,kmj->kmi", chol, z)
-    noisy = np.where(np.isfinite(true), noisy, pts)          # a frame the truth does not hold: the render's own
+    noisy = _true_markers(a, truth) + scale * np.einsum("kmij,kmj->kmi", chol, z)
     return np.where(seen[..., None], noisy, np.nan)
 
 
@@ -265,6 +263,9 @@ def run_draws(name: str, draws: int) -> str:
 HERD_NOISE_SESSIONS = {"marker-noise_horse2_canter": ("Horse 2", "canter"),
                        "marker-noise_horse2_sitting_trot": ("Horse 2", "sitting_trot")}
 CRITERIA = ("gcv", "risk", "reml")
+#: ``--criteria --kept``: also the criteria with the correlated choice kept when it smooths a component to the
+#: penalty's null space (``pose.fit_pose_trajectory`` otherwise takes the noise as white then).
+KEPT_CRITERIA = ("risk kept", "reml kept")
 
 
 def _session_folder(name: str):
@@ -283,15 +284,17 @@ class _Criterion:
         self.criterion = criterion
 
     def __enter__(self):
-        self.saved = pose.CORRELATED_NOISE_CRITERION
-        pose.CORRELATED_NOISE_CRITERION = self.criterion
+        self.saved = pose.CORRELATED_NOISE_CRITERION, pose.NULL_SPACE_EDF
+        pose.CORRELATED_NOISE_CRITERION = self.criterion.split()[0]
+        if self.criterion.endswith("kept"):
+            pose.NULL_SPACE_EDF = -1.0         # a component smoothed to the null space no longer means white noise
         return self
 
     def __exit__(self, *exc):
-        pose.CORRELATED_NOISE_CRITERION = self.saved
+        pose.CORRELATED_NOISE_CRITERION, pose.NULL_SPACE_EDF = self.saved
 
 
-def run_criteria(name: str, draws: int) -> str:
+def run_criteria(name: str, draws: int, criteria=CRITERIA) -> str:
     """Every marker, :data:`CRITERIA` on the same ``draws`` draws of synthetic noise: per draw A_y, Wb, Wk and
     whether the correlated-noise smoothing ran, then the mean A_y and rms Wb, Wk of each criterion."""
     folder = _session_folder(name)
@@ -301,11 +304,11 @@ def run_criteria(name: str, draws: int) -> str:
     scale, rho = measured_noise(a, truth)
     lines = [f"{name}: {draws} draws, {len(keep)} markers, the triangulation covariance x {scale:.2f}^2, AR(1) "
              f"{rho:.2f} (measured on the render)"]
-    res = {c: [] for c in CRITERIA}
+    res = {c: [] for c in criteria}
     for d in range(draws):
         points = _synthetic_points(a, truth, scale, rho, seed=d)
         text = f"  draw {d}:"
-        for c in CRITERIA:
+        for c in criteria:
             with _Criterion(c):
                 an = _analysis_of_points(a, points, keep)
             ce = accuracy.comfort_errors(an.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
@@ -315,7 +318,6 @@ def run_criteria(name: str, draws: int) -> str:
                    "white (fallback)" if "whole motion" in choice.get("reason", "") else "white")
             res[c].append((ay, ce["acc_y_Wb_rms"], ce["acc_y_Wk_rms"], ran == "correlated"))
             text += f"  [{c}] A_y {ay:5.1f} % Wb {ce['acc_y_Wb_rms']:+5.1f} % Wk {ce['acc_y_Wk_rms']:+5.1f} % {ran}"
-        lines.append(text)
         print(text, flush=True)
     for c, v in res.items():
         v = np.array(v, float)
@@ -323,7 +325,7 @@ def run_criteria(name: str, draws: int) -> str:
                      f" rms Wb {np.sqrt(np.mean(v[:, 1] ** 2)):.1f} % rms Wk {np.sqrt(np.mean(v[:, 2] ** 2)):.1f} %"
                      f"; correlated smoothing in {int(v[:, 3].sum())}/{draws} draws")
     base = np.array(res["gcv"], float)
-    for c in CRITERIA[1:]:
+    for c in criteria[1:]:
         diff = np.array(res[c], float)[:, 0] - base[:, 0]
         lines.append(f"  [{c}] minus [gcv]: A_y {diff.mean():+.1f} (se {diff.std(ddof=1) / np.sqrt(draws):.1f}) "
                      f"points, lower in {int(np.sum(diff < 0))}/{draws} draws")
@@ -333,7 +335,12 @@ def run_criteria(name: str, draws: int) -> str:
 def _analysis_of_points(a, points, keep):
     """``a`` with its triangulated points replaced by ``points`` cut to ``keep``, analysed from the smoothing on."""
     cut = _Cut(keep, None)
-    tri = cut._triangulate(a, dataclasses.replace(a.triangulate, points=points))
+    segment = a.triangulate.segment
+    if len(keep) <= 3:
+        # three markers: the smoothing refuses a hidden one, so the record is cut to the frames the truth holds
+        have = np.flatnonzero(np.all(np.isfinite(points[:, keep]), axis=(1, 2)))
+        segment = (max(segment[0], int(have[0])), min(segment[1], int(have[-1]) + 1))
+    tri = cut._triangulate(a, dataclasses.replace(a.triangulate, points=points, segment=segment))
     given = {n: getattr(a, n) for n in pipeline.STEPS}
     given["triangulate"] = tri
     return run_steps(a.session, a.params, given, ["smooth", "motion_frame", "rigid_body", "comfort"])
@@ -368,7 +375,8 @@ if __name__ == "__main__":
     names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] != "--draws")]
     if "--criteria" in args:
         for n in names:
-            print(run_criteria(n, max(draws, 1)), flush=True)
+            print(run_criteria(n, max(draws, 1), CRITERIA + (KEPT_CRITERIA if "--kept" in args else ())),
+                  flush=True)
         sys.exit(0)
     for n in names or list(COVER_SESSIONS):
         if draws:

@@ -1419,7 +1419,6 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         spline_options["noise_correlation"] = choice["noise_correlation"]
         if CORRELATED_NOISE_CRITERION == "reml":
             spline_options["method"] = "reml"
-            choice["smoothing_reason"] += "; smoothing by REML with that AR(1) correlation"
         elif CORRELATED_NOISE_CRITERION == "risk":
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
@@ -1429,14 +1428,15 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
 
 
 #: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
-#: rigidity residual): ``"gcv"``, the correlated-error GCV, which estimates the noise's level from the data it
-#: smooths; ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
+#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"reml"`` (default), restricted maximum
+#: likelihood with the residual's AR(1) correlation (``method="reml"`` of
+#: :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the signal's
+#: (``benchmarks/README.md`` has the comparison over noise draws); ``"gcv"``, the correlated-error GCV, which
+#: estimates the noise's level from the residual of the fit it chooses; ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
 #: (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"`` with
 #: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual
-#: does not see the noise normal to their plane, the correlated-error GCV; ``"reml"``, restricted maximum
-#: likelihood with the residual's AR(1) correlation (``method="reml"``), which estimates the noise's level with
-#: the signal's instead of from the residual of a fit.
-CORRELATED_NOISE_CRITERION = "gcv"
+#: does not see the noise normal to their plane, the correlated-error GCV.
+CORRELATED_NOISE_CRITERION = "reml"
 
 
 def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
@@ -1962,10 +1962,12 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
         The lag-1 autocorrelation of the markers' rigidity residual
         (:func:`rigidity_residual_correlation`). At or above
         :data:`NOISE_CORRELATION_THRESHOLD` (a real system's filtering, marker
-        wobble, skin), without events, the choice is ``"gcv_ar1"``: GCV with
-        that AR(1) error correlation (``noise_correlation`` of
-        :func:`horsemocap.splines.smoothing_spline`), without harmonics, since
-        plain GCV and the adaptive penalty both take slow noise for motion.
+        wobble, skin), without events, the choice is ``"gcv_ar1"``: the
+        smoothing chosen under that AR(1) error correlation
+        (``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`;
+        the criterion is :data:`CORRELATED_NOISE_CRITERION`, REML by default),
+        without harmonics, since plain GCV and the adaptive penalty both take
+        slow noise for motion.
         Below it the reason records the value.
 
     Returns
@@ -1980,8 +1982,8 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     ('gcv', 'periodic record: fundamental 1.4 Hz')
     >>> choose_smoothing(None, None)[0]
     'adaptive'
-    >>> choose_smoothing(None, None, noise_correlation=0.62)
-    ('gcv_ar1', 'gcv with AR(1) 0.62 noise correlation from the rigidity residual (correlated-error GCV, no harmonics)')
+    >>> choose_smoothing(None, None, noise_correlation=0.62)[1]
+    'REML with AR(1) 0.62 noise correlation from the rigidity residual (correlated-error smoothing, no harmonics)'
     """
     rho = float("nan") if noise_correlation is None else float(noise_correlation)
     method, reason = _choose_white_noise_smoothing(fundamental_hz, events, order, lam_given)
@@ -1992,6 +1994,9 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
                                  "; no AR(1) noise correlation measurable from the rigidity residual, or none significant for "
                                  "the record's length: noise taken as white")
     if rho >= NOISE_CORRELATION_THRESHOLD and not (events is not None and len(events)):
+        if CORRELATED_NOISE_CRITERION == "reml":
+            return "gcv_ar1", (f"REML with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
+                               "(correlated-error smoothing, no harmonics)")
         return "gcv_ar1", (f"gcv with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
                            "(correlated-error GCV, no harmonics)")
     return method, reason + (f"; AR(1) noise correlation {rho:.2f} from the rigidity residual"

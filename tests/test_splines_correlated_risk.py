@@ -53,21 +53,25 @@ def test_correlated_risk_smooths_more_than_the_white_noise_risk_under_correlated
 
 
 @pytest.mark.parametrize("rho, sd", [(0.6, 0.2), (0.8, 0.1), (0.9, 0.2)])
-def test_correlated_risk_has_lower_expected_error_than_gcv_under_ar1_noise(rho, sd):
+def test_correlated_risk_and_reml_have_lower_expected_error_than_gcv_under_ar1_noise(rho, sd):
     t = np.arange(300) / 50.0
     f = np.sin(2 * np.pi * 1.2 * t) + 0.4 * np.sin(2 * np.pi * 3.6 * t + 1)
-    risk = {"gcv": [], "gcv_ar1": [], "risk_ar1": []}
+    risk = {"gcv": [], "gcv_ar1": [], "risk_ar1": [], "reml_ar1": []}
     for seed in range(12):
         e = lfilter([1.0], [1.0, -rho], np.random.default_rng(seed).normal(0, sd * np.sqrt(1 - rho ** 2), t.size))
         y = f + e
         fits = {"gcv": splines.smoothing_spline(t, y),
                 "gcv_ar1": splines.smoothing_spline(t, y, noise_correlation=rho),
-                "risk_ar1": splines.smoothing_spline(t, y, method="noise", noise=sd, noise_correlation=rho)}
+                "risk_ar1": splines.smoothing_spline(t, y, method="noise", noise=sd, noise_correlation=rho),
+                "reml_ar1": splines.smoothing_spline(t, y, method="reml", noise_correlation=rho)}
         for k, s in fits.items():
             risk[k].append(np.mean((s(t) - f) ** 2))
     mean = {k: float(np.mean(v)) for k, v in risk.items()}
     assert mean["risk_ar1"] < mean["gcv"]
     assert mean["risk_ar1"] < mean["gcv_ar1"]
+    # REML, which estimates the level with the signal's, is as good as GCV and far better than the correlated GCV
+    assert mean["reml_ar1"] < mean["gcv"]
+    assert mean["reml_ar1"] < 0.5 * mean["gcv_ar1"]
 
 
 def test_correlated_risk_refuses_harmonics_and_needs_a_noise_level():
@@ -120,3 +124,20 @@ def test_reml_method_takes_the_reml_smoothing_with_the_correlation_given():
     assert s.info["lam"] == splines.reml_ar1_smoothing(t, y, correlations=[0.7])["lam"]
     with pytest.raises(ValueError, match="reml"):
         splines.smoothing_spline(t, y, method="reml", weights=np.ones(t.size))
+
+
+def test_pose_default_correlated_smoothing_is_reml_with_the_residual_correlation():
+    from scipy.spatial.transform import Rotation
+    model = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.0, 0.2, 0.05], [0.15, 0.12, 0.1]])
+    n = 600
+    t = np.arange(n) / 50.0
+    rot = Rotation.from_rotvec(np.outer(0.1 * np.sin(2 * np.pi * 0.7 * t), [0, 0, 1]) + [0, 0.05, 0]).as_matrix()
+    e = lfilter([1.0], [1.0, -0.8], np.random.default_rng(2).normal(0, 6e-4, (n, 4, 3)), axis=0)
+    pts = np.einsum("kij,mj->kmi", rot, model) + 0.1 * t[:, None, None] + e
+    reg = pose.register_pose(pts, model)
+    tr = pose.fit_pose_trajectory(t, reg, model, pose.PoseParams(smoothing="auto"), points=pts)
+    choice = tr.smoothing_choice
+    assert choice["method"] == "gcv_ar1" and choice["reason"].startswith("REML with AR(1)")
+    assert tr.smoothing["phiz"]["method"] == "reml"
+    expected = splines.reml_ar1_smoothing(t, tr.rotvec_data[:, 2], correlations=[choice["noise_correlation"]])
+    assert tr.smoothing["phiz"]["lam"] == expected["lam"]
