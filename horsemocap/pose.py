@@ -1428,15 +1428,16 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
 
 
 #: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
-#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"reml"`` (default), restricted maximum
+#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"gcv"`` (default), the correlated-error GCV,
+#: which estimates the noise's level from the residual of the fit it chooses; ``"reml"``, restricted maximum
 #: likelihood with the residual's AR(1) correlation (``method="reml"`` of
 #: :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the signal's
-#: (``benchmarks/README.md`` has the comparison over noise draws); ``"gcv"``, the correlated-error GCV, which
-#: estimates the noise's level from the residual of the fit it chooses; ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
+#: (better on the virtual laboratory's noise draws, far worse on two real clusters: ``benchmarks/README.md``);
+#: ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
 #: (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"`` with
 #: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual
 #: does not see the noise normal to their plane, the correlated-error GCV.
-CORRELATED_NOISE_CRITERION = "reml"
+CORRELATED_NOISE_CRITERION = "gcv"
 
 
 def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
@@ -1965,7 +1966,7 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
         wobble, skin), without events, the choice is ``"gcv_ar1"``: the
         smoothing chosen under that AR(1) error correlation
         (``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`;
-        the criterion is :data:`CORRELATED_NOISE_CRITERION`, REML by default),
+        the criterion is :data:`CORRELATED_NOISE_CRITERION`, GCV by default),
         without harmonics, since plain GCV and the adaptive penalty both take
         slow noise for motion.
         Below it the reason records the value.
@@ -1982,8 +1983,8 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     ('gcv', 'periodic record: fundamental 1.4 Hz')
     >>> choose_smoothing(None, None)[0]
     'adaptive'
-    >>> choose_smoothing(None, None, noise_correlation=0.62)[1]
-    'REML with AR(1) 0.62 noise correlation from the rigidity residual (correlated-error smoothing, no harmonics)'
+    >>> choose_smoothing(None, None, noise_correlation=0.62)
+    ('gcv_ar1', 'gcv with AR(1) 0.62 noise correlation from the rigidity residual (correlated-error GCV, no harmonics)')
     """
     rho = float("nan") if noise_correlation is None else float(noise_correlation)
     method, reason = _choose_white_noise_smoothing(fundamental_hz, events, order, lam_given)

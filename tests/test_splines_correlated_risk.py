@@ -126,7 +126,7 @@ def test_reml_method_takes_the_reml_smoothing_with_the_correlation_given():
         splines.smoothing_spline(t, y, method="reml", weights=np.ones(t.size))
 
 
-def test_pose_default_correlated_smoothing_is_reml_with_the_residual_correlation():
+def test_pose_correlated_smoothing_by_reml_takes_the_residual_correlation(monkeypatch):
     from scipy.spatial.transform import Rotation
     model = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.0, 0.2, 0.05], [0.15, 0.12, 0.1]])
     n = 600
@@ -135,6 +135,7 @@ def test_pose_default_correlated_smoothing_is_reml_with_the_residual_correlation
     e = lfilter([1.0], [1.0, -0.8], np.random.default_rng(2).normal(0, 6e-4, (n, 4, 3)), axis=0)
     pts = np.einsum("kij,mj->kmi", rot, model) + 0.1 * t[:, None, None] + e
     reg = pose.register_pose(pts, model)
+    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "reml")
     tr = pose.fit_pose_trajectory(t, reg, model, pose.PoseParams(smoothing="auto"), points=pts)
     choice = tr.smoothing_choice
     assert choice["method"] == "gcv_ar1" and choice["reason"].startswith("REML with AR(1)")
