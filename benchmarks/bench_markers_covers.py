@@ -27,6 +27,15 @@ synthetic marker noise on the true markers (AR(1) over frames, each marker's
 correlation measured from the render's own triangulation errors), analysed
 with every marker and with each extra marker dropped (the same draw): the
 expected effect of a marker, which one render's noise hides.
+``--criteria``: with ``--draws N``, every marker only, the pose smoothing's
+criteria under correlated noise compared on the same draws: ``gcv`` (the
+correlated-error GCV), ``risk`` (the unbiased risk with the noise's covariance
+known: its level and AR(1) correlation from the rigidity residual; four or
+more markers) and ``reml`` (REML with the AR(1) correlation given); also
+on the herd records with correlated marker noise (``marker-noise_horse2_canter``,
+``marker-noise_horse2_sitting_trot``: ``bench_marker_noise.py``'s records).
+Its output: ``results/markers_covers_criteria.txt`` (``--kept``: also each criterion with its
+correlated choice kept where it smooths a component to the penalty's null space).
 """
 import dataclasses
 import sys
@@ -34,7 +43,7 @@ import time
 
 import numpy as np
 
-from horsemocap import accuracy, pipeline, quality
+from horsemocap import accuracy, pipeline, pose, quality
 from horsemocap.pipeline import AnalysisError, analyze, run_steps
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.covers import COVER_SESSIONS, cover_session
@@ -186,7 +195,7 @@ def measured_noise(a, truth) -> tuple:
 
 def _synthetic_points(a, truth, scale: float, rho: float, seed: int) -> np.ndarray:
     """The true markers plus AR(1) noise (lag-1 ``rho``) shaped by the triangulation covariance times
-    ``scale**2``; NaN where the render's triangulation has none."""
+    ``scale**2``; NaN where the render's triangulation or the truth has none."""
     pts, cov = a.triangulate.points, a.triangulate.covariance
     seen = np.all(np.isfinite(pts), axis=2)
     chol = np.linalg.cholesky(np.where(seen[..., None, None], cov, np.eye(3)))
@@ -250,6 +259,93 @@ def run_draws(name: str, draws: int) -> str:
     return "\n".join(lines)
 
 
+#: The herd records with correlated marker noise of ``--criteria`` (bench_marker_noise.py's recorded noise).
+HERD_NOISE_SESSIONS = {"marker-noise_horse2_canter": ("Horse 2", "canter"),
+                       "marker-noise_horse2_sitting_trot": ("Horse 2", "sitting_trot")}
+CRITERIA = ("gcv", "risk", "reml")
+#: ``--criteria --kept``: also the criteria with the correlated choice kept when it smooths a component to the
+#: penalty's null space (``pose.fit_pose_trajectory`` otherwise takes the noise as white then).
+KEPT_CRITERIA = ("risk kept", "reml kept")
+
+
+def _session_folder(name: str):
+    if name in HERD_NOISE_SESSIONS:
+        from bench_marker_noise import noisy_session           # the benchmark beside this one
+        from horsemocap.virtuallab.noise import MarkerNoise
+        return noisy_session(*HERD_NOISE_SESSIONS[name], MarkerNoise(0.1, 0.8, 0.05))
+    return cover_session(name)
+
+
+class _Criterion:
+    """The pose smoothing's criterion under correlated noise (:data:`horsemocap.pose.CORRELATED_NOISE_CRITERION`)
+    set to ``criterion`` while inside."""
+
+    def __init__(self, criterion: str):
+        self.criterion = criterion
+
+    def __enter__(self):
+        self.saved = pose.CORRELATED_NOISE_CRITERION, pose.NULL_SPACE_EDF
+        pose.CORRELATED_NOISE_CRITERION = self.criterion.split()[0]
+        if self.criterion.endswith("kept"):
+            pose.NULL_SPACE_EDF = -1.0         # a component smoothed to the null space no longer means white noise
+        return self
+
+    def __exit__(self, *exc):
+        pose.CORRELATED_NOISE_CRITERION, pose.NULL_SPACE_EDF = self.saved
+
+
+def run_criteria(name: str, draws: int, criteria=CRITERIA) -> str:
+    """Every marker, :data:`CRITERIA` on the same ``draws`` draws of synthetic noise: per draw A_y, Wb, Wk and
+    whether the correlated-noise smoothing ran, then the mean A_y and rms Wb, Wk of each criterion."""
+    folder = _session_folder(name)
+    truth = load_truth(folder)
+    a = analyze(folder, None, {}, until="motion_frame", progress=lambda *x: None)
+    keep = list(range(a.triangulate.points.shape[1]))
+    scale, rho = measured_noise(a, truth)
+    lines = [f"{name}: {draws} draws, {len(keep)} markers, the triangulation covariance x {scale:.2f}^2, AR(1) "
+             f"{rho:.2f} (measured on the render)"]
+    res = {c: [] for c in criteria}
+    for d in range(draws):
+        points = _synthetic_points(a, truth, scale, rho, seed=d)
+        text = f"  draw {d}:"
+        for c in criteria:
+            with _Criterion(c):
+                an = _analysis_of_points(a, points, keep)
+            ce = accuracy.comfort_errors(an.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
+            ay = accuracy.stage_errors(an, truth)["saddle_acc_y_rmse_pct_of_rms"]
+            choice = an.rigid_body.body.pose.smoothing_choice or {}
+            ran = ("correlated" if "noise_correlation" in choice else
+                   "white (fallback)" if "whole motion" in choice.get("reason", "") else "white")
+            res[c].append((ay, ce["acc_y_Wb_rms"], ce["acc_y_Wk_rms"], ran == "correlated"))
+            text += f"  [{c}] A_y {ay:5.1f} % Wb {ce['acc_y_Wb_rms']:+5.1f} % Wk {ce['acc_y_Wk_rms']:+5.1f} % {ran}"
+        print(text, flush=True)
+    for c, v in res.items():
+        v = np.array(v, float)
+        lines.append(f"  [{c}] mean A_y {v[:, 0].mean():.1f} % (sd {v[:, 0].std(ddof=1) if draws > 1 else np.nan:.1f})"
+                     f" rms Wb {np.sqrt(np.mean(v[:, 1] ** 2)):.1f} % rms Wk {np.sqrt(np.mean(v[:, 2] ** 2)):.1f} %"
+                     f"; correlated smoothing in {int(v[:, 3].sum())}/{draws} draws")
+    base = np.array(res["gcv"], float)
+    for c in criteria[1:]:
+        diff = np.array(res[c], float)[:, 0] - base[:, 0]
+        lines.append(f"  [{c}] minus [gcv]: A_y {diff.mean():+.1f} (se {diff.std(ddof=1) / np.sqrt(draws):.1f}) "
+                     f"points, lower in {int(np.sum(diff < 0))}/{draws} draws")
+    return "\n".join(lines)
+
+
+def _analysis_of_points(a, points, keep):
+    """``a`` with its triangulated points replaced by ``points`` cut to ``keep``, analysed from the smoothing on."""
+    cut = _Cut(keep, None)
+    segment = a.triangulate.segment
+    if len(keep) <= 3:
+        # three markers: the smoothing refuses a hidden one, so the record is cut to the frames the truth holds
+        have = np.flatnonzero(np.all(np.isfinite(points[:, keep]), axis=(1, 2)))
+        segment = (max(segment[0], int(have[0])), min(segment[1], int(have[-1]) + 1))
+    tri = cut._triangulate(a, dataclasses.replace(a.triangulate, points=points, segment=segment))
+    given = {n: getattr(a, n) for n in pipeline.STEPS}
+    given["triangulate"] = tri
+    return run_steps(a.session, a.params, given, ["smooth", "motion_frame", "rigid_body", "comfort"])
+
+
 def _model_text(a) -> str:
     mc = getattr(a.rigid_body.body, "model_choice", None)
     return "-" if mc is None else f"{mc.source} (p {mc.p_value:.2g})"
@@ -277,6 +373,11 @@ if __name__ == "__main__":
     cut = "--cut" in args
     draws = int(args[args.index("--draws") + 1]) if "--draws" in args else 0
     names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] != "--draws")]
+    if "--criteria" in args:
+        for n in names:
+            print(run_criteria(n, max(draws, 1), CRITERIA + (KEPT_CRITERIA if "--kept" in args else ())),
+                  flush=True)
+        sys.exit(0)
     for n in names or list(COVER_SESSIONS):
         if draws:
             if len(COVER_SESSIONS[n].horse().marker_body) > 3:

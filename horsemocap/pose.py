@@ -1568,9 +1568,43 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                           events=_pose_events(params.events, smoothing, order, f0))
     if correlated:
         spline_options["noise_correlation"] = choice["noise_correlation"]
+        if CORRELATED_NOISE_CRITERION == "reml":
+            spline_options["method"] = "reml"
+        elif CORRELATED_NOISE_CRITERION == "risk":
+            sig = _correlated_risk_noise(reg, model, points, choice)
+            spline_options["method"] = "noise" if sig[0] is not None else smoothing
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
+
+
+#: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
+#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"gcv"`` (default), the correlated-error GCV,
+#: which estimates the noise's level from the residual of the fit it chooses; ``"reml"``, restricted maximum
+#: likelihood with the residual's AR(1) correlation (``method="reml"`` of
+#: :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the signal's
+#: (better on the virtual laboratory's noise draws, far worse on two real clusters: ``benchmarks/README.md``);
+#: ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
+#: (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"`` with
+#: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual
+#: does not see the noise normal to their plane, the correlated-error GCV.
+CORRELATED_NOISE_CRITERION = "gcv"
+
+
+def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
+    """The six pose components' noise for the correlated-error unbiased risk, measured by the rigidity residual
+    (all None, the correlated-error GCV kept, with fewer than four markers or no residual); ``choice``'s reason
+    says which."""
+    markers = np.asarray(model).shape[0]
+    level = pose_noise(reg, points, model) if points is not None and markers >= 4 else np.full(6, np.nan)
+    if not np.all(np.isfinite(level) & (level > 0)):
+        why = (f"{markers} markers: their residual does not measure the noise normal to their plane" if markers < 4
+               else "no noise level measurable from the rigidity residual")
+        choice["smoothing_reason"] += f"; {why}: the correlated-error GCV kept"
+        return np.full(6, None)
+    choice["smoothing_reason"] += ("; smoothing by the unbiased risk with the noise's covariance known (its level "
+                                   "and AR(1) correlation from the rigidity residual)")
+    return level.astype(object)
 
 
 def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order: int,
@@ -2080,10 +2114,12 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
         The lag-1 autocorrelation of the markers' rigidity residual
         (:func:`rigidity_residual_correlation`). At or above
         :data:`NOISE_CORRELATION_THRESHOLD` (a real system's filtering, marker
-        wobble, skin), without events, the choice is ``"gcv_ar1"``: GCV with
-        that AR(1) error correlation (``noise_correlation`` of
-        :func:`horsemocap.splines.smoothing_spline`), without harmonics, since
-        plain GCV and the adaptive penalty both take slow noise for motion.
+        wobble, skin), without events, the choice is ``"gcv_ar1"``: the
+        smoothing chosen under that AR(1) error correlation
+        (``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`;
+        the criterion is :data:`CORRELATED_NOISE_CRITERION`, GCV by default),
+        without harmonics, since plain GCV and the adaptive penalty both take
+        slow noise for motion.
         Below it the reason records the value.
 
     Returns
@@ -2110,6 +2146,9 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
                                  "; no AR(1) noise correlation measurable from the rigidity residual, or none significant for "
                                  "the record's length: noise taken as white")
     if rho >= NOISE_CORRELATION_THRESHOLD and not (events is not None and len(events)):
+        if CORRELATED_NOISE_CRITERION == "reml":
+            return "gcv_ar1", (f"REML with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
+                               "(correlated-error smoothing, no harmonics)")
         return "gcv_ar1", (f"gcv with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
                            "(correlated-error GCV, no harmonics)")
     return method, reason + (f"; AR(1) noise correlation {rho:.2f} from the rigidity residual"

@@ -369,7 +369,8 @@ def reml_ar1_smoothing(t, y, correlations=None, m: int = 3) -> dict:
 
 def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correlation=None):
     """The quintic smoothing spline with ``lam`` chosen by GCV (``noise``: unbiased risk; ``correlation``:
-    the AR(1) coefficient of the noise, GCV with ``tr(H C)`` for ``tr(H)``, Opsomer, Wang and Yang 2001)."""
+    the AR(1) coefficient of the noise, GCV with ``tr(H C)`` for ``tr(H)``, Opsomer, Wang and Yang 2001; with
+    both, the unbiased risk with ``tr(H C)``)."""
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
@@ -404,9 +405,14 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correla
             return n * rss / max(n - gamma * float(np.sum(q / (1 + lmb * d))), 1e-9) ** 2
 
     if noise is not None:
-        def gcv(loglam):  # noqa: F811  (unbiased risk with the noise known: Mallows' C_p / UBRE)
-            _, rss, tr = fit(10.0 ** loglam)
-            return rss / n + 2 * noise ** 2 * tr / n
+        # unbiased risk with the noise known: Mallows' C_p / UBRE; with ``correlation`` its covariance is
+        # noise^2 C and the penalty on the fit's freedom is tr(H C) (the correlated-error C_p)
+        q = None if not correlation else np.einsum("ij,ij->j", Z, ar1_correlation_times(Z, float(correlation)))
+
+        def gcv(loglam):  # noqa: F811
+            lmb = 10.0 ** loglam
+            _, rss, tr = fit(lmb)
+            return rss / n + 2 * noise ** 2 * (tr if q is None else float(np.sum(q / (1 + lmb * d)))) / n
 
     if lam is None:
         # the scale of lam: penalty eigenvalues span many decades; search the range they give
@@ -894,9 +900,10 @@ def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None
         return
     if not (np.isfinite(rho) and -1 < rho < 1):
         raise ValueError(f"noise_correlation: expected a lag-1 autocorrelation in (-1, 1), got {rho!r}")
-    if method != "gcv" or order != 5 or fundamental_hz is not None or (events is not None and len(events)):
-        raise ValueError("noise_correlation: the correlated-error GCV is the quintic 'gcv' spline without "
-                         "harmonics or events only")
+    if (method not in ("gcv", "noise", "reml") or order != 5 or fundamental_hz is not None
+            or (events is not None and len(events))):
+        raise ValueError("noise_correlation: the correlated-error GCV and C_p are the quintic 'gcv' and 'noise' "
+                         "splines without harmonics or events only")
 
 
 def half_gain_frequency(lam: float, dt: float, mean_weight: float = 1.0) -> float:
@@ -973,7 +980,9 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         the first pass' local roughness; ``"noise"``: ``lam`` minimises the
         unbiased risk ``RSS/n + 2 noise^2 tr(H)/n`` (Mallows' C_p) with the
         sample noise ``noise`` measured elsewhere (e.g. from registration
-        residuals); ``"none"``: interpolating spline of the same order.
+        residuals); ``"reml"``: ``lam`` by restricted maximum likelihood
+        (:func:`reml_ar1_smoothing`, with the AR(1) ``noise_correlation`` given,
+        white without); ``"none"``: interpolating spline of the same order.
     noise : float
         Standard deviation of the samples' noise (``method="noise"``).
     order : 5 or 3
@@ -1022,6 +1031,9 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         GCV assumes independent errors and, with positively correlated ones, takes the slow
         noise for signal; with ``rho`` the criterion is ``n RSS / (n - gamma tr(H C))^2`` with
         ``C_ij = rho^|i-j|`` (correlated-error GCV, Opsomer, Wang and Yang 2001).
+        ``method="noise"``: the noise's covariance is ``noise^2 C``, known, and ``lam`` minimises
+        the unbiased risk ``RSS/n + 2 noise^2 tr(H C)/n`` (Mallows' C_p for correlated errors),
+        which estimates nothing about the noise from the data it smooths.
 
     Examples
     --------
@@ -1039,8 +1051,11 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         raise ValueError("t, y: samples must be finite (leave missing frames out)")
     if np.any(np.diff(x) <= 0):
         raise ValueError("t: times must increase")
-    if method not in ("gcv", "adaptive", "noise", "none"):
-        raise ValueError(f"method: expected 'gcv', 'adaptive', 'noise' or 'none', got {method!r}")
+    if method not in ("gcv", "adaptive", "noise", "reml", "none"):
+        raise ValueError(f"method: expected 'gcv', 'adaptive', 'noise', 'reml' or 'none', got {method!r}")
+    if method == "reml" and (order != 5 or fundamental_hz is not None or (events is not None and len(events))
+                             or weights is not None):
+        raise ValueError("method 'reml' is the quintic spline without harmonics, events or weights only")
     _check_noise_correlation(noise_correlation, method, order, fundamental_hz, events)
     if method == "noise" and not (noise is not None and np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise: method 'noise' needs a positive noise level, got {noise!r}")
@@ -1089,9 +1104,14 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
     if method == "noise":
         if order != 5:
             raise ValueError("method 'noise' is a quintic spline: order must be 5")
-        s, info = _quintic_gcv(x, y, w, lam, noise=noise)
+        s, info = _quintic_gcv(x, y, w, lam, noise=noise, correlation=noise_correlation)
     elif method == "adaptive":
         s, info = _adaptive(x, y, w, lam)
+    elif method == "reml":
+        if lam is None:
+            lam = reml_ar1_smoothing(x, y, correlations=[noise_correlation or 0.0])["lam"]
+        s, info = _quintic_gcv(x, y, w, lam, correlation=noise_correlation)
+        info["method"] = "reml"
     else:
         s, info = _quintic_gcv(x, y, w, lam, correlation=noise_correlation)
     return SmoothingSpline(s, info)
