@@ -1568,6 +1568,9 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                           events=_pose_events(params.events, smoothing, order, f0))
     if correlated:
         spline_options["noise_correlation"] = choice["noise_correlation"]
+        if CORRELATED_NOISE_CRITERION not in CORRELATED_NOISE_CRITERIA:
+            raise ValueError(f"pose.CORRELATED_NOISE_CRITERION: expected one of {CORRELATED_NOISE_CRITERIA}, "
+                             f"got {CORRELATED_NOISE_CRITERION!r}")
         if CORRELATED_NOISE_CRITERION == "reml":
             spline_options["method"] = "reml"
         elif CORRELATED_NOISE_CRITERION == "risk":
@@ -1589,6 +1592,8 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
 #: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual
 #: does not see the noise normal to their plane, the correlated-error GCV.
 CORRELATED_NOISE_CRITERION = "gcv"
+#: The criteria :data:`CORRELATED_NOISE_CRITERION` may name (another is refused when the correlated path runs).
+CORRELATED_NOISE_CRITERIA = ("gcv", "reml", "risk")
 
 
 def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:

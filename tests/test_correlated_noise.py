@@ -169,3 +169,13 @@ def test_reml_with_ar1_errors_refuses_bad_input():
         splines.reml_ar1_smoothing(t, np.sin(t), correlations=[1.0])
     with pytest.raises(ValueError, match="increasing"):
         splines.reml_ar1_smoothing(t[::-1], np.sin(t))
+
+
+def test_an_unknown_correlated_noise_criterion_is_refused_where_it_would_run(monkeypatch):
+    # a misspelt criterion must not silently run the correlated-error GCV
+    t, pts, markers, _, _ = _cluster_case(0, 0.8)
+    reg = pose.register_pose(pts, markers)
+    assert pose.fit_pose_trajectory(t, reg, markers, points=pts).smoothing_choice["method"] == "gcv_ar1"
+    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "rml")
+    with pytest.raises(ValueError, match="CORRELATED_NOISE_CRITERION"):
+        pose.fit_pose_trajectory(t, reg, markers, points=pts)
