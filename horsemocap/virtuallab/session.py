@@ -301,12 +301,7 @@ def render_motion_frame(scene: Scene, cam: Camera, k: int, offset: int, bg: np.n
         extra.draw(img, scene, cam, t, exposure_s)
     if noise:
         centres, _ = scene.marker_geometry(pose)
-        avoid = [tuple(p) for p in cam.project(centres[0])]
-        add_glints(img, rng, 5.0, avoid)
-        mk = cam.project(centres[0, :3])
-        if np.all(np.isfinite(mk)):
-            region = (mk[:, 0].min() - 45, mk[:, 1].min() - 25, mk[:, 0].max() + 45, mk[:, 1].max() + 25)
-            add_glints(img, rng, 1.2, avoid, region=region)
+        _add_marker_glints(img, cam, centres[0], rng)
     return finish(img, rng, noise=noise)
 
 
@@ -529,9 +524,15 @@ def _add_frame_glints(img, scene: Scene, cam: Camera, timing: CameraTiming, fram
     e = timing.exposure
     t_mid = float(frame_start + e / 2 + timing.field_delay_s / 2 + timing.rolling_shutter_s / 2)
     centres, _ = scene.marker_geometry(scene.motion.pose(np.array([t_mid])))
-    avoid = [tuple(p) for p in cam.project(centres[0])]
+    _add_marker_glints(img, cam, centres[0], rng)
+
+
+def _add_marker_glints(img, cam: Camera, centres, rng) -> None:
+    """Random small glints over the frame away from the markers' ``centres`` (m, 3), and more of them in a box
+    around the first three markers (the saddle's tack shines near them)."""
+    avoid = [tuple(p) for p in cam.project(centres)]
     add_glints(img, rng, 5.0, avoid)
-    mk = cam.project(centres[0, :3])
+    mk = cam.project(centres[:3])
     if np.all(np.isfinite(mk)):
         region = (mk[:, 0].min() - 45, mk[:, 1].min() - 25, mk[:, 0].max() + 45, mk[:, 1].max() + 25)
         add_glints(img, rng, 1.2, avoid, region=region)
