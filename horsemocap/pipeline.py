@@ -318,6 +318,10 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
             analysis.timings[name] = time.perf_counter() - t0
             if out_dir is not None and write_outputs:
                 result_files.write_available(Path(out_dir), analysis)
+            if name == "sync" and flash_search is not None:
+                # taken by the step, or not (its result reused from the store, a different search): either way
+                # nobody reads it any more, so it does not decode beside the later steps
+                flash_search.close(wanted=False)
         if after_step is not None:
             after_step(analysis, name)
         if name == until:

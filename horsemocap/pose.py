@@ -1353,6 +1353,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     ok = _check_pose_frames(t, reg)
     n = t.size
     lam = _check_smoothing_choices(params, lam)
+    if fundamental_hz is not None and not (np.isfinite(fundamental_hz) and fundamental_hz > 0):
+        raise ValueError(f"fundamental_hz: expected a stride frequency above 0 Hz, or None, got {fundamental_hz!r}")
     if settled is not None:
         lam = [s if g is None else g for g, s in zip(lam, settled.lam)]
         fundamental_hz = settled.fundamental_hz if fundamental_hz is None else fundamental_hz
@@ -1586,7 +1588,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
 #: which estimates the noise's level from the residual of the fit it chooses; ``"reml"``, restricted maximum
 #: likelihood with the residual's AR(1) correlation (``method="reml"`` of
 #: :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the signal's
-#: (better on the virtual laboratory's noise draws, far worse on two real clusters: ``benchmarks/README.md``);
+#: (how each fares on noise draws and on real clusters: ``benchmarks/README.md``);
 #: ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
 #: (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"`` with
 #: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual

@@ -46,7 +46,8 @@ from .frames import HORSE_STRIDE_HZ
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_image
 from .steps.base import longest_run
-from .uncertainty import StaticShotUncertainty, static_shot_uncertainty, written_saddle_sensitivity
+from .uncertainty import (StaticShotRefused, StaticShotUncertainty, static_shot_uncertainty,
+                          written_saddle_sensitivity)
 
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
@@ -1006,7 +1007,7 @@ def static_shot_of(analysis) -> StaticShotUncertainty | StaticShotSkipped:
         return static_shot_uncertainty(analysis.rig.rig, world, rb.static_order, rb.saddle_index, axes,
                                        tri.noise_px, G, written_saddle_acceleration(analysis),
                                        fs=float(analysis.session.fps), seen=_still_seen(analysis))
-    except ValueError as exc:
+    except StaticShotRefused as exc:       # the documented refusals; any other error is a fault, raised
         return StaticShotSkipped(str(exc))
 
 

@@ -963,6 +963,37 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
     return SmoothingSpline(s, info, harm)
 
 
+def _check_method_options(x, method: str, order: int, fundamental_hz, events, weights, noise, noise_correlation,
+                          harmonic_noise) -> None:
+    """:func:`smoothing_spline`'s method and the options it allows with it: a clear error for any other."""
+    if method not in ("gcv", "adaptive", "noise", "reml", "none"):
+        raise ValueError(f"method: expected 'gcv', 'adaptive', 'noise', 'reml' or 'none', got {method!r}")
+    if method == "reml" and (order != 5 or fundamental_hz is not None or (events is not None and len(events))
+                             or weights is not None):
+        raise ValueError("method 'reml' is the quintic spline without harmonics, events or weights only")
+    _check_noise_correlation(noise_correlation, method, order, fundamental_hz, events)
+    if method == "noise" and not (noise is not None and np.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise: method 'noise' needs a positive noise level, got {noise!r}")
+    if method == "adaptive" and order != 5:
+        raise ValueError("method 'adaptive' is a quintic spline: order must be 5")
+    if order not in (3, 5):
+        raise ValueError(f"order: expected 3 or 5, got {order!r}")
+    if harmonic_noise is not None and not (np.isfinite(harmonic_noise) and harmonic_noise >= 0):
+        raise ValueError(f"harmonic_noise: expected a finite noise level >= 0, got {harmonic_noise!r}")
+    if fundamental_hz is not None:
+        if not (np.isfinite(fundamental_hz) and fundamental_hz > 0):
+            raise ValueError(f"fundamental_hz: expected a positive frequency, got {fundamental_hz!r}")
+        if order != 5 or method not in ("gcv", "noise"):
+            raise ValueError("fundamental_hz: harmonics are fitted by the quintic 'gcv' or 'noise' spline only")
+    if events is not None and len(events):
+        ev = np.asarray(events, float)
+        if ev.ndim != 1 or not np.all(np.isfinite(ev)) or np.any((ev <= x[0]) | (ev >= x[-1])):
+            raise ChangePointError(f"events: expected finite times inside the record ({x[0]:.6g}, {x[-1]:.6g}), got {events!r}")
+        if order != 5 or method not in ("gcv", "adaptive") or fundamental_hz is not None:
+            raise ChangePointError("events: change points are fitted by the quintic 'gcv' or 'adaptive' spline "
+                             "without harmonics only")
+
+
 def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | None = None,
                      weights=None, noise: float | None = None, fundamental_hz: float | None = None,
                      max_harmonics: int = 10, harmonic_cutoff: bool = False,
@@ -1051,32 +1082,8 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         raise ValueError("t, y: samples must be finite (leave missing frames out)")
     if np.any(np.diff(x) <= 0):
         raise ValueError("t: times must increase")
-    if method not in ("gcv", "adaptive", "noise", "reml", "none"):
-        raise ValueError(f"method: expected 'gcv', 'adaptive', 'noise', 'reml' or 'none', got {method!r}")
-    if method == "reml" and (order != 5 or fundamental_hz is not None or (events is not None and len(events))
-                             or weights is not None):
-        raise ValueError("method 'reml' is the quintic spline without harmonics, events or weights only")
-    _check_noise_correlation(noise_correlation, method, order, fundamental_hz, events)
-    if method == "noise" and not (noise is not None and np.isfinite(noise) and noise > 0):
-        raise ValueError(f"noise: method 'noise' needs a positive noise level, got {noise!r}")
-    if method == "adaptive" and order != 5:
-        raise ValueError("method 'adaptive' is a quintic spline: order must be 5")
-    if order not in (3, 5):
-        raise ValueError(f"order: expected 3 or 5, got {order!r}")
-    if harmonic_noise is not None and not (np.isfinite(harmonic_noise) and harmonic_noise >= 0):
-        raise ValueError(f"harmonic_noise: expected a finite noise level >= 0, got {harmonic_noise!r}")
-    if fundamental_hz is not None:
-        if not (np.isfinite(fundamental_hz) and fundamental_hz > 0):
-            raise ValueError(f"fundamental_hz: expected a positive frequency, got {fundamental_hz!r}")
-        if order != 5 or method not in ("gcv", "noise"):
-            raise ValueError("fundamental_hz: harmonics are fitted by the quintic 'gcv' or 'noise' spline only")
-    if events is not None and len(events):
-        ev = np.asarray(events, float)
-        if ev.ndim != 1 or not np.all(np.isfinite(ev)) or np.any((ev <= x[0]) | (ev >= x[-1])):
-            raise ChangePointError(f"events: expected finite times inside the record ({x[0]:.6g}, {x[-1]:.6g}), got {events!r}")
-        if order != 5 or method not in ("gcv", "adaptive") or fundamental_hz is not None:
-            raise ChangePointError("events: change points are fitted by the quintic 'gcv' or 'adaptive' spline "
-                             "without harmonics only")
+    _check_method_options(x, method, order, fundamental_hz, events, weights, noise, noise_correlation,
+                          harmonic_noise)
     n = x.size
     w = np.ones(n) if weights is None else np.asarray(weights, float)
     if w.shape != (n,) or np.any(w <= 0):

@@ -75,6 +75,17 @@ MIN_WEIGHTED_FRAMES = 8
 FIT_STEP_M = 1e-3
 
 
+class StaticShotRefused(ValueError):
+    """The static shot gives no figure to carry: markers collinear, a point not finite or seen by fewer than
+    two cameras, or no frame with a finite sensitivity and acceleration (the check is skipped with this reason).
+
+    Examples
+    --------
+    >>> issubclass(StaticShotRefused, ValueError)
+    True
+    """
+
+
 @dataclass(frozen=True)
 class AccelerationUncertainty:
     """The parts of the saddle vertical acceleration's uncertainty (rms, m/s^2) and their total.
@@ -340,7 +351,7 @@ def saddle_offset_map(markers, saddle) -> np.ndarray:
     cross = np.stack([_skew(v) for v in p])                 # [p_i]x
     H = -np.einsum("kij,kjl->il", cross, cross)             # sum -[p_i]x^2
     if np.linalg.cond(H) > COLLINEAR_CONDITION:
-        raise ValueError("markers: collinear, the static shot defines no body frame")
+        raise StaticShotRefused("markers: collinear, the static shot defines no body frame")
     Hinv = np.linalg.inv(H)
     L = np.zeros((3, 3 * (k + 1)))
     L[:, 3 * k:] = np.eye(3)
@@ -571,13 +582,13 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     world = np.asarray(static_world, float)
     rows = [int(i) for i in marker_rows]
     if not np.isfinite(world[rows + [int(saddle_row)]]).all():
-        raise ValueError("static_world: the static shot's markers and saddle must be finite")
+        raise StaticShotRefused("static_world: the static shot's markers and saddle must be finite")
     axes = np.asarray(to_motion, float)
     used_rows = rows + [int(saddle_row)]
     seen_used = None if seen is None else {c: np.asarray(v, bool)[used_rows] for c, v in seen.items()}
     cov_world = still_point_covariance(rig, world[used_rows], noise_px, seen_used)
     if not np.isfinite(cov_world).all():
-        raise ValueError("static_world: a marker or the saddle of the static shot was seen by fewer than two "
+        raise StaticShotRefused("static_world: a marker or the saddle of the static shot was seen by fewer than two "
                          "cameras; its place has no covariance")
     cov = axes @ cov_world @ axes.T                          # motion frame, per point
     motion = world[rows + [int(saddle_row)]] @ axes.T
@@ -593,7 +604,7 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     ay = np.asarray(vertical_acceleration, float)
     ok = np.isfinite(sd_t) & np.isfinite(ay)
     if not ok.any():
-        raise ValueError("sensitivity, vertical_acceleration: no frame with both finite")
+        raise StaticShotRefused("sensitivity, vertical_acceleration: no frame with both finite")
     sd = float(np.sqrt(np.mean(var[ok])))
     rms = float(np.sqrt(np.mean(ay[ok] ** 2)))
     weighted = ({w: weighted_rms_sd_pct(g, offset_cov, ay, fs, w) for w in ("Wb", "Wk")} if fs else {})

@@ -179,3 +179,11 @@ def test_an_unknown_correlated_noise_criterion_is_refused_where_it_would_run(mon
     monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "rml")
     with pytest.raises(ValueError, match="CORRELATED_NOISE_CRITERION"):
         pose.fit_pose_trajectory(t, reg, markers, points=pts)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), 0.0, -1.5])
+def test_a_stride_frequency_that_is_not_one_is_refused_by_name(bad):
+    t, pts, markers, _, _ = _cluster_case(0, 0.8)
+    reg = pose.register_pose(pts, markers)
+    with pytest.raises(ValueError, match="fundamental_hz"):
+        pose.fit_pose_trajectory(t, reg, markers, points=pts, fundamental_hz=bad)

@@ -17,6 +17,7 @@ import pytest
 from horsemocap import cli, report, run, sync
 from horsemocap.data import default_session_dir
 from horsemocap.forking import EarlyCalls
+from horsemocap.pipeline import analyze
 from horsemocap.plots import figure_painter, report_figures
 from horsemocap.session import load_session
 from horsemocap.sources import FrameSource
@@ -328,3 +329,26 @@ def test_the_report_leaves_out_figures_it_cannot_describe_and_says_why(monkeypat
     figures, left_out = report._described_figures(None)
     assert [caption for _, caption in figures] == ["detect caption", "rigid_body caption"]
     assert len(left_out) == 1 and "'triangulate'" in left_out[0] and "KeyError" in left_out[0]
+
+
+class _UnmatchedSearch:
+    """An early search that is not the step's (its detections are None): records how it was closed."""
+
+    def __init__(self):
+        self.closed = []
+
+    def detections(self, sources, search_frames=None):
+        return None
+
+    def close(self, wanted=True):
+        self.closed.append(wanted)
+
+
+def test_the_analysis_ends_an_early_flash_search_once_the_sync_step_is_past():
+    # the step searched itself (the early search was another one): the early search must not decode beside
+    # the later steps until the run's end
+    search = _UnmatchedSearch()
+    seen = []
+    analyze(default_session_dir(), None, None, until="plumb", write_outputs=False, flash_search=search,
+            after_step=lambda analysis, name: seen.append((name, list(search.closed))))
+    assert dict(seen)["sync"] == [False] and search.closed == [False]

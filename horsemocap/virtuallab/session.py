@@ -468,7 +468,7 @@ def render_free_running_frame(scene: Scene, cam: Camera, k: int, frame_start: fl
     """Frame ``k`` of a free-running camera whose row 0 starts exposing at ``frame_start`` (s).
 
     Each field (one, progressive) is drawn at its own instants
-    (:func:`draw_field_image`). Glints, blur and noise as
+    (:func:`_draw_field_image`). Glints, blur and noise as
     :func:`render_motion_frame`; an interlaced frame's two field images are
     each blurred on their own and the frame takes each field's rows from
     its own (:func:`horsemocap.virtuallab.render.interlaced_readout`), as a
@@ -476,7 +476,7 @@ def render_free_running_frame(scene: Scene, cam: Camera, k: int, frame_start: fl
     """
     rng = _seed(scene.seed, 1, _cam_index(cam.name), k)
     fields = field_start_times(timing, frame_start)
-    images = [draw_field_image(scene, cam, start, timing, bg, noise=noise) for start in fields]
+    images = [_draw_field_image(scene, cam, start, timing, bg, noise=noise) for start in fields]
     if len(images) == 1:
         if noise:
             _add_frame_glints(images[0], scene, cam, timing, frame_start, rng)
@@ -490,8 +490,8 @@ def render_free_running_frame(scene: Scene, cam: Camera, k: int, frame_start: fl
     return interlaced_readout(images, [field_rows(timing, f, h) for f in range(len(images))], rng, noise=noise)
 
 
-def draw_field_image(scene: Scene, cam: Camera, start: float, timing: CameraTiming, bg: np.ndarray, *,
-                     noise: bool) -> np.ndarray:
+def _draw_field_image(scene: Scene, cam: Camera, start: float, timing: CameraTiming, bg: np.ndarray, *,
+                      noise: bool) -> np.ndarray:
     """The light of one field (or progressive frame) whose row 0 starts exposing at ``start`` (s), float RGB.
 
     The horse, markers and extras at their own instants
