@@ -116,7 +116,6 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field, replace
-from types import SimpleNamespace
 
 import numpy as np
 from scipy import stats
@@ -711,6 +710,10 @@ def unwrap_rotvec(phi) -> np.ndarray:
     return phi
 
 
+#: The six pose components, in the order of the splines (centroid, then rotation vector).
+POSE_COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+
+
 #: The largest rotation (rad) from the record's mean rotation for which the
 #: rotation vector is taken about that one fixed reference; beyond it the
 #: reference turns with the body (:func:`rotation_reference`).
@@ -982,7 +985,7 @@ class PoseTrajectory:
     @property
     def smoothing(self) -> dict:
         """Smoothing chosen per component: lambda, effective degrees of freedom, noise (data units)."""
-        names = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+        names = POSE_COMPONENTS
         return {nm: s.info for nm, s in zip(names, self.centre_splines + self.rotvec_splines)}
 
     @property
@@ -1453,13 +1456,19 @@ def stride_harmonics_left(trajectory: PoseTrajectory, fundamental_hz: float) -> 
     >>> bool(np.all(stride_harmonics_left(fits, 1.5) > 1e-3))
     True
     """
+    return _stride_p_values(trajectory.t, trajectory.registration, trajectory.rotvec_data,
+                            tuple(trajectory.centre_splines) + tuple(trajectory.rotvec_splines), fundamental_hz)
+
+
+def _stride_p_values(t, registration, rotvec_data, splines, fundamental_hz: float) -> np.ndarray:
+    """:func:`stride_harmonics_left` of the per-frame poses (``registration``'s centres, ``rotvec_data``) and
+    the six components' ``splines``: what a pose trajectory holds, before one is made of them."""
     # the whole grid of frames, NaN where there is no pose: the AR(1) prewhitening pairs only consecutive frames
-    ok = np.all(np.isfinite(np.asarray(trajectory.registration.rotation, float)), axis=(1, 2))
-    t = np.asarray(trajectory.t, float)
-    data = np.column_stack([np.asarray(trajectory.registration.centre, float),
-                            np.asarray(trajectory.rotvec_data, float)])
+    ok = np.all(np.isfinite(np.asarray(registration.rotation, float)), axis=(1, 2))
+    t = np.asarray(t, float)
+    data = np.column_stack([np.asarray(registration.centre, float), np.asarray(rotvec_data, float)])
     data[~ok] = np.nan
-    fitted = np.column_stack([s(t) for s in tuple(trajectory.centre_splines) + tuple(trajectory.rotvec_splines)])
+    fitted = np.column_stack([s(t) for s in splines])
     rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
     orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
     phase = 2 * np.pi * fundamental_hz * np.outer(t - t[0] if t.size else t, orders)
@@ -1506,8 +1515,7 @@ def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref,
                                        "given or found by another estimator (the record's own is not tested "
                                        "against itself)")
         return fitted
-    trajectory = SimpleNamespace(t=t, registration=reg, rotvec_data=fitted[1], centre_splines=cs, rotvec_splines=ps)
-    p_values = stride_harmonics_left(trajectory, stride_hz)
+    p_values = _stride_p_values(t, reg, fitted[1], tuple(cs) + tuple(ps), stride_hz)
     tested = f"at {stride_hz:.4g} Hz ({source})"
     if not np.isfinite(p_values).any():
         choice["smoothing_reason"] += f"; its residual too short to test for the stride's harmonics {tested}"
@@ -1525,9 +1533,6 @@ def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref,
               f"{STRIDE_RESIDUAL_LEVEL:g}): it took periodic motion for noise; noise taken as white")
     return fitted[:4] + ({"smoothing_method": "gcv", "smoothing_reason": reason},) + fitted[5:]
 
-
-#: The six pose components, in the order of the splines (centroid, then rotation vector).
-POSE_COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
 
 
 def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
@@ -1722,7 +1727,7 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
     True
     """
     info = trajectory.smoothing
-    names = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+    names = POSE_COMPONENTS
     choice = trajectory.smoothing_choice
     method = params.smoothing if choice is None else choice["method"]
     rho = None

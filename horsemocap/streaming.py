@@ -80,7 +80,7 @@ tens of kilohertz a microsecond is a few percent of a frame, and moving a time b
 frame changes a finite-difference velocity by about f relative, so the grid is taken only where that
 is at most 0.1 %."""
 
-COMPONENTS = ("cx", "cy", "cz", "phix", "phiy", "phiz")
+COMPONENTS = pose.POSE_COMPONENTS
 
 
 @dataclass(frozen=True)

@@ -115,7 +115,8 @@ def test_stride_left_by_the_correlated_choice_is_smoothed_again_as_white(trot_fi
 
 
 def _choice_with_p_values(monkeypatch, p_values, t, pts, reg, **kw):
-    monkeypatch.setattr(pose, "stride_harmonics_left", lambda traj, f0: np.asarray(p_values, float))
+    # the test's p-values in place of the F tests on the smoothed components' residuals
+    monkeypatch.setattr(pose, "_stride_p_values", lambda *args: np.asarray(p_values, float))
     return pose.fit_pose_trajectory(t, reg, MODEL, points=pts, **kw).smoothing_choice
 
 
