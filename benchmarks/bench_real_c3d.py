@@ -40,6 +40,7 @@ from scipy.signal import butter, filtfilt, freqz, savgol_coeffs, savgol_filter
 from scipy.spatial.transform import Rotation
 
 from horsemocap import io3d, pose, splines
+from horsemocap.accuracy import second_difference_rmse
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent / "data_samples" / "real_c3d"
@@ -129,9 +130,7 @@ def _rel(est, ref, inner):
 
 def _raw_error(position, raw_acc, inner, rate):
     """rms (m/s^2) of the second differences of ``position`` against the hidden marker's own (``raw_acc``)."""
-    est = np.diff(position, 2, axis=0) * rate ** 2
-    ok = inner[1:-1] & np.isfinite(est).all(1) & np.isfinite(raw_acc).all(1)
-    return float(np.sqrt(np.mean(np.sum((est[ok] - raw_acc[ok]) ** 2, 1))))
+    return second_difference_rmse(position, raw_acc, rate, inner)
 
 
 def _continuous(x):

@@ -192,6 +192,32 @@ def rmse_pct_of_rms(estimate: np.ndarray, true: np.ndarray) -> float:
     return float(100 * np.sqrt(np.nanmean(np.sum((e - x) ** 2, -1))) / np.sqrt(np.mean(np.sum(x ** 2, -1))))
 
 
+def second_difference_rmse(position, raw_acceleration, rate_hz: float, inside=None) -> float:
+    """rms (m/s^2) of an estimate's second differences against a measured marker's own.
+
+    A reference with no filter of its own: ``position`` (n, 3) of the
+    estimated point is differenced twice at the frame rate and compared,
+    frame by frame, with ``raw_acceleration`` (n - 2, 3), the measured
+    marker's second differences (their noise is common to every method
+    scored this way). Frames where either is not finite, or outside
+    ``inside`` (n,) bool, are left out.
+
+    Examples
+    --------
+    >>> t = np.arange(6) / 10.0
+    >>> truth = np.c_[t ** 2, 0 * t, 0 * t]                       # 2 m/s^2 along x
+    >>> raw = np.diff(truth, 2, axis=0) * 100.0
+    >>> second_difference_rmse(truth + np.c_[0 * t, 0.001 * (-1) ** np.arange(6), 0 * t], raw, 10.0)
+    0.4
+    """
+    est = np.diff(np.asarray(position, float), 2, axis=0) * rate_hz ** 2
+    raw = np.asarray(raw_acceleration, float)
+    ok = np.isfinite(est).all(1) & np.isfinite(raw).all(1)
+    if inside is not None:
+        ok &= np.asarray(inside, bool)[1:-1]
+    return float(np.sqrt(np.mean(np.sum((est[ok] - raw[ok]) ** 2, 1))))
+
+
 def offset_and_motion(estimate: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split a per-axis position error into its constant part and the rest.
 

@@ -403,14 +403,9 @@ estimates["Kabsch + Savitzky-Golay"] = (savgol_filter(predicted, 7, 3, axis=0),
                                         savgol_filter(predicted, 7, 3, deriv=2, delta=1 / rate, axis=0))
 
 
-def against_raw(position):
-    e = (np.diff(position, 2, axis=0) * rate ** 2 - raw_acc)[inside[1:-1]]
-    return np.sqrt(np.mean(np.sum(e ** 2, 1)))
-
-
 print(f"{'method':26s} {'vs filtered reference %':>24s} {'vs raw differences m/s2':>24s}")
 for name, (position, acc) in estimates.items():
-    print(f"{name:26s} {accuracy.rmse_pct_of_rms(acc[inside], ref_acc[inside]):24.1f} {against_raw(position):24.2f}")
+    print(f"{name:26s} {accuracy.rmse_pct_of_rms(acc[inside], ref_acc[inside]):24.1f} {accuracy.second_difference_rmse(position, raw_acc, rate, inside):24.2f}")
 print(f"auto chose: {fits['auto'].smoothing_choice['reason']}")
 print(f"leave one out chose s = {cv_info['cross_validation_decades']:g} (GCV's smoothing times 10^s)")
 
