@@ -285,15 +285,20 @@ def _run_analysis(session_dir: Path, out_dir: Path, args) -> int:
     _no_nul(("SESSION", str(session_dir)), ("--out", str(out_dir)), ("--params", args.params))
     session = load_session(session_dir)
     # forked first: before any thread, and before the parameters' check loads the detection's modules
-    painter = figure_painter() if not getattr(args, "no_report", False) else None
+    # held: matplotlib loads once the flash search is done (on two cores the search has the second one)
+    painter = figure_painter(hold=True) if not getattr(args, "no_report", False) else None
     board_views = flash_search = None
     try:
         # the search first: reading the parameters loads the detection's modules (SciPy)
-        flash_search = _early_flash_search(session)
+        flash_search = _early_flash_search(session, when_done=painter.start if painter is not None else None)
+        if flash_search is None and painter is not None:
+            painter.start()
         params = _analysis_params(session, args)
         if flash_search is not None and params.sync.offsets:
             flash_search.close(wanted=False)    # the parameters give the offsets: cancelled, not waited for
             flash_search = None
+            if painter is not None:
+                painter.start()
         board_views = _early_board_detection(session, out_dir, args)
         return _analyse_session(session, session_dir, out_dir, args, params, board_views, flash_search, painter)
     finally:
@@ -317,18 +322,19 @@ def _analysis_params(session, args):
     return params
 
 
-def _early_flash_search(session):
+def _early_flash_search(session, when_done=None):
     """The flash search of the session's videos, started before the analysis' modules are imported.
 
     Started unless ``session.json`` gives the offsets (None then); the
     caller cancels it when the parameters (the session's ``analysis``
-    object, ``--params``, ``--offsets``, ``--set``) give them.
+    object, ``--params``, ``--offsets``, ``--set``) give them. ``when_done``:
+    as :class:`horsemocap.sync.FlashSearch`.
     """
     from .sync import FlashSearch     # OpenCV, as load_session
 
     if session.sync_offsets:
         return None
-    return FlashSearch({c: session.motion[c] for c in session.cameras})
+    return FlashSearch({c: session.motion[c] for c in session.cameras}, when_done=when_done)
 
 
 def _analyse_session(session, session_dir: Path, out_dir: Path, args, params, board_views, flash_search=None,

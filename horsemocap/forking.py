@@ -127,6 +127,12 @@ class EarlyCalls:
     copy whose values nobody will read at once (it is killed, not waited
     for).
 
+    With ``hold=True`` the copy waits, forked but idle, until :meth:`start`
+    (or the first :meth:`submit`, or :meth:`results`) before it loads
+    ``module``: on two cores, work this process started beside it (a
+    search decoding videos) then has the other core to itself, and the
+    module loads after it.
+
     Examples
     --------
     >>> with EarlyCalls("math", "hypot") as calls:
@@ -134,27 +140,37 @@ class EarlyCalls:
     ...     calls.submit(5.0, 12.0)
     ...     calls.results()
     [5.0, 13.0]
+    >>> with EarlyCalls("math", "hypot", hold=True) as calls:
+    ...     calls.start()                         # the copy loads math now
+    ...     calls.submit(8.0, 15.0)
+    ...     calls.results()
+    [17.0]
     """
 
-    def __init__(self, module: str, function: str, fork: bool = True):
+    def __init__(self, module: str, function: str, fork: bool = True, hold: bool = False):
         self.module, self.function = module, function
         self._given: list = []
-        self._pid = self._args_fd = self._value_fd = None
+        self._pid = self._args_fd = self._value_fd = self._start_fd = None
         self._copy_failed = False
         self._unsent = bytearray()              # pickled arguments the pipe has not taken yet
         self._unsent_lock = threading.Lock()
         self._writer: threading.Thread | None = None
         if fork and can_fork():
-            self._fork()
+            self._fork(hold)
 
-    def _fork(self) -> None:
+    def _fork(self, hold: bool) -> None:
         args_r, args_w = os.pipe()
         value_r, value_w = os.pipe()
+        start_r, start_w = os.pipe() if hold else (None, None)
         pid = os.fork()
         if pid == 0:                                 # the copy: load, compute each call as it comes, send
             def work():
                 os.close(args_w)
                 os.close(value_r)
+                if start_r is not None:              # held: one byte (or the parent's end closed) starts it
+                    os.close(start_w)
+                    os.read(start_r, 1)
+                    os.close(start_r)
                 target = getattr(importlib.import_module(self.module), self.function)
                 values = []
                 with os.fdopen(args_r, "rb") as given:
@@ -169,8 +185,22 @@ class EarlyCalls:
             _child(work)
         os.close(args_r)
         os.close(value_w)
+        if start_r is not None:
+            os.close(start_r)
         os.set_blocking(args_w, False)              # submit writes what the pipe takes; the writer the rest
-        self._pid, self._args_fd, self._value_fd = pid, args_w, value_r
+        self._pid, self._args_fd, self._value_fd, self._start_fd = pid, args_w, value_r, start_w
+
+    def start(self) -> None:
+        """Let a held copy load its module now (nothing to do when it was not held, or was started);
+        safe from any thread."""
+        with self._unsent_lock:
+            fd, self._start_fd = self._start_fd, None
+        if fd is not None:
+            try:
+                os.write(fd, b"s")
+            except OSError:          # the copy has gone (seen in results): computed here
+                pass
+            os.close(fd)
 
     @property
     def forked(self) -> bool:
@@ -187,6 +217,7 @@ class EarlyCalls:
         self._given.append(args)
         if self._args_fd is None or self._copy_failed:
             return
+        self.start()
         data = pickle.dumps(args, protocol=pickle.HIGHEST_PROTOCOL)
         with self._unsent_lock:
             writing = bool(self._unsent)             # the writer is sending earlier arguments: after them
@@ -235,6 +266,7 @@ class EarlyCalls:
         """The values of every call given, in order: the copy's, or computed here."""
         values = None
         if self._value_fd is not None:
+            self.start()
             self._close_args()
             fd, self._value_fd = self._value_fd, None
             with os.fdopen(fd, "rb") as got:
@@ -267,6 +299,10 @@ class EarlyCalls:
         there is nothing left to end)."""
         if self._pid is not None:
             os.kill(self._pid, signal.SIGKILL)       # loading its module or computing values nobody will read
+        with self._unsent_lock:
+            fd, self._start_fd = self._start_fd, None
+        if fd is not None:
+            os.close(fd)
         if self._value_fd is not None:
             fd, self._value_fd = self._value_fd, None
             os.close(fd)

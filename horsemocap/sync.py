@@ -575,6 +575,10 @@ class FlashSearch:
         Camera -> its motion video or image folder, in the session's order.
     search_frames : int or None
         As :func:`flash_detections`.
+    when_done : callable, optional
+        Called without arguments by the search's thread when the search
+        ends (found, failed or cancelled): e.g. to start work that was held
+        back so as not to share the second core with the search.
 
     Examples
     --------
@@ -591,9 +595,10 @@ class FlashSearch:
     True
     """
 
-    def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES):
+    def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, when_done=None):
         self.videos = [(cam, Path(path)) for cam, path in videos.items()]
         self.search_frames = search_frames
+        self._when_done = when_done
         self._found, self._error = None, None
         self._cancel = threading.Event()
         self._thread = threading.Thread(target=self._run, name="horsemocap-flash-search", daemon=True)
@@ -607,6 +612,9 @@ class FlashSearch:
             self._found = None
         except BaseException as exc:  # given to the caller by detections()
             self._error = exc
+        finally:
+            if self._when_done is not None:
+                self._when_done()
 
     @property
     def cancelled(self) -> bool:

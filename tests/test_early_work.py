@@ -191,6 +191,69 @@ def test_early_calls_submit_never_waits_for_the_copy(slow_module):
     assert threading.active_count() == 1     # the thread writing the rest ended with the copy
 
 
+@pytest.fixture
+def module_that_says_when_loaded(tmp_path, monkeypatch):
+    """A module whose import writes the file ``loaded`` (in the process that imports it, a copy too)."""
+    flag = tmp_path / "loaded"
+    (tmp_path / "says_when_loaded.py").write_text(f"open({str(flag)!r}, 'w').close()\n"
+                                                  "def size(a):\n    return len(a)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return "says_when_loaded", flag
+
+
+@can_fork_here
+@pytest.mark.parametrize("how", ["start", "submit", "results"])
+def test_a_held_copy_loads_its_module_only_once_started(module_that_says_when_loaded, how):
+    module, flag = module_that_says_when_loaded
+    with EarlyCalls(module, "size", hold=True) as calls:
+        assert calls.forked
+        time.sleep(0.5)
+        assert not flag.exists()            # forked, idle: the module is not loaded yet
+        if how == "start":
+            calls.start()
+            calls.start()                   # once is enough; again does nothing
+            deadline = time.monotonic() + 30
+            while not flag.exists() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert flag.exists()
+        if how != "results":
+            calls.submit(b"abc")
+        assert calls.results() == ([3] if how != "results" else [])
+        assert flag.exists()
+
+
+@can_fork_here
+def test_a_held_copy_closed_unstarted_is_ended(module_that_says_when_loaded):
+    module, flag = module_that_says_when_loaded
+    calls = EarlyCalls(module, "size", hold=True)
+    pid = calls._pid
+    calls.close()
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
+    calls.start()                           # after the end: nothing to do
+    assert not flag.exists()
+
+
+def test_the_flash_search_says_when_it_is_done_found_failed_or_cancelled(tmp_path):
+    session = load_session(default_session_dir())
+    done = []
+    search = FlashSearch({c: session.motion[c] for c in session.cameras}, when_done=lambda: done.append("found"))
+    search.close()
+    assert done == ["found"]
+    dark = tmp_path / "dark"
+    dark.mkdir()
+    for k in range(12):
+        cv2.imwrite(str(dark / f"f{k:03d}.png"), np.full((48, 64), 20, np.uint8))
+    failed = FlashSearch({"left": dark}, when_done=lambda: done.append("failed"))
+    failed.close()
+    assert done == ["found", "failed"]
+    cancelled = FlashSearch({c: session.motion[c] for c in session.cameras},
+                            when_done=lambda: done.append("cancelled"))
+    cancelled.close(wanted=False)
+    cancelled._thread.join(30)
+    assert done == ["found", "failed", "cancelled"]
+
+
 @can_fork_here
 def test_early_calls_deliver_arguments_larger_than_the_pipe_in_order():
     with EarlyCalls("statistics", "fmean") as calls:
@@ -243,8 +306,8 @@ class _SearchRecorder:
     """In place of FlashSearch: records the searches started and how they were closed."""
     started: list = []
 
-    def __init__(self, videos, search_frames=None):
-        self.videos, self.closed = videos, []
+    def __init__(self, videos, search_frames=None, when_done=None):
+        self.videos, self.closed, self.when_done = videos, [], when_done
         _SearchRecorder.started.append(self)
 
     def close(self, wanted=True):
@@ -286,6 +349,44 @@ def test_the_command_line_ends_an_unused_flash_search_without_waiting_on_error_o
     for stop in (RuntimeError("the analysis failed"), KeyboardInterrupt()):
         started = early_run([], stop)
         assert len(started) == 1 and started[0].closed == [False]
+
+
+class _PainterRecorder:
+    """In place of the figure painter: records how it was made, started and closed."""
+    made: list = []
+
+    def __init__(self, hold=False):
+        self.hold, self.events = hold, []
+        _PainterRecorder.made.append(self)
+
+    def start(self):
+        self.events.append("start")
+
+    def close(self):
+        self.events.append("close")
+
+
+@pytest.mark.parametrize("extra", [[], ["--offsets", "left=8,middle=61,right=134"]])
+def test_the_command_line_holds_the_painter_until_the_flash_search_is_done(monkeypatch, tmp_path, extra):
+    # on two cores the search has the second one to itself; matplotlib loads after it (or at once when the
+    # parameters give the offsets and the search is cancelled)
+    monkeypatch.setattr(sync, "FlashSearch", _SearchRecorder)
+    monkeypatch.setattr(cli, "figure_painter", _PainterRecorder)
+    _SearchRecorder.started, _PainterRecorder.made = [], []
+    seen = []
+
+    def analyse(session, session_dir, out_dir, args, params, board_views, flash_search=None, painter=None):
+        seen.append(list(painter.events))
+        return 0
+    monkeypatch.setattr(cli, "_analyse_session", analyse)
+    assert cli.main(["analyze", str(default_session_dir()), "--out", str(tmp_path / "out"), *extra]) == 0
+    (painter,), (search,) = _PainterRecorder.made, _SearchRecorder.started
+    assert painter.hold
+    if extra:
+        assert seen == [["start"]] and search.closed[0] is False
+    else:
+        assert seen == [[]] and search.when_done == painter.start
+    assert painter.events[-1] == "close"
 
 
 def test_the_command_line_starts_no_flash_search_when_the_session_gives_the_offsets(tmp_path, monkeypatch):

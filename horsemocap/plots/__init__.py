@@ -31,11 +31,12 @@ from ..forking import EarlyCalls
 REPORT_FIGURES = (f"{__name__}.report_figures", "draw_pngs")
 
 
-def figure_painter(fork: bool = True) -> EarlyCalls:
+def figure_painter(fork: bool = True, hold: bool = False) -> EarlyCalls:
     """The calls that will draw the report's figures (:data:`REPORT_FIGURES`): forked now where that is
     safe, so that matplotlib loads beside the analysis; give it the descriptions of
     :func:`horsemocap.report.step_figures`, step by step as the steps end (or those of
-    :func:`horsemocap.report.report_figures` at once).
+    :func:`horsemocap.report.report_figures` at once). ``hold=True``: matplotlib loads only once
+    ``start()`` is called (or the first figures are given), see :class:`horsemocap.forking.EarlyCalls`.
 
     Examples
     --------
@@ -44,7 +45,7 @@ def figure_painter(fork: bool = True) -> EarlyCalls:
     ...     painter.results()
     [[]]
     """
-    return EarlyCalls(*REPORT_FIGURES, fork=fork)
+    return EarlyCalls(*REPORT_FIGURES, fork=fork, hold=hold)
 
 #: The sub-modules, by name.
 _SUBMODULES = tuple(info.name for info in pkgutil.iter_modules(__path__))
