@@ -106,27 +106,29 @@ def frame_shift_residuals(camera, points: np.ndarray, frames, first: int, shifts
     inside = np.all(np.isfinite(proj), axis=-1) & (proj[..., 0] >= 0) & (proj[..., 0] <= W - 1) \
         & (proj[..., 1] >= 0) & (proj[..., 1] <= H - 1)
     dist = np.full((len(shifts), len(sample), points.shape[1]), np.nan)
-    need: dict[int, list] = {}
-    for si, d in enumerate(shifts):
-        for i, k in enumerate(sample):
-            j = int(k + d)
-            if first <= j < first + len(frames) and inside[i].any():
-                need.setdefault(j, []).append((si, i))
+    # the frames each (shift, sampled frame) reads: every pair reading frame j is measured in one pass
+    read = sample[None, :] + shifts[:, None]
+    wanted = (read >= first) & (read < first + len(frames)) & inside.any(axis=1)[None, :]
+    pair_shift, pair_sample = np.nonzero(wanted)
+    pair_frame = read[pair_shift, pair_sample]
+    seen_uv = [proj[i][inside[i]] for i in range(len(sample))]
+    seen_marker = [np.flatnonzero(inside[i]) for i in range(len(sample))]
+    counts = inside.sum(axis=1)
     margin = 2.0 * miss_px
-    for j in sorted(need):
-        rows = need[j]
-        uv = np.concatenate([proj[i][inside[i]] for _, i in rows])
+    for j in np.unique(pair_frame):
+        at_j = pair_frame == j
+        rows_shift, rows_sample = pair_shift[at_j], pair_sample[at_j]
+        uv = np.concatenate([seen_uv[i] for i in rows_sample])
         lo, hi = np.floor(uv.min(axis=0) - margin), np.ceil(uv.max(axis=0) + margin)
         crop = (max(0, lo[0]), max(0, lo[1]), min(W, hi[0] + 1), min(H, hi[1] + 1))
-        cands = frame_candidates(frames[j - first], threshold, area_range, min_circularity, crop=crop,
+        cands = frame_candidates(frames[int(j) - first], threshold, area_range, min_circularity, crop=crop,
                                  centroid=centroid)
-        for si, i in rows:
-            p = proj[i][inside[i]]
-            if len(cands):
-                dd = np.min(np.linalg.norm(p[:, None] - cands.centre[None], axis=-1), axis=1)
-            else:
-                dd = np.full(len(p), miss_px)
-            dist[si, i, np.flatnonzero(inside[i])] = np.minimum(dd, miss_px)
+        if len(cands):
+            dd = np.min(np.linalg.norm(uv[:, None] - cands.centre[None], axis=-1), axis=1)
+        else:
+            dd = np.full(len(uv), miss_px)
+        dist[np.repeat(rows_shift, counts[rows_sample]), np.repeat(rows_sample, counts[rows_sample]),
+             np.concatenate([seen_marker[i] for i in rows_sample])] = np.minimum(dd, miss_px)
     n_points = int(inside.sum())
     with np.errstate(all="ignore"):
         med = np.array([np.nanmedian(dist[si]) if np.isfinite(dist[si]).any() else np.nan
