@@ -86,6 +86,23 @@ def run_beside(tasks) -> list:
     return [out[i] if i in out else task() for i, task in enumerate(tasks)]
 
 
+def fork_call(work) -> int:
+    """Fork a copy of this process that runs ``work()`` and leaves at once (no cleanup of this process';
+    exit status 0 only when ``work`` finished); returns the copy's process id. Call it only where
+    :func:`can_fork` says a copy is safe.
+
+    Examples
+    --------
+    >>> pid = fork_call(lambda: None)
+    >>> os.waitpid(pid, 0)[1]
+    0
+    """
+    pid = os.fork()
+    if pid == 0:
+        _child(work)
+    return pid
+
+
 def _child(work) -> None:
     """A forked copy's whole life: ``work()``, then leave at once without the parent's cleanup (exit status 0
     only when ``work`` finished; an error is seen by the parent as a copy that delivered nothing)."""

@@ -89,6 +89,69 @@ _COUNTS_LOCK = threading.Lock()
 _OPENED: set = set()
 
 
+@dataclass(frozen=True)
+class DecodedFrames:
+    """The gray video frames a process decoded and shares, copied into one buffer for another process.
+
+    Made by :func:`export_decoded` in the process that decoded them (a forked
+    copy searching the flash), given to :func:`import_decoded` in the one
+    that reads them next: the frames are not decoded again there, and what
+    each process knows of its videos (frame counts, files checked) goes with
+    them.
+
+    Attributes
+    ----------
+    frames : tuple
+        ``(video, index, shape, offset)`` per frame, in the order they were
+        kept (``video``: the file's key, path, modification time and size).
+    counts : dict
+        Video key -> its frame counts (declared, decodable).
+    opened : frozenset
+        Video keys of the files found to open and decode.
+    """
+
+    frames: tuple
+    counts: dict
+    opened: frozenset
+
+
+def export_decoded(buffer) -> DecodedFrames:
+    """The pinned gray frames this process shares (see :class:`_SharedGray`), copied into ``buffer`` (a
+    writable buffer, e.g. a shared ``mmap`` made before a fork) in the order they were kept, as many as fit.
+
+    Examples
+    --------
+    >>> import mmap
+    >>> export_decoded(mmap.mmap(-1, 4096)).frames        # nothing decoded in this process yet
+    ()
+    """
+    view = np.frombuffer(buffer, np.uint8)
+    with _SHARED.lock:
+        pinned = [(key, f) for key, f in _SHARED.frames.items() if key in _SHARED.pinned]
+    entries, offset = [], 0
+    for (video, index), frame in pinned:
+        if offset + frame.nbytes > len(view):
+            break
+        view[offset:offset + frame.nbytes] = frame.reshape(-1)
+        entries.append((video, index, frame.shape, offset))
+        offset += frame.nbytes
+    with _COUNTS_LOCK:
+        return DecodedFrames(tuple(entries), dict(_COUNTS), frozenset(_OPENED))
+
+
+def import_decoded(decoded: DecodedFrames, buffer) -> None:
+    """Share in this process the frames :func:`export_decoded` copied into ``buffer`` (read in place, kept
+    pinned as if decoded here, in the same order) and what the other process knew of the videos."""
+    view = np.frombuffer(buffer, np.uint8)
+    for video, index, shape, offset in decoded.frames:
+        frame = view[offset:offset + int(np.prod(shape))].reshape(shape)
+        _SHARED.put(video, index, frame, pinned=True)
+    with _COUNTS_LOCK:
+        for key, counts in decoded.counts.items():
+            _COUNTS.setdefault(key, counts)
+        _OPENED.update(decoded.opened)
+
+
 class SourceError(ValueError):
     """A camera source that cannot be opened or read."""
 

@@ -29,7 +29,10 @@ frame index, in each camera's own source, of the same instant (the flash);
 """
 from __future__ import annotations
 
+import mmap
 import os
+import pickle
+import signal
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -38,7 +41,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .sources import FrameSource, SourceError
+from .forking import can_fork, fork_call
+from .sources import SHARED_GRAY_BYTES, FrameSource, SourceError, export_decoded, import_decoded
 
 #: Frames searched from the start of each source when none are given (20 s at 30 fps).
 DEFAULT_SEARCH_FRAMES = 600
@@ -552,14 +556,23 @@ class _CancellableSource(FrameSource):
 
 
 class FlashSearch:
-    """:func:`flash_detections` of a session's motion videos, started in a thread before the analysis needs it.
+    """:func:`flash_detections` of a session's motion videos, started before the analysis needs it.
 
     ``horsemocap analyze`` starts it as soon as the session is read, so the
-    videos are decoded (OpenCV decodes without holding the GIL) while the
-    interpreter loads the analysis' modules; the sync step takes the
-    detections from it (:meth:`detections`) when it searches the same videos
-    the same way, and the frames it decoded are shared with the detection as
-    those of a search made in the step.
+    videos are decoded while the interpreter loads the analysis' modules;
+    the sync step takes the detections from it (:meth:`detections`) when it
+    searches the same videos the same way, and the frames it decoded are
+    shared with the detection as those of a search made in the step.
+
+    Where a forked copy of the process is safe (:func:`horsemocap.forking.can_fork`)
+    the search runs in one: its work in Python (the frames' comparison, a
+    third of it) then never waits for the interpreter lock the loading of
+    modules holds, nor holds it back. The copy decodes the frames and
+    copies those the process shares (:data:`horsemocap.sources.SHARED_GRAY_BYTES`)
+    into memory both see, so this process reads them as if it had decoded
+    them (:func:`horsemocap.sources.import_decoded`); a copy that ends
+    without a result leaves the search to the sync step. Elsewhere the
+    search runs in a thread.
 
     The cameras are searched one after another on a machine of two cores
     (one reader per core beyond the one left to the interpreter loading the
@@ -567,7 +580,8 @@ class FlashSearch:
 
     A search whose result nobody will read (the run ended early, or the
     offsets turned out to be given) is ended by ``close(wanted=False)``:
-    it stops before its next frame, without being waited for.
+    it stops (the copy is killed; the thread before its next frame),
+    without being waited for.
 
     Parameters
     ----------
@@ -576,9 +590,11 @@ class FlashSearch:
     search_frames : int or None
         As :func:`flash_detections`.
     when_done : callable, optional
-        Called without arguments by the search's thread when the search
+        Called without arguments by a thread of the search when the search
         ends (found, failed or cancelled): e.g. to start work that was held
         back so as not to share the second core with the search.
+    fork : bool
+        Search in a forked copy where that is safe (else in a thread).
 
     Examples
     --------
@@ -595,23 +611,73 @@ class FlashSearch:
     True
     """
 
-    def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, when_done=None):
+    def __init__(self, videos: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES, when_done=None,
+                 fork: bool = True):
         self.videos = [(cam, Path(path)) for cam, path in videos.items()]
         self.search_frames = search_frames
         self._when_done = when_done
         self._found, self._error = None, None
         self._cancel = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="horsemocap-flash-search", daemon=True)
+        self._pid, self._pid_lock = None, threading.Lock()
+        target = self._run
+        if fork and can_fork():
+            self._fork()
+            target = self._collect
+        self._thread = threading.Thread(target=target, name="horsemocap-flash-search", daemon=True)
         self._thread.start()
+
+    def _search(self, cancel=None) -> dict:
+        sources = {cam: _CancellableSource(path, cancel=cancel) for cam, path in self.videos}
+        return flash_detections(sources, self.search_frames, readers=(os.cpu_count() or 1) - 1)
 
     def _run(self) -> None:
         try:
-            sources = {cam: _CancellableSource(path, cancel=self._cancel) for cam, path in self.videos}
-            self._found = flash_detections(sources, self.search_frames, readers=(os.cpu_count() or 1) - 1)
+            self._found = self._search(self._cancel)
         except FlashSearchCancelled:
             self._found = None
         except BaseException as exc:  # given to the caller by detections()
             self._error = exc
+        finally:
+            if self._when_done is not None:
+                self._when_done()
+
+    def _fork(self) -> None:
+        """The copy that searches: it sends ``(outcome, decoded)`` pickled through a pipe, the frames in
+        ``self._shared`` (memory both processes see, made before the fork)."""
+        self._shared = mmap.mmap(-1, max(_shared_bytes(self.videos, self.search_frames), mmap.PAGESIZE))
+        read_end, write_end = os.pipe()
+
+        def work():
+            os.close(read_end)
+            try:
+                outcome = ("found", self._search())
+            except BaseException as exc:  # raised by detections() in the parent
+                outcome = ("error", _picklable(exc))
+            decoded = export_decoded(self._shared)
+            with os.fdopen(write_end, "wb") as sent:
+                pickle.dump((outcome, decoded), sent, protocol=pickle.HIGHEST_PROTOCOL)
+        self._pid = fork_call(work)
+        os.close(write_end)
+        self._result_fd = read_end
+
+    def _collect(self) -> None:
+        """The thread waiting for the copy: its detections or error, and its decoded frames shared here."""
+        try:
+            with os.fdopen(self._result_fd, "rb") as got:
+                data = got.read()
+            with self._pid_lock:
+                pid, self._pid = self._pid, None
+            status = os.waitpid(pid, 0)[1] if pid is not None else None
+            if data and status == 0 and not self.cancelled:
+                (kind, value), decoded = pickle.loads(data)
+                import_decoded(decoded, self._shared)
+                if kind == "found":
+                    self._found = value
+                else:
+                    self._error = value
+            # else killed (cancelled) or lost: no detections, the sync step searches itself
+        except BaseException:  # noqa: BLE001 - a result that cannot be read: the step searches itself
+            self._found = self._error = None
         finally:
             if self._when_done is not None:
                 self._when_done()
@@ -623,7 +689,7 @@ class FlashSearch:
 
     def detections(self, sources: dict, search_frames: int | None = DEFAULT_SEARCH_FRAMES) -> dict | None:
         """``flash_detections(sources, search_frames)`` if this search is that one (waits for it), else None
-        (also when the search was cancelled).
+        (also when the search was cancelled, or its copy ended without a result).
 
         Its error (a video that cannot be decoded, no flash in a camera) is
         raised here, as the search in the step would raise it.
@@ -639,11 +705,36 @@ class FlashSearch:
 
     def close(self, wanted: bool = True) -> None:
         """End the search: ``wanted``, wait for it (its result is kept for :meth:`detections`); else
-        cancel it (it stops before its next frame) and return at once."""
+        cancel it (the copy is killed, the thread stops before its next frame) and return at once."""
         if wanted and not self.cancelled:
             self._thread.join()
-        else:
-            self._cancel.set()
+            return
+        self._cancel.set()
+        with self._pid_lock:
+            if self._pid is not None:       # not yet reaped by the collecting thread, which reaps it
+                os.kill(self._pid, signal.SIGKILL)
+
+
+def _shared_bytes(videos, search_frames) -> int:
+    """Bytes of the decoded gray frames a search of ``videos`` shares with this process (at most
+    :data:`horsemocap.sources.SHARED_GRAY_BYTES`; image folders share none)."""
+    total = 0
+    for _, path in videos:
+        try:
+            source = FrameSource(path)
+            total += source.gray_bytes(search_frames) if source.is_video else 0
+        except (SourceError, OSError):        # the search reports it
+            pass
+    return min(total, SHARED_GRAY_BYTES)
+
+
+def _picklable(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling, else a :class:`RuntimeError` with its type and message."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:  # noqa: BLE001
+        return RuntimeError(f"{type(exc).__name__}: {exc}")
 
 
 #: Decoded gray frames the flash searches of several cameras may hold at once (bytes): about what one

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from horsemocap import cli, report, run, sync
+from horsemocap import cli, report, run, sources, sync
 from horsemocap.data import default_session_dir
 from horsemocap.forking import EarlyCalls
 from horsemocap.pipeline import analyze
@@ -130,14 +130,85 @@ def test_the_early_flash_search_finds_what_the_step_would():
     assert search.detections(dict(reversed(list(sources.items())))) is None
 
 
-def test_the_early_flash_search_raises_its_error_when_asked(tmp_path):
+@pytest.mark.parametrize("fork", [True, False])
+def test_the_early_flash_search_raises_its_error_when_asked(tmp_path, fork):
     dark = tmp_path / "dark"
     dark.mkdir()
     for k in range(12):
         cv2.imwrite(str(dark / f"f{k:03d}.png"), np.full((48, 64), 20, np.uint8))
-    search = FlashSearch({"left": dark})
+    search = FlashSearch({"left": dark}, fork=fork)
     with pytest.raises(SyncError, match="camera 'left'.*no flash found"):
         search.detections({"left": FrameSource(dark)})
+
+
+def _flash_video(path, frames=40, flash_at=17):
+    """A small MJPEG video: dark, a light switched on at ``flash_at``."""
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120))
+    for k in range(frames):
+        image = np.full((120, 160, 3), 20, np.uint8)
+        if k >= flash_at:
+            image[40:60, 70:90] = 230
+        out.write(image)
+    out.release()
+    return path
+
+
+@can_fork_here
+def test_a_forked_flash_search_shares_its_decoded_frames_as_a_thread_would(tmp_path, monkeypatch):
+    """The copy's frames read here in place, pinned in the same order; the detections those of a thread."""
+    videos = {"left": _flash_video(tmp_path / "left.avi"), "right": _flash_video(tmp_path / "right.avi", 40, 23)}
+    found = {}
+    for fork in (True, False):
+        shared = sources._SharedGray(sources.SHARED_GRAY_BYTES)
+        monkeypatch.setattr(sources, "_SHARED", shared)
+        monkeypatch.setattr(sources, "_OPENED", set())
+        monkeypatch.setattr(sources, "_COUNTS", {})
+        done = []
+        search = FlashSearch(videos, when_done=lambda: done.append(os.getpid()), fork=fork)
+        assert (search._thread.name, hasattr(search, "_shared")) == ("horsemocap-flash-search", fork)
+        found[fork] = search.detections({c: FrameSource(p) for c, p in videos.items()})
+        assert done == [os.getpid()]
+        assert len(shared.frames) == len(shared.pinned) == 80
+        assert [key[1] for key in shared.frames] == list(range(40)) * 2
+        found[fork, "frames"] = [f.copy() for f in shared.frames.values()]
+        assert len(sources._OPENED) == 2 and len(sources._COUNTS) == 2
+    assert {c: d.frame for c, d in found[True].items()} == {c: d.frame for c, d in found[False].items()} \
+        == {"left": 17, "right": 23}
+    assert all(np.array_equal(found[True][c].signal, found[False][c].signal) for c in videos)
+    assert all(np.array_equal(a, b) for a, b in zip(found[True, "frames"], found[False, "frames"]))
+
+
+@can_fork_here
+def test_a_forked_flash_search_keeps_no_more_frames_than_the_process_shares(tmp_path, monkeypatch):
+    video = _flash_video(tmp_path / "left.avi")
+    frame_bytes = 160 * 120
+    monkeypatch.setattr(sources, "_SHARED", sources._SharedGray(10 * frame_bytes))
+    monkeypatch.setattr(sync, "SHARED_GRAY_BYTES", 10 * frame_bytes)
+    search = FlashSearch({"left": video})
+    assert len(search._shared) == 10 * frame_bytes
+    assert search.detections({"left": FrameSource(video)})["left"].frame == 17
+    assert [key[1] for key in sources._SHARED.frames] == list(range(30, 40))     # the last ones, as a thread's
+
+
+@can_fork_here
+def test_a_forked_flash_search_cancelled_is_killed_and_one_lost_leaves_the_search_to_the_step(
+        tmp_path, monkeypatch):
+    video = _flash_video(tmp_path / "left.avi")
+    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: time.sleep(60))
+    done = []
+    search = FlashSearch({"left": video}, when_done=lambda: done.append(True))
+    pid = search._pid
+    started = time.perf_counter()
+    search.close(wanted=False)
+    search._thread.join(10)
+    assert time.perf_counter() - started < 10 and done == [True]
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
+    assert search.detections({"left": FrameSource(video)}) is None
+    # a copy that dies without a result: no detections and no error (the sync step searches itself)
+    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: os._exit(3))
+    lost = FlashSearch({"left": video})
+    assert lost.detections({"left": FrameSource(video)}) is None
 
 
 def test_the_command_exempts_its_objects_from_the_collector_at_its_end_and_a_call_does_not(tmp_path):
@@ -285,7 +356,7 @@ def test_a_flash_search_closed_unwanted_is_not_waited_for_and_stops_between_fram
         cv2.imwrite(str(tmp_path / camera / "f000.png"), np.full((24, 32), 20, np.uint8))
     monkeypatch.setattr(os, "cpu_count", lambda: 2)      # one camera after the other
     allow, yielded = _gated_frames(monkeypatch)
-    search = FlashSearch({c: tmp_path / c for c in ("left", "right")}, search_frames=40)
+    search = FlashSearch({c: tmp_path / c for c in ("left", "right")}, search_frames=40, fork=False)
     allow.release()
     while not yielded:
         time.sleep(0.01)
