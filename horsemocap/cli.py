@@ -22,6 +22,12 @@ from .params import ParamField, params_fields, ParamsError, read_params, resolve
 from .plots import figure_painter
 from .readable import hours_minutes
 
+#: Allocations between two collections of the garbage collector's youngest generation in the command's
+#: process (Python's default is 700): the run loads about a thousand modules and builds few reference
+#: cycles, and with the default the collector walks the loaded modules' objects again and again (about
+#: 250 collections, two of them of every object, in the bundled demo).
+COMMAND_GC_ALLOCATIONS = 10_000
+
 DESCRIPTION = """\
 horsemocap: saddle motion analysis of horses with a 3-camera vision system
 (a reproduction of G. Dogan, METU 2009). Every step chooses its parameters
@@ -844,13 +850,16 @@ def main(argv=None) -> int:
     results folder as it was before the run; 3 = results written, verdict unreliable.
 
     ``argv`` None: the command line of the process, which ends when this
-    returns (its objects are then exempted from the garbage collector:
+    returns (the garbage collector runs every :data:`COMMAND_GC_ALLOCATIONS`
+    allocations, and at the end the objects are exempted from it:
     :func:`gc.freeze`); a list: a call from Python, which leaves the collector
     as it was."""
     import signal
     import traceback
 
     program = argv is None       # the command itself (not a call from Python): the process ends with it
+    if program:
+        gc.set_threshold(max(COMMAND_GC_ALLOCATIONS, gc.get_threshold()[0]), *gc.get_threshold()[1:])
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)  # a bad option: argparse's usage line, exit status 2
     debug = bool(getattr(args, "debug", False))

@@ -211,16 +211,17 @@ def test_a_forked_flash_search_cancelled_is_killed_and_one_lost_leaves_the_searc
     assert lost.detections({"left": FrameSource(video)}) is None
 
 
-def test_the_command_exempts_its_objects_from_the_collector_at_its_end_and_a_call_does_not(tmp_path):
-    frozen = gc.get_freeze_count()
+def test_the_command_collects_garbage_less_often_and_exempts_its_objects_at_its_end_and_a_call_does_not(
+        tmp_path):
+    frozen, threshold = gc.get_freeze_count(), gc.get_threshold()
     assert cli.main(["analyze", str(tmp_path / "no-such-session"), "--out", str(tmp_path / "out")]) == 2
-    assert gc.get_freeze_count() == frozen
+    assert gc.get_freeze_count() == frozen and gc.get_threshold() == threshold
     code = ("import gc, sys\nfrom horsemocap.cli import main\n"
             f"sys.argv = ['horsemocap', 'analyze', {str(tmp_path / 'no-such-session')!r}, '--out', "
             f"{str(tmp_path / 'out')!r}]\n"
-            "code = main()\nprint(code, gc.get_freeze_count() > 0)\n")
+            "code = main()\nprint(code, gc.get_freeze_count() > 0, gc.get_threshold()[0])\n")
     got = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert got.stdout.split() == ["2", "True"]
+    assert got.stdout.split() == ["2", "True", str(cli.COMMAND_GC_ALLOCATIONS)]
     assert "no-such-session" in got.stderr
 
 
