@@ -575,7 +575,7 @@ def many_main():
              "per-component factors on white-noise GCV's parameters); peers: Kabsch of the visible markers + SG / BW.",
              "",
              f"{'case':24s} {'frames':>6s} {'gcv acc':>8s} {'gcv w':>6s} {'loo acc':>8s} {'loo w':>6s} {'SG acc':>7s} "
-             f"{'BW acc':>7s} | raw: {'gcv':>7s} {'loo':>7s} {'SG':>7s} {'BW':>7s} | loo s  chosen"]
+             f"{'BW acc':>7s} | raw: {'gcv':>7s} {'loo':>7s} {'SG':>7s} {'BW':>7s} | loo run (s), chosen (loo: s per component)"]
     for case in MANY_CASES:
         r = run_many(*case)
         lines.append(f"{r['case']:24s} {r['frames']:6d} {r['gcv'][0]:8.1f} {r['gcv'][1]:6.1f} {r['loo'][0]:8.1f} "
