@@ -2029,7 +2029,8 @@ CROSS_VALIDATION_MARGIN = 0.05
 
 def _left_out_registration(registration: PoseRegistration, points, model, i: int):
     """``(registration, model)`` of the cluster without marker ``i``: registered anew from three or more
-    others; with two others their partial pose (:func:`partial_pose`) completed by the full registration
+    others (with their covariances and the same extra noise where ``registration`` was registered with the
+    markers' covariances); with two others their partial pose (:func:`partial_pose`) completed by the full registration
     (the rotation about their line, which moves marker ``i`` only across the cluster's plane)."""
     keep = [j for j in range(model.shape[0]) if j != i]
     if len(keep) >= 3 and registration.marker_covariance is not None:
