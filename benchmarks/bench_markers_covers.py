@@ -314,9 +314,12 @@ def run_criteria(name: str, draws: int, criteria=CRITERIA) -> str:
             ce = accuracy.comfort_errors(an.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
             ay = accuracy.stage_errors(an, truth)["saddle_acc_y_rmse_pct_of_rms"]
             choice = an.rigid_body.body.pose.smoothing_choice or {}
-            ran = ("correlated" if "noise_correlation" in choice else
-                   "white (fallback)" if "whole motion" in choice.get("reason", "") else "white")
-            res[c].append((ay, ce["acc_y_Wb_rms"], ce["acc_y_Wk_rms"], ran == "correlated"))
+            ran = ("white (fallback)" if "whole motion" in choice.get("reason", "") else
+                   "white (stride fallback)" if "left the stride's harmonics" in choice.get("reason", "") else
+                   "white" if "noise_correlation" not in choice else
+                   f"left out s={choice['cross_validation']['cross_validation_decades']:g}"
+                   if "cross_validation" in choice else "correlated")
+            res[c].append((ay, ce["acc_y_Wb_rms"], ce["acc_y_Wk_rms"], not ran.startswith("white")))
             text += f"  [{c}] A_y {ay:5.1f} % Wb {ce['acc_y_Wb_rms']:+5.1f} % Wk {ce['acc_y_Wk_rms']:+5.1f} % {ran}"
         print(text, flush=True)
     for c, v in res.items():
@@ -324,10 +327,10 @@ def run_criteria(name: str, draws: int, criteria=CRITERIA) -> str:
         lines.append(f"  [{c}] mean A_y {v[:, 0].mean():.1f} % (sd {v[:, 0].std(ddof=1) if draws > 1 else np.nan:.1f})"
                      f" rms Wb {np.sqrt(np.mean(v[:, 1] ** 2)):.1f} % rms Wk {np.sqrt(np.mean(v[:, 2] ** 2)):.1f} %"
                      f"; correlated smoothing in {int(v[:, 3].sum())}/{draws} draws")
-    base = np.array(res["gcv"], float)
+    base = np.array(res[criteria[0]], float)
     for c in criteria[1:]:
         diff = np.array(res[c], float)[:, 0] - base[:, 0]
-        lines.append(f"  [{c}] minus [gcv]: A_y {diff.mean():+.1f} (se {diff.std(ddof=1) / np.sqrt(draws):.1f}) "
+        lines.append(f"  [{c}] minus [{criteria[0]}]: A_y {diff.mean():+.1f} (se {diff.std(ddof=1) / np.sqrt(draws):.1f}) "
                      f"points, lower in {int(np.sum(diff < 0))}/{draws} draws")
     return "\n".join(lines)
 
@@ -372,11 +375,14 @@ if __name__ == "__main__":
     args = sys.argv[1:]
     cut = "--cut" in args
     draws = int(args[args.index("--draws") + 1]) if "--draws" in args else 0
-    names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] != "--draws")]
+    names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] not in
+                                                                           ("--draws", "--compare"))]
     if "--criteria" in args:
+        chosen = CRITERIA + (KEPT_CRITERIA if "--kept" in args else ())
+        if "--compare" in args:
+            chosen = tuple(args[args.index("--compare") + 1].split(","))
         for n in names:
-            print(run_criteria(n, max(draws, 1), CRITERIA + (KEPT_CRITERIA if "--kept" in args else ())),
-                  flush=True)
+            print(run_criteria(n, max(draws, 1), chosen), flush=True)
         sys.exit(0)
     for n in names or list(COVER_SESSIONS):
         if draws:

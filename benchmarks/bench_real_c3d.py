@@ -27,6 +27,8 @@ Run: ``python benchmarks/bench_real_c3d.py`` (writes benchmarks/results/real_c3d
 (the discrepancy principle with the rigidity residual's noise level, restricted maximum likelihood
 with AR(1) errors, its correlation profiled or given by the rigidity residual), appended to
 real_c3d.txt as its last section (a few minutes: the likelihood is dense).
+``--many``: clusters with four or more visible markers (:data:`MANY_CASES`), ``auto`` with the correlated-noise
+criterion ``gcv`` and ``loo``, written to results/real_c3d_many.txt.
 """
 from __future__ import annotations
 
@@ -504,7 +506,90 @@ def _skew(v):
     return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
 
 
+#: Clusters with four or more visible markers (the pose smoothing's choice by leaving a marker out runs on them
+#: under correlated noise): (case, file, visible markers, the hidden one, first frame, frames)
+MANY_CASES = [
+    ("Vicon: box, 7 visible", "markers_analogs.c3d",
+     ["boite:gauche_ext", "boite:gauche_int", "boite:droite_int", "boite:avant_gauche", "boite:avant_droit",
+      "boite:arriere_droit", "boite:arriere_gauche"], "boite:droite_ext", 0, 580),
+    ("Vicon: box, 4 visible", "markers_analogs.c3d",
+     ["boite:gauche_ext", "boite:gauche_int", "boite:droite_int", "boite:avant_gauche"], "boite:droite_ext", 0, 580),
+]
+MANY_HEADER = "Four or more visible markers (bench_real_c3d.py --many)"
+
+
+def run_many(name, file, visible, hidden, first, count) -> dict:
+    """A cluster with ``len(visible)`` >= 4 markers seen and one hidden: ``auto`` with each correlated-noise
+    criterion (:data:`horsemocap.pose.CORRELATED_NOISE_CRITERIA` ``gcv`` and ``loo``), and the naive peers on
+    the same visible markers; errors as the main table's."""
+    traj = io3d.read_c3d(DATA / file)
+    k = len(visible)
+    pts_all = traj.subset(visible + [hidden])[first:first + count]
+    span = _continuous(pts_all)
+    pts = pts_all[span]
+    t = traj.time_s[first:first + count][span]
+    rate = 1 / float(np.median(np.diff(t)))
+    model = pts[0]
+    seg = replace(traj, time_s=t, frame=traj.frame[first:first + count][span], names=tuple(visible),
+                  points=pts[:, :k])
+    static = replace(traj, time_s=t[:1], frame=traj.frame[:1], names=tuple(visible + [hidden]), points=model[None])
+    inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
+    ref_acc = _sg(pts[:, k], rate, REFERENCE_S, REFERENCE_ORDER, 2)
+    P, V = _sg(pts, rate, REFERENCE_S, REFERENCE_ORDER), _sg(pts, rate, REFERENCE_S, REFERENCE_ORDER, 1)
+    r, dv = P - P.mean(1, keepdims=True), V - V.mean(1, keepdims=True)
+    ref_omega = np.stack([np.linalg.lstsq(np.concatenate([-_skew(ri) for ri in r[j]]), dv[j].ravel(), rcond=None)[0]
+                          for j in range(len(t))])
+    raw_acc = np.diff(pts[:, k], 2, axis=0) * rate ** 2
+    out = {"case": name, "frames": len(t), "raw": {}}
+    saved = pose.CORRELATED_NOISE_CRITERION
+    try:
+        for criterion in ("gcv", "loo"):
+            pose.CORRELATED_NOISE_CRITERION = criterion
+            t0 = time.time()
+            tr = io3d.kinematics_from_trajectories(seg, static, smoothing="auto")["trajectory"]
+            out[criterion] = (_rel(tr.point(t, model[k]).acceleration, ref_acc, inner), _rel(tr.omega(t), ref_omega, inner))
+            out["raw"][criterion] = _raw_error(tr.point(t, model[k]).position, raw_acc, inner, rate)
+            ch = tr.smoothing_choice or {}
+            cv = ch.get("cross_validation", {})
+            out[criterion + "_chosen"] = (ch.get("method", "") + (f" s={cv['cross_validation_component_decades']}"
+                                                                  if cv else ""))
+            out[criterion + "_s"] = time.time() - t0
+    finally:
+        pose.CORRELATED_NOISE_CRITERION = saved
+    R, trans = _kabsch(pts[:, :k], model[:k])
+    pred = trans + np.einsum("kij,j->ki", R, model[k])
+    out["kabsch_sg"] = _rel(_sg(pred, rate, PEER_SG_S, PEER_SG_ORDER, 2), ref_acc, inner)
+    fc = winter_cutoff(np.column_stack([pred, R.reshape(-1, 9)]), rate)
+    out["kabsch_butter"] = _rel(np.gradient(np.gradient(_butter(pred, rate, fc), 1 / rate, axis=0), 1 / rate, axis=0),
+                                ref_acc, inner)
+    out["raw"]["kabsch_sg"] = _raw_error(_sg(pred, rate, PEER_SG_S, PEER_SG_ORDER), raw_acc, inner, rate)
+    out["raw"]["kabsch_butter"] = _raw_error(_butter(pred, rate, fc), raw_acc, inner, rate)
+    return out
+
+
+def many_main():
+    """:data:`MANY_CASES`, printed and written to ``results/real_c3d_many.txt``."""
+    lines = [MANY_HEADER + ": the hidden marker's acceleration error (% of its Savitzky-Golay reference's rms),",
+             "omega error (%), and against its own unfiltered second differences (m/s^2); 'auto' with the",
+             "correlated-noise criterion gcv (the correlated-error GCV) or loo (leaving each visible marker out,",
+             "per-component factors on white-noise GCV's parameters); peers: Kabsch of the visible markers + SG / BW.",
+             "",
+             f"{'case':24s} {'frames':>6s} {'gcv acc':>8s} {'gcv w':>6s} {'loo acc':>8s} {'loo w':>6s} {'SG acc':>7s} "
+             f"{'BW acc':>7s} | raw: {'gcv':>7s} {'loo':>7s} {'SG':>7s} {'BW':>7s} | loo run (s), chosen (loo: s per component)"]
+    for case in MANY_CASES:
+        r = run_many(*case)
+        lines.append(f"{r['case']:24s} {r['frames']:6d} {r['gcv'][0]:8.1f} {r['gcv'][1]:6.1f} {r['loo'][0]:8.1f} "
+                     f"{r['loo'][1]:6.1f} {r['kabsch_sg']:7.1f} {r['kabsch_butter']:7.1f} | raw: "
+                     + " ".join(f"{r['raw'][c]:7.3f}" for c in ("gcv", "loo", "kabsch_sg", "kabsch_butter"))
+                     + f" | {r['loo_s']:.1f}  gcv: {r['gcv_chosen']}; loo: {r['loo_chosen']}")
+        print(lines[-1], flush=True)
+    (HERE / "results" / "real_c3d_many.txt").write_text("\n".join(lines) + "\n")
+    return 0
+
+
 def main(argv=None):
+    if argv and "--many" in argv:
+        return many_main()
     if argv and "--criteria" in argv:
         return criteria_main()
     if argv and "--bandwidth" in argv:

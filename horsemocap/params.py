@@ -386,12 +386,15 @@ class PoseParams:
         Smoothing of the pose trajectory
         (:func:`horsemocap.splines.smoothing_spline`): ``"auto"`` (default:
         ``"gcv"`` with the stride harmonics on a periodic record, a
-        fundamental found, ``"adaptive"`` on one without, and GCV with the
-        noise's AR(1) correlation, without harmonics, when the markers'
-        rigidity residual shows correlated noise (rho, from the residual's
-        frame-to-frame differences, at least 0.3 and more than two standard
-        errors, about 4 / sqrt(frames), above zero; no events given), as real
-        systems' filtered trajectories do; otherwise the noise is taken as
+        fundamental found, ``"adaptive"`` on one without, and, when the
+        markers' rigidity residual shows correlated noise (rho, from the
+        residual's frame-to-frame differences, at least 0.3 and more than two
+        standard errors, about 4 / sqrt(frames), above zero; no events given),
+        as real systems' filtered trajectories do, a smoothing without
+        harmonics chosen under it: with four or more markers by leaving each
+        marker out in turn and predicting its acceleration from the others'
+        pose, with three by GCV with the noise's AR(1) correlation
+        (:data:`horsemocap.pose.CORRELATED_NOISE_CRITERION`); otherwise the noise is taken as
         white, :func:`horsemocap.pose.choose_smoothing`; the choice and its
         reason in the progress output and ``analysis.json``), ``"gcv"`` (quintic, one generalised
         cross-validation parameter per component), ``"adaptive"`` (a second

@@ -139,6 +139,8 @@ __all__ = [
     "check_model_conditioning",
     "register_pose",
     "marker_cross_validation",
+    "left_out_noise_ratios",
+    "marker_cross_validation_per_component",
     "refine_pose_covariance",
     "extra_marker_noise",
     "unwrap_rotvec",
@@ -317,6 +319,7 @@ class PoseRegistration:
     information: np.ndarray | None = field(default=None, repr=False)
     covariance_scale: float = float("nan")
     extra_noise_m: float = float("nan")
+    marker_covariance: np.ndarray | None = field(default=None, repr=False)
 
 
 def _check_covariance(covariance, vis, n, m) -> np.ndarray:
@@ -606,7 +609,8 @@ def register_pose(points, model, weights=None, min_height_m: float | None = None
         scale = float(np.sqrt(np.einsum("ki,kij,kj->", e, np.linalg.inv(cov[sel]), e) / dof.sum()))
     return PoseRegistration(rotation=R, translation=t, centre=centre, registered=reg, residual=res,
                             rms=rms, n_markers=k.astype(int), height=height, reason=reason.astype(str),
-                            noise_m=noise, information=normal, covariance_scale=scale, extra_noise_m=s0)
+                            noise_m=noise, information=normal, covariance_scale=scale, extra_noise_m=s0,
+                            marker_covariance=cov)
 
 
 def _marker_weights(weights, covariance, extra_noise, vis):
@@ -998,6 +1002,8 @@ class PoseTrajectory:
         out = {"method": info["smoothing_method"], "reason": info["smoothing_reason"]}
         if "noise_correlation" in info:
             out["noise_correlation"] = info["noise_correlation"]
+        if "cross_validation" in info:
+            out["cross_validation"] = info["cross_validation"]
         out["half_gain_hz"] = self.half_gain_hz
         return out
 
@@ -1285,9 +1291,10 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         what ``smoothing="auto"`` ran and why is in each component's ``info``
         (``smoothing_method``, ``smoothing_reason``). ``weights`` is not read
         here (it says whether :func:`register_pose` was given covariances).
-        When ``"auto"`` takes the correlated-error GCV, the fit is checked
-        for motion taken as noise (a component smoothed to the penalty's
-        null space, or the stride's harmonics left in a component's residual,
+        When ``"auto"`` takes the correlated-noise smoothing, the fit is checked
+        for motion taken as noise (with the correlated-error GCV a component
+        smoothed to the penalty's null space; with any criterion the stride's
+        harmonics left in a component's residual,
         :func:`stride_harmonics_left` at the stride frequency of
         ``expected_fundamental_hz``, else ``fundamental_hz``; without either
         it is not tested) and smoothed again with the noise taken as white if
@@ -1493,18 +1500,23 @@ def _stride_p_values(t, registration, rotvec_data, splines, fundamental_hz: floa
 
 def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho,
                           fit: dict, expected_hz):
-    """:func:`_fit_components`' ``fitted`` of the correlated-error GCV, or the fit again with the noise taken
-    as white when that criterion took motion for noise; the choice's reason says which and why.
+    """:func:`_fit_components`' ``fitted`` of the correlated-noise smoothing, or the fit again with the noise
+    taken as white when that criterion took motion for noise; the choice's reason says which and why.
 
     Two checks, in turn: a component smoothed down to the penalty's null space (:data:`NULL_SPACE_EDF`: its
-    whole motion taken for noise, a short record), then the stride's harmonics left in a component's residual
+    whole motion taken for noise, a short record; the correlated-error GCV only: leaving markers out measures
+    the error of a component flattened directly, and a component whose motion is below the noise is rightly
+    flattened), then the stride's harmonics left in a component's residual
     (:func:`stride_harmonics_left` below :data:`STRIDE_RESIDUAL_LEVEL`; periodic motion taken for noise). The
     stride frequency tested is ``expected_hz`` (another estimator's, the motion-frame step's period), else the
     given ``fundamental_hz`` (:func:`_stride_test_frequency`); without either the residual is not tested, and
     the reason says so."""
     cs, ps, choice = fitted[2], fitted[3], fitted[4]
-    ar1 = f"the correlated-error GCV (AR(1) {choice['noise_correlation']:.2f} from the rigidity residual)"
-    if any(s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE for s in cs + ps):
+    ar1 = (f"the smoothing chosen by leaving markers out (AR(1) {choice['noise_correlation']:.2f} from the "
+           "rigidity residual)" if "cross_validation" in choice else
+           f"the correlated-error GCV (AR(1) {choice['noise_correlation']:.2f} from the rigidity residual)")
+    if "cross_validation" not in choice and any(s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE
+                                                for s in cs + ps):
         fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, None, **fit)
         fitted[4]["smoothing_reason"] += (f"; {ar1} took a component's whole motion for noise (smoothed to the "
                                           "penalty's null space, a quadratic): noise taken as white")
@@ -1578,7 +1590,9 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         if CORRELATED_NOISE_CRITERION not in CORRELATED_NOISE_CRITERIA:
             raise ValueError(f"pose.CORRELATED_NOISE_CRITERION: expected one of {CORRELATED_NOISE_CRITERIA}, "
                              f"got {CORRELATED_NOISE_CRITERION!r}")
-        if CORRELATED_NOISE_CRITERION == "reml":
+        if CORRELATED_NOISE_CRITERION == "loo":
+            lam = _left_out_marker_smoothing(t, reg, model, points, lam, choice)
+        elif CORRELATED_NOISE_CRITERION == "reml":
             spline_options["method"] = "reml"
         elif CORRELATED_NOISE_CRITERION == "risk":
             sig = _correlated_risk_noise(reg, model, points, choice)
@@ -1589,18 +1603,47 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
 
 
 #: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
-#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"gcv"`` (default), the correlated-error GCV,
-#: which estimates the noise's level from the residual of the fit it chooses; ``"reml"``, restricted maximum
-#: likelihood with the residual's AR(1) correlation (``method="reml"`` of
-#: :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the signal's
-#: (how each fares on noise draws and on real clusters: ``benchmarks/README.md``);
-#: ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity residual
-#: (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"`` with
-#: ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose residual
-#: does not see the noise normal to their plane, the correlated-error GCV.
-CORRELATED_NOISE_CRITERION = "gcv"
+#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"loo"`` (default), with four or more markers
+#: each marker left out in turn and its acceleration predicted from the others' pose
+#: (:func:`marker_cross_validation_per_component`): a marker's noise is not in that pose, so the criterion
+#: measures the error directly whatever the noise's correlation over frames, as long as the markers' noises are
+#: independent of each other; with three markers (the other two leave a rotation unseen) the correlated-error
+#: GCV. ``"gcv"``, the correlated-error GCV, which estimates the noise's level from the residual of the fit it
+#: chooses; ``"reml"``, restricted maximum likelihood with the residual's AR(1) correlation (``method="reml"``
+#: of :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the
+#: signal's; ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity
+#: residual (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"``
+#: with ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose
+#: residual does not see the noise normal to their plane, the correlated-error GCV. How each fares on noise
+#: draws and on real clusters: ``benchmarks/README.md``.
+CORRELATED_NOISE_CRITERION = "loo"
 #: The criteria :data:`CORRELATED_NOISE_CRITERION` may name (another is refused when the correlated path runs).
-CORRELATED_NOISE_CRITERIA = ("gcv", "reml", "risk")
+CORRELATED_NOISE_CRITERIA = ("gcv", "reml", "risk", "loo")
+#: The candidate exponents ``s`` (the GCV smoothing parameters times ``10^s``) that the correlated-noise choice
+#: by leaving markers out tries (:func:`_left_out_marker_smoothing`).
+LEFT_OUT_DECADES = np.arange(-1.0, 6.01, 0.5)
+
+
+def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict) -> list:
+    """The six smoothing parameters under correlated noise chosen by leaving each marker out in turn
+    (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, no harmonics), with four or
+    more markers; ``lam`` unchanged (the correlated-error GCV, its reason as it is) with three. ``choice`` gets
+    the reason and the cross-validation's scores (``cross_validation``)."""
+    markers = np.asarray(model).shape[0]
+    if points is None or markers < 4 or any(v is not None for v in lam):
+        return lam
+    white = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal",
+                                                          partial_frames=False), iterations=0)
+    base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
+    chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES)
+    decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
+    choice["smoothing_reason"] = (
+        f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, no harmonics: "
+        f"smoothing chosen by leaving each of the {markers} markers out in turn (its acceleration predicted from "
+        f"the others' pose, which holds none of its noise, so the choice holds whatever the noise's correlation "
+        f"over frames): white-noise GCV's parameters times 10^s, s = {decades}")
+    choice["cross_validation"] = {"decades": [float(v) for v in LEFT_OUT_DECADES], **info}
+    return [float(v) for v in chosen]
 
 
 def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
@@ -1986,9 +2029,14 @@ CROSS_VALIDATION_MARGIN = 0.05
 
 def _left_out_registration(registration: PoseRegistration, points, model, i: int):
     """``(registration, model)`` of the cluster without marker ``i``: registered anew from three or more
-    others; with two others their partial pose (:func:`partial_pose`) completed by the full registration
+    others (with their covariances and the same extra noise where ``registration`` was registered with the
+    markers' covariances); with two others their partial pose (:func:`partial_pose`) completed by the full registration
     (the rotation about their line, which moves marker ``i`` only across the cluster's plane)."""
     keep = [j for j in range(model.shape[0]) if j != i]
+    if len(keep) >= 3 and registration.marker_covariance is not None:
+        s0 = registration.extra_noise_m
+        return register_pose(points[:, keep], model[keep], covariance=registration.marker_covariance[:, keep],
+                             extra_noise=float(s0) if np.isfinite(s0) else "estimate"), model[keep]
     if len(keep) >= 3:
         return register_pose(points[:, keep], model[keep]), model[keep]
     p = points.copy()
@@ -2000,6 +2048,73 @@ def _left_out_registration(registration: PoseRegistration, points, model, i: int
         rot[ok], cen[ok] = partial_pose(p[ok], model, registration.rotation[ok], registration.centre[ok])
     reason = np.where(ok, "", "no pose of the other markers").astype(object)
     return replace(registration, rotation=rot, centre=cen, information=None, reason=reason), model
+
+
+def _geometric_pose_variance(model, rotation, covariance) -> np.ndarray:
+    """The six pose components' variance (6,) from markers ``model`` (k, 3) with independent noise of
+    ``covariance`` (3, 3, world), turned by ``rotation`` (3, 3): the linearised registration of
+    :func:`pose_noise`, ``diag(covariance) / k`` for the centroid and ``diag(H^-1 M H^-1)`` for the rotation
+    vector."""
+    d = (model - model.mean(0)) @ rotation.T
+    D = skew(d)
+    Hi = np.linalg.inv(np.einsum("mji,mjk->ik", D, D))
+    M = np.einsum("mji,jl,mlk->ik", D, covariance, D)
+    return np.r_[np.diag(covariance) / model.shape[0], np.diag(Hi @ M @ Hi)]
+
+
+def left_out_noise_ratios(registration: PoseRegistration, model, points=None) -> np.ndarray:
+    """Per marker left out (m, 6): how much larger each pose component's noise variance is when the pose is
+    registered from the other markers than from all (the linearised registration at the record's mean rotation,
+    the markers' noise covariance pooled from the rigidity residual of ``points``, isotropic without them);
+    four or more markers.
+
+    A smoothing spline's best smoothing parameter grows in proportion to the noise's variance (the penalty
+    weighs the roughness against the noise), so the pose of the other markers is smoothed with the
+    parameters scaled by these ratios to stand for the smoothing of the whole cluster.
+
+    Examples
+    --------
+    Four markers at the corners of a square: leaving any one out leaves three, whose centroid is noisier
+    by 4/3.
+
+    >>> import numpy as np
+    >>> model = np.array([[0.1, 0.1, 0], [-0.1, 0.1, 0], [-0.1, -0.1, 0], [0.1, -0.1, 0]])
+    >>> reg = register_pose(np.repeat(model[None], 5, axis=0), model)
+    >>> np.round(left_out_noise_ratios(reg, model)[0, :3], 4)
+    array([1.3333, 1.3333, 1.3333])
+    """
+    x = np.asarray(model, float)
+    m = x.shape[0]
+    if m < 4:
+        raise ValueError(f"model: the pose of the other markers needs four or more markers, got {m}")
+    ok = np.isfinite(registration.rotation[:, 0, 0])
+    R0 = Rotation.from_matrix(registration.rotation[ok]).mean().as_matrix()
+    cov = np.eye(3) if points is None else _residual_covariance(registration, points)
+    full = _geometric_pose_variance(x, R0, cov)
+    return np.array([_geometric_pose_variance(np.delete(x, i, axis=0), R0, cov) / full for i in range(m)])
+
+
+def _information_variance_ratio(left_out: PoseRegistration, full: PoseRegistration, fallback) -> np.ndarray:
+    """The six pose components' mean variance ratio (6,) of two registrations with the markers' covariances
+    (:func:`frame_variances`, over the frames both have a pose); ``fallback`` where none is finite."""
+    a, b = frame_variances(left_out), frame_variances(full)
+    both = np.all(np.isfinite(a) & np.isfinite(b) & (b > 0), axis=1)
+    if not both.any():
+        return fallback
+    # the centroid's variance is about each registration's own centroid; its ratio is taken as such
+    return np.mean(a[both], axis=0) / np.mean(b[both], axis=0)
+
+
+def _residual_covariance(registration: PoseRegistration, points) -> np.ndarray:
+    """The markers' noise covariance (3, 3) pooled from the rigidity residual (as :func:`pose_noise`); the
+    identity when there is none to pool."""
+    p = np.asarray(points, float)
+    ok = np.isfinite(registration.rotation[:, 0, 0])
+    vis = np.all(np.isfinite(p), axis=2) & ok[:, None]
+    r = np.where(vis[..., None], p - registration.registered, 0.0)
+    dof = np.sum(np.where(ok, np.maximum(vis.sum(1) - 2, 0), 0))
+    cov = np.einsum("kmi,kmj->ij", r, r) / max(dof, 1)
+    return cov if dof > 0 and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else np.eye(3)
 
 
 def marker_cross_validation(t, registration: PoseRegistration, points, model, base_lam,
@@ -2100,6 +2215,137 @@ def marker_cross_validation(t, registration: PoseRegistration, points, model, ba
                                           "cross_validation_markers": m}
 
 
+def marker_cross_validation_per_component(t, registration: PoseRegistration, points, model, base_lam,
+                                          decades=CROSS_VALIDATION_DECADES, sweeps: int = 3
+                                          ) -> tuple[np.ndarray, dict]:
+    """Leaving each marker out in turn, as :func:`marker_cross_validation`, with one ``s`` per pose component.
+
+    Each marker in turn is left out and the pose registered from the
+    others (with the markers' covariances where the registration has them,
+    :func:`_left_out_registration`); that pose is smoothed once per
+    candidate ``s`` with the parameters ``base_lam * 10^s`` times
+    :func:`left_out_noise_ratios` (the other markers' pose is noisier than
+    the whole cluster's, and a smoothing parameter's best value grows in
+    proportion to the noise's variance: so the candidate stands for the
+    whole cluster's smoothing). The criterion is the mean squared
+    difference between the left-out markers' predicted and measured second
+    differences (frame-to-frame acceleration) inside the record
+    (:data:`CROSS_VALIDATION_MARGIN`), as :func:`marker_cross_validation`'s;
+    it holds under noise correlated over frames as long as the markers'
+    noises are independent of each other. The six components' ``s`` are
+    chosen in turn, each at the candidate that predicts best with the
+    others held (coordinate descent from the best common ``s``, at most
+    ``sweeps`` rounds): a component whose noise is small against its motion
+    keeps a lighter smoothing than a noisy one. The fits are made once
+    per candidate; the descent only recombines them.
+
+    Parameters
+    ----------
+    t : (n,)
+    registration : PoseRegistration
+        Of all the markers (:func:`register_pose`).
+    points : (n, m, 3)
+        The measured markers, m >= 4.
+    model : (m, 3)
+    base_lam : (6,)
+        The smoothing parameters scaled (``cx, cy, cz, phix, phiy, phiz``; e.g. white-noise GCV's).
+    decades : sequence of float
+        The candidate ``s``.
+    sweeps : int
+        The most rounds of the coordinate descent.
+
+    Returns
+    -------
+    lam : (6,)
+        ``base_lam * 10^s`` per component.
+    info : dict
+        ``cross_validation_decades`` (the common ``s``), ``cross_validation_scores`` (per common candidate,
+        m/s^2 rms), ``cross_validation_component_decades`` (6,), ``cross_validation_score`` (at those, m/s^2
+        rms), ``cross_validation_markers``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from scipy.spatial.transform import Rotation
+    >>> rng = np.random.default_rng(1)
+    >>> model = np.array([[0.0, 0, 0], [0.2, 0, 0], [0.0, 0.15, 0.05], [0.1, 0.1, 0.1]])
+    >>> t = np.arange(300) / 100.0
+    >>> R = Rotation.from_rotvec(np.outer(0.4 * np.sin(2 * t), [0, 0, 1])).as_matrix()
+    >>> e = lfilter([1.0], [1.0, -0.7], rng.normal(0, 3e-4, (300, 4, 3)), axis=0)
+    >>> pts = np.einsum("kij,mj->kmi", R, model) + e
+    >>> lam, info = marker_cross_validation_per_component(t, register_pose(pts, model), pts, model, np.full(6, 1e-8))
+    >>> len(info["cross_validation_component_decades"]), bool(info["cross_validation_score"]
+    ...                                                        <= min(info["cross_validation_scores"]))
+    (6, True)
+    """
+    t = np.asarray(t, float)
+    pts = np.asarray(points, float)
+    x = np.asarray(model, float)
+    base = np.asarray(base_lam, float)
+    decades = np.asarray(decades, float)
+    m, n = x.shape[0], t.size
+    if m < 4 or pts.shape != (n, m, 3):
+        raise ValueError(f"points: per-component marker cross-validation needs (n, m >= 4, 3) markers matching t "
+                         f"and the model, got {pts.shape} for {n} frames and {m} model markers")
+    edge = int(np.ceil(CROSS_VALIDATION_MARGIN * n))
+    inner = np.zeros(n - 2, bool)
+    inner[edge:n - 2 - edge] = True
+    params = PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal", partial_frames=False)
+    ratios = left_out_noise_ratios(registration, x, pts)
+    values, turned, measured = [], [], []
+    for i in range(m):
+        reg_i, model_i = _left_out_registration(registration, pts, x, i)
+        if reg_i.information is not None and registration.information is not None:
+            ratios[i] = _information_variance_ratio(reg_i, registration, ratios[i])
+        measured.append(np.diff(pts[:, i], 2, axis=0))
+        fits = [fit_pose_trajectory(t, reg_i, model_i, params, lam=base * ratios[i] * 10.0 ** s, iterations=0)
+                for s in decades]
+        # per candidate the six components' values (n, 6), and the left-out marker's lever turned by the
+        # reference rotation (the same for every candidate): its position is c + Exp(phi) (R_ref lever)
+        values.append(np.stack([np.column_stack([f.centre(t), f.rotvec(t)]) for f in fits]))
+        seen = np.all(np.isfinite(values[-1][0]), axis=1)
+        lever = np.full((n, 3), np.nan)
+        if seen.any():
+            lever[seen] = fits[0]._reference().rotation(t[seen]).apply(x[i] - fits[0].model_centroid)
+        turned.append(lever)
+
+    def score(index) -> float:
+        total, frames = 0.0, 0
+        for i in range(m):
+            v = values[i][index, :, np.arange(6)].T
+            seen = np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(turned[i]), axis=1)
+            position = np.full((n, 3), np.nan)
+            if seen.any():
+                position[seen] = v[seen, :3] + Rotation.from_rotvec(v[seen, 3:]).apply(turned[i][seen])
+            err = np.diff(position, 2, axis=0) - measured[i]
+            use = inner & np.all(np.isfinite(err), axis=1)
+            total, frames = total + float(np.sum(err[use] ** 2)), frames + int(use.sum())
+        if frames == 0:
+            raise ValueError("points: no frame inside the record where a left-out marker and the others' pose are "
+                             "seen")
+        return total / frames
+
+    dt = float(np.median(np.diff(t)))
+    common = np.array([score([j] * 6) for j in range(decades.size)])
+    index = [int(np.argmin(common))] * 6
+    best = common[index[0]]
+    for _ in range(sweeps):
+        before = list(index)
+        for c in range(6):
+            trial = [score(index[:c] + [j] + index[c + 1:]) for j in range(decades.size)]
+            if min(trial) < best:
+                index[c], best = int(np.argmin(trial)), min(trial)
+        if index == before:
+            break
+    chosen = decades[index]
+    return base * 10.0 ** chosen, {"cross_validation_decades": float(decades[int(np.argmin(common))]),
+                                   "cross_validation_scores": [float(v) for v in np.sqrt(common) / dt ** 2],
+                                   "cross_validation_component_decades": [float(v) for v in chosen],
+                                   "cross_validation_score": float(np.sqrt(best) / dt ** 2),
+                                   "cross_validation_markers": m}
+
+
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False,
                      noise_correlation: float | None = None) -> tuple[str, str]:
     """The smoothing ``"auto"`` of :func:`fit_pose_trajectory` runs, and why.
@@ -2129,7 +2375,9 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
         wobble, skin), without events, the choice is ``"gcv_ar1"``: the
         smoothing chosen under that AR(1) error correlation
         (``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`;
-        the criterion is :data:`CORRELATED_NOISE_CRITERION`, GCV by default),
+        the criterion is :data:`CORRELATED_NOISE_CRITERION`: by default
+        leaving each marker out in turn with four or more markers, the
+        correlated-error GCV with three),
         without harmonics, since plain GCV and the adaptive penalty both take
         slow noise for motion.
         Below it the reason records the value.
