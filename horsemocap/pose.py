@@ -160,6 +160,7 @@ __all__ = [
     "pose_noise",
     "frame_variances",
     "partial_pose",
+    "two_marker_distance_departure",
     "static_body_axes",
     "saddle_angles_deg",
 ]
@@ -1384,6 +1385,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         for s in cs + ps:
             s.info.update(choice)
     valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
+    reason = _refused_partial_reasons(reason, points, ok, two) if params.partial_frames else reason
     return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
                           centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
                           registration=reg, rotvec_data=phi,
@@ -1798,13 +1800,95 @@ def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fund
 
 
 def _two_marker_frames(points, ok, n) -> np.ndarray:
-    """Frames without a pose in which exactly two markers of ``points`` are seen (none without ``points``)."""
+    """Frames without a pose in which exactly two markers of ``points`` are seen and their distance is the
+    rigid body's (:func:`two_marker_distance_departure` within :data:`PARTIAL_POSE_RIGIDITY_LIMIT`); none
+    without ``points``."""
     if points is None:
         return np.zeros(n, bool)
     pts = np.asarray(points, float)
     if pts.shape[:1] != (n,):
         raise ValueError(f"points: expected {n} frames to match t, got shape {pts.shape}")
-    return ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
+    two = ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
+    return two & ~(np.abs(two_marker_distance_departure(pts, ok)) > PARTIAL_POSE_RIGIDITY_LIMIT)
+
+
+#: How far (in robust standard deviations) the distance between a two-marker frame's markers may depart from
+#: the same pair's distance in the frames with a pose before the frame is refused a partial pose: the same
+#: six-sigma scale as the rigid-body step's test of a marker moving against the others' rigid motion. A partial
+#: pose takes its rotation about the two markers' line from the trajectory and its remaining five degrees of
+#: freedom from the two markers alone, so a pair whose distance is wrong (a marker half out of a view, a blob
+#: merged with another) moves the pose by as much, and a frame that far off would steer the smoothing's choice.
+PARTIAL_POSE_RIGIDITY_LIMIT = 6.0
+#: The fewest frames with a pose and both markers of a pair from which their distance's scatter is measured;
+#: with fewer the pair's frames are not tested (kept).
+PARTIAL_POSE_RIGIDITY_MIN_FRAMES = 8
+
+
+def two_marker_distance_departure(points, ok) -> np.ndarray:
+    """Per frame in which exactly two markers are seen, how far their distance departs from the rigid body's.
+
+    A rigid marker set keeps the distance between any two of its markers.
+    The pair's usual distance and scatter are measured over the frames
+    with a pose (``ok``) in which both are seen: the median and the
+    median absolute deviation (times 1.4826, a normal error's standard
+    deviation). The departure is the frame's distance minus the median,
+    over that scatter. A frame seen with more or fewer than two markers, in
+    ``ok``, or whose pair has fewer than
+    :data:`PARTIAL_POSE_RIGIDITY_MIN_FRAMES` such frames, gets NaN.
+
+    Parameters
+    ----------
+    points : (n, m, 3)
+        The markers per frame, NaN where not seen.
+    ok : (n,) bool
+        The frames with a pose (three or more markers registered).
+
+    Returns
+    -------
+    (n,) array of departures (robust standard deviations, signed: positive when further apart).
+
+    Examples
+    --------
+    Two markers 0.25 m apart with a 1 mm scatter; the last frame sees only two of them, 20 mm too far apart.
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(1)
+    >>> model = np.array([[0.0, 0, 0], [0.25, 0, 0], [0.1, 0.2, 0]])
+    >>> pts = model + rng.normal(0, 7e-4, (30, 3, 3))
+    >>> pts[-1, 2] = np.nan
+    >>> pts[-1, 1, 0] += 0.02
+    >>> ok = np.r_[np.ones(29, bool), False]
+    >>> z = two_marker_distance_departure(pts, ok)
+    >>> bool(np.all(np.isnan(z[:-1]))), bool(z[-1] > PARTIAL_POSE_RIGIDITY_LIMIT)
+    (True, True)
+    """
+    pts = np.asarray(points, float)
+    ok = np.asarray(ok, bool)
+    seen = np.all(np.isfinite(pts), axis=2)
+    out = np.full(pts.shape[0], np.nan)
+    for k in np.flatnonzero(~ok & (seen.sum(1) == 2)):
+        i, j = np.flatnonzero(seen[k])
+        usual = np.linalg.norm(pts[ok & seen[:, i] & seen[:, j], i] - pts[ok & seen[:, i] & seen[:, j], j], axis=1)
+        if usual.size < PARTIAL_POSE_RIGIDITY_MIN_FRAMES:
+            continue
+        centre = float(np.median(usual))
+        scatter = max(1.4826 * float(np.median(np.abs(usual - centre))), 1e-9 * centre)
+        out[k] = (float(np.linalg.norm(pts[k, i] - pts[k, j])) - centre) / scatter
+    return out
+
+
+def _refused_partial_reasons(reason, points, ok, two) -> np.ndarray:
+    """``reason`` with the frames refused a partial pose (two markers seen, not in ``two``) saying why."""
+    if points is None:
+        return reason
+    departure = two_marker_distance_departure(points, ok)
+    refused = np.flatnonzero(np.isfinite(departure) & ~np.asarray(two, bool)
+                             & (np.abs(departure) > PARTIAL_POSE_RIGIDITY_LIMIT))
+    reason = np.array(reason, dtype=object)
+    for k in refused:
+        reason[k] = (f"{reason[k]}; no partial pose: its two markers' distance departs from the rigid body's by "
+                     f"{departure[k]:+.1f} robust sd (more than {PARTIAL_POSE_RIGIDITY_LIMIT:g})")
+    return reason.astype(str)
 
 
 def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam, sig, var, rot_noise,
