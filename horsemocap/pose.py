@@ -1266,7 +1266,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
                         points=None, fundamental_hz: float | None = None,
                         expected_fundamental_hz: float | None = None, max_gap_s: float | None = None,
                         lam=None, iterations: int = 3, rotation_noise_test: bool = True,
-                        settled: SettledPoseSmoothing | None = None) -> PoseTrajectory:
+                        settled: SettledPoseSmoothing | None = None, aperture=None) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     The centroid ``c(t)`` and the rotation vector ``phi(t)`` of ``R(t) = Exp(phi(t)) R_ref`` are
@@ -1324,6 +1324,13 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         parameter). ``lam`` and ``fundamental_hz``, when given, still take
         precedence over its values. Nothing of the settled choice is checked
         again (the record it was settled on was).
+    aperture : horsemocap.aperture.Aperture, optional
+        Each frame's pose is the motion averaged over this temporal aperture
+        (the cameras' exposure, an interlaced frame's two fields;
+        :func:`horsemocap.aperture.session_aperture`): the six components are
+        fitted through it (``aperture`` of
+        :func:`horsemocap.splines.smoothing_spline`), so the trajectory is the
+        motion itself (:func:`_aperture_options`).
 
     Returns
     -------
@@ -1374,7 +1381,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         sig = pose_noise(reg, points, model)
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
     fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
-               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled)
+               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled,
+               aperture=aperture)
     fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho, **fit)
     if settled is None and fitted[4] is not None and "noise_correlation" in fitted[4]:
         # the correlated-error choice is checked here once; settled records and named methods take it as it is
@@ -1470,7 +1478,7 @@ def _stride_p_values(t, registration, rotvec_data, splines, fundamental_hz: floa
     t = np.asarray(t, float)
     data = np.column_stack([np.asarray(registration.centre, float), np.asarray(rotvec_data, float)])
     data[~ok] = np.nan
-    fitted = np.column_stack([s(t) for s in splines])
+    fitted = np.column_stack([getattr(s, "observed", s)(t) for s in splines])   # what each frame observed
     rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
     orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
     phase = 2 * np.pi * fundamental_hz * np.outer(t - t[0] if t.size else t, orders)
@@ -1550,14 +1558,14 @@ def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
 
 def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
                     fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int,
-                    settled: SettledPoseSmoothing | None = None):
+                    settled: SettledPoseSmoothing | None = None, aperture=None):
     """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white):
     ``(centre, phi, centre splines, rotation splines, choice, two-marker frames)``."""
     n = t.size
     if settled is not None:
         return _fit_settled_components(t, reg, model, phi, ok, ref, order, settled, params=params,
                                        fundamental_hz=fundamental_hz, lam=lam, sig=sig, points=points,
-                                       iterations=iterations)
+                                       iterations=iterations, aperture=aperture)
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
                                               params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
@@ -1585,9 +1593,25 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         elif CORRELATED_NOISE_CRITERION == "risk":
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
+    _aperture_options(spline_options, aperture, order, choice)
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
+
+
+def _aperture_options(spline_options: dict, aperture, order: int, choice) -> None:
+    """Fit the components through the frames' temporal ``aperture`` (``spline_options["aperture"]``) where the
+    spline can (the quintic GCV, unbiased risk and adaptive splines); the choice's reason says it, or why not."""
+    if aperture is None:
+        return
+    if order == 5 and spline_options["method"] in ("gcv", "noise", "adaptive"):
+        spline_options["aperture"] = aperture
+        note = f"fitted through the frames' temporal aperture ({aperture.description})"
+    else:
+        note = (f"the frames' temporal aperture ({aperture.description}) not modelled: the {spline_options['method']} "
+                f"order-{order} spline has no aperture")
+    if choice is not None and note not in choice.get("smoothing_reason", ""):
+        choice["smoothing_reason"] = choice.get("smoothing_reason", "") + "; " + note
 
 
 #: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
@@ -1623,7 +1647,7 @@ def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -
 
 def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order: int,
                             settled: SettledPoseSmoothing, *, params, fundamental_hz, lam, sig, points,
-                            iterations: int):
+                            iterations: int, aperture=None):
     """:func:`_fit_components` with the choices of ``settled``: no method, stride frequency, noise correlation
     or rotation weighting chosen; each component keeps the first 0 .. ``settled.harmonics`` harmonics that
     the criterion prefers at the given smoothing parameter (neither the plain spline's cutoff nor the rotation
@@ -1644,6 +1668,7 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
                           fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
     if settled.noise_correlation is not None:
         spline_options["noise_correlation"] = settled.noise_correlation
+    _aperture_options(spline_options, aperture, order, choice)
     most = settled.harmonics if f0 is not None else None
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, [None] * 3, False, iterations, most_harmonics=most,
