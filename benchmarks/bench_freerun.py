@@ -6,8 +6,9 @@ timing set ``--seed``) and runs the default analysis on each (:func:`horsemocap.
 parameters, what ``horsemocap analyze SESSION --out DIR`` runs). Per session it prints the frame rate, image
 size and drawn camera timings, then the exit status the command would give (3 when the verdict is unreliable,
 2 when a step stops), the verdict, the checks flagged (warning or unreliable) and the sync residual, the saddle's vertical acceleration error (% of rms), the Wb and Wk rms
-errors (%), and the offsets found (frames after the reference camera's, with the fraction and its uncertainty; the flash's own in brackets
-when the markers corrected them) against the true fractional offsets.
+errors (%), the temporal aperture the pose trajectory is fitted through (from the session's camera timing), and
+the offsets found (frames after the reference camera's, with the fraction and its uncertainty; the flash's own in
+brackets when the markers corrected them) against the true fractional offsets.
 
 ``--centroids`` adds, per camera, the detected centroids' error against the truth's projections at their
 instants over the analysed frames: rms, and the standard deviation along the image's rows (u) and columns (v)
@@ -31,6 +32,7 @@ import time
 import numpy as np
 
 from horsemocap import accuracy, quality
+from horsemocap.aperture import session_aperture
 from horsemocap.detection import remeasure_by_fields
 from horsemocap.pipeline import AnalysisError, analyze
 from horsemocap.session import load_session
@@ -230,6 +232,9 @@ def run(name: str, seed: int, genlocked: bool = False, centroids: bool = False) 
         found.append(f"{c} {got:.3f}{'' if unc is None else f' +- {unc:.3f}'}{flash} (error {got - true[c]:+.3f})")
     first, last = a.triangulate.segment
     frames = f"{last - first} of {sync.n_frames}"
+    session = load_session(folder)
+    aperture = session_aperture(session.fps, [session.camera_timing(c) for c in session.cameras])
+    frames += f"; pose fitted through the aperture: {'none' if aperture is None else aperture.description}"
     return (f"{head}\n  exit {3 if verdict == 'unreliable' else 0}, verdict {verdict}; saddle A_y error "
             f"{st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of rms; Wb rms {ce['acc_y_Wb_rms']:+.1f} %, Wk rms "
             f"{ce['acc_y_Wk_rms']:+.1f} %; frames analysed {frames}\n  checks flagged: {flagged}{sync_text}"

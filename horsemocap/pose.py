@@ -162,6 +162,7 @@ __all__ = [
     "pose_noise",
     "frame_variances",
     "partial_pose",
+    "two_marker_distance_departure",
     "static_body_axes",
     "saddle_angles_deg",
 ]
@@ -1271,7 +1272,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
                         points=None, fundamental_hz: float | None = None,
                         expected_fundamental_hz: float | None = None, max_gap_s: float | None = None,
                         lam=None, iterations: int = 3, rotation_noise_test: bool = True,
-                        settled: SettledPoseSmoothing | None = None) -> PoseTrajectory:
+                        settled: SettledPoseSmoothing | None = None, aperture=None) -> PoseTrajectory:
     """Smooth a registered pose trajectory (centroid and rotation vector).
 
     The centroid ``c(t)`` and the rotation vector ``phi(t)`` of ``R(t) = Exp(phi(t)) R_ref`` are
@@ -1330,6 +1331,13 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         parameter). ``lam`` and ``fundamental_hz``, when given, still take
         precedence over its values. Nothing of the settled choice is checked
         again (the record it was settled on was).
+    aperture : horsemocap.aperture.Aperture, optional
+        Each frame's pose is the motion averaged over this temporal aperture
+        (the cameras' exposure, an interlaced frame's two fields;
+        :func:`horsemocap.aperture.session_aperture`): the six components are
+        fitted through it (``aperture`` of
+        :func:`horsemocap.splines.smoothing_spline`), so the trajectory is the
+        motion itself (:func:`_aperture_options`).
 
     Returns
     -------
@@ -1380,7 +1388,8 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         sig = pose_noise(reg, points, model)
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
     fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
-               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled)
+               points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled,
+               aperture=aperture)
     fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho, **fit)
     if settled is None and fitted[4] is not None and "noise_correlation" in fitted[4]:
         # the correlated-error choice is checked here once; settled records and named methods take it as it is
@@ -1391,6 +1400,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         for s in cs + ps:
             s.info.update(choice)
     valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
+    reason = _refused_partial_reasons(reason, points, ok, two) if params.partial_frames else reason
     return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
                           centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
                           registration=reg, rotvec_data=phi,
@@ -1475,7 +1485,7 @@ def _stride_p_values(t, registration, rotvec_data, splines, fundamental_hz: floa
     t = np.asarray(t, float)
     data = np.column_stack([np.asarray(registration.centre, float), np.asarray(rotvec_data, float)])
     data[~ok] = np.nan
-    fitted = np.column_stack([s(t) for s in splines])
+    fitted = np.column_stack([getattr(s, "observed", s)(t) for s in splines])   # what each frame observed
     rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else 0.0
     orders = np.arange(1, max(1, int(STRIDE_RESIDUAL_MAX_FRACTION * rate // fundamental_hz)) + 1)
     phase = 2 * np.pi * fundamental_hz * np.outer(t - t[0] if t.size else t, orders)
@@ -1560,14 +1570,14 @@ def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
 
 def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
                     fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int,
-                    settled: SettledPoseSmoothing | None = None):
+                    settled: SettledPoseSmoothing | None = None, aperture=None):
     """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white):
     ``(centre, phi, centre splines, rotation splines, choice, two-marker frames)``."""
     n = t.size
     if settled is not None:
         return _fit_settled_components(t, reg, model, phi, ok, ref, order, settled, params=params,
                                        fundamental_hz=fundamental_hz, lam=lam, sig=sig, points=points,
-                                       iterations=iterations)
+                                       iterations=iterations, aperture=aperture)
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
                                               params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
@@ -1597,9 +1607,25 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         elif CORRELATED_NOISE_CRITERION == "risk":
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
+    _aperture_options(spline_options, aperture, order, choice)
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
+
+
+def _aperture_options(spline_options: dict, aperture, order: int, choice) -> None:
+    """Fit the components through the frames' temporal ``aperture`` (``spline_options["aperture"]``) where the
+    spline can (the quintic GCV, unbiased risk and adaptive splines); the choice's reason says it, or why not."""
+    if aperture is None:
+        return
+    if order == 5 and spline_options["method"] in ("gcv", "noise", "adaptive"):
+        spline_options["aperture"] = aperture
+        note = f"fitted through the frames' temporal aperture ({aperture.description})"
+    else:
+        note = (f"the frames' temporal aperture ({aperture.description}) not modelled: the {spline_options['method']} "
+                f"order-{order} spline has no aperture")
+    if choice is not None and note not in choice.get("smoothing_reason", ""):
+        choice["smoothing_reason"] = choice.get("smoothing_reason", "") + "; " + note
 
 
 #: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
@@ -1664,7 +1690,7 @@ def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -
 
 def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order: int,
                             settled: SettledPoseSmoothing, *, params, fundamental_hz, lam, sig, points,
-                            iterations: int):
+                            iterations: int, aperture=None):
     """:func:`_fit_components` with the choices of ``settled``: no method, stride frequency, noise correlation
     or rotation weighting chosen; each component keeps the first 0 .. ``settled.harmonics`` harmonics that
     the criterion prefers at the given smoothing parameter (neither the plain spline's cutoff nor the rotation
@@ -1685,6 +1711,7 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
                           fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
     if settled.noise_correlation is not None:
         spline_options["noise_correlation"] = settled.noise_correlation
+    _aperture_options(spline_options, aperture, order, choice)
     most = settled.harmonics if f0 is not None else None
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, [None] * 3, False, iterations, most_harmonics=most,
@@ -1841,13 +1868,95 @@ def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fund
 
 
 def _two_marker_frames(points, ok, n) -> np.ndarray:
-    """Frames without a pose in which exactly two markers of ``points`` are seen (none without ``points``)."""
+    """Frames without a pose in which exactly two markers of ``points`` are seen and their distance is the
+    rigid body's (:func:`two_marker_distance_departure` within :data:`PARTIAL_POSE_RIGIDITY_LIMIT`); none
+    without ``points``."""
     if points is None:
         return np.zeros(n, bool)
     pts = np.asarray(points, float)
     if pts.shape[:1] != (n,):
         raise ValueError(f"points: expected {n} frames to match t, got shape {pts.shape}")
-    return ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
+    two = ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
+    return two & ~(np.abs(two_marker_distance_departure(pts, ok)) > PARTIAL_POSE_RIGIDITY_LIMIT)
+
+
+#: How far (in robust standard deviations) the distance between a two-marker frame's markers may depart from
+#: the same pair's distance in the frames with a pose before the frame is refused a partial pose: the same
+#: six-sigma scale as the rigid-body step's test of a marker moving against the others' rigid motion. A partial
+#: pose takes its rotation about the two markers' line from the trajectory and its remaining five degrees of
+#: freedom from the two markers alone, so a pair whose distance is wrong (a marker half out of a view, a blob
+#: merged with another) moves the pose by as much, and a frame that far off would steer the smoothing's choice.
+PARTIAL_POSE_RIGIDITY_LIMIT = 6.0
+#: The fewest frames with a pose and both markers of a pair from which their distance's scatter is measured;
+#: with fewer the pair's frames are not tested (kept).
+PARTIAL_POSE_RIGIDITY_MIN_FRAMES = 8
+
+
+def two_marker_distance_departure(points, ok) -> np.ndarray:
+    """Per frame in which exactly two markers are seen, how far their distance departs from the rigid body's.
+
+    A rigid marker set keeps the distance between any two of its markers.
+    The pair's usual distance and scatter are measured over the frames
+    with a pose (``ok``) in which both are seen: the median and the
+    median absolute deviation (times 1.4826, a normal error's standard
+    deviation). The departure is the frame's distance minus the median,
+    over that scatter. A frame seen with more or fewer than two markers, in
+    ``ok``, or whose pair has fewer than
+    :data:`PARTIAL_POSE_RIGIDITY_MIN_FRAMES` such frames, gets NaN.
+
+    Parameters
+    ----------
+    points : (n, m, 3)
+        The markers per frame, NaN where not seen.
+    ok : (n,) bool
+        The frames with a pose (three or more markers registered).
+
+    Returns
+    -------
+    (n,) array of departures (robust standard deviations, signed: positive when further apart).
+
+    Examples
+    --------
+    Two markers 0.25 m apart with a 1 mm scatter; the last frame sees only two of them, 20 mm too far apart.
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(1)
+    >>> model = np.array([[0.0, 0, 0], [0.25, 0, 0], [0.1, 0.2, 0]])
+    >>> pts = model + rng.normal(0, 7e-4, (30, 3, 3))
+    >>> pts[-1, 2] = np.nan
+    >>> pts[-1, 1, 0] += 0.02
+    >>> ok = np.r_[np.ones(29, bool), False]
+    >>> z = two_marker_distance_departure(pts, ok)
+    >>> bool(np.all(np.isnan(z[:-1]))), bool(z[-1] > PARTIAL_POSE_RIGIDITY_LIMIT)
+    (True, True)
+    """
+    pts = np.asarray(points, float)
+    ok = np.asarray(ok, bool)
+    seen = np.all(np.isfinite(pts), axis=2)
+    out = np.full(pts.shape[0], np.nan)
+    for k in np.flatnonzero(~ok & (seen.sum(1) == 2)):
+        i, j = np.flatnonzero(seen[k])
+        usual = np.linalg.norm(pts[ok & seen[:, i] & seen[:, j], i] - pts[ok & seen[:, i] & seen[:, j], j], axis=1)
+        if usual.size < PARTIAL_POSE_RIGIDITY_MIN_FRAMES:
+            continue
+        centre = float(np.median(usual))
+        scatter = max(1.4826 * float(np.median(np.abs(usual - centre))), 1e-9 * centre)
+        out[k] = (float(np.linalg.norm(pts[k, i] - pts[k, j])) - centre) / scatter
+    return out
+
+
+def _refused_partial_reasons(reason, points, ok, two) -> np.ndarray:
+    """``reason`` with the frames refused a partial pose (two markers seen, not in ``two``) saying why."""
+    if points is None:
+        return reason
+    departure = two_marker_distance_departure(points, ok)
+    refused = np.flatnonzero(np.isfinite(departure) & ~np.asarray(two, bool)
+                             & (np.abs(departure) > PARTIAL_POSE_RIGIDITY_LIMIT))
+    reason = np.array(reason, dtype=object)
+    for k in refused:
+        reason[k] = (f"{reason[k]}; no partial pose: its two markers' distance departs from the rigid body's by "
+                     f"{departure[k]:+.1f} robust sd (more than {PARTIAL_POSE_RIGIDITY_LIMIT:g})")
+    return reason.astype(str)
 
 
 def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam, sig, var, rot_noise,

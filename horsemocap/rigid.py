@@ -111,6 +111,7 @@ from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
+from .aperture import Aperture
 from .params import FitsParams, RigidBodyParams
 from .pose import (PoseRegistration, PoseTrajectory, SettledPoseSmoothing, check_model_conditioning,
                    conditioning_warnings, fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
@@ -1276,6 +1277,12 @@ class PoseInput:
     settled : horsemocap.pose.SettledPoseSmoothing, optional
         The pose smoothing's choices settled on another record (``settled`` of
         :func:`horsemocap.pose.fit_pose_trajectory`); default: chosen here.
+    aperture : horsemocap.aperture.Aperture, optional
+        The frames' temporal aperture (the cameras' exposure, interlaced
+        fields; :func:`horsemocap.aperture.session_aperture`) the pose
+        trajectory is fitted through (``aperture`` of
+        :func:`horsemocap.pose.fit_pose_trajectory`); default: none, each frame
+        taken at its instant.
 
     Examples
     --------
@@ -1288,6 +1295,7 @@ class PoseInput:
     covariance: np.ndarray | None = None
     weights: np.ndarray | None = None
     settled: SettledPoseSmoothing | None = None
+    aperture: Aperture | None = None
 
 
 def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = RigidBodyParams(), *,
@@ -1407,6 +1415,7 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
     traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
+                               aperture=pose_input.aperture,
                                expected_fundamental_hz=None if not period_s else 1.0 / period_s)
     psaddle = traj.point(t, s_saddle)
     pmarkers = traj.points(t, model)

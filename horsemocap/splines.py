@@ -43,6 +43,8 @@ from scipy.linalg import solve_triangular
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
+from .aperture import Aperture
+
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
            "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "half_gain_frequency",
@@ -88,12 +90,17 @@ class SmoothingSpline:
         ``lam`` (the smoothing parameter), ``edf`` (effective degrees of
         freedom, trace of the hat matrix), ``rms_residual`` (data units),
         ``n`` (samples), ``order``, ``method``.
+    aperture : horsemocap.aperture.Aperture or None
+        The samples' temporal aperture the spline was fitted through
+        (``aperture`` of :func:`smoothing_spline`): the spline is the motion,
+        :meth:`observed` what a sample saw of it.
     """
 
     spline: BSpline
     info: dict
     harmonics: "HarmonicTerms | None" = None
     events: "EventTerms | None" = None
+    aperture: "Aperture | None" = None
 
     def __call__(self, t, derivative: int = 0) -> np.ndarray:
         t = np.asarray(t, float)
@@ -103,6 +110,11 @@ class SmoothingSpline:
         if self.events is not None:
             out = out + self.events(t, derivative)
         return out
+
+    def observed(self, t) -> np.ndarray:
+        """What a sample at each ``t`` observed of the spline: the spline averaged over the samples'
+        aperture, or the spline itself without one (the fitted values its residuals are taken from)."""
+        return self(t) if self.aperture is None else self.aperture.average(self, t)
 
 
 @dataclass(frozen=True)
@@ -194,29 +206,39 @@ def _penalty(knots, k, m, weight=None):
     return D.T @ (wts[:, None] * D)
 
 
-def _basis(x_bytes: bytes, m: int):
+def _basis(x_bytes: bytes, m: int, aperture=None):
     """:func:`_basis_of`, cached for records of at most :data:`CACHE_SAMPLES` samples."""
     if len(x_bytes) <= 8 * CACHE_SAMPLES:
-        return _basis_cached(x_bytes, m)
-    return _basis_of(x_bytes, m)
+        return _basis_cached(x_bytes, m, aperture)
+    return _basis_of(x_bytes, m, aperture)
 
 
-def _gcv_basis(x_bytes: bytes, w_bytes: bytes, m: int):
+def _gcv_basis(x_bytes: bytes, w_bytes: bytes, m: int, aperture=None):
     """:func:`_gcv_basis_of`, cached for records of at most :data:`CACHE_SAMPLES` samples."""
     if len(x_bytes) <= 8 * CACHE_SAMPLES:
-        return _gcv_basis_cached(x_bytes, w_bytes, m)
-    return _gcv_basis_of(x_bytes, w_bytes, m)
+        return _gcv_basis_cached(x_bytes, w_bytes, m, aperture)
+    return _gcv_basis_of(x_bytes, w_bytes, m, aperture)
 
 
-def _basis_of(x_bytes: bytes, m: int):
+def _design_matrix(x, knots, k: int, aperture=None) -> np.ndarray:
+    """The B-spline basis at the samples ``x`` (n, p); with an ``aperture``
+    (:class:`horsemocap.aperture.Aperture`) each sample's row is the basis averaged over its aperture, as the
+    sample observed it (the end pieces' polynomials continued beyond the record)."""
+    if aperture is None:
+        return BSpline.design_matrix(x, knots, k).toarray()
+    return aperture.average(lambda u: BSpline.design_matrix(u, knots, k, extrapolate=True).toarray(), x)
+
+
+def _basis_of(x_bytes: bytes, m: int, aperture=None):
     """Knots, design matrix, penalty and the penalty's eigen-decomposition of the samples' times
     (``x_bytes``: the float64 bytes of x). A pure function of the times, cached: the six pose
     components and the re-smoothings of one trajectory share their times (the penalty's quadrature
-    and its decomposition were half of the pose fit's time). The arrays are read-only."""
+    and its decomposition were half of the pose fit's time). The arrays are read-only. With an ``aperture``
+    the design matrix is the basis each sample observed (:func:`_design_matrix`)."""
     x = np.frombuffer(x_bytes, float)
     k = 2 * m - 1
     knots = _knots(x, m)          # at most n basis functions: B^T W B is non-singular
-    B = BSpline.design_matrix(x, knots, k).toarray()
+    B = _design_matrix(x, knots, k, aperture)
     P = _penalty(knots, k, m)
     d, U = np.linalg.eigh((P + P.T) / 2)
     for a in (knots, B, P, d, U):
@@ -224,10 +246,10 @@ def _basis_of(x_bytes: bytes, m: int):
     return knots, B, P, d, U
 
 
-def _gcv_basis_of(x_bytes: bytes, w_bytes: bytes, m: int):
+def _gcv_basis_of(x_bytes: bytes, w_bytes: bytes, m: int, aperture=None):
     """Demmler-Reinsch basis of the quintic smoothing spline with a uniform penalty (``T``, ``d``, ``Z``
     of :func:`_quintic_gcv`), a pure function of the times and weights, cached like :func:`_basis`."""
-    knots, B, P, _, _ = _basis(x_bytes, m)
+    knots, B, P, _, _ = _basis(x_bytes, m, aperture)
     out = _demmler_reinsch(B, P, np.frombuffer(w_bytes, float))
     for a in out:
         a.flags.writeable = False
@@ -367,7 +389,7 @@ def reml_ar1_smoothing(t, y, correlations=None, m: int = 3) -> dict:
     return best
 
 
-def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correlation=None):
+def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correlation=None, aperture=None):
     """The quintic smoothing spline with ``lam`` chosen by GCV (``noise``: unbiased risk; ``correlation``:
     the AR(1) coefficient of the noise, GCV with ``tr(H C)`` for ``tr(H)``, Opsomer, Wang and Yang 2001; with
     both, the unbiased risk with ``tr(H C)``)."""
@@ -377,10 +399,10 @@ def _quintic_gcv(x, y, w, lam, weight=None, noise=None, m=3, gamma=None, correla
     x = np.ascontiguousarray(x, float)
     w = np.ascontiguousarray(w, float)
     if weight is None:
-        knots = _basis(x.tobytes(), m)[0]
-        T, d, Z = _gcv_basis(x.tobytes(), w.tobytes(), m)
+        knots = _basis(x.tobytes(), m, aperture)[0]
+        T, d, Z = _gcv_basis(x.tobytes(), w.tobytes(), m, aperture)
     else:
-        knots, B = _basis(x.tobytes(), m)[:2]
+        knots, B = _basis(x.tobytes(), m, aperture)[:2]
         T, d, Z = _demmler_reinsch(B, _penalty(knots, k, m, weight), w)
     sw = np.sqrt(w)
     z = Z.T @ (sw * y)
@@ -509,11 +531,13 @@ def harmonic_columns(t, frequency_hz: float, order: int, t0: float = 0.0, deriva
     return np.hstack([s * np.cos(arg), s * np.sin(arg)])
 
 
-def _harmonic_subset(t, frequency_hz: float, indices, t0: float = 0.0) -> np.ndarray:
-    """:func:`harmonic_columns` of the harmonics ``indices`` only (1-based): cosines, then sines."""
+def _harmonic_subset(t, frequency_hz: float, indices, t0: float = 0.0, aperture=None) -> np.ndarray:
+    """:func:`harmonic_columns` of the harmonics ``indices`` only (1-based): cosines, then sines; with an
+    ``aperture``, as each sample observed them (averaged over it)."""
     K = max(indices)
     idx = np.asarray(indices) - 1
-    cols = harmonic_columns(t, frequency_hz, K, t0)
+    cols = (harmonic_columns(t, frequency_hz, K, t0) if aperture is None else
+            aperture.average(lambda u: harmonic_columns(u, frequency_hz, K, t0), t))
     return np.hstack([cols[:, idx], cols[:, K + idx]])
 
 
@@ -566,7 +590,7 @@ def _mixed_model_coefficients(s, Wt, z, lam, Q1, Rx, yw, Zw, penalty_basis):
     return U0 @ beta[:U0.shape[1]] + Up @ (u / np.sqrt(dp)), beta
 
 
-def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamma=None):
+def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamma=None, aperture=None):
     """Partial smoothing spline: ``f = s + h``, ``h`` harmonics of ``fundamental_hz`` (unpenalised), ``s`` a
     spline of degree ``2m - 1`` with the penalty ``lam integral s^(m)^2``.
 
@@ -584,7 +608,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
-    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m)
+    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m, aperture)
     U0, Up, dp = U[:, :m], U[:, m:], np.clip(d[m:], 1e-14 * d[-1], None)
     sw = np.sqrt(w)
     yw = sw * y
@@ -594,7 +618,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     best = None
     ZtZ = Zty = None
     for K in map(_harmonic_set, orders):
-        X = X0w if not K else np.hstack([X0w, sw[:, None] * _harmonic_subset(x, fundamental_hz, K, t0)])
+        X = X0w if not K else np.hstack([X0w, sw[:, None] * _harmonic_subset(x, fundamental_hz, K, t0, aperture)])
         q = X.shape[1]
         if q >= n - 2:
             continue
@@ -797,17 +821,17 @@ def _significant_harmonics(x, y, w, fundamental_hz, candidates, noise):
     return keep, amp
 
 
-def _adaptive(x, y, w, lam):
+def _adaptive(x, y, w, lam, aperture=None):
     """Two passes: GCV with a uniform penalty, then GCV of the global scale of a penalty
     weighted by the inverse local roughness of the first fit (a locally adaptive spline)."""
-    s1, info1 = _quintic_gcv(x, y, w, None)
+    s1, info1 = _quintic_gcv(x, y, w, None, aperture=aperture)
     weight = _roughness_weight(x, lambda t, derivative: s1.derivative(derivative)(t), info1["edf"])
-    s2, info2 = _quintic_gcv(x, y, w, lam, weight)
+    s2, info2 = _quintic_gcv(x, y, w, lam, weight, aperture=aperture)
     info2["method"] = "adaptive"
     return s2, info2
 
 
-def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None):
+def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None, aperture=None):
     """Partial smoothing spline with change points: ``f = s + sum_j b_j (t - tau_j)_+^degree``, the
     truncated powers at ``events`` unpenalised (Wahba 1990, ch. 6), ``s`` a spline of degree
     ``2m - 1`` with the penalty ``lam integral v(t) s^(m)^2`` (``v`` = ``weight``, default 1).
@@ -818,7 +842,7 @@ def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None)
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
-    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m)
+    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m, aperture)
     if weight is not None:
         P = _penalty(knots, k, m, weight)
         d, U = np.linalg.eigh((P + P.T) / 2)
@@ -826,7 +850,9 @@ def _event_quintic(x, y, w, lam, events, degree=2, weight=None, m=3, gamma=None)
     sw = np.sqrt(w)
     yw = sw * y
     Zw = sw[:, None] * (B @ Up) / np.sqrt(dp)[None]
-    X = sw[:, None] * np.hstack([B @ U0, truncated_power_columns(x, events, degree)])
+    steps = (truncated_power_columns(x, events, degree) if aperture is None else
+             aperture.average(lambda u: truncated_power_columns(u, events, degree), x))
+    X = sw[:, None] * np.hstack([B @ U0, steps])
     q = X.shape[1]
     if q >= n - 2:
         raise ValueError(f"y: {n} samples are too few for a spline with {len(events)} event(s)")
@@ -880,16 +906,16 @@ def _roughness_weight(x, fit1, edf, events=()):
     return weight
 
 
-def _adaptive_events(x, y, w, lam, events, degree=2):
+def _adaptive_events(x, y, w, lam, events, degree=2, aperture=None):
     """:func:`_adaptive` with change points: both passes are partial splines with the truncated
     powers at ``events`` (:func:`_event_quintic`), and the roughness window stops at the events."""
-    s1, e1, info1 = _event_quintic(x, y, w, None, events, degree)
+    s1, e1, info1 = _event_quintic(x, y, w, None, events, degree, aperture=aperture)
 
     def first(t, derivative):
         return s1.derivative(derivative)(t) + e1(t, derivative)
 
     weight = _roughness_weight(x, first, info1["edf"], events)
-    s2, e2, info2 = _event_quintic(x, y, w, lam, events, degree, weight)
+    s2, e2, info2 = _event_quintic(x, y, w, lam, events, degree, weight, aperture=aperture)
     info2["method"] = "adaptive"
     return s2, e2, info2
 
@@ -933,7 +959,7 @@ def half_gain_frequency(lam: float, dt: float, mean_weight: float = 1.0) -> floa
 
 
 def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
-                     harmonic_noise) -> SmoothingSpline:
+                     harmonic_noise, aperture=None) -> SmoothingSpline:
     """:func:`smoothing_spline` with unpenalised harmonics of ``fundamental_hz`` (a partial quintic spline)."""
     dt = float(np.median(np.diff(x)))
     kmax = int(min(max_harmonics, np.floor(0.4 / dt / fundamental_hz - 1e-9)))
@@ -943,24 +969,24 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
         # harmonics only where the plain spline passes the signal: below its cutoff frequency
         # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
         # hides from the plain spline is not taken whole
-        s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz)
+        s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz, aperture=aperture)
         cutoff = half_gain_frequency(info0["lam"], dt, float(np.mean(w)))
         kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
         if kmax < 1:
             info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
-            return SmoothingSpline(s0, info0, None)
+            return SmoothingSpline(s0, info0, None, aperture=aperture)
     candidates = list(range(1, max(kmax, 0) + 1))
     amplitude = np.zeros(0)
     if harmonic_noise is not None and candidates:
         candidates, amplitude = _significant_harmonics(x, y, w, fundamental_hz, candidates, harmonic_noise)
     # nested candidate sets: none, the first significant harmonic, the first two, ...
     sets = [tuple(candidates[:j]) for j in range(len(candidates) + 1)]
-    s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz)
+    s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz, aperture=aperture)
     info["cutoff_hz"] = cutoff
     info["harmonic_amplitudes"] = amplitude.tolist()
     if harmonic_noise is not None:
         info["harmonic_noise"] = float(harmonic_noise)     # the level the harmonics were tested at
-    return SmoothingSpline(s, info, harm)
+    return SmoothingSpline(s, info, harm, aperture=aperture)
 
 
 def _check_method_options(x, method: str, order: int, fundamental_hz, events, weights, noise, noise_correlation,
@@ -998,7 +1024,8 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
                      weights=None, noise: float | None = None, fundamental_hz: float | None = None,
                      max_harmonics: int = 10, harmonic_cutoff: bool = False,
                      harmonic_noise: float | None = None, events=None,
-                     event_degree: int = 2, noise_correlation: float | None = None) -> SmoothingSpline:
+                     event_degree: int = 2, noise_correlation: float | None = None,
+                     aperture=None) -> SmoothingSpline:
     """Fit a smoothing spline to samples ``y(t)``; its smoothing chosen by GCV.
 
     Parameters
@@ -1065,6 +1092,13 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         ``method="noise"``: the noise's covariance is ``noise^2 C``, known, and ``lam`` minimises
         the unbiased risk ``RSS/n + 2 noise^2 tr(H C)/n`` (Mallows' C_p for correlated errors),
         which estimates nothing about the noise from the data it smooths.
+    aperture : horsemocap.aperture.Aperture, optional
+        Each sample is the motion averaged over this temporal aperture (a
+        camera's exposure, an interlaced frame's two fields): the quintic
+        spline's basis, harmonics and change points are averaged over it at
+        every sample, so the spline fits what the samples observed and
+        estimates the motion itself (``s.observed(t)`` is the fit at the
+        samples). Not with ``order=3``, ``"reml"`` or ``"none"``.
 
     Examples
     --------
@@ -1084,6 +1118,9 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         raise ValueError("t: times must increase")
     _check_method_options(x, method, order, fundamental_hz, events, weights, noise, noise_correlation,
                           harmonic_noise)
+    if aperture is not None and (order != 5 or method in ("reml", "none")):
+        raise ValueError(f"aperture: a temporal aperture is fitted by the quintic 'gcv', 'noise' and 'adaptive' "
+                         f"splines only, got method={method!r}, order={order}")
     n = x.size
     w = np.ones(n) if weights is None else np.asarray(weights, float)
     if w.shape != (n,) or np.any(w <= 0):
@@ -1102,26 +1139,26 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
                                    "order": 3, "method": "gcv"})
     if fundamental_hz is not None:
         return _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
-                                harmonic_noise)
+                                harmonic_noise, aperture)
     if events is not None and len(events):
         ev = sorted(float(e) for e in events)
         fn = _adaptive_events if method == "adaptive" else _event_quintic
-        s, et, info = fn(x, y, w, lam, ev, event_degree)
-        return SmoothingSpline(s, info, None, et)
+        s, et, info = fn(x, y, w, lam, ev, event_degree, aperture=aperture)
+        return SmoothingSpline(s, info, None, et, aperture)
     if method == "noise":
         if order != 5:
             raise ValueError("method 'noise' is a quintic spline: order must be 5")
-        s, info = _quintic_gcv(x, y, w, lam, noise=noise, correlation=noise_correlation)
+        s, info = _quintic_gcv(x, y, w, lam, noise=noise, correlation=noise_correlation, aperture=aperture)
     elif method == "adaptive":
-        s, info = _adaptive(x, y, w, lam)
+        s, info = _adaptive(x, y, w, lam, aperture)
     elif method == "reml":
         if lam is None:
             lam = reml_ar1_smoothing(x, y, correlations=[noise_correlation or 0.0])["lam"]
         s, info = _quintic_gcv(x, y, w, lam, correlation=noise_correlation)
         info["method"] = "reml"
     else:
-        s, info = _quintic_gcv(x, y, w, lam, correlation=noise_correlation)
-    return SmoothingSpline(s, info)
+        s, info = _quintic_gcv(x, y, w, lam, correlation=noise_correlation, aperture=aperture)
+    return SmoothingSpline(s, info, aperture=aperture)
 
 
 def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: float = HUBER_K,
@@ -1201,7 +1238,7 @@ def robust_weighted_spline(t, y, variance, *, iterations: int = 2, huber_k: floa
         spline = smoothing_spline(t, y, weights=w / w.mean(), **fit_kwargs)
         if it == int(iterations):
             break
-        z = (y - spline(t)) * np.sqrt(w0)
+        z = (y - spline.observed(t)) * np.sqrt(w0)
         # the residuals of a smoother are smaller than the noise by about sqrt(1 - edf / n)
         scale = 1.4826 * float(np.median(np.abs(z))) / np.sqrt(max(1.0 - spline.info["edf"] / y.size, 0.1))
         if not scale > 0:
@@ -1220,7 +1257,7 @@ def residual_log_likelihood(spline, t, y, variance=None) -> float:
     two noise models (e.g. predicted per-sample variances against equal ones) are compared by it."""
     y = np.asarray(y, float)
     v = np.ones_like(y) if variance is None else np.asarray(variance, float)
-    r = y - spline(np.asarray(t, float))
+    r = y - getattr(spline, "observed", spline)(np.asarray(t, float))    # a sample's fit through its aperture
     n = y.size
     s2 = max(float(np.sum(r * r / v)) / n, 1e-300)
     return float(-0.5 * (np.sum(np.log(v)) + n * np.log(s2)) - spline.info["edf"])

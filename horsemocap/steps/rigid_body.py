@@ -5,6 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..aperture import session_aperture
 from ..frames import time_axis, to_motion_frame
 from ..params import RigidBodyParams
 from ..pose import CollinearMarkersError, SettledPoseSmoothing
@@ -99,7 +100,11 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     smoothing's choices made on another pass of the same record
     (:func:`horsemocap.pose.settle_pose_smoothing`), reused instead of chosen;
     ``thesis_chain`` False: with ``kinematics="pose_spline"``, the thesis'
-    chain (which nothing passed on uses there) is not computed.
+    chain (which nothing passed on uses there) is not computed. Where
+    ``session.json`` gives the cameras' ``camera_timing`` (exposure,
+    interlaced fields), the pose trajectory is fitted through the frames'
+    temporal aperture (:func:`horsemocap.aperture.session_aperture`), so it
+    estimates the motion, not its average over each exposure.
     """
     fits, pose = section.fits, section.pose
     positions, static, mframe = motion.positions, motion.static, motion.frame
@@ -132,7 +137,9 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
         rb = analyse_rigid_body(
             t, positions, static, section, period_s=None if period is None else period / session.fps,
             fourier_orders=given_orders,
-            pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov, settled=settled),
+            pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov, settled=settled,
+                                 aperture=session_aperture(session.fps, [session.camera_timing(c)
+                                                                         for c in session.cameras])),
             thesis_chain=thesis_chain)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
