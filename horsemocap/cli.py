@@ -23,9 +23,8 @@ from .plots import figure_painter
 from .readable import hours_minutes
 
 #: Allocations between two collections of the garbage collector's youngest generation in the command's
-#: process (Python's default is 700): the run loads about a thousand modules and builds few reference
-#: cycles, and with the default the collector walks the loaded modules' objects again and again (about
-#: 250 collections, two of them of every object, in the bundled demo).
+#: process (Python's default is 700): a run loads about a thousand modules and builds few reference
+#: cycles; with the default the collector walks the loaded modules' objects again and again.
 COMMAND_GC_ALLOCATIONS = 10_000
 
 DESCRIPTION = """\

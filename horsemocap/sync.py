@@ -565,9 +565,9 @@ class FlashSearch:
     shared with the detection as those of a search made in the step.
 
     Where a forked copy of the process is safe (:func:`horsemocap.forking.can_fork`)
-    the search runs in one: its work in Python (the frames' comparison, a
-    third of it) then never waits for the interpreter lock the loading of
-    modules holds, nor holds it back. The copy decodes the frames and
+    the search runs in one: its work in Python (comparing the frames) then
+    never waits for the interpreter lock the loading of modules holds, nor
+    holds it back. The copy decodes the frames and
     copies those the process shares (:data:`horsemocap.sources.SHARED_GRAY_BYTES`)
     into memory both see, so this process reads them as if it had decoded
     them (:func:`horsemocap.sources.import_decoded`); a copy that ends
