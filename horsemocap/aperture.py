@@ -31,6 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .session import INTERLACE_ORDERS
+from .subframe import DEFAULT_EXPOSURE_FRACTION
+
 __all__ = ["Aperture", "GAUSS_NODES", "box_aperture", "camera_aperture", "mean_aperture", "session_aperture"]
 
 #: Gauss-Legendre nodes on each half of a box (exact for a polynomial of degree 5 on each half).
@@ -125,14 +128,14 @@ def camera_aperture(fps: float, exposure_s: float | None = None, interlaced: boo
     fps : float
         The frame rate; an interlaced frame's fields are ``1 / (2 fps)`` apart.
     exposure_s : float, optional
-        The exposure time (of each field when interlaced); None: not known, the observation is taken
-        at its instant (an interlaced frame's fields each at theirs).
+        The exposure time (of each field when interlaced), at most one frame (one field, interlaced);
+        None or 0: the observation is taken at its instant (an interlaced frame's fields each at theirs).
     interlaced : bool
         The frame's centroid is the mean of its two fields' centres.
 
     Returns
     -------
-    Aperture, or None when neither is given (nothing to model).
+    Aperture, or None when there is nothing to model (a progressive frame taken at its instant).
 
     Examples
     --------
@@ -143,11 +146,17 @@ def camera_aperture(fps: float, exposure_s: float | None = None, interlaced: boo
     >>> a = camera_aperture(25.0, 0.02, interlaced=True)
     >>> bool(np.isclose(a.gain(8.4).real, np.cos(np.pi * 8.4 * 0.02) * np.sinc(8.4 * 0.02)))
     True
-    >>> camera_aperture(25.0) is None
-    True
+    >>> camera_aperture(25.0) is None, camera_aperture(25.0, 0.0) is None
+    (True, True)
     """
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps: expected a positive frame rate, got {fps!r}")
+    longest = (0.5 if interlaced else 1.0) / fps
+    if exposure_s is not None and not (np.isfinite(exposure_s) and 0 <= exposure_s <= longest * (1 + 1e-9)):
+        raise ValueError(f"exposure_s: expected an exposure time from 0 to one {'field' if interlaced else 'frame'} "
+                         f"({longest:.6g} s at {fps:g} fps), got {exposure_s!r}")
+    if not exposure_s:
+        exposure_s = None
     if exposure_s is None and not interlaced:
         return None
     delay = 0.5 / fps
@@ -155,8 +164,6 @@ def camera_aperture(fps: float, exposure_s: float | None = None, interlaced: boo
     fields = f"two fields {1e3 * delay:.3g} ms apart" if interlaced else ""
     if exposure_s is None:
         return Aperture(tuple(centres), tuple([1.0 / len(centres)] * len(centres)), fields + ", each at its instant")
-    if not (np.isfinite(exposure_s) and exposure_s > 0):
-        raise ValueError(f"exposure_s: expected a positive exposure time (s), got {exposure_s!r}")
     box = f"exposure {1e3 * exposure_s:.3g} ms"
     return _boxes(centres, float(exposure_s), f"{fields}, each {box}" if interlaced else box)
 
@@ -190,20 +197,39 @@ def mean_aperture(apertures) -> Aperture | None:
 
 
 def session_aperture(fps: float, timings) -> Aperture | None:
-    """The aperture of a session's observations from its cameras' ``camera_timing`` (``exposure_s``,
-    ``interlaced``; docs/sessions.md): :func:`mean_aperture` of :func:`camera_aperture`; None when no
-    camera gives either.
+    """The aperture of a session's observations from its cameras' ``camera_timing`` (camera -> its entry:
+    ``exposure_s``, ``interlaced``; docs/sessions.md; or a list of entries, the cameras then named by
+    position): :func:`mean_aperture` of :func:`camera_aperture`.
+
+    A camera with an entry but no ``exposure_s`` is exposed for the documented default, half a frame
+    (:data:`horsemocap.subframe.DEFAULT_EXPOSURE_FRACTION`, as the synchronisation times the flash);
+    ``exposure_s`` 0 is an instant; a camera without an entry (``{}``) is taken at its instants. None
+    when no camera has anything to model. An exposure longer than a frame (than a field, interlaced)
+    is an error naming the camera's field.
 
     Examples
     --------
-    >>> session_aperture(25.0, [{}, {}]) is None
+    >>> session_aperture(25.0, {"left": {}, "right": {}}) is None
     True
-    >>> session_aperture(25.0, [{"exposure_s": 0.02, "interlaced": "bottom_first"}] * 3).description
+    >>> session_aperture(25.0, {c: {"exposure_s": 0.02, "interlaced": "bottom_first"} for c in "abc"}).description
     'two fields 20 ms apart, each exposure 20 ms'
+    >>> session_aperture(25.0, {"left": {"rolling_shutter_s": 0.02}}).description
+    'exposure 20 ms'
     """
     out = []
-    for timing in timings:
+    for camera, timing in (timings.items() if isinstance(timings, dict) else enumerate(timings)):
+        if not timing:
+            out.append(None)
+            continue
         exposure = timing.get("exposure_s")
-        out.append(camera_aperture(fps, None if exposure in (None, 0) else float(exposure),
-                                   bool(timing.get("interlaced"))))
+        interlaced = timing.get("interlaced") in INTERLACE_ORDERS
+        if not interlaced and timing.get("interlaced") not in (None, False):
+            raise ValueError(f"metadata.camera_timing.{camera}.interlaced: expected one of {list(INTERLACE_ORDERS)} "
+                             f"or null/false, got {timing['interlaced']!r}")
+        try:
+            out.append(camera_aperture(fps, DEFAULT_EXPOSURE_FRACTION / fps if exposure is None else float(exposure),
+                                       interlaced))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"metadata.camera_timing.{camera}.exposure_s: {exc}".replace(": exposure_s:", ":")) \
+                from None
     return mean_aperture(out)

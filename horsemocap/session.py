@@ -24,6 +24,8 @@ KNOWN_FIELDS = ("format", "name", "fps", "cameras", "reference_camera", "motion"
 #: Most skin markers a session may name: the static shot is matched to the ride by trying every assignment
 #: of its points to the markers ((m + 1)! of them: 7 markers 1.4 s, 8 about 13 s, 9 minutes).
 MAX_MARKERS = 8
+#: ``metadata.camera_timing.<camera>.interlaced``: which field an interlaced camera exposes first.
+INTERLACE_ORDERS = ("bottom_first", "top_first")
 REQUIRED_FIELDS = ("format", "name", "fps", "cameras", "motion", "sync", "calibration", "markers")
 
 
@@ -71,7 +73,7 @@ class Session:
 
     def camera_timing(self, camera: str) -> dict:
         """What ``metadata.camera_timing.<camera>`` gives of a camera that runs free (``exposure_s``,
-        ``rolling_shutter_s``, ``interlaced``; docs/sessions.md), or ``{}``.
+        ``rolling_shutter_s``, ``interlaced``; docs/sessions.md), checked, or ``{}``.
 
         Examples
         --------
@@ -81,10 +83,28 @@ class Session:
         ...             metadata={"camera_timing": {"left": {"interlaced": "bottom_first"}}})
         >>> s.camera_timing("left"), s.camera_timing("right")
         ({'interlaced': 'bottom_first'}, {})
+
+        A value the camera cannot have is an error naming its field: ``interlaced`` other than
+        ``"bottom_first"``, ``"top_first"`` or null/false; ``exposure_s`` longer than a frame (a field,
+        interlaced) or ``rolling_shutter_s`` longer than a frame.
         """
         timing = self.metadata.get("camera_timing", {}) if isinstance(self.metadata, dict) else {}
         given = timing.get(camera) if isinstance(timing, dict) else None
-        return given if isinstance(given, dict) else {}
+        if not isinstance(given, dict):
+            return {}
+        name = f"metadata.camera_timing.{camera}"
+        if given.get("interlaced") not in (None, False, *INTERLACE_ORDERS):
+            _fail(self.json_path, f"{name}.interlaced",
+                  f"one of {list(INTERLACE_ORDERS)}, or null/false for a progressive camera", given["interlaced"])
+        longest = {"exposure_s": ("one field", 0.5) if given.get("interlaced") else ("one frame", 1.0),
+                   "rolling_shutter_s": ("one frame", 1.0)}
+        for key, (span, frames) in longest.items():
+            value = given.get(key)
+            if value is not None and not (isinstance(value, (int, float)) and not isinstance(value, bool)
+                                          and 0 <= value <= frames / self.fps * (1 + 1e-9)):
+                _fail(self.json_path, f"{name}.{key}", f"a time in seconds from 0 to {span} "
+                      f"({frames / self.fps:.6g} s at {self.fps:g} fps)", value)
+        return given
 
     def calibrates_from_views(self, recalibrate: bool = False) -> bool:
         """Whether the rig comes from the checkerboard views: no ``rig.toml``, or ``recalibrate``."""

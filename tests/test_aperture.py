@@ -1,12 +1,15 @@
 """The camera's temporal aperture in the smoothing: known motions observed through a box or two fields."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from horsemocap import pose, splines
 from horsemocap.aperture import Aperture, box_aperture, camera_aperture, mean_aperture, session_aperture
 from horsemocap.params import PoseParams
+from horsemocap.session import Session, SessionError
 
 FPS = 25.0
 F0 = 1.4                                  # a trot's stride frequency
@@ -98,7 +101,56 @@ def test_without_an_aperture_nothing_changes():
     b = splines.smoothing_spline(t, y, fundamental_hz=F0, aperture=None)
     np.testing.assert_array_equal(a(t, 2), b(t, 2))
     assert session_aperture(FPS, [{}, {}, {}]) is None
-    assert session_aperture(FPS, [{"rolling_shutter_s": 0.02}]) is None
+    assert session_aperture(FPS, {"left": {"exposure_s": 0}, "right": {}}) is None
+
+
+def test_a_camera_timing_without_exposure_gets_the_documented_default_of_half_a_frame():
+    """As the synchronisation times the flash: a camera with a camera_timing entry but no exposure_s is
+    exposed half a frame; exposure 0 is an instant."""
+    f = np.array([1.4, 8.4])
+    rolling = session_aperture(FPS, {"left": {"rolling_shutter_s": 0.02}})
+    np.testing.assert_allclose(rolling.gain(f), box_aperture(0.5 / FPS).gain(f), atol=1e-12)
+    fields = session_aperture(FPS, {"left": {"interlaced": "top_first"}})
+    np.testing.assert_allclose(fields.gain(f), camera_aperture(FPS, 0.02, interlaced=True).gain(f), atol=1e-12)
+    instants = session_aperture(FPS, {"left": {"interlaced": "top_first", "exposure_s": 0}})
+    np.testing.assert_allclose(instants.gain(f), np.cos(np.pi * f * 0.02), atol=1e-12)
+
+
+def test_exposures_a_camera_cannot_have_are_refused_naming_the_camera_field():
+    with pytest.raises(ValueError, match=r"camera_timing\.left\.exposure_s.*one frame"):
+        session_aperture(FPS, {"left": {"exposure_s": 8}})
+    with pytest.raises(ValueError, match=r"camera_timing\.right\.exposure_s.*one field"):
+        session_aperture(FPS, {"left": {}, "right": {"exposure_s": 0.03, "interlaced": "bottom_first"}})
+    with pytest.raises(ValueError, match=r"camera_timing\.left\.interlaced"):
+        session_aperture(FPS, {"left": {"interlaced": "progressive"}})
+    with pytest.raises(ValueError, match="exposure_s"):
+        camera_aperture(FPS, 0.041)
+    assert camera_aperture(FPS, 0.04) is not None and camera_aperture(FPS, 0.02, interlaced=True) is not None
+
+
+@pytest.mark.parametrize("given, field", [({"interlaced": "progressive"}, "interlaced"),
+                                          ({"interlaced": "none"}, "interlaced"),
+                                          ({"exposure_s": 8}, "exposure_s"),
+                                          ({"exposure_s": 0.03, "interlaced": "top_first"}, "exposure_s"),
+                                          ({"exposure_s": "fast"}, "exposure_s"),
+                                          ({"rolling_shutter_s": -0.01}, "rolling_shutter_s")])
+def test_session_camera_timing_refuses_values_a_camera_cannot_have(given, field):
+    session = Session(root=Path("."), name="s", fps=FPS, cameras=("left",), reference_camera="left", motion={},
+                      sync_method="flash", sync_offsets=None, rig_path=None, calibration_images=None, board=None,
+                      plumb=None, static=None, marker_count=3, marker_diameter_m=0.06,
+                      metadata={"camera_timing": {"left": given}})
+    with pytest.raises(SessionError, match=rf"session\.json: field 'metadata\.camera_timing\.left\.{field}'"):
+        session.camera_timing("left")
+
+
+def test_session_camera_timing_passes_what_a_camera_can_have():
+    given = {"left": {"interlaced": "bottom_first", "exposure_s": 0.02, "rolling_shutter_s": 0.0},
+             "right": {"interlaced": None, "exposure_s": 0.04}, "top": {"interlaced": False}}
+    session = Session(root=Path("."), name="s", fps=FPS, cameras=tuple(given), reference_camera="left", motion={},
+                      sync_method="flash", sync_offsets=None, rig_path=None, calibration_images=None, board=None,
+                      plumb=None, static=None, marker_count=3, marker_diameter_m=0.06,
+                      metadata={"camera_timing": given})
+    assert {c: session.camera_timing(c) for c in given} == given
 
 
 def test_the_pose_trajectory_through_the_aperture_recovers_the_motion():

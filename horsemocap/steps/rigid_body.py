@@ -138,8 +138,8 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
             t, positions, static, section, period_s=None if period is None else period / session.fps,
             fourier_orders=given_orders,
             pose_input=PoseInput(points=pose_points, t=pose_t, covariance=cov, settled=settled,
-                                 aperture=session_aperture(session.fps, [session.camera_timing(c)
-                                                                         for c in session.cameras])),
+                                 aperture=session_aperture(session.fps, {c: session.camera_timing(c)
+                                                                         for c in session.cameras})),
             thesis_chain=thesis_chain)
     except CollinearMarkersError as exc:
         raise AnalysisError("rigid_body", f"{exc} (static shot of {session.json_path})") from None
