@@ -996,7 +996,8 @@ class PoseTrajectory:
     @property
     def smoothing_choice(self) -> dict | None:
         """What ``smoothing="auto"`` ran and why (:func:`choose_smoothing`): ``{"method", "reason"}``;
-        None when the smoothing was asked for by name."""
+        for a smoothing asked for by name, its name and whether the frames' temporal aperture was modelled
+        (None when there was no aperture to model)."""
         info = self.centre_splines[0].info
         if "smoothing_method" not in info:
             return None
@@ -1607,25 +1608,32 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         elif CORRELATED_NOISE_CRITERION == "risk":
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
-    _aperture_options(spline_options, aperture, order, choice)
+    choice = _aperture_options(spline_options, aperture, order, choice)
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
 
 
-def _aperture_options(spline_options: dict, aperture, order: int, choice) -> None:
+def _aperture_options(spline_options: dict, aperture, order: int, choice):
     """Fit the components through the frames' temporal ``aperture`` (``spline_options["aperture"]``) where the
-    spline can (the quintic GCV, unbiased risk and adaptive splines); the choice's reason says it, or why not."""
+    spline can (the quintic GCV, unbiased risk and adaptive splines), and return the choice with a reason that
+    says it, or why not: a smoothing asked for by name (``choice`` None) gets a choice naming its method and
+    the note, so the record says either way whether the aperture was modelled."""
     if aperture is None:
-        return
-    if order == 5 and spline_options["method"] in ("gcv", "noise", "adaptive"):
+        return choice
+    method = spline_options["method"]
+    if order == 5 and method in ("gcv", "noise", "adaptive"):
         spline_options["aperture"] = aperture
         note = f"fitted through the frames' temporal aperture ({aperture.description})"
     else:
-        note = (f"the frames' temporal aperture ({aperture.description}) not modelled: the {spline_options['method']} "
+        note = (f"the frames' temporal aperture ({aperture.description}) not modelled: the {method} "
                 f"order-{order} spline has no aperture")
-    if choice is not None and note not in choice.get("smoothing_reason", ""):
+    if choice is None:
+        named = "gcv_cubic" if (method, order) == ("gcv", 3) else method
+        return {"smoothing_method": named, "smoothing_reason": f"{named} asked for by name; {note}"}
+    if note not in choice.get("smoothing_reason", ""):
         choice["smoothing_reason"] = choice.get("smoothing_reason", "") + "; " + note
+    return choice
 
 
 #: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
@@ -1711,7 +1719,7 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
                           fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
     if settled.noise_correlation is not None:
         spline_options["noise_correlation"] = settled.noise_correlation
-    _aperture_options(spline_options, aperture, order, choice)
+    choice = _aperture_options(spline_options, aperture, order, choice)
     most = settled.harmonics if f0 is not None else None
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, [None] * 3, False, iterations, most_harmonics=most,

@@ -185,3 +185,25 @@ def test_cameras_with_different_apertures_average_them():
     f = 8.4
     expected = (np.sinc(f * 0.02) + np.cos(np.pi * f * 0.02) * np.sinc(f * 0.02) + 1) / 3
     assert abs(a.gain(f).real - expected) < 1e-6
+
+
+@pytest.mark.parametrize("smoothing, modelled", [("gcv", True), ("gcv_cubic", False), ("auto", True)])
+def test_a_smoothing_asked_for_by_name_records_whether_the_aperture_was_modelled(smoothing, modelled):
+    """The record (the trajectory's smoothing choice) says whether the pose was fitted through the aperture,
+    for a named method as for the automatic choice; a settled re-fit keeps the named method."""
+    aperture = camera_aperture(FPS, 0.02, interlaced=True)
+    t = np.arange(75) / FPS
+    model = np.array([[0.0, 0, 0], [0.25, 0, 0], [0.1, 0.05, 0.2]])
+    pts = model[None] + np.stack([np.zeros_like(t), _observed(t, aperture), np.zeros_like(t)], -1)[:, None]
+    reg = pose.register_pose(pts, model)
+    params = PoseParams(smoothing=smoothing, partial_frames=False)
+    fitted = pose.fit_pose_trajectory(t, reg, model, params, fundamental_hz=F0, aperture=aperture)
+    reason = fitted.smoothing_choice["reason"]
+    assert (fitted.centre_splines[1].aperture is not None) == modelled
+    assert ("fitted through the frames' temporal aperture" in reason) == modelled
+    assert ("temporal aperture (two fields 20 ms apart, each exposure 20 ms) not modelled" in reason) != modelled
+    if smoothing != "auto":
+        assert fitted.smoothing_choice["method"] == smoothing
+        assert pose.settle_pose_smoothing(fitted, params).method == smoothing
+    assert pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", partial_frames=False),
+                                    fundamental_hz=F0).smoothing_choice is None
