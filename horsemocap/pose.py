@@ -1988,8 +1988,10 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
         if it == iterations or not two.any():
             break
         tk = t[two]
-        Rp = (Rotation.from_rotvec(np.stack([s(tk) for s in ps], -1)) * ref.rotation(tk)).as_matrix()
-        cp = np.stack([s(tk) for s in cs], -1)
+        # the prediction is what the frame observes (the trajectory averaged over its aperture, if any), as
+        # its two markers are
+        Rp = (Rotation.from_rotvec(np.stack([s.observed(tk) for s in ps], -1)) * ref.rotation(tk)).as_matrix()
+        cp = np.stack([s.observed(tk) for s in cs], -1)
         R2, c2 = partial_pose(np.asarray(points, float)[two], x_model, Rp, cp)
         centre[two] = c2
         phi[two] = (Rotation.from_matrix(R2) * ref.rotation(tk).inv()).as_rotvec()

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from horsemocap import pose, splines
 from horsemocap.aperture import Aperture, box_aperture, camera_aperture, mean_aperture, session_aperture
@@ -207,3 +208,39 @@ def test_a_smoothing_asked_for_by_name_records_whether_the_aperture_was_modelled
         assert pose.settle_pose_smoothing(fitted, params).method == smoothing
     assert pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", partial_frames=False),
                                     fundamental_hz=F0).smoothing_choice is None
+
+
+def _rocking_body(t, aperture, model):
+    """A body rocking about the x axis (the line of its first two markers) with two stride harmonics, each
+    frame's markers their mean over the aperture."""
+    def markers(u):
+        u = np.atleast_1d(u)
+        angle = 0.01 * np.sin(2 * np.pi * 2 * F0 * u) + 0.02 * np.sin(2 * np.pi * 4 * F0 * u + 0.5)
+        R = Rotation.from_rotvec(np.outer(angle, [1.0, 0, 0])).as_matrix()
+        return np.einsum("nij,mj->nmi", R, model) + np.array([0.0, 0.5, 0.0])
+
+    return aperture.average(markers, t)
+
+
+def test_two_marker_frames_are_completed_from_what_the_frames_observe():
+    """A frame with two markers seen takes the rotation about their line from the smoothed trajectory: through
+    an aperture, from its average over the frame (what the other frames' markers hold), so the completed frame
+    agrees with the registration of all its (hidden) markers."""
+    aperture = camera_aperture(FPS, 0.02, interlaced=True)
+    t = np.arange(75) / FPS
+    model = np.array([[0.0, 0, 0], [0.25, 0, 0], [0.1, 0.05, 0.2], [0.15, -0.08, 0.12]])
+    pts = _rocking_body(t, aperture, model)
+    full = pose.register_pose(pts, model)
+    two = np.zeros(t.size, bool)
+    two[6:-6:4] = True
+    seen = pts.copy()
+    seen[two, 2:] = np.nan
+    reg = pose.register_pose(seen, model)
+    params = PoseParams(smoothing="gcv", partial_frames=True)
+    # noiseless: a near-interpolating smoothing, so the trajectory between the frames is the motion's
+    fitted = pose.fit_pose_trajectory(t, reg, model, params, points=seen, lam=[1e-12] * 6, aperture=aperture)
+    completed = Rotation.from_rotvec(fitted.rotvec_data[two]) * fitted._reference().rotation(t[two])
+    err = np.abs(completed.as_rotvec()[:, 0] - Rotation.from_matrix(full.rotation[two]).as_rotvec()[:, 0])
+    blur = np.abs(fitted.rotvec_splines[0](t[two]) - fitted.rotvec_splines[0].observed(t[two]))
+    assert np.max(blur) > 1e-3                      # the aperture's average differs from the instant's
+    assert np.max(err) < 0.01 * np.max(blur)
