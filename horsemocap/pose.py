@@ -1602,7 +1602,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
             raise ValueError(f"pose.CORRELATED_NOISE_CRITERION: expected one of {CORRELATED_NOISE_CRITERIA}, "
                              f"got {CORRELATED_NOISE_CRITERION!r}")
         if CORRELATED_NOISE_CRITERION == "loo":
-            lam = _left_out_marker_smoothing(t, reg, model, points, lam, choice)
+            lam = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture)
         elif CORRELATED_NOISE_CRITERION == "reml":
             spline_options["method"] = "reml"
         elif CORRELATED_NOISE_CRITERION == "risk":
@@ -1658,18 +1658,20 @@ CORRELATED_NOISE_CRITERIA = ("gcv", "reml", "risk", "loo")
 LEFT_OUT_DECADES = np.arange(-1.0, 6.01, 0.5)
 
 
-def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict) -> list:
+def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None) -> list:
     """The six smoothing parameters under correlated noise chosen by leaving each marker out in turn
     (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, no harmonics), with four or
     more markers; ``lam`` unchanged (the correlated-error GCV, its reason as it is) with three. ``choice`` gets
-    the reason and the cross-validation's scores (``cross_validation``)."""
+    the reason and the cross-validation's scores (``cross_validation``). With the frames' temporal ``aperture``
+    both the white-noise GCV and the left-out fits are made through it, as the pose smoothing is."""
     markers = np.asarray(model).shape[0]
     if points is None or markers < 4 or any(v is not None for v in lam):
         return lam
     white = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal",
-                                                          partial_frames=False), iterations=0)
+                                                          partial_frames=False), iterations=0, aperture=aperture)
     base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
-    chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES)
+    chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES,
+                                                         aperture=aperture)
     decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
     choice["smoothing_reason"] = (
         f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, no harmonics: "
@@ -2334,8 +2336,19 @@ def marker_cross_validation(t, registration: PoseRegistration, points, model, ba
                                           "cross_validation_markers": m}
 
 
+def _observed_pose(trajectory: PoseTrajectory, t, aperture) -> np.ndarray:
+    """(n, 6) the centroid and rotation vector as frames at ``t`` observe them: the smoothed pose itself, or
+    its average over the frames' ``aperture``; NaN outside the trajectory's frames."""
+    values = np.column_stack([trajectory.centre(t), trajectory.rotvec(t)])
+    if aperture is not None:
+        seen = np.all(np.isfinite(values), axis=1)
+        values[seen] = np.stack([s.observed(t[seen]) for s in trajectory.centre_splines
+                                 + trajectory.rotvec_splines], -1)
+    return values
+
+
 def marker_cross_validation_per_component(t, registration: PoseRegistration, points, model, base_lam,
-                                          decades=CROSS_VALIDATION_DECADES, sweeps: int = 3
+                                          decades=CROSS_VALIDATION_DECADES, sweeps: int = 3, aperture=None
                                           ) -> tuple[np.ndarray, dict]:
     """Leaving each marker out in turn, as :func:`marker_cross_validation`, with one ``s`` per pose component.
 
@@ -2372,6 +2385,9 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         The candidate ``s``.
     sweeps : int
         The most rounds of the coordinate descent.
+    aperture : Aperture, optional
+        The frames' temporal aperture (:mod:`horsemocap.aperture`): the left-out poses are smoothed through
+        it, and a left-out marker is predicted as its frames observe it (the pose averaged over the aperture).
 
     Returns
     -------
@@ -2418,11 +2434,11 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         if reg_i.information is not None and registration.information is not None:
             ratios[i] = _information_variance_ratio(reg_i, registration, ratios[i])
         measured.append(np.diff(pts[:, i], 2, axis=0))
-        fits = [fit_pose_trajectory(t, reg_i, model_i, params, lam=base * ratios[i] * 10.0 ** s, iterations=0)
-                for s in decades]
+        fits = [fit_pose_trajectory(t, reg_i, model_i, params, lam=base * ratios[i] * 10.0 ** s, iterations=0,
+                                    aperture=aperture) for s in decades]
         # per candidate the six components' values (n, 6), and the left-out marker's lever turned by the
         # reference rotation (the same for every candidate): its position is c + Exp(phi) (R_ref lever)
-        values.append(np.stack([np.column_stack([f.centre(t), f.rotvec(t)]) for f in fits]))
+        values.append(np.stack([_observed_pose(f, t, aperture) for f in fits]))
         seen = np.all(np.isfinite(values[-1][0]), axis=1)
         lever = np.full((n, 3), np.nan)
         if seen.any():

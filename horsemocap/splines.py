@@ -812,7 +812,9 @@ def _significant_harmonics(x, y, w, fundamental_hz, candidates, noise):
     residual variance (an F test per harmonic) keeps it. Its size is at most that of the
     per-sample noise (``noise``, known from elsewhere: the registration residual propagated to the
     component), so a harmonic smaller than that noise's standard deviation (one standard
-    deviation) is left to the penalised spline."""
+    deviation) is left to the penalised spline. Through a temporal aperture the amplitudes compared
+    are those observed (the aperture's gain included), not the motion's: the periodic error guarded
+    against is in the observations, bounded by their noise, so the two are compared there."""
     K = max(candidates)
     if 3 + 2 * K >= x.size - 2:
         return [], np.zeros(0)       # too few samples to measure the amplitudes: no harmonic

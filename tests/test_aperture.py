@@ -244,3 +244,28 @@ def test_two_marker_frames_are_completed_from_what_the_frames_observe():
     blur = np.abs(fitted.rotvec_splines[0](t[two]) - fitted.rotvec_splines[0].observed(t[two]))
     assert np.max(blur) > 1e-3                      # the aperture's average differs from the instant's
     assert np.max(err) < 0.01 * np.max(blur)
+
+
+def test_the_smoothing_chosen_by_leaving_markers_out_is_made_through_the_aperture():
+    """Under correlated noise with five markers the smoothing is chosen by leaving each marker out: the
+    white-noise GCV it scales and the left-out fits are made through the frames' aperture, as the pose is."""
+    from scipy.signal import lfilter
+    aperture = camera_aperture(FPS, 0.02, interlaced=True)
+    rng = np.random.default_rng(4)
+    t = np.arange(150) / FPS
+    model = np.column_stack([rng.uniform(-0.25, 0.25, 5), rng.uniform(-0.03, 0.03, 5), rng.uniform(-0.2, 0.2, 5)])
+    clean = model[None] + np.stack([np.zeros_like(t), _observed(t, aperture), np.zeros_like(t)], -1)[:, None]
+    noise = lfilter([1.0], [1.0, -0.8], rng.normal(0, 1e-3 * 0.6, clean.shape), axis=0)
+    pts = clean + noise
+    reg = pose.register_pose(pts, model)
+    fitted = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="auto", partial_frames=False),
+                                      points=pts, fundamental_hz=F0, aperture=aperture)
+    choice = fitted.smoothing_choice
+    assert "cross_validation" in choice and "fitted through the frames' temporal aperture" in choice["reason"]
+    white = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none",
+                                                               rotation_weights="equal", partial_frames=False),
+                                     iterations=0, aperture=aperture)
+    base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
+    decades = np.array(choice["cross_validation"]["cross_validation_component_decades"])
+    chosen = np.array([s.info["lam"] for s in fitted.centre_splines + fitted.rotvec_splines])
+    np.testing.assert_allclose(chosen, base * 10.0 ** decades, rtol=1e-9)
