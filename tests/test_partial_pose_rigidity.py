@@ -49,12 +49,27 @@ def test_a_two_marker_frame_off_the_rigid_distance_gets_no_partial_pose_and_says
                                rtol=0, atol=1e-12)
 
 
-def test_consistent_two_marker_frames_are_kept_as_before():
+def test_consistent_two_marker_frames_are_kept_as_before(monkeypatch):
     """The gate refuses nothing when the pair's distance is within the noise: the trajectory is the same
-    as with every two-marker frame taken."""
+    as with every two-marker frame taken (the gate switched off)."""
+    limit = pose.PARTIAL_POSE_RIGIDITY_LIMIT
     m, pts = _motion(21)
     ok = np.all(np.isfinite(pts), axis=(1, 2))
     assert np.all(np.abs(pose.two_marker_distance_departure(pts, ok)[:3]) < pose.PARTIAL_POSE_RIGIDITY_LIMIT)
     reg = pose.register_pose(pts, m["body"])
     tr = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="gcv"), points=pts)
     assert tr.valid.all() and not any("no partial pose" in r for r in tr.reason)
+    monkeypatch.setattr(pose, "PARTIAL_POSE_RIGIDITY_LIMIT", np.inf)
+    every = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="gcv"), points=pts)
+    for gated, taken in zip(tr.centre_splines + tr.rotvec_splines, every.centre_splines + every.rotvec_splines):
+        np.testing.assert_array_equal(gated.spline.c, taken.spline.c)
+        assert gated.info["lam"] == taken.info["lam"]
+    np.testing.assert_array_equal(tr.rotvec_data, every.rotvec_data)
+    # and the comparison sees a frame the gate refuses: its trajectory is not the one with every frame
+    bad = pts.copy()
+    bad[0, 1] += 0.04 * (bad[0, 1] - bad[0, 0]) / np.linalg.norm(bad[0, 1] - bad[0, 0])
+    monkeypatch.setattr(pose, "PARTIAL_POSE_RIGIDITY_LIMIT", limit)
+    refused = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="gcv"), points=bad)
+    monkeypatch.setattr(pose, "PARTIAL_POSE_RIGIDITY_LIMIT", np.inf)
+    kept = pose.fit_pose_trajectory(m["t"], reg, m["body"], PoseParams(smoothing="gcv"), points=bad)
+    assert not np.array_equal(refused.centre_splines[0].spline.c, kept.centre_splines[0].spline.c)
