@@ -1388,9 +1388,10 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
             raise ValueError("points: smoothing 'noise' needs the measured markers (for the residuals)")
         sig = pose_noise(reg, points, model)
     rho = significant_noise_correlation(points, reg) if smoothing == "auto" and points is not None else None
+    two, departure = _two_marker_frames(points, ok, n) if params.partial_frames else (np.zeros(n, bool), None)
     fit = dict(params=params, fundamental_hz=fundamental_hz, expected_hz=expected_fundamental_hz, lam=lam, sig=sig,
                points=points, rotation_noise_test=rotation_noise_test, iterations=iterations, settled=settled,
-               aperture=aperture)
+               aperture=aperture, two=two)
     fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, rho, **fit)
     if settled is None and fitted[4] is not None and "noise_correlation" in fitted[4]:
         # the correlated-error choice is checked here once; settled records and named methods take it as it is
@@ -1401,7 +1402,7 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         for s in cs + ps:
             s.info.update(choice)
     valid, reason = _frame_validity(t, reg.reason, ok | two, two, max_gap_s)
-    reason = _refused_partial_reasons(reason, points, ok, two) if params.partial_frames else reason
+    reason = _refused_partial_reasons(reason, departure, ok, two)
     return PoseTrajectory(t=t, reference=ref.base, model_centroid=np.asarray(model, float).mean(0),
                           centre_splines=cs, rotvec_splines=ps, valid=valid, reason=reason,
                           registration=reg, rotvec_data=phi,
@@ -1571,20 +1572,19 @@ def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
 
 def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
                     fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int,
-                    settled: SettledPoseSmoothing | None = None, aperture=None):
-    """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white):
-    ``(centre, phi, centre splines, rotation splines, choice, two-marker frames)``."""
+                    settled: SettledPoseSmoothing | None = None, aperture=None, two):
+    """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white),
+    the two-marker frames ``two`` completed: ``(centre, phi, centre splines, rotation splines, choice, two)``."""
     n = t.size
     if settled is not None:
         return _fit_settled_components(t, reg, model, phi, ok, ref, order, settled, params=params,
                                        fundamental_hz=fundamental_hz, lam=lam, sig=sig, points=points,
-                                       iterations=iterations, aperture=aperture)
+                                       iterations=iterations, aperture=aperture, two=two)
     smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
                                               params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
                                               weighted=reg.information is not None, noise_correlation=rho)
     correlated = choice is not None and "noise_correlation" in choice
-    two = _two_marker_frames(points, ok, n) if params.partial_frames else np.zeros(n, bool)
     # the rotation components' noise, against which their harmonics are tested: predicted from the
     # registration residual and the marker geometry (isotropic marker noise; pose_noise without the points)
     rot_noise = [None] * 3
@@ -1700,7 +1700,7 @@ def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -
 
 def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order: int,
                             settled: SettledPoseSmoothing, *, params, fundamental_hz, lam, sig, points,
-                            iterations: int, aperture=None):
+                            iterations: int, aperture=None, two):
     """:func:`_fit_components` with the choices of ``settled``: no method, stride frequency, noise correlation
     or rotation weighting chosen; each component keeps the first 0 .. ``settled.harmonics`` harmonics that
     the criterion prefers at the given smoothing parameter (neither the plain spline's cutoff nor the rotation
@@ -1708,7 +1708,6 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
     n = t.size
     f0 = fundamental_hz if settled.method in ("gcv", "noise") and order == 5 else None
     choice = None if settled.choice is None else dict(settled.choice)
-    two = _two_marker_frames(points, ok, n) if params.partial_frames else np.zeros(n, bool)
     var = None
     if any(settled.rotation_weighted) and reg.information is not None:
         var = frame_variances(reg)[:, 3:].copy()
@@ -1877,17 +1876,24 @@ def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fund
     return smoothing, (found_f0 if with_harmonics(smoothing) else None), choice
 
 
-def _two_marker_frames(points, ok, n) -> np.ndarray:
-    """Frames without a pose in which exactly two markers of ``points`` are seen and their distance is the
-    rigid body's (:func:`two_marker_distance_departure` within :data:`PARTIAL_POSE_RIGIDITY_LIMIT`); none
-    without ``points``."""
+def _two_marker_frames(points, ok, n) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(two, departure)``: the frames without a pose in which exactly two markers of ``points`` are seen and
+    their distance is the rigid body's (:func:`two_marker_distance_departure` within
+    :data:`PARTIAL_POSE_RIGIDITY_LIMIT`), and every frame's departure; none and None without ``points``."""
     if points is None:
-        return np.zeros(n, bool)
+        return np.zeros(n, bool), None
     pts = np.asarray(points, float)
     if pts.shape[:1] != (n,):
         raise ValueError(f"points: expected {n} frames to match t, got shape {pts.shape}")
+    departure = two_marker_distance_departure(pts, ok)
     two = ~ok & (np.all(np.isfinite(pts), axis=2).sum(1) == 2)
-    return two & ~(np.abs(two_marker_distance_departure(pts, ok)) > PARTIAL_POSE_RIGIDITY_LIMIT)
+    return two & ~_refused_partial(departure), departure
+
+
+def _refused_partial(departure) -> np.ndarray:
+    """The frames whose two markers' distance departs more than :data:`PARTIAL_POSE_RIGIDITY_LIMIT` (NaN:
+    not tested, not refused)."""
+    return np.isfinite(departure) & (np.abs(departure) > PARTIAL_POSE_RIGIDITY_LIMIT)
 
 
 #: How far (in robust standard deviations) the distance between a two-marker frame's markers may depart from
@@ -1955,13 +1961,12 @@ def two_marker_distance_departure(points, ok) -> np.ndarray:
     return out
 
 
-def _refused_partial_reasons(reason, points, ok, two) -> np.ndarray:
-    """``reason`` with the frames refused a partial pose (two markers seen, not in ``two``) saying why."""
-    if points is None:
+def _refused_partial_reasons(reason, departure, ok, two) -> np.ndarray:
+    """``reason`` with the frames refused a partial pose (two markers seen, departure past the limit, so not
+    in ``two``) saying why; ``departure`` from :func:`_two_marker_frames` (None: no partial frames tried)."""
+    if departure is None:
         return reason
-    departure = two_marker_distance_departure(points, ok)
-    refused = np.flatnonzero(np.isfinite(departure) & ~np.asarray(two, bool)
-                             & (np.abs(departure) > PARTIAL_POSE_RIGIDITY_LIMIT))
+    refused = np.flatnonzero(_refused_partial(departure) & ~np.asarray(two, bool) & ~np.asarray(ok, bool))
     reason = np.array(reason, dtype=object)
     for k in refused:
         reason[k] = (f"{reason[k]}; no partial pose: its two markers' distance departs from the rigid body's by "
