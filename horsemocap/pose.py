@@ -1663,7 +1663,12 @@ def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, cho
     (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, no harmonics), with four or
     more markers; ``lam`` unchanged (the correlated-error GCV, its reason as it is) with three. ``choice`` gets
     the reason and the cross-validation's scores (``cross_validation``). With the frames' temporal ``aperture``
-    both the white-noise GCV and the left-out fits are made through it, as the pose smoothing is."""
+    both the white-noise GCV and the left-out fits are made through it, as the pose smoothing is.
+
+    The candidates (:data:`LEFT_OUT_DECADES`, ``s`` from -1 to 6 by halves) reach far above white-noise GCV's
+    parameters and only one decade below: GCV takes noise correlated over frames for motion, so it
+    undersmooths it; the half-decade step moves a quintic spline's cutoff frequency (which goes as
+    ``lam^(-1/6)``) by about 21 % from one candidate to the next."""
     markers = np.asarray(model).shape[0]
     if points is None or markers < 4 or any(v is not None for v in lam):
         return lam
@@ -1904,7 +1909,8 @@ def _refused_partial(departure) -> np.ndarray:
 #: merged with another) moves the pose by as much, and a frame that far off would steer the smoothing's choice.
 PARTIAL_POSE_RIGIDITY_LIMIT = 6.0
 #: The fewest frames with a pose and both markers of a pair from which their distance's scatter is measured;
-#: with fewer the pair's frames are not tested (kept).
+#: with fewer the pair's frames are not tested (kept): the scaled median absolute deviation of eight normal
+#: distances already scatters by about 40 % of itself, and less data would make the six-sd test a guess.
 PARTIAL_POSE_RIGIDITY_MIN_FRAMES = 8
 
 
@@ -1956,6 +1962,8 @@ def two_marker_distance_departure(points, ok) -> np.ndarray:
         if usual.size < PARTIAL_POSE_RIGIDITY_MIN_FRAMES:
             continue
         centre = float(np.median(usual))
+        # a floor of a nanometre per metre keeps exact distances (no scatter) from dividing by zero, far
+        # below any camera's error, so a real departure is still refused and an exact frame kept
         scatter = max(1.4826 * float(np.median(np.abs(usual - centre))), 1e-9 * centre)
         out[k] = (float(np.linalg.norm(pts[k, i] - pts[k, j])) - centre) / scatter
     return out
@@ -2389,7 +2397,8 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     decades : sequence of float
         The candidate ``s``.
     sweeps : int
-        The most rounds of the coordinate descent.
+        The most rounds of the coordinate descent (a bound on its cost; it stops earlier when a round
+        changes no component's ``s``, and every round only recombines the fits already made).
     aperture : Aperture, optional
         The frames' temporal aperture (:mod:`horsemocap.aperture`): the left-out poses are smoothed through
         it, and a left-out marker is predicted as its frames observe it (the pose averaged over the aperture).

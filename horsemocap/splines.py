@@ -113,7 +113,24 @@ class SmoothingSpline:
 
     def observed(self, t) -> np.ndarray:
         """What a sample at each ``t`` observed of the spline: the spline averaged over the samples'
-        aperture, or the spline itself without one (the fitted values its residuals are taken from)."""
+        aperture, or the spline itself without one (the fitted values its residuals are taken from).
+
+        Examples
+        --------
+        A spline fitted through a 20 ms exposure: its observed values are the data it was fitted to
+        (exact data, a light smoothing), its values at the instants are the motion itself.
+
+        >>> import numpy as np
+        >>> from horsemocap.aperture import box_aperture
+        >>> t = np.arange(50) / 25.0
+        >>> a = box_aperture(0.02)
+        >>> y = a.average(lambda u: np.sin(2 * np.pi * 3.0 * u), t)
+        >>> s = smoothing_spline(t, y, lam=1e-14, aperture=a)
+        >>> bool(np.allclose(s.observed(t), y, atol=1e-5)), bool(np.allclose(s(t), y, atol=1e-3))
+        (True, False)
+        >>> bool(np.allclose(s(t)[5:-5], np.sin(2 * np.pi * 3.0 * t[5:-5]), atol=1e-4))
+        True
+        """
         return self(t) if self.aperture is None else self.aperture.average(self, t)
 
 
