@@ -1191,23 +1191,11 @@ def pose_noise(registration: PoseRegistration, points, model) -> np.ndarray:
             return np.full(6, np.nan)
         Sig = reg.noise_m ** 2 * np.eye(3)
     else:
-        p = np.asarray(points, float)
-        vis = np.all(np.isfinite(p), axis=2) & ok[:, None]
-        r = np.where(vis[..., None], p - reg.registered, 0.0)
-        dof = np.sum(np.where(ok, np.maximum(vis.sum(1) - 2, 0), 0))
-        if dof <= 0:
+        Sig = _pooled_residual_covariance(reg, points)
+        if Sig is None:
             return np.full(6, np.nan)
-        Sig = np.einsum("kmi,kmj->ij", r, r) / dof
-    x = np.asarray(model, float)
     R0 = Rotation.from_matrix(reg.rotation[ok]).mean().as_matrix()
-    d = (x - x.mean(0)) @ R0.T
-    k = x.shape[0]
-    D = skew(d)                                                       # [d_m]x
-    H = np.einsum("mji,mjk->ik", D, D)
-    M = np.einsum("mji,jl,mlk->ik", D, Sig, D)
-    Hi = np.linalg.inv(H)
-    C = Hi @ M @ Hi
-    return np.sqrt(np.r_[np.diag(Sig) / k, np.diag(C)])
+    return np.sqrt(_geometric_pose_variance(np.asarray(model, float), R0, Sig))
 
 
 def partial_pose(points, model, rotation, centre):
@@ -2239,16 +2227,21 @@ def _information_variance_ratio(left_out: PoseRegistration, full: PoseRegistrati
     return np.mean(a[both], axis=0) / np.mean(b[both], axis=0)
 
 
-def _residual_covariance(registration: PoseRegistration, points) -> np.ndarray:
-    """The markers' noise covariance (3, 3) pooled from the rigidity residual (as :func:`pose_noise`); the
-    identity when there is none to pool."""
+def _pooled_residual_covariance(registration: PoseRegistration, points) -> np.ndarray | None:
+    """The markers' noise covariance (3, 3) pooled from the rigidity residual over the frames with a pose,
+    ``sum r r^T / sum (k - 2)`` (:func:`pose_noise`); None when no residual degree of freedom is left."""
     p = np.asarray(points, float)
     ok = np.isfinite(registration.rotation[:, 0, 0])
     vis = np.all(np.isfinite(p), axis=2) & ok[:, None]
     r = np.where(vis[..., None], p - registration.registered, 0.0)
     dof = np.sum(np.where(ok, np.maximum(vis.sum(1) - 2, 0), 0))
-    cov = np.einsum("kmi,kmj->ij", r, r) / max(dof, 1)
-    return cov if dof > 0 and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else np.eye(3)
+    return np.einsum("kmi,kmj->ij", r, r) / dof if dof > 0 else None
+
+
+def _residual_covariance(registration: PoseRegistration, points) -> np.ndarray:
+    """:func:`_pooled_residual_covariance`, or the identity when there is none to pool or it is singular."""
+    cov = _pooled_residual_covariance(registration, points)
+    return cov if cov is not None and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else np.eye(3)
 
 
 def marker_cross_validation(t, registration: PoseRegistration, points, model, base_lam,
