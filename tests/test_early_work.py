@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -16,7 +17,7 @@ import pytest
 
 from horsemocap import cli, report, run, sources, sync
 from horsemocap.data import default_session_dir
-from horsemocap.forking import EarlyCalls
+from horsemocap.forking import EarlyCalls, fork_call
 from horsemocap.pipeline import analyze
 from horsemocap.plots import figure_painter, report_figures
 from horsemocap.session import load_session
@@ -525,3 +526,49 @@ def test_the_analysis_ends_an_early_flash_search_once_the_sync_step_is_past():
     analyze(default_session_dir(), None, None, until="plumb", write_outputs=False, flash_search=search,
             after_step=lambda analysis, name: seen.append((name, list(search.closed))))
     assert dict(seen)["sync"] == [False] and search.closed == [False]
+
+
+# --- a copy forked later holds none of an earlier copy's pipes ---------------------------------------------
+
+def _results_within(calls, seconds: float):
+    """``calls.results()`` computed by a thread: ``(finished within seconds, the values or None)``."""
+    got = []
+    waiting = threading.Thread(target=lambda: got.append(calls.results()), daemon=True)
+    waiting.start()
+    waiting.join(seconds)
+    return not waiting.is_alive(), (got[0] if got else None), waiting
+
+
+@can_fork_here
+@pytest.mark.parametrize("hold", [False, True])
+def test_early_calls_results_do_not_wait_for_a_copy_forked_after_them(hold):
+    """A copy forked later (as the flash search's) that lives on does not keep the first copy's arguments
+    open: its results come once its own calls are done."""
+    calls = EarlyCalls("statistics", "median", hold=hold)
+    assert calls.forked
+    later = fork_call(lambda: time.sleep(60))
+    try:
+        calls.submit([3.0, 1.0, 2.0])
+        finished, values, waiting = _results_within(calls, 10)
+    finally:
+        os.kill(later, signal.SIGKILL)
+        os.waitpid(later, 0)
+    waiting.join(10)
+    assert finished and values == [2.0]
+    calls.close()
+
+
+@can_fork_here
+def test_the_report_figures_do_not_wait_for_a_flash_search_that_lives_on(tmp_path, monkeypatch):
+    video = _flash_video(tmp_path / "left.avi")
+    painter = EarlyCalls("statistics", "median", hold=True)      # forked first, held, as the command's
+    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: time.sleep(60))
+    search = FlashSearch({"left": video}, when_done=painter.start)
+    try:
+        painter.submit([5.0])
+        finished, values, waiting = _results_within(painter, 10)
+    finally:
+        search.close(wanted=False)
+    waiting.join(30)
+    assert finished and values == [5.0]
+    painter.close()
