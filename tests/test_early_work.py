@@ -280,13 +280,36 @@ def module_that_says_when_loaded(tmp_path, monkeypatch):
     return "says_when_loaded", flag
 
 
+def _wait_until_waiting_to_start(calls: EarlyCalls, seconds: float = 30) -> None:
+    """Return once the held copy is blocked reading its start pipe (its state read in ``/proc``: the
+    system call it waits in and the pipe of that file descriptor); fail if it never is."""
+    pid, start_pipe = calls._pid, os.fstat(calls._start_fd).st_ino
+    try:
+        open(f"/proc/{pid}/syscall").close()
+    except OSError:
+        pytest.skip("the copy's state cannot be read here (/proc/<pid>/syscall)")
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        with open(f"/proc/{pid}/syscall") as f:
+            fields = f.read().split()
+        if fields and fields[0] not in ("running", "-1") and len(fields) > 1:
+            fd = int(fields[1], 16)
+            try:
+                if os.readlink(f"/proc/{pid}/fd/{fd}") == f"pipe:[{start_pipe}]":
+                    return
+            except OSError:
+                pass
+        time.sleep(0.01)
+    pytest.fail(f"the held copy was not seen waiting on its start pipe within {seconds} s")
+
+
 @can_fork_here
 @pytest.mark.parametrize("how", ["start", "submit", "results"])
 def test_a_held_copy_loads_its_module_only_once_started(module_that_says_when_loaded, how):
     module, flag = module_that_says_when_loaded
     with EarlyCalls(module, "size", hold=True) as calls:
         assert calls.forked
-        time.sleep(0.5)
+        _wait_until_waiting_to_start(calls)
         assert not flag.exists()            # forked, idle: the module is not loaded yet
         if how == "start":
             calls.start()
@@ -306,6 +329,7 @@ def test_a_held_copy_closed_unstarted_is_ended(module_that_says_when_loaded):
     module, flag = module_that_says_when_loaded
     calls = EarlyCalls(module, "size", hold=True)
     pid = calls._pid
+    _wait_until_waiting_to_start(calls)
     calls.close()
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
