@@ -282,9 +282,10 @@ RIG_NOISE = MarkerNoise(sigma_px=0.15, rho=0.8, bias_px=0.1)
 
 
 #: More rides of the spread rigs (gait, horse, seed, suffix): the same horse, gait, cameras' layout, markers and
-#: marker noise as ``spread4_<gait>`` / ``spread5_<gait>``, with another seed (so another ride, camera placement
-#: within the layout's tolerances and noise draw); the session ``spread5_canter_b`` is ``spread5_canter``'s rig on
-#: ride ``b``. One render per rig says little about the rig's expected error; these give a few more.
+#: marker noise as ``spread4_<gait>`` / ``spread5_<gait>``, with another seed. The herd horse's gait is the same
+#: periodic motion; the seed places the cameras anew within the layout's tolerances (so the record starts a few
+#: frames off, at another phase of the stride) and draws new image noise and new marker noise and biases. The
+#: session ``spread5_canter_b`` is ``spread5_canter``'s rig on ride ``b``.
 SPREAD_RIDES = (("canter", "Horse 2", 3141, "b"), ("rising_trot", "Horse 1", 3142, "b"),
                 ("canter", "Horse 2", 3151, "c"), ("rising_trot", "Horse 1", 3152, "c"),
                 ("canter", "Horse 2", 3161, "d"), ("rising_trot", "Horse 1", 3162, "d"))
