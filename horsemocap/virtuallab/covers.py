@@ -288,7 +288,9 @@ RIG_NOISE = MarkerNoise(sigma_px=0.15, rho=0.8, bias_px=0.1)
 #: session ``spread5_canter_b`` is ``spread5_canter``'s rig on ride ``b``.
 SPREAD_RIDES = (("canter", "Horse 2", 3141, "b"), ("rising_trot", "Horse 1", 3142, "b"),
                 ("canter", "Horse 2", 3151, "c"), ("rising_trot", "Horse 1", 3152, "c"),
-                ("canter", "Horse 2", 3161, "d"), ("rising_trot", "Horse 1", 3162, "d"))
+                ("canter", "Horse 2", 3161, "d"), ("rising_trot", "Horse 1", 3162, "d"),
+                ("canter", "Horse 2", 3171, "e"), ("rising_trot", "Horse 1", 3172, "e"),
+                ("canter", "Horse 2", 3181, "f"), ("rising_trot", "Horse 1", 3182, "f"))
 
 
 def _base(name, horse, gait, seed, fps=50.0, strides=3.0, **kw) -> HardScenario:
