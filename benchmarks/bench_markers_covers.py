@@ -277,21 +277,27 @@ def _session_folder(name: str):
 
 
 class _Criterion:
-    """The pose smoothing's criterion under correlated noise (:data:`horsemocap.pose.CORRELATED_NOISE_CRITERION`)
-    set to ``criterion`` while inside."""
+    """The pose smoothing's criterion under correlated noise (the parameter
+    ``rigid_body.pose.correlated_noise_criterion``) set to ``criterion`` for the rigid-body steps run while
+    inside (``pipeline.STEP_CALLS["rigid_body"]`` with the analysis' parameters updated)."""
 
     def __init__(self, criterion: str):
         self.criterion = criterion
 
     def __enter__(self):
-        self.saved = pose.CORRELATED_NOISE_CRITERION, pose.NULL_SPACE_EDF
-        pose.CORRELATED_NOISE_CRITERION = self.criterion.split()[0]
+        self.saved = pipeline.STEP_CALLS["rigid_body"], pose.NULL_SPACE_EDF
+        original, setting = self.saved[0], {"rigid_body.pose.correlated_noise_criterion": self.criterion.split()[0]}
+
+        def with_criterion(a, pr, **kw):
+            a.params = a.params.updated(setting)
+            return original(a, pr, **kw)
+        pipeline.STEP_CALLS["rigid_body"] = with_criterion
         if self.criterion.endswith("kept"):
             pose.NULL_SPACE_EDF = -1.0         # a component smoothed to the null space no longer means white noise
         return self
 
     def __exit__(self, *exc):
-        pose.CORRELATED_NOISE_CRITERION, pose.NULL_SPACE_EDF = self.saved
+        pipeline.STEP_CALLS["rigid_body"], pose.NULL_SPACE_EDF = self.saved
 
 
 def run_criteria(name: str, draws: int, criteria=CRITERIA) -> str:

@@ -520,7 +520,7 @@ MANY_HEADER = "Four or more visible markers (bench_real_c3d.py --many)"
 
 def run_many(name, file, visible, hidden, first, count) -> dict:
     """A cluster with ``len(visible)`` >= 4 markers seen and one hidden: ``auto`` with each correlated-noise
-    criterion (:data:`horsemocap.pose.CORRELATED_NOISE_CRITERIA` ``gcv`` and ``loo``), and the naive peers on
+    criterion (``rigid_body.pose.correlated_noise_criterion`` ``gcv`` and ``loo``), and the naive peers on
     the same visible markers; errors as the main table's."""
     traj = io3d.read_c3d(DATA / file)
     k = len(visible)
@@ -541,21 +541,19 @@ def run_many(name, file, visible, hidden, first, count) -> dict:
                           for j in range(len(t))])
     raw_acc = np.diff(pts[:, k], 2, axis=0) * rate ** 2
     out = {"case": name, "frames": len(t), "raw": {}}
-    saved = pose.CORRELATED_NOISE_CRITERION
-    try:
-        for criterion in ("gcv", "loo"):
-            pose.CORRELATED_NOISE_CRITERION = criterion
-            t0 = time.time()
-            tr = io3d.kinematics_from_trajectories(seg, static, smoothing="auto")["trajectory"]
-            out[criterion] = (_rel(tr.point(t, model[k]).acceleration, ref_acc, inner), _rel(tr.omega(t), ref_omega, inner))
-            out["raw"][criterion] = _raw_error(tr.point(t, model[k]).position, raw_acc, inner, rate)
-            ch = tr.smoothing_choice or {}
-            cv = ch.get("cross_validation", {})
-            out[criterion + "_chosen"] = (ch.get("method", "") + (f" s={cv['cross_validation_component_decades']}"
-                                                                  if cv else ""))
-            out[criterion + "_s"] = time.time() - t0
-    finally:
-        pose.CORRELATED_NOISE_CRITERION = saved
+    for criterion in ("gcv", "loo"):
+        t0 = time.time()
+        # io3d.kinematics_from_trajectories with the criterion set: its setup, its pose parameters
+        setup = io3d.kinematics_setup(seg, static)
+        params = replace(io3d.kinematics_params("auto"), correlated_noise_criterion=criterion)
+        tr = pose.fit_pose_trajectory(seg.time_s, setup["registration"], setup["model"], params, points=setup["points"])
+        out[criterion] = (_rel(tr.point(t, model[k]).acceleration, ref_acc, inner), _rel(tr.omega(t), ref_omega, inner))
+        out["raw"][criterion] = _raw_error(tr.point(t, model[k]).position, raw_acc, inner, rate)
+        ch = tr.smoothing_choice or {}
+        cv = ch.get("cross_validation", {})
+        out[criterion + "_chosen"] = (ch.get("method", "") + (f" s={cv['cross_validation_component_decades']}"
+                                                              if cv else ""))
+        out[criterion + "_s"] = time.time() - t0
     R, trans = _kabsch(pts[:, :k], model[:k])
     pred = trans + np.einsum("kij,j->ki", R, model[k])
     out["kabsch_sg"] = _rel(_sg(pred, rate, PEER_SG_S, PEER_SG_ORDER, 2), ref_acc, inner)

@@ -21,6 +21,11 @@ import threading
 #: arguments are copied a chunk at a time, not whole.
 PIPE_CHUNK = 64 * 1024
 
+#: File descriptors only this process may hold (the ends of an :class:`EarlyCalls` copy's pipes kept
+#: here): a copy forked later closes them first (:func:`_child`), or the first copy would never see the
+#: end of its arguments while the later one lives.
+_PARENT_ONLY_FDS: set = set()
+
 
 def can_fork() -> bool:
     """Whether a forked copy of this process may compute beside it.
@@ -104,14 +109,24 @@ def fork_call(work) -> int:
 
 
 def _child(work) -> None:
-    """A forked copy's whole life: ``work()``, then leave at once without the parent's cleanup (exit status 0
-    only when ``work`` finished; an error is seen by the parent as a copy that delivered nothing)."""
+    """A forked copy's whole life: the pipe ends only the parent may hold closed, ``work()``, then leave at
+    once without the parent's cleanup (exit status 0 only when ``work`` finished; an error is seen by the
+    parent as a copy that delivered nothing)."""
     code = 1
     try:
+        for fd in tuple(_PARENT_ONLY_FDS):
+            os.close(fd)
+        _PARENT_ONLY_FDS.clear()
         work()
         code = 0
     finally:
         os._exit(code)
+
+
+def _close_own(fd: int) -> None:
+    """Close a pipe end only this process held (no longer closed by later copies: its number may be reused)."""
+    _PARENT_ONLY_FDS.discard(fd)
+    os.close(fd)
 
 
 def _claimed(tasks, claims_fd: int) -> dict:
@@ -206,6 +221,7 @@ class EarlyCalls:
             os.close(start_r)
         os.set_blocking(args_w, False)              # submit writes what the pipe takes; the writer the rest
         self._pid, self._args_fd, self._value_fd, self._start_fd = pid, args_w, value_r, start_w
+        _PARENT_ONLY_FDS.update(fd for fd in (args_w, value_r, start_w) if fd is not None)
 
     def start(self) -> None:
         """Let a held copy load its module now (nothing to do when it was not held, or was started);
@@ -217,7 +233,7 @@ class EarlyCalls:
                 os.write(fd, b"s")
             except OSError:          # the copy has gone (seen in results): computed here
                 pass
-            os.close(fd)
+            _close_own(fd)
 
     @property
     def forked(self) -> bool:
@@ -286,6 +302,7 @@ class EarlyCalls:
             self.start()
             self._close_args()
             fd, self._value_fd = self._value_fd, None
+            _PARENT_ONLY_FDS.discard(fd)            # before its number can be reused
             with os.fdopen(fd, "rb") as got:
                 data = got.read()
             if self._wait() == 0 and data and not self._copy_failed:
@@ -302,7 +319,7 @@ class EarlyCalls:
             writer.join()
         fd, self._args_fd = self._args_fd, None
         if fd is not None:
-            os.close(fd)
+            _close_own(fd)
 
     def _wait(self) -> int | None:
         pid, self._pid = self._pid, None
@@ -319,10 +336,10 @@ class EarlyCalls:
         with self._unsent_lock:
             fd, self._start_fd = self._start_fd, None
         if fd is not None:
-            os.close(fd)
+            _close_own(fd)
         if self._value_fd is not None:
             fd, self._value_fd = self._value_fd, None
-            os.close(fd)
+            _close_own(fd)
         self._close_args()                           # the writer, if any, ends: the copy's end is closed
         self._wait()
 

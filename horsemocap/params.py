@@ -394,7 +394,7 @@ class PoseParams:
         harmonics chosen under it: with four or more markers by leaving each
         marker out in turn and predicting its acceleration from the others'
         pose, with three by GCV with the noise's AR(1) correlation
-        (:data:`horsemocap.pose.CORRELATED_NOISE_CRITERION`); otherwise the noise is taken as
+        (``correlated_noise_criterion``); otherwise the noise is taken as
         white, :func:`horsemocap.pose.choose_smoothing`; the choice and its
         reason in the progress output and ``analysis.json``), ``"gcv"`` (quintic, one generalised
         cross-validation parameter per component), ``"adaptive"`` (a second
@@ -449,6 +449,30 @@ class PoseParams:
         ``"none"``). Not found from the data, and an instant must be known to
         the frame (``benchmarks/README.md``, change points). Default
         ``None``: none. Flat name ``pose_events``.
+    correlated_noise_criterion : str
+        How ``smoothing`` ``"auto"`` chooses the smoothing when it finds
+        correlated noise (:func:`horsemocap.pose.choose_smoothing`'s
+        ``"gcv_ar1"``). ``"loo"`` (default): with four or more markers each
+        marker is left out in turn and its acceleration predicted from the
+        others' pose
+        (:func:`horsemocap.pose.marker_cross_validation_per_component`): a
+        marker's noise is not in that pose, so the criterion measures the
+        error directly whatever the noise's correlation over frames, as long
+        as the markers' noises are independent of each other; with three
+        markers (the other two leave a rotation unseen) the correlated-error
+        GCV. ``"gcv"``: the correlated-error GCV, which estimates the noise's
+        level from the residual of the fit it chooses. ``"reml"``: restricted
+        maximum likelihood with the residual's AR(1) correlation
+        (``method="reml"`` of :func:`horsemocap.splines.smoothing_spline`),
+        which estimates the noise's level together with the signal's.
+        ``"risk"``: the unbiased risk with the noise's covariance known, its
+        level from the rigidity residual (:func:`horsemocap.pose.pose_noise`
+        with the points), its correlation the residual's AR(1)
+        (``method="noise"`` with ``noise_correlation``); with three markers,
+        whose residual does not see the noise normal to their plane, the
+        correlated-error GCV. Not used when the noise is taken as white. How
+        each fares on noise draws and on real clusters:
+        ``benchmarks/README.md``.
 
     Examples
     --------
@@ -478,6 +502,12 @@ class PoseParams:
                              help="with pose_spline: known instants (s, the time_s of trajectories.csv) where "
                                   "the acceleration may jump, such as impacts timed by a force plate; 2.8,3.35 "
                                   "(or the option repeated; not found from the data)")
+    correlated_noise_criterion: str = _p("loo", choices=("loo", "gcv", "reml", "risk"),
+                                         help="with pose_spline and auto smoothing, under correlated noise: the "
+                                              "smoothing chosen by leaving each marker out (loo, four or more "
+                                              "markers), the correlated-error GCV (gcv), REML with the AR(1) "
+                                              "correlation (reml) or the unbiased risk with the rigidity "
+                                              "residual's noise (risk)")
 
 
 @dataclass(frozen=True)

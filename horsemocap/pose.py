@@ -98,6 +98,11 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
   acceleration may jump there (``events`` of
   :func:`horsemocap.splines.smoothing_spline`); with ``"gcv"`` without
   harmonics or ``"adaptive"``, quintic. Not detected from the data.
+- ``correlated_noise_criterion``: how ``"auto"`` chooses the smoothing under
+  correlated noise: ``"loo"`` (each marker left out in turn,
+  :func:`marker_cross_validation_per_component`; four or more markers),
+  ``"gcv"`` (the correlated-error GCV), ``"reml"`` or ``"risk"``
+  (:class:`horsemocap.params.PoseParams` says what each does).
 
 Conditioning (:func:`smallest_height`, :func:`check_model_conditioning`): a
 rotation about the line through two markers is seen only through the third
@@ -1276,8 +1281,9 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
     model : (m, 3)
         The static-shot model (for its centroid).
     params : horsemocap.params.PoseParams
-        ``smoothing``, ``harmonics``, ``partial_frames``, ``rotation_weights``
-        and ``events`` (the module docstring says what each choice does);
+        ``smoothing``, ``harmonics``, ``partial_frames``, ``rotation_weights``,
+        ``events`` and ``correlated_noise_criterion`` (the module docstring
+        says what each choice does);
         what ``smoothing="auto"`` ran and why is in each component's ``info``
         (``smoothing_method``, ``smoothing_reason``). ``weights`` is not read
         here (it says whether :func:`register_pose` was given covariances).
@@ -1543,6 +1549,8 @@ def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref,
     reason = ((f"periodic record: fundamental {f0:.4g} Hz" if f0 else "gcv") + f"; {ar1} left the stride's "
               f"harmonics {tested} in the residual of {name} (F test p = {p_values[worst]:.1g} < "
               f"{STRIDE_RESIDUAL_LEVEL:g}): it took periodic motion for noise; noise taken as white")
+    if fit["aperture"] is not None:
+        reason += "; " + _aperture_note(fit["aperture"], order, "gcv")
     return fitted[:4] + ({"smoothing_method": "gcv", "smoothing_reason": reason},) + fitted[5:]
 
 
@@ -1586,14 +1594,12 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                           events=_pose_events(params.events, smoothing, order, f0))
     if correlated:
         spline_options["noise_correlation"] = choice["noise_correlation"]
-        if CORRELATED_NOISE_CRITERION not in CORRELATED_NOISE_CRITERIA:
-            raise ValueError(f"pose.CORRELATED_NOISE_CRITERION: expected one of {CORRELATED_NOISE_CRITERIA}, "
-                             f"got {CORRELATED_NOISE_CRITERION!r}")
-        if CORRELATED_NOISE_CRITERION == "loo":
+        criterion = params.correlated_noise_criterion
+        if criterion == "loo":
             lam = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture)
-        elif CORRELATED_NOISE_CRITERION == "reml":
+        elif criterion == "reml":
             spline_options["method"] = "reml"
-        elif CORRELATED_NOISE_CRITERION == "risk":
+        elif criterion == "risk":
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
     choice = _aperture_options(spline_options, aperture, order, choice)
@@ -1612,10 +1618,7 @@ def _aperture_options(spline_options: dict, aperture, order: int, choice):
     method = spline_options["method"]
     if order == 5 and method in ("gcv", "noise", "adaptive"):
         spline_options["aperture"] = aperture
-        note = f"fitted through the frames' temporal aperture ({aperture.description})"
-    else:
-        note = (f"the frames' temporal aperture ({aperture.description}) not modelled: the {method} "
-                f"order-{order} spline has no aperture")
+    note = _aperture_note(aperture, order, method)
     if choice is None:
         named = "gcv_cubic" if (method, order) == ("gcv", 3) else method
         return {"smoothing_method": named, "smoothing_reason": f"{named} asked for by name; {note}"}
@@ -1624,23 +1627,19 @@ def _aperture_options(spline_options: dict, aperture, order: int, choice):
     return choice
 
 
-#: The criterion of the smoothing under correlated noise (``"auto"`` with a significant AR(1) correlation of the
-#: rigidity residual, :func:`choose_smoothing`'s ``"gcv_ar1"``): ``"loo"`` (default), with four or more markers
-#: each marker left out in turn and its acceleration predicted from the others' pose
-#: (:func:`marker_cross_validation_per_component`): a marker's noise is not in that pose, so the criterion
-#: measures the error directly whatever the noise's correlation over frames, as long as the markers' noises are
-#: independent of each other; with three markers (the other two leave a rotation unseen) the correlated-error
-#: GCV. ``"gcv"``, the correlated-error GCV, which estimates the noise's level from the residual of the fit it
-#: chooses; ``"reml"``, restricted maximum likelihood with the residual's AR(1) correlation (``method="reml"``
-#: of :func:`horsemocap.splines.smoothing_spline`), which estimates the noise's level together with the
-#: signal's; ``"risk"``, the unbiased risk with the noise's covariance known: its level from the rigidity
-#: residual (:func:`pose_noise` with the points), its correlation the residual's AR(1) (``method="noise"``
-#: with ``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`); with three markers, whose
-#: residual does not see the noise normal to their plane, the correlated-error GCV. How each fares on noise
-#: draws and on real clusters: ``benchmarks/README.md``.
-CORRELATED_NOISE_CRITERION = "loo"
-#: The criteria :data:`CORRELATED_NOISE_CRITERION` may name (another is refused when the correlated path runs).
-CORRELATED_NOISE_CRITERIA = ("gcv", "reml", "risk", "loo")
+def _aperture_note(aperture, order: int, method: str) -> str:
+    """What a reason says of the frames' temporal ``aperture`` for a ``method`` spline of ``order``: fitted
+    through it, or why not; "" without an aperture."""
+    if aperture is None:
+        return ""
+    if order == 5 and method in ("gcv", "noise", "adaptive"):
+        return f"fitted through the frames' temporal aperture ({aperture.description})"
+    return (f"the frames' temporal aperture ({aperture.description}) not modelled: the {method} "
+            f"order-{order} spline has no aperture")
+
+
+#: The criteria ``correlated_noise_criterion`` of :class:`horsemocap.params.PoseParams` may name.
+CORRELATED_NOISE_CRITERIA = PoseParams.__dataclass_fields__["correlated_noise_criterion"].metadata["choices"]
 #: The candidate exponents ``s`` (the GCV smoothing parameters times ``10^s``) that the correlated-noise choice
 #: by leaving markers out tries (:func:`_left_out_marker_smoothing`).
 LEFT_OUT_DECADES = np.arange(-1.0, 6.01, 0.5)
@@ -1828,6 +1827,9 @@ def _check_smoothing_choices(params: PoseParams, lam) -> list:
         raise ValueError(f"harmonics: expected 'none', 'auto' or 'all', got {params.harmonics!r}")
     if params.rotation_weights not in ("auto", "equal"):
         raise ValueError(f"rotation_weights: expected 'auto' or 'equal', got {params.rotation_weights!r}")
+    if params.correlated_noise_criterion not in CORRELATED_NOISE_CRITERIA:
+        raise ValueError(f"correlated_noise_criterion: expected one of {', '.join(CORRELATED_NOISE_CRITERIA)}, "
+                         f"got {params.correlated_noise_criterion!r}")
     return lam
 
 
@@ -1857,7 +1859,8 @@ def _smoothing_choice(t, Y, smoothing: str, order: int, params: PoseParams, fund
         found_f0, confirmed = _record_fundamental(t, Y, expected_hz)
     if smoothing == "auto":
         smoothing, reason = choose_smoothing(found_f0, params.events, order, lam_given=lam_given,
-                                             noise_correlation=noise_correlation)
+                                             noise_correlation=noise_correlation,
+                                             criterion=params.correlated_noise_criterion)
         choice = {"smoothing_method": smoothing, "smoothing_reason": reason}
         if smoothing == "gcv_ar1":
             smoothing = "gcv"
@@ -2489,7 +2492,7 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
 
 
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False,
-                     noise_correlation: float | None = None) -> tuple[str, str]:
+                     noise_correlation: float | None = None, criterion: str = "loo") -> tuple[str, str]:
     """The smoothing ``"auto"`` of :func:`fit_pose_trajectory` runs, and why.
 
     A periodic record (``fundamental_hz`` found or given) keeps ``"gcv"`` with the stride harmonics;
@@ -2517,12 +2520,18 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
         wobble, skin), without events, the choice is ``"gcv_ar1"``: the
         smoothing chosen under that AR(1) error correlation
         (``noise_correlation`` of :func:`horsemocap.splines.smoothing_spline`;
-        the criterion is :data:`CORRELATED_NOISE_CRITERION`: by default
-        leaving each marker out in turn with four or more markers, the
-        correlated-error GCV with three),
+        the criterion is ``criterion``),
         without harmonics, since plain GCV and the adaptive penalty both take
         slow noise for motion.
         Below it the reason records the value.
+    criterion : str
+        The criterion under correlated noise
+        (``correlated_noise_criterion`` of
+        :class:`horsemocap.params.PoseParams`): ``"loo"`` (default: leaving
+        each marker out in turn with four or more markers, the
+        correlated-error GCV with three), ``"gcv"``, ``"reml"`` or
+        ``"risk"``. Only ``"reml"`` changes the reason here; the others are
+        told apart when the splines are fitted (:func:`fit_pose_trajectory`).
 
     Returns
     -------
@@ -2538,6 +2547,8 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
     'adaptive'
     >>> choose_smoothing(None, None, noise_correlation=0.62)
     ('gcv_ar1', 'gcv with AR(1) 0.62 noise correlation from the rigidity residual (correlated-error GCV, no harmonics)')
+    >>> choose_smoothing(None, None, noise_correlation=0.62, criterion="reml")[1][:4]
+    'REML'
     """
     rho = float("nan") if noise_correlation is None else float(noise_correlation)
     method, reason = _choose_white_noise_smoothing(fundamental_hz, events, order, lam_given)
@@ -2548,7 +2559,7 @@ def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = F
                                  "; no AR(1) noise correlation measurable from the rigidity residual, or none significant for "
                                  "the record's length: noise taken as white")
     if rho >= NOISE_CORRELATION_THRESHOLD and not (events is not None and len(events)):
-        if CORRELATED_NOISE_CRITERION == "reml":
+        if criterion == "reml":
             return "gcv_ar1", (f"REML with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "
                                "(correlated-error smoothing, no harmonics)")
         return "gcv_ar1", (f"gcv with AR(1) {min(rho, 0.99):.2f} noise correlation from the rigidity residual "

@@ -153,6 +153,7 @@ PARAMETER_NAMES = {
     "rigid_body.pose.weights": "marker weights in each frame's pose registration",
     "rigid_body.pose.rotation_weights": "frame weights in the rotation's smoothing",
     "rigid_body.pose.events": "known change points of the pose smoothing (s)",
+    "rigid_body.pose.correlated_noise_criterion": "criterion of the pose smoothing under correlated noise",
     "motion_frame.mode": "direction of motion (x axis) from",
 }
 """A person's name for each parameter of ``analysis.json`` (its dotted field)."""

@@ -108,6 +108,19 @@ class DecodedFrames:
         Video key -> its frame counts (declared, decodable).
     opened : frozenset
         Video keys of the files found to open and decode.
+
+    Examples
+    --------
+    One 2 x 3 gray frame (frame 0 of a video), copied at the start of a buffer:
+
+    >>> import mmap
+    >>> buffer = mmap.mmap(-1, mmap.PAGESIZE)
+    >>> buffer[:6] = bytes([10, 20, 30, 40, 50, 60])
+    >>> video = ("/videos/left.avi", 1_700_000_000_000_000_000, 123_456)    # path, modification time, size
+    >>> decoded = DecodedFrames(frames=((video, 0, (2, 3), 0),), counts={video: (250, 250)},
+    ...                         opened=frozenset({video}))
+    >>> [(index, shape, offset) for _, index, shape, offset in decoded.frames]
+    [(0, (2, 3), 0)]
     """
 
     frames: tuple
@@ -141,7 +154,39 @@ def export_decoded(buffer) -> DecodedFrames:
 
 def import_decoded(decoded: DecodedFrames, buffer) -> None:
     """Share in this process the frames :func:`export_decoded` copied into ``buffer`` (read in place, kept
-    pinned as if decoded here, in the same order) and what the other process knew of the videos."""
+    pinned as if decoded here, in the same order) and what the other process knew of the videos.
+
+    Examples
+    --------
+    A forked copy decodes the first frames of a video and copies them into
+    memory made before the fork; this process reads them from there:
+
+    >>> import mmap, os, pickle, tempfile
+    >>> from horsemocap.forking import fork_call
+    >>> path = os.path.join(tempfile.mkdtemp(), "clip.avi")
+    >>> out = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48))
+    >>> for k in range(3):
+    ...     _ = out.write(np.full((48, 64, 3), 60 * k, np.uint8))
+    >>> out.release()
+    >>> buffer = mmap.mmap(-1, SHARED_GRAY_BYTES)          # seen by both processes
+    >>> read_end, write_end = os.pipe()
+    >>> def decode_and_send():
+    ...     list(FrameSource(path).iter_frames(0, 3, color=False, share=True))
+    ...     with os.fdopen(write_end, "wb") as sent:
+    ...         pickle.dump(export_decoded(buffer), sent)
+    >>> pid = fork_call(decode_and_send)
+    >>> os.close(write_end)
+    >>> with os.fdopen(read_end, "rb") as got:
+    ...     decoded = pickle.load(got)
+    >>> os.waitpid(pid, 0)[1]
+    0
+    >>> import_decoded(decoded, buffer)
+    >>> [(index, shape) for video, index, shape, _ in decoded.frames if video[0] == str(Path(path).resolve())]
+    [(0, (48, 64)), (1, (48, 64)), (2, (48, 64))]
+    >>> frame = FrameSource(path).sequence(0, 3, color=False)[2]
+    >>> frame.shape, np.shares_memory(frame, np.frombuffer(buffer, np.uint8))   # read in place, not decoded
+    ((48, 64), True)
+    """
     view = np.frombuffer(buffer, np.uint8)
     for video, index, shape, offset in decoded.frames:
         frame = view[offset:offset + int(np.prod(shape))].reshape(shape)

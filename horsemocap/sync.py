@@ -571,8 +571,9 @@ class FlashSearch:
     copies those the process shares (:data:`horsemocap.sources.SHARED_GRAY_BYTES`)
     into memory both see, so this process reads them as if it had decoded
     them (:func:`horsemocap.sources.import_decoded`); a copy that ends
-    without a result leaves the search to the sync step. Elsewhere the
-    search runs in a thread.
+    without a result leaves the search to the sync step, saying why
+    (:attr:`lost`). Elsewhere, or where the system refuses the copy (its
+    memory or process), the search runs in a thread.
 
     The cameras are searched one after another on a machine of two cores
     (one reader per core beyond the one left to the interpreter loading the
@@ -616,13 +617,12 @@ class FlashSearch:
         self.videos = [(cam, Path(path)) for cam, path in videos.items()]
         self.search_frames = search_frames
         self._when_done = when_done
-        self._found, self._error = None, None
+        self._found, self._error, self._lost = None, None, None
         self._cancel = threading.Event()
         self._pid, self._pid_lock = None, threading.Lock()
-        target = self._run
-        if fork and can_fork():
-            self._fork()
-            target = self._collect
+        self._shared = None
+        self.forked = fork and can_fork() and self._forked()
+        target = self._collect if self.forked else self._run
         self._thread = threading.Thread(target=target, name="horsemocap-flash-search", daemon=True)
         self._thread.start()
 
@@ -641,11 +641,32 @@ class FlashSearch:
             if self._when_done is not None:
                 self._when_done()
 
+    def _forked(self) -> bool:
+        """Whether the copy that searches was forked (:meth:`_fork`); False when the system refused the
+        memory, the pipe or the process (the search then runs in a thread: the copy is only a speed-up)."""
+        try:
+            self._fork()
+            return True
+        except OSError:
+            self._shared = None
+            return False
+
     def _fork(self) -> None:
         """The copy that searches: it sends ``(outcome, decoded)`` pickled through a pipe, the frames in
         ``self._shared`` (memory both processes see, made before the fork)."""
         self._shared = mmap.mmap(-1, max(_shared_bytes(self.videos, self.search_frames), mmap.PAGESIZE))
         read_end, write_end = os.pipe()
+        try:
+            self._pid = fork_call(self._copy_work(read_end, write_end))
+        except OSError:
+            os.close(read_end)
+            os.close(write_end)
+            raise
+        os.close(write_end)
+        self._result_fd = read_end
+
+    def _copy_work(self, read_end: int, write_end: int):
+        """What the forked copy does: search, then send its outcome and the frames it shares."""
 
         def work():
             os.close(read_end)
@@ -656,9 +677,7 @@ class FlashSearch:
             decoded = export_decoded(self._shared)
             with os.fdopen(write_end, "wb") as sent:
                 pickle.dump((outcome, decoded), sent, protocol=pickle.HIGHEST_PROTOCOL)
-        self._pid = fork_call(work)
-        os.close(write_end)
-        self._result_fd = read_end
+        return work
 
     def _collect(self) -> None:
         """The thread waiting for the copy: its detections or error, and its decoded frames shared here."""
@@ -668,19 +687,31 @@ class FlashSearch:
             with self._pid_lock:
                 pid, self._pid = self._pid, None
             status = os.waitpid(pid, 0)[1] if pid is not None else None
-            if data and status == 0 and not self.cancelled:
-                (kind, value), decoded = pickle.loads(data)
-                import_decoded(decoded, self._shared)
-                if kind == "found":
-                    self._found = value
-                else:
-                    self._error = value
-            # else killed (cancelled) or lost: no detections, the sync step searches itself
-        except BaseException:  # noqa: BLE001 - a result that cannot be read: the step searches itself
+            if self.cancelled:
+                return                   # killed: no detections, nobody reads them
+            if not data or status != 0:
+                self._lost = f"its copy {_ended_how(status)} without a result"
+                return
+            (kind, value), decoded = pickle.loads(data)
+            import_decoded(decoded, self._shared)
+            if kind == "found":
+                self._found = value
+            else:
+                self._error = value
+        except BaseException as exc:  # noqa: BLE001 - a result that cannot be read: the step searches itself
             self._found = self._error = None
+            self._lost = f"its copy's result could not be read ({type(exc).__name__}: {exc})"
         finally:
+            self._shared = None          # the frames imported keep the memory they are in; the rest is freed
             if self._when_done is not None:
                 self._when_done()
+
+    @property
+    def lost(self) -> str | None:
+        """Why the search ended without a result although it was not cancelled (its copy exited with an
+        error, was killed, or sent a result that could not be read; the sync step then searches itself),
+        else None (also while it runs)."""
+        return self._lost
 
     @property
     def cancelled(self) -> bool:
@@ -726,6 +757,15 @@ def _shared_bytes(videos, search_frames) -> int:
         except (SourceError, OSError):        # the search reports it
             pass
     return min(total, SHARED_GRAY_BYTES)
+
+
+def _ended_how(status: int | None) -> str:
+    """How a process ended, from its wait status, in words ("exited with status 3", "was killed by signal 9")."""
+    if status is None:
+        return "ended unseen"
+    if os.WIFSIGNALED(status):
+        return f"was killed by signal {os.WTERMSIG(status)}"
+    return f"exited with status {os.waitstatus_to_exitcode(status)}"
 
 
 def _picklable(exc: BaseException) -> BaseException:

@@ -7,6 +7,7 @@ import pytest
 from scipy.signal import lfilter
 
 from horsemocap import pose, splines
+from horsemocap.aperture import box_aperture
 from horsemocap.params import PoseParams
 
 from test_rotation_continuity import _centre, _cluster, _observe, _wandering_body
@@ -171,14 +172,13 @@ def test_reml_with_ar1_errors_refuses_bad_input():
         splines.reml_ar1_smoothing(t[::-1], np.sin(t))
 
 
-def test_an_unknown_correlated_noise_criterion_is_refused_where_it_would_run(monkeypatch):
+def test_an_unknown_correlated_noise_criterion_is_refused_where_it_would_run():
     # a misspelt criterion must not silently run the correlated-error GCV
     t, pts, markers, _, _ = _cluster_case(0, 0.8)
     reg = pose.register_pose(pts, markers)
     assert pose.fit_pose_trajectory(t, reg, markers, points=pts).smoothing_choice["method"] == "gcv_ar1"
-    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "rml")
-    with pytest.raises(ValueError, match="CORRELATED_NOISE_CRITERION"):
-        pose.fit_pose_trajectory(t, reg, markers, points=pts)
+    with pytest.raises(ValueError, match="correlated_noise_criterion"):
+        pose.fit_pose_trajectory(t, reg, markers, PoseParams(correlated_noise_criterion="rml"), points=pts)
 
 
 @pytest.mark.parametrize("bad", [float("nan"), 0.0, -1.5])
@@ -187,3 +187,16 @@ def test_a_stride_frequency_that_is_not_one_is_refused_by_name(bad):
     reg = pose.register_pose(pts, markers)
     with pytest.raises(ValueError, match="fundamental_hz"):
         pose.fit_pose_trajectory(t, reg, markers, points=pts, fundamental_hz=bad)
+
+
+def test_the_white_noise_refit_keeps_the_aperture_in_its_reason(monkeypatch):
+    # the correlated choice smoothed again as white (the stride's harmonics found in its residual: the test's
+    # p-values in place of the F tests) is still fitted through the frames' aperture, and its reason says so
+    t, pts, markers, _, _ = _cluster_case(0, 0.8)
+    reg = pose.register_pose(pts, markers)
+    monkeypatch.setattr(pose, "_stride_p_values", lambda *args: np.full(6, 1e-9))
+    aperture = box_aperture(0.01)
+    tr = pose.fit_pose_trajectory(t, reg, markers, points=pts, expected_fundamental_hz=1.5, aperture=aperture)
+    reason = tr.smoothing_choice["reason"]
+    assert tr.smoothing_choice["method"] == "gcv" and "took periodic motion for noise" in reason
+    assert "fitted through the frames' temporal aperture (exposure 10 ms)" in reason

@@ -2,8 +2,10 @@
 light imports that let them start early."""
 from __future__ import annotations
 
+import errno
 import gc
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -16,7 +18,7 @@ import pytest
 
 from horsemocap import cli, report, run, sources, sync
 from horsemocap.data import default_session_dir
-from horsemocap.forking import EarlyCalls
+from horsemocap.forking import EarlyCalls, fork_call
 from horsemocap.pipeline import analyze
 from horsemocap.plots import figure_painter, report_figures
 from horsemocap.session import load_session
@@ -165,7 +167,7 @@ def test_a_forked_flash_search_shares_its_decoded_frames_as_a_thread_would(tmp_p
         monkeypatch.setattr(sources, "_COUNTS", {})
         done = []
         search = FlashSearch(videos, when_done=lambda: done.append(os.getpid()), fork=fork)
-        assert (search._thread.name, hasattr(search, "_shared")) == ("horsemocap-flash-search", fork)
+        assert (search._thread.name, search.forked) == ("horsemocap-flash-search", fork)
         found[fork] = search.detections({c: FrameSource(p) for c, p in videos.items()})
         assert done == [os.getpid()]
         assert len(shared.frames) == len(shared.pinned) == 80
@@ -184,8 +186,11 @@ def test_a_forked_flash_search_keeps_no_more_frames_than_the_process_shares(tmp_
     frame_bytes = 160 * 120
     monkeypatch.setattr(sources, "_SHARED", sources._SharedGray(10 * frame_bytes))
     monkeypatch.setattr(sync, "SHARED_GRAY_BYTES", 10 * frame_bytes)
+    made = []
+    real_mmap = sync.mmap.mmap
+    monkeypatch.setattr(sync.mmap, "mmap", lambda *args: made.append(real_mmap(*args)) or made[-1])
     search = FlashSearch({"left": video})
-    assert len(search._shared) == 10 * frame_bytes
+    assert [len(m) for m in made] == [10 * frame_bytes]
     assert search.detections({"left": FrameSource(video)})["left"].frame == 17
     assert [key[1] for key in sources._SHARED.frames] == list(range(30, 40))     # the last ones, as a thread's
 
@@ -205,10 +210,12 @@ def test_a_forked_flash_search_cancelled_is_killed_and_one_lost_leaves_the_searc
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
     assert search.detections({"left": FrameSource(video)}) is None
+    assert search.lost is None              # cancelled, not lost
     # a copy that dies without a result: no detections and no error (the sync step searches itself)
     monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: os._exit(3))
     lost = FlashSearch({"left": video})
     assert lost.detections({"left": FrameSource(video)}) is None
+    assert lost.lost == "its copy exited with status 3 without a result"
 
 
 def test_the_command_collects_garbage_less_often_and_exempts_its_objects_at_its_end_and_a_call_does_not(
@@ -273,13 +280,36 @@ def module_that_says_when_loaded(tmp_path, monkeypatch):
     return "says_when_loaded", flag
 
 
+def _wait_until_waiting_to_start(calls: EarlyCalls, seconds: float = 30) -> None:
+    """Return once the held copy is blocked reading its start pipe (its state read in ``/proc``: the
+    system call it waits in and the pipe of that file descriptor); fail if it never is."""
+    pid, start_pipe = calls._pid, os.fstat(calls._start_fd).st_ino
+    try:
+        open(f"/proc/{pid}/syscall").close()
+    except OSError:
+        pytest.skip("the copy's state cannot be read here (/proc/<pid>/syscall)")
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        with open(f"/proc/{pid}/syscall") as f:
+            fields = f.read().split()
+        if fields and fields[0] not in ("running", "-1") and len(fields) > 1:
+            fd = int(fields[1], 16)
+            try:
+                if os.readlink(f"/proc/{pid}/fd/{fd}") == f"pipe:[{start_pipe}]":
+                    return
+            except OSError:
+                pass
+        time.sleep(0.01)
+    pytest.fail(f"the held copy was not seen waiting on its start pipe within {seconds} s")
+
+
 @can_fork_here
 @pytest.mark.parametrize("how", ["start", "submit", "results"])
 def test_a_held_copy_loads_its_module_only_once_started(module_that_says_when_loaded, how):
     module, flag = module_that_says_when_loaded
     with EarlyCalls(module, "size", hold=True) as calls:
         assert calls.forked
-        time.sleep(0.5)
+        _wait_until_waiting_to_start(calls)
         assert not flag.exists()            # forked, idle: the module is not loaded yet
         if how == "start":
             calls.start()
@@ -299,6 +329,7 @@ def test_a_held_copy_closed_unstarted_is_ended(module_that_says_when_loaded):
     module, flag = module_that_says_when_loaded
     calls = EarlyCalls(module, "size", hold=True)
     pid = calls._pid
+    _wait_until_waiting_to_start(calls)
     calls.close()
     with pytest.raises(ChildProcessError):
         os.waitpid(pid, os.WNOHANG)         # reaped: no zombie left behind
@@ -507,6 +538,8 @@ def test_the_report_leaves_out_figures_it_cannot_describe_and_says_why(monkeypat
 class _UnmatchedSearch:
     """An early search that is not the step's (its detections are None): records how it was closed."""
 
+    lost = None
+
     def __init__(self):
         self.closed = []
 
@@ -525,3 +558,110 @@ def test_the_analysis_ends_an_early_flash_search_once_the_sync_step_is_past():
     analyze(default_session_dir(), None, None, until="plumb", write_outputs=False, flash_search=search,
             after_step=lambda analysis, name: seen.append((name, list(search.closed))))
     assert dict(seen)["sync"] == [False] and search.closed == [False]
+
+
+# --- a copy forked later holds none of an earlier copy's pipes ---------------------------------------------
+
+def _results_within(calls, seconds: float):
+    """``calls.results()`` computed by a thread: ``(finished within seconds, the values or None)``."""
+    got = []
+    waiting = threading.Thread(target=lambda: got.append(calls.results()), daemon=True)
+    waiting.start()
+    waiting.join(seconds)
+    return not waiting.is_alive(), (got[0] if got else None), waiting
+
+
+@can_fork_here
+@pytest.mark.parametrize("hold", [False, True])
+def test_early_calls_results_do_not_wait_for_a_copy_forked_after_them(hold):
+    """A copy forked later (as the flash search's) that lives on does not keep the first copy's arguments
+    open: its results come once its own calls are done."""
+    calls = EarlyCalls("statistics", "median", hold=hold)
+    assert calls.forked
+    later = fork_call(lambda: time.sleep(60))
+    try:
+        calls.submit([3.0, 1.0, 2.0])
+        finished, values, waiting = _results_within(calls, 10)
+    finally:
+        os.kill(later, signal.SIGKILL)
+        os.waitpid(later, 0)
+    waiting.join(10)
+    assert finished and values == [2.0]
+    calls.close()
+
+
+@can_fork_here
+def test_the_report_figures_do_not_wait_for_a_flash_search_that_lives_on(tmp_path, monkeypatch):
+    video = _flash_video(tmp_path / "left.avi")
+    painter = EarlyCalls("statistics", "median", hold=True)      # forked first, held, as the command's
+    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: time.sleep(60))
+    search = FlashSearch({"left": video}, when_done=painter.start)
+    try:
+        painter.submit([5.0])
+        finished, values, waiting = _results_within(painter, 10)
+    finally:
+        search.close(wanted=False)
+    waiting.join(30)
+    assert finished and values == [5.0]
+    painter.close()
+
+
+# --- a search whose copy is lost says why; one the system cannot fork runs in a thread -------------------
+
+@can_fork_here
+def test_a_flash_search_whose_copy_is_killed_or_sends_an_unreadable_result_says_why(tmp_path, monkeypatch):
+    video = _flash_video(tmp_path / "left.avi")
+    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: os.kill(os.getpid(), signal.SIGKILL))
+    killed = FlashSearch({"left": video})
+    assert killed.detections({"left": FrameSource(video)}) is None
+    assert killed.lost == "its copy was killed by signal 9 without a result"
+    monkeypatch.undo()
+
+    def import_fails(decoded, buffer):
+        raise MemoryError("no room for the frames")
+    monkeypatch.setattr(sync, "import_decoded", import_fails)
+    unreadable = FlashSearch({"left": video})
+    assert unreadable.detections({"left": FrameSource(video)}) is None
+    assert unreadable.lost == "its copy's result could not be read (MemoryError: no room for the frames)"
+
+
+class _LostSearch(_UnmatchedSearch):
+    lost = "its copy was killed by signal 9 without a result"
+
+
+def test_the_sync_step_says_why_it_searches_again_when_the_early_search_was_lost():
+    said = []
+    analyze(default_session_dir(), None, progress=lambda step, text: said.append((step, text)), until="sync",
+            write_outputs=False, flash_search=_LostSearch())
+    assert ("sync", "the flash search started early ended without a result: its copy was killed by signal 9 "
+                    "without a result; searching again") in said
+    said.clear()
+    analyze(default_session_dir(), None, progress=lambda step, text: said.append((step, text)), until="sync",
+            write_outputs=False, flash_search=_UnmatchedSearch())
+    assert not any("early" in text for _, text in said)
+
+
+@can_fork_here
+@pytest.mark.parametrize("refused", ["fork", "mmap"])
+def test_a_flash_search_the_system_cannot_fork_runs_in_a_thread(tmp_path, monkeypatch, refused):
+    video = _flash_video(tmp_path / "left.avi")
+
+    def no_room(*args):
+        raise OSError(errno.EAGAIN if refused == "fork" else errno.ENOMEM, "refused")
+    monkeypatch.setattr(*((os, "fork") if refused == "fork" else (sync.mmap, "mmap")), no_room)
+    open_fds = len(os.listdir("/proc/self/fd")) if os.path.isdir("/proc/self/fd") else None
+    search = FlashSearch({"left": video})
+    assert not search.forked and search._shared is None
+    assert search.detections({"left": FrameSource(video)})["left"].frame == 17
+    if open_fds is not None:
+        assert len(os.listdir("/proc/self/fd")) == open_fds      # the pipe made for the copy closed
+
+
+@can_fork_here
+def test_a_forked_flash_search_lets_go_of_its_shared_memory_once_collected(tmp_path, monkeypatch):
+    video = _flash_video(tmp_path / "left.avi")
+    monkeypatch.setattr(sources, "_SHARED", sources._SharedGray(sources.SHARED_GRAY_BYTES))
+    search = FlashSearch({"left": video})
+    assert search.forked
+    assert search.detections({"left": FrameSource(video)})["left"].frame == 17
+    assert search._shared is None           # the frames imported hold the memory, not the search

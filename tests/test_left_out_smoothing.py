@@ -3,13 +3,15 @@ frames): horsemocap.pose.marker_cross_validation_per_component and its place in 
 ``"auto"``, against exact ground truth."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
 from horsemocap import pose
-from horsemocap.params import PoseParams
+from horsemocap.params import AnalysisParams, ParamsError, PoseParams
 
 RATE_HZ = 50.0
 #: the markers' noise per axis (m): the depth (z) three times the image directions, as a camera rig measures
@@ -58,22 +60,47 @@ def _error(tr, t, acc, edge=10):
 
 
 def test_the_default_criterion_leaves_markers_out():
-    assert pose.CORRELATED_NOISE_CRITERION == "loo"
+    assert PoseParams().correlated_noise_criterion == "loo"
+    assert AnalysisParams().rigid_body.pose.correlated_noise_criterion == "loo"
 
 
-def _fit(monkeypatch, criterion, t, pts, x, cov=None, params=PoseParams()):
-    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", criterion)
+def _fit(criterion, t, pts, x, cov=None, params=PoseParams()):
+    params = replace(params, correlated_noise_criterion=criterion)
     return pose.fit_pose_trajectory(t, pose.register_pose(pts, x, covariance=cov), x, params, points=pts)
 
 
-def test_leaving_markers_out_smooths_more_than_gcv_and_beats_both_gcv_choices(monkeypatch):
+def test_the_criterion_parameter_reaches_the_choice():
+    """Five markers under AR(1) 0.8 noise: ``"loo"`` leaves each marker out, ``"gcv"`` runs the correlated-error
+    GCV, each saying so in its reason; the section's value (``rigid_body.pose.correlated_noise_criterion``) is
+    the one the fit reads."""
+    t, pts, x, _, cov = _trot(0)
+    chosen = AnalysisParams().updated({"rigid_body.pose.correlated_noise_criterion": "gcv"}).rigid_body.pose
+    assert chosen.correlated_noise_criterion == "gcv"
+    gcv = _fit("gcv", t, pts, x, cov, chosen).smoothing_choice
+    loo = _fit("loo", t, pts, x, cov).smoothing_choice
+    assert gcv["method"] == loo["method"] == "gcv_ar1"
+    assert "correlated-error GCV" in gcv["reason"] and "markers out" not in gcv["reason"]
+    assert "cross_validation" not in gcv
+    assert "leaving each of the 5 markers out" in loo["reason"] and "cross_validation" in loo
+
+
+def test_an_unknown_criterion_is_refused_by_name():
+    with pytest.raises(ParamsError, match=r"rigid_body\.pose\.correlated_noise_criterion.*loo.*gcv.*reml.*risk"):
+        AnalysisParams.from_dict({"rigid_body": {"pose": {"correlated_noise_criterion": "rml"}}})
+    t, pts, x, _, _ = _trot(1, rho=0.0)     # white noise: refused before the correlated path would run
+    with pytest.raises(ValueError, match=r"correlated_noise_criterion: expected one of loo, gcv, reml, risk, "
+                                         r"got 'rml'"):
+        _fit("rml", t, pts, x)
+
+
+def test_leaving_markers_out_smooths_more_than_gcv_and_beats_both_gcv_choices():
     """AR(1) 0.8 noise, five markers: the choice is heavier than white-noise GCV's in every case, says what it
     ran, and its hidden-point acceleration error is below both plain GCV's and the correlated-error GCV's on
     average over the seeds (the truth is exact here)."""
     left_out, correlated, plain = [], [], []
     for seed in range(3):
         t, pts, x, acc, cov = _trot(seed)
-        tr = _fit(monkeypatch, "loo", t, pts, x, cov)
+        tr = _fit("loo", t, pts, x, cov)
         choice = tr.smoothing_choice
         cv = choice["cross_validation"]
         assert choice["method"] == "gcv_ar1" and "leaving each of the 5 markers out" in choice["reason"]
@@ -82,17 +109,17 @@ def test_leaving_markers_out_smooths_more_than_gcv_and_beats_both_gcv_choices(mo
         assert np.mean(cv["cross_validation_component_decades"]) > 0.5
         assert cv["cross_validation_score"] <= min(cv["cross_validation_scores"])
         left_out.append(_error(tr, t, acc))
-        correlated.append(_error(_fit(monkeypatch, "gcv", t, pts, x, cov), t, acc))
-        plain.append(_error(_fit(monkeypatch, "loo", t, pts, x, cov, PoseParams(smoothing="gcv", harmonics="none")),
+        correlated.append(_error(_fit("gcv", t, pts, x, cov), t, acc))
+        plain.append(_error(_fit("loo", t, pts, x, cov, PoseParams(smoothing="gcv", harmonics="none")),
                             t, acc))
     assert np.mean(left_out) < np.mean(plain), f"left out {left_out}, plain GCV {plain}"
     assert np.mean(left_out) < np.mean(correlated), f"left out {left_out}, correlated GCV {correlated}"
 
 
-def test_three_markers_keep_the_correlated_gcv_unchanged(monkeypatch):
+def test_three_markers_keep_the_correlated_gcv_unchanged():
     t, pts, x, _, _ = _trot(0, markers=3)
-    a = _fit(monkeypatch, "loo", t, pts, x)
-    b = _fit(monkeypatch, "gcv", t, pts, x)
+    a = _fit("loo", t, pts, x)
+    b = _fit("gcv", t, pts, x)
     assert a.smoothing_choice["method"] == "gcv_ar1"
     assert a.smoothing_choice["reason"] == b.smoothing_choice["reason"]
     assert "correlated-error GCV" in a.smoothing_choice["reason"]
@@ -101,9 +128,9 @@ def test_three_markers_keep_the_correlated_gcv_unchanged(monkeypatch):
         np.testing.assert_array_equal(sa.spline.c, sb.spline.c)
 
 
-def test_white_noise_never_runs_the_cross_validation(monkeypatch):
+def test_white_noise_never_runs_the_cross_validation():
     t, pts, x, _, _ = _trot(1, rho=0.0)
-    tr = _fit(monkeypatch, "loo", t, pts, x)
+    tr = _fit("loo", t, pts, x)
     assert tr.smoothing_choice["method"] != "gcv_ar1"
     assert "cross_validation" not in tr.smoothing_choice
 

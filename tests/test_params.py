@@ -22,7 +22,7 @@ def test_defaults_are_automatic():
 
 def test_every_field_has_help_a_unique_dotted_and_flat_name():
     names = [f.path for f in params_fields()]
-    assert len(names) == len(set(names)) == 35
+    assert len(names) == len(set(names)) == 36
     flat = [f.legacy for f in params_fields() if f.legacy]
     assert len(flat) == len(set(flat)) == 31       # the 33 fields before the sections, less preset and stills
     assert all(f.help for f in params_fields())

@@ -95,10 +95,9 @@ def _turning_cluster_with_ar1_noise():
     return t, pts, model, pose.register_pose(pts, model)
 
 
-def test_pose_correlated_criterion_risk_reports_its_choice(monkeypatch):
+def test_pose_correlated_criterion_risk_reports_its_choice():
     t, pts, model, reg = _turning_cluster_with_ar1_noise()
-    params = pose.PoseParams(smoothing="auto", events=None)
-    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "risk")
+    params = pose.PoseParams(smoothing="auto", events=None, correlated_noise_criterion="risk")
     tr = pose.fit_pose_trajectory(t, reg, model, params, points=pts)
     choice = tr.smoothing_choice
     assert choice["method"] == "gcv_ar1"
@@ -107,7 +106,7 @@ def test_pose_correlated_criterion_risk_reports_its_choice(monkeypatch):
     assert tr.smoothing["phiz"]["noise"] == pytest.approx(pose.pose_noise(reg, pts, model)[5])
 
 
-def test_pose_correlated_risk_with_three_markers_keeps_the_correlated_gcv_and_says_why(monkeypatch):
+def test_pose_correlated_risk_with_three_markers_keeps_the_correlated_gcv_and_says_why():
     from scipy.spatial.transform import Rotation
     model = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.0, 0.2, 0.05]])
     n = 600
@@ -116,8 +115,8 @@ def test_pose_correlated_risk_with_three_markers_keeps_the_correlated_gcv_and_sa
     e = lfilter([1.0], [1.0, -0.8], np.random.default_rng(2).normal(0, 6e-4, (n, 3, 3)), axis=0)
     pts = np.einsum("kij,mj->kmi", rot, model) + 0.1 * t[:, None, None] + e
     reg = pose.register_pose(pts, model)
-    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "risk")
-    tr = pose.fit_pose_trajectory(t, reg, model, pose.PoseParams(smoothing="auto"), points=pts)
+    tr = pose.fit_pose_trajectory(t, reg, model, pose.PoseParams(smoothing="auto", correlated_noise_criterion="risk"),
+                                  points=pts)
     assert "3 markers: their residual does not measure the noise normal" in tr.smoothing_choice["reason"]
     assert tr.smoothing["phiz"]["method"] == "gcv"
 
@@ -132,10 +131,10 @@ def test_reml_method_takes_the_reml_smoothing_with_the_correlation_given():
         splines.smoothing_spline(t, y, method="reml", weights=np.ones(t.size))
 
 
-def test_pose_correlated_smoothing_by_reml_takes_the_residual_correlation(monkeypatch):
+def test_pose_correlated_smoothing_by_reml_takes_the_residual_correlation():
     t, pts, model, reg = _turning_cluster_with_ar1_noise()
-    monkeypatch.setattr(pose, "CORRELATED_NOISE_CRITERION", "reml")
-    tr = pose.fit_pose_trajectory(t, reg, model, pose.PoseParams(smoothing="auto"), points=pts)
+    tr = pose.fit_pose_trajectory(t, reg, model, pose.PoseParams(smoothing="auto", correlated_noise_criterion="reml"),
+                                  points=pts)
     choice = tr.smoothing_choice
     assert choice["method"] == "gcv_ar1" and choice["reason"].startswith("REML with AR(1)")
     assert tr.smoothing["phiz"]["method"] == "reml"

@@ -92,6 +92,9 @@ def step_sync(session: Session, section: SyncParams, progress, flash_search=None
         offsets, how = dict(session.sync_offsets), "given in session.json"
     else:
         found = flash_search.detections(sources) if flash_search is not None else None
+        if found is None and flash_search is not None and flash_search.lost:
+            progress("sync", f"the flash search started early ended without a result: {flash_search.lost}; "
+                     "searching again")
         found, how = (found if found is not None else flash.flash_detections(sources)), "flashlight"
         offsets = {c: int(d.frame) for c, d in found.items()}
         ambiguous = {c: int(d.runner_up["on_frame"]) for c, d in found.items() if d.ambiguous and d.runner_up}

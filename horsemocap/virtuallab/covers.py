@@ -281,6 +281,18 @@ UPPER_BACK = (-0.48, -0.16, -0.29)
 RIG_NOISE = MarkerNoise(sigma_px=0.15, rho=0.8, bias_px=0.1)
 
 
+#: More rides of the spread rigs (gait, horse, seed, suffix): the same horse, gait, cameras' layout, markers and
+#: marker noise as ``spread4_<gait>`` / ``spread5_<gait>``, with another seed. The herd horse's gait is the same
+#: periodic motion; the seed places the cameras anew within the layout's tolerances (so the record starts a few
+#: frames off, at another phase of the stride) and draws new image noise and new marker noise and biases. The
+#: session ``spread5_canter_b`` is ``spread5_canter``'s rig on ride ``b``.
+SPREAD_RIDES = (("canter", "Horse 2", 3141, "b"), ("rising_trot", "Horse 1", 3142, "b"),
+                ("canter", "Horse 2", 3151, "c"), ("rising_trot", "Horse 1", 3152, "c"),
+                ("canter", "Horse 2", 3161, "d"), ("rising_trot", "Horse 1", 3162, "d"),
+                ("canter", "Horse 2", 3171, "e"), ("rising_trot", "Horse 1", 3172, "e"),
+                ("canter", "Horse 2", 3181, "f"), ("rising_trot", "Horse 1", 3182, "f"))
+
+
 def _base(name, horse, gait, seed, fps=50.0, strides=3.0, **kw) -> HardScenario:
     return HardScenario(name, horse, gait, seed, fps, _r("720p", "toed_in", 0.6, 0.8), strides=strides,
                         enter_time_s=0.6, **kw)
@@ -299,6 +311,12 @@ def _scenarios():
                                  exercises=f"four markers spread over the flank's height, marker noise, {gait}"))
         out.append(CoverScenario(f"spread5_{gait}", b, (UPPER_BACK, LOWER_FLANK), marker_noise=RIG_NOISE,
                                  exercises=f"five markers spread over the flank's height, marker noise, {gait}"))
+    for gait, horse, seed, ride in SPREAD_RIDES:
+        b = _base(f"spread_{gait}_{ride}", horse, gait, seed)
+        out.append(CoverScenario(f"spread4_{gait}_{ride}", b, (UPPER_BACK,), marker_noise=RIG_NOISE,
+                                 exercises=f"spread4_{gait} on another ride ({ride}): its own ride and noise draw"))
+        out.append(CoverScenario(f"spread5_{gait}_{ride}", b, (UPPER_BACK, LOWER_FLANK), marker_noise=RIG_NOISE,
+                                 exercises=f"spread5_{gait} on another ride ({ride}): its own ride and noise draw"))
     for gait, horse, seed in (("walk", "Horse 3", 3111), ("sitting_trot", "Horse 4", 3112),
                               ("rising_trot", "Horse 2", 3113), ("canter", "Horse 1", 3114)):
         b = _base(f"cover_{gait}", horse, gait, seed, strides=3.0 if gait != "walk" else 2.6)
