@@ -2247,6 +2247,15 @@ def _residual_covariance(registration: PoseRegistration, points) -> np.ndarray:
     return cov if cov is not None and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else np.eye(3)
 
 
+def _inner_second_differences(n: int) -> np.ndarray:
+    """Which of a record's ``n - 2`` second differences lie inside it: :data:`CROSS_VALIDATION_MARGIN` of the
+    record is left out at each end, where a smoothing spline's end conditions, not the data, decide it."""
+    edge = int(np.ceil(CROSS_VALIDATION_MARGIN * n))
+    inner = np.zeros(n - 2, bool)
+    inner[edge:n - 2 - edge] = True
+    return inner
+
+
 def marker_cross_validation(t, registration: PoseRegistration, points, model, base_lam,
                             decades=CROSS_VALIDATION_DECADES) -> tuple[np.ndarray, dict]:
     """The smoothing that predicts each left-out marker's acceleration best, and the criterion.
@@ -2314,9 +2323,7 @@ def marker_cross_validation(t, registration: PoseRegistration, points, model, ba
     if m < 3 or pts.shape != (n, m, 3):
         raise ValueError(f"points: marker cross-validation needs (n, m >= 3, 3) markers matching t and the model, "
                          f"got {pts.shape} for {n} frames and {m} model markers")
-    edge = int(np.ceil(CROSS_VALIDATION_MARGIN * n))
-    inner = np.zeros(n - 2, bool)
-    inner[edge:n - 2 - edge] = True
+    inner = _inner_second_differences(n)
     normal = None
     if m == 3:
         nrm = np.cross(x[1] - x[0], x[2] - x[0])
@@ -2433,9 +2440,7 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     if m < 4 or pts.shape != (n, m, 3):
         raise ValueError(f"points: per-component marker cross-validation needs (n, m >= 4, 3) markers matching t "
                          f"and the model, got {pts.shape} for {n} frames and {m} model markers")
-    edge = int(np.ceil(CROSS_VALIDATION_MARGIN * n))
-    inner = np.zeros(n - 2, bool)
-    inner[edge:n - 2 - edge] = True
+    inner = _inner_second_differences(n)
     params = PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal", partial_frames=False)
     ratios = left_out_noise_ratios(registration, x, pts)
     values, turned, measured = [], [], []
