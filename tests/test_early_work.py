@@ -29,6 +29,27 @@ can_fork_here = pytest.mark.skipif(not hasattr(os, "fork") or (os.cpu_count() or
                                    reason="the forked copy is made only where fork exists and two cores do")
 
 
+def _in_a_copy_only(action):
+    """A stand-in for ``sync.flash_detections`` that runs ``action`` (ending its process) only in a forked
+    copy: a search that fell back to a thread runs it in this process, and it would end the test run; there
+    it raises instead, and the test's ``forked`` assertion says why."""
+    parent = os.getpid()
+
+    def replaced(*args, **kwargs):
+        if os.getpid() == parent:
+            raise RuntimeError("the flash search ran in the test's own process, not in a forked copy")
+        action()
+    return replaced
+
+
+def _wait_for_other_threads(seconds: float = 30) -> None:
+    """Wait until this process runs no other Python thread (an earlier test's helper thread ending), since
+    the search forks its copy only then (:func:`horsemocap.forking.can_fork`)."""
+    deadline = time.monotonic() + seconds
+    while threading.active_count() > 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
 def _loaded_after(code: str) -> set:
     """The modules loaded by a fresh interpreter after running ``code``."""
     out = subprocess.run([sys.executable, "-c", code + "\nimport sys; print(' '.join(sorted(sys.modules)))"],
@@ -212,8 +233,10 @@ def test_a_forked_flash_search_cancelled_is_killed_and_one_lost_leaves_the_searc
     assert search.detections({"left": FrameSource(video)}) is None
     assert search.lost is None              # cancelled, not lost
     # a copy that dies without a result: no detections and no error (the sync step searches itself)
-    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: os._exit(3))
+    monkeypatch.setattr(sync, "flash_detections", _in_a_copy_only(lambda: os._exit(3)))
+    _wait_for_other_threads()
     lost = FlashSearch({"left": video})
+    assert lost.forked
     assert lost.detections({"left": FrameSource(video)}) is None
     assert lost.lost == "its copy exited with status 3 without a result"
 
@@ -611,8 +634,10 @@ def test_the_report_figures_do_not_wait_for_a_flash_search_that_lives_on(tmp_pat
 @can_fork_here
 def test_a_flash_search_whose_copy_is_killed_or_sends_an_unreadable_result_says_why(tmp_path, monkeypatch):
     video = _flash_video(tmp_path / "left.avi")
-    monkeypatch.setattr(sync, "flash_detections", lambda *args, **kwargs: os.kill(os.getpid(), signal.SIGKILL))
+    monkeypatch.setattr(sync, "flash_detections", _in_a_copy_only(lambda: os.kill(os.getpid(), signal.SIGKILL)))
+    _wait_for_other_threads()
     killed = FlashSearch({"left": video})
+    assert killed.forked
     assert killed.detections({"left": FrameSource(video)}) is None
     assert killed.lost == "its copy was killed by signal 9 without a result"
     monkeypatch.undo()
@@ -620,7 +645,9 @@ def test_a_flash_search_whose_copy_is_killed_or_sends_an_unreadable_result_says_
     def import_fails(decoded, buffer):
         raise MemoryError("no room for the frames")
     monkeypatch.setattr(sync, "import_decoded", import_fails)
+    _wait_for_other_threads()
     unreadable = FlashSearch({"left": video})
+    assert unreadable.forked
     assert unreadable.detections({"left": FrameSource(video)}) is None
     assert unreadable.lost == "its copy's result could not be read (MemoryError: no room for the frames)"
 
