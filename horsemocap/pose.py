@@ -2247,6 +2247,19 @@ def _residual_covariance(registration: PoseRegistration, points) -> np.ndarray:
     return cov if cov is not None and np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else np.eye(3)
 
 
+def _cross_validation_inputs(t, points, model, base_lam, fewest: int, what: str):
+    """The marker cross-validations' inputs as arrays, checked (``fewest`` markers at least), and the inner
+    second differences they score (:func:`_inner_second_differences`)."""
+    t = np.asarray(t, float)
+    pts = np.asarray(points, float)
+    x = np.asarray(model, float)
+    m, n = x.shape[0], t.size
+    if m < fewest or pts.shape != (n, m, 3):
+        raise ValueError(f"points: {what} needs (n, m >= {fewest}, 3) markers matching t and the model, got "
+                         f"{pts.shape} for {n} frames and {m} model markers")
+    return t, pts, x, np.asarray(base_lam, float), _inner_second_differences(n)
+
+
 def _inner_second_differences(n: int) -> np.ndarray:
     """Which of a record's ``n - 2`` second differences lie inside it: :data:`CROSS_VALIDATION_MARGIN` of the
     record is left out at each end, where a smoothing spline's end conditions, not the data, decide it."""
@@ -2315,15 +2328,8 @@ def marker_cross_validation(t, registration: PoseRegistration, points, model, ba
     >>> bool(info["cross_validation_decades"] > 0)
     True
     """
-    t = np.asarray(t, float)
-    pts = np.asarray(points, float)
-    x = np.asarray(model, float)
-    base = np.asarray(base_lam, float)
+    t, pts, x, base, inner = _cross_validation_inputs(t, points, model, base_lam, 3, "marker cross-validation")
     m, n = x.shape[0], t.size
-    if m < 3 or pts.shape != (n, m, 3):
-        raise ValueError(f"points: marker cross-validation needs (n, m >= 3, 3) markers matching t and the model, "
-                         f"got {pts.shape} for {n} frames and {m} model markers")
-    inner = _inner_second_differences(n)
     normal = None
     if m == 3:
         nrm = np.cross(x[1] - x[0], x[2] - x[0])
@@ -2431,16 +2437,10 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     ...                                                        <= min(info["cross_validation_scores"]))
     (6, True)
     """
-    t = np.asarray(t, float)
-    pts = np.asarray(points, float)
-    x = np.asarray(model, float)
-    base = np.asarray(base_lam, float)
+    t, pts, x, base, inner = _cross_validation_inputs(t, points, model, base_lam, 4,
+                                                      "per-component marker cross-validation")
     decades = np.asarray(decades, float)
     m, n = x.shape[0], t.size
-    if m < 4 or pts.shape != (n, m, 3):
-        raise ValueError(f"points: per-component marker cross-validation needs (n, m >= 4, 3) markers matching t "
-                         f"and the model, got {pts.shape} for {n} frames and {m} model markers")
-    inner = _inner_second_differences(n)
     params = PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal", partial_frames=False)
     ratios = left_out_noise_ratios(registration, x, pts)
     values, turned, measured = [], [], []
