@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .session import INTERLACE_ORDERS
-from .subframe import DEFAULT_EXPOSURE_FRACTION
+from .subframe import exposure_seconds
 
 __all__ = ["Aperture", "GAUSS_NODES", "box_aperture", "camera_aperture", "mean_aperture", "session_aperture"]
 
@@ -202,7 +202,7 @@ def session_aperture(fps: float, timings) -> Aperture | None:
     position): :func:`mean_aperture` of :func:`camera_aperture`.
 
     A camera with an entry but no ``exposure_s`` is exposed for the documented default, half a frame
-    (:data:`horsemocap.subframe.DEFAULT_EXPOSURE_FRACTION`, as the synchronisation times the flash);
+    (:func:`horsemocap.subframe.exposure_seconds`, as the synchronisation times the flash);
     ``exposure_s`` 0 is an instant; a camera without an entry (``{}``) is taken at its instants. None
     when no camera has anything to model. An exposure longer than a frame (than a field, interlaced)
     is an error naming the camera's field.
@@ -221,14 +221,12 @@ def session_aperture(fps: float, timings) -> Aperture | None:
         if not timing:
             out.append(None)
             continue
-        exposure = timing.get("exposure_s")
         interlaced = timing.get("interlaced") in INTERLACE_ORDERS
         if not interlaced and timing.get("interlaced") not in (None, False):
             raise ValueError(f"metadata.camera_timing.{camera}.interlaced: expected one of {list(INTERLACE_ORDERS)} "
                              f"or null/false, got {timing['interlaced']!r}")
         try:
-            out.append(camera_aperture(fps, DEFAULT_EXPOSURE_FRACTION / fps if exposure is None else float(exposure),
-                                       interlaced))
+            out.append(camera_aperture(fps, exposure_seconds(timing, fps), interlaced))
         except (TypeError, ValueError) as exc:
             raise ValueError(f"metadata.camera_timing.{camera}.exposure_s: {exc}".replace(": exposure_s:", ":")) \
                 from None

@@ -32,7 +32,7 @@ from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "flash_onset", "flash_phases", "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual",
+__all__ = ["FlashOnset", "exposure_seconds", "flash_onset", "flash_phases", "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual",
            "fit_phase", "joint_residual", "refine_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
            "others_residual", "timing_floor", "residual_curve", "observation_instants", "OUTSIDE_TRACK"]
 
@@ -84,6 +84,25 @@ class FlashOnset:
     lit_fraction: float
 
 
+def exposure_seconds(timing: dict, fps: float) -> float:
+    """A camera's exposure time (s) from its ``metadata.camera_timing`` entry (docs/sessions.md): its
+    ``exposure_s``, or :data:`DEFAULT_EXPOSURE_FRACTION` of the frame period (half a frame) when the entry
+    gives none. ``exposure_s`` 0 is an instant, not the default.
+
+    The one place the default is applied: the synchronisation times the flash with it and the pose
+    trajectory is fitted through the aperture it gives (:func:`horsemocap.aperture.session_aperture`).
+
+    Examples
+    --------
+    >>> exposure_seconds({}, 25.0), exposure_seconds({"exposure_s": 0.008}, 25.0)
+    (0.02, 0.008)
+    >>> exposure_seconds({"exposure_s": 0}, 25.0)
+    0.0
+    """
+    given = timing.get("exposure_s")
+    return DEFAULT_EXPOSURE_FRACTION / fps if given is None else float(given)
+
+
 def flash_onset(signal, off_level: float, on_level: float, first_on: int,
                 exposure_fraction: float = DEFAULT_EXPOSURE_FRACTION) -> FlashOnset:
     """The flash's onset to a fraction of a frame, from the first lit frames' brightness.
@@ -105,7 +124,8 @@ def flash_onset(signal, off_level: float, on_level: float, first_on: int,
     first_on : int
         A frame where the flash is on (e.g. the detection's first frame above half).
     exposure_fraction : float
-        Exposure / frame period in (0, 1].
+        Exposure / frame period in [0, 1]. An instant (0) is never partly lit: its first lit frame
+        only says that the onset fell in the frame period before it.
 
     Examples
     --------
@@ -123,9 +143,16 @@ def flash_onset(signal, off_level: float, on_level: float, first_on: int,
 
     >>> flash_onset([0, 0, 0, 0, 1, 1], 0.0, 1.0, 2, 0.5).partial
     False
+
+    An instantaneous exposure: a half-bright first frame is noise on a lit frame, the onset anywhere in
+    the period before it.
+
+    >>> o = flash_onset([0, 0, 0, 0.6, 1, 1], 0.0, 1.0, 3, 0.0)
+    >>> round(o.onset_frames, 3), round(o.uncertainty_frames, 3), o.partial
+    (2.5, 0.289, False)
     """
-    if not 0.0 < exposure_fraction <= 1.0:
-        raise ValueError(f"flash_onset: exposure_fraction must be in (0, 1], got {exposure_fraction!r}")
+    if not 0.0 <= exposure_fraction <= 1.0:
+        raise ValueError(f"flash_onset: exposure_fraction must be in [0, 1], got {exposure_fraction!r}")
     s = np.asarray(signal, float)
     span = float(on_level) - float(off_level)
     if not np.isfinite(span) or span <= 0:
@@ -137,7 +164,7 @@ def flash_onset(signal, off_level: float, on_level: float, first_on: int,
     e = float(exposure_fraction)
     if b[k] <= UNLIT:       # the frame said to be lit is dark: the flash was not found here, no fraction to read
         return FlashOnset(float(k), 0.5, False, float(b[k]))
-    if b[k] < FULLY_LIT:
+    if b[k] < FULLY_LIT and e > 0.0:
         return FlashOnset(k + e * (1.0 - float(b[k])), 0.02 * e, True, float(b[k]))
     gap = 1.0 - e
     return FlashOnset(k - gap / 2.0, float(max(gap / np.sqrt(12.0), 0.02 * e)), False, float(b[k]))

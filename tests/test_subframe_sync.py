@@ -4,7 +4,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from horsemocap import quality, subframe
+from horsemocap import aperture, quality, subframe
 from horsemocap.cli import _parse_offsets
 from horsemocap.data import default_session_dir
 from horsemocap.params import AnalysisParams, ParamsError
@@ -35,7 +35,28 @@ def test_flash_onset_partial_and_full_frames():
     full = subframe.flash_onset([0, 0, 1, 1], 0.0, 1.0, 2, exposure_fraction=0.5)
     assert not full.partial and full.onset_frames == pytest.approx(1.75)
     with pytest.raises(ValueError, match="exposure_fraction"):
-        subframe.flash_onset([0, 1], 0.0, 1.0, 1, exposure_fraction=0.0)
+        subframe.flash_onset([0, 1], 0.0, 1.0, 1, exposure_fraction=-0.1)
+
+
+def test_an_instant_exposure_is_never_partly_lit():
+    """With ``exposure_s`` 0 a frame is dark or lit: a half-bright first frame is a lit frame's noise, and
+    the onset is anywhere in the period before it (middle taken, uniform spread)."""
+    instant = subframe.flash_onset([0, 0, 0.6, 1, 1], 0.0, 1.0, 3, exposure_fraction=0.0)
+    assert not instant.partial
+    assert instant.onset_frames == pytest.approx(1.5)
+    assert instant.uncertainty_frames == pytest.approx(1 / np.sqrt(12))
+
+
+def test_sync_and_aperture_read_exposure_s_the_same_way():
+    """One default, applied in one place: no ``exposure_s`` is half a frame for both the flash's timing and
+    the pose's aperture, and ``exposure_s`` 0 is an instant for both (the flash's timing once read 0 as
+    the half-frame default)."""
+    meta = {"camera_timing": {"left": {"exposure_s": 0}, "middle": {"interlaced": None}, "right": {}}}
+    s = SimpleNamespace(metadata=meta, fps=25.0, cameras=("left", "middle", "right"))
+    s.camera_timing = lambda camera: Session.camera_timing(s, camera)
+    assert exposure_fractions(s) == {"left": 0.0, "middle": 0.5, "right": 0.5}
+    assert aperture.session_aperture(25.0, {"left": {"exposure_s": 0}}) is None
+    assert aperture.session_aperture(25.0, {"middle": {"interlaced": None}}).description == "exposure 20 ms"
 
 
 def test_tracks_at_reference_instants_cubic_and_outside():

@@ -116,7 +116,8 @@ def step_sync(session: Session, section: SyncParams, progress, flash_search=None
 
 def exposure_fractions(session: Session) -> dict:
     """Camera -> the part of the frame period its frame collects light, from the optional
-    ``metadata.camera_timing.<camera>.exposure_s`` (default half a frame) and ``.interlaced``.
+    ``metadata.camera_timing.<camera>.exposure_s`` (:func:`horsemocap.subframe.exposure_seconds`: half a
+    frame when not given, 0 an instant) and ``.interlaced``.
 
     An interlaced frame's two fields are exposed half a frame apart, each for the exposure: the frame
     collects light from its first field's start to its second field's end, half a frame more (with the
@@ -126,8 +127,7 @@ def exposure_fractions(session: Session) -> dict:
     out = {}
     for c in session.cameras:
         given = session.camera_timing(c)
-        e = given.get("exposure_s")
-        fraction = float(e) * session.fps if e else subframe.DEFAULT_EXPOSURE_FRACTION
+        fraction = subframe.exposure_seconds(given, session.fps) * session.fps
         if given.get("interlaced"):
             fraction += subframe.INTERLACED_FIELD_FRAMES
         out[c] = min(1.0, fraction)
