@@ -543,10 +543,7 @@ def run_many(name, file, visible, hidden, first, count) -> dict:
     out = {"case": name, "frames": len(t), "raw": {}}
     for criterion in ("gcv", "loo"):
         t0 = time.time()
-        # io3d.kinematics_from_trajectories with the criterion set: its setup, its pose parameters
-        setup = io3d.kinematics_setup(seg, static)
-        params = replace(io3d.kinematics_params("auto"), correlated_noise_criterion=criterion)
-        tr = pose.fit_pose_trajectory(seg.time_s, setup["registration"], setup["model"], params, points=setup["points"])
+        tr = io3d.kinematics_from_trajectories(seg, static, noise_criterion=criterion)["trajectory"]
         out[criterion] = (_rel(tr.point(t, model[k]).acceleration, ref_acc, inner), _rel(tr.omega(t), ref_omega, inner))
         out["raw"][criterion] = _raw_error(tr.point(t, model[k]).position, raw_acc, inner, rate)
         ch = tr.smoothing_choice or {}

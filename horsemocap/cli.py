@@ -18,9 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import ParamField, params_fields, ParamsError, read_params, resolve_params, section_title
+from .params import ParamField, params_fields, ParamsError, PoseParams, read_params, resolve_params, section_title
 from .plots import figure_painter
 from .readable import hours_minutes
+
+#: The pose parameters' fields: the kinematics command's options take their defaults and choices.
+_POSE_FIELDS = PoseParams.__dataclass_fields__
 
 #: Allocations between two collections of the garbage collector's youngest generation in the command's
 #: process (Python's default is 700): a run loads about a thousand modules and builds few reference
@@ -486,7 +489,7 @@ def cmd_kinematics(args) -> int:
             static = read_trajectories(args.static)
             check_trajectory_input(traj, static)
             events = parse_seconds(args.events, "--events") if args.events else None
-            res = _kinematics_result(traj, static, args.smoothing, events, scratch)
+            res = _kinematics_result(traj, static, args.smoothing, events, scratch, args.noise_criterion)
         except (TrajectoryFileError, CollinearMarkersError, ValueError, ScratchWriteError) as exc:
             print(f"horsemocap: error: {exc}", file=sys.stderr)
             return 2
@@ -528,7 +531,7 @@ def _kinematics_checks(traj, res, speed_p99, acceleration_p99) -> list:
     return kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
 
 
-def _kinematics_result(traj, static, smoothing: str, events, scratch=None) -> dict:
+def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise_criterion: str = "loo") -> dict:
     """What ``kinematics`` writes: the whole record's fit, or for a long record the smoothing settled
     on its middle and the windows' blocks to come (``blocks``, a generator)."""
     from . import streaming
@@ -536,7 +539,8 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None) -> di
     from .progress import ProgressPrinter
 
     if traj.frame.size <= streaming.WHOLE_RECORD_FRAMES:
-        res = kinematics_from_trajectories(traj, static, smoothing=smoothing, events=events)
+        res = kinematics_from_trajectories(traj, static, smoothing=smoothing, events=events,
+                                           noise_criterion=noise_criterion)
         tr = res["trajectory"]
         mk, hk = res["marker_kinematics"], res["hidden_kinematics"]
         parts = [mk] if hk is None else [mk, hk]
@@ -545,7 +549,7 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None) -> di
                                           tr.omega(traj.time_s), tr.alpha(traj.time_s), tr.reason)
         return {**res, "blocks": iter([block]), "smoothing_choice": tr.smoothing_choice}
     setup = kinematics_setup(traj, static, folder=scratch)
-    params = kinematics_params(smoothing, events)
+    params = kinematics_params(smoothing, events, noise_criterion)
     reg, model = setup["registration"], setup["model"]
     settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params,
                                          window=streaming.WINDOW_FRAMES)
@@ -631,7 +635,7 @@ def _kinematics_record(args, events, res, files, input_summary) -> dict:
 
     return {"format": KINEMATICS_FORMAT, "command": "kinematics", "horsemocap_version": __version__,
             "inputs": {"trajectories": source(args.trajectories), "static": source(args.static)},
-            "options": {"smoothing": args.smoothing, "events": events},
+            "options": {"smoothing": args.smoothing, "events": events, "noise_criterion": args.noise_criterion},
             "smoothing_ran": res["smoothing_choice"] or None, "windows": res.get("windows"),
             "markers": list(res["markers"]), "hidden": list(res["hidden"]),
             "unmatched": list(res["unmatched"]), "matched_loosely": res["matched_loosely"],
@@ -772,8 +776,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "trajectories.csv layout or a C3D file (units from POINT:UNITS), with a "
                                    "static shot (same formats) whose extra points are the hidden points. "
                                    "Writes trajectories.csv, kinematics.csv and angular.csv in the file's frame. "
-                                   "Give UNFILTERED markers: the smoothing chosen from the data assumes white "
-                                   "noise (a Butterworth 8 Hz pre-filter took the demo's saddle acceleration "
+                                   "Give UNFILTERED markers: the smoothing is chosen from the data's own noise, "
+                                   "its correlation over frames measured from the markers' rigidity residual "
+                                   "(a Butterworth 8 Hz pre-filter took the demo's saddle acceleration "
                                    "error from 2.4 % to 36 % in a QA measurement). Names: exact first, then, where unambiguous, "
                                    "without a subject prefix (Horse:m1) and case. C3D times: (1-based frame - 1) "
                                    "/ POINT:RATE, or HORSEMOCAP:FIRST_TIME when the file has it (horsemocap export "
@@ -785,7 +790,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "it must be new, empty or an earlier kinematics run's output, and is replaced whole")
     p.add_argument("--smoothing", default="auto", choices=["auto", "gcv", "adaptive", "none"],
                    help="pose smoothing: auto (default: gcv with the stride harmonics on a periodic record, "
-                        "adaptive on a non-periodic one), gcv, adaptive, none")
+                        "adaptive on a non-periodic one; under correlated noise the choice of --noise-criterion), "
+                        "gcv, adaptive, none")
+    p.add_argument("--noise-criterion", default=_POSE_FIELDS["correlated_noise_criterion"].default,
+                   choices=_POSE_FIELDS["correlated_noise_criterion"].metadata["choices"],
+                   help="with --smoothing auto, when the markers' rigidity residual shows noise correlated over "
+                        "frames: loo (default; four or more markers: each left out in turn and predicted from the "
+                        "others' pose, three: as gcv), gcv (GCV with the noise's AR(1) correlation), reml or risk "
+                        "(analyze's rigid_body.pose.correlated_noise_criterion)")
     p.add_argument("--events", "--pose-events", dest="events", action="append", metavar="SECONDS",
                    help="(--pose-events: the same option, analyze's name) "
                         "known times (s, the file's time axis: see the time range the command prints) where "

@@ -1010,7 +1010,7 @@ def kinematics_verdict(checks) -> str:
 
 
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",
-                                 events=None):
+                                 events=None, noise_criterion: str = "loo"):
     """Pose-trajectory kinematics of a rigid body from 3D markers and a static shot.
 
     The markers are the points present in both files (:func:`match_point_names`:
@@ -1026,7 +1026,9 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     the noise's AR(1) correlation where the markers' rigidity residual shows correlated noise,
     :func:`horsemocap.pose.choose_smoothing`), "gcv" or "adaptive"). With events the record is smoothed without stride
     harmonics (the change points are for a non-periodic record; the two are
-    not fitted together).
+    not fitted together). ``noise_criterion``: how "auto" chooses under
+    correlated noise (``rigid_body.pose.correlated_noise_criterion``: "loo",
+    "gcv", "reml" or "risk").
 
     Returns
     -------
@@ -1043,7 +1045,8 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     markers, hidden, model, model_all = setup["markers"], setup["hidden"], setup["model"], setup["model_all"]
     points, reg = setup["points"], setup["registration"]
     # the markers go with the poses: "auto" measures the noise's correlation from their rigidity residual
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, kinematics_params(smoothing, events), points=points)
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, kinematics_params(smoothing, events, noise_criterion),
+                                  points=points)
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
@@ -1051,13 +1054,24 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
             "matched_loosely": setup["matched_loosely"]}
 
 
-def kinematics_params(smoothing: str = "auto", events=None):
+def kinematics_params(smoothing: str = "auto", events=None, noise_criterion: str = "loo"):
     """The pose smoothing of :func:`kinematics_from_trajectories`: with known events the record is
-    smoothed without stride harmonics; frames with two markers stay out of the smoothing."""
+    smoothed without stride harmonics; frames with two markers stay out of the smoothing;
+    ``noise_criterion`` is the choice under correlated noise (``correlated_noise_criterion``).
+
+    Examples
+    --------
+    >>> kinematics_params("gcv", noise_criterion="reml").correlated_noise_criterion
+    'reml'
+
+    An unknown criterion is refused by name when the trajectory is fitted
+    (:func:`horsemocap.pose.fit_pose_trajectory`).
+    """
     from .params import PoseParams
 
     harmonics = "none" if events is not None and len(events) else "auto"
-    return PoseParams(smoothing=smoothing, harmonics=harmonics, events=events, partial_frames=False)
+    return PoseParams(smoothing=smoothing, harmonics=harmonics, events=events, partial_frames=False,
+                      correlated_noise_criterion=noise_criterion)
 
 
 def kinematics_setup(traj: Trajectories, static: Trajectories, folder=None) -> dict:

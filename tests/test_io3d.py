@@ -630,3 +630,43 @@ def test_a_trailing_comma_is_not_an_extra_field(tmp_path):
     p.write_text("frame,time_s,point,x_m,y_m,z_m\n0,0.0,m1,1,2,3,7\n")
     with pytest.raises(io3d.TrajectoryFileError, match="line 2: 7 fields"):
         io3d.read_trajectories_csv(p)
+
+
+def _four_marker_record(folder, n=300, rho=0.9, sd_m=0.001, seed=3):
+    """Four rigid markers + a hidden point moving smoothly, with AR(1) noise of correlation ``rho``."""
+    rng = np.random.default_rng(seed)
+    quad = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.1, 0.25, 0.02], [0.25, 0.2, -0.05]])
+    t = np.arange(n) / 100
+    move = np.stack([0.5 * t, 0.02 * np.sin(2 * np.pi * 1.3 * t), 0.01 * np.cos(2 * np.pi * 0.7 * t)], 1)
+    noise = np.zeros((n, 4, 3))
+    noise[0] = rng.normal(0, sd_m, (4, 3))
+    for k in range(1, n):
+        noise[k] = rho * noise[k - 1] + np.sqrt(1 - rho ** 2) * rng.normal(0, sd_m, (4, 3))
+    folder.mkdir(parents=True, exist_ok=True)
+    names = ["a", "b", "c", "d"]
+    _write_csv(folder / "traj.csv", t, names, quad[None] + move[:, None, :] + noise)
+    _write_csv(folder / "static.csv", [0.0], names + ["s"], np.vstack([quad, [[0.1, 0.1, -0.2]]])[None])
+    return folder / "traj.csv", folder / "static.csv"
+
+
+def test_kinematics_takes_the_correlated_noise_criterion(tmp_path, capsys):
+    """``--noise-criterion`` reaches the pose smoothing (analyze's rigid_body.pose.correlated_noise_criterion)
+    and kinematics-run.json records it: under correlated noise, four markers are left out in turn by
+    default and the correlated-error GCV chooses when asked."""
+    import json
+
+    traj, static = _four_marker_record(tmp_path / "in")
+    ran = {}
+    for criterion in ("loo", "gcv"):
+        out = tmp_path / criterion
+        extra = () if criterion == "loo" else ("--noise-criterion", criterion)
+        assert _kin(traj, static, out, *extra) == 0, capsys.readouterr().err
+        record = json.loads((out / "kinematics-run.json").read_text())
+        assert record["options"]["noise_criterion"] == criterion
+        ran[criterion] = record["smoothing_ran"]["reason"]
+    assert "leaving each of the 4 markers out" in ran["loo"], ran
+    assert "correlated-error GCV" in ran["gcv"] and "markers out" not in ran["gcv"], ran
+    with pytest.raises(SystemExit) as stop:
+        _kin(traj, static, tmp_path / "bad", "--noise-criterion", "median")
+    assert stop.value.code == 2 and "--noise-criterion: invalid choice: 'median'" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
