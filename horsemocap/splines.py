@@ -39,13 +39,13 @@ from math import factorial
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
-from scipy.linalg import solve_triangular
+from scipy.linalg import solve_triangular, svd as _lapack_svd
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from .aperture import Aperture
 
-__all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
+__all__ = ["SmoothingSpline", "robust_svd", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
            "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "half_gain_frequency",
            "common_smoothing", "MAX_BASIS"]
@@ -387,7 +387,7 @@ def reml_ar1_smoothing(t, y, correlations=None, m: int = 3) -> dict:
         Q1, Rx = np.linalg.qr(Xw)
         M = Zw - Q1 @ (Q1.T @ Zw)
         r = yw - Q1 @ (Q1.T @ yw)
-        Uu, s, _ = np.linalg.svd(M, full_matrices=False)
+        Uu, s, _ = robust_svd(M)
         keep = s > 1e-10 * s.max()
         z = Uu[:, keep].T @ r
         s2 = s[keep] ** 2
@@ -587,11 +587,29 @@ def _harmonic_set(order) -> tuple:
     return tuple(sorted(int(k) for k in order))
 
 
+def robust_svd(a):
+    """The thin SVD ``(u, s, vt)`` of ``a`` by LAPACK's divide and conquer (``gesdd``, NumPy's), and by the
+    slower QR iteration (``gesvd``) when the former does not converge, as it rarely does on
+    ill-conditioned matrices.
+
+    Examples
+    --------
+    >>> a = np.array([[3.0, 0.0], [4.0, 5.0], [0.0, 0.0]])
+    >>> u, s, vt = robust_svd(a)
+    >>> bool(np.allclose(u * s @ vt, a)), u.shape
+    (True, (3, 2))
+    """
+    try:
+        return np.linalg.svd(a, full_matrices=False)
+    except np.linalg.LinAlgError:
+        return _lapack_svd(a, full_matrices=False, lapack_driver="gesvd")
+
+
 def _projected_svd(Zw, Q1, yw):
     """The penalised basis ``Zw`` with the unpenalised columns (orthonormal ``Q1``) projected out, by
     its SVD: singular values ``s`` (the negligible ones dropped), right vectors ``Wt`` and the data's
     coordinates ``z`` (mixed-model form of :func:`_partial_quintic`)."""
-    V, s, Wt = np.linalg.svd(Zw - Q1 @ (Q1.T @ Zw), full_matrices=False)
+    V, s, Wt = robust_svd(Zw - Q1 @ (Q1.T @ Zw))
     keep = s > 1e-12 * s.max()
     V, s, Wt = V[:, keep], s[keep], Wt[keep]
     return s, Wt, V.T @ yw
