@@ -41,9 +41,9 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
 from scipy.linalg import solve_triangular
 from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter
 
 from .aperture import Aperture
+from .iir_filters import ar1_filter
 
 __all__ = ["SmoothingSpline", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
@@ -309,8 +309,8 @@ def ar1_correlation_times(Z, rho: float) -> np.ndarray:
     True
     """
     Z = np.asarray(Z, float)
-    forward = lfilter([1.0], [1.0, -rho], Z, axis=0)
-    backward = lfilter([1.0], [1.0, -rho], Z[::-1], axis=0)[::-1]
+    forward = ar1_filter(Z, rho)
+    backward = ar1_filter(Z[::-1], rho)[::-1]
     return forward + backward - Z
 
 
