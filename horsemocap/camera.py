@@ -157,7 +157,12 @@ class Camera:
         array([[360., 240.],
                [ nan,  nan]])
         """
-        pc = self.world_to_camera(points_world)
+        return self.camera_to_pixels(self.world_to_camera(points_world))
+
+    def camera_to_pixels(self, points_camera: np.ndarray) -> np.ndarray:
+        """Distorted pixels ``(..., 2)`` of points ``(..., 3)`` in this camera's frame (NaN at or behind
+        the camera plane): :meth:`project` after :meth:`world_to_camera`."""
+        pc = np.asarray(points_camera, float)
         z = pc[..., 2:3]
         with np.errstate(divide="ignore", invalid="ignore"):
             xn = np.where(z > 1e-9, pc[..., :2] / z, np.nan)

@@ -22,7 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
+
+from .probability import t_quantile
 
 __all__ = [
     "GoodnessOfFit",
@@ -195,7 +197,7 @@ def _confint(J, coef, gof, level=0.95):
     except np.linalg.LinAlgError:
         var = np.full(coef.size, np.inf)
 
-    half = stats.t.ppf((1 + level) / 2, gof.dfe) * np.sqrt(var)
+    half = t_quantile((1 + level) / 2, gof.dfe) * np.sqrt(var)
     return np.vstack([coef - half, coef + half])
 
 

@@ -123,12 +123,12 @@ import itertools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
 from scipy.interpolate import make_lsq_spline
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 from .params import PoseParams
+from .probability import f_survival
 from .registration import check_model, rotation_from_cross_covariance, skew
 from .splines import (ChangePointError, estimate_fundamental, half_gain_frequency, residual_log_likelihood,
                       robust_weighted_spline, smoothing_spline)
@@ -1499,7 +1499,7 @@ def _stride_p_values(t, registration, rotvec_data, splines, fundamental_hz: floa
         rss1 = float(np.sum((yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]) ** 2))
         rss0 = float(np.sum(yw ** 2))
         q, dof = Xw.shape[1], yw.size - Xw.shape[1] - 1
-        p_values[i] = 1.0 if rss1 <= 0 else float(stats.f.sf(((rss0 - rss1) / q) / (rss1 / dof), q, dof))
+        p_values[i] = 1.0 if rss1 <= 0 else float(f_survival(((rss0 - rss1) / q) / (rss1 / dof), q, dof))
     return p_values
 
 

@@ -388,6 +388,15 @@ def _dlt(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray, rows: bool = False) -
     together). NaN where the views do not fix the point (fewer than two, or
     parallel rays). ``rows``: the points as (3, N).
     """
+    if seen.shape[1] <= FEW_POINTS:
+        h, b = _dlt_normal_equations_few(xn, seen, Ps)
+        return _solve3([np.array(v) for v in h], [np.array(v) for v in b], rows)
+    return _solve3(*_dlt_normal_equations(xn, seen, Ps), rows)
+
+
+def _dlt_normal_equations(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray):
+    """The DLT normal equations of :func:`_dlt`, ``h`` (six arrays (N,)) and ``b`` (three), summed over the
+    cameras for all points at once."""
     C, N = seen.shape
     h = [np.zeros(N) for _ in range(6)]
     b = [np.zeros(N) for _ in range(3)]
@@ -404,10 +413,38 @@ def _dlt(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray, rows: bool = False) -
                 h[n] += a[i] * a[j]
             for i in range(3):
                 b[i] -= a[i] * a[3]
-    return _solve3(h, b, rows)
+    return h, b
 
 
 _PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+#: Up to this many points :func:`_dlt` sums the normal equations with Python floats: the same
+#: operations in the same order as the array sums (the same bits), without NumPy's cost per call,
+#: which dominates the identification's triangulations of one to a few points.
+FEW_POINTS = 8
+
+
+def _dlt_normal_equations_few(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray):
+    """The DLT normal equations of :func:`_dlt` (``h`` six lists, ``b`` three lists, one entry per point)
+    summed point by point with Python floats."""
+    C, N = seen.shape
+    h = [[0.0] * N for _ in range(6)]
+    b = [[0.0] * N for _ in range(3)]
+    coords, flags, rows = xn.tolist(), seen.tolist(), Ps.tolist()
+    for c in range(C):
+        if not any(flags[c]):
+            continue
+        P = rows[c]
+        for coord in (0, 1):
+            for n in range(N):
+                wf = 1.0 if flags[c][n] else 0.0
+                v = coords[c][n][coord] if flags[c][n] else 0.0
+                a = [(v * P[2][k] - P[coord][k]) * wf for k in range(4)]
+                for m, (i, j) in enumerate(_PAIRS):
+                    h[m][n] += a[i] * a[j]
+                for i in range(3):
+                    b[i][n] -= a[i] * a[3]
+    return h, b
 _PI, _PJ = np.array(_PAIRS).T
 
 # The joint triangulation works on points stored as rows (3, N): NumPy's

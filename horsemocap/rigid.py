@@ -107,12 +107,12 @@ from dataclasses import dataclass, fields, replace
 from typing import Callable
 
 import numpy as np
-from scipy import stats
 from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
 from .aperture import Aperture
 from .params import FitsParams, RigidBodyParams
+from .probability import f_survival
 from .pose import (PoseRegistration, PoseTrajectory, SettledPoseSmoothing, check_model_conditioning,
                    conditioning_warnings, fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
 from .registration import check_model, rotation_from_cross_covariance, skew
@@ -1819,7 +1819,7 @@ def choose_marker_model(points, static_model, level: float = MODEL_TEST_LEVEL) -
     cov = np.cov(e, rowvar=False) * (1 + 1 / n_eff)
     t2 = float(d @ np.linalg.pinv(cov, rcond=1e-10, hermitian=True) @ d)
     f = t2 * (n_eff - r) / (r * (n_eff - 1))
-    p = float(stats.f.sf(f, r, n_eff - r))
+    p = float(f_survival(f, r, n_eff - r))
     what = (f"the static shot's marker shape is {1000 * shift.max():.1f} mm (largest) from the mean shape of {n} "
             f"moving frames (worth {n_eff:.0f} independent ones), Hotelling T^2 {t2:.1f} on {r} degrees of "
             f"freedom, p = {p:.2g}")

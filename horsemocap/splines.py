@@ -41,9 +41,9 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_smoothing_spline
 from scipy.linalg import solve_triangular, svd as _lapack_svd
 from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter
 
 from .aperture import Aperture
+from .iir_filters import ar1_filter
 
 __all__ = ["SmoothingSpline", "robust_svd", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
@@ -309,8 +309,8 @@ def ar1_correlation_times(Z, rho: float) -> np.ndarray:
     True
     """
     Z = np.asarray(Z, float)
-    forward = lfilter([1.0], [1.0, -rho], Z, axis=0)
-    backward = lfilter([1.0], [1.0, -rho], Z[::-1], axis=0)[::-1]
+    forward = ar1_filter(Z, rho)
+    backward = ar1_filter(Z[::-1], rho)[::-1]
     return forward + backward - Z
 
 
@@ -568,10 +568,13 @@ def _knots(x, m):
     return np.r_[[x[0]] * (k + 1), inner, [x[-1]] * (k + 1)]
 
 
-def _choose_lam(score, lo: float, hi: float):
-    """``(lam, score)`` minimising ``score(log10 lam)``: a grid of 60 over ``[lo, hi]``, refined."""
+def _choose_lam(score, lo: float, hi: float, grid_scores=None):
+    """``(lam, score)`` minimising ``score(log10 lam)``: a grid of 60 over ``[lo, hi]``, refined.
+
+    ``grid_scores``: optional, the scores of a whole grid at once, the same numbers as ``score`` gives
+    one point at a time."""
     grid = np.linspace(lo, hi, 60)
-    scores = [score(g) for g in grid]
+    scores = grid_scores(grid) if grid_scores is not None else [score(g) for g in grid]
     i = int(np.argmin(scores))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     res = minimize_scalar(score, bounds=(a, b), method="bounded", options={"xatol": 1e-3})
@@ -681,19 +684,26 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
             r = z * (1 - shrink)
             return shrink, rss0 + float(r @ r), q + float(shrink.sum())
 
-        if noise is None:
-            def score(loglam, fit=fit):
-                _, rss, tr = fit(10.0 ** loglam)
+        def criterion(rss, tr):
+            if noise is None:
                 return n * rss / max(n - gamma * tr, 1e-9) ** 2
-        else:
-            def score(loglam, fit=fit):
-                _, rss, tr = fit(10.0 ** loglam)
-                return rss / n + 2 * noise ** 2 * tr / n
+            return rss / n + 2 * noise ** 2 * tr / n
+
+        def score(loglam, fit=fit, criterion=criterion):
+            _, rss, tr = fit(10.0 ** loglam)
+            return criterion(rss, tr)
+
+        def grid_scores(loglams, s2=s2, z=z, rss0=rss0, q=q, criterion=criterion):
+            # fit() on every grid point at once: the same elementwise operations, each row's dot product
+            # and sum as fit's own (same bits), without NumPy's cost per call on short vectors
+            shrink = s2 / (s2 + np.array([10.0 ** g for g in loglams])[:, None])
+            r = z * (1 - shrink)
+            return [criterion(rss0 + float(ri @ ri), q + float(si.sum())) for ri, si in zip(r, shrink)]
 
         if lam is None:
             # the range the shrinkage factors s2 / (s2 + lam) span
             pos = s2[s2 > 1e-12 * max(s2.max(), 1e-300)]
-            lk, sc = _choose_lam(score, np.log10(pos.min()) - 2, np.log10(pos.max()) + 2)
+            lk, sc = _choose_lam(score, np.log10(pos.min()) - 2, np.log10(pos.max()) + 2, grid_scores)
         else:
             lk, sc = float(lam), score(np.log10(lam))
         if best is None or sc < best[0]:

@@ -78,8 +78,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import optimize, signal as _signal
+from scipy import optimize
 
+from .iir_filters import bilinear, sos_filter, sos_frequency_response
 from .store import atomic_write_bytes, atomic_write_text
 
 __all__ = [
@@ -297,7 +298,7 @@ def _design_sos(name, fs, band_limiting=True):
         bb = np.concatenate([np.zeros(n - len(b)), b])
         aa = np.concatenate([np.zeros(n - len(a)), a])
         fs_eff = w0 / (2.0 * math.tan(w0 / (2.0 * fs)))
-        bz, az = _signal.bilinear(bb, aa, fs=fs_eff)
+        bz, az = bilinear(bb, aa, fs_eff)
         bz = np.concatenate([bz, np.zeros(3 - len(bz))])
         az = np.concatenate([az, np.zeros(3 - len(az))])
         sos.append(np.concatenate([bz / az[0], az / az[0]]))
@@ -317,7 +318,7 @@ def digital_weighting_error(name, fs: float, freq_hz) -> np.ndarray:
     """
     sos, _ = _design_sos(name, fs)
     f = np.asarray(freq_hz, dtype=float)
-    _, h = _signal.sosfreqz(sos, worN=f, fs=fs)
+    h = sos_frequency_response(sos, f, fs)
     return np.abs(h) / np.abs(weighting(name, f)) - 1.0
 
 
@@ -424,7 +425,7 @@ def apply_weighting(signal, fs: float, name, *, method: str = "iir", axis: int =
     x = np.asarray(signal, dtype=float)
     if method == "iir":
         sos = weighting_filter(name, fs)
-        return _signal.sosfilt(sos, x, axis=axis)
+        return sos_filter(sos, x, axis=axis)
     if method == "fft":
         n = x.shape[axis]
         spec = np.fft.rfft(x, axis=axis)

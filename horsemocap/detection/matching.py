@@ -79,6 +79,20 @@ def _normalized(cam, cand: Candidates) -> np.ndarray:
     return xn
 
 
+def _extrinsics(rig, cams) -> np.ndarray:
+    """The cameras' ``[R | t]`` stacked (C, 3, 4), kept on the rig per tuple of cameras (the rig is frozen)."""
+    kept = rig.__dict__.get("_extrinsics")
+    if kept is None:
+        kept = {}
+        object.__setattr__(rig, "_extrinsics", kept)
+    cams = tuple(cams)
+    Ps = kept.get(cams)
+    if Ps is None:
+        Ps = kept[cams] = np.stack([np.hstack([rig[c].rotation_matrix, rig[c].translation[:, None]])
+                                    for c in cams])
+    return Ps
+
+
 def triangulate_rows(rig, cams, cands, rows, max_residual_px):
     """Linear triangulation of rows of candidates, one candidate (or none) per camera.
 
@@ -117,15 +131,14 @@ def triangulate_rows(rig, cams, cands, rows, max_residual_px):
         if sel.any():
             xn[i, sel] = _normalized(rig[c], cands[c])[rows[sel, i]]
             px[i, sel] = cands[c].centre[rows[sel, i]]
-    Ps = np.stack([np.hstack([rig[c].rotation_matrix, rig[c].translation[:, None]]) for c in cams])
-    X = _dlt(xn, seen, Ps) if R else np.zeros((0, 3))
+    X = _dlt(xn, seen, _extrinsics(rig, cams)) if R else np.zeros((0, 3))
     res = np.zeros((C, R))
     for i, c in enumerate(cams):
         if seen[i].any():
             cam = rig[c]
-            ahead = cam.world_to_camera(X[seen[i]])[:, 2] > 0
-            r = np.linalg.norm(cam.project(X[seen[i]]) - px[i, seen[i]], axis=1)
-            res[i, seen[i]] = np.where(ahead, r, np.inf)
+            in_camera = cam.world_to_camera(X[seen[i]])
+            r = np.linalg.norm(cam.camera_to_pixels(in_camera) - px[i, seen[i]], axis=1)
+            res[i, seen[i]] = np.where(in_camera[:, 2] > 0, r, np.inf)
     worst = np.max(np.where(np.isfinite(res), res, np.inf), axis=0) if R else np.zeros(0)
     ok = np.all(np.isfinite(X), axis=1) & (seen.sum(axis=0) >= 2) & (worst <= max_residual_px)
     return X, worst, ok
