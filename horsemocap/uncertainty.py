@@ -22,7 +22,7 @@ from . import fitting
 from .reconstruction import point_covariance
 from .rigid import (RigidBodyAnalysis, chain_saddle_path, saddle_in_body, saddle_in_body_versions,
                     saddle_kinematics, saddle_position)
-from .vibration import apply_weighting
+from .vibration import fft_weighting
 
 #: Condition number of the markers' second-moment matrix (:func:`saddle_offset_map`) above which the markers are
 #: taken as collinear: inverting it would keep fewer than 4 of float64's 16 significant digits. Its condition
@@ -294,7 +294,7 @@ def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: floa
 
     ``rows`` (n, 3): the vertical acceleration's change per metre of offset (the vertical row of
     :func:`saddle_acceleration_sensitivity`); the offset has covariance ``offset_covariance``. With ``W`` the
-    weighting (:func:`horsemocap.vibration.apply_weighting`, by the DFT over the frames), the weighted mean
+    weighting (:func:`horsemocap.vibration.fft_weighting`, by the DFT over the frames), the weighted mean
     square ``<(W a + W g dr)^2>`` changes by ``2 <W a W g> dr`` to first order, so the weighted rms changes by
     ``h dr / <(W a)^2>`` of itself, ``h = <W a W g>``; its standard deviation is ``sqrt(h C h) / <(W a)^2>``.
     Frames with a NaN are left out (the longest finite run is used; NaN when it is shorter than
@@ -316,8 +316,8 @@ def weighted_rms_sd_pct(rows, offset_covariance, vertical_acceleration, fs: floa
     start, stop = _longest_true_run(ok)
     if stop - start < MIN_WEIGHTED_FRAMES:
         return float("nan")
-    wa = apply_weighting(ay[start:stop], fs, weighting, method="fft")
-    wg = apply_weighting(g[start:stop], fs, weighting, method="fft", axis=0)
+    wa = fft_weighting(ay[start:stop], fs, weighting)
+    wg = fft_weighting(g[start:stop], fs, weighting, axis=0)
     ms = float(np.mean(wa ** 2))
     h = np.mean(wa[:, None] * wg, axis=0)
     return 100.0 * float(np.sqrt(max(h @ np.asarray(offset_covariance, float) @ h, 0.0))) / ms

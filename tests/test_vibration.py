@@ -1,4 +1,4 @@
-"""Tests of horsemocap.vibration (thesis chapter 7, Table 8.7)."""
+"""Tests of horsemocap.vibration (thesis chapter 7, Table 8.7) and of its digital filters (horsemocap.weighting_filters)."""
 import math
 import warnings
 import xml.etree.ElementTree as ET
@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from horsemocap import vibration as vib
+from horsemocap import weighting_filters as wf
 
 # One-third-octave frequencies 0.5-80 Hz and the weighting factors of
 # ISO 2631-1:1997, Table 3 ("principal frequency weightings", factors x 1000
@@ -83,9 +84,9 @@ def test_digital_filter_warns_below_nyquist_between_the_band_centres():
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        vib.weighting_filter("Wk", 200.0)
-    with pytest.warns(vib.DigitalWeightingWarning, match="Wk filter at fs = 30 Hz"):
-        vib.weighting_filter("Wk", 30.0)
+        wf.weighting_filter("Wk", 200.0)
+    with pytest.warns(wf.DigitalWeightingWarning, match="Wk filter at fs = 30 Hz"):
+        wf.weighting_filter("Wk", 30.0)
 
 
 def test_weighting_rejects_bad_input():
@@ -99,33 +100,45 @@ def test_weighting_rejects_bad_input():
 def test_digital_filter_follows_analogue_at_1000_hz(name):
     from scipy import signal
     fs = 1000.0
-    sos = vib.weighting_filter(name, fs)
+    sos = wf.weighting_filter(name, fs)
     f = F_TABLE[F_TABLE <= 63]
     _, h = signal.sosfreqz(sos, worN=f, fs=fs)
     np.testing.assert_allclose(np.abs(h), np.abs(vib.weighting(name, f)), rtol=0.01)
 
 
 def test_digital_filter_warns_when_fs_too_low():
-    with pytest.warns(vib.DigitalWeightingWarning, match="fs = 30 Hz"):
-        vib.weighting_filter("Wd", 30.0)
+    with pytest.warns(wf.DigitalWeightingWarning, match="fs = 30 Hz"):
+        wf.weighting_filter("Wd", 30.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        vib.weighting_filter("Wk", 400.0)
+        wf.weighting_filter("Wk", 400.0)
 
 
-def test_apply_weighting_fft_scales_and_shifts_a_sine():
+def test_fft_weighting_scales_and_shifts_a_sine():
     fs, f = 200.0, 4.0
     t = np.arange(2000) / fs          # whole periods
     x = np.cos(2 * np.pi * f * t)
     w = vib.weighting("Wk", f)
-    y = vib.apply_weighting(x, fs, "Wk", method="fft")
+    y = vib.fft_weighting(x, fs, "Wk")
     np.testing.assert_allclose(y, abs(w) * np.cos(2 * np.pi * f * t + np.angle(w)), atol=1e-9)
+
+
+def test_apply_weighting_is_the_dft_weighting_or_by_default_the_digital_filter():
+    from scipy import signal
+    x = np.random.default_rng(1).normal(size=(300, 3))
+    fft = wf.apply_weighting(x, 100.0, "Wb", method="fft", axis=0)
+    assert fft.tobytes() == vib.fft_weighting(x, 100.0, "Wb", axis=0).tobytes()
+    iir = wf.apply_weighting(x, 100.0, "Wb")
+    assert iir.tobytes() == signal.sosfilt(wf.weighting_filter("Wb", 100.0), x, axis=0).tobytes()
+    assert not np.allclose(iir, fft)
+    with pytest.raises(ValueError, match="method must be 'iir' or 'fft'"):
+        wf.apply_weighting(x, 100.0, "Wb", method="fir")
 
 
 def test_apply_weighting_iir_steady_state_matches_analogue():
     fs, f = 500.0, 5.0
     t = np.arange(int(20 * fs)) / fs
-    y = vib.apply_weighting(np.sin(2 * np.pi * f * t), fs, "Wb", method="iir")
+    y = wf.apply_weighting(np.sin(2 * np.pi * f * t), fs, "Wb", method="iir")
     tail = y[len(y) // 2:]
     assert vib.rms(tail) * math.sqrt(2) == pytest.approx(abs(vib.weighting("Wb", f)), rel=0.005)
 
@@ -185,11 +198,11 @@ def test_comfort_from_samples_agrees_with_harmonic_path():
     t = np.arange(800) / fs
     acc = vib.synthesize(h, t)
     a = vib.comfort_indicators(h, tau, 4.0, 0.1)
-    b = vib.comfort_from_samples(acc, fs, 4.0, 0.1, method="fft")
+    b = wf.comfort_from_samples(acc, fs, 4.0, 0.1, method="fft")
     for k in ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "VDV_y_Wk", "TVDV_limit_Wk"):
         assert b[k] == pytest.approx(a[k], rel=1e-6), k
     with pytest.raises(ValueError, match="sample 3"):
-        vib.comfort_from_samples(np.r_[acc[:3], np.nan, acc[4:]], fs)
+        wf.comfort_from_samples(np.r_[acc[:3], np.nan, acc[4:]], fs)
 
 
 def test_exposure_time_inverts_the_dose():

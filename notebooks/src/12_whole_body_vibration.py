@@ -46,7 +46,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import display
 
-from horsemocap import herd, plots, vibration, widgets
+from horsemocap import herd, plots, vibration, weighting_filters, widgets
 
 # %% [markdown]
 # ## 1 · Frequency weightings
@@ -145,7 +145,8 @@ for f0 in (1.0, 1.67, 3.5, 5.0):
 # For an accelerometer's samples the weighting becomes a digital filter: each analogue section is
 # mapped by the bilinear transform, pre-warped at its own frequency. The transform squeezes the
 # frequency axis near the Nyquist frequency, so the filter is only right well below $f_s/2$.
-# `weighting_filter` warns when $|H|$ departs from $|W|$ by more than 5% between 0.5 and 20 Hz.
+# `weighting_filters.weighting_filter` warns when $|H|$ departs from $|W|$ by more than 5% between
+# 0.5 and 20 Hz.
 
 # %%
 bands = np.array([1, 2, 4, 8, 12.5, 16, 20])
@@ -153,13 +154,13 @@ print("fs (Hz)  weighting  error of |H| at " + " ".join(f"{b:g}" for b in bands)
 for fs in (30, 100, 200, 1000):
     for name in ("Wb", "Wk", "Wd"):
         fb = bands[bands < 0.45 * fs]
-        err = vibration.digital_weighting_error(name, fs, fb)
+        err = weighting_filters.digital_weighting_error(name, fs, fb)
         print(f"{fs:7d}  {name:9s}  " + " ".join(f"{100 * e:+5.1f}" for e in err))
 
 # %%
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    vibration.weighting_filter("Wk", 100.0)
+    weighting_filters.weighting_filter("Wk", 100.0)
 print(caught[0].message if caught else "no warning")
 
 # %% [markdown]
@@ -472,7 +473,7 @@ print(downstream_text(ws.session_dir))
 #    And by VDV? Which is stricter, and why does the VDV time depend on $\tau$?
 # 2. Halve every harmonic amplitude. By what factor do the A(8) times grow? The VDV times?
 # 3. An accelerometer at 100 Hz records 20 s of a 2 Hz sine of 3 m/s² amplitude. Compute the
-#    $W_k$-weighted rms with `comfort_from_samples` using `method="iir"` and `method="fft"`,
+#    $W_k$-weighted rms with `weighting_filters.comfort_from_samples` using `method="iir"` and `method="fft"`,
 #    and compare with $3\,|W_k(2)|/\sqrt2$.
 # 4. Using the Table 8.7 values, what speed would a horse need so that the rider covers 25 km before
 #    the A(8) limit with $W_b$?
@@ -485,7 +486,7 @@ print(downstream_text(ws.session_dir))
 #    periods.
 # 2. rms halves, $T_{A(8)} \propto 1/a^2$ grows 4×; $T_{VDV} \propto 1/VDV^4$ grows 16×.
 # 3. `fs = 100; t = np.arange(2000) / fs; x = 3 * np.sin(2 * np.pi * 2 * t)`, then
-#    `vibration.comfort_from_samples(x, fs, method=m)["acc_y_Wk_rms"]` for each `m`. The FFT path
+#    `weighting_filters.comfort_from_samples(x, fs, method=m)["acc_y_Wk_rms"]` for each `m`. The FFT path
 #    gives $3 \cdot 0.531/\sqrt2 = 1.127$; the IIR path is a little lower because the filter starts
 #    from rest (its transient is part of the record).
 # 4. $D = V \cdot T$: $V = 25 / 1.0393 = 24.1$ km/h.
