@@ -363,9 +363,8 @@ def reml_ar1_smoothing(t, y, correlations=None, m: int = 3) -> dict:
     A sine under AR(1) noise of correlation 0.8: the correlation is recovered with the smoothing.
 
     >>> import numpy as np
-    >>> from scipy.signal import lfilter
     >>> t = np.arange(400) / 100.0
-    >>> e = lfilter([1.0], [1.0, -0.8], np.random.default_rng(0).normal(0, 0.006, t.size))
+    >>> e = ar1_filter(np.random.default_rng(0).normal(0, 0.006, t.size), 0.8)
     >>> out = reml_ar1_smoothing(t, np.sin(2 * np.pi * 0.5 * t) + e)
     >>> round(out["noise_correlation"], 1)
     0.8

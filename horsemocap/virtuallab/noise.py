@@ -28,7 +28,8 @@ from dataclasses import asdict, dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.signal import lfilter
+
+from ..iir_filters import ar1_filter
 
 __all__ = ["MarkerNoise"]
 
@@ -48,7 +49,7 @@ def _ar1_series(seed: int, camera: int, marker: int, blocks: int, rho: float) ->
     w = np.concatenate([np.random.default_rng(np.random.SeedSequence([seed, 41, camera, marker, b]))
                         .standard_normal((BLOCK_FRAMES, 2)) for b in range(blocks)])
     w[1:] *= np.sqrt(1 - rho * rho)
-    e = lfilter([1.0], [1.0, -rho], w, axis=0)
+    e = ar1_filter(w, rho, axis=0)
     e.flags.writeable = False
     return e
 
