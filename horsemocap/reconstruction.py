@@ -379,6 +379,16 @@ def _solve3(h, b, rows: bool = False):
     return np.stack([x0, x1, x2], axis=0 if rows else -1)
 
 
+#: The entries ``(i, j)`` of a symmetric 3 x 3 matrix stored as six: ``h00, h01, h02, h11, h12, h22``.
+_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+_PI, _PJ = np.array(_PAIRS).T
+
+#: Up to this many points :func:`_dlt` sums the normal equations with Python floats: the same
+#: operations in the same order as the array sums (the same bits), without NumPy's cost per call,
+#: which dominates the identification's triangulations of one to a few points.
+FEW_POINTS = 8
+
+
 def _dlt(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray, rows: bool = False) -> np.ndarray:
     """Linear triangulation of all points at once; xn (C, N, 2), seen (C, N), Ps (C, 3, 4) -> (N, 3).
 
@@ -416,25 +426,17 @@ def _dlt_normal_equations(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray):
     return h, b
 
 
-_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
-#: Up to this many points :func:`_dlt` sums the normal equations with Python floats: the same
-#: operations in the same order as the array sums (the same bits), without NumPy's cost per call,
-#: which dominates the identification's triangulations of one to a few points.
-FEW_POINTS = 8
-
-
 def _dlt_normal_equations_few(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray):
     """The DLT normal equations of :func:`_dlt` (``h`` six lists, ``b`` three lists, one entry per point)
     summed point by point with Python floats."""
     C, N = seen.shape
     h = [[0.0] * N for _ in range(6)]
     b = [[0.0] * N for _ in range(3)]
-    coords, flags, rows = xn.tolist(), seen.tolist(), Ps.tolist()
+    coords, flags, matrices = xn.tolist(), seen.tolist(), Ps.tolist()
     for c in range(C):
         if not any(flags[c]):
             continue
-        P = rows[c]
+        P = matrices[c]
         for coord in (0, 1):
             for n in range(N):
                 wf = 1.0 if flags[c][n] else 0.0
@@ -445,7 +447,7 @@ def _dlt_normal_equations_few(xn: np.ndarray, seen: np.ndarray, Ps: np.ndarray):
                 for i in range(3):
                     b[i][n] -= a[i] * a[3]
     return h, b
-_PI, _PJ = np.array(_PAIRS).T
+
 
 # The joint triangulation works on points stored as rows (3, N): NumPy's
 # reductions and products over a short last axis of (N, 3) arrays cost up to
