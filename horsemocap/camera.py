@@ -161,7 +161,23 @@ class Camera:
 
     def camera_to_pixels(self, points_camera: np.ndarray) -> np.ndarray:
         """Distorted pixels ``(..., 2)`` of points ``(..., 3)`` in this camera's frame (NaN at or behind
-        the camera plane): :meth:`project` after :meth:`world_to_camera`."""
+        the camera plane): :meth:`project` after :meth:`world_to_camera`.
+
+        Examples
+        --------
+        A point given in the camera's own frame, 2 m in front of it and 0.1 m to the side, lands
+        ``800 * 0.1 / 2 = 40`` px right of the principal point, wherever the camera stands in the world;
+        :meth:`project` of the same point in world coordinates gives the same pixels:
+
+        >>> K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+        >>> right = Camera("right", (640, 480), K, translation=[-0.5, 0.0, 0.0])
+        >>> right.camera_to_pixels([[0.1, 0.0, 2.0], [0.0, 0.0, 0.0]])     # the second is on the camera plane
+        array([[360., 240.],
+               [ nan,  nan]])
+        >>> bool(np.allclose(right.camera_to_pixels(right.world_to_camera([0.6, 0.0, 2.0])),
+        ...                  right.project([0.6, 0.0, 2.0])))
+        True
+        """
         pc = np.asarray(points_camera, float)
         z = pc[..., 2:3]
         with np.errstate(divide="ignore", invalid="ignore"):
