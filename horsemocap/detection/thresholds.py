@@ -148,10 +148,10 @@ def otsu3_thresholds(gray_or_hist) -> tuple[int, int]:
     w0, s0 = P[t1 + 1], S[t1 + 1]
     w1, s1 = P[t2 + 1][None, :] - w0[:, None], S[t2 + 1][None, :] - s0[:, None]
     w2, s2 = 1.0 - P[t2 + 1], S[-1] - S[t2 + 1]
+    dark = [s0[i] ** 2 / w0[i] if w0[i] > 0 else 0.0 for i in range(t1.size)]
     with np.errstate(divide="ignore", invalid="ignore"):
-        dark = np.where(w0 > 0, s0 ** 2 / w0, 0.0)
         v = np.where(w1 > 0, s1 ** 2 / w1, 0) + np.where(w2 > 0, s2 ** 2 / w2, 0)[None, :]
-    v = v + dark[:, None]
+    v = v + np.array(dark)[:, None]
     v[t2[None, :] <= t1[:, None]] = -np.inf           # l2 > l1 only
     columns = np.argmax(v, axis=1)
     best, arg = -1.0, (0, 1)
