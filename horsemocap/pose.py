@@ -2416,6 +2416,11 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     aperture : Aperture, optional
         The frames' temporal aperture (:mod:`horsemocap.aperture`): the left-out poses are smoothed through
         it, and a left-out marker is predicted as its frames observe it (the pose averaged over the aperture).
+    rule : str
+        ``"min"`` (default): the candidates of the lowest score. ``"one_se"``: from there, each component in
+        turn takes the most smoothing whose score stays within one standard error of the lowest
+        (:func:`left_out_score_difference`; the one-standard-error rule, which prefers the smoother of
+        candidates the data cannot tell apart).
 
     Returns
     -------
@@ -2423,8 +2428,9 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         ``base_lam * 10^s`` per component.
     info : dict
         ``cross_validation_decades`` (the common ``s``), ``cross_validation_scores`` (per common candidate,
-        m/s^2 rms), ``cross_validation_component_decades`` (6,), ``cross_validation_score`` (at those, m/s^2
-        rms), ``cross_validation_markers``.
+        m/s^2 rms), ``cross_validation_component_decades`` (6,, the chosen ``s``),
+        ``cross_validation_minimum_decades`` (6,, those of the lowest score: the same with ``"min"``),
+        ``cross_validation_score`` (at the chosen, m/s^2 rms), ``cross_validation_markers``.
 
     Examples
     --------
@@ -2467,8 +2473,9 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
             lever[seen] = fits[0]._reference().rotation(t[seen]).apply(x[i] - fits[0].model_centroid)
         turned.append(lever)
 
-    def losses(index) -> np.ndarray:
-        """Per inner second difference the left-out markers' summed squared error (NaN where none is seen)."""
+    def losses(index) -> tuple[np.ndarray, np.ndarray]:
+        """Per inner second difference the left-out markers' summed squared error (NaN where none is seen) and
+        how many markers it sums."""
         total, frames = np.zeros(n - 2), np.zeros(n - 2, int)
         for i in range(m):
             v = values[i][index, :, np.arange(6)].T
