@@ -36,6 +36,12 @@ on the herd records with correlated marker noise (``marker-noise_horse2_canter``
 ``marker-noise_horse2_sitting_trot``: ``bench_marker_noise.py``'s records).
 Its output: ``results/markers_covers_criteria.txt`` (``--kept``: also each criterion with its
 correlated choice kept where it smooths a component to the penalty's null space).
+``--rule RULE``: the left-out choice picks its candidates by ``RULE`` (``pose.LEFT_OUT_RULES``: ``min`` the
+default, ``one_se`` the most smoothing within one standard error of the minimum).
+``--oracle``: per session, the saddle's vertical acceleration error (and Wb) with the left-out choice's
+parameters multiplied by ``10^d``, all six by one ``d`` and each component alone (the left-out scores computed
+once; ``--oracle --kept``: the stride-harmonics fallback to white noise switched off, so that the left-out
+path is measured whatever the factor), ``results/markers_covers_oracle.txt``.
 """
 import dataclasses
 import sys
@@ -355,6 +361,68 @@ def _analysis_of_points(a, points, keep):
     return run_steps(a.session, a.params, given, ["smooth", "motion_frame", "rigid_body", "comfort"])
 
 
+#: ``--oracle``: the exponents ``d`` of the factors ``10^d`` on the left-out choice's parameters.
+ORACLE_COMMON = (-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0)
+ORACLE_COMPONENT = (-1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
+
+
+class _Scaled:
+    """``pose.marker_cross_validation_per_component`` with its result multiplied by ``10^shift`` (6,) while
+    inside; the cross-validation itself runs once per set of points (its result kept)."""
+
+    def __init__(self):
+        self.shift, self.kept = np.zeros(6), {}
+
+    def __enter__(self):
+        self.saved = pose.marker_cross_validation_per_component
+        original = self.saved
+
+        def scaled(t, registration, points, model, base_lam, **kw):
+            key = np.nan_to_num(np.asarray(points, float)).tobytes()
+            if key not in self.kept:
+                self.kept[key] = original(t, registration, points, model, base_lam, **kw)
+            lam, info = self.kept[key]
+            return lam * 10.0 ** self.shift, info
+        pose.marker_cross_validation_per_component = scaled
+        return self
+
+    def __exit__(self, *exc):
+        pose.marker_cross_validation_per_component = self.saved
+
+
+def run_oracle(name: str, keep_left_out: bool = False) -> str:
+    """A_y (and Wb) against factors on the left-out choice's parameters: one common and per component."""
+    folder = cover_session(name)
+    truth = load_truth(folder)
+    a = analyze(folder, None, {}, until="motion_frame", progress=lambda *x: None)
+    saved = pose.STRIDE_RESIDUAL_LEVEL
+    if keep_left_out:
+        pose.STRIDE_RESIDUAL_LEVEL = 0.0           # no p value is below: the left-out path is never refused
+
+    def measure(scaled, shift) -> str:
+        scaled.shift = np.asarray(shift, float)
+        an = run_steps(a.session, a.params, {n: getattr(a, n) for n in pipeline.STEPS}, ["rigid_body", "comfort"])
+        ce = accuracy.comfort_errors(an.comfort.indicators, truth.comfort, ("acc_y_Wb_rms",))
+        white = "cross_validation" not in (an.rigid_body.body.pose.smoothing_choice or {})
+        return (f"{accuracy.stage_errors(an, truth)['saddle_acc_y_rmse_pct_of_rms']:.1f}/{ce['acc_y_Wb_rms']:+.1f}"
+                + ("W" if white else ""))
+    try:
+        with _Scaled() as scaled:
+            base = measure(scaled, np.zeros(6))
+            if not scaled.kept:
+                return f"{name:22s} no left-out choice (A_y/Wb {base} %)"
+            info = next(iter(scaled.kept.values()))[1]
+            lines = [f"{name:22s} A_y/Wb (%, W: white noise, the left-out path refused) at the left-out choice "
+                     f"{base}, s = {info['cross_validation_component_decades']}"]
+            lines.append("  all six " + " ".join(f"{d:+g}:{measure(scaled, np.full(6, d))}" for d in ORACLE_COMMON))
+            for c, comp in enumerate(pose.POSE_COMPONENTS):
+                row = [f"{d:+g}:{measure(scaled, np.eye(6)[c] * d)}" for d in ORACLE_COMPONENT]
+                lines.append(f"  {comp:7s} " + " ".join(row))
+    finally:
+        pose.STRIDE_RESIDUAL_LEVEL = saved
+    return "\n".join(lines)
+
+
 def _model_text(a) -> str:
     mc = getattr(a.rigid_body.body, "model_choice", None)
     return "-" if mc is None else f"{mc.source} (p {mc.p_value:.2g})"
@@ -382,7 +450,13 @@ if __name__ == "__main__":
     cut = "--cut" in args
     draws = int(args[args.index("--draws") + 1]) if "--draws" in args else 0
     names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] not in
-                                                                           ("--draws", "--compare"))]
+                                                                           ("--draws", "--compare", "--rule"))]
+    if "--rule" in args:
+        pose.LEFT_OUT_RULE = args[args.index("--rule") + 1]
+    if "--oracle" in args:
+        for n in names:
+            print(run_oracle(n, keep_left_out="--kept" in args), flush=True)
+        sys.exit(0)
     if "--criteria" in args:
         chosen = CRITERIA + (KEPT_CRITERIA if "--kept" in args else ())
         if "--compare" in args:

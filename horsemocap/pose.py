@@ -1643,6 +1643,11 @@ CORRELATED_NOISE_CRITERIA = PoseParams.__dataclass_fields__["correlated_noise_cr
 #: The candidate exponents ``s`` (the GCV smoothing parameters times ``10^s``) that the correlated-noise choice
 #: by leaving markers out tries (:func:`_left_out_marker_smoothing`).
 LEFT_OUT_DECADES = np.arange(-1.0, 6.01, 0.5)
+#: How :func:`marker_cross_validation_per_component` picks among the candidates: ``"min"`` the lowest left-out
+#: score, ``"one_se"`` the most smoothing within one standard error of it.
+LEFT_OUT_RULES = ("min", "one_se")
+#: The rule :func:`_left_out_marker_smoothing` uses.
+LEFT_OUT_RULE = "min"
 
 
 def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None) -> list:
@@ -1663,7 +1668,7 @@ def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, cho
                                                           partial_frames=False), iterations=0, aperture=aperture)
     base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
     chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES,
-                                                         aperture=aperture)
+                                                         aperture=aperture, rule=LEFT_OUT_RULE)
     decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
     choice["smoothing_reason"] = (
         f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, no harmonics: "
@@ -2370,8 +2375,8 @@ def _observed_pose(trajectory: PoseTrajectory, t, aperture) -> np.ndarray:
 
 
 def marker_cross_validation_per_component(t, registration: PoseRegistration, points, model, base_lam,
-                                          decades=CROSS_VALIDATION_DECADES, sweeps: int = 3, aperture=None
-                                          ) -> tuple[np.ndarray, dict]:
+                                          decades=CROSS_VALIDATION_DECADES, sweeps: int = 3, aperture=None,
+                                          rule: str = "min") -> tuple[np.ndarray, dict]:
     """Leaving each marker out in turn, as :func:`marker_cross_validation`, with one ``s`` per pose component.
 
     Each marker in turn is left out and the pose registered from the
@@ -2411,6 +2416,11 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     aperture : Aperture, optional
         The frames' temporal aperture (:mod:`horsemocap.aperture`): the left-out poses are smoothed through
         it, and a left-out marker is predicted as its frames observe it (the pose averaged over the aperture).
+    rule : str
+        ``"min"`` (default): the candidates of the lowest score. ``"one_se"``: from there, each component in
+        turn takes the most smoothing whose score stays within one standard error of the lowest
+        (:func:`left_out_score_difference`; the one-standard-error rule, which prefers the smoother of
+        candidates the data cannot tell apart).
 
     Returns
     -------
@@ -2418,8 +2428,9 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         ``base_lam * 10^s`` per component.
     info : dict
         ``cross_validation_decades`` (the common ``s``), ``cross_validation_scores`` (per common candidate,
-        m/s^2 rms), ``cross_validation_component_decades`` (6,), ``cross_validation_score`` (at those, m/s^2
-        rms), ``cross_validation_markers``.
+        m/s^2 rms), ``cross_validation_component_decades`` (6,, the chosen ``s``),
+        ``cross_validation_minimum_decades`` (6,, those of the lowest score: the same with ``"min"``),
+        ``cross_validation_score`` (at the chosen, m/s^2 rms), ``cross_validation_markers``.
 
     Examples
     --------
@@ -2439,6 +2450,8 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     """
     t, pts, x, base, inner = _cross_validation_inputs(t, points, model, base_lam, 4,
                                                       "per-component marker cross-validation")
+    if rule not in LEFT_OUT_RULES:
+        raise ValueError(f"rule: expected one of {', '.join(LEFT_OUT_RULES)}, got {rule!r}")
     decades = np.asarray(decades, float)
     m, n = x.shape[0], t.size
     params = PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal", partial_frames=False)
@@ -2460,8 +2473,10 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
             lever[seen] = fits[0]._reference().rotation(t[seen]).apply(x[i] - fits[0].model_centroid)
         turned.append(lever)
 
-    def score(index) -> float:
-        total, frames = 0.0, 0
+    def losses(index) -> tuple[np.ndarray, np.ndarray]:
+        """Per inner second difference the left-out markers' summed squared error (NaN where none is seen) and
+        how many markers it sums."""
+        total, frames = np.zeros(n - 2), np.zeros(n - 2, int)
         for i in range(m):
             v = values[i][index, :, np.arange(6)].T
             seen = np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(turned[i]), axis=1)
@@ -2470,11 +2485,16 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
                 position[seen] = v[seen, :3] + Rotation.from_rotvec(v[seen, 3:]).apply(turned[i][seen])
             err = np.diff(position, 2, axis=0) - measured[i]
             use = inner & np.all(np.isfinite(err), axis=1)
-            total, frames = total + float(np.sum(err[use] ** 2)), frames + int(use.sum())
-        if frames == 0:
+            total[use] += np.sum(err[use] ** 2, axis=1)
+            frames[use] += 1
+        if not frames.any():
             raise ValueError("points: no frame inside the record where a left-out marker and the others' pose are "
                              "seen")
-        return total / frames
+        return np.where(frames > 0, total, np.nan), frames
+
+    def score(index) -> float:
+        total, frames = losses(index)
+        return float(np.nansum(total) / frames.sum())
 
     dt = float(np.median(np.diff(t)))
     common = np.array([score([j] * 6) for j in range(decades.size)])
@@ -2488,12 +2508,64 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
                 index[c], best = int(np.argmin(trial)), min(trial)
         if index == before:
             break
+    minimum = list(index)
+    if rule == "one_se":
+        index = _one_standard_error_smoothing(index, losses, decades.size)
     chosen = decades[index]
     return base * 10.0 ** chosen, {"cross_validation_decades": float(decades[int(np.argmin(common))]),
                                    "cross_validation_scores": [float(v) for v in np.sqrt(common) / dt ** 2],
                                    "cross_validation_component_decades": [float(v) for v in chosen],
-                                   "cross_validation_score": float(np.sqrt(best) / dt ** 2),
+                                   "cross_validation_minimum_decades": [float(v) for v in decades[minimum]],
+                                   "cross_validation_score": float(np.sqrt(score(index)) / dt ** 2),
                                    "cross_validation_markers": m}
+
+
+#: How many contiguous blocks of the record's frames give the standard error of a difference of left-out
+#: scores (:func:`left_out_score_difference`): the squared errors are correlated over neighbouring frames, the
+#: blocks' means far less.
+LEFT_OUT_SCORE_BLOCKS = 10
+
+
+def left_out_score_difference(losses, reference) -> tuple[float, float]:
+    """The mean difference of two candidates' left-out losses per scored frame and its standard error.
+
+    ``losses`` and ``reference`` (n,) hold, per frame, the left-out markers' summed squared prediction error of
+    two candidate smoothings (NaN where not scored). The frames' differences are correlated over neighbouring
+    frames (the noise is), so the standard error is that of the means of :data:`LEFT_OUT_SCORE_BLOCKS`
+    contiguous blocks of frames (batch means), not of the frames themselves.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> a = rng.normal(1.0, 0.1, 400) ** 2
+    >>> diff, se = left_out_score_difference(a + 0.5, a)
+    >>> round(diff, 3), round(se, 3)
+    (0.5, 0.0)
+    """
+    d = np.asarray(losses, float) - np.asarray(reference, float)
+    d = d[np.isfinite(d)]
+    if d.size < 2 * LEFT_OUT_SCORE_BLOCKS:
+        raise ValueError(f"losses: the standard error of a left-out score difference needs at least "
+                         f"{2 * LEFT_OUT_SCORE_BLOCKS} scored frames, got {d.size}")
+    means = np.array([b.mean() for b in np.array_split(d, LEFT_OUT_SCORE_BLOCKS)])
+    return float(d.mean()), float(means.std(ddof=1) / np.sqrt(means.size))
+
+
+def _one_standard_error_smoothing(index, losses, size: int) -> list:
+    """From the left-out minimum ``index`` (six candidate indices), each component in turn moved to the most
+    smoothing (the highest candidate index below ``size``) whose left-out losses stay within one standard error
+    of the minimum's (:func:`left_out_score_difference`); ``losses(index)`` gives the per-frame losses."""
+    minimum = losses(index)[0]
+    chosen = list(index)
+    for c in range(6):
+        for j in range(size - 1, chosen[c], -1):
+            trial = chosen[:c] + [j] + chosen[c + 1:]
+            diff, se = left_out_score_difference(losses(trial)[0], minimum)
+            if diff <= se:
+                chosen = trial
+                break
+    return chosen
 
 
 def choose_smoothing(fundamental_hz, events, order: int = 5, lam_given: bool = False,
