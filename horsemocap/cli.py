@@ -531,7 +531,7 @@ def _kinematics_checks(traj, res, speed_p99, acceleration_p99) -> list:
     return kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
 
 
-def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise_criterion: str = "loo") -> dict:
+def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise_criterion: str | None = None) -> dict:
     """What ``kinematics`` writes: the whole record's fit, or for a long record the smoothing settled
     on its middle and the windows' blocks to come (``blocks``, a generator)."""
     from . import streaming

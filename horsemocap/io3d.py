@@ -1010,7 +1010,7 @@ def kinematics_verdict(checks) -> str:
 
 
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",
-                                 events=None, noise_criterion: str = "loo"):
+                                 events=None, noise_criterion: str | None = None):
     """Pose-trajectory kinematics of a rigid body from 3D markers and a static shot.
 
     The markers are the points present in both files (:func:`match_point_names`:
@@ -1028,7 +1028,7 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     harmonics (the change points are for a non-periodic record; the two are
     not fitted together). ``noise_criterion``: how "auto" chooses under
     correlated noise (``rigid_body.pose.correlated_noise_criterion``: "loo",
-    "gcv", "reml" or "risk").
+    "gcv", "reml" or "risk"; None: its default).
 
     Returns
     -------
@@ -1054,10 +1054,11 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
             "matched_loosely": setup["matched_loosely"]}
 
 
-def kinematics_params(smoothing: str = "auto", events=None, noise_criterion: str = "loo"):
+def kinematics_params(smoothing: str = "auto", events=None, noise_criterion: str | None = None):
     """The pose smoothing of :func:`kinematics_from_trajectories`: with known events the record is
     smoothed without stride harmonics; frames with two markers stay out of the smoothing;
-    ``noise_criterion`` is the choice under correlated noise (``correlated_noise_criterion``).
+    ``noise_criterion`` is the choice under correlated noise (``correlated_noise_criterion``; None: the
+    parameter's default).
 
     Examples
     --------
@@ -1070,8 +1071,8 @@ def kinematics_params(smoothing: str = "auto", events=None, noise_criterion: str
     from .params import PoseParams
 
     harmonics = "none" if events is not None and len(events) else "auto"
-    return PoseParams(smoothing=smoothing, harmonics=harmonics, events=events, partial_frames=False,
-                      correlated_noise_criterion=noise_criterion)
+    given = {} if noise_criterion is None else {"correlated_noise_criterion": noise_criterion}
+    return PoseParams(smoothing=smoothing, harmonics=harmonics, events=events, partial_frames=False, **given)
 
 
 def kinematics_setup(traj: Trajectories, static: Trajectories, folder=None) -> dict:

@@ -592,7 +592,7 @@ def _harmonic_set(order) -> tuple:
 def robust_svd(a):
     """The thin SVD ``(u, s, vt)`` of ``a`` by LAPACK's divide and conquer (``gesdd``, NumPy's), and by the
     slower QR iteration (``gesvd``) when the former does not converge, as it rarely does on
-    ill-conditioned matrices.
+    ill-conditioned matrices. A matrix with NaN or inf raises NumPy's ``LinAlgError`` as before.
 
     Examples
     --------
@@ -604,6 +604,8 @@ def robust_svd(a):
     try:
         return np.linalg.svd(a, full_matrices=False)
     except np.linalg.LinAlgError:
+        if not np.all(np.isfinite(a)):      # not a convergence failure: NaN or inf in the matrix
+            raise
         return _lapack_svd(a, full_matrices=False, lapack_driver="gesvd")
 
 

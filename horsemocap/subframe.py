@@ -32,7 +32,8 @@ from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "exposure_seconds", "flash_onset", "flash_phases", "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual",
+__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "flash_onset", "flash_phases", "nearest_frames",
+           "TrackInterpolant", "PhaseFit", "phase_residual",
            "fit_phase", "joint_residual", "refine_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
            "others_residual", "timing_floor", "residual_curve", "observation_instants", "OUTSIDE_TRACK"]
 
@@ -84,13 +85,30 @@ class FlashOnset:
     lit_fraction: float
 
 
+def exposure_fraction(timing: dict, fps: float) -> float:
+    """A camera's exposure as a fraction of its frame period from its ``metadata.camera_timing`` entry:
+    ``exposure_s`` times the frame rate, or exactly :data:`DEFAULT_EXPOSURE_FRACTION` when the entry gives
+    none (:func:`exposure_seconds` in frames).
+
+    Examples
+    --------
+    >>> exposure_fraction({}, 29.97), exposure_fraction({"exposure_s": 0.008}, 25.0)
+    (0.5, 0.2)
+    >>> exposure_fraction({"exposure_s": 0}, 25.0)
+    0.0
+    """
+    given = timing.get("exposure_s")
+    return DEFAULT_EXPOSURE_FRACTION if given is None else float(given) * float(fps)
+
+
 def exposure_seconds(timing: dict, fps: float) -> float:
     """A camera's exposure time (s) from its ``metadata.camera_timing`` entry (docs/sessions.md): its
     ``exposure_s``, or :data:`DEFAULT_EXPOSURE_FRACTION` of the frame period (half a frame) when the entry
     gives none. ``exposure_s`` 0 is an instant, not the default.
 
-    The one place the default is applied: the synchronisation times the flash with it and the pose
-    trajectory is fitted through the aperture it gives (:func:`horsemocap.aperture.session_aperture`).
+    With :func:`exposure_fraction`, the one place the default is applied: the synchronisation times the
+    flash with the fraction and the pose trajectory is fitted through the aperture this gives
+    (:func:`horsemocap.aperture.session_aperture`).
 
     Examples
     --------

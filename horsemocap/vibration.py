@@ -319,7 +319,6 @@ def fft_weighting(signal, fs: float, name, *, axis: int = 0) -> np.ndarray:
     return np.fft.irfft(spec * w.reshape(shape), n=n, axis=axis)
 
 
-
 # ---------------------------------------------------------------------------
 # Harmonics of the fitted motion
 # ---------------------------------------------------------------------------
@@ -1091,7 +1090,6 @@ def saddle_comfort(t, position, acceleration, velocity, *, mode: str = "iso",
     h_x, h_z = (fit_harmonics(t, acc[:, i], f0_hz, n_h) for i in (0, 2))
     out.update(directive_indicators(h_x, h_acc, h_z, tau, v_x, limits=limits))
     return out
-
 
 
 # ---------------------------------------------------------------------------

@@ -37,6 +37,10 @@ DOCTEST_MODULES = [
     "horsemocap.calibration.board",
     "horsemocap.virtuallab.rig",
     "horsemocap.threads",
+    "horsemocap.weighting_filters",
+    "horsemocap.iir_filters",
+    "horsemocap.probability",
+    "horsemocap.subframe",
 ]
 
 

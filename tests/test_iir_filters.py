@@ -66,7 +66,8 @@ def test_t_quantile_and_f_survival_are_scipy_stats_bit_for_bit_with_the_edges():
 
 def test_the_analysis_loads_neither_scipy_signal_nor_scipy_stats():
     code = ("import sys, horsemocap.cli, horsemocap.run, horsemocap.pipeline, horsemocap.steps, "
-            "horsemocap.vibration, horsemocap.splines, horsemocap.uncertainty\n"
+            "horsemocap.vibration, horsemocap.splines, horsemocap.uncertainty, horsemocap.io3d, horsemocap.streaming, "
+            "horsemocap.errors, horsemocap.workspace\n"
             "print(' '.join(sorted(sys.modules)))")
     loaded = set(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                                 check=True).stdout.split())

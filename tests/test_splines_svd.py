@@ -25,3 +25,12 @@ def test_svd_falls_back_to_qr_iteration_when_divide_and_conquer_fails(monkeypatc
     fallback = splines.smoothing_spline(x, y, fundamental_hz=1.5)
     assert len(calls) > 1
     np.testing.assert_allclose(fallback(x), expected(x), rtol=0, atol=1e-9)
+
+
+def test_svd_of_a_matrix_with_nan_still_raises_numpys_error():
+    """Not a convergence failure: NaN in the matrix raises NumPy's LinAlgError, not a fallback's ValueError."""
+    import pytest
+
+    a = np.array([[1.0, np.nan], [0.0, 1.0]])
+    with pytest.raises(np.linalg.LinAlgError):
+        splines.robust_svd(a)

@@ -49,8 +49,7 @@ def test_an_instant_exposure_is_never_partly_lit():
 
 def test_sync_and_aperture_read_exposure_s_the_same_way():
     """One default, applied in one place: no ``exposure_s`` is half a frame for both the flash's timing and
-    the pose's aperture, and ``exposure_s`` 0 is an instant for both (the flash's timing once read 0 as
-    the half-frame default)."""
+    the pose's aperture, and ``exposure_s`` 0 is an instant for both."""
     meta = {"camera_timing": {"left": {"exposure_s": 0}, "middle": {"interlaced": None}, "right": {}}}
     s = SimpleNamespace(metadata=meta, fps=25.0, cameras=("left", "middle", "right"))
     s.camera_timing = lambda camera: Session.camera_timing(s, camera)

@@ -116,7 +116,7 @@ def step_sync(session: Session, section: SyncParams, progress, flash_search=None
 
 def exposure_fractions(session: Session) -> dict:
     """Camera -> the part of the frame period its frame collects light, from the optional
-    ``metadata.camera_timing.<camera>.exposure_s`` (:func:`horsemocap.subframe.exposure_seconds`: half a
+    ``metadata.camera_timing.<camera>.exposure_s`` (:func:`horsemocap.subframe.exposure_fraction`: half a
     frame when not given, 0 an instant) and ``.interlaced``.
 
     An interlaced frame's two fields are exposed half a frame apart, each for the exposure: the frame
@@ -127,7 +127,7 @@ def exposure_fractions(session: Session) -> dict:
     out = {}
     for c in session.cameras:
         given = session.camera_timing(c)
-        fraction = subframe.exposure_seconds(given, session.fps) * session.fps
+        fraction = subframe.exposure_fraction(given, session.fps)
         if given.get("interlaced"):
             fraction += subframe.INTERLACED_FIELD_FRAMES
         out[c] = min(1.0, fraction)

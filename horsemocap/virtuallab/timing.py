@@ -101,7 +101,9 @@ class CameraTiming:
 
     @property
     def exposure(self) -> float:
-        """Exposure time (s): ``exposure_s``, or half a nominal frame."""
+        """Exposure time (s): ``exposure_s``, or half a nominal frame (the virtual camera's own default, the
+        usual 180-degree shutter; the analysis assumes the same when a session does not say,
+        :func:`horsemocap.subframe.exposure_seconds`, but the laboratory does not read the analysis' code)."""
         return 0.5 / self.nominal_fps if self.exposure_s is None else float(self.exposure_s)
 
     @property
