@@ -42,11 +42,11 @@ default, ``one_se`` the most smoothing within one standard error of the minimum)
 parameters multiplied by ``10^d``, all six by one ``d`` and each component alone (the left-out scores computed
 once; ``--oracle --kept``: the stride-harmonics fallback to white noise switched off, so that the left-out
 path is measured whatever the factor), ``results/markers_covers_oracle.txt``.
-``--harmonic-left-out``: the left-out choice also tries the candidates with the stride's harmonics
-(``pose.LEFT_OUT_HARMONICS``: partial splines at white-noise GCV with harmonics' parameters times ``10^s``) and
-keeps the route of the lower left-out score (``--always``: the harmonic route whatever its score); each line
-then names the route the pose smoothing took and both routes' scores
-(``results/markers_covers_harmonic_left_out.txt``).
+Each line names the pose smoothing's route: white noise, or the left-out choice without or with the stride's
+harmonics (``pose.LEFT_OUT_HARMONICS``, the default: both routes scored, the lower kept; partial splines at
+white-noise GCV with harmonics' parameters times ``10^s``) and both routes' left-out scores.
+``--no-harmonic-left-out``: the left-out choice without the harmonic route; ``--harmonic-left-out --always``: the
+harmonic route whatever its score (``results/markers_covers_harmonic_left_out.txt``).
 """
 import dataclasses
 import sys
@@ -472,6 +472,8 @@ if __name__ == "__main__":
                                                                            ("--draws", "--compare", "--rule"))]
     if "--harmonic-left-out" in args:
         pose.LEFT_OUT_HARMONICS = "always" if "--always" in args else True
+    if "--no-harmonic-left-out" in args:
+        pose.LEFT_OUT_HARMONICS = False
     if "--rule" in args:
         pose.LEFT_OUT_RULE = args[args.index("--rule") + 1]
     if "--oracle" in args:

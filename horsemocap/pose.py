@@ -1597,7 +1597,8 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         criterion = params.correlated_noise_criterion
         if criterion == "loo":
             stride_hz = fundamental_hz
-            if LEFT_OUT_HARMONICS and stride_hz is None and params.harmonics != "none" and order == 5:
+            if (LEFT_OUT_HARMONICS and stride_hz is None and params.harmonics != "none" and order == 5
+                    and points is not None and np.asarray(model).shape[0] >= 4):
                 stride_hz = _record_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), expected_hz)[0]
             lam, harmonic = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture, stride_hz)
             if harmonic is not None:
@@ -1660,8 +1661,8 @@ LEFT_OUT_RULES = ("min", "one_se")
 LEFT_OUT_RULE = "min"
 #: Whether :func:`_left_out_marker_smoothing` also tries the candidates with the stride's harmonics
 #: (partial splines at white-noise GCV with harmonics' parameters times ``10^s``) and keeps the route whose
-#: left-out score is lower.
-LEFT_OUT_HARMONICS = False
+#: left-out score is lower (``"always"``: the harmonic route whatever its score, for measuring it).
+LEFT_OUT_HARMONICS = True
 
 
 def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None,

@@ -1,5 +1,5 @@
 """The left-out choice with the stride's harmonics (horsemocap.pose.LEFT_OUT_HARMONICS, the ``fundamental_hz`` of
-marker_cross_validation_per_component): off by default, and when on, the route of the lower left-out score is
+marker_cross_validation_per_component): on by default, and the route of the lower left-out score is
 the one fitted, against a trot whose motion is exactly the stride's harmonics."""
 from __future__ import annotations
 
@@ -10,11 +10,13 @@ from horsemocap import pose
 from test_left_out_smoothing import _error, _fit, _trot
 
 
-def test_the_harmonic_route_is_off_by_default_and_the_choice_says_nothing_of_it():
-    assert pose.LEFT_OUT_HARMONICS is False
+def test_the_harmonic_route_is_on_by_default_and_switched_off_says_nothing_of_it(monkeypatch):
+    assert pose.LEFT_OUT_HARMONICS is True
+    monkeypatch.setattr(pose, "LEFT_OUT_HARMONICS", False)
     t, pts, x, _, cov = _trot(0)
-    cv = _fit("loo", t, pts, x, cov).smoothing_choice["cross_validation"]
-    assert "routes" not in cv and "fundamental_hz" not in cv
+    choice = _fit("loo", t, pts, x, cov).smoothing_choice
+    assert "routes" not in choice["cross_validation"] and "fundamental_hz" not in choice["cross_validation"]
+    assert ", no harmonics: smoothing chosen by leaving each of the 5 markers out" in choice["reason"]
 
 
 def test_candidates_with_the_stride_harmonics_predict_an_exactly_periodic_motion_better():
