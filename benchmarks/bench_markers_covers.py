@@ -42,6 +42,11 @@ default, ``one_se`` the most smoothing within one standard error of the minimum)
 parameters multiplied by ``10^d``, all six by one ``d`` and each component alone (the left-out scores computed
 once; ``--oracle --kept``: the stride-harmonics fallback to white noise switched off, so that the left-out
 path is measured whatever the factor), ``results/markers_covers_oracle.txt``.
+Each line names the pose smoothing's route: white noise, or the left-out choice without or with the stride's
+harmonics (``pose.LEFT_OUT_HARMONICS``, the default: both routes scored, the lower kept; partial splines at
+white-noise GCV with harmonics' parameters times ``10^s``) and both routes' left-out scores.
+``--no-harmonic-left-out``: the left-out choice without the harmonic route; ``--harmonic-left-out --always``: the
+harmonic route whatever its score (``results/markers_covers_harmonic_left_out.txt``).
 """
 import dataclasses
 import sys
@@ -169,7 +174,7 @@ def run(name: str) -> str:
             f"wrong {ide['wrong_total']:3d} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
             f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % "
             f"unsmoothed saddle y {unsmoothed_saddle_error_mm(a, truth)[1]:.2f} mm partly_covered {covered} "
-            f"left out of the pose {left_out} {bad} model: {_model_text(a)} "
+            f"left out of the pose {left_out} {bad} model: {_model_text(a)} {_route_text(a)}"
             f"{time.perf_counter() - t0:.0f}s" + "".join(f"\n    under the cover, {k}: {v}" for k, v in during.items()))
 
 
@@ -423,6 +428,20 @@ def run_oracle(name: str, keep_left_out: bool = False) -> str:
     return "\n".join(lines)
 
 
+def _route_text(a) -> str:
+    """The pose smoothing's route: the left-out choice with or without the stride's harmonics, its left-out score
+    (m/s^2 rms) and ``s``, or white noise (the stride fallback or no correlated noise)."""
+    choice = a.rigid_body.body.pose.smoothing_choice or {}
+    cv = choice.get("cross_validation")
+    if cv is None:
+        return "route: white" + (" (stride fallback)" if "left the stride's harmonics" in choice.get("reason", "")
+                                 else "")
+    harmonic = "harmonics" if cv.get("fundamental_hz") else "plain"
+    routes = "".join(f" [{k} {v[0]:.5g} s {v[1]}]" for k, v in cv.get("routes", {}).items())
+    return (f"route: left-out {harmonic} score {cv['cross_validation_score']:.5g} "
+            f"s {cv['cross_validation_component_decades']}{routes} ")
+
+
 def _model_text(a) -> str:
     mc = getattr(a.rigid_body.body, "model_choice", None)
     return "-" if mc is None else f"{mc.source} (p {mc.p_value:.2g})"
@@ -451,6 +470,10 @@ if __name__ == "__main__":
     draws = int(args[args.index("--draws") + 1]) if "--draws" in args else 0
     names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] not in
                                                                            ("--draws", "--compare", "--rule"))]
+    if "--harmonic-left-out" in args:
+        pose.LEFT_OUT_HARMONICS = "always" if "--always" in args else True
+    if "--no-harmonic-left-out" in args:
+        pose.LEFT_OUT_HARMONICS = False
     if "--rule" in args:
         pose.LEFT_OUT_RULE = args[args.index("--rule") + 1]
     if "--oracle" in args:

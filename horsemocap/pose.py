@@ -1596,7 +1596,18 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         spline_options["noise_correlation"] = choice["noise_correlation"]
         criterion = params.correlated_noise_criterion
         if criterion == "loo":
-            lam = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture)
+            stride_hz = fundamental_hz
+            if (LEFT_OUT_HARMONICS and stride_hz is None and params.harmonics != "none" and order == 5
+                    and points is not None and np.asarray(model).shape[0] >= 4):
+                stride_hz = _record_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), expected_hz)[0]
+            lam, harmonic = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture, stride_hz)
+            if harmonic is not None:
+                # the stride's harmonics fitted unpenalised: the spline of white noise with the chosen parameters
+                del spline_options["noise_correlation"]
+                spline_options.update(fundamental_hz=harmonic,
+                                      events=_pose_events(params.events, smoothing, order, harmonic))
+                if params.harmonics == "auto" and rotation_noise_test:
+                    rot_noise = [float(v) if np.isfinite(v) else None for v in pose_noise(reg, None, model)[3:]]
         elif criterion == "reml":
             spline_options["method"] = "reml"
         elif criterion == "risk":
@@ -1648,9 +1659,14 @@ LEFT_OUT_DECADES = np.arange(-1.0, 6.01, 0.5)
 LEFT_OUT_RULES = ("min", "one_se")
 #: The rule :func:`_left_out_marker_smoothing` uses.
 LEFT_OUT_RULE = "min"
+#: Whether :func:`_left_out_marker_smoothing` also tries the candidates with the stride's harmonics
+#: (partial splines at white-noise GCV with harmonics' parameters times ``10^s``) and keeps the route whose
+#: left-out score is lower (``"always"``: the harmonic route whatever its score, for measuring it).
+LEFT_OUT_HARMONICS = True
 
 
-def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None) -> list:
+def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None,
+                               fundamental_hz: float | None = None) -> tuple[list, float | None]:
     """The six smoothing parameters under correlated noise chosen by leaving each marker out in turn
     (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, no harmonics), with four or
     more markers; ``lam`` unchanged (the correlated-error GCV, its reason as it is) with three. ``choice`` gets
@@ -1663,20 +1679,40 @@ def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, cho
     ``lam^(-1/6)``) by about 21 % from one candidate to the next."""
     markers = np.asarray(model).shape[0]
     if points is None or markers < 4 or any(v is not None for v in lam):
-        return lam
-    white = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal",
-                                                          partial_frames=False), iterations=0, aperture=aperture)
-    base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
-    chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES,
-                                                         aperture=aperture, rule=LEFT_OUT_RULE)
+        return lam, None
+    chosen, info = _left_out_route(t, reg, model, points, aperture, None)
+    harmonic, routes = None, {"plain": (info["cross_validation_score"], info["cross_validation_component_decades"])}
+    if LEFT_OUT_HARMONICS and fundamental_hz is not None:
+        with_h, info_h = _left_out_route(t, reg, model, points, aperture, fundamental_hz)
+        routes["harmonics"] = (info_h["cross_validation_score"], info_h["cross_validation_component_decades"])
+        if LEFT_OUT_HARMONICS == "always" or info_h["cross_validation_score"] < info["cross_validation_score"]:
+            chosen, info, harmonic = with_h, info_h, float(fundamental_hz)
     decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
+    route = ("no harmonics" if harmonic is None else
+             f"the stride's harmonics at {harmonic:.4g} Hz unpenalised (a lower left-out score than without)")
     choice["smoothing_reason"] = (
-        f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, no harmonics: "
+        f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, {route}: "
         f"smoothing chosen by leaving each of the {markers} markers out in turn (its acceleration predicted from "
         f"the others' pose, which holds none of its noise, so the choice holds whatever the noise's correlation "
         f"over frames): white-noise GCV's parameters times 10^s, s = {decades}")
     choice["cross_validation"] = {"decades": [float(v) for v in LEFT_OUT_DECADES], **info}
-    return [float(v) for v in chosen]
+    if LEFT_OUT_HARMONICS:
+        choice["cross_validation"].update(fundamental_hz=harmonic, routes=routes)
+    return [float(v) for v in chosen], harmonic
+
+
+def _left_out_route(t, reg: PoseRegistration, model, points, aperture, fundamental_hz) -> tuple[np.ndarray, dict]:
+    """:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, both without the stride's
+    harmonics (``fundamental_hz`` None) or both with them."""
+    harmonics = "none" if fundamental_hz is None else "auto"
+    white = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics=harmonics,
+                                                          rotation_weights="equal", partial_frames=False),
+                                iterations=0, aperture=aperture, fundamental_hz=fundamental_hz)
+    base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
+    chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES,
+                                                         aperture=aperture, rule=LEFT_OUT_RULE,
+                                                         fundamental_hz=fundamental_hz)
+    return chosen, info
 
 
 def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
@@ -2376,7 +2412,8 @@ def _observed_pose(trajectory: PoseTrajectory, t, aperture) -> np.ndarray:
 
 def marker_cross_validation_per_component(t, registration: PoseRegistration, points, model, base_lam,
                                           decades=CROSS_VALIDATION_DECADES, sweeps: int = 3, aperture=None,
-                                          rule: str = "min") -> tuple[np.ndarray, dict]:
+                                          rule: str = "min", fundamental_hz: float | None = None
+                                          ) -> tuple[np.ndarray, dict]:
     """Leaving each marker out in turn, as :func:`marker_cross_validation`, with one ``s`` per pose component.
 
     Each marker in turn is left out and the pose registered from the
@@ -2421,6 +2458,10 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         turn takes the most smoothing whose score stays within one standard error of the lowest
         (:func:`left_out_score_difference`; the one-standard-error rule, which prefers the smoother of
         candidates the data cannot tell apart).
+    fundamental_hz : float, optional
+        The stride frequency (Hz): each candidate is then a partial spline, the stride's harmonics
+        unpenalised (kept as white-noise GCV with harmonics keeps them, ``harmonics="auto"``) plus the
+        smoothing spline of ``base_lam * 10^s``. None (default): plain smoothing splines.
 
     Returns
     -------
@@ -2454,7 +2495,8 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         raise ValueError(f"rule: expected one of {', '.join(LEFT_OUT_RULES)}, got {rule!r}")
     decades = np.asarray(decades, float)
     m, n = x.shape[0], t.size
-    params = PoseParams(smoothing="gcv", harmonics="none", rotation_weights="equal", partial_frames=False)
+    params = PoseParams(smoothing="gcv", harmonics="none" if fundamental_hz is None else "auto",
+                        rotation_weights="equal", partial_frames=False)
     ratios = left_out_noise_ratios(registration, x, pts)
     values, turned, measured = [], [], []
     for i in range(m):
@@ -2463,7 +2505,7 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
             ratios[i] = _information_variance_ratio(reg_i, registration, ratios[i])
         measured.append(np.diff(pts[:, i], 2, axis=0))
         fits = [fit_pose_trajectory(t, reg_i, model_i, params, lam=base * ratios[i] * 10.0 ** s, iterations=0,
-                                    aperture=aperture) for s in decades]
+                                    aperture=aperture, fundamental_hz=fundamental_hz) for s in decades]
         # per candidate the six components' values (n, 6), and the left-out marker's lever turned by the
         # reference rotation (the same for every candidate): its position is c + Exp(phi) (R_ref lever)
         values.append(np.stack([_observed_pose(f, t, aperture) for f in fits]))
