@@ -1668,7 +1668,8 @@ LEFT_OUT_HARMONICS = True
 def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None,
                                fundamental_hz: float | None = None) -> tuple[list, float | None]:
     """The six smoothing parameters under correlated noise chosen by leaving each marker out in turn
-    (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, no harmonics), with four or
+    (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters; without the stride's
+    harmonics and, given ``fundamental_hz``, with them, the lower left-out score kept), with four or
     more markers; ``lam`` unchanged (the correlated-error GCV, its reason as it is) with three. ``choice`` gets
     the reason and the cross-validation's scores (``cross_validation``). With the frames' temporal ``aperture``
     both the white-noise GCV and the left-out fits are made through it, as the pose smoothing is.
@@ -1694,7 +1695,8 @@ def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, cho
         f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, {route}: "
         f"smoothing chosen by leaving each of the {markers} markers out in turn (its acceleration predicted from "
         f"the others' pose, which holds none of its noise, so the choice holds whatever the noise's correlation "
-        f"over frames): white-noise GCV's parameters times 10^s, s = {decades}")
+        f"over frames): white-noise GCV's parameters times 10^s, s = {decades}"
+        + ("" if LEFT_OUT_RULE == "min" else f" ({LEFT_OUT_RULE} rule)"))
     choice["cross_validation"] = {"decades": [float(v) for v in LEFT_OUT_DECADES], **info}
     if LEFT_OUT_HARMONICS:
         choice["cross_validation"].update(fundamental_hz=harmonic, routes=routes)
@@ -2494,12 +2496,80 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     if rule not in LEFT_OUT_RULES:
         raise ValueError(f"rule: expected one of {', '.join(LEFT_OUT_RULES)}, got {rule!r}")
     decades = np.asarray(decades, float)
-    m, n = x.shape[0], t.size
+    m = x.shape[0]
+    predictions = _left_out_predictions(t, registration, pts, x, base, decades, inner, aperture, fundamental_hz)
+    dt = float(np.median(np.diff(t)))
+    index, common = _left_out_descent(predictions.score, decades.size, sweeps)
+    minimum = list(index)
+    if rule == "one_se":
+        index = _one_standard_error_smoothing(index, predictions.losses, decades.size)
+    chosen = decades[index]
+    return base * 10.0 ** chosen, {"cross_validation_decades": float(decades[int(np.argmin(common))]),
+                                   "cross_validation_scores": [float(v) for v in np.sqrt(common) / dt ** 2],
+                                   "cross_validation_component_decades": [float(v) for v in chosen],
+                                   "cross_validation_minimum_decades": [float(v) for v in decades[minimum]],
+                                   "cross_validation_score": float(np.sqrt(predictions.score(index)) / dt ** 2),
+                                   "cross_validation_rule": rule,
+                                   "cross_validation_markers": m}
+
+
+@dataclass(frozen=True)
+class _LeftOutPredictions:
+    """Each left-out marker's predicted pose per candidate and what it is scored against
+    (:func:`marker_cross_validation_per_component`): ``values[i]`` (candidates, n, 6) the pose the other markers
+    give, ``turned[i]`` (n, 3) marker ``i``'s lever turned by the reference rotation, ``measured[i]`` (n - 2, 3)
+    its measured second differences, ``inner`` the scored second differences."""
+
+    values: list
+    turned: list
+    measured: list
+    inner: np.ndarray
+
+    def errors(self, index) -> list:
+        """Per marker, the left-out prediction's second-difference errors at the candidates ``index`` (one per
+        pose component) and the inner frames where it is scored."""
+        out = []
+        n = self.inner.size + 2
+        for v_all, turned, measured in zip(self.values, self.turned, self.measured):
+            v = v_all[index, :, np.arange(6)].T
+            seen = np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(turned), axis=1)
+            position = np.full((n, 3), np.nan)
+            if seen.any():
+                position[seen] = v[seen, :3] + Rotation.from_rotvec(v[seen, 3:]).apply(turned[seen])
+            err = np.diff(position, 2, axis=0) - measured
+            out.append((err, self.inner & np.all(np.isfinite(err), axis=1)))
+        if not any(use.any() for _, use in out):
+            raise ValueError("points: no frame inside the record where a left-out marker and the others' pose are "
+                             "seen")
+        return out
+
+    def losses(self, index) -> tuple[np.ndarray, np.ndarray]:
+        """Per inner second difference the left-out markers' summed squared error (NaN where none is seen) and
+        how many markers it sums."""
+        total, frames = np.zeros(self.inner.size), np.zeros(self.inner.size, int)
+        for err, use in self.errors(index):
+            total[use] += np.sum(err[use] ** 2, axis=1)
+            frames[use] += 1
+        return np.where(frames > 0, total, np.nan), frames
+
+    def score(self, index) -> float:
+        """The mean squared left-out error over the scored (marker, frame) pairs, summed marker by marker."""
+        total, frames = 0.0, 0
+        for err, use in self.errors(index):
+            total, frames = total + float(np.sum(err[use] ** 2)), frames + int(use.sum())
+        return total / frames
+
+
+def _left_out_predictions(t, registration, pts, x, base, decades, inner, aperture, fundamental_hz
+                          ) -> _LeftOutPredictions:
+    """Each marker left out in turn: the others' pose smoothed at every candidate ``base * 10^s`` (scaled by the
+    left-out registration's noise ratio), observed through the ``aperture``."""
+    n = t.size
     params = PoseParams(smoothing="gcv", harmonics="none" if fundamental_hz is None else "auto",
                         rotation_weights="equal", partial_frames=False)
     ratios = left_out_noise_ratios(registration, x, pts)
     values, turned, measured = [], [], []
-    for i in range(m):
+    for i in range(x.shape[0]):
         reg_i, model_i = _left_out_registration(registration, pts, x, i)
         if reg_i.information is not None and registration.information is not None:
             ratios[i] = _information_variance_ratio(reg_i, registration, ratios[i])
@@ -2514,57 +2584,30 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
         if seen.any():
             lever[seen] = fits[0]._reference().rotation(t[seen]).apply(x[i] - fits[0].model_centroid)
         turned.append(lever)
+    return _LeftOutPredictions(values, turned, measured, np.asarray(inner, bool))
 
-    def losses(index) -> tuple[np.ndarray, np.ndarray]:
-        """Per inner second difference the left-out markers' summed squared error (NaN where none is seen) and
-        how many markers it sums."""
-        total, frames = np.zeros(n - 2), np.zeros(n - 2, int)
-        for i in range(m):
-            v = values[i][index, :, np.arange(6)].T
-            seen = np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(turned[i]), axis=1)
-            position = np.full((n, 3), np.nan)
-            if seen.any():
-                position[seen] = v[seen, :3] + Rotation.from_rotvec(v[seen, 3:]).apply(turned[i][seen])
-            err = np.diff(position, 2, axis=0) - measured[i]
-            use = inner & np.all(np.isfinite(err), axis=1)
-            total[use] += np.sum(err[use] ** 2, axis=1)
-            frames[use] += 1
-        if not frames.any():
-            raise ValueError("points: no frame inside the record where a left-out marker and the others' pose are "
-                             "seen")
-        return np.where(frames > 0, total, np.nan), frames
 
-    def score(index) -> float:
-        total, frames = losses(index)
-        return float(np.nansum(total) / frames.sum())
-
-    dt = float(np.median(np.diff(t)))
-    common = np.array([score([j] * 6) for j in range(decades.size)])
+def _left_out_descent(score, size: int, sweeps: int) -> tuple[list, np.ndarray]:
+    """The candidate per pose component of the lowest ``score``: the best common candidate, then coordinate
+    descent over the components (at most ``sweeps`` rounds); also the common candidates' scores."""
+    common = np.array([score([j] * 6) for j in range(size)])
     index = [int(np.argmin(common))] * 6
     best = common[index[0]]
     for _ in range(sweeps):
         before = list(index)
         for c in range(6):
-            trial = [score(index[:c] + [j] + index[c + 1:]) for j in range(decades.size)]
+            trial = [score(index[:c] + [j] + index[c + 1:]) for j in range(size)]
             if min(trial) < best:
                 index[c], best = int(np.argmin(trial)), min(trial)
         if index == before:
             break
-    minimum = list(index)
-    if rule == "one_se":
-        index = _one_standard_error_smoothing(index, losses, decades.size)
-    chosen = decades[index]
-    return base * 10.0 ** chosen, {"cross_validation_decades": float(decades[int(np.argmin(common))]),
-                                   "cross_validation_scores": [float(v) for v in np.sqrt(common) / dt ** 2],
-                                   "cross_validation_component_decades": [float(v) for v in chosen],
-                                   "cross_validation_minimum_decades": [float(v) for v in decades[minimum]],
-                                   "cross_validation_score": float(np.sqrt(score(index)) / dt ** 2),
-                                   "cross_validation_markers": m}
+    return index, common
 
 
 #: How many contiguous blocks of the record's frames give the standard error of a difference of left-out
 #: scores (:func:`left_out_score_difference`): the squared errors are correlated over neighbouring frames, the
-#: blocks' means far less.
+#: blocks' means far less. Ten blocks give the standard error nine degrees of freedom; a block must stay longer
+#: than the noise's correlation (a few frames), so a record needs some tens of scored frames (fewer are refused).
 LEFT_OUT_SCORE_BLOCKS = 10
 
 
@@ -2588,8 +2631,8 @@ def left_out_score_difference(losses, reference) -> tuple[float, float]:
     d = np.asarray(losses, float) - np.asarray(reference, float)
     d = d[np.isfinite(d)]
     if d.size < 2 * LEFT_OUT_SCORE_BLOCKS:
-        raise ValueError(f"losses: the standard error of a left-out score difference needs at least "
-                         f"{2 * LEFT_OUT_SCORE_BLOCKS} scored frames, got {d.size}")
+        raise ValueError(f"the one-standard-error rule: the standard error of a left-out score difference needs "
+                         f"at least {2 * LEFT_OUT_SCORE_BLOCKS} scored frames, got {d.size}")
     means = np.array([b.mean() for b in np.array_split(d, LEFT_OUT_SCORE_BLOCKS)])
     return float(d.mean()), float(means.std(ddof=1) / np.sqrt(means.size))
 
