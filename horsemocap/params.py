@@ -390,10 +390,11 @@ class PoseParams:
         markers' rigidity residual shows correlated noise (rho, from the
         residual's frame-to-frame differences, at least 0.3 and more than two
         standard errors, about 4 / sqrt(frames), above zero; no events given),
-        as real systems' filtered trajectories do, a smoothing without
-        harmonics chosen under it: with four or more markers by leaving each
-        marker out in turn and predicting its acceleration from the others'
-        pose, with three by GCV with the noise's AR(1) correlation
+        as real systems' filtered trajectories do, a smoothing chosen under
+        it: with four or more markers by leaving each marker out in turn and
+        predicting its acceleration from the others' pose (without and with
+        the stride's harmonics, the lower left-out error kept), with three,
+        without harmonics, by GCV with the noise's AR(1) correlation
         (``correlated_noise_criterion``); otherwise the noise is taken as
         white, :func:`horsemocap.pose.choose_smoothing`; the choice and its
         reason in the progress output and ``analysis.json``), ``"gcv"`` (quintic, one generalised
@@ -455,8 +456,9 @@ class PoseParams:
         ``"gcv_ar1"``). ``"loo"`` (default): with four or more markers each
         marker is left out in turn and its acceleration predicted from the
         others' pose
-        (:func:`horsemocap.pose.marker_cross_validation_per_component`): a
-        marker's noise is not in that pose, so the criterion measures the
+        (:func:`horsemocap.pose.marker_cross_validation_per_component`; the
+        spline with and without the stride's harmonics, whichever predicts
+        the left-out markers better): a marker's noise is not in that pose, so the criterion measures the
         error directly whatever the noise's correlation over frames, as long
         as the markers' noises are independent of each other; with three
         markers (the other two leave a rotation unseen) the correlated-error
