@@ -262,9 +262,12 @@ def test_the_smoothing_chosen_by_leaving_markers_out_is_made_through_the_apertur
                                       points=pts, fundamental_hz=F0, aperture=aperture)
     choice = fitted.smoothing_choice
     assert "cross_validation" in choice and "fitted through the frames' temporal aperture" in choice["reason"]
-    white = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics="none",
+    # the route the choice took (with or without the stride's harmonics) scales its own white-noise GCV
+    stride_hz = choice["cross_validation"]["fundamental_hz"]
+    white = pose.fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv",
+                                                               harmonics="none" if stride_hz is None else "auto",
                                                                rotation_weights="equal", partial_frames=False),
-                                     iterations=0, aperture=aperture)
+                                     iterations=0, aperture=aperture, fundamental_hz=stride_hz)
     base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
     decades = np.array(choice["cross_validation"]["cross_validation_component_decades"])
     chosen = np.array([s.info["lam"] for s in fitted.centre_splines + fitted.rotvec_splines])
