@@ -1576,7 +1576,8 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
         return _fit_settled_components(t, reg, model, phi, ok, ref, order, settled, params=params,
                                        fundamental_hz=fundamental_hz, lam=lam, sig=sig, points=points,
                                        iterations=iterations, aperture=aperture, two=two)
-    smoothing, f0, choice = _smoothing_choice(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), smoothing, order,
+    components = np.column_stack([reg.centre[ok], phi[ok]])
+    smoothing, f0, choice = _smoothing_choice(t[ok], components, smoothing, order,
                                               params, fundamental_hz, expected_hz,
                                               lam_given=all(v is not None for v in lam),
                                               weighted=reg.information is not None, noise_correlation=rho)
@@ -1585,7 +1586,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
     # registration residual and the marker geometry (isotropic marker noise; pose_noise without the points)
     rot_noise = [None] * 3
     if f0 is not None and params.harmonics == "auto" and rotation_noise_test:
-        rot_noise = [float(v) if np.isfinite(v) else None for v in pose_noise(reg, None, model)[3:]]
+        rot_noise = _rotation_noise(reg, model)
     var = None
     if (params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None
             and not correlated):
@@ -1599,7 +1600,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
             stride_hz = fundamental_hz
             if (LEFT_OUT_HARMONICS and stride_hz is None and params.harmonics != "none" and order == 5
                     and points is not None and np.asarray(model).shape[0] >= 4):
-                stride_hz = _record_fundamental(t[ok], np.column_stack([reg.centre[ok], phi[ok]]), expected_hz)[0]
+                stride_hz = _record_fundamental(t[ok], components, expected_hz)[0]
             lam, harmonic = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture, stride_hz)
             if harmonic is not None:
                 # the stride's harmonics fitted unpenalised: the spline of white noise with the chosen parameters
@@ -1607,7 +1608,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                 spline_options.update(fundamental_hz=harmonic,
                                       events=_pose_events(params.events, smoothing, order, harmonic))
                 if params.harmonics == "auto" and rotation_noise_test:
-                    rot_noise = [float(v) if np.isfinite(v) else None for v in pose_noise(reg, None, model)[3:]]
+                    rot_noise = _rotation_noise(reg, model)
         elif criterion == "reml":
             spline_options["method"] = "reml"
         elif criterion == "risk":
@@ -1617,6 +1618,12 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations)
     return centre, phi, cs, ps, choice, two
+
+
+def _rotation_noise(reg: PoseRegistration, model) -> list:
+    """The three rotation components' noise (None where not finite) predicted from the registration residual
+    and the marker geometry (:func:`pose_noise` without the points): what their harmonics are tested against."""
+    return [float(v) if np.isfinite(v) else None for v in pose_noise(reg, None, model)[3:]]
 
 
 def _aperture_options(spline_options: dict, aperture, order: int, choice):
