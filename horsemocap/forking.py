@@ -16,6 +16,7 @@ import os
 import pickle
 import signal
 import threading
+import warnings
 
 #: Bytes of arguments the writer thread offers the pipe at once (a pipe's buffer on Linux): the unsent
 #: arguments are copied a chunk at a time, not whole.
@@ -89,6 +90,53 @@ def run_beside(tasks) -> list:
     if status == 0 and data:
         out.update(pickle.loads(data))
     return [out[i] if i in out else task() for i, task in enumerate(tasks)]
+
+
+def beside(here, there) -> tuple:
+    """``(here(), there())``, ``there`` computed by a forked copy of this process while this one computes
+    ``here``, where that is safe (:func:`can_fork`).
+
+    The copy computes with the same code and data, so the values are the
+    same either way; only ``there``'s value comes back (pickled), with the
+    warnings it raised, which are raised again here. Elsewhere, or when the
+    copy delivers nothing (an error in ``there``, a value that cannot be
+    pickled), ``there`` is computed here after ``here``, as without a copy:
+    its error is then raised here. An error in ``here`` ends the copy.
+
+    Examples
+    --------
+    >>> beside(lambda: 1 + 1, lambda: 2 * 3)
+    (2, 6)
+    """
+    if not can_fork():
+        return here(), there()
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                     # the copy: compute, send, leave without cleanup
+        def work():
+            os.close(read_end)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                value = there()
+            raised = [(w.message, w.category, w.filename, w.lineno) for w in caught]
+            with os.fdopen(write_end, "wb") as sent:
+                pickle.dump((value, raised), sent)
+        _child(work)
+    os.close(write_end)
+    got = os.fdopen(read_end, "rb")
+    try:
+        # an error here closes the read end before the wait: a copy blocked in sending gets a broken pipe
+        with got:
+            mine = here()
+            data = got.read()
+    finally:
+        _, status = os.waitpid(pid, 0)
+    if status != 0 or not data:
+        return mine, there()
+    value, raised = pickle.loads(data)
+    for message, category, filename, lineno in raised:
+        warnings.warn_explicit(message, category, filename, lineno)
+    return mine, value
 
 
 def fork_call(work) -> int:

@@ -195,8 +195,10 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     -----
     When the rig is calibrated from checkerboard views, the rig step starts
     in a thread at once and runs while the sync step reads the videos (it
-    needs nothing of it); its progress lines may come before the sync's.
-    ``timings["rig"]`` is the step's own duration. The whole run then has
+    needs nothing of it), followed there by the plumb line's and the static
+    shot's steps (:data:`EARLY_STEPS`); the rig's progress lines may come
+    before the sync's, the others' come at their step.
+    ``timings`` of these steps are their own durations. The whole run then has
     one BLAS thread (:data:`horsemocap.threads.blas_single_threaded`).
     """
     session = load_session(session_dir)
@@ -215,57 +217,119 @@ def analyze(session_dir, out_dir=None, params: AnalysisParams | dict | None = No
     # the calibration's one BLAS thread (horsemocap.threads) set here, in the main thread, before
     # the rig's thread starts: its own blocks inside then leave the setting alone
     with blas_single_threaded() if early else contextlib.nullcontext():
-        early_rig = None
+        early_steps = None
         if early:
             progress = _serialised(progress)
-            early_rig = _BackgroundStep(step_rig, session, params.rig, progress,
-                                        cache_dirs=(out_dir, previous_results), board_views=board_views)
+            early_steps = _EarlySteps(analysis, _early_step_names(until), progress,
+                                      cache_dirs=(out_dir, previous_results), board_views=board_views)
         try:
-            _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results, early_rig,
-                       board_views, flash_search, after_step)
+            _run_steps(analysis, store, keys, until, out_dir, write_outputs, progress, previous_results,
+                       early_steps, board_views, flash_search, after_step)
         except BaseException:
             if board_views is not None:
                 board_views.stop()  # an error or Ctrl-C: the rig step waiting for the views ends at once
+            if early_steps is not None:
+                early_steps.stop()  # no step after the one running
             raise
         finally:
-            if early_rig is not None:
-                early_rig.wait()    # never left running: it writes calibration.json into out_dir
+            if early_steps is not None:
+                early_steps.wait()  # never left running: the rig step writes calibration.json into out_dir
     return analysis
 
 
-class _BackgroundStep:
-    """One step run in a thread: the rig's calibration while the sync step reads the videos.
+#: The steps that need nothing of the sync step's result, in the order they run: with a rig calibrated from
+#: checkerboard views they run in a thread while the sync step reads the videos (:class:`_EarlySteps`).
+EARLY_STEPS = ("rig", "plumb", "static")
 
-    The rig step needs nothing of the sync step's result; the board
-    detection's threads and the bundle adjustment then share the processors
-    with the flash search. :meth:`result` gives the step's result or raises
-    its error; ``seconds`` is the step's own duration.
+
+def _early_step_names(until) -> tuple:
+    """The :data:`EARLY_STEPS` a run stopping after ``until`` (None: the whole run) needs."""
+    if until is None or until not in EARLY_STEPS:
+        return EARLY_STEPS
+    return EARLY_STEPS[:EARLY_STEPS.index(until) + 1]
+
+
+class _EarlySteps:
+    """The steps that need nothing of the sync step's result (``names``, of :data:`EARLY_STEPS`), run one
+    after another in a thread while the sync step reads the videos.
+
+    The rig's calibration (the board detection's threads, the bundle
+    adjustment) and the plumb line's and static shot's markers then share
+    the processors with the flash search, or take the core left idle while
+    the sync step waits for it. The rig reports its progress as it goes;
+    the other steps' lines are kept and given when the run reaches the step
+    (:meth:`result`), so they come in the steps' order. A step's error
+    ends the thread there and is raised by :meth:`result` of that step, as
+    the step run in the main thread would raise it; :meth:`stop` ends the
+    thread before its next step.
+
+    ``seconds`` of each step is its own duration, not the wait for it.
     """
 
-    def __init__(self, function, *args, **kwargs):
-        self.seconds = 0.0
-        self._value, self._error = None, None
-        self._thread = threading.Thread(target=self._run, args=(function, args, kwargs),
-                                        name="horsemocap-rig", daemon=True)
+    def __init__(self, analysis: Analysis, names: tuple, progress, **rig_kwargs):
+        self.names = tuple(names)
+        self._analysis = Analysis(analysis.session, analysis.params)   # the thread's own record
+        self._progress, self._rig_kwargs = progress, rig_kwargs
+        self._done: dict = {}                   # step -> (value, error, seconds, kept progress lines)
+        self._stop = threading.Event()
+        self._changed = threading.Condition()
+        self._finished = False
+        self._thread = threading.Thread(target=self._run, name="horsemocap-early-steps", daemon=True)
         self._thread.start()
 
-    def _run(self, function, args, kwargs):
-        t0 = time.perf_counter()
-        try:
-            self._value = function(*args, **kwargs)
-        except BaseException as exc:  # given to the caller by result()
-            self._error = exc
-        finally:
-            self.seconds = time.perf_counter() - t0
+    def _run(self) -> None:
+        for name in self.names:
+            if self._stop.is_set():
+                break
+            lines: list = []
+            report = self._progress if name == "rig" else _kept(lines, self._progress)
+            value, error, t0 = None, None, time.perf_counter()
+            try:
+                if name == "rig":
+                    value = step_rig(self._analysis.session, self._analysis.params.rig, report, **self._rig_kwargs)
+                else:
+                    value = STEP_CALLS[name](self._analysis, report)
+                self._analysis.with_result(name, value)
+            except BaseException as exc:  # raised by result() of this step
+                error = exc
+            with self._changed:
+                self._done[name] = (value, error, time.perf_counter() - t0, lines)
+                self._changed.notify_all()
+            if error is not None:
+                break
+        with self._changed:
+            self._finished = True
+            self._changed.notify_all()
+
+    def result(self, name: str, progress):
+        """``(value, seconds)`` of step ``name`` once the thread has run it, its kept progress lines given to
+        ``progress`` first; its error raised. None when the thread ended without it (stopped)."""
+        with self._changed:
+            self._changed.wait_for(lambda: name in self._done or self._finished)
+            done = self._done.get(name)
+        if done is None:
+            return None
+        value, error, seconds, lines = done
+        for args in lines:
+            progress(*args)
+        if error is not None:
+            raise error
+        return value, seconds
+
+    def stop(self) -> None:
+        """No step after the one running (if any)."""
+        self._stop.set()
 
     def wait(self) -> None:
         self._thread.join()
 
-    def result(self):
-        self.wait()
-        if self._error is not None:
-            raise self._error
-        return self._value
+
+def _kept(lines: list, progress):
+    """A progress callback that keeps its calls in ``lines`` (to be given later), taking counts as ``progress``."""
+    def keep(*args):
+        lines.append(args)
+    keep.counts = getattr(progress, "counts", False)
+    return keep
 
 
 def _serialised(progress):
@@ -282,9 +346,9 @@ def _serialised(progress):
 
 
 def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outputs: bool, progress,
-               previous_results, early_rig, board_views, flash_search=None, after_step=None) -> None:
-    """:func:`analyze`'s loop over the steps (``early_rig``: the rig step already running; ``flash_search``,
-    ``after_step``: as :func:`analyze`'s)."""
+               previous_results, early_steps, board_views, flash_search=None, after_step=None) -> None:
+    """:func:`analyze`'s loop over the steps (``early_steps``: :class:`_EarlySteps` already running, or None;
+    ``flash_search``, ``after_step``: as :func:`analyze`'s)."""
     session, params = analysis.session, analysis.params
     for name in STEPS:
         t0 = time.perf_counter()
@@ -293,9 +357,10 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
             stored = store.load(name, key) if store else None
             if stored is not None:
                 analysis.with_result(name, stored)
-            elif name == "rig" and early_rig is not None:
-                analysis.with_result(name, early_rig.result())
-                t0 = time.perf_counter() - early_rig.seconds      # the step's own time, not the wait
+            elif early_steps is not None and name in early_steps.names and (
+                    done := early_steps.result(name, progress)) is not None:
+                analysis.with_result(name, done[0])
+                t0 = time.perf_counter() - done[1]                # the step's own time, not the wait
             else:
                 if name == "rig":
                     value = step_rig(session, params.rig, progress,

@@ -110,6 +110,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from . import fitting, smoothing
+from .forking import beside
 from .aperture import Aperture
 from .params import FitsParams, RigidBodyParams
 from .probability import f_survival
@@ -1414,20 +1415,25 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     if params.kinematics == "fits":
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
-    traj = fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
-                               aperture=pose_input.aperture,
-                               expected_fundamental_hz=None if not period_s else 1.0 / period_s)
+    def pose_trajectory():
+        return fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
+                                   aperture=pose_input.aperture,
+                                   expected_fundamental_hz=None if not period_s else 1.0 / period_s)
+
+    skipped = (f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}" if pts.shape[1] != 3 else
+               None if thesis_chain else "not asked for (thesis_chain False)")
+    if skipped is None:
+        # the chain needs nothing of the pose trajectory: a forked copy computes it meanwhile, where safe
+        traj, chain = beside(pose_trajectory, lambda: _chain_or_error(chain_inputs))
+    else:
+        traj, chain = pose_trajectory(), None
     psaddle = traj.point(t, s_saddle)
     pmarkers = traj.points(t, model)
     pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
-    if pts.shape[1] != 3:
-        return _pose_only(common, pose, pts, f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}")
-    if not thesis_chain:
-        return _pose_only(common, pose, pts, "not asked for (thesis_chain False)")
-    try:
-        chain = _thesis_chain(*chain_inputs)
-    except (ValueError, np.linalg.LinAlgError) as exc:
-        return _pose_only(common, pose, pts, f"{type(exc).__name__}: {exc}")
+    if skipped is not None:
+        return _pose_only(common, pose, pts, skipped)
+    if isinstance(chain, Exception):
+        return _pose_only(common, pose, pts, f"{type(chain).__name__}: {chain}")
     omega, alpha = traj.omega(t), traj.alpha(t)
     chain.update(omega=omega, alpha=alpha)
     return RigidBodyAnalysis(**common, **chain, **pose, singularity_deg=singularity_angle(chain["pos"], omega))
@@ -1948,6 +1954,15 @@ def _uniform_orders(orders, k):
     if orders is None or np.ndim(orders) != 0:
         return None
     return np.full(k, int(orders))
+
+
+def _chain_or_error(chain_inputs):
+    """:func:`_thesis_chain` of ``chain_inputs``, or the ``ValueError`` / ``LinAlgError`` it raised (the chain
+    then left out, the pose trajectory kept)."""
+    try:
+        return _thesis_chain(*chain_inputs)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        return exc
 
 
 def _thesis_chain(t, pts, model, s_saddle, fits: FitsParams, orders: FourierOrders, period_s, smooth_span,
