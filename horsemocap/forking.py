@@ -96,12 +96,14 @@ def beside(here, there) -> tuple:
     """``(here(), there())``, ``there`` computed by a forked copy of this process while this one computes
     ``here``, where that is safe (:func:`can_fork`).
 
-    The copy computes with the same code and data, so the values are the
-    same either way; only ``there``'s value comes back (pickled), with the
-    warnings it raised, which are raised again here. Elsewhere, or when the
-    copy delivers nothing (an error in ``there``, a value that cannot be
-    pickled), ``there`` is computed here after ``here``, as without a copy:
-    its error is then raised here. An error in ``here`` ends the copy.
+    The copy computes with the same code, data and warning filters, so the
+    values are the same either way; only ``there``'s value comes back
+    (pickled), with the warnings it showed, which are shown again here
+    (:func:`warnings.showwarning`). Elsewhere, or when the copy delivers
+    nothing (an error in ``there``, a value that cannot be sent back, no
+    fork to be had), ``there`` is computed here after ``here``, as without
+    a copy: its error is then raised here. An error in ``here`` (Ctrl-C
+    too) kills the copy.
 
     Examples
     --------
@@ -110,32 +112,43 @@ def beside(here, there) -> tuple:
     """
     if not can_fork():
         return here(), there()
-    read_end, write_end = os.pipe()
-    pid = os.fork()
+    try:
+        read_end, write_end = os.pipe()
+    except OSError:                                  # no file descriptor left: the copy is only a speed-up
+        return here(), there()
+    try:
+        pid = os.fork()
+    except OSError:                                  # the system refuses the copy (its memory, its processes)
+        os.close(read_end)
+        os.close(write_end)
+        return here(), there()
     if pid == 0:                                     # the copy: compute, send, leave without cleanup
         def work():
             os.close(read_end)
             with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
                 value = there()
-            raised = [(w.message, w.category, w.filename, w.lineno) for w in caught]
+            shown = [(w.message, w.category, w.filename, w.lineno) for w in caught]
             with os.fdopen(write_end, "wb") as sent:
-                pickle.dump((value, raised), sent)
+                pickle.dump((value, shown), sent)
         _child(work)
     os.close(write_end)
-    got = os.fdopen(read_end, "rb")
     try:
-        # an error here closes the read end before the wait: a copy blocked in sending gets a broken pipe
-        with got:
+        with os.fdopen(read_end, "rb") as got:
             mine = here()
             data = got.read()
+    except BaseException:
+        os.kill(pid, signal.SIGKILL)                 # its value is not wanted any more
+        raise
     finally:
         _, status = os.waitpid(pid, 0)
-    if status != 0 or not data:
+    try:
+        value, shown = pickle.loads(data) if status == 0 and data else (None, None)
+    except Exception:       # noqa: BLE001 - a value that cannot be read back is computed here
+        shown = None
+    if shown is None:
         return mine, there()
-    value, raised = pickle.loads(data)
-    for message, category, filename, lineno in raised:
-        warnings.warn_explicit(message, category, filename, lineno)
+    for message, category, filename, lineno in shown:
+        warnings.showwarning(message, category, filename, lineno)
     return mine, value
 
 

@@ -258,10 +258,11 @@ class _EarlySteps:
     the processors with the flash search, or take the core left idle while
     the sync step waits for it. The rig reports its progress as it goes;
     the other steps' lines are kept and given when the run reaches the step
-    (:meth:`result`), so they come in the steps' order. A step's error
-    ends the thread there and is raised by :meth:`result` of that step, as
-    the step run in the main thread would raise it; :meth:`stop` ends the
-    thread before its next step.
+    (:meth:`result`), so they come in the steps' order (a warning they
+    raise is shown as it comes). A step's error ends the thread there and
+    is given by :meth:`result` of that step, to be raised as the step run in
+    the main thread would raise it; :meth:`stop` ends the thread before its
+    next step.
 
     ``seconds`` of each step is its own duration, not the wait for it.
     """
@@ -302,8 +303,11 @@ class _EarlySteps:
             self._changed.notify_all()
 
     def result(self, name: str, progress):
-        """``(value, seconds)`` of step ``name`` once the thread has run it, its kept progress lines given to
-        ``progress`` first; its error raised. None when the thread ended without it (stopped)."""
+        """``(value, error, seconds)`` of step ``name`` once the thread has run it (``error`` None or what the
+        step raised), its kept progress lines given to ``progress`` first; None for a step the thread does
+        not run or ended without (stopped)."""
+        if name not in self.names:
+            return None
         with self._changed:
             self._changed.wait_for(lambda: name in self._done or self._finished)
             done = self._done.get(name)
@@ -312,9 +316,7 @@ class _EarlySteps:
         value, error, seconds, lines = done
         for args in lines:
             progress(*args)
-        if error is not None:
-            raise error
-        return value, seconds
+        return value, error, seconds
 
     def stop(self) -> None:
         """No step after the one running (if any)."""
@@ -357,10 +359,12 @@ def _run_steps(analysis: Analysis, store, keys: dict, until, out_dir, write_outp
             stored = store.load(name, key) if store else None
             if stored is not None:
                 analysis.with_result(name, stored)
-            elif early_steps is not None and name in early_steps.names and (
-                    done := early_steps.result(name, progress)) is not None:
-                analysis.with_result(name, done[0])
-                t0 = time.perf_counter() - done[1]                # the step's own time, not the wait
+            elif early_steps is not None and (done := early_steps.result(name, progress)) is not None:
+                value, error, seconds = done
+                t0 = time.perf_counter() - seconds                # the step's own time, not the wait
+                if error is not None:
+                    raise error
+                analysis.with_result(name, value)
             else:
                 if name == "rig":
                     value = step_rig(session, params.rig, progress,

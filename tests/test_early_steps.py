@@ -11,6 +11,17 @@ from horsemocap.data import default_session_dir
 from horsemocap.session import SessionError
 
 
+@pytest.fixture(scope="module")
+def rig_result():
+    """The demo session's rig, computed once: the tests' rig step returns it at once."""
+    return pipeline.analyze(default_session_dir(), until="rig", progress=lambda *a: None).rig
+
+
+@pytest.fixture
+def quick_rig(monkeypatch, rig_result):
+    monkeypatch.setattr(pipeline, "step_rig", lambda *args, **kwargs: rig_result)
+
+
 def _recorded(monkeypatch, name, before=None, after=None):
     """pipeline's ``step_<name>`` wrapped: ``before()`` / ``after()`` around it; returns the threads it ran in."""
     original = getattr(pipeline, f"step_{name}")
@@ -28,27 +39,39 @@ def _recorded(monkeypatch, name, before=None, after=None):
     return threads
 
 
-def test_the_plumb_line_and_static_shot_run_beside_the_sync_step_their_lines_at_their_step(monkeypatch):
+def test_the_plumb_line_and_static_shot_run_beside_the_sync_step_their_lines_at_their_step(monkeypatch, quick_rig):
     plumb = _recorded(monkeypatch, "plumb")
     static = _recorded(monkeypatch, "static")
+    _recorded(monkeypatch, "sync", before=lambda: time.sleep(1.0))     # the stills are done before its lines
     lines = []
     analysis = pipeline.analyze(default_session_dir(), until="static", progress=lambda *a: lines.append(a[0]))
     assert plumb == ["horsemocap-early-steps"] and static == ["horsemocap-early-steps"]
-    steps = [s for s in lines if s != "rig"]          # the rig's lines come as it goes
-    assert steps == sorted(steps, key=pipeline.STEPS.index) and steps[-1] == "plumb"     # the static shot says nothing here
+    assert lines == sorted(lines, key=pipeline.STEPS.index) and lines[-1] == "plumb"   # the static shot: no line
+    assert "sync" in lines
     reference = pipeline.run_steps(analysis.session, analysis.params, analysis, ["plumb", "static"])
     assert analysis.plumb.gravity.tolist() == reference.plumb.gravity.tolist()
     assert analysis.static.static_points.tolist() == reference.static.static_points.tolist()
 
 
-def test_a_step_run_beside_the_sync_step_is_timed_by_its_own_duration(monkeypatch):
+def test_a_step_run_beside_the_sync_step_is_timed_by_its_own_duration(monkeypatch, quick_rig):
     _recorded(monkeypatch, "plumb", before=lambda: time.sleep(0.3))
-    _recorded(monkeypatch, "sync", after=lambda: time.sleep(0.6))
+    _recorded(monkeypatch, "sync", before=lambda: time.sleep(3.0))
     analysis = pipeline.analyze(default_session_dir(), until="plumb", progress=lambda *a: None)
-    assert 0.3 <= analysis.timings["plumb"] < 0.6
+    assert 0.3 <= analysis.timings["plumb"] < 2.0     # not the wait for it (none: it ended during the sync)
 
 
-def test_an_error_of_a_step_run_beside_is_raised_at_its_step_with_the_steps_before(monkeypatch):
+def test_a_step_run_beside_that_fails_is_timed_by_its_own_duration_too(monkeypatch, quick_rig):
+    def refused(*args, **kwargs):
+        time.sleep(0.3)
+        raise SessionError("plumb/left.png: expected 2 plumb-line markers, found 0")
+    monkeypatch.setattr(pipeline, "step_plumb", refused)
+    _recorded(monkeypatch, "sync", before=lambda: time.sleep(3.0))
+    with pytest.raises(SessionError) as caught:
+        pipeline.analyze(default_session_dir(), progress=lambda *a: None)
+    assert 0.3 <= caught.value.partial.timings["plumb"] < 2.0
+
+
+def test_an_error_of_a_step_run_beside_is_raised_at_its_step_with_the_steps_before(monkeypatch, quick_rig):
     def refused(*args, **kwargs):
         raise SessionError("plumb/left.png: expected 2 plumb-line markers, found 0")
     monkeypatch.setattr(pipeline, "step_plumb", refused)
@@ -60,7 +83,7 @@ def test_an_error_of_a_step_run_beside_is_raised_at_its_step_with_the_steps_befo
     assert static == []                               # nothing after the step that failed
 
 
-def test_a_run_that_stops_at_the_rig_runs_no_still_and_an_error_elsewhere_stops_the_thread(monkeypatch):
+def test_a_run_that_stops_at_the_rig_runs_no_still_and_an_error_elsewhere_stops_the_thread(monkeypatch, quick_rig):
     plumb = _recorded(monkeypatch, "plumb")
     pipeline.analyze(default_session_dir(), until="rig", progress=lambda *a: None)
     assert plumb == []
@@ -74,4 +97,4 @@ def test_a_run_that_stops_at_the_rig_runs_no_still_and_an_error_elsewhere_stops_
     static = _recorded(monkeypatch, "static")
     with pytest.raises(SessionError, match="no flash found"):
         pipeline.analyze(default_session_dir(), progress=lambda *a: None)
-    assert static == []                               # stopped before its next step, and waited for
+    assert in_plumb.is_set() and static == []        # stopped before its next step, and waited for
