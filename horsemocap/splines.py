@@ -33,6 +33,8 @@ data alone.
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 from math import factorial
@@ -609,14 +611,51 @@ def robust_svd(a):
         return _lapack_svd(a, full_matrices=False, lapack_driver="gesvd")
 
 
-def _projected_svd(Zw, Q1, yw):
+#: Bytes of the projected bases' SVDs :func:`_projected_svd` keeps (the least recently used dropped first).
+SVD_CACHE_BYTES = 64 * 2 ** 20
+_svd_cache: OrderedDict = OrderedDict()
+_svd_cache_lock = threading.Lock()
+
+
+def _projected_svd(Zw, Q1, yw, key=None):
     """The penalised basis ``Zw`` with the unpenalised columns (orthonormal ``Q1``) projected out, by
     its SVD: singular values ``s`` (the negligible ones dropped), right vectors ``Wt`` and the data's
-    coordinates ``z`` (mixed-model form of :func:`_partial_quintic`)."""
-    V, s, Wt = robust_svd(Zw - Q1 @ (Q1.T @ Zw))
-    keep = s > 1e-12 * s.max()
-    V, s, Wt = V[:, keep], s[keep], Wt[keep]
+    coordinates ``z`` (mixed-model form of :func:`_partial_quintic`).
+
+    ``key``, a hashable that determines ``Zw`` and ``Q1`` (the samples' times and weights, the
+    harmonics, the aperture), keeps the SVD (up to :data:`SVD_CACHE_BYTES`): it does not depend on the
+    data or the smoothing parameter, and a choice that fits the same times at many smoothing parameters
+    (leaving each marker out) would otherwise compute the same SVD again for each. The values are the
+    same bits either way.
+    """
+    with _svd_cache_lock:
+        found = None if key is None else _svd_cache.get(key)
+        if found is not None:
+            _svd_cache.move_to_end(key)
+    if found is None:
+        V, s, Wt = robust_svd(Zw - Q1 @ (Q1.T @ Zw))
+        keep = s > 1e-12 * s.max()
+        found = (V[:, keep], s[keep], Wt[keep])
+        if key is not None:
+            _keep_svd(key, found)
+    V, s, Wt = found
     return s, Wt, V.T @ yw
+
+
+def _keep_svd(key, arrays) -> None:
+    """Keep ``arrays`` (read-only from now on) under ``key``, dropping the least recently used SVDs beyond
+    :data:`SVD_CACHE_BYTES`; an SVD larger than that alone is not kept."""
+    size = sum(a.nbytes for a in arrays)
+    if size > SVD_CACHE_BYTES:
+        return
+    for a in arrays:
+        a.flags.writeable = False
+    with _svd_cache_lock:
+        _svd_cache[key] = arrays
+        total = sum(sum(a.nbytes for a in v) for v in _svd_cache.values())
+        while total > SVD_CACHE_BYTES:
+            _, dropped = _svd_cache.popitem(last=False)
+            total -= sum(a.nbytes for a in dropped)
 
 
 def _mixed_model_coefficients(s, Wt, z, lam, Q1, Rx, yw, Zw, penalty_basis):
@@ -647,12 +686,14 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     n = x.size
     k = 2 * m - 1
     gamma = GCV_GAMMA if gamma is None else gamma
-    knots, B, _, d, U = _basis(np.ascontiguousarray(x, float).tobytes(), m, aperture)
+    x_bytes = np.ascontiguousarray(x, float).tobytes()
+    knots, B, _, d, U = _basis(x_bytes, m, aperture)
     U0, Up, dp = U[:, :m], U[:, m:], np.clip(d[m:], 1e-14 * d[-1], None)
     sw = np.sqrt(w)
     yw = sw * y
     Zw = sw[:, None] * (B @ Up) / np.sqrt(dp)[None]
     X0w = sw[:, None] * (B @ U0)
+    basis_key = (x_bytes, np.ascontiguousarray(w, float).tobytes(), m, aperture)
     t0 = float(x[0])
     best = None
     ZtZ = Zty = None
@@ -666,7 +707,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
             continue                               # harmonics not resolved by the samples
         yq = Q1.T @ yw
         if n <= 2 * Zw.shape[1]:
-            s, Wt, z = _projected_svd(Zw, Q1, yw)
+            s, Wt, z = _projected_svd(Zw, Q1, yw, key=basis_key + (K, float(fundamental_hz) if K else None))
         else:
             # a long record (knots every few samples): the same from the p x p Gram matrix of the
             # projected basis, M^T M = Z^T Z - (Q1^T Z)^T (Q1^T Z); n p^2 once, not an n x p SVD per K
