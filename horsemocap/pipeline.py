@@ -262,9 +262,8 @@ class _EarlySteps:
     raise is shown as it comes). A step's error ends the thread there and
     is given by :meth:`result` of that step, to be raised as the step run in
     the main thread would raise it; :meth:`stop` ends the thread before its
-    next step.
-
-    ``seconds`` of each step is its own duration, not the wait for it.
+    next step. The seconds :meth:`result` gives are the step's own
+    duration, not the wait for it.
     """
 
     def __init__(self, analysis: Analysis, names: tuple, progress, **rig_kwargs):
@@ -286,10 +285,7 @@ class _EarlySteps:
             report = self._progress if name == "rig" else _kept(lines, self._progress)
             value, error, t0 = None, None, time.perf_counter()
             try:
-                if name == "rig":
-                    value = step_rig(self._analysis.session, self._analysis.params.rig, report, **self._rig_kwargs)
-                else:
-                    value = STEP_CALLS[name](self._analysis, report)
+                value = STEP_CALLS[name](self._analysis, report, **(self._rig_kwargs if name == "rig" else {}))
                 self._analysis.with_result(name, value)
             except BaseException as exc:  # raised by result() of this step
                 error = exc

@@ -1420,8 +1420,11 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
                                    aperture=pose_input.aperture,
                                    expected_fundamental_hz=None if not period_s else 1.0 / period_s)
 
-    skipped = (f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}" if pts.shape[1] != 3 else
-               None if thesis_chain else "not asked for (thesis_chain False)")
+    skipped = None                       # why the chain is left out, if it is
+    if pts.shape[1] != 3:
+        skipped = f"it uses three markers (eq. 6.3-6.55); the ride has {pts.shape[1]}"
+    elif not thesis_chain:
+        skipped = "not asked for (thesis_chain False)"
     if skipped is None:
         # the chain needs nothing of the pose trajectory: a forked copy computes it meanwhile, where safe
         traj, chain = beside(pose_trajectory, lambda: _chain_or_error(chain_inputs))
