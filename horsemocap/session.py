@@ -15,7 +15,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sources import check_image_file, FrameSource, SourceError
+from .sources import check_image_file, FrameSource, is_still_image, list_images, SourceError, still_frame_counts
 from .store import MAX_JSON_DEPTH, json_depth, read_text_utf8
 
 FORMAT = "horsemocap-session/1"
@@ -195,6 +195,19 @@ def _check_still(path, field_name, image) -> None:
         raise SessionError(f"{path}: field '{field_name}': {exc}") from None
 
 
+def _check_static_clip(path, static: dict) -> None:
+    """A static clip (a video or a folder of frames per camera) whose cameras all hold the same number of
+    readable frames (:func:`horsemocap.sources.still_frame_counts`), the image files whole; else SessionError."""
+    try:
+        still_frame_counts(static)
+        for cam, p in static.items():
+            if Path(p).is_dir():
+                for image in list_images(p):
+                    check_image_file(image)
+    except SourceError as exc:
+        raise SessionError(f"{path}: field 'static': {exc}") from None
+
+
 def load_session(folder, *, open_sources: bool = True) -> Session:
     """Read and validate ``<folder>/session.json``.
 
@@ -319,11 +332,16 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         _fail(path, "calibration", "a 'rig' file or 'images' + 'board'", cal)
 
     plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
-    static = _camera_paths(path, root, "static", data["static"], cameras, kind="image") if "static" in data else None
+    static = (_camera_paths(path, root, "static", data["static"], cameras,
+                            kind="image, video or folder of frames") if "static" in data else None)
     if open_sources:
-        for field, stills in (("plumb", plumb), ("static", static)):    # not `name`: the session's name
-            for cam, p in (stills or {}).items():
-                _check_still(path, f"{field}.{cam}", p)
+        for cam, p in (plumb or {}).items():
+            _check_still(path, f"plumb.{cam}", p)
+        if static is not None and all(is_still_image(p) for p in static.values()):
+            for cam, p in static.items():
+                _check_still(path, f"static.{cam}", p)
+        elif static is not None:
+            _check_static_clip(path, static)
 
     markers = _require_dict(path, "markers", data["markers"])
     _check_unknown(path, markers, ("count", "diameter_m"), "markers.")
