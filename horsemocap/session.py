@@ -2,7 +2,7 @@
 
 A session folder holds the recordings of one ride: one motion video (or image
 folder) per camera, calibration views or a rig, a plumb still and a static
-still per camera (thesis Appendix A, steps 1-12). :func:`load_session` checks
+still (or a short static clip) per camera (thesis Appendix A, steps 1-12). :func:`load_session` checks
 every field and every path and raises :class:`SessionError` naming the file,
 the field and what was expected.
 """
@@ -219,7 +219,8 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         Also open every motion source (a video must yield a frame; a folder
         must hold images) and check that every plumb and static still is a
         whole image file (a truncated JPEG or PNG is refused naming its
-        field). Frame counts against sync offsets are checked by
+        field), or, a static clip, that every camera's clip holds the same
+        number of frames (:func:`horsemocap.sources.still_frame_counts`). Frame counts against sync offsets are checked by
         :func:`check_frame_counts` once the offsets are known.
 
     Returns
