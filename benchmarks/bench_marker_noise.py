@@ -37,6 +37,7 @@ from horsemocap import accuracy, quality
 from horsemocap.data import cache_dir
 from horsemocap import pipeline
 from horsemocap.pipeline import AnalysisError, analyze
+from horsemocap.reconstruction import triangulate
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.herd import RENDER_VERSION, herd_seed, render_into_cache, short_record
 from horsemocap.virtuallab.horse import saddle_motion
@@ -136,6 +137,23 @@ def static_error_mm(static_points, truth_points) -> np.ndarray:
     return 1000 * err
 
 
+def static_error_from_noise(truth, noise: MarkerNoise, seed: int, frames: int) -> dict:
+    """The static points' error (mm, world) that the marker noise alone makes: the true points projected into
+    every camera, the noise's pixel offsets added, triangulated; for the still (the offsets at time 0), the
+    clip (their mean over its frames' times, as the render draws them) and the biases alone."""
+    points = np.asarray(truth.static_pos, float)
+    noise = dataclasses.replace(noise, frame_rate_hz=FPS)
+    clip_t = noise.static_clip_times(frames, 0.0)
+    offsets = {"still": lambda c: noise.offsets(seed, c, [0.0], len(points))[0],
+               f"clip {frames}": lambda c: noise.offsets(seed, c, clip_t, len(points)).mean(0),
+               "bias only": lambda c: noise.bias(seed, c, len(points))}
+    out = {}
+    for label, offset in offsets.items():
+        px = {cam.name: (cam.project(points) + offset(cam.name))[None] for cam in truth.rig}
+        out[label] = 1000 * (triangulate(truth.rig, px).points[0] - points)
+    return out
+
+
 def static_clip_comparison(noise: MarkerNoise, seconds: float) -> list:
     """Each session with its static shot a still and a clip of ``seconds``: saddle A_y, Wb, Wk errors, the
     static markers' error and the static_shot check."""
@@ -165,6 +183,12 @@ def static_clip_comparison(noise: MarkerNoise, seconds: float) -> list:
                          f"{dist.max():8.1f} {check:7.2f}  {clip}  ({time.perf_counter() - t0:.0f} s)")
             lines.append(f"{'':24s} static error (mm, x y z per point, world): {np.round(err, 1).tolist()}")
             print("\n".join(lines[-2:]), flush=True)
+        model = static_error_from_noise(truth, noise, herd_seed(horse, gait), frames)
+        lines.append(f"{'':24s} the marker noise alone (true points, offsets added, triangulated), mm rms and "
+                     "x y z per point:")
+        lines += [f"{'':26s}{label:10s} {np.sqrt(np.mean(np.sum(e ** 2, -1))):5.1f}  {np.round(e, 1).tolist()}"
+                  for label, e in model.items()]
+        print("\n".join(lines[-4:]), flush=True)
     return lines
 
 
@@ -179,9 +203,12 @@ def main(argv=None):
     args = ap.parse_args(argv)
     noise = MarkerNoise(args.sigma, args.rho, args.bias)
     if args.static_seconds is not None:
-        text = "\n".join(static_clip_comparison(noise, args.static_seconds)) + "\n"
-        (HERE / "results" / "marker_noise_static_clip.txt").write_text(text)
-        print(text)
+        lines = static_clip_comparison(noise, args.static_seconds)
+        path = HERE / "results" / "marker_noise_static_clip.txt"
+        kept = [block for block in (path.read_text().split("\n\n") if path.exists() else [])
+                if block.strip() and block.splitlines()[0] != lines[0]]      # other clip lengths or noises
+        path.write_text("\n\n".join([b.strip("\n") for b in kept] + ["\n".join(lines)]) + "\n")
+        print("\n".join(lines))
         return 0
     if args.trace:
         path = HERE / "results" / "marker_noise.txt"
