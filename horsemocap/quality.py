@@ -914,11 +914,15 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
         msg = what
     elif check.level == "warning":
         msg = (f"{what}: the saddle's acceleration may be off by a few percent through the static shot alone; "
-               "a wider marker triangle or a saddle marker closer to the markers narrows it")
+               "a wider marker triangle, a saddle marker closer to the markers or a longer static clip "
+               "(averaged) narrows it")
     else:
-        msg = (f"{what}: one still cannot place the saddle well enough for its acceleration to be trusted "
-               "within 10 %; spread the markers wider (a thin triangle tilts about its long axis), put the "
-               "saddle marker closer to them, or use cameras seeing the markers from more different directions")
+        shot_is = "one still" if shot.independent_frames <= 1 else "this static clip"
+        msg = (f"{what}: {shot_is} cannot place the saddle well enough for its acceleration to be trusted "
+               "within 10 %; record the static shot as a clip of the horse standing (several seconds, averaged: "
+               "the frame-to-frame noise shrinks, a camera's constant error does not), spread the markers wider "
+               "(a thin triangle tilts about its long axis), put the saddle marker closer to them, or use cameras "
+               "seeing the markers from more different directions")
     return replace(check, message=msg, threshold=threshold)
 
 

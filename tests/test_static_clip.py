@@ -1,6 +1,7 @@
 """The static shot as a short clip of the horse standing: read, checked, averaged, its uncertainty lowered."""
 import json
 import shutil
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -8,8 +9,9 @@ import pytest
 
 from horsemocap.camera import Camera, Rig, read_rig
 from horsemocap.params import StillsParams, TriangulateParams
+from horsemocap.quality import _static_independent_frames, check_static_shot
 from horsemocap.session import SessionError, load_session
-from horsemocap.steps import AnalysisError, step_static, still_params, still_points
+from horsemocap.steps import AnalysisError, StaticResult, step_static, still_params, still_points
 from horsemocap.steps.stills import align_onto, average_static_clip, clip_points, effective_frame_count
 from horsemocap.uncertainty import saddle_acceleration_sensitivity, static_shot_uncertainty
 from horsemocap.virtuallab.session import render_session
@@ -206,3 +208,23 @@ def test_the_static_shots_uncertainty_falls_with_the_square_root_of_the_independ
     assert four.pct_of_rms == pytest.approx(one.pct_of_rms / 2, rel=1e-12)
     with pytest.raises(ValueError, match="independent_frames"):
         static_shot_uncertainty(rig, still, [0, 1, 2], 3, np.eye(3), 0.2, G, ay, independent_frames=0.5)
+
+
+def test_the_static_shot_check_reads_the_clips_independent_frames_and_says_so():
+    still = StaticResult(static_points=SHAPE, static_px=None)
+    clip = StaticResult(static_points=SHAPE, static_px=None, frames_used=60, effective_frames=11.0)
+    assert _static_independent_frames(SimpleNamespace(static=still)) == 1.0
+    assert _static_independent_frames(SimpleNamespace(static=clip)) == 11.0
+    K = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    rig = Rig((Camera("left", (640, 480), K), Camera("right", (640, 480), K, translation=[-0.5, 0, 0])))
+    world = np.array([[-0.3, 0, 3.0], [0.3, 0, 3.0], [0, -0.05, 3.0], [0, 0.3, 3.0]])
+    t = np.arange(50) / 50
+    alpha = np.zeros((50, 3))
+    alpha[:, 0] = 20 * np.sin(2 * np.pi * 2 * t)
+    G = saddle_acceleration_sensitivity(np.zeros((50, 3)), alpha, np.repeat(np.eye(3)[None], 50, 0))
+    shot = static_shot_uncertainty(rig, world, [0, 1, 2], 3, np.eye(3), 0.2, G, 5 * np.sin(2 * np.pi * 2 * t),
+                                   independent_frames=11.0)
+    check = check_static_shot(shot)
+    assert check.figure == pytest.approx(shot.pct_of_rms)
+    assert "averaged over a clip worth 11.0 independent frames" in check.message
+    assert "constant centroid error is not averaged away" in check.message
