@@ -195,17 +195,17 @@ def _check_still(path, field_name, image) -> None:
         raise SessionError(f"{path}: field '{field_name}': {exc}") from None
 
 
-def _check_static_clip(path, static: dict) -> None:
-    """A static clip (a video or a folder of frames per camera) whose cameras all hold the same number of
-    readable frames (:func:`horsemocap.sources.still_frame_counts`), the image files whole; else SessionError."""
+def _check_clip(path, field_name: str, clips: dict) -> None:
+    """A plumb or static clip (a video or a folder of frames per camera) whose cameras all hold the same number
+    of readable frames (:func:`horsemocap.sources.still_frame_counts`), the image files whole; else SessionError."""
     try:
-        still_frame_counts(static)
-        for cam, p in static.items():
+        still_frame_counts(clips)
+        for cam, p in clips.items():
             if Path(p).is_dir():
                 for image in list_images(p):
                     check_image_file(image)
     except SourceError as exc:
-        raise SessionError(f"{path}: field 'static': {exc}") from None
+        raise SessionError(f"{path}: field '{field_name}': {exc}") from None
 
 
 def load_session(folder, *, open_sources: bool = True) -> Session:
@@ -219,7 +219,7 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         Also open every motion source (a video must yield a frame; a folder
         must hold images) and check that every plumb and static still is a
         whole image file (a truncated JPEG or PNG is refused naming its
-        field), or, a static clip, that every camera's clip holds the same
+        field), or, a plumb or static clip, that every camera's clip holds the same
         number of frames (:func:`horsemocap.sources.still_frame_counts`). Frame counts against sync offsets are checked by
         :func:`check_frame_counts` once the offsets are known.
 
@@ -332,17 +332,16 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     if rig_path is None and images is None:
         _fail(path, "calibration", "a 'rig' file or 'images' + 'board'", cal)
 
-    plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
-    static = (_camera_paths(path, root, "static", data["static"], cameras,
-                            kind="image, video or folder of frames") if "static" in data else None)
+    stills = {key: _camera_paths(path, root, key, data[key], cameras, kind="image, video or folder of frames")
+              for key in ("plumb", "static") if key in data}
+    plumb, static = stills.get("plumb"), stills.get("static")
     if open_sources:
-        for cam, p in (plumb or {}).items():
-            _check_still(path, f"plumb.{cam}", p)
-        if static is not None and all(is_still_image(p) for p in static.values()):
-            for cam, p in static.items():
-                _check_still(path, f"static.{cam}", p)
-        elif static is not None:
-            _check_static_clip(path, static)
+        for key, paths in stills.items():     # not `name`: the session's name
+            if all(is_still_image(p) for p in paths.values()):
+                for cam, p in paths.items():
+                    _check_still(path, f"{key}.{cam}", p)
+            else:
+                _check_clip(path, key, paths)
 
     markers = _require_dict(path, "markers", data["markers"])
     _check_unknown(path, markers, ("count", "diameter_m"), "markers.")

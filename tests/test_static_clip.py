@@ -11,7 +11,7 @@ from horsemocap.camera import Camera, Rig, read_rig
 from horsemocap.params import StillsParams, TriangulateParams
 from horsemocap.quality import _static_independent_frames, check_static_shot
 from horsemocap.session import SessionError, load_session
-from horsemocap.steps import AnalysisError, StaticResult, step_static, still_params, still_points
+from horsemocap.steps import AnalysisError, StaticResult, step_plumb, step_static, still_params, still_points
 from horsemocap.steps.stills import align_onto, average_static_clip, clip_points, effective_frame_count
 from horsemocap.uncertainty import saddle_acceleration_sensitivity, static_shot_uncertainty
 from horsemocap.virtuallab.session import render_session
@@ -39,22 +39,22 @@ def still_session(tmp_path_factory):
                           noise=False, compress=False)
 
 
-def _with_static(still_session, tmp_path, frames_per_camera: dict):
-    """A copy of ``still_session``'s session.json whose static shot is a folder of frames per camera:
-    ``frames_per_camera[camera]`` lists the frames, each the still (``"still"``) or a blank image (``"blank"``)."""
+def _with_static(still_session, tmp_path, frames_per_camera: dict, kind: str = "static"):
+    """A copy of ``still_session``'s session.json whose static shot (or plumb, ``kind``) is a folder of frames per
+    camera: ``frames_per_camera[camera]`` lists the frames, each the still (``"still"``) or a blank image."""
     root = tmp_path / "ride"
     root.mkdir()
     doc = json.loads((still_session / "session.json").read_text())
-    for key in ("motion", "plumb"):
+    for key in ("motion", "plumb", "static"):
         doc[key] = {c: str(still_session / p) for c, p in doc[key].items()}
     doc["calibration"] = {"rig": str(still_session / "calibration" / "rig.toml")}
     for cam in CAMS:
-        folder = root / "static" / cam
+        folder = root / kind / cam
         folder.mkdir(parents=True)
-        still = cv2.imread(str(still_session / "static" / f"{cam}.png"))
-        for k, kind in enumerate(frames_per_camera[cam]):
-            cv2.imwrite(str(folder / f"{cam}{k}.png"), still if kind == "still" else np.zeros_like(still))
-    doc["static"] = {c: f"static/{c}" for c in CAMS}
+        still = cv2.imread(str(still_session / kind / f"{cam}.png"))
+        for k, frame in enumerate(frames_per_camera[cam]):
+            cv2.imwrite(str(folder / f"{cam}{k}.png"), still if frame == "still" else np.zeros_like(still))
+    doc[kind] = {c: f"{kind}/{c}" for c in CAMS}
     (root / "session.json").write_text(json.dumps(doc))
     return root
 
@@ -228,3 +228,17 @@ def test_the_static_shot_check_reads_the_clips_independent_frames_and_says_so():
     assert check.figure == pytest.approx(shot.pct_of_rms)
     assert "averaged over a clip worth 11.0 independent frames" in check.message
     assert "constant centroid error is not averaged away" in check.message
+
+
+def test_a_plumb_clip_averages_to_the_stills_gravity_its_blank_frame_counted(still_session, tmp_path):
+    mode = TriangulateParams().mode
+    session = load_session(still_session)
+    rig = read_rig(session.rig_path)
+    still = step_plumb(session, StillsParams(), rig, mode, _quiet)
+    frames = {c: ["still", "blank" if c == "left" else "still", "still"] for c in CAMS}
+    clip_session = load_session(_with_static(still_session, tmp_path, frames, kind="plumb"))
+    clip = step_plumb(clip_session, StillsParams(), rig, mode, _quiet)
+    assert still.frames_used is None and clip.frames_used == 2
+    assert [f for f, _ in clip.frames_left_out] == [1] and "markers not found" in clip.frames_left_out[0][1]
+    assert np.allclose(clip.plumb_points, still.plumb_points, atol=1e-12, rtol=0)
+    assert np.allclose(clip.gravity, still.gravity, atol=1e-12, rtol=0)

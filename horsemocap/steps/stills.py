@@ -40,11 +40,17 @@ class PlumbResult(StepResult):
         Camera -> (2, 2) their centroids (px).
     gravity : (3,) array
         Unit vector of gravity (downward) in the world frame.
+    frames_used : int or None
+        A clip of the plumb line: the frames averaged (None: one still per camera).
+    frames_left_out : tuple
+        A clip: ``(frame, reason)`` of every frame not averaged.
     """
 
     plumb_points: np.ndarray
     plumb_px: dict
     gravity: np.ndarray
+    frames_used: int | None = None
+    frames_left_out: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -400,16 +406,29 @@ def clip_points(session: Session, rig: Rig, clips: dict, count: int, step: str, 
 
 
 def step_plumb(session: Session, section: StillsParams, rig: Rig, triangulation: str, progress) -> PlumbResult:
-    """Gravity from the plumb line's two markers (section 5.3), triangulated as ``triangulation`` says."""
+    """Gravity from the plumb line's two markers (section 5.3), triangulated as ``triangulation`` says: of one
+    still per camera, or their mean over a clip's frames (:func:`clip_points`)."""
     if session.plumb is None:
         raise AnalysisError("plumb", f"{session.json_path}: no 'plumb' stills; gravity cannot be found")
-    pts, px = still_points(session, rig, session.plumb, 2, "plumb", triangulation,
-                           still_params(section, "plumb", session.cameras))
+    given = still_params(section, "plumb", session.cameras)
+    used, left_out = None, ()
+    if all(is_still_image(p) for p in session.plumb.values()):
+        pts, px = still_points(session, rig, session.plumb, 2, "plumb", triangulation, given)
+    else:       # a clip: the line hangs still, each marker's mean over the frames where both were found
+        points, px_all, reasons = clip_points(session, rig, session.plumb, 2, "plumb", triangulation, given)
+        ok = np.isfinite(points).all(axis=(1, 2))
+        if not ok.any():
+            raise AnalysisError("plumb", f"{', '.join(str(session.plumb[c]) for c in session.cameras)}: no frame "
+                                         f"of the {len(points)}-frame plumb clip gave both markers: " +
+                                "; ".join(f"frame {f}: {r}" for f, r in sorted(reasons.items())[:3]))
+        pts, px = points[ok].mean(0), {c: v[ok].mean(0) for c, v in px_all.items()}
+        used, left_out = int(ok.sum()), tuple(sorted(reasons.items()))
+        progress("plumb", f"clip of {len(points)} frames: {used} averaged, {len(left_out)} left out")
     # the still's two markers come top first (image v): the upper one is the tail, the lower one
     # the tip, and gravity points from tail to tip (down)
     gravity = gravity_from_plumb(tip_world=pts[1], tail_world=pts[0])
     progress("plumb", f"gravity {np.round(gravity, 4).tolist()}")
-    return PlumbResult(plumb_points=pts, plumb_px=px, gravity=gravity)
+    return PlumbResult(plumb_points=pts, plumb_px=px, gravity=gravity, frames_used=used, frames_left_out=left_out)
 
 
 def step_static(session: Session, section: StillsParams, rig: Rig, triangulation: str, progress) -> StaticResult:
