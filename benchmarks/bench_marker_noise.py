@@ -13,7 +13,11 @@ Usage: ``python benchmarks/bench_marker_noise.py [--sigma 0.3 --rho 0.8 --bias 0
 from, appended to that file: each session also with the static shot replaced by
 its true markers, with the analysed frames' triangulated markers replaced by
 the true ones (the static shot as measured), and the static shot's error per
-point.
+point. ``--static-seconds S``: each session also with its static shot a clip of
+``S`` seconds of the horse standing (its marker noise evolving over the clip),
+averaged by the static step; the still and the clip side by side, with the
+static markers' error against the truth (writes
+``benchmarks/results/marker_noise_static_clip.txt``).
 """
 from __future__ import annotations
 
@@ -27,10 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from horsemocap import accuracy
+from scipy.optimize import linear_sum_assignment
+
+from horsemocap import accuracy, quality
 from horsemocap.data import cache_dir
 from horsemocap import pipeline
 from horsemocap.pipeline import AnalysisError, analyze
+from horsemocap.reconstruction import triangulate
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.herd import RENDER_VERSION, herd_seed, render_into_cache, short_record
 from horsemocap.virtuallab.horse import saddle_motion
@@ -43,10 +50,13 @@ SESSIONS = (("Horse 2", "canter"), ("Horse 2", "sitting_trot"))
 KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms")
 
 
-def noisy_session(horse: str, gait: str, noise: MarkerNoise) -> Path:
-    """A short herd record with ``noise``, rendered into the cache on first use."""
-    blob = json.dumps({"v": RENDER_VERSION, "h": horse, "g": gait, "noise": noise.to_dict(), "strides": 3},
-                      sort_keys=True)
+def noisy_session(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1) -> Path:
+    """A short herd record with ``noise``, rendered into the cache on first use; ``static_frames`` > 1: its
+    static shot a clip of that many frames (``render_session(static_frames=...)``)."""
+    spec = {"v": RENDER_VERSION, "h": horse, "g": gait, "noise": noise.to_dict(), "strides": 3}
+    if static_frames != 1:
+        spec["static_frames"] = int(static_frames)
+    blob = json.dumps(spec, sort_keys=True)
     key = hashlib.sha256(blob.encode()).hexdigest()[:12]
     folder = cache_dir() / "virtuallab" / f"marker-noise_{horse.lower().replace(' ', '')}_{gait}-{key}"
     seed = herd_seed(horse, gait)
@@ -55,7 +65,7 @@ def noisy_session(horse: str, gait: str, noise: MarkerNoise) -> Path:
         scene = Scene(thesis_rig(), saddle_motion(horse, gait), seed)
         offsets, n_after = short_record(scene, FPS, 8, None, strides=3.0)
         render_session(tmp, horse, gait, seed=seed, calibration_views=0, n_motion_frames=n_after,
-                       name=f"marker_noise_{gait}", marker_noise=noise)
+                       name=f"marker_noise_{gait}", marker_noise=noise, static_frames=static_frames)
 
     return render_into_cache(folder, render, "benchmarks/bench_marker_noise.py")
 
@@ -117,14 +127,89 @@ def trace(noise: MarkerNoise) -> list:
     return lines
 
 
+def static_error_mm(static_points, truth_points) -> np.ndarray:
+    """Each true static point's error (mm, world x y z), the measured points paired with the true ones by least
+    total distance."""
+    measured, true = np.asarray(static_points, float), np.asarray(truth_points, float)
+    rows, cols = linear_sum_assignment(np.linalg.norm(measured[:, None] - true[None], axis=-1))
+    err = np.full_like(true, np.nan)
+    err[cols] = measured[rows] - true[cols]
+    return 1000 * err
+
+
+def static_error_from_noise(truth, noise: MarkerNoise, seed: int, frames: int) -> dict:
+    """The static points' error (mm, world) that the marker noise alone makes: the true points projected into
+    every camera, the noise's pixel offsets added, triangulated; for the still (the offsets at time 0), the
+    clip (their mean over its frames' times, as the render draws them) and the biases alone."""
+    points = np.asarray(truth.static_pos, float)
+    noise = dataclasses.replace(noise, frame_rate_hz=FPS)
+    clip_t = noise.static_clip_times(frames, 0.0)
+    offsets = {"still": lambda c: noise.offsets(seed, c, [0.0], len(points))[0],
+               f"clip {frames}": lambda c: noise.offsets(seed, c, clip_t, len(points)).mean(0),
+               "bias only": lambda c: noise.bias(seed, c, len(points))}
+    out = {}
+    for label, offset in offsets.items():
+        px = {cam.name: (cam.project(points) + offset(cam.name))[None] for cam in truth.rig}
+        out[label] = 1000 * (triangulate(truth.rig, px).points[0] - points)
+    return out
+
+
+def static_clip_comparison(noise: MarkerNoise, seconds: float) -> list:
+    """Each session with its static shot a still and a clip of ``seconds``: saddle A_y, Wb, Wk errors, the
+    static markers' error and the static_shot check."""
+    frames = max(2, int(round(seconds * FPS)))
+    lines = [f"Static shot as a still or a clip of {frames} frames ({seconds:g} s at {FPS:g} fps), averaged; marker "
+             f"noise {noise.to_dict()} (3 strides, genlocked, pipeline defaults)",
+             f"{'session':24s} {'static':14s} {'A_y_%':>6s} {'Wb_%':>6s} {'Wk_%':>6s} {'static_rms_mm':>13s} "
+             f"{'worst_mm':>8s} {'check_%':>7s}  clip: frames used / independent, scatter mm, lag-1"]
+    for horse, gait in SESSIONS:
+        for label, count in (("still", 1), (f"clip {frames}", frames)):
+            t0 = time.perf_counter()
+            folder = noisy_session(horse, gait, noise, count)
+            a = analyze(folder, None, {}, progress=lambda *x: None)
+            truth = load_truth(folder)
+            st = accuracy.stage_errors(a, truth)
+            ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, KEYS)
+            err = static_error_mm(a.static.static_points, truth.static_pos)
+            dist = np.linalg.norm(err, axis=-1)
+            shot = quality.static_shot_of(a)
+            check = getattr(shot, "pct_of_rms", float("nan"))
+            clip = ""
+            if a.static.frames_used is not None:
+                clip = (f"{a.static.frames_used} / {a.static.effective_frames:.1f}, "
+                        f"{np.round(1000 * a.static.scatter_m, 1).tolist()}, {a.static.scatter_lag1:.2f}")
+            lines.append(f"{horse + ' ' + gait:24s} {label:14s} {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} "
+                         f"{ce[KEYS[0]]:6.1f} {ce[KEYS[1]]:6.1f} {np.sqrt(np.mean(dist ** 2)):13.1f} "
+                         f"{dist.max():8.1f} {check:7.2f}  {clip}  ({time.perf_counter() - t0:.0f} s)")
+            lines.append(f"{'':24s} static error (mm, x y z per point, world): {np.round(err, 1).tolist()}")
+            print("\n".join(lines[-2:]), flush=True)
+        model = static_error_from_noise(truth, noise, herd_seed(horse, gait), frames)
+        lines.append(f"{'':24s} the marker noise alone (true points, offsets added, triangulated), mm rms and "
+                     "x y z per point:")
+        lines += [f"{'':26s}{label:10s} {np.sqrt(np.mean(np.sum(e ** 2, -1))):5.1f}  {np.round(e, 1).tolist()}"
+                  for label, e in model.items()]
+        print("\n".join(lines[-4:]), flush=True)
+    return lines
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sigma", type=float, default=0.3, help="AR(1) part's standard deviation per axis (px)")
     ap.add_argument("--rho", type=float, default=0.8, help="its lag-1 autocorrelation")
     ap.add_argument("--bias", type=float, default=0.2, help="per-marker bias standard deviation per axis (px)")
     ap.add_argument("--trace", action="store_true", help="where the error comes from (appended to the results)")
+    ap.add_argument("--static-seconds", type=float, default=None,
+                    help="also a static clip of this length (s), averaged: results/marker_noise_static_clip.txt")
     args = ap.parse_args(argv)
     noise = MarkerNoise(args.sigma, args.rho, args.bias)
+    if args.static_seconds is not None:
+        lines = static_clip_comparison(noise, args.static_seconds)
+        path = HERE / "results" / "marker_noise_static_clip.txt"
+        kept = [block for block in (path.read_text().split("\n\n") if path.exists() else [])
+                if block.strip() and block.splitlines()[0] != lines[0]]      # other clip lengths or noises
+        path.write_text("\n\n".join([b.strip("\n") for b in kept] + ["\n".join(lines)]) + "\n")
+        print("\n".join(lines))
+        return 0
     if args.trace:
         path = HERE / "results" / "marker_noise.txt"
         old = path.read_text().split("\n" + TRACE_HEADER)[0].rstrip("\n") + "\n" if path.exists() else ""

@@ -44,7 +44,7 @@ import numpy as np
 from .detection.timeshift import MIN_CURRENT_PX, MISS_PX
 from .frames import HORSE_STRIDE_HZ
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
-from .sources import FrameSource, read_image
+from .sources import FrameSource, read_still
 from .steps.base import longest_run
 from .uncertainty import (StaticShotRefused, StaticShotUncertainty, static_shot_uncertainty,
                           written_saddle_sensitivity)
@@ -465,7 +465,7 @@ def _image_sizes(session, rig_cams) -> dict:
         sizes[(cam, session.motion[cam])] = (f.shape[1], f.shape[0])
         for group in (session.plumb, session.static):
             if group:
-                img = read_image(group[cam], color=False)
+                img = read_still(group[cam], color=False)
                 sizes[(cam, group[cam])] = (img.shape[1], img.shape[0])
     return sizes
 
@@ -903,7 +903,10 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
     check = range_check("static_shot", shot.pct_of_rms, "%", (None, ok), (None, warn), input_,
                         "the static shot's share of the saddle vertical acceleration's error")
     weighted = "".join(f", {w} rms {v:.1f} %" for w, v in shot.weighted_pct.items() if np.isfinite(v))
-    what = (f"the still's pixel noise ({shot.noise_px:.3g} px, measured on the moving frames) places the saddle "
+    averaged = (f" averaged over a clip worth {shot.independent_frames:.1f} independent frames (a camera's "
+                "constant centroid error is not averaged away)" if shot.independent_frames > 1 else "")
+    what = (f"the still's pixel noise ({shot.noise_px:.3g} px, measured on the moving frames{averaged}) places "
+            f"the saddle "
             f"with standard deviations {', '.join(f'{1000 * v:.1f}' for v in shot.offset_sd_m)} mm (x, y, z) "
             f"relative to the markers, which moves its vertical acceleration by {shot.sd:.3g} m/s^2 rms, "
             f"{shot.pct_of_rms:.1f} % of its {shot.rms:.3g} m/s^2 (one standard deviation{weighted})")
@@ -911,11 +914,15 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
         msg = what
     elif check.level == "warning":
         msg = (f"{what}: the saddle's acceleration may be off by a few percent through the static shot alone; "
-               "a wider marker triangle or a saddle marker closer to the markers narrows it")
+               "a wider marker triangle, a saddle marker closer to the markers or a longer static clip "
+               "(averaged) narrows it")
     else:
-        msg = (f"{what}: one still cannot place the saddle well enough for its acceleration to be trusted "
-               "within 10 %; spread the markers wider (a thin triangle tilts about its long axis), put the "
-               "saddle marker closer to them, or use cameras seeing the markers from more different directions")
+        shot_is = "one still" if shot.independent_frames <= 1 else "this static clip"
+        msg = (f"{what}: {shot_is} cannot place the saddle well enough for its acceleration to be trusted "
+               "within 10 %; record the static shot as a clip of the horse standing (several seconds, averaged: "
+               "the frame-to-frame noise shrinks, a camera's constant error does not), spread the markers wider "
+               "(a thin triangle tilts about its long axis), put the saddle marker closer to them, or use cameras "
+               "seeing the markers from more different directions")
     return replace(check, message=msg, threshold=threshold)
 
 
@@ -1006,9 +1013,17 @@ def static_shot_of(analysis) -> StaticShotUncertainty | StaticShotSkipped:
         G = written_saddle_sensitivity(rb.body, static_model)
         return static_shot_uncertainty(analysis.rig.rig, world, rb.static_order, rb.saddle_index, axes,
                                        tri.noise_px, G, written_saddle_acceleration(analysis),
-                                       fs=float(analysis.session.fps), seen=_still_seen(analysis))
+                                       fs=float(analysis.session.fps), seen=_still_seen(analysis),
+                                       independent_frames=_static_independent_frames(analysis))
     except StaticShotRefused as exc:       # the documented refusals; any other error is a fault, raised
         return StaticShotSkipped(str(exc))
+
+
+def _static_independent_frames(analysis) -> float:
+    """The independent frames the static shot averages (a clip, :class:`~horsemocap.steps.StaticResult`
+    ``effective_frames``), 1 for one still per camera."""
+    frames = getattr(analysis.static, "effective_frames", None)
+    return 1.0 if frames is None else float(frames)
 
 
 def _still_seen(analysis) -> dict | None:

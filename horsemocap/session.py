@@ -2,7 +2,7 @@
 
 A session folder holds the recordings of one ride: one motion video (or image
 folder) per camera, calibration views or a rig, a plumb still and a static
-still per camera (thesis Appendix A, steps 1-12). :func:`load_session` checks
+still (or a short static clip) per camera (thesis Appendix A, steps 1-12). :func:`load_session` checks
 every field and every path and raises :class:`SessionError` naming the file,
 the field and what was expected.
 """
@@ -15,7 +15,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sources import check_image_file, FrameSource, SourceError
+from .sources import check_image_file, FrameSource, is_still_image, list_images, SourceError, still_frame_counts
 from .store import MAX_JSON_DEPTH, json_depth, read_text_utf8
 
 FORMAT = "horsemocap-session/1"
@@ -195,6 +195,19 @@ def _check_still(path, field_name, image) -> None:
         raise SessionError(f"{path}: field '{field_name}': {exc}") from None
 
 
+def _check_clip(path, field_name: str, clips: dict) -> None:
+    """A plumb or static clip (a video or a folder of frames per camera) whose cameras all hold the same number
+    of readable frames (:func:`horsemocap.sources.still_frame_counts`), the image files whole; else SessionError."""
+    try:
+        still_frame_counts(clips)
+        for cam, p in clips.items():
+            if Path(p).is_dir():
+                for image in list_images(p):
+                    check_image_file(image)
+    except SourceError as exc:
+        raise SessionError(f"{path}: field '{field_name}': {exc}") from None
+
+
 def load_session(folder, *, open_sources: bool = True) -> Session:
     """Read and validate ``<folder>/session.json``.
 
@@ -206,7 +219,8 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
         Also open every motion source (a video must yield a frame; a folder
         must hold images) and check that every plumb and static still is a
         whole image file (a truncated JPEG or PNG is refused naming its
-        field). Frame counts against sync offsets are checked by
+        field), or, a plumb or static clip, that every camera's clip holds the same
+        number of frames (:func:`horsemocap.sources.still_frame_counts`). Frame counts against sync offsets are checked by
         :func:`check_frame_counts` once the offsets are known.
 
     Returns
@@ -318,12 +332,16 @@ def load_session(folder, *, open_sources: bool = True) -> Session:
     if rig_path is None and images is None:
         _fail(path, "calibration", "a 'rig' file or 'images' + 'board'", cal)
 
-    plumb = _camera_paths(path, root, "plumb", data["plumb"], cameras, kind="image") if "plumb" in data else None
-    static = _camera_paths(path, root, "static", data["static"], cameras, kind="image") if "static" in data else None
+    stills = {key: _camera_paths(path, root, key, data[key], cameras, kind="image, video or folder of frames")
+              for key in ("plumb", "static") if key in data}
+    plumb, static = stills.get("plumb"), stills.get("static")
     if open_sources:
-        for field, stills in (("plumb", plumb), ("static", static)):    # not `name`: the session's name
-            for cam, p in (stills or {}).items():
-                _check_still(path, f"{field}.{cam}", p)
+        for key, paths in stills.items():     # not `name`: the session's name
+            if all(is_still_image(p) for p in paths.values()):
+                for cam, p in paths.items():
+                    _check_still(path, f"{key}.{cam}", p)
+            else:
+                _check_clip(path, key, paths)
 
     markers = _require_dict(path, "markers", data["markers"])
     _check_unknown(path, markers, ("count", "diameter_m"), "markers.")

@@ -803,6 +803,82 @@ class FrameSequence:
             pass
 
 
+def is_still_image(path) -> bool:
+    """Whether a still source (``static`` / ``plumb`` of a session) is one image file, not a clip.
+
+    An image file is a file whose suffix is an image's (:data:`IMAGE_SUFFIXES`);
+    a folder (of frames) or any other file (a video) is a clip.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> _ = (folder / "left.png").write_bytes(b"")
+    >>> is_still_image(folder / "left.png"), is_still_image(folder)
+    (True, False)
+    """
+    p = Path(path)
+    return not p.is_dir() and p.suffix.lower() in IMAGE_SUFFIXES
+
+
+def still_frame_counts(paths: dict) -> dict:
+    """Camera -> frames of a still source per camera (1 for an image file, :class:`FrameSource`'s count for a
+    clip), checked: every camera's source must be the same kind, with the same number of frames.
+
+    Raises :class:`SourceError` naming every camera's file and its count when they differ, or the file that
+    is not a readable image, video or folder of images.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> root = Path(tempfile.mkdtemp())
+    >>> for cam, n in (("left", 3), ("right", 2)):
+    ...     (root / cam).mkdir()
+    ...     for k in range(n):
+    ...         _ = cv2.imwrite(str(root / cam / f"{cam}{k}.png"), np.zeros((4, 4), np.uint8))
+    >>> still_frame_counts({"left": root / "left"})
+    {'left': 3}
+    >>> try:
+    ...     still_frame_counts({"left": root / "left", "right": root / "right"})
+    ... except SourceError as exc:
+    ...     print(str(exc).replace(str(root), "ROOT"))
+    a clip has one frame count in every camera (the cameras record the same instants), and a still is an image in every camera: 'left' ROOT/left 3 frames, 'right' ROOT/right 2 frames
+    """
+    counts = {}
+    for cam, path in paths.items():
+        path = Path(path)
+        if is_still_image(path):
+            counts[cam] = 1
+            continue
+        source = FrameSource(path)
+        source.check_whole()
+        counts[cam] = len(source)
+        if counts[cam] == 0:
+            raise SourceError(f"{path}: a clip with no frame (expected the horse standing, every marker in view)")
+    kinds = {is_still_image(p) for p in paths.values()}
+    if len(kinds) > 1 or len(set(counts.values())) > 1:
+        listed = ", ".join(f"'{c}' {paths[c]} {'an image' if is_still_image(paths[c]) else f'{counts[c]} frames'}"
+                           for c in paths)
+        raise SourceError(f"a clip has one frame count in every camera (the cameras record the same instants), "
+                          f"and a still is an image in every camera: {listed}")
+    return counts
+
+
+def read_still(path, color: bool = True) -> np.ndarray:
+    """A still source's image: the image file, or a clip's first frame (its size is the camera's)."""
+    if is_still_image(path):
+        return read_image(path, color)
+    return FrameSource(Path(path)).frame(0, color)
+
+
+def still_frames(path, color: bool = True):
+    """Yield ``(index, frame)`` of a still source: ``(0, image)`` for an image file, every frame of a clip."""
+    if is_still_image(path):
+        yield 0, read_image(path, color)
+        return
+    yield from FrameSource(Path(path)).iter_frames(0, None, color)
+
+
 def field_image(frame: np.ndarray, parity: int) -> np.ndarray:
     """One field of an interlaced frame at the frame's size: its rows where they are, the other field's
     rows filled in between them.

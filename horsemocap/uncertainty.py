@@ -78,6 +78,10 @@ class StaticShotUncertainty:
     weighted_pct : dict
         Weighting name (``Wb``, ``Wk``) -> standard deviation (%) of the weighted rms that offset causes,
         to first order (:func:`weighted_rms_sd_pct`); empty without a sampling rate.
+    independent_frames : float
+        The independent frames the static shot's points are the mean of (1: one still per camera; a clip
+        averaged, :func:`horsemocap.steps.stills.effective_frame_count`): the pixel noise's variance is
+        divided by it.
     """
 
     noise_px: float
@@ -88,6 +92,7 @@ class StaticShotUncertainty:
     rms: float
     pct_of_rms: float
     weighted_pct: dict
+    independent_frames: float = 1.0
 
 
 def still_point_covariance(rig, points_world, noise_px: float, seen: dict | None = None) -> np.ndarray:
@@ -337,7 +342,8 @@ def _longest_true_run(ok) -> tuple[int, int]:
 
 def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_motion, noise_px: float,
                             sensitivity, vertical_acceleration, axis: int = 1,
-                            fs: float | None = None, seen: dict | None = None) -> StaticShotUncertainty:
+                            fs: float | None = None, seen: dict | None = None,
+                            independent_frames: float = 1.0) -> StaticShotUncertainty:
     """The vertical acceleration's error that the static shot's pixel noise leaves in the saddle.
 
     Parameters
@@ -364,6 +370,11 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
         The frame rate: with it, the Wb- and Wk-weighted rms's share too (:func:`weighted_rms_sd_pct`).
     seen : dict, optional
         Camera -> (k,) bool: which of the still's points each camera saw (default: all of them).
+    independent_frames : float
+        The static shot averaged over a clip: the independent frames it is worth (1: one still). The
+        points' covariance is divided by it. Only the noise that changes from frame to frame averages
+        away: an error that each camera makes the same in every frame (a marker's centroid seen off its
+        centre) is not in ``noise_px``'s frame-to-frame part and is not reduced.
 
     Returns
     -------
@@ -393,7 +404,9 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     axes = np.asarray(to_motion, float)
     used_rows = rows + [int(saddle_row)]
     seen_used = None if seen is None else {c: np.asarray(v, bool)[used_rows] for c, v in seen.items()}
-    cov_world = still_point_covariance(rig, world[used_rows], noise_px, seen_used)
+    if not (np.isfinite(independent_frames) and independent_frames >= 1):
+        raise ValueError(f"independent_frames: expected a number of frames >= 1, got {independent_frames!r}")
+    cov_world = still_point_covariance(rig, world[used_rows], noise_px, seen_used) / float(independent_frames)
     if not np.isfinite(cov_world).all():
         raise StaticShotRefused("static_world: a marker or the saddle of the static shot was seen by fewer than two "
                          "cameras; its place has no covariance")
@@ -418,4 +431,5 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
     return StaticShotUncertainty(noise_px=float(noise_px), offset_covariance=offset_cov,
                                  offset_sd_m=np.sqrt(np.clip(np.diag(offset_cov), 0, None)),
                                  acceleration_sd=np.where(ok, sd_t, np.nan), sd=sd, rms=rms,
-                                 pct_of_rms=100.0 * sd / rms if rms > 0 else float("inf"), weighted_pct=weighted)
+                                 pct_of_rms=100.0 * sd / rms if rms > 0 else float("inf"), weighted_pct=weighted,
+                                 independent_frames=float(independent_frames))

@@ -113,6 +113,30 @@ class MarkerNoise:
         ar = np.stack([_ar1_series(int(seed), cam, j, blocks, float(self.rho))[frames] for j in range(markers)], 1)
         return self.bias(seed, camera, markers)[None] + self.sigma_px * ar
 
+    def static_clip_times(self, frames: int, first_motion_time: float) -> np.ndarray:
+        """Times (s) of the ``frames`` frames of a static clip: the first frames of the noise series
+        (frame index 0 onwards, i.e. from ``-FRAME_ORIGIN / frame_rate_hz``), which no frame of a motion
+        record starting at ``first_motion_time`` (s) uses. The per-marker biases are the motion's; the
+        AR(1) part is a stretch of the same series that the motion record does not overlap.
+
+        Examples
+        --------
+        >>> mn = MarkerNoise(frame_rate_hz=30.0)
+        >>> t = mn.static_clip_times(3, first_motion_time=-5.0)
+        >>> np.round(t * 30).astype(int).tolist()           # the series' frames 0, 1, 2
+        [-4096, -4095, -4094]
+        >>> mn.static_clip_times(4000, first_motion_time=-5.0)
+        Traceback (most recent call last):
+        ...
+        ValueError: static clip of 4000 frames: at 30 fps the marker noise has 3946 frames before the motion record's first (-5 s)
+        """
+        frames = int(frames)
+        room = int(round(first_motion_time * self.frame_rate_hz)) + FRAME_ORIGIN
+        if frames > room:
+            raise ValueError(f"static clip of {frames} frames: at {self.frame_rate_hz:g} fps the marker noise has "
+                             f"{max(room, 0)} frames before the motion record's first ({first_motion_time:g} s)")
+        return (np.arange(frames) - FRAME_ORIGIN) / self.frame_rate_hz
+
     def displace(self, centres, cam, t: float, seed: int) -> np.ndarray:
         """Marker centres (..., m, 3) moved in their depth so that their projections in ``cam`` move by
         the offsets at time ``t`` (one instant: a blurred exposure's sub-instants move together)."""

@@ -115,13 +115,17 @@ def marker_gradients(scene: Scene) -> np.ndarray:
 
 
 def draw_horse_frame(img, scene: Scene, cam: Camera, pose, t: float, *, rider: bool, standing: bool,
-                     markers: bool = True, exposure_s: float = 0.0, n_sub: int = 7, uneven: bool = False):
+                     markers: bool = True, exposure_s: float = 0.0, n_sub: int = 7, uneven: bool = False,
+                     noise_t: float | None = None):
     """Draw horse, saddle, markers and (optionally) the rider for one pose (index 0).
 
     ``exposure_s > 0`` smears the markers over the exposure centred on ``t``
     (motion blur; the rest of the scene is drawn at ``t``). ``uneven``: the
-    markers' tape is lit unevenly (:func:`marker_gradients`).
+    markers' tape is lit unevenly (:func:`marker_gradients`). ``noise_t``: the
+    time of the scene's marker noise (default ``t``; a static clip's frames
+    draw the standing horse at one instant with the noise of their own).
     """
+    noise_t = t if noise_t is None else noise_t
     m = scene.motion
     parts = horse_parts(m.horse, m.gait, t, m.height, rider=rider, standing=standing)
     pos0, R0 = pose.position[0], pose.rotation[0]
@@ -140,14 +144,14 @@ def draw_horse_frame(img, scene: Scene, cam: Camera, pose, t: float, *, rider: b
             ts = t + (np.arange(n_sub) + 0.5) / n_sub * exposure_s - exposure_s / 2
             centres, normals = scene.marker_geometry(m.pose(ts))
             if scene.marker_noise is not None:
-                centres = scene.marker_noise.displace(centres, cam, t, scene.seed)
+                centres = scene.marker_noise.displace(centres, cam, noise_t, scene.seed)
             grads = marker_gradients(scene) if uneven else [None] * centres.shape[1]
             for j in range(centres.shape[1]):
                 draw_disc_blurred(img, cam, centres[:, j], normals[:, j], MARKER_DIAMETER / 2, gradient=grads[j])
         else:
             centres, normals = scene.marker_geometry(pose)
             if scene.marker_noise is not None:
-                centres = scene.marker_noise.displace(centres, cam, t, scene.seed)
+                centres = scene.marker_noise.displace(centres, cam, noise_t, scene.seed)
             for j in range(centres.shape[1]):
                 draw_disc(img, cam, centres[0, j], normals[0, j], MARKER_DIAMETER / 2)
     if rider:
@@ -255,14 +259,27 @@ def _write_video(path: Path, frames_iter, size, fps, compress: bool):
             cv2.imwrite(str(path / f"{path.name}{k}.png"), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
 
 
-def write_stills(out: Path, scene, backgrounds: dict, noise: bool = True, compress: bool = True) -> dict:
+def write_stills(out: Path, scene, backgrounds: dict, noise: bool = True, compress: bool = True,
+                 static_clip_times=None, fps: float = FPS) -> dict:
     """Render and write every camera's plumb and static still into ``out``; returns
-    ``{"plumb": {camera: path}, "static": {camera: path}}`` relative to ``out`` (session.json's)."""
+    ``{"plumb": {camera: path}, "static": {camera: path}}`` relative to ``out`` (session.json's).
+
+    ``static_clip_times`` (s, two or more): the static shot as a clip of those frames' marker noise
+    (:func:`render_static` ``noise_t``), an MJPEG video ``static/<camera>.avi`` at ``fps`` (``compress``)
+    or a PNG folder ``static/<camera>/``; None: one still per camera."""
     stills = {"plumb": {}, "static": {}}
     for cam in scene.rig:
-        for kind, render in (("plumb", render_plumb), ("static", render_static)):
-            img = render(scene, cam, backgrounds[cam.name], noise=noise)
-            stills[kind][cam.name] = f"{kind}/" + _write_still(out / kind / f"{cam.name}.png", img, compress)
+        stills["plumb"][cam.name] = "plumb/" + _write_still(
+            out / "plumb" / f"{cam.name}.png", render_plumb(scene, cam, backgrounds[cam.name], noise=noise), compress)
+        if static_clip_times is None:
+            img = render_static(scene, cam, backgrounds[cam.name], noise=noise)
+            stills["static"][cam.name] = "static/" + _write_still(out / "static" / f"{cam.name}.png", img, compress)
+            continue
+        frames = (render_static(scene, cam, backgrounds[cam.name], noise=noise, noise_t=float(t), clip_frame=j)
+                  for j, t in enumerate(static_clip_times))
+        name = f"{cam.name}.avi" if compress else cam.name
+        _write_video(out / "static" / name, frames, cam.size, fps, compress)
+        stills["static"][cam.name] = f"static/{name}"
     return stills
 
 
@@ -538,12 +555,19 @@ def _add_marker_glints(img, cam: Camera, centres, rng) -> None:
         add_glints(img, rng, 1.2, avoid, region=region)
 
 
-def render_static(scene: Scene, cam: Camera, bg, *, noise: bool) -> np.ndarray:
-    """The static shot (thesis 6.3): the horse standing, no rider, all markers visible."""
+def render_static(scene: Scene, cam: Camera, bg, *, noise: bool, noise_t: float | None = None,
+                  clip_frame: int | None = None) -> np.ndarray:
+    """The static shot (thesis 6.3): the horse standing, no rider, all markers visible.
+
+    ``clip_frame`` (a frame of a static clip, :func:`write_stills`): the image noise and glints of that
+    frame, the marker noise at time ``noise_t``; the horse stands in the same pose in every frame.
+    None: the still (marker noise at time 0).
+    """
     img = bg.copy()
     pose = scene.motion.static_pose()
-    draw_horse_frame(img, scene, cam, pose, 0.0, rider=False, standing=True)
-    rng = _seed(scene.seed, 2, _cam_index(cam.name))
+    draw_horse_frame(img, scene, cam, pose, 0.0, rider=False, standing=True, noise_t=noise_t)
+    rng = (_seed(scene.seed, 2, _cam_index(cam.name)) if clip_frame is None
+           else _seed(scene.seed, 2, _cam_index(cam.name), 1 + int(clip_frame)))
     if noise:
         add_glints(img, rng, 4.0, [tuple(p) for p in cam.project(scene.marker_geometry(pose)[0][0])])
     return finish(img, rng, noise=noise)
@@ -712,12 +736,27 @@ def _scene_and_backgrounds(horse: str, gait: str, seed: int, scene: Scene | None
     return scene, bgs
 
 
+def _static_clip_times(scene: Scene, static_frames: int, offsets: dict, fps: float):
+    """The marker-noise times of a static clip's frames (None for one still): ``static_frames`` frames
+    before the motion record's first (:meth:`MarkerNoise.static_clip_times`); without marker noise the
+    frames differ by their image noise only."""
+    if isinstance(static_frames, bool) or not isinstance(static_frames, (int, np.integer)) or static_frames < 1:
+        raise ValueError(f"static_frames: expected a number of frames >= 1, got {static_frames!r}")
+    if static_frames == 1:
+        return None
+    first_motion_time = -max(offsets.values()) / fps - 1.0        # a free-running camera's phase: a second spare
+    if scene.marker_noise is None:
+        return np.zeros(int(static_frames))
+    return scene.marker_noise.static_clip_times(int(static_frames), first_motion_time)
+
+
 def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: int = 0, *,
                    noise: bool = True, compress: bool = True, n_motion_frames: int | None = None,
                    calibration_views: int | None = 45, name: str | None = None, left_offset: int = 8,
                    exposure_s: float = EXPOSURE_S, verbose: bool = False, scene: Scene | None = None,
                    fps: float = FPS, sync_deltas_s=None, metadata: dict | None = None,
-                   timing: dict | None = None, marker_noise: MarkerNoise | None = None) -> Path:
+                   timing: dict | None = None, marker_noise: MarkerNoise | None = None,
+                   static_frames: int = 1) -> Path:
     """Render a complete session folder and its ground truth.
 
     Parameters
@@ -765,6 +804,12 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         Marker-centroid noise correlated over frames, with per-marker biases
         (:class:`horsemocap.virtuallab.noise.MarkerNoise`, its frame rate set to
         ``fps``), recorded in the truth's extras. None: the images' own noise only.
+    static_frames : int
+        Frames of the static shot: 1, one still per camera; more, a clip of
+        the horse standing (``static/<camera>.avi``, or a PNG folder), its
+        marker noise evolving over the clip's frames: the motion's per-marker
+        biases, the AR(1) part at times no motion frame uses
+        (:meth:`~horsemocap.virtuallab.noise.MarkerNoise.static_clip_times`).
 
     Returns
     -------
@@ -804,7 +849,8 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
         else:
             _write_video(out / "motion" / cam.name, frames, cam.size, fps, False)
             motion_paths[cam.name] = f"motion/{cam.name}"
-    stills = write_stills(out, scene, bgs, noise=noise, compress=compress)
+    stills = write_stills(out, scene, bgs, noise=noise, compress=compress, fps=fps,
+                          static_clip_times=_static_clip_times(scene, static_frames, offsets, fps))
     # calibration: checkerboard views for the pipeline to calibrate from (the true rig
     # stays in truth/rig.toml); without views, the session carries the true rig as a
     # lab that calibrated once would carry its rig.toml.
@@ -827,6 +873,8 @@ def render_session(out_dir, horse: str = "Horse 2", gait: str = "canter", seed: 
     if scene.marker_noise is not None:
         truth.extras["marker_noise"] = scene.marker_noise.to_dict()
     truth.extras["compress"] = bool(compress)
+    if static_frames != 1:
+        truth.extras["static_frames"] = int(static_frames)
     save_truth(truth, out)
     meta = {"horse": horse, "gait": gait, "direction": "CCW", "rider": "A", "seed": int(seed),
             "generator": "horsemocap.virtuallab", "virtual": True}
