@@ -228,10 +228,10 @@ for label, area, window in (("your choice" + (" (untouched: each camera's automa
 
 # %% tags=["nbval-ignore-output"]
 from horsemocap import widgets
-from horsemocap.sources import read_image
+from horsemocap.sources import read_still
 
 plumb_run = results_for(ws.session_dir, until="plumb")
-ui_plumb = widgets.ui_still({c: read_image(p) for c, p in plumb_run.session.plumb.items()}, 2,
+ui_plumb = widgets.ui_still({c: read_still(p) for c, p in plumb_run.session.plumb.items()}, 2,
                             plumb_run.plumb.plumb_px)
 ws.bind(ui_plumb, "stills.plumb")
 display(ui_plumb)

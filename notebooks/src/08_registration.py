@@ -180,9 +180,9 @@ print(f"det R = {np.linalg.det(R_th):.6f};  rotation angle {np.degrees(np.arccos
 
 # %% tags=["nbval-ignore-output"]
 from horsemocap import widgets
-from horsemocap.sources import read_image
+from horsemocap.sources import read_still
 
-ui_static = widgets.ui_still({c: read_image(p) for c, p in an.session.static.items()},
+ui_static = widgets.ui_still({c: read_still(p) for c, p in an.session.static.items()},
                              an.session.marker_count + 1, an.static.static_px)
 ws.bind(ui_static, "stills.static")
 display(ui_static)
@@ -214,7 +214,7 @@ def still_figure(image, marker_px, labels, title):
                                       marker_px=[marker_px], labels=labels, titles=[title], zoom="markers")
 
 
-plumb = sources.read_image(session.plumb[cam])
+plumb = sources.read_still(session.plumb[cam])
 fig = still_figure(plumb, an.plumb.plumb_px[cam], ["top", "tip"],
                    f"Figure 8.4: plumb line, {cam} camera")
 plt.show()
@@ -238,7 +238,7 @@ plt.show()
 # hand; the pipeline found them (`static_order`, `saddle_index` of the rigid-body step).
 
 # %%
-static_img = sources.read_image(session.static[cam])
+static_img = sources.read_still(session.static[cam])
 order, saddle = an.rigid_body.static_order, an.rigid_body.saddle_index
 labels = ["saddle" if s == saddle else f"marker {order.index(s) + 1}" if s in order else "?"
           for s in range(len(an.static.static_px[cam]))]
