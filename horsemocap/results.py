@@ -164,6 +164,10 @@ def analysis_record(analysis) -> dict:
         _record_sync(analysis, p, chosen)
     if analysis.rig is not None:
         chosen["rig"] = analysis.rig.rig_from
+    for kind in ("plumb", "static"):
+        clip = _clip_record(getattr(analysis, kind, None))
+        if clip:
+            chosen[f"{kind}_clip"] = clip
     if analysis.detect is not None:
         _record_detect(analysis.detect, p, chosen)
     if analysis.triangulate is not None:
@@ -216,6 +220,22 @@ def _record_sync(analysis, p: dict, chosen: dict) -> None:
                 "residual_after_px": _rounded(v.best_px), "marker_frames": int(v.n_points),
                 "decided": bool(v.decided), "rounds": int(v.rounds)}
             for c, v in check.items()}
+
+
+def _clip_record(still) -> dict:
+    """A plumb line's or static shot's clip as analysis.json records it: the frames averaged, every frame left
+    out with its reason and, for the static shot, each point's scatter (mm), its lag-1 correlation and the
+    independent frames the average is worth; empty for one still per camera (or no such step)."""
+    used = getattr(still, "frames_used", None)
+    if used is None:
+        return {}
+    record = {"frames_used": int(used),
+              "frames_left_out": [{"frame": int(f), "reason": str(r)} for f, r in still.frames_left_out]}
+    if getattr(still, "scatter_m", None) is not None:
+        record.update(scatter_mm=[round(1000.0 * float(v), 3) for v in still.scatter_m],
+                      scatter_lag1=_rounded(still.scatter_lag1),
+                      effective_frames=round(float(still.effective_frames), 2))
+    return record
 
 
 def _record_detect(detect, p: dict, chosen: dict) -> None:

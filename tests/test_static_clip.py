@@ -242,3 +242,18 @@ def test_a_plumb_clip_averages_to_the_stills_gravity_its_blank_frame_counted(sti
     assert [f for f, _ in clip.frames_left_out] == [1] and "markers not found" in clip.frames_left_out[0][1]
     assert np.allclose(clip.plumb_points, still.plumb_points, atol=1e-12, rtol=0)
     assert np.allclose(clip.gravity, still.gravity, atol=1e-12, rtol=0)
+
+
+def test_the_clips_frames_left_out_and_scatter_are_recorded_and_a_still_records_nothing(still_session, tmp_path):
+    from horsemocap.results import _clip_record
+    frames = {c: ["still", "blank" if c == "middle" else "still", "still"] for c in CAMS}
+    clip, _ = _static(load_session(_with_static(still_session, tmp_path, frames)))
+    record = _clip_record(clip)
+    assert record["frames_used"] == 2
+    assert [d["frame"] for d in record["frames_left_out"]] == [1]
+    assert "markers not found" in record["frames_left_out"][0]["reason"]
+    assert len(record["scatter_mm"]) == len(clip.static_points) and max(record["scatter_mm"]) < 1e-6
+    assert record["effective_frames"] >= 1
+    json.dumps(record)                                   # analysis.json holds it as it is
+    still, _ = _static(load_session(still_session))
+    assert _clip_record(still) == {} and _clip_record(None) == {}
