@@ -879,8 +879,7 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
 STATIC_SHOT_PCT = (2.5, 5.0)
 
 
-def check_static_shot(uncertainty, input_="the static shot (one still per camera): the markers' triangle and the "
-                                          "saddle marker placed in it") -> Check:
+def check_static_shot(uncertainty, input_: str | None = None) -> Check:
     """Is the saddle point placed precisely enough by the static shot? (thesis section 6.3).
 
     ``uncertainty``: :func:`static_shot_of` (a
@@ -896,6 +895,10 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
     """
     ok, warn = STATIC_SHOT_PCT
     threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
+    clip = getattr(uncertainty, "independent_frames", 1.0) > 1
+    if input_ is None:
+        input_ = (f"the static shot ({'a clip per camera, averaged' if clip else 'one still per camera'}): the "
+                  "markers' triangle and the saddle marker placed in it")
     if isinstance(uncertainty, StaticShotSkipped):
         return Check("static_shot", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
                      f"the static shot's effect on the saddle: not available ({uncertainty.reason})")
@@ -903,10 +906,11 @@ def check_static_shot(uncertainty, input_="the static shot (one still per camera
     check = range_check("static_shot", shot.pct_of_rms, "%", (None, ok), (None, warn), input_,
                         "the static shot's share of the saddle vertical acceleration's error")
     weighted = "".join(f", {w} rms {v:.1f} %" for w, v in shot.weighted_pct.items() if np.isfinite(v))
-    averaged = (f" averaged over a clip worth {shot.independent_frames:.1f} independent frames (a camera's "
-                "constant centroid error is not averaged away)" if shot.independent_frames > 1 else "")
-    what = (f"the still's pixel noise ({shot.noise_px:.3g} px, measured on the moving frames{averaged}) places "
-            f"the saddle "
+    noise = (f"the static clip's pixel noise ({shot.noise_px:.3g} px a frame, measured on the moving frames; its "
+             f"average worth {shot.independent_frames:.1f} independent frames, a camera's constant centroid error "
+             f"not averaged away)" if clip else
+             f"the still's pixel noise ({shot.noise_px:.3g} px, measured on the moving frames)")
+    what = (f"{noise} places the saddle "
             f"with standard deviations {', '.join(f'{1000 * v:.1f}' for v in shot.offset_sd_m)} mm (x, y, z) "
             f"relative to the markers, which moves its vertical acceleration by {shot.sd:.3g} m/s^2 rms, "
             f"{shot.pct_of_rms:.1f} % of its {shot.rms:.3g} m/s^2 (one standard deviation{weighted})")

@@ -226,8 +226,13 @@ def test_the_static_shot_check_reads_the_clips_independent_frames_and_says_so():
                                    independent_frames=11.0)
     check = check_static_shot(shot)
     assert check.figure == pytest.approx(shot.pct_of_rms)
-    assert "averaged over a clip worth 11.0 independent frames" in check.message
-    assert "constant centroid error is not averaged away" in check.message
+    assert "average worth 11.0 independent frames" in check.message
+    assert "constant centroid error not averaged away" in check.message
+    assert "a clip per camera, averaged" in check.input and "the still's" not in check.message
+    one = check_static_shot(static_shot_uncertainty(rig, world, [0, 1, 2], 3, np.eye(3), 0.2, G,
+                                                    5 * np.sin(2 * np.pi * 2 * t)))
+    assert one.message.startswith("the still's pixel noise (0.2 px, measured on the moving frames) places")
+    assert "one still per camera" in one.input
 
 
 def test_a_plumb_clip_averages_to_the_stills_gravity_its_blank_frame_counted(still_session, tmp_path):
