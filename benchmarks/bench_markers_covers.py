@@ -47,9 +47,11 @@ harmonics (``pose.LEFT_OUT_HARMONICS``, the default: both routes scored, the low
 white-noise GCV with harmonics' parameters times ``10^s``) and both routes' left-out scores.
 ``--no-harmonic-left-out``: the left-out choice without the harmonic route; ``--harmonic-left-out --always``: the
 harmonic route whatever its score (``results/markers_covers_harmonic_left_out.txt``).
-``--stack``: the two routes blended per pose component, the harmonic route's weight minimising the left-out
-score (``pose.LEFT_OUT_STACK``; the line's ``[stack score w [...]]``); ``--stack-weight W``: that weight fixed at
-``W`` for every component; ``--no-stack``: one route (``results/markers_covers_stack.txt``).
+The two routes are blended (``pose.LEFT_OUT_STACK = "pose"``, the default: the harmonic route's fit times ``w``
+plus the plain route's times ``1 - w``, one ``w`` for the pose minimising the left-out score; the line's
+``[stack score w [...]]``); ``--stack``: one ``w`` per pose component; ``--stack-weight W``: ``w`` fixed at
+``W``; ``--stack-pose``: the default; ``--no-stack``: one route, the lower-scoring
+(``results/markers_covers_stack.txt``).
 """
 import dataclasses
 import sys
@@ -484,6 +486,8 @@ if __name__ == "__main__":
         pose.LEFT_OUT_RULE = args[args.index("--rule") + 1]
     if "--stack" in args:
         pose.LEFT_OUT_STACK = True
+    if "--stack-pose" in args:
+        pose.LEFT_OUT_STACK = "pose"
     if "--stack-weight" in args:
         pose.LEFT_OUT_STACK = float(args[args.index("--stack-weight") + 1])
     if "--no-stack" in args:

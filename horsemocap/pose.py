@@ -102,7 +102,11 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
   correlated noise: ``"loo"`` (each marker left out in turn,
   :func:`marker_cross_validation_per_component`; four or more markers),
   ``"gcv"`` (the correlated-error GCV), ``"reml"`` or ``"risk"``
-  (:class:`horsemocap.params.PoseParams` says what each does).
+  (:class:`horsemocap.params.PoseParams` says what each does). ``"loo"``
+  chooses the smoothing of plain splines and of partial splines with the
+  stride's harmonics, and fits their blend (stacking,
+  :data:`LEFT_OUT_STACK`, :func:`left_out_stacking_weights`): the weight
+  minimises the same left-out loss.
 
 Conditioning (:func:`smallest_height`, :func:`check_model_conditioning`): a
 rotation about the line through two markers is seen only through the third
@@ -146,6 +150,8 @@ __all__ = [
     "marker_cross_validation",
     "left_out_noise_ratios",
     "marker_cross_validation_per_component",
+    "stacking_weights",
+    "left_out_stacking_weights",
     "refine_pose_covariance",
     "extra_marker_noise",
     "unwrap_rotvec",
@@ -1622,7 +1628,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
     choice = _aperture_options(spline_options, aperture, order, choice)
-    if stack is not None:
+    if stack is not None:   # the harmonic part through the same aperture (the choice's reason already says it)
         _aperture_options(stack[0], aperture, order, {})
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, rot_noise, params.harmonics != "all", iterations, stack=stack)
@@ -1688,10 +1694,11 @@ LEFT_OUT_RULE = "min"
 #: left-out score is lower (``"always"``: the harmonic route whatever its score, for measuring it).
 LEFT_OUT_HARMONICS = True
 #: Whether :func:`_left_out_marker_smoothing`, having both routes, fits their blend instead of the lower-scoring
-#: one (stacking, :func:`left_out_stacking_weights`): per pose component ``w`` times the harmonic route's fit
-#: plus ``1 - w`` times the plain route's, ``w`` in [0, 1] minimising the same left-out loss. ``True``: those
-#: weights; a number in [0, 1]: that weight for every component (for measuring); ``False``: one route.
-LEFT_OUT_STACK = False
+#: one (stacking, :func:`left_out_stacking_weights`): ``w`` times the harmonic route's fit plus ``1 - w`` times
+#: the plain route's, ``w`` in [0, 1] minimising the same left-out loss. ``"pose"`` (default): one weight for
+#: the whole pose; ``True``: one weight per pose component; a number in [0, 1]: that weight for every
+#: component (for measuring); ``False``: one route, the lower-scoring.
+LEFT_OUT_STACK = "pose"
 
 
 @dataclass(frozen=True)
@@ -1755,11 +1762,12 @@ def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, cho
 def _stacked_routes(plain, plain_index, harmonics, harmonic_index, harmonic_lam, fundamental_hz: float
                     ) -> _StackedRoutes:
     """The harmonic route's weight per component: :data:`LEFT_OUT_STACK` itself when it is a number, else
-    :func:`left_out_stacking_weights`."""
-    if LEFT_OUT_STACK is True:
-        weights = left_out_stacking_weights(plain, plain_index, harmonics, harmonic_index)[0]
+    :func:`left_out_stacking_weights` (one weight for the whole pose with ``"pose"``)."""
+    if LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose":
+        weights = left_out_stacking_weights(plain, plain_index, harmonics, harmonic_index,
+                                            common=LEFT_OUT_STACK == "pose")[0]
     else:
-        fixed = float(LEFT_OUT_STACK)
+        fixed = float(LEFT_OUT_STACK) if isinstance(LEFT_OUT_STACK, (int, float)) else np.nan
         if not 0.0 <= fixed <= 1.0:
             raise ValueError(f"pose.LEFT_OUT_STACK: expected True, False or a weight in [0, 1], got {LEFT_OUT_STACK!r}")
         weights = np.full(6, fixed)
@@ -1776,10 +1784,11 @@ def _left_out_reason(choice: dict, markers: int, info: dict, harmonic, stacked, 
     """The left-out choice's reason: the noise correlation, the route (or the blend) and the chosen ``s``."""
     decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
     if stacked is not None:
-        weights = ", ".join(f"{c} {w:.2f}" for c, w in zip(POSE_COMPONENTS, stacked.weights))
+        weights = (f"{stacked.weights[0]:.2f} for the whole pose" if np.all(stacked.weights == stacked.weights[0])
+                   else "per component " + ", ".join(f"{c} {w:.2f}" for c, w in zip(POSE_COMPONENTS, stacked.weights)))
+        how = ("minimising the left-out score" if LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose" else "fixed")
         route = (f"the fits without and with the stride's harmonics at {stacked.fundamental_hz:.4g} Hz unpenalised "
-                 f"blended per component, the harmonic fit's weight {weights} ("
-                 + ("minimising the left-out score: " if LEFT_OUT_STACK is True else "fixed: ")
+                 f"blended, the harmonic fit's weight {weights} ({how}; left-out scores "
                  + ", ".join(f"{k} {v[0]:.5g}" for k, v in routes.items()) + " m/s^2 rms)")
         decades += "; with the harmonics s = " + ", ".join(
             f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, routes["harmonics"][1]))
@@ -2768,29 +2777,50 @@ def stacking_weights(residual, directions) -> np.ndarray:
 
 
 def left_out_stacking_weights(first: "_LeftOutPredictions", first_index, second: "_LeftOutPredictions",
-                              second_index) -> tuple[np.ndarray, float]:
+                              second_index, common: bool = False) -> tuple[np.ndarray, float]:
     """Per pose component, the weight of the ``second`` route's left-out predictions (at its chosen candidates
     ``second_index``) blended with the ``first``'s that minimises the left-out loss, and that loss (mean
-    squared second-difference error, as :meth:`_LeftOutPredictions.score`).
+    squared second-difference error, as :meth:`_LeftOutPredictions.score`); ``common``: one weight for the
+    whole pose (returned six times).
 
     The left-out marker's position is linear in the centroid's weights and, the two routes' rotation vectors
     differing by small angles, linear to first order in the rotation's: the directions of
-    :func:`stacking_weights` are each component's change from the first route's pose to the second's; the
-    loss returned is the blend's own (not linearised)."""
+    :func:`stacking_weights` are each component's (or the whole pose's) change from the first route's pose to
+    the second's; the loss returned is the blend's own (not linearised).
+
+    Examples
+    --------
+    One left-out marker at the centroid; one route predicts its path with a bias, the other with the opposite
+    bias: half of each is the path itself.
+
+    >>> import numpy as np
+    >>> n = 40
+    >>> t = np.arange(n) / 50.0
+    >>> truth, bias = np.zeros((n, 6)), np.zeros((n, 6))
+    >>> truth[:, 0], bias[:, 0] = np.sin(3 * t), 0.01 * t ** 3
+    >>> def route(values):
+    ...     return _LeftOutPredictions([values[None]], [np.zeros((n, 3))], [np.diff(truth[:, :3], 2, axis=0)],
+    ...                                np.ones(n - 2, bool))
+    >>> w, loss = left_out_stacking_weights(route(truth + bias), [0] * 6, route(truth - bias), [0] * 6,
+    ...                                     common=True)
+    >>> float(np.round(w[0], 12)), bool(loss < 1e-20)
+    (0.5, True)
+    """
     residual, directions = [], []
     firsts, seconds = first.chosen(first_index), second.chosen(second_index)
+    switched = [np.arange(6)] if common else [[c] for c in range(6)]
     for v1, v2, turned, measured in zip(firsts, seconds, first.turned, first.measured):
         base = np.diff(_left_out_position(v1, turned), 2, axis=0) - measured
         cols = []
-        for c in range(6):
+        for components in switched:
             v = v1.copy()
-            v[:, c] = v2[:, c]
+            v[:, components] = v2[:, components]
             cols.append(np.diff(_left_out_position(v, turned), 2, axis=0) - measured - base)
         cols = np.stack(cols, -1)
         use = first.inner & np.all(np.isfinite(base), axis=1) & np.all(np.isfinite(cols), axis=(1, 2))
         residual.append(base[use].ravel())
-        directions.append(cols[use].reshape(-1, 6))
-    weights = stacking_weights(np.concatenate(residual), np.concatenate(directions))
+        directions.append(cols[use].reshape(-1, len(switched)))
+    weights = np.broadcast_to(stacking_weights(np.concatenate(residual), np.concatenate(directions)), 6).copy()
     return weights, _stacked_score(first, firsts, seconds, weights)
 
 

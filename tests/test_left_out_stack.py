@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from horsemocap import pose
+from horsemocap.aperture import box_aperture
+from horsemocap.params import PoseParams
 from horsemocap.splines import BlendedSpline, blend_splines, smoothing_spline
 from test_left_out_smoothing import _fit, _trot
 
@@ -105,28 +107,89 @@ def test_the_switch_off_fits_one_route_and_says_nothing_of_a_blend(monkeypatch):
     assert "blended" not in tr.smoothing_choice["reason"]
 
 
-def test_the_stacked_fit_is_the_weighted_sum_of_the_two_routes_fits(monkeypatch):
-    """``LEFT_OUT_STACK`` True on the five-marker trot: each component is the blend of the plain route's fit
+def test_the_default_blends_the_routes_with_one_weight_for_the_pose():
+    assert pose.LEFT_OUT_STACK == "pose" and pose.LEFT_OUT_HARMONICS is True
+
+
+@pytest.mark.parametrize("mode", ["pose", True])
+def test_the_stacked_fit_is_the_weighted_sum_of_the_two_routes_fits(monkeypatch, mode):
+    """``LEFT_OUT_STACK`` on the five-marker trot: each component is the blend of the plain route's fit
     (the harmonic route switched off) and the harmonic route's (``LEFT_OUT_HARMONICS = "always"``) at the
-    recorded weights; the blend's left-out score is no higher than either route's."""
+    recorded weights (one for the pose, or one per component); the blend's left-out score is no higher than
+    either route's."""
     t, pts, x, acc, cov = _trot(2)
-    monkeypatch.setattr(pose, "LEFT_OUT_STACK", True)
-    stacked = _fit("loo", t, pts, x, cov)
+    # the default also through a 10 ms exposure: both parts fitted through it
+    aperture = box_aperture(0.01) if mode == "pose" else None
+    reg = pose.register_pose(pts, x, covariance=cov)
+
+    def fit():
+        return pose.fit_pose_trajectory(t, reg, x, PoseParams(), points=pts, aperture=aperture)
+
+    monkeypatch.setattr(pose, "LEFT_OUT_STACK", mode)
+    stacked = fit()
     monkeypatch.setattr(pose, "LEFT_OUT_STACK", False)
     monkeypatch.setattr(pose, "LEFT_OUT_HARMONICS", False)
-    plain = _fit("loo", t, pts, x, cov)
+    plain = fit()
     monkeypatch.setattr(pose, "LEFT_OUT_HARMONICS", "always")
-    harmonic = _fit("loo", t, pts, x, cov)
+    harmonic = fit()
     cv = stacked.smoothing_choice["cross_validation"]
     score, weights = cv["routes"]["stack"]
     assert 0 < min(weights) < 1 or 0 < max(weights) < 1          # a blend, not one route
     assert score <= min(cv["routes"]["plain"][0], cv["routes"]["harmonics"][0]) * (1 + 1e-9)
     assert cv["cross_validation_score"] == score and cv["stack_fundamental_hz"] > 0
-    assert "blended per component" in stacked.smoothing_choice["reason"]
+    assert len(weights) == 6
+    assert (len(set(weights)) == 1) == (mode == "pose")
+    assert ("for the whole pose (minimising the left-out score" if mode == "pose" else
+            "the harmonic fit's weight per component cx") in stacked.smoothing_choice["reason"]
     for s, p, h, w in zip(stacked.centre_splines + stacked.rotvec_splines, plain.centre_splines
                           + plain.rotvec_splines, harmonic.centre_splines + harmonic.rotvec_splines, weights):
         assert isinstance(s, BlendedSpline) and s.weights[1] == pytest.approx(w, abs=1e-4)
+        assert s.parts[0].aperture is aperture and s.parts[1].aperture is aperture
+        np.testing.assert_allclose(s.observed(t), (1 - s.weights[1]) * p.observed(t) + s.weights[1] * h.observed(t),
+                                   rtol=1e-9, atol=1e-12)
         for d in range(3):
             np.testing.assert_allclose(s(t, d), (1 - s.weights[1]) * p(t, d) + s.weights[1] * h(t, d),
                                        rtol=1e-9, atol=1e-12)
     assert np.all(np.isfinite(stacked.point(t, np.zeros(3)).acceleration))
+
+
+def test_the_weights_on_left_out_predictions_reach_the_brute_force_minimum_of_the_blends_own_score():
+    """On the five-marker trot's left-out predictions of both routes: one weight for the pose minimises the
+    blend's own (not linearised) left-out score as a fine grid of weights does; the per-component weights score
+    no higher than either route."""
+    t, pts, x, _, cov = _trot(2)
+    reg = pose.register_pose(pts, x, covariance=cov)
+    f0 = pose._record_fundamental(t, reg.centre)[0]
+    base = np.full(6, 1e-9)
+    routes = [pose._left_out_choice(t, reg, pts, x, base, pose.LEFT_OUT_DECADES, 3, None, "min", f)
+              for f in (None, f0)]
+    (_, _, plain, i_plain), (_, _, harmonic, i_harmonic) = routes
+    firsts, seconds = plain.chosen(i_plain), harmonic.chosen(i_harmonic)
+    w, score = pose.left_out_stacking_weights(plain, i_plain, harmonic, i_harmonic, common=True)
+    assert np.all(w == w[0])
+    grid = np.linspace(0.0, 1.0, 201)
+    scores = [pose._stacked_score(plain, firsts, seconds, np.full(6, g)) for g in grid]
+    assert score <= min(scores) * (1 + 1e-9)
+    assert abs(w[0] - grid[int(np.argmin(scores))]) <= 0.01
+    per_component, best = pose.left_out_stacking_weights(plain, i_plain, harmonic, i_harmonic)
+    assert best <= min(plain.score(i_plain), harmonic.score(i_harmonic), score) * (1 + 1e-9)
+    assert np.all((per_component >= 0) & (per_component <= 1))
+
+
+def test_on_a_trot_whose_single_route_the_stride_test_refuses_the_blend_passes_and_is_nearer_the_truth():
+    """Four markers on a trot under AR(1) 0.9 noise (test_stride_residual's): the lower-scoring route alone
+    leaves the stride's harmonics in its residual and falls back to white-noise GCV, which takes the slow noise
+    for motion; the blend (the default) passes the stride test, and its hidden point's acceleration is far
+    nearer the truth."""
+    from test_stride_residual import MODEL, _acc_error, _correlated_trot
+    d = _correlated_trot(600)
+    reg = pose.register_pose(d["markers"], MODEL)
+    blend = pose.fit_pose_trajectory(d["t"], reg, MODEL, points=d["markers"], expected_fundamental_hz=1.7)
+    choice = blend.smoothing_choice
+    assert choice["method"] == "gcv_ar1" and "no stride harmonics at 1.7 Hz" in choice["reason"]
+    assert "for the whole pose (minimising the left-out score" in choice["reason"]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(pose, "LEFT_OUT_STACK", False)
+        single = pose.fit_pose_trajectory(d["t"], reg, MODEL, points=d["markers"], expected_fundamental_hz=1.7)
+    assert single.smoothing_choice["method"] == "gcv" and "noise taken as white" in single.smoothing_choice["reason"]
+    assert _acc_error(blend, d) < 0.25 * _acc_error(single, d)
