@@ -221,6 +221,7 @@ def _synthetic_points(a, truth, scale: float, rho: float, seed: int) -> np.ndarr
     for k in range(1, len(z)):
         z[k] = rho * z[k - 1] + np.sqrt(1 - rho ** 2) * rng.standard_normal(pts.shape[1:])
     noisy = _true_markers(a, truth) + scale * np.einsum("kmij,kmj->kmi", chol, z)
+    noisy = np.where(np.isfinite(noisy), noisy, pts)       # no truth there (the record's first frames): as rendered
     return np.where(seen[..., None], noisy, np.nan)
 
 
