@@ -47,6 +47,11 @@ harmonics (``pose.LEFT_OUT_HARMONICS``, the default: both routes scored, the low
 white-noise GCV with harmonics' parameters times ``10^s``) and both routes' left-out scores.
 ``--no-harmonic-left-out``: the left-out choice without the harmonic route; ``--harmonic-left-out --always``: the
 harmonic route whatever its score (``results/markers_covers_harmonic_left_out.txt``).
+The two routes are blended (``pose.LEFT_OUT_STACK = "pose"``, the default: the harmonic route's fit times ``w``
+plus the plain route's times ``1 - w``, one ``w`` for the pose minimising the left-out score; the line's
+``[stack score w [...]]``); ``--stack``: one ``w`` per pose component; ``--stack-weight W``: ``w`` fixed at
+``W``; ``--stack-pose``: the default; ``--no-stack``: one route, the lower-scoring
+(``results/markers_covers_stack.txt``).
 """
 import dataclasses
 import sys
@@ -216,6 +221,7 @@ def _synthetic_points(a, truth, scale: float, rho: float, seed: int) -> np.ndarr
     for k in range(1, len(z)):
         z[k] = rho * z[k - 1] + np.sqrt(1 - rho ** 2) * rng.standard_normal(pts.shape[1:])
     noisy = _true_markers(a, truth) + scale * np.einsum("kmij,kmj->kmi", chol, z)
+    noisy = np.where(np.isfinite(noisy), noisy, pts)       # no truth there (the record's first frames): as rendered
     return np.where(seen[..., None], noisy, np.nan)
 
 
@@ -372,27 +378,28 @@ ORACLE_COMPONENT = (-1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
 
 
 class _Scaled:
-    """``pose.marker_cross_validation_per_component`` with its result multiplied by ``10^shift`` (6,) while
-    inside; the cross-validation itself runs once per set of points (its result kept)."""
+    """The left-out choice (``pose._left_out_choice``, what ``pose.marker_cross_validation_per_component``
+    returns) with its result multiplied by ``10^shift`` (6,) while inside; the cross-validation itself runs
+    once per set of points and route (its result kept)."""
 
     def __init__(self):
         self.shift, self.kept = np.zeros(6), {}
 
     def __enter__(self):
-        self.saved = pose.marker_cross_validation_per_component
+        self.saved = pose._left_out_choice
         original = self.saved
 
-        def scaled(t, registration, points, model, base_lam, **kw):
-            key = np.nan_to_num(np.asarray(points, float)).tobytes()
+        def scaled(t, registration, points, model, base_lam, *args):
+            key = (np.nan_to_num(np.asarray(points, float)).tobytes(), args[-1])
             if key not in self.kept:
-                self.kept[key] = original(t, registration, points, model, base_lam, **kw)
-            lam, info = self.kept[key]
-            return lam * 10.0 ** self.shift, info
-        pose.marker_cross_validation_per_component = scaled
+                self.kept[key] = original(t, registration, points, model, base_lam, *args)
+            lam, *rest = self.kept[key]
+            return (lam * 10.0 ** self.shift, *rest)
+        pose._left_out_choice = scaled
         return self
 
     def __exit__(self, *exc):
-        pose.marker_cross_validation_per_component = self.saved
+        pose._left_out_choice = self.saved
 
 
 def run_oracle(name: str, keep_left_out: bool = False) -> str:
@@ -436,8 +443,10 @@ def _route_text(a) -> str:
     if cv is None:
         return "route: white" + (" (stride fallback)" if "left the stride's harmonics" in choice.get("reason", "")
                                  else "")
-    harmonic = "harmonics" if cv.get("fundamental_hz") else "plain"
-    routes = "".join(f" [{k} {v[0]:.5g} s {v[1]}]" for k, v in cv.get("routes", {}).items())
+    harmonic = ("stack" if cv.get("stack_fundamental_hz") else "harmonics" if cv.get("fundamental_hz")
+                else "plain")
+    routes = "".join(f" [{k} {v[0]:.5g} {'w' if k == 'stack' else 's'} {v[1]}]"
+                     for k, v in cv.get("routes", {}).items())
     return (f"route: left-out {harmonic} score {cv['cross_validation_score']:.5g} "
             f"s {cv['cross_validation_component_decades']}{routes} ")
 
@@ -468,14 +477,22 @@ if __name__ == "__main__":
     args = sys.argv[1:]
     cut = "--cut" in args
     draws = int(args[args.index("--draws") + 1]) if "--draws" in args else 0
-    names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] not in
-                                                                           ("--draws", "--compare", "--rule"))]
+    valued = ("--draws", "--compare", "--rule", "--stack-weight")
+    names = [x for i, x in enumerate(args) if not x.startswith("--") and (i == 0 or args[i - 1] not in valued)]
     if "--harmonic-left-out" in args:
         pose.LEFT_OUT_HARMONICS = "always" if "--always" in args else True
     if "--no-harmonic-left-out" in args:
         pose.LEFT_OUT_HARMONICS = False
     if "--rule" in args:
         pose.LEFT_OUT_RULE = args[args.index("--rule") + 1]
+    if "--stack" in args:
+        pose.LEFT_OUT_STACK = True
+    if "--stack-pose" in args:
+        pose.LEFT_OUT_STACK = "pose"
+    if "--stack-weight" in args:
+        pose.LEFT_OUT_STACK = float(args[args.index("--stack-weight") + 1])
+    if "--no-stack" in args:
+        pose.LEFT_OUT_STACK = False
     if "--oracle" in args:
         for n in names:
             print(run_oracle(n, keep_left_out="--kept" in args), flush=True)

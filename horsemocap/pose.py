@@ -102,7 +102,11 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
   correlated noise: ``"loo"`` (each marker left out in turn,
   :func:`marker_cross_validation_per_component`; four or more markers),
   ``"gcv"`` (the correlated-error GCV), ``"reml"`` or ``"risk"``
-  (:class:`horsemocap.params.PoseParams` says what each does).
+  (:class:`horsemocap.params.PoseParams` says what each does). ``"loo"``
+  chooses the smoothing of plain splines and of partial splines with the
+  stride's harmonics, and fits their blend (stacking,
+  :data:`LEFT_OUT_STACK`, :func:`left_out_stacking_weights`): the weight
+  minimises the same left-out loss.
 
 Conditioning (:func:`smallest_height`, :func:`check_model_conditioning`): a
 rotation about the line through two markers is seen only through the third
@@ -130,8 +134,8 @@ from scipy.spatial.transform import Rotation
 from .params import PoseParams
 from .probability import f_survival
 from .registration import check_model, rotation_from_cross_covariance, skew
-from .splines import (ChangePointError, estimate_fundamental, half_gain_frequency, residual_log_likelihood,
-                      robust_weighted_spline, smoothing_spline)
+from .splines import (ChangePointError, blend_splines, estimate_fundamental, half_gain_frequency,
+                      residual_log_likelihood, robust_weighted_spline, smoothing_spline)
 
 __all__ = [
     "CollinearMarkersError",
@@ -146,6 +150,8 @@ __all__ = [
     "marker_cross_validation",
     "left_out_noise_ratios",
     "marker_cross_validation_per_component",
+    "stacking_weights",
+    "left_out_stacking_weights",
     "refine_pose_covariance",
     "extra_marker_noise",
     "unwrap_rotvec",
@@ -1582,6 +1588,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                                               lam_given=all(v is not None for v in lam),
                                               weighted=reg.information is not None, noise_correlation=rho)
     correlated = choice is not None and "noise_correlation" in choice
+    stack = None
     # the rotation components' noise, against which their harmonics are tested: predicted from the
     # registration residual and the marker geometry (isotropic marker noise; pose_noise without the points)
     rot_noise = [None] * 3
@@ -1601,12 +1608,18 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
             if (LEFT_OUT_HARMONICS and stride_hz is None and params.harmonics != "none" and order == 5
                     and points is not None and np.asarray(model).shape[0] >= 4):
                 stride_hz = _record_fundamental(t[ok], components, expected_hz)[0]
-            lam, harmonic = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture, stride_hz)
-            if harmonic is not None:
+            lam, harmonic, stacked = _left_out_marker_smoothing(t, reg, model, points, lam, choice, aperture,
+                                                                stride_hz)
+            if stacked is not None:
+                # the plain route's splines blended with the harmonic route's (made as below)
+                harmonic_options = _harmonic_route_options(spline_options, params, smoothing, order,
+                                                           stacked.fundamental_hz)
+                harmonic_noise = (_rotation_noise(reg, model) if params.harmonics == "auto" and rotation_noise_test
+                                  else [None] * 3)
+                stack = (harmonic_options, stacked.lam, harmonic_noise, stacked.weights)
+            elif harmonic is not None:
                 # the stride's harmonics fitted unpenalised: the spline of white noise with the chosen parameters
-                del spline_options["noise_correlation"]
-                spline_options.update(fundamental_hz=harmonic,
-                                      events=_pose_events(params.events, smoothing, order, harmonic))
+                spline_options = _harmonic_route_options(spline_options, params, smoothing, order, harmonic)
                 if params.harmonics == "auto" and rotation_noise_test:
                     rot_noise = _rotation_noise(reg, model)
         elif criterion == "reml":
@@ -1615,9 +1628,19 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
             sig = _correlated_risk_noise(reg, model, points, choice)
             spline_options["method"] = "noise" if sig[0] is not None else smoothing
     choice = _aperture_options(spline_options, aperture, order, choice)
+    if stack is not None:   # the harmonic part through the same aperture (the choice's reason already says it)
+        _aperture_options(stack[0], aperture, order, {})
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
-                                       sig, var, rot_noise, params.harmonics != "all", iterations)
+                                       sig, var, rot_noise, params.harmonics != "all", iterations, stack=stack)
     return centre, phi, cs, ps, choice, two
+
+
+def _harmonic_route_options(spline_options: dict, params, smoothing: str, order: int, harmonic: float) -> dict:
+    """The left-out choice's spline options with the stride's harmonics at ``harmonic`` Hz unpenalised: white
+    noise (no correlation) with the chosen parameters, as white-noise GCV with harmonics fits them."""
+    options = {k: v for k, v in spline_options.items() if k != "noise_correlation"}
+    options.update(fundamental_hz=harmonic, events=_pose_events(params.events, smoothing, order, harmonic))
+    return options
 
 
 def _rotation_noise(reg: PoseRegistration, model) -> list:
@@ -1670,16 +1693,36 @@ LEFT_OUT_RULE = "min"
 #: (partial splines at white-noise GCV with harmonics' parameters times ``10^s``) and keeps the route whose
 #: left-out score is lower (``"always"``: the harmonic route whatever its score, for measuring it).
 LEFT_OUT_HARMONICS = True
+#: Whether :func:`_left_out_marker_smoothing`, having both routes, fits their blend instead of the lower-scoring
+#: one (stacking, :func:`left_out_stacking_weights`): ``w`` times the harmonic route's fit plus ``1 - w`` times
+#: the plain route's, ``w`` in [0, 1] minimising the same left-out loss. ``"pose"`` (default): one weight for
+#: the whole pose; ``True``: one weight per pose component; a number in [0, 1]: that weight for every
+#: component (for measuring); ``False``: one route, the lower-scoring.
+LEFT_OUT_STACK = "pose"
+
+
+@dataclass(frozen=True)
+class _StackedRoutes:
+    """The harmonic route of the left-out choice blended with the plain one (:func:`_left_out_marker_smoothing`):
+    its six smoothing parameters ``lam``, the stride frequency of its harmonics and the harmonic route's weight
+    per component."""
+
+    lam: list
+    fundamental_hz: float
+    weights: np.ndarray
 
 
 def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None,
-                               fundamental_hz: float | None = None) -> tuple[list, float | None]:
+                               fundamental_hz: float | None = None
+                               ) -> tuple[list, float | None, _StackedRoutes | None]:
     """The six smoothing parameters under correlated noise chosen by leaving each marker out in turn
     (:func:`marker_cross_validation_per_component` on white-noise GCV's parameters; without the stride's
-    harmonics and, given ``fundamental_hz``, with them, the lower left-out score kept), with four or
-    more markers; ``lam`` unchanged (the correlated-error GCV, its reason as it is) with three. ``choice`` gets
-    the reason and the cross-validation's scores (``cross_validation``). With the frames' temporal ``aperture``
-    both the white-noise GCV and the left-out fits are made through it, as the pose smoothing is.
+    harmonics and, given ``fundamental_hz``, with them, the lower left-out score kept, or both blended with
+    :data:`LEFT_OUT_STACK`), with four or more markers; ``lam`` unchanged (the correlated-error GCV, its reason
+    as it is) with three. ``choice`` gets the reason and the cross-validation's scores (``cross_validation``).
+    With the frames' temporal ``aperture`` both the white-noise GCV and the left-out fits are made through it,
+    as the pose smoothing is. Returns ``(lam, stride frequency of the harmonic route kept or None, the routes
+    stacked or None)``: stacked, ``lam`` is the plain route's.
 
     The candidates (:data:`LEFT_OUT_DECADES`, ``s`` from -1 to 6 by halves) reach far above white-noise GCV's
     parameters and only one decade below: GCV takes noise correlated over frames for motion, so it
@@ -1687,41 +1730,92 @@ def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, cho
     ``lam^(-1/6)``) by about 21 % from one candidate to the next."""
     markers = np.asarray(model).shape[0]
     if points is None or markers < 4 or any(v is not None for v in lam):
-        return lam, None
-    chosen, info = _left_out_route(t, reg, model, points, aperture, None)
+        return lam, None, None
+    chosen, info, plain, plain_index = _left_out_route(t, reg, model, points, aperture, None)
     harmonic, routes = None, {"plain": (info["cross_validation_score"], info["cross_validation_component_decades"])}
+    stacked = None
     if LEFT_OUT_HARMONICS and fundamental_hz is not None:
-        with_h, info_h = _left_out_route(t, reg, model, points, aperture, fundamental_hz)
+        with_h, info_h, harmonics, harmonic_index = _left_out_route(t, reg, model, points, aperture, fundamental_hz)
         routes["harmonics"] = (info_h["cross_validation_score"], info_h["cross_validation_component_decades"])
-        if LEFT_OUT_HARMONICS == "always" or info_h["cross_validation_score"] < info["cross_validation_score"]:
+        if LEFT_OUT_STACK is not False:
+            stacked = _stacked_routes(plain, plain_index, harmonics, harmonic_index, with_h, fundamental_hz)
+            routes["stack"] = _stack_record(stacked, plain, plain_index, harmonics, harmonic_index,
+                                            float(np.median(np.diff(np.asarray(t, float)))))
+            if np.all(stacked.weights == 1.0):     # every component the harmonic route's: that route's fit
+                chosen, info, harmonic, stacked = with_h, info_h, float(fundamental_hz), None
+            elif np.all(stacked.weights == 0.0):   # every component the plain route's: that route's fit
+                stacked = None
+        elif LEFT_OUT_HARMONICS == "always" or info_h["cross_validation_score"] < info["cross_validation_score"]:
             chosen, info, harmonic = with_h, info_h, float(fundamental_hz)
-    decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
-    route = ("no harmonics" if harmonic is None else
-             f"the stride's harmonics at {harmonic:.4g} Hz unpenalised (a lower left-out score than without)")
-    choice["smoothing_reason"] = (
-        f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, {route}: "
-        f"smoothing chosen by leaving each of the {markers} markers out in turn (its acceleration predicted from "
-        f"the others' pose, which holds none of its noise, so the choice holds whatever the noise's correlation "
-        f"over frames): white-noise GCV's parameters times 10^s, s = {decades}"
-        + ("" if LEFT_OUT_RULE == "min" else f" ({LEFT_OUT_RULE} rule)"))
+    choice["smoothing_reason"] = _left_out_reason(choice, markers, info, harmonic, stacked, routes)
     choice["cross_validation"] = {"decades": [float(v) for v in LEFT_OUT_DECADES], **info}
     if LEFT_OUT_HARMONICS:
         choice["cross_validation"].update(fundamental_hz=harmonic, routes=routes)
-    return [float(v) for v in chosen], harmonic
+    if stacked is not None:
+        # the fit is the blend: its score, its harmonics' frequency (the plain route's s stays in
+        # cross_validation_component_decades, the harmonic route's in routes)
+        choice["cross_validation"].update(cross_validation_score=routes["stack"][0],
+                                          stack_fundamental_hz=stacked.fundamental_hz)
+    return [float(v) for v in chosen], harmonic, stacked
 
 
-def _left_out_route(t, reg: PoseRegistration, model, points, aperture, fundamental_hz) -> tuple[np.ndarray, dict]:
+def _stacked_routes(plain, plain_index, harmonics, harmonic_index, harmonic_lam, fundamental_hz: float
+                    ) -> _StackedRoutes:
+    """The harmonic route's weight per component: :data:`LEFT_OUT_STACK` itself when it is a number, else
+    :func:`left_out_stacking_weights` (one weight for the whole pose with ``"pose"``)."""
+    if LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose":
+        weights = left_out_stacking_weights(plain, plain_index, harmonics, harmonic_index,
+                                            common=LEFT_OUT_STACK == "pose")[0]
+    else:
+        fixed = float(LEFT_OUT_STACK) if isinstance(LEFT_OUT_STACK, (int, float)) else np.nan
+        if not 0.0 <= fixed <= 1.0:
+            raise ValueError(f"pose.LEFT_OUT_STACK: expected True, False or a weight in [0, 1], got {LEFT_OUT_STACK!r}")
+        weights = np.full(6, fixed)
+    return _StackedRoutes([float(v) for v in harmonic_lam], float(fundamental_hz), weights)
+
+
+def _stack_record(stacked: _StackedRoutes, plain, plain_index, harmonics, harmonic_index, dt: float) -> tuple:
+    """``(left-out score of the blend, m/s^2 rms; the harmonic route's weight per component)`` for the record."""
+    loss = _stacked_score(plain, plain.chosen(plain_index), harmonics.chosen(harmonic_index), stacked.weights)
+    return float(np.sqrt(loss) / dt ** 2), [round(float(v), 4) for v in stacked.weights]
+
+
+def _left_out_reason(choice: dict, markers: int, info: dict, harmonic, stacked, routes: dict) -> str:
+    """The left-out choice's reason: the noise correlation, the route (or the blend) and the chosen ``s``."""
+    decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
+    if stacked is not None:
+        weights = (f"{stacked.weights[0]:.2f} for the whole pose" if np.all(stacked.weights == stacked.weights[0])
+                   else "per component " + ", ".join(f"{c} {w:.2f}" for c, w in zip(POSE_COMPONENTS, stacked.weights)))
+        how = ("minimising the left-out score" if LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose" else "fixed")
+        route = (f"the fits without and with the stride's harmonics at {stacked.fundamental_hz:.4g} Hz unpenalised "
+                 f"blended, the harmonic fit's weight {weights} ({how}; left-out scores "
+                 + ", ".join(f"{k} {v[0]:.5g}" for k, v in routes.items()) + " m/s^2 rms)")
+        decades += "; with the harmonics s = " + ", ".join(
+            f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, routes["harmonics"][1]))
+    elif harmonic is None:
+        route = "no harmonics" + (" (the blend's weights of the fit with the stride's harmonics all 0)"
+                                  if "stack" in routes else "")
+    else:
+        route = (f"the stride's harmonics at {harmonic:.4g} Hz unpenalised ("
+                 + ("the blend's weights of this fit all 1" if "stack" in routes else
+                    "a lower left-out score than without") + ")")
+    return (f"AR(1) {choice['noise_correlation']:.2f} noise correlation from the rigidity residual, {route}: "
+            f"smoothing chosen by leaving each of the {markers} markers out in turn (its acceleration predicted from "
+            f"the others' pose, which holds none of its noise, so the choice holds whatever the noise's correlation "
+            f"over frames): white-noise GCV's parameters times 10^s, s = {decades}"
+            + ("" if LEFT_OUT_RULE == "min" else f" ({LEFT_OUT_RULE} rule)"))
+
+
+def _left_out_route(t, reg: PoseRegistration, model, points, aperture, fundamental_hz) -> tuple:
     """:func:`marker_cross_validation_per_component` on white-noise GCV's parameters, both without the stride's
-    harmonics (``fundamental_hz`` None) or both with them."""
+    harmonics (``fundamental_hz`` None) or both with them: ``(lam, info, left-out predictions, chosen index)``."""
     harmonics = "none" if fundamental_hz is None else "auto"
     white = fit_pose_trajectory(t, reg, model, PoseParams(smoothing="gcv", harmonics=harmonics,
                                                           rotation_weights="equal", partial_frames=False),
                                 iterations=0, aperture=aperture, fundamental_hz=fundamental_hz)
     base = np.array([s.info["lam"] for s in white.centre_splines + white.rotvec_splines])
-    chosen, info = marker_cross_validation_per_component(t, reg, points, model, base, decades=LEFT_OUT_DECADES,
-                                                         aperture=aperture, rule=LEFT_OUT_RULE,
-                                                         fundamental_hz=fundamental_hz)
-    return chosen, info
+    return _left_out_choice(t, reg, points, model, base, LEFT_OUT_DECADES, 3, aperture, LEFT_OUT_RULE,
+                            fundamental_hz)
 
 
 def _correlated_risk_noise(reg: PoseRegistration, model, points, choice: dict) -> np.ndarray:
@@ -1856,8 +1950,9 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
         method, rho = "gcv", float(choice["noise_correlation"])
     f0 = info["cx"].get("fundamental_hz")
     f0 = float(f0) if f0 is not None and np.isfinite(f0) and method in ("gcv", "noise") else None
-    lam = tuple(float(info[c]["lam"]) if method != "adaptive" and np.isfinite(info[c].get("lam", np.nan))
-                and info[c]["lam"] > 0 else None for c in names)
+    # a blend of two fits (lam None: each part has its own) is chosen again, as the adaptive penalty is
+    lam = tuple(float(info[c]["lam"]) if method != "adaptive" and info[c].get("lam") is not None
+                and np.isfinite(info[c]["lam"]) and info[c]["lam"] > 0 else None for c in names)
     harmonics = tuple(int(max(info[c].get("harmonic_indices") or [0])) if f0 is not None else 0 for c in names)
     weighted = tuple(info[c].get("weights", "equal") != "equal" for c in names[3:])
     kept = None
@@ -2024,23 +2119,35 @@ def _refused_partial_reasons(reason, departure, ok, two) -> np.ndarray:
 
 
 def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam, sig, var, rot_noise,
-                 harmonic_cutoff: bool, iterations: int, most_harmonics=None, compare_weights: bool = True):
+                 harmonic_cutoff: bool, iterations: int, most_harmonics=None, compare_weights: bool = True,
+                 stack=None):
     """The six components' splines; with partial frames (``two``) smoothed again with their completed poses.
 
     ``most_harmonics``: (6,) the most harmonics each component tries (None: the spline's default);
-    ``compare_weights`` False: a rotation component with variances is fitted weighted only.
+    ``compare_weights`` False: a rotation component with variances is fitted weighted only; ``stack``:
+    ``(options, lam, rotation noise, weights)`` of a second fit of the same frames, each component the blend
+    ``weights * second + (1 - weights) * first`` (:func:`horsemocap.splines.blend_splines`).
     Returns the centroid and rotation vectors the splines were fitted to and the splines (3 + 3).
     """
     use = ok
     x_model = np.asarray(model, float)
     extra = [{} if most_harmonics is None else {"max_harmonics": int(k)} for k in (most_harmonics or [0] * 6)]
-    for it in range(iterations + 1 if two.any() else 1):
+
+    def fit(options, lam, rot_noise):
         cs = tuple(smoothing_spline(t[use], centre[use, i], lam=lam[i], noise=sig[i], **options, **extra[i])
                    for i in range(3))
         ps = tuple(_rotation_component(t[use], phi[use, i], None if var is None else var[use, i],
                                        lam=lam[3 + i], noise=sig[3 + i], harmonic_cutoff=harmonic_cutoff,
                                        harmonic_noise=rot_noise[i], compare=compare_weights, **options,
                                        **extra[3 + i]) for i in range(3))
+        return cs + ps
+
+    for it in range(iterations + 1 if two.any() else 1):
+        splines = fit(options, lam, rot_noise)
+        if stack is not None:
+            second = fit(*stack[:3])
+            splines = tuple(_blended_component(a, b, w) for a, b, w in zip(splines, second, stack[3]))
+        cs, ps = splines[:3], splines[3:]
         if it == iterations or not two.any():
             break
         tk = t[two]
@@ -2054,6 +2161,19 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
         phi = unwrap_rotvec(phi)
         use = ok | two
     return centre, phi, cs, ps
+
+
+def _blended_component(plain, harmonic, weight: float):
+    """One pose component's blend of the plain route's spline and the harmonic route's
+    (:func:`horsemocap.splines.blend_splines`), its ``info`` also naming the harmonic part's stride frequency and
+    harmonics (what the trajectory's readers look up: the fit holds them at this weight)."""
+    blend = blend_splines(plain, harmonic, weight)
+    for key in ("fundamental_hz", "harmonics", "harmonic_indices"):
+        if harmonic.info.get(key) is not None:
+            blend.info[key] = harmonic.info[key]
+    blend.info["blended"] = {"plain": {k: plain.info.get(k) for k in ("lam", "edf")},
+                             "harmonics": {k: harmonic.info.get(k) for k in ("lam", "edf", "harmonics")}}
+    return blend
 
 
 def _frame_validity(t, reg_reason, have, two, max_gap_s):
@@ -2498,6 +2618,14 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     ...                                                        <= min(info["cross_validation_scores"]))
     (6, True)
     """
+    return _left_out_choice(t, registration, points, model, base_lam, decades, sweeps, aperture, rule,
+                            fundamental_hz)[:2]
+
+
+def _left_out_choice(t, registration, points, model, base_lam, decades, sweeps: int, aperture, rule: str,
+                     fundamental_hz) -> tuple[np.ndarray, dict, "_LeftOutPredictions", list]:
+    """:func:`marker_cross_validation_per_component`'s ``(lam, info)`` and the left-out predictions it chose
+    among with the chosen candidate per component (what :func:`left_out_stacking_weights` blends)."""
     t, pts, x, base, inner = _cross_validation_inputs(t, points, model, base_lam, 4,
                                                       "per-component marker cross-validation")
     if rule not in LEFT_OUT_RULES:
@@ -2511,13 +2639,14 @@ def marker_cross_validation_per_component(t, registration: PoseRegistration, poi
     if rule == "one_se":
         index = _one_standard_error_smoothing(index, predictions.losses, decades.size)
     chosen = decades[index]
-    return base * 10.0 ** chosen, {"cross_validation_decades": float(decades[int(np.argmin(common))]),
-                                   "cross_validation_scores": [float(v) for v in np.sqrt(common) / dt ** 2],
-                                   "cross_validation_component_decades": [float(v) for v in chosen],
-                                   "cross_validation_minimum_decades": [float(v) for v in decades[minimum]],
-                                   "cross_validation_score": float(np.sqrt(predictions.score(index)) / dt ** 2),
-                                   "cross_validation_rule": rule,
-                                   "cross_validation_markers": m}
+    info = {"cross_validation_decades": float(decades[int(np.argmin(common))]),
+            "cross_validation_scores": [float(v) for v in np.sqrt(common) / dt ** 2],
+            "cross_validation_component_decades": [float(v) for v in chosen],
+            "cross_validation_minimum_decades": [float(v) for v in decades[minimum]],
+            "cross_validation_score": float(np.sqrt(predictions.score(index)) / dt ** 2),
+            "cross_validation_rule": rule,
+            "cross_validation_markers": m}
+    return base * 10.0 ** chosen, info, predictions, list(index)
 
 
 @dataclass(frozen=True)
@@ -2532,18 +2661,18 @@ class _LeftOutPredictions:
     measured: list
     inner: np.ndarray
 
-    def errors(self, index) -> list:
+    def chosen(self, index) -> list:
+        """Per marker, the others' pose (n, 6) at the candidates ``index`` (one per pose component)."""
+        return [v_all[index, :, np.arange(6)].T for v_all in self.values]
+
+    def errors(self, index, values=None) -> list:
         """Per marker, the left-out prediction's second-difference errors at the candidates ``index`` (one per
-        pose component) and the inner frames where it is scored."""
+        pose component; or of the poses ``values``, one (n, 6) per marker) and the inner frames where it is
+        scored."""
         out = []
-        n = self.inner.size + 2
-        for v_all, turned, measured in zip(self.values, self.turned, self.measured):
-            v = v_all[index, :, np.arange(6)].T
-            seen = np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(turned), axis=1)
-            position = np.full((n, 3), np.nan)
-            if seen.any():
-                position[seen] = v[seen, :3] + Rotation.from_rotvec(v[seen, 3:]).apply(turned[seen])
-            err = np.diff(position, 2, axis=0) - measured
+        for v, turned, measured in zip(self.chosen(index) if values is None else values, self.turned,
+                                       self.measured):
+            err = np.diff(_left_out_position(v, turned), 2, axis=0) - measured
             out.append((err, self.inner & np.all(np.isfinite(err), axis=1)))
         if not any(use.any() for _, use in out):
             raise ValueError("points: no frame inside the record where a left-out marker and the others' pose are "
@@ -2559,12 +2688,145 @@ class _LeftOutPredictions:
             frames[use] += 1
         return np.where(frames > 0, total, np.nan), frames
 
-    def score(self, index) -> float:
-        """The mean squared left-out error over the scored (marker, frame) pairs, summed marker by marker."""
+    def score(self, index, values=None) -> float:
+        """The mean squared left-out error over the scored (marker, frame) pairs, summed marker by marker (at the
+        candidates ``index``, or of the poses ``values`` as :meth:`errors`)."""
         total, frames = 0.0, 0
-        for err, use in self.errors(index):
+        for err, use in self.errors(index, values):
             total, frames = total + float(np.sum(err[use] ** 2)), frames + int(use.sum())
         return total / frames
+
+
+def _left_out_position(values, turned) -> np.ndarray:
+    """(n, 3) a left-out marker's position ``c + Exp(phi) lever`` from the others' pose ``values`` (n, 6) and its
+    lever turned by the reference rotation ``turned`` (n, 3); NaN where either is not seen."""
+    seen = np.all(np.isfinite(values), axis=1) & np.all(np.isfinite(turned), axis=1)
+    position = np.full((values.shape[0], 3), np.nan)
+    if seen.any():
+        position[seen] = values[seen, :3] + Rotation.from_rotvec(values[seen, 3:]).apply(turned[seen])
+    return position
+
+
+def stacking_weights(residual, directions) -> np.ndarray:
+    """The weights ``w`` in ``[0, 1]^k`` that minimise ``|residual + directions @ w|^2``, exactly.
+
+    Stacking (Wolpert 1992; Breiman 1996, "Stacked regressions"): two
+    predictors of the same data blended, ``w * second + (1 - w) * first``,
+    with ``w`` chosen to minimise the left-out error of the blend. With the
+    first predictor's left-out errors ``residual`` (p,) and, per blended
+    part, the change of those errors from the first predictor to the second
+    ``directions`` (p, k), the loss is a quadratic in ``w``:
+    ``w^T A w + 2 b^T w + const`` with ``A = D^T D``, ``b = D^T r``. Its
+    minimum over the box lies on one face: each weight at 0, at 1 or free,
+    the free ones solving the normal equations with the others held. Every
+    one of the ``3^k`` faces is solved (a least-squares solve where the free
+    part is singular) and the feasible solution of the lowest loss kept: a
+    closed form, for the few weights a pose has (k <= 8).
+
+    Parameters
+    ----------
+    residual : (p,)
+        The first predictor's errors.
+    directions : (p, k)
+        Per weight, the second predictor's errors less the first's.
+
+    Returns
+    -------
+    (k,) weights in [0, 1]. A weight whose direction is zero (the two predictors agree there) is 0.
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, values not finite, or more than 8 weights.
+
+    Examples
+    --------
+    The second predictor's errors a third of the first's, opposite in sign: a quarter of the first and three
+    quarters of the second cancel them; a second predictor that only adds error gets no weight.
+
+    >>> import numpy as np
+    >>> r = np.array([3.0, -3.0, 6.0])
+    >>> stacking_weights(r, (-r / 3 - r)[:, None])
+    array([0.75])
+    >>> stacking_weights(r, (2 * r)[:, None])
+    array([0.])
+    """
+    r = np.asarray(residual, float)
+    D = np.asarray(directions, float)
+    if r.ndim != 1 or D.ndim != 2 or D.shape[0] != r.size:
+        raise ValueError(f"residual, directions: expected (p,) and (p, k), got {r.shape} and {D.shape}")
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(D))):
+        raise ValueError("residual, directions: expected finite values")
+    k = D.shape[1]
+    if k > 8:
+        raise ValueError(f"directions: the exact box minimum enumerates 3^k faces; expected k <= 8, got {k}")
+    A, b = D.T @ D, D.T @ r
+    best, best_loss = np.zeros(k), 0.0
+    for face in itertools.product((0.0, 1.0, None), repeat=k):
+        w = np.array([0.0 if f is None else f for f in face])
+        free = np.array([f is None for f in face])
+        if free.any():
+            rhs = -(b[free] + A[np.ix_(free, ~free)] @ w[~free])
+            w[free] = np.linalg.lstsq(A[np.ix_(free, free)], rhs, rcond=None)[0]
+            if np.any(w[free] < 0.0) or np.any(w[free] > 1.0):
+                continue
+        loss = float(w @ A @ w + 2.0 * b @ w)
+        if loss < best_loss - 1e-12 * max(1.0, abs(best_loss)):
+            best, best_loss = w, loss
+    return best
+
+
+def left_out_stacking_weights(first: "_LeftOutPredictions", first_index, second: "_LeftOutPredictions",
+                              second_index, common: bool = False) -> tuple[np.ndarray, float]:
+    """Per pose component, the weight of the ``second`` route's left-out predictions (at its chosen candidates
+    ``second_index``) blended with the ``first``'s that minimises the left-out loss, and that loss (mean
+    squared second-difference error, as :meth:`_LeftOutPredictions.score`); ``common``: one weight for the
+    whole pose (returned six times).
+
+    The left-out marker's position is linear in the centroid's weights and, the two routes' rotation vectors
+    differing by small angles, linear to first order in the rotation's: the directions of
+    :func:`stacking_weights` are each component's (or the whole pose's) change from the first route's pose to
+    the second's; the loss returned is the blend's own (not linearised).
+
+    Examples
+    --------
+    One left-out marker at the centroid; one route predicts its path with a bias, the other with the opposite
+    bias: half of each is the path itself.
+
+    >>> import numpy as np
+    >>> n = 40
+    >>> t = np.arange(n) / 50.0
+    >>> truth, bias = np.zeros((n, 6)), np.zeros((n, 6))
+    >>> truth[:, 0], bias[:, 0] = np.sin(3 * t), 0.01 * t ** 3
+    >>> def route(values):
+    ...     return _LeftOutPredictions([values[None]], [np.zeros((n, 3))], [np.diff(truth[:, :3], 2, axis=0)],
+    ...                                np.ones(n - 2, bool))
+    >>> w, loss = left_out_stacking_weights(route(truth + bias), [0] * 6, route(truth - bias), [0] * 6,
+    ...                                     common=True)
+    >>> float(np.round(w[0], 12)), bool(loss < 1e-20)
+    (0.5, True)
+    """
+    residual, directions = [], []
+    firsts, seconds = first.chosen(first_index), second.chosen(second_index)
+    switched = [np.arange(6)] if common else [[c] for c in range(6)]
+    for v1, v2, turned, measured in zip(firsts, seconds, first.turned, first.measured):
+        base = np.diff(_left_out_position(v1, turned), 2, axis=0) - measured
+        cols = []
+        for components in switched:
+            v = v1.copy()
+            v[:, components] = v2[:, components]
+            cols.append(np.diff(_left_out_position(v, turned), 2, axis=0) - measured - base)
+        cols = np.stack(cols, -1)
+        use = first.inner & np.all(np.isfinite(base), axis=1) & np.all(np.isfinite(cols), axis=(1, 2))
+        residual.append(base[use].ravel())
+        directions.append(cols[use].reshape(-1, len(switched)))
+    weights = np.broadcast_to(stacking_weights(np.concatenate(residual), np.concatenate(directions)), 6).copy()
+    return weights, _stacked_score(first, firsts, seconds, weights)
+
+
+def _stacked_score(predictions: "_LeftOutPredictions", firsts, seconds, weights) -> float:
+    """The left-out loss of the poses ``(1 - w) first + w second`` per component (one (n, 6) per marker each)."""
+    return predictions.score(None, [v1 + weights * (v2 - v1) for v1, v2 in zip(firsts, seconds)])
 
 
 def _left_out_predictions(t, registration, pts, x, base, decades, inner, aperture, fundamental_hz

@@ -246,10 +246,11 @@ def test_two_marker_frames_are_completed_from_what_the_frames_observe():
     assert np.max(err) < 0.01 * np.max(blur)
 
 
-def test_the_smoothing_chosen_by_leaving_markers_out_is_made_through_the_aperture():
+def test_the_smoothing_chosen_by_leaving_markers_out_is_made_through_the_aperture(monkeypatch):
     """Under correlated noise with five markers the smoothing is chosen by leaving each marker out: the
     white-noise GCV it scales and the left-out fits are made through the frames' aperture, as the pose is."""
     from scipy.signal import lfilter
+    monkeypatch.setattr(pose, "LEFT_OUT_STACK", False)   # one route (the blend's parts: test_left_out_stack.py)
     aperture = camera_aperture(FPS, 0.02, interlaced=True)
     rng = np.random.default_rng(4)
     t = np.arange(150) / FPS

@@ -38,6 +38,7 @@ def test_the_route_of_the_lower_score_is_fitted_and_named(monkeypatch):
     """With the harmonic route on, both routes are scored, the lower is fitted and the reason names it; on the
     exactly periodic trot it is the harmonic route, and its hidden-point acceleration is nearer the truth."""
     monkeypatch.setattr(pose, "LEFT_OUT_HARMONICS", True)
+    monkeypatch.setattr(pose, "LEFT_OUT_STACK", False)   # one route, not the blend (test_left_out_stack.py)
     t, pts, x, acc, cov = _trot(2)
     tr = _fit("loo", t, pts, x, cov)
     choice = tr.smoothing_choice
