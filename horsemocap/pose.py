@@ -1955,9 +1955,18 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
                 and np.isfinite(info[c]["lam"]) and info[c]["lam"] > 0 else None for c in names)
     harmonics = tuple(int(max(info[c].get("harmonic_indices") or [0])) if f0 is not None else 0 for c in names)
     weighted = tuple(info[c].get("weights", "equal") != "equal" for c in names[3:])
+    blended = any(info[c].get("method") == "blend" for c in names)
+    if f0 is not None and rho is not None:
+        # the left-out choice's fits with the stride's harmonics are white-noise fits (the correlated-error GCV
+        # takes no harmonics): the harmonic route's parameters are reused as such, a blend's chosen again so
+        rho = None
     kept = None
     if choice is not None:
         kept = {"smoothing_method": choice["method"], "smoothing_reason": choice["reason"]}
+        if blended:
+            kept["smoothing_reason"] += ("; this record's other passes: each component chosen again by "
+                                         "white-noise GCV with the stride's harmonics (the blend's weights are "
+                                         "the longest pass's own)")
         if "noise_correlation" in choice:
             kept["noise_correlation"] = choice["noise_correlation"]
     return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept)
