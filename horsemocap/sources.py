@@ -806,8 +806,10 @@ class FrameSequence:
 def is_still_image(path) -> bool:
     """Whether a still source (``static`` / ``plumb`` of a session) is one image file, not a clip.
 
-    An image file is a file whose suffix is an image's (:data:`IMAGE_SUFFIXES`);
-    a folder (of frames) or any other file (a video) is a clip.
+    An image file is a file whose suffix is an image's (:data:`IMAGE_SUFFIXES`), or
+    any other file OpenCV's image readers recognise by its first bytes (a
+    ``.webp``, a ``.jp2``); a folder (of frames) or any other file (a video)
+    is a clip.
 
     Examples
     --------
@@ -818,7 +820,9 @@ def is_still_image(path) -> bool:
     (True, False)
     """
     p = Path(path)
-    return not p.is_dir() and p.suffix.lower() in IMAGE_SUFFIXES
+    if p.is_dir():
+        return False
+    return p.suffix.lower() in IMAGE_SUFFIXES or (p.is_file() and bool(cv2.haveImageReader(str(p))))
 
 
 def still_frame_counts(paths: dict) -> dict:

@@ -262,3 +262,28 @@ def test_the_clips_frames_left_out_and_scatter_are_recorded_and_a_still_records_
     json.dumps(record)                                   # analysis.json holds it as it is
     still, _ = _static(load_session(still_session))
     assert _clip_record(still) == {} and _clip_record(None) == {}
+
+
+def test_a_glint_in_the_first_frame_does_not_become_the_reference():
+    rng = np.random.default_rng(3)
+    clip = SHAPE[None] + 1e-4 * rng.standard_normal((30,) + SHAPE.shape)
+    clip[0, 3] += [0.0, 0.0, 0.2]                     # frame 0: one point 200 mm off (a glint taken for it)
+    avg = average_static_clip(clip)
+    assert int(avg.used.sum()) == 29 and [f for f, _ in avg.left_out] == [0]
+    assert np.abs(avg.points - SHAPE).max() < 2e-4
+
+
+def test_frames_alike_are_worth_one_frame_and_none_is_left_out():
+    square = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    for shape in (square, SHAPE):
+        avg = average_static_clip(np.repeat(shape[None], 12, axis=0))
+        assert avg.effective_frames == 1.0 and avg.used.all() and avg.left_out == ()
+
+
+def test_an_image_file_whose_suffix_is_not_an_images_is_still_a_still(tmp_path):
+    from horsemocap.sources import is_still_image
+    img = tmp_path / "left.still"
+    ok, data = cv2.imencode(".png", np.zeros((8, 8, 3), np.uint8))
+    img.write_bytes(data.tobytes())
+    (tmp_path / "left.avi").write_bytes(b"RIFF0000AVI LIST")
+    assert is_still_image(img) and not is_still_image(tmp_path / "left.avi") and not is_still_image(tmp_path)

@@ -200,7 +200,22 @@ def _scatter_lag1(residuals, frame_index) -> float:
         return float("nan")
     a, b = residuals[pairs], residuals[pairs + 1]
     power = 0.5 * float(np.sum(a * a) + np.sum(b * b))
-    return float(np.sum(a * b)) / power if power > 0 else float("nan")
+    return float(np.sum(a * b)) / power if power > 0 else 1.0     # frames alike: together worth one frame
+
+
+def _typical_frame(points, complete) -> int:
+    """The complete frame (``points`` (F, k, 3), ``complete`` (F,) bool) whose shape is nearest the frames'
+    median shape: its sorted distances between points (which do not depend on the points' order) nearest,
+    in the largest difference, to their median over the complete frames; a frame with a glint taken for a
+    marker is then never the reference the others are matched to."""
+    frames = np.flatnonzero(complete)
+    k = points.shape[1]
+    if k < 2 or frames.size < 3:
+        return int(frames[0])
+    upper = np.triu_indices(k, 1)
+    p = points[frames]
+    shapes = np.sort(np.linalg.norm(p[:, :, None] - p[:, None], axis=-1)[:, upper[0], upper[1]], axis=1)
+    return int(frames[np.argmin(np.abs(shapes - np.median(shapes, axis=0)).max(axis=1))])
 
 
 def _not_rigid(rms, candidates, outlier_z: float) -> np.ndarray:
@@ -209,7 +224,8 @@ def _not_rigid(rms, candidates, outlier_z: float) -> np.ndarray:
     if candidates.sum() < 5:
         return np.zeros_like(candidates)
     med = np.median(rms[candidates])
-    spread = 1.4826 * np.median(np.abs(rms[candidates] - med))
+    # at least a micrometre: frames that repeat one another (no spread) are not told apart by rounding
+    spread = max(1.4826 * float(np.median(np.abs(rms[candidates] - med))), 1e-6)
     return candidates & (rms > med + outlier_z * spread + 1e-9)
 
 
@@ -272,7 +288,8 @@ def average_static_clip(frames, *, outlier_z: float = OUTLIER_Z) -> ClipAverage:
     if not finite.any():
         raise ValueError(f"frames: none of the {count} frames has every one of its {k} points")
     reasons = {int(f): "a point is not finite" for f in np.flatnonzero(~finite)}
-    reference = pts[np.argmax(finite)]
+    first = _typical_frame(pts, finite)
+    reference = pts[first]
     gaps = np.linalg.norm(reference[:, None] - reference[None], axis=-1)[np.triu_indices(k, 1)]
     half_gap = 0.5 * float(gaps.min()) if len(gaps) else np.inf
     order = np.full((count, k), -1)
@@ -281,7 +298,7 @@ def average_static_clip(frames, *, outlier_z: float = OUTLIER_Z) -> ClipAverage:
         order[f], aligned[f] = match_onto(pts[f], reference)
         far = float(np.linalg.norm(aligned[f] - reference, axis=-1).max())
         if far > half_gap:
-            reasons[int(f)] = (f"its points do not match the reference frame's (frame {int(np.argmax(finite))}): "
+            reasons[int(f)] = (f"its points do not match the reference frame's (frame {first}): "
                                f"a point {1000 * far:.1f} mm from its match, more than half the smallest "
                                f"distance between two points ({1000 * half_gap:.1f} mm)")
     used = finite & ~np.isin(np.arange(count), list(reasons))
