@@ -304,6 +304,12 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     # spline's: there (and in the adaptive smoothing) each window chooses its lambdas
     per_window = method == "adaptive" or f0 is not None
     lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
+    if choice is not None and f0 is not None and "cross_validation" in choice:
+        # the left-out choice is the representative range's: the windows choose theirs as white-noise GCV
+        # with the stride's harmonics, and the record says so
+        choice = {**choice, "reason": choice["reason"] + "; on this long record the left-out choice was made on "
+                  "the representative range only: each window chose its own smoothing by white-noise GCV with "
+                  "the stride's harmonics"}
     margin = min(max([MARGIN_FRAMES] + [kernel_margin(hi - lo, info[c], window=window) for c in COMPONENTS]),
                  window)
     settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
@@ -338,7 +344,10 @@ def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: 
     >>> kernel_margin(4000, {"edf": 8.0}, window=1000)            # decay 533 frames: margin 2456
     0
     """
-    edf = float(info.get("edf", np.nan)) - SPLINE_NULL_SPACE - 2 * int(info.get("harmonics") or 0)
+    # a blend (horsemocap.splines.BlendedSpline) holds its harmonic part's columns at that part's weight
+    harmonic_weight = float((info.get("blend_weights") or [0.0, 1.0])[1])
+    edf = (float(info.get("edf", np.nan)) - SPLINE_NULL_SPACE
+           - 2 * int(info.get("harmonics") or 0) * harmonic_weight)
     if not np.isfinite(edf) or edf < 1.0:
         return 0
     margin = int(np.ceil(2.0 * frames * np.log(1.0 / decay) / (3.0 * edf)))

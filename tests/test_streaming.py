@@ -412,3 +412,12 @@ def test_registration_in_chunks_on_disk_is_the_whole_registration(tmp_path):
     np.testing.assert_array_equal(on_disk.n_markers, whole.n_markers)
     assert on_disk.reason.tolist() == whole.reason.tolist()
     assert np.isclose(on_disk.noise_m, whole.noise_m, rtol=1e-12)
+
+
+def test_a_blends_margin_counts_its_harmonic_columns_at_the_harmonic_parts_weight():
+    from horsemocap.streaming import SPLINE_NULL_SPACE, kernel_margin
+    plain = kernel_margin(4000, {"edf": 40.0 + SPLINE_NULL_SPACE})
+    # 2 harmonics (4 columns) held at weight 0.5: 2 of the 42 degrees of freedom are unpenalised
+    blend = kernel_margin(4000, {"edf": 42.0 + SPLINE_NULL_SPACE, "harmonics": 2, "blend_weights": [0.5, 0.5]})
+    whole = kernel_margin(4000, {"edf": 44.0 + SPLINE_NULL_SPACE, "harmonics": 2})
+    assert blend == plain == whole

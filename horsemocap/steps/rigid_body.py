@@ -178,7 +178,10 @@ def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning,
                                    f"model explains the residuals better) in {', '.join(weighted)}")
         f0 = [v["fundamental_hz"] for v in sm.values() if v.get("fundamental_hz")]
         if f0:
-            progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised, per component "
+            blend = [v["blend_weights"][1] for v in sm.values() if v.get("blend_weights")]
+            held = (f" in a fit blended with the plain one at weight {blend[0]:.2f}" if blend and
+                    len(set(blend)) == 1 else " in fits blended with the plain ones" if blend else "")
+            progress("rigid_body", f"stride harmonics of {f0[0]:.3f} Hz kept unpenalised{held}, per component "
                      + ", ".join(f"{k} {_harmonics_text(v)}" for k, v in sm.items()))
         if pose.events:
             progress("rigid_body", "acceleration free to jump at the known change points (pose_events) "
