@@ -879,14 +879,15 @@ def check_left_out_markers(left_out, fps: float, half_window_s: float = RIGID_MO
 STATIC_SHOT_PCT = (2.5, 5.0)
 
 
-def check_static_shot(uncertainty, input_: str | None = None) -> Check:
+def check_static_shot(uncertainty, input_: str | None = None, clip_frames: int | None = None) -> Check:
     """Is the saddle point placed precisely enough by the static shot? (thesis section 6.3).
 
     ``uncertainty``: :func:`static_shot_of` (a
     :class:`~horsemocap.uncertainty.StaticShotUncertainty`, or a :class:`StaticShotSkipped` saying why it
     could not be computed: skipped). The figure is the standard deviation of the written vertical
     acceleration's error that the still's pixel noise leaves in the saddle (% of its rms), against
-    :data:`STATIC_SHOT_PCT`.
+    :data:`STATIC_SHOT_PCT`. ``clip_frames``: the frames a static clip averaged (None: one still per
+    camera), so that a clip worth a single independent frame is still called a clip.
 
     Examples
     --------
@@ -895,7 +896,7 @@ def check_static_shot(uncertainty, input_: str | None = None) -> Check:
     """
     ok, warn = STATIC_SHOT_PCT
     threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
-    clip = getattr(uncertainty, "independent_frames", 1.0) > 1
+    clip = clip_frames is not None or getattr(uncertainty, "independent_frames", 1.0) > 1
     if input_ is None:
         input_ = (f"the static shot ({'a clip per camera, averaged' if clip else 'one still per camera'}): the "
                   "markers' triangle and the saddle marker placed in it")
@@ -968,7 +969,8 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_saddle_acceleration(peak))
         period = a_.motion_frame.period_frames if a_.motion_frame is not None else None
         checks.append(check_record_ends(ay, period))
-        checks.append(check_static_shot(static_shot_of(analysis)))
+        checks.append(check_static_shot(static_shot_of(analysis),
+                                        clip_frames=getattr(analysis.static, "frames_used", None)))
     if a_.comfort is not None and a_.comfort.indicators is not None:
         ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))

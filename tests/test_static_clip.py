@@ -233,6 +233,9 @@ def test_the_static_shot_check_reads_the_clips_independent_frames_and_says_so():
                                                     5 * np.sin(2 * np.pi * 2 * t)))
     assert one.message.startswith("the still's pixel noise (0.2 px, measured on the moving frames) places")
     assert "one still per camera" in one.input
+    alike = check_static_shot(static_shot_uncertainty(rig, world, [0, 1, 2], 3, np.eye(3), 0.2, G,
+                                                      5 * np.sin(2 * np.pi * 2 * t)), clip_frames=12)
+    assert "a clip per camera, averaged" in alike.input and alike.message.startswith("the static clip's")
 
 
 def test_a_plumb_clip_averages_to_the_stills_gravity_its_blank_frame_counted(still_session, tmp_path):
