@@ -1704,12 +1704,13 @@ LEFT_OUT_STACK = "pose"
 @dataclass(frozen=True)
 class _StackedRoutes:
     """The harmonic route of the left-out choice blended with the plain one (:func:`_left_out_marker_smoothing`):
-    its six smoothing parameters ``lam``, the stride frequency of its harmonics and the harmonic route's weight
-    per component."""
+    its six smoothing parameters ``lam``, the stride frequency of its harmonics, the harmonic route's weight
+    per component and whether those weights minimise the left-out loss (else they are given)."""
 
     lam: list
     fundamental_hz: float
     weights: np.ndarray
+    weights_by_loss: bool = True
 
 
 def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None,
@@ -1763,7 +1764,8 @@ def _stacked_routes(plain, plain_index, harmonics, harmonic_index, harmonic_lam,
                     ) -> _StackedRoutes:
     """The harmonic route's weight per component: :data:`LEFT_OUT_STACK` itself when it is a number, else
     :func:`left_out_stacking_weights` (one weight for the whole pose with ``"pose"``)."""
-    if LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose":
+    by_loss = LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose"
+    if by_loss:
         weights = left_out_stacking_weights(plain, plain_index, harmonics, harmonic_index,
                                             common=LEFT_OUT_STACK == "pose")[0]
     else:
@@ -1771,7 +1773,7 @@ def _stacked_routes(plain, plain_index, harmonics, harmonic_index, harmonic_lam,
         if not 0.0 <= fixed <= 1.0:
             raise ValueError(f"pose.LEFT_OUT_STACK: expected True, False or a weight in [0, 1], got {LEFT_OUT_STACK!r}")
         weights = np.full(6, fixed)
-    return _StackedRoutes([float(v) for v in harmonic_lam], float(fundamental_hz), weights)
+    return _StackedRoutes([float(v) for v in harmonic_lam], float(fundamental_hz), weights, by_loss)
 
 
 def _stack_record(stacked: _StackedRoutes, plain, plain_index, harmonics, harmonic_index, dt: float) -> tuple:
@@ -1786,7 +1788,7 @@ def _left_out_reason(choice: dict, markers: int, info: dict, harmonic, stacked, 
     if stacked is not None:
         weights = (f"{stacked.weights[0]:.2f} for the whole pose" if np.all(stacked.weights == stacked.weights[0])
                    else "per component " + ", ".join(f"{c} {w:.2f}" for c, w in zip(POSE_COMPONENTS, stacked.weights)))
-        how = ("minimising the left-out score" if LEFT_OUT_STACK is True or LEFT_OUT_STACK == "pose" else "fixed")
+        how = "minimising the left-out score" if stacked.weights_by_loss else "fixed"
         route = (f"the fits without and with the stride's harmonics at {stacked.fundamental_hz:.4g} Hz unpenalised "
                  f"blended, the harmonic fit's weight {weights} ({how}; left-out scores "
                  + ", ".join(f"{k} {v[0]:.5g}" for k, v in routes.items()) + " m/s^2 rms)")

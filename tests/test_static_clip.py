@@ -290,3 +290,12 @@ def test_an_image_file_whose_suffix_is_not_an_images_is_still_a_still(tmp_path):
     img.write_bytes(data.tobytes())
     (tmp_path / "left.avi").write_bytes(b"RIFF0000AVI LIST")
     assert is_still_image(img) and not is_still_image(tmp_path / "left.avi") and not is_still_image(tmp_path)
+
+
+def test_a_clip_without_a_frame_giving_every_marker_stops_naming_the_files_and_reasons(still_session, tmp_path):
+    session = load_session(_with_static(still_session, tmp_path, {c: ["blank", "blank"] for c in CAMS}))
+    with pytest.raises(AnalysisError) as err:
+        _static(session)
+    message = str(err.value)
+    assert "no frame of the 2-frame static clip gave every marker" in message
+    assert "frame 0: markers not found" in message and "static/left" in message

@@ -386,10 +386,11 @@ def clip_points(session: Session, rig: Rig, clips: dict, count: int, step: str, 
 
     Returns ``(points, px, reasons)``: points (F, count, 3) triangulated, px camera -> (F, count, 2), NaN in a
     frame whose markers were not found, and ``{frame: reason}`` for those frames. The cameras' frames are
-    read in step; a camera whose clip ends before the others' or a frame that cannot be read is an
-    :class:`AnalysisError` naming the file.
+    read in step; a camera whose clip ends before the others', a frame that cannot be read, or a clip none of
+    whose frames gives every marker is an :class:`AnalysisError` naming the files.
     """
     cams = session.cameras
+    files = ", ".join(str(clips[c]) for c in cams)
     readers = {c: still_frames(clips[c]) for c in cams}
     points, px, reasons = [], {c: [] for c in cams}, {}
     for f in itertools.count():
@@ -403,7 +404,7 @@ def clip_points(session: Session, rig: Rig, clips: dict, count: int, step: str, 
         if ended:
             raise AnalysisError(step, f"the clip of camera '{ended[0]}' ({clips[ended[0]]}) ends after {f} "
                                       f"frames, those of the others do not (expected one frame count in "
-                                      f"every camera: {', '.join(str(clips[c]) for c in cams)})")
+                                      f"every camera: {files})")
         try:
             found = _still_px({c: got[c][1] for c in cams}, rig, count, given)
         except ValueError as exc:
@@ -418,7 +419,11 @@ def clip_points(session: Session, rig: Rig, clips: dict, count: int, step: str, 
         for c in cams:
             px[c].append(np.asarray(found[c], float))
     if not points:
-        raise AnalysisError(step, f"the clip has no frame: {', '.join(str(clips[c]) for c in cams)}")
+        raise AnalysisError(step, f"the clip has no frame: {files}")
+    if len(reasons) == len(points):         # every frame has a reason: none gave every marker
+        markers = "both markers" if count == 2 else "every marker"
+        raise AnalysisError(step, f"{files}: no frame of the {len(points)}-frame {step} clip gave {markers}: "
+                                  + "; ".join(f"frame {k}: {r}" for k, r in sorted(reasons.items())[:3]))
     return np.stack(points), {c: np.stack(v) for c, v in px.items()}, reasons
 
 
@@ -434,10 +439,6 @@ def step_plumb(session: Session, section: StillsParams, rig: Rig, triangulation:
     else:       # a clip: the line hangs still, each marker's mean over the frames where both were found
         points, px_all, reasons = clip_points(session, rig, session.plumb, 2, "plumb", triangulation, given)
         ok = np.isfinite(points).all(axis=(1, 2))
-        if not ok.any():
-            raise AnalysisError("plumb", f"{', '.join(str(session.plumb[c]) for c in session.cameras)}: no frame "
-                                         f"of the {len(points)}-frame plumb clip gave both markers: " +
-                                "; ".join(f"frame {f}: {r}" for f, r in sorted(reasons.items())[:3]))
         pts, px = points[ok].mean(0), {c: v[ok].mean(0) for c, v in px_all.items()}
         used, left_out = int(ok.sum()), tuple(sorted(reasons.items()))
         progress("plumb", f"clip of {len(points)} frames: {used} averaged, {len(left_out)} left out")
@@ -466,11 +467,6 @@ def _static_clip(session: Session, rig: Rig, triangulation: str, given: dict, pr
     (:func:`average_static_clip`); the frames left out counted with their reasons."""
     points, px, reasons = clip_points(session, rig, session.static, session.marker_count + 1, "static",
                                       triangulation, given)
-    files = ", ".join(str(session.static[c]) for c in session.cameras)
-    if not np.isfinite(points).all(axis=(1, 2)).any():
-        first = sorted(reasons.items())[:3]
-        raise AnalysisError("static", f"{files}: no frame of the {len(points)}-frame static clip gave every "
-                                      f"marker: " + "; ".join(f"frame {f}: {r}" for f, r in first))
     avg = average_static_clip(points)
     left_out = tuple(sorted({**{f: r for f, r in avg.left_out}, **reasons}.items()))
     used = np.flatnonzero(avg.used)
