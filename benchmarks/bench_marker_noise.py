@@ -17,7 +17,11 @@ point. ``--static-seconds S``: each session also with its static shot a clip of
 ``S`` seconds of the horse standing (its marker noise evolving over the clip),
 averaged by the static step; the still and the clip side by side, with the
 static markers' error against the truth (writes
-``benchmarks/results/marker_noise_static_clip.txt``).
+``benchmarks/results/marker_noise_static_clip.txt``). ``--herd``: every horse at
+every gait (16 sessions) instead of the two above, with each run's verdict and
+the checks it flagged, and whether a run off the targets (A_y 10 %, Wb/Wk 5 %)
+ended unreliable (writes ``benchmarks/results/marker_noise_herd.txt``; with
+``--static-seconds`` every session with its static clip).
 """
 from __future__ import annotations
 
@@ -40,7 +44,7 @@ from horsemocap.pipeline import AnalysisError, analyze
 from horsemocap.reconstruction import triangulate
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.herd import RENDER_VERSION, herd_seed, render_into_cache, short_record
-from horsemocap.virtuallab.horse import saddle_motion
+from horsemocap.virtuallab.horse import GAITS, HORSES, saddle_motion
 from horsemocap.virtuallab.noise import MarkerNoise
 from horsemocap.virtuallab.rig import FPS, thesis_rig
 from horsemocap.virtuallab.session import Scene, render_session
@@ -48,6 +52,8 @@ from horsemocap.virtuallab.session import Scene, render_session
 HERE = Path(__file__).resolve().parent
 SESSIONS = (("Horse 2", "canter"), ("Horse 2", "sitting_trot"))
 KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms")
+#: Every horse at every gait (``--herd``).
+HERD_SESSIONS = tuple((h, g) for h in HORSES for g in GAITS)
 
 
 def noisy_session(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1) -> Path:
@@ -98,11 +104,12 @@ def _true_markers(truth):
     return replace_result
 
 
-def trace(noise: MarkerNoise) -> list:
-    """Each session: measured, with the true static shot, with the true markers in the analysed frames."""
+def trace(noise: MarkerNoise, sessions=SESSIONS, variants=None) -> list:
+    """Each session: measured, with the true static shot, with the true markers in the analysed frames
+    (``variants``: a subset of those labels, default all)."""
     lines = [TRACE_HEADER, f"marker noise {noise.to_dict()}; saddle A_y error %, Wb %, omega rms error (rad/s, x y z)",
              f"{'session':24s} {'variant':34s} {'A_y_%':>6s} {'Wb_%':>6s}  omega"]
-    for horse, gait in SESSIONS:
+    for horse, gait in sessions:
         folder = noisy_session(horse, gait, noise)
         truth = load_truth(folder)
         static_error = {}
@@ -112,6 +119,8 @@ def trace(noise: MarkerNoise) -> list:
             return dataclasses.replace(r, static_points=np.asarray(truth.static_pos, float))
         for label, patch in (("measured", None), ("static shot replaced by the truth", ("static", true_static)),
                              ("analysed frames' markers true", ("triangulate", _true_markers(truth)))):
+            if variants is not None and label not in variants:
+                continue
             if patch is None:
                 a = analyze(folder, None, {}, progress=lambda *x: None)
             else:
@@ -122,8 +131,9 @@ def trace(noise: MarkerNoise) -> list:
             lines.append(f"{horse + ' ' + gait:24s} {label:34s} {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} "
                          f"{ce[KEYS[0]]:6.1f}  {np.round(st['omega'], 2)}")
             print(lines[-1], flush=True)
-        err = np.round(static_error["mm"], 1)
-        lines.append(f"{'':24s} static shot error (mm, x y z per point, world): {err.tolist()}")
+        if "mm" in static_error:
+            err = np.round(static_error["mm"], 1)
+            lines.append(f"{'':24s} static shot error (mm, x y z per point, world): {err.tolist()}")
     return lines
 
 
@@ -192,6 +202,48 @@ def static_clip_comparison(noise: MarkerNoise, seconds: float) -> list:
     return lines
 
 
+def herd_run(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1) -> str:
+    """One herd session with ``noise``: errors against the truth, the verdict and the checks flagged."""
+    t0 = time.perf_counter()
+    folder = noisy_session(horse, gait, noise, static_frames)
+    name = f"{horse} {gait}"
+    try:
+        a = analyze(folder, None, {}, progress=lambda *x: None)
+    except AnalysisError as exc:
+        return f"{name:24s} exit 2 stopped: {str(exc)[:150]}"
+    truth = load_truth(folder)
+    st = accuracy.stage_errors(a, truth)
+    ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, KEYS)
+    checks = quality.post_checks(a)
+    v = quality.verdict(checks)
+    a_y = st["saddle_acc_y_rmse_pct_of_rms"]
+    off = abs(a_y) > 10 or any(abs(ce[k]) > 5 for k in KEYS)
+    judged = ("off, unreliable" if v == "unreliable" else "OFF, NOT FLAGGED") if off else (
+        "within, unreliable" if v == "unreliable" else "within")
+    flagged = ",".join(f"{c.name}:{c.level}" for c in checks if c.level in ("warning", "unreliable")) or "none"
+    return (f"{name:24s} {st['frames']:6d} {a_y:7.1f} " + " ".join(f"{ce[k]:+7.1f}" for k in KEYS)
+            + f"  exit {3 if v == 'unreliable' else 0} {v:10s} {judged:18s} [{flagged}]"
+            + f"  ({time.perf_counter() - t0:.0f} s)")
+
+
+def herd_table(noise: MarkerNoise, static_frames: int = 1) -> list:
+    """Every horse at every gait with ``noise``: one line per session (:func:`herd_run`) and a summary."""
+    still = "a still" if static_frames == 1 else f"a clip of {static_frames} frames, averaged"
+    lines = [f"The herd with marker noise {noise.to_dict()}, static shot {still} (3 strides, genlocked, "
+             "pipeline defaults)",
+             f"{'session':24s} {'frames':>6s} {'A_y_%':>7s} {'Wb_%':>7s} {'Wk_%':>7s}  verdict, against the "
+             "targets (A_y 10 %, Wb/Wk 5 %), checks flagged"]
+    for horse, gait in HERD_SESSIONS:
+        lines.append(herd_run(horse, gait, noise, static_frames))
+        print(lines[-1], flush=True)
+    rows = [ln for ln in lines[2:] if " exit 2 " not in ln]
+    lines.append(f"{len(rows)} analysed: within {sum(' within ' in r for r in rows)}, within but unreliable "
+                 f"{sum('within, unreliable' in r for r in rows)}, off and unreliable "
+                 f"{sum('off, unreliable' in r for r in rows)}, off and not flagged "
+                 f"{sum('NOT FLAGGED' in r for r in rows)}; stopped {len(lines) - 2 - len(rows)}")
+    return lines
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sigma", type=float, default=0.3, help="AR(1) part's standard deviation per axis (px)")
@@ -200,8 +252,21 @@ def main(argv=None):
     ap.add_argument("--trace", action="store_true", help="where the error comes from (appended to the results)")
     ap.add_argument("--static-seconds", type=float, default=None,
                     help="also a static clip of this length (s), averaged: results/marker_noise_static_clip.txt")
+    ap.add_argument("--herd", action="store_true",
+                    help="every horse at every gait, verdicts: results/marker_noise_herd.txt")
     args = ap.parse_args(argv)
     noise = MarkerNoise(args.sigma, args.rho, args.bias)
+    static_frames = 1 if args.static_seconds is None else max(1, int(round(args.static_seconds * FPS)))
+    if args.herd:
+        path = HERE / "results" / "marker_noise_herd.txt"
+        if args.trace:               # the static shot's share: each session again with its true static shot
+            old = path.read_text().split("\n" + TRACE_HEADER)[0].rstrip("\n") + "\n" if path.exists() else ""
+            lines = trace(noise, HERD_SESSIONS, ("static shot replaced by the truth",))
+            path.write_text(old + "\n" + "\n".join(lines) + "\n")
+            return 0
+        lines = herd_table(noise, static_frames)
+        path.write_text("\n".join(lines) + "\n")
+        return 0
     if args.static_seconds is not None:
         lines = static_clip_comparison(noise, args.static_seconds)
         path = HERE / "results" / "marker_noise_static_clip.txt"
