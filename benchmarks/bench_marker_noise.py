@@ -44,7 +44,8 @@ from horsemocap.pipeline import AnalysisError, analyze
 from horsemocap.reconstruction import triangulate
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.herd import RENDER_VERSION, herd_seed, render_into_cache, short_record
-from horsemocap.virtuallab.horse import GAITS, HORSES, saddle_motion
+from horsemocap.virtuallab.covers import LOWER_FLANK, UPPER_BACK, horse_with_markers
+from horsemocap.virtuallab.horse import GAITS, HERD, HORSES, saddle_motion
 from horsemocap.virtuallab.noise import MarkerNoise
 from horsemocap.virtuallab.rig import FPS, thesis_rig
 from horsemocap.virtuallab.session import Scene, render_session
@@ -56,22 +57,30 @@ KEYS = ("acc_y_Wb_rms", "acc_y_Wk_rms")
 HERD_SESSIONS = tuple((h, g) for h in HORSES for g in GAITS)
 
 
-def noisy_session(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1) -> Path:
+def noisy_session(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1, extra_markers=()) -> Path:
     """A short herd record with ``noise``, rendered into the cache on first use; ``static_frames`` > 1: its
-    static shot a clip of that many frames (``render_session(static_frames=...)``)."""
+    static shot a clip of that many frames (``render_session(static_frames=...)``); ``extra_markers``: body-frame
+    centres of markers added to the horse's three (:func:`horsemocap.virtuallab.covers.horse_with_markers`)."""
     spec = {"v": RENDER_VERSION, "h": horse, "g": gait, "noise": noise.to_dict(), "strides": 3}
     if static_frames != 1:
         spec["static_frames"] = int(static_frames)
+    if extra_markers:
+        spec["extra_markers"] = [list(map(float, m)) for m in extra_markers]
     blob = json.dumps(spec, sort_keys=True)
     key = hashlib.sha256(blob.encode()).hexdigest()[:12]
-    folder = cache_dir() / "virtuallab" / f"marker-noise_{horse.lower().replace(' ', '')}_{gait}-{key}"
+    spread = f"_spread{3 + len(extra_markers)}" if extra_markers else ""
+    folder = cache_dir() / "virtuallab" / f"marker-noise{spread}_{horse.lower().replace(' ', '')}_{gait}-{key}"
     seed = herd_seed(horse, gait)
 
     def render(tmp):
         scene = Scene(thesis_rig(), saddle_motion(horse, gait), seed)
+        if extra_markers:
+            motion = dataclasses.replace(scene.motion, horse=horse_with_markers(HERD[horse], extra_markers))
+            scene = dataclasses.replace(scene, motion=motion)
         offsets, n_after = short_record(scene, FPS, 8, None, strides=3.0)
         render_session(tmp, horse, gait, seed=seed, calibration_views=0, n_motion_frames=n_after,
-                       name=f"marker_noise_{gait}", marker_noise=noise, static_frames=static_frames)
+                       name=f"marker_noise_{gait}", marker_noise=noise, static_frames=static_frames,
+                       scene=scene if extra_markers else None)
 
     return render_into_cache(folder, render, "benchmarks/bench_marker_noise.py")
 
@@ -202,10 +211,10 @@ def static_clip_comparison(noise: MarkerNoise, seconds: float) -> list:
     return lines
 
 
-def herd_run(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1) -> str:
+def herd_run(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1, extra_markers=()) -> str:
     """One herd session with ``noise``: errors against the truth, the verdict and the checks flagged."""
     t0 = time.perf_counter()
-    folder = noisy_session(horse, gait, noise, static_frames)
+    folder = noisy_session(horse, gait, noise, static_frames, extra_markers)
     name = f"{horse} {gait}"
     try:
         a = analyze(folder, None, {}, progress=lambda *x: None)
@@ -226,15 +235,17 @@ def herd_run(horse: str, gait: str, noise: MarkerNoise, static_frames: int = 1) 
             + f"  ({time.perf_counter() - t0:.0f} s)")
 
 
-def herd_table(noise: MarkerNoise, static_frames: int = 1) -> list:
+def herd_table(noise: MarkerNoise, static_frames: int = 1, extra_markers=()) -> list:
     """Every horse at every gait with ``noise``: one line per session (:func:`herd_run`) and a summary."""
     still = "a still" if static_frames == 1 else f"a clip of {static_frames} frames, averaged"
-    lines = [f"The herd with marker noise {noise.to_dict()}, static shot {still} (3 strides, genlocked, "
+    rig = (f", {3 + len(extra_markers)} markers (added, body frame: {[list(m) for m in extra_markers]})"
+           if extra_markers else "")
+    lines = [f"The herd with marker noise {noise.to_dict()}, static shot {still}{rig} (3 strides, genlocked, "
              "pipeline defaults)",
              f"{'session':24s} {'frames':>6s} {'A_y_%':>7s} {'Wb_%':>7s} {'Wk_%':>7s}  verdict, against the "
              "targets (A_y 10 %, Wb/Wk 5 %), checks flagged"]
     for horse, gait in HERD_SESSIONS:
-        lines.append(herd_run(horse, gait, noise, static_frames))
+        lines.append(herd_run(horse, gait, noise, static_frames, extra_markers))
         print(lines[-1], flush=True)
     rows = [ln for ln in lines[2:] if " exit 2 " not in ln]
     lines.append(f"{len(rows)} analysed: within {sum(' within ' in r for r in rows)}, within but unreliable "
@@ -254,17 +265,23 @@ def main(argv=None):
                     help="also a static clip of this length (s), averaged: results/marker_noise_static_clip.txt")
     ap.add_argument("--herd", action="store_true",
                     help="every horse at every gait, verdicts: results/marker_noise_herd.txt")
+    ap.add_argument("--spread", type=int, choices=(4, 5), default=None,
+                    help="with --herd: four (a marker high behind the cantle) or five markers (and one low on the "
+                         "flank), the spread rigs' markers on the thesis rig: results/marker_noise_herd_spreadN.txt")
     args = ap.parse_args(argv)
     noise = MarkerNoise(args.sigma, args.rho, args.bias)
     static_frames = 1 if args.static_seconds is None else max(1, int(round(args.static_seconds * FPS)))
+    extra = () if args.spread is None else (UPPER_BACK, LOWER_FLANK)[:args.spread - 3]
     if args.herd:
-        path = HERE / "results" / "marker_noise_herd.txt"
+        path = HERE / "results" / ("marker_noise_herd.txt" if not extra else f"marker_noise_herd_spread{args.spread}.txt")
+        if args.trace and extra:
+            ap.error("--trace traces the three-marker herd: leave out --spread")
         if args.trace:               # the static shot's share: each session again with its true static shot
             old = path.read_text().split("\n" + TRACE_HEADER)[0].rstrip("\n") + "\n" if path.exists() else ""
             lines = trace(noise, HERD_SESSIONS, ("static shot replaced by the truth",))
             path.write_text(old + "\n" + "\n".join(lines) + "\n")
             return 0
-        lines = herd_table(noise, static_frames)
+        lines = herd_table(noise, static_frames, extra)
         path.write_text("\n".join(lines) + "\n")
         return 0
     if args.static_seconds is not None:

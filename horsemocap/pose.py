@@ -147,6 +147,7 @@ __all__ = [
     "smallest_height",
     "check_model_conditioning",
     "register_pose",
+    "predicted_registration_rms",
     "marker_cross_validation",
     "left_out_noise_ratios",
     "marker_cross_validation_per_component",
@@ -500,6 +501,55 @@ def extra_marker_noise(residuals, covariance, dof: float) -> float:
         return 0.0
     hi = float(np.sum(z2)) / dof          # excess(hi) < 0: sum z2 / (lam + hi) < sum z2 / hi = dof
     return float(np.sqrt(brentq(excess, 0.0, hi, xtol=1e-12 * hi, rtol=1e-10)))
+
+
+def predicted_registration_rms(registration: PoseRegistration) -> np.ndarray:
+    """Each frame's registration RMS residual that the markers' own covariances predict (m).
+
+    With ``k`` markers of covariances ``Sigma_m`` registered by a rigid pose
+    (6 parameters), the residuals keep ``3 k - 6`` of the ``3 k`` degrees of
+    freedom of the markers' noise, so the expected mean squared residual
+    distance is about ``mean_m tr(Sigma_m) (3 k - 6) / (3 k)``: the residual
+    the noise alone leaves when the markers are rigid. Compared with
+    :attr:`PoseRegistration.rms` it tells a residual the triangulation's
+    scatter explains from one it does not (a marker that moves on the body,
+    a marker taken for another). The covariances come from the session's own
+    reprojection residuals, so anything that makes the cameras' views
+    disagree (a wrong sync offset) raises the prediction too.
+
+    Parameters
+    ----------
+    registration : PoseRegistration
+        A registration made with ``covariance`` (:func:`register_pose`).
+
+    Returns
+    -------
+    (n,) array
+        NaN where the frame has no pose, and everywhere without covariances.
+
+    Examples
+    --------
+    Four markers with 2 mm of isotropic noise per axis: 2 x sqrt(3 x 6 / 12) = 2.45 mm.
+
+    >>> import numpy as np
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1], [0.0, 0.0, 0.25]])
+    >>> pts = np.repeat(model[None], 2, axis=0)
+    >>> cov = np.tile(4e-6 * np.eye(3), (2, 4, 1, 1))
+    >>> reg = register_pose(pts, model, covariance=cov)
+    >>> np.round(1000 * predicted_registration_rms(reg), 2).tolist()
+    [2.45, 2.45]
+    """
+    n = len(registration.rms)
+    cov = registration.marker_covariance
+    if cov is None:
+        return np.full(n, np.nan)
+    used = np.isfinite(registration.residual)
+    k = used.sum(1)
+    trace = np.where(used, np.trace(np.asarray(cov, float), axis1=2, axis2=3), 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.sqrt(trace.sum(1) / k * (3 * k - 6) / (3 * k))
+    out[(k < 3) | ~np.isfinite(registration.rms)] = np.nan
+    return out
 
 
 def register_pose(points, model, weights=None, min_height_m: float | None = None,

@@ -240,3 +240,31 @@ def test_a_period_searched_again_is_said_by_the_stride_check():
     c = check_stride_frequency(1.41, faster_hz=2.84)
     assert c.level == "warning" and "also repeats at 2.84 Hz" in c.message
     assert check_stride_frequency(3.0, faster_hz=6.0).level == "warning"      # already outside: as before
+
+
+def test_marker_rigidity_says_when_the_residual_is_the_triangulations_scatter():
+    """The level is the residual's share of the spread either way; the message says whether the markers'
+    own covariances predict the residual (rigid markers measured noisily, or views that disagree) or not."""
+    from horsemocap.pose import predicted_registration_rms, register_pose
+    from horsemocap.quality import RIGIDITY_EXPLAINED_RATIO, check_marker_rigidity
+
+    rng = np.random.default_rng(3)
+    model = np.array([[0.2, 0.0, 0.0], [-0.1, 0.17, 0.0], [-0.1, -0.17, 0.0], [0.0, 0.0, 0.19]])
+    sd = np.array([0.002, 0.002, 0.025])                     # depth far worse than across the rays
+    pts = model[None] + rng.normal(0.0, 1.0, (400, 4, 3)) * sd
+    cov = np.tile(np.diag(sd ** 2), (400, 4, 1, 1))
+    reg = register_pose(pts, model, covariance=cov)
+    pred = predicted_registration_rms(reg)
+    ratio = np.nanmedian(reg.rms) / np.nanmedian(pred)
+    assert 0.8 < ratio < 1.2                                  # rigid markers: the prediction holds
+    noisy = check_marker_rigidity(reg.rms, model, predicted_rms_m=pred)
+    assert noisy.level != "ok" and "the triangulation's scatter" in noisy.message
+    assert noisy.level == check_marker_rigidity(reg.rms, model).level       # the level is unchanged
+    moved = pts.copy()
+    moved[:, 1] += [0.08, 0.0, 0.0]                           # one marker 80 mm off the static shot's place
+    reg2 = register_pose(moved, model, covariance=cov)
+    pred2 = predicted_registration_rms(reg2)
+    assert np.nanmedian(reg2.rms) > RIGIDITY_EXPLAINED_RATIO * np.nanmedian(pred2)
+    c = check_marker_rigidity(reg2.rms, model, predicted_rms_m=pred2)
+    assert c.level == "unreliable" and "wrong identities" in c.message
+    assert "scatter" not in check_marker_rigidity(reg.rms, model).message      # no prediction: as before
