@@ -113,13 +113,13 @@ def _true_markers(truth):
     return replace_result
 
 
-def trace(noise: MarkerNoise, sessions=SESSIONS, variants=None) -> list:
+def trace(noise: MarkerNoise, sessions=SESSIONS, variants=None, extra_markers=()) -> list:
     """Each session: measured, with the true static shot, with the true markers in the analysed frames
     (``variants``: a subset of those labels, default all)."""
     lines = [TRACE_HEADER, f"marker noise {noise.to_dict()}; saddle A_y error %, Wb %, omega rms error (rad/s, x y z)",
              f"{'session':24s} {'variant':34s} {'A_y_%':>6s} {'Wb_%':>6s}  omega"]
     for horse, gait in sessions:
-        folder = noisy_session(horse, gait, noise)
+        folder = noisy_session(horse, gait, noise, 1, extra_markers)
         truth = load_truth(folder)
         static_error = {}
 
@@ -274,11 +274,9 @@ def main(argv=None):
     extra = () if args.spread is None else (UPPER_BACK, LOWER_FLANK)[:args.spread - 3]
     if args.herd:
         path = HERE / "results" / ("marker_noise_herd.txt" if not extra else f"marker_noise_herd_spread{args.spread}.txt")
-        if args.trace and extra:
-            ap.error("--trace traces the three-marker herd: leave out --spread")
         if args.trace:               # the static shot's share: each session again with its true static shot
             old = path.read_text().split("\n" + TRACE_HEADER)[0].rstrip("\n") + "\n" if path.exists() else ""
-            lines = trace(noise, HERD_SESSIONS, ("static shot replaced by the truth",))
+            lines = trace(noise, HERD_SESSIONS, ("static shot replaced by the truth",), extra)
             path.write_text(old + "\n" + "\n".join(lines) + "\n")
             return 0
         lines = herd_table(noise, static_frames, extra)
