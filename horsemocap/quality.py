@@ -833,8 +833,8 @@ def check_marker_rigidity(registration_rms_m, model_points, input_="the markers'
 
 
 #: A median registration residual within this multiple of the one the markers' covariances predict is that
-#: scatter (:func:`check_marker_rigidity`): the residual's own ratio is 1.06-1.21 on rigid markers under white or
-#: correlated noise (benchmarks/README.md), a marker that moves or is followed as another adds to it.
+#: scatter (:func:`check_marker_rigidity`): on rigid markers the ratio stays near 1 under white or correlated noise
+#: (benchmarks/README.md); a marker that moves on the body, or a deformed static shot, adds to the residual only.
 RIGIDITY_EXPLAINED_RATIO = 1.5
 
 
