@@ -132,6 +132,47 @@ def shape_change(area, moments, ref_area, ref_moments) -> tuple[float, float]:
     return float(area / ref_area), float(np.linalg.eigvalsh(Ri @ S @ Ri).min())
 
 
+def same_marker_set(before, after, max_step: float) -> bool:
+    """Are the markers labelled in two neighbouring frames the same markers under the same labels?
+
+    The set moves as a whole: at a canter it travels more than its
+    smallest marker spacing in one frame, so how far the markers moved
+    tells nothing about their labels. A label given to another marker
+    moves that marker by a marker spacing *against the others*. Each
+    marker's displacement less the set's common displacement (the
+    median, robust to one wrong label) must stay within ``max_step``
+    (half the smallest spacing; the set's rotation and the points' noise
+    in one frame are far smaller).
+
+    Parameters
+    ----------
+    before, after : (M, 3)
+        The markers' positions (m) in the two frames, in label order.
+    max_step : float
+        Half the smallest marker spacing (m).
+
+    Returns
+    -------
+    bool
+        False also when a position is missing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[0.0, 0, 0], [0.2, 0, 0], [0, 0.3, 0]])
+    >>> same_marker_set(X, X + [0.25, 0.0, 0.01], 0.1)   # the whole set ran 25 cm
+    True
+    >>> same_marker_set(X, X[[1, 0, 2]], 0.1)            # two labels swapped
+    False
+    """
+    before, after = np.asarray(before, float), np.asarray(after, float)
+    if not (np.all(np.isfinite(before)) and np.all(np.isfinite(after))):
+        return False
+    step = after - before
+    relative = np.linalg.norm(step - np.median(step, axis=0), axis=1)
+    return bool(np.all(relative < max_step))
+
+
 def reason_counts(reason: dict) -> str:
     """How often each reason of :data:`IDENTIFICATION_REASONS` was given, per camera, for an error message.
 
@@ -1047,7 +1088,8 @@ class _Tracker:
         """Label frame ``k + direction`` on its own too, so that tracking starts with a velocity.
 
         Returns the frame tracking goes on from (``k + direction`` when it
-        was labelled near the markers of frame ``k``, else ``k``).
+        was labelled as the same markers as frame ``k``, else ``k``; see
+        :func:`same_marker_set`).
         """
         j = k + direction
         if not 0 <= j < self.n:
@@ -1055,8 +1097,7 @@ class _Tracker:
         cands, vp, fit = self._label_whole_frame(j)
         if fit is None:
             return k
-        step = np.linalg.norm(vp.points[fit.assignment] - self.X[k], axis=1)
-        if not np.all(step < 2 * self.max_step):   # further than a marker spacing in one frame: not the same set
+        if not same_marker_set(self.X[k], vp.points[fit.assignment], self.max_step):
             return k
         self.start(j, cands, vp, fit)
         return j
