@@ -106,7 +106,9 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
   chooses the smoothing of plain splines and of partial splines with the
   stride's harmonics, and fits their blend (stacking,
   :data:`LEFT_OUT_STACK`, :func:`left_out_stacking_weights`): the weight
-  minimises the same left-out loss.
+  minimises the same left-out loss. Settled on one record
+  (:func:`settle_pose_smoothing`), the blend is reused whole on others of
+  the same motion: both routes at their parameters, blended with its weight.
 
 Conditioning (:func:`smallest_height`, :func:`check_model_conditioning`): a
 rotation about the line through two markers is seen only through the third
