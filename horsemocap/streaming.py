@@ -294,8 +294,9 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     method it ran is kept, and the stride frequency of its harmonics; without harmonics the six
     lambdas of that fit are kept too (with harmonics, and for the adaptive smoothing, the lambdas
     are chosen per window); a blend of the fits without and with the harmonics is kept whole
-    (``blend``: both routes' lambdas, harmonics and the weight). The margin is the widest of the components' :func:`kernel_margin` (those
-    a window holds), at least :data:`MARGIN_FRAMES`; the core is :func:`window_core`.
+    (``blend``: both routes' lambdas, harmonics and the weight). The margin is the widest of the
+    components' :func:`kernel_margin` (those a window holds), at least :data:`MARGIN_FRAMES`; the
+    core is :func:`window_core`.
     """
     lo, hi = representative_range(len(t), frames)
     sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
@@ -320,10 +321,10 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
         # the left-out choice's blend is the representative range's: every window fits its two routes at their
         # lambdas and blends them with its weight, and the record says so
         lam = blend.lam
+        weight = pose.blend_weights_text(blend.blend_weights)
         choice = {**choice, "reason": choice["reason"] + "; on this long record the left-out choice and the "
-                  f"blend's weight ({pose.blend_weights_text(blend.blend_weights)}) were settled on the representative "
-                  f"range (frames {lo} to {hi - 1}): every window fits both routes at those smoothing parameters "
-                  "and blends them with that weight"}
+                  f"blend's weight ({weight}) were settled on the representative range (frames {lo} to {hi - 1}): "
+                  "every window fits both routes at those smoothing parameters and blends them with that weight"}
     elif choice is not None and f0 is not None and "cross_validation" in choice:
         # the left-out choice is the representative range's: the windows choose theirs as white-noise GCV
         # with the stride's harmonics, and the record says so
