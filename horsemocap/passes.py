@@ -261,7 +261,9 @@ def pass_smoothing(analysis) -> SettledPoseSmoothing | None:
     The passes film the same horse in the same gait: the method, stride
     frequency, smoothing parameters, harmonics and rotation weighting chosen
     on the longest pass (:func:`horsemocap.pose.settle_pose_smoothing`) serve
-    the others, which then search none of them. None when the analysis has
+    the others, which then search none of them; a blend of the fits without
+    and with the stride's harmonics is served whole (both routes' parameters
+    and the blend's weight). None when the analysis has
     no pose trajectory (``kinematics="fits"``).
 
     Examples

@@ -106,7 +106,9 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
   chooses the smoothing of plain splines and of partial splines with the
   stride's harmonics, and fits their blend (stacking,
   :data:`LEFT_OUT_STACK`, :func:`left_out_stacking_weights`): the weight
-  minimises the same left-out loss.
+  minimises the same left-out loss. Settled on one record
+  (:func:`settle_pose_smoothing`), the blend is reused whole on others of
+  the same motion: both routes at their parameters, blended with its weight.
 
 Conditioning (:func:`smallest_height`, :func:`check_model_conditioning`): a
 rotation about the line through two markers is seen only through the third
@@ -1379,9 +1381,12 @@ def fit_pose_trajectory(t, registration: PoseRegistration, model, params: PosePa
         smoothing parameters, most harmonics per component and rotation
         weighting are taken instead of chosen here; only which of the first
         harmonics each component keeps is chosen (at the given smoothing
-        parameter). ``lam`` and ``fundamental_hz``, when given, still take
-        precedence over its values. Nothing of the settled choice is checked
-        again (the record it was settled on was).
+        parameter). A settled blend of the fits without and with the
+        stride's harmonics (``blend_weights``) fits both routes at their
+        settled parameters and blends them with the settled weights.
+        ``lam`` and ``fundamental_hz``, when given, still take precedence
+        over its values (``lam`` over the plain route's). Nothing of the
+        settled choice is checked again (the record it was settled on was).
     aperture : horsemocap.aperture.Aperture, optional
         Each frame's pose is the motion averaged over this temporal aperture
         (the cameras' exposure, an interlaced frame's two fields;
@@ -1836,8 +1841,7 @@ def _left_out_reason(choice: dict, markers: int, info: dict, harmonic, stacked, 
     """The left-out choice's reason: the noise correlation, the route (or the blend) and the chosen ``s``."""
     decades = ", ".join(f"{c} {v:g}" for c, v in zip(POSE_COMPONENTS, info["cross_validation_component_decades"]))
     if stacked is not None:
-        weights = (f"{stacked.weights[0]:.2f} for the whole pose" if np.all(stacked.weights == stacked.weights[0])
-                   else "per component " + ", ".join(f"{c} {w:.2f}" for c, w in zip(POSE_COMPONENTS, stacked.weights)))
+        weights = blend_weights_text(stacked.weights)
         how = "minimising the left-out score" if stacked.weights_by_loss else "fixed"
         route = (f"the fits without and with the stride's harmonics at {stacked.fundamental_hz:.4g} Hz unpenalised "
                  f"blended, the harmonic fit's weight {weights} ({how}; left-out scores "
@@ -1856,6 +1860,22 @@ def _left_out_reason(choice: dict, markers: int, info: dict, harmonic, stacked, 
             f"the others' pose, which holds none of its noise, so the choice holds whatever the noise's correlation "
             f"over frames): white-noise GCV's parameters times 10^s, s = {decades}"
             + ("" if LEFT_OUT_RULE == "min" else f" ({LEFT_OUT_RULE} rule)"))
+
+
+def blend_weights_text(weights) -> str:
+    """A blend's weights of the harmonic fit in words: one for the whole pose, or one per component.
+
+    Examples
+    --------
+    >>> blend_weights_text([0.25] * 6)
+    '0.25 for the whole pose'
+    >>> blend_weights_text([0, 0, 0, 1, 1, 0.5])
+    'per component cx 0.00, cy 0.00, cz 0.00, phix 1.00, phiy 1.00, phiz 0.50'
+    """
+    w = np.asarray(weights, float)
+    if np.all(w == w[0]):
+        return f"{w[0]:.2f} for the whole pose"
+    return "per component " + ", ".join(f"{c} {v:.2f}" for c, v in zip(POSE_COMPONENTS, w))
 
 
 def _left_out_route(t, reg: PoseRegistration, model, points, aperture, fundamental_hz) -> tuple:
@@ -1893,7 +1913,10 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
     or rotation weighting chosen; each component keeps the first 0 .. ``settled.harmonics`` harmonics that
     the criterion prefers at the given smoothing parameter (neither the plain spline's cutoff nor the rotation
     noise test is run again: the settled count passed them)."""
-    n = t.size
+    if settled.blend_weights is not None:
+        return _fit_settled_blend(t, reg, model, phi, ok, ref, order, settled, params=params,
+                                  fundamental_hz=fundamental_hz, lam=lam, sig=sig, points=points,
+                                  iterations=iterations, aperture=aperture, two=two)
     f0 = fundamental_hz if settled.method in ("gcv", "noise") and order == 5 else None
     choice = None if settled.choice is None else dict(settled.choice)
     var = None
@@ -1913,6 +1936,31 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, spline_options, lam,
                                        sig, var, [None] * 3, False, iterations, most_harmonics=most,
                                        compare_weights=False)
+    return centre, phi, cs, ps, choice, two
+
+
+def _fit_settled_blend(t, reg: PoseRegistration, model, phi, ok, ref, order: int, settled: SettledPoseSmoothing, *,
+                       params, fundamental_hz, lam, sig, points, iterations: int, aperture=None, two):
+    """:func:`_fit_settled_components` of a settled blend: each component's plain route (the spline at ``lam``,
+    with the settled noise correlation) and harmonic route (white noise, the stride's harmonics at
+    ``fundamental_hz`` unpenalised, the spline at ``settled.harmonic_lam``, the first 0 .. ``settled.harmonics``
+    harmonics kept by GCV at that parameter) fitted once each and blended with ``settled.blend_weights``
+    (:func:`_blended_component`); nothing searched, nothing tested again."""
+    if order != 5 or fundamental_hz is None:
+        raise ValueError("settled: a blend of the fits without and with the stride's harmonics needs the quintic "
+                         f"spline and a stride frequency, got order {order}, fundamental_hz {fundamental_hz!r}")
+    plain = dict(method="gcv", order=order, fundamental_hz=None, events=_pose_events(params.events, "gcv", order, None))
+    if settled.noise_correlation is not None:
+        plain["noise_correlation"] = settled.noise_correlation
+    harmonic = _harmonic_route_options(plain, params, "gcv", order, fundamental_hz)
+    choice = _aperture_options(plain, aperture, order, None if settled.choice is None else dict(settled.choice))
+    _aperture_options(harmonic, aperture, order, {})
+    stack = (harmonic, list(settled.harmonic_lam), [None] * 3, tuple(settled.blend_weights))
+    centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, plain, lam, sig,
+                                       None, [None] * 3, False, iterations, most_harmonics=settled.harmonics,
+                                       compare_weights=False, stack=stack)
+    for s in cs + ps:
+        s.info["blended"]["settled"] = True     # the parameters and the weight given, not chosen on this record
     return centre, phi, cs, ps, choice, two
 
 
@@ -1949,12 +1997,27 @@ class SettledPoseSmoothing:
     choice : dict or None
         What ``smoothing="auto"`` ran and why (copied into each component's ``info``), None if the
         method was named.
+    harmonic_lam : tuple of 6 float or None
+        A blend's harmonic route (the partial splines with the stride's harmonics, white noise): its
+        smoothing parameters. None: no blend.
+    blend_weights : tuple of 6 float or None
+        A blend's weight of the harmonic route per component, in [0, 1]: each component is
+        ``w * harmonic route + (1 - w) * plain route`` (:func:`horsemocap.splines.blend_splines`).
+        With a blend, ``lam`` and ``noise_correlation`` are the plain route's, ``fundamental_hz`` and
+        ``harmonics`` the harmonic route's. None: no blend.
 
     Examples
     --------
     >>> s = SettledPoseSmoothing("gcv", None, 1.5, (1e-6,) * 6, (2, 2, 1, 1, 0, 1), (False, True, False))
-    >>> s.harmonics[2], s.rotation_weighted[1]
-    (1, True)
+    >>> s.harmonics[2], s.rotation_weighted[1], s.blend_weights is None
+    (1, True, True)
+
+    A blend: the plain route's parameters under AR(1) 0.8 noise, the harmonic route's and its weight:
+
+    >>> b = SettledPoseSmoothing("gcv", 0.8, 1.5, (1e-5,) * 6, (2,) * 6, (False,) * 3,
+    ...                          harmonic_lam=(1e-7,) * 6, blend_weights=(0.4,) * 6)
+    >>> b.noise_correlation, b.blend_weights[0]
+    (0.8, 0.4)
     """
 
     method: str
@@ -1964,10 +2027,32 @@ class SettledPoseSmoothing:
     harmonics: tuple
     rotation_weighted: tuple
     choice: dict | None = None
+    harmonic_lam: tuple | None = None
+    blend_weights: tuple | None = None
+
+    def __post_init__(self):
+        if (self.harmonic_lam is None) != (self.blend_weights is None):
+            raise ValueError("SettledPoseSmoothing: a blend needs both harmonic_lam and blend_weights, got "
+                             f"harmonic_lam {self.harmonic_lam!r}, blend_weights {self.blend_weights!r}")
+        if self.blend_weights is not None:
+            w = np.asarray(self.blend_weights, float)
+            if w.shape != (6,) or not np.all((w >= 0) & (w <= 1)):
+                raise ValueError(f"blend_weights: expected 6 weights in [0, 1], got {self.blend_weights!r}")
+            lams = list(self.lam) + list(self.harmonic_lam)
+            if len(lams) != 12 or not all(v is not None and np.isfinite(v) and v > 0 for v in lams):
+                raise ValueError("lam, harmonic_lam: a blend needs the six positive smoothing parameters of each "
+                                 f"route, got {self.lam!r} and {self.harmonic_lam!r}")
 
 
 def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseParams()) -> SettledPoseSmoothing:
     """The choices :func:`fit_pose_trajectory` made for ``trajectory`` (smoothed with ``params``), to reuse.
+
+    A trajectory whose components blend the fits without and with the
+    stride's harmonics (the left-out choice's stack) gives both routes'
+    smoothing parameters, the harmonics each keeps and the weights
+    (:class:`SettledPoseSmoothing`'s ``harmonic_lam`` and ``blend_weights``):
+    a record smoothed with them fits both routes and blends them, searching
+    nothing.
 
     Examples
     --------
@@ -2002,26 +2087,32 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
         method, rho = "gcv", float(choice["noise_correlation"])
     f0 = info["cx"].get("fundamental_hz")
     f0 = float(f0) if f0 is not None and np.isfinite(f0) and method in ("gcv", "noise") else None
-    # a blend of two fits (lam None: each part has its own) is chosen again, as the adaptive penalty is
+    blended = all("blended" in info[c] for c in names)
     lam = tuple(float(info[c]["lam"]) if method != "adaptive" and info[c].get("lam") is not None
                 and np.isfinite(info[c]["lam"]) and info[c]["lam"] > 0 else None for c in names)
     harmonics = tuple(int(max(info[c].get("harmonic_indices") or [0])) if f0 is not None else 0 for c in names)
     weighted = tuple(info[c].get("weights", "equal") != "equal" for c in names[3:])
-    blended = any(info[c].get("method") == "blend" for c in names)
-    if f0 is not None and rho is not None:
+    harmonic_lam = weights = None
+    if blended and f0 is not None:
+        # a blend of two fits: each route's parameters and the harmonic route's weight, reused as they are
+        lam = tuple(float(info[c]["blended"]["plain"]["lam"]) for c in names)
+        harmonic_lam = tuple(float(info[c]["blended"]["harmonics"]["lam"]) for c in names)
+        weights = tuple(float(info[c]["blend_weights"][1]) for c in names)
+    elif f0 is not None and rho is not None:
         # the left-out choice's fits with the stride's harmonics are white-noise fits (the correlated-error GCV
-        # takes no harmonics): the harmonic route's parameters are reused as such, a blend's chosen again so
+        # takes no harmonics): the harmonic route's parameters are reused as such
         rho = None
     kept = None
     if choice is not None:
         kept = {"smoothing_method": choice["method"], "smoothing_reason": choice["reason"]}
-        if blended:
-            kept["smoothing_reason"] += ("; this record's other passes: each component chosen again by "
-                                         "white-noise GCV with the stride's harmonics (the blend's weights are "
-                                         "the longest pass's own)")
+        if weights is not None:
+            kept["smoothing_reason"] += ("; reused on another record of the same motion (a long recording's other "
+                                         "passes, a long record's windows): both fits made at these parameters and "
+                                         f"blended with the harmonic fit's weight {blend_weights_text(weights)}, "
+                                         "nothing chosen again")
         if "noise_correlation" in choice:
             kept["noise_correlation"] = choice["noise_correlation"]
-    return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept)
+    return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept, harmonic_lam, weights)
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:

@@ -23,7 +23,12 @@ in windows instead:
 A fit with stride harmonics chooses its lambdas per window (its harmonics are
 tested against the cutoff of a plain spline whose lambda is not the partial
 spline's), as does an adaptive smoothing (its penalty's weight is local
-anyway).
+anyway). A fit that blends the smoothing without and with the stride's
+harmonics (the left-out choice with four or more markers under noise
+correlated over frames) is carried whole instead: both routes' lambdas, the
+harmonics each keeps and the blend's weight are settled on the
+representative stretch (:func:`horsemocap.pose.settle_pose_smoothing`), and
+every window fits both routes at them and blends them with that weight.
 
 Only the current window's arrays live at a time: :func:`windowed_kinematics`
 yields :class:`KinematicsBlock` s of consecutive frames for the caller to
@@ -107,7 +112,10 @@ class SettledSmoothing:
     """The smoothing every window runs: ``params``, ``lam`` (six, or None per component: chosen per
     window), ``fundamental_hz`` (None: no harmonics), ``choice`` (what ``"auto"`` ran and why, or
     None), ``margin`` (frames fitted each side of a core), ``info`` (the representative fit's
-    per-component smoothing) and ``window`` (frames of a core, :func:`window_core`)."""
+    per-component smoothing), ``window`` (frames of a core, :func:`window_core`) and ``blend``
+    (a blend of the fits without and with the stride's harmonics settled on the representative
+    stretch, :class:`horsemocap.pose.SettledPoseSmoothing`, that every window fits as it is; None:
+    no blend)."""
 
     params: PoseParams
     lam: tuple
@@ -116,6 +124,7 @@ class SettledSmoothing:
     margin: int
     info: dict
     window: int = WINDOW_FRAMES
+    blend: pose.SettledPoseSmoothing | None = None
 
 
 def window_core(window: int, margin: int) -> int:
@@ -284,8 +293,10 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     ``params.smoothing="auto"`` is run there (:func:`horsemocap.pose.choose_smoothing`) and the
     method it ran is kept, and the stride frequency of its harmonics; without harmonics the six
     lambdas of that fit are kept too (with harmonics, and for the adaptive smoothing, the lambdas
-    are chosen per window). The margin is the widest of the components' :func:`kernel_margin` (those
-    a window holds), at least :data:`MARGIN_FRAMES`; the core is :func:`window_core`.
+    are chosen per window); a blend of the fits without and with the harmonics is kept whole
+    (``blend``: both routes' lambdas, harmonics and the weight). The margin is the widest of the
+    components' :func:`kernel_margin` (those a window holds), at least :data:`MARGIN_FRAMES`; the
+    core is :func:`window_core`.
     """
     lo, hi = representative_range(len(t), frames)
     sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
@@ -304,7 +315,17 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     # spline's: there (and in the adaptive smoothing) each window chooses its lambdas
     per_window = method == "adaptive" or f0 is not None
     lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
-    if choice is not None and f0 is not None and "cross_validation" in choice:
+    blended = all("blended" in info[c] for c in COMPONENTS)
+    blend = pose.settle_pose_smoothing(tr, sub_params) if blended else None
+    if blend is not None:
+        # the left-out choice's blend is the representative range's: every window fits its two routes at their
+        # lambdas and blends them with its weight, and the record says so
+        lam = blend.lam
+        weight = pose.blend_weights_text(blend.blend_weights)
+        choice = {**choice, "reason": choice["reason"] + "; on this long record the left-out choice and the "
+                  f"blend's weight ({weight}) were settled on the representative range (frames {lo} to {hi - 1}): "
+                  "every window fits both routes at those smoothing parameters and blends them with that weight"}
+    elif choice is not None and f0 is not None and "cross_validation" in choice:
         # the left-out choice is the representative range's: the windows choose theirs as white-noise GCV
         # with the stride's harmonics, and the record says so
         choice = {**choice, "reason": choice["reason"] + "; on this long record the left-out choice was made on "
@@ -313,7 +334,7 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     margin = min(max([MARGIN_FRAMES] + [kernel_margin(hi - lo, info[c], window=window) for c in COMPONENTS]),
                  window)
     settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
-    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin))
+    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin), blend)
 
 
 def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: int | None = None) -> int:
@@ -395,6 +416,10 @@ def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: i
     events = _events_inside(settled.params.events, t[lo], t[hi - 1])
     params = dataclasses.replace(settled.params, events=None if events is None else [e - t[lo] for e in events])
     try:
+        if settled.blend is not None:           # the settled blend, both routes at their lambdas
+            return pose.fit_pose_trajectory(tl, slice_registration(registration, lo, hi), model, params,
+                                            points=None if points is None else points[lo:hi],
+                                            settled=settled.blend), tl, None
         return pose.fit_pose_trajectory(tl, slice_registration(registration, lo, hi), model, params,
                                         points=None if points is None else points[lo:hi],
                                         fundamental_hz=settled.fundamental_hz,

@@ -197,22 +197,24 @@ def test_on_a_trot_whose_single_route_the_stride_test_refuses_the_blend_passes_a
 
 @pytest.mark.parametrize("stack", ["pose", False])
 def test_a_stacked_or_harmonic_choice_settled_on_one_pass_smooths_another(monkeypatch, stack):
-    """A long record's other passes reuse the longest pass's settled choice: after a blend (or the harmonic
-    route alone) the settled smoothing fits a second record of the same trot as white-noise fits with the
-    stride's harmonics (the correlated-error GCV takes none), and says so for a blend."""
+    """A long record's other passes reuse the longest pass's settled choice: after the harmonic route alone the
+    settled smoothing fits a second record of the same trot as white-noise fits with the stride's harmonics (the
+    correlated-error GCV takes none); after a blend, the blend of both routes at their settled parameters."""
     monkeypatch.setattr(pose, "LEFT_OUT_STACK", stack)
     if stack is False:
         monkeypatch.setattr(pose, "LEFT_OUT_HARMONICS", "always")
     t, pts, x, _, cov = _trot(2)
     first = pose.fit_pose_trajectory(t, pose.register_pose(pts, x, covariance=cov), x, PoseParams(), points=pts)
     settled = pose.settle_pose_smoothing(first)
-    assert settled.fundamental_hz is not None and settled.noise_correlation is None
+    assert settled.fundamental_hz is not None
+    assert (settled.noise_correlation is None) == (settled.blend_weights is None) == (stack is False)
     t2, pts2, x2, _, cov2 = _trot(3)
     again = pose.fit_pose_trajectory(t2, pose.register_pose(pts2, x2, covariance=cov2), x2, PoseParams(),
                                      points=pts2, settled=settled)
     assert np.all(np.isfinite(again.point(t2, np.zeros(3)).acceleration))
     if stack:
-        assert "other passes: each component chosen again" in again.smoothing_choice["reason"]
+        assert "blended with the harmonic fit's weight" in again.smoothing_choice["reason"]
+        assert [s.weights[1] for s in again.centre_splines + again.rotvec_splines] == list(settled.blend_weights)
     else:
         assert [s.info["lam"] for s in again.centre_splines + again.rotvec_splines] == pytest.approx(
             list(settled.lam), rel=1e-12)
