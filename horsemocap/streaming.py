@@ -71,9 +71,13 @@ REPRESENTATIVE_FRAMES = 4000
 REGISTRATION_CHUNK = 50_000
 """Frames registered at a time by :func:`register_in_chunks`."""
 
-WHOLE_RECORD_FRAMES = 20_000
+WHOLE_RECORD_FRAMES = CACHE_SAMPLES
 """Records up to this many frames are smoothed whole (:func:`horsemocap.pose.fit_pose_trajectory`);
-longer ones in windows."""
+longer ones in windows. A quintic spline has at most :data:`horsemocap.splines.MAX_BASIS` basis
+functions, so a longer record gets a knot only every few samples: one smoothed whole would lose the
+fast part of its motion to the knot spacing (a second of a trot holds accelerations that a knot every
+0.15 s cannot follow), whatever its smoothing. A window with its margins is at most this long
+(:func:`window_core`), so a record smoothed whole has knots no coarser than a window's."""
 
 GRID_TOLERANCE_S = 1e-6
 """A window's times within this (s) of a uniform grid are fitted on the grid (:func:`window_times`): the
