@@ -10,7 +10,7 @@ middle :data:`horsemocap.streaming.REPRESENTATIVE_FRAMES` frames) and, with
 point's acceleration is compared with the exact one (rms over the record
 without 20 frames at each end, relative to the true rms).
 
-    python benchmarks/bench_blend_settled.py --frames 6000 [--whole] [--seeds 0 1] [--out FILE]
+    python benchmarks/bench_blend_settled.py --frames 6000 [--whole] [--seeds 0 1] [--settle-frames N] [--out FILE]
 
 Run it with ``PYTHONPATH`` set to the checkout whose smoothing is measured.
 """
@@ -75,13 +75,13 @@ def relative_error(estimate, truth, edge: int = EDGE) -> float:
     return float(np.sqrt(np.mean(np.sum(d ** 2, 1)) / np.mean(np.sum(truth[edge:-edge] ** 2, 1))))
 
 
-def run(frames: int, seed: int, whole: bool) -> dict:
+def run(frames: int, seed: int, whole: bool, settle_frames: int = streaming.REPRESENTATIVE_FRAMES) -> dict:
     rec = long_trot(frames, seed)
     t, pts, x = rec["t"], rec["markers"], rec["model"]
     reg = pose.register_pose(pts, x)
-    out = {"frames": frames, "seed": seed}
+    out = {"frames": frames, "seed": seed, "settle_frames": settle_frames}
     start = time.perf_counter()
-    settled = streaming.settle_smoothing(t, reg, pts, x, PoseParams())
+    settled = streaming.settle_smoothing(t, reg, pts, x, PoseParams(), frames=settle_frames)
     blocks = list(streaming.windowed_kinematics(t, reg, pts, x, HIDDEN[None], PoseParams(), settled=settled))
     out["windows_s"] = round(time.perf_counter() - start, 1)
     acc = np.concatenate([b.acceleration[:, 0] for b in blocks])
@@ -103,9 +103,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--whole", action="store_true", help="also fit the whole record at once")
     ap.add_argument("--out", help="append the results as JSON lines to this file")
+    ap.add_argument("--settle-frames", type=int, default=streaming.REPRESENTATIVE_FRAMES,
+                    help="frames at the record's middle the smoothing is settled on")
     args = ap.parse_args()
     for seed in args.seeds:
-        result = {"checkout": os.environ.get("PYTHONPATH", ""), **run(args.frames, seed, args.whole)}
+        result = {"checkout": os.environ.get("PYTHONPATH", ""), **run(args.frames, seed, args.whole, args.settle_frames)}
         print(json.dumps(result), flush=True)
         if args.out:
             with open(args.out, "a") as f:

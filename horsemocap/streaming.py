@@ -76,8 +76,9 @@ WHOLE_RECORD_FRAMES = CACHE_SAMPLES
 longer ones in windows. A quintic spline has at most :data:`horsemocap.splines.MAX_BASIS` basis
 functions, so a longer record gets a knot only every few samples: one smoothed whole would lose the
 fast part of its motion to the knot spacing (a second of a trot holds accelerations that a knot every
-0.15 s cannot follow), whatever its smoothing. A window with its margins is at most this long
-(:func:`window_core`), so a record smoothed whole has knots no coarser than a window's."""
+0.15 s cannot follow), whatever its smoothing. A window's core is shortened so that it fits this many
+frames with its margins wherever half a window remains (:func:`window_core`), so a record smoothed
+whole has knots no coarser than a usual window's."""
 
 GRID_TOLERANCE_S = 1e-6
 """A window's times within this (s) of a uniform grid are fitted on the grid (:func:`window_times`): the
@@ -321,6 +322,8 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
     blended = all("blended" in info[c] for c in COMPONENTS)
     blend = pose.settle_pose_smoothing(tr, sub_params) if blended else None
+    if blend is not None and blend.blend_weights is None:
+        blend = None                  # no stride frequency kept with the blend: the windows choose as below
     if blend is not None:
         # the left-out choice's blend is the representative range's: every window fits its two routes at their
         # lambdas and blends them with its weight, and the record says so
