@@ -777,6 +777,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     basis_key = (x_bytes, np.ascontiguousarray(w, float).tobytes(), m, aperture)
     t0 = float(x[0])
     best = None
+    ZtZ = Zty = None
     for K in map(_harmonic_set, orders):
         X = X0w if not K else np.hstack([X0w, sw[:, None] * _harmonic_subset(x, fundamental_hz, K, t0, aperture)])
         q = X.shape[1]
@@ -786,9 +787,22 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
         if np.min(np.abs(np.diag(Rx))) < 1e-9 * np.max(np.abs(np.diag(Rx))):
             continue                               # harmonics not resolved by the samples
         yq = Q1.T @ yw
-        # the SVD of the projected basis itself, also on a long record: the eigenvalues of its Gram matrix
-        # square its condition number, and the fit at a small lam then no longer follows lam
-        s, Wt, z = _projected_svd(Zw, Q1, yw, key=basis_key + (K, float(fundamental_hz) if K else None))
+        if n <= CACHE_SAMPLES:
+            # the SVD of the projected basis itself (cached): the eigenvalues of its Gram matrix square its
+            # condition number, and a fit at a small lam then no longer follows lam
+            s, Wt, z = _projected_svd(Zw, Q1, yw, key=basis_key + (K, float(fundamental_hz) if K else None))
+        else:
+            # a record longer than a window (knots every five samples or more): the same from the p x p Gram
+            # matrix of the projected basis, M^T M = Z^T Z - (Q1^T Z)^T (Q1^T Z), n p^2 once rather than an
+            # n x p SVD per K; its smallest singular values are lost (below 1e-6 of the largest), so a small
+            # lam smooths more than it says
+            if ZtZ is None:
+                ZtZ, Zty = Zw.T @ Zw, Zw.T @ yw
+            QZ = Q1.T @ Zw
+            ev, Wv = np.linalg.eigh(ZtZ - QZ.T @ QZ)
+            keep = ev > 1e-12 * ev.max()
+            s, Wt = np.sqrt(ev[keep]), Wv[:, keep].T
+            z = (Wt @ (Zty - QZ.T @ yq)) / s
         s2 = s * s
         rss0 = max(float(yw @ yw - yq @ yq - z @ z), 0.0)
 
