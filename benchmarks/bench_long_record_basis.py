@@ -11,7 +11,9 @@ of its rms, 20 frames at each end left out) and the time of each.
 
     python benchmarks/bench_long_record_basis.py RATE_HZ N [N ...]
 """
-import sys, time
+import sys
+import time
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 from horsemocap import pose, streaming

@@ -1010,11 +1010,12 @@ def post_checks(analysis) -> list[Check]:
     if a_.rigid_body is not None:
         rb = a_.rigid_body
         checks.append(check_marker_geometry(rb.warnings))
-        preg = getattr(getattr(rb, "body", None), "pose_registration", None)
+        body = getattr(rb, "body", None)
+        preg = getattr(body, "pose_registration", None)
         checks.append(check_marker_rigidity(rb.conditioning.registration_rms_m, rb.model,
                                             predicted_rms_m=None if preg is None
                                             else predicted_registration_rms(preg)))
-        checks.append(check_left_out_markers(getattr(getattr(rb, "body", None), "left_out", None), s.fps))
+        checks.append(check_left_out_markers(getattr(body, "left_out", None), s.fps))
         ay = written_saddle_acceleration(a_)
         peak = float(np.nanmax(np.abs(ay))) if ay is not None and np.isfinite(ay).any() else None
         checks.append(check_saddle_acceleration(peak))

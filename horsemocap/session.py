@@ -200,7 +200,7 @@ def _check_clip(path, field_name: str, clips: dict) -> None:
     of readable frames (:func:`horsemocap.sources.still_frame_counts`), the image files whole; else SessionError."""
     try:
         still_frame_counts(clips)
-        for cam, p in clips.items():
+        for p in clips.values():
             if Path(p).is_dir():
                 for image in list_images(p):
                     check_image_file(image)

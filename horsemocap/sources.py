@@ -848,10 +848,11 @@ def still_frame_counts(paths: dict) -> dict:
     ...     print(str(exc).replace(str(root), "ROOT"))
     a clip has one frame count in every camera (the cameras record the same instants), and a still is an image in every camera: 'left' ROOT/left 3 frames, 'right' ROOT/right 2 frames
     """
+    image = {cam: is_still_image(p) for cam, p in paths.items()}
     counts = {}
     for cam, path in paths.items():
         path = Path(path)
-        if is_still_image(path):
+        if image[cam]:
             counts[cam] = 1
             continue
         source = FrameSource(path)
@@ -859,10 +860,8 @@ def still_frame_counts(paths: dict) -> dict:
         counts[cam] = len(source)
         if counts[cam] == 0:
             raise SourceError(f"{path}: a clip with no frame (expected the horse standing, every marker in view)")
-    kinds = {is_still_image(p) for p in paths.values()}
-    if len(kinds) > 1 or len(set(counts.values())) > 1:
-        listed = ", ".join(f"'{c}' {paths[c]} {'an image' if is_still_image(paths[c]) else f'{counts[c]} frames'}"
-                           for c in paths)
+    if len(set(image.values())) > 1 or len(set(counts.values())) > 1:
+        listed = ", ".join(f"'{c}' {paths[c]} {'an image' if image[c] else f'{counts[c]} frames'}" for c in paths)
         raise SourceError(f"a clip has one frame count in every camera (the cameras record the same instants), "
                           f"and a still is an image in every camera: {listed}")
     return counts

@@ -320,10 +320,9 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     # spline's: there (and in the adaptive smoothing) each window chooses its lambdas
     per_window = method == "adaptive" or f0 is not None
     lam = tuple(None if per_window else float(info[c]["lam"]) for c in COMPONENTS)
-    blended = all("blended" in info[c] for c in COMPONENTS)
-    blend = pose.settle_pose_smoothing(tr, sub_params) if blended else None
-    if blend is not None and blend.blend_weights is None:
-        blend = None                  # no stride frequency kept with the blend: the windows choose as below
+    # a blend (and its stride frequency) settled as a long recording's passes settle it; else None
+    blend = pose.settle_pose_smoothing(tr, sub_params)
+    blend = blend if blend.blend_weights is not None else None
     if blend is not None:
         # the left-out choice's blend is the representative range's: every window fits its two routes at their
         # lambdas and blends them with its weight, and the record says so

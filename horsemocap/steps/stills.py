@@ -232,7 +232,8 @@ def _not_rigid(rms, candidates, outlier_z: float) -> np.ndarray:
 def average_static_clip(frames, *, outlier_z: float = OUTLIER_Z) -> ClipAverage:
     """The points of a static clip averaged over its frames: each frame aligned rigidly onto the mean shape.
 
-    The first frame whose points are all finite is the reference: every other
+    The reference is the complete frame whose shape is nearest the clip's
+    median shape (a frame with a glint taken for a marker never is): every
     frame's points are paired with its points (:func:`match_onto`) and aligned
     onto them rigidly, so a horse swaying a little changes nothing; the mean
     shape is then refined (each frame aligned onto the mean of the aligned
@@ -408,11 +409,11 @@ def clip_points(session: Session, rig: Rig, clips: dict, count: int, step: str, 
         try:
             found = _still_px({c: got[c][1] for c in cams}, rig, count, given)
         except ValueError as exc:
-            found, reasons[f] = None, f"markers not found: {exc}"
-        if found is not None:
+            reasons[f] = f"markers not found: {exc}"
+        else:
             pts = triangulate(rig, {c: q[None] for c, q in found.items()}, mode=mode).points[0]
-        if found is not None and not np.isfinite(pts).all():
-            reasons[f] = "a marker was not triangulated (seen by fewer than two cameras)"
+            if not np.isfinite(pts).all():
+                reasons[f] = "a marker was not triangulated (seen by fewer than two cameras)"
         if f in reasons:
             found, pts = {c: np.full((count, 2), np.nan) for c in cams}, np.full((count, 3), np.nan)
         points.append(pts)
