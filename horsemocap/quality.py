@@ -970,9 +970,10 @@ def check_static_shot(uncertainty, input_: str | None = None, clip_frames: int |
                "a wider marker triangle, a saddle marker closer to the markers or a longer static clip "
                "(averaged) narrows it")
     else:
-        shot_is = "one still" if shot.independent_frames <= 1 else "this static clip"
+        shot_is, record = (("this static clip", "record a longer static clip of the horse standing") if clip else
+                           ("one still", "record the static shot as a clip of the horse standing"))
         msg = (f"{what}: {shot_is} cannot place the saddle well enough for its acceleration to be trusted "
-               "within 10 %; record the static shot as a clip of the horse standing (several seconds, averaged: "
+               f"within 10 %; {record} (several seconds, averaged: "
                "the frame-to-frame noise shrinks, a camera's constant error does not), spread the markers wider "
                "(a thin triangle tilts about its long axis), put the saddle marker closer to them, or use cameras "
                "seeing the markers from more different directions")

@@ -150,3 +150,14 @@ def test_static_shot_check_skipped_with_its_reason():
     c = quality.check_static_shot(quality.StaticShotSkipped("no pixel noise measured"))
     assert c.level == "skipped" and "no pixel noise measured" in c.message
     assert quality.verdict([c]) == "ok"
+
+
+def test_static_shot_check_unreliable_names_a_clip_as_a_clip_also_when_worth_one_frame():
+    """A static clip whose average is worth a single independent frame (strongly correlated noise) is still a
+    clip: the message must not call it "one still" nor ask for a clip to be recorded."""
+    still = quality.check_static_shot(_uncertainty(40.0))
+    clip = quality.check_static_shot(_uncertainty(40.0), clip_frames=12)
+    assert "one still cannot place the saddle" in still.message
+    assert "record the static shot as a clip" in still.message
+    assert "this static clip cannot place the saddle" in clip.message
+    assert "record a longer static clip" in clip.message and "one still" not in clip.message
