@@ -555,12 +555,36 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
                                          window=streaming.WINDOW_FRAMES)
     blocks = streaming.windowed_kinematics(traj.time_s, reg, setup["points"], model, setup["model_all"], params,
                                            settled=settled, progress=ProgressPrinter())
-    lo, hi = streaming.representative_range(traj.frame.size)
-    windows = {"count": len(streaming.window_plan(traj.frame.size, settled.window, settled.margin)),
-               "window_frames": settled.window, "margin_frames": settled.margin,
-               "settled_on": [int(traj.frame[lo]), int(traj.frame[hi - 1])],
-               "lam": list(settled.lam), "fundamental_hz": settled.fundamental_hz}
-    return {**setup, "blocks": blocks, "smoothing_choice": settled.choice, "windows": windows}
+    return {**setup, "blocks": blocks, "smoothing_choice": settled.choice,
+            "windows": windows_record(settled, traj.frame)}
+
+
+def windows_record(settled, frame) -> dict:
+    """``kinematics-run.json``'s ``windows``: how a long record was smoothed in windows (``settled``, a
+    :class:`horsemocap.streaming.SettledSmoothing`; ``frame``: the record's frame numbers). With a settled blend
+    of the fits without and with the stride's harmonics, ``lam`` is the plain route's and ``harmonic_lam`` and
+    ``blend_weights`` (the harmonic route's weight per component) say the rest.
+
+    Examples
+    --------
+    >>> from horsemocap.params import PoseParams
+    >>> from horsemocap.streaming import SettledSmoothing
+    >>> s = SettledSmoothing(PoseParams(), (1e-6,) * 6, None, None, 40, {}, window=500)
+    >>> rec = windows_record(s, np.arange(10_000))
+    >>> rec["count"], rec["settled_on"], "blend_weights" in rec
+    (20, [3000, 6999], False)
+    """
+    from . import streaming
+
+    lo, hi = streaming.representative_range(len(frame))
+    out = {"count": len(streaming.window_plan(len(frame), settled.window, settled.margin)),
+           "window_frames": settled.window, "margin_frames": settled.margin,
+           "settled_on": [int(frame[lo]), int(frame[hi - 1])],
+           "lam": list(settled.lam), "fundamental_hz": settled.fundamental_hz}
+    if settled.blend is not None:
+        out["harmonic_lam"] = list(settled.blend.harmonic_lam)
+        out["blend_weights"] = list(settled.blend.blend_weights)
+    return out
 
 
 def _kinematics_verdict_lines(verdict: str, checks) -> int:

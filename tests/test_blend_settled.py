@@ -3,6 +3,8 @@ other passes (horsemocap.pose.settle_pose_smoothing, fit_pose_trajectory's ``set
 windows (horsemocap.streaming), against exact ground truth."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -185,3 +187,19 @@ def test_the_windows_of_a_long_record_carry_the_representative_blend():
     assert _error(windows[a:b], rec["acc"][a:b]) < 1.25 * _error(settled_on, rec["acc"][a:b])
     whole = _fit(rec).point(t, HIDDEN).acceleration
     assert _error(windows, rec["acc"]) < 1.25 * _error(whole, rec["acc"])
+
+
+def test_kinematics_run_json_says_a_windowed_blend_whole():
+    """``kinematics-run.json``'s ``windows`` holds a settled blend's harmonic route and weights beside the plain
+    route's ``lam``; without a blend it holds neither."""
+    from horsemocap.cli import windows_record
+
+    blend = pose.SettledPoseSmoothing("gcv", 0.8, 1.5, (1e-5,) * 6, (2,) * 6, (False,) * 3,
+                                      harmonic_lam=(1e-7,) * 6, blend_weights=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6))
+    settled = streaming.SettledSmoothing(PoseParams(), blend.lam, 1.5, None, 40, {}, window=500, blend=blend)
+    rec = windows_record(settled, np.arange(5000) + 7)
+    assert rec["lam"] == [1e-5] * 6 and rec["harmonic_lam"] == [1e-7] * 6
+    assert rec["blend_weights"] == [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
+    assert rec["settled_on"] == [507, 4506] and rec["fundamental_hz"] == 1.5
+    plain = windows_record(dataclasses.replace(settled, blend=None), np.arange(5000))
+    assert "harmonic_lam" not in plain and "blend_weights" not in plain
