@@ -186,6 +186,9 @@ def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning,
         if pose.events:
             progress("rigid_body", "acceleration free to jump at the known change points (pose_events) "
                      + ", ".join(f"{e:g}" for e in sorted(pose.events)) + " s")
+        if rb.pose.windows is not None:
+            progress("rigid_body", f"pose trajectory of a long pass: {rb.pose.windows.text()}; the smoothing "
+                                   "above is that stretch's, the windows blended over their overlaps")
         if rb.chain_error:
             progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
     else:
