@@ -116,15 +116,28 @@ class WindowedPoseTrajectory:
     valid: np.ndarray
     reason: np.ndarray
 
+    def _middle(self) -> pose.PoseTrajectory | None:
+        """The fit of the window whose core holds the record's middle frame (None: it has none)."""
+        mid = self.t.size // 2
+        return next(w.trajectory for w in self.pieces if w.core_lo <= mid < w.core_hi)
+
     @property
     def smoothing(self) -> dict:
-        """Per component, the smoothing of the representative stretch the windows' was settled on."""
-        return self.settled.info
+        """Per component, the smoothing of the window at the record's middle (a window's basis is fine
+        enough for the motion; the representative stretch's, fitted whole, may not be), or where that window
+        has no fit the representative stretch's. What :func:`horsemocap.pose.settle_pose_smoothing` reuses
+        on a long recording's other passes."""
+        middle = self._middle()
+        return self.settled.info if middle is None else middle.smoothing
 
     @property
     def smoothing_choice(self) -> dict | None:
-        """What ``smoothing="auto"`` ran and why, settled on the representative stretch (None: named)."""
-        return self.settled.choice
+        """What ``smoothing="auto"`` ran and why, settled on the representative stretch (None: named); its
+        ``half_gain_hz`` that of the window at the record's middle (:attr:`smoothing`)."""
+        choice, middle = self.settled.choice, self._middle()
+        if choice is None or middle is None:
+            return choice
+        return {**choice, "half_gain_hz": middle.half_gain_hz}
 
     def _position(self, t) -> np.ndarray:
         """Each time's position among the record's frames (fractional between two)."""

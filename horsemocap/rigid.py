@@ -1315,8 +1315,12 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     ``params.kinematics`` asks, the smoothed pose trajectory
     (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
     (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
-    give the markers', the body's and the saddle's kinematics. Every estimate
-    is kept in the result.
+    give the markers', the body's and the saddle's kinematics. A pose record
+    longer than :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` frames (a
+    long pass: a treadmill, a long straight) is smoothed in windows
+    (:func:`horsemocap.pose_windows.windowed_pose_trajectory`: fitted whole,
+    the spline's basis would be too coarse for its accelerations); ``pose``
+    then says how (``pose.windows``). Every estimate is kept in the result.
 
     Parameters
     ----------

@@ -32,7 +32,10 @@ every window fits both routes at them and blends them with that weight.
 
 Only the current window's arrays live at a time: :func:`windowed_kinematics`
 yields :class:`KinematicsBlock` s of consecutive frames for the caller to
-write out.
+write out. Analyze's long passes keep their windows' fits instead, as one
+pose trajectory (:mod:`horsemocap.pose_windows`); a pass given the smoothing
+settled on another pass fits it in every window
+(:func:`settle_given_smoothing`).
 """
 from __future__ import annotations
 
@@ -50,8 +53,8 @@ from .store import release_pages
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
            "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "GRID_TOLERANCE_STEPS", "window_times", "point_kinematics",
-           "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing", "settle_given_smoothing", "window_fit", "blend_band",
-           "windowed_kinematics"]
+           "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing",
+           "settle_given_smoothing", "window_fit", "blend_band", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""

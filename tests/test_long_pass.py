@@ -10,7 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from horsemocap import pose, pose_windows, streaming
-from horsemocap.params import PoseParams, RigidBodyParams
+from horsemocap.params import AnalysisParams, PoseParams, RigidBodyParams
+from horsemocap.passes import pass_smoothing
 from horsemocap.results import _record_rigid_body
 from horsemocap.rigid import PoseInput, analyse_rigid_body, conditioning, saddle_angles
 from horsemocap.steps.rigid_body import _report
@@ -105,6 +106,17 @@ def test_a_long_pass_says_it_was_smoothed_in_windows(long_pass):
     record = chosen["pose_windows"]
     assert record["frames"] == 3000 and record["count"] == 3
     assert record["settled_on_s"] == [0.0, 29.99]                      # 3000 frames: settled on them all
+
+
+def test_a_long_passs_smoothing_serves_the_recordings_other_passes(long_pass):
+    """The choices a long pass hands to the recording's other passes (passes.pass_smoothing) are its middle
+    window's: a 12 s pass of the same trot smoothed with them misses the saddle's acceleration by 3.2 %
+    (its own choice: 3.2 %); with the choices of the 30 s pass fitted whole (main) by 36.7 %."""
+    d, rb = long_pass
+    given = pass_smoothing(SimpleNamespace(rigid_body=SimpleNamespace(body=rb), params=AnalysisParams()))
+    other = _pass(1200, seed=7)
+    reused = _analyse(other, pose_input=PoseInput(settled=given))
+    assert _error(reused.saddle_acceleration, other.acc) < 0.08
 
 
 def test_a_pass_is_fitted_whole_up_to_the_threshold_and_in_windows_beyond(monkeypatch):
