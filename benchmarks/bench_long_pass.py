@@ -7,9 +7,12 @@ a body point no camera sees; each record goes through
 (default parameters, the static shot exact, the stride period given as the
 motion frame gives it, without the thesis' chain, which nothing passed on uses).
 Printed: the saddle's acceleration error (% of its rms, 20 frames at each end
-left out), whether the pass was smoothed in windows, and the time.
+left out), whether the pass was smoothed in windows, and the time. With
+``--other-pass``, also the error of a 12 s pass of the same trot (another noise
+draw) smoothed with the choices the long pass hands to a recording's other
+passes (:func:`horsemocap.passes.pass_smoothing`), against its own choice.
 
-    python benchmarks/bench_long_pass.py MARKERS N [N ...]
+    python benchmarks/bench_long_pass.py MARKERS N [N ...] [--other-pass]
 """
 import sys
 import time
@@ -17,8 +20,11 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from horsemocap.params import RigidBodyParams
-from horsemocap.rigid import analyse_rigid_body
+from types import SimpleNamespace
+
+from horsemocap.params import AnalysisParams, RigidBodyParams
+from horsemocap.passes import pass_smoothing
+from horsemocap.rigid import PoseInput, analyse_rigid_body
 from horsemocap.threads import blas_single_threaded
 
 FPS = 100.0
@@ -50,7 +56,8 @@ def saddle(t):
     return c + R @ SADDLE
 
 
-def run(markers: int, n: int, seed: int = 0):
+def analysed(markers: int, n: int, seed: int = 0, settled=None):
+    """The rigid-body analysis of an n-frame pass, its saddle acceleration error (%) and its time (s)."""
     model = MODELS[markers]
     t = np.arange(n) / FPS
     c, R = path(t)
@@ -61,20 +68,26 @@ def run(markers: int, n: int, seed: int = 0):
     params = RigidBodyParams(saddle_marker=markers)
     t0 = time.time()
     rb = analyse_rigid_body(t, mk, np.vstack([model, SADDLE]), params, period_s=1.0 / STRIDE_HZ,
-                            static_index=np.arange(markers), thesis_chain=False)
+                            static_index=np.arange(markers), thesis_chain=False, pose_input=PoseInput(settled=settled))
     took = time.time() - t0
     e = slice(20, n - 20)
     a = rb.saddle_acceleration
     err = 100 * np.sqrt(np.mean(np.sum((a[e] - truth[e]) ** 2, 1)) / np.mean(np.sum(truth[e] ** 2, 1)))
-    windows = getattr(rb.pose, "windows", None)
-    return err, took, windows
+    return rb, err, took
 
 
 if __name__ == "__main__":
     m = int(sys.argv[1])
+    other = "--other-pass" in sys.argv
     with blas_single_threaded():
-        for n in [int(a) for a in sys.argv[2:]]:
-            err, took, windows = run(m, n)
+        for n in [int(a) for a in sys.argv[2:] if not a.startswith("--")]:
+            rb, err, took = analysed(m, n)
+            windows = getattr(rb.pose, "windows", None)
             how = "whole" if windows is None else f"{len(windows.plan)} windows"
             print(f"{m} markers, {n} frames ({n / FPS:.0f} s at {FPS:g} Hz): saddle acceleration error "
                   f"{err:.1f} % ({how}, {took:.0f} s)", flush=True)
+            if other:
+                given = pass_smoothing(SimpleNamespace(rigid_body=SimpleNamespace(body=rb), params=AnalysisParams()))
+                own, reused = analysed(m, 1200, seed=7)[1], analysed(m, 1200, seed=7, settled=given)[1]
+                print(f"  a 1200-frame pass of the same trot: {reused:.1f} % with the long pass's smoothing, "
+                      f"{own:.1f} % with its own", flush=True)

@@ -140,8 +140,11 @@ class WindowedPoseTrajectory:
         return {**choice, "half_gain_hz": middle.half_gain_hz}
 
     def _position(self, t) -> np.ndarray:
-        """Each time's position among the record's frames (fractional between two)."""
-        return np.interp(np.asarray(t, float), self.t, np.arange(self.t.size, dtype=float))
+        """Each time's position among the record's frames (fractional between two; NaN outside the record,
+        whose values are then NaN as a whole fit's are)."""
+        t = np.asarray(t, float)
+        x = np.interp(t, self.t, np.arange(self.t.size, dtype=float))
+        return np.where((t >= self.t[0] - 1e-9) & (t <= self.t[-1] + 1e-9), x, np.nan)
 
     def _blended(self, t, value, tail: tuple, mix) -> np.ndarray:
         """``value(trajectory, local_times)`` of the window holding each time; near a cut the left window's
