@@ -12,9 +12,9 @@ left out), whether the pass was smoothed in windows, and the time. With
 draw) smoothed with the choices the long pass hands to a recording's other
 passes (:func:`horsemocap.passes.pass_smoothing`), against its own choice.
 
-    python benchmarks/bench_long_pass.py MARKERS N [N ...] [--other-pass]
+    python benchmarks/bench_long_pass.py MARKERS N [N ...] [--other-pass] [--fps HZ]
 """
-import sys
+import argparse
 import time
 
 import numpy as np
@@ -56,10 +56,10 @@ def saddle(t):
     return c + R @ SADDLE
 
 
-def analysed(markers: int, n: int, seed: int = 0, settled=None):
+def analysed(markers: int, n: int, seed: int = 0, settled=None, fps: float = FPS):
     """The rigid-body analysis of an n-frame pass, its saddle acceleration error (%) and its time (s)."""
     model = MODELS[markers]
-    t = np.arange(n) / FPS
+    t = np.arange(n) / fps
     c, R = path(t)
     mk = np.einsum("kij,mj->kmi", R, model) + c[:, None]
     mk = mk + np.random.default_rng(seed).normal(0, 5e-4, mk.shape)
@@ -77,17 +77,24 @@ def analysed(markers: int, n: int, seed: int = 0, settled=None):
 
 
 if __name__ == "__main__":
-    m = int(sys.argv[1])
-    other = "--other-pass" in sys.argv
+    ap = argparse.ArgumentParser()
+    ap.add_argument("markers", type=int, choices=sorted(MODELS))
+    ap.add_argument("frames", type=int, nargs="+")
+    ap.add_argument("--other-pass", action="store_true")
+    ap.add_argument("--fps", type=float, default=FPS)
+    args = ap.parse_args()
+    m, rate = args.markers, args.fps
     with blas_single_threaded():
-        for n in [int(a) for a in sys.argv[2:] if not a.startswith("--")]:
-            rb, err, took = analysed(m, n)
+        for n in args.frames:
+            rb, err, took = analysed(m, n, fps=rate)
             windows = getattr(rb.pose, "windows", None)
             how = "whole" if windows is None else f"{len(windows.plan)} windows"
-            print(f"{m} markers, {n} frames ({n / FPS:.0f} s at {FPS:g} Hz): saddle acceleration error "
+            print(f"{m} markers, {n} frames ({n / rate:.0f} s at {rate:g} Hz): saddle acceleration error "
                   f"{err:.1f} % ({how}, {took:.0f} s)", flush=True)
-            if other:
+            if args.other_pass:
                 given = pass_smoothing(SimpleNamespace(rigid_body=SimpleNamespace(body=rb), params=AnalysisParams()))
-                own, reused = analysed(m, 1200, seed=7)[1], analysed(m, 1200, seed=7, settled=given)[1]
-                print(f"  a 1200-frame pass of the same trot: {reused:.1f} % with the long pass's smoothing, "
+                short = int(12 * rate)
+                own = analysed(m, short, seed=7, fps=rate)[1]
+                reused = analysed(m, short, seed=7, settled=given, fps=rate)[1]
+                print(f"  a {short}-frame pass of the same trot: {reused:.1f} % with the long pass's smoothing, "
                       f"{own:.1f} % with its own", flush=True)
