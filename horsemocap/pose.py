@@ -1104,6 +1104,12 @@ class PoseTrajectory:
             out[name] = round(half_gain_frequency(lam, dt), 3) if uniform else None
         return out
 
+    @property
+    def windows(self) -> None:
+        """None: fitted whole (a long pass smoothed in windows says how,
+        :attr:`horsemocap.pose_windows.WindowedPoseTrajectory.windows`)."""
+        return None
+
     def _inside(self, t):
         t = np.asarray(t, float)
         if t is self.t or (t.shape == self.t.shape and np.array_equal(t, self.t)):

@@ -272,6 +272,8 @@ def _record_rigid_body(rb, p: dict, chosen: dict) -> None:
     pose = rb.body.pose
     if pose is not None and pose.smoothing_choice:
         chosen["pose_smoothing"] = pose.smoothing_choice
+    if pose is not None and pose.windows is not None:     # a long pass smoothed in windows
+        chosen["pose_windows"] = pose.windows.to_dict()
 
 
 def write_available(out_dir: Path, analysis) -> list[Path]:

@@ -109,13 +109,14 @@ from typing import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import fitting, smoothing
+from . import fitting, smoothing, streaming
 from .forking import beside
 from .aperture import Aperture
 from .params import FitsParams, RigidBodyParams
 from .probability import f_survival
 from .pose import (PoseRegistration, PoseTrajectory, SettledPoseSmoothing, check_model_conditioning,
                    conditioning_warnings, fit_pose_trajectory, register_pose, saddle_angles_deg, static_body_axes)
+from .pose_windows import windowed_pose_trajectory
 from .registration import check_model, rotation_from_cross_covariance, skew
 
 __all__ = [
@@ -1314,8 +1315,12 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     ``params.kinematics`` asks, the smoothed pose trajectory
     (:func:`horsemocap.pose.fit_pose_trajectory`) and the thesis' chain
     (registration, fits, the six versions of omega and alpha, eq. 6.48-6.55)
-    give the markers', the body's and the saddle's kinematics. Every estimate
-    is kept in the result.
+    give the markers', the body's and the saddle's kinematics. A pose record
+    longer than :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` frames (a
+    long pass: a treadmill, a long straight) is smoothed in windows
+    (:func:`horsemocap.pose_windows.windowed_pose_trajectory`: fitted whole,
+    the spline's basis would be too coarse for its accelerations); ``pose``
+    then says how (``pose.windows``). Every estimate is kept in the result.
 
     Parameters
     ----------
@@ -1416,9 +1421,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         chain = _thesis_chain(*chain_inputs)
         return RigidBodyAnalysis(**common, **chain, singularity_deg=singularity_angle(chain["pos"], chain["omega"]))
     def pose_trajectory():
-        return fit_pose_trajectory(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
-                                   aperture=pose_input.aperture,
-                                   expected_fundamental_hz=None if not period_s else 1.0 / period_s)
+        # a pass longer than a window's span loses its accelerations to the spline's basis fitted whole
+        fit = windowed_pose_trajectory if pt.size > streaming.WHOLE_RECORD_FRAMES else fit_pose_trajectory
+        return fit(pt, preg_all, model, params.pose, points=ppts, settled=pose_input.settled,
+                   aperture=pose_input.aperture, expected_fundamental_hz=None if not period_s else 1.0 / period_s)
 
     skipped = None                       # why the chain is left out, if it is
     if pts.shape[1] != 3:

@@ -32,7 +32,10 @@ every window fits both routes at them and blends them with that weight.
 
 Only the current window's arrays live at a time: :func:`windowed_kinematics`
 yields :class:`KinematicsBlock` s of consecutive frames for the caller to
-write out.
+write out. Analyze's long passes keep their windows' fits instead, as one
+pose trajectory (:mod:`horsemocap.pose_windows`); a pass given the smoothing
+settled on another pass fits it in every window
+(:func:`settle_given_smoothing`).
 """
 from __future__ import annotations
 
@@ -50,7 +53,8 @@ from .store import release_pages
 
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
            "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "GRID_TOLERANCE_STEPS", "window_times", "point_kinematics",
-           "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing", "windowed_kinematics"]
+           "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing",
+           "settle_given_smoothing", "window_fit", "blend_band", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""
@@ -120,7 +124,10 @@ class SettledSmoothing:
     per-component smoothing), ``window`` (frames of a core, :func:`window_core`) and ``blend``
     (a blend of the fits without and with the stride's harmonics settled on the representative
     stretch, :class:`horsemocap.pose.SettledPoseSmoothing`, that every window fits as it is; None:
-    no blend)."""
+    no blend), ``given`` (the choices settled on another record, a long recording's longest pass,
+    :func:`settle_given_smoothing`, that every window fits as they are; None: settled here),
+    ``aperture`` and ``expected_fundamental_hz`` (passed to every window's fit as
+    :func:`horsemocap.pose.fit_pose_trajectory` takes them; None: not given)."""
 
     params: PoseParams
     lam: tuple
@@ -130,6 +137,9 @@ class SettledSmoothing:
     info: dict
     window: int = WINDOW_FRAMES
     blend: pose.SettledPoseSmoothing | None = None
+    given: pose.SettledPoseSmoothing | None = None
+    aperture: object = None
+    expected_fundamental_hz: float | None = None
 
 
 def window_core(window: int, margin: int) -> int:
@@ -292,7 +302,8 @@ def representative_range(n: int, frames: int = REPRESENTATIVE_FRAMES) -> tuple[i
 
 
 def settle_smoothing(t, registration, points, model, params: PoseParams,
-                     frames: int = REPRESENTATIVE_FRAMES, window: int = WINDOW_FRAMES) -> SettledSmoothing:
+                     frames: int = REPRESENTATIVE_FRAMES, window: int = WINDOW_FRAMES, *, aperture=None,
+                     expected_fundamental_hz: float | None = None) -> SettledSmoothing:
     """The smoothing of a long record, settled on its middle ``frames`` frames (module step 1).
 
     ``params.smoothing="auto"`` is run there (:func:`horsemocap.pose.choose_smoothing`) and the
@@ -301,12 +312,14 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     are chosen per window); a blend of the fits without and with the harmonics is kept whole
     (``blend``: both routes' lambdas, harmonics and the weight). The margin is the widest of the
     components' :func:`kernel_margin` (those a window holds), at least :data:`MARGIN_FRAMES`; the
-    core is :func:`window_core`.
+    core is :func:`window_core`. ``aperture`` and ``expected_fundamental_hz`` are given to the
+    representative fit and kept for the windows' (:func:`horsemocap.pose.fit_pose_trajectory`).
     """
     lo, hi = representative_range(len(t), frames)
     sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
     tr = pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, sub_params,
-                                  points=None if points is None else points[lo:hi])
+                                  points=None if points is None else points[lo:hi], aperture=aperture,
+                                  expected_fundamental_hz=expected_fundamental_hz)
     info = tr.smoothing
     choice = tr.smoothing_choice
     method = params.smoothing
@@ -337,10 +350,47 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
         choice = {**choice, "reason": choice["reason"] + "; on this long record the left-out choice was made on "
                   "the representative range only: each window chose its own smoothing by white-noise GCV with "
                   "the stride's harmonics"}
-    margin = min(max([MARGIN_FRAMES] + [kernel_margin(hi - lo, info[c], window=window) for c in COMPONENTS]),
-                 window)
+    margin = _margin(hi - lo, info, window)
     settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
-    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin), blend)
+    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin), blend,
+                            aperture=aperture, expected_fundamental_hz=expected_fundamental_hz)
+
+
+def _margin(frames: int, info: dict, window: int) -> int:
+    """The widest of the components' :func:`kernel_margin` over ``frames`` (at least :data:`MARGIN_FRAMES`,
+    at most ``window``)."""
+    return min(max([MARGIN_FRAMES] + [kernel_margin(frames, info[c], window=window) for c in COMPONENTS]), window)
+
+
+def settle_given_smoothing(t, registration, points, model, params: PoseParams, given: pose.SettledPoseSmoothing,
+                           frames: int = REPRESENTATIVE_FRAMES, window: int = WINDOW_FRAMES, *, aperture=None,
+                           expected_fundamental_hz: float | None = None) -> SettledSmoothing:
+    """The smoothing of a long record whose choices were settled on another record (``given``).
+
+    Nothing is chosen: the record's middle ``frames`` frames are fitted with
+    ``given`` (:func:`horsemocap.pose.fit_pose_trajectory`'s ``settled``) only for the
+    components' degrees of freedom, from which the margin is found as in
+    :func:`settle_smoothing`; every window then fits ``given`` as it is.
+
+    Examples
+    --------
+    >>> model = np.array([[0.3, 0.0, 0.0], [0.0, 0.2, 0.0], [-0.2, -0.1, 0.1]])
+    >>> t = np.arange(300) / 50.0
+    >>> reg = pose.register_pose(np.repeat(model[None], 300, 0) + np.outer(t, [1.0, 0, 0])[:, None], model)
+    >>> given = pose.SettledPoseSmoothing("gcv", None, None, (1e-6,) * 6, (0,) * 6, (False,) * 3)
+    >>> s = settle_given_smoothing(t, reg, None, model, PoseParams(), given, frames=200, window=1000)
+    >>> s.given is given, s.lam[0], s.margin >= MARGIN_FRAMES
+    (True, 1e-06, True)
+    """
+    lo, hi = representative_range(len(t), frames)
+    sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
+    tr = pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, sub_params,
+                                  points=None if points is None else points[lo:hi], settled=given,
+                                  aperture=aperture, expected_fundamental_hz=expected_fundamental_hz)
+    margin = _margin(hi - lo, tr.smoothing, window)
+    return SettledSmoothing(dataclasses.replace(params, smoothing=given.method), tuple(given.lam),
+                            given.fundamental_hz, tr.smoothing_choice, margin, tr.smoothing,
+                            window_core(window, margin), None, given, aperture, expected_fundamental_hz)
 
 
 def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: int | None = None) -> int:
@@ -415,21 +465,21 @@ def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
     return local
 
 
-def _window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int, step: float):
+def window_fit(t, registration, points, model, settled: SettledSmoothing, lo: int, hi: int, step: float):
     """The window's pose trajectory on its own times (:func:`window_times`) and those times, or None and
     the reason it has none (a ValueError's message)."""
     tl = window_times(t, lo, hi, step)
     events = _events_inside(settled.params.events, t[lo], t[hi - 1])
     params = dataclasses.replace(settled.params, events=None if events is None else [e - t[lo] for e in events])
+    fixed = settled.given or settled.blend       # a choice fitted as it is (both routes of a blend at their lambdas)
+    options = dict(points=None if points is None else points[lo:hi], aperture=settled.aperture,
+                   expected_fundamental_hz=settled.expected_fundamental_hz)
     try:
-        if settled.blend is not None:           # the settled blend, both routes at their lambdas
+        if fixed is not None:
             return pose.fit_pose_trajectory(tl, slice_registration(registration, lo, hi), model, params,
-                                            points=None if points is None else points[lo:hi],
-                                            settled=settled.blend), tl, None
+                                            settled=fixed, **options), tl, None
         return pose.fit_pose_trajectory(tl, slice_registration(registration, lo, hi), model, params,
-                                        points=None if points is None else points[lo:hi],
-                                        fundamental_hz=settled.fundamental_hz,
-                                        lam=settled.lam), tl, None
+                                        fundamental_hz=settled.fundamental_hz, lam=settled.lam, **options), tl, None
     except ValueError as exc:
         return None, tl, str(exc)
 
@@ -550,12 +600,12 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
         settled = settle_smoothing(t, registration, points, model, params, window=window)
     window = settled.window
     plan = window_plan(n, window, settled.margin)
-    band = max(1, min(settled.margin // 2, window // 4))
+    band = blend_band(settled)
     step = float(np.median(np.diff(t))) if n > 1 else 1.0
     tick = counter(progress, "kinematics", "smoothing the pose in windows", len(plan))
     pending = None                                 # the previous window's values over the next cut's band
     for j, (lo, hi, c0, c1) in enumerate(plan):
-        tr, tl, why = _window_fit(t, registration, points, model, settled, lo, hi, step)
+        tr, tl, why = window_fit(t, registration, points, model, settled, lo, hi, step)
         a = c0 if j == 0 else max(lo, c0 - band)
         b = c1 if j == len(plan) - 1 else min(hi, c1 + band)
         block = _evaluate(tr, tl, lo, a, b, body_points, registration, why)
@@ -568,6 +618,18 @@ def windowed_kinematics(t, registration, points, model, body_points, params: Pos
         pending = None if j == len(plan) - 1 else _part(block, c1 - band, b)
         release_pages(points, *(getattr(registration, f.name) for f in dataclasses.fields(registration)))
         tick(j + 1)
+
+
+def blend_band(settled: SettledSmoothing) -> int:
+    """Frames on each side of a cut over which the two windows' values are blended: half the margin, at most
+    a quarter of a core (so a core's two bands never meet), at least one.
+
+    Examples
+    --------
+    >>> blend_band(SettledSmoothing(PoseParams(), (None,) * 6, None, None, 300, {}, window=1000))
+    150
+    """
+    return max(1, min(settled.margin // 2, settled.window // 4))
 
 
 def _part(block: KinematicsBlock, start: int, stop: int) -> KinematicsBlock:

@@ -176,7 +176,7 @@ def test_the_windows_of_a_long_record_carry_the_representative_blend():
     assert "every window fits both routes at those smoothing parameters" in settled.choice["reason"]
     assert "white-noise GCV with the stride's harmonics" not in settled.choice["reason"]
     lo, hi, _, _ = streaming.window_plan(t.size, settled.window, settled.margin)[1]
-    window, _, why = streaming._window_fit(t, reg, pts, MODEL, settled, lo, hi, 1 / RATE_HZ)
+    window, _, why = streaming.window_fit(t, reg, pts, MODEL, settled, lo, hi, 1 / RATE_HZ)
     assert why is None and all(isinstance(s, BlendedSpline) and s.weights[1] == w for s, w in
                                zip(window.centre_splines + window.rotvec_splines, settled.blend.blend_weights))
     blocks = list(streaming.windowed_kinematics(t, reg, pts, MODEL, HIDDEN[None], PoseParams(), settled=settled))

@@ -104,7 +104,10 @@ def step_rigid_body(session: Session, section: RigidBodyParams, triangulated: Tr
     ``session.json`` gives the cameras' ``camera_timing`` (exposure,
     interlaced fields), the pose trajectory is fitted through the frames'
     temporal aperture (:func:`horsemocap.aperture.session_aperture`), so it
-    estimates the motion, not its average over each exposure.
+    estimates the motion, not its average over each exposure. A pass longer
+    than :data:`horsemocap.streaming.WHOLE_RECORD_FRAMES` frames is smoothed in
+    windows (:mod:`horsemocap.pose_windows`), said in a progress line and in
+    ``analysis.json`` (``chosen.pose_windows``).
     """
     fits, pose = section.fits, section.pose
     positions, static, mframe = motion.positions, motion.static, motion.frame
@@ -186,6 +189,9 @@ def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning,
         if pose.events:
             progress("rigid_body", "acceleration free to jump at the known change points (pose_events) "
                      + ", ".join(f"{e:g}" for e in sorted(pose.events)) + " s")
+        if rb.pose.windows is not None:
+            progress("rigid_body", f"pose trajectory of a long pass: {rb.pose.windows.text()}; the degrees of "
+                                   "freedom above are the middle window's, the windows blended over their overlaps")
         if rb.chain_error:
             progress("rigid_body", f"the thesis' chain of fits was not computed: {rb.chain_error}")
     else:
