@@ -401,6 +401,53 @@ def check_record_ends(values, period_frames, input_="kinematics.csv 'ay_mps2' of
     return replace(check, message=msg, threshold=threshold)
 
 
+#: ``ok`` / ``warning`` bounds (%) of the saddle acceleration's difference between a long record's fit and the
+#: same smoothing with a knot at every frame (:func:`check_spline_basis`): the 10 % to which the saddle's
+#: acceleration is meant to hold, and half of it.
+SPLINE_BASIS_PCT = (5.0, 10.0)
+
+
+def check_spline_basis(resolution, input_="the saddle's acceleration (kinematics.csv) on the pose record's middle, "
+                                          "against the same smoothing with a knot at every frame") -> Check:
+    """Does a long record's spline basis hold the saddle's motion? (:func:`horsemocap.basis_check.basis_resolution`).
+
+    A record longer than a quintic spline fits with a knot at every frame
+    (about 400 frames) has knots every few frames; where they are too far
+    apart in seconds for the motion's fast part, the saddle's acceleration
+    and every comfort figure lose that part whatever the smoothing. The
+    record's middle, fitted again with a knot at every frame, says how much:
+    ``ok`` within :data:`SPLINE_BASIS_PCT`'s first bound, ``warning`` within
+    its second, ``unreliable`` beyond.
+
+    Examples
+    --------
+    >>> from horsemocap.basis_check import BasisResolution
+    >>> check_spline_basis(BasisResolution(3, 0.06, (402, 798), (501, 699), 13.8)).level
+    'unreliable'
+    """
+    ok, warn = SPLINE_BASIS_PCT
+    threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
+    r = resolution
+    knots = f"a knot every {r.knot_step} frames ({1000 * r.knot_spacing_s:.0f} ms)"
+    if not np.isfinite(r.difference_pct):
+        return Check("spline_basis", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
+                     f"the pose record's spline has {knots}; its effect on the saddle's acceleration: not "
+                     f"available ({r.reason})")
+    check = range_check("spline_basis", r.difference_pct, "%", (None, ok), (None, warn), input_,
+                        "the saddle acceleration's change with a knot at every frame")
+    what = (f"the pose record is longer than a spline fits with a knot at every frame, so its fit has {knots}; "
+            f"fitted again with a knot at every frame (record frames {r.stretch[0]}..{r.stretch[1] - 1}, the same "
+            f"smoothing) the saddle's acceleration changes by {r.difference_pct:.1f} % rms over frames "
+            f"{r.compared[0]}..{r.compared[1] - 1}")
+    if check.level == "ok":
+        msg = f"{what}: the basis holds the motion"
+    else:
+        msg = (f"{what}: the knots are too far apart in time for the motion's fast part, which the saddle's "
+               "acceleration and the comfort figures then lose; a shorter recording (or pass) or a higher frame "
+               "rate gives the spline a knot at every frame")
+    return replace(check, message=msg, threshold=threshold)
+
+
 def check_reprojection_residuals(residual_px: dict, motion_px_per_frame: dict, calibration_rms_px=None,
                                  input_="sync offsets and rig") -> Check:
     """Median reprojection residual per camera against the calibration and the markers' motion.
@@ -1022,6 +1069,8 @@ def post_checks(analysis) -> list[Check]:
         checks.append(check_saddle_acceleration(peak))
         period = a_.motion_frame.period_frames if a_.motion_frame is not None else None
         checks.append(check_record_ends(ay, period))
+        if getattr(body, "basis_resolution", None) is not None:
+            checks.append(check_spline_basis(body.basis_resolution))
         checks.append(check_static_shot(static_shot_of(analysis),
                                         clip_frames=getattr(analysis.static, "frames_used", None)))
     if a_.comfort is not None and a_.comfort.indicators is not None:

@@ -112,6 +112,7 @@ from scipy.spatial.transform import Rotation
 from . import fitting, smoothing, streaming
 from .forking import beside
 from .aperture import Aperture
+from .basis_check import basis_resolution
 from .params import FitsParams, RigidBodyParams
 from .probability import f_survival
 from .pose import (PoseRegistration, PoseTrajectory, SettledPoseSmoothing, check_model_conditioning,
@@ -1088,6 +1089,11 @@ class RigidBodyAnalysis:
     model_choice : ModelChoice or None
         Whether ``model`` is the static shot's shape or the moving frames'
         mean shape, and why (:func:`choose_marker_model`).
+    basis_resolution : BasisResolution or None
+        A pose record longer than a spline fits with a knot at every frame:
+        the saddle's acceleration against a fit of the record's middle with a
+        knot at every frame (:func:`horsemocap.basis_check.basis_resolution`);
+        None otherwise.
     """
 
     t: np.ndarray
@@ -1128,6 +1134,7 @@ class RigidBodyAnalysis:
     pose_registration: object = None
     left_out: object = None
     model_choice: object = None
+    basis_resolution: object = None
 
     @property
     def saddle_position(self) -> np.ndarray:
@@ -1438,7 +1445,10 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
         traj, chain = pose_trajectory(), None
     psaddle = traj.point(t, s_saddle)
     pmarkers = traj.points(t, model)
-    pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers)
+    # a record longer than a spline fits with a knot at every frame: does its basis hold the saddle's motion?
+    resolution = basis_resolution(traj, preg_all, model, s_saddle, params.pose, points=ppts,
+                                  aperture=pose_input.aperture)
+    pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers, basis_resolution=resolution)
     if skipped is not None:
         return _pose_only(common, pose, pts, skipped)
     if isinstance(chain, Exception):

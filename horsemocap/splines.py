@@ -50,7 +50,7 @@ from .iir_filters import ar1_filter
 __all__ = ["SmoothingSpline", "BlendedSpline", "blend_splines", "robust_svd", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
            "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "half_gain_frequency",
-           "common_smoothing", "MAX_BASIS"]
+           "common_smoothing", "MAX_BASIS", "knot_step"]
 
 HUBER_K = 1.345
 """Huber's tuning constant (in robust standard deviations) of :func:`robust_weighted_spline`: 95 %
@@ -640,11 +640,25 @@ def _harmonic_subset(t, frequency_hz: float, indices, t0: float = 0.0, aperture=
     return np.hstack([cols[:, idx], cols[:, K + idx]])
 
 
+def knot_step(n: int, m: int = 3) -> int:
+    """Samples between the knots of a smoothing spline of degree ``2m - 1`` over ``n`` samples: 1 (a knot at
+    every sample, the exact smoothing spline) up to ``MAX_BASIS - 2m + 2`` samples, more beyond, so that the
+    basis keeps at most :data:`MAX_BASIS` functions.
+
+    Examples
+    --------
+    >>> knot_step(396), knot_step(397), knot_step(1600)
+    (1, 2, 5)
+    """
+    return max(1, int(np.ceil(n / (MAX_BASIS - (2 * m - 1) + 1))))
+
+
 def _knots(x, m):
     """Knots of the quintic (degree ``2m - 1``) smoothing spline: at the samples (every step-th one for
-    long records), leaving out the m nearest each end so that the basis has at most n functions."""
+    long records, :func:`knot_step`), leaving out the m nearest each end so that the basis has at most n
+    functions."""
     n, k = x.size, 2 * m - 1
-    step = max(1, int(np.ceil(n / (MAX_BASIS - k + 1))))
+    step = knot_step(n, m)
     inner = x[m:-m:step]
     inner = inner[(inner > x[0]) & (inner < x[-1])]
     return np.r_[[x[0]] * (k + 1), inner, [x[-1]] * (k + 1)]

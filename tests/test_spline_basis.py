@@ -1,0 +1,85 @@
+"""The spline_basis check: a pose record too long for a knot at every frame is asked whether its basis holds
+the saddle's motion (horsemocap.basis_check), against exact truth."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from horsemocap import quality
+from horsemocap.basis_check import FULL_BASIS_FRAMES, BasisResolution, basis_resolution
+from horsemocap.params import RigidBodyParams
+from horsemocap.rigid import analyse_rigid_body
+from horsemocap.splines import knot_step
+from horsemocap.threads import blas_single_threaded
+
+MODEL = np.array([[0.20, 0.10, 0.15], [-0.20, 0.10, 0.15], [0.05, 0.10, -0.15]])
+SADDLE = np.array([0.20, -0.10, -0.15])
+
+
+@pytest.fixture(autouse=True)
+def one_blas_thread():
+    with blas_single_threaded():
+        yield
+
+
+def _path(t):
+    """A trot at 1.7 Hz (harmonics up to 6.8 Hz) whose stride wanders by 2 % over 14 s."""
+    u = t + 0.02 * 14 / (2 * np.pi) * np.sin(2 * np.pi * t / 14)
+    s = lambda a, f, p=0.0: a * np.sin(2 * np.pi * f * u + p)      # noqa: E731
+    c = np.stack([1.5 * t + s(0.01, 1.7), s(0.03, 3.4) + s(0.008, 6.8, 0.7) + 1.2, s(0.01, 1.7, 0.3)], -1)
+    return c, Rotation.from_rotvec(np.stack([s(0.03, 1.7, 1.0), s(0.05, 3.4, 0.2), s(0.04, 1.7, 2.0)], -1))
+
+
+def _analysed(n: int, fps: float):
+    """The rigid-body analysis of an n-frame pass (0.5 mm white noise) and its saddle acceleration's error (%)."""
+    t = np.arange(n) / fps
+    c, rot = _path(t)
+    markers = np.einsum("kij,mj->kmi", rot.as_matrix(), MODEL) + c[:, None]
+    markers = markers + np.random.default_rng(0).normal(0, 5e-4, markers.shape)
+
+    def saddle(u):
+        cu, ru = _path(u)
+        return cu + ru.apply(SADDLE)
+    h = 1e-3
+    truth = (saddle(t + h) - 2 * saddle(t) + saddle(t - h)) / h ** 2
+    rb = analyse_rigid_body(t, markers, np.vstack([MODEL, SADDLE]), RigidBodyParams(saddle_marker=3),
+                            period_s=1 / 1.7, static_index=np.arange(3), thesis_chain=False)
+    e = slice(20, n - 20)
+    err = np.sqrt(np.mean(np.sum((rb.saddle_acceleration[e] - truth[e]) ** 2, 1)) / np.mean(np.sum(truth[e] ** 2, 1)))
+    return rb, 100 * float(err)
+
+
+def test_a_long_record_at_50_fps_whose_knots_lose_the_trot_is_unreliable():
+    """1200 frames at 50 fps (24 s) fitted whole: a knot every 4 frames (80 ms) loses the trot's fast part
+    (the saddle's acceleration tens of per cent off); the record's middle fitted with a knot at every frame
+    differs by as much, and the check says unreliable."""
+    rb, err = _analysed(1200, 50.0)
+    r = rb.basis_resolution
+    assert err > 30
+    assert (r.knot_step, r.stretch) == (4, (402, 798)) and r.knot_spacing_s == pytest.approx(0.08)
+    assert r.difference_pct > 2 * quality.SPLINE_BASIS_PCT[1]
+    check = quality.check_spline_basis(r)
+    assert check.level == "unreliable" and "a knot every 4 frames (80 ms)" in check.message
+
+
+def test_a_long_record_at_100_hz_whose_knots_hold_the_trot_is_ok():
+    """The same trot, 1200 frames at 100 Hz (a knot every 4 frames, 40 ms): the fit holds the motion (a few per
+    cent from the truth), the fine refit agrees within the ok bound."""
+    rb, err = _analysed(1200, 100.0)
+    assert err < 5
+    assert quality.check_spline_basis(rb.basis_resolution).level == "ok"
+
+
+def test_a_record_with_a_knot_at_every_frame_is_not_checked():
+    rb, _ = _analysed(FULL_BASIS_FRAMES, 50.0)
+    assert knot_step(FULL_BASIS_FRAMES) == 1 and rb.basis_resolution is None
+    assert basis_resolution(SimpleNamespace(t=np.arange(FULL_BASIS_FRAMES) / 50.0), None, MODEL, SADDLE) is None
+
+
+def test_a_check_without_a_figure_is_skipped_with_its_reason():
+    r = BasisResolution(3, 0.06, (402, 798), (501, 699), float("nan"), "no frame of the stretch's middle has a pose")
+    check = quality.check_spline_basis(r)
+    assert check.level == "skipped" and "no frame of the stretch's middle has a pose" in check.message
