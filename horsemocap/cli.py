@@ -527,8 +527,15 @@ KINEMATICS_TABLES = ("trajectories.csv", "kinematics.csv", "angular.csv")
 
 def _kinematics_checks(traj, res, speed_p99, acceleration_p99) -> list:
     from .io3d import kinematics_checks_of_percentiles
+    from .quality import check_spline_basis
 
-    return kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
+    checks = kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
+    if res.get("basis_resolution") is not None:       # a record smoothed whole with a knot every few frames
+        point = f"the hidden point {res['hidden'][0]}" if res["hidden"] else f"the marker {res['markers'][0]}"
+        c = check_spline_basis(res["basis_resolution"], point=point)
+        checks.append({"name": c.name, "level": c.level, "value": c.figure, "limit": c.warning[1],
+                       "message": c.message})
+    return checks
 
 
 def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise_criterion: str | None = None) -> dict:

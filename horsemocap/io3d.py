@@ -1040,18 +1040,22 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     without prefix or case).
     """
     from . import pose
+    from .basis_check import basis_resolution
 
     setup = kinematics_setup(traj, static)
     markers, hidden, model, model_all = setup["markers"], setup["hidden"], setup["model"], setup["model_all"]
     points, reg = setup["points"], setup["registration"]
+    params = kinematics_params(smoothing, events, noise_criterion)
     # the markers go with the poses: "auto" measures the noise's correlation from their rigidity residual
-    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, kinematics_params(smoothing, events, noise_criterion),
-                                  points=points)
+    tr = pose.fit_pose_trajectory(traj.time_s, reg, model, params, points=points)
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
+    # a record too long for a knot at every frame: does the basis hold the (first hidden, else first) point?
+    resolution = basis_resolution(tr, reg, model, model_all[len(markers)] if hidden else model[0], params,
+                                  points=points)
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
             "hidden_kinematics": hk, "registration": reg, "unmatched": setup["unmatched"],
-            "matched_loosely": setup["matched_loosely"]}
+            "matched_loosely": setup["matched_loosely"], "basis_resolution": resolution}
 
 
 def kinematics_params(smoothing: str = "auto", events=None, noise_criterion: str | None = None):

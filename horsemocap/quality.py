@@ -407,8 +407,7 @@ def check_record_ends(values, period_frames, input_="kinematics.csv 'ay_mps2' of
 SPLINE_BASIS_PCT = (5.0, 10.0)
 
 
-def check_spline_basis(resolution, input_="the saddle's acceleration (kinematics.csv) on the pose record's middle, "
-                                          "against the same smoothing with a knot at every frame") -> Check:
+def check_spline_basis(resolution, point: str = "the saddle", input_: str | None = None) -> Check:
     """Does a long record's spline basis hold the saddle's motion? (:func:`horsemocap.basis_check.basis_resolution`).
 
     A record longer than a quintic spline fits with a knot at every frame
@@ -417,7 +416,8 @@ def check_spline_basis(resolution, input_="the saddle's acceleration (kinematics
     and every comfort figure lose that part whatever the smoothing. The
     record's middle, fitted again with a knot at every frame, says how much:
     ``ok`` within :data:`SPLINE_BASIS_PCT`'s first bound, ``warning`` within
-    its second, ``unreliable`` beyond.
+    its second, ``unreliable`` beyond. ``point``: the body point compared,
+    in words (the ``kinematics`` command's first hidden point).
 
     Examples
     --------
@@ -427,24 +427,27 @@ def check_spline_basis(resolution, input_="the saddle's acceleration (kinematics
     """
     ok, warn = SPLINE_BASIS_PCT
     threshold = f"ok <= {ok:g} %; warning <= {warn:g} %; unreliable above"
+    if input_ is None:
+        input_ = (f"{point}'s acceleration (kinematics.csv) on the pose record's middle, against the same smoothing "
+                  "with a knot at every frame")
     r = resolution
     knots = f"a knot every {r.knot_step} frames ({1000 * r.knot_spacing_s:.0f} ms)"
     if not np.isfinite(r.difference_pct):
         return Check("spline_basis", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
-                     f"the pose record's spline has {knots}; its effect on the saddle's acceleration: not "
+                     f"the pose record's spline has {knots}; its effect on {point}'s acceleration: not "
                      f"available ({r.reason})")
     check = range_check("spline_basis", r.difference_pct, "%", (None, ok), (None, warn), input_,
-                        "the saddle acceleration's change with a knot at every frame")
+                        f"{point}'s acceleration's change with a knot at every frame")
     what = (f"the pose record is longer than a spline fits with a knot at every frame, so its fit has {knots}; "
             f"fitted again with a knot at every frame (record frames {r.stretch[0]}..{r.stretch[1] - 1}, the same "
-            f"smoothing) the saddle's acceleration changes by {r.difference_pct:.1f} % rms over frames "
+            f"smoothing) {point}'s acceleration changes by {r.difference_pct:.1f} % rms over frames "
             f"{r.compared[0]}..{r.compared[1] - 1}")
     if check.level == "ok":
         msg = f"{what}: the basis holds the motion"
     else:
-        msg = (f"{what}: the knots are too far apart in time for the motion's fast part, which the saddle's "
-               "acceleration and the comfort figures then lose; a shorter recording (or pass) or a higher frame "
-               "rate gives the spline a knot at every frame")
+        msg = (f"{what}: the knots are too far apart in time for the motion's fast part, which {point}'s "
+               "acceleration (and every figure computed from it) then loses; a shorter recording (or pass) or a "
+               "higher frame rate gives the spline a knot at every frame")
     return replace(check, message=msg, threshold=threshold)
 
 

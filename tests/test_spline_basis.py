@@ -2,6 +2,8 @@
 the saddle's motion (horsemocap.basis_check), against exact truth."""
 from __future__ import annotations
 
+import csv
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -9,6 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from horsemocap import quality
+from horsemocap.cli import main
 from horsemocap.basis_check import FULL_BASIS_FRAMES, BasisResolution, basis_resolution
 from horsemocap.params import RigidBodyParams
 from horsemocap.rigid import analyse_rigid_body
@@ -83,3 +86,31 @@ def test_a_check_without_a_figure_is_skipped_with_its_reason():
     r = BasisResolution(3, 0.06, (402, 798), (501, 699), float("nan"), "no frame of the stretch's middle has a pose")
     check = quality.check_spline_basis(r)
     assert check.level == "skipped" and "no frame of the stretch's middle has a pose" in check.message
+
+
+def _write_csv(path, t, names, pts):
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "time_s", "point", "x_m", "y_m", "z_m"])
+        for k in range(len(t)):
+            for j, nm in enumerate(names):
+                w.writerow([k, t[k], nm, *(repr(float(v)) for v in pts[k, j])])
+
+
+def test_the_kinematics_command_says_when_its_knots_lose_the_hidden_points_motion(tmp_path, capsys):
+    """``horsemocap kinematics`` on the trot at 50 fps, 1000 frames (smoothed whole, a knot every 3 frames):
+    kinematics-run.json holds an unreliable spline_basis check naming the hidden point, and the command exits 3;
+    at 100 Hz (a knot every 3 frames, 30 ms) the check is ok."""
+    for fps, level, status in ((50.0, "unreliable", 3), (100.0, "ok", 0)):
+        t = np.arange(1000) / fps
+        c, rot = _path(t)
+        pts = np.einsum("kij,mj->kmi", rot.as_matrix(), MODEL) + c[:, None]
+        pts = pts + np.random.default_rng(1).normal(0, 5e-4, pts.shape)
+        _write_csv(tmp_path / "traj.csv", t, ["m1", "m2", "m3"], pts)
+        _write_csv(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "saddle"], np.vstack([MODEL, SADDLE])[None])
+        out = tmp_path / f"kin{fps:g}"
+        assert main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
+                     "--out", str(out)]) == status
+        checks = {c["name"]: c for c in json.loads((out / "kinematics-run.json").read_text())["quality"]["checks"]}
+        assert checks["spline_basis"]["level"] == level, checks["spline_basis"]["message"]
+        assert "the hidden point saddle's acceleration" in checks["spline_basis"]["message"]
