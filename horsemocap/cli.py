@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
 import json
 import sys
@@ -563,7 +564,34 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
     blocks = streaming.windowed_kinematics(traj.time_s, reg, setup["points"], model, setup["model_all"], params,
                                            settled=settled, progress=ProgressPrinter())
     return {**setup, "blocks": blocks, "smoothing_choice": settled.choice,
-            "windows": windows_record(settled, traj.frame)}
+            "windows": windows_record(settled, traj.frame),
+            "basis_resolution": _middle_window_resolution(traj.time_s, setup, settled)}
+
+
+def _middle_window_resolution(t, setup: dict, settled):
+    """The ``spline_basis`` figure of a long record's windows: the window holding the record's middle frame fitted
+    as the windows are and checked (:func:`horsemocap.basis_check.basis_resolution`) on the first hidden point
+    (else the first marker); None with known events (a window's change points are its own) or a window that
+    cannot be fitted (its frames say why in the tables)."""
+    from .basis_check import basis_resolution
+    from .streaming import slice_registration, window_fit, window_plan
+
+    if settled.params.events:
+        return None
+    mid = t.size // 2
+    lo, hi, _, _ = next(w for w in window_plan(t.size, settled.window, settled.margin) if w[2] <= mid < w[3])
+    reg, points, model = setup["registration"], setup["points"], setup["model"]
+    fit, _, _ = window_fit(t, reg, points, model, settled, lo, hi, float(np.median(np.diff(t))))
+    if fit is None:
+        return None
+    body = setup["model_all"][len(setup["markers"])] if setup["hidden"] else model[0]
+    found = basis_resolution(fit, slice_registration(reg, lo, hi), model, body, settled.params,
+                             points=None if points is None else np.asarray(points[lo:hi], float))
+    if found is None:
+        return None
+    # the window's frames counted from the record's first, as the check's message names them
+    return dataclasses.replace(found, stretch=tuple(lo + k for k in found.stretch),
+                               compared=tuple(lo + k for k in found.compared))
 
 
 def windows_record(settled, frame) -> dict:

@@ -102,15 +102,27 @@ def test_the_kinematics_command_says_when_its_knots_lose_the_hidden_points_motio
     kinematics-run.json holds an unreliable spline_basis check naming the hidden point, and the command exits 3;
     at 100 Hz (a knot every 3 frames, 30 ms) the check is ok."""
     for fps, level, status in ((50.0, "unreliable", 3), (100.0, "ok", 0)):
-        t = np.arange(1000) / fps
-        c, rot = _path(t)
-        pts = np.einsum("kij,mj->kmi", rot.as_matrix(), MODEL) + c[:, None]
-        pts = pts + np.random.default_rng(1).normal(0, 5e-4, pts.shape)
-        _write_csv(tmp_path / "traj.csv", t, ["m1", "m2", "m3"], pts)
-        _write_csv(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "saddle"], np.vstack([MODEL, SADDLE])[None])
-        out = tmp_path / f"kin{fps:g}"
-        assert main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
-                     "--out", str(out)]) == status
-        checks = {c["name"]: c for c in json.loads((out / "kinematics-run.json").read_text())["quality"]["checks"]}
-        assert checks["spline_basis"]["level"] == level, checks["spline_basis"]["message"]
-        assert "the hidden point saddle's acceleration" in checks["spline_basis"]["message"]
+        _kinematics_basis_check(tmp_path, 1000, fps, level, status)
+
+
+def test_the_kinematics_command_checks_a_long_records_windows(tmp_path):
+    """A 2000-frame record at 50 fps (40 s) is smoothed in windows of up to 1300 frames (a knot every 4 frames):
+    its middle window is checked, unreliable (the windows lose the trot's fast part)."""
+    _kinematics_basis_check(tmp_path, 2000, 50.0, "unreliable", 3)
+
+
+def _kinematics_basis_check(tmp_path, n, fps, level, status):
+    """``horsemocap kinematics`` on the trot (n frames at fps, the saddle a hidden point): its exit status and the
+    spline_basis check in kinematics-run.json."""
+    t = np.arange(n) / fps
+    c, rot = _path(t)
+    pts = np.einsum("kij,mj->kmi", rot.as_matrix(), MODEL) + c[:, None]
+    pts = pts + np.random.default_rng(1).normal(0, 5e-4, pts.shape)
+    _write_csv(tmp_path / "traj.csv", t, ["m1", "m2", "m3"], pts)
+    _write_csv(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "saddle"], np.vstack([MODEL, SADDLE])[None])
+    out = tmp_path / f"kin{fps:g}"
+    assert main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
+                 "--out", str(out)]) == status
+    checks = {c["name"]: c for c in json.loads((out / "kinematics-run.json").read_text())["quality"]["checks"]}
+    assert checks["spline_basis"]["level"] == level, checks["spline_basis"]["message"]
+    assert "the hidden point saddle's acceleration" in checks["spline_basis"]["message"]
