@@ -22,9 +22,9 @@ dropped from the triangulated points and their points from the static shot
 the rigid-body step reads),
 and the marker model chosen is printed.
 A name of the hard set (``hard.HARD_SESSIONS``) runs that session without marker noise (the ``noisy_<name>``
-cover session's ride). ``--trace``: where each named session's error comes from: the analysis as measured, with the static shot
-replaced by its true points, with the analysed frames' triangulated markers replaced by the true ones, and both
-(as ``bench_marker_noise.py --trace`` does for the herd), with the static shot's error per point.
+cover session's ride). ``--trace``: where each named session's error comes from: the analysis as measured, with
+the static shot replaced by its true points, with the analysed frames' triangulated markers replaced by the true
+ones, and both (as ``bench_marker_noise.py --trace`` does for the herd), with the static shot's error per point.
 ``--draws N``: for a session with more than three markers, N draws of
 synthetic marker noise on the true markers (AR(1) over frames, each marker's
 3D error shaped by its triangulation covariance; the scale and the lag-1
