@@ -14,13 +14,17 @@ smoothing (``unsmoothed saddle y``: the registration's share of the error,
 mm rms with the record's mean removed), so that a change of the registration
 and a change of the smoothing can be told apart.
 
-Usage: ``python benchmarks/bench_markers_covers.py [--cut] [--draws N] [NAME ...]``
+Usage: ``python benchmarks/bench_markers_covers.py [--cut] [--draws N] [--trace] [NAME ...]``
 (``results/markers_covers.txt``: the run noted in benchmarks/README.md).
 ``--cut``: a session with more than three markers is also analysed cut to the
 horse's own three (the same ride and the same noise: the extra markers' columns
 dropped from the triangulated points and their points from the static shot
 the rigid-body step reads),
 and the marker model chosen is printed.
+A name of the hard set (``hard.HARD_SESSIONS``) runs that session without marker noise (the ``noisy_<name>``
+cover session's ride). ``--trace``: where each named session's error comes from: the analysis as measured, with
+the static shot replaced by its true points, with the analysed frames' triangulated markers replaced by the true
+ones, and both (as ``bench_marker_noise.py --trace`` does for the herd), with the static shot's error per point.
 ``--draws N``: for a session with more than three markers, N draws of
 synthetic marker noise on the true markers (AR(1) over frames, each marker's
 3D error shaped by its triangulation covariance; the scale and the lag-1
@@ -58,11 +62,13 @@ import sys
 import time
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from horsemocap import accuracy, pipeline, pose, quality
 from horsemocap.pipeline import AnalysisError, analyze, run_steps
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.covers import COVER_SESSIONS, cover_session
+from horsemocap.virtuallab.hard import HARD_SESSIONS, hard_session
 from horsemocap.virtuallab.horse import HERD
 
 
@@ -154,7 +160,7 @@ def run_cut(name: str) -> str:
 
 def run(name: str) -> str:
     t0 = time.perf_counter()
-    folder = cover_session(name)
+    folder = _session_folder(name)
     try:
         a = analyze(folder, None, {}, progress=lambda *x: None)
     except AnalysisError as exc:
@@ -181,6 +187,85 @@ def run(name: str) -> str:
             f"unsmoothed saddle y {unsmoothed_saddle_error_mm(a, truth)[1]:.2f} mm partly_covered {covered} "
             f"left out of the pose {left_out} {bad} model: {_model_text(a)} {_route_text(a)}"
             f"{time.perf_counter() - t0:.0f}s" + "".join(f"\n    under the cover, {k}: {v}" for k, v in during.items()))
+
+
+def _static_truth(truth, error: dict):
+    """``static`` step result -> the same with each static point replaced by its true point (paired by least total
+    distance); the measured points' error (mm, world) kept in ``error["mm"]`` (the true points' order)."""
+    true = np.asarray(truth.static_pos, float)
+
+    def replace_result(a, r):
+        measured = np.asarray(r.static_points, float)
+        rows, cols = linear_sum_assignment(np.linalg.norm(measured[:, None] - true[None], axis=-1))
+        out = measured.copy()
+        out[rows] = true[cols]
+        error["mm"] = np.full_like(true, np.nan)
+        error["mm"][cols] = 1000 * (measured[rows] - true[cols])
+        return dataclasses.replace(r, static_points=out)
+    return replace_result
+
+
+def _triangulated_truth(truth):
+    """``triangulate`` step result -> the same with the analysed frames' markers replaced by the true ones."""
+    def replace_result(a, r):
+        s0, s1 = r.segment
+        frames = a.detect.sync.offsets[a.session.reference_camera] + np.arange(s0, s1)
+        rows, known = accuracy._truth_rows(truth, frames)
+        pts = np.array(r.points, float)
+        pts[np.arange(s0, s1)[known]] = np.asarray(truth.marker_pos)[rows][known]
+        return dataclasses.replace(r, points=pts)
+    return replace_result
+
+
+class _Patched:
+    """``pipeline.STEP_CALLS[step]``'s result passed through ``replace_result`` for each (step, replace_result)."""
+
+    def __init__(self, *patches):
+        self.patches, self.saved = patches, {}
+
+    def __enter__(self):
+        for step, replace_result in self.patches:
+            original = self.saved[step] = pipeline.STEP_CALLS[step]
+            pipeline.STEP_CALLS[step] = lambda a, pr, f=replace_result, original=original: f(a, original(a, pr))
+        return self
+
+    def __exit__(self, *exc):
+        pipeline.STEP_CALLS.update(self.saved)
+
+
+def run_trace(name: str) -> str:
+    """Where a session's error comes from: the analysis as measured, with the static shot replaced by its true
+    points, with the analysed frames' triangulated markers replaced by the true ones, and both; per variant A_y,
+    Wb, Wk, the unsmoothed saddle error (mm rms, x y z of the motion frame), the verdict and the checks above ok;
+    then the measured static shot's error per point (mm, world x y z; markers rear to front, then the saddle)."""
+    folder = _session_folder(name)
+    truth = load_truth(folder)
+    static_error = {}
+    variants = {"measured": (), "true static shot": (("static", _static_truth(truth, static_error)),),
+                "true markers in the analysed frames": (("triangulate", _triangulated_truth(truth)),),
+                "both true": (("static", _static_truth(truth, {})), ("triangulate", _triangulated_truth(truth)))}
+    lines = [f"{name}"]
+    for label, patches in variants.items():
+        t0 = time.perf_counter()
+        try:
+            with _Patched(*patches):
+                a = analyze(folder, None, {}, progress=lambda *x: None)
+        except AnalysisError as exc:
+            lines.append(f"  {label:36s} exit 2 stopped: {str(exc)[:160]}")
+            continue
+        checks = quality.post_checks(a)
+        v = quality.verdict(checks)
+        st = accuracy.stage_errors(a, truth)
+        ce = accuracy.comfort_errors(a.comfort.indicators, truth.comfort, ("acc_y_Wb_rms", "acc_y_Wk_rms"))
+        bad = [f"{c.name}:{c.level}" for c in checks if c.level in ("warning", "unreliable")]
+        lines.append(f"  {label:36s} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % Wb {ce['acc_y_Wb_rms']:+6.1f} % "
+                     f"Wk {ce['acc_y_Wk_rms']:+6.1f} % unsmoothed saddle "
+                     f"{np.round(unsmoothed_saddle_error_mm(a, truth), 2).tolist()} mm exit "
+                     f"{3 if v == 'unreliable' else 0} {v} {bad} {_route_text(a)}{time.perf_counter() - t0:.0f}s")
+        print(lines[-1], flush=True)
+    if "mm" in static_error:
+        lines.append(f"  static shot error (mm, world x y z per point): {np.round(static_error['mm'], 1).tolist()}")
+    return "\n".join(lines)
 
 
 def _true_markers(a, truth) -> np.ndarray:
@@ -286,10 +371,14 @@ KEPT_CRITERIA = ("risk kept", "reml kept")
 
 
 def _session_folder(name: str):
+    """A cover session, a herd record with correlated marker noise (``HERD_NOISE_SESSIONS``) or a hard session
+    (``hard.HARD_SESSIONS``, without marker noise: the ``noisy_<name>`` cover sessions' rides)."""
     if name in HERD_NOISE_SESSIONS:
         from bench_marker_noise import noisy_session           # the benchmark beside this one
         from horsemocap.virtuallab.noise import MarkerNoise
         return noisy_session(*HERD_NOISE_SESSIONS[name], MarkerNoise(0.1, 0.8, 0.05))
+    if name in HARD_SESSIONS and name not in COVER_SESSIONS:
+        return hard_session(name)
     return cover_session(name)
 
 
@@ -493,6 +582,10 @@ if __name__ == "__main__":
         pose.LEFT_OUT_STACK = float(args[args.index("--stack-weight") + 1])
     if "--no-stack" in args:
         pose.LEFT_OUT_STACK = False
+    if "--trace" in args:
+        for n in names:
+            print(run_trace(n), flush=True)
+        sys.exit(0)
     if "--oracle" in args:
         for n in names:
             print(run_oracle(n, keep_left_out="--kept" in args), flush=True)
@@ -506,9 +599,9 @@ if __name__ == "__main__":
         sys.exit(0)
     for n in names or list(COVER_SESSIONS):
         if draws:
-            if len(COVER_SESSIONS[n].horse().marker_body) > 3:
+            if n in COVER_SESSIONS and len(COVER_SESSIONS[n].horse().marker_body) > 3:
                 print(run_draws(n, draws), flush=True)
             continue
         print(run(n), flush=True)
-        if cut and len(COVER_SESSIONS[n].horse().marker_body) > 3:
+        if cut and n in COVER_SESSIONS and len(COVER_SESSIONS[n].horse().marker_body) > 3:
             print(run_cut(n), flush=True)

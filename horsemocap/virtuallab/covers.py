@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera
-from .hard import HARD_VERSION, HardScenario, _r, plan, render_hard
+from .hard import HARD_SESSIONS, HARD_VERSION, HardScenario, _r, plan, render_hard
 from .herd import RENDER_VERSION, scenario_session
 from .horse import HERD, Horse
 from .noise import MarkerNoise
@@ -281,6 +281,11 @@ UPPER_BACK = (-0.48, -0.16, -0.29)
 RIG_NOISE = MarkerNoise(sigma_px=0.15, rho=0.8, bias_px=0.1)
 
 
+#: Marker-centroid noise of the hard set's noisy sessions (``noisy_<hard session>``): the level the herd was measured
+#: with (``bench_marker_noise.py --herd``), AR(1) over each session's own frames.
+HARD_NOISE = MarkerNoise(sigma_px=0.1, rho=0.8, bias_px=0.05)
+
+
 #: More rides of the spread rigs (gait, horse, seed, suffix): the same horse, gait, cameras' layout, markers and
 #: marker noise as ``spread4_<gait>`` / ``spread5_<gait>``, with another seed. The herd horse's gait is the same
 #: periodic motion; the seed places the cameras anew within the layout's tolerances (so the record starts a few
@@ -337,7 +342,25 @@ def _scenarios():
     out.append(CoverScenario("hand_canter", b, (CROUP,), covers=(
         Cover(marker=0, cameras=("left", "middle"), start_s=0.3, duration_s=0.3, fraction=0.4, angle_deg=180.0,
               kind="hand", name="hand"),), exercises="four markers; the rider's hand over the croup marker"))
+    out += noisy_hard_scenarios()
     return {s.name: s for s in out}
+
+
+def noisy_hard_scenarios(noise: MarkerNoise = HARD_NOISE, prefix: str = "noisy") -> list:
+    """The hard set's sessions (:data:`.hard.HARD_SESSIONS`) with correlated marker noise and their own markers.
+
+    Each is ``<prefix>_<hard name>``: the same ride, cameras, extras and image noise (the hard scenario's seed),
+    with ``noise`` added to the markers' drawing (its AR(1) over the session's own frame rate).
+
+    Examples
+    --------
+    >>> sc = noisy_hard_scenarios()[0]
+    >>> sc.name, sc.base.name, sc.marker_noise.sigma_px, sc.extra_markers
+    ('noisy_canter720_toedin_60', 'canter720_toedin_60', 0.1, ())
+    """
+    return [CoverScenario(f"{prefix}_{name}", sc, marker_noise=noise,
+                          exercises=f"the hard session {name} with correlated marker noise {noise.to_dict()}")
+            for name, sc in HARD_SESSIONS.items()]
 
 
 #: The sessions of this module (name -> :class:`CoverScenario`).
