@@ -532,8 +532,7 @@ def _kinematics_checks(traj, res, speed_p99, acceleration_p99) -> list:
 
     checks = kinematics_checks_of_percentiles(traj, res["markers"], speed_p99, acceleration_p99)
     if res.get("basis_resolution") is not None:       # a record smoothed whole with a knot every few frames
-        point = f"the hidden point {res['hidden'][0]}" if res["hidden"] else f"the marker {res['markers'][0]}"
-        c = check_spline_basis(res["basis_resolution"], point=point)
+        c = check_spline_basis(res["basis_resolution"], point=res["basis_point"])
         checks.append({"name": c.name, "level": c.level, "value": c.figure, "limit": c.warning[1],
                        "message": c.message})
     return checks
@@ -543,7 +542,7 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
     """What ``kinematics`` writes: the whole record's fit, or for a long record the smoothing settled
     on its middle and the windows' blocks to come (``blocks``, a generator)."""
     from . import streaming
-    from .io3d import kinematics_from_trajectories, kinematics_params, kinematics_setup
+    from .io3d import basis_point, kinematics_from_trajectories, kinematics_params, kinematics_setup
     from .progress import ProgressPrinter
 
     if traj.frame.size <= streaming.WHOLE_RECORD_FRAMES:
@@ -565,7 +564,8 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
                                            settled=settled, progress=ProgressPrinter())
     return {**setup, "blocks": blocks, "smoothing_choice": settled.choice,
             "windows": windows_record(settled, traj.frame),
-            "basis_resolution": _middle_window_resolution(traj.time_s, setup, settled)}
+            "basis_resolution": _middle_window_resolution(traj.time_s, setup, settled),
+            "basis_point": basis_point(setup)[0]}
 
 
 def _middle_window_resolution(t, setup: dict, settled):
@@ -574,24 +574,23 @@ def _middle_window_resolution(t, setup: dict, settled):
     (else the first marker); None with known events (a window's change points are its own) or a window that
     cannot be fitted (its frames say why in the tables)."""
     from .basis_check import basis_resolution
+    from .io3d import basis_point
     from .streaming import slice_registration, window_fit, window_plan
 
-    if settled.params.events:
-        return None
     mid = t.size // 2
-    lo, hi, _, _ = next(w for w in window_plan(t.size, settled.window, settled.margin) if w[2] <= mid < w[3])
+    lo, hi, core_lo, core_hi = next(w for w in window_plan(t.size, settled.window, settled.margin)
+                                    if w[2] <= mid < w[3])
     reg, points, model = setup["registration"], setup["points"], setup["model"]
-    fit, _, _ = window_fit(t, reg, points, model, settled, lo, hi, float(np.median(np.diff(t))))
+    fit, tl, _ = window_fit(t, reg, points, model, settled, lo, hi, float(np.median(np.diff(t))))
     if fit is None:
         return None
-    body = setup["model_all"][len(setup["markers"])] if setup["hidden"] else model[0]
-    found = basis_resolution(fit, slice_registration(reg, lo, hi), model, body, settled.params,
-                             points=None if points is None else np.asarray(points[lo:hi], float))
-    if found is None:
-        return None
-    # the window's frames counted from the record's first, as the check's message names them
-    return dataclasses.replace(found, stretch=tuple(lo + k for k in found.stretch),
-                               compared=tuple(lo + k for k in found.compared))
+    # the window's own time axis starts at its first frame: its known change points moved onto it, as its fit's
+    events = [e - t[lo] for e in settled.params.events or () if t[lo] < e < t[hi - 1]] or None
+    found = basis_resolution(fit, slice_registration(reg, lo, hi), model, basis_point(setup)[1],
+                             dataclasses.replace(settled.params, events=events),
+                             points=None if points is None else np.asarray(points[lo:hi], float),
+                             span=(core_lo - lo, core_hi - lo))
+    return None if found is None else found.shifted(float(t[lo]) - float(tl[0]))
 
 
 def windows_record(settled, frame) -> dict:

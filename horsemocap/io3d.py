@@ -1004,9 +1004,15 @@ def _limit_check(name, value, limit, unit, what, beyond: str = "unreliable") -> 
 
 
 def kinematics_verdict(checks) -> str:
-    """The worst level of ``checks``: "ok", "warning" or "unreliable"."""
+    """The worst level of ``checks``: "ok", "warning" or "unreliable" (a "skipped" check counts for nothing).
+
+    Examples
+    --------
+    >>> kinematics_verdict([{"level": "ok"}, {"level": "skipped"}, {"level": "warning"}])
+    'warning'
+    """
     order = ("ok", "warning", "unreliable")
-    return max((c["level"] for c in checks), key=order.index, default="ok")
+    return max((c["level"] for c in checks if c["level"] in order), key=order.index, default="ok")
 
 
 def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, smoothing: str = "auto",
@@ -1051,11 +1057,25 @@ def kinematics_from_trajectories(traj: Trajectories, static: Trajectories, *, sm
     mk = tr.points(traj.time_s, model)
     hk = tr.points(traj.time_s, model_all[len(markers):]) if hidden else None
     # a record too long for a knot at every frame: does the basis hold the (first hidden, else first) point?
-    resolution = basis_resolution(tr, reg, model, model_all[len(markers)] if hidden else model[0], params,
-                                  points=points)
+    name, point = basis_point(setup)
+    resolution = basis_resolution(tr, reg, model, point, params, points=points)
     return {"trajectory": tr, "markers": markers, "hidden": hidden, "marker_kinematics": mk,
             "hidden_kinematics": hk, "registration": reg, "unmatched": setup["unmatched"],
-            "matched_loosely": setup["matched_loosely"], "basis_resolution": resolution}
+            "matched_loosely": setup["matched_loosely"], "basis_resolution": resolution, "basis_point": name}
+
+
+def basis_point(setup: dict) -> tuple:
+    """``(words, body point)`` the ``spline_basis`` check compares: the first hidden point of
+    :func:`kinematics_setup`'s ``setup``, else its first marker.
+
+    Examples
+    --------
+    >>> basis_point({"markers": ["a", "b", "c"], "hidden": ["saddle"], "model_all": np.eye(4, 3)})[0]
+    'the hidden point saddle'
+    """
+    if setup["hidden"]:
+        return f"the hidden point {setup['hidden'][0]}", setup["model_all"][len(setup["markers"])]
+    return f"the marker {setup['markers'][0]}", setup["model_all"][0]
 
 
 def kinematics_params(smoothing: str = "auto", events=None, noise_criterion: str | None = None):

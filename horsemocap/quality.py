@@ -422,7 +422,7 @@ def check_spline_basis(resolution, point: str = "the saddle", input_: str | None
     Examples
     --------
     >>> from horsemocap.basis_check import BasisResolution
-    >>> check_spline_basis(BasisResolution(3, 0.06, (402, 798), (501, 699), 13.8)).level
+    >>> check_spline_basis(BasisResolution(3, 0.06, (8.04, 15.94), (10.02, 13.96), 13.8)).level
     'unreliable'
     """
     ok, warn = SPLINE_BASIS_PCT
@@ -439,9 +439,9 @@ def check_spline_basis(resolution, point: str = "the saddle", input_: str | None
     check = range_check("spline_basis", r.difference_pct, "%", (None, ok), (None, warn), input_,
                         f"{point}'s acceleration's change with a knot at every frame")
     what = (f"the pose record is longer than a spline fits with a knot at every frame, so its fit has {knots}; "
-            f"fitted again with a knot at every frame (record frames {r.stretch[0]}..{r.stretch[1] - 1}, the same "
-            f"smoothing) {point}'s acceleration changes by {r.difference_pct:.1f} % rms over frames "
-            f"{r.compared[0]}..{r.compared[1] - 1}")
+            f"fitted again with a knot at every frame ({r.stretch_s[0]:.2f}..{r.stretch_s[1]:.2f} s, the same "
+            f"smoothing) {point}'s acceleration changes by {r.difference_pct:.1f} % rms over "
+            f"{r.compared_s[0]:.2f}..{r.compared_s[1]:.2f} s (kinematics.csv's time_s)")
     if check.level == "ok":
         msg = f"{what}: the basis holds the motion"
     else:

@@ -1447,7 +1447,7 @@ def analyse_rigid_body(t, points, static_points, params: RigidBodyParams = Rigid
     pmarkers = traj.points(t, model)
     # a record longer than a spline fits with a knot at every frame: does its basis hold the saddle's motion?
     resolution = basis_resolution(traj, preg_all, model, s_saddle, params.pose, points=ppts,
-                                  aperture=pose_input.aperture)
+                                  aperture=pose_input.aperture, span=(int(inside[0]), int(inside[-1]) + 1))
     pose = dict(pose=traj, pose_saddle=psaddle, pose_markers=pmarkers, basis_resolution=resolution)
     if skipped is not None:
         return _pose_only(common, pose, pts, skipped)

@@ -50,7 +50,7 @@ from .iir_filters import ar1_filter
 __all__ = ["SmoothingSpline", "BlendedSpline", "blend_splines", "robust_svd", "ChangePointError", "HarmonicTerms", "EventTerms", "truncated_power_columns",
            "smoothing_spline", "harmonic_columns", "harmonic_amplitudes",
            "estimate_fundamental", "robust_weighted_spline", "residual_log_likelihood", "half_gain_frequency",
-           "common_smoothing", "MAX_BASIS", "knot_step"]
+           "common_smoothing", "MAX_BASIS", "FULL_BASIS_SAMPLES", "knot_step"]
 
 HUBER_K = 1.345
 """Huber's tuning constant (in robust standard deviations) of :func:`robust_weighted_spline`: 95 %
@@ -638,6 +638,10 @@ def _harmonic_subset(t, frequency_hz: float, indices, t0: float = 0.0, aperture=
     cols = (harmonic_columns(t, frequency_hz, K, t0) if aperture is None else
             aperture.average(lambda u: harmonic_columns(u, frequency_hz, K, t0), t))
     return np.hstack([cols[:, idx], cols[:, K + idx]])
+
+
+#: The most samples a quintic smoothing spline fits with a knot at every sample (:func:`knot_step` 1).
+FULL_BASIS_SAMPLES = MAX_BASIS - 4
 
 
 def knot_step(n: int, m: int = 3) -> int:

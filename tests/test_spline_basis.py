@@ -2,7 +2,6 @@
 the saddle's motion (horsemocap.basis_check), against exact truth."""
 from __future__ import annotations
 
-import csv
 import json
 from types import SimpleNamespace
 
@@ -13,10 +12,12 @@ from scipy.spatial.transform import Rotation
 from horsemocap import quality
 from horsemocap.cli import main
 from horsemocap.basis_check import FULL_BASIS_FRAMES, BasisResolution, basis_resolution
-from horsemocap.params import RigidBodyParams
-from horsemocap.rigid import analyse_rigid_body
+from horsemocap.params import PoseParams, RigidBodyParams
+from horsemocap.rigid import PoseInput, analyse_rigid_body
 from horsemocap.splines import knot_step
 from horsemocap.threads import blas_single_threaded
+
+from test_io3d import _write_csv
 
 MODEL = np.array([[0.20, 0.10, 0.15], [-0.20, 0.10, 0.15], [0.05, 0.10, -0.15]])
 SADDLE = np.array([0.20, -0.10, -0.15])
@@ -62,7 +63,8 @@ def test_a_long_record_at_50_fps_whose_knots_lose_the_trot_is_unreliable():
     rb, err = _analysed(1200, 50.0)
     r = rb.basis_resolution
     assert err > 30
-    assert (r.knot_step, r.stretch) == (4, (402, 798)) and r.knot_spacing_s == pytest.approx(0.08)
+    assert r.knot_step == 4 and r.knot_spacing_s == pytest.approx(0.08)
+    assert r.stretch_s == (8.04, 15.94) and r.compared_s == (10.02, 13.96)      # the middle 396 frames, on time_s
     assert r.difference_pct > 2 * quality.SPLINE_BASIS_PCT[1]
     check = quality.check_spline_basis(r)
     assert check.level == "unreliable" and "a knot every 4 frames (80 ms)" in check.message
@@ -79,22 +81,15 @@ def test_a_long_record_at_100_hz_whose_knots_hold_the_trot_is_ok():
 def test_a_record_with_a_knot_at_every_frame_is_not_checked():
     rb, _ = _analysed(FULL_BASIS_FRAMES, 50.0)
     assert knot_step(FULL_BASIS_FRAMES) == 1 and rb.basis_resolution is None
-    assert basis_resolution(SimpleNamespace(t=np.arange(FULL_BASIS_FRAMES) / 50.0), None, MODEL, SADDLE) is None
+    reg = SimpleNamespace(rotation=np.repeat(np.eye(3)[None], FULL_BASIS_FRAMES + 4, 0))
+    reg.rotation[::2] = np.nan                              # 400 frames, 200 with a pose: a knot at every sample
+    assert basis_resolution(SimpleNamespace(t=np.arange(FULL_BASIS_FRAMES + 4) / 50.0), reg, MODEL, SADDLE) is None
 
 
 def test_a_check_without_a_figure_is_skipped_with_its_reason():
-    r = BasisResolution(3, 0.06, (402, 798), (501, 699), float("nan"), "no frame of the stretch's middle has a pose")
+    r = BasisResolution(3, 0.06, (8.04, 15.94), (10.02, 13.96), float("nan"), "no frame of the stretch's middle has a pose")
     check = quality.check_spline_basis(r)
     assert check.level == "skipped" and "no frame of the stretch's middle has a pose" in check.message
-
-
-def _write_csv(path, t, names, pts):
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["frame", "time_s", "point", "x_m", "y_m", "z_m"])
-        for k in range(len(t)):
-            for j, nm in enumerate(names):
-                w.writerow([k, t[k], nm, *(repr(float(v)) for v in pts[k, j])])
 
 
 def test_the_kinematics_command_says_when_its_knots_lose_the_hidden_points_motion(tmp_path, capsys):
@@ -111,7 +106,7 @@ def test_the_kinematics_command_checks_a_long_records_windows(tmp_path):
     _kinematics_basis_check(tmp_path, 2000, 50.0, "unreliable", 3)
 
 
-def _kinematics_basis_check(tmp_path, n, fps, level, status):
+def _kinematics_basis_check(tmp_path, n, fps, level, status, extra=()):
     """``horsemocap kinematics`` on the trot (n frames at fps, the saddle a hidden point): its exit status and the
     spline_basis check in kinematics-run.json."""
     t = np.arange(n) / fps
@@ -122,7 +117,38 @@ def _kinematics_basis_check(tmp_path, n, fps, level, status):
     _write_csv(tmp_path / "static.csv", [0.0], ["m1", "m2", "m3", "saddle"], np.vstack([MODEL, SADDLE])[None])
     out = tmp_path / f"kin{fps:g}"
     assert main(["kinematics", str(tmp_path / "traj.csv"), "--static", str(tmp_path / "static.csv"),
-                 "--out", str(out)]) == status
+                 "--out", str(out), *extra]) == status
     checks = {c["name"]: c for c in json.loads((out / "kinematics-run.json").read_text())["quality"]["checks"]}
     assert checks["spline_basis"]["level"] == level, checks["spline_basis"]["message"]
     assert "the hidden point saddle's acceleration" in checks["spline_basis"]["message"]
+
+
+def test_known_events_outside_the_refitted_stretch_are_left_to_the_record(tmp_path):
+    """``--events`` at 1.0 s on a 600-frame record at 50 fps (the stretch refitted is 2.04-9.94 s): the refit takes
+    only the events inside it, so the check has its figure (it crashed the command, a "skipped" level unknown to the
+    verdict, when the refit was given the record's events)."""
+    _kinematics_basis_check(tmp_path, 600, 50.0, "ok", 0, ("--events", "1.0"))
+
+
+def test_the_check_reads_the_analysed_frames_of_a_wider_pose_record():
+    """300 analysed frames at 50 fps and 600 frames after them in which the pose record goes on (the partial
+    frames' stretch): the refitted stretch is centred on the analysed frames and only they are compared."""
+    n, extra = 300, 600
+    t_all = np.arange(n + extra) / 50.0
+    c, rot = _path(t_all)
+    pts = np.einsum("kij,mj->kmi", rot.as_matrix(), MODEL) + c[:, None]
+    pts = pts + np.random.default_rng(0).normal(0, 5e-4, pts.shape)
+    rb = analyse_rigid_body(t_all[:n], pts[:n], np.vstack([MODEL, SADDLE]), RigidBodyParams(saddle_marker=3),
+                            period_s=1 / 1.7, static_index=np.arange(3), thesis_chain=False,
+                            pose_input=PoseInput(points=pts, t=t_all))
+    r = rb.basis_resolution
+    assert r.stretch_s[0] == 0.0 and r.stretch_s[1] == pytest.approx(395 / 50.0)
+    assert r.compared_s[0] >= 99 / 50.0 - 1e-9 and r.compared_s[1] <= (n - 1) / 50.0 + 1e-9
+
+
+def test_an_uncapped_smoothing_is_not_checked():
+    """``smoothing: none`` (interpolation) and ``gcv_cubic`` (SciPy's, a knot at every sample) have no capped basis."""
+    t = np.arange(800) / 50.0
+    reg = SimpleNamespace(rotation=np.repeat(np.eye(3)[None], t.size, 0))
+    for method in ("none", "gcv_cubic"):
+        assert basis_resolution(SimpleNamespace(t=t), reg, MODEL, SADDLE, PoseParams(smoothing=method)) is None
