@@ -206,15 +206,11 @@ def _static_truth(truth, error: dict):
 
 
 def _triangulated_truth(truth):
-    """``triangulate`` step result -> the same with the analysed frames' markers replaced by the true ones."""
-    def replace_result(a, r):
-        s0, s1 = r.segment
-        frames = a.detect.sync.offsets[a.session.reference_camera] + np.arange(s0, s1)
-        rows, known = accuracy._truth_rows(truth, frames)
-        pts = np.array(r.points, float)
-        pts[np.arange(s0, s1)[known]] = np.asarray(truth.marker_pos)[rows][known]
-        return dataclasses.replace(r, points=pts)
-    return replace_result
+    """``triangulate`` step result -> the same with the analysed frames' markers replaced by the true ones
+    (the benchmark beside this one's, ``bench_marker_noise._true_markers``)."""
+    from bench_marker_noise import _true_markers
+
+    return _true_markers(truth)
 
 
 class _Patched:
