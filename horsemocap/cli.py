@@ -571,8 +571,9 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
 def _middle_window_resolution(t, setup: dict, settled):
     """The ``spline_basis`` figure of a long record's windows: the window holding the record's middle frame fitted
     as the windows are and checked (:func:`horsemocap.basis_check.basis_resolution`) on the first hidden point
-    (else the first marker); None with known events (a window's change points are its own) or a window that
-    cannot be fitted (its frames say why in the tables)."""
+    (else the first marker), its known change points moved onto the window's own times as its fit's are, its
+    times moved back onto the record's; None for a window that cannot be fitted (its frames say why in the
+    tables)."""
     from .basis_check import basis_resolution
     from .io3d import basis_point
     from .streaming import slice_registration, window_fit, window_plan
