@@ -24,7 +24,7 @@ import numpy as np
 from .params import PoseParams
 from .pose import PoseRegistration, fit_pose_trajectory, settle_pose_smoothing
 from .splines import FULL_BASIS_SAMPLES, knot_step
-from .streaming import slice_registration
+from .streaming import events_inside, slice_registration
 
 __all__ = ["BasisResolution", "FULL_BASIS_FRAMES", "UNCAPPED_METHODS", "basis_resolution"]
 
@@ -99,12 +99,6 @@ def _stretch(n: int, span: tuple) -> tuple:
     return lo, min(n, lo + FULL_BASIS_FRAMES)
 
 
-def _events_within(events, t0: float, t1: float):
-    """The known change points strictly inside ``(t0, t1)`` (None: none)."""
-    inside = [float(e) for e in (events or ()) if t0 < float(e) < t1]
-    return inside or None
-
-
 def basis_resolution(trajectory, registration: PoseRegistration, model, body_point, params: PoseParams = PoseParams(),
                      *, points=None, aperture=None, span: tuple | None = None) -> BasisResolution | None:
     """The acceleration ``trajectory`` gives ``body_point`` against a fit with a knot at every frame.
@@ -160,7 +154,7 @@ def basis_resolution(trajectory, registration: PoseRegistration, model, body_poi
         return without("the analysed frames hold no part of the stretch's middle")
     try:
         fine = fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model,
-                                   replace(params, events=_events_within(params.events, t[lo], t[hi - 1])),
+                                   replace(params, events=events_inside(params.events, t[lo], t[hi - 1])),
                                    points=None if points is None else np.asarray(points, float)[lo:hi],
                                    settled=settle_pose_smoothing(trajectory, params), aperture=aperture)
     except ValueError as exc:

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import gc
 import json
 import sys
@@ -556,6 +555,7 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
                                           tr.omega(traj.time_s), tr.alpha(traj.time_s), tr.reason)
         return {**res, "blocks": iter([block]), "smoothing_choice": tr.smoothing_choice}
     setup = kinematics_setup(traj, static, folder=scratch)
+    name, point = basis_point(setup)
     params = kinematics_params(smoothing, events, noise_criterion)
     reg, model = setup["registration"], setup["model"]
     settled = streaming.settle_smoothing(traj.time_s, reg, setup["points"], model, params,
@@ -564,19 +564,18 @@ def _kinematics_result(traj, static, smoothing: str, events, scratch=None, noise
                                            settled=settled, progress=ProgressPrinter())
     return {**setup, "blocks": blocks, "smoothing_choice": settled.choice,
             "windows": windows_record(settled, traj.frame),
-            "basis_resolution": _middle_window_resolution(traj.time_s, setup, settled),
-            "basis_point": basis_point(setup)[0]}
+            "basis_resolution": _middle_window_resolution(traj.time_s, setup, settled, point),
+            "basis_point": name}
 
 
-def _middle_window_resolution(t, setup: dict, settled):
+def _middle_window_resolution(t, setup: dict, settled, body_point):
     """The ``spline_basis`` figure of a long record's windows: the window holding the record's middle frame fitted
-    as the windows are and checked (:func:`horsemocap.basis_check.basis_resolution`) on the first hidden point
-    (else the first marker), its known change points moved onto the window's own times as its fit's are, its
-    times moved back onto the record's; None for a window that cannot be fitted (its frames say why in the
+    as the windows are and checked (:func:`horsemocap.basis_check.basis_resolution`) on ``body_point``
+    (:func:`horsemocap.io3d.basis_point`) with the window's own smoothing (:func:`horsemocap.streaming.window_params`),
+    its times moved back onto the record's; None for a window that cannot be fitted (its frames say why in the
     tables)."""
     from .basis_check import basis_resolution
-    from .io3d import basis_point
-    from .streaming import slice_registration, window_fit, window_plan
+    from .streaming import slice_registration, window_fit, window_params, window_plan
 
     mid = t.size // 2
     lo, hi, core_lo, core_hi = next(w for w in window_plan(t.size, settled.window, settled.margin)
@@ -585,10 +584,8 @@ def _middle_window_resolution(t, setup: dict, settled):
     fit, tl, _ = window_fit(t, reg, points, model, settled, lo, hi, float(np.median(np.diff(t))))
     if fit is None:
         return None
-    # the window's own time axis starts at its first frame: its known change points moved onto it, as its fit's
-    events = [e - t[lo] for e in settled.params.events or () if t[lo] < e < t[hi - 1]] or None
-    found = basis_resolution(fit, slice_registration(reg, lo, hi), model, basis_point(setup)[1],
-                             dataclasses.replace(settled.params, events=events),
+    found = basis_resolution(fit, slice_registration(reg, lo, hi), model, body_point,
+                             window_params(settled, t, lo, hi),
                              points=None if points is None else np.asarray(points[lo:hi], float),
                              span=(core_lo - lo, core_hi - lo))
     return None if found is None else found.shifted(float(t[lo]) - float(tl[0]))

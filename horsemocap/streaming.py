@@ -54,7 +54,7 @@ from .store import release_pages
 __all__ = ["WINDOW_FRAMES", "MARGIN_FRAMES", "MARGIN_DECAY", "kernel_margin", "REPRESENTATIVE_FRAMES", "KinematicsBlock", "SettledSmoothing",
            "WHOLE_RECORD_FRAMES", "GRID_TOLERANCE_S", "GRID_TOLERANCE_STEPS", "window_times", "point_kinematics",
            "representative_range", "register_in_chunks", "conditioning_warnings", "release_pages", "window_core", "window_plan", "slice_registration", "settle_smoothing",
-           "settle_given_smoothing", "window_fit", "blend_band", "windowed_kinematics"]
+           "settle_given_smoothing", "events_inside", "window_params", "window_fit", "blend_band", "windowed_kinematics"]
 
 WINDOW_FRAMES = 1000
 """Frames of a window's core (the frames whose values the window gives)."""
@@ -316,7 +316,7 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
     representative fit and kept for the windows' (:func:`horsemocap.pose.fit_pose_trajectory`).
     """
     lo, hi = representative_range(len(t), frames)
-    sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
+    sub_params = dataclasses.replace(params, events=events_inside(params.events, t[lo], t[hi - 1]))
     tr = pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, sub_params,
                                   points=None if points is None else points[lo:hi], aperture=aperture,
                                   expected_fundamental_hz=expected_fundamental_hz)
@@ -351,7 +351,7 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
                   "the representative range only: each window chose its own smoothing by white-noise GCV with "
                   "the stride's harmonics"}
     frames_fitted = hi - lo
-    if not per_window and blend is None and method == "gcv" and hi - lo > FULL_BASIS_SAMPLES:
+    if not per_window and blend is None and method == "gcv" and frames_fitted > FULL_BASIS_SAMPLES:
         # the representative stretch, fitted whole, has a knot only every few frames: its lambdas are those of a
         # basis coarser than any window's; chosen again on its middle with a knot at every frame
         lam, info, frames_fitted = _fine_basis_lambdas(t, registration, points, model, sub_params, tr, lo, hi,
@@ -380,7 +380,7 @@ def _fine_basis_lambdas(t, registration, points, model, params: PoseParams, fitt
     b = a + FULL_BASIS_SAMPLES
     choose = dataclasses.replace(pose.settle_pose_smoothing(fitted, params), lam=(None,) * len(COMPONENTS))
     fine = pose.fit_pose_trajectory(t[a:b], slice_registration(registration, a, b), model,
-                                    dataclasses.replace(params, events=_events_inside(params.events, t[a], t[b - 1])),
+                                    dataclasses.replace(params, events=events_inside(params.events, t[a], t[b - 1])),
                                     points=None if points is None else points[a:b], settled=choose,
                                     aperture=aperture, expected_fundamental_hz=expected_fundamental_hz)
     info = fine.smoothing
@@ -414,7 +414,7 @@ def settle_given_smoothing(t, registration, points, model, params: PoseParams, g
     (True, 1e-06, True)
     """
     lo, hi = representative_range(len(t), frames)
-    sub_params = dataclasses.replace(params, events=_events_inside(params.events, t[lo], t[hi - 1]))
+    sub_params = dataclasses.replace(params, events=events_inside(params.events, t[lo], t[hi - 1]))
     tr = pose.fit_pose_trajectory(t[lo:hi], slice_registration(registration, lo, hi), model, sub_params,
                                   points=None if points is None else points[lo:hi], settled=given,
                                   aperture=aperture, expected_fundamental_hz=expected_fundamental_hz)
@@ -462,10 +462,32 @@ def kernel_margin(frames: int, info: dict, decay: float = MARGIN_DECAY, window: 
     return 0 if window is not None and margin > window else margin
 
 
-def _events_inside(events, t0: float, t1: float):
+def events_inside(events, t0: float, t1: float):
+    """The known change points strictly inside ``(t0, t1)``: those a stretch of the record fits (None: none
+    given; an empty list, none inside, is fitted as none).
+
+    Examples
+    --------
+    >>> events_inside([1.0, 2.5, 4.0], 1.0, 3.0), events_inside(None, 0.0, 1.0)
+    ([2.5], None)
+    """
     if events is None:
         return None
     return [e for e in events if t0 < e < t1]
+
+
+def window_params(settled: SettledSmoothing, t, lo: int, hi: int) -> PoseParams:
+    """The pose smoothing of window ``lo .. hi - 1``: ``settled.params`` with the known change points inside it
+    moved onto its own time axis (:func:`window_times`, 0 at frame ``lo``).
+
+    Examples
+    --------
+    >>> s = SettledSmoothing(PoseParams(events=[0.5, 1.5]), (None,) * 6, None, None, 10, {})
+    >>> [float(e) for e in window_params(s, np.arange(100) / 50.0, 50, 100).events]   # frames 50..99: 1.0 .. 1.98 s
+    [0.5]
+    """
+    events = events_inside(settled.params.events, t[lo], t[hi - 1])
+    return dataclasses.replace(settled.params, events=None if events is None else [e - t[lo] for e in events])
 
 
 def window_times(t, lo: int, hi: int, step: float) -> np.ndarray:
@@ -500,8 +522,7 @@ def window_fit(t, registration, points, model, settled: SettledSmoothing, lo: in
     """The window's pose trajectory on its own times (:func:`window_times`) and those times, or None and
     the reason it has none (a ValueError's message)."""
     tl = window_times(t, lo, hi, step)
-    events = _events_inside(settled.params.events, t[lo], t[hi - 1])
-    params = dataclasses.replace(settled.params, events=None if events is None else [e - t[lo] for e in events])
+    params = window_params(settled, t, lo, hi)
     fixed = settled.given or settled.blend       # a choice fitted as it is (both routes of a blend at their lambdas)
     options = dict(points=None if points is None else points[lo:hi], aperture=settled.aperture,
                    expected_fundamental_hz=settled.expected_fundamental_hz)
