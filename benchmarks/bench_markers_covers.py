@@ -526,7 +526,12 @@ def _route_text(a) -> str:
     choice = a.rigid_body.body.pose.smoothing_choice or {}
     cv = choice.get("cross_validation")
     if cv is None:
+        if choice.get("correlated_harmonics"):
+            return f"route: correlated with harmonics (AR(1) {choice['noise_correlation']:.2f})"
+        if "noise_correlation" in choice:
+            return f"route: correlated (AR(1) {choice['noise_correlation']:.2f})"
         return "route: white" + (" (stride fallback)" if "left the stride's harmonics" in choice.get("reason", "")
+                                 else " (null-space fallback)" if "whole motion for noise" in choice.get("reason", "")
                                  else "")
     harmonic = ("stack" if cv.get("stack_fundamental_hz") else "harmonics" if cv.get("fundamental_hz")
                 else "plain")

@@ -1069,6 +1069,8 @@ class PoseTrajectory:
             out["noise_correlation"] = info["noise_correlation"]
         if "cross_validation" in info:
             out["cross_validation"] = info["cross_validation"]
+        if info.get("correlated_harmonics"):
+            out["correlated_harmonics"] = True
         out["half_gain_hz"] = self.half_gain_hz
         return out
 
@@ -1588,13 +1590,18 @@ def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref,
     ar1 = (f"the smoothing chosen by leaving markers out (AR(1) {choice['noise_correlation']:.2f} from the "
            "rigidity residual)" if "cross_validation" in choice else
            f"the correlated-error GCV (AR(1) {choice['noise_correlation']:.2f} from the rigidity residual)")
+    stride_hz, source = _stride_test_frequency(fit["fundamental_hz"], expected_hz)
     if "cross_validation" not in choice and any(s.info["edf"] < NULL_SPACE_EDF + NULL_SPACE_TOLERANCE
                                                 for s in cs + ps):
+        lost = (f"{ar1} took a component's whole motion for noise (smoothed to the penalty's null space, a "
+                "quadratic)")
+        refit = _correlated_harmonic_refit(t, reg, model, phi, ok, ref, order, choice, fit, expected_hz, stride_hz,
+                                           source, lost)
+        if refit is not None:
+            return refit
         fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, smoothing, order, None, **fit)
-        fitted[4]["smoothing_reason"] += (f"; {ar1} took a component's whole motion for noise (smoothed to the "
-                                          "penalty's null space, a quadratic): noise taken as white")
+        fitted[4]["smoothing_reason"] += f"; {lost}: noise taken as white"
         return fitted
-    stride_hz, source = _stride_test_frequency(fit["fundamental_hz"], expected_hz)
     if stride_hz is None:
         choice["smoothing_reason"] += ("; its residual not tested for the stride's harmonics: no stride frequency "
                                        "given or found by another estimator (the record's own is not tested "
@@ -1611,15 +1618,67 @@ def _white_if_motion_lost(fitted, t, reg: PoseRegistration, model, phi, ok, ref,
         choice["smoothing_reason"] += (f"; no stride harmonics {tested} left in its residual (F test, smallest p = "
                                        f"{p_values[worst]:.2g} in {name}, >= {STRIDE_RESIDUAL_LEVEL:g})")
         return fitted
+    lost = (f"{ar1} left the stride's harmonics {tested} in the residual of {name} (F test p = "
+            f"{p_values[worst]:.1g} < {STRIDE_RESIDUAL_LEVEL:g}): it took periodic motion for noise")
+    refit = _correlated_harmonic_refit(t, reg, model, phi, ok, ref, order, choice, fit, expected_hz, stride_hz,
+                                       source, lost)
+    if refit is not None:
+        return refit
     fitted = _fit_components(t, reg, model, phi.copy(), ok, ref, "gcv", order, None, **fit)
     f0 = fitted[2][0].info.get("fundamental_hz")
-    reason = ((f"periodic record: fundamental {f0:.4g} Hz" if f0 else "gcv") + f"; {ar1} left the stride's "
-              f"harmonics {tested} in the residual of {name} (F test p = {p_values[worst]:.1g} < "
-              f"{STRIDE_RESIDUAL_LEVEL:g}): it took periodic motion for noise; noise taken as white")
+    reason = (f"periodic record: fundamental {f0:.4g} Hz" if f0 else "gcv") + f"; {lost}; noise taken as white"
     if fit["aperture"] is not None:
         reason += "; " + _aperture_note(fit["aperture"], order, "gcv")
     return fitted[:4] + ({"smoothing_method": "gcv", "smoothing_reason": reason},) + fitted[5:]
 
+
+
+#: Whether a correlated-error choice that took motion for noise (:func:`_white_if_motion_lost`) is first fitted
+#: again under the same AR(1) noise with the stride's harmonics unpenalised (the partial spline's correlated-error
+#: GCV, :func:`_correlated_harmonic_refit`) before the noise is taken as white.
+CORRELATED_HARMONIC_REFIT = True
+
+
+def _correlated_harmonic_refit(t, reg: PoseRegistration, model, phi, ok, ref, order: int, choice: dict, fit: dict,
+                               expected_hz, stride_hz, source: str, lost: str):
+    """The pose fitted again under the correlated choice's AR(1) noise with the stride's harmonics unpenalised,
+    or None when it cannot stand (then :func:`_white_if_motion_lost` takes the noise as white).
+
+    The correlated-error GCV without harmonics takes a stride's slow, regular motion for correlated noise: the
+    two look alike to a criterion that knows only the noise's correlation. With the harmonics of the record's
+    fundamental (the search the white-noise refit runs; none found: None) unpenalised, the criterion charges
+    each harmonic what AR(1) noise at its frequency could imitate (``tr(H C)``,
+    :func:`horsemocap.splines.smoothing_spline` with ``fundamental_hz`` and ``noise_correlation``) and smooths
+    only the rest. The refit stands unless the stride's harmonics are still in a residual (``stride_hz``, when
+    known; the same F test). A component left flat here (no harmonic, the penalty's null space) is one whose
+    stride harmonics the noise can imitate, so it is not taken as motion lost: with the harmonics unpenalised
+    the criterion was free to keep them (what refusing such refits costs is measured in benchmarks/README.md).
+    Not for the left-out choice (four or more markers: it tries the harmonic route itself) nor for a record
+    whose smoothing parameters are given or whose harmonics are switched off."""
+    if (not CORRELATED_HARMONIC_REFIT or "cross_validation" in choice or order != 5
+            or fit["params"].harmonics == "none" or any(v is not None for v in fit["lam"])):
+        return None
+    rho = float(choice["noise_correlation"])
+    refit = _fit_components(t, reg, model, phi.copy(), ok, ref, "gcv", order, None, harmonic_correlation=rho, **fit)
+    splines = refit[2] + refit[3]
+    f0 = splines[0].info.get("fundamental_hz")
+    if f0 is None or not np.isfinite(f0):
+        return None
+    note = ""
+    if stride_hz is not None:
+        p_values = _stride_p_values(t, reg, refit[1], splines, stride_hz)
+        if np.isfinite(p_values).any() and np.nanmin(p_values) < STRIDE_RESIDUAL_LEVEL:
+            return None
+        if np.isfinite(p_values).any():
+            note = (f"; no stride harmonics at {stride_hz:.4g} Hz ({source}) left in its residual (smallest p = "
+                    f"{np.nanmin(p_values):.2g})")
+    reason = (f"periodic record: fundamental {f0:.4g} Hz; {lost}; fitted again under the same AR(1) {rho:.2f} "
+              f"noise with the stride's harmonics unpenalised (correlated-error GCV of the partial spline){note}")
+    if fit["aperture"] is not None:
+        reason += "; " + _aperture_note(fit["aperture"], order, "gcv")
+    kept = {"smoothing_method": "gcv_ar1", "smoothing_reason": reason, "noise_correlation": rho,
+            "correlated_harmonics": True}
+    return refit[:4] + (kept,) + refit[5:]
 
 
 def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
@@ -1635,9 +1694,11 @@ def _stride_test_frequency(fundamental_hz, expected_hz) -> tuple:
 
 def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: str, order: int, rho, *, params,
                     fundamental_hz, expected_hz, lam, sig, points, rotation_noise_test: bool, iterations: int,
-                    settled: SettledPoseSmoothing | None = None, aperture=None, two):
+                    settled: SettledPoseSmoothing | None = None, aperture=None, two, harmonic_correlation=None):
     """:func:`fit_pose_trajectory`'s choice and its six splines for the noise correlation ``rho`` (None: white),
-    the two-marker frames ``two`` completed: ``(centre, phi, centre splines, rotation splines, choice, two)``."""
+    the two-marker frames ``two`` completed: ``(centre, phi, centre splines, rotation splines, choice, two)``.
+    ``harmonic_correlation``: with ``smoothing`` "gcv" and a stride frequency, the AR(1) correlation under which
+    the partial spline with the stride's harmonics is fitted (:func:`_correlated_harmonic_refit`)."""
     n = t.size
     if settled is not None:
         return _fit_settled_components(t, reg, model, phi, ok, ref, order, settled, params=params,
@@ -1656,11 +1717,14 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
     if f0 is not None and params.harmonics == "auto" and rotation_noise_test:
         rot_noise = _rotation_noise(reg, model)
     var = None
+    harmonic_correlated = harmonic_correlation is not None and f0 is not None
     if (params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None
-            and not correlated):
+            and not correlated and not harmonic_correlated):
         var = frame_variances(reg)[:, 3:]
     spline_options = dict(method=smoothing, order=order, fundamental_hz=f0,
                           events=_pose_events(params.events, smoothing, order, f0))
+    if harmonic_correlated:
+        spline_options["noise_correlation"] = float(harmonic_correlation)
     if correlated:
         spline_options["noise_correlation"] = choice["noise_correlation"]
         criterion = params.correlated_noise_criterion
@@ -2104,9 +2168,9 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
         lam = tuple(float(info[c]["blended"]["plain"]["lam"]) for c in names)
         harmonic_lam = tuple(float(info[c]["blended"]["harmonics"]["lam"]) for c in names)
         weights = tuple(float(info[c]["blend_weights"][1]) for c in names)
-    elif f0 is not None and rho is not None:
-        # the left-out choice's fits with the stride's harmonics are white-noise fits (the correlated-error GCV
-        # takes no harmonics): the harmonic route's parameters are reused as such
+    elif f0 is not None and rho is not None and not choice.get("correlated_harmonics"):
+        # the left-out choice's fits with the stride's harmonics are white-noise fits: the harmonic route's
+        # parameters are reused as such (the correlated-error refit with harmonics keeps its correlation)
         rho = None
     kept = None
     if choice is not None:
@@ -2118,6 +2182,8 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
                                          "nothing chosen again")
         if "noise_correlation" in choice:
             kept["noise_correlation"] = choice["noise_correlation"]
+        if choice.get("correlated_harmonics"):
+            kept["correlated_harmonics"] = True
     return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept, harmonic_lam, weights)
 
 

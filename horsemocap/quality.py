@@ -47,8 +47,8 @@ from .pose import predicted_registration_rms
 from .rigid import RIGID_MOTION_HALF_WINDOW_S
 from .sources import FrameSource, read_still
 from .steps.base import longest_run
-from .uncertainty import (StaticShotRefused, StaticShotUncertainty, static_shot_uncertainty,
-                          written_saddle_sensitivity)
+from .uncertainty import (SaddleScatter, StaticShotRefused, StaticShotUncertainty, saddle_scatter,
+                          static_shot_uncertainty, written_saddle_sensitivity)
 
 LEVELS = ("ok", "warning", "unreliable")
 SKIPPED = "skipped"
@@ -1030,6 +1030,93 @@ def check_static_shot(uncertainty, input_: str | None = None, clip_frames: int |
     return replace(check, message=msg, threshold=threshold)
 
 
+#: The per-frame pose's scatter at the saddle about the written trajectory, % of the saddle's own vertical motion
+#: (rms each, :func:`saddle_scatter_of`): ``ok`` up to a third, ``warning`` up to the motion itself, ``unreliable``
+#: above. Below a third the smoothing separates a motion three times its noise; at the motion's own size every
+#: frame's saddle is as much noise as motion, and the acceleration (the motion's second derivative, which
+#: weighs the noise's fast part most) is what the smoothing's model of the motion makes of it.
+SADDLE_SCATTER_PCT = (100.0 / 3.0, 100.0)
+
+
+def check_saddle_scatter(scatter, input_: str = "each frame's registration carrying the static shot's saddle, "
+                         "against kinematics.csv's saddle height") -> Check:
+    """Does the record resolve the saddle's motion? The moving frames' noise at the saddle against that motion.
+
+    ``scatter``: :func:`saddle_scatter_of` (a :class:`~horsemocap.uncertainty.SaddleScatter`, or a
+    :class:`ScatterSkipped` saying why it could not be measured: skipped). The figure is the per-frame pose's scatter about the
+    written saddle height, % of the written height's own rms variation, against :data:`SADDLE_SCATTER_PCT`.
+    The smoothing's criteria (white or correlated noise, markers left out) choose a smoothing for the noise they
+    see; none can recover a motion the noise covers, and when the scatter reaches the motion's size the
+    written acceleration stands on the criterion's model, not on the measurement.
+
+    Examples
+    --------
+    >>> from horsemocap.uncertainty import SaddleScatter
+    >>> check_saddle_scatter(SaddleScatter(0.003, 0.03, 10.0, 200)).level
+    'ok'
+    >>> check_saddle_scatter(SaddleScatter(0.04, 0.03, 133.3, 200)).level
+    'unreliable'
+    """
+    ok, warn = SADDLE_SCATTER_PCT
+    threshold = f"ok <= {ok:.3g} %; warning <= {warn:g} %; unreliable above"
+    if not isinstance(scatter, SaddleScatter):
+        return Check("saddle_scatter", None, "%", SKIPPED, (None, ok), (None, warn), threshold, input_,
+                     f"the moving frames' noise at the saddle: not available ({scatter.reason})")
+    check = range_check("saddle_scatter", scatter.pct_of_motion, "%", (None, ok), (None, warn), input_,
+                        "the moving frames' noise at the saddle")
+    what = (f"each frame's own pose places the saddle {1000 * scatter.scatter_m:.3g} mm rms from the written "
+            f"height ({scatter.frames} frames), {scatter.pct_of_motion:.1f} % of the saddle's "
+            f"{1000 * scatter.motion_m:.3g} mm rms vertical motion")
+    if check.level == "ok":
+        msg = what
+    elif check.level == "warning":
+        msg = (f"{what}: the markers' noise at the saddle is a sizeable part of its motion, so the smoothing's "
+               "choice moves the vertical acceleration (its fast part most); compare gaits and horses with care")
+    else:
+        msg = (f"{what}: the markers' noise at the saddle is larger than the saddle's motion, so the vertical "
+               "acceleration is the smoothing's guess, not a measurement. Spread the markers wider (a thin "
+               "triangle tilts about its long axis and swings the saddle), put one nearer the saddle, add a "
+               "marker, or use cameras seeing the markers from more different directions")
+    return replace(check, message=msg, threshold=threshold)
+
+
+@dataclass(frozen=True)
+class ScatterSkipped:
+    """Why the moving frames' noise at the saddle could not be measured (:func:`saddle_scatter_of`).
+
+    Examples
+    --------
+    >>> check_saddle_scatter(ScatterSkipped("the rigid-body step has not run")).level
+    'skipped'
+    """
+
+    reason: str
+
+
+def saddle_scatter_of(analysis) -> SaddleScatter | ScatterSkipped:
+    """:func:`horsemocap.uncertainty.saddle_scatter` of an analysis: the rigid-body step's per-frame
+    registration (the pose registration) and static saddle against the written saddle position, or why not.
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> from horsemocap.pipeline import analyze
+    >>> before = analyze(default_session_dir(), until="sync", progress=lambda *a: None)
+    >>> saddle_scatter_of(before)
+    ScatterSkipped(reason='the rigid-body step has not run')
+    """
+    rb = analysis.rigid_body
+    if rb is None or rb.saddle_position is None:
+        return ScatterSkipped("the rigid-body step has not run")
+    reg = getattr(rb.body, "pose_registration", None)
+    if reg is None or np.asarray(reg.rotation).shape[0] != np.asarray(rb.saddle_position).shape[0]:
+        return ScatterSkipped("no per-frame registration on the written frames")
+    try:
+        return saddle_scatter(reg.rotation, reg.translation, rb.body.static_saddle, rb.saddle_position)
+    except ValueError as exc:
+        return ScatterSkipped(str(exc))
+
+
 def post_checks(analysis) -> list[Check]:
     """Checks of an analysis' results (only those whose steps have run)."""
     a_, s = analysis, analysis.session
@@ -1076,6 +1163,7 @@ def post_checks(analysis) -> list[Check]:
             checks.append(check_spline_basis(body.basis_resolution))
         checks.append(check_static_shot(static_shot_of(analysis),
                                         clip_frames=getattr(analysis.static, "frames_used", None)))
+        checks.append(check_saddle_scatter(saddle_scatter_of(analysis)))
     if a_.comfort is not None and a_.comfort.indicators is not None:
         ind = a_.comfort.indicators
         checks.append(check_horse_speed(ind.get("vel_x_avg")))

@@ -767,7 +767,8 @@ def _mixed_model_coefficients(s, Wt, z, lam, Q1, Rx, yw, Zw, penalty_basis):
     return U0 @ beta[:U0.shape[1]] + Up @ (u / np.sqrt(dp)), beta
 
 
-def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamma=None, aperture=None):
+def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamma=None, aperture=None,
+                     correlation=None):
     """Partial smoothing spline: ``f = s + h``, ``h`` harmonics of ``fundamental_hz`` (unpenalised), ``s`` a
     spline of degree ``2m - 1`` with the penalty ``lam integral s^(m)^2``.
 
@@ -781,6 +782,14 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
     residual and the trace of the hat matrix for every ``lam``. The number of harmonics (``orders``,
     0 = none) and ``lam`` minimise the same criterion as :func:`_quintic_gcv` (GCV with ``gamma`` or,
     with ``noise`` given, the unbiased risk).
+
+    ``correlation``: the noise's AR(1) lag-1 correlation ``rho``; the criterion's ``tr(H)`` becomes
+    ``tr(H C)`` with ``C_ij = rho^|i-j|`` (correlated-error GCV, Opsomer, Wang and Yang 2001, as
+    :func:`_quintic_gcv`). The hat matrix is ``H = Q1 Q1^T + V diag(s^2 / (s^2 + lam)) V^T`` (``Q1`` the
+    unpenalised columns' orthonormal basis, ``V`` the projected basis' left singular vectors), so
+    ``tr(H C) = tr(Q1^T C Q1) + sum_k (v_k^T C v_k) s_k^2 / (s_k^2 + lam)``: an unpenalised harmonic costs
+    the criterion what the correlated noise at its frequency can imitate (about ``(1 + rho) / (1 - rho)``
+    for a slow one), not one degree of freedom.
     """
     n = x.size
     k = 2 * m - 1
@@ -823,11 +832,13 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
             z = (Wt @ (Zty - QZ.T @ yq)) / s
         s2 = s * s
         rss0 = max(float(yw @ yw - yq @ yq - z @ z), 0.0)
+        # each column's share of tr(H C): ones for white noise, v_k^T C v_k under AR(1) noise
+        q, cw = _correlated_traces(Zw, Q1, s, Wt, correlation) if correlation else (q, None)
 
-        def fit(lmb, s2=s2, z=z, rss0=rss0, q=q):
+        def fit(lmb, s2=s2, z=z, rss0=rss0, q=q, cw=cw):
             shrink = s2 / (s2 + lmb)
             r = z * (1 - shrink)
-            return shrink, rss0 + float(r @ r), q + float(shrink.sum())
+            return shrink, rss0 + float(r @ r), q + float(shrink.sum() if cw is None else shrink @ cw)
 
         def criterion(rss, tr):
             if noise is None:
@@ -838,12 +849,13 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
             _, rss, tr = fit(10.0 ** loglam)
             return criterion(rss, tr)
 
-        def grid_scores(loglams, s2=s2, z=z, rss0=rss0, q=q, criterion=criterion):
+        def grid_scores(loglams, s2=s2, z=z, rss0=rss0, q=q, criterion=criterion, cw=cw):
             # fit() on every grid point at once: the same elementwise operations, each row's dot product
             # and sum as fit's own (same bits), without NumPy's cost per call on short vectors
             shrink = s2 / (s2 + np.array([10.0 ** g for g in loglams])[:, None])
             r = z * (1 - shrink)
-            return [criterion(rss0 + float(ri @ ri), q + float(si.sum())) for ri, si in zip(r, shrink)]
+            return [criterion(rss0 + float(ri @ ri), q + float(si.sum() if cw is None else si @ cw))
+                    for ri, si in zip(r, shrink)]
 
         if lam is None:
             # the range the shrinkage factors s2 / (s2 + lam) span
@@ -864,12 +876,26 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
         idx = np.asarray(K) - 1
         cos[idx], sin[idx] = beta[m:m + len(K)], beta[m + len(K):]
         harm = HarmonicTerms(float(fundamental_hz), cos, sin, t0)
-    _, rss, tr = fit(lk)
-    return spline, harm, {"lam": float(lk), "edf": tr, "rms_residual": float(np.sqrt(rss / w.sum())), "n": n,
-                          "order": k, "method": "gcv" if noise is None else "noise",
-                          "noise": float("nan") if noise is None else float(noise),
-                          "harmonics": len(K), "harmonic_indices": list(K),
-                          "fundamental_hz": float(fundamental_hz)}
+    shrink, rss, tr = fit(lk)
+    info = {"lam": float(lk), "edf": float(len(K) * 2 + m + shrink.sum()) if correlation else tr,
+            "rms_residual": float(np.sqrt(rss / w.sum())), "n": n,
+            "order": k, "method": "gcv" if noise is None else "noise",
+            "noise": float("nan") if noise is None else float(noise),
+            "harmonics": len(K), "harmonic_indices": list(K),
+            "fundamental_hz": float(fundamental_hz)}
+    if correlation:
+        info["noise_correlation"] = float(correlation)
+        info["edf_correlated"] = tr          # tr(H C): the degrees of freedom the correlated criterion charged
+    return spline, harm, info
+
+
+def _correlated_traces(Zw, Q1, s, Wt, rho: float) -> tuple[float, np.ndarray]:
+    """``(tr(Q1^T C Q1), v_k^T C v_k per k)`` for :func:`_partial_quintic`'s correlated-error criterion: the
+    unpenalised columns' and each penalised direction's share of ``tr(H C)`` under AR(1) noise of lag-1
+    correlation ``rho`` (``V = (Zw - Q1 Q1^T Zw) Wt^T / s``, the projected basis' left singular vectors)."""
+    V = ((Zw - Q1 @ (Q1.T @ Zw)) @ Wt.T) / s
+    q = float(np.einsum("ij,ij->", Q1, ar1_correlation_times(Q1, rho)))
+    return q, np.einsum("ij,ij->j", V, ar1_correlation_times(V, rho))
 
 
 def estimate_fundamental(t, Y, *, min_cycles: float = 2.0, max_hz: float | None = None,
@@ -1118,10 +1144,10 @@ def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None
         return
     if not (np.isfinite(rho) and -1 < rho < 1):
         raise ValueError(f"noise_correlation: expected a lag-1 autocorrelation in (-1, 1), got {rho!r}")
-    if (method not in ("gcv", "noise", "reml") or order != 5 or fundamental_hz is not None
+    if (method not in ("gcv", "noise", "reml") or order != 5 or (method == "reml" and fundamental_hz is not None)
             or (events is not None and len(events))):
         raise ValueError("noise_correlation: the correlated-error GCV and C_p are the quintic 'gcv' and 'noise' "
-                         "splines without harmonics or events only")
+                         "splines (with or without harmonics) without events only")
 
 
 def half_gain_frequency(lam: float, dt: float, mean_weight: float = 1.0) -> float:
@@ -1151,7 +1177,7 @@ def half_gain_frequency(lam: float, dt: float, mean_weight: float = 1.0) -> floa
 
 
 def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
-                     harmonic_noise, aperture=None) -> SmoothingSpline:
+                     harmonic_noise, aperture=None, correlation=None) -> SmoothingSpline:
     """:func:`smoothing_spline` with unpenalised harmonics of ``fundamental_hz`` (a partial quintic spline)."""
     dt = float(np.median(np.diff(x)))
     kmax = int(min(max_harmonics, np.floor(0.4 / dt / fundamental_hz - 1e-9)))
@@ -1160,7 +1186,10 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
     if harmonic_cutoff:
         # harmonics only where the plain spline passes the signal: below its cutoff frequency
         # (gain about 1/2 of 1 / (1 + lam dt (2 pi f)^6 / w)), so that a harmonic the noise
-        # hides from the plain spline is not taken whole
+        # hides from the plain spline is not taken whole. The plain spline's criterion takes the noise as
+        # white even with a ``correlation``: the correlated-error GCV without harmonics is the fit that takes
+        # a stride's slow motion for correlated noise (its cutoff can fall to nothing), and the partial
+        # spline's own correlated criterion then charges each candidate harmonic what that noise imitates
         s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz, aperture=aperture)
         cutoff = half_gain_frequency(info0["lam"], dt, float(np.mean(w)))
         kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
@@ -1173,7 +1202,8 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
         candidates, amplitude = _significant_harmonics(x, y, w, fundamental_hz, candidates, harmonic_noise)
     # nested candidate sets: none, the first significant harmonic, the first two, ...
     sets = [tuple(candidates[:j]) for j in range(len(candidates) + 1)]
-    s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz, aperture=aperture)
+    s, harm, info = _partial_quintic(x, y, w, lam, fundamental_hz, sets, noise=nz, aperture=aperture,
+                                     correlation=correlation)
     info["cutoff_hz"] = cutoff
     info["harmonic_amplitudes"] = amplitude.tolist()
     if harmonic_noise is not None:
@@ -1331,7 +1361,7 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
                                    "order": 3, "method": "gcv"})
     if fundamental_hz is not None:
         return _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics, harmonic_cutoff,
-                                harmonic_noise, aperture)
+                                harmonic_noise, aperture, noise_correlation)
     if events is not None and len(events):
         ev = sorted(float(e) for e in events)
         fn = _adaptive_events if method == "adaptive" else _event_quintic

@@ -11,6 +11,14 @@ The static shot (:func:`static_shot_uncertainty`)
     again (a Fourier series with a fitted frequency). For a body carried by a rotation ``R`` the map is
     ``([alpha]x + [omega]x^2) R`` (:func:`saddle_acceleration_sensitivity`); :func:`weighted_rms_sd_pct`
     gives the offset's share of a frequency-weighted rms.
+
+The moving frames' noise at the saddle (:func:`saddle_scatter`)
+    Each frame's registration carries the saddle as the markers place it in that frame alone; the written
+    trajectory is the smoothing's. Their difference is the frame-to-frame noise the markers carry to the
+    saddle (a thin triangle's tilt swings a far saddle point), correlated over frames or not, plus any motion
+    the smoothing took for noise. Against the saddle's own vertical motion it says whether the record
+    resolves that motion at all: when the scatter is as large as the motion, the acceleration is the
+    smoothing's guess more than a measurement, whatever criterion chose the smoothing.
 """
 from __future__ import annotations
 
@@ -433,3 +441,100 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
                                  acceleration_sd=np.where(ok, sd_t, np.nan), sd=sd, rms=rms,
                                  pct_of_rms=100.0 * sd / rms if rms > 0 else float("inf"), weighted_pct=weighted,
                                  independent_frames=float(independent_frames))
+
+
+# ---------------------------------------------------------------------------
+# the moving frames' noise at the saddle, against the saddle's motion
+# ---------------------------------------------------------------------------
+
+#: Fewest frames with both a per-frame pose and a written saddle for :func:`saddle_scatter`: fewer do not hold
+#: one stride of a walk at 30 fps.
+MIN_SCATTER_FRAMES = 8
+
+
+@dataclass(frozen=True)
+class SaddleScatter:
+    """The per-frame pose's scatter at the saddle about the written trajectory, against the saddle's motion.
+
+    Attributes
+    ----------
+    scatter_m : float
+        Rms (m) of each frame's saddle height (the frame's own registration carrying the static shot's saddle
+        point) minus the written height, over the frames with both (their mean removed).
+    motion_m : float
+        Rms (m) of the written saddle height about its mean over the same frames.
+    pct_of_motion : float
+        ``scatter_m`` as a percentage of ``motion_m``.
+    frames : int
+        The frames compared.
+    """
+
+    scatter_m: float
+    motion_m: float
+    pct_of_motion: float
+    frames: int
+
+
+def saddle_scatter(rotation, translation, static_saddle, written_position, axis: int = 1) -> SaddleScatter:
+    """How large the moving frames' noise is at the saddle, against the saddle's own vertical motion.
+
+    The per-frame saddle is ``R_k s + d_k`` (each frame's registration ``R_k``, ``d_k`` carrying the static
+    shot's saddle ``s``: the thesis' eq. 6.48 frame by frame, before any smoothing); the written saddle is
+    what kinematics.csv holds (the smoothed chain's). Their difference along ``axis`` (1: the motion frame's
+    vertical) is the noise the markers carry to the saddle in each frame plus any motion the smoothing
+    removed; the written height's own variation is the motion the acceleration comes from.
+
+    Parameters
+    ----------
+    rotation : (n, 3, 3) array
+        Each frame's registration rotation (NaN: no pose in that frame).
+    translation : (n, 3) array
+        Each frame's registration translation (m).
+    static_saddle : (3,) array
+        The saddle in the static shot (model frame, m).
+    written_position : (n, 3) array
+        The written saddle position per frame (m, the same frames).
+    axis : int
+        The coordinate compared (1: vertical, y down, of the motion frame).
+
+    Returns
+    -------
+    SaddleScatter
+
+    Raises
+    ------
+    ValueError
+        Shapes that do not match, or fewer than :data:`MIN_SCATTER_FRAMES` frames with both.
+
+    Examples
+    --------
+    A saddle moving 30 mm rms, its per-frame pose scattered by 3 mm: 10 % of its motion.
+
+    >>> import numpy as np
+    >>> t = np.arange(200) / 50.0
+    >>> written = np.zeros((200, 3))
+    >>> written[:, 1] = 0.03 * np.sqrt(2) * np.sin(2 * np.pi * 1.5 * t)
+    >>> scatter = np.where(np.arange(200) % 2, 0.003, -0.003)
+    >>> rotation = np.tile(np.eye(3), (200, 1, 1))
+    >>> translation = written + np.column_stack([0 * t, scatter, 0 * t])
+    >>> out = saddle_scatter(rotation, translation, np.zeros(3), written)
+    >>> round(out.pct_of_motion, 1), out.frames
+    (10.0, 200)
+    """
+    R = np.asarray(rotation, float)
+    d = np.asarray(translation, float)
+    w = np.asarray(written_position, float)
+    if R.shape[1:] != (3, 3) or d.shape != (R.shape[0], 3) or w.shape != d.shape:
+        raise ValueError(f"rotation, translation, written_position: expected (n, 3, 3), (n, 3), (n, 3), got "
+                         f"{R.shape}, {d.shape}, {w.shape}")
+    per_frame = np.einsum("kij,j->ki", R, np.asarray(static_saddle, float)) + d
+    both = np.isfinite(per_frame[:, axis]) & np.isfinite(w[:, axis])
+    if both.sum() < MIN_SCATTER_FRAMES:
+        raise ValueError(f"written_position: {int(both.sum())} frames with a per-frame pose and a written saddle, "
+                         f"at least {MIN_SCATTER_FRAMES} needed")
+    residual = per_frame[both, axis] - w[both, axis]
+    motion = w[both, axis] - w[both, axis].mean()
+    scatter = float(np.sqrt(np.mean((residual - residual.mean()) ** 2)))
+    moves = float(np.sqrt(np.mean(motion ** 2)))
+    pct = 100 * scatter / moves if moves > 0 else float("inf")
+    return SaddleScatter(scatter, moves, pct, int(both.sum()))
