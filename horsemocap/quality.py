@@ -1038,16 +1038,22 @@ def check_static_shot(uncertainty, input_: str | None = None, clip_frames: int |
 SADDLE_SCATTER_PCT = (100.0 / 3.0, 100.0)
 
 
-def check_saddle_scatter(scatter, input_: str = "each frame's registration carrying the static shot's saddle, "
-                         "against kinematics.csv's saddle height") -> Check:
+SADDLE_SCATTER_INPUT = ("each frame's registration carrying the static shot's saddle, against kinematics.csv's "
+                        "saddle height")
+
+
+def check_saddle_scatter(scatter, input_: str = SADDLE_SCATTER_INPUT) -> Check:
     """Does the record resolve the saddle's motion? The moving frames' noise at the saddle against that motion.
 
     ``scatter``: :func:`saddle_scatter_of` (a :class:`~horsemocap.uncertainty.SaddleScatter`, or a
-    :class:`ScatterSkipped` saying why it could not be measured: skipped). The figure is the per-frame pose's scatter about the
-    written saddle height, % of the written height's own rms variation, against :data:`SADDLE_SCATTER_PCT`.
+    :class:`ScatterSkipped` saying why it could not be measured: skipped). The figure is the per-frame pose's
+    scatter about the written saddle height, % of the written height's own rms variation, against
+    :data:`SADDLE_SCATTER_PCT`.
     The smoothing's criteria (white or correlated noise, markers left out) choose a smoothing for the noise they
     see; none can recover a motion the noise covers, and when the scatter reaches the motion's size the
-    written acceleration stands on the criterion's model, not on the measurement.
+    written acceleration stands on the criterion's model, not on the measurement. The figure is what the
+    smoothing removed, so the check judges one way only: a smoothing that follows the noise passes it (see
+    :func:`horsemocap.uncertainty.saddle_scatter`).
 
     Examples
     --------

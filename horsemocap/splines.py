@@ -1138,14 +1138,13 @@ def _adaptive_events(x, y, w, lam, events, degree=2, aperture=None):
     return s2, e2, info2
 
 
-def _check_noise_correlation(rho, method, order, fundamental_hz, events) -> None:
+def _check_noise_correlation(rho, method, order, events) -> None:
     """A clear error for a ``noise_correlation`` of :func:`smoothing_spline` that cannot be used."""
     if rho is None:
         return
     if not (np.isfinite(rho) and -1 < rho < 1):
         raise ValueError(f"noise_correlation: expected a lag-1 autocorrelation in (-1, 1), got {rho!r}")
-    if (method not in ("gcv", "noise", "reml") or order != 5 or (method == "reml" and fundamental_hz is not None)
-            or (events is not None and len(events))):
+    if method not in ("gcv", "noise", "reml") or order != 5 or (events is not None and len(events)):
         raise ValueError("noise_correlation: the correlated-error GCV and C_p are the quintic 'gcv' and 'noise' "
                          "splines (with or without harmonics) without events only")
 
@@ -1194,6 +1193,8 @@ def _harmonic_spline(x, y, w, lam, fundamental_hz, method, noise, max_harmonics,
         cutoff = half_gain_frequency(info0["lam"], dt, float(np.mean(w)))
         kmax = min(kmax, int(np.floor(cutoff / fundamental_hz + 1e-9)))
         if kmax < 1:
+            if correlation:      # no harmonic to try: the plain spline under the noise model asked for
+                s0, info0 = _quintic_gcv(x, y, w, lam, noise=nz, aperture=aperture, correlation=correlation)
             info0.update(harmonics=0, fundamental_hz=float(fundamental_hz), cutoff_hz=cutoff)
             return SmoothingSpline(s0, info0, None, aperture=aperture)
     candidates = list(range(1, max(kmax, 0) + 1))
@@ -1219,7 +1220,7 @@ def _check_method_options(x, method: str, order: int, fundamental_hz, events, we
     if method == "reml" and (order != 5 or fundamental_hz is not None or (events is not None and len(events))
                              or weights is not None):
         raise ValueError("method 'reml' is the quintic spline without harmonics, events or weights only")
-    _check_noise_correlation(noise_correlation, method, order, fundamental_hz, events)
+    _check_noise_correlation(noise_correlation, method, order, events)
     if method == "noise" and not (noise is not None and np.isfinite(noise) and noise > 0):
         raise ValueError(f"noise: method 'noise' needs a positive noise level, got {noise!r}")
     if method == "adaptive" and order != 5:
@@ -1306,11 +1307,14 @@ def smoothing_spline(t, y, *, method: str = "gcv", order: int = 5, lam: float | 
         side, and on a sharp onset that one sample can change the record's acceleration error by several
         points.
     noise_correlation : float, optional
-        ``method="gcv"`` (order 5, no harmonics, no events): the noise's lag-1 autocorrelation
+        ``method="gcv"`` (order 5, with or without harmonics, no events): the noise's lag-1 autocorrelation
         ``rho`` (an AR(1) error, measured elsewhere, e.g. from a rigid cluster's residuals).
         GCV assumes independent errors and, with positively correlated ones, takes the slow
         noise for signal; with ``rho`` the criterion is ``n RSS / (n - gamma tr(H C))^2`` with
-        ``C_ij = rho^|i-j|`` (correlated-error GCV, Opsomer, Wang and Yang 2001).
+        ``C_ij = rho^|i-j|`` (correlated-error GCV, Opsomer, Wang and Yang 2001). With
+        ``fundamental_hz`` the harmonics, unpenalised, are charged in ``tr(H C)`` what the
+        correlated noise at their frequencies can imitate (the partial spline's criterion);
+        ``harmonic_cutoff``'s plain pre-fit takes the noise as white.
         ``method="noise"``: the noise's covariance is ``noise^2 C``, known, and ``lam`` minimises
         the unbiased risk ``RSS/n + 2 noise^2 tr(H C)/n`` (Mallows' C_p for correlated errors),
         which estimates nothing about the noise from the data it smooths.

@@ -125,7 +125,9 @@ class SettledSmoothing:
     (a blend of the fits without and with the stride's harmonics settled on the representative
     stretch, :class:`horsemocap.pose.SettledPoseSmoothing`, that every window fits as it is; None:
     no blend), ``given`` (the choices settled on another record, a long recording's longest pass,
-    :func:`settle_given_smoothing`, that every window fits as they are; None: settled here),
+    :func:`settle_given_smoothing`, that every window fits as they are, or the correlated-error refit with the
+    stride's harmonics settled on the representative stretch with its lambdas left to each window; None:
+    settled here),
     ``aperture`` and ``expected_fundamental_hz`` (passed to every window's fit as
     :func:`horsemocap.pose.fit_pose_trajectory` takes them; None: not given)."""
 
@@ -350,6 +352,14 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
         choice = {**choice, "reason": choice["reason"] + "; on this long record the left-out choice was made on "
                   "the representative range only: each window chose its own smoothing by white-noise GCV with "
                   "the stride's harmonics"}
+    given = None
+    if choice is not None and f0 is not None and choice.get("correlated_harmonics"):
+        # the correlated-error refit with the stride's harmonics: every window chooses its own smoothing
+        # parameters under the same AR(1) correlation with those harmonics (the settled choice, its lambdas free)
+        given = dataclasses.replace(pose.settle_pose_smoothing(tr, sub_params), lam=(None,) * len(COMPONENTS))
+        choice = {**choice, "reason": choice["reason"] + "; on this long record the choice was made on the "
+                  f"representative range (frames {lo} to {hi - 1}): each window chose its own smoothing parameters "
+                  "under that correlation with the stride's harmonics"}
     frames_fitted = hi - lo
     if not per_window and blend is None and method == "gcv" and frames_fitted > FULL_BASIS_SAMPLES:
         # the representative stretch, fitted whole, has a knot only every few frames: its lambdas are those of a
@@ -359,7 +369,7 @@ def settle_smoothing(t, registration, points, model, params: PoseParams,
                                                        expected_fundamental_hz=expected_fundamental_hz)
     margin = _margin(frames_fitted, info, window)
     settled = dataclasses.replace(params, smoothing=method, harmonics=harmonics)
-    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin), blend,
+    return SettledSmoothing(settled, lam, f0, choice, margin, info, window_core(window, margin), blend, given,
                             aperture=aperture, expected_fundamental_hz=expected_fundamental_hz)
 
 

@@ -447,14 +447,22 @@ def static_shot_uncertainty(rig, static_world, marker_rows, saddle_row: int, to_
 # the moving frames' noise at the saddle, against the saddle's motion
 # ---------------------------------------------------------------------------
 
-#: Fewest frames with both a per-frame pose and a written saddle for :func:`saddle_scatter`: fewer do not hold
-#: one stride of a walk at 30 fps.
+#: Fewest frames with both a per-frame pose and a written saddle for :func:`saddle_scatter`: as the spline basis'
+#: own floor (fewer frames than this leave an rms of a handful of values, no figure to judge by).
 MIN_SCATTER_FRAMES = 8
+#: The least vertical motion (m rms) of the written saddle :func:`saddle_scatter` compares against: below it the
+#: horse is standing (a ridden gait moves the saddle by centimetres) and there is no motion to resolve.
+MIN_SCATTER_MOTION_M = 1e-3
 
 
 @dataclass(frozen=True)
 class SaddleScatter:
     """The per-frame pose's scatter at the saddle about the written trajectory, against the saddle's motion.
+
+    Examples
+    --------
+    >>> SaddleScatter(0.003, 0.03, 10.0, 200).pct_of_motion
+    10.0
 
     Attributes
     ----------
@@ -484,6 +492,11 @@ def saddle_scatter(rotation, translation, static_saddle, written_position, axis:
     vertical) is the noise the markers carry to the saddle in each frame plus any motion the smoothing
     removed; the written height's own variation is the motion the acceleration comes from.
 
+    What it measures is what the smoothing removed, so it judges in one direction only: a record whose noise
+    at the saddle is the size of its motion (the smoothing had to remove that much), or whose smoothing took
+    motion for noise, shows a large figure; a smoothing that follows the noise removes less of it and looks
+    better than it is (no smoothing at all gives 0).
+
     Parameters
     ----------
     rotation : (n, 3, 3) array
@@ -504,7 +517,8 @@ def saddle_scatter(rotation, translation, static_saddle, written_position, axis:
     Raises
     ------
     ValueError
-        Shapes that do not match, or fewer than :data:`MIN_SCATTER_FRAMES` frames with both.
+        Shapes that do not match, fewer than :data:`MIN_SCATTER_FRAMES` frames with both, or a written saddle
+        moving less than :data:`MIN_SCATTER_MOTION_M` rms (a standing horse: no motion to compare with).
 
     Examples
     --------
@@ -536,5 +550,7 @@ def saddle_scatter(rotation, translation, static_saddle, written_position, axis:
     motion = w[both, axis] - w[both, axis].mean()
     scatter = float(np.sqrt(np.mean((residual - residual.mean()) ** 2)))
     moves = float(np.sqrt(np.mean(motion ** 2)))
-    pct = 100 * scatter / moves if moves > 0 else float("inf")
-    return SaddleScatter(scatter, moves, pct, int(both.sum()))
+    if moves < MIN_SCATTER_MOTION_M:
+        raise ValueError(f"written_position: the saddle moves {1000 * moves:.3g} mm rms vertically, less than "
+                         f"{1000 * MIN_SCATTER_MOTION_M:g} mm: no motion to compare the frames' scatter with")
+    return SaddleScatter(scatter, moves, 100 * scatter / moves, int(both.sum()))

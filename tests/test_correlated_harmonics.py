@@ -31,19 +31,37 @@ def _error(s, acc) -> float:
     return float(np.sqrt(np.mean((s(T, 2) - acc) ** 2) / np.mean(acc ** 2)))
 
 
-def test_the_correlated_trace_is_the_dense_hat_matrix_times_the_ar1_correlation():
-    """tr(H C), computed from the projected basis' singular vectors, against H built column by column (the fit
-    of each unit vector at the same smoothing parameter and harmonics) and the dense AR(1) matrix."""
-    t = np.arange(40) / 25.0
-    w = np.ones(t.size)
-    rho, lam = 0.7, 1e-6
-    _, _, info = splines._partial_quintic(t, np.sin(3 * t), w, lam, 1.2, [(1, 2)], correlation=rho)
-    H = np.column_stack([splines._partial_quintic(t, e, w, lam, 1.2, [(1, 2)])[0](t) +
-                         splines._partial_quintic(t, e, w, lam, 1.2, [(1, 2)])[1](t) for e in np.eye(t.size)])
-    C = rho ** np.abs(np.subtract.outer(np.arange(t.size), np.arange(t.size)))
-    assert info["edf_correlated"] == pytest.approx(np.trace(H @ C), rel=1e-6)
-    assert info["edf"] == pytest.approx(np.trace(H), rel=1e-6)
-    assert info["noise_correlation"] == rho
+def _dense_traces(x, w, lam, f, K, rho, aperture=None, m=3):
+    """``tr(H)`` and ``tr(H C)`` of the partial spline's hat matrix on the weighted samples, built densely: the
+    penalised least squares of ``sqrt(w) y`` on the basis and the harmonics (through ``aperture``)."""
+    _, B, P, _, _ = splines._basis(np.ascontiguousarray(x, float).tobytes(), m, aperture)
+    A = np.sqrt(w)[:, None] * np.hstack([B, splines._harmonic_subset(x, f, K, float(x[0]), aperture)])
+    penalty = np.zeros((A.shape[1],) * 2)
+    penalty[:B.shape[1], :B.shape[1]] = (P + P.T) / 2
+    H = A @ np.linalg.solve(A.T @ A + lam * penalty, A.T)
+    C = rho ** np.abs(np.subtract.outer(np.arange(x.size), np.arange(x.size)))
+    return np.trace(H), float(np.sum(H * C))
+
+
+@pytest.mark.parametrize("weighted, aperture", [(False, None), (True, None), (True, 0.01)])
+def test_the_correlated_trace_is_the_dense_hat_matrix_times_the_ar1_correlation(weighted, aperture):
+    """tr(H C), computed from the projected basis' singular vectors, against the dense hat matrix of the same
+    smoothing parameter and harmonics (the weighted samples' hat, as the white-noise criterion's tr(H)), with
+    unequal weights and through a camera's exposure."""
+    from horsemocap.aperture import box_aperture
+
+    rng = np.random.default_rng(1)
+    x = np.arange(300) / 50.0
+    w = rng.uniform(0.3, 3.0, x.size) if weighted else np.ones(x.size)
+    ap = None if aperture is None else box_aperture(aperture)
+    y = np.sin(2 * np.pi * 1.3 * x) + 0.01 * rng.normal(size=x.size)
+    rho = 0.7
+    for lam in (1e-7, 1e-5):
+        _, _, info = splines._partial_quintic(x, y, w, lam, 1.3, [(1, 2)], correlation=rho, aperture=ap)
+        edf, edf_correlated = _dense_traces(x, w, lam, 1.3, (1, 2), rho, ap)
+        assert info["edf_correlated"] == pytest.approx(edf_correlated, rel=1e-8)
+        assert info["edf"] == pytest.approx(edf, rel=1e-8)
+        assert info["noise_correlation"] == rho
 
 
 def test_a_vanishing_correlation_is_the_white_noise_partial_spline():
@@ -80,8 +98,8 @@ def test_the_correlated_unbiased_risk_takes_harmonics_too_and_reml_does_not():
         splines.smoothing_spline(T, y, method="reml", noise_correlation=0.5, fundamental_hz=F)
 
 
-def _short_trot(seed):
-    """70 frames (30 fps) of a trot-like oscillation of a three-marker body with AR(1) 0.8 marker noise (4 mm):
+def _short_trot(seed, n=70):
+    """``n`` frames (30 fps; 70 by default) of a trot-like oscillation of a three-marker body with AR(1) 0.8 marker noise (4 mm):
     the times, the points, the model, a hidden point and its exact acceleration. Only cx, cy, phix and phiy
     move with the stride; cz is a steady walk forward and phiz still (both a quadratic: the penalty's null
     space)."""
@@ -96,10 +114,10 @@ def _short_trot(seed):
         c = np.column_stack([0.02 * np.sin(4 * np.pi * f * t), 0.03 * np.sin(4 * np.pi * f * t + 1), 4 * t])
         return R, c
 
-    t = np.arange(70) / 30.0
+    t = np.arange(n) / 30.0
     R, c = motion(t)
     clean = c[:, None] + np.einsum("kij,mj->kmi", R, model - model.mean(0)) + model.mean(0)
-    fine = np.linspace(t[0], t[-1], 6901)
+    fine = np.linspace(t[0], t[-1], 100 * (n - 1) + 1)
     Rf, cf = motion(fine)
     path = cf + np.einsum("kij,j->ki", Rf, hidden - model.mean(0))
     h = fine[1] - fine[0]
@@ -144,5 +162,21 @@ def test_the_refit_keeps_its_correlation_when_settled_for_other_records():
     again = pose.fit_pose_trajectory(t, pose.register_pose(pts, model), model, points=pts, settled=settled)
     for c, info in again.smoothing.items():
         assert info["lam"] == tr.smoothing[c]["lam"]
-        assert info["noise_correlation"] == settled.noise_correlation
         assert info["fundamental_hz"] == pytest.approx(settled.fundamental_hz)
+        # the spline's own record of the criterion it ran (not the choice copied onto every component)
+        assert "edf_correlated" in info or (info["harmonics"] == 0 and "edf_correlated" not in tr.smoothing[c])
+
+
+def test_a_long_record_in_windows_fits_every_window_under_the_refits_correlation():
+    """A record smoothed in windows whose choice is the correlated refit: each window chooses its own smoothing
+    parameters under the same AR(1) correlation with the stride's harmonics, and says so."""
+    from horsemocap import pose_windows
+
+    t, pts, model, _, _ = _short_trot(0, n=420)
+    windowed = pose_windows.windowed_pose_trajectory(t, pose.register_pose(pts, model), model, points=pts,
+                                                     window=140, frames=70)
+    choice = windowed.smoothing_choice
+    assert choice["method"] == "gcv_ar1" and choice.get("correlated_harmonics")
+    assert "each window chose its own smoothing parameters under that correlation" in choice["reason"]
+    rho = [piece.trajectory.centre_splines[0].info.get("noise_correlation") for piece in windowed.pieces]
+    assert rho == [choice["noise_correlation"]] * len(windowed.pieces)

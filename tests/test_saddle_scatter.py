@@ -55,6 +55,12 @@ def test_bad_input_is_refused_naming_it():
         saddle_scatter(rotation, translation, SADDLE, written)
 
 
+def test_a_standing_horse_has_no_motion_to_compare_with():
+    rotation, translation, written = _tilted(height=0.0005)
+    with pytest.raises(ValueError, match="moves 0.5 mm rms vertically, less than 1 mm"):
+        saddle_scatter(rotation, translation, SADDLE, written)
+
+
 @pytest.mark.parametrize("pct, level", [(10.0, "ok"), (33.3, "ok"), (34.0, "warning"), (100.0, "warning"),
                                         (100.1, "unreliable"), (float("inf"), "unreliable")])
 def test_check_levels(pct, level):
