@@ -436,6 +436,52 @@ plt.show()
 # of methods must say which reference it uses (`benchmarks/README.md` lists both for seven real clusters).
 
 # %% [markdown]
+# ### When correlated noise looks like the stride
+#
+# A gait is periodic, and noise correlated over frames has most of its power at low frequencies, where the
+# stride's harmonics are. One pose component of a trot (two harmonics of 1.5 Hz, 3 s at 50 Hz) with AR(1)
+# noise of lag-1 correlation 0.8, smoothed three ways:
+#
+# - the partial spline of white noise (`fundamental_hz`: the stride's harmonics unpenalised, GCV taking the
+#   noise as independent): the slow noise looks like signal, and it keeps it;
+# - the correlated-error GCV without harmonics (`noise_correlation`): it charges every degree of freedom what
+#   the correlated noise could imitate there, and the stride is slow enough to be imitated: it is flattened;
+# - both (`fundamental_hz` and `noise_correlation`): the harmonics are kept whole, each charged what the noise
+#   at its frequency imitates (the criterion's $\mathrm{tr}(\mathbf H \mathbf C)$ instead of
+#   $\mathrm{tr}(\mathbf H)$), and only the rest is smoothed.
+#
+# The pipeline's pose smoothing runs the second when the rigidity residual's correlation is significant; when
+# that takes the stride for noise (a component flattened, or the stride's harmonics left in a residual) it
+# fits the pose again the third way, and `analysis.json` says so (`chosen.pose_smoothing.correlated_harmonics`).
+
+# %%
+from scipy.signal import lfilter
+
+from horsemocap.splines import smoothing_spline
+
+t_stride = np.arange(150) / 50.0
+f_stride = 1.5
+stride = 0.02 * np.sin(2 * np.pi * f_stride * t_stride) + 0.005 * np.sin(4 * np.pi * f_stride * t_stride + 1)
+stride_acc = (-(2 * np.pi * f_stride) ** 2 * 0.02 * np.sin(2 * np.pi * f_stride * t_stride)
+              - (4 * np.pi * f_stride) ** 2 * 0.005 * np.sin(4 * np.pi * f_stride * t_stride + 1))
+ar1_noise = lfilter([1.0], [1.0, -0.8], np.random.default_rng(4).normal(0, 0.0012, t_stride.size))
+measured = stride + ar1_noise
+three_ways = {"white noise, with harmonics": smoothing_spline(t_stride, measured, fundamental_hz=f_stride),
+              "AR(1), no harmonics": smoothing_spline(t_stride, measured, noise_correlation=0.8),
+              "AR(1), with harmonics": smoothing_spline(t_stride, measured, fundamental_hz=f_stride,
+                                                        noise_correlation=0.8)}
+fig, ax = plt.subplots(figsize=(10, 3.6))
+ax.plot(t_stride, stride_acc, "k", lw=2, label="true")
+for name, fit in three_ways.items():
+    error = 100 * np.sqrt(np.mean((fit(t_stride, 2) - stride_acc) ** 2) / np.mean(stride_acc ** 2))
+    print(f"{name:28s} acceleration error {error:5.1f} % of its rms; harmonics kept "
+          f"{fit.info.get('harmonic_indices', [])}")
+    ax.plot(t_stride, fit(t_stride, 2), lw=1, label=name)
+ax.set(xlabel="t (s)", ylabel="acceleration (m/s²)", title="One pose component of a trot, AR(1) 0.8 noise")
+ax.legend(fontsize=8)
+plt.show()
+
+# %% [markdown]
 # ## Your choices, downstream
 #
 # What the choices made so far (the saddle-marker picker and the smoothing above, and the widgets of the
