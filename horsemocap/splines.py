@@ -877,7 +877,7 @@ def _partial_quintic(x, y, w, lam, fundamental_hz, orders, noise=None, m=3, gamm
         cos[idx], sin[idx] = beta[m:m + len(K)], beta[m + len(K):]
         harm = HarmonicTerms(float(fundamental_hz), cos, sin, t0)
     shrink, rss, tr = fit(lk)
-    info = {"lam": float(lk), "edf": float(len(K) * 2 + m + shrink.sum()) if correlation else tr,
+    info = {"lam": float(lk), "edf": float(Q1.shape[1] + shrink.sum()) if correlation else tr,
             "rms_residual": float(np.sqrt(rss / w.sum())), "n": n,
             "order": k, "method": "gcv" if noise is None else "noise",
             "noise": float("nan") if noise is None else float(noise),

@@ -5,18 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
 from horsemocap import pose, splines
 
+from test_correlated_noise import _ar1
+
 F = 1.5
 T = np.arange(150) / 50.0
-
-
-def _ar1(rng, shape, rho, sigma):
-    """Stationary AR(1) noise along axis 0 with lag-1 correlation ``rho`` and standard deviation ``sigma``."""
-    return lfilter([1.0], [1.0, -rho], rng.normal(0, sigma * np.sqrt(1 - rho ** 2), shape), axis=0)
 
 
 def _stride(t):
