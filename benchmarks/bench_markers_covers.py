@@ -210,7 +210,13 @@ def _triangulated_truth(truth):
     (the benchmark beside this one's, ``bench_marker_noise._true_markers``)."""
     from bench_marker_noise import _true_markers
 
-    return _true_markers(truth)
+    replace_true = _true_markers(truth)
+
+    def keep_gaps(a, r):
+        """The true markers where the measured ones are (a marker the run could not place stays missing)."""
+        out = replace_true(a, r)
+        return dataclasses.replace(out, points=np.where(np.isfinite(r.points), out.points, np.nan))
+    return keep_gaps
 
 
 class _Patched:

@@ -317,3 +317,41 @@ def test_blended_fields_make_a_combed_marker_one_blob_at_the_mean_of_its_fields(
     blended = frame_candidates(fields_blended(frame), 100)
     assert len(blended) == 1
     assert blended.centre[0] == pytest.approx([75.0, 60.0], abs=0.3)
+
+
+def _full_flash_sync(names):
+    """A flash lit fully in every camera's first lit frame: whole-frame offsets, no fraction, no sub-frame method."""
+    return SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 90 for c in names}, n_frames=90,
+                      offsets_from="flashlight")
+
+
+def _session_of(names):
+    return Session(root=default_session_dir(), name="s", fps=30.0, cameras=tuple(names), reference_camera=names[0],
+                   motion={}, sync_method="flash", sync_offsets=None, rig_path=None, calibration_images=None,
+                   board=None, plumb=None, static=None, marker_count=3, marker_diameter_m=0.06, metadata={})
+
+
+def test_cameras_running_free_behind_a_fully_lit_flash_are_found(rig):
+    """The flash gave whole frames only; the cameras ran 0.3 and 0.55 of a frame apart: the markers find it."""
+    from horsemocap.steps.detect import _phases_behind_a_full_flash
+
+    names, true_phase = rig.names, {rig.names[1]: 0.3, rig.names[2]: 0.55}
+    said = []
+    sync = _phases_behind_a_full_flash(_session_of(names), _full_flash_sync(names), rig,
+                                       _free_running_views(rig, 90, true_phase), lambda *x: said.append(x[-1]))
+    assert sync.free_running and sync.subframe_method == "markers"
+    for c, p in true_phase.items():
+        assert sync.phase_frames[c] == pytest.approx(p, abs=0.01)
+    assert "running free" in said[0]
+
+
+def test_genlocked_cameras_behind_a_fully_lit_flash_stay_genlocked(rig):
+    """The same views exposed together: the sync is returned unchanged (no fraction, no method), and said so."""
+    from horsemocap.steps.detect import _phases_behind_a_full_flash
+
+    names, said = rig.names, []
+    full = _full_flash_sync(names)
+    sync = _phases_behind_a_full_flash(_session_of(names), full, rig, _free_running_views(rig, 90, {}),
+                                       lambda *x: said.append(x[-1]))
+    assert sync is full and not sync.free_running
+    assert "genlocked" in said[0]

@@ -38,6 +38,10 @@ MIN_SEGMENT_FRAMES = 8
 #: genlocked tolerance (a horse crossing the view in 50 frames moves 2 % of the width a frame; the views of
 #: cameras half a frame apart then disagree by 1 % of the width).
 FREE_RUNNING_TOLERANCE_OF_WIDTH = 0.01
+#: A flash lit fully in every camera's first lit frame says nothing of a fraction of a frame: cameras that run
+#: free look genlocked to it. The markers then measure the phases; a camera's phase is taken when it is this
+#: many of its standard errors from zero (:func:`_phases_behind_a_full_flash`), else the cameras stay genlocked.
+HIDDEN_PHASE_Z = 4.0
 """The fewest consecutive frames an analysis needs."""
 
 
@@ -260,6 +264,9 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     times = observation_times(session, sync, rig, marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
         sync = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
+    elif sync.offsets_from == "flashlight" and not sync.subframe_method and len(session.cameras) >= 3:
+        sync = _phases_behind_a_full_flash(session, sync, rig, marker_px, progress)
+        times = observation_times(session, sync, rig, marker_px)      # the rows' instants, when running free
     gap = max_gap_frames(session, section)
     have, _ = bridge_gaps(idn.points, gap)
     # the frames with a pose: every marker of three, any three or more of four or more (the others
@@ -435,6 +442,31 @@ def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
         + (f"; readout times of {', '.join(times)} used" if times else "; no rolling-shutter readout given") + ")")
     how = "flash and markers" if sync.subframe_method == "flash" else "markers"
     return sync.replace(phase_frames=phase, offset_uncertainty_frames=unc, rate_ratio=rate, subframe_method=how)
+
+
+def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
+    """The sync of cameras the flash found genlocked, with the phases the markers measure when they differ.
+
+    A flash that lights every camera's first lit frame fully gives whole-frame offsets only
+    (:func:`horsemocap.steps.sync._flash_fractions`): cameras that run free then look genlocked. The markers
+    measure each camera's phase (:func:`_subframe_by_markers` from zero); when one is more than
+    :data:`HIDDEN_PHASE_Z` standard errors from zero the cameras run free and every phase found is kept,
+    else the cameras stay genlocked (the sync unchanged) and the progress says what was measured.
+    """
+    probe = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
+    found = _subframe_by_markers(session, probe, rig, marker_px, observation_frames(session, rig, marker_px),
+                                 lambda *x: None)
+    if found is probe:
+        return sync
+    z = {c: abs(found.phase_frames[c]) / max(found.offset_uncertainty_frames.get(c, 0.0), 1e-9)
+         for c in session.cameras if c != session.reference_camera}
+    text = ", ".join(f"{c} {found.phase_frames[c]:+.3f} +- {found.offset_uncertainty_frames[c]:.3f}" for c in z)
+    if max(z.values()) > HIDDEN_PHASE_Z:
+        progress("detect", f"the flash lit every camera's first frame fully, but the markers find the cameras "
+                           f"running free: {text} frames; those are used")
+        return found
+    progress("detect", f"the markers find the cameras genlocked, as the flash said ({text} frames)")
+    return sync
 
 
 def _identify(session, sync, rig, static_points, given, progress, frames=None,

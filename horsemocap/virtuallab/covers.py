@@ -34,7 +34,7 @@ import numpy as np
 
 from ..camera import Camera
 from .hard import HARD_SESSIONS, HARD_VERSION, HardScenario, _r, plan, render_hard
-from .herd import RENDER_VERSION, scenario_session
+from .herd import RENDER_VERSION, free_running_timings, scenario_session, timing_render_versions
 from .horse import HERD, Horse
 from .noise import MarkerNoise
 from .render import fill_polygon
@@ -199,7 +199,10 @@ class CoverScenario:
     cover starts (placed when the session is planned); ``drop_markers``:
     skin markers (indices after adding) left off the horse, for the same
     session with fewer markers; ``marker_noise``: correlated centroid noise
-    and biases of the cameras (:class:`.noise.MarkerNoise`, none by default).
+    and biases of the cameras (:class:`.noise.MarkerNoise`, none by default);
+    ``free_running``: cameras that run free, their timings draw number
+    ``free_running`` of :func:`.herd.free_running_timings` (set 0; none by
+    default: the cameras expose together).
     """
 
     name: str
@@ -209,6 +212,7 @@ class CoverScenario:
     drop_markers: tuple = ()
     exercises: str = ""
     marker_noise: MarkerNoise | None = None
+    free_running: int | None = None
 
     def horse(self) -> Horse:
         h = HERD[self.base.horse]
@@ -226,6 +230,8 @@ class CoverScenario:
                "drop_markers": list(self.drop_markers), "exercises": self.exercises}
         if self.marker_noise is not None:          # absent otherwise: the sessions without it keep their keys
             out["marker_noise"] = self.marker_noise.to_dict()
+        if self.free_running is not None:          # likewise
+            out["free_running"] = int(self.free_running)
         return json.loads(json.dumps(out))
 
 
@@ -256,18 +262,38 @@ def placed_covers(sc: CoverScenario) -> tuple:
     return tuple(out)
 
 
+def scenario_timing(sc: CoverScenario) -> dict | None:
+    """The cameras' timings of ``sc`` (camera -> :class:`.timing.CameraTiming`), None when they expose together.
+
+    Examples
+    --------
+    >>> t = scenario_timing(COVER_SESSIONS["ride4_canter"])
+    >>> sorted(t), t["left"].phase_frames
+    (['left', 'middle', 'right'], 0.0)
+    >>> scenario_timing(COVER_SESSIONS["leg4_canter"]) is None
+    True
+    """
+    if sc.free_running is None:
+        return None
+    return free_running_timings(0, int(sc.free_running), float(sc.base.fps))
+
+
 def render_covered(out_dir, sc: CoverScenario, *, noise: bool = True, compress: bool = True) -> Path:
     """Render one cover scenario into ``out_dir`` (a session folder with its truth)."""
     covers = placed_covers(sc)
     meta = {"cover_scenario": sc.to_dict(), "exercises": sc.exercises}
     return render_hard(out_dir, replace(sc.base, name=sc.name), noise=noise, compress=compress,
-                       metadata=meta, adapt=adapt_scene(sc, covers))
+                       metadata=meta, adapt=adapt_scene(sc, covers), timing=scenario_timing(sc))
 
 
 def cover_key(sc: CoverScenario) -> str:
-    """Cache key: the scenario, the horse and the renderer versions."""
-    blob = json.dumps({"v": COVERS_VERSION, "hard": HARD_VERSION, "render": RENDER_VERSION,
-                       "scenario": sc.to_dict(), "horse": sc.horse().to_dict()}, sort_keys=True)
+    """Cache key: the scenario, the horse and the renderer versions (and the timings' when the cameras run free)."""
+    parts = {"v": COVERS_VERSION, "hard": HARD_VERSION, "render": RENDER_VERSION,
+             "scenario": sc.to_dict(), "horse": sc.horse().to_dict()}
+    timing = scenario_timing(sc)
+    if timing is not None:                    # absent otherwise: the other sessions keep their keys
+        parts.update({"timing": {c: t.to_dict() for c, t in timing.items()}, **timing_render_versions(timing)})
+    blob = json.dumps(parts, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:12]
 
 
@@ -342,8 +368,41 @@ def _scenarios():
     out.append(CoverScenario("hand_canter", b, (CROUP,), covers=(
         Cover(marker=0, cameras=("left", "middle"), start_s=0.3, duration_s=0.3, fraction=0.4, angle_deg=180.0,
               kind="hand", name="hand"),), exercises="four markers; the rider's hand over the croup marker"))
+    out += ride_scenarios()
     out += noisy_hard_scenarios()
     return {s.name: s for s in out}
+
+
+#: A rider's own session at each gait (gait, horse, seed): everything real cameras and markers do at once.
+RIDES = (("walk", "Horse 4", 3201), ("sitting_trot", "Horse 3", 3202), ("rising_trot", "Horse 2", 3203),
+         ("canter", "Horse 1", 3204))
+
+
+def ride_scenarios(noise: MarkerNoise = RIG_NOISE) -> list:
+    """Sessions as a rider's own would be: ``ride4_<gait>`` for each of :data:`RIDES`.
+
+    Four markers (the horse's three and one high on the back, :data:`UPPER_BACK`),
+    free-running cameras (phases, rates and rolling shutters drawn, draw 300 + the
+    gait's place in :data:`RIDES`), marker-centroid noise correlated over frames
+    with per-camera biases (``noise``), and the rider's leg over a third of the
+    front marker in the left and middle cameras for 0.32 s near the record's end.
+
+    Examples
+    --------
+    >>> [(sc.name, len(sc.horse().marker_body), sc.free_running) for sc in ride_scenarios()][:2]
+    [('ride4_walk', 4, 300), ('ride4_sitting_trot', 4, 301)]
+    """
+    out = []
+    for k, (gait, horse, seed) in enumerate(RIDES):
+        b = _base(f"ride_{gait}", horse, gait, seed, strides=3.0 if gait != "walk" else 2.6)
+        leg = Cover(marker=3, cameras=("left", "middle"), start_s=0.85, duration_s=0.32, fraction=0.33,
+                    angle_deg=60.0, kind="leg", name="leg")
+        out.append(CoverScenario(f"ride4_{gait}", b, (UPPER_BACK,), covers=(leg,), marker_noise=noise,
+                                 free_running=300 + k,
+                                 exercises=f"a rider's own session, {gait}: four markers, free-running cameras, "
+                                           "correlated marker noise with per-camera biases, the rider's leg over "
+                                           "a third of the front marker in two cameras near the record's end"))
+    return out
 
 
 def noisy_hard_scenarios(noise: MarkerNoise = HARD_NOISE, prefix: str = "noisy") -> list:
