@@ -213,6 +213,10 @@ def _record_sync(analysis, p: dict, chosen: dict) -> None:
             "phase_frames": {c: round(float(v), 4) for c, v in sync.phase_frames.items()},
             "uncertainty_frames": {c: round(float(v), 4) for c, v in sync.offset_uncertainty_frames.items()},
             "rate_ratio": {c: round(float(v), 7) for c, v in sync.rate_ratio.items()}}
+    if sync.genlocked_check:        # a fully lit flash in every camera; the markers measured the phases
+        chosen["sync"]["genlocked_by_markers"] = {
+            "phase_frames": {c: round(p, 4) for c, (p, _) in sync.genlocked_check.items()},
+            "uncertainty_frames": {c: round(u, 4) for c, (_, u) in sync.genlocked_check.items()}}
     check = analysis.detect.sync_check if analysis.detect is not None else None
     if check:
         chosen["sync"]["checked_by_markers"] = {

@@ -346,12 +346,14 @@ def test_cameras_running_free_behind_a_fully_lit_flash_are_found(rig):
 
 
 def test_genlocked_cameras_behind_a_fully_lit_flash_stay_genlocked(rig):
-    """The same views exposed together: the sync is returned unchanged (no fraction, no method), and said so."""
+    """The same views exposed together: offsets, phases and method unchanged, the phases measured kept, and said."""
     from horsemocap.steps.detect import _phases_behind_a_full_flash
 
     names, said = rig.names, []
     full = _full_flash_sync(names)
     sync = _phases_behind_a_full_flash(_session_of(names), full, rig, _free_running_views(rig, 90, {}),
                                        lambda *x: said.append(x[-1]))
-    assert sync is full and not sync.free_running
+    assert not sync.free_running and sync.subframe_method == "" and sync.offsets == full.offsets
+    assert sorted(sync.genlocked_check) == sorted(names[1:])
+    assert all(abs(p) < 0.01 for p, _ in sync.genlocked_check.values())
     assert "genlocked" in said[0]

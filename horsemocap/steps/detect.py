@@ -451,7 +451,8 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
     (:func:`horsemocap.steps.sync._flash_fractions`): cameras that run free then look genlocked. The markers
     measure each camera's phase (:func:`_subframe_by_markers` from zero); when one is more than
     :data:`HIDDEN_PHASE_Z` standard errors from zero the cameras run free and every phase found is kept,
-    else the cameras stay genlocked (the sync unchanged) and the progress says what was measured.
+    else the cameras stay genlocked (offsets and phases unchanged) with what was measured in
+    ``genlocked_check``.
     """
     probe = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
     found = _subframe_by_markers(session, probe, rig, marker_px, observation_frames(session, rig, marker_px),
@@ -466,7 +467,8 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
                            f"running free: {text} frames; those are used")
         return found
     progress("detect", f"the markers find the cameras genlocked, as the flash said ({text} frames)")
-    return sync
+    return sync.replace(genlocked_check={c: (float(found.phase_frames[c]), float(found.offset_uncertainty_frames[c]))
+                                         for c in z})
 
 
 def _identify(session, sync, rig, static_points, given, progress, frames=None,

@@ -39,7 +39,10 @@ class SyncResult(StepResult):
     offset_uncertainty_frames : dict
         Camera -> standard error of its offset with the fraction (frames).
     subframe_method : str
-        How the fractions were found ("" none, "flash", "flash and markers", "given in parameters").
+        How the fractions were found ("" none, "flash", "flash and markers", "markers", "given in parameters").
+    genlocked_check : dict
+        Cameras the flash found genlocked (every first lit frame fully lit) and the markers confirmed:
+        camera -> ``(phase, standard error)`` frames the markers measured (empty when not measured).
     """
 
     offsets: dict
@@ -52,6 +55,7 @@ class SyncResult(StepResult):
     rate_ratio: dict = field(default_factory=dict)
     offset_uncertainty_frames: dict = field(default_factory=dict)
     subframe_method: str = ""
+    genlocked_check: dict = field(default_factory=dict)
 
     @property
     def free_running(self) -> bool:
