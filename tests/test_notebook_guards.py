@@ -24,7 +24,7 @@ def test_session_calibration_views():
     c = session_calibration(default_session_dir())
     assert sorted(c["views"]) == ["left", "middle", "right"]
     assert c["board"] == ((7, 14), 0.1)
-    assert c["views_used"] and c["note"] == "" and c["rig_path"] is None
+    assert c["views_used"] and c["note"] == c["short"] == "" and c["rig_path"] is None
 
 
 def test_session_calibration_rig_only(tmp_path):
@@ -33,3 +33,4 @@ def test_session_calibration_rig_only(tmp_path):
     assert c["rig_path"] == (tmp_path / "calibration" / "rig.toml").resolve()
     assert c["note"] == ("no checkerboard views in this session: the pipeline reads the rig from "
                          "calibration/rig.toml instead of calibrating it")
+    assert c["short"] == "no checkerboard views; the rig was read from rig.toml"

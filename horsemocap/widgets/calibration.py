@@ -135,7 +135,8 @@ def session_calibration(session_dir) -> dict:
         ``views_used``: whether the pipeline calibrates from the views (it
         reads a given rig file unless asked to recalibrate);
         ``note``: ``""`` when the pipeline calibrates from the views, else a
-        plain sentence saying where the rig comes from instead.
+        plain sentence saying where the rig comes from instead;
+        ``short``: the same in a few words, for the cells that skip a part.
 
     Examples
     --------
@@ -144,9 +145,10 @@ def session_calibration(session_dir) -> dict:
     >>> sorted(c["views"]), c["board"], c["note"]
     (['left', 'middle', 'right'], ((7, 14), 0.1), '')
 
-    A session with only ``calibration/rig.toml`` gives ``views`` None and
+    A session with only ``calibration/rig.toml`` gives ``views`` None,
     ``note`` "no checkerboard views in this session: the pipeline reads the
-    rig from calibration/rig.toml instead of calibrating it".
+    rig from calibration/rig.toml instead of calibrating it" and ``short``
+    "no checkerboard views; the rig was read from rig.toml".
     """
     from ..session import load_session
 
@@ -154,7 +156,7 @@ def session_calibration(session_dir) -> dict:
     board = None if s.board is None else (tuple(s.board.inner_corners), float(s.board.square_size_m))
     views = None if s.calibration_images is None else {c: Path(p) for c, p in s.calibration_images.items()}
     used = s.calibrates_from_views()
-    note = ""
+    note = short = ""
     if not used:
         try:
             rel = s.rig_path.relative_to(s.root).as_posix()
@@ -164,4 +166,7 @@ def session_calibration(session_dir) -> dict:
                 if views is not None else
                 f"no checkerboard views in this session: the pipeline reads the rig from {rel} instead of "
                 "calibrating it")
-    return {"views": views, "board": board, "rig_path": s.rig_path, "views_used": used, "note": note}
+        short = (f"{'views not used' if views is not None else 'no checkerboard views'}; "
+                 f"the rig was read from {s.rig_path.name}")
+    return {"views": views, "board": board, "rig_path": s.rig_path, "views_used": used, "note": note,
+            "short": short}
