@@ -1,6 +1,8 @@
 """Widgets of the calibration: camera picker, view browser, views to exclude (thesis 8.2)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import cv2
 import ipywidgets as w
 
@@ -109,3 +111,62 @@ class ViewExcluder(ControlText, w.VBox):
 def ui_exclude_views(result, excluded: dict | None = None) -> ViewExcluder:
     """Checkboxes to exclude views of a :class:`~horsemocap.calibration.RigCalibration`."""
     return ViewExcluder(result, excluded)
+
+
+def session_calibration(session_dir) -> dict:
+    """What a session gives the calibration: its checkerboard views, or only a rig file.
+
+    The notebooks that show the calibration (01, 03) ask this first: a session
+    recorded by a lab that calibrated once (``calibration.rig`` in
+    ``session.json``, no ``calibration.images``) has no views to detect or
+    calibrate, and the pipeline reads its rig from the file instead.
+
+    Parameters
+    ----------
+    session_dir : path
+        A session folder (holding ``session.json``).
+
+    Returns
+    -------
+    dict
+        ``views``: camera -> folder of checkerboard views, or ``None``;
+        ``board``: ``(inner_corners, square_size_m)`` or ``None``;
+        ``rig_path``: the session's ``rig.toml`` or ``None``;
+        ``views_used``: whether the pipeline calibrates from the views (it
+        reads a given rig file unless asked to recalibrate);
+        ``note``: ``""`` when the pipeline calibrates from the views, else a
+        plain sentence saying where the rig comes from instead;
+        ``short``: the same in a few words, for the cells that skip a part.
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> c = session_calibration(default_session_dir())
+    >>> sorted(c["views"]), c["board"], c["note"]
+    (['left', 'middle', 'right'], ((7, 14), 0.1), '')
+
+    A session with only ``calibration/rig.toml`` gives ``views`` None,
+    ``note`` "no checkerboard views in this session: the pipeline reads the
+    rig from calibration/rig.toml instead of calibrating it" and ``short``
+    "no checkerboard views; the rig was read from rig.toml".
+    """
+    from ..session import load_session
+
+    s = load_session(session_dir, open_sources=False)
+    board = None if s.board is None else (tuple(s.board.inner_corners), float(s.board.square_size_m))
+    views = None if s.calibration_images is None else {c: Path(p) for c, p in s.calibration_images.items()}
+    used = s.calibrates_from_views()
+    note = short = ""
+    if not used:
+        try:
+            rel = s.rig_path.relative_to(s.root).as_posix()
+        except ValueError:
+            rel = str(s.rig_path)
+        note = (f"the session gives its checkerboard views but also {rel}: the pipeline reads the rig from the file"
+                if views is not None else
+                f"no checkerboard views in this session: the pipeline reads the rig from {rel} instead of "
+                "calibrating it")
+        short = (f"{'views not used' if views is not None else 'no checkerboard views'}; "
+                 f"the rig was read from {s.rig_path.name}")
+    return {"views": views, "board": board, "rig_path": s.rig_path, "views_used": used, "note": note,
+            "short": short}

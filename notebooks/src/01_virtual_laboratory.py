@@ -49,6 +49,7 @@ from horsemocap import virtuallab as vl
 from horsemocap.data import data_samples_dir, default_session_dir
 from horsemocap.sources import FrameSource
 from horsemocap.virtuallab.measure import naive_regions, session_centroid_errors
+from horsemocap.widgets.calibration import session_calibration
 from horsemocap.workspace import NO_TRUTH, session_truth
 
 session = ws.session_dir
@@ -137,7 +138,7 @@ if truth is None:
 else:
     n = len(truth.ref_frames)
     print(f"analysed frames: {n} (left frames {truth.ref_frames[0]}..{truth.ref_frames[-1]}), "
-          f"{truth.time_s[-1]:.3f} s, period {truth.comfort['period_s'] * 30:.1f} frames")
+          f"{truth.time_s[-1]:.3f} s, period {truth.comfort['period_s'] * truth.fps:.1f} frames")
     # analytic velocity and acceleration vs finite differences of the positions
     dt_ = 1 / truth.fps
     v_fd = (truth.marker_pos[2:] - truth.marker_pos[:-2]) / (2 * dt_)
@@ -178,15 +179,20 @@ else:
 #
 # A session folder as in `docs/sessions.md`: videos (Motion-JPEG AVI, like the Casio
 # EX-Z750's), plumb and static stills and checkerboard views (the pipeline calibrates the rig from
-# them, as the thesis did); the truth, the true `rig.toml` included, sits in `truth/`, which readers
+# them, as the thesis did; a lab that calibrated once gives `calibration/rig.toml` instead, and the
+# pipeline reads the rig from it); the truth, the true `rig.toml` included, sits in `truth/`, which readers
 # of the session ignore. The cameras were started one after the other: the
 # flash-on frame is `offsets[cam]` in each camera's own numbering.
 
 # %%
 for key in ("motion", "plumb", "static"):
     print(f"{key:7s}", ", ".join(f"{c}: {p}" for c, p in meta[key].items()))
-print("calibration:", {k: (v if k == "board" else "...") for k, v in meta["calibration"].items()},
-      "| views per camera:", len(list((session / "calibration" / "left").iterdir())))
+calib = session_calibration(session)    # the checkerboard views, or only a rig file
+if calib["views"] is not None:
+    print("calibration:", {k: (v if k == "board" else "...") for k, v in meta["calibration"].items()},
+          "| views per camera:", len(list(calib["views"][cameras[0]].iterdir())))
+if calib["note"]:
+    print("calibration:", calib["note"])
 print("sync:", meta["sync"])
 if truth is None:
     print("true offsets:", NO_TRUTH)
@@ -273,9 +279,12 @@ else:
     plots.plot_frame_truth(img, np.vstack([plumb_px, [[np.nan, np.nan]] * 2]), ax=axs[0], title="plumb (left)")
     img = cv2.cvtColor(cv2.imread(str(session / meta["static"]["left"])), cv2.COLOR_BGR2RGB)
     plots.plot_frame_truth(img, rig["left"].project(truth.static_pos), ax=axs[1], title="static shot (left)", zoom=60)
-    calib = sorted((session / "calibration" / "left").iterdir())[0]
-    axs[2].imshow(cv2.cvtColor(cv2.imread(str(calib)), cv2.COLOR_BGR2RGB))
-    axs[2].set_title(f"checkerboard view {calib.name}", fontsize=9)
+    if calib["views"] is not None:
+        view = sorted(calib["views"]["left"].iterdir())[0]
+        axs[2].imshow(cv2.cvtColor(cv2.imread(str(view)), cv2.COLOR_BGR2RGB))
+        axs[2].set_title(f"checkerboard view {view.name}", fontsize=9)
+    else:
+        axs[2].set_title("no checkerboard views (rig file)", fontsize=9)
     axs[2].set_xticks([])
     axs[2].set_yticks([])
     fig.tight_layout()

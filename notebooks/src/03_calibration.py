@@ -182,43 +182,61 @@ print(chk_real.table())
 #
 # The virtual laboratory renders the board through the thesis' rig (Tables 8.1-8.4) at the horse's
 # path. Its board is adapted to what OpenCV can detect at 7.5-8 m (see notebook 01); the true rig is
-# saved beside the session.
+# saved beside the session. A session of a lab that calibrated once gives only `calibration/rig.toml`
+# and no views: then the pipeline reads its rig from that file, the cells below show that rig, and the
+# cells that need views (the calibration itself, Table 8.5) say so.
 
 # %%
 from horsemocap.virtuallab import thesis_rig
-from horsemocap.workspace import NO_TRUTH, session_truth
+from horsemocap.virtuallab.calibration import LAB_BOARD_SQUARES
+from horsemocap.widgets.calibration import session_calibration
+from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 session = ws.session_dir
-calib_dir = session / "calibration"
-import json
-
-meta = json.loads((session / "session.json").read_text())
-board = meta["calibration"]["board"]
-inner = tuple(board["inner_corners"])
-square = board["square_size_m"]
-image_dirs = {cam: session / path for cam, path in meta["calibration"]["images"].items()}
+calib = session_calibration(session)   # the session's checkerboard views, or only a rig file
+image_dirs = calib["views"] if calib["views_used"] else None
 truth = session_truth(session)      # None for a recorded session (no truth/ folder)
 truth_rig = None if truth is None else truth.rig
 if truth is None:
     print(NO_TRUTH, "(a recorded session): the errors against the true rig below are left out")
-print(f"board {inner[0]} x {inner[1]} inner corners, {1000 * square:.0f} mm squares; views per camera:",
-      {c: len(list(d.iterdir())) for c, d in image_dirs.items()})
+if image_dirs is not None:
+    inner, square = calib["board"]
+    print(f"board {inner[0]} x {inner[1]} inner corners, {1000 * square:.0f} mm squares; views per camera:",
+          {c: len(list(d.iterdir())) for c, d in image_dirs.items()})
+else:
+    # the simulation of "how many views" below holds the virtual laboratory's board instead
+    inner, square = (LAB_BOARD_SQUARES[0] - 1, LAB_BOARD_SQUARES[1] - 1), 0.10
+    print(calib["note"] + "; the cells that need views say so")
 
 # %%
-virtual = cal.calibrate_rig(image_dirs, inner, square, mode="joint", reference="left")
-for cam in virtual.cameras:
-    print(f"{cam:7s} boards found {int(virtual.views[cam].found.sum())}/{len(virtual.view_names)}",
-          f"missing: {virtual.views[cam].missing() or 'none'}")
-print(cal.format_calibration_tables(virtual, decimals=3, max_width=120))
+virtual = None     # this notebook's own calibration of the session's views
+if image_dirs is not None:
+    virtual = cal.calibrate_rig(image_dirs, inner, square, mode="joint", reference="left")
+    session_rig = virtual.rig
+    for cam in virtual.cameras:
+        print(f"{cam:7s} boards found {int(virtual.views[cam].found.sum())}/{len(virtual.view_names)}",
+              f"missing: {virtual.views[cam].missing() or 'none'}")
+    print(cal.format_calibration_tables(virtual, decimals=3, max_width=120))
+else:
+    # what the pipeline did instead: its rig step read the rig file
+    session_rig = results_for(session, until="rig").rig.rig
+    print(f"the pipeline's rig: read from {calib['rig_path'].name}; reference camera {session_rig.names[0]}")
+    for c in session_rig:
+        print(f"{c.name:7s} f = [{c.focal[0]:.2f} {c.focal[1]:.2f}]  c = [{c.principal_point[0]:.2f} "
+              f"{c.principal_point[1]:.2f}]  kc = " + np.array2string(np.asarray(c.distortions), precision=4)
+              + "  centre = " + np.array2string(c.center, precision=3) + " m")
 
 # %% [markdown]
 # The same checkboxes for the session's own views: a view ticked here is left out when the pipeline
 # calibrates the session from its views (the analysis parameter `calibration_exclude`).
 
 # %% tags=["nbval-ignore-output"]
-exclude_session = widgets.ui_exclude_views(virtual)
-ws.bind(exclude_session, "calibration_exclude", convert=lambda v: {c: n for c, n in v.items() if n})
-display(exclude_session)
+if virtual is None:
+    print("no views to leave out:", calib["short"])
+else:
+    exclude_session = widgets.ui_exclude_views(virtual)
+    ws.bind(exclude_session, "calibration_exclude", convert=lambda v: {c: n for c, n in v.items() if n})
+    display(exclude_session)
 
 # %% [markdown]
 # ### The camera model (thesis 3.2)
@@ -231,12 +249,13 @@ display(exclude_session)
 # pixels):
 
 # %%
+ref = session_rig.names[0]      # the reference camera
 fig, ax = plt.subplots(figsize=(6.5, 4.2))
-plots.plot_distortion_field(virtual.rig["left"], ax=ax)
+plots.plot_distortion_field(session_rig[ref], ax=ax)
 plt.show()
-k = virtual.rig["left"].distortions
-print("left camera: f = " + np.array2string(virtual.rig["left"].focal, precision=1) + " px, c = "
-      + np.array2string(virtual.rig["left"].principal_point, precision=1) + " px, kc = "
+k = session_rig[ref].distortions
+print(f"{ref} camera: f = " + np.array2string(session_rig[ref].focal, precision=1) + " px, c = "
+      + np.array2string(session_rig[ref].principal_point, precision=1) + " px, kc = "
       + np.array2string(np.asarray(k), precision=4))
 
 # %% [markdown]
@@ -246,23 +265,26 @@ print("left camera: f = " + np.array2string(virtual.rig["left"].focal, precision
 # rig and for the thesis' pairs.
 
 # %%
-pairwise_rig = cal.pairwise_rig(virtual)
-if truth is None:
+pairwise_rig = None if virtual is None else cal.pairwise_rig(virtual)
+if virtual is None:
+    print("no calibration of this session's own to compare:", calib["short"])
+elif truth is None:
     print("errors of the focal lengths, principal points and baselines:", NO_TRUTH)
 else:
     print(f"{'camera':8s}{'calibration':>12s}{'fx err %':>10s}{'fy err %':>10s}{'cx err px':>11s}{'cy err px':>11s}")
-for cam in virtual.cameras if truth is not None else ():
+for cam in virtual.cameras if truth is not None and virtual is not None else ():
     t = truth_rig[cam]
     for label, rig in (("joint", virtual.rig), ("pairwise", pairwise_rig)):
         c = rig[cam]
         fe = 100 * (c.focal - t.focal) / t.focal
         ce = c.principal_point - t.principal_point
         print(f"{cam:8s}{label:>12s}{fe[0]:10.3f}{fe[1]:10.3f}{ce[0]:11.2f}{ce[1]:11.2f}")
-print(f"RMS reprojection error: joint {virtual.joint.rms:.3f} px; pairs",
-      ", ".join(f"{a}-{b} {p.rms:.3f} px" for (a, b), p in virtual.pairs.items()))
-if truth is not None:
+if virtual is not None:
+    print(f"RMS reprojection error: joint {virtual.joint.rms:.3f} px; pairs",
+          ", ".join(f"{a}-{b} {p.rms:.3f} px" for (a, b), p in virtual.pairs.items()))
+if truth is not None and virtual is not None:
     print(f"{'pair':14s}{'true (mm)':>11s}{'pair (mm)':>11s}{'err %':>8s}{'joint (mm)':>12s}{'err %':>8s}")
-for (a, b), p in virtual.pairs.items() if truth is not None else ():
+for (a, b), p in virtual.pairs.items() if truth is not None and virtual is not None else ():
     tb_ = 1000 * np.linalg.norm(truth_rig[a].center - truth_rig[b].center)
     pb = 1000 * np.linalg.norm(p.T)
     jb = 1000 * np.linalg.norm(virtual.rig[a].center - virtual.rig[b].center)
@@ -276,13 +298,16 @@ for (a, b), p in virtual.pairs.items() if truth is not None else ():
 # perspective says little about the focal length and the principal point. To see that it is the views
 # and not the detector, the virtual laboratory's own pose generator places 15 and 45 boards, their
 # **true** corners get 0.1 px of noise, and the rig is calibrated jointly. The thesis used 90 views.
+# (A session without views lends its rig file's rig and the virtual laboratory's 100 mm board.)
 
 # %%
+from itertools import combinations
+
 from horsemocap.virtuallab import saddle_motion
 from horsemocap.virtuallab.calibration import board_corners, board_poses
 
 motion = saddle_motion("Horse 2", "canter")   # where the boards are held: along the bundled canter's path
-known_rig = truth_rig if truth is not None else virtual.rig   # the rig the simulated views are taken with
+known_rig = truth_rig if truth is not None else session_rig   # the rig the simulated views are taken with
 rows, cols = inner          # the virtual laboratory writes [rows, cols]; either order calibrates
 pts = board_corners((rows, cols), square)
 for n_views in (15, 45):
@@ -298,7 +323,7 @@ for n_views in (15, 45):
     ce = max(np.abs(r.rig[c].principal_point - known_rig[c].principal_point).max() for c in r.cameras)
     be = max(abs(100 * (np.linalg.norm(r.rig[a].center - r.rig[b].center)
                         / np.linalg.norm(known_rig[a].center - known_rig[b].center) - 1))
-             for a, b in (("left", "middle"), ("left", "right"), ("middle", "right")))
+             for a, b in combinations(known_rig.names, 2))
     print(f"{n_views:3d} views: worst fx/fy error {fe:.3f} %, worst cc error {ce:.2f} px, worst baseline error {be:.3f} %")
 
 # %% [markdown]
@@ -312,10 +337,14 @@ for n_views in (15, 45):
 # calibration ("alone") and is placed by a stereo calibration with the left camera, intrinsics fixed.
 
 # %%
-print(cal.format_comparison(virtual))
+if virtual is None:
+    print("one rig only (the pairs and the joint fit need views):", calib["short"])
+    top = {calib["rig_path"].name: session_rig}
+else:
+    print(cal.format_comparison(virtual))
+    top = {"joint": virtual.rig, "pairwise": pairwise_rig}
 fig, ax = plt.subplots(figsize=(8.5, 4))
-plots.plot_rig_top({**({} if truth is None else {"truth": truth_rig}), "joint": virtual.rig,
-                    "pairwise": pairwise_rig}, ax=ax)
+plots.plot_rig_top({**({} if truth is None else {"truth": truth_rig}), **top}, ax=ax)
 fig.tight_layout()
 plt.show()
 
@@ -329,12 +358,15 @@ plt.show()
 # centimetres in depth.
 
 # %%
-chk_joint = cal.grid_distance_check(virtual.rig, virtual.views, square)
-chk_pair = cal.grid_distance_check(pairwise_rig, virtual.views, square)
-chk_true = None if truth is None else cal.grid_distance_check(truth_rig, virtual.views, square)
-print("joint rig\n" + chk_joint.table())
-print("\npairwise rig\n" + chk_pair.table())
-print("\ntrue rig (what the corner noise alone costs)\n" + (NO_TRUTH if truth is None else chk_true.table()))
+if virtual is None:
+    print("Table 8.5 measures grid distances on the checkerboard views:", calib["short"])
+else:
+    chk_joint = cal.grid_distance_check(virtual.rig, virtual.views, square)
+    chk_pair = cal.grid_distance_check(pairwise_rig, virtual.views, square)
+    chk_true = None if truth is None else cal.grid_distance_check(truth_rig, virtual.views, square)
+    print("joint rig\n" + chk_joint.table())
+    print("\npairwise rig\n" + chk_pair.table())
+    print("\ntrue rig (what the corner noise alone costs)\n" + (NO_TRUTH if truth is None else chk_true.table()))
 print("\nthesis Table 8.5: AB 500 -> 489.1015 mm (2.1797 %), AC 500 -> 522.9729 mm (4.5946 %), "
       "AD 707.1 -> 726.5618 mm (2.7514 %)")
 
@@ -343,17 +375,20 @@ print("\nthesis Table 8.5: AB 500 -> 489.1015 mm (2.1797 %), AC 500 -> 522.9729 
 # camera; green +: the detected corners).
 
 # %%
-k_view = list(virtual.views["left"].names).index(chk_joint.view_names[0])
-corners = virtual.views["left"].corners[k_view]
-ax = plots.plot_board_view(virtual, "left", k_view)
-for name, i in chk_joint.corners_idx.items():
-    ax.plot(*corners[i], "o", mfc="none", mec="r", ms=12, mew=1.5)
-    ax.annotate(name, corners[i], textcoords="offset points", xytext=(6, -8), color="r", fontsize=11)
-lo, hi = np.nanmin(corners, axis=0), np.nanmax(corners, axis=0)
-ax.set_xlim(lo[0] - 25, hi[0] + 25)
-ax.set_ylim(hi[1] + 25, lo[1] - 25)
-ax.set_title(f"Figure 8.6: A, B, C, D on view {chk_joint.view_names[0]} (left camera)", fontsize=9)
-plt.show()
+if virtual is None:
+    print("Figure 8.6 shows a checkerboard view:", calib["short"])
+else:
+    k_view = list(virtual.views["left"].names).index(chk_joint.view_names[0])
+    corners = virtual.views["left"].corners[k_view]
+    ax = plots.plot_board_view(virtual, "left", k_view)
+    for name, i in chk_joint.corners_idx.items():
+        ax.plot(*corners[i], "o", mfc="none", mec="r", ms=12, mew=1.5)
+        ax.annotate(name, corners[i], textcoords="offset points", xytext=(6, -8), color="r", fontsize=11)
+    lo, hi = np.nanmin(corners, axis=0), np.nanmax(corners, axis=0)
+    ax.set_xlim(lo[0] - 25, hi[0] + 25)
+    ax.set_ylim(hi[1] + 25, lo[1] - 25)
+    ax.set_title(f"Figure 8.6: A, B, C, D on view {chk_joint.view_names[0]} (left camera)", fontsize=9)
+    plt.show()
 
 # %% [markdown]
 # The thesis triangulated pair by pair, each pair with its own calibration (section 5.1). Doing the
@@ -362,20 +397,27 @@ plt.show()
 # holds those of the left-middle pair):
 
 # %%
-for (a, b) in virtual.pairs:
+for (a, b) in virtual.pairs if virtual is not None else ():
     own = cal.grid_distance_check(cal.pair_rig(virtual, a, b), {c: virtual.views[c] for c in (a, b)}, square)
     sm = own.summary()
     print(f"pair {a}-{b} with its own calibration: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, "
           f"bias over every segment {sm['segments_bias_pct']:+.2f} %")
-mixed = cal.rig_from_pairs(virtual.pairs, virtual.cameras, "left")
-sm = cal.grid_distance_check(mixed, virtual.views, square).summary()
-print(f"pairs mixed into one rig: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, "
-      f"bias over every segment {sm['segments_bias_pct']:+.2f} %")
+if virtual is None:
+    print("the pairs' calibrations need the checkerboard views:", calib["short"])
+else:
+    mixed = cal.rig_from_pairs(virtual.pairs, virtual.cameras, "left")
+    sm = cal.grid_distance_check(mixed, virtual.views, square).summary()
+    print(f"pairs mixed into one rig: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, "
+          f"bias over every segment {sm['segments_bias_pct']:+.2f} %")
 
 # %%
-fig, ax = plt.subplots(figsize=(7, 3.2))
-plots.plot_grid_errors({"joint": chk_joint, "pairwise": chk_pair, **({} if truth is None else {"true rig": chk_true})}, ax=ax)
-plt.show()
+if virtual is not None:
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    plots.plot_grid_errors({"joint": chk_joint, "pairwise": chk_pair, **({} if truth is None else {"true rig": chk_true})},
+                           ax=ax)
+    plt.show()
+else:
+    print("grid errors: none to plot;", calib["short"])
 
 # %% [markdown]
 # ## The command for labs that calibrate once

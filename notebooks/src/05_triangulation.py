@@ -47,6 +47,7 @@ from IPython.display import display
 from horsemocap import accuracy, plots, reconstruction, smoothing, widgets
 from horsemocap.data import default_session_dir
 from horsemocap.sources import FrameSource
+from horsemocap.steps.triangulate import common_instants
 from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
@@ -61,6 +62,9 @@ from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 # synchronised frame (notebook 04, section 9), and the analysed frames — the longest run in which
 # every marker has a 3D position (seen by two or more cameras, or bridged over a short gap). A
 # camera may miss a marker inside that run (the cell below prints how many centres each camera found).
+# Cameras that run free (no genlock: each starts its frames at its own instant, the sync step measures
+# the phase) are first brought to the reference camera's instants: the triangulate step interpolates
+# each camera's tracks there (`common_instants`), and this notebook triangulates the same pixels.
 # `results_for` loads what an earlier notebook computed, or computes it (the calibration takes
 # about 20 s).
 
@@ -70,8 +74,11 @@ analysis = results_for(session_dir, until="triangulate")
 sync = analysis.synchronisation                           # the frame offsets the results are in
 rig = analysis.rig.rig                                    # calibrated by the pipeline
 offsets = sync.offsets                                    # from the flashlight
-a, b = analysis.detect.segment                            # analysed frames a..b-1 (synchronised numbering)
-marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}   # PM per camera, (n, 3, 2)
+# the centres at the reference camera's instants: as detected for genlocked cameras, interpolated along each
+# camera's tracks for free-running ones (what the pipeline's triangulate step triangulates)
+px_ref, _ = common_instants(analysis.detect, lambda *_: None)
+a, b = analysis.triangulate.segment                       # the pipeline's analysed frames a..b-1 (synchronised)
+marker_px = {cam: px[a:b] for cam, px in px_ref.items()}  # PM per camera, (n, markers, 2)
 fps = analysis.session.fps
 # where the rig comes from ("(cached ...)" when an earlier run calibrated it: the same rig)
 rig_from = analysis.rig.origin(analysis.params.rig.mode)
@@ -80,6 +87,13 @@ print("sync offsets (" + sync.offsets_from + "): "
       + ", ".join(f"{c} {v:d}" for c, v in offsets.items()))
 print(f"{sync.n_frames:d} synchronised frames; analysed {a:d}..{b - 1:d} ({b - a:d} frames, "
       f"{b - a:d} / {fps:.0f} = {(b - a) / fps:.2f} s), {analysis.session.marker_count:d} markers")
+if analysis.detect.segment != (a, b):
+    a_d, b_d = analysis.detect.segment
+    print(f"  (the detection kept frames {a_d:d}..{b_d - 1:d}; the triangulate step analyses the longest run of "
+          "them in which the markers have 3D positions)")
+if analysis.detect.sync.free_running:
+    print("free-running cameras: each camera's tracks interpolated to the reference camera's instants (phases "
+          + ", ".join(f"{c} {v:+.3f}" for c, v in analysis.detect.sync.phase_frames.items()) + " frame)")
 print(f"pipeline's triangulation: {analysis.params.triangulate.mode} mode, median reprojection residual "
       + ", ".join(f"{c} {np.nanmedian(r[a:b]):.3f} px" for c, r in analysis.triangulate.residual_px.items()))
 
@@ -96,14 +110,14 @@ true_pos = None
 frames_ref = offsets[analysis.session.reference_camera] + np.arange(a, b)   # reference-camera frames
 for cam in rig.names if truth is None else ():
     print(f"  {cam:6s}: {int(np.isfinite(marker_px[cam][..., 0]).sum()):d} of {marker_px[cam][..., 0].size:d} "
-          f"centres found | calibrated focal {rig[cam].focal.mean():7.1f} px")
+          f"centres found | focal {rig[cam].focal.mean():7.1f} px")
 known = np.ones(b - a, bool) if truth is None else np.isin(frames_ref, truth.ref_frames)
 if truth is not None:
     # the truth covers the frames all cameras see whole
     print(f"truth known for {int(known.sum()):d} of {b - a:d} analysed frames (errors below are measured on those); "
           "true offsets " + ", ".join(f"{c} {v:d}" for c, v in truth.offsets.items()))
 a, b = a + int(np.argmax(known)), a + len(known) - int(np.argmax(known[::-1]))
-marker_px = {cam: px[a:b] for cam, px in analysis.detect.marker_px.items()}
+marker_px = {cam: px[a:b] for cam, px in px_ref.items()}
 frames_ref = offsets[analysis.session.reference_camera] + np.arange(a, b)
 if truth is not None:
     true_pos = truth.marker_pos[np.searchsorted(truth.ref_frames, frames_ref)]   # (n, 3, 3), world = left camera frame
@@ -347,9 +361,11 @@ else:
 # 6 px discs:
 
 # %%
+from itertools import combinations
+
 Z = float(np.nanmean(tri.points[..., 2]))          # the markers' depth
 f = float(rig["left"].focal.mean())
-for cam_a, cam_b in (("left", "middle"), ("left", "right"), ("middle", "right")):
+for cam_a, cam_b in combinations(rig.names, 2):
     pair, B = f"{cam_a}-{cam_b}", float(np.linalg.norm(rig[cam_a].center - rig[cam_b].center))
     print(f"{pair:13s} B = {B:.3f} m: sigma_Z ~ {1000 * Z**2 * np.sqrt(2) * 0.1 / (f * B):5.1f} mm"
           f" for 0.1 px on each image (Z = {Z:.2f} m)")
@@ -415,13 +431,20 @@ else:
 # has no such check.
 
 # %%
+# a frame where every camera sees markers 1 and 2 (the one nearest frame 10)
+seen12 = np.all([np.isfinite(px[:, :2, 0]).all(axis=1) for px in marker_px.values()], axis=0)
+k_sw = int(np.flatnonzero(seen12)[np.argmin(np.abs(np.flatnonzero(seen12) - 10))])
 swapped = {c: v.copy() for c, v in marker_px.items()}
-swapped["middle"][10, [0, 1]] = swapped["middle"][10, [1, 0]]     # frame 10: markers 1 and 2 swapped
+swapped["middle"][k_sw, [0, 1]] = swapped["middle"][k_sw, [1, 0]]     # markers 1 and 2 swapped
 for mode in ("thesis", "joint"):
     s_ = reconstruction.triangulate(rig, swapped, mode=mode)
-    err = np.nan if truth is None else 1000 * np.linalg.norm(s_.points[10, 0] - true_pos[10, 0])
-    print(f"{mode:6s}: marker 1 in frame 10 is {err:6.1f} mm off ({'no truth' if truth is None else 'vs truth'}); middle residual "
-          f"{s_.residual_px['middle'][10, 0]:5.1f} px; rejected by the check: {bool(s_.rejected['middle'][10, 0])}")
+    if truth is None:   # how far the swap moves the point, against the same mode without it
+        clean = reconstruction.triangulate(rig, marker_px, mode=mode).points[k_sw, 0]
+        off = f"moved {1000 * np.linalg.norm(s_.points[k_sw, 0] - clean):6.1f} mm by the swap (no truth)"
+    else:
+        off = f"{1000 * np.linalg.norm(s_.points[k_sw, 0] - true_pos[k_sw, 0]):6.1f} mm off (vs truth)"
+    print(f"{mode:6s}: marker 1 in frame {k_sw} is {off}; middle residual {s_.residual_px['middle'][k_sw, 0]:5.1f} px; "
+          f"rejected by the check: {bool(s_.rejected['middle'][k_sw, 0])}")
 
 # %% [markdown]
 # ## Your choices, downstream

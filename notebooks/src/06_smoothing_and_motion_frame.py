@@ -63,7 +63,7 @@ from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 session_dir = ws.session_dir
 analysis = results_for(session_dir, until="motion_frame")
 rig = analysis.rig.rig                                      # calibrated by the pipeline
-a, b = analysis.detect.segment                              # analysed frames a..b-1
+a, b = analysis.triangulate.segment                         # the pipeline's analysed frames a..b-1
 points = analysis.smooth.raw                                # CM_L, triangulated, (n, markers, 3)
 gravity = analysis.plumb.gravity                            # u2e, from the plumb (section 3)
 mf_pipeline = analysis.motion_frame.frame
@@ -73,9 +73,15 @@ par = analysis.params
 rig_from = analysis.rig.origin(par.rig.mode)
 print(f"rig {rig_from}; {n:d} analysed frames ({a:d}..{b - 1:d}), {points.shape[1]:d} markers, "
       f"{analysis.params.triangulate.mode} triangulation")
-print(f"pipeline choices: smoothing_method '{par.smooth.method}' (span {par.smooth.span:.2f} if used), "
-      f"x-motion marker {mf_pipeline.marker + 1:d}, period {mf_pipeline.period_frames:.2f} frames (estimated), "
-      f"{mf_pipeline.n_periods:d} period(s) for u1")
+T_pipeline = analysis.motion_frame.period_frames           # None: the pipeline found no period
+if mf_pipeline.n_periods > 0:   # the thesis' frame, eq. 5.6/5.7
+    chosen_frame = (f"x-motion marker {mf_pipeline.marker + 1:d}, period {mf_pipeline.period_frames:.2f} frames "
+                    f"({'given' if par.motion_frame.period_frames is not None else 'estimated'}), "
+                    f"{mf_pipeline.n_periods:d} period(s) for u1")
+else:                           # no period: x-motion from the whole record
+    chosen_frame = ("x-motion from the markers' net displacement over the whole record ("
+                    + ("no period found" if T_pipeline is None else f"period {T_pipeline:.2f} frames, not used") + ")")
+print(f"pipeline choices: smoothing_method '{par.smooth.method}' (span {par.smooth.span:.2f} if used), {chosen_frame}")
 
 # %% [markdown]
 # The truth is used only to measure errors: the true positions of the analysed frames, the true
@@ -355,9 +361,16 @@ print("plumb reprojection residuals (px): " + ", ".join(f"{c} {np.max(v):.3f}" f
 # %%
 vertical = smoothed @ gravity
 acf = frames.autocorrelation(vertical, max_lag=int(0.6 * n))
-period = frames.estimate_period(smoothed, fps, gravity=gravity)
-print(f"estimated period: {period:.2f} frames = {period / fps:.3f} s (the pipeline's: "
-      f"{analysis.motion_frame.period_frames:.2f} frames)")
+try:   # the pipeline's estimate: a horse's stride the bound (frames.HORSE_STRIDE_HZ)
+    period, _ = frames.stride_period(smoothed, fps, gravity=gravity)
+    print(f"estimated period: {period:.2f} frames = {period / fps:.3f} s (the pipeline's: "
+          + ("none found" if T_pipeline is None else f"{T_pipeline:.2f} frames") + ")")
+except ValueError as exc:
+    period = None
+    print(f"no period found in these {n:d} frames ({n / fps:.2f} s): {exc}")
+    print("the pipeline found none either: its motion_frame step took x-motion from the net displacement over "
+          "the whole record (frames.motion_frame_from_record); only the comfort step needs a period, and it estimates "
+          "the stride frequency from the saddle's vertical position" if T_pipeline is None else f"(the pipeline's: {T_pipeline:.2f} frames)")
 if truth is None:
     print("true stride period:", NO_TRUTH)
 else:
@@ -365,7 +378,13 @@ else:
     print(f"true stride period: {fps / stride_hz:.2f} frames (the thesis user typed 18 for Horse 2 at canter)")
 
 # %%
-_ = plots.plot_period_estimate(acf, period, fps)
+if period is None:   # the autocorrelation alone: no peak to mark
+    fig, ax = plt.subplots(figsize=(7, 3))
+    ax.plot(np.arange(len(acf)), acf, "o-", ms=3)
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set(xlabel="lag (frames)", ylabel="autocorrelation", title="no period found")
+else:
+    _ = plots.plot_period_estimate(acf, period, fps)
 plt.show()
 
 # %% [markdown]
@@ -373,22 +392,36 @@ plt.show()
 #
 # Choose the marker whose net displacement defines x-motion (thesis: typed 1, 2 or 3), the period
 # and whether one or two periods are used. The defaults are the pipeline's choices printed above:
-# marker 1, the estimated period, two periods when the record holds them.
+# marker 1, the estimated period, two periods when the record holds them. When the pipeline found no
+# period (a record shorter than the stride's two periods, or not periodic), it built the frame from the
+# net displacement over the whole record; the widgets are then not shown, and a period is given with
+# `ws.choose("period_frames", T)` (T in frames), the cells run again.
 
 # %% tags=["nbval-ignore-output"]
-ui_marker = widgets.ui_motion_marker(points.shape[1], mf_pipeline.marker)
-ui_T = widgets.ui_period(mf_pipeline.period_frames, n - 1)
-ui_np = widgets.ui_n_periods(mf_pipeline.n_periods)
-ws.bind(ui_marker, "x_marker")
-ws.bind(ui_T, "period_frames")
-ws.bind(ui_np, "n_periods")
-display(ui_marker, ui_T, ui_np)
+if mf_pipeline.n_periods > 0:
+    ui_marker = widgets.ui_motion_marker(points.shape[1], mf_pipeline.marker)
+    ui_T = widgets.ui_period(mf_pipeline.period_frames, n - 1)
+    ui_np = widgets.ui_n_periods(mf_pipeline.n_periods)
+    ws.bind(ui_marker, "x_marker")
+    ws.bind(ui_T, "period_frames")
+    ws.bind(ui_np, "n_periods")
+    display(ui_marker, ui_T, ui_np)
+else:
+    print(f"the pipeline's frame has no period to choose ({chosen_frame}); to give one: "
+          "ws.choose('period_frames', T) with T in frames, then run the cells again")
 
 # %%
-mf = frames.motion_frame(smoothed, gravity, marker=ui_marker.value, period=ui_T.value, n_periods=ui_np.value)
+if mf_pipeline.n_periods > 0:
+    mf = frames.motion_frame(smoothed, gravity, marker=ui_marker.value, period=ui_T.value, n_periods=ui_np.value)
+else:   # what the pipeline's motion_frame step did without a period
+    mf = frames.motion_frame_from_record(smoothed, gravity, T_pipeline)
 print("R_CM = [u1 | u2 | u3] =")
 print(np.array2string(mf.R_CM, precision=5, suppress_small=True))
-print(f"u1 from marker {mf.marker + 1:d} over {mf.n_periods:d} period(s) of {mf.period_frames:.2f} frames")
+if mf.n_periods > 0:
+    print(f"u1 from marker {mf.marker + 1:d} over {mf.n_periods:d} period(s) of {mf.period_frames:.2f} frames")
+else:
+    print(f"u1 from the markers' centroid over the whole record ({n:d} frames, no period); largest angle to the "
+          f"pipeline's axes {max(frames.angle_deg(mf.axes[i], mf_pipeline.axes[i]) for i in range(3)):.4f} deg")
 print(f"gravity correction (u2e -> u2, eq. 5.8-5.9): {mf.gravity_correction_deg:.3f} deg")
 if truth is None:
     print("angles to the true axes:", NO_TRUTH)

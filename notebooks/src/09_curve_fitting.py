@@ -66,10 +66,23 @@ an = results_for(until="rigid_body")
 rb = an.rigid_body.body
 t, registered, auto = rb.t, rb.pos, rb.motion_fit        # the pipeline's registration and fits
 prm = an.params
-period_s = an.motion_frame.period_frames / an.session.fps
-w0 = 2 * np.pi / period_s                                 # start point of every w (the thesis typed period = 18)
+M = registered.shape[1]                                   # markers
+if an.motion_frame.period_frames is None:                 # the motion-frame step found no period
+    period_s = w0 = None                                  # every w starts at MATLAB's spectral start point
+    period_text = "no period found by the motion-frame step (every w starts at MATLAB's start point)"
+else:
+    period_s = an.motion_frame.period_frames / an.session.fps
+    w0 = 2 * np.pi / period_s                             # start point of every w (the thesis typed period = 18)
+    period_text = f"period {an.motion_frame.period_frames:.2f} frames = {period_s:.3f} s"
 print(f"{len(t)} frames, {t[-1]:.3f} s; smoothing '{prm.smooth.method}'; order rule '{prm.rigid_body.fits.order_rule}', "
-      f"trend {prm.rigid_body.fits.trend}, x degree {prm.rigid_body.fits.x_degree}; period {an.motion_frame.period_frames:.2f} frames = {period_s:.3f} s")
+      f"trend {prm.rigid_body.fits.trend}, x degree {prm.rigid_body.fits.x_degree}; {period_text}")
+pipeline_fits = auto is not None
+if not pipeline_fits:   # the pipeline's thesis chain of fits did not run; fit here what it would have fitted
+    print(f"the pipeline fitted no curves to this session (the thesis' chain of fits: {rb.chain_error}); its "
+          "kinematics come from the pose spline (notebook 11). The fits below are this notebook's own "
+          f"(fitting.fit_motion with the pipeline's order rule) on the pipeline's registered {M} markers")
+    auto = fitting.fit_motion(t, registered, x_degree=prm.rigid_body.fits.x_degree, rule=prm.rigid_body.fits.order_rule,
+                              w0=w0, trend=prm.rigid_body.fits.trend)
 
 truth = session_truth(ws.session_dir)                   # None for a recorded session (no truth/ folder)
 a, b = an.triangulate.segment
@@ -81,7 +94,7 @@ else:
     true_kin = {"pos": tt["marker_pos"], "vel": tt["marker_vel"], "acc": tt["marker_acc"]}
     stride_hz = truth.extras["motion"]["gait"]["stride_hz"]
     print(f"stride period of the virtual horse {1 / stride_hz:.3f} s (w = {2 * np.pi * stride_hz:.2f} rad/s); "
-          f"the pipeline's estimate w = {w0:.2f} rad/s")
+          + ("the pipeline found no period" if w0 is None else f"the pipeline's estimate w = {w0:.2f} rad/s"))
 
 # %% [markdown]
 # ## x-motion: a straight line
@@ -113,7 +126,7 @@ else:
 
 # %%
 print("marker axis  fit              E       sse    rsquare  adjrsquare      rmse")
-for m in range(3):
+for m in range(M):
     for ax in range(3):
         f, g = auto.fits[m][ax], auto.fits[m][ax].gof
         e = auto.n_extremes[m, ax]
@@ -131,7 +144,8 @@ y = registered[:, 0, 1]
 E = int(auto.n_extremes[0, 1])
 N1, N2 = fitting.proposed_orders(E)
 f1, f2 = (fitting.fit_fourier(t, y, n, w0=w0, trend=prm.rigid_body.fits.trend) for n in (N1, N2))
-print(f"E = {E} extremes -> proposed fourier{N1} and fourier{N2}; the pipeline chose fourier{auto.orders[0, 1]}")
+print(f"E = {E} extremes -> proposed fourier{N1} and fourier{N2}; the {'pipeline' if pipeline_fits else 'order rule'} "
+      f"chose fourier{auto.orders[0, 1]}")
 for f in (f1, f2):
     print(f.summary())
 truth_y = None if truth is None else {"t": t, **{k: true_kin[k][:, 0, 1] for k in ("pos", "vel", "acc")}}
@@ -167,7 +181,7 @@ z = registered[:, 0, 2]
 Ez = int(auto.n_extremes[0, 2])
 g1, g2 = (fitting.fit_fourier(t, z, n, w0=w0, trend=prm.rigid_body.fits.trend) for n in fitting.proposed_orders(Ez))
 print(f"E = {Ez} -> fourier{g1.order} (adj R2 {g1.gof.adjrsquare:.4f}) or fourier{g2.order} "
-      f"(adj R2 {g2.gof.adjrsquare:.4f}); the pipeline chose fourier{auto.orders[0, 2]}")
+      f"(adj R2 {g2.gof.adjrsquare:.4f}); the {'pipeline' if pipeline_fits else 'order rule'} chose fourier{auto.orders[0, 2]}")
 truth_z = None if truth is None else {"t": t, **{k: true_kin[k][:, 0, 2] for k in ("pos", "vel", "acc")}}
 fig = plots.plot_fit_choice(g1, g2, truth=truth_z, suptitle="marker 1, z-motion")
 plt.show()
@@ -182,24 +196,31 @@ plt.show()
 ui_orders = {(m, ax): widgets.ui_fourier_order(t, registered[:, m, ax], f"marker {m + 1}, {'xyz'[ax]}",
                                                  rule=prm.rigid_body.fits.order_rule, w0=w0, trend=prm.rigid_body.fits.trend,
                                                  value=auto.orders[m, ax], n_extremes=auto.n_extremes[m, ax])
-             for m in range(3) for ax in (1, 2)}
+             for m in range(M) for ax in (1, 2)}
 ui_x = widgets.ui_x_degree(prm.rigid_body.fits.x_degree)
-ws.bind(list(ui_orders.values()), "fourier_orders",
-        read=lambda: [[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(3)])
-ws.bind(ui_x, "x_degree")
+if pipeline_fits:   # choices for the pipeline's chain of fits; without it the widgets drive this notebook's fits only
+    ws.bind(list(ui_orders.values()), "fourier_orders",
+            read=lambda: [[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(M)])
+    ws.bind(ui_x, "x_degree")
+else:
+    print("these choices change this notebook's fits only: the pipeline's chain of fits does not run on this session")
 for w in ui_orders.values():
     display(w)
 display(ui_x)
 
 # %%
-orders = np.array([[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(3)])
+orders = np.array([[ui_orders[(m, 1)].value, ui_orders[(m, 2)].value] for m in range(M)])
 mfit = fitting.fit_motion(t, registered, x_degree=ui_x.value, orders=orders, w0=w0, trend=prm.rigid_body.fits.trend)
-print("orders (x degree, y, z) per marker:", mfit.orders.tolist(), "; the pipeline's:", auto.orders.tolist())
+print("orders (x degree, y, z) per marker:", mfit.orders.tolist(),
+      "; the pipeline's:" if pipeline_fits else "; the order rule's:", auto.orders.tolist())
 vel, acc = mfit.velocity(t), mfit.acceleration(t)
-print(f"velocities equal the pipeline's (to 1e-9 m/s): {np.allclose(vel, rb.vel, rtol=0, atol=1e-9)}")
+if pipeline_fits:
+    print(f"velocities equal the pipeline's (to 1e-9 m/s): {np.allclose(vel, rb.vel, rtol=0, atol=1e-9)}")
+else:
+    print("the pipeline's velocities come from its pose spline (notebook 11), not from fits: nothing to compare here")
 if truth is None:
     print("velocity and acceleration errors:", NO_TRUTH)
-for m in range(3 if truth is not None else 0):
+for m in range(M if truth is not None else 0):
     ev = frames.rmse_per_axis(vel[:, m], true_kin["vel"][:, m])
     ea = frames.rmse_per_axis(acc[:, m], true_kin["acc"][:, m])
     print(f"marker {m + 1}: velocity RMSE x/y/z " + " ".join(f"{e:.3f}" for e in ev)

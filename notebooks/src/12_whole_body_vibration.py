@@ -295,7 +295,8 @@ else:
     harm = vibration.harmonics_from_periodic_samples(acc_y, period, max_harmonic=40)
     source = f"{horse}, {gait} (ground truth)"
 harm = vibration.Harmonics(harm.freq_hz, harm.amplitude, 0.0)   # a mean acceleration is not vibration
-print(f"{source}: stride {1 / period:.4f} Hz, period {period:.4f} s ({period * 30:.1f} frames at 30 fps)")
+fps = an.session.fps                        # the session's frame rate
+print(f"{source}: stride {1 / period:.4f} Hz, period {period:.4f} s ({period * fps:.1f} frames at {fps:g} fps)")
 for k in range(5):
     print(f"harmonic {k + 1}: {harm.freq_hz[k]:.3f} Hz, |c| = {abs(harm.amplitude[k]):.3f} m/s²")
 
