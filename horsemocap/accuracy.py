@@ -452,14 +452,28 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
     ``analysis``. Images are not rendered: this isolates the geometry (pixel
     size, frame rate, baseline) from the detector.
 
+    The ride is the virtual laboratory's ``horse`` at ``gait`` with *its*
+    skin markers (three), whatever ``analysis`` measured: a session with
+    four markers, or a recorded one without truth, lends only its
+    parameters. The simulated cameras are genlocked and expose instantly,
+    so the session's ``metadata.camera_timing`` (free-running cameras,
+    exposure, rolling shutter) is not carried over.
+
     Returns
     -------
     (Analysis, Truth)
+
+    Raises
+    ------
+    AnalysisError
+        (step ``"detect"``) when no frame of the simulated ride has every
+        skin marker seen by every camera of ``rig``: there is no segment to
+        analyse.
     """
     from dataclasses import replace as dc_replace
 
     from .frames import gravity_from_plumb
-    from .pipeline import run_steps
+    from .pipeline import AnalysisError, run_steps
     from .reconstruction import triangulate
     from .steps import (DetectResult, PlumbResult, RigResult, StaticResult, SyncResult, longest_run,
                         max_gap_frames)
@@ -471,23 +485,30 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
     _, n = plan_timeline(scene, fps, left_offset=0)
     offsets = {c: 0 for c in rig.names}
     truth = build_truth(scene, offsets, {c: n for c in rig.names}, fps)
-    m = analysis.session.marker_count
+    m = len(scene.motion.horse.marker_body)            # the virtual horse's skin markers, not the session's
     px = noisy_projections(truth, offsets, n, m, sigma_px, rng)
     seen = np.all([np.all(np.isfinite(p[..., 0]), axis=1) for p in px.values()], axis=0)
+    segment = longest_run(seen)
+    if segment is None:
+        raise AnalysisError("detect", f"simulated {horse} {gait} at {fps:g} fps: no frame in which every camera "
+                                      f"({', '.join(rig.names)}) sees all {m} skin markers, so there is no segment "
+                                      "to analyse; check that the rig's cameras look at the riding track")
 
     def still(points):
         obs = {c: rig[c].project(points)[None] + rng.normal(0, sigma_px, (1, len(points), 2)) for c in rig.names}
         return triangulate(rig, obs, mode=analysis.params.triangulate.mode).points[0]
 
     plumb = still(truth.plumb_pos)
-    session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names))
+    metadata = {k: v for k, v in analysis.session.metadata.items() if k != "camera_timing"}
+    session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names), marker_count=m,
+                         metadata=metadata)
     sync = SyncResult(offsets=offsets, frame_counts={c: n for c in rig.names}, n_frames=n,
                       offsets_from="simulated")
     hidden = {c: np.where(np.isfinite(p[..., 0]), "", "occluded") for c, p in px.items()}
     base = {
         "sync": sync,
         "rig": RigResult(rig=rig, rig_from="simulated"),
-        "detect": DetectResult(marker_px=px, reason=hidden, segment=longest_run(seen), detection={}, all_seen=seen,
+        "detect": DetectResult(marker_px=px, reason=hidden, segment=segment, detection={}, all_seen=seen,
                                method="simulated", method_note="", sync=sync,
                                max_gap_frames=max_gap_frames(session, analysis.params.detect)),
         "plumb": PlumbResult(plumb_points=plumb, plumb_px={}, gravity=gravity_from_plumb(plumb[0], plumb[1])),

@@ -52,6 +52,7 @@ from horsemocap import detection, plots, widgets, workspace
 from horsemocap.data import default_session_dir
 from horsemocap.sources import FrameSource, read_image
 from horsemocap.session import load_session
+from horsemocap.widgets.markers_guard import marker_pairs
 from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
@@ -66,7 +67,9 @@ from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 # %%
 session = ws.session_dir
 truth = session_truth(session)     # None for a recorded session (no truth/ folder)
-videos = load_session(session, open_sources=False).motion   # camera -> video file
+meta = load_session(session, open_sources=False)
+videos = meta.motion                   # camera -> video file
+n_markers = meta.marker_count          # the markers on the horse (session.json 'markers.count'; 3 in the thesis)
 cameras = list(videos)
 frames = FrameSource(videos["left"]).read()
 n_frames, height, width = frames.shape[:3]
@@ -118,15 +121,17 @@ print(f"per-frame levels {per_frame.min()}-{per_frame.max()} (median {np.median(
       f"from 8 frames over the motion: {l2}")
 
 # %% [markdown]
-# The automatic run below makes every choice; we then revisit each one with a widget.
+# The automatic run below makes every choice; we then revisit each one with a widget. It follows as many
+# markers as the session has (`markers.count` of its `session.json`: three in the thesis and in the bundled
+# session; the distance filter then compares all $M(M-1)/2$ distances).
 
 # %%
-track = detection.detect_markers(frames, 3)
+track = detection.detect_markers(frames, n_markers)
 p = track.params
 print(f"threshold l = {p.threshold}, first frame = {p.first_frame}, labels = {list(p.labels)}")
 print(f"area range = [{p.area_min:.0f}, {p.area_max:.0f}] px, window = {p.window} px, "
       f"DT = {p.distance_tolerance:.3f}")
-print(f"frames with all 3 markers: {int(track.all_found.sum())} of {n_frames}")
+print(f"frames with all {n_markers} markers: {int(track.all_found.sum())} of {n_frames}")
 
 # %% [markdown]
 # **The threshold slider.** Move the threshold and the frame: the preview shows the binary image
@@ -152,7 +157,7 @@ print(f"threshold {level}: {len(regions)} white regions in frame {p.first_frame}
 # The thesis labels the white regions with 8-connectivity and asks for the labels of the markers
 # in the first image. Here the markers are chosen automatically: among round regions (the
 # circularity by geometric moments of Guchin et al., $c = A / (2\pi(\sigma_u^2+\sigma_v^2))$, 1 for a
-# disc) of similar area, the cluster of 3 that keeps its shape over the next frames, moves, and
+# disc) of similar area, the cluster of as many regions as the session has markers that keeps its shape over the next frames, moves, and
 # looks most like a marker (round and white) is followed through the sequence; the cluster
 # followed through the most frames wins (chance clusters of bandages, stirrup and glints break
 # up). The picker shows the numbered regions at the threshold of section 1 (run its cells first after
@@ -202,7 +207,7 @@ display(ui_all)
 
 # %%
 chosen = ui_all.value
-track2 = detection.detect_markers(frames, 3, chosen)
+track2 = detection.detect_markers(frames, n_markers, chosen)
 same = np.array_equal(track2.reason, track.reason) and np.allclose(track2.marker_px, track.marker_px, equal_nan=True)
 print(f"{int(track2.all_found.sum())} frames with all markers; same as the automatic run: {same}")
 
@@ -225,7 +230,7 @@ print(f"frame {k}: {len(stages['regions'])} regions, {len(stages['area_ok'])} af
 if truth is None:
     print("centre errors vs truth:", NO_TRUTH)
 else:
-    err_k = np.linalg.norm(stages["marker_px"] - truth.marker_px["left"][k, :3], axis=1)
+    err_k = np.linalg.norm(stages["marker_px"] - truth.marker_px["left"][k, :n_markers], axis=1)
     print("centre errors vs truth (px):", ", ".join(f"{e:.3f}" for e in err_k))
 
 # %%
@@ -276,7 +281,7 @@ plt.show()
 # `ambiguous`. The thin lines are the truth.
 
 # %%
-true_left = None if truth is None else truth.marker_px["left"][:, :3]   # drawn thin where known
+true_left = None if truth is None else truth.marker_px["left"][:, :n_markers]   # drawn thin where known
 fig, ax = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
 plots.plot_marker_track(track, true_left, ax=ax)
 plt.show()
@@ -307,12 +312,12 @@ def score(track, true_px, visible):
 tracks, errors = {"left": track}, {}
 for cam in cameras:
     if cam not in tracks:
-        tracks[cam] = detection.detect_markers(FrameSource(videos[cam]).read(), 3)
+        tracks[cam] = detection.detect_markers(FrameSource(videos[cam]).read(), n_markers)
     if truth is None:
-        print(f"{cam:6s}: frames with all 3 markers {int(tracks[cam].all_found.sum())} of {len(tracks[cam].found)}; "
+        print(f"{cam:6s}: frames with all {n_markers} markers {int(tracks[cam].all_found.sum())} of {len(tracks[cam].found)}; "
               f"centre errors: {NO_TRUTH}")
         continue
-    true_px, visible = truth.marker_px[cam][:, :3], truth.marker_visible[cam][:, :3]
+    true_px, visible = truth.marker_px[cam][:, :n_markers], truth.marker_visible[cam][:, :n_markers]
     e, swaps, pseudo, missed = score(tracks[cam], true_px, visible)
     errors[cam] = e
     print(f"{cam:6s}: {e.size} centres, median {np.median(e):.3f} px, p99 {np.percentile(e, 99):.3f} px, "
@@ -329,14 +334,17 @@ for cam in cameras:
 offsets = results_for(session, until="sync").synchronisation.offsets   # the flash frames (notebook 02)
 usable = detection.usable_frames(tracks, offsets, "left")
 print(f"usable left frames: {usable[0]}..{usable[-1]} ({len(usable)} frames)")
+if n_markers != 3:
+    print(f"the pipeline does not analyse this session with the per-camera chain (it follows three markers, "
+          f"the session has {n_markers}): it identifies the markers with all cameras together (section 9)")
 print(NO_TRUTH if truth is None else f"same as the truth's: {np.array_equal(usable, truth.ref_frames)}")
 
 # %%
 if truth is None:
     print(NO_TRUTH)
 else:
-    binary_track = detection.detect_markers(frames, 3, detection.DetectionParams(centroid="binary"))
-    e_bin = score(binary_track, true_left, truth.marker_visible["left"][:, :3])[0]
+    binary_track = detection.detect_markers(frames, n_markers, detection.DetectionParams(centroid="binary"))
+    e_bin = score(binary_track, true_left, truth.marker_visible["left"][:, :n_markers])[0]
     print(f"left, binary centre (thesis): median {np.median(e_bin):.3f} px, p99 {np.percentile(e_bin, 99):.3f} px")
     print(f"left, weighted centre:        median {np.median(errors['left']):.3f} px, "
           f"p99 {np.percentile(errors['left'], 99):.3f} px")
@@ -352,8 +360,8 @@ else:
 # ## 7 · The stills: plumb line and static shot (Appendix A steps 7a, 8a, 12a)
 #
 # The same filters serve single images. The plumb still has 2 markers, returned top first
-# (`order="v"`); the static shot has the 3 skin markers and the saddle marker (no rider), returned
-# by ascending $u$.
+# (`order="v"`); the static shot has the skin markers (3 in the thesis) and the saddle marker (no rider),
+# returned by ascending $u$.
 
 # %%
 if truth is None:
@@ -364,7 +372,7 @@ else:
         plumb = detection.detect_still(read_image(session / "plumb" / f"{cam}.jpg"), 2)
         true_plumb = cm.project(np.asarray(truth.plumb_pos))
         true_plumb = true_plumb[np.argsort(true_plumb[:, 1])]
-        static = detection.detect_still(read_image(session / "static" / f"{cam}.jpg"), 4)
+        static = detection.detect_still(read_image(session / "static" / f"{cam}.jpg"), n_markers + 1)
         true_static = cm.project(np.asarray(truth.static_pos))
         true_static = true_static[np.argsort(true_static[:, 0])]
         ep = np.linalg.norm(plumb - true_plumb, axis=1).max()
@@ -401,7 +409,7 @@ for level in range(100, 200, 10):
     timed.slider.value = level
     times.append(timed.last_ms)
 t0 = time.perf_counter()
-detection.detect_markers(frames, 3, p)
+detection.detect_markers(frames, n_markers, p)
 t_track = (time.perf_counter() - t0) / n_frames
 print(f"threshold preview: median {np.median(times):.1f} ms per redraw (max {max(times):.1f} ms)")
 print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
@@ -422,9 +430,9 @@ print(f"detection with given parameters: {1e3 * t_track:.2f} ms per frame")
 #    below 2 px satisfy the epipolar constraint, and a third camera validates the point when it
 #    has a region at its projection;
 # 3. labels the 3D points with the **rigid model of the static shot**: the distances between the
-#    markers must equal the static shot's within their measured uncertainty, and the triangle must
-#    face the cameras as it does in the static shot (the cross-product rule of Figure 4.13,
-#    in 3D);
+#    markers (all of them: three in the thesis, as many as `markers.count` says) must equal the static
+#    shot's within their measured uncertainty, and the markers must face the cameras as they do in the
+#    static shot (the cross-product rule of Figure 4.13, in 3D);
 # 4. follows the markers in 3D from frame to frame, predicting each with minimum acceleration
 #    (constant velocity) and looking for it near the projection of the prediction in every camera.
 #
@@ -441,32 +449,37 @@ offsets = analysis.synchronisation.offsets
 thresholds = {c: analysis.detect.detection[c]["threshold"] for c in cameras}
 images = {c: FrameSource(videos[c]).frame(offsets[c] + k, color=False) for c in cameras}
 candidates = {c: frame_candidates(images[c], thresholds[c]) for c in cameras}
-views, fit, why = label_frame(analysis.rig.rig, candidates, analysis.static.static_points, 3, 2.0)
+views, fit, why = label_frame(analysis.rig.rig, candidates, analysis.static.static_points, n_markers, 2.0)
 print(f"synchronised frame {k}; thresholds {thresholds}")
 print("candidate regions per camera: " + ", ".join(f"{c} {len(candidates[c])}" for c in cameras))
-print(f"3D points consistent in two or more cameras: {len(views)}; the markers: points {fit.assignment.tolist()}, "
-      f"distances within {1000 * fit.rms_m:.1f} mm rms of the static shot's")
-fig = plots.plot_identification(images, candidates, views, fit)
-plt.show()
+if fit is None:      # the pipeline labelled this frame with its own tracking; this one call could not
+    print(f"3D points consistent in two or more cameras: {len(views)}; not labelled by this call: {why}")
+else:
+    print(f"3D points consistent in two or more cameras: {len(views)}; the markers: points {fit.assignment.tolist()}, "
+          f"distances within {1000 * fit.rms_m:.1f} mm rms of the static shot's")
+    fig = plots.plot_identification(images, candidates, views, fit)
+    plt.show()
 
 # %% [markdown]
 # **A pseudo marker rejected by geometry.** Several bright things are consistent in all three
 # cameras: they are real 3D objects (the leg bandages, the buckle, the rider's helmet). None of
-# them, with two of the markers, makes the static shot's triangle. The table gives, for each
-# consistent 3D point, its distances to the three markers; the static shot's side lengths are
-# printed first.
+# them, with the other markers, makes the static shot's shape. The table gives, for each
+# consistent 3D point, its distances to the markers (as many as the session has); the static shot's
+# distances between the markers are printed first.
 
 # %%
-static = analysis.static.static_points[fit.model_index]
-sides = [np.linalg.norm(static[i] - static[j]) for i, j in ((0, 1), (1, 2), (0, 2))]
-print("static shot: marker1-marker2 {:.0f} mm, marker2-marker3 {:.0f} mm, marker1-marker3 {:.0f} mm".format(
-    *(1000 * np.array(sides))))
-marker_points = views.points[fit.assignment]
-for point in range(len(views)):
-    d = 1000 * np.linalg.norm(marker_points - views.points[point], axis=1)
-    role = f"marker{list(fit.assignment).index(point) + 1}" if point in fit.assignment else "pseudo marker"
-    seen = "+".join(c for c, j in zip(views.cameras, views.index[point]) if j >= 0)
-    print(f"point {point:2d} ({seen:17s}): distances to the markers {d[0]:6.0f} {d[1]:6.0f} {d[2]:6.0f} mm -> {role}")
+if fit is None:
+    print(f"frame {k} was not labelled by the call above ({why}): no table")
+else:
+    static = analysis.static.static_points[fit.model_index]
+    print("static shot: " + ", ".join(f"marker{i + 1}-marker{j + 1} {1000 * np.linalg.norm(static[i] - static[j]):.0f} mm"
+                                      for i, j in marker_pairs(n_markers)))
+    marker_points = views.points[fit.assignment]
+    for point in range(len(views)):
+        d = 1000 * np.linalg.norm(marker_points - views.points[point], axis=1)
+        role = f"marker{list(fit.assignment).index(point) + 1}" if point in fit.assignment else "pseudo marker"
+        seen = "+".join(c for c, j in zip(views.cameras, views.index[point]) if j >= 0)
+        print(f"point {point:2d} ({seen:17s}): distances to the markers {' '.join(f'{v:6.0f}' for v in d)} mm -> {role}")
 
 # %% [markdown]
 # **Through the sequence.** Every 2D centre that was not used keeps its reason (the

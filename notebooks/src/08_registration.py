@@ -43,6 +43,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from horsemocap import plots, rigid
+from horsemocap.widgets.markers_guard import marker_numbers, marker_pairs, thesis_three_note
 
 # %% [markdown]
 # ## The data: the pipeline's own
@@ -90,19 +91,22 @@ else:
 # %% [markdown]
 # ## Which static marker is which?
 #
-# The static shot holds four markers (the three skin markers and the saddle marker) in no particular
-# order. Every assignment of three of them to the motion markers is scored by how well its three
-# distances agree with the motion markers' median distances. The skin markers sit in a row along the
+# The static shot holds the skin markers and the saddle marker (four points in the thesis: three skin
+# markers) in no particular order. Every assignment of as many of them as the ride has markers to the
+# motion markers is scored by how well its distances agree with the motion markers' median distances. The skin markers sit in a row along the
 # back, so two assignments can differ by only a few millimetres; among the near-ties the one needing
 # the smallest rotation wins (the horse heads along $+x$ in both the static shot and the ride).
 
 # %%
+n_markers = an.session.marker_count                   # session.json 'markers.count' (3 in the thesis)
 order, saddle_index = rigid.match_static_markers(static, markers)
-print("static index of motion markers 1, 2, 3:", order.tolist(), "; saddle marker:", saddle_index)
-print("the pipeline's choice:                 ", rb.static_index.tolist(), "; saddle marker:", rb.saddle_index)
+head = f"static index of motion markers {marker_numbers(n_markers)}:"
+print(head, order.tolist(), "; saddle marker:", saddle_index)
+choice = "the pipeline's choice:"
+print(f"{choice:{len(head)}s}", rb.static_index.tolist(), "; saddle marker:", rb.saddle_index)
 d_motion = np.nanmedian(rigid.pairwise_distances(markers), axis=0)
 d_model = rigid.pairwise_distances(static[order])
-for i, j in ((0, 1), (1, 2), (0, 2)):
+for i, j in marker_pairs(n_markers):
     print(f"|r{i + 1}{j + 1}|  motion (median) {1000 * d_motion[i, j]:.1f} mm   static {1000 * d_model[i, j]:.1f} mm")
 
 # %% [markdown]
@@ -113,7 +117,7 @@ model = static[order]
 reg = rigid.register(markers, model)
 d_before = rigid.pairwise_distances(markers)
 d_after = rigid.pairwise_distances(reg.registered)
-iu = np.triu_indices(3, 1)
+iu = np.triu_indices(n_markers, 1)
 print(f"distance deviation from the model, before: max {1000 * np.abs(d_before - d_model)[:, iu[0], iu[1]].max():.2f} mm")
 dev_after = 1000 * np.abs(d_after - d_model)[:, iu[0], iu[1]].max()
 print(f"distance deviation from the model, after:  below 1e-9 mm: {dev_after < 1e-9}")
@@ -221,7 +225,7 @@ plt.show()
 
 # %% [markdown]
 # Figure 8.7: the first analysed frame of the left camera, in colour and in black and white at the
-# detection's threshold (no area filter: every bright region shows), with the three markers the
+# detection's threshold (no area filter: every bright region shows), with the markers the
 # detection labelled in that frame.
 
 # %%
@@ -233,7 +237,7 @@ fig = plots.plot_filtered_images([first], det.detection[cam]["threshold"], None,
 plt.show()
 
 # %% [markdown]
-# Figures 8.11 and 8.21: the static shot, where the three skin markers **and** the saddle marker are
+# Figures 8.11 and 8.21: the static shot, where the skin markers **and** the saddle marker are
 # visible. The thesis typed the labels of the markers (8.11) and of the saddle marker (8.21) by
 # hand; the pipeline found them (`static_order`, `saddle_index` of the rigid-body step).
 
@@ -275,23 +279,27 @@ plt.show()
 # static shot, where the saddle marker is visible, its position in that frame, $\mathbf{r}_{BS}^{(B)}$
 # (eq. 6.47), is measured once; during the motion the registered markers give $\mathbf{R}_{MB}(t)$ and
 # $\mathbf{r}_{MB}(t)$, and eq. 6.48 places the saddle marker. Left: the static shot (Figure 6.1); right:
-# one frame of the motion (Figure 6.2), both in the motion frame's x-y plane.
+# one frame of the motion (Figure 6.2), both in the motion frame's x-y plane. The construction takes three
+# markers; on a session with more, it is drawn on markers 1, 2, 3 (the first three of the pipeline's model,
+# as the pipeline's own body frame), while the registration above used them all.
 
 # %%
 from horsemocap import pose, rigid
 
 order, s_idx = list(an.rigid_body.static_order), an.rigid_body.saddle_index
-static_markers, static_saddle = static[order], static[s_idx]
+static_markers, static_saddle = static[order][:3], static[s_idx]     # the thesis' three markers
+if thesis_three_note(n_markers):
+    print(thesis_three_note(n_markers))
 R_static, o_static = rigid.body_frame(static_markers)                # eq. 6.41-6.45
 r_BS = rigid.saddle_in_body(static_markers, static_saddle)           # eq. 6.47
 k_mid = len(t) // 2
-R_k, o_k = rigid.body_frames(an.rigid_body.registered[k_mid:k_mid + 1])
+R_k, o_k = rigid.body_frames(an.rigid_body.registered[k_mid:k_mid + 1, :3])
 saddle_k = R_k[0] @ r_BS + o_k[0]                                    # eq. 6.48
 print("r_BS^(B) (saddle marker in the body frame): " + ", ".join(f"{1000 * v:+.0f}" for v in r_BS) + " mm")
 fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
 plots.plot_body_frame(static_markers, static_saddle, R_static, o_static, ax=axes[0],
                       title="Figure 6.1: the static shot")
-plots.plot_body_frame(an.rigid_body.registered[k_mid], saddle_k, R_k[0], o_k[0], ax=axes[1],
+plots.plot_body_frame(an.rigid_body.registered[k_mid, :3], saddle_k, R_k[0], o_k[0], ax=axes[1],
                       title=f"Figure 6.2: during the motion, t = {t[k_mid]:.2f} s")
 fig.tight_layout()
 plt.show()

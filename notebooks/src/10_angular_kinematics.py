@@ -48,6 +48,7 @@ import numpy as np
 from IPython.display import display
 
 from horsemocap import fitting, plots, rigid, widgets
+from horsemocap.widgets.markers_guard import thesis_three_note, thesis_view
 
 # %% [markdown]
 # ## The data: the pipeline's own
@@ -59,6 +60,12 @@ from horsemocap import fitting, plots, rigid, widgets
 # the versions follows the thesis whatever `smoothing_method` the positions had), least squares, and the
 # fit of the registered orientation. The pipeline passes on the one its `angular_method` names. The truth
 # (virtual laboratory, in the pipeline's motion frame) only measures errors.
+#
+# The thesis' formulas take exactly three markers and its fits a periodic record. On a session with four or
+# more markers, or without a period, the pipeline does not run that chain (`motion_fit` is None): the cell
+# below says why, and the versions are then computed on markers 1, 2, 3 of the pipeline's smoothed pose
+# (`horsemocap.widgets.markers_guard.thesis_view`), with least squares over all markers and the pipeline's
+# pose trajectory in place of the orientation fit.
 
 # %%
 from horsemocap import accuracy, data, frames, pipeline
@@ -67,9 +74,15 @@ from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 an = results_for(until="rigid_body")
 rb = an.rigid_body.body
 prm = an.params
-t, pos, vel, acc = rb.t, rb.pos, rb.vel, rb.acc
-print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
-      f"angular method '{prm.rigid_body.fits.angular_method}'; versions used: omega {sum(prm.rigid_body.fits.omega_versions)}, alfa {sum(prm.rigid_body.fits.alpha_versions)}")
+view = thesis_view(rb)                                  # the pipeline's own arrays when its chain ran
+t, pos, vel, acc = rb.t, view.pos, view.vel, view.acc
+if view.chain:
+    print(f"{len(t)} frames; orders (x, y, z) per marker {rb.motion_fit.orders.tolist()}; "
+          f"angular method '{prm.rigid_body.fits.angular_method}'; versions used: omega {sum(prm.rigid_body.fits.omega_versions)}, alfa {sum(prm.rigid_body.fits.alpha_versions)}")
+else:
+    print(f"{len(t)} frames; {view.note}")
+    print(thesis_three_note(an.session.marker_count) or "the thesis' three markers: markers 1, 2, 3",
+          "- the versions below use them, from the pipeline's smoothed pose")
 
 truth = session_truth(ws.session_dir)                   # None for a recorded session (no truth/ folder)
 a, b = an.triangulate.segment
@@ -109,8 +122,8 @@ else:
 # Grey: the versions from eq. 6.3/6.4 frame by frame; blue: smoothed (`rloess`, span 0.1); dashed: truth.
 
 # %%
-w_raw, w_s = rb.omega_raw, rb.omega_versions
-print(f"compatibility residual on fitted data: median |.| {np.median(np.abs(rigid.compatibility_residual(pos, vel))):.2e} m^2/s")
+w_raw, w_s = view.omega_raw, view.omega_versions
+print(f"compatibility residual on {'fitted' if view.chain else 'smoothed-pose'} data: median |.| {np.median(np.abs(rigid.compatibility_residual(pos, vel))):.2e} m^2/s")
 for c in range(3):
     fig = plots.plot_angular_versions(t, w_raw, w_s, c, truth=omega_true)
     plt.show()
@@ -122,7 +135,9 @@ for c in range(3):
 # $\boldsymbol\alpha$, and its `angular_method`. The thesis' user unchecked `omega1_ver2` and `omega1_ver3` in
 # the canter example. The method selects what the saddle step uses: the average of the checked versions
 # (the thesis), the least-squares solution, or the fit of the registered orientation. The next cell runs the
-# pipeline's rigid-body step again with your choices.
+# pipeline's rigid-body step again with your choices. Where the pipeline does not run the thesis' chain
+# (the cell at the top said so), the versions and the method do not change what it passes on; the table then
+# shows the versions on markers 1, 2, 3 beside the pipeline's pose trajectory.
 
 # %% tags=["nbval-ignore-output"]
 ui_w = widgets.ui_versions("omega", value=prm.rigid_body.fits.omega_versions)
@@ -140,7 +155,8 @@ chosen = accuracy.with_params(an, omega_versions=[bool(v) for v in use_w],
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
     rb2 = pipeline.run_steps(an.session, chosen, an, ["rigid_body"]).rigid_body.body
-omega_avg = rigid.average_versions(rb2.omega_versions, use_w)
+view2 = thesis_view(rb2)
+omega_avg = rigid.average_versions(view2.omega_versions, use_w)
 # the error against the truth; on a session without truth, the estimate's own rms
 rmse = lambda e, tr: float(np.sqrt(np.nanmean((e - (0 if tr is None else tr)) ** 2)))
 per_axis = lambda e, tr: "  ".join(f"{v:6.3f}" for v in frames.rmse_per_axis(e, np.zeros_like(e) if tr is None else tr))
@@ -152,16 +168,16 @@ else:
           + "  ".join(f"{v:6.3f}" for v in np.sqrt(np.nanmean(omega_true ** 2, axis=0))) + f"; method used: {rb2.method}")
     print("omega RMSE (rad/s, all components; smoothed versions):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
-    print(f"  {lab}: {rmse(rb2.omega_versions[i], omega_true):8.3f}" + ("" if use_w[i] else "  (not used)"))
+    print(f"  {lab}: {rmse(view2.omega_versions[i], omega_true):8.3f}" + ("" if use_w[i] else "  (not used)"))
 print(f"  average of chosen versions:        {rmse(omega_avg, omega_true):8.3f}   x/y/z {per_axis(omega_avg, omega_true)}")
-print(f"  least squares (all markers):       {rmse(rb2.omega_lstsq, omega_true):8.3f}   x/y/z {per_axis(rb2.omega_lstsq, omega_true)}")
-print(f"  fit of the registered orientation: {rmse(rb2.omega_rotation, omega_true):8.3f}   x/y/z {per_axis(rb2.omega_rotation, omega_true)}")
+print(f"  least squares (all markers):       {rmse(view2.omega_lstsq, omega_true):8.3f}   x/y/z {per_axis(view2.omega_lstsq, omega_true)}")
+print(f"  {view2.fit_label + ':':35s}{rmse(view2.omega_fit, omega_true):8.3f}   x/y/z {per_axis(view2.omega_fit, omega_true)}")
 
 # %% [markdown]
 # Figures 8.17-8.18: all smoothed versions, the average of the chosen ones, least squares and truth.
 
 # %%
-fig = plots.plot_angular_average(t, rb2.omega_versions, use_w, omega_avg, truth=omega_true, lstsq=rb2.omega_lstsq)
+fig = plots.plot_angular_average(t, view2.omega_versions, use_w, omega_avg, truth=omega_true, lstsq=view2.omega_lstsq)
 plt.show()
 
 # %% [markdown]
@@ -186,22 +202,23 @@ plt.show()
 # %% [markdown]
 # ## Angular acceleration (Figures 8.19-8.20)
 #
-# The versions of eq. 6.38/6.39 use the chosen $\boldsymbol\omega$.
+# The versions of eq. 6.38/6.39 use the chosen $\boldsymbol\omega$ (without the thesis' chain: the
+# $\boldsymbol\omega$ the pipeline passes on).
 
 # %%
-alpha_avg = rigid.average_versions(rb2.alpha_versions, use_a)
+alpha_avg = rigid.average_versions(view2.alpha_versions, use_a)
 if truth is None:
     print(f"true alpha: {NO_TRUTH}; alpha rms (rad/s², all components; no truth to subtract):")
 else:
     print(f"rms of the true alpha: {np.sqrt(np.nanmean(alpha_true ** 2)):.2f} rad/s²")
     print("alpha RMSE (rad/s², all components):")
 for i, lab in enumerate(rigid.VERSION_LABELS):
-    print(f"  {lab.replace('omega', 'alfa')}: {rmse(rb2.alpha_versions[i], alpha_true):9.2f}" + ("" if use_a[i] else "  (not used)"))
+    print(f"  {lab.replace('omega', 'alfa')}: {rmse(view2.alpha_versions[i], alpha_true):9.2f}" + ("" if use_a[i] else "  (not used)"))
 print(f"  average of chosen versions:        {rmse(alpha_avg, alpha_true):9.2f}")
-print(f"  least squares:                     {rmse(rb2.alpha_lstsq, alpha_true):9.2f}")
-print(f"  fit of the registered orientation: {rmse(rb2.alpha_rotation, alpha_true):9.2f}")
-fig = plots.plot_angular_average(t, rb2.alpha_versions, use_a, alpha_avg, name="alfa", unit="rad/s²",
-                                 truth=alpha_true, lstsq=rb2.alpha_lstsq)
+print(f"  least squares:                     {rmse(view2.alpha_lstsq, alpha_true):9.2f}")
+print(f"  {view2.fit_label + ':':35s}{rmse(view2.alpha_fit, alpha_true):9.2f}")
+fig = plots.plot_angular_average(t, view2.alpha_versions, use_a, alpha_avg, name="alfa", unit="rad/s²",
+                                 truth=alpha_true, lstsq=view2.alpha_lstsq)
 plt.show()
 
 # %% [markdown]

@@ -43,6 +43,7 @@ import numpy as np
 from IPython.display import display
 
 from horsemocap import accuracy, data, frames, pipeline, plots, rigid, widgets
+from horsemocap.widgets.markers_guard import thesis_three_note, thesis_view
 from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 # %% [markdown]
@@ -53,14 +54,20 @@ from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 # frame) was matched to the motion markers in notebook 08; the registered markers (from positions smoothed
 # with the pipeline's default `loess`), fits and angular estimates come from notebooks 08-10. The truth (virtual laboratory: the saddle marker's position,
 # velocity and acceleration, in the pipeline's motion frame) only measures errors.
+#
+# The body frame and eq. 6.54/6.55 take three markers. On a session with more, they are shown on markers
+# 1, 2, 3 (the first three of the pipeline's model, the ones its own body frame uses); where the thesis'
+# fits are absent (more than three markers, or no period), the cells say so and use the pipeline's
+# smoothed pose instead (`horsemocap.widgets.markers_guard.thesis_view`).
 
 # %%
 an = results_for(until="rigid_body")
 rb = an.rigid_body.body
 prm = an.params
 t, static = rb.t, an.motion_frame.static
-print(f"{len(t)} frames; static shot {static.shape}: markers 1-3 are static points {rb.static_index.tolist()}, "
-      f"the saddle marker is point {rb.saddle_index}")
+n_markers = an.session.marker_count                  # session.json 'markers.count' (3 in the thesis)
+print(f"{len(t)} frames; static shot {static.shape}: markers 1-{n_markers} "
+      f"are static points {rb.static_index.tolist()}, the saddle marker is point {rb.saddle_index}")
 print(f"the pipeline's choices: smoothing '{prm.smooth.method}', omega/alfa by '{prm.rigid_body.fits.angular_method}', "
       f"saddle v/a by '{prm.rigid_body.fits.saddle_method}'")
 
@@ -77,8 +84,11 @@ else:
 # ## The saddle marker in the body frame (static shot)
 
 # %%
-R_MB, origin = rigid.body_frame(rb.model)
-r_BS = rigid.saddle_in_body(rb.model, rb.static_saddle)
+model3 = rb.model[:3]                                # the thesis' three markers (all of them on a 3-marker session)
+if thesis_three_note(n_markers):
+    print(thesis_three_note(n_markers))
+R_MB, origin = rigid.body_frame(model3)
+r_BS = rigid.saddle_in_body(model3, rb.static_saddle)
 print("R_MB (columns u1 u2 u3):")
 print(np.array2string(R_MB, precision=3, suppress_small=True))
 print("r_BS^(B) (m):", np.array2string(r_BS, precision=3))
@@ -114,18 +124,24 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
     run = pipeline.run_steps(an.session, chosen, an, ["rigid_body"])
 res = run.rigid_body.body
+view = thesis_view(res)                              # the pipeline's own arrays when its chain ran
+if not view.chain:
+    print(view.note)
 if truth is None:
     print(f"{NO_TRUTH}; the saddle passed on ({res.saddle_method}): vertical acceleration rms "
           f"{np.sqrt(np.nanmean(run.rigid_body.saddle_acceleration[:, 1] ** 2)):.2f} m/s²")
 else:
     st = accuracy.stage_errors(run, truth)
     print("saddle position (eq. 6.48) RMSE x/y/z (mm): "
-          + "  ".join(f"{1000 * e:.1f}" for e in frames.rmse_per_axis(res.saddle.position, S_true["pos"])))
+          + "  ".join(f"{1000 * e:.1f}" for e in frames.rmse_per_axis(view.saddle.position, S_true["pos"])))
     print(f"saddle path passed on ({res.saddle_method}) RMSE x/y/z (mm): "
           + "  ".join(f"{1000 * e:.1f}" for e in st["saddle_position"]))
 print("per-base position versions agree (to 1e-9 m):",
-      bool(np.abs(res.saddle.position_versions - res.saddle.position).max() < 1e-9))
-print(f"fit of the saddle path: orders {res.saddle_fit.orders.tolist()}")
+      bool(np.abs(view.saddle.position_versions - view.saddle.position).max() < 1e-9))
+if res.saddle_fit is not None:
+    print(f"fit of the saddle path: orders {res.saddle_fit.orders.tolist()}")
+else:
+    print("fit of the saddle path: none (no thesis fits); the saddle passed on is the pipeline's smoothed pose's")
 if truth is not None:
     print("saddle acceleration RMSE x/y/z (m/s²): " + "  ".join(f"{e:.2f}" for e in st["saddle_acceleration"])
           + f"; vertical: {st['saddle_acc_y_rmse_pct_of_rms']:.1f} % of its rms")
@@ -143,12 +159,13 @@ plt.show()
 # 10 could not measure), and the saddle sits 0.45 m from that row.
 #
 # Figures 8.23-8.24: velocity and acceleration from each marker (eq. 6.54, 6.55), their mean, the fit of the
-# saddle path, and the truth.
+# saddle path, and the truth. Without the thesis' fits: eq. 6.54/6.55 on markers 1, 2, 3 of the smoothed pose,
+# beside the pipeline's own saddle (no fit of the saddle path).
 
 # %%
-fig = plots.plot_saddle_kinematics(t, res.saddle.velocity_versions, res.saddle.acceleration_versions,
-                                   res.saddle.velocity, res.saddle.acceleration, S_true["vel"], S_true["acc"],
-                                   extra={f"fit of the saddle path ({res.saddle_method})": (res.saddle_velocity_direct, res.saddle_acceleration_direct)})
+fig = plots.plot_saddle_kinematics(t, view.saddle.velocity_versions, view.saddle.acceleration_versions,
+                                   view.saddle.velocity, view.saddle.acceleration, S_true["vel"], S_true["acc"],
+                                   extra={view.saddle_fit_label: (view.saddle_fit_velocity, view.saddle_fit_acceleration)})
 plt.show()
 
 # %% [markdown]

@@ -39,7 +39,8 @@ analysis = results_for(ws.session_dir)
 truth = session_truth(ws.session_dir)      # None for a recorded session (no truth/ folder)
 if truth is None:
     print(NO_TRUTH, "(a recorded session): this notebook measures errors against a truth, so most of it is "
-          "left out; the simulated rigs of section 5 still run")
+          "left out; the simulated rigs of section 6 still run: they ride the virtual laboratory's Horse 2 at "
+          "canter (its three markers) with this session's pipeline parameters")
 
 # %% [markdown]
 # ## 1. Synchronisation
@@ -181,7 +182,9 @@ print(f"depth error per pixel with the left-right pair: {dz:.3f} m")
 # The same virtual ride (Horse 2, canter) seen through other rigs, with the same detection noise
 # ($\sigma$ = 0.25 px, a good real detector) and the same pipeline. The truth and the noisy detections
 # are generated at the 2D level (no images are rendered), to isolate the geometry: pixel size, frame rate
-# and baseline.
+# and baseline. The simulated ride is always the virtual Horse 2 at canter with its three skin markers
+# (`accuracy.simulate_rig`): a session of another horse, with four markers or without truth, lends it only
+# its pipeline parameters, so the numbers below describe the rigs, not that session's ride.
 
 # %%
 rig = thesis_rig()
@@ -391,23 +394,33 @@ print(f"the thesis' weighting alone, on the true motion: median {w['acc_y_Wb_rms
 
 # %%
 from horsemocap import thesis_answers
+from horsemocap.widgets.markers_guard import table_8_7_ride
 from horsemocap.workspace import chain_choices, session_params
 
 THESIS_DETECTION = {"threshold": 115, "area_min": 15, "area_max": 240, "window": [84, 40],
                     "distance_tolerance": 0.09}                      # section 8.4.1 (left camera)
 THESIS_ORDERS = [[2, 1]] * 3                                         # fourier2 for y, fourier1 for z
 thesis_choices = chain_choices(ws.choices, "thesis")                 # the thesis' chain with this session's choices
-th_auto = results_for(ws.session_dir, params=session_params(ws.session_dir, thesis_choices))
-det = th_auto.detect.detection[th_auto.session.reference_camera]
-area_text, window_text = f"{det['area_min']:.0f}-{det['area_max']:.0f}", f"{det['window'][0]} x {det['window'][1]}"
-orders = th_auto.rigid_body.body.motion_fit.orders
-print(f"{'input':28s} {'section 8.4.1 / 8.4.2':>22s} {'this session (thesis chain)':>28s}")
-print(f"{'threshold':28s} {115:>22d} {det['threshold']:>28d}")
-print(f"{'area range (px)':28s} {'15-240':>22s} {area_text:>28s}")
-print(f"{'window (px)':28s} {'84 x 40':>22s} {window_text:>28s}")
-print(f"{'distance tolerance':28s} {0.09:>22.2f} {det['distance_tolerance']:>28.3f}")
-yz = sorted({(int(y), int(z)) for _, y, z in orders})                # per marker: x degree, y order, z order
-print(f"{'Fourier orders y, z':28s} {'fourier2, fourier1':>22s} {'; '.join(f'fourier{y}, fourier{z}' for y, z in yz):>28s}")
+try:
+    th_auto = results_for(ws.session_dir, params=session_params(ws.session_dir, thesis_choices))
+except AnalysisError as exc:        # e.g. four markers: the thesis' per-camera chain follows three
+    th_auto = None
+    print(f"the thesis' chain on this session: stopped: {exc}")
+if th_auto is not None:
+    det = th_auto.detect.detection[th_auto.session.reference_camera]
+    area_text, window_text = f"{det['area_min']:.0f}-{det['area_max']:.0f}", f"{det['window'][0]} x {det['window'][1]}"
+    orders = th_auto.rigid_body.body.motion_fit.orders if th_auto.rigid_body.body.motion_fit is not None else None
+    print(f"{'input':28s} {'section 8.4.1 / 8.4.2':>22s} {'this session (thesis chain)':>28s}")
+    print(f"{'threshold':28s} {115:>22d} {det['threshold']:>28d}")
+    print(f"{'area range (px)':28s} {'15-240':>22s} {area_text:>28s}")
+    print(f"{'window (px)':28s} {'84 x 40':>22s} {window_text:>28s}")
+    print(f"{'distance tolerance':28s} {0.09:>22.2f} {det['distance_tolerance']:>28.3f}")
+    if orders is None:
+        print(f"{'Fourier orders y, z':28s} {'fourier2, fourier1':>22s} {'none: ' + th_auto.rigid_body.body.chain_error}")
+    else:
+        yz = sorted({(int(y), int(z)) for _, y, z in orders})            # per marker: x degree, y order, z order
+        print(f"{'Fourier orders y, z':28s} {'fourier2, fourier1':>22s} "
+              f"{'; '.join(f'fourier{y}, fourier{z}' for y, z in yz):>28s}")
 
 # %% [markdown]
 # Now the chain under each answer a user is likely to give (all versions, one version alone, all but
@@ -423,7 +436,11 @@ variants = {"session's inputs": {}, "+ thesis' orders": {"fourier_orders": THESI
             "+ 8.4.1 detection": {"detection": {"all": THESIS_DETECTION}},
             "+ both": {"fourier_orders": THESIS_ORDERS, "detection": {"all": THESIS_DETECTION}}}
 best = {}
-print(f"{'thesis chain':36s} {'all yes: Wb rms':>16s} {'finite answers':>15s}  {'nearest Table 8.7':>18s}  Wb / Wk rms")
+if th_auto is None:
+    print("the thesis' chain stopped on this session (above): no answers to study")
+    variants = {}
+else:
+    print(f"{'thesis chain':36s} {'all yes: Wb rms':>16s} {'finite answers':>15s}  {'nearest Table 8.7':>18s}  Wb / Wk rms")
 for label, change in variants.items():
     params = session_params(ws.session_dir, thesis_choices, overrides=change)
     try:
@@ -441,15 +458,26 @@ for label, change in variants.items():
 
 # %%
 keys = ("acc_y_Wb_rms", "acc_y_Wk_rms", "VDV_y_Wb", "acc_y_max")
-print(f"{'indicator':14s} {'Table 8.7':>10s} {'default chain':>14s}" + "".join(f"{k:>18s}" for k in best))
 default_ind = analysis.comfort.indicators
-print(f"{'(answer)':14s} {'':>10s} {'':>14s}" + "".join(
-    f"{'' if r is None else thesis_answers.mask_text(r['mask']):>18s}" for r in best.values()))
-for k in keys:
-    print(f"{k:14s} {T[k]:10.2f} {default_ind[k]:14.2f}" + "".join(
-        f"{'-' if r is None else format(r[k], '.2f'):>18s}" for r in best.values()))
+comparable, ride_text = table_8_7_ride(analysis.session.metadata)
+if comparable:
+    print(f"{'indicator':14s} {'Table 8.7':>10s} {'default chain':>14s}" + "".join(f"{k:>18s}" for k in best))
+    print(f"{'(answer)':14s} {'':>10s} {'':>14s}" + "".join(
+        f"{'' if r is None else thesis_answers.mask_text(r['mask']):>18s}" for r in best.values()))
+    for k in keys:
+        print(f"{k:14s} {T[k]:10.2f} {default_ind[k]:14.2f}" + "".join(
+            f"{'-' if r is None else format(r[k], '.2f'):>18s}" for r in best.values()))
+else:
+    print(ride_text)
+    print("Table 8.7 (thesis, Horse 2 at canter): " + ", ".join(f"{k} {T[k]:.2f}" for k in keys))
+    print(f"this session ({analysis.session.name}), default chain: " + ", ".join(f"{k} {default_ind[k]:.2f}" for k in keys)
+          + "".join(f"; thesis chain ({label}, {thesis_answers.mask_text(r['mask'])}): "
+                    + ", ".join(f"{k} {r[k]:.2f}" for k in keys) for label, r in best.items() if r is not None))
 
 # %% [markdown]
+# (Table 8.7 is the thesis' Horse 2 at canter; on a session of another horse or gait the table is printed on
+# its own, not beside that session's figures, which belong to another ride.)
+#
 # What this shows, on the bundled canter: with the automatic inputs only 3 of the 13 answers stay
 # finite (all yes gives a $W_b$ rms of 30 m/s²), each keeping a single version; the thesis' Fourier
 # orders alone do not help (all yes: tens of thousands of m/s²). With section 8.4.1's detection inputs
