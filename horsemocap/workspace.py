@@ -651,6 +651,14 @@ def downstream(session_dir=None, chain: str | None = None) -> dict:
             "problems": [f"{c.level}: {c.message}" for c in problems]}
 
 
+def _session_name(session_dir: Path) -> str:
+    """The session's own name (session.json ``name``), or its folder's when session.json cannot be read."""
+    try:
+        return load_session(session_dir, open_sources=False).name
+    except SessionError:
+        return session_dir.name
+
+
 def downstream_text(session_dir=None, chains=("default", "thesis"), problems: bool = True) -> str:
     """Both chains' :func:`downstream` numbers under the current choices, as a small table.
 
@@ -660,7 +668,7 @@ def downstream_text(session_dir=None, chains=("default", "thesis"), problems: bo
     """
     session_dir = Path(session_dir or current_session()).resolve()
     rows = [downstream(session_dir, c) for c in chains]
-    lines = [f"{'chain (session ' + session_dir.name + ')':40s} {'saddle A_y rms':>15s} {'Wb rms':>8s} "
+    lines = [f"{'chain (session ' + _session_name(session_dir) + ')':40s} {'saddle A_y rms':>15s} {'Wb rms':>8s} "
              f"{'Wk rms':>8s}  verdict"]
     for r in rows:
         label = CHAIN_NAMES[r["chain"]] + (" (followed)" if r["followed"] else "")
