@@ -49,6 +49,9 @@ path is measured whatever the factor), ``results/markers_covers_oracle.txt``.
 Each line names the pose smoothing's route: white noise, or the left-out choice without or with the stride's
 harmonics (``pose.LEFT_OUT_HARMONICS``, the default: both routes scored, the lower kept; partial splines at
 white-noise GCV with harmonics' parameters times ``10^s``) and both routes' left-out scores.
+``--genlocked`` / ``--no-marker-noise``: each named session's ride with its cameras locked together / without
+its marker noise (the rider's own sessions ``ride4_<gait>``: what the cameras' timing and the markers' noise each
+cost; ``results/rides.txt``).
 ``--no-harmonic-left-out``: the left-out choice without the harmonic route; ``--harmonic-left-out --always``: the
 harmonic route whatever its score (``results/markers_covers_harmonic_left_out.txt``).
 The two routes are blended (``pose.LEFT_OUT_STACK = "pose"``, the default: the harmonic route's fit times ``w``
@@ -526,6 +529,17 @@ def run_oracle(name: str, keep_left_out: bool = False) -> str:
     return "\n".join(lines)
 
 
+def _variant(name: str, genlocked: bool, quiet: bool) -> str:
+    """A cover session's ride with its cameras locked together (``genlocked``) and/or without its marker noise
+    (``quiet``), registered in ``COVER_SESSIONS`` under a new name (rendered into the cache like the others)."""
+    sc = COVER_SESSIONS[name]
+    tag = "_genlocked" * genlocked + "_no_marker_noise" * quiet
+    COVER_SESSIONS[name + tag] = dataclasses.replace(
+        sc, name=name + tag, free_running=None if genlocked else sc.free_running,
+        marker_noise=None if quiet else sc.marker_noise)
+    return name + tag
+
+
 def _route_text(a) -> str:
     """The pose smoothing's route: the left-out choice with or without the stride's harmonics, its left-out score
     (m/s^2 rms) and ``s``, or white noise (the stride fallback or no correlated noise)."""
@@ -604,6 +618,8 @@ if __name__ == "__main__":
         for n in names:
             print(run_criteria(n, max(draws, 1), chosen), flush=True)
         sys.exit(0)
+    if "--genlocked" in args or "--no-marker-noise" in args:
+        names = [_variant(n, genlocked="--genlocked" in args, quiet="--no-marker-noise" in args) for n in names]
     for n in names or list(COVER_SESSIONS):
         if draws:
             if n in COVER_SESSIONS and len(COVER_SESSIONS[n].horse().marker_body) > 3:
