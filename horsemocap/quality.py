@@ -640,7 +640,8 @@ FRACTION_CORRECTION_FRAMES = 0.5
 
 def check_subframe_sync_by_markers(sync_check: dict, flash_fraction: dict, final_fraction: dict,
                                    sync_residual_px: dict, ambiguous=None,
-                                   input_="sync offsets (the flash, refined by the markers)") -> Check:
+                                   input_="sync offsets (the flash, refined by the markers)",
+                                   flash_whole_frames: bool = False) -> Check:
     """Did the markers confirm every free-running camera's flash offset, fractions of a frame included?
 
     Free-running cameras expose a fraction of a frame after one another, so
@@ -676,9 +677,16 @@ def check_subframe_sync_by_markers(sync_check: dict, flash_fraction: dict, final
         Camera -> median sync residual (px) at the refined offsets.
     ambiguous : dict, optional
         Camera -> the frame of a second flash candidate nearly as likely.
+    flash_whole_frames : bool
+        The flash lit every camera's first lit frame fully, so it gave whole frames only and the markers
+        found every fraction: a camera then moved by less than a whole frame from the flash's is no correction
+        (the flash only placed it within a frame).
 
     Examples
     --------
+    >>> check_subframe_sync_by_markers({}, {"left": 0.0, "middle": 37.0}, {"left": 0.0, "middle": 36.44},
+    ...                                {"left": 0.1, "middle": 0.04}, flash_whole_frames=True).level
+    'ok'
     >>> c = check_subframe_sync_by_markers({}, {"left": 0.0, "middle": 26.25}, {"left": 0.0, "middle": 26.06},
     ...                                    {"left": 0.1, "middle": 0.04})
     >>> c.level, round(c.figure, 2)
@@ -687,13 +695,14 @@ def check_subframe_sync_by_markers(sync_check: dict, flash_fraction: dict, final
     ...                                {"left": 0.1, "middle": 0.04}).level
     'warning'
     """
-    threshold = (f"every camera within {FRACTION_CORRECTION_FRAMES:g} frame of the flash's offset and the others' "
+    limit = 1.0 if flash_whole_frames else FRACTION_CORRECTION_FRAMES
+    threshold = (f"every camera within {limit:g} frame of the flash's offset and the others' "
                  f"markers on it (sync residual < {MIN_CURRENT_PX:g} px): ok; a camera moved further or not "
                  "confirmed: warning; whole-frame rounds unsettled and a camera not confirmed: unreliable")
     moved = {c: abs(float(final_fraction[c]) - float(flash_fraction[c])) for c in final_fraction if c in flash_fraction}
     resid = {c: float(v) for c, v in sync_residual_px.items()}
     unconfirmed = sorted(c for c, v in resid.items() if not (math.isfinite(v) and v < MIN_CURRENT_PX))
-    corrected = sorted(c for c, v in moved.items() if v >= FRACTION_CORRECTION_FRAMES)
+    corrected = sorted(c for c, v in moved.items() if v >= limit)
     settled = all(v.settled for v in sync_check.values())
     level = "unreliable" if unconfirmed and not settled else "warning" if corrected or unconfirmed else "ok"
     parts = []
@@ -708,12 +717,14 @@ def check_subframe_sync_by_markers(sync_check: dict, flash_fraction: dict, final
             + (f"; flash frame {amb[c]} nearly as likely as the one taken" if c in amb else "") + ")"
             for c in unconfirmed) + ("; the whole-frame rounds did not settle: the offsets used were not confirmed; "
                                      "give the offsets (--offsets, fractions allowed)" if not settled else ""))
-    msg = "; ".join(parts) if parts else (
+    whole = ("the flash lit every camera's first lit frame fully, so it gave whole frames only and the markers "
+             "found the fractions; " if flash_whole_frames else "")
+    msg = whole + ("; ".join(parts) if parts else (
         "the markers confirm every camera's offset to a fraction of a frame (largest move from the flash's "
         f"{max(moved.values(), default=0.0):.3f} frame; sync residuals "
-        + ", ".join(f"{c} {v:.3g} px" for c, v in resid.items()) + ")")
+        + ", ".join(f"{c} {v:.3g} px" for c, v in resid.items()) + ")"))
     figure = max(moved.values(), default=0.0)
-    return Check("sync_by_markers", float(figure), "frames", level, (0, FRACTION_CORRECTION_FRAMES), (None, None),
+    return Check("sync_by_markers", float(figure), "frames", level, (0, limit), (None, None),
                  threshold, input_, msg)
 
 
@@ -1140,7 +1151,10 @@ def post_checks(analysis) -> list[Check]:
                                                      a_.detect.sync.offsets_with_fraction(ref),
                                                      {c: float(np.nanmedian(r)) if np.isfinite(r).any()
                                                       else float("nan") for c, r in sync_residual.items()},
-                                                     ambiguous=ambiguous))
+                                                     ambiguous=ambiguous,
+                                                     flash_whole_frames=a_.sync.offsets_from == "flashlight"
+                                                     and not a_.sync.subframe_method
+                                                     and a_.detect.sync.subframe_method == "markers"))
     elif a_.detect is not None and (a_.detect.sync_check or ambiguous):
         checks.append(check_sync_by_markers(a_.detect.sync_check, ambiguous=ambiguous))
     if sync_residual is not None:

@@ -80,7 +80,7 @@ print(f"{len(t)} frames ({a}..{b - 1} of the synchronised record) at {an.session
       f"markers {markers.shape}; static shot {static.shape}")
 moved = 1000 * np.linalg.norm(an.smooth.smoothed - an.smooth.raw, axis=-1)
 print(f"smoothing: {an.params.smooth.method}, span {an.params.smooth.span}; it moved the triangulated "
-      f"markers by median {np.median(moved):.2f} mm, max {moved.max():.2f} mm")
+      f"markers by median {np.nanmedian(moved):.2f} mm, max {np.nanmax(moved):.2f} mm")   # where seen
 
 truth = session_truth(ws.session_dir)            # None for a recorded session (no truth/ folder)
 if truth is None:
@@ -118,10 +118,12 @@ reg = rigid.register(markers, model)
 d_before = rigid.pairwise_distances(markers)
 d_after = rigid.pairwise_distances(reg.registered)
 iu = np.triu_indices(n_markers, 1)
-print(f"distance deviation from the model, before: max {1000 * np.abs(d_before - d_model)[:, iu[0], iu[1]].max():.2f} mm")
-dev_after = 1000 * np.abs(d_after - d_model)[:, iu[0], iu[1]].max()
+dev_before = 1000 * np.nanmax(np.abs(d_before - d_model)[:, iu[0], iu[1]])
+print(f"distance deviation from the model, before: max {dev_before:.2f} mm")
+dev_after = 1000 * np.nanmax(np.abs(d_after - d_model)[:, iu[0], iu[1]])     # over the frames registered
 print(f"distance deviation from the model, after:  below 1e-9 mm: {dev_after < 1e-9}")
-print(f"residual |e_m| (Figure 5.3): median {1000 * np.median(reg.residual):.2f} mm, max {1000 * reg.residual.max():.2f} mm")
+print(f"residual |e_m| (Figure 5.3): median {1000 * np.nanmedian(reg.residual):.2f} mm, "
+      f"max {1000 * np.nanmax(reg.residual):.2f} mm")
 print("frames not registered:", int(np.sum(reg.reason != "")))
 print(f"same registration as the pipeline's (to 1e-12 m): {np.nanmax(np.abs(reg.registered - rb.pos)) < 1e-12}")
 
