@@ -532,6 +532,8 @@ def run_oracle(name: str, keep_left_out: bool = False) -> str:
 def _variant(name: str, genlocked: bool, quiet: bool) -> str:
     """A cover session's ride with its cameras locked together (``genlocked``) and/or without its marker noise
     (``quiet``), registered in ``COVER_SESSIONS`` under a new name (rendered into the cache like the others)."""
+    if name not in COVER_SESSIONS:
+        raise SystemExit(f"--genlocked / --no-marker-noise: {name!r} is not a cover session (covers.COVER_SESSIONS)")
     sc = COVER_SESSIONS[name]
     tag = "_genlocked" * genlocked + "_no_marker_noise" * quiet
     COVER_SESSIONS[name + tag] = dataclasses.replace(
@@ -603,6 +605,9 @@ if __name__ == "__main__":
         pose.LEFT_OUT_STACK = float(args[args.index("--stack-weight") + 1])
     if "--no-stack" in args:
         pose.LEFT_OUT_STACK = False
+    if "--genlocked" in args or "--no-marker-noise" in args:
+        names = [_variant(n, genlocked="--genlocked" in args, quiet="--no-marker-noise" in args)
+                 for n in names or list(COVER_SESSIONS)]
     if "--trace" in args:
         for n in names:
             print(run_trace(n), flush=True)
@@ -618,8 +623,6 @@ if __name__ == "__main__":
         for n in names:
             print(run_criteria(n, max(draws, 1), chosen), flush=True)
         sys.exit(0)
-    if "--genlocked" in args or "--no-marker-noise" in args:
-        names = [_variant(n, genlocked="--genlocked" in args, quiet="--no-marker-noise" in args) for n in names]
     for n in names or list(COVER_SESSIONS):
         if draws:
             if n in COVER_SESSIONS and len(COVER_SESSIONS[n].horse().marker_body) > 3:

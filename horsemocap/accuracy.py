@@ -14,6 +14,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .frames import angle_deg
+from .params import AnalysisParams
 
 AXES = ("x", "y", "z")
 
@@ -499,6 +500,7 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
         return triangulate(rig, obs, mode=analysis.params.triangulate.mode).points[0]
 
     plumb = still(truth.plumb_pos)
+    params = _marker_choices_reset(analysis, m)
     metadata = {k: v for k, v in analysis.session.metadata.items() if k != "camera_timing"}
     session = dc_replace(analysis.session, fps=float(fps), cameras=tuple(rig.names), marker_count=m,
                          metadata=metadata)
@@ -510,11 +512,38 @@ def simulate_rig(analysis, rig, fps: float, sigma_px: float, *, horse: str = "Ho
         "rig": RigResult(rig=rig, rig_from="simulated"),
         "detect": DetectResult(marker_px=px, reason=hidden, segment=segment, detection={}, all_seen=seen,
                                method="simulated", method_note="", sync=sync,
-                               max_gap_frames=max_gap_frames(session, analysis.params.detect)),
+                               max_gap_frames=max_gap_frames(session, params.detect)),
         "plumb": PlumbResult(plumb_points=plumb, plumb_px={}, gravity=gravity_from_plumb(plumb[0], plumb[1])),
         "static": StaticResult(static_points=still(truth.static_pos), static_px=None),
     }
-    return run_steps(session, analysis.params, base, LATER_STEPS), truth
+    return run_steps(session, params, base, LATER_STEPS), truth
+
+
+#: The parameters that name markers by index or count them: a simulated ride with another number of markers than
+#: the session takes their defaults (``section.field``).
+MARKER_CHOICES = ("motion_frame.x_marker", "rigid_body.fits.fourier_orders", "rigid_body.saddle_marker")
+
+
+def _marker_choices_reset(analysis, n_markers: int):
+    """``analysis.params``, with :data:`MARKER_CHOICES` at their defaults when the session has another marker count.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from horsemocap.params import AnalysisParams
+    >>> four = SimpleNamespace(session=SimpleNamespace(marker_count=4),
+    ...                        params=AnalysisParams().updated({"motion_frame.x_marker": 3}))
+    >>> _marker_choices_reset(four, 3).motion_frame.x_marker, _marker_choices_reset(four, 4).motion_frame.x_marker
+    (0, 3)
+    """
+    if analysis.session.marker_count == n_markers:
+        return analysis.params
+    def default(key):
+        value = AnalysisParams()
+        for name in key.split("."):
+            value = getattr(value, name)
+        return value
+    return analysis.params.updated({key: default(key) for key in MARKER_CHOICES})
 
 
 def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,

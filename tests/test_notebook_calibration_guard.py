@@ -34,3 +34,13 @@ def test_session_calibration_rig_only(tmp_path):
     assert c["note"] == ("no checkerboard views in this session: the pipeline reads the rig from "
                          "calibration/rig.toml instead of calibrating it")
     assert c["short"] == "no checkerboard views; the rig was read from rig.toml"
+
+
+def test_the_closing_table_names_the_session_by_its_json_name(tmp_path):
+    """A user's folder called 'session' is named by session.json's name; an unreadable one by its folder."""
+    from horsemocap.workspace import _session_name
+
+    (tmp_path / "session").mkdir()
+    folder = _rig_only_session(tmp_path / "session")
+    assert _session_name(folder) == "horse2_canter"
+    assert _session_name(tmp_path) == tmp_path.name

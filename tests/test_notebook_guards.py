@@ -100,3 +100,13 @@ def test_simulate_rig_without_a_segment_names_what_is_missing(monkeypatch):
         accuracy.simulate_rig(analysis, thesis_rig(), 30.0, 0.25, seed=2)
     rows = accuracy.rig_study(analysis, {"blind": (thesis_rig(), 30.0)}, sigma_px=0.25)
     assert "sees all 3 skin markers" in rows[0]["failed"]
+
+
+def test_simulate_rig_takes_the_defaults_of_choices_that_name_the_sessions_markers():
+    """A four-marker session whose motion frame follows marker 4: the three-marker simulated ride follows the
+    default marker (the thesis' motion frame, eq. 5.6/5.7), not a silent fallback to the whole record."""
+    params = AnalysisParams().updated({"motion_frame.x_marker": 3})
+    analysis = SimpleNamespace(session=_session(4), params=params)
+    sim, _ = accuracy.simulate_rig(analysis, thesis_rig(), 30.0, 0.25, seed=2)
+    assert sim.params.motion_frame.x_marker == 0
+    assert sim.motion_frame.frame.marker == 0

@@ -357,3 +357,32 @@ def test_genlocked_cameras_behind_a_fully_lit_flash_stay_genlocked(rig):
     assert sorted(sync.genlocked_check) == sorted(names[1:])
     assert all(abs(p) < 0.01 for p, _ in sync.genlocked_check.values())
     assert "genlocked" in said[0]
+
+
+def test_hidden_phases_are_found_after_the_markers_corrected_a_flash_by_a_frame(rig):
+    """The markers moved one camera's flash offset by a whole frame (offsets_from says so, flash_offsets kept): the
+    phases are still searched from zero, found, and the flash's own offsets kept beside them."""
+    from horsemocap.steps.detect import _phases_behind_a_full_flash
+
+    names, true_phase = rig.names, {rig.names[1]: 0.3, rig.names[2]: 0.55}
+    corrected = _full_flash_sync(names).replace(offsets_from="flashlight, corrected by the markers",
+                                                flash_offsets={names[0]: 0, names[1]: 1, names[2]: 0})
+    sync = _phases_behind_a_full_flash(_session_of(names), corrected, rig,
+                                       _free_running_views(rig, 90, true_phase), lambda *x: None)
+    for c, p in true_phase.items():
+        assert sync.phase_frames[c] == pytest.approx(p, abs=0.01)
+    assert sync.flash_offsets == corrected.flash_offsets and sync.offsets == corrected.offsets
+
+
+def test_a_phase_below_a_twentieth_of_a_frame_keeps_the_cameras_genlocked(rig):
+    """Cameras 0.02 frame apart, noise-free (so the phase is measured far beyond 4 of its uncertainties): below
+    HIDDEN_PHASE_MIN_FRAMES they stay genlocked, the phases measured recorded."""
+    from horsemocap.steps.detect import HIDDEN_PHASE_MIN_FRAMES, _phases_behind_a_full_flash
+
+    names = rig.names
+    sync = _phases_behind_a_full_flash(_session_of(names), _full_flash_sync(names), rig,
+                                       _free_running_views(rig, 90, {names[1]: 0.02, names[2]: -0.02}),
+                                       lambda *x: None)
+    assert not sync.free_running
+    assert all(abs(p) < HIDDEN_PHASE_MIN_FRAMES for p, _ in sync.genlocked_check.values())
+    assert sync.genlocked_check[names[1]][0] == pytest.approx(0.02, abs=0.01)

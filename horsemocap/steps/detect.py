@@ -33,16 +33,21 @@ from .sync import SyncResult
 SYNC_CHECK_ROUNDS = 3
 
 MIN_SEGMENT_FRAMES = 8
+"""The fewest consecutive frames an analysis needs."""
 
 #: Free-running cameras: the identification accepts views this share of the image width apart on top of the
 #: genlocked tolerance (a horse crossing the view in 50 frames moves 2 % of the width a frame; the views of
 #: cameras half a frame apart then disagree by 1 % of the width).
 FREE_RUNNING_TOLERANCE_OF_WIDTH = 0.01
 #: A flash lit fully in every camera's first lit frame says nothing of a fraction of a frame: cameras that run
-#: free look genlocked to it. The markers then measure the phases; a camera's phase is taken when it is this
-#: many of its standard errors from zero (:func:`_phases_behind_a_full_flash`), else the cameras stay genlocked.
+#: free look genlocked to it. The markers then measure the phases; a camera's phase is taken when it is more than
+#: this many times its uncertainty (:class:`horsemocap.subframe.PhaseFit`: the chunks' spread with the timing
+#: floor) and more than :data:`HIDDEN_PHASE_MIN_FRAMES` from zero (:func:`_phases_behind_a_full_flash`), else the
+#: cameras stay genlocked.
 HIDDEN_PHASE_Z = 4.0
-"""The fewest consecutive frames an analysis needs."""
+#: The smallest phase (frames) taken as cameras running free behind a fully lit flash: a twentieth of a frame moves
+#: a marker by a twentieth of its motion per frame, below what interpolating the tracks to common instants costs.
+HIDDEN_PHASE_MIN_FRAMES = 0.05
 
 
 @dataclass(frozen=True)
@@ -264,7 +269,7 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     times = observation_times(session, sync, rig, marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
         sync = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
-    elif sync.offsets_from == "flashlight" and not sync.subframe_method and len(session.cameras) >= 3:
+    elif sync.offsets_from.startswith("flashlight") and not sync.subframe_method and len(session.cameras) >= 3:
         sync = _phases_behind_a_full_flash(session, sync, rig, marker_px, progress)
         times = observation_times(session, sync, rig, marker_px)      # the rows' instants, when running free
     gap = max_gap_frames(session, section)
@@ -450,25 +455,27 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
     A flash that lights every camera's first lit frame fully gives whole-frame offsets only
     (:func:`horsemocap.steps.sync._flash_fractions`): cameras that run free then look genlocked. The markers
     measure each camera's phase (:func:`_subframe_by_markers` from zero); when one is more than
-    :data:`HIDDEN_PHASE_Z` standard errors from zero the cameras run free and every phase found is kept,
+    :data:`HIDDEN_PHASE_Z` times its uncertainty and :data:`HIDDEN_PHASE_MIN_FRAMES` from zero the cameras run
+    free and every phase found is kept,
     else the cameras stay genlocked (offsets and phases unchanged) with what was measured in
     ``genlocked_check``.
     """
-    probe = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
+    # from zero: the offsets the markers corrected by whole frames (flash_offsets) are the cameras' frames now
+    probe = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers",
+                         flash_offsets=None)
     found = _subframe_by_markers(session, probe, rig, marker_px, observation_frames(session, rig, marker_px),
                                  lambda *x: None)
     if found is probe:
         return sync
-    z = {c: abs(found.phase_frames[c]) / max(found.offset_uncertainty_frames.get(c, 0.0), 1e-9)
-         for c in session.cameras if c != session.reference_camera}
-    text = ", ".join(f"{c} {found.phase_frames[c]:+.3f} +- {found.offset_uncertainty_frames[c]:.3f}" for c in z)
-    if max(z.values()) > HIDDEN_PHASE_Z:
+    others = [c for c in session.cameras if c != session.reference_camera]
+    phase, unc = found.phase_frames, found.offset_uncertainty_frames
+    text = ", ".join(f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" for c in others)
+    if any(abs(phase[c]) > max(HIDDEN_PHASE_Z * unc.get(c, 0.0), HIDDEN_PHASE_MIN_FRAMES) for c in others):
         progress("detect", f"the flash lit every camera's first frame fully, but the markers find the cameras "
                            f"running free: {text} frames; those are used")
-        return found
+        return found.replace(flash_offsets=sync.flash_offsets)
     progress("detect", f"the markers find the cameras genlocked, as the flash said ({text} frames)")
-    return sync.replace(genlocked_check={c: (float(found.phase_frames[c]), float(found.offset_uncertainty_frames[c]))
-                                         for c in z})
+    return sync.replace(genlocked_check={c: (float(phase[c]), float(unc[c])) for c in others})
 
 
 def _identify(session, sync, rig, static_points, given, progress, frames=None,
