@@ -22,18 +22,18 @@ def _rig_only_session(tmp_path):
 
 def test_session_calibration_views():
     c = session_calibration(default_session_dir())
-    assert sorted(c["views"]) == ["left", "middle", "right"]
-    assert c["board"] == ((7, 14), 0.1)
-    assert c["views_used"] and c["note"] == c["short"] == "" and c["rig_path"] is None
+    assert sorted(c.views) == ["left", "middle", "right"]
+    assert c.board == ((7, 14), 0.1)
+    assert c.views_used and c.note == c.short == "" and c.rig_path is None
 
 
 def test_session_calibration_rig_only(tmp_path):
     c = session_calibration(_rig_only_session(tmp_path))
-    assert c["views"] is None and c["board"] is None and not c["views_used"]
-    assert c["rig_path"] == (tmp_path / "calibration" / "rig.toml").resolve()
-    assert c["note"] == ("no checkerboard views in this session: the pipeline reads the rig from "
+    assert c.views is None and c.board is None and not c.views_used
+    assert c.rig_path == (tmp_path / "calibration" / "rig.toml").resolve()
+    assert c.note == ("no checkerboard views in this session: the pipeline reads the rig from "
                          "calibration/rig.toml instead of calibrating it")
-    assert c["short"] == "no checkerboard views; the rig was read from rig.toml"
+    assert c.short == "no checkerboard views; the rig was read from rig.toml"
 
 
 def test_the_closing_table_names_the_session_by_its_json_name(tmp_path):

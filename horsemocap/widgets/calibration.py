@@ -1,6 +1,7 @@
 """Widgets of the calibration: camera picker, view browser, views to exclude (thesis 8.2)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -113,7 +114,35 @@ def ui_exclude_views(result, excluded: dict | None = None) -> ViewExcluder:
     return ViewExcluder(result, excluded)
 
 
-def session_calibration(session_dir) -> dict:
+@dataclass(frozen=True)
+class SessionCalibration:
+    """What a session gives the calibration (:func:`session_calibration`).
+
+    Attributes
+    ----------
+    views : dict or None
+        Camera -> folder of checkerboard views, or None.
+    board : tuple or None
+        ``(inner_corners, square_size_m)``, or None.
+    rig_path : Path or None
+        The session's ``rig.toml``, or None.
+    views_used : bool
+        Whether the pipeline calibrates from the views (it reads a given rig file unless asked to recalibrate).
+    note : str
+        ``""`` when the pipeline calibrates from the views, else a plain sentence saying where the rig comes from.
+    short : str
+        The same in a few words, for the cells that skip a part.
+    """
+
+    views: dict | None
+    board: tuple | None
+    rig_path: Path | None
+    views_used: bool
+    note: str
+    short: str
+
+
+def session_calibration(session_dir) -> SessionCalibration:
     """What a session gives the calibration: its checkerboard views, or only a rig file.
 
     The notebooks that show the calibration (01, 03) ask this first: a session
@@ -128,21 +157,13 @@ def session_calibration(session_dir) -> dict:
 
     Returns
     -------
-    dict
-        ``views``: camera -> folder of checkerboard views, or ``None``;
-        ``board``: ``(inner_corners, square_size_m)`` or ``None``;
-        ``rig_path``: the session's ``rig.toml`` or ``None``;
-        ``views_used``: whether the pipeline calibrates from the views (it
-        reads a given rig file unless asked to recalibrate);
-        ``note``: ``""`` when the pipeline calibrates from the views, else a
-        plain sentence saying where the rig comes from instead;
-        ``short``: the same in a few words, for the cells that skip a part.
+    SessionCalibration
 
     Examples
     --------
     >>> from horsemocap.data import default_session_dir
     >>> c = session_calibration(default_session_dir())
-    >>> sorted(c["views"]), c["board"], c["note"]
+    >>> sorted(c.views), c.board, c.note
     (['left', 'middle', 'right'], ((7, 14), 0.1), '')
 
     A session with only ``calibration/rig.toml`` gives ``views`` None,
@@ -168,5 +189,5 @@ def session_calibration(session_dir) -> dict:
                 "calibrating it")
         short = (f"{'views not used' if views is not None else 'no checkerboard views'}; "
                  f"the rig was read from {s.rig_path.name}")
-    return {"views": views, "board": board, "rig_path": s.rig_path, "views_used": used, "note": note,
-            "short": short}
+    return SessionCalibration(views=views, board=board, rig_path=s.rig_path, views_used=used, note=note,
+                              short=short)

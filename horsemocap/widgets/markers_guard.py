@@ -13,7 +13,7 @@ pipeline's own smoothed kinematics, instead of a traceback or a silent NaN.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -104,7 +104,53 @@ def fits_note(body) -> str:
             f"no period needed), velocities and accelerations from that smoothed pose")
 
 
-def thesis_view(body):
+@dataclass(frozen=True)
+class ThesisView:
+    """The thesis' angular and saddle results on its three markers (:func:`thesis_view`).
+
+    Attributes
+    ----------
+    chain : bool
+        True when they are the pipeline's own (the thesis' chain ran).
+    note : str
+        Why not, in plain words (:func:`fits_note`); ``""`` when ``chain``.
+    pos, vel, acc : (n, 3, 3) arrays
+        Markers 1, 2, 3 and their derivatives.
+    omega_raw, omega_versions, alpha_raw, alpha_versions : (6, n, 3) arrays
+        The six versions of eq. 6.3/6.4 and 6.38/6.39, before and after smoothing.
+    omega_lstsq, alpha_lstsq : (n, 3) arrays
+        Least squares over all markers.
+    omega_fit, alpha_fit : (n, 3) arrays
+        The third estimate, named by ``fit_label``.
+    fit_label : str
+    saddle : horsemocap.rigid.SaddleKinematics
+        Eq. 6.54/6.55 on the three markers.
+    saddle_fit_label : str
+    saddle_fit_velocity, saddle_fit_acceleration : (n, 3) arrays
+        The saddle by the method ``saddle_fit_label`` names.
+    """
+
+    chain: bool
+    note: str
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    omega_raw: np.ndarray
+    omega_versions: np.ndarray
+    alpha_raw: np.ndarray
+    alpha_versions: np.ndarray
+    omega_lstsq: np.ndarray
+    alpha_lstsq: np.ndarray
+    omega_fit: np.ndarray
+    alpha_fit: np.ndarray
+    fit_label: str
+    saddle: object
+    saddle_fit_label: str
+    saddle_fit_velocity: np.ndarray
+    saddle_fit_acceleration: np.ndarray
+
+
+def thesis_view(body) -> ThesisView:
     """The thesis' angular and saddle formulas on the thesis' three markers, whatever the session.
 
     When the thesis' chain ran (three markers and a period), everything is the
@@ -123,12 +169,7 @@ def thesis_view(body):
 
     Returns
     -------
-    SimpleNamespace
-        ``chain`` (bool), ``note`` (:func:`fits_note`), ``pos``, ``vel``, ``acc`` (n, 3, 3),
-        ``omega_raw``, ``omega_versions``, ``alpha_raw``, ``alpha_versions`` (6, n, 3),
-        ``omega_lstsq``, ``alpha_lstsq``, ``omega_fit``, ``alpha_fit`` (n, 3), ``fit_label``,
-        ``saddle`` (:class:`horsemocap.rigid.SaddleKinematics`), ``saddle_fit_label``,
-        ``saddle_fit_velocity``, ``saddle_fit_acceleration`` (n, 3).
+    ThesisView
 
     Examples
     --------
@@ -140,15 +181,15 @@ def thesis_view(body):
     from .. import rigid
 
     if body.motion_fit is not None:
-        return SimpleNamespace(chain=True, note="", pos=body.pos, vel=body.vel, acc=body.acc,
-                               omega_raw=body.omega_raw, omega_versions=body.omega_versions,
-                               alpha_raw=body.alpha_raw, alpha_versions=body.alpha_versions,
-                               omega_lstsq=body.omega_lstsq, alpha_lstsq=body.alpha_lstsq,
-                               omega_fit=body.omega_rotation, alpha_fit=body.alpha_rotation,
-                               fit_label="fit of the registered orientation", saddle=body.saddle,
-                               saddle_fit_label=f"fit of the saddle path ({body.saddle_method})",
-                               saddle_fit_velocity=body.saddle_velocity_direct,
-                               saddle_fit_acceleration=body.saddle_acceleration_direct)
+        return ThesisView(chain=True, note="", pos=body.pos, vel=body.vel, acc=body.acc,
+                          omega_raw=body.omega_raw, omega_versions=body.omega_versions,
+                          alpha_raw=body.alpha_raw, alpha_versions=body.alpha_versions,
+                          omega_lstsq=body.omega_lstsq, alpha_lstsq=body.alpha_lstsq,
+                          omega_fit=body.omega_rotation, alpha_fit=body.alpha_rotation,
+                          fit_label="fit of the registered orientation", saddle=body.saddle,
+                          saddle_fit_label=f"fit of the saddle path ({body.saddle_method})",
+                          saddle_fit_velocity=body.saddle_velocity_direct,
+                          saddle_fit_acceleration=body.saddle_acceleration_direct)
     pos_all, vel_all, acc_all = body.marker_kinematics
     pos, vel, acc = pos_all[:, :THESIS_MARKERS], vel_all[:, :THESIS_MARKERS], acc_all[:, :THESIS_MARKERS]
     omega, alpha = body.omega, body.alpha
@@ -158,13 +199,13 @@ def thesis_view(body):
         omega_lstsq = rigid.angular_velocity_lstsq(pos_all, vel_all)
         alpha_lstsq = rigid.angular_acceleration_lstsq(pos_all, acc_all, omega)
         saddle = rigid.saddle_kinematics(pos, vel, acc, omega, alpha, body.saddle_body)
-    return SimpleNamespace(chain=False, note=fits_note(body), pos=pos, vel=vel, acc=acc,
-                           omega_raw=omega_raw, omega_versions=rigid.smooth_versions(omega_raw),
-                           alpha_raw=alpha_raw, alpha_versions=rigid.smooth_versions(alpha_raw),
-                           omega_lstsq=omega_lstsq, alpha_lstsq=alpha_lstsq, omega_fit=omega, alpha_fit=alpha,
-                           fit_label="the pipeline's pose trajectory", saddle=saddle,
-                           saddle_fit_label="the pipeline's pose trajectory (passed on)",
-                           saddle_fit_velocity=body.saddle_velocity, saddle_fit_acceleration=body.saddle_acceleration)
+    return ThesisView(chain=False, note=fits_note(body), pos=pos, vel=vel, acc=acc,
+                      omega_raw=omega_raw, omega_versions=rigid.smooth_versions(omega_raw),
+                      alpha_raw=alpha_raw, alpha_versions=rigid.smooth_versions(alpha_raw),
+                      omega_lstsq=omega_lstsq, alpha_lstsq=alpha_lstsq, omega_fit=omega, alpha_fit=alpha,
+                      fit_label="the pipeline's pose trajectory", saddle=saddle,
+                      saddle_fit_label="the pipeline's pose trajectory (passed on)",
+                      saddle_fit_velocity=body.saddle_velocity, saddle_fit_acceleration=body.saddle_acceleration)
 
 
 def table_8_7_ride(metadata: dict) -> tuple[bool, str]:

@@ -188,11 +188,11 @@ else:
 for key in ("motion", "plumb", "static"):
     print(f"{key:7s}", ", ".join(f"{c}: {p}" for c, p in meta[key].items()))
 calib = session_calibration(session)    # the checkerboard views, or only a rig file
-if calib["views"] is not None:
+if calib.views is not None:
     print("calibration:", {k: (v if k == "board" else "...") for k, v in meta["calibration"].items()},
-          "| views per camera:", len(list(calib["views"][cameras[0]].iterdir())))
-if calib["note"]:
-    print("calibration:", calib["note"])
+          "| views per camera:", len(list(calib.views[cameras[0]].iterdir())))
+if calib.note:
+    print("calibration:", calib.note)
 print("sync:", meta["sync"])
 if truth is None:
     print("true offsets:", NO_TRUTH)
@@ -279,8 +279,8 @@ else:
     plots.plot_frame_truth(img, np.vstack([plumb_px, [[np.nan, np.nan]] * 2]), ax=axs[0], title="plumb (left)")
     img = cv2.cvtColor(cv2.imread(str(session / meta["static"]["left"])), cv2.COLOR_BGR2RGB)
     plots.plot_frame_truth(img, rig["left"].project(truth.static_pos), ax=axs[1], title="static shot (left)", zoom=60)
-    if calib["views"] is not None:
-        view = sorted(calib["views"]["left"].iterdir())[0]
+    if calib.views is not None:
+        view = sorted(calib.views["left"].iterdir())[0]
         axs[2].imshow(cv2.cvtColor(cv2.imread(str(view)), cv2.COLOR_BGR2RGB))
         axs[2].set_title(f"checkerboard view {view.name}", fontsize=9)
     else:

@@ -194,19 +194,19 @@ from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
 session = ws.session_dir
 calib = session_calibration(session)   # the session's checkerboard views, or only a rig file
-image_dirs = calib["views"] if calib["views_used"] else None
+image_dirs = calib.views if calib.views_used else None
 truth = session_truth(session)      # None for a recorded session (no truth/ folder)
 truth_rig = None if truth is None else truth.rig
 if truth is None:
     print(NO_TRUTH, "(a recorded session): the errors against the true rig below are left out")
 if image_dirs is not None:
-    inner, square = calib["board"]
+    inner, square = calib.board
     print(f"board {inner[0]} x {inner[1]} inner corners, {1000 * square:.0f} mm squares; views per camera:",
           {c: len(list(d.iterdir())) for c, d in image_dirs.items()})
 else:
     # the simulation of "how many views" below holds the virtual laboratory's board instead
     inner, square = (LAB_BOARD_SQUARES[0] - 1, LAB_BOARD_SQUARES[1] - 1), 0.10
-    print(calib["note"] + "; the cells that need views say so")
+    print(calib.note + "; the cells that need views say so")
 
 # %%
 virtual = None     # this notebook's own calibration of the session's views
@@ -220,7 +220,7 @@ if image_dirs is not None:
 else:
     # what the pipeline did instead: its rig step read the rig file
     session_rig = results_for(session, until="rig").rig.rig
-    print(f"the pipeline's rig: read from {calib['rig_path'].name}; reference camera {session_rig.names[0]}")
+    print(f"the pipeline's rig: read from {calib.rig_path.name}; reference camera {session_rig.names[0]}")
     for c in session_rig:
         print(f"{c.name:7s} f = [{c.focal[0]:.2f} {c.focal[1]:.2f}]  c = [{c.principal_point[0]:.2f} "
               f"{c.principal_point[1]:.2f}]  kc = " + np.array2string(np.asarray(c.distortions), precision=4)
@@ -232,7 +232,7 @@ else:
 
 # %% tags=["nbval-ignore-output"]
 if virtual is None:
-    print("no views to leave out:", calib["short"])
+    print("no views to leave out:", calib.short)
 else:
     exclude_session = widgets.ui_exclude_views(virtual)
     ws.bind(exclude_session, "calibration_exclude", convert=lambda v: {c: n for c, n in v.items() if n})
@@ -267,7 +267,7 @@ print(f"{ref} camera: f = " + np.array2string(session_rig[ref].focal, precision=
 # %%
 pairwise_rig = None if virtual is None else cal.pairwise_rig(virtual)
 if virtual is None:
-    print("no calibration of this session's own to compare:", calib["short"])
+    print("no calibration of this session's own to compare:", calib.short)
 elif truth is None:
     print("errors of the focal lengths, principal points and baselines:", NO_TRUTH)
 else:
@@ -338,8 +338,8 @@ for n_views in (15, 45):
 
 # %%
 if virtual is None:
-    print("one rig only (the pairs and the joint fit need views):", calib["short"])
-    top = {calib["rig_path"].name: session_rig}
+    print("one rig only (the pairs and the joint fit need views):", calib.short)
+    top = {calib.rig_path.name: session_rig}
 else:
     print(cal.format_comparison(virtual))
     top = {"joint": virtual.rig, "pairwise": pairwise_rig}
@@ -359,7 +359,7 @@ plt.show()
 
 # %%
 if virtual is None:
-    print("Table 8.5 measures grid distances on the checkerboard views:", calib["short"])
+    print("Table 8.5 measures grid distances on the checkerboard views:", calib.short)
 else:
     chk_joint = cal.grid_distance_check(virtual.rig, virtual.views, square)
     chk_pair = cal.grid_distance_check(pairwise_rig, virtual.views, square)
@@ -376,7 +376,7 @@ print("\nthesis Table 8.5: AB 500 -> 489.1015 mm (2.1797 %), AC 500 -> 522.9729 
 
 # %%
 if virtual is None:
-    print("Figure 8.6 shows a checkerboard view:", calib["short"])
+    print("Figure 8.6 shows a checkerboard view:", calib.short)
 else:
     k_view = list(virtual.views["left"].names).index(chk_joint.view_names[0])
     corners = virtual.views["left"].corners[k_view]
@@ -403,7 +403,7 @@ for (a, b) in virtual.pairs if virtual is not None else ():
     print(f"pair {a}-{b} with its own calibration: A-B/A-C/A-D mean error {sm['abcd_mean_abs_pct']:.2f} %, "
           f"bias over every segment {sm['segments_bias_pct']:+.2f} %")
 if virtual is None:
-    print("the pairs' calibrations need the checkerboard views:", calib["short"])
+    print("the pairs' calibrations need the checkerboard views:", calib.short)
 else:
     mixed = cal.rig_from_pairs(virtual.pairs, virtual.cameras, "left")
     sm = cal.grid_distance_check(mixed, virtual.views, square).summary()
@@ -417,7 +417,7 @@ if virtual is not None:
                            ax=ax)
     plt.show()
 else:
-    print("grid errors: none to plot;", calib["short"])
+    print("grid errors: none to plot;", calib.short)
 
 # %% [markdown]
 # ## The command for labs that calibrate once
