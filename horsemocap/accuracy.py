@@ -538,12 +538,8 @@ def _marker_choices_reset(analysis, n_markers: int):
     """
     if analysis.session.marker_count == n_markers:
         return analysis.params
-    def default(key):
-        value = AnalysisParams()
-        for name in key.split("."):
-            value = getattr(value, name)
-        return value
-    return analysis.params.updated({key: default(key) for key in MARKER_CHOICES})
+    default = AnalysisParams()
+    return analysis.params.updated({key: default.value(key) for key in MARKER_CHOICES})
 
 
 def rig_study(analysis, variants: dict, sigma_px: float, seed: int = 0,

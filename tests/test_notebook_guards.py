@@ -110,3 +110,15 @@ def test_simulate_rig_takes_the_defaults_of_choices_that_name_the_sessions_marke
     sim, _ = accuracy.simulate_rig(analysis, thesis_rig(), 30.0, 0.25, seed=2)
     assert sim.params.motion_frame.x_marker == 0
     assert sim.motion_frame.frame.marker == 0
+
+
+def test_period_plot_without_a_period_draws_the_autocorrelation_alone():
+    import matplotlib
+    matplotlib.use("Agg")
+    from horsemocap.plots.frames import plot_period_estimate
+
+    acf = np.cos(np.linspace(0, 3, 20))
+    ax = plot_period_estimate(acf, None, 50.0)
+    assert ax.get_title() == "no period found" and len(ax.lines) == 2      # the curve and the zero line
+    ax = plot_period_estimate(acf, 12.0, 50.0)
+    assert len(ax.lines) == 3 and "T = 12.00 frames" in ax.get_legend().get_texts()[0].get_text()

@@ -36,19 +36,23 @@ def plot_motion_positions(points_motion, t, marker: int = 0, truth=None, title: 
     return fig
 
 
-def plot_period_estimate(acf, period: float, fps: float | None = None, ax=None):
-    """Autocorrelation of the vertical motion against the lag, with the chosen period."""
+def plot_period_estimate(acf, period: float | None, fps: float | None = None, ax=None):
+    """Autocorrelation of the vertical motion against the lag, with the chosen period (None: none found, the
+    autocorrelation alone under the title "no period found")."""
     if ax is None:
         _, ax = plt.subplots(figsize=(7, 3))
     lags = np.arange(len(acf))
     ax.plot(lags, acf, "o-", ms=3)
-    ax.axvline(period, color="C3", ls="--",
-               label=f"T = {period:.2f} frames" + (f" = {period / fps:.3f} s" if fps else ""))
+    if period is None:
+        ax.set_title("no period found")
+    else:
+        ax.axvline(period, color="C3", ls="--",
+                   label=f"T = {period:.2f} frames" + (f" = {period / fps:.3f} s" if fps else ""))
+        ax.legend(fontsize=8)
     ax.axhline(0, color="0.5", lw=0.6)
     ax.set_xlabel("lag (frames)")
     ax.set_ylabel("autocorrelation")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
     return ax
 
 

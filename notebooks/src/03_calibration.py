@@ -188,7 +188,7 @@ print(chk_real.table())
 
 # %%
 from horsemocap.virtuallab import thesis_rig
-from horsemocap.virtuallab.calibration import LAB_BOARD_SQUARES
+from horsemocap.virtuallab.calibration import LAB_BOARD_SQUARES, LAB_SQUARE_M
 from horsemocap.widgets.calibration import session_calibration
 from horsemocap.workspace import NO_TRUTH, results_for, session_truth
 
@@ -205,7 +205,7 @@ if image_dirs is not None:
           {c: len(list(d.iterdir())) for c, d in image_dirs.items()})
 else:
     # the simulation of "how many views" below holds the virtual laboratory's board instead
-    inner, square = (LAB_BOARD_SQUARES[0] - 1, LAB_BOARD_SQUARES[1] - 1), 0.10
+    inner, square = (LAB_BOARD_SQUARES[0] - 1, LAB_BOARD_SQUARES[1] - 1), LAB_SQUARE_M
     print(calib.note + "; the cells that need views say so")
 
 # %%

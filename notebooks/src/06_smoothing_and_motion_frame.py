@@ -379,13 +379,7 @@ else:
     print(f"true stride period: {fps / stride_hz:.2f} frames (the thesis user typed 18 for Horse 2 at canter)")
 
 # %%
-if period is None:   # the autocorrelation alone: no peak to mark
-    fig, ax = plt.subplots(figsize=(7, 3))
-    ax.plot(np.arange(len(acf)), acf, "o-", ms=3)
-    ax.axhline(0, color="0.5", lw=0.6)
-    ax.set(xlabel="lag (frames)", ylabel="autocorrelation", title="no period found")
-else:
-    _ = plots.plot_period_estimate(acf, period, fps)
+_ = plots.plot_period_estimate(acf, period, fps)          # period None: the autocorrelation alone
 plt.show()
 
 # %% [markdown]
