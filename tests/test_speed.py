@@ -5,7 +5,7 @@ import pytest
 
 from horsemocap.detection import AUTO_MIN_CIRCULARITY, GENERIC_AREA, frame_candidates, whole_frame_search
 from horsemocap.detection.thresholds import connected_components, label_bright
-from horsemocap.virtuallab.longsession import _EmptyArena, pass_starts
+from horsemocap.virtuallab.longsession import EmptyArena, pass_starts
 
 
 def _sparse_image(seed, size=(477, 634)):
@@ -75,7 +75,7 @@ def test_long_session_passes_and_empty_frames():
     assert pass_starts(18000, 68, 900) == list(range(0, 17101, 900))
     assert pass_starts(100, 68, 900) == [0]
     bg = np.full((48, 64, 3), 100.0)
-    arena = _EmptyArena(bg, 3)
+    arena = EmptyArena(bg, 3)
     a, b = arena.frame(), arena.frame()
     assert a.dtype == np.uint8 and a.shape == (48, 64, 3)
     assert not np.array_equal(a, b)                          # fresh noise every frame

@@ -54,7 +54,7 @@ def pass_starts(n_frames: int, n_pass: int, period_frames: int) -> list[int]:
     return [int(p) for p in range(0, n_frames - n_pass + 1, int(period_frames))]
 
 
-class _EmptyArena:
+class EmptyArena:
     """Empty-arena frames of one camera with fresh glints and sensor noise."""
 
     def __init__(self, bg: np.ndarray, seed: int):
@@ -104,7 +104,7 @@ def render_long(out_dir, n_frames: int = 18000, *, horse: str = "Horse 2", gait:
     for ci, cam in enumerate(rig):
         o = offsets[cam.name]
         passed = [render_motion_frame(scene, cam, o + j, o, bgs[cam.name], noise=True) for j in range(n_pass)]
-        empty = _EmptyArena(bgs[cam.name], int(np.random.SeedSequence([seed, 7, ci]).generate_state(1)[0] >> 1))
+        empty = EmptyArena(bgs[cam.name], int(np.random.SeedSequence([seed, 7, ci]).generate_state(1)[0] >> 1))
         in_pass = np.full(n_frames, -1)
         for p in starts:
             in_pass[p + (0 if p == 0 else F):p + n_pass] = np.arange(0 if p == 0 else F, n_pass)

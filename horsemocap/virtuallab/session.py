@@ -972,7 +972,8 @@ def free_running_offsets(timing: dict, offsets: dict, reference: str = "left") -
     return {c: float(offsets[c] - offsets[reference] - (tc.phase_frames - ref.phase_frames)) for c, tc in timing.items()}
 
 
-def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS, timing: dict | None = None) -> Truth:
+def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS, timing: dict | None = None,
+                ref_window: tuple[int, int] | None = None) -> Truth:
     """Exact truth of a session: analytic kinematics at the analysed frames.
 
     With free-running cameras (``timing``, see :func:`render_session`) every
@@ -983,7 +984,9 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS, t
     over the reference's), ``flash_interval_s`` and per camera
     ``frame_start_s__<cam>``, ``frame_time_s__<cam>``,
     ``marker_time_s__<cam>`` and ``flash_lit__<cam>``. Without ``timing`` the
-    truth is that of genlocked cameras, as it always was.
+    truth is that of genlocked cameras, as it always was. ``ref_window =
+    (k0, k1)``: only the reference camera's frames ``k0 .. k1 - 1`` may be
+    analysed (one pass of a recording with several; default: every frame).
     """
     rig, motion = scene.rig, scene.motion
     marker_px, marker_vis, marker_reason, free = {}, {}, {}, {}
@@ -1007,6 +1010,8 @@ def build_truth(scene: Scene, offsets: dict, n_frames: dict, fps: float = FPS, t
         seen = marker_vis[cam.name][kc[good], :-1] | (marker_reason[cam.name][kc[good], :-1] == "occluded_in_camera")
         vis[good] = seen.all(axis=1)
         ok &= vis
+    if ref_window is not None:
+        ok &= (kL >= ref_window[0]) & (kL < ref_window[1])
     idx = np.nonzero(ok)[0]
     if idx.size:
         # the longest contiguous run
