@@ -188,6 +188,38 @@ def flash_onset(signal, off_level: float, on_level: float, first_on: int,
     return FlashOnset(k - gap / 2.0, float(max(gap / np.sqrt(12.0), 0.02 * e)), False, float(b[k]))
 
 
+def flash_row_delay(region, readout_frames: float) -> float:
+    """How much later than row 0 a rolling shutter exposes the flash's rows (frames).
+
+    :func:`flash_onset` times a frame by its row 0 (frame ``k`` exposes from ``k``); under a rolling
+    shutter that reads ``height`` rows in ``readout_frames``, the flash's rows (the region's mean row
+    ``v``) start exposing ``v / height x readout_frames`` later, so the onset in row-0 time is that much
+    later than the brightness alone says (the markers' instants take the same rows' times:
+    :func:`rolling_shutter_frames`). Without a readout (global shutter, interlaced fields) it is 0.
+
+    Parameters
+    ----------
+    region : (h, w) array of bool
+        The flash's pixels (:attr:`horsemocap.sync.FlashDetection.region`).
+    readout_frames : float
+        Time from row 0's exposure start to the last row's (frames).
+
+    Examples
+    --------
+    >>> region = np.zeros((480, 640), bool); region[350:370, 100:120] = True
+    >>> round(flash_row_delay(region, 0.5), 4)           # rows 350-369: mean 359.5
+    0.3745
+    >>> flash_row_delay(region, 0.0)
+    0.0
+    """
+    readout = float(readout_frames)
+    rows = np.nonzero(np.asarray(region, bool).any(axis=1))[0]
+    if readout <= 0.0 or not rows.size:
+        return 0.0
+    weights = np.asarray(region, bool)[rows].sum(axis=1)
+    return float(np.average(rows, weights=weights) / np.asarray(region).shape[0] * readout)
+
+
 def flash_phases(onsets: dict, offsets: dict, reference: str) -> tuple[dict, dict]:
     """Each camera's phase after the whole-frame offsets, from the flash onsets.
 

@@ -48,6 +48,24 @@ HIDDEN_PHASE_Z = 4.0
 #: The smallest phase (frames) taken as cameras running free behind a fully lit flash: a twentieth of a frame moves
 #: a marker by a twentieth of its motion per frame, below what interpolating the tracks to common instants costs.
 HIDDEN_PHASE_MIN_FRAMES = 0.05
+#: Free-running cameras: a camera whose views the identification found inconsistent with the others' in more than
+#: this share of its marker-frames (the views it used or rejected so) is identified again at other phases
+#: (:func:`_phase_by_identification`): a flash lit fully in a camera's first lit frame leaves its phase a quarter of
+#: a frame either way, and a fast marker's views a quarter of a frame apart disagree by more than the tolerance.
+INCONSISTENT_SHARE_TO_SEARCH = 0.2
+#: Free-running cameras: when the markers move a camera's phase by more than this (frames) from the phase its
+#: views were identified at, the markers are identified again at the markers' phases and the phases refined
+#: once more (:func:`_identified_again`): views a fraction of a frame apart were judged at the wrong instants,
+#: and the ones rejected or lost then are not recovered otherwise. A twentieth of a frame, as
+#: :data:`HIDDEN_PHASE_MIN_FRAMES`.
+REIDENTIFY_MOVE_FRAMES = 0.05
+#: At most this many identifications at the markers' phases (each refines the phases the next is made at).
+REIDENTIFY_ROUNDS = 3
+#: A phase the markers measured with an uncertainty above this (frames) is not followed: the markers are identified
+#: at trial phases about the one they were identified at instead (:func:`_identified_again`).
+PHASE_UNPINNED_FRAMES = 0.25
+#: The phases tried for such a camera, in frames from the flash's (the flash's uncertainty either way, and twice it).
+PHASE_TRIALS_FRAMES = (-0.5, -0.25, 0.25, 0.5)
 
 
 @dataclass(frozen=True)
@@ -244,6 +262,68 @@ def step_detect(session: Session, section: DetectParams, sync: SyncResult, rig: 
     return _detect_per_camera(session, section, sync, progress, why)
 
 
+@dataclass(frozen=True)
+class _Identified:
+    """The markers identified in every camera and the sync they were identified in (see :func:`_identified`)."""
+
+    idn: object
+    sync: SyncResult
+    check: dict
+    marker_px: dict
+    by_fields: dict
+    times: dict
+
+
+def _identified(session, section, sync, rig, static_points, given, progress, frames, tolerance) -> _Identified:
+    """Identify the markers in ``sync`` and settle the sync on them: free-running cameras' phases searched by
+    the identification (:func:`_phase_by_identification`), the flash's whole frames checked by the markers
+    (:func:`_checked_by_markers`), the fractions refined by the markers or found behind a fully lit flash, and the
+    markers identified again at the phases the markers measured (:func:`_identified_again`)."""
+    idn = _identify(session, sync, rig, static_points, given, progress, frames, tolerance)
+    if sync.free_running and len(session.cameras) >= 3:
+        idn, sync = _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance)
+    check = {}
+    if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
+        idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
+                                               tolerance)
+    marker_px, by_fields = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
+    times = observation_times(session, sync, rig, marker_px)
+    if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
+        refined = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
+        again = _identified_again(session, sync, idn, refined, rig, static_points, given, progress, tolerance)
+        if again is not None:
+            idn, marker_px, by_fields, times, refined = again
+        sync = refined
+    elif sync.offsets_from.startswith("flashlight") and not sync.subframe_method and len(session.cameras) >= 3:
+        genlocked = sync
+        sync = _phases_behind_a_full_flash(session, sync, rig, marker_px, progress)
+        times = observation_times(session, sync, rig, marker_px)      # the rows' instants, when running free
+        if sync.free_running:          # identified as genlocked: again at the phases found, as free-running
+            again = _identified_again(session, genlocked, idn, sync, rig, static_points, given, progress,
+                                      free_running_tolerance(rig))
+            if again is not None:
+                idn, marker_px, by_fields, times, sync = again
+    return _Identified(idn, sync, check, marker_px, by_fields, times)
+
+
+def _as_free_running(session, sync: SyncResult) -> SyncResult:
+    """The flash's sync with the cameras taken as free-running from phase zero (the markers find the phases)."""
+    return sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
+
+
+def _tracked(idn, gap: int) -> tuple:
+    """The frames with a pose (every marker of three, any three or more of four or more: the others define the
+    pose while one is hidden), gaps of at most ``gap`` frames bridged, and their longest run (or None)."""
+    have, _ = bridge_gaps(idn.points, gap)
+    located = np.all(np.isfinite(have), axis=2).sum(axis=1)
+    tracked = located >= min(3, have.shape[1])
+    return tracked, longest_run(tracked), have.shape[1]
+
+
+def _run_length(segment) -> int:
+    return 0 if segment is None else segment[1] - segment[0]
+
+
 def _detect_multiview(session, section, sync, rig, static_points, progress) -> DetectResult:
     first = session.cameras[0]
     frames = {c: synchronised_frames(session, sync, c, progress if c == first else None, "frames identified")
@@ -252,33 +332,32 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     progress("detect", f"{sync.n_frames} frames of cameras {', '.join(session.cameras)}: "
                        "markers identified by all cameras together ...")
     tolerance = free_running_tolerance(rig) if sync.free_running else DEFAULT_MAX_RESIDUAL_PX
+    args = (session, section)
     try:
-        idn = _identify(session, sync, rig, static_points, given, progress, frames, tolerance)
+        found = _identified(*args, sync, rig, static_points, given, progress, frames, tolerance)
     except AnalysisError:
         if sync.free_running or sync.offsets_from != "flashlight":
             raise
         progress("detect", "no consistent views at the genlocked tolerance: trying the cameras as free-running")
-        tolerance = free_running_tolerance(rig)
-        sync = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
-        idn = _identify(session, sync, rig, static_points, given, progress, None, tolerance)
-    check = {}
-    if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
-        idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
-                                               tolerance)
-    marker_px, by_fields = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
-    times = observation_times(session, sync, rig, marker_px)
-    if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
-        sync = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
-    elif sync.offsets_from.startswith("flashlight") and not sync.subframe_method and len(session.cameras) >= 3:
-        sync = _phases_behind_a_full_flash(session, sync, rig, marker_px, progress)
-        times = observation_times(session, sync, rig, marker_px)      # the rows' instants, when running free
+        found = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
+                            free_running_tolerance(rig))
     gap = max_gap_frames(session, section)
-    have, _ = bridge_gaps(idn.points, gap)
-    # the frames with a pose: every marker of three, any three or more of four or more (the others
-    # define the pose while one is hidden)
-    located = np.all(np.isfinite(have), axis=2).sum(axis=1)
-    tracked = located >= min(3, have.shape[1])
-    segment = longest_run(tracked)
+    tracked, segment, n_markers = _tracked(found.idn, gap)
+    if (_run_length(segment) < MIN_SEGMENT_FRAMES and not found.sync.free_running
+            and sync.offsets_from == "flashlight" and len(session.cameras) >= 3):
+        # a fully lit flash hides cameras that run free; identified as genlocked, their views disagree
+        progress("detect", f"only {_run_length(segment)} consecutive frames tracked with the cameras genlocked: "
+                           "trying them as free-running")
+        try:
+            alt = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
+                              free_running_tolerance(rig))
+        except AnalysisError as exc:
+            progress("detect", f"as free-running: {exc}")
+        else:
+            alt_tracked, alt_segment, _ = _tracked(alt.idn, gap)
+            if _run_length(alt_segment) > _run_length(segment):
+                found, tracked, segment = alt, alt_tracked, alt_segment
+    idn, sync, check = found.idn, found.sync, found.check
     if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
         moved = [c for c, v in check.items() if v.moved or not v.decided]
         hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
@@ -290,15 +369,16 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
                             "motion videos, the threshold, the rig and 'markers.count' in session.json" + hint)
     progress("detect", f"{frames_text(session.reference_camera, sync.offsets, segment[0], segment[1] - 1)}: every "
-                       f"marker{'' if have.shape[1] <= 3 else ' (three or more of them)'} seen by two or more cameras "
+                       f"marker{'' if n_markers <= 3 else ' (three or more of them)'} seen by two or more cameras "
                        f"(or bridged); labelled in synchronised frame "
                        f"{idn.anchor_frame}")
     chosen = {c: {**given[c].to_dict(), "threshold": int(idn.thresholds[c])} for c in session.cameras}
     summary = IdentificationSummary(anchor_frame=idn.anchor_frame, anchor_margin=idn.anchor_margin,
                                     model_index=[int(i) for i in idn.model_index], rigid_rms_m=idn.rigid_rms_m)
-    return DetectResult(marker_px=marker_px, reason=idn.reason, segment=segment, detection=chosen,
+    return DetectResult(marker_px=found.marker_px, reason=idn.reason, segment=segment, detection=chosen,
                         all_seen=tracked, method="multiview", method_note="", max_gap_frames=gap, sync=sync,
-                        sync_check=check, identification=summary, observation_frames=times, fields=by_fields)
+                        sync_check=check, identification=summary, observation_frames=found.times,
+                        fields=found.by_fields)
 
 
 def measured_by_fields(session: Session, sync: SyncResult, marker_px: dict, thresholds: dict,
@@ -476,6 +556,133 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
         return found.replace(flash_offsets=sync.flash_offsets)
     progress("detect", f"the markers find the cameras genlocked, as the flash said ({text} frames)")
     return sync.replace(genlocked_check={c: (float(phase[c]), float(unc[c])) for c in others})
+
+
+def inconsistent_shares(reason: dict) -> dict:
+    """Camera -> the share of its marker-frames (views used or rejected as inconsistent) whose view was
+    rejected as inconsistent with the other cameras' (0 when it has none).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = {"left": np.array([["", ""], ["", "occluded"]]),
+    ...      "middle": np.array([["inconsistent_views", ""], ["inconsistent_views", "lost"]])}
+    >>> {c: round(v, 3) for c, v in inconsistent_shares(r).items()}
+    {'left': 0.0, 'middle': 0.667}
+    """
+    out = {}
+    for c, r in reason.items():
+        r = np.asarray(r)
+        bad = int(np.count_nonzero(r == "inconsistent_views"))
+        seen = bad + int(np.count_nonzero(r == ""))
+        out[c] = bad / seen if seen else 0.0
+    return out
+
+
+def phase_moves(before: dict, after: dict) -> dict:
+    """Camera -> how far (frames, absolute) its phase moved from ``before`` to ``after`` (a camera absent
+    from one of them at phase 0 there: a genlocked sync holds no phases).
+
+    Examples
+    --------
+    >>> phase_moves({"left": 0.0, "middle": 0.32}, {"left": 0.0, "middle": 0.58})
+    {'left': 0.0, 'middle': 0.26}
+    >>> phase_moves({}, {"left": 0.0, "middle": -0.26})
+    {'left': 0.0, 'middle': 0.26}
+    """
+    cameras = list(before) + [c for c in after if c not in before]
+    return {c: round(abs(float(after.get(c, 0.0)) - float(before.get(c, 0.0))), 9) for c in cameras}
+
+
+def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance):
+    """The markers identified again until the phases the markers measure settle, or None when nothing was done.
+
+    ``idn`` was identified in ``identified_at``; ``refined`` holds the phases the markers measured on it (as
+    :func:`_subframe_by_markers` gives them: in the current offsets' frames). Each round identifies the markers
+    at the markers' phases, measures them and refines the phases again; a camera whose phase the markers left
+    uncertain by more than :data:`PHASE_UNPINNED_FRAMES` is instead identified at the trial phases
+    :data:`PHASE_TRIALS_FRAMES` about the phase its views were identified at (:func:`_phase_trials`). The
+    rounds go on while a phase moves by more than :data:`REIDENTIFY_MOVE_FRAMES` or stays uncertain, at most
+    :data:`REIDENTIFY_ROUNDS`. Returns ``(idn, marker_px, by_fields, times, sync)`` of the last round.
+    """
+    ref = session.reference_camera
+    prev = identified_at.replace(phase_frames=current_phases(identified_at, ref), flash_offsets=None)
+    out = None
+    for _ in range(REIDENTIFY_ROUNDS):
+        loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
+                 if c != ref and u > PHASE_UNPINNED_FRAMES}
+        moved = phase_moves(prev.phase_frames, refined.phase_frames)
+        if not loose and max(moved.values(), default=0.0) <= REIDENTIFY_MOVE_FRAMES:
+            break
+        if loose:
+            progress("detect", "the markers could not pin the phases of " + ", ".join(
+                f"{c} (+- {u:.2f} frame)" for c, u in loose.items()) + ": identifying at other phases")
+            idn, at = _phase_trials(session, prev, idn, list(loose), rig, static_points, given, tolerance)
+        else:
+            progress("detect", "the markers moved the phases by " + ", ".join(
+                f"{c} {d:.3f}" for c, d in moved.items() if d) + " frame from those the views were identified "
+                "at: identifying again at the markers' phases")
+            at = refined.replace(flash_offsets=None)        # the markers' phases are in the current offsets' frames
+            try:
+                idn = _identify(session, at, rig, static_points, given, progress, None, tolerance)
+            except AnalysisError as exc:
+                progress("detect", f"identifying again failed ({exc}); the last identification is kept")
+                return out
+        marker_px, by_fields = measured_by_fields(session, at, idn.marker_px, idn.thresholds, progress)
+        times = observation_times(session, at, rig, marker_px)
+        found = _subframe_by_markers(session, at, rig, marker_px, times, progress)
+        prev, refined = at, found.replace(subframe_method=refined.subframe_method, flash_offsets=refined.flash_offsets)
+        out = (idn, marker_px, by_fields, times, refined)
+    return out
+
+
+def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolerance):
+    """The identification using the most marker-frames, and its sync, with each of ``cameras`` (in turn, the
+    others at their best so far) at its phase in ``sync`` moved by each of :data:`PHASE_TRIALS_FRAMES`
+    (``idn``: the identification at ``sync``'s phases, kept when no trial uses more)."""
+    best_used = _used_marker_frames(idn)
+    for c in cameras:
+        base = dict(sync.phase_frames)
+        for step in PHASE_TRIALS_FRAMES:
+            trial = sync.replace(phase_frames={**base, c: base.get(c, 0.0) + step})
+            try:
+                found = _identify(session, trial, rig, static_points, given, lambda *x: None, None, tolerance)
+            except AnalysisError:
+                continue
+            used = _used_marker_frames(found)
+            if used > best_used:
+                best_used, idn, sync = used, found, trial
+    return idn, sync
+
+
+def _used_marker_frames(idn) -> int:
+    return int(sum(np.count_nonzero(np.asarray(r) == "") for r in idn.reason.values()))
+
+
+def _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance):
+    """The identification and sync with the phases of free-running cameras whose views the others' rejected.
+
+    A camera whose views were found inconsistent in more than :data:`INCONSISTENT_SHARE_TO_SEARCH` of its
+    marker-frames (:func:`inconsistent_shares`) is identified again with its phase moved by each of
+    :data:`PHASE_TRIALS_FRAMES` (the worst camera first, the others at their best so far); the identification
+    using the most marker-frames is kept. The markers refine the phase kept (:func:`_subframe_by_markers`).
+    """
+    shares = inconsistent_shares(idn.reason)
+    ref = session.reference_camera
+    worst = sorted((c for c in session.cameras if c != ref and shares[c] > INCONSISTENT_SHARE_TO_SEARCH),
+                   key=lambda c: -shares[c])
+    if not worst:
+        return idn, sync
+    before = ", ".join(f"{c} {100 * shares[c]:.0f} %" for c in worst)
+    start = dict(sync.phase_frames)
+    idn, sync = _phase_trials(session, sync, idn, worst, rig, static_points, given, tolerance)
+    best_used = _used_marker_frames(idn)
+    moved = {c: sync.phase_frames.get(c, 0.0) - start.get(c, 0.0) for c in worst}
+    progress("detect", f"views found inconsistent with the other cameras' ({before} of their marker-frames): "
+                       "identified again at other phases; "
+                       + ", ".join(f"{c} {d:+.2f} frame" for c, d in moved.items())
+                       + f" from the flash's ({best_used} marker-frames used)")
+    return idn, sync
 
 
 def _identify(session, sync, rig, static_points, given, progress, frames=None,

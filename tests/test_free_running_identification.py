@@ -1,0 +1,176 @@
+"""Free-running cameras: the flash's rows under a rolling shutter, phases searched by the identification, and the
+identification repeated at the phases the markers measured."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from horsemocap import subframe
+from horsemocap.data import default_session_dir
+from horsemocap.session import Session
+from horsemocap.steps import detect as D
+from horsemocap.steps.sync import SyncResult, _flash_fractions
+
+FPS = 30.0
+
+
+def _session(timing: dict, names=("left", "middle")):
+    return Session(root=default_session_dir(), name="s", fps=FPS, cameras=tuple(names), reference_camera=names[0],
+                   motion={}, sync_method="flash", sync_offsets=None, rig_path=None, calibration_images=None,
+                   board=None, plumb=None, static=None, marker_count=3, marker_diameter_m=0.06,
+                   metadata={"camera_timing": timing})
+
+
+def _flash(first_lit: int, lit_fraction: float, row: int, n: int = 24, height: int = 480):
+    signal = np.zeros(n)
+    signal[first_lit] = lit_fraction
+    signal[first_lit + 1:] = 1.0
+    region = np.zeros((height, 640), bool)
+    region[row, 300:310] = True
+    return SimpleNamespace(signal=signal, off_level=0.0, on_level=1.0, frame=first_lit, start=0, region=region)
+
+
+def test_the_flash_rows_of_a_rolling_shutter_are_exposed_later_than_row_0():
+    """Exact: left reads its rows in 0.4 frame and sees the flash at row 240 (0.2 frame after row 0); its frame 3
+    exposes that row over [3.2, 3.7] and is lit 80 %: the onset is 3.3. Middle reads in 0.1 frame, the flash at row
+    120 (0.025 frame); its frame 17 lit 25 %: onset 17.4. Phase = (17 - 3) - (17.4 - 3.3) = -0.1 frame; without the
+    rows' delay the same brightness gives -0.275."""
+    e = 0.5 / FPS
+    timing = {"left": {"exposure_s": e, "rolling_shutter_s": 0.4 / FPS},
+              "middle": {"exposure_s": e, "rolling_shutter_s": 0.1 / FPS}}
+    found = {"left": _flash(3, 0.8, 240), "middle": _flash(17, 0.25, 120)}
+    got = _flash_fractions(_session(timing), found, {"left": 3, "middle": 17})
+    assert got["subframe_method"] == "flash"
+    assert got["phase_frames"]["middle"] == pytest.approx(-0.1, abs=1e-9)
+    global_shutters = {c: {"exposure_s": e} for c in timing}
+    old = _flash_fractions(_session(global_shutters), found, {"left": 3, "middle": 17})
+    assert old["phase_frames"]["middle"] == pytest.approx(-0.275, abs=1e-9)
+
+
+def test_flash_row_delay_is_the_regions_mean_row_share_of_the_readout():
+    region = np.zeros((100, 10), bool)
+    region[10, :] = True
+    region[30, :5] = True                                    # weighted by pixels: (10 * 10 + 30 * 5) / 15
+    assert subframe.flash_row_delay(region, 1.0) == pytest.approx((100 + 150) / 15 / 100)
+    assert subframe.flash_row_delay(np.zeros((100, 10), bool), 1.0) == 0.0
+
+
+def _idn(used: int, inconsistent: int, names=("left", "middle", "right")):
+    """An identification whose cameras used ``used`` marker-frames; middle rejected ``inconsistent`` as inconsistent."""
+    reason = {c: np.array([""] * used + ["lost"] * 5, dtype=object) for c in names}
+    reason["middle"] = np.array([""] * used + ["inconsistent_views"] * inconsistent, dtype=object)
+    return SimpleNamespace(reason=reason, marker_px={}, thresholds={})
+
+
+def _free_sync(phase: dict, names=("left", "middle", "right")):
+    return SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 90 for c in names}, n_frames=90,
+                      offsets_from="flashlight", phase_frames=dict(phase), subframe_method="flash")
+
+
+def test_a_camera_whose_views_the_others_reject_is_identified_at_other_phases(monkeypatch):
+    """The middle camera's true phase is 0.55, the flash said 0.30: at 0.30 the identification rejects 40 of its
+    views; the trials at 0.30 + (-0.5, -0.25, 0.25, 0.5) use the most views at 0.55, which is kept."""
+    names = ("left", "middle", "right")
+    true = 0.55
+
+    def identify(session, sync, *args, **kw):
+        err = abs(sync.phase_frames["middle"] - true)
+        return _idn(used=int(round(100 - 100 * err)), inconsistent=int(round(160 * err)))
+
+    monkeypatch.setattr(D, "_identify", identify)
+    flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
+    first = identify(None, flash)
+    said = []
+    idn, sync = D._phase_by_identification(_session({}, names), flash, None, None, {}, first,
+                                           lambda *x: said.append(x[-1]), 8.0)
+    assert sync.phase_frames["middle"] == pytest.approx(0.55)
+    assert sync.phase_frames["right"] == pytest.approx(0.1)              # its views were not rejected: not moved
+    assert "middle +0.25 frame" in said[0]
+
+
+def test_cameras_whose_views_agree_are_not_searched(monkeypatch):
+    monkeypatch.setattr(D, "_identify", lambda *a, **k: pytest.fail("searched although no view was rejected"))
+    flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
+    first = _idn(used=100, inconsistent=10)                  # 10 of 110: under INCONSISTENT_SHARE_TO_SEARCH
+    idn, sync = D._phase_by_identification(_session({}, ("left", "middle", "right")), flash, None, None, {}, first,
+                                           lambda *x: None, 8.0)
+    assert idn is first and sync is flash
+
+
+def test_identified_again_at_the_markers_phases_in_the_current_offsets(monkeypatch):
+    """After the markers moved a flash offset by a whole frame (flash_offsets kept), the phases they measured are in
+    the current offsets' frames: the identification again must see exactly them, not them moved once more."""
+    names = ("left", "middle", "right")
+    seen = {}
+
+    def identify(session, sync, *args, **kw):
+        seen.update(D.current_phases(sync, "left"))
+        return SimpleNamespace(marker_px={}, thresholds={}, reason={})
+
+    monkeypatch.setattr(D, "_identify", identify)
+    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
+    monkeypatch.setattr(D, "observation_times", lambda *a: {})
+    monkeypatch.setattr(D, "_subframe_by_markers", lambda session, sync, *a: sync)
+    refined = SyncResult(offsets={"left": 9, "middle": 61, "right": 134}, frame_counts={c: 90 for c in names},
+                         n_frames=90, offsets_from="flashlight, corrected by the markers",
+                         flash_offsets={"left": 8, "middle": 61, "right": 134},
+                         phase_frames={"left": 0.0, "middle": -0.59, "right": -0.63}, subframe_method="flash and markers")
+    identified_at = refined.replace(phase_frames={"left": 0.0, "middle": 0.16, "right": 0.01},
+                                    subframe_method="flash")
+    rounds = []
+    out = D._identified_again(_session({}, names), identified_at, None, refined, None, None, {},
+                              lambda *x: rounds.append(x[-1]), 8.0)
+    assert seen == pytest.approx({"left": 0.0, "middle": -0.59, "right": -0.63})
+    assert len(rounds) == 1                      # the phases did not move again: one round
+    assert out[-1].flash_offsets == refined.flash_offsets and out[-1].subframe_method == "flash and markers"
+
+
+def test_phases_the_markers_cannot_pin_are_tried_about_the_identified_ones(monkeypatch):
+    """The markers left the middle's phase uncertain by 1.3 frames (they ran off by a frame): its views are
+    identified at the trial phases about the phase they were identified at (0), where 0.5 uses the most."""
+    names = ("left", "middle", "right")
+    tried = []
+
+    def identify(session, sync, *args, **kw):
+        tried.append(round(sync.phase_frames["middle"], 3))
+        return _idn(used=int(100 - 100 * abs(sync.phase_frames["middle"] - 0.4)), inconsistent=0)
+
+    monkeypatch.setattr(D, "_identify", identify)
+    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
+    monkeypatch.setattr(D, "observation_times", lambda *a: {})
+    monkeypatch.setattr(D, "_subframe_by_markers",
+                        lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
+    genlocked = _free_sync({"left": 0.0, "middle": 0.0, "right": 0.0})
+    loose = genlocked.replace(phase_frames={"left": 0.0, "middle": 1.01, "right": 0.0},
+                              offset_uncertainty_frames={"middle": 1.3, "right": 0.02})
+    out = D._identified_again(_session({}, names), genlocked, _idn(used=60, inconsistent=0), loose, None, None, {},
+                              lambda *x: None, 8.0)
+    assert tried[:4] == [-0.5, -0.25, 0.25, 0.5]
+    assert out[-1].phase_frames["middle"] == pytest.approx(0.5)
+
+
+def test_phase_moves():
+    assert D.phase_moves({"a": 0.1, "b": -0.2}, {"a": 0.1, "b": 0.3}) == {"a": 0.0, "b": 0.5}
+    assert D.phase_moves({}, {"a": 0.0, "b": 0.3}) == {"a": 0.0, "b": 0.3}     # a genlocked sync holds no phases
+
+
+def test_identified_again_after_phases_found_behind_a_genlocked_looking_flash(monkeypatch):
+    """Identified as genlocked (no phases held), the markers then found the cameras 0.26 / 0.33 frame apart: the
+    views are identified again at those phases."""
+    names = ("left", "middle", "right")
+    seen = {}
+
+    def identify(session, sync, *args, **kw):
+        seen.update(D.current_phases(sync, "left"))
+        return SimpleNamespace(marker_px={}, thresholds={}, reason={})
+
+    monkeypatch.setattr(D, "_identify", identify)
+    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
+    monkeypatch.setattr(D, "observation_times", lambda *a: {})
+    monkeypatch.setattr(D, "_subframe_by_markers", lambda session, sync, *a: sync)
+    genlocked = SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 90 for c in names}, n_frames=90,
+                           offsets_from="flashlight")
+    found = genlocked.replace(phase_frames={"left": 0.0, "middle": -0.26, "right": -0.33}, subframe_method="markers",
+                              offset_uncertainty_frames={"middle": 0.05, "right": 0.05})
+    out = D._identified_again(_session({}, names), genlocked, None, found, None, None, {}, lambda *x: None, 8.0)
+    assert out is not None and seen == pytest.approx({"left": 0.0, "middle": -0.26, "right": -0.33})
