@@ -217,6 +217,8 @@ def _record_sync(analysis, p: dict, chosen: dict) -> None:
         chosen["sync"]["genlocked_by_markers"] = {
             "phase_frames": {c: round(p, 4) for c, (p, _) in sync.genlocked_check.items()},
             "uncertainty_frames": {c: round(u, 4) for c, (_, u) in sync.genlocked_check.items()}}
+        if sync.genlocked_check_method:     # "linearised" (the search not needed) or "search"
+            chosen["sync"]["genlocked_by_markers"]["method"] = sync.genlocked_check_method
     check = analysis.detect.sync_check if analysis.detect is not None else None
     if check:
         chosen["sync"]["checked_by_markers"] = {

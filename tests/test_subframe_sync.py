@@ -386,3 +386,65 @@ def test_a_phase_below_a_twentieth_of_a_frame_keeps_the_cameras_genlocked(rig):
     assert not sync.free_running
     assert all(abs(p) < HIDDEN_PHASE_MIN_FRAMES for p, _ in sync.genlocked_check.values())
     assert sync.genlocked_check[names[1]][0] == pytest.approx(0.02, abs=0.01)
+
+
+def test_linearised_phases_recover_small_phases_and_genlocked_zero(rig):
+    """One linearised least-squares step at zero measures phases of a few hundredths of a frame to a thousandth
+    (noise-free views), and genlocked views at zero."""
+    names = rig.names
+    free = subframe.linearised_phases(rig, _free_running_views(rig, 90, {names[1]: 0.07, names[2]: -0.04}),
+                                      {c: 0.0 for c in names}, names[0])
+    assert free[names[1]].phase == pytest.approx(0.07, abs=0.002)
+    assert free[names[2]].phase == pytest.approx(-0.04, abs=0.002)
+    still = subframe.linearised_phases(rig, _free_running_views(rig, 90, {}), {c: 0.0 for c in names}, names[0])
+    assert sorted(still) == sorted(names[1:])
+    assert all(abs(f.phase) < 1e-3 and 0 < f.uncertainty < 0.01 for f in still.values())
+
+
+def test_genlocked_cameras_behind_a_fully_lit_flash_need_no_search(rig, monkeypatch):
+    """Genlocked views: the linearised phases keep the cameras genlocked without the search (refine_phases is
+    not called), and say so: the phases measured and the method are recorded."""
+    from horsemocap.steps.detect import _phases_behind_a_full_flash
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("the search ran")
+
+    monkeypatch.setattr(subframe, "refine_phases", no_search)
+    names, said = rig.names, []
+    full = _full_flash_sync(names)
+    sync = _phases_behind_a_full_flash(_session_of(names), full, rig, _free_running_views(rig, 90, {}),
+                                       lambda *x: said.append(x[-1]))
+    assert not sync.free_running and sync.offsets == full.offsets and sync.genlocked_check_method == "linearised"
+    assert sorted(sync.genlocked_check) == sorted(names[1:])
+    assert all(abs(p) < 0.002 for p, _ in sync.genlocked_check.values())
+    assert "genlocked" in said[0] and "no search" in said[0]
+
+
+def test_phases_a_timing_floor_at_zero_would_miss_are_searched_and_found(rig):
+    """Cameras 0.05 and 0.10 frame after the reference (phase in proportion to the camera's place in the row,
+    the motion along the row): the others' markers absorb most of it, the timing floor at zero phase is only
+    0.015 frame (a gate on it below 0.025 would skip the search), but the linearised phases see them: the
+    search runs and finds both."""
+    from horsemocap.steps.detect import _phases_behind_a_full_flash
+
+    names, true_phase = rig.names, {rig.names[1]: 0.05, rig.names[2]: 0.10}
+    views = _free_running_views(rig, 90, true_phase)
+    floor = subframe.timing_floor(rig, views, {c: 0.0 for c in names})
+    assert max(floor.values()) < 0.025
+    sync = _phases_behind_a_full_flash(_session_of(names), _full_flash_sync(names), rig, views, lambda *x: None)
+    assert sync.free_running and sync.subframe_method == "markers"
+    for c, p in true_phase.items():
+        assert sync.phase_frames[c] == pytest.approx(p, abs=0.01)
+
+
+def test_a_phase_between_the_gate_and_a_twentieth_is_searched_and_kept_genlocked(rig):
+    """One camera 0.04 frame off (noise-free): beyond the linearised gate's 0.025, so the search runs; below
+    HIDDEN_PHASE_MIN_FRAMES it keeps the cameras genlocked, the search's phases recorded as such."""
+    from horsemocap.steps.detect import HIDDEN_PHASE_GATE_FRAMES, HIDDEN_PHASE_MIN_FRAMES, _phases_behind_a_full_flash
+
+    names = rig.names
+    assert HIDDEN_PHASE_GATE_FRAMES < 0.04 < HIDDEN_PHASE_MIN_FRAMES
+    sync = _phases_behind_a_full_flash(_session_of(names), _full_flash_sync(names), rig,
+                                       _free_running_views(rig, 90, {names[1]: 0.04}), lambda *x: None)
+    assert not sync.free_running and sync.genlocked_check_method == "search"
+    assert sync.genlocked_check[names[1]][0] == pytest.approx(0.04, abs=0.005)

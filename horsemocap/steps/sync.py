@@ -43,6 +43,10 @@ class SyncResult(StepResult):
     genlocked_check : dict
         Cameras the flash found genlocked (every first lit frame fully lit) and the markers confirmed:
         camera -> ``(phase, standard error)`` frames the markers measured (empty when not measured).
+    genlocked_check_method : str
+        How ``genlocked_check`` was measured: ``"linearised"`` (one least-squares step at zero phase,
+        :func:`horsemocap.subframe.linearised_phases`, put the phases so near zero that the search was not run),
+        ``"search"`` (:func:`horsemocap.subframe.refine_phases`), ``""`` when not measured.
     """
 
     offsets: dict
@@ -56,6 +60,7 @@ class SyncResult(StepResult):
     offset_uncertainty_frames: dict = field(default_factory=dict)
     subframe_method: str = ""
     genlocked_check: dict = field(default_factory=dict)
+    genlocked_check_method: str = ""
 
     @property
     def free_running(self) -> bool:
