@@ -71,7 +71,8 @@ def run_draw(index: int, genlocked: bool, noise) -> str:
         return f"{head}\n    exit 2 ({exc.step}: {str(exc)[:150]})"
     checks = quality.post_checks(a)
     verdict = quality.verdict(checks)
-    flagged = ", ".join(c.name for c in checks if c.level in ("warning", "unreliable"))
+    flagged = ", ".join(c.name + (f" {c.figure:.0f} %" if c.name == "saddle_scatter" and c.figure is not None else "")
+                        for c in checks if c.level in ("warning", "unreliable"))
     return (f"{head}\n    exit {3 if verdict == 'unreliable' else 0} {verdict} ({flagged}); offsets {_offsets(a, truth)}; "
             f"{_errors(a, truth)}; {time.perf_counter() - t0:.0f} s")
 

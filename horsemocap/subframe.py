@@ -401,6 +401,36 @@ def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict 
     return out, outside
 
 
+def points_at_shifted_instants(points, shift: float) -> np.ndarray:
+    """Positions at instants ``k + shift`` (frames) read from ``points`` sampled at frames ``k``, linearly
+    (NaN where either neighbouring sample is missing or outside the record).
+
+    A camera whose synchronised frame ``k`` is at reference instant ``k + phase`` sees the markers the other
+    cameras place at reference instants as they were ``phase`` frames later.
+
+    Examples
+    --------
+    >>> p = np.arange(5.0).reshape(5, 1, 1) * 10
+    >>> points_at_shifted_instants(p, 0.25)[:, 0, 0]
+    array([ 2.5, 12.5, 22.5, 32.5,  nan])
+    >>> points_at_shifted_instants(p, -1.5)[:, 0, 0]
+    array([nan, nan,  5., 15., 25.])
+    """
+    p = np.asarray(points, float)
+    whole = int(np.floor(shift))
+    w = float(shift) - whole
+    n = len(p)
+    out = np.full_like(p, np.nan)
+    k = np.arange(n)
+    lo, hi = k + whole, k + whole + 1
+    ok = (lo >= 0) & (hi < n) if w > 0 else (lo >= 0) & (lo < n)
+    if w > 0:
+        out[ok] = (1.0 - w) * p[lo[ok]] + w * p[hi[ok]]
+    else:
+        out[ok] = p[lo[ok]]
+    return out
+
+
 def rolling_shutter_frames(marker_px, height: int, readout_frames: float) -> np.ndarray:
     """Each observation's instant in its camera's frames: frame index + row / height x readout.
 

@@ -61,8 +61,8 @@ def test_a_standing_horse_has_no_motion_to_compare_with():
         saddle_scatter(rotation, translation, SADDLE, written)
 
 
-@pytest.mark.parametrize("pct, level", [(10.0, "ok"), (33.3, "ok"), (34.0, "warning"), (100.0, "warning"),
-                                        (100.1, "unreliable"), (float("inf"), "unreliable")])
+@pytest.mark.parametrize("pct, level", [(10.0, "ok"), (33.3, "ok"), (34.0, "warning"), (60.0, "warning"),
+                                        (60.1, "unreliable"), (100.0, "unreliable"), (float("inf"), "unreliable")])
 def test_check_levels(pct, level):
     check = quality.check_saddle_scatter(SaddleScatter(0.001 * pct / 100, 0.001, pct, 100))
     assert (check.name, check.level) == ("saddle_scatter", level)

@@ -775,7 +775,8 @@ def _check_summary(rounds: list, sync: SyncResult, flash: SyncResult) -> dict:
 def _check_round(session, section, sync, rig, idn, progress):
     """Each camera's flash offset checked against the instants of the others' markers.
 
-    For every camera, the markers triangulated from the OTHER cameras are
+    For every camera, the markers triangulated from the OTHER cameras (free-running cameras: their tracks at
+    common instants, read at this camera's own, :func:`horsemocap.subframe.points_at_shifted_instants`) are
     projected into its frames shifted by up to one second
     (:func:`horsemocap.detection.timeshift.frame_shift_residuals`); when a
     shift clearly puts them on its marker regions
@@ -786,10 +787,16 @@ def _check_round(session, section, sync, rig, idn, progress):
     """
     offsets, n = sync.offsets, sync.n_frames
     reach = max(5, int(round(session.fps)))
+    phase = current_phases(sync, session.reference_camera) if sync.free_running else {}
     out = {}
     for c in session.cameras:
         others = {o: idn.marker_px[o] for o in session.cameras if o != c}
+        if phase:     # free-running: the others' markers at common instants, read at this camera's own
+            others, _ = subframe.tracks_at_reference_instants(others, phase, sync.rate_ratio,
+                                                              observation_frames(session, rig, others))
         points = triangulate(rig, others, mode="joint").points
+        if phase:
+            points = subframe.points_at_shifted_instants(points, phase.get(c, 0.0))
         first = max(-reach, -offsets[c])
         stop = min(sync.frame_counts[c], offsets[c] + n + reach)
         seq = FrameSource(session.motion[c]).sequence(offsets[c] + first, stop, color=False)
