@@ -35,10 +35,11 @@ from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "flash_onset", "flash_phases", "nearest_frames",
-           "TrackInterpolant", "PhaseFit", "phase_residual",
-           "fit_phase", "joint_residual", "refine_phases", "linearised_phases", "tracks_at_reference_instants", "rolling_shutter_frames",
-           "others_residual", "timing_floor", "residual_curve", "observation_instants", "OUTSIDE_TRACK"]
+__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "flash_onset", "flash_row_delay", "flash_phases",
+           "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
+           "refine_phases", "linearised_phases", "tracks_at_reference_instants", "points_at_shifted_instants",
+           "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
+           "OUTSIDE_TRACK"]
 
 #: Exposure as a fraction of the frame when the session does not say (the "180 degree shutter").
 DEFAULT_EXPOSURE_FRACTION = 0.5

@@ -105,7 +105,7 @@ def test_identified_again_at_the_markers_phases_in_the_current_offsets(monkeypat
 
     def identify(session, sync, *args, **kw):
         seen.update(D.current_phases(sync, "left"))
-        return SimpleNamespace(marker_px={}, thresholds={}, reason={})
+        return _idn(used=100, inconsistent=0)
 
     monkeypatch.setattr(D, "_identify", identify)
     monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
@@ -118,8 +118,8 @@ def test_identified_again_at_the_markers_phases_in_the_current_offsets(monkeypat
     identified_at = refined.replace(phase_frames={"left": 0.0, "middle": 0.16, "right": 0.01},
                                     subframe_method="flash")
     rounds = []
-    out = D._identified_again(_session({}, names), identified_at, None, refined, None, None, {},
-                              lambda *x: rounds.append(x[-1]), 8.0)
+    out = D._identified_again(_session({}, names), identified_at, _idn(used=50, inconsistent=30), refined, None,
+                              None, {}, lambda *x: rounds.append(x[-1]), 8.0)
     assert seen == pytest.approx({"left": 0.0, "middle": -0.59, "right": -0.63})
     assert len(rounds) == 1                      # the phases did not move again: one round
     assert out[-1].flash_offsets == refined.flash_offsets and out[-1].subframe_method == "flash and markers"
@@ -162,7 +162,7 @@ def test_identified_again_after_phases_found_behind_a_genlocked_looking_flash(mo
 
     def identify(session, sync, *args, **kw):
         seen.update(D.current_phases(sync, "left"))
-        return SimpleNamespace(marker_px={}, thresholds={}, reason={})
+        return _idn(used=100, inconsistent=0)
 
     monkeypatch.setattr(D, "_identify", identify)
     monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
@@ -172,5 +172,21 @@ def test_identified_again_after_phases_found_behind_a_genlocked_looking_flash(mo
                            offsets_from="flashlight")
     found = genlocked.replace(phase_frames={"left": 0.0, "middle": -0.26, "right": -0.33}, subframe_method="markers",
                               offset_uncertainty_frames={"middle": 0.05, "right": 0.05})
-    out = D._identified_again(_session({}, names), genlocked, None, found, None, None, {}, lambda *x: None, 8.0)
+    out = D._identified_again(_session({}, names), genlocked, _idn(used=50, inconsistent=0), found, None, None, {},
+                              lambda *x: None, 8.0)
     assert out is not None and seen == pytest.approx({"left": 0.0, "middle": -0.26, "right": -0.33})
+
+
+def test_a_worse_identification_at_the_markers_phases_is_not_kept(monkeypatch):
+    """The markers moved the phases, but the identification at them uses fewer marker-frames than the first:
+    nothing is replaced (None)."""
+    names = ("left", "middle", "right")
+    monkeypatch.setattr(D, "_identify", lambda *a, **k: _idn(used=40, inconsistent=0))
+    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
+    monkeypatch.setattr(D, "observation_times", lambda *a: {})
+    monkeypatch.setattr(D, "_subframe_by_markers", lambda session, sync, *a: sync)
+    flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
+    refined = flash.replace(phase_frames={"left": 0.0, "middle": 0.45, "right": 0.1},
+                            offset_uncertainty_frames={"middle": 0.02, "right": 0.02})
+    assert D._identified_again(_session({}, names), flash, _idn(used=90, inconsistent=0), refined, None, None, {},
+                               lambda *x: None, 8.0) is None

@@ -341,17 +341,19 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                        "markers identified by all cameras together ...")
     tolerance = free_running_tolerance(rig) if sync.free_running else DEFAULT_MAX_RESIDUAL_PX
     args = (session, section)
+    tried_free, retry_error = sync.free_running, ""
     try:
         found = _identified(*args, sync, rig, static_points, given, progress, frames, tolerance)
     except AnalysisError:
         if sync.free_running or sync.offsets_from != "flashlight":
             raise
         progress("detect", "no consistent views at the genlocked tolerance: trying the cameras as free-running")
+        tried_free = True
         found = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
                             free_running_tolerance(rig))
     gap = max_gap_frames(session, section)
     tracked, segment, n_markers = _tracked(found.idn, gap)
-    if (_run_length(segment) < MIN_SEGMENT_FRAMES and not found.sync.free_running
+    if (_run_length(segment) < MIN_SEGMENT_FRAMES and not tried_free and not found.sync.free_running
             and sync.offsets_from == "flashlight" and len(session.cameras) >= 3):
         # a fully lit flash hides cameras that run free; identified as genlocked, their views disagree
         progress("detect", f"only {_run_length(segment)} consecutive frames tracked with the cameras genlocked: "
@@ -360,18 +362,21 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
             alt = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
                               free_running_tolerance(rig))
         except AnalysisError as exc:
+            retry_error = f"; as free-running: {exc}"
             progress("detect", f"as free-running: {exc}")
         else:
             alt_tracked, alt_segment, _ = _tracked(alt.idn, gap)
             if _run_length(alt_segment) > _run_length(segment):
                 found, tracked, segment = alt, alt_tracked, alt_segment
+            else:
+                retry_error = f"; as free-running {_run_length(alt_segment)} consecutive frames"
     idn, sync, check = found.idn, found.sync, found.check
     if segment is None or segment[1] - segment[0] < MIN_SEGMENT_FRAMES:
         moved = [c for c, v in check.items() if v.moved or not v.decided]
         hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
                 f"{sync.offsets}, the flash's {sync.flash_offsets or sync.offsets}): "
                 "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
-                if moved else "") + identification_hint(session, sync)
+                if moved else "") + retry_error + identification_hint(session, sync)
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker (three of four or more) "
                             "is seen by two or "
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
@@ -506,14 +511,22 @@ def row_timing(session: Session) -> dict:
 
 
 def current_phases(sync: SyncResult, reference: str) -> dict:
-    """The flash's phases in the current offsets: a camera the markers moved whole frames after the flash
-    (``sync.flash_offsets``) has its phase moved by as many frames (its frame ``k`` shows ``k + phase``)."""
-    start = dict(sync.phase_frames)
-    if sync.flash_offsets is not None:          # the markers moved whole frames after the flash's fractions
-        f = sync.flash_offsets
-        start = {c: start.get(c, 0.0) + (sync.offsets[c] - sync.offsets[reference]) - (f[c] - f[reference])
-                 for c in sync.offsets}
-    return start
+    """Each camera's phase in the current offsets (its synchronised frame ``k`` shows reference instant
+    ``k + phase``; none for genlocked cameras), the reference camera's 0.
+
+    A whole frame the markers moved a camera by (``sync.flash_offsets`` kept) corrects the flash's frame: its
+    phase stays (the markers' whole-frame check reads free-running cameras at their own instants, so a move it
+    makes is the flash found in a wrong frame, not the nearest frame taken on the other side of half a frame).
+
+    Examples
+    --------
+    >>> s = SyncResult(offsets={"a": 9, "b": 61}, frame_counts={"a": 90, "b": 90}, n_frames=80,
+    ...                offsets_from="flashlight, corrected by the markers", flash_offsets={"a": 8, "b": 61},
+    ...                phase_frames={"a": 0.0, "b": 0.3})
+    >>> current_phases(s, "a")
+    {'a': 0.0, 'b': 0.3}
+    """
+    return {**dict(sync.phase_frames), reference: 0.0} if sync.phase_frames else {}
 
 
 def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
@@ -638,19 +651,21 @@ def phase_moves(before: dict, after: dict) -> dict:
 
 
 def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance):
-    """The markers identified again until the phases the markers measure settle, or None when nothing was done.
+    """The markers identified again until the phases the markers measure settle, or None when nothing better
+    was found.
 
-    ``idn`` was identified in ``identified_at``; ``refined`` holds the phases the markers measured on it (as
-    :func:`_subframe_by_markers` gives them: in the current offsets' frames). Each round identifies the markers
-    at the markers' phases, measures them and refines the phases again; a camera whose phase the markers left
-    uncertain by more than :data:`PHASE_UNPINNED_FRAMES` is instead identified at the trial phases
-    :data:`PHASE_TRIALS_FRAMES` about the phase its views were identified at (:func:`_phase_trials`). The
-    rounds go on while a phase moves by more than :data:`REIDENTIFY_MOVE_FRAMES` or stays uncertain, at most
-    :data:`REIDENTIFY_ROUNDS`. Returns ``(idn, marker_px, by_fields, times, sync)`` of the last round.
+    ``idn`` was identified in ``identified_at``; ``refined`` holds the phases the markers measured on it (in the
+    current offsets' frames). Each round identifies the markers at the markers' phases, measures them and
+    refines the phases again; a camera whose phase the markers left uncertain by more than
+    :data:`PHASE_UNPINNED_FRAMES` is instead identified at the trial phases :data:`PHASE_TRIALS_FRAMES` about
+    the phase its views were identified at (:func:`_phase_trials`; the other cameras at the markers' phases).
+    The rounds go on while a phase moves by more than :data:`REIDENTIFY_MOVE_FRAMES` or stays uncertain, at
+    most :data:`REIDENTIFY_ROUNDS`. Returns ``(idn, marker_px, by_fields, times, sync)`` of the round whose
+    identification used the most marker-frames, when it used more than ``idn``.
     """
     ref = session.reference_camera
     prev = identified_at.replace(phase_frames=current_phases(identified_at, ref), flash_offsets=None)
-    out = None
+    best, best_used = None, _used_marker_frames(idn)
     for _ in range(REIDENTIFY_ROUNDS):
         loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
                  if c != ref and u > PHASE_UNPINNED_FRAMES}
@@ -660,30 +675,38 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
         if loose:
             progress("detect", "the markers could not pin the phases of " + ", ".join(
                 f"{c} (+- {u:.2f} frame)" for c, u in loose.items()) + ": identifying at other phases")
-            idn, at = _phase_trials(session, prev, idn, list(loose), rig, static_points, given, tolerance)
+            about = prev.replace(phase_frames={**refined.phase_frames,
+                                               **{c: prev.phase_frames.get(c, 0.0) for c in loose}})
+            idn, at = _phase_trials(session, about, idn, list(loose), rig, static_points, given, tolerance,
+                                    progress)
+            if at is about and about.phase_frames == prev.phase_frames:
+                break                               # no trial used more: the same identification again
         else:
             progress("detect", "the markers moved the phases by " + ", ".join(
                 f"{c} {d:.3f}" for c, d in moved.items() if d) + " frame from those the views were identified "
                 "at: identifying again at the markers' phases")
-            at = refined.replace(flash_offsets=None)        # the markers' phases are in the current offsets' frames
+            at = refined.replace(flash_offsets=None)
             try:
                 idn = _identify(session, at, rig, static_points, given, progress, None, tolerance)
             except AnalysisError as exc:
-                progress("detect", f"identifying again failed ({exc}); the last identification is kept")
-                return out
+                progress("detect", f"identifying again failed ({exc}); the best identification so far is kept")
+                break
         marker_px, by_fields = measured_by_fields(session, at, idn.marker_px, idn.thresholds, progress)
         times = observation_times(session, at, rig, marker_px)
         found = _subframe_by_markers(session, at, rig, marker_px, times, progress)
         prev, refined = at, found.replace(subframe_method=refined.subframe_method, flash_offsets=refined.flash_offsets)
-        out = (idn, marker_px, by_fields, times, refined)
-    return out
+        used = _used_marker_frames(idn)
+        if used > best_used:
+            best, best_used = (idn, marker_px, by_fields, times, refined), used
+    return best
 
 
-def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolerance):
+def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolerance, progress):
     """The identification using the most marker-frames, and its sync, with each of ``cameras`` (in turn, the
     others at their best so far) at its phase in ``sync`` moved by each of :data:`PHASE_TRIALS_FRAMES`
-    (``idn``: the identification at ``sync``'s phases, kept when no trial uses more)."""
-    best_used = _used_marker_frames(idn)
+    (``idn``: the identification at ``sync``'s phases, kept when no trial uses more). A camera moved gets at
+    least the move as its phase's uncertainty; trials whose identification fails are said."""
+    best_used, failed = _used_marker_frames(idn), []
     for c in cameras:
         base = dict(sync.phase_frames)
         for step in PHASE_TRIALS_FRAMES:
@@ -691,10 +714,15 @@ def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolera
             try:
                 found = _identify(session, trial, rig, static_points, given, lambda *x: None, None, tolerance)
             except AnalysisError:
+                failed.append(f"{c} {step:+.2f}")
                 continue
             used = _used_marker_frames(found)
             if used > best_used:
-                best_used, idn, sync = used, found, trial
+                unc = dict(trial.offset_uncertainty_frames)
+                unc[c] = max(float(unc.get(c, 0.0)), abs(step))
+                best_used, idn, sync = used, found, trial.replace(offset_uncertainty_frames=unc)
+    if failed:
+        progress("detect", f"no identification at the trial phases {', '.join(failed)} frame")
     return idn, sync
 
 
@@ -718,7 +746,7 @@ def _phase_by_identification(session, sync, rig, static_points, given, idn, prog
         return idn, sync
     before = ", ".join(f"{c} {100 * shares[c]:.0f} %" for c in worst)
     start = dict(sync.phase_frames)
-    idn, sync = _phase_trials(session, sync, idn, worst, rig, static_points, given, tolerance)
+    idn, sync = _phase_trials(session, sync, idn, worst, rig, static_points, given, tolerance, progress)
     best_used = _used_marker_frames(idn)
     moved = {c: sync.phase_frames.get(c, 0.0) - start.get(c, 0.0) for c in worst}
     progress("detect", f"views found inconsistent with the other cameras' ({before} of their marker-frames): "

@@ -8,7 +8,9 @@ of a frame every 33 s at 30 fps), and every pass has noise of its own. Here:
 
 * the horse goes round the arena once every ``lap_s`` seconds
   (:class:`LapMotion`: lap ``i`` is the single pass' motion ``i * lap_s``
-  later), so each pass shows the same analytic motion;
+  later), so each pass shows the same analytic motion of the body and its
+  markers (the legs and the rider are drawn at the recording's own time,
+  so their stride phase differs from lap to lap: the picture, not the truth);
 * every frame in which the horse can be seen is rendered at its own
   instants by :func:`~horsemocap.virtuallab.session.render_free_running_frame`
   (phase, rate, rolling shutter, exposure of its camera), with the marker
@@ -58,7 +60,8 @@ LAPS_VERSION = 1
 LAPS_TIMING_INDEX = 400
 #: Marker noise of the laps: as the correlated-noise hard and herd sessions (px, AR(1), px).
 LAPS_NOISE = MarkerNoise(sigma_px=0.1, rho=0.8, bias_px=0.05)
-#: Seconds the horse's body stays in view after its markers have left every view (at 1 m/s; scaled by speed).
+#: How far (m) the horse goes after its markers have left every view before its body has too (the frames
+#: rendered after a pass: this over the gait's speed).
 BODY_TAIL_M = 3.0
 #: Frames of the static clip (the horse standing, its markers' noise evolving).
 STATIC_FRAMES = 15
@@ -121,9 +124,9 @@ class LapsPlan:
     n_frames: int
     offsets: dict
 
-    def pass_window(self, i: int, fps: float = FPS) -> tuple[int, int]:
+    def pass_window(self, i: int, fps: float = FPS, reference: str = "left") -> tuple[int, int]:
         """Reference frames (the video's numbering) of pass ``i``: its start to its last visible frame."""
-        o = self.offsets["left"]
+        o = self.offsets[reference]
         k0 = o + int(round(i * self.lap_s * fps))
         return k0, k0 + self.pass_frames
 
@@ -260,9 +263,12 @@ def pass_truth(session_dir, i: int) -> Truth:
 def laps_key(horse: str, gait: str, laps: int, lap_s: float, timing_index: int, marker_noise, genlocked: bool) -> str:
     """Cache key: the ride's parameters, the timings' renderer versions and the renderer's."""
     timing = free_running_timings(0, timing_index, FPS, genlocked=genlocked)
+    if horse not in HERD:
+        raise ValueError(f"horse: expected one of {sorted(HERD)}, got {horse!r}")
     blob = json.dumps({"v": LAPS_VERSION, "render": RENDER_VERSION, "horse": HERD[horse].to_dict(), "gait": gait,
                        "laps": int(laps), "lap_s": float(lap_s), "timing": {c: t.to_dict() for c, t in timing.items()},
-                       "noise": None if marker_noise is None else marker_noise.to_dict(),
+                       "noise": None if marker_noise is None else marker_noise.to_dict(), "fps": FPS,
+                       "body_tail_m": BODY_TAIL_M, "static_frames": STATIC_FRAMES,
                        **timing_render_versions(timing)}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:12]
 
