@@ -1166,7 +1166,8 @@ class _Tracker:
         cands = self._reacquire_candidates(k)
         if cands is None:
             return False
-        cands, vp, fit = self._label_whole_frame(k, cands)
+        # free-running cameras: their views compared at the reference instant, as the anchor's were
+        cands, vp, fit = self._label_whole_frame(k) if self.timing else self._label_whole_frame(k, cands)
         if fit is None:
             return False
         # stricter than the anchor search (which picks the clearest of many frames): every marker
