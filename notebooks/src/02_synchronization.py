@@ -219,7 +219,10 @@ for c in costs:
 # A free-running session of the virtual laboratory (Horse 3, rising trot, 25 fps; three cameras drawn
 # with random phases, clock errors and rolling shutters; rendered into the cache on first use, about
 # half a minute) is synchronised the way `horsemocap analyze` does it: the flash's partly lit frames
-# first, then the markers.
+# first, then the markers. A rolling shutter exposes the flash's rows later than the frame's first row,
+# by their share of the readout (`subframe.flash_row_delay`: the flash 240 rows down a 480-row image read in
+# 18 ms is seen 9 ms later); the flash's fractions take that delay, as the markers' instants take their
+# own rows'.
 
 # %%
 from horsemocap import subframe
