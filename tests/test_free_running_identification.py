@@ -190,3 +190,27 @@ def test_a_worse_identification_at_the_markers_phases_is_not_kept(monkeypatch):
                             offset_uncertainty_frames={"middle": 0.02, "right": 0.02})
     assert D._identified_again(_session({}, names), flash, _idn(used=90, inconsistent=0), refined, None, None, {},
                                lambda *x: None, 8.0) is None
+
+
+def test_a_phase_run_off_by_frames_is_not_followed(monkeypatch):
+    """The markers gave the middle camera -1.73 frames with a small uncertainty (its views identified at the wrong
+    instants): whole frames are the offsets', so its views are identified at trial phases about the identified one."""
+    names = ("left", "middle", "right")
+    tried = []
+
+    def identify(session, sync, *args, **kw):
+        tried.append(round(sync.phase_frames["middle"], 3))
+        return _idn(used=int(100 - 100 * abs(sync.phase_frames["middle"] - 0.4)), inconsistent=0)
+
+    monkeypatch.setattr(D, "_identify", identify)
+    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
+    monkeypatch.setattr(D, "observation_times", lambda *a: {})
+    monkeypatch.setattr(D, "_subframe_by_markers",
+                        lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
+    at = _free_sync({"left": 0.0, "middle": 0.1, "right": 0.0})
+    ran_off = at.replace(phase_frames={"left": 0.0, "middle": -1.73, "right": 0.0},
+                         offset_uncertainty_frames={"middle": 0.05, "right": 0.02})
+    out = D._identified_again(_session({}, names), at, _idn(used=60, inconsistent=0), ran_off, None, None, {},
+                              lambda *x: None, 8.0)
+    assert tried[:4] == [-0.4, -0.15, 0.35, 0.6]
+    assert out[-1].phase_frames["middle"] == pytest.approx(0.35)

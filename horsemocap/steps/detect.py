@@ -72,6 +72,10 @@ REIDENTIFY_ROUNDS = 3
 #: A phase the markers measured with an uncertainty above this (frames) is not followed: the markers are identified
 #: at trial phases about the one they were identified at instead (:func:`_identified_again`).
 PHASE_UNPINNED_FRAMES = 0.25
+#: Nor is a phase of more than a frame either way: whole frames are the offsets' (the flash's, checked by the
+#: markers' whole-frame check, :func:`_checked_by_markers`); a fraction that runs off by frames has followed
+#: views identified at the wrong instants.
+PHASE_MAX_FRAMES = 1.0
 #: The phases tried for such a camera, in frames from the flash's (the flash's uncertainty either way, and twice it).
 PHASE_TRIALS_FRAMES = (-0.5, -0.25, 0.25, 0.5)
 
@@ -657,7 +661,8 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     ``idn`` was identified in ``identified_at``; ``refined`` holds the phases the markers measured on it (in the
     current offsets' frames). Each round identifies the markers at the markers' phases, measures them and
     refines the phases again; a camera whose phase the markers left uncertain by more than
-    :data:`PHASE_UNPINNED_FRAMES` is instead identified at the trial phases :data:`PHASE_TRIALS_FRAMES` about
+    :data:`PHASE_UNPINNED_FRAMES`, or found more than :data:`PHASE_MAX_FRAMES` either way, is instead
+    identified at the trial phases :data:`PHASE_TRIALS_FRAMES` about
     the phase its views were identified at (:func:`_phase_trials`; the other cameras at the markers' phases).
     The rounds go on while a phase moves by more than :data:`REIDENTIFY_MOVE_FRAMES` or stays uncertain, at
     most :data:`REIDENTIFY_ROUNDS`. Returns ``(idn, marker_px, by_fields, times, sync)`` of the round whose
@@ -667,14 +672,16 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     prev = identified_at.replace(phase_frames=current_phases(identified_at, ref), flash_offsets=None)
     best, best_used = None, _used_marker_frames(idn)
     for _ in range(REIDENTIFY_ROUNDS):
-        loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
-                 if c != ref and u > PHASE_UNPINNED_FRAMES}
         moved = phase_moves(prev.phase_frames, refined.phase_frames)
+        loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
+                 if c != ref and (u > PHASE_UNPINNED_FRAMES
+                                  or abs(refined.phase_frames.get(c, 0.0)) > PHASE_MAX_FRAMES)}
         if not loose and max(moved.values(), default=0.0) <= REIDENTIFY_MOVE_FRAMES:
             break
         if loose:
             progress("detect", "the markers could not pin the phases of " + ", ".join(
-                f"{c} (+- {u:.2f} frame)" for c, u in loose.items()) + ": identifying at other phases")
+                f"{c} ({refined.phase_frames.get(c, 0.0):+.2f} +- {u:.2f} frame)" for c, u in loose.items())
+                + ": identifying at other phases")
             about = prev.replace(phase_frames={**refined.phase_frames,
                                                **{c: prev.phase_frames.get(c, 0.0) for c in loose}})
             idn, at = _phase_trials(session, about, idn, list(loose), rig, static_points, given, tolerance,
