@@ -67,6 +67,15 @@ def _free_sync(phase: dict, names=("left", "middle", "right")):
                       offsets_from="flashlight", phase_frames=dict(phase), subframe_method="flash")
 
 
+def _patch_rounds(monkeypatch, identify, refine=lambda session, sync, *a: sync):
+    """The identification replaced by ``identify``, the measuring steps by nothing, the markers' refinement by
+    ``refine`` (default: the phases it is given)."""
+    monkeypatch.setattr(D, "_identify", identify)
+    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
+    monkeypatch.setattr(D, "observation_times", lambda *a: {})
+    monkeypatch.setattr(D, "_subframe_by_markers", refine)
+
+
 def test_a_camera_whose_views_the_others_reject_is_identified_at_other_phases(monkeypatch):
     """The middle camera's true phase is 0.55, the flash said 0.30: at 0.30 the identification rejects 40 of its
     views; the trials at 0.30 + (-0.5, -0.25, 0.25, 0.5) use the most views at 0.55, which is kept."""
@@ -107,10 +116,7 @@ def test_identified_again_at_the_markers_phases_in_the_current_offsets(monkeypat
         seen.update(D.current_phases(sync, "left"))
         return _idn(used=100, inconsistent=0)
 
-    monkeypatch.setattr(D, "_identify", identify)
-    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
-    monkeypatch.setattr(D, "observation_times", lambda *a: {})
-    monkeypatch.setattr(D, "_subframe_by_markers", lambda session, sync, *a: sync)
+    _patch_rounds(monkeypatch, identify)
     refined = SyncResult(offsets={"left": 9, "middle": 61, "right": 134}, frame_counts={c: 90 for c in names},
                          n_frames=90, offsets_from="flashlight, corrected by the markers",
                          flash_offsets={"left": 8, "middle": 61, "right": 134},
@@ -135,11 +141,8 @@ def test_phases_the_markers_cannot_pin_are_tried_about_the_identified_ones(monke
         tried.append(round(sync.phase_frames["middle"], 3))
         return _idn(used=int(100 - 100 * abs(sync.phase_frames["middle"] - 0.4)), inconsistent=0)
 
-    monkeypatch.setattr(D, "_identify", identify)
-    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
-    monkeypatch.setattr(D, "observation_times", lambda *a: {})
-    monkeypatch.setattr(D, "_subframe_by_markers",
-                        lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
+    _patch_rounds(monkeypatch, identify,
+                  lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
     genlocked = _free_sync({"left": 0.0, "middle": 0.0, "right": 0.0})
     loose = genlocked.replace(phase_frames={"left": 0.0, "middle": 1.01, "right": 0.0},
                               offset_uncertainty_frames={"middle": 1.3, "right": 0.02})
@@ -164,10 +167,7 @@ def test_identified_again_after_phases_found_behind_a_genlocked_looking_flash(mo
         seen.update(D.current_phases(sync, "left"))
         return _idn(used=100, inconsistent=0)
 
-    monkeypatch.setattr(D, "_identify", identify)
-    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
-    monkeypatch.setattr(D, "observation_times", lambda *a: {})
-    monkeypatch.setattr(D, "_subframe_by_markers", lambda session, sync, *a: sync)
+    _patch_rounds(monkeypatch, identify)
     genlocked = SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 90 for c in names}, n_frames=90,
                            offsets_from="flashlight")
     found = genlocked.replace(phase_frames={"left": 0.0, "middle": -0.26, "right": -0.33}, subframe_method="markers",
@@ -181,10 +181,7 @@ def test_a_worse_identification_at_the_markers_phases_is_not_kept(monkeypatch):
     """The markers moved the phases, but the identification at them uses fewer marker-frames than the first:
     nothing is replaced (None)."""
     names = ("left", "middle", "right")
-    monkeypatch.setattr(D, "_identify", lambda *a, **k: _idn(used=40, inconsistent=0))
-    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
-    monkeypatch.setattr(D, "observation_times", lambda *a: {})
-    monkeypatch.setattr(D, "_subframe_by_markers", lambda session, sync, *a: sync)
+    _patch_rounds(monkeypatch, lambda *a, **k: _idn(used=40, inconsistent=0))
     flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
     refined = flash.replace(phase_frames={"left": 0.0, "middle": 0.45, "right": 0.1},
                             offset_uncertainty_frames={"middle": 0.02, "right": 0.02})
@@ -202,11 +199,8 @@ def test_a_phase_run_off_by_frames_is_not_followed(monkeypatch):
         tried.append(round(sync.phase_frames["middle"], 3))
         return _idn(used=int(100 - 100 * abs(sync.phase_frames["middle"] - 0.4)), inconsistent=0)
 
-    monkeypatch.setattr(D, "_identify", identify)
-    monkeypatch.setattr(D, "measured_by_fields", lambda session, sync, px, thr, progress: (px, {}))
-    monkeypatch.setattr(D, "observation_times", lambda *a: {})
-    monkeypatch.setattr(D, "_subframe_by_markers",
-                        lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
+    _patch_rounds(monkeypatch, identify,
+                  lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
     at = _free_sync({"left": 0.0, "middle": 0.1, "right": 0.0})
     ran_off = at.replace(phase_frames={"left": 0.0, "middle": -1.73, "right": 0.0},
                          offset_uncertainty_frames={"middle": 0.05, "right": 0.02})
