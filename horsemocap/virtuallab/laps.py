@@ -44,7 +44,7 @@ from ..camera import write_rig
 from ..data import cache_dir
 from ..store import atomic_write_json
 from .herd import HERD, RENDER_VERSION, free_running_timings, herd_seed, render_into_cache, timing_render_versions
-from .horse import SaddleMotion, saddle_motion
+from .horse import Gait, Harmonics, Horse, SaddleMotion, saddle_motion  # noqa: F401 (LapMotion's inherited fields' types)
 from .longsession import EmptyArena
 from .noise import MarkerNoise
 from .rig import FPS, thesis_rig
