@@ -81,9 +81,7 @@ def run_laps(laps: int, lap_s: float, index: int, genlocked: bool, noise) -> str
     folder = laps_session(laps=laps, lap_s=lap_s, timing_index=index, genlocked=genlocked, marker_noise=noise,
                           progress=print)
     truth = load_truth(folder)
-    info = truth.extras["laps"]
-    plan = LapsPlan(info["lap_s"], info["laps"], info["pass_frames"], info["visible_s"],
-                    info["n_frames_after_flash"], info["offsets"])
+    plan = LapsPlan.from_dict(truth.extras["laps"])
     t0 = time.perf_counter()
     lines = [f"laps {laps} x {lap_s:g} s, draw {index} [{_timing(truth)}]{' genlocked' if genlocked else ''}: {folder}"]
     try:

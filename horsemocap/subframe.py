@@ -35,7 +35,7 @@ from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "flash_onset", "flash_row_delay", "flash_phases",
+__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
            "refine_phases", "linearised_phases", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
@@ -113,6 +113,18 @@ def exposure_fraction(timing: dict, fps: float) -> float:
     """
     given = timing.get("exposure_s")
     return DEFAULT_EXPOSURE_FRACTION if given is None else float(given) * float(fps)
+
+
+def readout_frames(timing: dict, fps: float) -> float:
+    """A camera's rolling-shutter readout in frames from its ``metadata.camera_timing`` entry: ``rolling_shutter_s``
+    times the frame rate, 0 when the entry gives none (a global shutter).
+
+    Examples
+    --------
+    >>> readout_frames({"rolling_shutter_s": 0.02}, 25.0), readout_frames({}, 25.0)
+    (0.5, 0.0)
+    """
+    return float(timing.get("rolling_shutter_s") or 0.0) * float(fps)
 
 
 def exposure_seconds(timing: dict, fps: float) -> float:

@@ -131,10 +131,10 @@ def test_identified_again_at_the_markers_phases_in_the_current_offsets(monkeypat
     assert out[-1].flash_offsets == refined.flash_offsets and out[-1].subframe_method == "flash and markers"
 
 
-def test_phases_the_markers_cannot_pin_are_tried_about_the_identified_ones(monkeypatch):
-    """The markers left the middle's phase uncertain by 1.3 frames (they ran off by a frame): its views are
-    identified at the trial phases about the phase they were identified at (0), where 0.5 uses the most."""
-    names = ("left", "middle", "right")
+def _middle_tried_about(monkeypatch, identified_at: float, markers_phase: float, markers_uncertainty: float):
+    """The middle camera identified at ``identified_at``, the markers then giving it ``markers_phase`` +-
+    ``markers_uncertainty``; its true phase 0.4 (the identification uses the most marker-frames there). Returns the
+    middle phases tried and :func:`_identified_again`'s result."""
     tried = []
 
     def identify(session, sync, *args, **kw):
@@ -143,11 +143,18 @@ def test_phases_the_markers_cannot_pin_are_tried_about_the_identified_ones(monke
 
     _patch_rounds(monkeypatch, identify,
                   lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
-    genlocked = _free_sync({"left": 0.0, "middle": 0.0, "right": 0.0})
-    loose = genlocked.replace(phase_frames={"left": 0.0, "middle": 1.01, "right": 0.0},
-                              offset_uncertainty_frames={"middle": 1.3, "right": 0.02})
-    out = D._identified_again(_session({}, names), genlocked, _idn(used=60, inconsistent=0), loose, None, None, {},
-                              lambda *x: None, 8.0)
+    at = _free_sync({"left": 0.0, "middle": identified_at, "right": 0.0})
+    markers = at.replace(phase_frames={"left": 0.0, "middle": markers_phase, "right": 0.0},
+                         offset_uncertainty_frames={"middle": markers_uncertainty, "right": 0.02})
+    out = D._identified_again(_session({}, ("left", "middle", "right")), at, _idn(used=60, inconsistent=0), markers,
+                              None, None, {}, lambda *x: None, 8.0)
+    return tried, out
+
+
+def test_phases_the_markers_cannot_pin_are_tried_about_the_identified_ones(monkeypatch):
+    """The markers left the middle's phase uncertain by 1.3 frames (they ran off by a frame): its views are
+    identified at the trial phases about the phase they were identified at (0), where 0.5 uses the most."""
+    tried, out = _middle_tried_about(monkeypatch, 0.0, 1.01, 1.3)
     assert tried[:4] == [-0.5, -0.25, 0.25, 0.5]
     assert out[-1].phase_frames["middle"] == pytest.approx(0.5)
 
@@ -192,19 +199,6 @@ def test_a_worse_identification_at_the_markers_phases_is_not_kept(monkeypatch):
 def test_a_phase_run_off_by_frames_is_not_followed(monkeypatch):
     """The markers gave the middle camera -1.73 frames with a small uncertainty (its views identified at the wrong
     instants): whole frames are the offsets', so its views are identified at trial phases about the identified one."""
-    names = ("left", "middle", "right")
-    tried = []
-
-    def identify(session, sync, *args, **kw):
-        tried.append(round(sync.phase_frames["middle"], 3))
-        return _idn(used=int(100 - 100 * abs(sync.phase_frames["middle"] - 0.4)), inconsistent=0)
-
-    _patch_rounds(monkeypatch, identify,
-                  lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
-    at = _free_sync({"left": 0.0, "middle": 0.1, "right": 0.0})
-    ran_off = at.replace(phase_frames={"left": 0.0, "middle": -1.73, "right": 0.0},
-                         offset_uncertainty_frames={"middle": 0.05, "right": 0.02})
-    out = D._identified_again(_session({}, names), at, _idn(used=60, inconsistent=0), ran_off, None, None, {},
-                              lambda *x: None, 8.0)
+    tried, out = _middle_tried_about(monkeypatch, 0.1, -1.73, 0.05)
     assert tried[:4] == [-0.4, -0.15, 0.35, 0.6]
     assert out[-1].phase_frames["middle"] == pytest.approx(0.35)

@@ -59,6 +59,5 @@ def test_each_pass_has_its_own_truth_a_lap_later():
 def test_plan_round_trips_through_the_truth_extras():
     base, _ = _scene()
     plan = plan_laps(base, 2, 8.0)
-    d = plan.to_dict()
-    again = LapsPlan(d["lap_s"], d["laps"], d["pass_frames"], d["visible_s"], d["n_frames_after_flash"], d["offsets"])
+    again = LapsPlan.from_dict(plan.to_dict())
     assert again == plan

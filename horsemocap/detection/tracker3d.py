@@ -290,8 +290,9 @@ def _delay(timing: tuple, centre: np.ndarray) -> np.ndarray:
     return start + np.asarray(centre, float)[:, 1] / height * readout
 
 
-def _candidates_at_reference(frames, k, cams, thr, cparams, timing) -> tuple[dict, dict]:
-    """Frame ``k``'s candidates of every camera, and the same moved to the reference instant ``k``.
+def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None) -> tuple[dict, dict]:
+    """Frame ``k``'s candidates of every camera (``cands`` when already searched), and the same moved to the
+    reference instant ``k``.
 
     A camera whose frame ``k`` shows a region at the instant ``k + delay``
     (free running: its phase; a rolling shutter: plus its row's time;
@@ -301,7 +302,7 @@ def _candidates_at_reference(frames, k, cams, thr, cparams, timing) -> tuple[dic
     frames ``k - 1`` and ``k + 1``), so the cameras are compared at one
     instant; a camera exposing at ``k`` is its own.
     """
-    cands = whole_frame_candidates(frames, k, cams, thr, cparams)
+    cands = whole_frame_candidates(frames, k, cams, thr, cparams) if cands is None else cands
     moving = [c for c in cams if c in (timing or {})]
     if not moving:
         return cands, cands
@@ -1125,11 +1126,9 @@ class _Tracker:
         return any(self.reason[c][k, m] == "lost" for c in self.cams for m in range(self.M))
 
     def _label_whole_frame(self, k, cands=None):
-        """Candidates (searched without a prediction unless given), 3D points and model labelling of frame ``k``."""
-        if cands is None:
-            cands, moved = _candidates_at_reference(self.frames, k, self.cams, self.thr, self.cparams, self.timing)
-        else:
-            moved = cands
+        """Candidates (searched without a prediction unless given), 3D points and model labelling of frame ``k``
+        (free-running cameras' candidates moved to the reference instant: :func:`_candidates_at_reference`)."""
+        cands, moved = _candidates_at_reference(self.frames, k, self.cams, self.thr, self.cparams, self.timing, cands)
         vp, fit, _ = label_frame(self.rig, moved, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         return cands, vp, fit
 
@@ -1166,8 +1165,7 @@ class _Tracker:
         cands = self._reacquire_candidates(k)
         if cands is None:
             return False
-        # free-running cameras: their views compared at the reference instant, as the anchor's were
-        cands, vp, fit = self._label_whole_frame(k) if self.timing else self._label_whole_frame(k, cands)
+        cands, vp, fit = self._label_whole_frame(k, cands)
         if fit is None:
             return False
         # stricter than the anchor search (which picks the clearest of many frames): every marker

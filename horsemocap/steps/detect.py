@@ -490,9 +490,9 @@ def observation_frames(session: Session, rig: Rig, marker_px: dict) -> dict:
     out = {}
     for c, px in marker_px.items():
         given = session.camera_timing(c)
-        readout, interlaced = given.get("rolling_shutter_s"), bool(given.get("interlaced"))
+        readout, interlaced = subframe.readout_frames(given, session.fps), bool(given.get("interlaced"))
         if readout or interlaced:
-            out[c] = subframe.observation_instants(px, rig[c].size[1], float(readout or 0.0) * session.fps, interlaced)
+            out[c] = subframe.observation_instants(px, rig[c].size[1], readout, interlaced)
     return out
 
 
@@ -510,7 +510,7 @@ def row_timing(session: Session) -> dict:
         given = session.camera_timing(c)
         if given.get("rolling_shutter_s") or given.get("interlaced"):
             start = subframe.INTERLACED_FIELD_FRAMES / 2.0 if given.get("interlaced") else 0.0
-            out[c] = (start, float(given.get("rolling_shutter_s") or 0.0) * session.fps)
+            out[c] = (start, subframe.readout_frames(given, session.fps))
     return out
 
 
@@ -601,9 +601,7 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
                            "at zero phase: no search needed)")
         return sync.replace(genlocked_check={c: (float(quick[c].phase), float(quick[c].uncertainty)) for c in others},
                             genlocked_check_method="linearised")
-    # from zero: the offsets the markers corrected by whole frames (flash_offsets) are the cameras' frames now
-    probe = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers",
-                         flash_offsets=None)
+    probe = sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
     found = _subframe_by_markers(session, probe, rig, marker_px, times, lambda *x: None)
     if found is probe:
         return sync
@@ -612,7 +610,7 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
     if any(abs(phase[c]) > max(HIDDEN_PHASE_Z * unc.get(c, 0.0), HIDDEN_PHASE_MIN_FRAMES) for c in others):
         progress("detect", f"the flash lit every camera's first frame fully, but the markers find the cameras "
                            f"running free: {text} frames; those are used")
-        return found.replace(flash_offsets=sync.flash_offsets)
+        return found
     progress("detect", f"the markers find the cameras genlocked, as the flash said ({text} frames)")
     return sync.replace(genlocked_check={c: (float(phase[c]), float(unc[c])) for c in others},
                         genlocked_check_method="search")
@@ -669,7 +667,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     identification used the most marker-frames, when it used more than ``idn``.
     """
     ref = session.reference_camera
-    prev = identified_at.replace(phase_frames=current_phases(identified_at, ref), flash_offsets=None)
+    prev = identified_at.replace(phase_frames=current_phases(identified_at, ref))
     best, best_used = None, _used_marker_frames(idn)
     for _ in range(REIDENTIFY_ROUNDS):
         moved = phase_moves(prev.phase_frames, refined.phase_frames)
@@ -692,7 +690,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
             progress("detect", "the markers moved the phases by " + ", ".join(
                 f"{c} {d:.3f}" for c, d in moved.items() if d) + " frame from those the views were identified "
                 "at: identifying again at the markers' phases")
-            at = refined.replace(flash_offsets=None)
+            at = refined
             try:
                 idn = _identify(session, at, rig, static_points, given, progress, None, tolerance)
             except AnalysisError as exc:
@@ -701,7 +699,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
         marker_px, by_fields = measured_by_fields(session, at, idn.marker_px, idn.thresholds, progress)
         times = observation_times(session, at, rig, marker_px)
         found = _subframe_by_markers(session, at, rig, marker_px, times, progress)
-        prev, refined = at, found.replace(subframe_method=refined.subframe_method, flash_offsets=refined.flash_offsets)
+        prev, refined = at, found.replace(subframe_method=refined.subframe_method)
         used = _used_marker_frames(idn)
         if used > best_used:
             best, best_used = (idn, marker_px, by_fields, times, refined), used

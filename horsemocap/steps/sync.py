@@ -143,16 +143,6 @@ def exposure_fractions(session: Session) -> dict:
     return out
 
 
-def readout_frames(session: Session, camera: str) -> float:
-    """A camera's rolling-shutter readout in frames, from the optional
-    ``metadata.camera_timing.<camera>.rolling_shutter_s`` (0 when not given, and for interlaced fields, whose
-    rows are timed by their field)."""
-    given = session.camera_timing(camera)
-    if given.get("interlaced"):
-        return 0.0
-    return float(given.get("rolling_shutter_s") or 0.0) * float(session.fps)
-
-
 def _flash_fractions(session: Session, found: dict, offsets: dict) -> dict:
     """The flash's sub-frame phases as SyncResult fields, or {} when every first lit frame was fully lit.
 
@@ -163,8 +153,10 @@ def _flash_fractions(session: Session, found: dict, offsets: dict) -> dict:
     onsets = {c: subframe.flash_onset(d.signal, d.off_level, d.on_level, d.frame - d.start, exposure[c])
               for c, d in found.items()}
     # a rolling shutter exposes the flash's rows later than row 0, by which the markers' instants are timed
-    onsets = {c: replace(o, onset_frames=o.onset_frames + subframe.flash_row_delay(found[c].region,
-                                                                                 readout_frames(session, c)))
+    # (an interlaced frame's rows are timed by their field: no delay)
+    readout = {c: 0.0 if session.camera_timing(c).get("interlaced")
+               else subframe.readout_frames(session.camera_timing(c), session.fps) for c in onsets}
+    onsets = {c: replace(o, onset_frames=o.onset_frames + subframe.flash_row_delay(found[c].region, readout[c]))
               for c, o in onsets.items()}
     if not any(o.partial for o in onsets.values()):
         return {}

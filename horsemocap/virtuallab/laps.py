@@ -134,6 +134,11 @@ class LapsPlan:
         return {"lap_s": self.lap_s, "laps": self.laps, "pass_frames": self.pass_frames,
                 "visible_s": self.visible_s, "n_frames_after_flash": self.n_frames, "offsets": dict(self.offsets)}
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "LapsPlan":
+        """The plan :meth:`to_dict` wrote (``truth.json`` extras ``laps``)."""
+        return cls(d["lap_s"], d["laps"], d["pass_frames"], d["visible_s"], d["n_frames_after_flash"], d["offsets"])
+
 
 def plan_laps(scene: Scene, laps: int, lap_s: float, fps: float = FPS) -> LapsPlan:
     """The timeline of ``laps`` passes ``lap_s`` apart of the (single-pass) ``scene``.
@@ -250,8 +255,7 @@ def pass_truth(session_dir, i: int) -> Truth:
     if info is None:
         raise ValueError(f"{session_dir}: truth.json has no 'laps' extras (not a laps session)")
     meta = json.loads((Path(session_dir) / "session.json").read_text())["metadata"]
-    plan = LapsPlan(info["lap_s"], info["laps"], info["pass_frames"], info["visible_s"],
-                    info["n_frames_after_flash"], info["offsets"])
+    plan = LapsPlan.from_dict(info)
     if not 0 <= i < plan.laps:
         raise ValueError(f"pass {i}: the session has passes 0 .. {plan.laps - 1}")
     timing = {c: CameraTiming.from_dict(d) for c, d in meta["camera_timing"].items()}
