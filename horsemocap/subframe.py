@@ -37,7 +37,7 @@ from .reconstruction import triangulate
 
 __all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
-           "refine_phases", "linearised_phases", "tracks_at_reference_instants", "points_at_shifted_instants",
+           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
            "OUTSIDE_TRACK"]
 
@@ -58,6 +58,15 @@ EXTEND_FRAMES = 1.0
 INTERLACED_FIELD_FRAMES = 0.5
 #: Chunks of the record over which the phase is fitted separately (spread -> uncertainty, slope -> rate).
 CHUNKS = 5
+#: A trend of the chunks' phases is a clock's drift when it is DRIFT_Z standard errors from zero, adds DRIFT_MIN_FRAMES
+#: of phase over their span and is within RATE_MAX_PPM of the reference's rate (:func:`drift_is_measured`).
+DRIFT_Z = 3.0
+DRIFT_MIN_FRAMES = 0.05
+RATE_MAX_PPM = 500.0
+#: A chunk is cut where the markers are unseen for more than this many frames (a second at 25 fps: the horse
+#: left the views, :func:`seen_chunks`); pieces shorter than CHUNK_MIN_FRAMES are not measured.
+CHUNK_GAP_FRAMES = 25
+CHUNK_MIN_FRAMES = 4
 #: The joint refinement of the phases: its tolerance (frames), of the residual (px) and most simplex steps.
 #: From its first steps of GRID_STEP the simplex shrinks to REFINE_TOLERANCE in about nine halvings, a few
 #: dozen steps for the two or three free phases of a rig; 400 leaves a wide margin while it still bounds the
@@ -373,6 +382,26 @@ def _nearest_distance(sorted_times: np.ndarray, instants: np.ndarray) -> np.ndar
     return np.minimum(lower, upper)
 
 
+def camera_frames(reference_frames, phase: float = 0.0, rate_ratio: float = 1.0) -> np.ndarray:
+    """The camera's frames (its own time) at the reference instants ``reference_frames``.
+
+    Camera ``c``'s synchronised frame ``j`` is exposed at the reference
+    instant ``phase + rate_ratio x j``: its phase at frame 0 plus its clock's
+    drift (a rate ``rate_ratio`` times the reference's adds ``rate_ratio - 1``
+    frame of phase per frame). The reference instant ``k`` is therefore its
+    frame ``(k - phase) / rate_ratio``.
+
+    Examples
+    --------
+    A camera 0.25 frame behind at frame 0 whose clock runs 100 ppm fast
+    (its phase 0.35 frame after 1000 frames):
+
+    >>> [round(float(j), 4) for j in camera_frames(np.array([0.0, 1000.0]), 0.25, 1.0001)]
+    [-0.25, 999.65]
+    """
+    return (np.asarray(reference_frames, float) - float(phase)) / float(rate_ratio)
+
+
 def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict | None = None,
                                  times: dict | None = None, max_gap: int = 0) -> tuple[dict, dict]:
     """Every camera's tracks interpolated to the reference camera's instants.
@@ -409,17 +438,18 @@ def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict 
             out[c], outside[c] = px, np.zeros(px.shape[:2], bool)
             continue
         k = np.arange(len(px), dtype=float)
-        out[c] = TrackInterpolant(px, times.get(c), max_gap)((k - float(phase.get(c, 0.0))) / ratio)
+        out[c] = TrackInterpolant(px, times.get(c), max_gap)(camera_frames(k, phase.get(c, 0.0), ratio))
         outside[c] = np.all(np.isfinite(px), axis=2) & ~np.all(np.isfinite(out[c]), axis=2)
     return out, outside
 
 
-def points_at_shifted_instants(points, shift: float) -> np.ndarray:
-    """Positions at instants ``k + shift`` (frames) read from ``points`` sampled at frames ``k``, linearly
-    (NaN where either neighbouring sample is missing or outside the record).
+def points_at_shifted_instants(points, shift: float, rate_ratio: float = 1.0) -> np.ndarray:
+    """Positions at instants ``k + shift + (rate_ratio - 1) k`` (frames) read from ``points`` sampled at
+    frames ``k``, linearly (NaN where either neighbouring sample is missing or outside the record).
 
     A camera whose synchronised frame ``k`` is at reference instant ``k + phase`` sees the markers the other
-    cameras place at reference instants as they were ``phase`` frames later.
+    cameras place at reference instants as they were ``phase`` frames later (its clock running at
+    ``rate_ratio`` times the reference's: ``phase + rate_ratio k``, :func:`camera_frames`).
 
     Examples
     --------
@@ -428,19 +458,23 @@ def points_at_shifted_instants(points, shift: float) -> np.ndarray:
     array([ 2.5, 12.5, 22.5, 32.5,  nan])
     >>> points_at_shifted_instants(p, -1.5)[:, 0, 0]
     array([nan, nan,  5., 15., 25.])
+    >>> points_at_shifted_instants(p, 0.0, 1.1)[:, 0, 0]
+    array([ 0., 11., 22., 33., nan])
     """
     p = np.asarray(points, float)
-    whole = int(np.floor(shift))
-    w = float(shift) - whole
     n = len(p)
-    out = np.full_like(p, np.nan)
     k = np.arange(n)
+    s = float(shift) + (float(rate_ratio) - 1.0) * k
+    whole = np.floor(s).astype(int)
+    w = s - whole
     lo, hi = k + whole, k + whole + 1
-    ok = (lo >= 0) & (hi < n) if w > 0 else (lo >= 0) & (lo < n)
-    if w > 0:
-        out[ok] = (1.0 - w) * p[lo[ok]] + w * p[hi[ok]]
-    else:
-        out[ok] = p[lo[ok]]
+    ok = (lo >= 0) & np.where(w > 0, hi < n, lo < n)
+    out = np.full_like(p, np.nan)
+    exact = ok & (w == 0)
+    between = ok & (w > 0)
+    out[exact] = p[lo[exact]]
+    wb = w[between].reshape((-1,) + (1,) * (p.ndim - 1))
+    out[between] = (1.0 - wb) * p[lo[between]] + wb * p[hi[between]]
     return out
 
 
@@ -517,9 +551,11 @@ class PhaseFit:
     Attributes
     ----------
     phase : float
-        Frames (reference instants) after the whole-frame offset.
+        Frames (reference instants) after the whole-frame offset, at frame 0 (the camera's phase at frame
+        ``k`` is ``phase + (rate_ratio - 1) k``: :func:`camera_frames`).
     uncertainty : float
-        Standard error of ``phase`` from the spread of the chunks' phases.
+        Standard error of ``phase`` from the spread of the chunks' phases (about their drift, when a rate
+        ratio is kept).
     rate_ratio : float
         This camera's rate over the reference's (1 when the drift over the record is not significant).
     residual_px : float
@@ -547,7 +583,8 @@ def fit_phase(camera, points: np.ndarray, track: TrackInterpolant, center: float
     The record's frames with a 3D point are cut into :data:`CHUNKS` chunks;
     each chunk's phase is fitted alike. Their spread over ``sqrt(chunks)`` is
     the uncertainty; a straight line through them over time gives the drift
-    (rate ratio), kept only when it is larger than twice its standard error.
+    (rate ratio), kept only when :func:`drift_is_measured` (``phase`` is then the one at the middle of the
+    record's frames compared, as :func:`phase_residual` reads it).
     None when fewer than 10 marker-frames compare.
 
     Examples
@@ -574,35 +611,36 @@ def fit_phase(camera, points: np.ndarray, track: TrackInterpolant, center: float
     unc = float(np.std(chunk_phase, ddof=1) / np.sqrt(len(chunk_phase))) if len(chunk_phase) > 2 else step
     ratio = 1.0
     if len(chunk_phase) > 2:
-        slope = np.polyfit(chunk_mid, chunk_phase, 1)
-        resid = np.asarray(chunk_phase) - np.polyval(slope, chunk_mid)
-        sx = np.sqrt(np.sum((np.asarray(chunk_mid) - np.mean(chunk_mid)) ** 2))
-        se = np.sqrt(np.sum(resid ** 2) / max(len(resid) - 2, 1)) / sx if sx > 0 else np.inf
-        if abs(slope[0]) > 2 * se:
-            ratio = 1.0 + float(slope[0])
+        _, slope, se, _ = _drift_line(chunk_phase, chunk_mid)
+        if drift_is_measured(slope, se, float(np.ptp(chunk_mid))):
+            ratio = 1.0 + slope
     res = phase_residual(camera, points, track, [best], frames=have)[0]
     return PhaseFit(phase=best, uncertainty=max(unc, 1e-3), rate_ratio=ratio, residual_px=float(res),
                     n_points=int(have.size * points.shape[1]))
 
 
-def joint_residual(rig, tracks: dict, phase: dict, frames: np.ndarray) -> float:
+def joint_residual(rig, tracks: dict, phase: dict, frames: np.ndarray, rate_ratio: dict | None = None) -> float:
     """Median reprojection residual (px) of every camera's tracks at the reference instants ``frames``.
 
-    Each camera's track is read at its frame ``k - phase[c]``; the markers
+    Each camera's track is read at its frame ``(k - phase[c]) / rate_ratio[c]``
+    (:func:`camera_frames`; rate 1 when not given); the markers
     are triangulated from all cameras together (joint) and the residual is
     taken over every camera and marker-frame. NaN when nothing triangulates.
     """
     k = np.asarray(frames, float)
-    at_ref = {c: tr(k - float(phase.get(c, 0.0))) for c, tr in tracks.items()}
+    rate_ratio = rate_ratio or {}
+    at_ref = {c: tr(camera_frames(k, phase.get(c, 0.0), rate_ratio.get(c, 1.0))) for c, tr in tracks.items()}
     tri = triangulate(rig, at_ref, mode="joint", max_residual_px=None)
     r = np.concatenate([np.ravel(v) for v in tri.residual_px.values()])
     r = r[np.isfinite(r)]
     return float(np.median(r)) if r.size else float("nan")
 
 
-def _axis_fit(rig, tracks, phase, cam, frames, grid):
-    """The best phase of ``cam`` on ``grid`` (others fixed), refined by a parabola; NaN when nothing compares."""
-    curve = np.array([joint_residual(rig, tracks, {**phase, cam: g}, frames) for g in grid])
+def _axis_fit(rig, tracks, phase, cam, frames, grid, rate_ratio: dict | None = None):
+    """The best phase of ``cam`` on ``grid`` (others fixed, at ``rate_ratio``; ``cam`` at rate 1 over
+    ``frames``), refined by a parabola; NaN when nothing compares."""
+    rate = {**(rate_ratio or {}), cam: 1.0}
+    curve = np.array([joint_residual(rig, tracks, {**phase, cam: g}, frames, rate) for g in grid])
     return _parabolic_minimum(grid, curve) if np.isfinite(curve).any() else float("nan")
 
 
@@ -651,11 +689,15 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
     passes) for more; the residual is :func:`joint_residual` (the tracks
     interpolated in time, triangulated by all cameras together). The phases
     are then refined together (a simplex: the cameras' phases are coupled
-    through the joint triangulation); the record
-    cut into :data:`CHUNKS` chunks, each chunk's phase gives the uncertainty
-    (spread over ``sqrt(chunks)``, combined with :func:`timing_floor`: the
-    residual left, in frames) and, when their drift is larger than twice its
-    standard error, the rate ratio.
+    through the joint triangulation); the frames that show markers are
+    cut into :data:`CHUNKS` chunks (:func:`seen_chunks`), each chunk's phase
+    gives the uncertainty (spread over ``sqrt(chunks)``, combined with
+    :func:`timing_floor`: the residual left, in frames) and, when their
+    trend is a clock's drift (:func:`drift_is_measured`), the rate ratio: the
+    camera's clock runs at another rate than the reference's, its phase
+    then the one at frame 0 (:func:`camera_frames`), refined again with
+    the rates. Over a long recording of several passes a constant phase
+    would be the drift's average, wrong at every pass but one.
 
     Parameters
     ----------
@@ -691,23 +733,135 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                 if np.isfinite(g):
                     best[c] = g
     best = _refine_jointly(rig, tracks, best, free, frames)
+    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px))
+    rate = {**{c: 1.0 for c in marker_px}, **{c: d.rate_ratio for c, d in drift.items()}}
+    if any(d.rate_ratio != 1.0 for d in drift.values()):     # the phases at frame 0, refined with the rates
+        best = _refine_jointly(rig, tracks, {**best, **{c: d.phase for c, d in drift.items() if d.rate_ratio != 1.0}},
+                               free, frames, rate)
     fits = {}
-    floor = timing_floor(rig, marker_px, best, times)
+    floor = timing_floor(rig, marker_px, best, times, rate)
+    residual = joint_residual(rig, tracks, best, frames, rate)
     for c in free:
-        fine = np.arange(best[c] - 3 * GRID_STEP, best[c] + 3.5 * GRID_STEP, GRID_STEP)
-        chunk_phase, chunk_mid = [], []
-        for part in np.array_split(frames, CHUNKS):
-            g = _axis_fit(rig, tracks, best, c, part, fine)
-            if np.isfinite(g):
-                chunk_phase.append(g)
-                chunk_mid.append(float(part.mean()))
-        unc, ratio = _spread_and_rate(chunk_phase, chunk_mid)
+        unc = drift[c].uncertainty
         if np.isfinite(floor.get(c, np.nan)):
             unc = float(np.hypot(unc, floor[c]))
-        fits[c] = PhaseFit(phase=float(best[c]), uncertainty=unc, rate_ratio=ratio,
-                           residual_px=joint_residual(rig, tracks, best, frames), n_points=int(n),
+        fits[c] = PhaseFit(phase=float(best[c]), uncertainty=unc, rate_ratio=float(rate[c]),
+                           residual_px=residual, n_points=int(n),
                            timing_floor_frames=float(floor.get(c, np.nan)))
     return fits
+
+
+def seen_chunks(marker_px: dict, chunks: int = CHUNKS) -> list:
+    """The record's frames in which two or more cameras see a marker, cut into ``chunks`` runs of equal count,
+    each cut again where the markers are unseen for more than :data:`CHUNK_GAP_FRAMES`.
+
+    The chunks over which :func:`refine_phases` measures each camera's phase
+    again (their spread: its uncertainty; their trend: its clock's drift).
+    A recording of several passes of the horse through the views is cut by
+    the frames that show it, not by its length (the empty arena between
+    passes measures nothing), and no chunk spans two passes (its phase
+    would be neither's when the clock drifts). Pieces of fewer than
+    :data:`CHUNK_MIN_FRAMES` frames are left out.
+
+    Examples
+    --------
+    >>> px = np.full((50, 1, 2), np.nan)
+    >>> px[2:8] = px[40:46] = 1.0
+    >>> [part.tolist() for part in seen_chunks({"a": px, "b": px}, chunks=3)]
+    [[2.0, 3.0, 4.0, 5.0], [42.0, 43.0, 44.0, 45.0]]
+    """
+    seen = sum(np.any(np.all(np.isfinite(np.asarray(px, float)), axis=-1), axis=-1).astype(int)
+               for px in marker_px.values())
+    frames = np.flatnonzero(np.asarray(seen) >= 2).astype(float)
+    out = []
+    for part in np.array_split(frames, chunks):
+        cuts = np.flatnonzero(np.diff(part) > CHUNK_GAP_FRAMES) + 1
+        out += [piece for piece in np.split(part, cuts) if piece.size >= CHUNK_MIN_FRAMES]
+    return out
+
+
+@dataclass(frozen=True)
+class _Drift:
+    """A camera's phase at frame 0 (``phase``; the constant phase when the drift is not significant), its rate
+    ratio and the phase's standard error from its chunks."""
+    phase: float
+    rate_ratio: float
+    uncertainty: float
+
+
+def _drifts(rig, tracks, best: dict, free: list, parts: list) -> dict:
+    """Camera -> :class:`_Drift` of every camera of ``free`` from the chunks' phases (:func:`_chunk_phases`).
+
+    A straight line through a camera's chunk phases over time: its slope is
+    the camera clock's drift, kept as the rate ratio ``1 + slope`` when
+    :func:`drift_is_measured`, the line's value at frame 0 then its phase. The uncertainty is the chunks' spread about the line (or
+    about their mean) over ``sqrt(chunks)``. A camera measured in fewer than
+    three chunks keeps ``best`` with :data:`GRID_STEP` as its uncertainty.
+    """
+    chunk_phase, chunk_mid = _chunk_phases(rig, tracks, best, free, parts)
+    out = {}
+    for c in free:
+        ph = [p[c] for p in chunk_phase]
+        if len(ph) < 3:
+            out[c] = _Drift(float(best[c]), 1.0, GRID_STEP)
+            continue
+        intercept, slope, se, spread = _drift_line(ph, chunk_mid)
+        if drift_is_measured(slope, se, float(np.ptp(chunk_mid))):
+            out[c] = _Drift(intercept, 1.0 + slope, max(spread / np.sqrt(len(ph)), 1e-3))
+        else:
+            out[c] = _Drift(float(best[c]), 1.0, max(float(np.std(ph, ddof=1) / np.sqrt(len(ph))), 1e-3))
+    return out
+
+
+def drift_is_measured(slope: float, slope_se: float, span_frames: float) -> bool:
+    """Is a trend of the chunks' phases a camera clock's drift? (:func:`refine_phases`)
+
+    Three conditions: the slope is more than :data:`DRIFT_Z` standard errors
+    from zero (the chunks share the marker noise's slow part, so their
+    scatter understates it: 3, not 2); it adds at least
+    :data:`DRIFT_MIN_FRAMES` of phase over the chunks' span (less moves no
+    point measurably: a twentieth of a frame, the phase the markers tell
+    from zero elsewhere); and it is a rate a camera clock keeps, within
+    :data:`RATE_MAX_PPM` of the reference's (video crystals are made to
+    +-100 ppm or better; a steeper trend over a short record is the noise).
+
+    Examples
+    --------
+    132 ppm over 2700 frames, and the same trend over a pass of 80 frames:
+
+    >>> drift_is_measured(132e-6, 5e-6, 2700.0), drift_is_measured(132e-6, 5e-6, 80.0)
+    (True, False)
+    >>> drift_is_measured(1.5e-3, 2e-4, 80.0)           # 1500 ppm: not a clock's rate
+    False
+    """
+    return (abs(slope) > DRIFT_Z * slope_se and abs(slope) * span_frames >= DRIFT_MIN_FRAMES
+            and abs(slope) <= RATE_MAX_PPM * 1e-6)
+
+
+def _chunk_phases(rig, tracks, best: dict, free: list, parts: list) -> tuple[list, list]:
+    """Each chunk's phases of the cameras ``free`` refined together (:func:`_refine_jointly` over the chunk's
+    frames from ``best``, constant over the chunk: the cameras' phases are coupled through the joint
+    triangulation, so one camera's drift would move another's phase were they measured one at a time), and
+    the chunks' middles (frames). A chunk in which nothing triangulates is left out."""
+    chunk_phase, chunk_mid = [], []
+    for part in parts:
+        if not np.isfinite(joint_residual(rig, tracks, best, part)):
+            continue
+        found = _refine_jointly(rig, tracks, best, free, part)
+        chunk_phase.append({c: float(found[c]) for c in free})
+        chunk_mid.append(float(part.mean()))
+    return chunk_phase, chunk_mid
+
+
+def _drift_line(chunk_phase: list, chunk_mid: list) -> tuple[float, float, float, float]:
+    """The least-squares line through the chunks' phases over time: its value at frame 0, its slope, the
+    slope's standard error and the residuals' standard deviation (n - 2 degrees of freedom)."""
+    ph, mid = np.asarray(chunk_phase, float), np.asarray(chunk_mid, float)
+    slope, intercept = np.polyfit(mid, ph, 1)
+    resid = ph - (intercept + slope * mid)
+    sd = float(np.sqrt(np.sum(resid ** 2) / max(len(ph) - 2, 1)))
+    sx = float(np.sqrt(np.sum((mid - mid.mean()) ** 2)))
+    return float(intercept), float(slope), (sd / sx if sx > 0 else np.inf), sd
 
 
 def linearised_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict | None = None) -> dict:
@@ -810,7 +964,7 @@ def linearised_phases(rig, marker_px: dict, phase: dict, reference: str, times: 
     residual = joint_residual(rig, tracks, found, k)
     fits = {}
     for i, c in enumerate(free):
-        unc, _ = _spread_and_rate([float(s[i]) for s in chunk_steps], chunk_mid)
+        unc = _spread([float(s[i]) for s in chunk_steps])
         if np.isfinite(floor.get(c, np.nan)):
             unc = float(np.hypot(unc, floor[c]))
         fits[c] = PhaseFit(phase=found[c], uncertainty=unc, rate_ratio=1.0, residual_px=residual,
@@ -818,7 +972,7 @@ def linearised_phases(rig, marker_px: dict, phase: dict, reference: str, times: 
     return fits
 
 
-def _refine_jointly(rig, tracks: dict, phase: dict, free: list, frames: np.ndarray) -> dict:
+def _refine_jointly(rig, tracks: dict, phase: dict, free: list, frames: np.ndarray, rate_ratio: dict | None = None) -> dict:
     """The phases of ``free`` moved together to the least :func:`joint_residual` (Nelder-Mead simplex from
     ``phase``, first steps of :data:`GRID_STEP`, to :data:`REFINE_TOLERANCE` frames and
     :data:`REFINE_RESIDUAL_TOLERANCE_PX`).
@@ -830,19 +984,20 @@ def _refine_jointly(rig, tracks: dict, phase: dict, free: list, frames: np.ndarr
     start = np.array([float(phase[c]) for c in free])
 
     def cost(x):
-        v = joint_residual(rig, tracks, {**phase, **dict(zip(free, x))}, frames)
+        v = joint_residual(rig, tracks, {**phase, **dict(zip(free, x))}, frames, rate_ratio)
         return v if np.isfinite(v) else np.inf
 
     simplex = np.vstack([start] + [start + GRID_STEP * np.eye(len(free))[i] for i in range(len(free))])
-    res = minimize(cost, start, method="Nelder-Mead",
-                   options=dict(initial_simplex=simplex, xatol=REFINE_TOLERANCE, fatol=REFINE_RESIDUAL_TOLERANCE_PX,
-                                maxiter=REFINE_MAX_STEPS))
+    with np.errstate(invalid="ignore"):      # a vertex where nothing triangulates costs inf
+        res = minimize(cost, start, method="Nelder-Mead",
+                       options=dict(initial_simplex=simplex, xatol=REFINE_TOLERANCE, fatol=REFINE_RESIDUAL_TOLERANCE_PX,
+                                    maxiter=REFINE_MAX_STEPS))
     if not np.isfinite(res.fun) or res.fun > cost(start):
         return dict(phase)
     return {**phase, **{c: float(v) for c, v in zip(free, res.x)}}
 
 
-def timing_floor(rig, marker_px: dict, phase: dict, times: dict | None = None) -> dict:
+def timing_floor(rig, marker_px: dict, phase: dict, times: dict | None = None, rate_ratio: dict | None = None) -> dict:
     """Camera -> the timing error (frames) its sync residual cannot rule out: residual / image speed.
 
     With every camera's tracks at the reference instants (``phase``,
@@ -875,7 +1030,7 @@ def timing_floor(rig, marker_px: dict, phase: dict, times: dict | None = None) -
     >>> round(floor["middle"], 2)
     0.11
     """
-    at_ref, _ = tracks_at_reference_instants(marker_px, phase, None, times)
+    at_ref, _ = tracks_at_reference_instants(marker_px, phase, rate_ratio, times)
     resid = others_residual(rig, at_ref)
     out = {}
     for c, px in at_ref.items():
@@ -885,17 +1040,11 @@ def timing_floor(rig, marker_px: dict, phase: dict, times: dict | None = None) -
     return out
 
 
-def _spread_and_rate(chunk_phase: list, chunk_mid: list) -> tuple[float, float]:
-    """Standard error of the phase from the chunks' spread, and the rate ratio when their drift is significant."""
+def _spread(chunk_phase: list) -> float:
+    """Standard error of the phase from the chunks' spread (:data:`GRID_STEP` from fewer than three chunks)."""
     if len(chunk_phase) < 3:
-        return GRID_STEP, 1.0
-    ph, mid = np.asarray(chunk_phase), np.asarray(chunk_mid)
-    unc = float(np.std(ph, ddof=1) / np.sqrt(len(ph)))
-    slope = np.polyfit(mid, ph, 1)
-    resid = ph - np.polyval(slope, mid)
-    sx = float(np.sqrt(np.sum((mid - mid.mean()) ** 2)))
-    se = float(np.sqrt(np.sum(resid ** 2) / max(len(ph) - 2, 1)) / sx) if sx > 0 else np.inf
-    return max(unc, 1e-3), (1.0 + float(slope[0]) if abs(slope[0]) > 2 * se else 1.0)
+        return GRID_STEP
+    return max(float(np.std(np.asarray(chunk_phase, float), ddof=1) / np.sqrt(len(chunk_phase))), 1e-3)
 
 
 def others_residual(rig, marker_px: dict) -> dict:

@@ -84,6 +84,74 @@ def test_markers_recover_the_phases(rig):
         assert fits[c].rate_ratio == 1.0 or abs(fits[c].rate_ratio - 1) < 1e-3
 
 
+def test_a_drifting_clock_over_passes_gives_its_phase_at_frame_0_and_its_rate(rig):
+    """Three passes of 90 frames across 1500, the middle camera's clock 300 ppm fast (0.45 frame of drift
+    over the record), the right camera's exact: the middle camera's phase at frame 0 and its rate are
+    found (a constant phase would be the drift's average, 0.22 frame off at the ends), the right camera's
+    rate stays 1, and every camera's tracks then meet at the reference instants."""
+    n, lap, seen = 1500, 700, 90
+    where = _trajectory(seen)
+    names = list(rig.names)
+    phase0, ratio = {names[1]: 0.2, names[2]: -0.15}, {names[1]: 1.0003, names[2]: 1.0}
+    px = {}
+    for c in names:
+        instant = phase0.get(c, 0.0) + ratio.get(c, 1.0) * np.arange(n)   # camera c's frame j, reference time
+        px[c] = rig[c].project(where(np.mod(instant, lap)))
+        px[c][np.mod(instant, lap) > seen] = np.nan
+    fits = subframe.refine_phases(rig, px, {c: 0.0 for c in names}, names[0])
+    assert fits[names[1]].phase == pytest.approx(0.2, abs=0.01)
+    assert fits[names[1]].rate_ratio == pytest.approx(1.0003, abs=1e-5)
+    assert fits[names[2]].phase == pytest.approx(-0.15, abs=0.01)
+    assert fits[names[2]].rate_ratio == 1.0
+    at_ref, _ = subframe.tracks_at_reference_instants(px, {c: f.phase for c, f in fits.items()},
+                                                      {c: f.rate_ratio for c, f in fits.items()})
+    late = slice(2 * lap + 10, 2 * lap + seen - 10)
+    truth = rig[names[1]].project(where(np.arange(n)[late] % lap))
+    assert np.nanmax(np.abs(at_ref[names[1]][late] - truth)) < 0.05
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_marker_noise_correlated_over_frames_is_not_taken_for_a_drifting_clock(rig, seed):
+    """One pass of 90 frames, every camera's centroids with AR(1) noise (0.15 px, correlation 0.8 from
+    frame to frame): the chunks' phases trend with the noise's slow part, but no clock drifts that fast
+    over so short a record, so every rate stays 1 and the phases stay near the truth."""
+    n, true_phase = 90, {"middle": 0.37, "right": -0.22}
+    where = _trajectory(n)
+    rng = np.random.default_rng(seed)
+    px = {}
+    for c in rig.names:
+        noise = np.zeros((n, 3, 2))
+        for k in range(1, n):
+            noise[k] = 0.8 * noise[k - 1] + 0.15 * np.sqrt(1 - 0.8 ** 2) * rng.standard_normal((3, 2))
+        px[c] = rig[c].project(where(np.arange(n) + true_phase.get(c, 0.0))) + noise
+    fits = subframe.refine_phases(rig, px, {c: 0.0 for c in rig.names}, rig.names[0])
+    for c, p in true_phase.items():
+        assert fits[c].rate_ratio == 1.0
+        assert fits[c].phase == pytest.approx(p, abs=0.1)
+
+
+def test_seen_chunks_skip_the_empty_arena():
+    px = np.full((100, 2, 2), np.nan)
+    px[10:20] = px[60:70] = 5.0
+    parts = subframe.seen_chunks({"a": px, "b": px, "c": np.full((100, 2, 2), np.nan)}, chunks=4)
+    assert [p.tolist() for p in parts] == [list(range(10, 15)), list(range(15, 20)), list(range(60, 65)),
+                                           list(range(65, 70))]
+    across = subframe.seen_chunks({"a": px, "b": px}, chunks=3)      # the middle chunk spans both passes: cut,
+    assert [p.tolist() for p in across] == [list(range(10, 17)), list(range(60, 64)),  # its 3-frame piece left out
+                                            list(range(64, 70))]
+    only_one = subframe.seen_chunks({"a": px, "b": np.full((100, 2, 2), np.nan)})
+    assert only_one == []
+
+
+def test_shifted_instants_follow_a_drifting_clock():
+    p = np.arange(100.0).reshape(100, 1, 1) * 2.0
+    out = subframe.points_at_shifted_instants(p, 0.5, 1.001)
+    k = np.arange(100.0)
+    inside = 0.5 + 1.001 * k < 99
+    assert np.allclose(out[inside, 0, 0], 2.0 * (0.5 + 1.001 * k[inside]))
+    assert np.isnan(out[~inside]).all()
+
+
 def test_coupled_phases_are_refined_until_they_settle(rig):
     """Two cameras' phases off the search grid: each camera's best phase moves with the other's error, so both
     are moved together (a Nelder-Mead simplex) to the joint minimum (noise-free: a few thousandths of a frame)."""

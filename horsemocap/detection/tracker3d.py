@@ -271,23 +271,43 @@ def _middle_out(n, step) -> list:
 ANCHOR_VOTES = 5
 
 
-def _camera_timing(cams, phase, row_timing, rig) -> dict:
-    """Camera -> ``(start, readout, height)``: frames after the reference instant ``k`` at which its frame
-    ``k``'s row 0 is seen (its phase plus the start given in ``row_timing``), the frames its rows take
-    to be read (rolling shutter) and its image height; only the cameras not exposing at ``k`` itself."""
+@dataclass(frozen=True)
+class CameraDelay:
+    """When a camera not exposing at the reference instants sees its rows, in frames after the reference instant.
+
+    Its frame ``k``'s row 0 is seen ``start + drift x k`` frames after the
+    reference instant ``k`` (its phase at frame 0 plus the start given in
+    ``row_timing``; ``drift``: its rate ratio minus 1, the phase its clock
+    gains per frame), row ``r`` a further ``r / height x readout`` (a
+    rolling shutter).
+
+    Examples
+    --------
+    >>> d = CameraDelay(start=0.25, readout=0.5, height=480.0, drift=1e-4)
+    >>> [round(float(v), 4) for v in d.at(np.array([[10.0, 0.0], [10.0, 240.0]]), k=1000)]
+    [0.35, 0.6]
+    """
+    start: float
+    readout: float
+    height: float
+    drift: float = 0.0
+
+    def at(self, centre: np.ndarray, k: int = 0) -> np.ndarray:
+        """Frames after the reference instant ``k`` at which regions at ``centre`` (K, 2) of frame ``k`` were seen."""
+        return self.start + self.drift * k + np.asarray(centre, float)[:, 1] / self.height * self.readout
+
+
+def _camera_timing(cams, phase, row_timing, rig, rate_ratio=None) -> dict:
+    """Camera -> :class:`CameraDelay` (its phase, rate ratio and the start given in ``row_timing``), only for
+    the cameras not exposing at the reference instants."""
     out = {}
     for c in cams:
         start, readout = (row_timing or {}).get(c, (0.0, 0.0))
         start = float((phase or {}).get(c, 0.0)) + float(start)
-        if start != 0.0 or float(readout) != 0.0:
-            out[c] = (start, float(readout), float(rig[c].size[1]))
+        drift = float((rate_ratio or {}).get(c, 1.0)) - 1.0
+        if start != 0.0 or float(readout) != 0.0 or drift != 0.0:
+            out[c] = CameraDelay(start, float(readout), float(rig[c].size[1]), drift)
     return out
-
-
-def _delay(timing: tuple, centre: np.ndarray) -> np.ndarray:
-    """Frames after the reference instant at which regions at ``centre`` (K, 2) were seen (:func:`_camera_timing`)."""
-    start, readout, height = timing
-    return start + np.asarray(centre, float)[:, 1] / height * readout
 
 
 def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None) -> tuple[dict, dict]:
@@ -311,7 +331,7 @@ def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None) 
     moved = dict(cands)
     for c in moving:
         moved[c] = candidates_at_instant(near[k - 1].get(c), cands[c], near[k + 1].get(c),
-                                         -_delay(timing[c], cands[c].centre))
+                                         -timing[c].at(cands[c].centre, k))
     return cands, moved
 
 
@@ -361,7 +381,8 @@ def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_res
 
 def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: int, params=None, *,
                      max_residual_px: float = DEFAULT_MAX_RESIDUAL_PX, slack_m: float = RIGID_SLACK_M,
-                     progress=None, phase: dict | None = None, row_timing: dict | None = None) -> Identification:
+                     progress=None, phase: dict | None = None, row_timing: dict | None = None,
+                     rate_ratio: dict | None = None) -> Identification:
     """Find, label and follow the markers with all cameras together.
 
     Parameters
@@ -393,6 +414,11 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
         :mod:`horsemocap.subframe`). The labelling that chooses the skin
         markers, and the tracking, compare the cameras at the reference
         instants. Absent or 0: the cameras expose together.
+    rate_ratio : dict camera -> float, optional
+        A camera whose clock runs at another rate than the reference's:
+        ``phase`` is its phase at frame 0, which then grows by
+        ``rate_ratio[c] - 1`` frame per frame (:func:`~horsemocap.subframe.camera_frames`).
+        Absent or 1: the phase holds over the record.
     row_timing : dict camera -> (start, readout), optional
         When a camera's rows are seen, in frames: row 0 ``start`` after its
         frame's instant (a quarter of a frame for interlaced fields, whose
@@ -416,7 +442,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     cparams = _camera_params(params, cams)
     thr = _thresholds(frames, cams, cparams, n)
     step = max(1, min(8, n // 30))
-    timing = _camera_timing(cams, phase, row_timing, rig)
+    timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio)
     found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
                                        max_residual_px, step, timing)
     if found is None:
@@ -711,7 +737,7 @@ class _Tracker:
         """The candidates of a free-running camera moved to the reference instant ``k`` for marker ``m``.
 
         Camera ``c``'s frame ``k`` shows a region at the instant ``k +
-        delay`` (:func:`_delay`); near marker ``m`` its regions are moved by
+        delay`` (:meth:`CameraDelay.at`); near marker ``m`` its regions are moved by
         ``-delay`` frames of the marker's own image motion
         (:meth:`_image_velocity`), so its views are triangulated and checked
         against the other cameras' at one instant. The recorded centres stay
@@ -725,7 +751,7 @@ class _Tracker:
             if not np.any(v):
                 continue
             cc = cands[c]
-            out[c] = Candidates(cc.centre - _delay(timing, cc.centre)[:, None] * v, cc.area, cc.cut, cc.slope,
+            out[c] = Candidates(cc.centre - timing.at(cc.centre, k)[:, None] * v, cc.area, cc.cut, cc.slope,
                                 cc.moments)
         return out
 

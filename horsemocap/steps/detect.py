@@ -548,10 +548,31 @@ def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
            for c in session.cameras}
     rate = {c: (fits[c].rate_ratio if c in fits else 1.0) for c in session.cameras}
     progress("detect", "fractions of a frame refined by the markers: " + ", ".join(
-        f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" for c in fits) + f" (residual {min(f.residual_px for f in fits.values()):.2f} px"
+        f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" + drift_text(rate[c], sync.n_frames) for c in fits) + f" (residual {min(f.residual_px for f in fits.values()):.2f} px"
         + (f"; readout times of {', '.join(times)} used" if times else "; no rolling-shutter readout given") + ")")
     how = "flash and markers" if sync.subframe_method == "flash" else "markers"
     return sync.replace(phase_frames=phase, offset_uncertainty_frames=unc, rate_ratio=rate, subframe_method=how)
+
+
+def drift_text(rate_ratio: float, n_frames: int) -> str:
+    """A camera's clock drift in words ("" at rate 1): how much longer or shorter its frames are than the
+    reference's (ppm; ``rate_ratio`` reference frames per frame of its own, :func:`horsemocap.subframe.camera_frames`)
+    and the phase that adds over the record.
+
+    Examples
+    --------
+    A camera whose clock runs 132 ppm fast has frames 132 ppm shorter:
+
+    >>> print(drift_text(1 / 1.000132, 2800))
+     (its frames 132 ppm shorter than the reference's: -0.369 frame of phase over the record)
+    >>> drift_text(1.0, 2800)
+    ''
+    """
+    if rate_ratio == 1.0:
+        return ""
+    ppm = 1e6 * (rate_ratio - 1.0)
+    return (f" (its frames {abs(ppm):.0f} ppm {'longer' if ppm > 0 else 'shorter'} than the reference's: "
+            f"{(rate_ratio - 1.0) * max(n_frames - 1, 0):+.3f} frame of phase over the record)")
 
 
 def phases_may_be_hidden(fits: dict, cameras) -> bool:
@@ -637,9 +658,13 @@ def inconsistent_shares(reason: dict) -> dict:
     return out
 
 
-def phase_moves(before: dict, after: dict) -> dict:
+def phase_moves(before: dict, after: dict, *, rates: tuple = ({}, {}), n_frames: int = 0) -> dict:
     """Camera -> how far (frames, absolute) its phase moved from ``before`` to ``after`` (a camera absent
     from one of them at phase 0 there: a genlocked sync holds no phases).
+
+    With ``rates`` (the rate ratios before and after; 1 where absent) a phase
+    drifts over the record (:func:`horsemocap.subframe.camera_frames`): the
+    move is the larger at its first frame and its last (``n_frames - 1``).
 
     Examples
     --------
@@ -647,9 +672,17 @@ def phase_moves(before: dict, after: dict) -> dict:
     {'left': 0.0, 'middle': 0.26}
     >>> phase_moves({}, {"left": 0.0, "middle": -0.26})
     {'left': 0.0, 'middle': 0.26}
+    >>> phase_moves({"middle": 0.3}, {"middle": 0.3}, rates=({}, {"middle": 1.0001}), n_frames=1001)
+    {'middle': 0.1}
     """
     cameras = list(before) + [c for c in after if c not in before]
-    return {c: round(abs(float(after.get(c, 0.0)) - float(before.get(c, 0.0))), 9) for c in cameras}
+    last = max(int(n_frames) - 1, 0)
+    out = {}
+    for c in cameras:
+        at_start = float(after.get(c, 0.0)) - float(before.get(c, 0.0))
+        drift = float(rates[1].get(c, 1.0)) - float(rates[0].get(c, 1.0))
+        out[c] = round(max(abs(at_start), abs(at_start + drift * last)), 9)
+    return out
 
 
 def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance):
@@ -670,7 +703,8 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     prev = identified_at.replace(phase_frames=current_phases(identified_at, ref))
     best, best_used = None, _used_marker_frames(idn)
     for _ in range(REIDENTIFY_ROUNDS):
-        moved = phase_moves(prev.phase_frames, refined.phase_frames)
+        moved = phase_moves(prev.phase_frames, refined.phase_frames, rates=(prev.rate_ratio, refined.rate_ratio),
+                            n_frames=refined.n_frames)
         loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
                  if c != ref and (u > PHASE_UNPINNED_FRAMES
                                   or abs(refined.phase_frames.get(c, 0.0)) > PHASE_MAX_FRAMES)}
@@ -768,7 +802,7 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None,
     try:
         return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
                                 phase=current_phases(sync, session.reference_camera), row_timing=row_timing(session),
-                                **kwargs)
+                                rate_ratio=dict(sync.rate_ratio), **kwargs)
     except DetectionError as exc:
         raise AnalysisError("detect", f"{exc}{identification_hint(session, sync)}") from None
     finally:
@@ -829,7 +863,7 @@ def _check_round(session, section, sync, rig, idn, progress):
                                                               observation_frames(session, rig, others))
         points = triangulate(rig, others, mode="joint").points
         if phase:
-            points = subframe.points_at_shifted_instants(points, phase.get(c, 0.0))
+            points = subframe.points_at_shifted_instants(points, phase.get(c, 0.0), sync.rate_ratio.get(c, 1.0))
         first = max(-reach, -offsets[c])
         stop = min(sync.frame_counts[c], offsets[c] + n + reach)
         seq = FrameSource(session.motion[c]).sequence(offsets[c] + first, stop, color=False)
