@@ -445,3 +445,27 @@ def test_free_running_views_are_reacquired_at_the_reference_instant():
     assert np.all(np.isfinite(tr.X[1]))
     true = world(BODY, np.array([1 / fps]))[0]
     assert np.abs(tr.X[1] - true).max() < 0.02
+
+
+def test_kept_whole_frame_searches_give_the_same_identification_searching_each_frame_once(scene):
+    """Identifications of one recording that share a :class:`WholeFrameSearches` (the detect step's trial
+    phases and rounds) give what each gives alone, and the later ones search no frame again."""
+    frames, _, static, alone = scene
+    searches = candidates.WholeFrameSearches()
+    offsets = {c: 0 for c in frames}
+    free = {"middle": 0.2}
+    first = identify_markers(frames, RIG, static, 3, phase=free, whole_frames=searches.of_offsets(offsets))
+    made = searches.count
+    again = identify_markers(frames, RIG, static, 3, phase=free, whole_frames=searches.of_offsets(offsets))
+    unkept = identify_markers(frames, RIG, static, 3, phase=free)
+    assert made > 0 and searches.count == made
+    for idn in (again, unkept):
+        for c in frames:
+            np.testing.assert_array_equal(idn.marker_px[c], first.marker_px[c])
+            np.testing.assert_array_equal(idn.reason[c], first.reason[c])
+    kept_plain = identify_markers(frames, RIG, static, 3, whole_frames=searches.of_offsets(offsets))
+    for c in frames:
+        np.testing.assert_array_equal(kept_plain.marker_px[c], alone.marker_px[c])
+    other = searches.of_offsets({c: 1 for c in frames})         # other frames of the videos: searched anew
+    other(frames, 0, list(frames), {c: 100 for c in frames}, {c: candidates.DetectionParams() for c in frames})
+    assert searches.count == made + len(frames)

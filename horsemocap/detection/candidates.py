@@ -38,7 +38,7 @@ from .thresholds import bright_crops, connected_components, region_order_key
 
 __all__ = [
     "MAX_CANDIDATES_PER_CAMERA", "LIGHT_WINDOW", "Candidates", "frame_candidates", "whole_frame_search",
-    "whole_frame_candidates", "whole_frame_count", "candidate_area_range", "candidate_min_circularity",
+    "whole_frame_candidates", "whole_frame_count", "WholeFrameSearches", "candidate_area_range", "candidate_min_circularity",
     "correct_light",
 ]
 
@@ -209,6 +209,55 @@ def whole_frame_candidates(frames: dict, k: int, cams, thr: dict, cparams: dict)
     return {c: whole_frame_search(frames[c][k], thr[c], candidate_area_range(cparams[c]),
                                   candidate_min_circularity(cparams[c]), centroid=cparams[c].centroid)
             for c in cams}
+
+
+class WholeFrameSearches:
+    """The whole-frame searches of one recording, kept for every identification of it.
+
+    The detect step identifies the markers several times when the cameras
+    run free (trial phases, rounds at the phases the markers measured);
+    each time the same frames are searched whole, for the anchor and to
+    take up lost markers, while only the phases differ. A search depends on
+    the image (the camera and the frame of its video), the threshold and
+    the candidates' rules: kept by those, each is made once.
+    :meth:`of_offsets` gives the search of :func:`whole_frame_candidates`
+    for sequences that start at given frames of the videos.
+
+    Examples
+    --------
+    >>> from horsemocap.detection import DetectionParams
+    >>> gray = np.zeros((40, 40), np.uint8)
+    >>> gray[10:14, 10:14] = 255
+    >>> searches = WholeFrameSearches()
+    >>> search = searches.of_offsets({"a": 5})
+    >>> args = ({"a": [gray]}, 0, ["a"], {"a": 100}, {"a": DetectionParams(area_min=4)})
+    >>> first = search(*args)
+    >>> search(*args)["a"] is first["a"], searches.count
+    (True, 1)
+    """
+
+    def __init__(self):
+        self._found: dict = {}
+
+    @property
+    def count(self) -> int:
+        """Searches made (one per camera and frame of its video, threshold and rules)."""
+        return len(self._found)
+
+    def of_offsets(self, offsets: dict):
+        """:func:`whole_frame_candidates` of sequences whose frame ``k`` of camera ``c`` is its video's frame
+        ``offsets[c] + k``, each search made once."""
+        def search(frames: dict, k: int, cams, thr: dict, cparams: dict) -> dict:
+            out = {}
+            for c in cams:
+                cp = cparams[c]
+                rules = (candidate_area_range(cp), candidate_min_circularity(cp), cp.centroid)
+                key = (c, int(offsets[c]) + int(k), thr[c], rules)
+                if key not in self._found:
+                    self._found[key] = whole_frame_search(frames[c][k], thr[c], *rules[:2], centroid=rules[2])
+                out[c] = self._found[key]
+            return out
+        return search
 
 
 def whole_frame_search(gray: np.ndarray, threshold: int, area_range, min_circularity, centroid: str = "weighted",

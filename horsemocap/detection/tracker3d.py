@@ -310,7 +310,8 @@ def _camera_timing(cams, phase, row_timing, rig, rate_ratio=None) -> dict:
     return out
 
 
-def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None) -> tuple[dict, dict]:
+def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None,
+                             search=None) -> tuple[dict, dict]:
     """Frame ``k``'s candidates of every camera (``cands`` when already searched), and the same moved to the
     reference instant ``k``.
 
@@ -322,12 +323,13 @@ def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None) 
     frames ``k - 1`` and ``k + 1``), so the cameras are compared at one
     instant; a camera exposing at ``k`` is its own.
     """
-    cands = whole_frame_candidates(frames, k, cams, thr, cparams) if cands is None else cands
+    search = search or whole_frame_candidates
+    cands = search(frames, k, cams, thr, cparams) if cands is None else cands
     moving = [c for c in cams if c in (timing or {})]
     if not moving:
         return cands, cands
     n = len(frames[cams[0]])
-    near = {j: (whole_frame_candidates(frames, j, moving, thr, cparams) if 0 <= j < n else {}) for j in (k - 1, k + 1)}
+    near = {j: (search(frames, j, moving, thr, cparams) if 0 <= j < n else {}) for j in (k - 1, k + 1)}
     moved = dict(cands)
     for c in moving:
         moved[c] = candidates_at_instant(near[k - 1].get(c), cands[c], near[k + 1].get(c),
@@ -335,7 +337,8 @@ def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None) 
     return cands, moved
 
 
-def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step, timing=None):
+def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step, timing=None,
+                 search=None):
     """The first frame (middle of the record outward) labelled clearly, and the skin markers.
 
     The static shot holds the skin markers and the saddle marker; which of
@@ -362,7 +365,7 @@ def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_res
     tried, fits = [], []
     single = model_index is not None or len(model) == M
     for k in _middle_out(n, step):
-        cands, moved = _candidates_at_reference(frames, k, cams, thr, cparams, timing)
+        cands, moved = _candidates_at_reference(frames, k, cams, thr, cparams, timing, search=search)
         vp, fit, why = label_frame(rig, moved, model, M, max_residual_px, model_index)
         if fit is None:
             tried.append((k, why))
@@ -382,7 +385,7 @@ def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_res
 def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: int, params=None, *,
                      max_residual_px: float = DEFAULT_MAX_RESIDUAL_PX, slack_m: float = RIGID_SLACK_M,
                      progress=None, phase: dict | None = None, row_timing: dict | None = None,
-                     rate_ratio: dict | None = None) -> Identification:
+                     rate_ratio: dict | None = None, whole_frames=None) -> Identification:
     """Find, label and follow the markers with all cameras together.
 
     Parameters
@@ -419,6 +422,10 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
         ``phase`` is its phase at frame 0, which then grows by
         ``rate_ratio[c] - 1`` frame per frame (:func:`~horsemocap.subframe.camera_frames`).
         Absent or 1: the phase holds over the record.
+    whole_frames : callable, optional
+        The whole-frame search, with :func:`~horsemocap.detection.candidates.whole_frame_candidates`' arguments
+        (the default); :meth:`~horsemocap.detection.candidates.WholeFrameSearches.of_offsets` keeps the searches
+        for the identifications of the same recording that follow.
     row_timing : dict camera -> (start, readout), optional
         When a camera's rows are seen, in frames: row 0 ``start`` after its
         frame's instant (a quarter of a frame for interlaced fields, whose
@@ -443,8 +450,9 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     thr = _thresholds(frames, cams, cparams, n)
     step = max(1, min(8, n // 30))
     timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio)
+    search = whole_frames
     found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
-                                       max_residual_px, step, timing)
+                                       max_residual_px, step, timing, search)
     if found is None:
         why = "; ".join(f"frame {k}: {w}" for k, w in tried[:6])
         raise DetectionError(
@@ -453,7 +461,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
             "static stills, the threshold, or use detection_method 'thesis'")
     k0, cands0, vp0, fit0 = found
     tracker = _Tracker(frames, rig, cams, thr, cparams, static_points[fit0.model_index], M,
-                       max_residual_px, slack_m, n, timing)
+                       max_residual_px, slack_m, n, timing, search)
     tracker.anchor_rms = fit0.rms_m
     tracker.start(k0, cands0, vp0, fit0)
     if len(votes) > 1:
@@ -536,8 +544,11 @@ def _in_image(camera, point) -> bool:
 class _Tracker:
     """3D tracking with minimum-acceleration prediction (seed 000 sec. 5.2.4)."""
 
-    def __init__(self, frames, rig, cams, thr, cparams, model, M, max_residual_px, slack_m, n, timing=None):
+    def __init__(self, frames, rig, cams, thr, cparams, model, M, max_residual_px, slack_m, n, timing=None,
+                 search=None):
         self.frames, self.rig, self.cams, self.thr, self.cparams = frames, rig, cams, thr, cparams
+        #: The whole-frame search (None: :func:`whole_frame_candidates`; or one that keeps its searches).
+        self.search = search
         #: The cameras not exposing at the reference instants (:func:`_camera_timing`).
         self.timing = dict(timing or {})
         self.model, self.M, self.tol, self.slack, self.n = model, M, max_residual_px, slack_m, n
@@ -1154,7 +1165,8 @@ class _Tracker:
     def _label_whole_frame(self, k, cands=None):
         """Candidates (searched without a prediction unless given), 3D points and model labelling of frame ``k``
         (free-running cameras' candidates moved to the reference instant: :func:`_candidates_at_reference`)."""
-        cands, moved = _candidates_at_reference(self.frames, k, self.cams, self.thr, self.cparams, self.timing, cands)
+        cands, moved = _candidates_at_reference(self.frames, k, self.cams, self.thr, self.cparams, self.timing, cands,
+                                                self.search)
         vp, fit, _ = label_frame(self.rig, moved, self.model, self.M, self.tol, np.arange(self.M), self.slack)
         return cands, vp, fit
 

@@ -18,6 +18,7 @@ from ..camera import Rig
 from ..detection import (DetectionError, DetectionParams, best_frame_shift, bridge_gaps, candidate_area_range,
                          candidate_min_circularity, default_max_gap, detect_markers, frame_shift_residuals,
                          identify_markers, reason_counts, remeasure_by_fields)
+from ..detection.candidates import WholeFrameSearches
 from ..params import DetectParams
 from ..progress import CountingFrames, counter
 from .. import subframe
@@ -286,23 +287,26 @@ class _Identified:
     times: dict
 
 
-def _identified(session, section, sync, rig, static_points, given, progress, frames, tolerance) -> _Identified:
+def _identified(session, section, sync, rig, static_points, given, progress, frames, tolerance,
+                searches=None) -> _Identified:
     """Identify the markers in ``sync`` and settle the sync on them: free-running cameras' phases searched by
     the identification (:func:`_phase_by_identification`), the flash's whole frames checked by the markers
     (:func:`_checked_by_markers`), the fractions refined by the markers or found behind a fully lit flash, and the
     markers identified again at the phases the markers measured (:func:`_identified_again`)."""
-    idn = _identify(session, sync, rig, static_points, given, progress, frames, tolerance)
+    idn = _identify(session, sync, rig, static_points, given, progress, frames, tolerance, searches=searches)
     if sync.free_running and len(session.cameras) >= 3:
-        idn, sync = _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance)
+        idn, sync = _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance,
+                                             searches=searches)
     check = {}
     if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
         idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
-                                               tolerance)
+                                               tolerance, searches=searches)
     marker_px, by_fields = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
     times = observation_times(session, sync, rig, marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
         refined = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
-        again = _identified_again(session, sync, idn, refined, rig, static_points, given, progress, tolerance)
+        again = _identified_again(session, sync, idn, refined, rig, static_points, given, progress, tolerance,
+                                  searches=searches)
         if again is not None:
             idn, marker_px, by_fields, times, refined = again
         sync = refined
@@ -312,7 +316,7 @@ def _identified(session, section, sync, rig, static_points, given, progress, fra
         times = observation_times(session, sync, rig, marker_px)      # the rows' instants, when running free
         if sync.free_running:          # identified as genlocked: again at the phases found, as free-running
             again = _identified_again(session, genlocked, idn, sync, rig, static_points, given, progress,
-                                      free_running_tolerance(rig))
+                                      free_running_tolerance(rig), searches=searches)
             if again is not None:
                 idn, marker_px, by_fields, times, sync = again
     return _Identified(idn, sync, check, marker_px, by_fields, times)
@@ -345,16 +349,17 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                        "markers identified by all cameras together ...")
     tolerance = free_running_tolerance(rig) if sync.free_running else DEFAULT_MAX_RESIDUAL_PX
     args = (session, section)
+    searches = WholeFrameSearches()     # every identification below searches the same frames whole
     tried_free, retry_error = sync.free_running, ""
     try:
-        found = _identified(*args, sync, rig, static_points, given, progress, frames, tolerance)
+        found = _identified(*args, sync, rig, static_points, given, progress, frames, tolerance, searches)
     except AnalysisError:
         if sync.free_running or sync.offsets_from != "flashlight":
             raise
         progress("detect", "no consistent views at the genlocked tolerance: trying the cameras as free-running")
         tried_free = True
         found = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
-                            free_running_tolerance(rig))
+                            free_running_tolerance(rig), searches)
     gap = max_gap_frames(session, section)
     tracked, segment, n_markers = _tracked(found.idn, gap)
     if (_run_length(segment) < MIN_SEGMENT_FRAMES and not tried_free and not found.sync.free_running
@@ -364,7 +369,7 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
                            "trying them as free-running")
         try:
             alt = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
-                              free_running_tolerance(rig))
+                              free_running_tolerance(rig), searches)
         except AnalysisError as exc:
             retry_error = f"; as free-running: {exc}"
             progress("detect", f"as free-running: {exc}")
@@ -685,7 +690,8 @@ def phase_moves(before: dict, after: dict, *, rates: tuple = ({}, {}), n_frames:
     return out
 
 
-def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance):
+def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance,
+                      searches=None):
     """The markers identified again until the phases the markers measure settle, or None when nothing better
     was found.
 
@@ -717,7 +723,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
             about = prev.replace(phase_frames={**refined.phase_frames,
                                                **{c: prev.phase_frames.get(c, 0.0) for c in loose}})
             idn, at = _phase_trials(session, about, idn, list(loose), rig, static_points, given, tolerance,
-                                    progress)
+                                    progress, searches=searches)
             if at is about and about.phase_frames == prev.phase_frames:
                 break                               # no trial used more: the same identification again
         else:
@@ -726,7 +732,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
                 "at: identifying again at the markers' phases")
             at = refined
             try:
-                idn = _identify(session, at, rig, static_points, given, progress, None, tolerance)
+                idn = _identify(session, at, rig, static_points, given, progress, None, tolerance, searches=searches)
             except AnalysisError as exc:
                 progress("detect", f"identifying again failed ({exc}); the best identification so far is kept")
                 break
@@ -740,7 +746,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     return best
 
 
-def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolerance, progress):
+def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolerance, progress, searches=None):
     """The identification using the most marker-frames, and its sync, with each of ``cameras`` (in turn, the
     others at their best so far) at its phase in ``sync`` moved by each of :data:`PHASE_TRIALS_FRAMES`
     (``idn``: the identification at ``sync``'s phases, kept when no trial uses more). A camera moved gets at
@@ -751,7 +757,8 @@ def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolera
         for step in PHASE_TRIALS_FRAMES:
             trial = sync.replace(phase_frames={**base, c: base.get(c, 0.0) + step})
             try:
-                found = _identify(session, trial, rig, static_points, given, lambda *x: None, None, tolerance)
+                found = _identify(session, trial, rig, static_points, given, lambda *x: None, None, tolerance,
+                                  searches=searches)
             except AnalysisError:
                 failed.append(f"{c} {step:+.2f}")
                 continue
@@ -769,7 +776,7 @@ def _used_marker_frames(idn) -> int:
     return int(sum(np.count_nonzero(np.asarray(r) == "") for r in idn.reason.values()))
 
 
-def _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance):
+def _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance, searches=None):
     """The identification and sync with the phases of free-running cameras whose views the others' rejected.
 
     A camera whose views were found inconsistent in more than :data:`INCONSISTENT_SHARE_TO_SEARCH` of its
@@ -785,7 +792,7 @@ def _phase_by_identification(session, sync, rig, static_points, given, idn, prog
         return idn, sync
     before = ", ".join(f"{c} {100 * shares[c]:.0f} %" for c in worst)
     start = dict(sync.phase_frames)
-    idn, sync = _phase_trials(session, sync, idn, worst, rig, static_points, given, tolerance, progress)
+    idn, sync = _phase_trials(session, sync, idn, worst, rig, static_points, given, tolerance, progress, searches)
     best_used = _used_marker_frames(idn)
     moved = {c: sync.phase_frames.get(c, 0.0) - start.get(c, 0.0) for c in worst}
     progress("detect", f"views found inconsistent with the other cameras' ({before} of their marker-frames): "
@@ -796,13 +803,16 @@ def _phase_by_identification(session, sync, rig, static_points, given, idn, prog
 
 
 def _identify(session, sync, rig, static_points, given, progress, frames=None,
-              tolerance: float = DEFAULT_MAX_RESIDUAL_PX):
+              tolerance: float = DEFAULT_MAX_RESIDUAL_PX, searches: WholeFrameSearches | None = None):
+    """:func:`~horsemocap.detection.identify_markers` in ``sync`` (its phases, rates and offsets), the
+    whole-frame searches kept in ``searches`` for the identifications that follow."""
     frames = frames or {c: synchronised_frames(session, sync, c) for c in session.cameras}
     kwargs = {} if tolerance == DEFAULT_MAX_RESIDUAL_PX else {"max_residual_px": tolerance}
     try:
         return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
                                 phase=current_phases(sync, session.reference_camera), row_timing=row_timing(session),
-                                rate_ratio=dict(sync.rate_ratio), **kwargs)
+                                rate_ratio=dict(sync.rate_ratio),
+                                whole_frames=None if searches is None else searches.of_offsets(sync.offsets), **kwargs)
     except DetectionError as exc:
         raise AnalysisError("detect", f"{exc}{identification_hint(session, sync)}") from None
     finally:
@@ -811,7 +821,7 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None,
 
 
 def _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
-                        tolerance: float = DEFAULT_MAX_RESIDUAL_PX):
+                        tolerance: float = DEFAULT_MAX_RESIDUAL_PX, searches=None):
     """Rounds of :func:`_check_round` until no camera moves (at most :data:`SYNC_CHECK_ROUNDS`).
 
     Returns the last identification, the synchronisation it is in and the per-camera check.
@@ -822,7 +832,7 @@ def _checked_by_markers(session, section, sync, rig, static_points, given, idn, 
         rounds.append(shifts)
         if not any(v["shift"] for v in shifts.values()):
             break
-        idn = _identify(session, sync, rig, static_points, given, progress, tolerance=tolerance)
+        idn = _identify(session, sync, rig, static_points, given, progress, tolerance=tolerance, searches=searches)
     return idn, sync, _check_summary(rounds, sync, flash)
 
 
