@@ -134,5 +134,7 @@ def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | 
     lost = np.any(np.stack(list(outside.values())), axis=0)
     progress("triangulate", "the cameras' tracks interpolated to the reference camera's instants (phases "
                             + ", ".join(f"{c} {v:+.3f}" for c, v in sync.phase_frames.items())
-                            + f" frame); {int(lost.sum())} marker-frame(s) outside a camera's track")
+                            + " frame" + "".join(f"; {c} drifting {1e6 * (r - 1.0):+.0f} ppm of its frame per frame"
+                                                 for c, r in sync.rate_ratio.items() if r != 1.0)
+                            + f"); {int(lost.sum())} marker-frame(s) outside a camera's track")
     return moved, lost
