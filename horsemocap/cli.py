@@ -774,9 +774,11 @@ def build_parser() -> argparse.ArgumentParser:
                        parents=[common], epilog=EXIT_STATUS, formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="Run every step on SESSION and write the result files of the session "
                                    "contract (trajectories.csv, kinematics.csv, angular.csv, comfort.csv, "
-                                   "markers_2d.csv, rig.toml, analysis.json, quality.json, report.html) into DIR. "
-                                   "DIR is replaced whole when the run ends (it must be new, empty or an earlier "
-                                   "run's results); a second run into the same DIR stops at once.")
+                                   "comfort.xlsx, markers_2d.csv, markers_3d.csv, rig.toml, calibration.json, "
+                                   "analysis.json, quality.json, report.html; passes.csv for a long recording) into "
+                                   "DIR. DIR is replaced whole when the run ends (it must be new, empty or an "
+                                   "earlier run's results); a second run into the same DIR while one is running "
+                                   "stops at once.")
     p.add_argument("session", metavar="SESSION", help="session folder holding session.json")
     p.add_argument("--out", required=True, metavar="DIR", help="results folder (outside the session)")
     p.add_argument("--params", metavar="analysis.json",
