@@ -37,7 +37,7 @@ from .reconstruction import triangulate
 
 __all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
-           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "tracks_at_reference_instants", "points_at_shifted_instants",
+           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
            "OUTSIDE_TRACK"]
 
@@ -62,11 +62,13 @@ CHUNKS = 5
 #: of phase over their span and is within RATE_MAX_PPM of the reference's rate (:func:`drift_is_measured`).
 DRIFT_Z = 3.0
 DRIFT_MIN_FRAMES = 0.05
-RATE_MAX_PPM = 500.0
+RATE_MAX_PPM = 1500.0
 #: A chunk is cut where the markers are unseen for more than this many frames (a second at 25 fps: the horse
 #: left the views, :func:`seen_chunks`); pieces shorter than CHUNK_MIN_FRAMES are not measured.
 CHUNK_GAP_FRAMES = 25
 CHUNK_MIN_FRAMES = 4
+#: A chunk's phase is first searched on this grid about the camera's line (frames), then refined jointly.
+CHUNK_GRID_FRAMES = np.arange(-0.25, 0.26, GRID_STEP)
 #: The joint refinement of the phases: its tolerance (frames), of the residual (px) and most simplex steps.
 #: From its first steps of GRID_STEP the simplex shrinks to REFINE_TOLERANCE in about nine halvings, a few
 #: dozen steps for the two or three free phases of a rig; 400 leaves a wide margin while it still bounds the
@@ -387,19 +389,32 @@ def camera_frames(reference_frames, phase: float = 0.0, rate_ratio: float = 1.0)
 
     Camera ``c``'s synchronised frame ``j`` is exposed at the reference
     instant ``phase + rate_ratio x j``: its phase at frame 0 plus its clock's
-    drift (a rate ``rate_ratio`` times the reference's adds ``rate_ratio - 1``
-    frame of phase per frame). The reference instant ``k`` is therefore its
-    frame ``(k - phase) / rate_ratio``.
+    drift (``rate_ratio`` reference frames per frame of its own, its frame
+    period over the reference's: above 1 its clock is slower and it gains
+    ``rate_ratio - 1`` frame of phase per frame). The reference instant
+    ``k`` is therefore its frame ``(k - phase) / rate_ratio``.
 
     Examples
     --------
-    A camera 0.25 frame behind at frame 0 whose clock runs 100 ppm fast
+    A camera 0.25 frame behind at frame 0 whose clock runs 100 ppm slow
     (its phase 0.35 frame after 1000 frames):
 
     >>> [round(float(j), 4) for j in camera_frames(np.array([0.0, 1000.0]), 0.25, 1.0001)]
     [-0.25, 999.65]
     """
     return (np.asarray(reference_frames, float) - float(phase)) / float(rate_ratio)
+
+
+def largest_phase(phase: float, rate_ratio: float, n_frames: int) -> float:
+    """The largest phase (absolute, frames) a camera has over frames ``0 .. n_frames - 1``: at frame 0 or at
+    the last, as its clock drifts (:func:`camera_frames`).
+
+    Examples
+    --------
+    >>> largest_phase(0.02, 1.0001, 2701), largest_phase(-0.3, 1.0, 100)
+    (0.29, 0.3)
+    """
+    return round(max(abs(float(phase)), abs(float(phase) + (float(rate_ratio) - 1.0) * max(n_frames - 1, 0))), 12)
 
 
 def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict | None = None,
@@ -557,7 +572,8 @@ class PhaseFit:
         Standard error of ``phase`` from the spread of the chunks' phases (about their drift, when a rate
         ratio is kept).
     rate_ratio : float
-        This camera's rate over the reference's (1 when the drift over the record is not significant).
+        Reference frames per frame of this camera (its frame period over the reference's; above 1 its clock
+        is slower; :func:`camera_frames`), 1 when no drift is measured (:func:`drift_is_measured`).
     residual_px : float
         Median residual at the fitted phase.
     n_points : int
@@ -644,12 +660,14 @@ def _axis_fit(rig, tracks, phase, cam, frames, grid, rate_ratio: dict | None = N
     return _parabolic_minimum(grid, curve) if np.isfinite(curve).any() else float("nan")
 
 
-def residual_curve(rig, marker_px: dict, phase: dict, camera: str, trials, times: dict | None = None) -> np.ndarray:
+def residual_curve(rig, marker_px: dict, phase: dict, camera: str, trials, times: dict | None = None,
+                   rate_ratio: dict | None = None) -> np.ndarray:
     """The markers' joint residual (px, :func:`joint_residual`) for trial phases of one camera, the others fixed.
 
     The curve :func:`refine_phases` minimises along ``camera``'s axis:
     every camera's tracks (:class:`TrackInterpolant`, observation instants
-    ``times``) read at the reference instants with ``phase``, ``camera``'s
+    ``times``) read at the reference instants with ``phase`` (and
+    ``rate_ratio``: :func:`camera_frames`), ``camera``'s phase at frame 0
     replaced by each trial, and triangulated together.
 
     Examples
@@ -676,7 +694,7 @@ def residual_curve(rig, marker_px: dict, phase: dict, camera: str, trials, times
     times = times or {}
     tracks = {c: TrackInterpolant(px, times.get(c)) for c, px in marker_px.items()}
     frames = np.arange(len(next(iter(marker_px.values()))), dtype=float)
-    return np.array([joint_residual(rig, tracks, {**phase, camera: float(g)}, frames) for g in trials])
+    return np.array([joint_residual(rig, tracks, {**phase, camera: float(g)}, frames, rate_ratio) for g in trials])
 
 
 def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict | None = None,
@@ -733,7 +751,8 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                 if np.isfinite(g):
                     best[c] = g
     best = _refine_jointly(rig, tracks, best, free, frames)
-    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px))
+    seen = {c: np.any(np.all(np.isfinite(np.asarray(px, float)), axis=-1), axis=-1) for c, px in marker_px.items()}
+    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px), seen)
     rate = {**{c: 1.0 for c in marker_px}, **{c: d.rate_ratio for c, d in drift.items()}}
     if any(d.rate_ratio != 1.0 for d in drift.values()):     # the phases at frame 0, refined with the rates
         best = _refine_jointly(rig, tracks, {**best, **{c: d.phase for c, d in drift.items() if d.rate_ratio != 1.0}},
@@ -789,27 +808,37 @@ class _Drift:
     uncertainty: float
 
 
-def _drifts(rig, tracks, best: dict, free: list, parts: list) -> dict:
+def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict) -> dict:
     """Camera -> :class:`_Drift` of every camera of ``free`` from the chunks' phases (:func:`_chunk_phases`).
 
     A straight line through a camera's chunk phases over time: its slope is
     the camera clock's drift, kept as the rate ratio ``1 + slope`` when
-    :func:`drift_is_measured`, the line's value at frame 0 then its phase. The uncertainty is the chunks' spread about the line (or
-    about their mean) over ``sqrt(chunks)``. A camera measured in fewer than
-    three chunks keeps ``best`` with :data:`GRID_STEP` as its uncertainty.
+    :func:`drift_is_measured`, the line's value at frame 0 then its phase
+    and the value's standard error its uncertainty; the chunks are then
+    measured again from the lines (a chunk's simplex stops near where it
+    starts when the markers are noisy: from the record's constant phase,
+    the drift comes out short). Without a drift: ``best``, and the chunks'
+    spread over ``sqrt(chunks)``. A camera measured in fewer than three
+    chunks keeps ``best`` with :data:`GRID_STEP` as its uncertainty.
     """
-    chunk_phase, chunk_mid = _chunk_phases(rig, tracks, best, free, parts)
-    out = {}
-    for c in free:
-        ph = [p[c] for p in chunk_phase]
-        if len(ph) < 3:
-            out[c] = _Drift(float(best[c]), 1.0, GRID_STEP)
-            continue
-        intercept, slope, se, spread = _drift_line(ph, chunk_mid)
-        if drift_is_measured(slope, se, float(np.ptp(chunk_mid))):
-            out[c] = _Drift(intercept, 1.0 + slope, max(spread / np.sqrt(len(ph)), 1e-3))
-        else:
-            out[c] = _Drift(float(best[c]), 1.0, max(float(np.std(ph, ddof=1) / np.sqrt(len(ph))), 1e-3))
+    lines = {c: (float(best[c]), 0.0) for c in free}
+    for again in (False, True):
+        chunks = _chunk_phases(rig, tracks, best, lines, parts, seen)
+        out = {}
+        for c in free:
+            ph, mid = chunks[c]
+            if len(ph) < 3:
+                out[c] = _Drift(float(best[c]), 1.0, GRID_STEP)
+                continue
+            intercept, slope, se, intercept_se = _drift_line(ph, mid)
+            if drift_is_measured(slope, se, float(np.ptp(mid))):
+                out[c] = _Drift(intercept, 1.0 + slope, max(intercept_se, 1e-3))
+            else:
+                out[c] = _Drift(float(best[c]), 1.0, max(float(np.std(ph, ddof=1) / np.sqrt(len(ph))), 1e-3))
+        drifting = {c: (d.phase, d.rate_ratio - 1.0) for c, d in out.items() if d.rate_ratio != 1.0}
+        if again or not drifting:
+            return out
+        lines.update(drifting)
     return out
 
 
@@ -821,9 +850,11 @@ def drift_is_measured(slope: float, slope_se: float, span_frames: float) -> bool
     scatter understates it: 3, not 2); it adds at least
     :data:`DRIFT_MIN_FRAMES` of phase over the chunks' span (less moves no
     point measurably: a twentieth of a frame, the phase the markers tell
-    from zero elsewhere); and it is a rate a camera clock keeps, within
+    from zero elsewhere); and it is a rate a camera keeps, within
     :data:`RATE_MAX_PPM` of the reference's (video crystals are made to
-    +-100 ppm or better; a steeper trend over a short record is the noise).
+    +-100 ppm or better, and a camera at 30000/1001 fps labelled 30, as
+    files of the NTSC family often are, is 999 ppm slow beside one at 30;
+    a steeper trend over a short record is the noise).
 
     Examples
     --------
@@ -831,37 +862,52 @@ def drift_is_measured(slope: float, slope_se: float, span_frames: float) -> bool
 
     >>> drift_is_measured(132e-6, 5e-6, 2700.0), drift_is_measured(132e-6, 5e-6, 80.0)
     (True, False)
-    >>> drift_is_measured(1.5e-3, 2e-4, 80.0)           # 1500 ppm: not a clock's rate
+    >>> drift_is_measured(999e-6, 5e-6, 300.0)          # 30000/1001 fps beside 30 fps, 10 s
+    True
+    >>> drift_is_measured(2.5e-3, 2e-4, 80.0)           # 2500 ppm: not a camera's rate
     False
     """
     return (abs(slope) > DRIFT_Z * slope_se and abs(slope) * span_frames >= DRIFT_MIN_FRAMES
             and abs(slope) <= RATE_MAX_PPM * 1e-6)
 
 
-def _chunk_phases(rig, tracks, best: dict, free: list, parts: list) -> tuple[list, list]:
-    """Each chunk's phases of the cameras ``free`` refined together (:func:`_refine_jointly` over the chunk's
-    frames from ``best``, constant over the chunk: the cameras' phases are coupled through the joint
-    triangulation, so one camera's drift would move another's phase were they measured one at a time), and
-    the chunks' middles (frames). A chunk in which nothing triangulates is left out."""
-    chunk_phase, chunk_mid = [], []
+def _chunk_phases(rig, tracks, best: dict, lines: dict, parts: list, seen: dict) -> dict:
+    """Camera -> (its phases, the chunks' middles): in each chunk the phases of the cameras of ``lines`` that
+    see a marker there (``seen``: camera -> (n,) bool) refined together (:func:`_refine_jointly` over the
+    chunk's frames, constant over it, from each camera's line ``(phase at frame 0, slope)`` at the chunk's
+    middle, searched first on :data:`CHUNK_GRID_FRAMES` about it; the others at ``best``). Together: the cameras' phases are coupled through the joint
+    triangulation, so one camera's drift would move another's phase were they measured one at a time. A
+    camera that sees nothing in a chunk has no phase there; a chunk in which nothing triangulates is left out."""
+    out = {c: ([], []) for c in lines}
     for part in parts:
-        if not np.isfinite(joint_residual(rig, tracks, best, part)):
+        mid = float(part.mean())
+        here = [c for c in lines if seen[c][part.astype(int)].any()]
+        start = {**best, **{c: lines[c][0] + lines[c][1] * mid for c in here}}
+        if not here or not np.isfinite(joint_residual(rig, tracks, start, part)):
             continue
-        found = _refine_jointly(rig, tracks, best, free, part)
-        chunk_phase.append({c: float(found[c]) for c in free})
-        chunk_mid.append(float(part.mean()))
-    return chunk_phase, chunk_mid
+        for c in here:           # each camera on a grid about its line first: the simplex alone, on a noisy
+            grid = start[c] + CHUNK_GRID_FRAMES   # chunk's rough median residual, stops near where it starts
+            g = _axis_fit(rig, tracks, start, c, part, grid)
+            start[c] = g if np.isfinite(g) else start[c]
+        found = _refine_jointly(rig, tracks, start, here, part)
+        for c in here:
+            out[c][0].append(float(found[c]))
+            out[c][1].append(mid)
+    return out
 
 
 def _drift_line(chunk_phase: list, chunk_mid: list) -> tuple[float, float, float, float]:
     """The least-squares line through the chunks' phases over time: its value at frame 0, its slope, the
-    slope's standard error and the residuals' standard deviation (n - 2 degrees of freedom)."""
+    slope's standard error and the standard error of its value at frame 0 (n - 2 degrees of freedom)."""
     ph, mid = np.asarray(chunk_phase, float), np.asarray(chunk_mid, float)
     slope, intercept = np.polyfit(mid, ph, 1)
     resid = ph - (intercept + slope * mid)
     sd = float(np.sqrt(np.sum(resid ** 2) / max(len(ph) - 2, 1)))
-    sx = float(np.sqrt(np.sum((mid - mid.mean()) ** 2)))
-    return float(intercept), float(slope), (sd / sx if sx > 0 else np.inf), sd
+    sxx = float(np.sum((mid - mid.mean()) ** 2))
+    if sxx <= 0:
+        return float(intercept), float(slope), np.inf, np.inf
+    return (float(intercept), float(slope), sd / np.sqrt(sxx),
+            sd * float(np.sqrt(1.0 / len(ph) + mid.mean() ** 2 / sxx)))
 
 
 def linearised_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict | None = None) -> dict:

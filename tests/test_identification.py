@@ -466,6 +466,9 @@ def test_kept_whole_frame_searches_give_the_same_identification_searching_each_f
     kept_plain = identify_markers(frames, RIG, static, 3, whole_frames=searches.of_offsets(offsets))
     for c in frames:
         np.testing.assert_array_equal(kept_plain.marker_px[c], alone.marker_px[c])
-    other = searches.of_offsets({c: 1 for c in frames})         # other frames of the videos: searched anew
-    other(frames, 0, list(frames), {c: 100 for c in frames}, {c: candidates.DetectionParams() for c in frames})
-    assert searches.count == made + len(frames)
+    args = (frames, first.anchor_frame, list(frames), first.thresholds,
+            {c: candidates.DetectionParams() for c in frames})
+    searches.of_offsets(offsets)(*args)                             # the anchor's frame, searched already
+    kept = searches.count
+    searches.of_offsets({c: 1000 for c in frames})(*args)          # another frame of each video: searched anew
+    assert searches.count == kept + len(frames)

@@ -613,7 +613,8 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
     when :func:`phases_may_be_hidden` says they are near enough zero, the cameras stay genlocked without
     the search. Otherwise the search measures each camera's phase (:func:`_subframe_by_markers` from zero);
     when one is more than :data:`HIDDEN_PHASE_Z` times its uncertainty and :data:`HIDDEN_PHASE_MIN_FRAMES`
-    from zero the cameras run free and every phase found is kept,
+    from zero (at frame 0 or, for a drifting clock, at the last: :func:`horsemocap.subframe.largest_phase`)
+    the cameras run free and every phase found is kept,
     else the cameras stay genlocked (offsets and phases unchanged) with what was measured in
     ``genlocked_check`` and how in ``genlocked_check_method``.
     """
@@ -633,7 +634,8 @@ def _phases_behind_a_full_flash(session, sync, rig, marker_px, progress):
         return sync
     phase, unc = found.phase_frames, found.offset_uncertainty_frames
     text = ", ".join(f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" for c in others)
-    if any(abs(phase[c]) > max(HIDDEN_PHASE_Z * unc.get(c, 0.0), HIDDEN_PHASE_MIN_FRAMES) for c in others):
+    reach = {c: subframe.largest_phase(phase[c], found.rate_ratio.get(c, 1.0), found.n_frames) for c in others}
+    if any(reach[c] > max(HIDDEN_PHASE_Z * unc.get(c, 0.0), HIDDEN_PHASE_MIN_FRAMES) for c in others):
         progress("detect", f"the flash lit every camera's first frame fully, but the markers find the cameras "
                            f"running free: {text} frames; those are used")
         return found
@@ -713,7 +715,9 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
                             n_frames=refined.n_frames)
         loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
                  if c != ref and (u > PHASE_UNPINNED_FRAMES
-                                  or abs(refined.phase_frames.get(c, 0.0)) > PHASE_MAX_FRAMES)}
+                                  or subframe.largest_phase(refined.phase_frames.get(c, 0.0),
+                                                            refined.rate_ratio.get(c, 1.0),
+                                                            refined.n_frames) > PHASE_MAX_FRAMES)}
         if not loose and max(moved.values(), default=0.0) <= REIDENTIFY_MOVE_FRAMES:
             break
         if loose:
@@ -721,7 +725,8 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
                 f"{c} ({refined.phase_frames.get(c, 0.0):+.2f} +- {u:.2f} frame)" for c, u in loose.items())
                 + ": identifying at other phases")
             about = prev.replace(phase_frames={**refined.phase_frames,
-                                               **{c: prev.phase_frames.get(c, 0.0) for c in loose}})
+                                               **{c: prev.phase_frames.get(c, 0.0) for c in loose}},
+                                 rate_ratio={**refined.rate_ratio, **{c: prev.rate_ratio.get(c, 1.0) for c in loose}})
             idn, at = _phase_trials(session, about, idn, list(loose), rig, static_points, given, tolerance,
                                     progress, searches=searches)
             if at is about and about.phase_frames == prev.phase_frames:

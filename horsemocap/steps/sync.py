@@ -35,7 +35,10 @@ class SyncResult(StepResult):
         reference camera's frame ``k`` (``k + phase`` in reference frames; see :mod:`horsemocap.subframe`).
         Empty (every camera at 0) for genlocked cameras: the offsets alone synchronise them.
     rate_ratio : dict
-        Camera -> its frame rate over the reference camera's (empty: all 1).
+        Camera -> reference frames per frame of its own (its frame period over the reference's: above 1
+        its clock is slower); ``phase_frames`` are then the phases at frame 0 and camera ``c``'s frame
+        ``k`` is at the reference instant ``phase_frames[c] + rate_ratio[c] k``
+        (:func:`horsemocap.subframe.camera_frames`). Empty or 1: the phase holds over the record.
     offset_uncertainty_frames : dict
         Camera -> standard error of its offset with the fraction (frames).
     subframe_method : str

@@ -253,7 +253,8 @@ marker_px_free = free.detect.marker_px
 rig_free = free.rig.rig
 times_free = free.detect.observation_frames
 trials = sync_free.phase_frames["middle"] + np.linspace(-0.5, 0.5, 21)
-curve = subframe.residual_curve(rig_free, marker_px_free, sync_free.phase_frames, "middle", trials, times_free)
+curve = subframe.residual_curve(rig_free, marker_px_free, sync_free.phase_frames, "middle", trials, times_free,
+                                sync_free.rate_ratio)
 fig, ax = plt.subplots(figsize=(6, 3))
 ax.plot(trials, curve, "o-")
 ax.axvline(sync_free.phase_frames["middle"], color="k", lw=0.8, label="estimate")
@@ -274,7 +275,7 @@ display(phase_ui)
 # %%
 chosen_phase = phase_ui.value
 at_chosen = subframe.residual_curve(rig_free, marker_px_free, sync_free.phase_frames, "middle", [chosen_phase],
-                                    times_free)[0]
+                                    times_free, sync_free.rate_ratio)[0]
 print(f"middle phase {chosen_phase:+.3f} frame: median residual {at_chosen:.3f} px "
       f"(the estimate {sync_free.phase_frames['middle']:+.3f}: the curve's minimum)")
 
