@@ -37,7 +37,7 @@ from .reconstruction import triangulate
 
 __all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
-           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "tracks_at_reference_instants", "points_at_shifted_instants",
+           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "drift_text", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
            "OUTSIDE_TRACK"]
 
@@ -417,6 +417,27 @@ def largest_phase(phase: float, rate_ratio: float, n_frames: int) -> float:
     return round(max(abs(float(phase)), abs(float(phase) + (float(rate_ratio) - 1.0) * max(n_frames - 1, 0))), 12)
 
 
+def drift_text(rate_ratio: float, n_frames: int) -> str:
+    """A camera's clock drift in words ("" at rate 1): how much longer or shorter its frames are than the
+    reference's (ppm; ``rate_ratio`` reference frames per frame of its own, :func:`camera_frames`)
+    and the phase that adds over the record.
+
+    Examples
+    --------
+    A camera whose clock runs 132 ppm fast has frames 132 ppm shorter:
+
+    >>> print(drift_text(1 / 1.000132, 2800))
+     (its frames 132 ppm shorter than the reference's: -0.369 frame of phase over the record)
+    >>> drift_text(1.0, 2800)
+    ''
+    """
+    if rate_ratio == 1.0:
+        return ""
+    ppm = 1e6 * (rate_ratio - 1.0)
+    return (f" (its frames {abs(ppm):.0f} ppm {'longer' if ppm > 0 else 'shorter'} than the reference's: "
+            f"{(rate_ratio - 1.0) * max(n_frames - 1, 0):+.3f} frame of phase over the record)")
+
+
 def tracks_at_reference_instants(marker_px: dict, phase: dict, rate_ratio: dict | None = None,
                                  times: dict | None = None, max_gap: int = 0) -> tuple[dict, dict]:
     """Every camera's tracks interpolated to the reference camera's instants.
@@ -599,8 +620,8 @@ def fit_phase(camera, points: np.ndarray, track: TrackInterpolant, center: float
     The record's frames with a 3D point are cut into :data:`CHUNKS` chunks;
     each chunk's phase is fitted alike. Their spread over ``sqrt(chunks)`` is
     the uncertainty; a straight line through them over time gives the drift
-    (rate ratio), kept only when :func:`drift_is_measured` (``phase`` is then the one at the middle of the
-    record's frames compared, as :func:`phase_residual` reads it).
+    (rate ratio), kept only when :func:`drift_is_measured` (``phase`` is then the one at frame 0, as
+    :class:`PhaseFit` says; :func:`phase_residual` reads it about the middle of the frames compared).
     None when fewer than 10 marker-frames compare.
 
     Examples
@@ -625,12 +646,13 @@ def fit_phase(camera, points: np.ndarray, track: TrackInterpolant, center: float
             chunk_phase.append(_parabolic_minimum(fine, c))
             chunk_mid.append(float(part.mean()))
     unc = float(np.std(chunk_phase, ddof=1) / np.sqrt(len(chunk_phase))) if len(chunk_phase) > 2 else step
+    res = phase_residual(camera, points, track, [best], frames=have)[0]
     ratio = 1.0
     if len(chunk_phase) > 2:
         _, slope, se, _ = _drift_line(chunk_phase, chunk_mid)
         if drift_is_measured(slope, se, float(np.ptp(chunk_mid))):
             ratio = 1.0 + slope
-    res = phase_residual(camera, points, track, [best], frames=have)[0]
+            best = best - slope * 0.5 * float(have[0] + have[-1])      # the phase at frame 0, as PhaseFit's
     return PhaseFit(phase=best, uncertainty=max(unc, 1e-3), rate_ratio=ratio, residual_px=float(res),
                     n_points=int(have.size * points.shape[1]))
 
@@ -652,11 +674,10 @@ def joint_residual(rig, tracks: dict, phase: dict, frames: np.ndarray, rate_rati
     return float(np.median(r)) if r.size else float("nan")
 
 
-def _axis_fit(rig, tracks, phase, cam, frames, grid, rate_ratio: dict | None = None):
-    """The best phase of ``cam`` on ``grid`` (others fixed, at ``rate_ratio``; ``cam`` at rate 1 over
-    ``frames``), refined by a parabola; NaN when nothing compares."""
-    rate = {**(rate_ratio or {}), cam: 1.0}
-    curve = np.array([joint_residual(rig, tracks, {**phase, cam: g}, frames, rate) for g in grid])
+def _axis_fit(rig, tracks, phase, cam, frames, grid):
+    """The best phase of ``cam`` on ``grid`` (the others fixed; every phase constant over ``frames``),
+    refined by a parabola; NaN when nothing compares."""
+    curve = np.array([joint_residual(rig, tracks, {**phase, cam: g}, frames) for g in grid])
     return _parabolic_minimum(grid, curve) if np.isfinite(curve).any() else float("nan")
 
 
@@ -834,7 +855,7 @@ def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict) -> dic
             if drift_is_measured(slope, se, float(np.ptp(mid))):
                 out[c] = _Drift(intercept, 1.0 + slope, max(intercept_se, 1e-3))
             else:
-                out[c] = _Drift(float(best[c]), 1.0, max(float(np.std(ph, ddof=1) / np.sqrt(len(ph))), 1e-3))
+                out[c] = _Drift(float(best[c]), 1.0, _spread(ph))
         drifting = {c: (d.phase, d.rate_ratio - 1.0) for c, d in out.items() if d.rate_ratio != 1.0}
         if again or not drifting:
             return out
@@ -996,13 +1017,12 @@ def linearised_phases(rig, marker_px: dict, phase: dict, reference: str, times: 
         step = np.linalg.lstsq(J[keep], -r0[keep], rcond=None)[0]
         spread = 1.4826 * float(np.median(np.abs((r0 + J @ step)[usable])))
         keep = usable & (np.abs(r0 + J @ step) <= max(LINEAR_OUTLIER_SIGMAS * spread, 1e-9))
-    chunk_steps, chunk_mid = [], []
+    chunk_steps = []
     for part in np.array_split(np.arange(n), CHUNKS):
         sel = np.zeros_like(keep)
         sel[part] = keep[part]
         if sel.sum() >= LINEAR_MIN_COMPONENTS * len(free) and np.linalg.matrix_rank(J[sel]) == len(free):
             chunk_steps.append(np.linalg.lstsq(J[sel], -r0[sel], rcond=None)[0])
-            chunk_mid.append(float(part.mean()))
     if len(chunk_steps) < 3:        # no spread to measure: not determined (a default would understate nothing)
         return {}
     found = {**start, **{c: start[c] + float(s) for c, s in zip(free, step)}}

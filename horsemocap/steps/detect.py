@@ -553,31 +553,10 @@ def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
            for c in session.cameras}
     rate = {c: (fits[c].rate_ratio if c in fits else 1.0) for c in session.cameras}
     progress("detect", "fractions of a frame refined by the markers: " + ", ".join(
-        f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" + drift_text(rate[c], sync.n_frames) for c in fits) + f" (residual {min(f.residual_px for f in fits.values()):.2f} px"
+        f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" + subframe.drift_text(rate[c], sync.n_frames) for c in fits) + f" (residual {min(f.residual_px for f in fits.values()):.2f} px"
         + (f"; readout times of {', '.join(times)} used" if times else "; no rolling-shutter readout given") + ")")
     how = "flash and markers" if sync.subframe_method == "flash" else "markers"
     return sync.replace(phase_frames=phase, offset_uncertainty_frames=unc, rate_ratio=rate, subframe_method=how)
-
-
-def drift_text(rate_ratio: float, n_frames: int) -> str:
-    """A camera's clock drift in words ("" at rate 1): how much longer or shorter its frames are than the
-    reference's (ppm; ``rate_ratio`` reference frames per frame of its own, :func:`horsemocap.subframe.camera_frames`)
-    and the phase that adds over the record.
-
-    Examples
-    --------
-    A camera whose clock runs 132 ppm fast has frames 132 ppm shorter:
-
-    >>> print(drift_text(1 / 1.000132, 2800))
-     (its frames 132 ppm shorter than the reference's: -0.369 frame of phase over the record)
-    >>> drift_text(1.0, 2800)
-    ''
-    """
-    if rate_ratio == 1.0:
-        return ""
-    ppm = 1e6 * (rate_ratio - 1.0)
-    return (f" (its frames {abs(ppm):.0f} ppm {'longer' if ppm > 0 else 'shorter'} than the reference's: "
-            f"{(rate_ratio - 1.0) * max(n_frames - 1, 0):+.3f} frame of phase over the record)")
 
 
 def phases_may_be_hidden(fits: dict, cameras) -> bool:

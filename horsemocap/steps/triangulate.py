@@ -9,7 +9,7 @@ from ..camera import Rig
 from ..detection import bridge_gaps
 from ..params import TriangulateParams
 from ..reconstruction import nearest_covariance, triangulate
-from ..subframe import OUTSIDE_TRACK, others_residual, tracks_at_reference_instants
+from ..subframe import OUTSIDE_TRACK, drift_text, others_residual, tracks_at_reference_instants
 from .base import AnalysisError, StepResult, longest_run
 from .detect import MIN_SEGMENT_FRAMES, DetectResult
 
@@ -117,6 +117,20 @@ def _whole_at_ends(segment, points):
     return (int(a), int(b)) if b > a else None
 
 
+def drift_words(sync) -> str:
+    """The drifting cameras of ``sync`` in words ("" when every phase holds over the record).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> print(drift_words(SimpleNamespace(rate_ratio={"left": 1.0, "right": 1 / 1.000132}, n_frames=2800)))
+     at the first frame; right (its frames 132 ppm shorter than the reference's: -0.369 frame of phase over the record)
+    """
+    drifting = {c: r for c, r in sync.rate_ratio.items() if r != 1.0}
+    return (" at the first frame" + "".join(f"; {c}{drift_text(r, sync.n_frames)}" for c, r in drifting.items())
+            if drifting else "")
+
+
 def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | None]:
     """The cameras' centroids at the reference camera's instants, and where a camera's could not be interpolated.
 
@@ -134,7 +148,6 @@ def common_instants(detect: DetectResult, progress) -> tuple[dict, np.ndarray | 
     lost = np.any(np.stack(list(outside.values())), axis=0)
     progress("triangulate", "the cameras' tracks interpolated to the reference camera's instants (phases "
                             + ", ".join(f"{c} {v:+.3f}" for c, v in sync.phase_frames.items())
-                            + " frame" + "".join(f"; {c} drifting {1e6 * (r - 1.0):+.0f} ppm of its frame per frame"
-                                                 for c, r in sync.rate_ratio.items() if r != 1.0)
+                            + " frame" + drift_words(sync)
                             + f"); {int(lost.sum())} marker-frame(s) outside a camera's track")
     return moved, lost

@@ -155,7 +155,9 @@ def true_offsets_frames(truth: Truth) -> dict:
 
     Camera ``c``'s frame ``k + offset[c]`` shows the instant of the reference
     camera's frame ``k`` (at the flash's onset; the offsets drift by
-    ``extras['true_rate_ratio'] - 1`` frames per frame). Genlocked sessions:
+    ``extras['true_rate_ratio'] - 1`` frames per frame; ``true_rate_ratio`` is the camera's frame rate over
+    the reference's, the reciprocal of the pipeline's ``SyncResult.rate_ratio``, reference frames per frame of
+    its own: :func:`horsemocap.subframe.camera_frames`). Genlocked sessions:
     the whole-frame differences of ``offsets``.
     """
     if truth.free_running:
