@@ -159,6 +159,26 @@ def test_phases_the_markers_cannot_pin_are_tried_about_the_identified_ones(monke
     assert out[-1].phase_frames["middle"] == pytest.approx(0.5)
 
 
+def test_trial_phases_keep_the_drifting_cameras_rates(monkeypatch):
+    """The right camera's clock drifts (the markers measured its rate) while the middle's phase is tried about
+    its identified one: every trial identification reads the right camera at its phase and rate, not at its
+    phase at frame 0 held over the record."""
+    rates = []
+
+    def identify(session, sync, *args, **kw):
+        rates.append(dict(sync.rate_ratio))
+        return _idn(used=int(100 - 100 * abs(sync.phase_frames["middle"] - 0.4)), inconsistent=0)
+
+    _patch_rounds(monkeypatch, identify,
+                  lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.02, "right": 0.02}))
+    at = _free_sync({"left": 0.0, "middle": 0.0, "right": 0.2})
+    markers = at.replace(phase_frames={"left": 0.0, "middle": 1.01, "right": 0.21}, rate_ratio={"right": 1.0002},
+                         offset_uncertainty_frames={"middle": 1.3, "right": 0.02})
+    D._identified_again(_session({}, ("left", "middle", "right")), at, _idn(used=60, inconsistent=0), markers,
+                        None, None, {}, lambda *x: None, 8.0)
+    assert rates and all(r.get("right") == 1.0002 for r in rates[:4])
+
+
 def test_phase_moves():
     assert D.phase_moves({"a": 0.1, "b": -0.2}, {"a": 0.1, "b": 0.3}) == {"a": 0.0, "b": 0.5}
     assert D.phase_moves({}, {"a": 0.0, "b": 0.3}) == {"a": 0.0, "b": 0.3}     # a genlocked sync holds no phases

@@ -708,7 +708,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
                                  rate_ratio={**refined.rate_ratio, **{c: prev.rate_ratio.get(c, 1.0) for c in loose}})
             idn, at = _phase_trials(session, about, idn, list(loose), rig, static_points, given, tolerance,
                                     progress, searches=searches)
-            if at is about and about.phase_frames == prev.phase_frames:
+            if at is about and about.phase_frames == prev.phase_frames and about.rate_ratio == prev.rate_ratio:
                 break                               # no trial used more: the same identification again
         else:
             progress("detect", "the markers moved the phases by " + ", ".join(
