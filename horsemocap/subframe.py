@@ -590,8 +590,8 @@ class PhaseFit:
         Frames (reference instants) after the whole-frame offset, at frame 0 (the camera's phase at frame
         ``k`` is ``phase + (rate_ratio - 1) k``: :func:`camera_frames`).
     uncertainty : float
-        Standard error of ``phase`` from the spread of the chunks' phases (about their drift, when a rate
-        ratio is kept).
+        Standard error of ``phase`` from the spread of the chunks' phases (when a rate ratio is kept: the
+        standard error of their line's value at frame 0).
     rate_ratio : float
         Reference frames per frame of this camera (its frame period over the reference's; above 1 its clock
         is slower; :func:`camera_frames`), 1 when no drift is measured (:func:`drift_is_measured`).
