@@ -772,8 +772,7 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                 if np.isfinite(g):
                     best[c] = g
     best = _refine_jointly(rig, tracks, best, free, frames)
-    seen = {c: np.any(np.all(np.isfinite(np.asarray(px, float)), axis=-1), axis=-1) for c, px in marker_px.items()}
-    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px), seen)
+    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px), _seen_by_camera(marker_px))
     rate = {**{c: 1.0 for c in marker_px}, **{c: d.rate_ratio for c, d in drift.items()}}
     if any(d.rate_ratio != 1.0 for d in drift.values()):     # the phases at frame 0, refined with the rates
         best = _refine_jointly(rig, tracks, {**best, **{c: d.phase for c, d in drift.items() if d.rate_ratio != 1.0}},
@@ -810,14 +809,18 @@ def seen_chunks(marker_px: dict, chunks: int = CHUNKS) -> list:
     >>> [part.tolist() for part in seen_chunks({"a": px, "b": px}, chunks=3)]
     [[2.0, 3.0, 4.0, 5.0], [42.0, 43.0, 44.0, 45.0]]
     """
-    seen = sum(np.any(np.all(np.isfinite(np.asarray(px, float)), axis=-1), axis=-1).astype(int)
-               for px in marker_px.values())
+    seen = sum(v.astype(int) for v in _seen_by_camera(marker_px).values())
     frames = np.flatnonzero(np.asarray(seen) >= 2).astype(float)
     out = []
     for part in np.array_split(frames, chunks):
         cuts = np.flatnonzero(np.diff(part) > CHUNK_GAP_FRAMES) + 1
         out += [piece for piece in np.split(part, cuts) if piece.size >= CHUNK_MIN_FRAMES]
     return out
+
+
+def _seen_by_camera(marker_px: dict) -> dict:
+    """Camera -> (n,) bool: the frames in which it sees a marker."""
+    return {c: np.any(np.all(np.isfinite(np.asarray(px, float)), axis=-1), axis=-1) for c, px in marker_px.items()}
 
 
 @dataclass(frozen=True)
@@ -843,23 +846,25 @@ def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict) -> dic
     chunks keeps ``best`` with :data:`GRID_STEP` as its uncertainty.
     """
     lines = {c: (float(best[c]), 0.0) for c in free}
-    for again in (False, True):
-        chunks = _chunk_phases(rig, tracks, best, lines, parts, seen)
-        out = {}
-        for c in free:
-            ph, mid = chunks[c]
-            if len(ph) < 3:
-                out[c] = _Drift(float(best[c]), 1.0, GRID_STEP)
-                continue
-            intercept, slope, se, intercept_se = _drift_line(ph, mid)
-            if drift_is_measured(slope, se, float(np.ptp(mid))):
-                out[c] = _Drift(intercept, 1.0 + slope, max(intercept_se, 1e-3))
-            else:
-                out[c] = _Drift(float(best[c]), 1.0, _spread(ph))
-        drifting = {c: (d.phase, d.rate_ratio - 1.0) for c, d in out.items() if d.rate_ratio != 1.0}
-        if again or not drifting:
-            return out
-        lines.update(drifting)
+    out = _lines_drift(_chunk_phases(rig, tracks, best, lines, parts, seen), best)
+    drifting = {c: (d.phase, d.rate_ratio - 1.0) for c, d in out.items() if d.rate_ratio != 1.0}
+    if not drifting:
+        return out
+    return _lines_drift(_chunk_phases(rig, tracks, best, {**lines, **drifting}, parts, seen), best)
+
+
+def _lines_drift(chunks: dict, best: dict) -> dict:
+    """Camera -> :class:`_Drift` from its chunks' phases and middles (:func:`_drifts`)."""
+    out = {}
+    for c, (ph, mid) in chunks.items():
+        if len(ph) < 3:
+            out[c] = _Drift(float(best[c]), 1.0, GRID_STEP)
+            continue
+        intercept, slope, se, intercept_se = _drift_line(ph, mid)
+        if drift_is_measured(slope, se, float(np.ptp(mid))):
+            out[c] = _Drift(intercept, 1.0 + slope, max(intercept_se, 1e-3))
+        else:
+            out[c] = _Drift(float(best[c]), 1.0, _spread(ph))
     return out
 
 

@@ -450,9 +450,8 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     thr = _thresholds(frames, cams, cparams, n)
     step = max(1, min(8, n // 30))
     timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio)
-    search = whole_frames
     found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
-                                       max_residual_px, step, timing, search)
+                                       max_residual_px, step, timing, whole_frames)
     if found is None:
         why = "; ".join(f"frame {k}: {w}" for k, w in tried[:6])
         raise DetectionError(
@@ -461,7 +460,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
             "static stills, the threshold, or use detection_method 'thesis'")
     k0, cands0, vp0, fit0 = found
     tracker = _Tracker(frames, rig, cams, thr, cparams, static_points[fit0.model_index], M,
-                       max_residual_px, slack_m, n, timing, search)
+                       max_residual_px, slack_m, n, timing, whole_frames)
     tracker.anchor_rms = fit0.rms_m
     tracker.start(k0, cands0, vp0, fit0)
     if len(votes) > 1:

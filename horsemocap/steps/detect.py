@@ -662,13 +662,10 @@ def phase_moves(before: dict, after: dict, *, rates: tuple = ({}, {}), n_frames:
     {'middle': 0.1}
     """
     cameras = list(before) + [c for c in after if c not in before]
-    last = max(int(n_frames) - 1, 0)
-    out = {}
-    for c in cameras:
-        at_start = float(after.get(c, 0.0)) - float(before.get(c, 0.0))
-        drift = float(rates[1].get(c, 1.0)) - float(rates[0].get(c, 1.0))
-        out[c] = round(max(abs(at_start), abs(at_start + drift * last)), 9)
-    return out
+    return {c: round(subframe.largest_phase(float(after.get(c, 0.0)) - float(before.get(c, 0.0)),
+                                            1.0 + float(rates[1].get(c, 1.0)) - float(rates[0].get(c, 1.0)),
+                                            n_frames), 9)
+            for c in cameras}
 
 
 def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance,
