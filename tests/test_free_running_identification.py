@@ -62,6 +62,11 @@ def _idn(used: int, inconsistent: int, names=("left", "middle", "right")):
     return SimpleNamespace(reason=reason, marker_px={}, thresholds={})
 
 
+def _ident(names=("left", "middle", "right"), progress=lambda *x: None):
+    """The identifications' shared context of a session of ``names`` (no rig or model: ``_identify`` is replaced)."""
+    return D._Identifier(_session({}, names), None, None, {}, progress, 8.0)
+
+
 def _free_sync(phase: dict, names=("left", "middle", "right")):
     return SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 90 for c in names}, n_frames=90,
                       offsets_from="flashlight", phase_frames=dict(phase), subframe_method="flash")
@@ -90,8 +95,7 @@ def test_a_camera_whose_views_the_others_reject_is_identified_at_other_phases(mo
     flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
     first = identify(None, flash)
     said = []
-    idn, sync = D._phase_by_identification(_session({}, names), flash, None, None, {}, first,
-                                           lambda *x: said.append(x[-1]), 8.0)
+    idn, sync = D._phase_by_identification(_ident(names, lambda *x: said.append(x[-1])), flash, first)
     assert sync.phase_frames["middle"] == pytest.approx(0.55)
     assert sync.phase_frames["right"] == pytest.approx(0.1)              # its views were not rejected: not moved
     assert "middle +0.25 frame" in said[0]
@@ -101,8 +105,7 @@ def test_cameras_whose_views_agree_are_not_searched(monkeypatch):
     monkeypatch.setattr(D, "_identify", lambda *a, **k: pytest.fail("searched although no view was rejected"))
     flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
     first = _idn(used=100, inconsistent=10)                  # 10 of 110: under INCONSISTENT_SHARE_TO_SEARCH
-    idn, sync = D._phase_by_identification(_session({}, ("left", "middle", "right")), flash, None, None, {}, first,
-                                           lambda *x: None, 8.0)
+    idn, sync = D._phase_by_identification(_ident(), flash, first)
     assert idn is first and sync is flash
 
 
@@ -124,8 +127,8 @@ def test_identified_again_at_the_markers_phases_in_the_current_offsets(monkeypat
     identified_at = refined.replace(phase_frames={"left": 0.0, "middle": 0.16, "right": 0.01},
                                     subframe_method="flash")
     rounds = []
-    out = D._identified_again(_session({}, names), identified_at, _idn(used=50, inconsistent=30), refined, None,
-                              None, {}, lambda *x: rounds.append(x[-1]), 8.0)
+    out = D._identified_again(_ident(names, lambda *x: rounds.append(x[-1])), identified_at,
+                              _idn(used=50, inconsistent=30), refined)
     assert seen == pytest.approx({"left": 0.0, "middle": -0.59, "right": -0.63})
     assert len(rounds) == 1                      # the phases did not move again: one round
     assert out[-1].flash_offsets == refined.flash_offsets and out[-1].subframe_method == "flash and markers"
@@ -146,8 +149,7 @@ def _middle_tried_about(monkeypatch, identified_at: float, markers_phase: float,
     at = _free_sync({"left": 0.0, "middle": identified_at, "right": 0.0})
     markers = at.replace(phase_frames={"left": 0.0, "middle": markers_phase, "right": 0.0},
                          offset_uncertainty_frames={"middle": markers_uncertainty, "right": 0.02})
-    out = D._identified_again(_session({}, ("left", "middle", "right")), at, _idn(used=60, inconsistent=0), markers,
-                              None, None, {}, lambda *x: None, 8.0)
+    out = D._identified_again(_ident(), at, _idn(used=60, inconsistent=0), markers)
     return tried, out
 
 
@@ -174,8 +176,7 @@ def test_trial_phases_keep_the_drifting_cameras_rates(monkeypatch):
     at = _free_sync({"left": 0.0, "middle": 0.0, "right": 0.2})
     markers = at.replace(phase_frames={"left": 0.0, "middle": 1.01, "right": 0.21}, rate_ratio={"right": 1.0002},
                          offset_uncertainty_frames={"middle": 1.3, "right": 0.02})
-    D._identified_again(_session({}, ("left", "middle", "right")), at, _idn(used=60, inconsistent=0), markers,
-                        None, None, {}, lambda *x: None, 8.0)
+    D._identified_again(_ident(), at, _idn(used=60, inconsistent=0), markers)
     assert rates and all(r.get("right") == 1.0002 for r in rates[:4])
 
 
@@ -199,8 +200,7 @@ def test_identified_again_after_phases_found_behind_a_genlocked_looking_flash(mo
                            offsets_from="flashlight")
     found = genlocked.replace(phase_frames={"left": 0.0, "middle": -0.26, "right": -0.33}, subframe_method="markers",
                               offset_uncertainty_frames={"middle": 0.05, "right": 0.05})
-    out = D._identified_again(_session({}, names), genlocked, _idn(used=50, inconsistent=0), found, None, None, {},
-                              lambda *x: None, 8.0)
+    out = D._identified_again(_ident(names), genlocked, _idn(used=50, inconsistent=0), found)
     assert out is not None and seen == pytest.approx({"left": 0.0, "middle": -0.26, "right": -0.33})
 
 
@@ -212,8 +212,7 @@ def test_a_worse_identification_at_the_markers_phases_is_not_kept(monkeypatch):
     flash = _free_sync({"left": 0.0, "middle": 0.30, "right": 0.1})
     refined = flash.replace(phase_frames={"left": 0.0, "middle": 0.45, "right": 0.1},
                             offset_uncertainty_frames={"middle": 0.02, "right": 0.02})
-    assert D._identified_again(_session({}, names), flash, _idn(used=90, inconsistent=0), refined, None, None, {},
-                               lambda *x: None, 8.0) is None
+    assert D._identified_again(_ident(names), flash, _idn(used=90, inconsistent=0), refined) is None
 
 
 def test_a_phase_run_off_by_frames_is_not_followed(monkeypatch):

@@ -10,7 +10,7 @@ result stays as it was.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -287,26 +287,70 @@ class _Identified:
     times: dict
 
 
-def _identified(session, section, sync, rig, static_points, given, progress, frames, tolerance,
-                searches=None) -> _Identified:
+def _silent(*_args) -> None:
+    """A progress report that says nothing (the trial identifications')."""
+
+
+@dataclass(frozen=True)
+class _Identifier:
+    """What every identification of one detect step shares (:func:`_identify`).
+
+    Attributes
+    ----------
+    session, rig : Session, Rig
+    static_points : (S, 3) array
+        The static shot's markers, the rigid model.
+    given : dict camera -> DetectionParams
+        Each camera's detection parameters as the session gives them.
+    progress : callable
+        The step's progress report.
+    tolerance : float
+        Largest reprojection error (px) of a consistent point: the genlocked default, or wider for
+        free-running cameras (:func:`free_running_tolerance`).
+    searches : WholeFrameSearches or None
+        The whole-frame searches kept for the identifications of the same recording that follow.
+
+    Examples
+    --------
+    >>> ident = _Identifier(None, None, None, {}, print)
+    >>> ident.at_tolerance(8.0).tolerance, ident.quiet().progress is _silent
+    (8.0, True)
+    """
+
+    session: Session
+    rig: Rig
+    static_points: np.ndarray | None
+    given: dict
+    progress: object
+    tolerance: float = DEFAULT_MAX_RESIDUAL_PX
+    searches: WholeFrameSearches | None = None
+
+    def at_tolerance(self, tolerance: float) -> "_Identifier":
+        """The same identifications with views ``tolerance`` px apart taken as consistent."""
+        return replace(self, tolerance=tolerance)
+
+    def quiet(self) -> "_Identifier":
+        """The same identifications without progress reports (the trials)."""
+        return replace(self, progress=_silent)
+
+
+def _identified(ident: _Identifier, section, sync, frames) -> _Identified:
     """Identify the markers in ``sync`` and settle the sync on them: free-running cameras' phases searched by
     the identification (:func:`_phase_by_identification`), the flash's whole frames checked by the markers
     (:func:`_checked_by_markers`), the fractions refined by the markers or found behind a fully lit flash, and the
     markers identified again at the phases the markers measured (:func:`_identified_again`)."""
-    idn = _identify(session, sync, rig, static_points, given, progress, frames, tolerance, searches=searches)
+    session, rig, progress = ident.session, ident.rig, ident.progress
+    idn = _identify(ident, sync, frames)
     if sync.free_running and len(session.cameras) >= 3:
-        idn, sync = _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance,
-                                             searches=searches)
+        idn, sync = _phase_by_identification(ident, sync, idn)
     check = {}
     if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
-        idn, sync, check = _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
-                                               tolerance, searches=searches)
+        idn, sync, check = _checked_by_markers(ident, section, sync, idn)
     marker_px, by_fields = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
     times = observation_times(session, sync, rig, marker_px)
     if sync.subframe_method in ("flash", "markers") and len(session.cameras) >= 3:
         refined = _subframe_by_markers(session, sync, rig, marker_px, times, progress)
-        again = _identified_again(session, sync, idn, refined, rig, static_points, given, progress, tolerance,
-                                  searches=searches)
+        again = _identified_again(ident, sync, idn, refined)
         if again is not None:
             idn, marker_px, by_fields, times, refined = again
         sync = refined
@@ -315,8 +359,7 @@ def _identified(session, section, sync, rig, static_points, given, progress, fra
         sync = _phases_behind_a_full_flash(session, sync, rig, marker_px, progress)
         times = observation_times(session, sync, rig, marker_px)      # the rows' instants, when running free
         if sync.free_running:          # identified as genlocked: again at the phases found, as free-running
-            again = _identified_again(session, genlocked, idn, sync, rig, static_points, given, progress,
-                                      free_running_tolerance(rig), searches=searches)
+            again = _identified_again(ident.at_tolerance(free_running_tolerance(rig)), genlocked, idn, sync)
             if again is not None:
                 idn, marker_px, by_fields, times, sync = again
     return _Identified(idn, sync, check, marker_px, by_fields, times)
@@ -348,18 +391,18 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     progress("detect", f"{sync.n_frames} frames of cameras {', '.join(session.cameras)}: "
                        "markers identified by all cameras together ...")
     tolerance = free_running_tolerance(rig) if sync.free_running else DEFAULT_MAX_RESIDUAL_PX
-    args = (session, section)
-    searches = WholeFrameSearches()     # every identification below searches the same frames whole
+    # every identification below searches the same frames whole
+    ident = _Identifier(session, rig, static_points, given, progress, tolerance, WholeFrameSearches())
+    as_free = ident.at_tolerance(free_running_tolerance(rig))
     tried_free, retry_error = sync.free_running, ""
     try:
-        found = _identified(*args, sync, rig, static_points, given, progress, frames, tolerance, searches)
+        found = _identified(ident, section, sync, frames)
     except AnalysisError:
         if sync.free_running or sync.offsets_from != "flashlight":
             raise
         progress("detect", "no consistent views at the genlocked tolerance: trying the cameras as free-running")
         tried_free = True
-        found = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
-                            free_running_tolerance(rig), searches)
+        found = _identified(as_free, section, _as_free_running(session, sync), None)
     gap = max_gap_frames(session, section)
     tracked, segment, n_markers = _tracked(found.idn, gap)
     if (_run_length(segment) < MIN_SEGMENT_FRAMES and not tried_free and not found.sync.free_running
@@ -368,8 +411,7 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
         progress("detect", f"only {_run_length(segment)} consecutive frames tracked with the cameras genlocked: "
                            "trying them as free-running")
         try:
-            alt = _identified(*args, _as_free_running(session, sync), rig, static_points, given, progress, None,
-                              free_running_tolerance(rig), searches)
+            alt = _identified(as_free, section, _as_free_running(session, sync), None)
         except AnalysisError as exc:
             retry_error = f"; as free-running: {exc}"
             progress("detect", f"as free-running: {exc}")
@@ -668,8 +710,7 @@ def phase_moves(before: dict, after: dict, *, rates: tuple = ({}, {}), n_frames:
             for c in cameras}
 
 
-def _identified_again(session, identified_at, idn, refined, rig, static_points, given, progress, tolerance,
-                      searches=None):
+def _identified_again(ident: _Identifier, identified_at, idn, refined):
     """The markers identified again until the phases the markers measure settle, or None when nothing better
     was found.
 
@@ -683,6 +724,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     most :data:`REIDENTIFY_ROUNDS`. Returns ``(idn, marker_px, by_fields, times, sync)`` of the round whose
     identification used the most marker-frames, when it used more than ``idn``.
     """
+    session, rig, progress = ident.session, ident.rig, ident.progress
     ref = session.reference_camera
     prev = identified_at.replace(phase_frames=current_phases(identified_at, ref))
     best, best_used = None, _used_marker_frames(idn)
@@ -703,8 +745,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
             about = prev.replace(phase_frames={**refined.phase_frames,
                                                **{c: prev.phase_frames.get(c, 0.0) for c in loose}},
                                  rate_ratio={**refined.rate_ratio, **{c: prev.rate_ratio.get(c, 1.0) for c in loose}})
-            idn, at = _phase_trials(session, about, idn, list(loose), rig, static_points, given, tolerance,
-                                    progress, searches=searches)
+            idn, at = _phase_trials(ident, about, idn, list(loose))
             if at is about and about.phase_frames == prev.phase_frames and about.rate_ratio == prev.rate_ratio:
                 break                               # no trial used more: the same identification again
         else:
@@ -713,7 +754,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
                 "at: identifying again at the markers' phases")
             at = refined
             try:
-                idn = _identify(session, at, rig, static_points, given, progress, None, tolerance, searches=searches)
+                idn = _identify(ident, at)
             except AnalysisError as exc:
                 progress("detect", f"identifying again failed ({exc}); the best identification so far is kept")
                 break
@@ -727,7 +768,7 @@ def _identified_again(session, identified_at, idn, refined, rig, static_points, 
     return best
 
 
-def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolerance, progress, searches=None):
+def _phase_trials(ident: _Identifier, sync, idn, cameras):
     """The identification using the most marker-frames, and its sync, with each of ``cameras`` (in turn, the
     others at their best so far) at its phase in ``sync`` moved by each of :data:`PHASE_TRIALS_FRAMES`
     (``idn``: the identification at ``sync``'s phases, kept when no trial uses more). A camera moved gets at
@@ -738,8 +779,7 @@ def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolera
         for step in PHASE_TRIALS_FRAMES:
             trial = sync.replace(phase_frames={**base, c: base.get(c, 0.0) + step})
             try:
-                found = _identify(session, trial, rig, static_points, given, lambda *x: None, None, tolerance,
-                                  searches=searches)
+                found = _identify(ident.quiet(), trial)
             except AnalysisError:
                 failed.append(f"{c} {step:+.2f}")
                 continue
@@ -749,7 +789,7 @@ def _phase_trials(session, sync, idn, cameras, rig, static_points, given, tolera
                 unc[c] = max(float(unc.get(c, 0.0)), abs(step))
                 best_used, idn, sync = used, found, trial.replace(offset_uncertainty_frames=unc)
     if failed:
-        progress("detect", f"no identification at the trial phases {', '.join(failed)} frame")
+        ident.progress("detect", f"no identification at the trial phases {', '.join(failed)} frame")
     return idn, sync
 
 
@@ -757,7 +797,7 @@ def _used_marker_frames(idn) -> int:
     return int(sum(np.count_nonzero(np.asarray(r) == "") for r in idn.reason.values()))
 
 
-def _phase_by_identification(session, sync, rig, static_points, given, idn, progress, tolerance, searches=None):
+def _phase_by_identification(ident: _Identifier, sync, idn):
     """The identification and sync with the phases of free-running cameras whose views the others' rejected.
 
     A camera whose views were found inconsistent in more than :data:`INCONSISTENT_SHARE_TO_SEARCH` of its
@@ -765,6 +805,7 @@ def _phase_by_identification(session, sync, rig, static_points, given, idn, prog
     :data:`PHASE_TRIALS_FRAMES` (the worst camera first, the others at their best so far); the identification
     using the most marker-frames is kept. The markers refine the phase kept (:func:`_subframe_by_markers`).
     """
+    session = ident.session
     shares = inconsistent_shares(idn.reason)
     ref = session.reference_camera
     worst = sorted((c for c in session.cameras if c != ref and shares[c] > INCONSISTENT_SHARE_TO_SEARCH),
@@ -773,26 +814,26 @@ def _phase_by_identification(session, sync, rig, static_points, given, idn, prog
         return idn, sync
     before = ", ".join(f"{c} {100 * shares[c]:.0f} %" for c in worst)
     start = dict(sync.phase_frames)
-    idn, sync = _phase_trials(session, sync, idn, worst, rig, static_points, given, tolerance, progress, searches)
+    idn, sync = _phase_trials(ident, sync, idn, worst)
     best_used = _used_marker_frames(idn)
     moved = {c: sync.phase_frames.get(c, 0.0) - start.get(c, 0.0) for c in worst}
-    progress("detect", f"views found inconsistent with the other cameras' ({before} of their marker-frames): "
+    ident.progress("detect", f"views found inconsistent with the other cameras' ({before} of their marker-frames): "
                        "identified again at other phases; "
                        + ", ".join(f"{c} {d:+.2f} frame" for c, d in moved.items())
                        + f" from the flash's ({best_used} marker-frames used)")
     return idn, sync
 
 
-def _identify(session, sync, rig, static_points, given, progress, frames=None,
-              tolerance: float = DEFAULT_MAX_RESIDUAL_PX, searches: WholeFrameSearches | None = None):
+def _identify(ident: _Identifier, sync, frames=None):
     """:func:`~horsemocap.detection.identify_markers` in ``sync`` (its phases, rates and offsets), the
-    whole-frame searches kept in ``searches`` for the identifications that follow."""
+    whole-frame searches kept in ``ident.searches`` for the identifications that follow."""
+    session, searches = ident.session, ident.searches
     frames = frames or {c: synchronised_frames(session, sync, c) for c in session.cameras}
-    kwargs = {} if tolerance == DEFAULT_MAX_RESIDUAL_PX else {"max_residual_px": tolerance}
+    kwargs = {} if ident.tolerance == DEFAULT_MAX_RESIDUAL_PX else {"max_residual_px": ident.tolerance}
     try:
-        return identify_markers(frames, rig, static_points, session.marker_count, params=given, progress=progress,
-                                phase=current_phases(sync, session.reference_camera), row_timing=row_timing(session),
-                                rate_ratio=dict(sync.rate_ratio),
+        return identify_markers(frames, ident.rig, ident.static_points, session.marker_count, params=ident.given,
+                                progress=ident.progress, phase=current_phases(sync, session.reference_camera),
+                                row_timing=row_timing(session), rate_ratio=dict(sync.rate_ratio),
                                 whole_frames=None if searches is None else searches.of_offsets(sync.offsets), **kwargs)
     except DetectionError as exc:
         raise AnalysisError("detect", f"{exc}{identification_hint(session, sync)}") from None
@@ -801,19 +842,18 @@ def _identify(session, sync, rig, static_points, given, progress, frames=None,
             f.close()
 
 
-def _checked_by_markers(session, section, sync, rig, static_points, given, idn, progress,
-                        tolerance: float = DEFAULT_MAX_RESIDUAL_PX, searches=None):
+def _checked_by_markers(ident: _Identifier, section, sync, idn):
     """Rounds of :func:`_check_round` until no camera moves (at most :data:`SYNC_CHECK_ROUNDS`).
 
     Returns the last identification, the synchronisation it is in and the per-camera check.
     """
     rounds, flash = [], sync
     for _ in range(SYNC_CHECK_ROUNDS):      # again after a correction: the others' markers have moved too
-        shifts, sync = _check_round(session, section, sync, rig, idn, progress)
+        shifts, sync = _check_round(ident.session, section, sync, ident.rig, idn, ident.progress)
         rounds.append(shifts)
         if not any(v["shift"] for v in shifts.values()):
             break
-        idn = _identify(session, sync, rig, static_points, given, progress, tolerance=tolerance, searches=searches)
+        idn = _identify(ident, sync)
     return idn, sync, _check_summary(rounds, sync, flash)
 
 
