@@ -68,6 +68,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from horsemocap import accuracy, pipeline, pose, quality
+from horsemocap.passes import pass_segment
 from horsemocap.pipeline import AnalysisError, analyze, run_steps
 from horsemocap.virtuallab import load_truth
 from horsemocap.virtuallab.covers import COVER_SESSIONS, cover_session
@@ -102,9 +103,14 @@ class _Cut:
     def _triangulate(self, a, r):
         k = self.keep
         cut = lambda d: None if d is None else {c: np.asarray(v)[:, k] for c, v in d.items()}  # noqa: E731
+        segment = r.segment
+        if len(k) <= 3 and segment is not None:
+            # three markers: every one must be triangulated in every analysed frame (the triangulate step's own
+            # rule for a three-marker session), so the record is the longest such run inside the segment
+            segment = pass_segment(r.points[:, k], segment) or segment
         return dataclasses.replace(r, points=r.points[:, k], residual_px=cut(r.residual_px), reason=r.reason[:, k],
                                    n_views=r.n_views[:, k], sync_residual_px=cut(r.sync_residual_px),
-                                   covariance=None if r.covariance is None else r.covariance[:, k])
+                                   covariance=None if r.covariance is None else r.covariance[:, k], segment=segment)
 
     def __enter__(self):
         for step, f in (("motion_frame", self._motion_frame), ("triangulate", self._triangulate)):
@@ -139,8 +145,24 @@ def unsmoothed_saddle_error_mm(a, truth) -> np.ndarray:
     return 1000 * np.sqrt(np.nanmean(err ** 2, axis=0))
 
 
-def run_cut(name: str) -> str:
-    """The session cut to the horse's own three markers: A_y, Wb, Wk against the truth."""
+def saddle_acc_y_error_pct(a, truth, frames=None) -> float:
+    """The saddle's vertical acceleration error (rms, % of the true rms) over the analysed frames, or over those of
+    them among ``frames`` (reference-camera frame numbers): :func:`horsemocap.accuracy.stage_errors`' figure on a
+    chosen stretch, so two analyses of one session compare on the same frames."""
+    a0, b0 = a.triangulate.segment
+    ref = a.synchronisation.offsets[a.session.reference_camera] + np.arange(a0, b0)
+    rows, known = accuracy._truth_rows(truth, ref)
+    if frames is not None:
+        known = known & np.isin(ref, frames)
+    to_true = truth.motion_axes @ a.motion_frame.axes.T
+    est = np.asarray(a.rigid_body.saddle_acceleration)[known] @ to_true.T
+    true = np.asarray(truth.saddle_acc)[rows][known] @ truth.motion_axes.T
+    return float(100 * np.sqrt(np.mean((est[:, 1] - true[:, 1]) ** 2)) / np.sqrt(np.mean(true[:, 1] ** 2)))
+
+
+def run_cut(name: str, whole=None) -> str:
+    """The session cut to the horse's own three markers: A_y, Wb, Wk against the truth; with ``whole`` (the
+    analysis of every marker), its A_y on the frames the cut analysed too."""
     t0 = time.perf_counter()
     folder = cover_session(name)
     truth = load_truth(folder)
@@ -155,21 +177,38 @@ def run_cut(name: str) -> str:
     v = quality.verdict(quality.post_checks(a))
     mc = a.rigid_body.body.model_choice
     y_mm = unsmoothed_saddle_error_mm(a, _cut_truth(truth, keep))[1]
+    (a0, b0), (a1, b1) = a.detect.segment, a.triangulate.segment
+    same = ""
+    if whole is not None:
+        frames = a.synchronisation.offsets[a.session.reference_camera] + np.arange(a1, b1)
+        same = (f"; every marker on these frames A_y {saddle_acc_y_error_pct(whole, truth, frames):.1f} % "
+                f"(cut {saddle_acc_y_error_pct(a, _cut_truth(truth, keep)):.1f} %)")
+    flagged = [f"{c.name}:{c.level}" for c in quality.post_checks(a) if c.level in ("warning", "unreliable")]
     return (f"{name + ' cut to 3':22s} markers {keep} {v:10s} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
             f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % unsmoothed saddle y {y_mm:.2f} mm "
-            f"model: {mc.source} "
-            f"(p {mc.p_value:.2g}) {time.perf_counter() - t0:.0f}s")
+            f"frames {a1}..{b1 - 1} (all markers' {a0}..{b0 - 1}) {flagged} model: {mc.source} "
+            f"(p {mc.p_value:.2g}) {time.perf_counter() - t0:.0f}s{same}")
 
 
 def run(name: str) -> str:
+    return run_analysis(name)[0]
+
+
+def run_analysis(name: str) -> tuple:
+    """:func:`run`'s line and the analysis (None when it stopped)."""
     t0 = time.perf_counter()
     folder = _session_folder(name)
     try:
         a = analyze(folder, None, {}, progress=lambda *x: None)
     except AnalysisError as exc:
-        return f"{name:22s} exit 2 stopped: {str(exc)[:200]}"
+        return f"{name:22s} exit 2 stopped: {str(exc)[:200]}", None
     except Exception as exc:                                   # noqa: BLE001 - a benchmark reports every failure
-        return f"{name:22s} CRASH {exc!r}"[:300]
+        return f"{name:22s} CRASH {exc!r}"[:300], None
+    return _run_line(name, a, t0), a
+
+
+def _run_line(name: str, a, t0: float) -> str:
+    folder = _session_folder(name)
     checks = quality.post_checks(a)
     v = quality.verdict(checks)
     truth = load_truth(folder)
@@ -628,6 +667,7 @@ if __name__ == "__main__":
             if n in COVER_SESSIONS and len(COVER_SESSIONS[n].horse().marker_body) > 3:
                 print(run_draws(n, draws), flush=True)
             continue
-        print(run(n), flush=True)
+        line, whole = run_analysis(n)
+        print(line, flush=True)
         if cut and n in COVER_SESSIONS and len(COVER_SESSIONS[n].horse().marker_body) > 3:
-            print(run_cut(n), flush=True)
+            print(run_cut(n, whole), flush=True)
