@@ -37,7 +37,7 @@ from .reconstruction import triangulate
 
 __all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
-           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "drift_text", "tracks_at_reference_instants", "points_at_shifted_instants",
+           "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "whole_frames_gained", "drift_text", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
            "OUTSIDE_TRACK"]
 
@@ -415,6 +415,29 @@ def largest_phase(phase: float, rate_ratio: float, n_frames: int) -> float:
     (0.29, 0.3)
     """
     return round(max(abs(float(phase)), abs(float(phase) + (float(rate_ratio) - 1.0) * max(n_frames - 1, 0))), 12)
+
+
+def whole_frames_gained(rate_ratio: float, n_frames: int) -> np.ndarray:
+    """The whole frames a camera's drifting clock has gained on the reference's by each synchronised frame.
+
+    Its frame nearest the reference instant ``k`` is about ``k - (rate_ratio - 1) k`` (:func:`camera_frames`,
+    the phase at frame 0 left aside, within a frame as the offsets leave it): ``gained[k]`` is
+    ``(rate_ratio - 1) k`` rounded, 0 over the whole record while the drift stays under half a frame. The
+    identification reads the camera's frame ``k - gained[k]`` at the reference instant ``k``
+    (:class:`~horsemocap.detection.candidates.ClockFollowingFrames`), so the frames it compares stay a fraction
+    of a frame apart whatever the drift.
+
+    Examples
+    --------
+    A camera at 30000/1001 fps labelled 30 (1000 ppm slow against a true 30): a frame gained every 1000.
+
+    >>> g = whole_frames_gained(1.001, 2001)
+    >>> int(g[499]), int(g[501]), int(g[1600]), int(g[2000])
+    (0, 1, 2, 2)
+    >>> int(np.abs(whole_frames_gained(1.0001, 4000)).max())      # 100 ppm: under half a frame over 4000
+    0
+    """
+    return np.round((float(rate_ratio) - 1.0) * np.arange(int(n_frames))).astype(int)
 
 
 def drift_text(rate_ratio: float, n_frames: int) -> str:

@@ -221,3 +221,27 @@ def test_a_phase_run_off_by_frames_is_not_followed(monkeypatch):
     tried, out = _middle_tried_about(monkeypatch, 0.1, -1.73, 0.05)
     assert tried[:4] == [-0.4, -0.15, 0.35, 0.6]
     assert out[-1].phase_frames["middle"] == pytest.approx(0.35)
+
+
+def test_a_drift_that_carries_the_phase_past_a_frame_is_followed(monkeypatch):
+    """The right camera runs at 30000/1001 fps labelled 30: its phase is +0.22 frame at frame 0 and, at the measured
+    rate, +1.17 by the end of 987 frames. That is the clock's drift, not views identified a frame off: the markers
+    are identified again at the markers' phase and rate, not at trial phases with the rate dropped."""
+    names = ("left", "middle", "right")
+    calls = []
+
+    def identify(session, sync, *args, **kw):
+        calls.append((dict(sync.phase_frames), dict(sync.rate_ratio)))
+        return _idn(used=100, inconsistent=0)
+
+    _patch_rounds(monkeypatch, identify)
+    at = _free_sync({"left": 0.0, "middle": 0.58, "right": 0.21}).replace(
+        n_frames=987, frame_counts={c: 1200 for c in names})
+    rate = 30.0 / (30000 / 1001)
+    markers = at.replace(phase_frames={"left": 0.0, "middle": 0.58, "right": 0.22}, rate_ratio={"right": rate},
+                         offset_uncertainty_frames={"middle": 0.006, "right": 0.011})
+    assert subframe.largest_phase(0.22, rate, 987) > D.PHASE_MAX_FRAMES
+    out = D._identified_again(_ident(names), at, _idn(used=60, inconsistent=0), markers)
+    assert len(calls) == 1                                   # one identification, at the markers' phases
+    assert calls[0][0]["right"] == pytest.approx(0.22) and calls[0][1]["right"] == pytest.approx(rate)
+    assert out is not None and out[-1].rate_ratio["right"] == pytest.approx(rate)

@@ -38,7 +38,8 @@ from .thresholds import bright_crops, connected_components, region_order_key
 
 __all__ = [
     "MAX_CANDIDATES_PER_CAMERA", "LIGHT_WINDOW", "Candidates", "frame_candidates", "whole_frame_search",
-    "whole_frame_candidates", "whole_frame_count", "WholeFrameSearches", "candidate_area_range", "candidate_min_circularity",
+    "whole_frame_candidates", "whole_frame_count", "WholeFrameSearches", "ClockFollowingFrames", "source_frame",
+    "candidate_area_range", "candidate_min_circularity",
     "correct_light",
 ]
 
@@ -211,6 +212,69 @@ def whole_frame_candidates(frames: dict, k: int, cams, thr: dict, cparams: dict)
             for c in cams}
 
 
+class ClockFollowingFrames:
+    """A camera's synchronised frames read at the reference camera's instants when its clock drifts.
+
+    A free-running camera whose clock runs at another rate gains or loses
+    whole frames against the reference camera over a long recording: at
+    synchronised frame ``k`` its nearest frame is ``k - gained[k]``
+    (:func:`horsemocap.subframe.whole_frames_gained`). Frame ``k`` of this
+    sequence is that frame of ``frames``, so the cameras' frames compared at
+    one instant stay within a fraction of a frame of each other; a frame
+    before the first or after the last of ``frames`` is black (nothing
+    found there). :meth:`source_index` says which frame of ``frames`` it is.
+
+    Examples
+    --------
+    >>> base = [np.full((2, 2), i, np.uint8) for i in range(5)]
+    >>> seq = ClockFollowingFrames(base, np.array([0, 0, 1, 1, 1]))
+    >>> [int(seq[k][0, 0]) for k in range(5)], seq.source_index(4)
+    ([0, 1, 1, 2, 3], 3)
+    >>> int(ClockFollowingFrames(base, np.array([0, 0, 0, -1, -1]))[4].max())     # past the last frame: black
+    0
+    """
+
+    def __init__(self, frames, gained):
+        self.frames = frames
+        self.gained = np.asarray(gained, int)
+        if self.gained.shape != (len(frames),):
+            raise ValueError(f"ClockFollowingFrames: gained must have one entry per frame ({len(frames)}), "
+                             f"got shape {self.gained.shape}")
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def source_index(self, k: int) -> int:
+        """The frame of the wrapped sequence that frame ``k`` is (may lie outside it)."""
+        return int(k) - int(self.gained[int(k)])
+
+    def __getitem__(self, k):
+        j = self.source_index(k)
+        if 0 <= j < len(self.frames):
+            return self.frames[j]
+        return np.zeros_like(np.asarray(self.frames[0]))
+
+    def close(self) -> None:
+        close = getattr(self.frames, "close", None)
+        if close is not None:
+            close()
+
+
+def source_frame(seq, k: int) -> tuple:
+    """``(sequence, index)``: the sequence and index a frame ``k`` of ``seq`` is read from (the wrapped sequence
+    of a :class:`ClockFollowingFrames`, else ``seq`` and ``k`` themselves).
+
+    Examples
+    --------
+    >>> base = [0, 1, 2]
+    >>> source_frame(ClockFollowingFrames(base, [0, 1, 1]), 2) == (base, 1), source_frame(base, 2) == (base, 2)
+    (True, True)
+    """
+    if isinstance(seq, ClockFollowingFrames):
+        return seq.frames, seq.source_index(k)
+    return seq, int(k)
+
+
 class WholeFrameSearches:
     """The whole-frame searches of one recording, kept for every identification of it.
 
@@ -246,13 +310,14 @@ class WholeFrameSearches:
 
     def of_offsets(self, offsets: dict):
         """:func:`whole_frame_candidates` of sequences whose frame ``k`` of camera ``c`` is its video's frame
-        ``offsets[c] + k``, each search made once."""
+        ``offsets[c] + k`` (of a :class:`ClockFollowingFrames`, the frame it reads: :func:`source_frame`), each
+        search made once."""
         def search(frames: dict, k: int, cams, thr: dict, cparams: dict) -> dict:
             out = {}
             for c in cams:
                 cp = cparams[c]
                 rules = (candidate_area_range(cp), candidate_min_circularity(cp), cp.centroid)
-                key = (c, int(offsets[c]) + int(k), thr[c], rules)
+                key = (c, int(offsets[c]) + source_frame(frames[c], k)[1], thr[c], rules)
                 if key not in self._found:
                     self._found[key] = whole_frame_search(frames[c][k], thr[c], *rules[:2], centroid=rules[2])
                 out[c] = self._found[key]

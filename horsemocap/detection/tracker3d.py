@@ -43,14 +43,16 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..reconstruction import DEFAULT_MAX_RESIDUAL_PX, triangulate
+from ..subframe import whole_frames_gained
 from .base import DetectionError, DetectionParams
-from .candidates import (MAX_CANDIDATES_PER_CAMERA, Candidates, candidate_area_range, candidate_min_circularity,
-                         correct_light, frame_candidates, whole_frame_candidates, whole_frame_count)
+from .candidates import (MAX_CANDIDATES_PER_CAMERA, Candidates, ClockFollowingFrames, candidate_area_range,
+                         candidate_min_circularity, correct_light, frame_candidates, source_frame,
+                         whole_frame_candidates, whole_frame_count)
 from .marker_model import RIGID_SLACK_M, distance_tolerance, label_frame, point_uncertainty
 from .matching import candidates_at_instant, triangulate_rows
 from .thresholds import auto_threshold
@@ -74,6 +76,8 @@ IDENTIFICATION_REASONS = {
     "lost": "its own track is lost (unseen for more frames than a prediction holds); found again "
             "when the marker set is labelled anew",
     "not_tracked": "the marker set is not followed in this frame (not in view, or lost)",
+    "not_read": "a frame of a camera whose clock drifts that no reference instant has as its nearest (its clock "
+                "runs fast, or past the reference's last instant): not compared",
 }
 #: A region whose area is more than this factor away from the marker's recent
 #: area in that camera is a merge (or a partial occlusion): its centre is biased.
@@ -279,35 +283,76 @@ class CameraDelay:
     reference instant ``k`` (its phase at frame 0 plus the start given in
     ``row_timing``; ``drift``: its rate ratio minus 1, the phase its clock
     gains per frame), row ``r`` a further ``r / height x readout`` (a
-    rolling shutter).
+    rolling shutter). With ``gained`` (:func:`~horsemocap.subframe.whole_frames_gained`,
+    a drift of a frame or more over the record) the frame compared at the reference
+    instant ``k`` is its frame ``j = k - gained[k]``
+    (:class:`~horsemocap.detection.candidates.ClockFollowingFrames`), seen
+    ``start + drift x j - gained[k]`` frames after ``k``.
 
     Examples
     --------
     >>> d = CameraDelay(start=0.25, readout=0.5, height=480.0, drift=1e-4)
     >>> [round(float(v), 4) for v in d.at(np.array([[10.0, 0.0], [10.0, 240.0]]), k=1000)]
     [0.35, 0.6]
+    >>> far = CameraDelay(start=0.25, readout=0.0, height=480.0, drift=1e-3, gained=np.array([0] * 500 + [1] * 500))
+    >>> round(float(far.at(np.array([[10.0, 0.0]]), k=900)[0]), 4)      # its frame 899: 0.25 + 0.899 - 1
+    0.149
     """
     start: float
     readout: float
     height: float
     drift: float = 0.0
+    gained: np.ndarray | None = field(default=None, compare=False)
 
     def at(self, centre: np.ndarray, k: int = 0) -> np.ndarray:
-        """Frames after the reference instant ``k`` at which regions at ``centre`` (K, 2) of frame ``k`` were seen."""
-        return self.start + self.drift * k + np.asarray(centre, float)[:, 1] / self.height * self.readout
+        """Frames after the reference instant ``k`` at which regions at ``centre`` (K, 2) of the frame compared
+        there were seen."""
+        g = 0 if self.gained is None else int(self.gained[k])
+        return self.start + self.drift * (k - g) - g + np.asarray(centre, float)[:, 1] / self.height * self.readout
 
 
-def _camera_timing(cams, phase, row_timing, rig, rate_ratio=None) -> dict:
-    """Camera -> :class:`CameraDelay` (its phase, rate ratio and the start given in ``row_timing``), only for
-    the cameras not exposing at the reference instants."""
+def _camera_timing(cams, phase, row_timing, rig, rate_ratio=None, n: int = 0) -> dict:
+    """Camera -> :class:`CameraDelay` (its phase, rate ratio, the whole frames its clock gains over the ``n``
+    frames when they reach one, and the start given in ``row_timing``), only for the cameras not exposing at
+    the reference instants."""
     out = {}
     for c in cams:
         start, readout = (row_timing or {}).get(c, (0.0, 0.0))
         start = float((phase or {}).get(c, 0.0)) + float(start)
-        drift = float((rate_ratio or {}).get(c, 1.0)) - 1.0
-        if start != 0.0 or float(readout) != 0.0 or drift != 0.0:
-            out[c] = CameraDelay(start, float(readout), float(rig[c].size[1]), drift)
+        rate = float((rate_ratio or {}).get(c, 1.0))
+        gained = whole_frames_gained(rate, n)
+        if start != 0.0 or float(readout) != 0.0 or rate != 1.0:
+            out[c] = CameraDelay(start, float(readout), float(rig[c].size[1]), rate - 1.0,
+                                 gained if gained.any() else None)
     return out
+
+
+def _following_the_clocks(frames: dict, timing: dict) -> dict:
+    """Each camera's frames, read at the reference instants (:class:`ClockFollowingFrames`) where its clock gains
+    whole frames over the record."""
+    return {c: (ClockFollowingFrames(seq, timing[c].gained) if c in timing and timing[c].gained is not None
+                else seq) for c, seq in frames.items()}
+
+
+def _in_own_frames(idn: "Identification", timing: dict) -> "Identification":
+    """``idn`` identified on :func:`_following_the_clocks`' frames, with each camera's 2D values back in its own
+    frames' numbering: frame ``k - gained[k]`` holds what the reference instant ``k`` compared (a frame compared
+    at two instants keeps a used view; a frame compared at none is NaN, ``not_read``)."""
+    px, reason, area = dict(idn.marker_px), dict(idn.reason), dict(idn.area)
+    for c, d in timing.items():
+        if d.gained is None or c not in px:
+            continue
+        n = len(d.gained)
+        src = np.arange(n) - d.gained
+        inside = (src >= 0) & (src < n)
+        px[c], reason[c], area[c] = (np.full_like(idn.marker_px[c], np.nan), np.full_like(idn.reason[c], "not_read"),
+                                     np.full_like(idn.area[c], np.nan))
+        for pick in (inside, inside[:, None] & (idn.reason[c] == "")):     # then the used views over the others
+            k, m = np.nonzero(pick if pick.ndim == 2 else np.broadcast_to(pick[:, None], idn.reason[c].shape))
+            px[c][src[k], m] = idn.marker_px[c][k, m]
+            reason[c][src[k], m] = idn.reason[c][k, m]
+            area[c][src[k], m] = idn.area[c][k, m]
+    return replace(idn, marker_px=px, reason=reason, area=area)
 
 
 def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None,
@@ -328,13 +373,18 @@ def _candidates_at_reference(frames, k, cams, thr, cparams, timing, cands=None,
     moving = [c for c in cams if c in (timing or {})]
     if not moving:
         return cands, cands
-    n = len(frames[cams[0]])
-    near = {j: (search(frames, j, moving, thr, cparams) if 0 <= j < n else {}) for j in (k - 1, k + 1)}
     moved = dict(cands)
     for c in moving:
-        moved[c] = candidates_at_instant(near[k - 1].get(c), cands[c], near[k + 1].get(c),
-                                         -timing[c].at(cands[c].centre, k))
+        before, after = _neighbours(frames[c], k, c, thr, cparams, search)
+        moved[c] = candidates_at_instant(before, cands[c], after, -timing[c].at(cands[c].centre, k))
     return cands, moved
+
+
+def _neighbours(seq, k: int, c: str, thr: dict, cparams: dict, search) -> tuple:
+    """Camera ``c``'s candidates in the frames of its own just before and after the one frame ``k`` of ``seq``
+    is (:func:`~horsemocap.detection.candidates.source_frame`), None outside its frames."""
+    own, j = source_frame(seq, k)
+    return tuple(search({c: own}, i, [c], thr, cparams)[c] if 0 <= i < len(own) else None for i in (j - 1, j + 1))
 
 
 def _find_anchor(frames, rig, cams, thr, cparams, model, M, model_index, max_residual_px, step, timing=None,
@@ -421,7 +471,9 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
         A camera whose clock runs at another rate than the reference's:
         ``phase`` is its phase at frame 0, which then grows by
         ``rate_ratio[c] - 1`` frame per frame (:func:`~horsemocap.subframe.camera_frames`).
-        Absent or 1: the phase holds over the record.
+        Absent or 1: the phase holds over the record. Where the drift reaches whole frames, the
+        camera's frame nearest each reference instant is compared there
+        (:func:`~horsemocap.subframe.whole_frames_gained`); the result is in each camera's own frames.
     whole_frames : callable, optional
         The whole-frame search, with :func:`~horsemocap.detection.candidates.whole_frame_candidates`' arguments
         (the default); :meth:`~horsemocap.detection.candidates.WholeFrameSearches.of_offsets` keeps the searches
@@ -449,7 +501,8 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     cparams = _camera_params(params, cams)
     thr = _thresholds(frames, cams, cparams, n)
     step = max(1, min(8, n // 30))
-    timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio)
+    timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio, n)
+    frames = _following_the_clocks(frames, timing)
     found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
                                        max_residual_px, step, timing, whole_frames)
     if found is None:
@@ -473,7 +526,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
         k1 = tracker.seed_neighbour(k0, direction)
         tracker.run(k1, direction)
     tracker.flag_covered_views()
-    return tracker.result(fit0.model_index, k0, fit0.margin)
+    return _in_own_frames(tracker.result(fit0.model_index, k0, fit0.margin), timing)
 
 
 def _checked_inputs(frames: dict, rig, static_points, M: int):
@@ -738,10 +791,12 @@ class _Tracker:
         direction = getattr(self, "_direction", 1)
         seen = [j for j in (k - direction * i for i in (1, 2, 3))
                 if 0 <= j < self.n and np.all(np.isfinite(self.px[c][j, m]))]
-        if len(seen) < 2:
+        own = [source_frame(self.frames[c], j)[1] for j in seen]      # its own frames (a drifting clock's)
+        later = [i for i in range(1, len(seen)) if own[i] != own[0]]
+        if not later:
             return np.zeros(2)
-        a, b = seen[0], seen[1]
-        return (self.px[c][a, m] - self.px[c][b, m]) / (a - b)
+        a, b = seen[0], seen[later[0]]
+        return (self.px[c][a, m] - self.px[c][b, m]) / (own[0] - own[later[0]])
 
     def _at_reference(self, k, m, cands) -> dict:
         """The candidates of a free-running camera moved to the reference instant ``k`` for marker ``m``.

@@ -73,9 +73,11 @@ REIDENTIFY_ROUNDS = 3
 #: A phase the markers measured with an uncertainty above this (frames) is not followed: the markers are identified
 #: at trial phases about the one they were identified at instead (:func:`_identified_again`).
 PHASE_UNPINNED_FRAMES = 0.25
-#: Nor is a phase of more than a frame either way: whole frames are the offsets' (the flash's, checked by the
-#: markers' whole-frame check, :func:`_checked_by_markers`); a fraction that runs off by frames has followed
-#: views identified at the wrong instants.
+#: Nor is a phase at frame 0 of more than a frame either way: whole frames are the offsets' (the flash's, checked by
+#: the markers' whole-frame check, :func:`_checked_by_markers`); a fraction that runs off by frames has followed
+#: views identified at the wrong instants. A clock's drift may carry the phase past a frame over a long record (a
+#: camera at 30000/1001 fps labelled 30 gains a frame in 1000): that part is the rate's, kept only when the drift
+#: is measured (:func:`horsemocap.subframe.drift_is_measured`, within its largest rate).
 PHASE_MAX_FRAMES = 1.0
 #: The phases tried for such a camera, in frames from the flash's (the flash's uncertainty either way, and twice it).
 PHASE_TRIALS_FRAMES = (-0.5, -0.25, 0.25, 0.5)
@@ -717,7 +719,7 @@ def _identified_again(ident: _Identifier, identified_at, idn, refined):
     ``idn`` was identified in ``identified_at``; ``refined`` holds the phases the markers measured on it (in the
     current offsets' frames). Each round identifies the markers at the markers' phases, measures them and
     refines the phases again; a camera whose phase the markers left uncertain by more than
-    :data:`PHASE_UNPINNED_FRAMES`, or found more than :data:`PHASE_MAX_FRAMES` either way, is instead
+    :data:`PHASE_UNPINNED_FRAMES`, or found more than :data:`PHASE_MAX_FRAMES` either way at frame 0, is instead
     identified at the trial phases :data:`PHASE_TRIALS_FRAMES` about
     the phase its views were identified at (:func:`_phase_trials`; the other cameras at the markers' phases).
     The rounds go on while a phase moves by more than :data:`REIDENTIFY_MOVE_FRAMES` or stays uncertain, at
@@ -733,9 +735,7 @@ def _identified_again(ident: _Identifier, identified_at, idn, refined):
                             n_frames=refined.n_frames)
         loose = {c: u for c, u in refined.offset_uncertainty_frames.items()
                  if c != ref and (u > PHASE_UNPINNED_FRAMES
-                                  or subframe.largest_phase(refined.phase_frames.get(c, 0.0),
-                                                            refined.rate_ratio.get(c, 1.0),
-                                                            refined.n_frames) > PHASE_MAX_FRAMES)}
+                                  or abs(refined.phase_frames.get(c, 0.0)) > PHASE_MAX_FRAMES)}
         if not loose and max(moved.values(), default=0.0) <= REIDENTIFY_MOVE_FRAMES:
             break
         if loose:

@@ -1,0 +1,95 @@
+"""A camera whose clock drifts by whole frames over the record: the identification compares, at each reference
+instant, the camera's frame nearest it (horsemocap.detection.candidates.ClockFollowingFrames) and gives its 2D
+values back in the camera's own frames."""
+import numpy as np
+import pytest
+
+from horsemocap.detection import identify_markers
+from horsemocap.detection import tracker3d
+from horsemocap.detection.candidates import ClockFollowingFrames, source_frame
+from horsemocap.steps.detect import free_running_tolerance
+from horsemocap.subframe import whole_frames_gained
+from horsemocap.virtuallab.render import add_image_disc
+from horsemocap.virtuallab.rig import thesis_rig
+
+RIG = thesis_rig()
+FPS = 30.0
+THREE = np.array([[-0.24, 0.0, 0.0], [0.02, -0.09, 0.0], [0.22, 0.03, 0.01]])
+SADDLE = np.array([0.45, -0.25, 0.02])
+#: The right camera: its frame j at the reference instant PHASE + RATE j; over 70 frames it falls 2.7 frames behind.
+PHASE, RATE, N = 0.1, 1.04, 70
+
+
+def _world(t):
+    """A body running along x at 2.5 m/s bouncing 8 cm at 3 Hz (28 m/s^2 peak: a frame's linear extrapolation
+    misses by centimetres)."""
+    t = np.atleast_1d(t)
+    pos = np.column_stack([-1.6 + 2.5 * t, -0.05 + 0.08 * np.sin(2 * np.pi * 3.0 * t), 7.7 + 0.0 * t])
+    return pos[:, None, :] + THREE[None]
+
+
+def _render():
+    """Frames of every camera: left and middle at the reference instants, right at its own drifting instants."""
+    frames, truth_px = {}, {}
+    for cam in RIG:
+        W, H = cam.size
+        instants = (PHASE + RATE * np.arange(N)) if cam.name == "right" else np.arange(N, dtype=float)
+        px = cam.project(_world(instants / FPS))
+        seq = []
+        for k in range(N):
+            img = np.full((H, W), 40.0)
+            for m in range(len(THREE)):
+                add_image_disc(img, *px[k, m], 3.2, 200.0)
+            seq.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
+        frames[cam.name], truth_px[cam.name] = seq, px
+    static = np.vstack([THREE, SADDLE]) + [0.2, -0.05, 7.7]
+    return frames, static, truth_px
+
+
+def test_clock_following_frames_read_the_nearest_frame():
+    gained = whole_frames_gained(RATE, N)
+    seq = ClockFollowingFrames(list(range(N)), gained)
+    own = np.array([source_frame(seq, k)[1] for k in range(N)])
+    instants = PHASE + RATE * own                      # when the frame compared at reference instant k was taken
+    assert gained.max() == 3 and np.all(np.abs(instants - np.arange(N)) <= 0.5 + PHASE + 1e-9)
+
+
+def test_a_drifting_camera_is_identified_at_its_nearest_frames(monkeypatch):
+    frames, static, truth_px = _render()
+    timing = {"phase": {"right": PHASE}, "rate_ratio": {"right": RATE}, "max_residual_px": free_running_tolerance(RIG)}
+    idn = identify_markers(frames, RIG, static, 3, **timing)
+    used = idn.reason["right"] == ""
+    inside = np.all((truth_px["right"] > 8) & (truth_px["right"] < np.array(RIG["right"].size) - 8), axis=-1)
+    assert used[inside].mean() > 0.9, np.unique(idn.reason["right"][inside], return_counts=True)
+    # the 2D values are the camera's own frames' (frame j at its own instant)
+    err = np.linalg.norm(idn.marker_px["right"] - truth_px["right"], axis=-1)
+    assert np.nanmax(err[used]) < 0.5
+    # its last frames, past the reference's last instant, were compared at no instant
+    assert set(idn.reason["right"][-2:].ravel()) == {"not_read"}
+    # without following the clock the same record loses most of the right camera's views once it is a frame behind
+    monkeypatch.setattr(tracker3d, "whole_frames_gained", lambda rate, n: np.zeros(int(n), int))
+    held = identify_markers(frames, RIG, static, 3, **timing)
+    late = inside & (np.arange(N) >= 40)[:, None]
+    assert (held.reason["right"][late] == "").mean() < (idn.reason["right"][late] == "").mean() - 0.2
+
+
+def _idn_of(reason_right):
+    n = len(reason_right)
+    px = np.arange(n, dtype=float)[:, None, None] * np.ones((1, 1, 2))
+    return tracker3d.Identification(marker_px={"right": px}, reason={"right": np.array(reason_right, object)[:, None]},
+                                    area={"right": np.full((n, 1), 20.0)}, points=np.zeros((n, 1, 3)),
+                                    model_index=np.arange(1), rigid_rms_m=np.zeros(n), thresholds={}, anchor_frame=0,
+                                    anchor_margin=1.0)
+
+
+def test_values_go_back_to_the_cameras_own_frames():
+    """A slow clock: its frame 1 was compared at the reference instants 1 and 2 (the used view kept) and its frame 3
+    at none; a fast clock: its frame 1 at none."""
+    slow = tracker3d.CameraDelay(0.0, 0.0, 480.0, 0.0, gained=np.array([0, 0, 1, 1]))
+    out = tracker3d._in_own_frames(_idn_of(["", "lost", "", ""]), {"right": slow})
+    assert out.marker_px["right"][:3, 0, 0].tolist() == [0.0, 2.0, 3.0]
+    assert out.reason["right"][:, 0].tolist() == ["", "", "", "not_read"] and np.isnan(out.marker_px["right"][3]).all()
+    fast = tracker3d.CameraDelay(0.0, 0.0, 480.0, 0.0, gained=np.array([0, -1, -1, -1]))
+    out = tracker3d._in_own_frames(_idn_of(["", "", "", ""]), {"right": fast})
+    assert out.reason["right"][:, 0].tolist() == ["", "not_read", "", ""]
+    assert out.marker_px["right"][[0, 2, 3], 0, 0].tolist() == [0.0, 1.0, 2.0]
