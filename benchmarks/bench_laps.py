@@ -103,7 +103,7 @@ def run_laps(laps: int, lap_s: float, index: int, genlocked: bool, noise) -> str
         lines.append(f"    pass {p.index} (frames {p.run[0]}..{p.run[1] - 1}, lap {lap[0]}): {p.verdict:10s} "
                      f"{_errors(p.analysis, truths[lap[0]])}")
     found = {i for i in truths}
-    lines.append(f"    passes found {len(passes)}, in {len(found)} of {plan.laps} laps")
+    lines.append(f"    passes found {len(passes)}, analysed in {len(found)} of {plan.laps} laps")
     if a.passes is not None and a.passes.combined:
         ce = accuracy.comfort_errors(a.passes.combined, truth.comfort, KEYS)
         lines.append("    combined comfort: " + ", ".join(f"{k} {v:+.1f} %" for k, v in ce.items()))

@@ -35,6 +35,25 @@ from .vibration import COMFORT_KEYS, exposure_times
 MAX_PASSES_LISTED = 8
 #: The steps run again for every pass (those after the triangulation).
 PASS_STEPS = ("smooth", "motion_frame", "rigid_body", "comfort")
+#: A pass shorter than this many stride periods is not analysed: the comfort indicators are a harmonic series of
+#: the stride over two periods (tau, thesis 8.4.1; :func:`horsemocap.vibration.saddle_comfort`), and a record's
+#: ends are checked against the stride one period inwards, which needs two (:func:`horsemocap.quality.stride_repeat`).
+MIN_PASS_STRIDES = 2
+
+
+def shortest_pass_frames(period_frames) -> int:
+    """The fewest analysed frames a pass other than the main one needs: :data:`MIN_PASS_STRIDES` stride periods
+    (the period rounded as :func:`horsemocap.quality.stride_repeat` rounds it), at least ``MIN_SEGMENT_FRAMES``;
+    ``MIN_SEGMENT_FRAMES`` when the period is unknown.
+
+    Examples
+    --------
+    >>> shortest_pass_frames(17.99), shortest_pass_frames(None), shortest_pass_frames(2.5)
+    (36, 8, 8)
+    """
+    if period_frames is None or not np.isfinite(float(period_frames)) or float(period_frames) <= 0:
+        return MIN_SEGMENT_FRAMES
+    return max(MIN_SEGMENT_FRAMES, MIN_PASS_STRIDES * int(round(float(period_frames))))
 
 
 def find_runs(mask, min_frames: int = MIN_SEGMENT_FRAMES) -> list[tuple[int, int]]:
@@ -213,7 +232,10 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
     and the parameters). The pass that holds the analysis' own segment keeps its
     results; every other is analysed anew from the smoothing on, its pose
     smoothing with the choices settled on the analysis' own pass
-    (:func:`pass_smoothing`). Returns None when the record holds one pass
+    (:func:`pass_smoothing`). A pass shorter than two strides of the analysis' own pass
+    (:func:`shortest_pass_frames`) is not analysed: its comfort would be the stride's harmonics
+    fitted to less than the two periods they are averaged over, and its ends could not be checked; it is
+    said (``error``) and left out of the combined comfort. Returns None when the record holds one pass
     only (nothing to add).
     """
     runs = pass_runs(analysis)
@@ -221,6 +243,8 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
         return None
     tri, det = analysis.triangulate, analysis.detect
     main_a, main_b = tri.segment
+    period = analysis.motion_frame.period_frames if analysis.motion_frame is not None else None
+    shortest = shortest_pass_frames(period)
     out, jobs = {}, {}
     for i, run in enumerate(runs, 1):
         if run[0] <= main_a and main_b <= run[1]:
@@ -231,6 +255,12 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
             out[i] = PassResult(i, run, segment, None, "unreliable",
                                 error=f"fewer than {MIN_SEGMENT_FRAMES} consecutive frames with every marker "
                                       "triangulated")
+            continue
+        if segment[1] - segment[0] < shortest:
+            out[i] = PassResult(i, run, segment, None, "unreliable",
+                                error=f"{segment[1] - segment[0]} frames with every marker triangulated, under two "
+                                      f"strides ({shortest} frames at the stride period of {period:.1f}): too short "
+                                      "for the comfort's two periods and for its ends to be checked")
             continue
         given = {name: getattr(analysis, name) for name in ("sync", "rig", "plumb", "static")}
         given["detect"] = det.replace(segment=run)

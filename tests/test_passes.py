@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from horsemocap.data import default_session_dir
-from horsemocap.passes import analyse_passes, combined_comfort, find_runs, pass_segment
+from horsemocap.passes import (analyse_passes, combined_comfort, find_runs, pass_segment, passes_check,
+                              shortest_pass_frames)
 from horsemocap.pipeline import analyze, run_steps
 from horsemocap.results import passes_text
 from horsemocap.vibration import time_to_a8, time_to_vdv
@@ -148,6 +149,29 @@ def test_a_pass_too_short_to_triangulate_is_a_row_with_its_reason(bundled):
     second = result.passes[1]
     assert second.analysis is None and second.verdict == "unreliable" and "fewer than 8" in second.error
     assert result.combined["duration_s"] == pytest.approx(result.passes[0].duration_s)
+
+
+def test_a_pass_under_two_strides_is_not_analysed_and_says_why(bundled):
+    """A second pass whose markers are triangulated for one frame less than two strides: its comfort would be the
+    stride's harmonics fitted to less than the two periods they are averaged over; left out of the combined comfort."""
+    det, tri = bundled.detect, bundled.triangulate
+    gap = 20
+    shortest = shortest_pass_frames(bundled.motion_frame.period_frames)
+    record = bundled.__class__(bundled.session, bundled.params)
+    for name in ("sync", "rig", "plumb", "static", "smooth", "motion_frame", "rigid_body", "comfort"):
+        setattr(record, name, getattr(bundled, name))
+    points = _twice(tri.points, gap)
+    start = len(det.all_seen) + gap + tri.segment[0]
+    points[start + shortest - 1:] = np.nan
+    record.detect = det.replace(all_seen=_twice(det.all_seen, gap))
+    record.triangulate = tri.replace(points=points)
+    result = analyse_passes(record, _later(record), lambda *a: None)
+    second = result.passes[1]
+    assert shortest == 2 * round(bundled.motion_frame.period_frames) and shortest - 1 >= 8
+    assert second.segment == (start, start + shortest - 1)
+    assert second.analysis is None and "under two strides" in second.error
+    assert result.combined["duration_s"] == pytest.approx(result.passes[0].duration_s)
+    assert passes_check(result).level == "warning"
 
 
 def _times(a, gap: int, times: int):

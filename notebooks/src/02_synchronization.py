@@ -293,8 +293,12 @@ print(f"middle phase {chosen_phase:+.3f} frame: median residual {at_chosen:.3f} 
 # measures every camera's phase again in parts of the record that show the horse (never spanning two
 # passes: `subframe.seen_chunks`), fits a straight line through them, and keeps its slope as the rate
 # when it is a clock's (`subframe.drift_is_measured`: 3 standard errors, a twentieth of a frame over
-# the record, at most 500 ppm). A worked example: three passes of a marker triangle across the thesis
-# rig in 1200 frames, the middle camera 150 ppm fast and 0.3 frame late, the right camera exact.
+# the record, at most 1500 ppm: a camera at 30000/1001 fps labelled 30 is 999 ppm off one at 30). Such
+# a camera gains a whole frame every thousand: the identification then compares, at each reference
+# instant, its frame nearest that instant (`subframe.whole_frames_gained`), so the frames it compares
+# stay a fraction of a frame apart however long the ride. A worked example: three passes of a marker
+# triangle across the thesis rig in 1200 frames, the middle camera 150 ppm fast and 0.3 frame late,
+# the right camera exact.
 
 # %%
 from horsemocap.virtuallab.rig import thesis_rig
