@@ -13,6 +13,8 @@ timings drawn by :func:`horsemocap.virtuallab.herd.free_running_timings` (set 0,
   the pass it lies in, its verdict and its errors against that pass' own truth
   (:func:`horsemocap.virtuallab.laps.pass_truth`), and the combined comfort against the truth's.
 
+``--rate-ppm right=-999``: a camera's clock rate offset (ppm) in place of the draw's (here a camera at 30000/1001 fps
+labelled 30 among cameras at 30: it gains a frame every thousand).
 ``--genlocked``: the control, the same cameras locked together; ``--no-marker-noise``: the images' own noise only
 (the sync and the passes without the rig's depth scatter of correlated centroid noise). Each run is the default analysis
 (:func:`horsemocap.pipeline.analyze` with no parameters).
@@ -60,8 +62,14 @@ def _timing(truth) -> str:
     return " ".join(f"{c} {v['phase_frames']:.2f}/{1000 * v['rolling_shutter_s']:.0f}ms" for c, v in t.items())
 
 
-def run_draw(index: int, genlocked: bool, noise) -> str:
-    folder = laps_session(laps=1, lap_s=8.0, timing_index=index, genlocked=genlocked, marker_noise=noise)
+def _rates(text: str | None) -> dict | None:
+    """``"right=-999,middle=20"`` -> ``{"right": -999.0, "middle": 20.0}`` (None for None)."""
+    return None if not text else {c: float(v) for c, v in (part.split("=") for part in text.split(","))}
+
+
+def run_draw(index: int, genlocked: bool, noise, rate_ppm=None) -> str:
+    folder = laps_session(laps=1, lap_s=8.0, timing_index=index, genlocked=genlocked, marker_noise=noise,
+                          rate_ppm=rate_ppm)
     truth = load_truth(folder)
     head = f"draw {index} [{_timing(truth)}]"
     t0 = time.perf_counter()
@@ -77,9 +85,9 @@ def run_draw(index: int, genlocked: bool, noise) -> str:
             f"{_errors(a, truth)}; {time.perf_counter() - t0:.0f} s")
 
 
-def run_laps(laps: int, lap_s: float, index: int, genlocked: bool, noise) -> str:
+def run_laps(laps: int, lap_s: float, index: int, genlocked: bool, noise, rate_ppm=None) -> str:
     folder = laps_session(laps=laps, lap_s=lap_s, timing_index=index, genlocked=genlocked, marker_noise=noise,
-                          progress=print)
+                          rate_ppm=rate_ppm, progress=print)
     truth = load_truth(folder)
     plan = LapsPlan.from_dict(truth.extras["laps"])
     t0 = time.perf_counter()
@@ -117,17 +125,18 @@ def main(argv=None) -> int:
     ap.add_argument("--lap-s", type=float, default=30.0)
     ap.add_argument("--genlocked", action="store_true")
     ap.add_argument("--no-marker-noise", action="store_true")
+    ap.add_argument("--rate-ppm", default=None)
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
     draws = _span(args.draws)
     noise = None if args.no_marker_noise else LAPS_NOISE
     out = []
     if args.laps:
-        out.append(run_laps(args.laps, args.lap_s, draws[0], args.genlocked, noise))
+        out.append(run_laps(args.laps, args.lap_s, draws[0], args.genlocked, noise, _rates(args.rate_ppm)))
         print(out[-1], flush=True)
     else:
         for d in draws:
-            out.append(run_draw(d, args.genlocked, noise))
+            out.append(run_draw(d, args.genlocked, noise, _rates(args.rate_ppm)))
             print(out[-1], flush=True)
     if args.out:
         args.out.write_text("\n".join(out) + "\n")

@@ -176,7 +176,7 @@ def _frames(scene: Scene, cam, timing, plan: LapsPlan, bg, seed: int, fps: float
 
 def render_laps(out_dir, *, horse: str = "Horse 2", gait: str = "canter", laps: int = 4, lap_s: float = 30.0,
                 timing_index: int = LAPS_TIMING_INDEX, marker_noise: MarkerNoise | None = LAPS_NOISE,
-                genlocked: bool = False, fps: float = FPS, progress=None) -> Path:
+                genlocked: bool = False, fps: float = FPS, rate_ppm: dict | None = None, progress=None) -> Path:
     """Render a ride of ``laps`` passes into ``out_dir`` (see the module docstring).
 
     Parameters
@@ -193,6 +193,9 @@ def render_laps(out_dir, *, horse: str = "Horse 2", gait: str = "canter", laps: 
         Marker-centroid noise correlated over the whole recording's frames.
     genlocked : bool
         The control: the same cameras locked together (phase 0, nominal rate, no rolling shutter).
+    rate_ppm : dict camera -> float, optional
+        Clocks' rate offsets (ppm) replacing the draw's (:func:`drawn_timings`): a camera at 30000/1001 fps
+        labelled 30 among cameras at 30 is ``(1000 / 1001 - 1) x 1e6``, about -999 ppm.
     progress : callable, optional
         ``progress(message)`` once per camera.
     """
@@ -206,7 +209,7 @@ def render_laps(out_dir, *, horse: str = "Horse 2", gait: str = "canter", laps: 
     scene, bgs = _scene_and_backgrounds(horse, gait, seed, replace(base, motion=LapMotion.around(base.motion, lap_s)))
     if marker_noise is not None:
         scene = replace(scene, marker_noise=replace(marker_noise, frame_rate_hz=float(fps)))
-    timing = free_running_timings(0, timing_index, fps, genlocked=genlocked)
+    timing = drawn_timings(timing_index, fps, genlocked, rate_ppm)
     motion_paths = {}
     for cam in scene.rig:
         _write_video(out / "motion" / f"{cam.name}.avi",
@@ -237,6 +240,25 @@ def render_laps(out_dir, *, horse: str = "Horse 2", gait: str = "canter", laps: 
     return out
 
 
+def drawn_timings(timing_index: int, fps: float = FPS, genlocked: bool = False, rate_ppm: dict | None = None) -> dict:
+    """The cameras' timings of a ride: draw ``timing_index`` of
+    :func:`~horsemocap.virtuallab.herd.free_running_timings` (set 0), with the clocks' rate offsets of
+    ``rate_ppm`` (camera -> ppm) in place of the drawn ones.
+
+    Examples
+    --------
+    >>> t = drawn_timings(400, rate_ppm={"right": -999.0})
+    >>> t["right"].rate_offset_ppm, t["left"].rate_offset_ppm == drawn_timings(400)["left"].rate_offset_ppm
+    (-999.0, True)
+    """
+    timing = free_running_timings(0, timing_index, fps, genlocked=genlocked)
+    unknown = sorted(set(rate_ppm or {}) - set(timing))
+    if unknown:
+        raise ValueError(f"rate_ppm: no camera {unknown} in the ride (cameras {sorted(timing)})")
+    return {c: (replace(t, rate_offset_ppm=float(rate_ppm[c])) if c in (rate_ppm or {}) else t)
+            for c, t in timing.items()}
+
+
 def _truth(scene: Scene, plan: LapsPlan, timing: dict, fps: float, i: int) -> Truth:
     n_frames = {c: plan.offsets[c] + plan.n_frames for c in plan.offsets}
     return build_truth(scene, plan.offsets, n_frames, fps, timing=timing, ref_window=plan.pass_window(i, fps))
@@ -264,9 +286,10 @@ def pass_truth(session_dir, i: int) -> Truth:
     return _truth(scene, plan, timing, saved.fps, i)
 
 
-def laps_key(horse: str, gait: str, laps: int, lap_s: float, timing_index: int, marker_noise, genlocked: bool) -> str:
+def laps_key(horse: str, gait: str, laps: int, lap_s: float, timing_index: int, marker_noise, genlocked: bool,
+             rate_ppm: dict | None = None) -> str:
     """Cache key: the ride's parameters, the timings' renderer versions and the renderer's."""
-    timing = free_running_timings(0, timing_index, FPS, genlocked=genlocked)
+    timing = drawn_timings(timing_index, FPS, genlocked, rate_ppm)
     if horse not in HERD:
         raise ValueError(f"horse: expected one of {sorted(HERD)}, got {horse!r}")
     blob = json.dumps({"v": LAPS_VERSION, "render": RENDER_VERSION, "horse": HERD[horse].to_dict(), "gait": gait,
@@ -279,8 +302,9 @@ def laps_key(horse: str, gait: str, laps: int, lap_s: float, timing_index: int, 
 
 def laps_session(*, horse: str = "Horse 2", gait: str = "canter", laps: int = 4, lap_s: float = 30.0,
                  timing_index: int = LAPS_TIMING_INDEX, marker_noise: MarkerNoise | None = LAPS_NOISE,
-                 genlocked: bool = False, cache=None, force: bool = False, progress=None) -> Path:
-    """Path of a laps session, rendered into the render cache if needed.
+                 genlocked: bool = False, rate_ppm: dict | None = None, cache=None, force: bool = False,
+                 progress=None) -> Path:
+    """Path of a laps session, rendered into the render cache if needed (``rate_ppm``: :func:`render_laps`').
 
     The folder is ``<cache>/virtuallab/laps_<laps>-<key>`` (``-genlocked`` for
     the control), rendered in a ``.partial`` folder and renamed when complete.
@@ -288,9 +312,10 @@ def laps_session(*, horse: str = "Horse 2", gait: str = "canter", laps: int = 4,
     camera are rendered (a few minutes), the rest composed.
     """
     root = Path(cache) if cache else cache_dir()
-    key = laps_key(horse, gait, laps, lap_s, timing_index, marker_noise, genlocked)
+    key = laps_key(horse, gait, laps, lap_s, timing_index, marker_noise, genlocked, rate_ppm)
     folder = root / "virtuallab" / f"laps_{int(laps)}{'-genlocked' if genlocked else ''}-{key}"
     return render_into_cache(folder, lambda tmp: render_laps(tmp, horse=horse, gait=gait, laps=laps, lap_s=lap_s,
                                                             timing_index=timing_index, marker_noise=marker_noise,
-                                                            genlocked=genlocked, progress=progress),
+                                                            genlocked=genlocked, rate_ppm=rate_ppm,
+                                                            progress=progress),
                              "horsemocap.virtuallab.laps.laps_session", force)
