@@ -35,9 +35,11 @@ from .vibration import COMFORT_KEYS, exposure_times
 MAX_PASSES_LISTED = 8
 #: The steps run again for every pass (those after the triangulation).
 PASS_STEPS = ("smooth", "motion_frame", "rigid_body", "comfort")
-#: A pass shorter than this many stride periods is not analysed: the comfort indicators are a harmonic series of
-#: the stride over two periods (tau, thesis 8.4.1; :func:`horsemocap.vibration.saddle_comfort`), and a record's
-#: ends are checked against the stride one period inwards, which needs two (:func:`horsemocap.quality.stride_repeat`).
+#: A pass other than the main one shorter than this many stride periods is not analysed: a record's ends, where a
+#: short record's pose spline is least held, are checked against the stride one period inwards, which needs two
+#: (:func:`horsemocap.quality.stride_repeat`), and the comfort indicators stand for two periods (tau, thesis 8.4.1;
+#: :func:`horsemocap.vibration.saddle_comfort`). The main pass is the session's own result and is analysed however
+#: short (its ``record_ends`` check is then skipped, and says why).
 MIN_PASS_STRIDES = 2
 
 
@@ -209,8 +211,12 @@ class PassesResult:
 
     @property
     def verdict(self) -> str:
-        """The worst verdict of the passes."""
-        return quality.verdict([_Level(p.verdict) for p in self.passes])
+        """The worst verdict of the analysed passes, and at least ``warning`` when a pass could not be analysed
+        (its time is missing from the combined comfort; no number of it is reported): the level of
+        :func:`passes_check` and of ``passes.csv``'s row ``all``."""
+        levels = [p.verdict for p in self.passes if p.analysis is not None]
+        levels += ["warning"] if any(p.analysis is None for p in self.passes) else []
+        return quality.verdict([_Level(v) for v in levels])
 
 
 @dataclass(frozen=True)
@@ -233,10 +239,9 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
     results; every other is analysed anew from the smoothing on, its pose
     smoothing with the choices settled on the analysis' own pass
     (:func:`pass_smoothing`). A pass shorter than two strides of the analysis' own pass
-    (:func:`shortest_pass_frames`) is not analysed: its comfort would be the stride's harmonics
-    fitted to less than the two periods they are averaged over, and its ends could not be checked; it is
-    said (``error``) and left out of the combined comfort. Returns None when the record holds one pass
-    only (nothing to add).
+    (:func:`shortest_pass_frames`) is not analysed: its ends could not be checked, and its comfort would
+    stand for two periods it does not hold; it is said (``error``) and left out of the combined comfort.
+    Returns None when the record holds one pass only (nothing to add).
     """
     runs = pass_runs(analysis)
     if len(runs) < 2:
@@ -260,7 +265,7 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
             out[i] = PassResult(i, run, segment, None, "unreliable",
                                 error=f"{segment[1] - segment[0]} frames with every marker triangulated, under two "
                                       f"strides ({shortest} frames at the stride period of {period:.1f}): too short "
-                                      "for the comfort's two periods and for its ends to be checked")
+                                      "for its ends to be checked and for the comfort's two periods")
             continue
         given = {name: getattr(analysis, name) for name in ("sync", "rig", "plumb", "static")}
         given["detect"] = det.replace(segment=run)
@@ -369,8 +374,7 @@ def passes_check(passes: PassesResult) -> quality.Check:
     """
     analysed = [p for p in passes.passes if p.analysis is not None]
     missing = [p for p in passes.passes if p.analysis is None]
-    levels = [p.verdict for p in analysed] + (["warning"] if missing else [])
-    level = quality.verdict([_Level(v) for v in levels])
+    level = passes.verdict
     counts = ", ".join(f"{n} {v}" for v, n in ((v, sum(p.verdict == v for p in analysed)) for v in quality.LEVELS)
                        if n)
     message = f"{len(passes.passes)} passes, {len(analysed)} analysed" + (f": {counts}" if counts else "")

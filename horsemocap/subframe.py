@@ -424,8 +424,9 @@ def whole_frames_gained(rate_ratio: float, n_frames: int) -> np.ndarray:
     the phase at frame 0 left aside, within a frame as the offsets leave it): ``gained[k]`` is
     ``(rate_ratio - 1) k`` rounded, 0 over the whole record while the drift stays under half a frame. The
     identification reads the camera's frame ``k - gained[k]`` at the reference instant ``k``
-    (:class:`~horsemocap.detection.candidates.ClockFollowingFrames`), so the frames it compares stay a fraction
-    of a frame apart whatever the drift.
+    (:class:`~horsemocap.detection.candidates.ClockFollowingFrames`), so the delay between the frames it compares
+    stays within half a frame of the phase at frame 0 whatever the drift (the phase itself is left to the
+    offsets, as without a drift).
 
     Examples
     --------

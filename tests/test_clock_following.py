@@ -2,7 +2,6 @@
 instant, the camera's frame nearest it (horsemocap.detection.candidates.ClockFollowingFrames) and gives its 2D
 values back in the camera's own frames."""
 import numpy as np
-import pytest
 
 from horsemocap.detection import identify_markers
 from horsemocap.detection import tracker3d
@@ -93,3 +92,27 @@ def test_values_go_back_to_the_cameras_own_frames():
     out = tracker3d._in_own_frames(_idn_of(["", "", "", ""]), {"right": fast})
     assert out.reason["right"][:, 0].tolist() == ["", "not_read", "", ""]
     assert out.marker_px["right"][[0, 2, 3], 0, 0].tolist() == [0.0, 1.0, 2.0]
+
+
+def test_not_read_is_written_whole_into_reasons_of_any_width():
+    """The tracker's reasons are strings as wide as the longest it wrote: ``not_read`` must not be cut to it."""
+    idn = _idn_of(["", "", "", ""])
+    idn = tracker3d.Identification(**{**idn.__dict__, "reason": {"right": np.array([[""], ["lost"], [""], [""]])}})
+    slow = tracker3d.CameraDelay(0.0, 0.0, 480.0, 0.0, gained=np.array([0, 0, 1, 1]))
+    out = tracker3d._in_own_frames(idn, {"right": slow})
+    assert out.reason["right"][:, 0].tolist() == ["", "", "", "not_read"]
+
+
+def test_a_black_frame_past_the_video_is_not_kept_as_one_of_its_frames():
+    """A fast clock's last reference instant reads past the sequence (black): that search must not stand for the
+    video's frame there when another identification, at an offset one larger, reads it."""
+    from horsemocap.detection import DetectionParams
+    from horsemocap.detection.candidates import WholeFrameSearches
+    gray = np.zeros((40, 40), np.uint8)
+    gray[10:14, 10:14] = 255
+    base = [gray] * 6
+    searches = WholeFrameSearches()
+    rules = ({"a": 100}, {"a": DetectionParams(area_min=4)})
+    black = searches.of_offsets({"a": 0})({"a": ClockFollowingFrames(base, [0, 0, 0, 0, 0, -1])}, 5, ["a"], *rules)
+    later = searches.of_offsets({"a": 1})({"a": base}, 5, ["a"], *rules)
+    assert len(black["a"]) == 0 and len(later["a"]) == 1

@@ -440,7 +440,7 @@ def test_free_running_views_are_reacquired_at_the_reference_instant():
     cands = tr._reacquire_candidates(1)
     vp, fit, _ = marker_model.label_frame(RIG, cands, tr.model, 3, tr.tol, np.arange(3), tr.slack)
     assert fit is None or np.any((vp.index[fit.assignment] >= 0).sum(axis=1) < 3)     # as they are: no
-    tr.timing = tracker3d._camera_timing(RIG.names, phase, None, RIG)
+    tr.timing = tracker3d._camera_timing(RIG.names, phase, None, RIG, n=len(frames[RIG.names[0]]))
     assert tr._reacquire(1)
     assert np.all(np.isfinite(tr.X[1]))
     true = world(BODY, np.array([1 / fps]))[0]

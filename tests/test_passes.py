@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from horsemocap.data import default_session_dir
-from horsemocap.passes import (analyse_passes, combined_comfort, find_runs, pass_segment, passes_check,
-                              shortest_pass_frames)
+from horsemocap.passes import (PassesResult, PassResult, analyse_passes, combined_comfort, find_runs, pass_segment,
+                              passes_check, shortest_pass_frames)
 from horsemocap.pipeline import analyze, run_steps
 from horsemocap.results import passes_text
 from horsemocap.vibration import time_to_a8, time_to_vdv
@@ -171,7 +171,14 @@ def test_a_pass_under_two_strides_is_not_analysed_and_says_why(bundled):
     assert second.segment == (start, start + shortest - 1)
     assert second.analysis is None and "under two strides" in second.error
     assert result.combined["duration_s"] == pytest.approx(result.passes[0].duration_s)
-    assert passes_check(result).level == "warning"
+    assert passes_check(result).level == result.verdict
+
+
+def test_a_pass_not_analysed_makes_the_all_row_a_warning_as_the_check_says():
+    ok = PassResult(1, (0, 40), (0, 40), object(), "ok")
+    short = PassResult(2, (60, 90), (60, 90), None, "unreliable", error="under two strides")
+    both = PassesResult((ok, short), {})
+    assert both.verdict == passes_check(both).level == "warning"
 
 
 def _times(a, gap: int, times: int):

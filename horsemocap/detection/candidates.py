@@ -217,12 +217,14 @@ class ClockFollowingFrames:
 
     A free-running camera whose clock runs at another rate gains or loses
     whole frames against the reference camera over a long recording: at
-    synchronised frame ``k`` its nearest frame is ``k - gained[k]``
+    synchronised frame ``k`` the frame that keeps its delay where it was at
+    frame 0 (its phase there, within a frame) is ``k - gained[k]``
     (:func:`horsemocap.subframe.whole_frames_gained`). Frame ``k`` of this
-    sequence is that frame of ``frames``, so the cameras' frames compared at
-    one instant stay within a fraction of a frame of each other; a frame
-    before the first or after the last of ``frames`` is black (nothing
-    found there). :meth:`source_index` says which frame of ``frames`` it is.
+    sequence is that frame of ``frames``, so the delay between the frames
+    compared at one instant stays within half a frame of the phase at frame 0
+    however long the record; a frame before the first or after the last of
+    ``frames`` is black (nothing found there). :meth:`source_index` says
+    which frame of ``frames`` it is, :meth:`holds` whether it is one.
 
     Examples
     --------
@@ -236,6 +238,7 @@ class ClockFollowingFrames:
 
     def __init__(self, frames, gained):
         self.frames = frames
+        self._black = None
         self.gained = np.asarray(gained, int)
         if self.gained.shape != (len(frames),):
             raise ValueError(f"ClockFollowingFrames: gained must have one entry per frame ({len(frames)}), "
@@ -245,14 +248,20 @@ class ClockFollowingFrames:
         return len(self.frames)
 
     def source_index(self, k: int) -> int:
-        """The frame of the wrapped sequence that frame ``k`` is (may lie outside it)."""
-        return int(k) - int(self.gained[int(k)])
+        """The frame of the wrapped sequence that frame ``k`` (``-1`` the last, as a list's) is; may lie outside it."""
+        k = int(k) + (len(self) if int(k) < 0 else 0)
+        return k - int(self.gained[k])
+
+    def holds(self, k: int) -> bool:
+        """Is frame ``k`` one of the wrapped sequence's (not black)?"""
+        return 0 <= self.source_index(k) < len(self.frames)
 
     def __getitem__(self, k):
-        j = self.source_index(k)
-        if 0 <= j < len(self.frames):
-            return self.frames[j]
-        return np.zeros_like(np.asarray(self.frames[0]))
+        if self.holds(k):
+            return self.frames[self.source_index(k)]
+        if self._black is None:          # read once: a video's frame 0 may be a seek away
+            self._black = np.zeros_like(np.asarray(self.frames[0]))
+        return self._black
 
     def close(self) -> None:
         close = getattr(self.frames, "close", None)
@@ -317,7 +326,11 @@ class WholeFrameSearches:
             for c in cams:
                 cp = cparams[c]
                 rules = (candidate_area_range(cp), candidate_min_circularity(cp), cp.centroid)
-                key = (c, int(offsets[c]) + source_frame(frames[c], k)[1], thr[c], rules)
+                seq, j = source_frame(frames[c], k)
+                if not 0 <= j < len(seq):       # a black frame past the video's: not one of its frames, not kept
+                    out[c] = whole_frame_search(frames[c][k], thr[c], *rules[:2], centroid=rules[2])
+                    continue
+                key = (c, int(offsets[c]) + j, thr[c], rules)
                 if key not in self._found:
                     self._found[key] = whole_frame_search(frames[c][k], thr[c], *rules[:2], centroid=rules[2])
                 out[c] = self._found[key]

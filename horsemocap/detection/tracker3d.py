@@ -311,7 +311,7 @@ class CameraDelay:
         return self.start + self.drift * (k - g) - g + np.asarray(centre, float)[:, 1] / self.height * self.readout
 
 
-def _camera_timing(cams, phase, row_timing, rig, rate_ratio=None, n: int = 0) -> dict:
+def _camera_timing(cams, phase, row_timing, rig, rate_ratio=None, *, n: int) -> dict:
     """Camera -> :class:`CameraDelay` (its phase, rate ratio, the whole frames its clock gains over the ``n``
     frames when they reach one, and the start given in ``row_timing``), only for the cameras not exposing at
     the reference instants."""
@@ -345,13 +345,14 @@ def _in_own_frames(idn: "Identification", timing: dict) -> "Identification":
         n = len(d.gained)
         src = np.arange(n) - d.gained
         inside = (src >= 0) & (src < n)
-        px[c], reason[c], area[c] = (np.full_like(idn.marker_px[c], np.nan), np.full_like(idn.reason[c], "not_read"),
-                                     np.full_like(idn.area[c], np.nan))
+        px[c], area[c] = np.full_like(idn.marker_px[c], np.nan), np.full_like(idn.area[c], np.nan)
+        reason[c] = np.full(idn.reason[c].shape, "not_read", dtype=object)      # not cut to the reasons' width
         for pick in (inside, inside[:, None] & (idn.reason[c] == "")):     # then the used views over the others
             k, m = np.nonzero(pick if pick.ndim == 2 else np.broadcast_to(pick[:, None], idn.reason[c].shape))
             px[c][src[k], m] = idn.marker_px[c][k, m]
             reason[c][src[k], m] = idn.reason[c][k, m]
             area[c][src[k], m] = idn.area[c][k, m]
+        reason[c] = reason[c].astype(object if idn.reason[c].dtype == object else str)
     return replace(idn, marker_px=px, reason=reason, area=area)
 
 
@@ -501,7 +502,7 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
     cparams = _camera_params(params, cams)
     thr = _thresholds(frames, cams, cparams, n)
     step = max(1, min(8, n // 30))
-    timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio, n)
+    timing = _camera_timing(cams, phase, row_timing, rig, rate_ratio, n=n)
     frames = _following_the_clocks(frames, timing)
     found, tried, votes = _find_anchor(frames, rig, cams, thr, cparams, static_points, M, None,
                                        max_residual_px, step, timing, whole_frames)
@@ -723,9 +724,11 @@ class _Tracker:
             j -= direction
         ref_area = float(np.median(a[recent])) if recent else np.nan
         size = math.sqrt(ref_area / math.pi) if recent else 4.0
-        if len(recent) >= 2:
-            p0, p1 = self.px[c][recent[0], m], self.px[c][recent[1], m]
-            motion = 0.5 * float(np.linalg.norm(p0 - p1)) / abs(recent[0] - recent[1])
+        own = [source_frame(self.frames[c], j)[1] for j in recent]     # its own frames (a drifting clock's)
+        later = [i for i in range(1, len(recent)) if own[i] != own[0]]
+        if later:
+            p0, p1 = self.px[c][recent[0], m], self.px[c][recent[later[0]], m]
+            motion = 0.5 * float(np.linalg.norm(p0 - p1)) / abs(own[0] - own[later[0]])
         else:
             motion = 0.08 * max(self.size[c])
         return (2.0 * size + 2.0 + motion) * (1.0 + 0.5 * gap), ref_area

@@ -250,7 +250,13 @@ def drawn_timings(timing_index: int, fps: float = FPS, genlocked: bool = False, 
     >>> t = drawn_timings(400, rate_ppm={"right": -999.0})
     >>> t["right"].rate_offset_ppm, t["left"].rate_offset_ppm == drawn_timings(400)["left"].rate_offset_ppm
     (-999.0, True)
+    >>> drawn_timings(400, genlocked=True, rate_ppm={"right": -999.0})
+    Traceback (most recent call last):
+    ...
+    ValueError: rate_ppm {'right': -999.0}: genlocked cameras share one clock (the control ride has no drift)
     """
+    if genlocked and rate_ppm:
+        raise ValueError(f"rate_ppm {rate_ppm}: genlocked cameras share one clock (the control ride has no drift)")
     timing = free_running_timings(0, timing_index, fps, genlocked=genlocked)
     unknown = sorted(set(rate_ppm or {}) - set(timing))
     if unknown:
