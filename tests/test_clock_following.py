@@ -8,7 +8,7 @@ from horsemocap.detection import tracker3d
 from horsemocap.detection.candidates import ClockFollowingFrames, source_frame
 from horsemocap.steps.detect import free_running_tolerance
 from horsemocap.subframe import whole_frames_gained
-from horsemocap.virtuallab.render import add_image_disc
+from horsemocap.virtuallab.render import disc_frames
 from horsemocap.virtuallab.rig import thesis_rig
 
 RIG = thesis_rig()
@@ -31,16 +31,9 @@ def _render():
     """Frames of every camera: left and middle at the reference instants, right at its own drifting instants."""
     frames, truth_px = {}, {}
     for cam in RIG:
-        W, H = cam.size
         instants = (PHASE + RATE * np.arange(N)) if cam.name == "right" else np.arange(N, dtype=float)
-        px = cam.project(_world(instants / FPS))
-        seq = []
-        for k in range(N):
-            img = np.full((H, W), 40.0)
-            for m in range(len(THREE)):
-                add_image_disc(img, *px[k, m], 3.2, 200.0)
-            seq.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
-        frames[cam.name], truth_px[cam.name] = seq, px
+        truth_px[cam.name] = cam.project(_world(instants / FPS))
+        frames[cam.name] = disc_frames(truth_px[cam.name], cam.size)
     static = np.vstack([THREE, SADDLE]) + [0.2, -0.05, 7.7]
     return frames, static, truth_px
 

@@ -16,7 +16,7 @@ from horsemocap.detection import (DetectionError, auto_threshold, bridge_gaps, c
 from horsemocap.detection.candidates import Candidates
 from horsemocap.detection.marker_model import RIGID_SLACK_M, point_uncertainty
 from horsemocap.reconstruction import DEFAULT_MAX_RESIDUAL_PX
-from horsemocap.virtuallab.render import add_image_disc
+from horsemocap.virtuallab.render import add_image_disc, disc_frames
 from horsemocap.virtuallab.rig import thesis_rig
 
 RIG = thesis_rig()
@@ -426,15 +426,7 @@ def test_free_running_views_are_reacquired_at_the_reference_instant():
     fps, n = 30.0, 3
     frames = {}
     for cam in RIG:
-        W, H = cam.size
-        px = cam.project(world(BODY, (np.arange(n) + phase[cam.name]) / fps))
-        seq = []
-        for k in range(n):
-            img = np.full((H, W), 40.0)
-            for m in range(len(BODY)):
-                add_image_disc(img, *px[k, m], 3.2, 200.0)
-            seq.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
-        frames[cam.name] = seq
+        frames[cam.name] = disc_frames(cam.project(world(BODY, (np.arange(n) + phase[cam.name]) / fps)), cam.size)
     static = world(np.vstack([BODY, SADDLE]), np.array([0.9]))[0]
     tr = _tracker(frames, static)
     cands = tr._reacquire_candidates(1)

@@ -9,7 +9,7 @@ import numpy as np
 
 from horsemocap.detection import identify_markers
 from horsemocap.detection.tracker3d import same_marker_set
-from horsemocap.virtuallab.render import add_image_disc
+from horsemocap.virtuallab.render import disc_frames
 from horsemocap.virtuallab.rig import thesis_rig
 
 RIG = thesis_rig()
@@ -34,15 +34,7 @@ def _render(n):
     markers = _world(FIVE, t)
     frames = {}
     for cam in RIG:
-        W, H = cam.size
-        px = cam.project(markers)
-        seq = []
-        for k in range(n):
-            img = np.full((H, W), 40.0)
-            for m in range(len(FIVE)):
-                add_image_disc(img, *px[k, m], 3.2, 200.0)
-            seq.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
-        frames[cam.name] = seq
+        frames[cam.name] = disc_frames(cam.project(markers), cam.size)
     static = np.vstack([FIVE, SADDLE]) + [0.2, -0.05, 7.7]
     return frames, static, markers
 

@@ -145,6 +145,30 @@ def add_image_disc(img: np.ndarray, cx: float, cy: float, r: float, amp: float, 
     img[y0:y1, x0:x1] += amp * (((sx - cx) ** 2 + (sy - cy) ** 2) <= r * r).mean(axis=(-1, -2))
 
 
+def disc_frames(marker_px, size, radius: float = 3.2, amp: float = 200.0, background: float = 40.0) -> list:
+    """The simplest marker video: gray frames (uint8) of anti-aliased discs (:func:`add_image_disc`) at the
+    image points ``marker_px`` (n, M, 2; NaN: not drawn) on a flat background, ``size`` = (width, height).
+
+    For tests and worked examples of detection and identification; the sessions draw projected discs on
+    a rendered arena (:func:`draw_disc`).
+
+    Examples
+    --------
+    >>> frames = disc_frames(np.array([[[10.0, 12.0]], [[np.nan, np.nan]]]), (32, 24))
+    >>> len(frames), frames[0].shape, int(frames[0][12, 10]), int(frames[1].max())
+    (2, (24, 32), 240, 40)
+    """
+    width, height = size
+    out = []
+    for points in np.asarray(marker_px, float):
+        img = np.full((height, width), float(background))
+        for u, v in points:
+            if np.isfinite(u) and np.isfinite(v):
+                add_image_disc(img, u, v, radius, amp)
+        out.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
+    return out
+
+
 def blend(img: np.ndarray, x0: int, y0: int, cov: np.ndarray, rgb) -> None:
     """``img = img (1 - cov) + rgb cov`` in the patch at ``(x0, y0)`` (in place)."""
     h, w = cov.shape
