@@ -76,8 +76,8 @@ IDENTIFICATION_REASONS = {
     "lost": "its own track is lost (unseen for more frames than a prediction holds); found again "
             "when the marker set is labelled anew",
     "not_tracked": "the marker set is not followed in this frame (not in view, or lost)",
-    "not_read": "a frame of a camera whose clock drifts that no reference instant has as its nearest (its clock "
-                "runs fast, or past the reference's last instant): not compared",
+    "not_read": "a frame of a camera whose clock drifts by whole frames that no reference instant compared (its "
+                "clock runs fast, or the frame lies past the reference's last instant)",
 }
 #: A region whose area is more than this factor away from the marker's recent
 #: area in that camera is a merge (or a partial occlusion): its centre is biased.
@@ -472,9 +472,10 @@ def identify_markers(frames: dict, rig, static_points: np.ndarray, n_markers: in
         A camera whose clock runs at another rate than the reference's:
         ``phase`` is its phase at frame 0, which then grows by
         ``rate_ratio[c] - 1`` frame per frame (:func:`~horsemocap.subframe.camera_frames`).
-        Absent or 1: the phase holds over the record. Where the drift reaches whole frames, the
-        camera's frame nearest each reference instant is compared there
-        (:func:`~horsemocap.subframe.whole_frames_gained`); the result is in each camera's own frames.
+        Absent or 1: the phase holds over the record. Where the drift reaches whole frames, each
+        reference instant compares the camera's frame that keeps its delay within half a frame of the
+        phase at frame 0 (:func:`~horsemocap.subframe.whole_frames_gained`); the result is in each
+        camera's own frames.
     whole_frames : callable, optional
         The whole-frame search, with :func:`~horsemocap.detection.candidates.whole_frame_candidates`' arguments
         (the default); :meth:`~horsemocap.detection.candidates.WholeFrameSearches.of_offsets` keeps the searches
