@@ -145,21 +145,6 @@ def unsmoothed_saddle_error_mm(a, truth) -> np.ndarray:
     return 1000 * np.sqrt(np.nanmean(err ** 2, axis=0))
 
 
-def saddle_acc_y_error_pct(a, truth, frames=None) -> float:
-    """The saddle's vertical acceleration error (rms, % of the true rms) over the analysed frames, or over those of
-    them among ``frames`` (reference-camera frame numbers): :func:`horsemocap.accuracy.stage_errors`' figure on a
-    chosen stretch, so two analyses of one session compare on the same frames."""
-    a0, b0 = a.triangulate.segment
-    ref = a.synchronisation.offsets[a.session.reference_camera] + np.arange(a0, b0)
-    rows, known = accuracy._truth_rows(truth, ref)
-    if frames is not None:
-        known = known & np.isin(ref, frames)
-    to_true = truth.motion_axes @ a.motion_frame.axes.T
-    est = np.asarray(a.rigid_body.saddle_acceleration)[known] @ to_true.T
-    true = np.asarray(truth.saddle_acc)[rows][known] @ truth.motion_axes.T
-    return float(100 * np.sqrt(np.mean((est[:, 1] - true[:, 1]) ** 2)) / np.sqrt(np.mean(true[:, 1] ** 2)))
-
-
 def run_cut(name: str, whole=None) -> str:
     """The session cut to the horse's own three markers: A_y, Wb, Wk against the truth; with ``whole`` (the
     analysis of every marker), its A_y on the frames the cut analysed too."""
@@ -181,8 +166,8 @@ def run_cut(name: str, whole=None) -> str:
     same = ""
     if whole is not None:
         frames = a.synchronisation.offsets[a.session.reference_camera] + np.arange(a1, b1)
-        same = (f"; every marker on these frames A_y {saddle_acc_y_error_pct(whole, truth, frames):.1f} % "
-                f"(cut {saddle_acc_y_error_pct(a, _cut_truth(truth, keep)):.1f} %)")
+        same = (f"; every marker on these frames A_y {accuracy.saddle_acc_y_error_pct(whole, truth, frames):.1f} % "
+                f"(cut {accuracy.saddle_acc_y_error_pct(a, _cut_truth(truth, keep)):.1f} %)")
     flagged = [f"{c.name}:{c.level}" for c in quality.post_checks(a) if c.level in ("warning", "unreliable")]
     return (f"{name + ' cut to 3':22s} markers {keep} {v:10s} A_y {st['saddle_acc_y_rmse_pct_of_rms']:6.1f} % "
             f"Wb {ce['acc_y_Wb_rms']:+6.1f} % Wk {ce['acc_y_Wk_rms']:+6.1f} % unsmoothed saddle y {y_mm:.2f} mm "
@@ -204,11 +189,10 @@ def run_analysis(name: str) -> tuple:
         return f"{name:22s} exit 2 stopped: {str(exc)[:200]}", None
     except Exception as exc:                                   # noqa: BLE001 - a benchmark reports every failure
         return f"{name:22s} CRASH {exc!r}"[:300], None
-    return _run_line(name, a, t0), a
+    return _run_line(name, folder, a, t0), a
 
 
-def _run_line(name: str, a, t0: float) -> str:
-    folder = _session_folder(name)
+def _run_line(name: str, folder, a, t0: float) -> str:
     checks = quality.post_checks(a)
     v = quality.verdict(checks)
     truth = load_truth(folder)
@@ -494,12 +478,8 @@ def run_criteria(name: str, draws: int, criteria=CRITERIA) -> str:
 def _analysis_of_points(a, points, keep):
     """``a`` with its triangulated points replaced by ``points`` cut to ``keep``, analysed from the smoothing on."""
     cut = _Cut(keep, None)
-    segment = a.triangulate.segment
-    if len(keep) <= 3:
-        # three markers: the smoothing refuses a hidden one, so the record is cut to the frames the truth holds
-        have = np.flatnonzero(np.all(np.isfinite(points[:, keep]), axis=(1, 2)))
-        segment = (max(segment[0], int(have[0])), min(segment[1], int(have[-1]) + 1))
-    tri = cut._triangulate(a, dataclasses.replace(a.triangulate, points=points, segment=segment))
+    # three markers: _Cut keeps the longest run inside the segment in which the three are triangulated
+    tri = cut._triangulate(a, dataclasses.replace(a.triangulate, points=points))
     given = {n: getattr(a, n) for n in pipeline.STEPS}
     given["triangulate"] = tri
     return run_steps(a.session, a.params, given, ["smooth", "motion_frame", "rigid_body", "comfort"])

@@ -725,11 +725,10 @@ class _Tracker:
             j -= direction
         ref_area = float(np.median(a[recent])) if recent else np.nan
         size = math.sqrt(ref_area / math.pi) if recent else 4.0
-        own = [source_frame(self.frames[c], j)[1] for j in recent]     # its own frames (a drifting clock's)
-        later = [i for i in range(1, len(recent)) if own[i] != own[0]]
-        if later:
-            p0, p1 = self.px[c][recent[0], m], self.px[c][recent[later[0]], m]
-            motion = 0.5 * float(np.linalg.norm(p0 - p1)) / abs(own[0] - own[later[0]])
+        pair = self._two_own_frames(c, recent)
+        if pair is not None:
+            first, second, apart = pair
+            motion = 0.5 * float(np.linalg.norm(self.px[c][first, m] - self.px[c][second, m])) / abs(apart)
         else:
             motion = 0.08 * max(self.size[c])
         return (2.0 * size + 2.0 + motion) * (1.0 + 0.5 * gap), ref_area
@@ -795,12 +794,19 @@ class _Tracker:
         direction = getattr(self, "_direction", 1)
         seen = [j for j in (k - direction * i for i in (1, 2, 3))
                 if 0 <= j < self.n and np.all(np.isfinite(self.px[c][j, m]))]
-        own = [source_frame(self.frames[c], j)[1] for j in seen]      # its own frames (a drifting clock's)
-        later = [i for i in range(1, len(seen)) if own[i] != own[0]]
-        if not later:
+        pair = self._two_own_frames(c, seen)
+        if pair is None:
             return np.zeros(2)
-        a, b = seen[0], seen[later[0]]
-        return (self.px[c][a, m] - self.px[c][b, m]) / (own[0] - own[later[0]])
+        a, b, apart = pair
+        return (self.px[c][a, m] - self.px[c][b, m]) / apart
+
+    def _two_own_frames(self, c, frames) -> tuple | None:
+        """``(a, b, apart)``: the first of ``frames`` and the next of them that shows another of camera ``c``'s own
+        frames (a drifting clock's frame may be compared at two instants: :func:`_following_the_clocks`), and how
+        many of its own frames ``b``'s is before ``a``'s; None when there is no such pair."""
+        own = [source_frame(self.frames[c], j)[1] for j in frames]
+        later = [i for i in range(1, len(frames)) if own[i] != own[0]]
+        return None if not later else (frames[0], frames[later[0]], own[0] - own[later[0]])
 
     def _at_reference(self, k, m, cands) -> dict:
         """The candidates of a free-running camera moved to the reference instant ``k`` for marker ``m``.
