@@ -264,8 +264,8 @@ def analyse_passes(analysis, run_later, progress) -> PassesResult | None:
         if segment[1] - segment[0] < shortest:
             out[i] = PassResult(i, run, segment, None, "unreliable",
                                 error=f"{segment[1] - segment[0]} frames with every marker triangulated, under two "
-                                      f"strides ({shortest} frames at the stride period of {period:.1f}): too short "
-                                      "for its ends to be checked and for the comfort's two periods")
+                                      f"strides ({shortest} frames at the stride period of {period:.1f} frames): too "
+                                      "short for its ends to be checked and for the comfort's two periods")
             continue
         given = {name: getattr(analysis, name) for name in ("sync", "rig", "plumb", "static")}
         given["detect"] = det.replace(segment=run)

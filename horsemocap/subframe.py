@@ -35,7 +35,7 @@ from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
+__all__ = ["FlashOnset", "unmeasured_drift_hint", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
            "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "whole_frames_gained", "drift_text", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
@@ -415,6 +415,39 @@ def largest_phase(phase: float, rate_ratio: float, n_frames: int) -> float:
     (0.29, 0.3)
     """
     return round(max(abs(float(phase)), abs(float(phase) + (float(rate_ratio) - 1.0) * max(n_frames - 1, 0))), 12)
+
+
+#: Frames after which a camera at an NTSC-family rate (30000/1001 fps) labelled with the round one (30) has gained a
+#: whole frame on a camera at the round rate: 1001.
+NTSC_FRAMES_PER_GAINED_FRAME = 1001
+
+
+def unmeasured_drift_hint(n_frames: int, free_running: bool) -> str:
+    """``"; ..."``: why free-running cameras may not be identified in a long record, or ``""``.
+
+    The first identification labels the markers from the record's middle
+    outward at the phases the flash measured at frame 0, with every clock
+    at the reference's rate: the rates are measured from the markers only
+    after it. A camera at 30000/1001 fps labelled 30 is, by the middle of a
+    record of ``n_frames``, ``n_frames / 2 / 1001`` frames off that phase;
+    from half a frame on its views disagree with the others' there. Said
+    when the cameras run free and that figure reaches half a frame.
+
+    Examples
+    --------
+    >>> unmeasured_drift_hint(1000, True)
+    ''
+    >>> "1.4 frames" in unmeasured_drift_hint(2787, True), unmeasured_drift_hint(2787, False)
+    (True, '')
+    """
+    off = 0.5 * int(n_frames) / NTSC_FRAMES_PER_GAINED_FRAME
+    if not free_running or off < 0.5:
+        return ""
+    return (f"; the cameras run free: a camera at another rate than the reference's (one at 30000/1001 fps labelled "
+            f"30 gains a frame every {NTSC_FRAMES_PER_GAINED_FRAME}) is {off:.1f} frames off the flash's phase by the "
+            f"middle of these {int(n_frames)} frames, where the markers are first labelled, and the clocks' rates are "
+            "measured from the markers only after that: if the cameras may differ in rate, analyse a shorter "
+            f"recording that starts at the flash (up to about {NTSC_FRAMES_PER_GAINED_FRAME} frames)")
 
 
 def whole_frames_gained(rate_ratio: float, n_frames: int) -> np.ndarray:

@@ -7,7 +7,7 @@ from horsemocap.detection import identify_markers
 from horsemocap.detection import tracker3d
 from horsemocap.detection.candidates import ClockFollowingFrames, source_frame
 from horsemocap.steps.detect import free_running_tolerance
-from horsemocap.subframe import whole_frames_gained
+from horsemocap.subframe import NTSC_FRAMES_PER_GAINED_FRAME, unmeasured_drift_hint, whole_frames_gained
 from horsemocap.virtuallab.render import disc_frames
 from horsemocap.virtuallab.rig import thesis_rig
 
@@ -109,3 +109,15 @@ def test_a_black_frame_past_the_video_is_not_kept_as_one_of_its_frames():
     black = searches.of_offsets({"a": 0})({"a": ClockFollowingFrames(base, [0, 0, 0, 0, 0, -1])}, 5, ["a"], *rules)
     later = searches.of_offsets({"a": 1})({"a": base}, 5, ["a"], *rules)
     assert len(black["a"]) == 0 and len(later["a"]) == 1
+
+
+def test_an_unmeasured_drift_is_named_from_half_a_frame_at_the_record_middle():
+    """The detect step's failure names a clock at another rate when, at 30000/1001 fps beside 30, the record's
+    middle (where the first identification labels the markers, at the flash's phases) is half a frame off or more;
+    never for cameras exposing together."""
+    n = NTSC_FRAMES_PER_GAINED_FRAME
+    assert unmeasured_drift_hint(n - 1, True) == ""
+    hint = unmeasured_drift_hint(n, True)
+    assert hint.startswith("; the cameras run free") and "0.5 frames off" in hint and f"{n} frames" in hint
+    assert "1.4 frames off" in unmeasured_drift_hint(2787, True)
+    assert unmeasured_drift_hint(100_000, False) == ""

@@ -429,7 +429,8 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
         hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
                 f"{sync.offsets}, the flash's {sync.flash_offsets or sync.offsets}): "
                 "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
-                if moved else "") + retry_error + identification_hint(session, sync)
+                if moved else "") + retry_error + subframe.unmeasured_drift_hint(sync.n_frames, sync.free_running) \
+            + identification_hint(session, sync)
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker (three of four or more) "
                             "is seen by two or "
                             f"more cameras (marker-frames per camera: {reason_counts(idn.reason)}); check the "
