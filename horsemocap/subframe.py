@@ -425,13 +425,15 @@ NTSC_FRAMES_PER_GAINED_FRAME = 1001
 def unmeasured_drift_hint(n_frames: int, free_running: bool) -> str:
     """``"; ..."``: why free-running cameras may not be identified in a long record, or ``""``.
 
-    The first identification labels the markers from the record's middle
-    outward at the phases the flash measured at frame 0, with every clock
-    at the reference's rate: the rates are measured from the markers only
-    after it. A camera at 30000/1001 fps labelled 30 is, by the middle of a
-    record of ``n_frames``, ``n_frames / 2 / 1001`` frames off that phase;
-    from half a frame on its views disagree with the others' there. Said
-    when the cameras run free and that figure reaches half a frame.
+    The clocks' rates are measured from the markers: on a long record, first
+    on its first :data:`NTSC_FRAMES_PER_GAINED_FRAME` frames from the flash,
+    where the flash's phases hold best (the detect step's
+    ``_clocks_from_the_flash``). When those frames show no markers, the whole
+    record is identified from its middle outward at the flash's phases with
+    every clock at the reference's rate; a camera at 30000/1001 fps labelled
+    30 is then ``n_frames / 2 / 1001`` frames off there, and from half a
+    frame on its views disagree with the others'. Said when the cameras run
+    free and that figure reaches half a frame.
 
     Examples
     --------
@@ -443,11 +445,12 @@ def unmeasured_drift_hint(n_frames: int, free_running: bool) -> str:
     off = 0.5 * int(n_frames) / NTSC_FRAMES_PER_GAINED_FRAME
     if not free_running or off < 0.5:
         return ""
-    return (f"; the cameras run free: a camera at another rate than the reference's (one at 30000/1001 fps labelled "
-            f"30 gains a frame every {NTSC_FRAMES_PER_GAINED_FRAME}) is {off:.1f} frames off the flash's phase by the "
-            f"middle of these {int(n_frames)} frames, where the markers are first labelled, and the clocks' rates are "
-            "measured from the markers only after that: if the cameras may differ in rate, analyse a shorter "
-            f"recording that starts at the flash (up to about {NTSC_FRAMES_PER_GAINED_FRAME} frames)")
+    return (f"; the cameras run free: their clocks' rates are measured from the markers seen in the first "
+            f"{NTSC_FRAMES_PER_GAINED_FRAME} frames after the flash and onward; without markers there, a camera at "
+            f"another rate than the reference's (one at 30000/1001 fps labelled 30 gains a frame every "
+            f"{NTSC_FRAMES_PER_GAINED_FRAME}) is {off:.1f} frames off the flash's phase by the middle of these "
+            f"{int(n_frames)} frames, where the markers are then first labelled: if the cameras may differ in "
+            "rate, fire the flash shortly before the horse's first pass")
 
 
 def whole_frames_gained(rate_ratio: float, n_frames: int) -> np.ndarray:
@@ -776,7 +779,7 @@ def residual_curve(rig, marker_px: dict, phase: dict, camera: str, trials, times
 
 
 def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict | None = None,
-                  half_width: float = SEARCH_HALF_WIDTH, step: float = 0.1) -> dict:
+                  half_width: float = SEARCH_HALF_WIDTH, step: float = 0.1, rate_ratio: dict | None = None) -> dict:
     """The cameras' phases that make the markers of all cameras meet, searched jointly.
 
     Every non-reference camera's phase is searched within ``half_width``
@@ -800,6 +803,11 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
     times : dict, optional
         Camera -> (n, m) instant of each observation in its own frames
         (frame index plus the rolling shutter's row time).
+    rate_ratio : dict, optional
+        Camera -> the rate ratio an earlier measurement gave, ``phase`` then its phase at frame 0: each chunk's
+        phase is searched about that line rather than about the record's constant phase (a drift of frames
+        over several passes leaves the constant phase more than a frame from the chunks' at either end, out of
+        their search). The rate itself is measured again from the chunks.
 
     Returns
     -------
@@ -829,7 +837,9 @@ def refine_phases(rig, marker_px: dict, phase: dict, reference: str, times: dict
                 if np.isfinite(g):
                     best[c] = g
     best = _refine_jointly(rig, tracks, best, free, frames)
-    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px), _seen_by_camera(marker_px))
+    given = {c: (start[c], float(rate_ratio[c]) - 1.0) for c in free
+             if rate_ratio and float(rate_ratio.get(c, 1.0)) != 1.0}
+    drift = _drifts(rig, tracks, best, free, seen_chunks(marker_px), _seen_by_camera(marker_px), given)
     rate = {**{c: 1.0 for c in marker_px}, **{c: d.rate_ratio for c, d in drift.items()}}
     if any(d.rate_ratio != 1.0 for d in drift.values()):     # the phases at frame 0, refined with the rates
         best = _refine_jointly(rig, tracks, {**best, **{c: d.phase for c, d in drift.items() if d.rate_ratio != 1.0}},
@@ -889,7 +899,7 @@ class _Drift:
     uncertainty: float
 
 
-def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict) -> dict:
+def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict, given: dict | None = None) -> dict:
     """Camera -> :class:`_Drift` of every camera of ``free`` from the chunks' phases (:func:`_chunk_phases`).
 
     A straight line through a camera's chunk phases over time: its slope is
@@ -901,8 +911,11 @@ def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict) -> dic
     the drift comes out short). Without a drift: ``best``, and the chunks'
     spread over ``sqrt(chunks)``. A camera measured in fewer than three
     chunks keeps ``best`` with :data:`GRID_STEP` as its uncertainty.
+    ``given``: camera -> a line ``(phase at frame 0, slope)`` an earlier
+    measurement gave, the chunks measured first about it instead of ``best``.
     """
     lines = {c: (float(best[c]), 0.0) for c in free}
+    lines.update({c: (float(p), float(v)) for c, (p, v) in (given or {}).items() if c in lines})
     out = _lines_drift(_chunk_phases(rig, tracks, best, lines, parts, seen), best)
     drifting = {c: (d.phase, d.rate_ratio - 1.0) for c, d in out.items() if d.rate_ratio != 1.0}
     if not drifting:

@@ -113,8 +113,8 @@ def test_a_black_frame_past_the_video_is_not_kept_as_one_of_its_frames():
 
 def test_an_unmeasured_drift_is_named_from_half_a_frame_at_the_record_middle():
     """The detect step's failure names a clock at another rate when, at 30000/1001 fps beside 30, the record's
-    middle (where the first identification labels the markers, at the flash's phases) is half a frame off or more;
-    never for cameras exposing together."""
+    middle (where the markers are labelled when the first frames after the flash show none, at the flash's
+    phases) is half a frame off or more; never for cameras exposing together."""
     n = NTSC_FRAMES_PER_GAINED_FRAME
     assert unmeasured_drift_hint(n - 1, True) == ""
     hint = unmeasured_drift_hint(n, True)

@@ -245,3 +245,44 @@ def test_a_drift_that_carries_the_phase_past_a_frame_is_followed(monkeypatch):
     assert len(calls) == 1                                   # one identification, at the markers' phases
     assert calls[0][0]["right"] == pytest.approx(0.22) and calls[0][1]["right"] == pytest.approx(rate)
     assert out is not None and out[-1].rate_ratio["right"] == pytest.approx(rate)
+
+
+def test_a_long_record_measures_its_clocks_from_the_flash_onward(monkeypatch):
+    """2800 frames of cameras running free at rates not yet known: the markers are identified and the clocks
+    measured on the first 1001 frames, then on 2002 (at the rate measured on the first), and the whole record's
+    identification starts from the phases and rates of the longest part; its sync keeps the whole record and the
+    flash's method (so that the whole record's own rounds refine it again)."""
+    names = ("left", "middle", "right")
+    parts = []
+
+    def identify(session, sync, *args, **kw):
+        parts.append((sync.n_frames, dict(sync.rate_ratio)))
+        return _idn(used=100, inconsistent=0)
+
+    def refine(session, sync, *a):
+        rate = 1.001 if sync.n_frames >= 2002 else 1.0009
+        return sync.replace(phase_frames={"left": 0.0, "middle": 0.58, "right": 0.22}, rate_ratio={"right": rate},
+                            offset_uncertainty_frames={"middle": 0.01, "right": 0.01},
+                            subframe_method="flash and markers")
+
+    _patch_rounds(monkeypatch, identify, refine)
+    flash = _free_sync({"left": 0.0, "middle": 0.32, "right": 0.21}).replace(
+        n_frames=2800, frame_counts={c: 3000 for c in names})
+    out = D._clocks_from_the_flash(_ident(names), flash)
+    assert [n for n, _ in parts][:1] == [D.CLOCKS_FIRST_FRAMES] and {n for n, _ in parts} == {1001, 2002}
+    assert next(r for n, r in parts if n == 2002).get("right") == pytest.approx(1.0009)   # the first part's rate
+    assert out.n_frames == 2800 and out.subframe_method == "flash"
+    assert out.rate_ratio["right"] == pytest.approx(1.001) and out.phase_frames["middle"] == pytest.approx(0.58)
+
+
+def test_short_genlocked_or_measured_records_go_straight_to_the_whole_identification(monkeypatch):
+    """Nothing is identified first: a record of 1001 frames or fewer, cameras exposing together, or rates known."""
+    names = ("left", "middle", "right")
+    _patch_rounds(monkeypatch, lambda *a, **k: pytest.fail("identified a part of the record"))
+    free = _free_sync({"left": 0.0, "middle": 0.32, "right": 0.21})
+    cases = [free.replace(n_frames=D.CLOCKS_FIRST_FRAMES),
+             SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 3000 for c in names}, n_frames=2800,
+                        offsets_from="flashlight"),
+             free.replace(n_frames=2800, rate_ratio={"right": 1.001})]
+    for sync in cases:
+        assert D._clocks_from_the_flash(_ident(names), sync) is sync

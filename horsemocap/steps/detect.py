@@ -81,6 +81,12 @@ PHASE_UNPINNED_FRAMES = 0.25
 PHASE_MAX_FRAMES = 1.0
 #: The phases tried for such a camera, in frames from the flash's (the flash's uncertainty either way, and twice it).
 PHASE_TRIALS_FRAMES = (-0.5, -0.25, 0.25, 0.5)
+#: Free-running cameras whose rates are not known: a record longer than this many frames has its clocks measured
+#: first on its first this-many frames from the flash, then on twice as many, until the whole record
+#: (:func:`_clocks_from_the_flash`). The first identification labels the markers from the record's middle at the
+#: flash's phases with every clock at the reference's rate; a camera at 30000/1001 fps labelled 30 is half a frame
+#: off those phases at the middle of 1001 frames, past which its views disagree with the others'.
+CLOCKS_FIRST_FRAMES = subframe.NTSC_FRAMES_PER_GAINED_FRAME
 
 
 @dataclass(frozen=True)
@@ -367,6 +373,53 @@ def _identified(ident: _Identifier, section, sync, frames) -> _Identified:
     return _Identified(idn, sync, check, marker_px, by_fields, times)
 
 
+def _clocks_from_the_flash(ident: _Identifier, sync: SyncResult) -> SyncResult:
+    """``sync`` with the free-running cameras' phases at frame 0 and rates measured on the record's first frames.
+
+    A long record (more than :data:`CLOCKS_FIRST_FRAMES`) of cameras running free at rates not yet measured
+    is identified first on its first :data:`CLOCKS_FIRST_FRAMES` frames from the flash, where the flash's
+    phases hold best, and the markers measure the phases and rates there (the rounds of :func:`_identified`
+    but the offsets' check, which the whole record's identification makes); then on twice as many frames at
+    the phases and rates measured, and so on while the record is longer. The phases and rates of the
+    longest part identified are returned for the whole record's identification; ``sync`` itself when the
+    record is short, the cameras expose together, the rates are known, or the first part has no markers
+    to measure.
+    """
+    session, rig = ident.session, ident.rig
+    n, ref = sync.n_frames, session.reference_camera
+    measured = any(float(v) != 1.0 for v in sync.rate_ratio.values())
+    if (not sync.free_running or measured or n <= CLOCKS_FIRST_FRAMES or len(session.cameras) < 3
+            or sync.subframe_method not in ("flash", "markers")):
+        return sync
+    current, length = sync, CLOCKS_FIRST_FRAMES
+    while length < n:
+        part = current.replace(n_frames=length)
+        said = f"synchronised frames 0..{length - 1} first"
+        within = replace(ident, progress=lambda step, msg, *a: ident.progress(step, f"{said}: {msg}", *a))
+        try:
+            idn = _identify(within.quiet(), part)
+        except AnalysisError as exc:
+            ident.progress("detect", f"{said}: no markers identified ({exc}); the whole record at the "
+                                     "flash's phases")
+            break
+        idn, part = _phase_by_identification(within, part, idn)
+        marker_px, _ = measured_by_fields(session, part, idn.marker_px, idn.thresholds, _silent)
+        times = observation_times(session, part, rig, marker_px)
+        refined = _subframe_by_markers(session, part, rig, marker_px, times, within.progress)
+        again = _identified_again(within, part, idn, refined)
+        refined = refined if again is None else again[4]
+        current = sync.replace(phase_frames={**current.phase_frames, **refined.phase_frames},
+                               rate_ratio={**current.rate_ratio, **refined.rate_ratio},
+                               offset_uncertainty_frames={**current.offset_uncertainty_frames,
+                                                          **refined.offset_uncertainty_frames})
+        length *= 2
+    if current is not sync:
+        ident.progress("detect", "the cameras' clocks measured from the flash onward: " + ", ".join(
+            f"{c} {current.phase_frames.get(c, 0.0):+.3f}" + subframe.drift_text(current.rate_ratio.get(c, 1.0), n)
+            for c in session.cameras if c != ref) + "; the whole record identified at them")
+    return current
+
+
 def _as_free_running(session, sync: SyncResult) -> SyncResult:
     """The flash's sync with the cameras taken as free-running from phase zero (the markers find the phases)."""
     return sync.replace(phase_frames={c: 0.0 for c in session.cameras}, subframe_method="markers")
@@ -398,7 +451,7 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     as_free = ident.at_tolerance(free_running_tolerance(rig))
     tried_free, retry_error = sync.free_running, ""
     try:
-        found = _identified(ident, section, sync, frames)
+        found = _identified(ident, section, _clocks_from_the_flash(ident, sync), frames)
     except AnalysisError:
         if sync.free_running or sync.offsets_from != "flashlight":
             raise
@@ -587,7 +640,7 @@ def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
     """The sync with every camera's phase (and rate ratio) refined by the markers (:func:`subframe.refine_phases`)."""
     ref = session.reference_camera
     start = current_phases(sync, ref)
-    fits = subframe.refine_phases(rig, marker_px, start, ref, times=times)
+    fits = subframe.refine_phases(rig, marker_px, start, ref, times=times, rate_ratio=dict(sync.rate_ratio))
     if not fits:
         progress("detect", "the markers could not refine the fractions of a frame (too few marker-frames); "
                            "the flash's are kept")
