@@ -35,7 +35,7 @@ from scipy.optimize import minimize
 
 from .reconstruction import triangulate
 
-__all__ = ["FlashOnset", "unmeasured_drift_hint", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
+__all__ = ["FlashOnset", "exposure_fraction", "exposure_seconds", "readout_frames", "flash_onset", "flash_row_delay", "flash_phases",
            "nearest_frames", "TrackInterpolant", "PhaseFit", "phase_residual", "fit_phase", "joint_residual",
            "refine_phases", "linearised_phases", "seen_chunks", "drift_is_measured", "camera_frames", "largest_phase", "whole_frames_gained", "drift_text", "tracks_at_reference_instants", "points_at_shifted_instants",
            "rolling_shutter_frames", "others_residual", "timing_floor", "residual_curve", "observation_instants",
@@ -420,37 +420,6 @@ def largest_phase(phase: float, rate_ratio: float, n_frames: int) -> float:
 #: Frames after which a camera at an NTSC-family rate (30000/1001 fps) labelled with the round one (30) has gained a
 #: whole frame on a camera at the round rate: 1001.
 NTSC_FRAMES_PER_GAINED_FRAME = 1001
-
-
-def unmeasured_drift_hint(n_frames: int, free_running: bool) -> str:
-    """``"; ..."``: why free-running cameras may not be identified in a long record, or ``""``.
-
-    The clocks' rates are measured from the markers: on a long record, first
-    on its first :data:`NTSC_FRAMES_PER_GAINED_FRAME` frames from the flash,
-    where the flash's phases hold best (the detect step's
-    ``_clocks_from_the_flash``). When those frames show no markers, the whole
-    record is identified from its middle outward at the flash's phases with
-    every clock at the reference's rate; a camera at 30000/1001 fps labelled
-    30 is then ``n_frames / 2 / 1001`` frames off there, and from half a
-    frame on its views disagree with the others'. Said when the cameras run
-    free and that figure reaches half a frame.
-
-    Examples
-    --------
-    >>> unmeasured_drift_hint(1000, True)
-    ''
-    >>> "1.4 frames" in unmeasured_drift_hint(2787, True), unmeasured_drift_hint(2787, False)
-    (True, '')
-    """
-    off = 0.5 * int(n_frames) / NTSC_FRAMES_PER_GAINED_FRAME
-    if not free_running or off < 0.5:
-        return ""
-    return (f"; the cameras run free: their clocks' rates are measured from the markers seen in the first "
-            f"{NTSC_FRAMES_PER_GAINED_FRAME} frames after the flash and onward; without markers there, a camera at "
-            f"another rate than the reference's (one at 30000/1001 fps labelled 30 gains a frame every "
-            f"{NTSC_FRAMES_PER_GAINED_FRAME}) is {off:.1f} frames off the flash's phase by the middle of these "
-            f"{int(n_frames)} frames, where the markers are then first labelled: if the cameras may differ in "
-            "rate, fire the flash shortly before the horse's first pass")
 
 
 def whole_frames_gained(rate_ratio: float, n_frames: int) -> np.ndarray:
@@ -912,15 +881,19 @@ def _drifts(rig, tracks, best: dict, free: list, parts: list, seen: dict, given:
     spread over ``sqrt(chunks)``. A camera measured in fewer than three
     chunks keeps ``best`` with :data:`GRID_STEP` as its uncertainty.
     ``given``: camera -> a line ``(phase at frame 0, slope)`` an earlier
-    measurement gave, the chunks measured first about it instead of ``best``.
+    measurement gave, the chunks measured first about it instead of ``best``;
+    the second measurement starts from the constant phases and the drifts
+    this one confirmed only (a given line the chunks do not confirm, kept,
+    would pull every camera's chunk phases with it: they are fitted
+    together).
     """
-    lines = {c: (float(best[c]), 0.0) for c in free}
-    lines.update({c: (float(p), float(v)) for c, (p, v) in (given or {}).items() if c in lines})
-    out = _lines_drift(_chunk_phases(rig, tracks, best, lines, parts, seen), best)
+    constant = {c: (float(best[c]), 0.0) for c in free}
+    given = {c: (float(p), float(v)) for c, (p, v) in (given or {}).items() if c in constant}
+    out = _lines_drift(_chunk_phases(rig, tracks, best, {**constant, **given}, parts, seen), best)
     drifting = {c: (d.phase, d.rate_ratio - 1.0) for c, d in out.items() if d.rate_ratio != 1.0}
-    if not drifting:
+    if not drifting and not given:
         return out
-    return _lines_drift(_chunk_phases(rig, tracks, best, {**lines, **drifting}, parts, seen), best)
+    return _lines_drift(_chunk_phases(rig, tracks, best, {**constant, **drifting}, parts, seen), best)
 
 
 def _lines_drift(chunks: dict, best: dict) -> dict:

@@ -247,42 +247,85 @@ def test_a_drift_that_carries_the_phase_past_a_frame_is_followed(monkeypatch):
     assert out is not None and out[-1].rate_ratio["right"] == pytest.approx(rate)
 
 
+def _long_flash(n=2800, names=("left", "middle", "right")):
+    return _free_sync({"left": 0.0, "middle": 0.32, "right": 0.21}).replace(
+        n_frames=n, frame_counts={c: n + 200 for c in names}, offsets={"left": 8, "middle": 61, "right": 134},
+        offset_uncertainty_frames={"middle": 0.25, "right": 0.25})
+
+
+def _measuring(sync, *a):
+    """The markers' refinement of a part: 1.0009 on the first 1001 frames, 1.001 on longer parts."""
+    rate = 1.001 if sync.n_frames >= 2002 else 1.0009
+    return sync.replace(phase_frames={"left": 0.0, "middle": 0.58, "right": 0.22}, rate_ratio={"right": rate},
+                        offset_uncertainty_frames={"middle": 0.01, "right": 0.01}, subframe_method="flash and markers")
+
+
 def test_a_long_record_measures_its_clocks_from_the_flash_onward(monkeypatch):
     """2800 frames of cameras running free at rates not yet known: the markers are identified and the clocks
-    measured on the first 1001 frames, then on 2002 (at the rate measured on the first), and the whole record's
-    identification starts from the phases and rates of the longest part; its sync keeps the whole record and the
-    flash's method (so that the whole record's own rounds refine it again)."""
-    names = ("left", "middle", "right")
+    measured on the first 1001 frames, then on 2002 (at the rate measured on the first; 4004 would be the whole),
+    and the whole record's identification starts from the phases and rates of the longest part; its sync keeps
+    every other field of the flash's (the whole record, the offsets, the flash's method, so that the whole
+    record's own rounds refine it again)."""
     parts = []
 
     def identify(session, sync, *args, **kw):
         parts.append((sync.n_frames, dict(sync.rate_ratio)))
         return _idn(used=100, inconsistent=0)
 
-    def refine(session, sync, *a):
-        rate = 1.001 if sync.n_frames >= 2002 else 1.0009
-        return sync.replace(phase_frames={"left": 0.0, "middle": 0.58, "right": 0.22}, rate_ratio={"right": rate},
-                            offset_uncertainty_frames={"middle": 0.01, "right": 0.01},
-                            subframe_method="flash and markers")
-
-    _patch_rounds(monkeypatch, identify, refine)
-    flash = _free_sync({"left": 0.0, "middle": 0.32, "right": 0.21}).replace(
-        n_frames=2800, frame_counts={c: 3000 for c in names})
-    out = D._clocks_from_the_flash(_ident(names), flash)
-    assert [n for n, _ in parts][:1] == [D.CLOCKS_FIRST_FRAMES] and {n for n, _ in parts} == {1001, 2002}
+    _patch_rounds(monkeypatch, identify, lambda session, sync, *a: _measuring(sync))
+    flash = _long_flash()
+    out = D._clocks_from_the_flash(_ident(), None, flash)
+    assert parts[0][0] == D.CLOCKS_FIRST_FRAMES and {n for n, _ in parts} == {1001, 2002}
     assert next(r for n, r in parts if n == 2002).get("right") == pytest.approx(1.0009)   # the first part's rate
-    assert out.n_frames == 2800 and out.subframe_method == "flash"
     assert out.rate_ratio["right"] == pytest.approx(1.001) and out.phase_frames["middle"] == pytest.approx(0.58)
+    assert out.offset_uncertainty_frames == {"middle": 0.01, "right": 0.01}
+    assert out.replace(phase_frames=flash.phase_frames, rate_ratio=flash.rate_ratio,
+                       offset_uncertainty_frames=flash.offset_uncertainty_frames) == flash
+
+
+def test_clocks_not_measured_on_the_first_frames_leave_the_flash_s(monkeypatch):
+    """No markers in the first 1001 frames, or a refinement that pins no camera's phase there: the flash's sync
+    itself goes on to the whole record (said), and the identification at measured clocks falls back to it
+    when it fails."""
+    said = []
+    ident = _ident(progress=lambda step, msg, *a: said.append(msg))
+    flash = _long_flash()
+
+    def no_markers(session, sync, *a, **k):
+        raise D.AnalysisError("detect", "no frame")
+
+    _patch_rounds(monkeypatch, no_markers)
+    assert D._clocks_from_the_flash(ident, None, flash) is flash
+    assert any("no markers identified there" in m for m in said) and "not measured" in said[-1]
+    _patch_rounds(monkeypatch, lambda *a, **k: _idn(used=100, inconsistent=0),
+                  lambda session, sync, *a: sync.replace(offset_uncertainty_frames={"middle": 0.4, "right": 0.6}))
+    assert D._clocks_from_the_flash(ident, None, flash) is flash
+    at = []
+
+    def fails_at_measured_clocks(session, sync, *a, **k):
+        at.append((sync.n_frames, dict(sync.rate_ratio)))
+        if sync.n_frames == 2800 and sync.rate_ratio and len([n for n, _ in at if n == 2800]) == 1:
+            raise D.AnalysisError("detect", "no frame")
+        return _idn(used=100, inconsistent=0)
+
+    _patch_rounds(monkeypatch, fails_at_measured_clocks, lambda session, sync, *a: _measuring(sync))
+    monkeypatch.setattr(D, "_checked_by_markers", lambda ident, section, sync, idn: (idn, sync, {}))
+    found, measured = D._identified_at_clocks(ident, None, flash, None)
+    whole = [r for n, r in at if n == 2800]
+    assert not measured and whole[0]["right"] == pytest.approx(1.001) and whole[1] == {}   # then the flash's
 
 
 def test_short_genlocked_or_measured_records_go_straight_to_the_whole_identification(monkeypatch):
-    """Nothing is identified first: a record of 1001 frames or fewer, cameras exposing together, or rates known."""
+    """Nothing is identified first: a record of 1001 frames or fewer, cameras exposing together, rates known,
+    offsets with their fractions given, or two cameras."""
     names = ("left", "middle", "right")
     _patch_rounds(monkeypatch, lambda *a, **k: pytest.fail("identified a part of the record"))
-    free = _free_sync({"left": 0.0, "middle": 0.32, "right": 0.21})
-    cases = [free.replace(n_frames=D.CLOCKS_FIRST_FRAMES),
-             SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 3000 for c in names}, n_frames=2800,
-                        offsets_from="flashlight"),
-             free.replace(n_frames=2800, rate_ratio={"right": 1.001})]
-    for sync in cases:
-        assert D._clocks_from_the_flash(_ident(names), sync) is sync
+    free = _long_flash()
+    cases = [(free.replace(n_frames=D.CLOCKS_FIRST_FRAMES), names),
+             (SyncResult(offsets={c: 0 for c in names}, frame_counts={c: 3000 for c in names}, n_frames=2800,
+                         offsets_from="flashlight"), names),
+             (free.replace(rate_ratio={"right": 1.001}), names),
+             (free.replace(offsets_from="given in parameters", subframe_method="given in parameters"), names),
+             (free, names[:2])]
+    for sync, cams in cases:
+        assert D._clocks_from_the_flash(_ident(cams), None, sync) is sync

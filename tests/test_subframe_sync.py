@@ -552,5 +552,21 @@ def test_a_rate_measured_before_starts_the_chunks_on_its_line(rig):
     alone = subframe.refine_phases(rig, px, start, names[0])[names[2]]
     given = subframe.refine_phases(rig, px, start, names[0], rate_ratio={names[2]: 1.00096})[names[2]]
     assert given.rate_ratio - 1 == pytest.approx(1e-3, rel=0.03)
-    assert given.phase == pytest.approx(0.22, abs=0.05)
+    assert given.phase == pytest.approx(0.22, abs=0.06)
     assert given.residual_px < 0.6 * alone.residual_px
+
+
+def test_a_given_rate_the_chunks_do_not_confirm_leaves_the_others_alone(rig):
+    """The same ride, with a wrong earlier rate for the middle camera (500 ppm; its clock is the reference's) beside
+    the right camera's: the chunks do not confirm it, and the second measurement starts from the constant phase
+    for it, so it pulls neither camera: kept along with the right one's, it gave the right camera 1135 ppm and a
+    phase 0.18 frame off (residual 0.49 px), and the middle camera an uncertainty of 0.30 frame."""
+    names = list(rig.names)
+    px = _ride_of_passes(rig, {names[1]: 0.58, names[2]: 0.22}, {names[2]: 1.001}, noise_px=0.3, seed=2,
+                         n=3600, lap=900)
+    start = {names[0]: 0.0, names[1]: 0.56, names[2]: 0.23}
+    fits = subframe.refine_phases(rig, px, start, names[0], rate_ratio={names[1]: 1.0005, names[2]: 1.00096})
+    assert fits[names[2]].rate_ratio - 1 == pytest.approx(1e-3, rel=0.03)
+    assert fits[names[2]].phase == pytest.approx(0.22, abs=0.06)
+    assert fits[names[1]].rate_ratio == 1.0 and fits[names[1]].uncertainty < 0.1
+    assert fits[names[1]].phase == pytest.approx(0.58, abs=0.03)

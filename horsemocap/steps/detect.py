@@ -342,17 +342,18 @@ class _Identifier:
         return replace(self, progress=_silent)
 
 
-def _identified(ident: _Identifier, section, sync, frames) -> _Identified:
+def _identified(ident: _Identifier, section, sync, frames, *, check_offsets: bool = True) -> _Identified:
     """Identify the markers in ``sync`` and settle the sync on them: free-running cameras' phases searched by
     the identification (:func:`_phase_by_identification`), the flash's whole frames checked by the markers
-    (:func:`_checked_by_markers`), the fractions refined by the markers or found behind a fully lit flash, and the
-    markers identified again at the phases the markers measured (:func:`_identified_again`)."""
+    (:func:`_checked_by_markers`; not with ``check_offsets`` False), the fractions refined by the markers or found
+    behind a fully lit flash, and the markers identified again at the phases the markers measured
+    (:func:`_identified_again`)."""
     session, rig, progress = ident.session, ident.rig, ident.progress
     idn = _identify(ident, sync, frames)
     if sync.free_running and len(session.cameras) >= 3:
         idn, sync = _phase_by_identification(ident, sync, idn)
     check = {}
-    if sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
+    if check_offsets and sync.offsets_from == "flashlight" and len(session.cameras) >= 3:
         idn, sync, check = _checked_by_markers(ident, section, sync, idn)
     marker_px, by_fields = measured_by_fields(session, sync, idn.marker_px, idn.thresholds, progress)
     times = observation_times(session, sync, rig, marker_px)
@@ -373,51 +374,104 @@ def _identified(ident: _Identifier, section, sync, frames) -> _Identified:
     return _Identified(idn, sync, check, marker_px, by_fields, times)
 
 
-def _clocks_from_the_flash(ident: _Identifier, sync: SyncResult) -> SyncResult:
+def _clocks_from_the_flash(ident: _Identifier, section, sync: SyncResult) -> SyncResult:
     """``sync`` with the free-running cameras' phases at frame 0 and rates measured on the record's first frames.
 
     A long record (more than :data:`CLOCKS_FIRST_FRAMES`) of cameras running free at rates not yet measured
-    is identified first on its first :data:`CLOCKS_FIRST_FRAMES` frames from the flash, where the flash's
-    phases hold best, and the markers measure the phases and rates there (the rounds of :func:`_identified`
-    but the offsets' check, which the whole record's identification makes); then on twice as many frames at
-    the phases and rates measured, and so on while the record is longer. The phases and rates of the
-    longest part identified are returned for the whole record's identification; ``sync`` itself when the
-    record is short, the cameras expose together, the rates are known, or the first part has no markers
-    to measure.
+    (the flash's fractions, or phases to be found behind a fully lit flash) is identified first on its first
+    :data:`CLOCKS_FIRST_FRAMES` frames from the flash, where the flash's phases hold best, and the markers
+    measure the phases and rates there (:func:`_measured_part`); then on twice as many frames at those, while
+    the next part is shorter than three quarters of the record (the whole record's own rounds go on from
+    there). Returns the phases and rates of the longest part measured, in ``sync``'s other fields, for the
+    whole record's identification; ``sync`` itself when the record is short, the cameras expose together,
+    the rates are known, or the first part measured nothing.
     """
-    session, rig = ident.session, ident.rig
-    n, ref = sync.n_frames, session.reference_camera
+    session, n = ident.session, sync.n_frames
     measured = any(float(v) != 1.0 for v in sync.rate_ratio.values())
-    if (not sync.free_running or measured or n <= CLOCKS_FIRST_FRAMES or len(session.cameras) < 3
+    if (measured or n <= CLOCKS_FIRST_FRAMES or len(session.cameras) < 3
             or sync.subframe_method not in ("flash", "markers")):
         return sync
-    current, length = sync, CLOCKS_FIRST_FRAMES
+    current, length, measured_on = sync, CLOCKS_FIRST_FRAMES, 0
     while length < n:
-        part = current.replace(n_frames=length)
-        said = f"synchronised frames 0..{length - 1} first"
-        within = replace(ident, progress=lambda step, msg, *a: ident.progress(step, f"{said}: {msg}", *a))
-        try:
-            idn = _identify(within.quiet(), part)
-        except AnalysisError as exc:
-            ident.progress("detect", f"{said}: no markers identified ({exc}); the whole record at the "
-                                     "flash's phases")
+        got = _measured_part(ident, section, current, length)
+        if got is None:
             break
-        idn, part = _phase_by_identification(within, part, idn)
-        marker_px, _ = measured_by_fields(session, part, idn.marker_px, idn.thresholds, _silent)
-        times = observation_times(session, part, rig, marker_px)
-        refined = _subframe_by_markers(session, part, rig, marker_px, times, within.progress)
-        again = _identified_again(within, part, idn, refined)
-        refined = refined if again is None else again[4]
-        current = sync.replace(phase_frames={**current.phase_frames, **refined.phase_frames},
-                               rate_ratio={**current.rate_ratio, **refined.rate_ratio},
-                               offset_uncertainty_frames={**current.offset_uncertainty_frames,
-                                                          **refined.offset_uncertainty_frames})
+        current, measured_on = got, length
+        if 2 * length >= 0.75 * n:
+            break
         length *= 2
-    if current is not sync:
-        ident.progress("detect", "the cameras' clocks measured from the flash onward: " + ", ".join(
-            f"{c} {current.phase_frames.get(c, 0.0):+.3f}" + subframe.drift_text(current.rate_ratio.get(c, 1.0), n)
-            for c in session.cameras if c != ref) + "; the whole record identified at them")
+    if current is sync:
+        ident.progress("detect", f"the clocks not measured on the first {CLOCKS_FIRST_FRAMES} synchronised frames: "
+                                 "the whole record identified at the flash's phases")
+        return sync
+    ident.progress("detect", f"the cameras' clocks measured on synchronised frames 0..{measured_on - 1}: " + ", ".join(
+        f"{c} {current.phase_frames.get(c, 0.0):+.3f}" + subframe.drift_text(current.rate_ratio.get(c, 1.0), n)
+        for c in session.cameras if c != session.reference_camera) + "; the whole record identified at them")
     return current
+
+
+def _measured_part(ident: _Identifier, section, sync: SyncResult, length: int) -> SyncResult | None:
+    """``sync`` with the phases and rates the markers measure on the record's first ``length`` frames
+    (:func:`_identified` on them, without the offsets' check: the whole record's identification makes it), for
+    the cameras they pin (uncertainty within :data:`PHASE_UNPINNED_FRAMES`); None when nothing is identified
+    there or no camera is pinned. Its progress reports say which frames they are about."""
+    said = f"synchronised frames 0..{length - 1} first"
+    within = replace(ident, progress=lambda step, msg, *a: ident.progress(step, f"{said}: {msg}", *a))
+    try:
+        found = _identified(within, section, sync.replace(n_frames=length), None, check_offsets=False).sync
+    except AnalysisError:
+        ident.progress("detect", f"{said}: no markers identified there")
+        return None
+    ref = ident.session.reference_camera
+    pinned = [c for c in ident.session.cameras if c != ref
+              and found.offset_uncertainty_frames.get(c, np.inf) <= PHASE_UNPINNED_FRAMES]
+    if not pinned:
+        return None
+    return sync.replace(phase_frames={**sync.phase_frames, **{c: found.phase_frames[c] for c in pinned}},
+                        rate_ratio={**sync.rate_ratio, **{c: found.rate_ratio.get(c, 1.0) for c in pinned}},
+                        offset_uncertainty_frames={**sync.offset_uncertainty_frames,
+                                                   **{c: found.offset_uncertainty_frames[c] for c in pinned}})
+
+
+def _identified_at_clocks(ident: _Identifier, section, sync: SyncResult, frames) -> tuple:
+    """``(found, measured)``: :func:`_identified` at the clocks measured from the flash onward
+    (:func:`_clocks_from_the_flash`), or at ``sync``'s when they were not measured or the identification at
+    them fails; ``measured`` says whether they were."""
+    clocks = _clocks_from_the_flash(ident, section, sync)
+    if clocks is sync:
+        return _identified(ident, section, sync, frames), False
+    try:
+        return _identified(ident, section, clocks, frames), True
+    except AnalysisError as exc:
+        ident.progress("detect", f"at the clocks measured from the flash onward: {exc}; identifying at the "
+                                 "flash's phases")
+        return _identified(ident, section, sync, None), False
+
+
+def clocks_not_measured_hint(n_frames: int) -> str:
+    """``"; ..."``: why cameras running free may not be identified in a record of ``n_frames`` whose clocks were
+    not measured before its identification (:func:`_clocks_from_the_flash`), or ``""`` for a short one.
+
+    The whole record is then identified from its middle outward at the flash's phases, every clock at the
+    reference's rate; a camera at 30000/1001 fps labelled 30 is ``n_frames / 2 / 1001`` frames off there, and
+    from half a frame on its views disagree with the others'.
+
+    Examples
+    --------
+    >>> clocks_not_measured_hint(1000)
+    ''
+    >>> "1.4 frames" in clocks_not_measured_hint(2787)
+    True
+    """
+    gained = subframe.NTSC_FRAMES_PER_GAINED_FRAME
+    off = 0.5 * int(n_frames) / gained
+    if off < 0.5:
+        return ""
+    return (f"; the cameras run free and no markers in the first {CLOCKS_FIRST_FRAMES} frames after the flash "
+            f"measured their clocks: a camera at another rate than the reference's (one at 30000/1001 fps labelled "
+            f"30 gains a frame every {gained}) is {off:.1f} frames off the flash's phase by the middle of these "
+            f"{int(n_frames)} frames, where the markers are then first labelled; if the cameras may differ in rate, "
+            "fire the flash shortly before the horse's first pass")
 
 
 def _as_free_running(session, sync: SyncResult) -> SyncResult:
@@ -451,13 +505,13 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
     as_free = ident.at_tolerance(free_running_tolerance(rig))
     tried_free, retry_error = sync.free_running, ""
     try:
-        found = _identified(ident, section, _clocks_from_the_flash(ident, sync), frames)
+        found, measured = _identified_at_clocks(ident, section, sync, frames)
     except AnalysisError:
         if sync.free_running or sync.offsets_from != "flashlight":
             raise
         progress("detect", "no consistent views at the genlocked tolerance: trying the cameras as free-running")
         tried_free = True
-        found = _identified(as_free, section, _as_free_running(session, sync), None)
+        found, measured = _identified_at_clocks(as_free, section, _as_free_running(session, sync), None)
     gap = max_gap_frames(session, section)
     tracked, segment, n_markers = _tracked(found.idn, gap)
     if (_run_length(segment) < MIN_SEGMENT_FRAMES and not tried_free and not found.sync.free_running
@@ -466,14 +520,14 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
         progress("detect", f"only {_run_length(segment)} consecutive frames tracked with the cameras genlocked: "
                            "trying them as free-running")
         try:
-            alt = _identified(as_free, section, _as_free_running(session, sync), None)
+            alt, alt_measured = _identified_at_clocks(as_free, section, _as_free_running(session, sync), None)
         except AnalysisError as exc:
             retry_error = f"; as free-running: {exc}"
             progress("detect", f"as free-running: {exc}")
         else:
             alt_tracked, alt_segment, _ = _tracked(alt.idn, gap)
             if _run_length(alt_segment) > _run_length(segment):
-                found, tracked, segment = alt, alt_tracked, alt_segment
+                found, tracked, segment, measured = alt, alt_tracked, alt_segment, alt_measured
             else:
                 retry_error = f"; as free-running {_run_length(alt_segment)} consecutive frames"
     idn, sync, check = found.idn, found.sync, found.check
@@ -482,7 +536,8 @@ def _detect_multiview(session, section, sync, rig, static_points, progress) -> D
         hint = (f"; the markers moved or could not check the flash offsets of {', '.join(moved)} (offsets now "
                 f"{sync.offsets}, the flash's {sync.flash_offsets or sync.offsets}): "
                 "if the flash was found in the wrong frame in two cameras, give the offsets (--offsets)"
-                if moved else "") + retry_error + subframe.unmeasured_drift_hint(sync.n_frames, sync.free_running) \
+                if moved else "") + retry_error \
+            + (clocks_not_measured_hint(sync.n_frames) if sync.free_running and not measured else "") \
             + identification_hint(session, sync)
         raise AnalysisError("detect", "fewer than 8 consecutive frames in which every marker (three of four or more) "
                             "is seen by two or "
@@ -649,7 +704,7 @@ def _subframe_by_markers(session, sync, rig, marker_px, times, progress):
     phase[ref] = 0.0
     unc = {c: (fits[c].uncertainty if c in fits else sync.offset_uncertainty_frames.get(c, 0.0))
            for c in session.cameras}
-    rate = {c: (fits[c].rate_ratio if c in fits else 1.0) for c in session.cameras}
+    rate = {c: (fits[c].rate_ratio if c in fits else sync.rate_ratio.get(c, 1.0)) for c in session.cameras}
     progress("detect", "fractions of a frame refined by the markers: " + ", ".join(
         f"{c} {phase[c]:+.3f} +- {unc[c]:.3f}" + subframe.drift_text(rate[c], sync.n_frames) for c in fits) + f" (residual {min(f.residual_px for f in fits.values()):.2f} px"
         + (f"; readout times of {', '.join(times)} used" if times else "; no rolling-shutter readout given") + ")")

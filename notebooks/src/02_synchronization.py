@@ -295,13 +295,14 @@ print(f"middle phase {chosen_phase:+.3f} frame: median residual {at_chosen:.3f} 
 # when it is a clock's (`subframe.drift_is_measured`: 3 standard errors, a twentieth of a frame over
 # the record, at most 1500 ppm: a camera at 30000/1001 fps labelled 30 is 999 ppm off one at 30). Such
 # a camera gains a whole frame every thousand: the identification then compares, at each reference
-# instant, its frame nearest that instant (`subframe.whole_frames_gained`), so the frames it compares
-# stay a fraction of a frame apart however long the ride. The rates are measured once the markers are
-# identified, and the first identification holds the flash's phases: on a record longer than 1001 frames
-# the detect step therefore measures the clocks first on the 1001 frames after the flash, where the
-# flash's phases hold best, then on twice as many at the rates found, and so on to the whole record (a
-# camera at 30000/1001 fps would otherwise be more than half a frame off where the markers are first
-# labelled, the record's middle). A worked example: three passes of a marker
+# instant, its frame that keeps the delay within half a frame of its phase at frame 0
+# (`subframe.whole_frames_gained`), so the frames it compares stay a fraction of a frame apart however
+# long the ride. The rates are measured once the markers are identified, and the first identification
+# holds the flash's phases: on a record longer than 1001 frames of cameras running free at rates not yet
+# known, the detect step therefore measures the clocks first on the 1001 frames after the flash, where
+# the flash's phases hold best, then on twice as many at the rates found, and identifies the whole
+# record at them (a camera at 30000/1001 fps would otherwise be more than half a frame off where the
+# markers are first labelled, the record's middle). A worked example: three passes of a marker
 # triangle across the thesis rig in 1200 frames, the middle camera 150 ppm fast and 0.3 frame late,
 # the right camera exact.
 
