@@ -929,7 +929,7 @@ def _phase_by_identification(ident: _Identifier, sync, idn):
     ident.progress("detect", f"views found inconsistent with the other cameras' ({before} of their marker-frames): "
                        "identified again at other phases; "
                        + ", ".join(f"{c} {d:+.2f} frame" for c, d in moved.items())
-                       + f" from the flash's ({best_used} marker-frames used)")
+                       + f" from the phases first identified at ({best_used} marker-frames used)")
     return idn, sync
 
 
