@@ -82,8 +82,8 @@ PHASE_MAX_FRAMES = 1.0
 #: The phases tried for such a camera, in frames from the flash's (the flash's uncertainty either way, and twice it).
 PHASE_TRIALS_FRAMES = (-0.5, -0.25, 0.25, 0.5)
 #: Free-running cameras whose rates are not known: a record longer than this many frames has its clocks measured
-#: first on its first this-many frames from the flash, then on twice as many, until the whole record
-#: (:func:`_clocks_from_the_flash`). The first identification labels the markers from the record's middle at the
+#: first on its first this-many frames from the flash, then on twice as many while that is shorter than three
+#: quarters of the record, before the whole record (:func:`_clocks_from_the_flash`). The first identification labels the markers from the record's middle at the
 #: flash's phases with every clock at the reference's rate; a camera at 30000/1001 fps labelled 30 is half a frame
 #: off those phases at the middle of 1001 frames, past which its views disagree with the others'.
 CLOCKS_FIRST_FRAMES = subframe.NTSC_FRAMES_PER_GAINED_FRAME
