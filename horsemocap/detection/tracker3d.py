@@ -344,11 +344,11 @@ def _in_own_frames(idn: "Identification", timing: dict) -> "Identification":
             continue
         n = len(d.gained)
         src = np.arange(n) - d.gained
-        inside = (src >= 0) & (src < n)
+        inside = np.broadcast_to(((src >= 0) & (src < n))[:, None], idn.reason[c].shape)
         px[c], area[c] = np.full_like(idn.marker_px[c], np.nan), np.full_like(idn.area[c], np.nan)
         reason[c] = np.full(idn.reason[c].shape, "not_read", dtype=object)      # not cut to the reasons' width
-        for pick in (inside, inside[:, None] & (idn.reason[c] == "")):     # then the used views over the others
-            k, m = np.nonzero(pick if pick.ndim == 2 else np.broadcast_to(pick[:, None], idn.reason[c].shape))
+        for pick in (inside, inside & (idn.reason[c] == "")):     # every view read, then the used ones over them
+            k, m = np.nonzero(pick)
             px[c][src[k], m] = idn.marker_px[c][k, m]
             reason[c][src[k], m] = idn.reason[c][k, m]
             area[c][src[k], m] = idn.area[c][k, m]

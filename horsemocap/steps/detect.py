@@ -387,8 +387,8 @@ def _clocks_from_the_flash(ident: _Identifier, section, sync: SyncResult) -> Syn
     the rates are known, or the first part measured nothing.
     """
     session, n = ident.session, sync.n_frames
-    measured = any(float(v) != 1.0 for v in sync.rate_ratio.values())
-    if (measured or n <= CLOCKS_FIRST_FRAMES or len(session.cameras) < 3
+    rates_known = any(float(v) != 1.0 for v in sync.rate_ratio.values())
+    if (rates_known or n <= CLOCKS_FIRST_FRAMES or len(session.cameras) < 3
             or sync.subframe_method not in ("flash", "markers")):
         return sync
     current, length, measured_on = sync, CLOCKS_FIRST_FRAMES, 0
