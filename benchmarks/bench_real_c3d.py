@@ -63,6 +63,9 @@ CASES = [
      ["Daphnee:ASISr", "Daphnee:ASISl", "Daphnee:PSISr"], "Daphnee:PSISl", 0, 580),
     ("Vicon: arm (skin)", "markers_analogs.c3d",
      ["Daphnee:ARMl", "Daphnee:ARMm", "Daphnee:ARMp_up"], "Daphnee:ARMp_do", 0, 580),
+    ("Qualisys: head (walking)", "Qualisys.c3d", ["L_HDF", "L_HDB", "R_HDB"], "R_HDF", 0, 340),
+    ("Qualisys: pelvis (skin)", "Qualisys.c3d", ["L_IAS", "L_IPS", "R_IPS"], "R_IAS", 0, 340),
+    ("Qualisys: thorax (skin)", "Qualisys.c3d", ["SNJ", "SXS", "TV8"], "CV7", 0, 340),
 ]
 REFERENCE_S, REFERENCE_ORDER = 0.25, 4
 PEER_SG_S, PEER_SG_ORDER = 0.15, 3
