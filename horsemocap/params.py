@@ -434,7 +434,8 @@ class PoseParams:
         thesis' eq. 5.14-5.21). Flat name ``pose_weights``.
     rotation_weights : str
         With ``weights`` ``"covariance"`` and GCV smoothing (``smoothing``
-        ``"gcv"``, or ``"auto"`` on a periodic record): ``"auto"`` (default)
+        ``"gcv"``, or ``"auto"`` on a periodic record, or ``"auto"`` under
+        correlated noise with ``correlated_noise_criterion`` ``"loo"``): ``"auto"`` (default)
         smooths each rotation component twice, with every frame weighted by
         its predicted variance (robustly) and with equal weights, and keeps
         the fit whose noise model explains its residuals better

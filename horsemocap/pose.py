@@ -83,7 +83,10 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
 - ``partial_frames``: also smooth over the frames with exactly two markers.
 - ``rotation_weights``: ``"auto"``: with a registration that carries the
   pose's information matrices (:func:`register_pose` with ``covariance``) and
-  ``"gcv"`` (quintic), each rotation component is fitted twice, with every
+  ``"gcv"`` (quintic; under correlated noise too with the criterion ``"loo"``:
+  the AR(1) correlation is then that of the frames' standardised errors, and
+  a frame whose pose rests on fewer markers, one of four covered, weighs
+  less), each rotation component is fitted twice, with every
   frame weighted by its predicted variance (:func:`frame_variances`,
   robustly: :func:`horsemocap.splines.robust_weighted_spline`, the
   harmonics' noise test at its calibrated noise level) and with equal
@@ -1719,7 +1722,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
     var = None
     harmonic_correlated = harmonic_correlation is not None and f0 is not None
     if (params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None
-            and not correlated and not harmonic_correlated):
+            and (not correlated or params.correlated_noise_criterion == "loo") and not harmonic_correlated):
         var = frame_variances(reg)[:, 3:]
     spline_options = dict(method=smoothing, order=order, fundamental_hz=f0,
                           events=_pose_events(params.events, smoothing, order, f0))
@@ -2026,8 +2029,12 @@ def _fit_settled_blend(t, reg: PoseRegistration, model, phi, ok, ref, order: int
     choice = _aperture_options(plain, aperture, order, None if settled.choice is None else dict(settled.choice))
     _aperture_options(harmonic, aperture, order, {})
     stack = (harmonic, list(settled.harmonic_lam), [None] * 3, tuple(settled.blend_weights))
+    var = None
+    if any(settled.rotation_weighted) and reg.information is not None:
+        var = frame_variances(reg)[:, 3:].copy()
+        var[:, ~np.asarray(settled.rotation_weighted, bool)] = np.nan    # equal weights there
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, plain, lam, sig,
-                                       None, [None] * 3, False, iterations, most_harmonics=settled.harmonics,
+                                       var, [None] * 3, False, iterations, most_harmonics=settled.harmonics,
                                        compare_weights=False, stack=stack)
     for s in cs + ps:
         s.info["blended"]["settled"] = True     # the parameters and the weight given, not chosen on this record
@@ -2395,8 +2402,11 @@ def _blended_component(plain, harmonic, weight: float):
     for key in ("fundamental_hz", "harmonics", "harmonic_indices"):
         if harmonic.info.get(key) is not None:
             blend.info[key] = harmonic.info[key]
-    blend.info["blended"] = {"plain": {k: plain.info.get(k) for k in ("lam", "edf")},
-                             "harmonics": {k: harmonic.info.get(k) for k in ("lam", "edf", "harmonics")}}
+    blend.info["blended"] = {"plain": {k: plain.info.get(k) for k in ("lam", "edf", "weights")},
+                             "harmonics": {k: harmonic.info.get(k) for k in ("lam", "edf", "harmonics", "weights")}}
+    weighted = [part.info.get("weights", "equal") != "equal" for part in (plain, harmonic)]
+    if any(weighted):     # a rotation component weighted by its frames' predicted variance in either route
+        blend.info["weights"] = "inverse variance, Huber" if all(weighted) else "inverse variance in one route"
     return blend
 
 
