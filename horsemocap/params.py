@@ -435,7 +435,8 @@ class PoseParams:
     rotation_weights : str
         With ``weights`` ``"covariance"`` and GCV smoothing (``smoothing``
         ``"gcv"``, or ``"auto"`` on a periodic record, or ``"auto"`` under
-        correlated noise with ``correlated_noise_criterion`` ``"loo"``): ``"auto"`` (default)
+        correlated noise where ``correlated_noise_criterion`` ``"loo"``
+        leaves markers out, four or more): ``"auto"`` (default)
         smooths each rotation component twice, with every frame weighted by
         its predicted variance (robustly) and with equal weights, and keeps
         the fit whose noise model explains its residuals better

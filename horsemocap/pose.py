@@ -83,10 +83,11 @@ The smoothing's choices (:class:`horsemocap.params.PoseParams`, read by
 - ``partial_frames``: also smooth over the frames with exactly two markers.
 - ``rotation_weights``: ``"auto"``: with a registration that carries the
   pose's information matrices (:func:`register_pose` with ``covariance``) and
-  ``"gcv"`` (quintic; under correlated noise too with the criterion ``"loo"``:
-  the AR(1) correlation is then that of the frames' standardised errors, and
-  a frame whose pose rests on fewer markers, one of four covered, weighs
-  less), each rotation component is fitted twice, with every
+  ``"gcv"`` (quintic; under correlated noise too where the smoothing is
+  chosen by leaving markers out, four or more markers: a frame whose pose
+  rests on fewer markers, one of four covered, weighs less; the parameters
+  are those the left-out search chose with equal weights, the weights of
+  mean 1), each rotation component is fitted twice, with every
   frame weighted by its predicted variance (:func:`frame_variances`,
   robustly: :func:`horsemocap.splines.robust_weighted_spline`, the
   harmonics' noise test at its calibrated noise level) and with equal
@@ -1722,7 +1723,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
     var = None
     harmonic_correlated = harmonic_correlation is not None and f0 is not None
     if (params.rotation_weights == "auto" and smoothing == "gcv" and order == 5 and reg.information is not None
-            and (not correlated or params.correlated_noise_criterion == "loo") and not harmonic_correlated):
+            and (not correlated or _left_out_route_runs(params, model, points, lam)) and not harmonic_correlated):
         var = frame_variances(reg)[:, 3:]
     spline_options = dict(method=smoothing, order=order, fundamental_hz=f0,
                           events=_pose_events(params.events, smoothing, order, f0))
@@ -1839,6 +1840,14 @@ class _StackedRoutes:
     fundamental_hz: float
     weights: np.ndarray
     weights_by_loss: bool = True
+
+
+def _left_out_route_runs(params: PoseParams, model, points, lam) -> bool:
+    """Does the smoothing under correlated noise get chosen by leaving markers out
+    (:func:`_left_out_marker_smoothing`): the criterion ``"loo"``, four or more markers, their points, no
+    smoothing parameter given? (With three the same criterion is the correlated-error GCV.)"""
+    return (params.correlated_noise_criterion == "loo" and points is not None and np.asarray(model).shape[0] >= 4
+            and all(v is None for v in lam))
 
 
 def _left_out_marker_smoothing(t, reg: PoseRegistration, model, points, lam, choice: dict, aperture=None,
@@ -1992,14 +2001,7 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
                                   iterations=iterations, aperture=aperture, two=two)
     f0 = fundamental_hz if settled.method in ("gcv", "noise") and order == 5 else None
     choice = None if settled.choice is None else dict(settled.choice)
-    var = None
-    if any(settled.rotation_weighted) and reg.information is not None:
-        var = frame_variances(reg)[:, 3:].copy()
-        var[:, ~np.asarray(settled.rotation_weighted, bool)] = np.nan    # equal weights there
-    elif any(settled.rotation_weighted) and choice is not None:
-        choice["smoothing_reason"] = (choice.get("smoothing_reason", "") + "; the settled rotation weighting is "
-                                      "not applied: this record's registration has no marker covariances, so the "
-                                      "rotation is weighted equally")
+    var = _settled_rotation_variances(reg, settled.rotation_weighted, choice)
     spline_options = dict(method="gcv" if settled.method == "gcv_cubic" else settled.method, order=order,
                           fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
     if settled.noise_correlation is not None:
@@ -2010,6 +2012,23 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
                                        sig, var, [None] * 3, False, iterations, most_harmonics=most,
                                        compare_weights=False)
     return centre, phi, cs, ps, choice, two
+
+
+def _settled_rotation_variances(reg: PoseRegistration, rotation_weighted, choice: dict | None):
+    """The frames' rotation variances (n, 3) for the components a settled smoothing weights (``rotation_weighted``,
+    3 bool; NaN columns: equal weights), None when none is; without marker covariances in ``reg`` None, and
+    ``choice``'s reason says the settled weighting could not be applied."""
+    if not any(rotation_weighted):
+        return None
+    if reg.information is None:
+        if choice is not None and "not applied" not in choice.get("smoothing_reason", ""):
+            choice["smoothing_reason"] = (choice.get("smoothing_reason", "") + "; the settled rotation weighting "
+                                          "is not applied: this record's registration has no marker covariances, "
+                                          "so the rotation is weighted equally")
+        return None
+    var = frame_variances(reg)[:, 3:].copy()
+    var[:, ~np.asarray(rotation_weighted, bool)] = np.nan    # equal weights there
+    return var
 
 
 def _fit_settled_blend(t, reg: PoseRegistration, model, phi, ok, ref, order: int, settled: SettledPoseSmoothing, *,
@@ -2028,11 +2047,10 @@ def _fit_settled_blend(t, reg: PoseRegistration, model, phi, ok, ref, order: int
     harmonic = _harmonic_route_options(plain, params, "gcv", order, fundamental_hz)
     choice = _aperture_options(plain, aperture, order, None if settled.choice is None else dict(settled.choice))
     _aperture_options(harmonic, aperture, order, {})
-    stack = (harmonic, list(settled.harmonic_lam), [None] * 3, tuple(settled.blend_weights))
-    var = None
-    if any(settled.rotation_weighted) and reg.information is not None:
-        var = frame_variances(reg)[:, 3:].copy()
-        var[:, ~np.asarray(settled.rotation_weighted, bool)] = np.nan    # equal weights there
+    var = _settled_rotation_variances(reg, settled.rotation_weighted, choice)
+    harmonic_var = _settled_rotation_variances(reg, settled.harmonic_rotation_weighted or settled.rotation_weighted,
+                                               choice)
+    stack = (harmonic, list(settled.harmonic_lam), [None] * 3, tuple(settled.blend_weights), harmonic_var)
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, plain, lam, sig,
                                        var, [None] * 3, False, iterations, most_harmonics=settled.harmonics,
                                        compare_weights=False, stack=stack)
@@ -2070,7 +2088,8 @@ class SettledPoseSmoothing:
     harmonics : tuple of 6 int
         The most stride harmonics each component may keep (its largest harmonic's order; 0: none).
     rotation_weighted : tuple of 3 bool
-        Whether each rotation component is smoothed with every frame weighted by its predicted variance.
+        Whether each rotation component is smoothed with every frame weighted by its predicted variance (in a
+        blend: its plain route).
     choice : dict or None
         What ``smoothing="auto"`` ran and why (copied into each component's ``info``), None if the
         method was named.
@@ -2082,6 +2101,9 @@ class SettledPoseSmoothing:
         ``w * harmonic route + (1 - w) * plain route`` (:func:`horsemocap.splines.blend_splines`).
         With a blend, ``lam`` and ``noise_correlation`` are the plain route's, ``fundamental_hz`` and
         ``harmonics`` the harmonic route's. None: no blend.
+    harmonic_rotation_weighted : tuple of 3 bool or None
+        A blend's harmonic route: whether each rotation component is weighted by its frames' predicted
+        variances (each route chose for itself). None: as ``rotation_weighted``.
 
     Examples
     --------
@@ -2106,6 +2128,7 @@ class SettledPoseSmoothing:
     choice: dict | None = None
     harmonic_lam: tuple | None = None
     blend_weights: tuple | None = None
+    harmonic_rotation_weighted: tuple | None = None
 
     def __post_init__(self):
         if (self.harmonic_lam is None) != (self.blend_weights is None):
@@ -2169,12 +2192,15 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
                 and np.isfinite(info[c]["lam"]) and info[c]["lam"] > 0 else None for c in names)
     harmonics = tuple(int(max(info[c].get("harmonic_indices") or [0])) if f0 is not None else 0 for c in names)
     weighted = tuple(info[c].get("weights", "equal") != "equal" for c in names[3:])
-    harmonic_lam = weights = None
+    harmonic_lam = weights = harmonic_weighted = None
     if blended and f0 is not None:
-        # a blend of two fits: each route's parameters and the harmonic route's weight, reused as they are
+        # a blend of two fits: each route's parameters, rotation weighting and the harmonic route's weight, reused
         lam = tuple(float(info[c]["blended"]["plain"]["lam"]) for c in names)
         harmonic_lam = tuple(float(info[c]["blended"]["harmonics"]["lam"]) for c in names)
         weights = tuple(float(info[c]["blend_weights"][1]) for c in names)
+        weighted = tuple((info[c]["blended"]["plain"].get("weights") or "equal") != "equal" for c in names[3:])
+        harmonic_weighted = tuple((info[c]["blended"]["harmonics"].get("weights") or "equal") != "equal"
+                                  for c in names[3:])
     elif f0 is not None and rho is not None and not choice.get("correlated_harmonics"):
         # the left-out choice's fits with the stride's harmonics are white-noise fits: the harmonic route's
         # parameters are reused as such (the correlated-error refit with harmonics keeps its correlation)
@@ -2191,7 +2217,8 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
             kept["noise_correlation"] = choice["noise_correlation"]
         if choice.get("correlated_harmonics"):
             kept["correlated_harmonics"] = True
-    return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept, harmonic_lam, weights)
+    return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept, harmonic_lam, weights,
+                                harmonic_weighted)
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:
@@ -2356,15 +2383,16 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
 
     ``most_harmonics``: (6,) the most harmonics each component tries (None: the spline's default);
     ``compare_weights`` False: a rotation component with variances is fitted weighted only; ``stack``:
-    ``(options, lam, rotation noise, weights)`` of a second fit of the same frames, each component the blend
-    ``weights * second + (1 - weights) * first`` (:func:`horsemocap.splines.blend_splines`).
+    ``(options, lam, rotation noise, weights[, rotation variances])`` of a second fit of the same frames (its own
+    variances, a settled route's; without, ``var``), each component the blend ``weights * second + (1 - weights)
+    * first`` (:func:`horsemocap.splines.blend_splines`).
     Returns the centroid and rotation vectors the splines were fitted to and the splines (3 + 3).
     """
     use = ok
     x_model = np.asarray(model, float)
     extra = [{} if most_harmonics is None else {"max_harmonics": int(k)} for k in (most_harmonics or [0] * 6)]
 
-    def fit(options, lam, rot_noise):
+    def fit(options, lam, rot_noise, var):
         cs = tuple(smoothing_spline(t[use], centre[use, i], lam=lam[i], noise=sig[i], **options, **extra[i])
                    for i in range(3))
         ps = tuple(_rotation_component(t[use], phi[use, i], None if var is None else var[use, i],
@@ -2374,9 +2402,9 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
         return cs + ps
 
     for it in range(iterations + 1 if two.any() else 1):
-        splines = fit(options, lam, rot_noise)
+        splines = fit(options, lam, rot_noise, var)
         if stack is not None:
-            second = fit(*stack[:3])
+            second = fit(*stack[:3], stack[4] if len(stack) > 4 else var)
             splines = tuple(_blended_component(a, b, w) for a, b, w in zip(splines, second, stack[3]))
         cs, ps = splines[:3], splines[3:]
         if it == iterations or not two.any():

@@ -175,7 +175,8 @@ def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning,
         progress("rigid_body", f"pose trajectory ({how}, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond.registration_rms_m):.2f} mm")
-        weighted = [k for k, v in sm.items() if v.get("weights", "equal") != "equal"]
+        weighted = [k + (" (in one of the two blended fits)" if v.get("weights") == "inverse variance in one route"
+                         else "") for k, v in sm.items() if v.get("weights", "equal") != "equal"]
         if weighted:
             progress("rigid_body", "rotation smoothed with each frame weighted by its predicted variance (its noise "
                                    f"model explains the residuals better) in {', '.join(weighted)}")
