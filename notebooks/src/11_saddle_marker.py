@@ -450,7 +450,7 @@ plt.show()
 # reference removes is shared by all four markers of the head: real motion, or an error common to the
 # whole cluster, which no data from the cluster alone can tell apart. The "best" smoothing therefore depends
 # on what it is judged against: a fixed filter rewards the smoothing closest to its own, and a comparison
-# of methods must say which reference it uses (`benchmarks/README.md` lists both for seven real clusters).
+# of methods must say which reference it uses (`benchmarks/README.md` lists both for ten real clusters from three systems).
 
 # %% [markdown]
 # ### When correlated noise looks like the stride
