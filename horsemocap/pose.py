@@ -1745,7 +1745,7 @@ def _fit_components(t, reg: PoseRegistration, model, phi, ok, ref, smoothing: st
                                                            stacked.fundamental_hz)
                 harmonic_noise = (_rotation_noise(reg, model) if params.harmonics == "auto" and rotation_noise_test
                                   else [None] * 3)
-                stack = (harmonic_options, stacked.lam, harmonic_noise, stacked.weights)
+                stack = (harmonic_options, stacked.lam, harmonic_noise, stacked.weights, var)
             elif harmonic is not None:
                 # the stride's harmonics fitted unpenalised: the spline of white noise with the chosen parameters
                 spline_options = _harmonic_route_options(spline_options, params, smoothing, order, harmonic)
@@ -2001,7 +2001,7 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
                                   iterations=iterations, aperture=aperture, two=two)
     f0 = fundamental_hz if settled.method in ("gcv", "noise") and order == 5 else None
     choice = None if settled.choice is None else dict(settled.choice)
-    var = _settled_rotation_variances(reg, settled.rotation_weighted, choice)
+    var, = _settled_rotation_variances(reg, choice, settled.rotation_weighted)
     spline_options = dict(method="gcv" if settled.method == "gcv_cubic" else settled.method, order=order,
                           fundamental_hz=f0, events=_pose_events(params.events, settled.method, order, f0))
     if settled.noise_correlation is not None:
@@ -2014,21 +2014,28 @@ def _fit_settled_components(t, reg: PoseRegistration, model, phi, ok, ref, order
     return centre, phi, cs, ps, choice, two
 
 
-def _settled_rotation_variances(reg: PoseRegistration, rotation_weighted, choice: dict | None):
-    """The frames' rotation variances (n, 3) for the components a settled smoothing weights (``rotation_weighted``,
-    3 bool; NaN columns: equal weights), None when none is; without marker covariances in ``reg`` None, and
-    ``choice``'s reason says the settled weighting could not be applied."""
-    if not any(rotation_weighted):
-        return None
+def _settled_rotation_variances(reg: PoseRegistration, choice: dict | None, *weightings) -> list:
+    """Per settled weighting (3 bool each: which rotation components a route weights), the frames' rotation
+    variances (n, 3; NaN columns: equal weights there), None for a route that weights none; all None without
+    marker covariances in ``reg``, and ``choice``'s reason then says the settled weighting could not be
+    applied."""
+    if not any(any(w) for w in weightings):
+        return [None] * len(weightings)
     if reg.information is None:
-        if choice is not None and "not applied" not in choice.get("smoothing_reason", ""):
+        if choice is not None:
             choice["smoothing_reason"] = (choice.get("smoothing_reason", "") + "; the settled rotation weighting "
                                           "is not applied: this record's registration has no marker covariances, "
                                           "so the rotation is weighted equally")
-        return None
-    var = frame_variances(reg)[:, 3:].copy()
-    var[:, ~np.asarray(rotation_weighted, bool)] = np.nan    # equal weights there
-    return var
+        return [None] * len(weightings)
+    full = frame_variances(reg)[:, 3:]
+    out = []
+    for w in weightings:
+        var = None
+        if any(w):
+            var = full.copy()
+            var[:, ~np.asarray(w, bool)] = np.nan
+        out.append(var)
+    return out
 
 
 def _fit_settled_blend(t, reg: PoseRegistration, model, phi, ok, ref, order: int, settled: SettledPoseSmoothing, *,
@@ -2047,9 +2054,8 @@ def _fit_settled_blend(t, reg: PoseRegistration, model, phi, ok, ref, order: int
     harmonic = _harmonic_route_options(plain, params, "gcv", order, fundamental_hz)
     choice = _aperture_options(plain, aperture, order, None if settled.choice is None else dict(settled.choice))
     _aperture_options(harmonic, aperture, order, {})
-    var = _settled_rotation_variances(reg, settled.rotation_weighted, choice)
-    harmonic_var = _settled_rotation_variances(reg, settled.harmonic_rotation_weighted or settled.rotation_weighted,
-                                               choice)
+    var, harmonic_var = _settled_rotation_variances(reg, choice, settled.rotation_weighted,
+                                                    settled.harmonic_rotation_weighted or settled.rotation_weighted)
     stack = (harmonic, list(settled.harmonic_lam), [None] * 3, tuple(settled.blend_weights), harmonic_var)
     centre, phi, cs, ps = _smooth_pose(t, reg.centre.copy(), phi, ok, two, ref, points, model, plain, lam, sig,
                                        var, [None] * 3, False, iterations, most_harmonics=settled.harmonics,
@@ -2383,8 +2389,8 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
 
     ``most_harmonics``: (6,) the most harmonics each component tries (None: the spline's default);
     ``compare_weights`` False: a rotation component with variances is fitted weighted only; ``stack``:
-    ``(options, lam, rotation noise, weights[, rotation variances])`` of a second fit of the same frames (its own
-    variances, a settled route's; without, ``var``), each component the blend ``weights * second + (1 - weights)
+    ``(options, lam, rotation noise, weights, rotation variances)`` of a second fit of the same frames (its own
+    rotation variances, as ``var`` for the first), each component the blend ``weights * second + (1 - weights)
     * first`` (:func:`horsemocap.splines.blend_splines`).
     Returns the centroid and rotation vectors the splines were fitted to and the splines (3 + 3).
     """
@@ -2404,7 +2410,7 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
     for it in range(iterations + 1 if two.any() else 1):
         splines = fit(options, lam, rot_noise, var)
         if stack is not None:
-            second = fit(*stack[:3], stack[4] if len(stack) > 4 else var)
+            second = fit(*stack[:3], stack[4])
             splines = tuple(_blended_component(a, b, w) for a, b, w in zip(splines, second, stack[3]))
         cs, ps = splines[:3], splines[3:]
         if it == iterations or not two.any():
@@ -2422,6 +2428,11 @@ def _smooth_pose(t, centre, phi, ok, two, ref, points, model, options: dict, lam
     return centre, phi, cs, ps
 
 
+#: A blended rotation component's ``weights`` when only one of its two routes weighted its frames
+#: (:func:`_blended_component`).
+ONE_ROUTE_WEIGHTS = "inverse variance in one route"
+
+
 def _blended_component(plain, harmonic, weight: float):
     """One pose component's blend of the plain route's spline and the harmonic route's
     (:func:`horsemocap.splines.blend_splines`), its ``info`` also naming the harmonic part's stride frequency and
@@ -2434,7 +2445,7 @@ def _blended_component(plain, harmonic, weight: float):
                              "harmonics": {k: harmonic.info.get(k) for k in ("lam", "edf", "harmonics", "weights")}}
     weighted = [part.info.get("weights", "equal") != "equal" for part in (plain, harmonic)]
     if any(weighted):     # a rotation component weighted by its frames' predicted variance in either route
-        blend.info["weights"] = "inverse variance, Huber" if all(weighted) else "inverse variance in one route"
+        blend.info["weights"] = "inverse variance, Huber" if all(weighted) else ONE_ROUTE_WEIGHTS
     return blend
 
 

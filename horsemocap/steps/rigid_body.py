@@ -8,7 +8,7 @@ import numpy as np
 from ..aperture import session_aperture
 from ..frames import time_axis, to_motion_frame
 from ..params import RigidBodyParams
-from ..pose import CollinearMarkersError, SettledPoseSmoothing
+from ..pose import ONE_ROUTE_WEIGHTS, CollinearMarkersError, SettledPoseSmoothing
 from ..rigid import (Conditioning, FourierOrders, PoseInput, RigidBodyAnalysis, analyse_rigid_body, conditioning,
                      saddle_angles)
 from ..session import Session
@@ -175,7 +175,7 @@ def _report(section: RigidBodyParams, rb: RigidBodyAnalysis, cond: Conditioning,
         progress("rigid_body", f"pose trajectory ({how}, effective degrees of "
                  f"freedom per component " + ", ".join(f"{k} {v['edf']:.1f}" for k, v in sm.items())
                  + f"); registration residual median {1000 * np.nanmedian(cond.registration_rms_m):.2f} mm")
-        weighted = [k + (" (in one of the two blended fits)" if v.get("weights") == "inverse variance in one route"
+        weighted = [k + (" (in one of the two blended fits)" if v.get("weights") == ONE_ROUTE_WEIGHTS
                          else "") for k, v in sm.items() if v.get("weights", "equal") != "equal"]
         if weighted:
             progress("rigid_body", "rotation smoothed with each frame weighted by its predicted variance (its noise "
