@@ -831,6 +831,7 @@ class AnalysisParams:
         for cam in self.rig.exclude:
             if cam not in cams:
                 raise bad("rig.exclude", f"expected a camera of {cams}, got '{cam}'")
+        _check_excluded_views(self.rig.exclude, session, bad)
         for kind in ("plumb", "static"):
             _check_still_cameras(getattr(self.stills, kind), kind, session, bad)
         n = session.marker_count
@@ -1265,6 +1266,27 @@ def _check_offsets(value, f):
     for cam, frame in value.items():
         if not (_is_int(frame) or (isinstance(frame, float) and math.isfinite(frame))) or frame < 0:
             raise _Invalid(f"a frame index (>= 0; a fraction for free-running cameras) for camera '{cam}'", frame)
+
+
+def _check_excluded_views(exclude: dict, session, bad) -> None:
+    """Every view left out of the calibration is one of its camera's checkerboard views (a key or a file name):
+    said before any view is detected."""
+    folders = (getattr(session, "calibration_images", None) or {}) if exclude else {}
+    if not any(folders.get(cam) is not None and Path(folders[cam]).is_dir() for cam in exclude):
+        return
+    # imported here: the board module loads OpenCV, which a session without views left out need not wait for
+    from .calibration.board import excluded_view_keys, view_keys
+    from .sources import list_images
+
+    for cam, views in exclude.items():
+        folder = folders.get(cam)
+        if folder is None or not Path(folder).is_dir():
+            continue                     # the calibration step names a missing folder
+        files = list_images(folder)
+        try:
+            excluded_view_keys(cam, view_keys(files, cam), files, views)
+        except ValueError as exc:
+            raise bad("rig.exclude", f"{exc} in {folder}") from None
 
 
 def _check_exclude(value, f):

@@ -5,6 +5,7 @@ Thesis Appendix A spends pages renaming files so that MATLAB reads
 """
 from __future__ import annotations
 
+import os
 import re
 import threading
 from collections import OrderedDict
@@ -27,6 +28,35 @@ READ_BLOCK = 16
 #: Bytes of decoded gray video frames shared by the readers of a video in one process: the flash
 #: search decodes the first frames of each video, the detection and its check read them again.
 SHARED_GRAY_BYTES = 160 * 2 ** 20
+
+#: FFmpeg's own log lines (``[mjpeg @ 0x...] overread 4``) would come before the one line that names a broken
+#: video and what is wrong with it: quiet, unless the user sets the variable (OpenCV reads it at the first open)
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+#: The backend that reads the videos: FFmpeg where OpenCV has it. The default order would try OpenCV's own
+#: MJPEG reader after FFmpeg fails on a broken file, and that reader prints its complaints to the terminal.
+VIDEO_BACKEND = cv2.CAP_FFMPEG if cv2.videoio_registry.hasBackend(cv2.CAP_FFMPEG) else cv2.CAP_ANY
+_OPEN_LOCK = threading.Lock()
+
+
+def open_video(path) -> cv2.VideoCapture:
+    """A ``cv2.VideoCapture`` of ``path`` through :data:`VIDEO_BACKEND` (check ``isOpened()``).
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> cap = open_video(default_session_dir() / "motion" / "left.avi")
+    >>> cap.isOpened(), cap.read()[0]
+    (True, True)
+    >>> cap.release()
+    """
+    with _OPEN_LOCK:     # OpenCV's own warning of a file its backend cannot open would come before our error too
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+        try:
+            return cv2.VideoCapture(str(path), VIDEO_BACKEND)
+        finally:
+            cv2.utils.logging.setLogLevel(level)
+
 
 
 class _SharedGray:
@@ -390,7 +420,7 @@ class FrameSource:
             if not list_images(path):
                 raise SourceError(f"{path}: folder holds no image files ({', '.join(sorted(IMAGE_SUFFIXES))})")
         elif _SharedGray.video_key(path) not in _OPENED:     # each file as it is checked once per process
-            cap = cv2.VideoCapture(str(path))
+            cap = open_video(path)
             ok = cap.isOpened() and cap.read()[0]
             cap.release()
             if not ok:
@@ -407,7 +437,7 @@ class FrameSource:
         """The frame rate the video container declares; None for an image folder or when it says none."""
         if not self.is_video:
             return None
-        cap = cv2.VideoCapture(str(self.path))
+        cap = open_video(self.path)
         try:
             fps = float(cap.get(cv2.CAP_PROP_FPS))
         finally:
@@ -425,7 +455,7 @@ class FrameSource:
         count the container declares (a folder: its images), without decoding the video. A container that
         declares no count is taken to hold at least ``frames`` (None: :meth:`__len__`, which decodes to count)."""
         if self.is_video:
-            cap = cv2.VideoCapture(str(self.path))
+            cap = open_video(self.path)
             try:
                 size = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)) * int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
                 count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
@@ -451,7 +481,7 @@ class FrameSource:
         return known
 
     def _count_frames(self) -> tuple[int | None, int]:
-        cap = cv2.VideoCapture(str(self.path))
+        cap = open_video(self.path)
         try:
             # the count the container declares, if its last frame is read and nothing after it
             # (no decoding of the whole video: a ten-minute session would be decoded twice)
@@ -462,7 +492,7 @@ class FrameSource:
                     return n, n
             # otherwise (no count, a truncated or an inexact one): count every frame
             cap.release()
-            cap = cv2.VideoCapture(str(self.path))
+            cap = open_video(self.path)
             count = 0
             while cap.grab():
                 count += 1
@@ -529,7 +559,7 @@ class FrameSource:
                 yield i, image
             return
         video = _SharedGray.video_key(self.path) if share and not color else None
-        cap = cv2.VideoCapture(str(self.path))
+        cap = open_video(self.path)
         try:
             if start:
                 cap.set(cv2.CAP_PROP_POS_FRAMES, start)
@@ -772,12 +802,12 @@ class FrameSequence:
 
     def _seek(self, k: int) -> None:
         if self._cap is None:
-            self._cap = cv2.VideoCapture(str(self.source.path))
+            self._cap = open_video(self.source.path)
         index = self.start + k
         self._cap.set(cv2.CAP_PROP_POS_FRAMES, index)
         if int(self._cap.get(cv2.CAP_PROP_POS_FRAMES)) != index:   # codec cannot seek: read through
             self._cap.release()
-            self._cap = cv2.VideoCapture(str(self.source.path))
+            self._cap = open_video(self.source.path)
             for _ in range(index):
                 if not self._cap.grab():
                     break

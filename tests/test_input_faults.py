@@ -7,6 +7,7 @@ wrong board size, a wrong marker count, an unreadable calibration view.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -189,6 +190,25 @@ def test_truncated_video_is_refused_with_both_counts(tmp_path, capsys):
         assert "motion.middle" in line and "129" in line and str(decodable) in line and "flash" not in line
 
 
+@pytest.mark.parametrize("size", [5000, 700000], ids=["header-only", "half"])
+def test_a_broken_video_is_one_line_on_the_terminal(tmp_path, size):
+    """The decoders' own complaints (FFmpeg's ``[mjpeg @ 0x...] overread``, OpenCV's MJPEG reader's
+    ``Unexpected element``, its backend warning) do not come before the error line: a new process, as a
+    user runs it (the decoders write to the terminal itself, not to Python's stderr)."""
+    import subprocess
+    import sys
+
+    root = copy_session(tmp_path)
+    video = root / "motion" / "middle.avi"
+    truncate(video, size)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("OPENCV_")}
+    run = subprocess.run([sys.executable, "-m", "horsemocap.cli", "analyze", str(root), "--out", str(tmp_path / "out")],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 2, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("horsemocap: error:") and "motion.middle" in lines[0], run.stderr
+
+
 def test_offsets_beyond_a_source_name_where_they_came_from(tmp_path, capsys):
     from horsemocap.session import check_frame_counts
 
@@ -346,11 +366,12 @@ def test_static_shot_with_one_point_too_many_names_markers_count():
     rig, images = _bundled_static()
     sv = det.match_still_views(images, rig, 4)
     assert sv.score.max() < 0.1
-    with pytest.raises(det.DetectionError, match=r"5 markers expected, but only 4 of the 8 consistent points look "
-                                                 r"like markers .*'markers.count'"):
+    with pytest.raises(det.DetectionError, match=r"5 points expected, but only 4 of the 8 consistent points look "
+                                                 r"like markers \(costs 0\.0\d\d, 0\.0\d\d, 0\.0\d\d, 0\.0\d\d\); "
+                                                 r"the 5th best .*'markers.count': 3$"):
         det.match_still_views(images, rig, 5)
     with pytest.raises(det.DetectionError, match=r"ambiguous.*4 of the 8 consistent points look like markers "
-                                                 r".*not 3: .*'markers.count'"):
+                                                 r".*not 3: .*'markers.count': 3$"):
         det.match_still_views(images, rig, 3)
 
 
@@ -362,6 +383,7 @@ def test_wrong_marker_count_fails_at_the_static_step_naming_the_field(tmp_path, 
     code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
     line = error_line(code, err)
     assert "step 'static'" in line and "markers.count" in line and "only 4" in line
+    assert line.endswith("its 4 points say 'markers.count': 3"), line     # the count to give, not only the field
 
 
 def test_reason_counts():

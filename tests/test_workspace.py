@@ -1,6 +1,8 @@
 """The session workspace: choices made with the notebooks' widgets carry to every later step."""
+import dataclasses
 import json
 import shutil
+from pathlib import Path
 
 import ipywidgets as W
 import numpy as np
@@ -126,6 +128,25 @@ def test_still_and_saddle_choices_are_checked_against_the_session():
         AnalysisParams.from_dict({"saddle_marker": 9}).check_session(session)
     with pytest.raises(ParamsError, match="calibration_exclude"):
         AnalysisParams.from_dict({"calibration_exclude": {"top": ["v.png"]}}).check_session(session)
+
+
+def test_views_left_out_are_named_by_key_or_file_and_checked_before_the_calibration():
+    """The bundled session's views are ``middle1.jpg`` ... ``middle45.jpg`` (keys ``1`` ... ``45``): either
+    name leaves a view out; a name that is no view is refused at once, with the views the camera has."""
+    from horsemocap.calibration.bundle import _usable
+    from horsemocap.calibration.board import views_from_corners
+
+    session = load_session(default_session_dir(), open_sources=False)
+    for given in (["middle5.jpg", "7"], ["middle5"]):
+        AnalysisParams.from_dict({"calibration_exclude": {"middle": given}}).check_session(session)
+    with pytest.raises(ParamsError, match=r"'rig.exclude'.*camera 'middle': cannot exclude unknown views "
+                                          r"\['middle55.jpg'\]; give a view's key or its file name \(its 45 views: "
+                                          r"1 \(middle1.jpg\), 2 \(middle2.jpg\), .*45 \(middle45.jpg\)\)"):
+        AnalysisParams.from_dict({"calibration_exclude": {"middle": ["middle55.jpg"]}}).check_session(session)
+    views = views_from_corners("middle", np.zeros((3, 4, 2)), (640, 480), (2, 2))
+    views = dataclasses.replace(views, files=tuple(Path(f"middle{k}.jpg") for k in ("01", "02", "03")))
+    used, reasons = _usable(views, ["middle02.jpg"])
+    assert used.tolist() == [True, False, True] and reasons[1] == "excluded"
 
 
 def test_step_keys_change_only_from_the_first_step_that_reads_a_parameter():

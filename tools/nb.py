@@ -136,6 +136,9 @@ def rewrite_sources(src: Path) -> tuple[Path, str]:
 
 if __name__ == "__main__":
     args = sys.argv[1:]
+    if {"-h", "--help"} & set(args):
+        print(__doc__)
+        sys.exit(0)
     sources_only = "--sources-only" in args
     args = [a for a in args if a != "--sources-only"]
     srcs = [Path(a) for a in args] or sorted((NB_DIR / "src").glob("*.py"))

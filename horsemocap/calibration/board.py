@@ -296,9 +296,54 @@ class BoardViews:
         """Boolean mask of views with a board."""
         return np.array([r == "" for r in self.reasons], bool)
 
+    def label(self, k: int) -> str:
+        """View ``k`` as a user names it: its key and, where it differs, its file (``"5 (middle5.jpg)"``)."""
+        return view_label(self.names[k], self.files[k])
+
     def missing(self) -> list[str]:
-        """``"name: reason"`` for every view where the board was not found."""
-        return [f"{n}: {r}" for n, r in zip(self.names, self.reasons) if r]
+        """``"name (file): reason"`` for every view where the board was not found."""
+        return [f"{self.label(k)}: {r}" for k, r in enumerate(self.reasons) if r]
+
+
+def view_label(key: str, file) -> str:
+    """A view's key, with its file's name where that is not the key itself.
+
+    Examples
+    --------
+    >>> view_label("5", "calib/middle/middle5.jpg"), view_label("view03", "calib/left/view03.png")
+    ('5 (middle5.jpg)', 'view03')
+    """
+    return key if file is None or Path(file).stem == key else f"{key} ({Path(file).name})"
+
+
+def excluded_view_keys(camera: str, keys, files, given) -> set:
+    """The keys of the views ``given`` names: each a view's key (``"5"``) or its file's name, with or without
+    its extension (``"middle5.jpg"``, ``"middle5"``), as a user reads it in the camera's folder.
+
+    Raises
+    ------
+    ValueError
+        A name that is no view of the camera, with the views it has.
+
+    Examples
+    --------
+    >>> files = ["calib/middle/middle4.jpg", "calib/middle/middle5.jpg"]
+    >>> sorted(excluded_view_keys("middle", view_keys(files, "middle"), files, ["middle5.jpg", "4"]))
+    ['4', '5']
+    """
+    names = {}
+    for key, f in zip(keys, files):
+        names.setdefault(key, key)
+        if f is not None:
+            names.setdefault(Path(f).name, key)
+            names.setdefault(Path(f).stem, key)
+    unknown = [g for g in given if g not in names]
+    if unknown:
+        shown = [view_label(k, f) for k, f in zip(keys, files)]
+        listed = ", ".join(shown if len(shown) <= 6 else shown[:5] + ["...", shown[-1]])
+        raise ValueError(f"camera {camera!r}: cannot exclude unknown views {sorted(unknown)}; give a view's key or "
+                         f"its file name (its {len(shown)} views: {listed})")
+    return {names[g] for g in given}
 
 
 def view_keys(files, camera: str | None = None) -> list[str]:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..camera import Camera, Rig, rotation_matrix, rotation_vector
 from ..threads import blas_single_threaded, opencv_single_threaded
-from .board import BoardViews, CalibrationError
+from .board import BoardViews, CalibrationError, excluded_view_keys
 
 #: Names of the 9 intrinsic parameters, in OpenCV's order.
 INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
@@ -107,11 +107,10 @@ class IntrinsicResult:
 
 
 def _usable(views: BoardViews, exclude) -> tuple[np.ndarray, list[str]]:
-    exclude = set(exclude or ())
-    unknown = exclude - set(views.names)
-    if unknown:
-        raise CalibrationError(f"camera {views.camera!r}: cannot exclude unknown views {sorted(unknown)}; "
-                               f"views are {list(views.names)}")
+    try:      # a view named by its key or by its file
+        exclude = excluded_view_keys(views.camera, views.names, views.files, list(exclude or ()))
+    except ValueError as exc:
+        raise CalibrationError(str(exc)) from None
     used, reasons = [], []
     for name, why in zip(views.names, views.reasons):
         if name in exclude:

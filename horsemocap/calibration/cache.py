@@ -413,6 +413,8 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
         if cam not in reused:
             _user_write(f"views-{ckeys[cam]}.json", {"format": CACHE_FORMAT, "views": _views_to_json(views[cam],
                                                                                                    ckeys[cam])})
+    for line in boards_not_found(views):
+        say(line)
     say("calibrating from checkerboard views ...")
     # the pairs' stereo calibrations (Table 8.4) are not part of a joint rig: not computed here
     # (``horsemocap calibrate`` reports them); the pairwise rig computes the pairs it needs
@@ -423,6 +425,27 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
     if write_to is not None:
         _write(Path(write_to), _record(key, reference, inner_corners, square_m, cal.rig, views, vkeys))
     return cal.rig, f"calibrated from checkerboard views ({mode})"
+
+
+def boards_not_found(views: dict, shown: int = 3) -> list[str]:
+    """One line per camera whose board was not found in every view: how many views have it, and the first
+    ``shown`` of those without, each with its reason (such a view is left out of the calibration).
+
+    Examples
+    --------
+    >>> from horsemocap.calibration.board import views_from_corners
+    >>> corners = np.zeros((3, 4, 2)); corners[1] = np.nan
+    >>> boards_not_found({"left": views_from_corners("left", corners, (640, 480), (2, 2))})
+    ["camera 'left': the board was found in 2 of 3 views; not in 02: board not found"]
+    """
+    lines = []
+    for cam, v in views.items():
+        lost = v.missing()
+        if lost:
+            more = f" and {len(lost) - shown} more" if len(lost) > shown else ""
+            lines.append(f"camera {cam!r}: the board was found in {len(v.names) - len(lost)} of {len(v.names)} "
+                         f"views; not in {'; '.join(lost[:shown])}{more}")
+    return lines
 
 
 def _record(key: str, reference: str, inner_corners, square_m: float, rig: Rig, views, vkeys: dict) -> dict:

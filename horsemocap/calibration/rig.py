@@ -146,7 +146,7 @@ def board_view_counter(progress, cam: str):
         return None
 
     def tick(done, total):
-        counter(progress, "rig", f"board corners in camera '{cam}' views", total)(done)
+        counter(progress, "rig", f"camera '{cam}': views searched for the board", total)(done)
     return tick
 
 

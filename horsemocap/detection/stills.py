@@ -372,6 +372,19 @@ _COUNT_HINT = ("is the number of markers right? (session field 'markers.count': 
                "markers.count + 1 points with the saddle marker, the plumb 2)")
 
 
+def _ordinal(k: int) -> str:
+    """``1st``, ``2nd``, ``3rd``, ``4th``, ... ``11th``, ``21st``."""
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
+
+
+def _count_from_points(points: int) -> str:
+    """What a still of ``points`` marker-like points says of ``markers.count`` (a static shot: the markers and
+    the saddle marker)."""
+    if points < 2:
+        return ""
+    return f"; if this is the static shot, its {points} points say 'markers.count': {points - 1}"
+
+
 def _check_count(score, best, M, cams) -> None:
     """Refuse a choice of ``M`` points of which one is a pseudo marker by its look (a wrong marker count).
 
@@ -392,11 +405,12 @@ def _check_count(score, best, M, cams) -> None:
     rest = np.sort(np.delete(score, best))
     worst, typical = chosen[-1], float(np.median(chosen[:-1]))
     if worst > _clearly(typical) and rest[0] < _clearly(worst):
-        alike = int(np.sum(score <= _clearly(typical)))
+        alike = np.sort(score[score <= _clearly(typical)])
         raise DetectionError(
-            f"still views: cameras {list(cams)}: {M} markers expected, but only {alike} of the {len(score)} "
-            f"consistent points look like markers (costs {', '.join(f'{v:.3f}' for v in chosen[:-1])}); "
-            f"the {M}th best costs {worst:.3f}, like the points left out ({rest[0]:.3f}...): {_COUNT_HINT}")
+            f"still views: cameras {list(cams)}: {M} points expected, but only {alike.size} of the {len(score)} "
+            f"consistent points look like markers (costs {', '.join(f'{v:.3f}' for v in alike)}); the "
+            f"{_ordinal(M)} best costs {worst:.3f}, like the points left out ({rest[0]:.3f}...): {_COUNT_HINT}"
+            f"{_count_from_points(alike.size)}")
 
 
 def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams | None = None, *,
@@ -513,7 +527,7 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
             alike = int(np.sum(score <= _clearly(np.median(score[combos[0]]))))   # as the markers chosen
             hint = (f"; {alike} of the {len(hyp)} consistent points look like markers (costs "
                     f"{', '.join(f'{v:.3f}' for v in np.sort(score)[:alike])}), not {M}: {_COUNT_HINT}"
-                    ) if alike != M else ""
+                    f"{_count_from_points(alike)}") if alike != M else ""
             raise DetectionError(
                 f"still views: cameras {list(cams)}: {len(hyp)} points are consistent in all cameras and the "
                 f"{M} markers among them are ambiguous (costs {cost[0]:.3f} vs {cost[1]:.3f}); "

@@ -76,5 +76,6 @@ def step_rig(session: Session, section: RigParams, progress, *, cache_dirs=(), b
         raise AnalysisError("rig", f"the rig has no camera {missing[0]!r} (it has {rig.names}); "
                                    f"check 'calibration' in {session.json_path}")
     rig = rig.subset(session.cameras)
-    progress("rig", how)
+    if "(cached in" not in how:          # a reused calibration has said where it came from
+        progress("rig", how)
     return RigResult(rig=rig, rig_from=how)
