@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import os
 import sys
 import tempfile
 import warnings
@@ -929,6 +930,9 @@ def main(argv=None) -> int:
     program = argv is None       # the command itself (not a call from Python): the process ends with it
     if program:
         gc.set_threshold(max(COMMAND_GC_ALLOCATIONS, gc.get_threshold()[0]), *gc.get_threshold()[1:])
+        # FFmpeg's own log lines ("[mjpeg @ 0x...] overread 4") would come before the one line that names a
+        # broken video: quiet unless the user sets the variable (read at the process's first video opened)
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)  # a bad option: argparse's usage line, exit status 2
     debug = bool(getattr(args, "debug", False))

@@ -1283,6 +1283,8 @@ def _check_excluded_views(exclude: dict, session, bad) -> None:
         if folder is None or not Path(folder).is_dir():
             continue                     # the calibration step names a missing folder
         files = list_images(folder)
+        if not files:
+            continue                     # the calibration step names a folder without images
         try:
             excluded_view_keys(cam, view_keys(files, cam), files, views)
         except ValueError as exc:

@@ -5,7 +5,6 @@ Thesis Appendix A spends pages renaming files so that MATLAB reads
 """
 from __future__ import annotations
 
-import os
 import re
 import threading
 from collections import OrderedDict
@@ -29,9 +28,6 @@ READ_BLOCK = 16
 #: search decodes the first frames of each video, the detection and its check read them again.
 SHARED_GRAY_BYTES = 160 * 2 ** 20
 
-#: FFmpeg's own log lines (``[mjpeg @ 0x...] overread 4``) would come before the one line that names a broken
-#: video and what is wrong with it: quiet, unless the user sets the variable (OpenCV reads it at the first open)
-os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 #: The backend that reads the videos: FFmpeg where OpenCV has it. The default order would try OpenCV's own
 #: MJPEG reader after FFmpeg fails on a broken file, and that reader prints its complaints to the terminal.
 VIDEO_BACKEND = cv2.CAP_FFMPEG if cv2.videoio_registry.hasBackend(cv2.CAP_FFMPEG) else cv2.CAP_ANY
@@ -49,9 +45,11 @@ def open_video(path) -> cv2.VideoCapture:
     (True, True)
     >>> cap.release()
     """
-    with _OPEN_LOCK:     # OpenCV's own warning of a file its backend cannot open would come before our error too
+    # OpenCV's own warning of a file its backend cannot open would come before our error too. The level is the
+    # process's: other threads' OpenCV warnings are held back while a video opens (the lock serialises the opens)
+    with _OPEN_LOCK:
         level = cv2.utils.logging.getLogLevel()
-        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+        cv2.utils.logging.setLogLevel(min(level, cv2.utils.logging.LOG_LEVEL_ERROR))   # never louder
         try:
             return cv2.VideoCapture(str(path), VIDEO_BACKEND)
         finally:

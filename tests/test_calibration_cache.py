@@ -303,3 +303,29 @@ def test_analyze_sets_the_blas_limit_in_the_main_thread_only(monkeypatch):
     assert analysis.rig is not None
     assert calls == [True]
     assert blas_single_threaded._inside == 0
+
+
+def test_the_rig_step_says_a_reused_calibration_once_and_keys_views_left_out_by_file_or_key(views_dirs, calls,
+                                                                                             tmp_path):
+    """A view left out by its file name (``01.png``) or by its key (``01``) is the same calibration: the second
+    run reuses the first's from calibration.json, and says so once (not again as where the rig came from)."""
+    from horsemocap.params import RigParams
+    from horsemocap.steps.rig import step_rig
+
+    session = SimpleNamespace(rig_path=None, calibration_images=views_dirs, reference_camera="left",
+                              cameras=("left", "right"), json_path=tmp_path / "session.json",
+                              board=SimpleNamespace(inner_corners=INNER, square_size_m=0.05))
+    out = tmp_path / "out"
+    out.mkdir()
+    runs = []
+    for given in ("01.png", "01"):
+        lines = []
+        step_rig(session, RigParams(exclude={"left": [given]}), lambda step, msg, *a: lines.append(msg),
+                 cache_dirs=[out])
+        runs.append(lines)
+    assert calls["calibrate"] == 1, runs                       # the same key: calibrated once
+    assert "views left out: left 01" in runs[0] and "views left out: left 01" in runs[1]
+    assert any(m.startswith("calibration reused from calibration.json") for m in runs[1]), runs[1]
+    assert not any("(cached in" in m for m in runs[1]), runs[1]
+    assert runs[0][-1] == "calibrated from checkerboard views (joint)"
+    assert any(m.startswith("camera 'left': the board was found in 2 of 3 views; not in 01") for m in runs[0])

@@ -366,13 +366,19 @@ def test_static_shot_with_one_point_too_many_names_markers_count():
     rig, images = _bundled_static()
     sv = det.match_still_views(images, rig, 4)
     assert sv.score.max() < 0.1
-    with pytest.raises(det.DetectionError, match=r"5 points expected, but only 4 of the 8 consistent points look "
-                                                 r"like markers \(costs 0\.0\d\d, 0\.0\d\d, 0\.0\d\d, 0\.0\d\d\); "
-                                                 r"the 5th best .*'markers.count': 3$"):
+    with pytest.raises(det.MarkerCountError, match=r"5 points expected, but only 4 of the 8 consistent points "
+                                                   r"look like markers \(costs 0\.0\d\d, 0\.0\d\d, 0\.0\d\d, "
+                                                   r"0\.0\d\d\); the 5th best .*'markers.count'") as exc:
         det.match_still_views(images, rig, 5)
-    with pytest.raises(det.DetectionError, match=r"ambiguous.*4 of the 8 consistent points look like markers "
-                                                 r".*not 3: .*'markers.count': 3$"):
+    assert exc.value.marker_like == 4
+    with pytest.raises(det.MarkerCountError, match=r"ambiguous.*4 of the 8 consistent points look like markers "
+                                                   r".*not 3: .*'markers.count'") as exc:
         det.match_still_views(images, rig, 3)
+    assert exc.value.marker_like == 4
+    # a plumb asked for its 2 points on the same still: no count advice (markers.count plays no part there)
+    with pytest.raises(det.MarkerCountError) as exc:
+        det.match_still_views(images, rig, 2)
+    assert "say 'markers.count'" not in str(exc.value)
 
 
 def test_wrong_marker_count_fails_at_the_static_step_naming_the_field(tmp_path, capsys):
@@ -383,7 +389,7 @@ def test_wrong_marker_count_fails_at_the_static_step_naming_the_field(tmp_path, 
     code, _, err = run_cli(["analyze", root, "--out", tmp_path / "out"], capsys)
     line = error_line(code, err)
     assert "step 'static'" in line and "markers.count" in line and "only 4" in line
-    assert line.endswith("its 4 points say 'markers.count': 3"), line     # the count to give, not only the field
+    assert line.endswith("the static shot's 4 marker-like points say 'markers.count': 3"), line   # the count to give
 
 
 def test_reason_counts():

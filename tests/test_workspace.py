@@ -134,7 +134,7 @@ def test_views_left_out_are_named_by_key_or_file_and_checked_before_the_calibrat
     """The bundled session's views are ``middle1.jpg`` ... ``middle45.jpg`` (keys ``1`` ... ``45``): either
     name leaves a view out; a name that is no view is refused at once, with the views the camera has."""
     from horsemocap.calibration.bundle import _usable
-    from horsemocap.calibration.board import views_from_corners
+    from horsemocap.calibration.board import excluded_view_keys, view_keys, views_from_corners
 
     session = load_session(default_session_dir(), open_sources=False)
     for given in (["middle5.jpg", "7"], ["middle5"]):
@@ -147,6 +147,10 @@ def test_views_left_out_are_named_by_key_or_file_and_checked_before_the_calibrat
     views = dataclasses.replace(views, files=tuple(Path(f"middle{k}.jpg") for k in ("01", "02", "03")))
     used, reasons = _usable(views, ["middle02.jpg"])
     assert used.tolist() == [True, False, True] and reasons[1] == "excluded"
+    # a file's stem that is another view's key names that view, not its own file's (keys come first)
+    files = ["c/middle5.jpg", "c/middlemiddle5.jpg"]
+    assert excluded_view_keys("middle", view_keys(files, "middle"), files, ["middle5"]) == {"middle5"}
+    assert excluded_view_keys("middle", view_keys(files, "middle"), files, ["middle5.jpg"]) == {"5"}
 
 
 def test_step_keys_change_only_from_the_first_step_that_reads_a_parameter():
@@ -311,10 +315,10 @@ def test_views_excluded_in_notebook_03_reach_the_calibration_step(monkeypatch):
         raise RuntimeError("stop after the call")
 
     monkeypatch.setattr(rig_step, "cached_calibration", fake_calibration)
-    params = AnalysisParams.from_dict({"recalibrate": True, "calibration_exclude": {"left": ["view03.png"]}})
+    params = AnalysisParams.from_dict({"recalibrate": True, "calibration_exclude": {"left": ["left3.jpg", "12"]}})
     with pytest.raises(RuntimeError, match="stop after the call"):
         step_rig(session, params.rig, lambda *a: None)
-    assert seen["exclude"] == {"left": ["view03.png"]}
+    assert seen["exclude"] == {"left": ["12", "3"]}         # each view by its key, however it was named
     with pytest.raises(RuntimeError):
         step_rig(session, AnalysisParams.from_dict({"recalibrate": True}).rig, lambda *a: None)
     assert seen["exclude"] is None

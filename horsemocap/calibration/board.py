@@ -331,9 +331,8 @@ def excluded_view_keys(camera: str, keys, files, given) -> set:
     >>> sorted(excluded_view_keys("middle", view_keys(files, "middle"), files, ["middle5.jpg", "4"]))
     ['4', '5']
     """
-    names = {}
+    names = {key: key for key in keys}          # a key first: a file's stem never takes another view's key
     for key, f in zip(keys, files):
-        names.setdefault(key, key)
         if f is not None:
             names.setdefault(Path(f).name, key)
             names.setdefault(Path(f).stem, key)
@@ -342,8 +341,36 @@ def excluded_view_keys(camera: str, keys, files, given) -> set:
         shown = [view_label(k, f) for k, f in zip(keys, files)]
         listed = ", ".join(shown if len(shown) <= 6 else shown[:5] + ["...", shown[-1]])
         raise ValueError(f"camera {camera!r}: cannot exclude unknown views {sorted(unknown)}; give a view's key or "
-                         f"its file name (its {len(shown)} views: {listed})")
+                         f"its file name (its {len(shown)} view{'s' if len(shown) != 1 else ''}: {listed})")
     return {names[g] for g in given}
+
+
+def exclusion_keys(image_dirs: dict, exclude: dict) -> dict:
+    """``exclude`` (camera -> views named by key or file, :func:`excluded_view_keys`) as camera -> the views'
+    sorted keys, read from each camera's folder of views: one spelling per view, so that the calibration's
+    cache key does not depend on how a view was named. A camera whose folder is missing keeps its names (the
+    calibration names the folder).
+
+    Examples
+    --------
+    >>> from horsemocap.data import default_session_dir
+    >>> views = {"middle": default_session_dir() / "calibration" / "middle"}
+    >>> exclusion_keys(views, {"middle": ["middle5.jpg", "12", "middle7"]})
+    {'middle': ['12', '5', '7']}
+    """
+    out = {}
+    for cam, given in exclude.items():
+        given = [given] if isinstance(given, str) else list(given)
+        folder = image_dirs.get(cam)
+        if folder is None or not Path(folder).is_dir():
+            out[cam] = sorted(given)
+            continue
+        files = list_images(folder)
+        try:
+            out[cam] = sorted(excluded_view_keys(cam, view_keys(files, cam), files, given))
+        except ValueError as exc:
+            raise CalibrationError(str(exc)) from None
+    return out
 
 
 def view_keys(files, camera: str | None = None) -> list[str]:

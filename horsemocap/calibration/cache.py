@@ -49,7 +49,7 @@ from ..data import cache_dir
 from ..fingerprint import file_digest, file_fingerprint
 from ..sources import list_images
 from ..store import atomic_write_text
-from .board import BoardViews, detect_cameras
+from .board import UNREADABLE, BoardViews, detect_cameras
 from .rig import board_view_counter, calibrate_rig
 
 CACHE_FILE = "calibration.json"
@@ -429,7 +429,8 @@ def cached_calibration(image_dirs: dict, inner_corners, square_m: float, referen
 
 def boards_not_found(views: dict, shown: int = 3) -> list[str]:
     """One line per camera whose board was not found in every view: how many views have it, and the first
-    ``shown`` of those without, each with its reason (such a view is left out of the calibration).
+    ``shown`` of those without, each with its reason (such a view is left out of the calibration). A view
+    whose file cannot be read is said by :func:`~.rig.unreadable_views`, not here.
 
     Examples
     --------
@@ -440,10 +441,10 @@ def boards_not_found(views: dict, shown: int = 3) -> list[str]:
     """
     lines = []
     for cam, v in views.items():
-        lost = v.missing()
+        lost = [m for m, r in zip(v.missing(), [r for r in v.reasons if r]) if not r.startswith(UNREADABLE)]
         if lost:
             more = f" and {len(lost) - shown} more" if len(lost) > shown else ""
-            lines.append(f"camera {cam!r}: the board was found in {len(v.names) - len(lost)} of {len(v.names)} "
+            lines.append(f"camera {cam!r}: the board was found in {int(v.found.sum())} of {len(v.names)} "
                          f"views; not in {'; '.join(lost[:shown])}{more}")
     return lines
 

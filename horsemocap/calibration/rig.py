@@ -134,7 +134,7 @@ def _exclusions(exclude, cameras) -> dict:
         unknown = set(exclude) - set(cameras)
         if unknown:
             raise CalibrationError(f"exclude names unknown cameras {sorted(unknown)}; cameras are {list(cameras)}")
-        return {c: set(exclude.get(c, ())) for c in cameras}
+        return {c: {v} if isinstance(v, str) else set(v) for c in cameras for v in [exclude.get(c, ())]}
     if isinstance(exclude, str):
         exclude = [exclude]
     return {c: set(exclude) for c in cameras}
@@ -189,7 +189,8 @@ def calibrate_rig(image_dirs: dict, inner_corners=(15, 29), square_m: float = 0.
     reference : str
         The camera whose frame is the world frame (thesis: left, ``CM_L``).
     exclude : None, iterable of str, or dict[str, iterable of str]
-        Views left out (by name): for every camera, or per camera.
+        Views left out, each by its key or its file's name (:func:`~.board.excluded_view_keys`): for every
+        camera, or per camera.
     fix_k3 : bool
         Keep ``k3 = 0`` (the thesis' and the toolbox's default).
     views : dict[str, BoardViews], optional

@@ -94,8 +94,8 @@ from .gaps import bridge_gaps, default_max_gap
 from .marker_model import fit_marker_model, label_frame
 from .markers2d import marker_label, markers_2d_csv_text, markers_2d_rows, write_markers_2d_csv
 from .matching import match_views
-from .stills import (StillCandidates, StillViews, detect_still, detect_still_views, match_still_views,
-                     still_candidates)
+from .stills import (MarkerCountError, StillCandidates, StillViews, detect_still, detect_still_views,
+                     match_still_views, still_candidates)
 from .thesis_chain import (CandidateCache, choose_markers, cluster_persistence, detect_markers, follow_cluster,
                            usable_frames, valid_frames)
 from .thresholds import auto_threshold, binarize, otsu3_thresholds, otsu_threshold, to_gray
@@ -107,7 +107,7 @@ ACTIVE_PATH = "python"
 
 __all__ = [
     "ACTIVE_PATH",
-    "REASONS", "DetectionError", "DetectionParams", "MarkerTrack", "Regions",
+    "REASONS", "DetectionError", "MarkerCountError", "DetectionParams", "MarkerTrack", "Regions",
     "GENERIC_AREA", "AUTO_MIN_CIRCULARITY",
     "to_gray", "binarize", "otsu_threshold", "otsu3_thresholds", "auto_threshold",
     "label_regions", "region_circularity", "filter_area", "filter_circularity",

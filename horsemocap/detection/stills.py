@@ -377,12 +377,22 @@ def _ordinal(k: int) -> str:
     return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
 
 
-def _count_from_points(points: int) -> str:
-    """What a still of ``points`` marker-like points says of ``markers.count`` (a static shot: the markers and
-    the saddle marker)."""
-    if points < 2:
-        return ""
-    return f"; if this is the static shot, its {points} points say 'markers.count': {points - 1}"
+class MarkerCountError(DetectionError):
+    """A still whose marker-like points are not as many as asked for: most likely a wrong ``markers.count``.
+
+    ``marker_like``: how many of the points consistent in every camera look like markers (the static step
+    turns it into the count to give: the markers and the saddle marker).
+
+    Examples
+    --------
+    >>> err = MarkerCountError("still views: 5 points expected, but only 4 ...", 4)
+    >>> isinstance(err, DetectionError), err.marker_like
+    (True, 4)
+    """
+
+    def __init__(self, message: str, marker_like: int):
+        super().__init__(message)
+        self.marker_like = int(marker_like)
 
 
 def _check_count(score, best, M, cams) -> None:
@@ -406,11 +416,11 @@ def _check_count(score, best, M, cams) -> None:
     worst, typical = chosen[-1], float(np.median(chosen[:-1]))
     if worst > _clearly(typical) and rest[0] < _clearly(worst):
         alike = np.sort(score[score <= _clearly(typical)])
-        raise DetectionError(
+        raise MarkerCountError(
             f"still views: cameras {list(cams)}: {M} points expected, but only {alike.size} of the {len(score)} "
             f"consistent points look like markers (costs {', '.join(f'{v:.3f}' for v in alike)}); the "
-            f"{_ordinal(M)} best costs {worst:.3f}, like the points left out ({rest[0]:.3f}...): {_COUNT_HINT}"
-            f"{_count_from_points(alike.size)}")
+            f"{_ordinal(M)} best costs {worst:.3f}, like the points left out ({rest[0]:.3f}...): {_COUNT_HINT}",
+            alike.size)
 
 
 def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams | None = None, *,
@@ -527,11 +537,11 @@ def match_still_views(images: dict, rig, n_markers: int, params: DetectionParams
             alike = int(np.sum(score <= _clearly(np.median(score[combos[0]]))))   # as the markers chosen
             hint = (f"; {alike} of the {len(hyp)} consistent points look like markers (costs "
                     f"{', '.join(f'{v:.3f}' for v in np.sort(score)[:alike])}), not {M}: {_COUNT_HINT}"
-                    f"{_count_from_points(alike)}") if alike != M else ""
-            raise DetectionError(
-                f"still views: cameras {list(cams)}: {len(hyp)} points are consistent in all cameras and the "
-                f"{M} markers among them are ambiguous (costs {cost[0]:.3f} vs {cost[1]:.3f}); "
-                f"give an area range or a threshold (candidates {counts}){hint}")
+                    ) if alike != M else ""
+            message = (f"still views: cameras {list(cams)}: {len(hyp)} points are consistent in all cameras and the "
+                       f"{M} markers among them are ambiguous (costs {cost[0]:.3f} vs {cost[1]:.3f}); "
+                       f"give an area range or a threshold (candidates {counts}){hint}")
+            raise MarkerCountError(message, alike) if alike != M else DetectionError(message)
     best = combos[0]
     _check_count(score, best, M, cams)
     ref_px = rig[cams[0]].project(X[best])           # a point the reference camera misses is ordered too

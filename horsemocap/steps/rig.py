@@ -4,6 +4,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from ..calibration.board import exclusion_keys
 from ..calibration.cache import cached_calibration
 from ..camera import Rig, read_rig
 from ..params import RigParams
@@ -61,7 +62,8 @@ def step_rig(session: Session, section: RigParams, progress, *, cache_dirs=(), b
         rig, how = read_rig(session.rig_path), f"read {session.rig_path.name}"
     elif session.calibration_images is not None:
         cache_dirs = [d for d in cache_dirs if d is not None]
-        exclude = {c: list(v) for c, v in section.exclude.items()} or None
+        # one spelling per view (its key), whether given by key or by file: the calibration's cache key
+        exclude = exclusion_keys(session.calibration_images, section.exclude) or None
         if exclude:
             progress("rig", "views left out: " + "; ".join(f"{c} {', '.join(v)}" for c, v in exclude.items()))
         rig, how = cached_calibration(session.calibration_images, session.board.inner_corners,

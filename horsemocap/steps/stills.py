@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..camera import Rig
-from ..detection import DetectionParams, detect_still, detect_still_views
+from ..detection import DetectionParams, MarkerCountError, detect_still, detect_still_views
 from ..frames import gravity_from_plumb
 from ..params import StillsParams
 from ..reconstruction import triangulate
@@ -368,8 +368,22 @@ def still_points(session: Session, rig: Rig, images: dict, count: int, step: str
         px = _still_px({c: read_image(images[c]) for c in session.cameras}, rig, count, given)
     except ValueError as exc:
         files = ", ".join(str(images[c]) for c in session.cameras)
-        raise AnalysisError(step, f"{files}: {exc}") from None
+        raise AnalysisError(step, f"{files}: {exc}{_count_said(exc, step)}") from None
     return triangulate(rig, {c: p[None] for c, p in px.items()}, mode=mode).points[0], px
+
+
+def _count_said(exc: Exception, step: str) -> str:
+    """For the static shot, the ``markers.count`` its marker-like points give (the markers and the saddle
+    marker), when the detection found another number of them (:class:`MarkerCountError`); else nothing.
+
+    Examples
+    --------
+    >>> _count_said(MarkerCountError("...", 4), "static"), _count_said(MarkerCountError("...", 4), "plumb")
+    ("; the static shot's 4 marker-like points say 'markers.count': 3", '')
+    """
+    if step != "static" or not isinstance(exc, MarkerCountError) or exc.marker_like < 2:
+        return ""
+    return f"; the static shot's {exc.marker_like} marker-like points say 'markers.count': {exc.marker_like - 1}"
 
 
 def _still_px(images: dict, rig: Rig, count: int, given: dict | None) -> dict:
