@@ -125,6 +125,9 @@ with warnings.catch_warnings():
     run = pipeline.run_steps(an.session, chosen, an, ["rigid_body"])
 res = run.rigid_body.body
 view = thesis_view(res)                              # the pipeline's own arrays when its chain ran
+# what the comfort step receives: the smoothed pose trajectory's saddle (the default) or a fit of the chain
+passed_on = ("the pipeline's pose trajectory" if chosen.rigid_body.kinematics == "pose_spline"
+             else f"fit of the saddle path ({res.saddle_method})")
 if not view.chain:
     print(view.note)
 if truth is None:
@@ -134,7 +137,7 @@ else:
     st = accuracy.stage_errors(run, truth)
     print("saddle position (eq. 6.48) RMSE x/y/z (mm): "
           + "  ".join(f"{1000 * e:.1f}" for e in frames.rmse_per_axis(view.saddle.position, S_true["pos"])))
-    print(f"saddle path passed on ({res.saddle_method}) RMSE x/y/z (mm): "
+    print(f"saddle passed on ({passed_on}) RMSE x/y/z (mm): "
           + "  ".join(f"{1000 * e:.1f}" for e in st["saddle_position"]))
 print("per-base position versions agree (to 1e-9 m):",
       bool(np.abs(view.saddle.position_versions - view.saddle.position).max() < 1e-9))
@@ -159,13 +162,19 @@ plt.show()
 # 10 could not measure), and the saddle sits 0.45 m from that row.
 #
 # Figures 8.23-8.24: velocity and acceleration from each marker (eq. 6.54, 6.55), their mean, the fit of the
-# saddle path, and the truth. Without the thesis' fits: eq. 6.54/6.55 on markers 1, 2, 3 of the smoothed pose,
-# beside the pipeline's own saddle (no fit of the saddle path).
+# saddle path, the saddle the comfort step receives (the pipeline's pose trajectory, by default), and the
+# truth. The thesis' fit of the saddle path models the forward motion x as a polynomial in time (section
+# 5.5.2.1, degree `x_degree`, 1: a line), so its forward velocity is constant and its forward acceleration zero,
+# while the horse surges at every stride; y and z are its Fourier series. Without the thesis' fits: eq.
+# 6.54/6.55 on markers 1, 2, 3 of the smoothed pose, beside the pipeline's own saddle.
 
 # %%
+extra = {view.saddle_fit_label: (view.saddle_fit_velocity, view.saddle_fit_acceleration)}
+if view.chain and chosen.rigid_body.kinematics == "pose_spline":   # the saddle passed on is not the chain's
+    extra[f"{passed_on} (passed on)"] = (run.rigid_body.saddle_velocity, run.rigid_body.saddle_acceleration)
 fig = plots.plot_saddle_kinematics(t, view.saddle.velocity_versions, view.saddle.acceleration_versions,
                                    view.saddle.velocity, view.saddle.acceleration, S_true["vel"], S_true["acc"],
-                                   extra={view.saddle_fit_label: (view.saddle_fit_velocity, view.saddle_fit_acceleration)})
+                                   extra=extra)
 plt.show()
 
 # %% [markdown]

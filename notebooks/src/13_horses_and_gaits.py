@@ -56,8 +56,12 @@ print(f"{'overall':13s}" + "".join(f"{x:9.4f}" for x in overall))
 # analyses those whose results are missing or out of date (about 15 s each on two cores). On two
 # cores the first run takes about 16 minutes (12 of rendering, 4 of analysis); with every session
 # rendered, about 4 minutes. A progress line with the time left is printed below the cell while it
-# runs. Run again, it finds every result in place and only reads the table (a few seconds). The table lives in the notebooks' results folder
+# runs (the coloured block: progress, not an error; the stored notebook keeps the one of its first run).
+# Run again, it finds every result in place and only reads the table (a few seconds). The table lives in the notebooks' results folder
 # (`$HORSEMOCAP_RESULTS`, default `~/.cache/horsemocap/results`), outside the repository.
+# Every session ends with the verdict `warning`: the thesis' three markers make a thin triangle on every
+# horse, and the check `marker_geometry` says so (the `quality.json` of each session in the batch folder has
+# the check's message); none is `unreliable` and none failed.
 
 # %%
 BATCH = results_root() / "herd_batch"
