@@ -31,7 +31,9 @@ class ViewBrowser(ControlText, w.VBox):
     def __init__(self, result, camera: str | None = None, which: str = "alone"):
         self.result = result
         self.camera = ui_camera(result.cameras, camera)
-        self.view = w.IntSlider(value=0, min=0, max=len(result.view_names) - 1, description="view")
+        # the slider reads the view's own name (its key, as the label and the files say), its value the index
+        self.view = w.SelectionSlider(options=[(name, k) for k, name in enumerate(result.view_names)], value=0,
+                                      description="view")
         self.which = w.ToggleButtons(options=["alone", "joint"], value=which if result.joint else "alone",
                                      description="calibration", style={"button_width": "auto", "description_width": "initial"})
         self.zoom = w.IntSlider(value=0, min=0, max=200, step=10, description="zoom (px)", style={"description_width": "initial"})
