@@ -31,6 +31,7 @@ import hashlib
 import json
 import os
 import re
+import textwrap
 from pathlib import Path
 
 try:  # POSIX
@@ -680,5 +681,23 @@ def downstream_text(session_dir=None, chains=("default", "thesis"), problems: bo
     if problems:
         for r in rows:
             for msg in r.get("problems", []):
-                lines.append(f"  {CHAIN_NAMES[r['chain']]}: {msg}")
+                lines += problem_lines(f"{CHAIN_NAMES[r['chain']]}: {msg}")
     return "\n".join(lines)
+
+
+#: The width (characters) of a check's message in :func:`downstream_text`: JupyterLab's output area breaks a
+#: longer line wherever the pane ends, in the middle of a word.
+PROBLEM_WIDTH = 110
+
+
+def problem_lines(message: str, width: int = PROBLEM_WIDTH) -> list:
+    """A check's message as lines of at most ``width`` characters, broken between words, indented under the
+    table (the first line by two spaces, the rest by four).
+
+    Examples
+    --------
+    >>> problem_lines("the thesis' chain: warning: thin marker triangle: smallest height 66 mm", width=40)
+    ["  the thesis' chain: warning: thin", '    marker triangle: smallest height 66', '    mm']
+    """
+    return textwrap.wrap(message, width=width, initial_indent="  ", subsequent_indent="    ",
+                         break_long_words=False, break_on_hyphens=False)

@@ -424,3 +424,17 @@ def test_two_sessions_with_one_name_keep_apart(store, tmp_path):
     wsm.set_choice(default_session_dir(), "detection.left.threshold", 140)
     assert wsm.read_choices(default_session_dir()) == {"detection": {"left": {"threshold": 140}}}
     assert wsm.read_choices(copy) == {}
+
+
+def test_a_checks_message_under_the_downstream_table_is_broken_between_words():
+    """JupyterLab's output area breaks a long line mid-word where the pane ends: the messages come pre-wrapped,
+    every line within the width, no word cut, nothing lost."""
+    from horsemocap.workspace import PROBLEM_WIDTH, problem_lines
+
+    msg = ("the thesis' chain: unreliable: the still's pixel noise (0.0433 px, measured on the moving frames) places "
+           "the saddle with standard deviations 2.1, 6.4 and 31.1 mm; carried through the chain that wrote the "
+           "acceleration, that is 12.3 % of the written vertical acceleration's rms: 'pose_spline' smoothing")
+    lines = problem_lines(msg)
+    assert len(lines) > 1 and all(len(line) <= PROBLEM_WIDTH for line in lines)
+    assert lines[0].startswith("  the thesis'") and all(line.startswith("    ") for line in lines[1:])
+    assert " ".join(line.strip() for line in lines) == msg
