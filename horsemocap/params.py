@@ -1271,24 +1271,16 @@ def _check_offsets(value, f):
 def _check_excluded_views(exclude: dict, session, bad) -> None:
     """Every view left out of the calibration is one of its camera's checkerboard views (a key or a file name):
     said before any view is detected."""
-    folders = (getattr(session, "calibration_images", None) or {}) if exclude else {}
-    if not any(folders.get(cam) is not None and Path(folders[cam]).is_dir() for cam in exclude):
+    folders = getattr(session, "calibration_images", None) or {}
+    if not exclude or not folders:
         return
     # imported here: the board module loads OpenCV, which a session without views left out need not wait for
-    from .calibration.board import excluded_view_keys, view_keys
-    from .sources import list_images
+    from .calibration.board import CalibrationError, exclusion_keys
 
-    for cam, views in exclude.items():
-        folder = folders.get(cam)
-        if folder is None or not Path(folder).is_dir():
-            continue                     # the calibration step names a missing folder
-        files = list_images(folder)
-        if not files:
-            continue                     # the calibration step names a folder without images
-        try:
-            excluded_view_keys(cam, view_keys(files, cam), files, views)
-        except ValueError as exc:
-            raise bad("rig.exclude", f"{exc} in {folder}") from None
+    try:
+        exclusion_keys(folders, exclude)
+    except CalibrationError as exc:
+        raise bad("rig.exclude", str(exc)) from None
 
 
 def _check_exclude(value, f):

@@ -2197,16 +2197,15 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
     lam = tuple(float(info[c]["lam"]) if method != "adaptive" and info[c].get("lam") is not None
                 and np.isfinite(info[c]["lam"]) and info[c]["lam"] > 0 else None for c in names)
     harmonics = tuple(int(max(info[c].get("harmonic_indices") or [0])) if f0 is not None else 0 for c in names)
-    weighted = tuple(info[c].get("weights", "equal") != "equal" for c in names[3:])
+    weighted = _weighted_rotation(info[c] for c in names[3:])
     harmonic_lam = weights = harmonic_weighted = None
     if blended and f0 is not None:
         # a blend of two fits: each route's parameters, rotation weighting and the harmonic route's weight, reused
         lam = tuple(float(info[c]["blended"]["plain"]["lam"]) for c in names)
         harmonic_lam = tuple(float(info[c]["blended"]["harmonics"]["lam"]) for c in names)
         weights = tuple(float(info[c]["blend_weights"][1]) for c in names)
-        weighted = tuple((info[c]["blended"]["plain"].get("weights") or "equal") != "equal" for c in names[3:])
-        harmonic_weighted = tuple((info[c]["blended"]["harmonics"].get("weights") or "equal") != "equal"
-                                  for c in names[3:])
+        weighted = _weighted_rotation(info[c]["blended"]["plain"] for c in names[3:])
+        harmonic_weighted = _weighted_rotation(info[c]["blended"]["harmonics"] for c in names[3:])
     elif f0 is not None and rho is not None and not choice.get("correlated_harmonics"):
         # the left-out choice's fits with the stride's harmonics are white-noise fits: the harmonic route's
         # parameters are reused as such (the correlated-error refit with harmonics keeps its correlation)
@@ -2225,6 +2224,11 @@ def settle_pose_smoothing(trajectory: PoseTrajectory, params: PoseParams = PoseP
             kept["correlated_harmonics"] = True
     return SettledPoseSmoothing(method, rho, f0, lam, harmonics, weighted, kept, harmonic_lam, weights,
                                 harmonic_weighted)
+
+
+def _weighted_rotation(infos) -> tuple:
+    """Per rotation component's fit ``info``, whether its frames were weighted by their predicted variances."""
+    return tuple((i.get("weights") or "equal") != "equal" for i in infos)
 
 
 def _check_smoothing_choices(params: PoseParams, lam) -> list:

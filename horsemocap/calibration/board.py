@@ -348,8 +348,8 @@ def excluded_view_keys(camera: str, keys, files, given) -> set:
 def exclusion_keys(image_dirs: dict, exclude: dict) -> dict:
     """``exclude`` (camera -> views named by key or file, :func:`excluded_view_keys`) as camera -> the views'
     sorted keys, read from each camera's folder of views: one spelling per view, so that the calibration's
-    cache key does not depend on how a view was named. A camera whose folder is missing keeps its names (the
-    calibration names the folder).
+    cache key does not depend on how a view was named. A camera whose folder is missing or holds no image keeps
+    its names (the calibration names the folder).
 
     Examples
     --------
@@ -362,14 +362,14 @@ def exclusion_keys(image_dirs: dict, exclude: dict) -> dict:
     for cam, given in exclude.items():
         given = [given] if isinstance(given, str) else list(given)
         folder = image_dirs.get(cam)
-        if folder is None or not Path(folder).is_dir():
+        files = list_images(folder) if folder is not None and Path(folder).is_dir() else []
+        if not files:
             out[cam] = sorted(given)
             continue
-        files = list_images(folder)
         try:
             out[cam] = sorted(excluded_view_keys(cam, view_keys(files, cam), files, given))
         except ValueError as exc:
-            raise CalibrationError(str(exc)) from None
+            raise CalibrationError(f"{exc} in {folder}") from None
     return out
 
 

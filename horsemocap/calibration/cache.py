@@ -441,7 +441,7 @@ def boards_not_found(views: dict, shown: int = 3) -> list[str]:
     """
     lines = []
     for cam, v in views.items():
-        lost = [m for m, r in zip(v.missing(), [r for r in v.reasons if r]) if not r.startswith(UNREADABLE)]
+        lost = [f"{v.label(k)}: {r}" for k, r in enumerate(v.reasons) if r and not r.startswith(UNREADABLE)]
         if lost:
             more = f" and {len(lost) - shown} more" if len(lost) > shown else ""
             lines.append(f"camera {cam!r}: the board was found in {int(v.found.sum())} of {len(v.names)} "

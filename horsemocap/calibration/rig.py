@@ -134,10 +134,13 @@ def _exclusions(exclude, cameras) -> dict:
         unknown = set(exclude) - set(cameras)
         if unknown:
             raise CalibrationError(f"exclude names unknown cameras {sorted(unknown)}; cameras are {list(cameras)}")
-        return {c: {v} if isinstance(v, str) else set(v) for c in cameras for v in [exclude.get(c, ())]}
-    if isinstance(exclude, str):
-        exclude = [exclude]
-    return {c: set(exclude) for c in cameras}
+        return {c: _view_set(exclude.get(c, ())) for c in cameras}
+    return {c: _view_set(exclude) for c in cameras}
+
+
+def _view_set(views) -> set:
+    """Views given as one name or several."""
+    return {views} if isinstance(views, str) else set(views)
 
 
 def board_view_counter(progress, cam: str):

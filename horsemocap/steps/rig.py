@@ -37,7 +37,23 @@ class RigResult(StepResult):
         >>> RigResult(Rig(()), "calibrated from checkerboard views (cached in calibration.json)").origin("joint")
         'calibrated from checkerboard views (joint)'
         """
-        return re.sub(r" \(cached in [^)]*\)", f" ({mode})", self.rig_from)
+        return _CACHED.sub(f" ({mode})", self.rig_from)
+
+    @property
+    def reused(self) -> bool:
+        """Whether a cached calibration served the rig (its reuse said where it came from).
+
+        Examples
+        --------
+        >>> from horsemocap.camera import Rig
+        >>> RigResult(Rig(()), "calibrated from checkerboard views (cached in calibration.json)").reused
+        True
+        """
+        return bool(_CACHED.search(self.rig_from))
+
+
+#: What :func:`horsemocap.calibration.cache.cached_calibration` adds to a rig's origin when a cache served it.
+_CACHED = re.compile(r" \(cached in [^)]*\)")
 
 
 def step_rig(session: Session, section: RigParams, progress, *, cache_dirs=(), board_views=None) -> RigResult:
@@ -77,7 +93,7 @@ def step_rig(session: Session, section: RigParams, progress, *, cache_dirs=(), b
     if missing:
         raise AnalysisError("rig", f"the rig has no camera {missing[0]!r} (it has {rig.names}); "
                                    f"check 'calibration' in {session.json_path}")
-    rig = rig.subset(session.cameras)
-    if "(cached in" not in how:          # a reused calibration has said where it came from
+    result = RigResult(rig=rig.subset(session.cameras), rig_from=how)
+    if not result.reused:                # a reused calibration has said where it came from
         progress("rig", how)
-    return RigResult(rig=rig, rig_from=how)
+    return result
